@@ -1,0 +1,209 @@
+//! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
+//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, and the null (index-matched)
+//! boundary that only separates media.
+//!
+//! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
+//! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
+//! without the cosine. Singular (delta) lobes return `value = weight * pdf / |cos wi|`, so that
+//! `value * |cos wi| / pdf` is the path weight, as every regular lobe.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+use crate::math::{warp, Frame};
+use crate::spectrum::Rgb;
+
+/// Which quantity a path carries: radiance (eye paths) or importance (light paths, the adjoint
+/// BSDF f*_s). Only refraction differs (the eta^2 factor, Kristensen 2010 eq. 2.9).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    Radiance,
+    Importance,
+}
+
+/// The scattering mode of a sampled direction (Pauly et al. sec. 5.2: perturbations keep modes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lobe {
+    /// A smooth (regular) lobe with a density over solid angle.
+    Regular,
+    /// A Dirac reflection.
+    SingularReflection,
+    /// A Dirac transmission (refraction).
+    SingularTransmission,
+}
+
+impl Lobe {
+    pub fn is_singular(self) -> bool {
+        self != Lobe::Regular
+    }
+}
+
+/// A sampled direction with the BSDF value and the density that produced it.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    pub wi: Vec3,
+    /// f_s(wo, wi) (see the module note on singular lobes).
+    pub value: Rgb,
+    /// Solid-angle density for regular lobes, discrete probability for singular ones.
+    pub pdf: f32,
+    pub lobe: Lobe,
+}
+
+impl BsdfSample {
+    /// value * |cos wi| / pdf: the factor the path throughput is multiplied by.
+    #[inline]
+    pub fn weight(&self, n: Vec3) -> Rgb {
+        self.value * (self.wi.dot(n).abs() / self.pdf)
+    }
+}
+
+/// The closed set of surface models.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Bsdf {
+    /// rho / pi on both sides.
+    Lambert { albedo: Rgb },
+    /// A perfect mirror with a constant reflectance.
+    Mirror { reflectance: Rgb },
+    /// A smooth dielectric interface; `ior` is inside (behind the normal) over outside.
+    Dielectric { ior: f32 },
+    /// An index-matched boundary: light passes unchanged. Never a scattering vertex.
+    Null,
+}
+
+/// Fresnel reflectance of an unpolarized wave for a dielectric interface. `cos_i` is measured on
+/// the side the light arrives from, `eta` = eta_transmitted / eta_incident.
+// ANCHOR: fresnel
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0; // total internal reflection
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_par * r_par + r_perp * r_perp)
+}
+// ANCHOR_END: fresnel
+
+/// Mirror `w` about `n`.
+#[inline]
+pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
+    2.0 * w.dot(n) * n - w
+}
+
+impl Bsdf {
+    /// True for the null boundary, which is skipped by tracing rather than scattered at.
+    pub fn is_null(&self) -> bool {
+        matches!(self, Bsdf::Null)
+    }
+
+    /// True when every lobe is singular (no light sampling at such a vertex).
+    pub fn is_singular(&self) -> bool {
+        matches!(self, Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null)
+    }
+
+    /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction).
+    // ANCHOR: bsdf_eval
+    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
+        match self {
+            Bsdf::Lambert { albedo } => {
+                // two-sided: reflection only, whichever side wo is on
+                if wo.dot(n) * wi.dot(n) > 0.0 {
+                    *albedo * FRAC_1_PI
+                } else {
+                    Rgb::ZERO
+                }
+            }
+            _ => Rgb::ZERO,
+        }
+    }
+    // ANCHOR_END: bsdf_eval
+
+    /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (zero for singular lobes).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        match self {
+            Bsdf::Lambert { .. } => {
+                if wo.dot(n) * wi.dot(n) > 0.0 {
+                    wi.dot(n).abs() * FRAC_1_PI
+                } else {
+                    0.0
+                }
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Samples `wi` given `wo`. `None` when no direction can be produced.
+    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32, mode: TransportMode) -> Option<BsdfSample> {
+        let cos_o = wo.dot(n);
+        if cos_o == 0.0 {
+            return None;
+        }
+        // the normal on wo's side
+        let nf = if cos_o > 0.0 { n } else { -n };
+        match self {
+            Bsdf::Lambert { albedo } => {
+                let local = warp::cosine_hemisphere(u);
+                if local.z <= 0.0 {
+                    return None;
+                }
+                let wi = Frame::from_normal(nf).to_world(local);
+                Some(BsdfSample {
+                    wi,
+                    value: *albedo * FRAC_1_PI,
+                    pdf: local.z * FRAC_1_PI,
+                    lobe: Lobe::Regular,
+                })
+            }
+            Bsdf::Mirror { reflectance } => {
+                let wi = reflect(wo, nf);
+                let c = wi.dot(nf).abs();
+                Some(BsdfSample {
+                    wi,
+                    value: *reflectance / c,
+                    pdf: 1.0,
+                    lobe: Lobe::SingularReflection,
+                })
+            }
+            Bsdf::Dielectric { ior } => {
+                // eta = eta_i / eta_t for light going from wo's side into the other side
+                let entering = cos_o > 0.0;
+                let (eta_o, eta_t) = if entering { (1.0, *ior) } else { (*ior, 1.0) };
+                let cos_i = cos_o.abs();
+                let f = fresnel_dielectric(cos_i, eta_t / eta_o);
+                if uc < f {
+                    let wi = reflect(wo, nf);
+                    Some(BsdfSample {
+                        wi,
+                        value: Rgb::splat(f / cos_i),
+                        pdf: f,
+                        lobe: Lobe::SingularReflection,
+                    })
+                } else {
+                    let eta = eta_o / eta_t;
+                    let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+                    if sin2_t >= 1.0 {
+                        return None;
+                    }
+                    let cos_t = (1.0 - sin2_t).sqrt();
+                    let wi = -eta * wo + (eta * cos_i - cos_t) * nf;
+                    let wi = wi.normalize();
+                    // radiance is scaled by (eta_wi_side / eta_wo_side)^2 ... the radiance that
+                    // reaches wo from wi's medium is divided by (eta_t/eta_o)^2 in radiance mode
+                    let scale = match mode {
+                        TransportMode::Radiance => (eta_o / eta_t) * (eta_o / eta_t),
+                        TransportMode::Importance => 1.0,
+                    };
+                    Some(BsdfSample {
+                        wi,
+                        value: Rgb::splat((1.0 - f) * scale / cos_t),
+                        pdf: 1.0 - f,
+                        lobe: Lobe::SingularTransmission,
+                    })
+                }
+            }
+            Bsdf::Null => None,
+        }
+    }
+}

@@ -1,0 +1,45 @@
+//! The command line: one file per subcommand. Progress goes to stderr, results to stdout.
+
+pub mod diff;
+pub mod info;
+pub mod render;
+
+use clap::{Parser, Subcommand};
+
+/// pathspace: light transport in participating media, executable.
+#[derive(Parser, Debug)]
+#[command(name = "pathspace", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a scene (default: the embedded fog box).
+    Render(render::RenderArgs),
+    /// Compare two EXR images: RMSE, relMSE, means, max abs difference.
+    Diff(diff::DiffArgs),
+    /// Validate a scene and print what it contains.
+    Info(info::InfoArgs),
+}
+
+/// Runs the command line; returns the process exit code.
+pub fn run(cli: Cli) -> Result<(), String> {
+    match cli.command {
+        None => render::run(render::RenderArgs::default()),
+        Some(Command::Render(a)) => render::run(a),
+        Some(Command::Diff(a)) => diff::run(a),
+        Some(Command::Info(a)) => info::run(a),
+    }
+}
+
+/// Loads the named scene, or the embedded fog box when `None`.
+pub fn load_scene(path: Option<&std::path::Path>) -> Result<(crate::scene::Scene, crate::scene::SceneSource), String> {
+    let source = match path {
+        Some(p) => crate::scene::SceneSource::read(p).map_err(|e| e.to_string())?,
+        None => crate::scene::SceneSource::embedded("fog-box.toml (embedded)", crate::scene::FOG_BOX),
+    };
+    let scene = crate::scene::Scene::load(&source).map_err(|e| e.to_string())?;
+    Ok((scene, source))
+}

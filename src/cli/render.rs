@@ -1,0 +1,230 @@
+//! `pathspace render [SCENE] [--integrator I] [--spp N | --time S] [--seed S] [--threads N]
+//! [--max-depth D] [-o OUT.exr] [--png OUT.png] [--json]`
+
+use clap::Args;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use crate::image_io::{self, ImageMeta};
+use crate::integrator::{IntegratorKind, MeterEstimate, Renderer};
+use crate::scene::Scene;
+
+#[derive(Args, Debug, Default, Clone)]
+pub struct RenderArgs {
+    /// Scene file (TOML); without it, the embedded fog box.
+    pub scene: Option<PathBuf>,
+    /// Integrator (default: the scene's `[render] integrator`).
+    #[arg(long)]
+    pub integrator: Option<String>,
+    /// Samples per pixel (default: the scene's `[render] spp`).
+    #[arg(long, conflicts_with = "time")]
+    pub spp: Option<u32>,
+    /// Render for this many seconds instead of a fixed spp.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Random seed (default: the scene's `[render] seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Maximum number of scattering vertices (default: unlimited, Russian roulette).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Output EXR (default: the scene's name with .exr, in the current directory).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// PNG preview (default: next to the EXR).
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Print one JSON object with the results on stdout instead of the summary line.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Everything a render produced.
+pub struct RenderResult {
+    pub integrator: String,
+    pub spp: u64,
+    pub seconds: f64,
+    pub paths: u64,
+    pub nan_count: u64,
+    pub image: Option<image_io::Image>,
+    pub meters: Vec<MeterEstimate>,
+}
+
+impl RenderResult {
+    pub fn paths_per_second(&self) -> f64 {
+        self.paths as f64 / self.seconds.max(1e-9)
+    }
+}
+
+/// Samples per pixel in one pass of a fixed-spp render (smaller passes: finer progress).
+const PASS_SPP: u32 = 4;
+
+/// Renders `scene`; with `time` the passes go on until the time is used.
+#[allow(clippy::too_many_arguments)]
+pub fn render_scene(
+    scene: &Scene,
+    kind: IntegratorKind,
+    spp: u32,
+    time: Option<f64>,
+    seed: u64,
+    max_depth: Option<u32>,
+    progress: bool,
+) -> RenderResult {
+    let mut r = Renderer::new(scene, kind, seed, max_depth);
+    let tiles = scene
+        .camera
+        .as_ref()
+        .map_or(1, |c| (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE)) as u64);
+    let bar = if progress {
+        let total = match time {
+            Some(_) => 0,
+            None => spp.div_ceil(PASS_SPP) as u64 * tiles,
+        };
+        let b = if total > 0 {
+            indicatif::ProgressBar::new(total)
+        } else {
+            indicatif::ProgressBar::new_spinner()
+        };
+        b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(b)
+    } else {
+        None
+    };
+    let tick = || {
+        if let Some(b) = &bar {
+            b.inc(1)
+        }
+    };
+    let start = Instant::now();
+    match time {
+        Some(budget) => {
+            while start.elapsed().as_secs_f64() < budget || r.passes == 0 {
+                r.pass(1, &tick);
+                if let Some(b) = &bar {
+                    b.set_message(format!("{} spp", r.spp()));
+                }
+            }
+        }
+        None => {
+            let mut done = 0;
+            while done < spp {
+                let n = PASS_SPP.min(spp - done);
+                r.pass(n, &tick);
+                done += n;
+            }
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let spp_done = if scene.camera.is_some() { r.spp() } else { r.passes };
+    RenderResult {
+        integrator: kind.name().to_string(),
+        spp: if time.is_some() { spp_done } else { spp as u64 },
+        seconds,
+        paths: r.paths,
+        nan_count: r.nan_count,
+        image: r.film.as_ref().map(|f| f.image()),
+        meters: r.meter_estimates(),
+    }
+}
+
+fn rgb_json(c: glam::Vec3) -> serde_json::Value {
+    serde_json::json!([c.x, c.y, c.z])
+}
+
+pub fn run(args: RenderArgs) -> Result<(), String> {
+    let (scene, source) = super::load_scene(args.scene.as_deref())?;
+    let kind = IntegratorKind::parse(args.integrator.as_deref().unwrap_or(&scene.render.integrator))?;
+    let spp = args.spp.unwrap_or(scene.render.spp);
+    if spp == 0 {
+        return Err("--spp must be at least 1".into());
+    }
+    if let Some(t) = args.time {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(format!("--time {t} must be a positive number of seconds"));
+        }
+    }
+    let seed = args.seed.unwrap_or(scene.render.seed);
+    let max_depth = args.max_depth.or(scene.render.max_depth);
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = args.threads {
+        if t == 0 {
+            return Err("--threads must be at least 1".into());
+        }
+        pool = pool.num_threads(t);
+    }
+    let pool = pool.build().map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let result = pool.install(|| render_scene(&scene, kind, spp, args.time, seed, max_depth, !args.json));
+
+    let stem = args
+        .scene
+        .as_ref()
+        .and_then(|p| p.file_stem())
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "fog-box".into());
+    let mut written = Vec::new();
+    if let Some(image) = &result.image {
+        let exr = args.output.clone().unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
+        let png = args.png.clone().unwrap_or_else(|| exr.with_extension("png"));
+        let mut meta = ImageMeta::default();
+        meta.set("integrator", &result.integrator)
+            .set("spp", result.spp)
+            .set("seed", seed)
+            .set("seconds", format!("{:.3}", result.seconds))
+            .set("scene", &source.name)
+            .set("scene_hash", format!("{:016x}", source.hash()))
+            .set("nan_count", result.nan_count);
+        image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
+        image_io::write_png(&png, image).map_err(|e| e.to_string())?;
+        written.push(exr.display().to_string());
+        written.push(png.display().to_string());
+    }
+    let mean = result.image.as_ref().map(|i| i.mean()).unwrap_or_default();
+    if args.json {
+        let sensors: Vec<serde_json::Value> = result
+            .meters
+            .iter()
+            .map(|m| serde_json::json!({"name": m.name, "value": rgb_json(m.value), "stderr": rgb_json(m.stderr), "samples": m.samples}))
+            .collect();
+        let out = serde_json::json!({
+            "integrator": result.integrator,
+            "spp": result.spp,
+            "seconds": result.seconds,
+            "paths_per_second": result.paths_per_second(),
+            "mean": rgb_json(mean),
+            "nan_count": result.nan_count,
+            "sensors": sensors,
+            "outputs": written,
+        });
+        println!("{out}");
+    } else {
+        println!(
+            "{}: {} spp in {:.2} s, {:.3e} paths/s, mean pixel ({:.4}, {:.4}, {:.4}), {} NaN/inf{}",
+            result.integrator,
+            result.spp,
+            result.seconds,
+            result.paths_per_second(),
+            mean.x,
+            mean.y,
+            mean.z,
+            result.nan_count,
+            if written.is_empty() { String::new() } else { format!(" -> {}", written.join(", ")) }
+        );
+        for m in &result.meters {
+            println!(
+                "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",
+                m.name, m.value.x, m.value.y, m.value.z, m.stderr.x, m.stderr.y, m.stderr.z, m.samples
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,280 @@
+//! A bounding volume hierarchy built with the binned surface area heuristic (Wald 2007),
+//! flattened depth-first so the left child follows its parent.
+//!
+//! Closest-hit queries break ties in favour of opaque primitives: where a null (index-matched)
+//! medium boundary lies in the same plane as a wall, the wall is what the ray hits. Without that
+//! rule a ray can cross the null face, be lifted off it and pass the wall: the light leak the
+//! coplanar test in `tests/coplanar.rs` guards against.
+
+use glam::Vec3;
+
+use super::{shape::Hit, Aabb, Primitive, Ray};
+
+const BINS: usize = 12;
+const MAX_LEAF: usize = 4;
+/// SAH cost of one traversal step relative to one primitive test.
+const TRAVERSAL_COST: f32 = 1.0;
+
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    bounds: Aabb,
+    /// Leaf: first index into `indices`; interior: index of the right child.
+    offset: u32,
+    /// Leaf: number of primitives (> 0); interior: 0.
+    count: u32,
+}
+
+/// The hierarchy over a slice of primitives (the primitives are not owned).
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    nodes: Vec<Node>,
+    indices: Vec<u32>,
+}
+
+struct BuildItem {
+    bounds: Aabb,
+    centroid: Vec3,
+    index: u32,
+}
+
+/// Relative distance within which two hits count as coplanar for the tie-break rule.
+pub const TIE_EPSILON: f32 = 1e-5;
+
+impl Bvh {
+    /// Builds the hierarchy (O(n log n)).
+    pub fn build(prims: &[Primitive]) -> Self {
+        let mut items: Vec<BuildItem> = prims
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let b = p.bounds();
+                BuildItem {
+                    bounds: b,
+                    centroid: b.centroid(),
+                    index: i as u32,
+                }
+            })
+            .collect();
+        let mut bvh = Bvh {
+            nodes: Vec::with_capacity(2 * prims.len().max(1)),
+            indices: Vec::with_capacity(prims.len()),
+        };
+        if !items.is_empty() {
+            bvh.build_recursive(&mut items);
+        }
+        bvh
+    }
+
+    /// Number of nodes (for statistics).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Bounds of everything.
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
+    }
+
+    fn build_recursive(&mut self, items: &mut [BuildItem]) -> usize {
+        let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+        let node_index = self.nodes.len();
+        self.nodes.push(Node {
+            bounds,
+            offset: 0,
+            count: 0,
+        });
+        let make_leaf = |bvh: &mut Bvh, items: &mut [BuildItem]| {
+            let first = bvh.indices.len() as u32;
+            bvh.indices.extend(items.iter().map(|it| it.index));
+            bvh.nodes[node_index].offset = first;
+            bvh.nodes[node_index].count = items.len() as u32;
+            node_index
+        };
+        if items.len() <= MAX_LEAF {
+            return make_leaf(self, items);
+        }
+        let cb = items
+            .iter()
+            .fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+        let extent = cb.extent();
+        let axis = if extent.x >= extent.y && extent.x >= extent.z {
+            0
+        } else if extent.y >= extent.z {
+            1
+        } else {
+            2
+        };
+        if extent[axis] <= 0.0 {
+            // all centroids coincide: split in the middle of the list
+            let mid = items.len() / 2;
+            return self.split(node_index, items, mid);
+        }
+        // binned SAH along the widest centroid axis
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_count = [0usize; BINS];
+        let scale = BINS as f32 / extent[axis];
+        let bin_of = |c: Vec3| (((c[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
+        for it in items.iter() {
+            let b = bin_of(it.centroid);
+            bin_bounds[b] = bin_bounds[b].union(it.bounds);
+            bin_count[b] += 1;
+        }
+        let mut best = (f32::INFINITY, 0usize);
+        let mut right_area = [0.0f32; BINS];
+        let mut right_count = [0usize; BINS];
+        let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
+        for i in (1..BINS).rev() {
+            acc_b = acc_b.union(bin_bounds[i]);
+            acc_n += bin_count[i];
+            right_area[i] = acc_b.surface_area();
+            right_count[i] = acc_n;
+        }
+        let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
+        for i in 1..BINS {
+            acc_b = acc_b.union(bin_bounds[i - 1]);
+            acc_n += bin_count[i - 1];
+            let cost = acc_b.surface_area() * acc_n as f32 + right_area[i] * right_count[i] as f32;
+            if acc_n > 0 && right_count[i] > 0 && cost < best.0 {
+                best = (cost, i);
+            }
+        }
+        let leaf_cost = items.len() as f32;
+        let split_cost = TRAVERSAL_COST + best.0 / bounds.surface_area().max(f32::MIN_POSITIVE);
+        if best.0.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
+            if best.0.is_infinite() {
+                let mid = items.len() / 2;
+                items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+                return self.split(node_index, items, mid);
+            }
+            return make_leaf(self, items);
+        }
+        let mut mid = 0;
+        for i in 0..items.len() {
+            if bin_of(items[i].centroid) < best.1 {
+                items.swap(i, mid);
+                mid += 1;
+            }
+        }
+        self.split(node_index, items, mid)
+    }
+
+    fn split(&mut self, node_index: usize, items: &mut [BuildItem], mid: usize) -> usize {
+        let (left, right) = items.split_at_mut(mid);
+        self.build_recursive(left);
+        let r = self.build_recursive(right);
+        self.nodes[node_index].offset = r as u32;
+        self.nodes[node_index].count = 0;
+        node_index
+    }
+
+    /// The closest hit with t in (0, t_max). `opaque[i]` tells whether primitive `i` wins ties:
+    /// among hits within [`TIE_EPSILON`] (relative) of each other an opaque one is returned.
+    pub fn intersect(
+        &self,
+        prims: &[Primitive],
+        opaque: &[bool],
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<Hit> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let inv_d = ray.d.recip();
+        let mut best: Option<Hit> = None;
+        let mut t_best = t_max;
+        let mut stack = [0u32; 64];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let slack = t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON;
+            if n.bounds.intersect(ray, inv_d, slack.min(t_max)).is_some() {
+                if n.count > 0 {
+                    for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
+                        let limit = (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
+                        if let Some((t, p, ng)) = prims[pi as usize].intersect(ray, limit) {
+                            let candidate = Hit { t, p, ng, prim: pi };
+                            match best {
+                                None => {
+                                    best = Some(candidate);
+                                    t_best = t;
+                                }
+                                Some(b) => {
+                                    let tie = (t - b.t).abs() <= TIE_EPSILON * (1.0 + b.t);
+                                    let better = if tie {
+                                        opaque[pi as usize] && !opaque[b.prim as usize]
+                                            || (opaque[pi as usize] == opaque[b.prim as usize]
+                                                && t < b.t)
+                                    } else {
+                                        t < b.t
+                                    };
+                                    if better {
+                                        best = Some(candidate);
+                                        t_best = t;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                } else {
+                    // visit the nearer child first
+                    let left = node + 1;
+                    let right = n.offset as usize;
+                    let axis_dir_neg = {
+                        let c = self.nodes[right].bounds.centroid() - self.nodes[left].bounds.centroid();
+                        c.dot(ray.d) < 0.0
+                    };
+                    let (first, second) = if axis_dir_neg { (right, left) } else { (left, right) };
+                    if sp < stack.len() {
+                        stack[sp] = second as u32;
+                        sp += 1;
+                    }
+                    node = first;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            node = stack[sp] as usize;
+        }
+        best
+    }
+
+    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true.
+    pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv_d = ray.d.recip();
+        let mut stack = [0u32; 64];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            if n.bounds.intersect(ray, inv_d, t_max).is_some() {
+                if n.count > 0 {
+                    for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
+                        if blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some()
+                        {
+                            return true;
+                        }
+                    }
+                } else {
+                    if sp < stack.len() {
+                        stack[sp] = n.offset;
+                        sp += 1;
+                    }
+                    node += 1;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp] as usize;
+        }
+    }
+}

@@ -1,0 +1,213 @@
+//! Primitives: parallelograms ("quads"), triangles and spheres, with intersection and uniform
+//! area sampling (area lights, irradiance meters and BDPT need points with an area density).
+
+use glam::{Vec2, Vec3};
+
+use super::{Aabb, Ray};
+use crate::math::warp;
+
+/// A parallelogram `origin + a u + b v`, a, b in [0, 1]; geometric normal `normalize(u x v)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Quad {
+    pub origin: Vec3,
+    pub u: Vec3,
+    pub v: Vec3,
+    /// Unit normal `normalize(u x v)`.
+    pub n: Vec3,
+    /// `(u x v) / |u x v|^2`, for the barycentric coordinates of a hit.
+    w: Vec3,
+    area: f32,
+}
+
+impl Quad {
+    /// A parallelogram; `None` when `u` and `v` are parallel (zero area).
+    pub fn new(origin: Vec3, u: Vec3, v: Vec3) -> Option<Self> {
+        let c = u.cross(v);
+        let len2 = c.length_squared();
+        if len2 <= 0.0 || !len2.is_finite() {
+            return None;
+        }
+        Some(Quad {
+            origin,
+            u,
+            v,
+            n: c / len2.sqrt(),
+            w: c / len2,
+            area: len2.sqrt(),
+        })
+    }
+}
+
+/// A triangle `p0 + b1 e1 + b2 e2`; geometric normal `normalize(e1 x e2)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle {
+    pub p0: Vec3,
+    pub e1: Vec3,
+    pub e2: Vec3,
+    pub n: Vec3,
+    area: f32,
+}
+
+impl Triangle {
+    /// A triangle; `None` when degenerate.
+    pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Option<Self> {
+        let e1 = p1 - p0;
+        let e2 = p2 - p0;
+        let c = e1.cross(e2);
+        let len = c.length();
+        if len <= 0.0 || !len.is_finite() {
+            return None;
+        }
+        Some(Triangle {
+            p0,
+            e1,
+            e2,
+            n: c / len,
+            area: 0.5 * len,
+        })
+    }
+}
+
+/// A sphere; the geometric normal points outwards.
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+/// The closed set of primitive kinds (an enum: the BVH stores them inline, no virtual calls).
+#[derive(Clone, Copy, Debug)]
+pub enum Primitive {
+    Quad(Quad),
+    Triangle(Triangle),
+    Sphere(Sphere),
+}
+
+/// A ray-primitive intersection.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// The hit point, reprojected onto the primitive.
+    pub p: Vec3,
+    /// Unit geometric normal, as the primitive defines it (never flipped towards the ray).
+    pub ng: Vec3,
+    /// Index of the primitive in the scene.
+    pub prim: u32,
+}
+
+impl Primitive {
+    pub fn bounds(&self) -> Aabb {
+        match self {
+            Primitive::Quad(q) => Aabb::from_points(&[
+                q.origin,
+                q.origin + q.u,
+                q.origin + q.v,
+                q.origin + q.u + q.v,
+            ]),
+            Primitive::Triangle(t) => {
+                Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2])
+            }
+            Primitive::Sphere(s) => Aabb {
+                min: s.center - Vec3::splat(s.radius),
+                max: s.center + Vec3::splat(s.radius),
+            },
+        }
+    }
+
+    pub fn area(&self) -> f32 {
+        match self {
+            Primitive::Quad(q) => q.area,
+            Primitive::Triangle(t) => t.area,
+            Primitive::Sphere(s) => 4.0 * std::f32::consts::PI * s.radius * s.radius,
+        }
+    }
+
+    /// The nearest intersection with `t` in (0, t_max), as (t, point, normal).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<(f32, Vec3, Vec3)> {
+        match self {
+            Primitive::Quad(q) => {
+                let denom = q.n.dot(ray.d);
+                if denom == 0.0 {
+                    return None;
+                }
+                let t = q.n.dot(q.origin - ray.o) / denom;
+                if !(t > 0.0 && t < t_max) {
+                    return None;
+                }
+                let rel = ray.at(t) - q.origin;
+                let a = q.w.dot(rel.cross(q.v));
+                let b = q.w.dot(q.u.cross(rel));
+                if !(0.0..=1.0).contains(&a) || !(0.0..=1.0).contains(&b) {
+                    return None;
+                }
+                // reprojection onto the plane removes the error t carries along the ray
+                Some((t, q.origin + a * q.u + b * q.v, q.n))
+            }
+            Primitive::Triangle(tri) => {
+                // Moller-Trumbore
+                let pvec = ray.d.cross(tri.e2);
+                let det = tri.e1.dot(pvec);
+                if det == 0.0 {
+                    return None;
+                }
+                let inv = 1.0 / det;
+                let tvec = ray.o - tri.p0;
+                let b1 = tvec.dot(pvec) * inv;
+                if !(0.0..=1.0).contains(&b1) {
+                    return None;
+                }
+                let qvec = tvec.cross(tri.e1);
+                let b2 = ray.d.dot(qvec) * inv;
+                if b2 < 0.0 || b1 + b2 > 1.0 {
+                    return None;
+                }
+                let t = tri.e2.dot(qvec) * inv;
+                if !(t > 0.0 && t < t_max) {
+                    return None;
+                }
+                Some((t, tri.p0 + b1 * tri.e1 + b2 * tri.e2, tri.n))
+            }
+            Primitive::Sphere(s) => {
+                // numerically stable quadratic on the offset from the centre
+                let oc = ray.o - s.center;
+                let b = oc.dot(ray.d);
+                let c = oc.length_squared() - s.radius * s.radius;
+                // discriminant via the distance of the centre from the ray line (stable)
+                let perp = oc - b * ray.d;
+                let disc = s.radius * s.radius - perp.length_squared();
+                if disc < 0.0 {
+                    return None;
+                }
+                let sq = disc.sqrt();
+                let q = if b > 0.0 { -b - sq } else { -b + sq };
+                let (mut t0, mut t1) = (c / q, q);
+                if t0 > t1 {
+                    std::mem::swap(&mut t0, &mut t1);
+                }
+                let t = if t0 > 0.0 { t0 } else { t1 };
+                if !(t > 0.0 && t < t_max) || !t.is_finite() {
+                    return None;
+                }
+                let n = (ray.at(t) - s.center).normalize();
+                Some((t, s.center + n * s.radius, n))
+            }
+        }
+    }
+
+    /// A point uniformly distributed by area, with its unit geometric normal; density 1 / area.
+    pub fn sample_area(&self, u: Vec2) -> (Vec3, Vec3) {
+        match self {
+            Primitive::Quad(q) => (q.origin + u.x * q.u + u.y * q.v, q.n),
+            Primitive::Triangle(t) => {
+                let b = warp::uniform_triangle(u);
+                (t.p0 + b.x * t.e1 + b.y * t.e2, t.n)
+            }
+            Primitive::Sphere(s) => {
+                let n = warp::uniform_sphere(u);
+                (s.center + n * s.radius, n)
+            }
+        }
+    }
+}

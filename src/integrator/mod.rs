@@ -1,0 +1,236 @@
+//! Integrators and the render loop they share: passes of samples over image tiles (in parallel
+//! with rayon) and over irradiance meters, with every random stream derived from the seed and
+//! the pixel (or meter chunk) and pass index, so the image is bit-identical whatever the thread
+//! count.
+//! Book: "The Neumann series and the path tracer" (path), "Measuring a renderer" (statistics).
+
+pub mod path;
+
+pub use path::PathTracer;
+
+use rayon::prelude::*;
+
+use crate::film::Film;
+use crate::math::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::Rgb;
+
+/// The integrators a user can name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorKind {
+    /// Volumetric path tracing with next-event estimation and MIS.
+    Path,
+}
+
+impl IntegratorKind {
+    pub const ALL: &'static [IntegratorKind] = &[IntegratorKind::Path];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Path => "path",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
+                format!("unknown integrator `{s}` (available: {})", names.join(", "))
+            })
+    }
+}
+
+/// Side of a square image tile.
+pub const TILE: u32 = 16;
+/// Meter samples per parallel work item.
+pub const METER_CHUNK: u64 = 1024;
+/// Salt that keeps meter streams apart from pixel streams of the same index.
+const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
+
+/// A meter's running statistics.
+#[derive(Clone, Debug, Default)]
+pub struct MeterAccum {
+    pub sum: [f64; 3],
+    pub sum_sq: [f64; 3],
+    pub samples: u64,
+}
+
+/// A meter's estimate with its standard error.
+#[derive(Clone, Debug)]
+pub struct MeterEstimate {
+    pub name: String,
+    pub value: Rgb,
+    pub stderr: Rgb,
+    pub samples: u64,
+}
+
+impl MeterAccum {
+    pub fn estimate(&self, name: &str) -> MeterEstimate {
+        let n = self.samples.max(1) as f64;
+        let mut v = [0.0f32; 3];
+        let mut e = [0.0f32; 3];
+        for c in 0..3 {
+            let mean = self.sum[c] / n;
+            let var = if self.samples > 1 {
+                ((self.sum_sq[c] / n - mean * mean) * n / (n - 1.0)).max(0.0)
+            } else {
+                0.0
+            };
+            v[c] = mean as f32;
+            e[c] = (var / n).sqrt() as f32;
+        }
+        MeterEstimate {
+            name: name.to_string(),
+            value: Rgb::from_array(v),
+            stderr: Rgb::from_array(e),
+            samples: self.samples,
+        }
+    }
+}
+
+/// Accumulates passes of an integrator over the camera film and the meters.
+pub struct Renderer<'a> {
+    pub scene: &'a Scene,
+    pub kind: IntegratorKind,
+    pub seed: u64,
+    pub tracer: PathTracer,
+    pub film: Option<Film>,
+    pub meters: Vec<MeterAccum>,
+    /// Passes done so far (each pass has its own random streams).
+    pub passes: u64,
+    /// Samples that came out NaN or infinite and were dropped (counted as zero).
+    pub nan_count: u64,
+    /// Camera paths plus meter paths traced.
+    pub paths: u64,
+    /// Meter samples per pixel sample.
+    pub meter_samples: u64,
+}
+
+impl<'a> Renderer<'a> {
+    pub fn new(scene: &'a Scene, kind: IntegratorKind, seed: u64, max_depth: Option<u32>) -> Self {
+        Renderer {
+            scene,
+            kind,
+            seed,
+            tracer: PathTracer::new(max_depth),
+            film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
+            meters: vec![MeterAccum::default(); scene.sensors.len()],
+            passes: 0,
+            nan_count: 0,
+            paths: 0,
+            meter_samples: scene.render.meter_samples as u64,
+        }
+    }
+
+    /// Samples per pixel so far.
+    pub fn spp(&self) -> u64 {
+        self.film.as_ref().map_or(0, |f| f.spp)
+    }
+
+    /// Renders one pass of `spp` samples per pixel (and `spp * meter_samples` per meter).
+    /// `on_tile` is called after each finished tile (progress bars).
+    pub fn pass(&mut self, spp: u32, on_tile: &(dyn Fn() + Sync)) {
+        let pass = self.passes;
+        self.passes += 1;
+        let scene = self.scene;
+        let tracer = self.tracer;
+        let seed = self.seed;
+        if let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) {
+            let (w, h) = (cam.width, cam.height);
+            let tiles_x = w.div_ceil(TILE);
+            let tiles_y = h.div_ceil(TILE);
+            let results: Vec<(Vec<(usize, [f64; 3], [f64; 3])>, u64)> = (0..tiles_x * tiles_y)
+                .into_par_iter()
+                .map(|t| {
+                    let (tx, ty) = (t % tiles_x, t / tiles_x);
+                    let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                    let mut nans = 0u64;
+                    for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                        for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                            let index = (y * w + x) as usize;
+                            let mut sampler = Sampler::new(seed, index as u64, pass);
+                            let mut sum = [0.0f64; 3];
+                            let mut sum_sq = [0.0f64; 3];
+                            for _ in 0..spp {
+                                let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                                let ray = cam.generate_ray(raster);
+                                let l = tracer.radiance(scene, ray, scene.camera_medium, &mut sampler);
+                                if !l.is_finite() {
+                                    nans += 1;
+                                    continue;
+                                }
+                                for c in 0..3 {
+                                    let v = l[c] as f64;
+                                    sum[c] += v;
+                                    sum_sq[c] += v * v;
+                                }
+                            }
+                            out.push((index, sum, sum_sq));
+                        }
+                    }
+                    on_tile();
+                    (out, nans)
+                })
+                .collect();
+            for (pixels, nans) in results {
+                self.nan_count += nans;
+                for (i, s, q) in pixels {
+                    film.add_pixel(i, s, q);
+                }
+            }
+            film.spp += spp as u64;
+            self.paths += (w * h) as u64 * spp as u64;
+        }
+        let per_meter = spp as u64 * self.meter_samples;
+        for (mi, meter) in scene.sensors.iter().enumerate() {
+            let chunks = per_meter.div_ceil(METER_CHUNK);
+            let results: Vec<(MeterAccum, u64)> = (0..chunks)
+                .into_par_iter()
+                .map(|c| {
+                    let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
+                    let stream = METER_STREAM_SALT ^ ((mi as u64) << 40) ^ c;
+                    let mut sampler = Sampler::new(seed, stream, pass);
+                    let mut acc = MeterAccum::default();
+                    let mut nans = 0;
+                    for _ in 0..n {
+                        let e = tracer.meter_irradiance(scene, meter, &mut sampler);
+                        acc.samples += 1;
+                        if !e.is_finite() {
+                            nans += 1;
+                            continue;
+                        }
+                        for ch in 0..3 {
+                            let v = e[ch] as f64;
+                            acc.sum[ch] += v;
+                            acc.sum_sq[ch] += v * v;
+                        }
+                    }
+                    (acc, nans)
+                })
+                .collect();
+            for (acc, nans) in results {
+                let m = &mut self.meters[mi];
+                for ch in 0..3 {
+                    m.sum[ch] += acc.sum[ch];
+                    m.sum_sq[ch] += acc.sum_sq[ch];
+                }
+                m.samples += acc.samples;
+                self.nan_count += nans;
+            }
+            self.paths += per_meter;
+        }
+    }
+
+    /// Every meter's estimate.
+    pub fn meter_estimates(&self) -> Vec<MeterEstimate> {
+        self.scene
+            .sensors
+            .iter()
+            .zip(&self.meters)
+            .map(|(s, a)| a.estimate(&s.name))
+            .collect()
+    }
+}

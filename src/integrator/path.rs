@@ -1,0 +1,254 @@
+//! The volumetric path tracer: the Neumann series (Pauly, Kollig, Keller 2000, eq. 4) made
+//! into a random walk. Each step propagates the ray by Table 1 (a medium vertex or the next
+//! surface, through null boundaries), estimates direct light by next-event estimation with a
+//! transmittance-weighted shadow ray, and continues by BSDF or phase-function sampling. The two
+//! ways of reaching a light (light sampling, scattering sampling) are combined by multiple
+//! importance sampling with the power heuristic; Russian roulette ends long paths without bias.
+//! Book: "The Neumann series and the path tracer".
+
+use glam::Vec3;
+
+use crate::bsdf::TransportMode;
+use crate::geometry::{offset_origin, shadow_distance, Ray};
+use crate::math::{warp, Frame, Sampler};
+use crate::scene::{Event, IrradianceMeter, Scene};
+use crate::spectrum::Rgb;
+
+/// Power heuristic with beta = 2 (Veach 1997): the weight of the strategy with density `a`.
+#[inline]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
+        a2 / (a2 + b2)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// The number of scattering vertices after which Russian roulette starts.
+pub const RR_START_DEPTH: u32 = 3;
+/// Survival probabilities are capped below one so every path ends with probability one.
+pub const RR_MAX_SURVIVAL: f32 = 0.95;
+
+/// The path tracer's parameters.
+#[derive(Clone, Copy, Debug)]
+pub struct PathTracer {
+    /// Maximum number of scattering vertices (surface or medium) between sensor and light.
+    pub max_depth: u32,
+}
+
+/// Where the previous scattering happened, for the MIS weight of emission found by chance.
+#[derive(Clone, Copy)]
+struct Previous {
+    p: Vec3,
+    /// Solid-angle density of the direction sampled there.
+    pdf_dir: f32,
+    /// True when that direction was a Dirac (no light sampling could have produced it) or the
+    /// ray is primary (the camera sees emitters directly).
+    singular: bool,
+}
+
+impl PathTracer {
+    pub fn new(max_depth: Option<u32>) -> Self {
+        PathTracer {
+            max_depth: max_depth.unwrap_or(u32::MAX),
+        }
+    }
+
+    /// Radiance arriving at the camera along `ray`, which starts in `medium`.
+    pub fn radiance(&self, scene: &Scene, ray: Ray, medium: Option<u32>, sampler: &mut Sampler) -> Rgb {
+        let prev = Previous { p: ray.o, pdf_dir: 1.0, singular: true };
+        self.walk(scene, ray, medium, Rgb::ONE, 0, prev, sampler)
+    }
+
+    /// One sample of a meter's mean irradiance: a point uniform on the meter, then the meter
+    /// treated as a vertex whose "BSDF" is 1 on its normal side, so that integrating it against
+    /// L cos gives irradiance (light sampling there, then a cosine-sampled continuation).
+    pub fn meter_irradiance(&self, scene: &Scene, meter: &IrradianceMeter, sampler: &mut Sampler) -> Rgb {
+        let n = meter.normal();
+        let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
+        let mut l = self.next_event(scene, p, None, meter.medium, sampler, |wi| {
+            let c = wi.dot(n);
+            if c > 0.0 {
+                (Rgb::splat(c), c * std::f32::consts::FRAC_1_PI)
+            } else {
+                (Rgb::ZERO, 0.0)
+            }
+        });
+        let local = warp::cosine_hemisphere(sampler.next_2d());
+        if local.z <= 0.0 {
+            return l;
+        }
+        let wi = Frame::from_normal(n).to_world(local);
+        let prev = Previous { p, pdf_dir: local.z * std::f32::consts::FRAC_1_PI, singular: false };
+        // f cos / pdf = cos / (cos / pi) = pi
+        l += self.walk(scene, Ray::new(p, wi), meter.medium, Rgb::splat(std::f32::consts::PI), 0, prev, sampler);
+        l
+    }
+
+    /// Next-event estimation from `p` (surface normal `n` if on a surface) in `medium`.
+    /// `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of sampling wi there).
+    // ANCHOR: next_event
+    fn next_event(
+        &self,
+        scene: &Scene,
+        p: Vec3,
+        n: Option<Vec3>,
+        medium: Option<u32>,
+        sampler: &mut Sampler,
+        scatter: impl Fn(Vec3) -> (Rgb, f32),
+    ) -> Rgb {
+        if scene.lights.is_empty() {
+            return Rgb::ZERO;
+        }
+        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let light = &scene.lights[l];
+        let u = sampler.next_2d();
+        let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
+            return Rgb::ZERO;
+        };
+        if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let (f, pdf_scatter) = scatter(ls.wi);
+        if f == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+        let origin = match n {
+            Some(n) => offset_origin(p, n, ls.wi),
+            None => p,
+        };
+        let dist = if ls.dist.is_infinite() { f32::INFINITY } else { shadow_distance(origin, ls.p) };
+        let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
+        if tr == Rgb::ZERO {
+            return Rgb::ZERO;
+        }
+        let pdf_light = pmf * ls.pdf;
+        let w = if ls.is_delta { 1.0 } else { power_heuristic(pdf_light, pdf_scatter) };
+        f * ls.value * tr * (w / pdf_light)
+    }
+    // ANCHOR_END: next_event
+
+    /// The random walk from `ray` with throughput `beta` after `depth` scattering vertices.
+    // ANCHOR: walk
+    #[allow(clippy::too_many_arguments)]
+    fn walk(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut medium: Option<u32>,
+        mut beta: Rgb,
+        mut depth: u32,
+        mut prev: Previous,
+        sampler: &mut Sampler,
+    ) -> Rgb {
+        let mut l = Rgb::ZERO;
+        loop {
+            // propagation: Table 1 through media and null boundaries
+            let prop = scene.propagate(ray, medium, sampler);
+            beta *= prop.weight();
+            if beta == Rgb::ZERO {
+                break;
+            }
+            match prop.event {
+                Event::Escape => {
+                    if let Some(e) = scene.environment {
+                        let crate::scene::Light::Environment(env) = &scene.lights[e as usize] else {
+                            break;
+                        };
+                        let w = if prev.singular {
+                            1.0
+                        } else {
+                            power_heuristic(prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
+                        };
+                        l += beta * env.radiance(ray.d) * w;
+                    }
+                    break;
+                }
+                Event::Medium { p, medium: m, .. } => {
+                    if depth >= self.max_depth {
+                        break;
+                    }
+                    depth += 1;
+                    let phase = scene.media[m as usize].phase();
+                    let wo = -ray.d;
+                    // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
+                    l += beta * self.next_event(scene, p, None, Some(m), sampler, |wi| {
+                        let f = phase.eval(wo, wi);
+                        (Rgb::splat(f), f)
+                    });
+                    // no early stop here: a direction sampled at the last allowed vertex can still
+                    // reach an emitter, the MIS partner of the light sample above
+                    let ps = phase.sample(wo, sampler.next_2d());
+                    if ps.pdf <= 0.0 {
+                        break;
+                    }
+                    beta *= ps.value / ps.pdf;
+                    prev = Previous { p, pdf_dir: ps.pdf, singular: false };
+                    ray = Ray::new(p, ps.wi);
+                    medium = Some(m);
+                }
+                Event::Surface { hit, medium: m } => {
+                    let shape = scene.shape_of(&hit);
+                    let n = hit.ng;
+                    if let Some(li) = shape.light {
+                        if ray.d.dot(n) < 0.0 {
+                            let crate::scene::Light::Area { radiance, .. } = &scene.lights[li as usize] else {
+                                break;
+                            };
+                            let w = if prev.singular {
+                                1.0
+                            } else {
+                                let pdf_light = scene.light_pmf(li)
+                                    * scene.lights[li as usize].pdf_li(&scene.prims, prev.p, hit.p, n, hit.prim);
+                                power_heuristic(prev.pdf_dir, pdf_light)
+                            };
+                            l += beta * *radiance * w;
+                        }
+                    }
+                    let Some(bsdf) = &shape.bsdf else { break };
+                    if depth >= self.max_depth {
+                        break;
+                    }
+                    depth += 1;
+                    let wo = -ray.d;
+                    if !bsdf.is_singular() {
+                        l += beta * self.next_event(scene, hit.p, Some(n), m, sampler, |wi| {
+                            let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
+                            (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+                        });
+                    }
+                    let u = sampler.next_2d();
+                    let uc = sampler.next_f32();
+                    let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+                        break;
+                    };
+                    if bs.pdf <= 0.0 {
+                        break;
+                    }
+                    beta *= bs.weight(n);
+                    // crossing the surface (refraction) may change the medium
+                    if bs.wi.dot(n) * wo.dot(n) < 0.0 {
+                        medium = shape.medium_after(bs.wi, n, m);
+                    } else {
+                        medium = m;
+                    }
+                    prev = Previous { p: hit.p, pdf_dir: bs.pdf, singular: bs.lobe.is_singular() };
+                    ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
+                }
+            }
+            // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
+            if depth >= RR_START_DEPTH {
+                let q = beta.max_element().min(RR_MAX_SURVIVAL);
+                if !(sampler.next_f32() < q) {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        l
+    }
+    // ANCHOR_END: walk
+}

@@ -1,0 +1,27 @@
+//! # pathspace
+//!
+//! An executable reference for light transport in participating media. Each module implements
+//! one concept of the papers and is paired with one chapter of the book (`book/`); the tests in
+//! `tests/` are the executable specification.
+//!
+//! | paper section | module |
+//! |---|---|
+//! | Pauly, Kollig, Keller 2000, eq. (1), (3), Table 1 | [`medium`] |
+//! | eq. (1) phase functions | [`medium::phase`] |
+//! | eq. (2) local scattering | [`bsdf`] |
+//! | eq. (4) Neumann series | [`integrator::path`] |
+//! | eq. (5) measurement equation, sensors | [`scene::camera`], [`scene::sensor`], [`film`] |
+//! | conventions and measures | [`conventions`] |
+
+pub mod bsdf;
+pub mod cli;
+pub mod conventions;
+pub mod film;
+pub mod geometry;
+pub mod image_io;
+pub mod integrator;
+pub mod math;
+pub mod measure;
+pub mod medium;
+pub mod scene;
+pub mod spectrum;

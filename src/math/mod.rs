@@ -1,0 +1,12 @@
+//! Small numerical building blocks: orthonormal frames, warps from the unit square, discrete
+//! distributions and the random number streams.
+//! Book: "Notation and conventions" (frames, measures) and "Sampling toolbox".
+
+pub mod distribution;
+pub mod frame;
+pub mod sampler;
+pub mod warp;
+
+pub use distribution::Distribution1D;
+pub use frame::Frame;
+pub use sampler::Sampler;

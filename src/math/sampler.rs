@@ -1,0 +1,58 @@
+//! Random number streams. Every stream is derived from the render seed and an index (pixel,
+//! pass, chain), never from thread identity, so images are identical whatever the thread count.
+
+use glam::Vec2;
+use rand::RngCore;
+use rand_pcg::Pcg32;
+
+use super::distribution::ONE_MINUS_EPSILON;
+
+/// A uniform random number source on [0, 1).
+pub struct Sampler {
+    rng: Pcg32,
+}
+
+/// SplitMix64 finalizer: decorrelates consecutive indices before they seed PCG.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl Sampler {
+    /// The stream for (`seed`, `index`, `pass`): pixel `index` in pass `pass`, or chain `index`.
+    pub fn new(seed: u64, index: u64, pass: u64) -> Self {
+        let state = mix64(seed ^ mix64(index ^ mix64(pass.wrapping_add(0x5851_F42D))));
+        let stream = mix64(index.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ pass);
+        Sampler {
+            rng: Pcg32::new(state, stream),
+        }
+    }
+
+    /// Uniform in [0, 1).
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        // 24 random bits: every value is exactly representable and < 1
+        ((self.rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)).min(ONE_MINUS_EPSILON)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    #[inline]
+    pub fn next_f64(&mut self) -> f64 {
+        (self.rng.next_u64() >> 11) as f64 * (1.0 / 9_007_199_254_740_992.0)
+    }
+
+    /// Two uniform numbers.
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        Vec2::new(self.next_f32(), self.next_f32())
+    }
+
+    /// Uniform integer in [0, n).
+    #[inline]
+    pub fn next_index(&mut self, n: usize) -> usize {
+        ((self.next_f64() * n as f64) as usize).min(n.saturating_sub(1))
+    }
+}

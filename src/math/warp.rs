@@ -1,0 +1,64 @@
+//! Warps from the unit square to directions and points, each with its density.
+//! Book: "Sampling toolbox".
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// 1 / (4 pi): the density of the uniform sphere.
+pub const INV_FOUR_PI: f32 = 0.25 * FRAC_1_PI;
+
+/// Uniform direction on the unit sphere; density `INV_FOUR_PI` (solid angle).
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Cosine-weighted direction on the +z hemisphere (Malley's method); density `cos / pi`.
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+/// Density of [`cosine_hemisphere`] for a local direction.
+#[inline]
+pub fn cosine_hemisphere_pdf(local: Vec3) -> f32 {
+    local.z.max(0.0) * FRAC_1_PI
+}
+
+/// Shirley-Chiu concentric map from the square to the unit disk (area preserving up to pi).
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, (PI / 4.0) * (o.y / o.x))
+    } else {
+        (o.y, PI / 2.0 - (PI / 4.0) * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform point on a triangle as barycentrics (b1, b2) (Heitz 2019 square-to-triangle map).
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    let (mut b0, mut b1) = (u.x / 2.0, u.y / 2.0);
+    let offset = u.y - u.x;
+    if offset > 0.0 {
+        b1 += offset;
+    } else {
+        b0 -= offset;
+    }
+    Vec2::new(b0, b1)
+}
+
+/// Uniform direction inside a cone of half-angle `acos(cos_max)` around +z; density
+/// `1 / (2 pi (1 - cos_max))`.
+pub fn uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_t = 1.0 - u.x * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}

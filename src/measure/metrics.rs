@@ -1,0 +1,44 @@
+//! Image error metrics over all pixels and channels.
+
+use crate::image_io::Image;
+
+/// The offset in relMSE's denominator, (a - b)^2 / (b^2 + RELMSE_EPSILON): keeps black
+/// reference pixels from dominating.
+pub const RELMSE_EPSILON: f64 = 1e-2;
+
+/// Errors of an image against a reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Metrics {
+    /// sqrt of the mean of (a - b)^2 over pixels and channels.
+    pub rmse: f64,
+    /// Mean over pixels and channels of (a - b)^2 / (b^2 + 1e-2).
+    pub relmse: f64,
+    /// Largest |a - b|.
+    pub max_abs: f64,
+}
+
+/// Compares `a` against the reference `b`.
+pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
+    if a.width != b.width || a.height != b.height {
+        return Err(format!(
+            "the images differ in size: {}x{} against {}x{}",
+            a.width, a.height, b.width, b.height
+        ));
+    }
+    let (mut se, mut rel, mut max_abs) = (0.0f64, 0.0f64, 0.0f64);
+    for (pa, pb) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            let (x, y) = (pa[c] as f64, pb[c] as f64);
+            let d = x - y;
+            se += d * d;
+            rel += d * d / (y * y + RELMSE_EPSILON);
+            max_abs = max_abs.max(d.abs());
+        }
+    }
+    let n = (a.pixels.len() * 3).max(1) as f64;
+    Ok(Metrics {
+        rmse: (se / n).sqrt(),
+        relmse: rel / n,
+        max_abs,
+    })
+}

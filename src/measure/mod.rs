@@ -1,0 +1,4 @@
+//! The measuring instrument: error metrics, convergence runs and charts.
+//! Book: "Measuring a renderer".
+
+pub mod metrics;

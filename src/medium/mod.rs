@@ -1,0 +1,110 @@
+//! Participating media: the coefficients sigma_a, sigma_s, sigma_t = sigma_a + sigma_s of the
+//! global balance equation (Pauly, Kollig, Keller 2000, eq. 1), transmittance (eq. 3) and the
+//! propagation sampling of Table 1.
+//! Book: "Participating media and Table 1".
+
+pub mod homogeneous;
+pub mod phase;
+
+pub use homogeneous::Homogeneous;
+pub use phase::{Phase, PhaseError, PhaseSample};
+
+use glam::Vec3;
+
+use crate::geometry::Ray;
+use crate::math::Sampler;
+use crate::spectrum::Rgb;
+
+/// Why a medium was rejected.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MediumError {
+    #[error("{name} = {value} is negative or not finite (coefficients are per unit length, >= 0)")]
+    NegativeCoefficient { name: &'static str, value: f32 },
+    #[error(transparent)]
+    Phase(#[from] PhaseError),
+}
+
+/// The outcome of sampling a free-flight distance inside one medium segment [0, t_max)
+/// (Table 1): a collision at `t < t_max`, or passage to the segment's end.
+///
+/// Carries the transmittance and the probability (density or mass) of the outcome, never only
+/// their ratio, because BDPT and MLT need the pdfs themselves.
+#[derive(Clone, Copy, Debug)]
+pub struct FreeFlight {
+    /// Distance of the collision, or `t_max` on passage.
+    pub t: f32,
+    /// True for a collision (a medium vertex), false for passage to the segment's end.
+    pub scattered: bool,
+    /// Transmittance exp(-tau) over [0, t] per channel.
+    pub transmittance: Rgb,
+    /// sigma_s at the collision point (zero on passage).
+    pub sigma_s: Rgb,
+    /// Density (per unit length) of the collision distance, or the probability of passage.
+    pub pdf: f32,
+}
+
+impl FreeFlight {
+    /// The factor a path's throughput is multiplied by: transmittance times sigma_s for a
+    /// collision (the f-hat of the medium vertex), over the pdf.
+    #[inline]
+    pub fn weight(&self) -> Rgb {
+        if self.pdf <= 0.0 {
+            return Rgb::ZERO;
+        }
+        if self.scattered {
+            self.transmittance * self.sigma_s / self.pdf
+        } else {
+            self.transmittance / self.pdf
+        }
+    }
+}
+
+/// The closed set of media.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Medium {
+    Homogeneous(Homogeneous),
+}
+
+impl Medium {
+    pub fn phase(&self) -> &Phase {
+        match self {
+            Medium::Homogeneous(h) => &h.phase,
+        }
+    }
+
+    pub fn sigma_s(&self, _p: Vec3) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_s,
+        }
+    }
+
+    pub fn sigma_t(&self, _p: Vec3) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_t,
+        }
+    }
+
+    /// Samples a collision distance in [0, t_max) along `ray` (Table 1).
+    #[inline]
+    pub fn sample_free_flight(&self, _ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
+        match self {
+            Medium::Homogeneous(h) => h.sample_free_flight(t_max, sampler.next_f32(), sampler.next_f32()),
+        }
+    }
+
+    /// Transmittance exp(-tau) over [0, t_max) along `ray` (eq. 3).
+    #[inline]
+    pub fn transmittance(&self, _ray: &Ray, t_max: f32, _sampler: &mut Sampler) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.transmittance(t_max),
+        }
+    }
+
+    /// The density (collision) or probability (passage) of a free flight of length `t` on
+    /// [0, t_max), as `sample_free_flight` would have produced it. For path pdfs in BDPT/MLT.
+    pub fn free_flight_pdf(&self, _ray: &Ray, t: f32, scattered: bool) -> f32 {
+        match self {
+            Medium::Homogeneous(h) => h.free_flight_pdf(t, scattered),
+        }
+    }
+}

@@ -1,0 +1,192 @@
+//! Phase functions f_p (Pauly, Kollig, Keller 2000, eq. 1; Kristensen 2010 sec. 2.6.2).
+//!
+//! Convention (see `conventions`): `wo` and `wi` both point away from the scattering point. Light
+//! arrives travelling along `-wi` and leaves along `wo`, so the deflection cosine is
+//! `cos_theta = -dot(wo, wi)`; with g > 0 Henyey-Greenstein scatters forwards.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+use crate::math::{warp, Frame};
+
+/// Why a phase function was rejected.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum PhaseError {
+    #[error("Henyey-Greenstein g = {0} is outside (-1, 1)")]
+    HgOutOfRange(f32),
+    #[error("Schlick k = {0} is outside (-1, 1)")]
+    SchlickOutOfRange(f32),
+    #[error("mix weights must be non-negative with a positive sum, got {0:?}")]
+    BadMixWeights(Vec<f32>),
+    #[error("a mix needs at least one lobe")]
+    EmptyMix,
+}
+
+/// A phase function: the closed set the scene format offers.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Phase {
+    /// 1 / (4 pi).
+    Isotropic,
+    /// Henyey-Greenstein with mean cosine `g`, |g| < 1.
+    HenyeyGreenstein { g: f32 },
+    /// Schlick's rational approximation of HG, (1 - k^2) / (4 pi (1 - k cos)^2), |k| < 1.
+    Schlick { k: f32 },
+    /// A convex combination of lobes, the phase model Pauly et al. use; weights sum to 1.
+    Mix(Vec<(f32, Phase)>),
+}
+
+/// A sampled incident direction with the phase value and the pdf (solid angle) that produced it.
+#[derive(Clone, Copy, Debug)]
+pub struct PhaseSample {
+    pub wi: Vec3,
+    /// f_p(wo, wi).
+    pub value: f32,
+    /// Solid-angle density of `wi`.
+    pub pdf: f32,
+}
+
+impl Phase {
+    /// Henyey-Greenstein, validated.
+    pub fn henyey_greenstein(g: f32) -> Result<Self, PhaseError> {
+        if g.is_finite() && g.abs() < 1.0 {
+            Ok(Phase::HenyeyGreenstein { g })
+        } else {
+            Err(PhaseError::HgOutOfRange(g))
+        }
+    }
+
+    /// Schlick, validated.
+    pub fn schlick(k: f32) -> Result<Self, PhaseError> {
+        if k.is_finite() && k.abs() < 1.0 {
+            Ok(Phase::Schlick { k })
+        } else {
+            Err(PhaseError::SchlickOutOfRange(k))
+        }
+    }
+
+    /// A mix; weights are normalized to sum to one.
+    pub fn mix(lobes: Vec<(f32, Phase)>) -> Result<Self, PhaseError> {
+        if lobes.is_empty() {
+            return Err(PhaseError::EmptyMix);
+        }
+        let total: f32 = lobes.iter().map(|l| l.0).sum();
+        if lobes.iter().any(|l| !(l.0 >= 0.0) || !l.0.is_finite()) || !(total > 0.0) {
+            return Err(PhaseError::BadMixWeights(lobes.iter().map(|l| l.0).collect()));
+        }
+        Ok(Phase::Mix(
+            lobes.into_iter().map(|(w, p)| (w / total, p)).collect(),
+        ))
+    }
+
+    /// The phase function as a function of the deflection cosine.
+    // ANCHOR: phase_eval
+    pub fn eval_cos(&self, cos_theta: f32) -> f32 {
+        match self {
+            Phase::Isotropic => warp::INV_FOUR_PI,
+            Phase::HenyeyGreenstein { g } => {
+                let denom = 1.0 + g * g - 2.0 * g * cos_theta;
+                warp::INV_FOUR_PI * (1.0 - g * g) / (denom * denom.max(0.0).sqrt())
+            }
+            Phase::Schlick { k } => {
+                let d = 1.0 - k * cos_theta;
+                warp::INV_FOUR_PI * (1.0 - k * k) / (d * d)
+            }
+            Phase::Mix(lobes) => lobes.iter().map(|(w, p)| w * p.eval_cos(cos_theta)).sum(),
+        }
+    }
+    // ANCHOR_END: phase_eval
+
+    /// f_p(wo, wi), both directions pointing away from the vertex.
+    #[inline]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.eval_cos(-wo.dot(wi))
+    }
+
+    /// Every phase function here is sampled exactly, so the pdf equals the value.
+    #[inline]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.eval(wo, wi)
+    }
+
+    /// Samples `wi` given `wo` with density proportional to f_p.
+    pub fn sample(&self, wo: Vec3, u: Vec2) -> PhaseSample {
+        let wi = match self {
+            Phase::Mix(lobes) => {
+                // pick a lobe with u.x, reuse the remainder
+                let mut acc = 0.0;
+                let mut chosen = &lobes[lobes.len() - 1];
+                let mut rem = u.x;
+                for lobe in lobes {
+                    if u.x < acc + lobe.0 || std::ptr::eq(lobe, &lobes[lobes.len() - 1]) {
+                        chosen = lobe;
+                        rem = ((u.x - acc) / lobe.0.max(f32::MIN_POSITIVE))
+                            .clamp(0.0, crate::math::distribution::ONE_MINUS_EPSILON);
+                        break;
+                    }
+                    acc += lobe.0;
+                }
+                chosen.1.sample(wo, Vec2::new(rem, u.y)).wi
+            }
+            _ => {
+                let cos_theta = self.sample_cos(u.x);
+                let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+                let phi = 2.0 * PI * u.y;
+                // deflection measured from the propagation direction -wo... of the light arriving
+                // along -wi: wi = -(direction light continues) rotated; build around -wo.
+                let frame = Frame::from_normal(-wo);
+                frame.to_world(Vec3::new(
+                    sin_theta * phi.cos(),
+                    sin_theta * phi.sin(),
+                    cos_theta,
+                ))
+            }
+        };
+        let value = self.eval(wo, wi);
+        PhaseSample {
+            wi,
+            value,
+            pdf: value,
+        }
+    }
+
+    /// Inverts the CDF of the deflection cosine of a single lobe.
+    // ANCHOR: phase_sample_cos
+    fn sample_cos(&self, u: f32) -> f32 {
+        match *self {
+            Phase::Isotropic => 1.0 - 2.0 * u,
+            Phase::HenyeyGreenstein { g } => {
+                if g.abs() < 1e-3 {
+                    1.0 - 2.0 * u
+                } else {
+                    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
+                    ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+                }
+            }
+            Phase::Schlick { k } => {
+                ((2.0 * u - 1.0 + k) / (2.0 * k * u + 1.0 - k)).clamp(-1.0, 1.0)
+            }
+            Phase::Mix(_) => unreachable!("mixtures are sampled lobe by lobe"),
+        }
+    }
+    // ANCHOR_END: phase_sample_cos
+
+    /// The mean deflection cosine (g for HG), computed per lobe.
+    pub fn mean_cosine(&self) -> f32 {
+        match self {
+            Phase::Isotropic => 0.0,
+            Phase::HenyeyGreenstein { g } => *g,
+            Phase::Schlick { k } => {
+                // closed form of the integral of mu p(mu) for Schlick's lobe
+                if k.abs() < 1e-4 {
+                    0.0
+                } else {
+                    let k = *k as f64;
+                    let v = (1.0 - k * k) / (2.0 * k * k)
+                        * (((1.0 + k) / (1.0 - k)).ln() - 2.0 * k / (1.0 - k * k));
+                    v as f32
+                }
+            }
+            Phase::Mix(lobes) => lobes.iter().map(|(w, p)| w * p.mean_cosine()).sum(),
+        }
+    }
+}

@@ -1,0 +1,447 @@
+//! The scene file format (TOML): the schema, parsing, validation and error locations.
+//!
+//! Every error names the file, the line and the key, and says what is wrong. Syntax and type
+//! errors come from the TOML deserializer with their span; semantic errors (negative sigma,
+//! |g| >= 1, an unknown material, an open shape carrying a medium, ...) are raised on the parsed
+//! description with a key path, which [`locate`] maps back to a line through a span-keeping parse.
+//! Book: "Scenes".
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A scene-file error: where, which key, what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError {
+    pub file: String,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// Dotted key path, e.g. `media.fog.sigma_s` or `shapes[2].material`.
+    pub key: String,
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(l) => write!(f, "{}:{}: key `{}`: {}", self.file, l, self.key, self.message),
+            None => write!(f, "{}: key `{}`: {}", self.file, self.key, self.message),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// A number or an RGB triple (`0.4` or `[0.4, 0.5, 0.6]`).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum RgbValue {
+    Scalar(f32),
+    Triple([f32; 3]),
+}
+
+impl RgbValue {
+    pub fn to_rgb(self) -> glam::Vec3 {
+        match self {
+            RgbValue::Scalar(v) => glam::Vec3::splat(v),
+            RgbValue::Triple(a) => glam::Vec3::from_array(a),
+        }
+    }
+}
+
+/// `[render]`: defaults for the command-line flags.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDesc {
+    #[serde(default = "default_integrator")]
+    pub integrator: String,
+    #[serde(default = "default_spp")]
+    pub spp: u32,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    pub max_depth: Option<u32>,
+    /// Samples per irradiance meter per pixel-sample pass (default 4096).
+    pub meter_samples: Option<u32>,
+}
+
+fn default_integrator() -> String {
+    "path".into()
+}
+fn default_spp() -> u32 {
+    64
+}
+fn default_seed() -> u64 {
+    1
+}
+
+impl Default for RenderDesc {
+    fn default() -> Self {
+        RenderDesc {
+            integrator: default_integrator(),
+            spp: default_spp(),
+            seed: default_seed(),
+            max_depth: None,
+            meter_samples: None,
+        }
+    }
+}
+
+/// `[camera]`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CameraDesc {
+    Pinhole {
+        eye: [f32; 3],
+        look_at: [f32; 3],
+        #[serde(default = "default_up")]
+        up: [f32; 3],
+        /// Vertical field of view in degrees.
+        fov_deg: f32,
+        resolution: [u32; 2],
+    },
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// `[materials.NAME]`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MaterialDesc {
+    Lambert { albedo: RgbValue },
+    Mirror {
+        #[serde(default = "one_rgb")]
+        reflectance: RgbValue,
+    },
+    Dielectric { ior: f32 },
+    Null {},
+}
+
+fn one_rgb() -> RgbValue {
+    RgbValue::Scalar(1.0)
+}
+
+/// A phase function.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PhaseDesc {
+    Isotropic {},
+    Hg { g: f32 },
+    Schlick { k: f32 },
+    Mix { weights: Vec<f32>, lobes: Vec<PhaseDesc> },
+}
+
+/// `[media.NAME]`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MediumDesc {
+    Homogeneous {
+        sigma_a: RgbValue,
+        sigma_s: RgbValue,
+        #[serde(default = "default_phase")]
+        phase: PhaseDesc,
+    },
+}
+
+fn default_phase() -> PhaseDesc {
+    PhaseDesc::Isotropic {}
+}
+
+/// Keys every shape accepts.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeCommon {
+    pub material: Option<String>,
+    pub emission: Option<RgbValue>,
+    pub interior: Option<String>,
+    pub exterior: Option<String>,
+}
+
+/// `[[shapes]]`.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeDesc {
+    Quad {
+        origin: [f32; 3],
+        u: [f32; 3],
+        v: [f32; 3],
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
+    Box {
+        min: [f32; 3],
+        max: [f32; 3],
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
+    Sphere {
+        center: [f32; 3],
+        radius: f32,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
+    Mesh {
+        obj: String,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
+}
+
+impl ShapeDesc {
+    /// The keys every shape shares.
+    pub fn common(&self) -> ShapeCommon {
+        match self {
+            ShapeDesc::Quad { material, emission, interior, exterior, .. }
+            | ShapeDesc::Box { material, emission, interior, exterior, .. }
+            | ShapeDesc::Sphere { material, emission, interior, exterior, .. }
+            | ShapeDesc::Mesh { material, emission, interior, exterior, .. } => ShapeCommon {
+                material: material.clone(),
+                emission: *emission,
+                interior: interior.clone(),
+                exterior: exterior.clone(),
+            },
+        }
+    }
+
+    /// The `type` name.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ShapeDesc::Quad { .. } => "quad",
+            ShapeDesc::Box { .. } => "box",
+            ShapeDesc::Sphere { .. } => "sphere",
+            ShapeDesc::Mesh { .. } => "mesh",
+        }
+    }
+}
+
+/// `[[lights]]`: delta and infinite lights.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum LightDesc {
+    /// Collimated light travelling along `direction`, irradiance on a plane facing it.
+    Directional { direction: [f32; 3], irradiance: RgbValue },
+    /// Isotropic point light of radiant intensity `intensity` (W/sr).
+    Point { position: [f32; 3], intensity: RgbValue },
+    /// A spot light: `intensity` inside `cone_deg` (half-angle), smooth falloff over the last
+    /// `falloff_deg` degrees.
+    Spot {
+        position: [f32; 3],
+        direction: [f32; 3],
+        intensity: RgbValue,
+        cone_deg: f32,
+        #[serde(default)]
+        falloff_deg: f32,
+    },
+    /// Radiance arriving from infinitely far: constant (`radiance`) or a vertical gradient
+    /// (`zenith`, `horizon`, `nadir`).
+    Environment {
+        radiance: Option<RgbValue>,
+        zenith: Option<RgbValue>,
+        horizon: Option<RgbValue>,
+        nadir: Option<RgbValue>,
+    },
+}
+
+/// `[[sensors]]`: virtual measuring instruments.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SensorDesc {
+    /// Mean irradiance arriving on the normal side (normalize(u x v)) of a parallelogram.
+    IrradianceMeter {
+        name: String,
+        origin: [f32; 3],
+        u: [f32; 3],
+        v: [f32; 3],
+    },
+}
+
+/// A whole scene file.
+#[derive(Debug, Clone, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default)]
+    pub render: RenderDesc,
+    pub camera: Option<CameraDesc>,
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialDesc>,
+    #[serde(default)]
+    pub media: BTreeMap<String, MediumDesc>,
+    #[serde(default)]
+    pub shapes: Vec<ShapeDesc>,
+    #[serde(default)]
+    pub lights: Vec<LightDesc>,
+    #[serde(default)]
+    pub sensors: Vec<SensorDesc>,
+}
+
+/// One step of a key path.
+#[derive(Debug, Clone, PartialEq)]
+pub enum KeySeg {
+    Key(String),
+    Index(usize),
+}
+
+/// A key path such as `shapes[2].material`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct KeyPath(pub Vec<KeySeg>);
+
+impl KeyPath {
+    pub fn key(mut self, k: &str) -> Self {
+        self.0.push(KeySeg::Key(k.to_string()));
+        self
+    }
+    pub fn index(mut self, i: usize) -> Self {
+        self.0.push(KeySeg::Index(i));
+        self
+    }
+}
+
+impl fmt::Display for KeyPath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, seg) in self.0.iter().enumerate() {
+            match seg {
+                KeySeg::Key(k) if i == 0 => write!(f, "{k}")?,
+                KeySeg::Key(k) => write!(f, ".{k}")?,
+                KeySeg::Index(n) => write!(f, "[{n}]")?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Start `path` for building key paths.
+pub fn path(k: &str) -> KeyPath {
+    KeyPath::default().key(k)
+}
+
+/// The 1-based line of the byte offset `pos` in `text`.
+pub fn line_of(text: &str, pos: usize) -> usize {
+    text[..pos.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+}
+
+/// The line where the key path is written: the deepest existing part of the path, so a
+/// missing key points at the table that lacks it.
+pub fn locate(text: &str, key: &KeyPath) -> Option<usize> {
+    use toml::de::{DeTable, DeValue};
+    let doc = DeTable::parse(text).ok()?;
+    let mut best: Option<usize> = None;
+    let mut table: Option<&DeTable> = Some(doc.get_ref());
+    let mut value: Option<&DeValue> = None;
+    for seg in &key.0 {
+        match seg {
+            KeySeg::Key(k) => {
+                let t = match (table, value) {
+                    (Some(t), _) => t,
+                    (None, Some(DeValue::Table(t))) => t,
+                    _ => break,
+                };
+                let Some((kspan, v)) = t
+                    .iter()
+                    .find(|(kk, _)| kk.get_ref().as_ref() == k.as_str())
+                    .map(|(kk, v)| (kk.span(), v))
+                else {
+                    break;
+                };
+                best = Some(line_of(text, kspan.start));
+                table = None;
+                value = Some(v.get_ref());
+            }
+            KeySeg::Index(i) => {
+                let Some(DeValue::Array(a)) = value else { break };
+                let Some(item) = a.iter().nth(*i) else { break };
+                best = Some(line_of(text, item.span().start));
+                value = Some(item.get_ref());
+                table = None;
+            }
+        }
+    }
+    best
+}
+
+/// Parses and validates the syntax and types of a scene file. `name` is what errors call it.
+pub fn parse(text: &str, name: &str) -> Result<SceneFile, SceneError> {
+    toml::from_str::<SceneFile>(text).map_err(|e| {
+        let line = e.span().map(|s| line_of(text, s.start));
+        let key = line
+            .and_then(|l| text.lines().nth(l - 1))
+            .and_then(|l| l.split_once('=').map(|(k, _)| k.trim().to_string()))
+            .filter(|k| !k.is_empty() && !k.starts_with('['))
+            .or_else(|| {
+                // a table header: name the table
+                line.and_then(|l| text.lines().nth(l - 1))
+                    .map(|l| l.trim().trim_matches(['[', ']']).to_string())
+            })
+            .unwrap_or_else(|| "(document)".into());
+        SceneError {
+            file: name.to_string(),
+            line,
+            key,
+            message: e.message().trim().to_string(),
+        }
+    })
+}
+
+/// A scene file read from disk with its text (kept for error locations and hashing).
+#[derive(Debug, Clone)]
+pub struct SceneSource {
+    pub name: String,
+    pub text: String,
+    /// Directory for relative paths (OBJ files).
+    pub base_dir: PathBuf,
+}
+
+impl SceneSource {
+    /// Reads a file.
+    pub fn read(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: path.display().to_string(),
+            line: None,
+            key: "(file)".into(),
+            message: format!("cannot read the scene file: {e}"),
+        })?;
+        Ok(SceneSource {
+            name: path.display().to_string(),
+            text,
+            base_dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        })
+    }
+
+    /// An in-memory scene (the embedded default).
+    pub fn embedded(name: &str, text: &str) -> Self {
+        SceneSource {
+            name: name.to_string(),
+            text: text.to_string(),
+            base_dir: PathBuf::from("."),
+        }
+    }
+
+    /// A semantic error at `key`.
+    pub fn error(&self, key: &KeyPath, message: impl Into<String>) -> SceneError {
+        SceneError {
+            file: self.name.clone(),
+            line: locate(&self.text, key),
+            key: key.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// A 64-bit FNV-1a hash of the text: references record which scene they belong to.
+    pub fn hash(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in self.text.bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        h
+    }
+}

@@ -1,0 +1,333 @@
+//! Light sources: the emission L_e of eq. (2) on surfaces (area lights), and delta and infinite
+//! lights (point, spot, directional, environment).
+//!
+//! Sampling records carry values and densities separately: `sample_li` (a direction towards
+//! the light from a reference point, with its solid-angle pdf) for next-event estimation, and
+//! `sample_le` (an emitted ray with position and direction pdfs) for light paths.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+use crate::geometry::Primitive;
+use crate::math::{warp, Distribution1D, Frame};
+use crate::spectrum::Rgb;
+
+/// A vertical gradient or constant environment: radiance as a function of direction.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Environment {
+    Constant(Rgb),
+    /// Linear in the y component of the direction the light comes from: `horizon` at y = 0,
+    /// `zenith` at y = 1, `nadir` at y = -1.
+    Gradient { zenith: Rgb, horizon: Rgb, nadir: Rgb },
+}
+
+impl Environment {
+    /// Radiance arriving from direction `w` (pointing away from the scene, towards the sky).
+    #[inline]
+    pub fn radiance(&self, w: Vec3) -> Rgb {
+        match self {
+            Environment::Constant(l) => *l,
+            Environment::Gradient { zenith, horizon, nadir } => {
+                if w.y >= 0.0 {
+                    horizon.lerp(*zenith, w.y)
+                } else {
+                    horizon.lerp(*nadir, -w.y)
+                }
+            }
+        }
+    }
+
+    /// Total power proxy: the mean radiance over the sphere.
+    pub fn mean_radiance(&self) -> Rgb {
+        match self {
+            Environment::Constant(l) => *l,
+            Environment::Gradient { zenith, horizon, nadir } => {
+                // the mean of a function linear in y over each hemisphere is its value at y = 1/2
+                0.5 * (horizon.lerp(*zenith, 0.5) + horizon.lerp(*nadir, 0.5))
+            }
+        }
+    }
+}
+
+/// The closed set of light types.
+#[derive(Clone, Debug)]
+pub enum Light {
+    /// Emission `radiance` from the normal side of the primitives `prims` (one shape).
+    Area {
+        shape: u32,
+        prims: Vec<u32>,
+        /// Selection of a primitive proportional to its area.
+        distr: Distribution1D,
+        area: f32,
+        radiance: Rgb,
+    },
+    Point { position: Vec3, intensity: Rgb },
+    Spot {
+        position: Vec3,
+        frame: Frame,
+        intensity: Rgb,
+        cos_total: f32,
+        cos_falloff: f32,
+    },
+    /// Collimated light travelling along `direction`.
+    Directional { direction: Vec3, irradiance: Rgb },
+    Environment(Environment),
+}
+
+/// A direction towards a light from a reference point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the reference point towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (infinite for directional and environment lights).
+    pub dist: f32,
+    /// The point on the light (for finite lights) and its normal (zero for delta lights).
+    pub p: Vec3,
+    pub n: Vec3,
+    /// Emitted radiance towards the reference point, or intensity / irradiance for delta lights.
+    pub value: Rgb,
+    /// Solid-angle density at the reference point of this light's sampling routine (the light
+    /// selection probability is not included); 1 for delta lights.
+    pub pdf: f32,
+    pub is_delta: bool,
+}
+
+/// An emitted ray for light paths.
+#[derive(Clone, Copy, Debug)]
+pub struct EmissionSample {
+    pub p: Vec3,
+    /// Unit geometric normal at `p` (zero for point and spot lights; the direction for
+    /// directional and environment lights).
+    pub n: Vec3,
+    /// Unit direction of emission.
+    pub d: Vec3,
+    /// Emitted radiance (area, environment), intensity (point, spot) or irradiance (directional).
+    pub value: Rgb,
+    /// Density of `p`: per area (area lights; the disk for infinite lights), 1 for point lights.
+    pub pdf_pos: f32,
+    /// Solid-angle density of `d` (1 for directional light).
+    pub pdf_dir: f32,
+}
+
+/// Smoothstep falloff of a spot light.
+fn spot_falloff(cos: f32, cos_total: f32, cos_falloff: f32) -> f32 {
+    if cos < cos_total {
+        0.0
+    } else if cos >= cos_falloff {
+        1.0
+    } else {
+        let x = (cos - cos_total) / (cos_falloff - cos_total);
+        x * x * (3.0 - 2.0 * x)
+    }
+}
+
+impl Light {
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. })
+    }
+
+    pub fn is_infinite(&self) -> bool {
+        matches!(self, Light::Directional { .. } | Light::Environment(_))
+    }
+
+    /// Emitted power (for light selection). `scene_radius` bounds infinite lights.
+    pub fn power(&self, scene_radius: f32) -> f32 {
+        let lum = |c: Rgb| crate::spectrum::average(c);
+        match self {
+            Light::Area { area, radiance, .. } => PI * area * lum(*radiance),
+            Light::Point { intensity, .. } => 4.0 * PI * lum(*intensity),
+            Light::Spot { intensity, cos_total, cos_falloff, .. } => {
+                2.0 * PI * lum(*intensity) * (1.0 - 0.5 * (cos_total + cos_falloff))
+            }
+            Light::Directional { irradiance, .. } => PI * scene_radius * scene_radius * lum(*irradiance),
+            Light::Environment(env) => {
+                4.0 * PI * PI * scene_radius * scene_radius * lum(env.mean_radiance())
+            }
+        }
+    }
+
+    /// Samples a direction towards the light from `p_ref` (next-event estimation).
+    pub fn sample_li(&self, prims: &[Primitive], p_ref: Vec3, u: Vec2, u_prim: f32) -> Option<LightSample> {
+        match self {
+            Light::Area { prims: ids, distr, radiance, .. } => {
+                let (k, pk, _) = distr.sample(u_prim);
+                let prim = &prims[ids[k] as usize];
+                let (p, n) = prim.sample_area(u);
+                let to = p - p_ref;
+                let d2 = to.length_squared();
+                if d2 <= 0.0 {
+                    return None;
+                }
+                let dist = d2.sqrt();
+                let wi = to / dist;
+                let cos_l = -wi.dot(n);
+                if cos_l <= 0.0 {
+                    return None; // the back of an emitter is black
+                }
+                // area density pk / A_k, converted to solid angle: d^2 / cos
+                let pdf = pk / prim.area() * d2 / cos_l;
+                Some(LightSample { wi, dist, p, n, value: *radiance, pdf, is_delta: false })
+            }
+            Light::Point { position, intensity } => {
+                let to = *position - p_ref;
+                let d2 = to.length_squared();
+                let dist = d2.sqrt();
+                if dist <= 0.0 {
+                    return None;
+                }
+                // intensity / d^2 is the irradiance on a surface facing the light
+                Some(LightSample {
+                    wi: to / dist,
+                    dist,
+                    p: *position,
+                    n: Vec3::ZERO,
+                    value: *intensity / d2,
+                    pdf: 1.0,
+                    is_delta: true,
+                })
+            }
+            Light::Spot { position, frame, intensity, cos_total, cos_falloff } => {
+                let to = *position - p_ref;
+                let d2 = to.length_squared();
+                let dist = d2.sqrt();
+                if dist <= 0.0 {
+                    return None;
+                }
+                let wi = to / dist;
+                let f = spot_falloff(-wi.dot(frame.n), *cos_total, *cos_falloff);
+                if f <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    dist,
+                    p: *position,
+                    n: Vec3::ZERO,
+                    value: *intensity * f / d2,
+                    pdf: 1.0,
+                    is_delta: true,
+                })
+            }
+            Light::Directional { direction, irradiance } => Some(LightSample {
+                wi: -*direction,
+                dist: f32::INFINITY,
+                p: Vec3::ZERO,
+                n: *direction,
+                value: *irradiance,
+                pdf: 1.0,
+                is_delta: true,
+            }),
+            Light::Environment(env) => {
+                let wi = warp::uniform_sphere(u);
+                Some(LightSample {
+                    wi,
+                    dist: f32::INFINITY,
+                    p: Vec3::ZERO,
+                    n: -wi,
+                    value: env.radiance(wi),
+                    pdf: warp::INV_FOUR_PI,
+                    is_delta: false,
+                })
+            }
+        }
+    }
+
+    /// Solid-angle density of [`Light::sample_li`] producing the point `p` (normal `n`) on
+    /// this area light from `p_ref`, or direction `wi` for the environment.
+    pub fn pdf_li(&self, prims: &[Primitive], p_ref: Vec3, p: Vec3, n: Vec3, prim: u32) -> f32 {
+        match self {
+            Light::Area { prims: ids, distr, .. } => {
+                let Some(k) = ids.iter().position(|&i| i == prim) else {
+                    return 0.0;
+                };
+                let to = p - p_ref;
+                let d2 = to.length_squared();
+                let cos_l = -(to / d2.sqrt()).dot(n);
+                if cos_l <= 0.0 {
+                    return 0.0;
+                }
+                distr.pmf(k) / prims[prim as usize].area() * d2 / cos_l
+            }
+            Light::Environment(_) => warp::INV_FOUR_PI,
+            _ => 0.0,
+        }
+    }
+
+    /// Samples an emitted ray (for light paths). `center`, `radius` bound the scene.
+    pub fn sample_le(
+        &self,
+        prims: &[Primitive],
+        u_pos: Vec2,
+        u_dir: Vec2,
+        u_prim: f32,
+        center: Vec3,
+        radius: f32,
+    ) -> Option<EmissionSample> {
+        match self {
+            Light::Area { prims: ids, distr, radiance, .. } => {
+                let (k, pk, _) = distr.sample(u_prim);
+                let prim = &prims[ids[k] as usize];
+                let (p, n) = prim.sample_area(u_pos);
+                let local = warp::cosine_hemisphere(u_dir);
+                let d = Frame::from_normal(n).to_world(local);
+                Some(EmissionSample {
+                    p,
+                    n,
+                    d,
+                    value: *radiance,
+                    pdf_pos: pk / prim.area(),
+                    pdf_dir: warp::cosine_hemisphere_pdf(local),
+                })
+            }
+            Light::Point { position, intensity } => Some(EmissionSample {
+                p: *position,
+                n: Vec3::ZERO,
+                d: warp::uniform_sphere(u_dir),
+                value: *intensity,
+                pdf_pos: 1.0,
+                pdf_dir: warp::INV_FOUR_PI,
+            }),
+            Light::Spot { position, frame, intensity, cos_total, cos_falloff } => {
+                let local = warp::uniform_cone(u_dir, *cos_total);
+                let d = frame.to_world(local);
+                Some(EmissionSample {
+                    p: *position,
+                    n: Vec3::ZERO,
+                    d,
+                    value: *intensity * spot_falloff(local.z, *cos_total, *cos_falloff),
+                    pdf_pos: 1.0,
+                    pdf_dir: 1.0 / (2.0 * PI * (1.0 - cos_total)),
+                })
+            }
+            Light::Directional { direction, irradiance } => {
+                // a disk of the scene's radius facing the light, outside the scene
+                let frame = Frame::from_normal(*direction);
+                let disk = warp::concentric_disk(u_pos) * radius;
+                let p = center - *direction * radius + frame.s * disk.x + frame.t * disk.y;
+                Some(EmissionSample {
+                    p,
+                    n: *direction,
+                    d: *direction,
+                    value: *irradiance,
+                    pdf_pos: 1.0 / (PI * radius * radius),
+                    pdf_dir: 1.0,
+                })
+            }
+            Light::Environment(env) => {
+                let w = warp::uniform_sphere(u_dir);
+                let d = -w;
+                let frame = Frame::from_normal(d);
+                let disk = warp::concentric_disk(u_pos) * radius;
+                let p = center + w * radius + frame.s * disk.x + frame.t * disk.y;
+                Some(EmissionSample {
+                    p,
+                    n: d,
+                    d,
+                    value: env.radiance(w),
+                    pdf_pos: 1.0 / (PI * radius * radius),
+                    pdf_dir: warp::INV_FOUR_PI,
+                })
+            }
+        }
+    }
+}

@@ -1,0 +1,271 @@
+//! The scene: geometry with its BVH, materials, media, lights, camera and sensors, built from a
+//! validated scene file, and the queries every integrator shares: closest hit, propagation
+//! through media and null boundaries (Table 1 applied segment by segment), transmittance along a
+//! shadow ray, and the medium containing a point.
+//! Book: "Scenes" and "Participating media and Table 1".
+
+pub mod build;
+pub mod camera;
+pub mod file;
+pub mod light;
+pub mod sensor;
+
+pub use camera::Camera;
+pub use file::{SceneError, SceneFile, SceneSource};
+pub use light::{Environment, Light};
+pub use sensor::IrradianceMeter;
+
+use glam::Vec3;
+
+use crate::bsdf::Bsdf;
+use crate::geometry::{offset_origin, Aabb, Bvh, Hit, Primitive, Ray};
+use crate::math::{Distribution1D, Sampler};
+use crate::medium::Medium;
+use crate::spectrum::Rgb;
+
+/// The fog box, compiled into the binary: what `pathspace render` draws without a scene file.
+pub const FOG_BOX: &str = include_str!("../../scenes/fog-box.toml");
+
+/// What a shape is made of and what it separates.
+#[derive(Clone, Debug)]
+pub struct ShapeInfo {
+    /// `None` for a black emitter (emission without a material).
+    pub bsdf: Option<Bsdf>,
+    /// Index into `Scene::lights` when the shape emits.
+    pub light: Option<u32>,
+    /// Medium behind the geometric normal (inside a closed shape).
+    pub interior: Option<u32>,
+    /// Medium on the normal's side.
+    pub exterior: Option<u32>,
+    /// True when the shape declares `interior` or `exterior`: crossing it changes the medium.
+    pub interface: bool,
+    /// Name for messages (`shapes[3] (box)`).
+    pub label: String,
+}
+
+impl ShapeInfo {
+    /// True for a null (index-matched) boundary: tracing passes through it.
+    pub fn is_null(&self) -> bool {
+        matches!(self.bsdf, Some(Bsdf::Null))
+    }
+
+    /// The medium a ray travelling along `d` is in after crossing this shape at a point with
+    /// normal `ng`, given the medium it was in before.
+    #[inline]
+    pub fn medium_after(&self, d: Vec3, ng: Vec3, before: Option<u32>) -> Option<u32> {
+        if !self.interface {
+            return before;
+        }
+        if d.dot(ng) < 0.0 {
+            self.interior
+        } else {
+            self.exterior
+        }
+    }
+}
+
+/// Rendering defaults from the scene's `[render]` table.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub integrator: String,
+    pub spp: u32,
+    pub seed: u64,
+    pub max_depth: Option<u32>,
+    pub meter_samples: u32,
+}
+
+/// Where a ray's propagation ended.
+#[derive(Clone, Copy, Debug)]
+pub enum Event {
+    /// A collision inside `medium` at `p` (a medium vertex).
+    Medium { p: Vec3, medium: u32, sigma_s: Rgb },
+    /// A non-null surface; `medium` is the medium the ray travelled in just before.
+    Surface { hit: Hit, medium: Option<u32> },
+    /// The ray left the scene.
+    Escape,
+}
+
+/// The result of propagating a ray until an interaction (Table 1 per medium segment).
+#[derive(Clone, Copy, Debug)]
+pub struct Propagation {
+    pub event: Event,
+    /// Transmittance along the whole way, per channel.
+    pub transmittance: Rgb,
+    /// Product of the free-flight pdfs of every segment (density of the collision times the
+    /// passage probabilities of the segments before it).
+    pub pdf: f32,
+}
+
+impl Propagation {
+    /// transmittance (times sigma_s at a medium vertex) over pdf: the throughput factor.
+    #[inline]
+    pub fn weight(&self) -> Rgb {
+        if self.pdf <= 0.0 {
+            return Rgb::ZERO;
+        }
+        match self.event {
+            Event::Medium { sigma_s, .. } => self.transmittance * sigma_s / self.pdf,
+            _ => self.transmittance / self.pdf,
+        }
+    }
+}
+
+/// A scene ready to render.
+pub struct Scene {
+    pub prims: Vec<Primitive>,
+    /// Shape index of every primitive.
+    pub prim_shape: Vec<u32>,
+    /// Whether a primitive is opaque (wins coplanar ties and blocks shadow rays).
+    pub prim_opaque: Vec<bool>,
+    pub bvh: Bvh,
+    pub shapes: Vec<ShapeInfo>,
+    pub media: Vec<Medium>,
+    pub medium_names: Vec<String>,
+    pub lights: Vec<Light>,
+    /// Light selection proportional to power.
+    pub light_distr: Distribution1D,
+    /// Index of the environment light, if any (at most one).
+    pub environment: Option<u32>,
+    pub camera: Option<Camera>,
+    pub camera_medium: Option<u32>,
+    pub sensors: Vec<IrradianceMeter>,
+    pub render: RenderSettings,
+    pub bounds: Aabb,
+    pub center: Vec3,
+    pub radius: f32,
+    /// True when any null boundary exists (otherwise shadow rays are plain any-hit queries).
+    pub has_null: bool,
+    /// Hash of the scene file text.
+    pub hash: u64,
+    pub source_name: String,
+}
+
+/// Crossing more null boundaries than this along one ray means the geometry traps the ray.
+const MAX_NULL_CROSSINGS: usize = 256;
+
+impl Scene {
+    /// Closest hit along the ray, null boundaries included.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
+        self.bvh.intersect(&self.prims, &self.prim_opaque, ray, t_max)
+    }
+
+    #[inline]
+    pub fn shape_of(&self, hit: &Hit) -> &ShapeInfo {
+        &self.shapes[self.prim_shape[hit.prim as usize] as usize]
+    }
+
+    /// Propagates `ray`, starting in `medium`, through media and null boundaries until a
+    /// collision, a non-null surface or escape.
+    // ANCHOR: propagate
+    pub fn propagate(&self, mut ray: Ray, mut medium: Option<u32>, sampler: &mut Sampler) -> Propagation {
+        let mut transmittance = Rgb::ONE;
+        let mut pdf = 1.0f32;
+        for _ in 0..MAX_NULL_CROSSINGS {
+            let hit = self.intersect(&ray, f32::INFINITY);
+            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+            if let Some(m) = medium {
+                // Table 1 on this segment; memorylessness makes the segments independent
+                let ff = self.media[m as usize].sample_free_flight(&ray, t_hit, sampler);
+                transmittance *= ff.transmittance;
+                pdf *= ff.pdf;
+                if ff.scattered {
+                    return Propagation {
+                        event: Event::Medium { p: ray.at(ff.t), medium: m, sigma_s: ff.sigma_s },
+                        transmittance,
+                        pdf,
+                    };
+                }
+            }
+            let Some(hit) = hit else {
+                return Propagation { event: Event::Escape, transmittance, pdf };
+            };
+            let shape = self.shape_of(&hit);
+            if !shape.is_null() {
+                return Propagation { event: Event::Surface { hit, medium }, transmittance, pdf };
+            }
+            medium = shape.medium_after(ray.d, hit.ng, medium);
+            ray.o = offset_origin(hit.p, hit.ng, ray.d);
+        }
+        Propagation { event: Event::Escape, transmittance: Rgb::ZERO, pdf: 1.0 }
+    }
+    // ANCHOR_END: propagate
+
+    /// Transmittance from `o` along unit `d` over distance `dist` (may be infinite), starting in
+    /// `medium`, through null boundaries; zero when an opaque surface is in the way. This is
+    /// the tau of eq. (3) times the visibility V.
+    // ANCHOR: transmittance
+    pub fn transmittance(&self, o: Vec3, d: Vec3, dist: f32, mut medium: Option<u32>, sampler: &mut Sampler) -> Rgb {
+        let mut ray = Ray::new(o, d);
+        // one any-hit query against the opaque primitives settles visibility
+        if self.bvh.occluded(&self.prims, &self.prim_opaque, &ray, dist) {
+            return Rgb::ZERO;
+        }
+        if !self.has_null {
+            return match medium {
+                Some(m) => self.media[m as usize].transmittance(&ray, dist, sampler),
+                None => Rgb::ONE,
+            };
+        }
+        let mut tr = Rgb::ONE;
+        let mut remaining = dist;
+        for _ in 0..MAX_NULL_CROSSINGS {
+            let hit = self.intersect(&ray, remaining);
+            let seg = hit.map_or(remaining, |h| h.t);
+            if let Some(m) = medium {
+                tr *= self.media[m as usize].transmittance(&ray, seg, sampler);
+                if tr == Rgb::ZERO {
+                    return tr;
+                }
+            }
+            let Some(hit) = hit else { return tr };
+            let shape = self.shape_of(&hit);
+            if !shape.is_null() {
+                return Rgb::ZERO;
+            }
+            medium = shape.medium_after(ray.d, hit.ng, medium);
+            let o2 = offset_origin(hit.p, hit.ng, ray.d);
+            remaining -= (o2 - ray.o).dot(ray.d);
+            ray.o = o2;
+            if remaining <= 0.0 {
+                return tr;
+            }
+        }
+        Rgb::ZERO
+    }
+    // ANCHOR_END: transmittance
+
+    /// The medium containing `p`: found from the first medium boundary a fixed ray from `p`
+    /// meets (leaving through a boundary means being inside it).
+    pub fn medium_at(&self, p: Vec3) -> Option<u32> {
+        // an irrational-looking direction avoids grazing axis-aligned faces and edges
+        let d = Vec3::new(0.389_312, 0.727_003, 0.565_516).normalize();
+        let mut ray = Ray::new(p, d);
+        for _ in 0..MAX_NULL_CROSSINGS {
+            let hit = self.intersect(&ray, f32::INFINITY)?;
+            let shape = self.shape_of(&hit);
+            if shape.interface {
+                return if d.dot(hit.ng) > 0.0 { shape.interior } else { shape.exterior };
+            }
+            ray.o = offset_origin(hit.p, hit.ng, d);
+        }
+        None
+    }
+
+    /// The selection probability of light `l`.
+    #[inline]
+    pub fn light_pmf(&self, l: u32) -> f32 {
+        self.light_distr.pmf(l as usize)
+    }
+
+    /// Loads, validates and builds a scene.
+    pub fn load(source: &SceneSource) -> Result<Scene, SceneError> {
+        build::build(source)
+    }
+
+    /// The embedded fog box.
+    pub fn fog_box() -> Scene {
+        Scene::load(&SceneSource::embedded("fog-box.toml (embedded)", FOG_BOX))
+            .expect("the embedded fog box is valid (checked by a test)")
+    }
+}

@@ -1,0 +1,44 @@
+//! RGB radiometric quantities.
+//!
+//! The papers work per wavelength; pathspace carries three channels (linear sRGB primaries) in a
+//! `glam::Vec3`, the simplest representation that shows chromatic media (a per-channel `sigma_t`).
+//! Book: "Notation and conventions".
+
+use glam::Vec3;
+
+/// A per-channel radiometric quantity (radiance, throughput, sigma, albedo).
+pub type Rgb = Vec3;
+
+/// Rec. 709 luminance weights, used wherever a scalar must stand for a colour (Russian roulette,
+/// MLT's scalar image contribution, SMC's channel average is the plain mean instead).
+pub const LUMINANCE: Rgb = Vec3::new(0.2126, 0.7152, 0.0722);
+
+/// Luminance of a linear RGB value.
+#[inline]
+pub fn luminance(c: Rgb) -> f32 {
+    c.dot(LUMINANCE)
+}
+
+/// Mean of the three channels (the pdf of a channel picked uniformly, averaged).
+#[inline]
+pub fn average(c: Rgb) -> f32 {
+    (c.x + c.y + c.z) * (1.0 / 3.0)
+}
+
+/// True when every channel is finite.
+#[inline]
+pub fn is_finite(c: Rgb) -> bool {
+    c.is_finite()
+}
+
+/// True when every channel is exactly zero.
+#[inline]
+pub fn is_black(c: Rgb) -> bool {
+    c == Vec3::ZERO
+}
+
+/// Channel `i` (0, 1, 2) of `c`.
+#[inline]
+pub fn channel(c: Rgb, i: usize) -> f32 {
+    c[i]
+}
