@@ -100,7 +100,10 @@ impl Bsdf {
 
     /// True when every lobe is singular (no light sampling at such a vertex).
     pub fn is_singular(&self) -> bool {
-        matches!(self, Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null)
+        matches!(
+            self,
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null
+        )
     }
 
     /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction).
@@ -135,7 +138,14 @@ impl Bsdf {
     }
 
     /// Samples `wi` given `wo`. `None` when no direction can be produced.
-    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32, mode: TransportMode) -> Option<BsdfSample> {
+    pub fn sample(
+        &self,
+        wo: Vec3,
+        n: Vec3,
+        u: Vec2,
+        uc: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
         let cos_o = wo.dot(n);
         if cos_o == 0.0 {
             return None;

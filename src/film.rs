@@ -46,8 +46,16 @@ impl Film {
 
     /// The estimate: mean of the samples plus the splats.
     pub fn image(&self) -> Image {
-        let inv_n = if self.spp > 0 { 1.0 / self.spp as f64 } else { 0.0 };
-        let inv_s = if self.splat_count > 0 { 1.0 / self.splat_count as f64 } else { 0.0 };
+        let inv_n = if self.spp > 0 {
+            1.0 / self.spp as f64
+        } else {
+            0.0
+        };
+        let inv_s = if self.splat_count > 0 {
+            1.0 / self.splat_count as f64
+        } else {
+            0.0
+        };
         let pixels = self
             .sum
             .iter()

@@ -83,9 +83,10 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
     });
     let mut layer_attributes = LayerAttributes::named("pathspace");
     for (k, v) in &meta.attributes {
-        layer_attributes
-            .other
-            .insert(Text::from(k.as_str()), AttributeValue::Text(Text::from(v.as_str())));
+        layer_attributes.other.insert(
+            Text::from(k.as_str()),
+            AttributeValue::Text(Text::from(v.as_str())),
+        );
     }
     let layer = Layer::new(
         (image.width as usize, image.height as usize),
@@ -106,7 +107,9 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
         .no_deep_data()
         .largest_resolution_level()
         .rgba_channels(
-            |resolution, _| super::image_io::Image::new(resolution.width() as u32, resolution.height() as u32),
+            |resolution, _| {
+                super::image_io::Image::new(resolution.width() as u32, resolution.height() as u32)
+            },
             |image: &mut super::image_io::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
                 let w = image.width as usize;
                 image.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
@@ -128,7 +131,11 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
 /// The sRGB transfer function of a linear value, clamped to [0, 1].
 #[inline]
 pub fn srgb_encode(v: f32) -> f32 {
-    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    let v = if v.is_finite() {
+        v.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     if v <= 0.003_130_8 {
         12.92 * v
     } else {

@@ -35,10 +35,14 @@ pub fn run(cli: Cli) -> Result<(), String> {
 }
 
 /// Loads the named scene, or the embedded fog box when `None`.
-pub fn load_scene(path: Option<&std::path::Path>) -> Result<(crate::scene::Scene, crate::scene::SceneSource), String> {
+pub fn load_scene(
+    path: Option<&std::path::Path>,
+) -> Result<(crate::scene::Scene, crate::scene::SceneSource), String> {
     let source = match path {
         Some(p) => crate::scene::SceneSource::read(p).map_err(|e| e.to_string())?,
-        None => crate::scene::SceneSource::embedded("fog-box.toml (embedded)", crate::scene::FOG_BOX),
+        None => {
+            crate::scene::SceneSource::embedded("fog-box.toml (embedded)", crate::scene::FOG_BOX)
+        }
     };
     let scene = crate::scene::Scene::load(&source).map_err(|e| e.to_string())?;
     Ok((scene, source))

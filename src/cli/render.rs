@@ -31,6 +31,9 @@ pub struct RenderArgs {
     /// Maximum number of scattering vertices (default: unlimited, Russian roulette).
     #[arg(long)]
     pub max_depth: Option<u32>,
+    /// Override the camera resolution, e.g. `64x64` (quick previews, golden images).
+    #[arg(long, value_parser = parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
     /// Output EXR (default: the scene's name with .exr, in the current directory).
     #[arg(short = 'o', long = "output")]
     pub output: Option<PathBuf>,
@@ -40,6 +43,21 @@ pub struct RenderArgs {
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Parses `WxH`.
+pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT, e.g. 64x64"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=16384).contains(n))
+            .ok_or_else(|| format!("`{v}` in `{s}` is not a size in 1..=16384"))
+    };
+    Ok((parse(w)?, parse(h)?))
 }
 
 /// Everything a render produced.
@@ -74,10 +92,10 @@ pub fn render_scene(
     progress: bool,
 ) -> RenderResult {
     let mut r = Renderer::new(scene, kind, seed, max_depth);
-    let tiles = scene
-        .camera
-        .as_ref()
-        .map_or(1, |c| (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE)) as u64);
+    let tiles = scene.camera.as_ref().map_or(1, |c| {
+        (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE))
+            as u64
+    });
     let bar = if progress {
         let total = match time {
             Some(_) => 0,
@@ -90,8 +108,10 @@ pub fn render_scene(
         };
         b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
         b.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles {msg}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         Some(b)
     } else {
@@ -125,7 +145,11 @@ pub fn render_scene(
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let spp_done = if scene.camera.is_some() { r.spp() } else { r.passes };
+    let spp_done = if scene.camera.is_some() {
+        r.spp()
+    } else {
+        r.passes
+    };
     RenderResult {
         integrator: kind.name().to_string(),
         spp: if time.is_some() { spp_done } else { spp as u64 },
@@ -142,8 +166,19 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
 }
 
 pub fn run(args: RenderArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(args.scene.as_deref())?;
-    let kind = IntegratorKind::parse(args.integrator.as_deref().unwrap_or(&scene.render.integrator))?;
+    let (mut scene, source) = super::load_scene(args.scene.as_deref())?;
+    if let Some((w, h)) = args.resolution {
+        let cam = scene
+            .camera
+            .as_ref()
+            .ok_or("--resolution needs a scene with a camera")?;
+        scene.camera = cam.with_resolution(w, h);
+    }
+    let kind = IntegratorKind::parse(
+        args.integrator
+            .as_deref()
+            .unwrap_or(&scene.render.integrator),
+    )?;
     let spp = args.spp.unwrap_or(scene.render.spp);
     if spp == 0 {
         return Err("--spp must be at least 1".into());
@@ -162,8 +197,11 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
         pool = pool.num_threads(t);
     }
-    let pool = pool.build().map_err(|e| format!("cannot start worker threads: {e}"))?;
-    let result = pool.install(|| render_scene(&scene, kind, spp, args.time, seed, max_depth, !args.json));
+    let pool = pool
+        .build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let result =
+        pool.install(|| render_scene(&scene, kind, spp, args.time, seed, max_depth, !args.json));
 
     let stem = args
         .scene
@@ -173,8 +211,14 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         .unwrap_or_else(|| "fog-box".into());
     let mut written = Vec::new();
     if let Some(image) = &result.image {
-        let exr = args.output.clone().unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
-        let png = args.png.clone().unwrap_or_else(|| exr.with_extension("png"));
+        let exr = args
+            .output
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
+        let png = args
+            .png
+            .clone()
+            .unwrap_or_else(|| exr.with_extension("png"));
         let mut meta = ImageMeta::default();
         meta.set("integrator", &result.integrator)
             .set("spp", result.spp)
@@ -188,7 +232,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         written.push(exr.display().to_string());
         written.push(png.display().to_string());
     }
-    let mean = result.image.as_ref().map(|i| i.mean()).unwrap_or_default();
+    let mean = result.image.as_ref().map(|i| i.mean());
     if args.json {
         let sensors: Vec<serde_json::Value> = result
             .meters
@@ -200,29 +244,41 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             "spp": result.spp,
             "seconds": result.seconds,
             "paths_per_second": result.paths_per_second(),
-            "mean": rgb_json(mean),
+            "mean": mean.map(rgb_json),
             "nan_count": result.nan_count,
             "sensors": sensors,
             "outputs": written,
         });
         println!("{out}");
     } else {
+        let mean = mean.map_or("no camera".to_string(), |m| {
+            format!("mean pixel ({:.4}, {:.4}, {:.4})", m.x, m.y, m.z)
+        });
         println!(
-            "{}: {} spp in {:.2} s, {:.3e} paths/s, mean pixel ({:.4}, {:.4}, {:.4}), {} NaN/inf{}",
+            "{}: {} spp in {:.2} s, {:.3e} paths/s, {}, {} NaN/inf{}",
             result.integrator,
             result.spp,
             result.seconds,
             result.paths_per_second(),
-            mean.x,
-            mean.y,
-            mean.z,
+            mean,
             result.nan_count,
-            if written.is_empty() { String::new() } else { format!(" -> {}", written.join(", ")) }
+            if written.is_empty() {
+                String::new()
+            } else {
+                format!(" -> {}", written.join(", "))
+            }
         );
         for m in &result.meters {
             println!(
                 "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",
-                m.name, m.value.x, m.value.y, m.value.z, m.stderr.x, m.stderr.y, m.stderr.z, m.samples
+                m.name,
+                m.value.x,
+                m.value.y,
+                m.value.z,
+                m.stderr.x,
+                m.stderr.y,
+                m.stderr.z,
+                m.samples
             );
         }
     }

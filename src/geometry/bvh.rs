@@ -93,9 +93,7 @@ impl Bvh {
         if items.len() <= MAX_LEAF {
             return make_leaf(self, items);
         }
-        let cb = items
-            .iter()
-            .fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+        let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
         let extent = cb.extent();
         let axis = if extent.x >= extent.y && extent.x >= extent.z {
             0
@@ -176,6 +174,18 @@ impl Bvh {
         ray: &Ray,
         t_max: f32,
     ) -> Option<Hit> {
+        self.intersect_range(prims, opaque, ray, 0.0, t_max)
+    }
+
+    /// [`Bvh::intersect`] restricted to t in (t_min, t_max).
+    pub fn intersect_range(
+        &self,
+        prims: &[Primitive],
+        opaque: &[bool],
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -192,7 +202,9 @@ impl Bvh {
                 if n.count > 0 {
                     for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
                         let limit = (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
-                        if let Some((t, p, ng)) = prims[pi as usize].intersect(ray, limit) {
+                        if let Some((t, p, ng)) =
+                            prims[pi as usize].intersect_range(ray, t_min, limit)
+                        {
                             let candidate = Hit { t, p, ng, prim: pi };
                             match best {
                                 None => {
@@ -221,10 +233,15 @@ impl Bvh {
                     let left = node + 1;
                     let right = n.offset as usize;
                     let axis_dir_neg = {
-                        let c = self.nodes[right].bounds.centroid() - self.nodes[left].bounds.centroid();
+                        let c = self.nodes[right].bounds.centroid()
+                            - self.nodes[left].bounds.centroid();
                         c.dot(ray.d) < 0.0
                     };
-                    let (first, second) = if axis_dir_neg { (right, left) } else { (left, right) };
+                    let (first, second) = if axis_dir_neg {
+                        (right, left)
+                    } else {
+                        (left, right)
+                    };
                     if sp < stack.len() {
                         stack[sp] = second as u32;
                         sp += 1;

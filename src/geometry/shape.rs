@@ -105,9 +105,7 @@ impl Primitive {
                 q.origin + q.v,
                 q.origin + q.u + q.v,
             ]),
-            Primitive::Triangle(t) => {
-                Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2])
-            }
+            Primitive::Triangle(t) => Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2]),
             Primitive::Sphere(s) => Aabb {
                 min: s.center - Vec3::splat(s.radius),
                 max: s.center + Vec3::splat(s.radius),
@@ -126,6 +124,14 @@ impl Primitive {
     /// The nearest intersection with `t` in (0, t_max), as (t, point, normal).
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<(f32, Vec3, Vec3)> {
+        self.intersect_range(ray, 0.0, t_max)
+    }
+
+    /// The nearest intersection with `t` in (t_min, t_max). Continuing a ray past a null
+    /// boundary with `t_min` (instead of re-spawning it from an offset origin) keeps the medium
+    /// segments contiguous, so no optical depth is lost at the crossing.
+    #[inline]
+    pub fn intersect_range(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, Vec3, Vec3)> {
         match self {
             Primitive::Quad(q) => {
                 let denom = q.n.dot(ray.d);
@@ -133,7 +139,7 @@ impl Primitive {
                     return None;
                 }
                 let t = q.n.dot(q.origin - ray.o) / denom;
-                if !(t > 0.0 && t < t_max) {
+                if !(t > t_min && t < t_max) {
                     return None;
                 }
                 let rel = ray.at(t) - q.origin;
@@ -164,7 +170,7 @@ impl Primitive {
                     return None;
                 }
                 let t = tri.e2.dot(qvec) * inv;
-                if !(t > 0.0 && t < t_max) {
+                if !(t > t_min && t < t_max) {
                     return None;
                 }
                 Some((t, tri.p0 + b1 * tri.e1 + b2 * tri.e2, tri.n))
@@ -186,8 +192,8 @@ impl Primitive {
                 if t0 > t1 {
                     std::mem::swap(&mut t0, &mut t1);
                 }
-                let t = if t0 > 0.0 { t0 } else { t1 };
-                if !(t > 0.0 && t < t_max) || !t.is_finite() {
+                let t = if t0 > t_min { t0 } else { t1 };
+                if !(t > t_min && t < t_max) || !t.is_finite() {
                     return None;
                 }
                 let n = (ray.at(t) - s.center).normalize();

@@ -155,9 +155,11 @@ impl<'a> Renderer<'a> {
                             let mut sum = [0.0f64; 3];
                             let mut sum_sq = [0.0f64; 3];
                             for _ in 0..spp {
-                                let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                                let raster =
+                                    glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
                                 let ray = cam.generate_ray(raster);
-                                let l = tracer.radiance(scene, ray, scene.camera_medium, &mut sampler);
+                                let l =
+                                    tracer.radiance(scene, ray, scene.camera_medium, &mut sampler);
                                 if !l.is_finite() {
                                     nans += 1;
                                     continue;

@@ -58,15 +58,30 @@ impl PathTracer {
     }
 
     /// Radiance arriving at the camera along `ray`, which starts in `medium`.
-    pub fn radiance(&self, scene: &Scene, ray: Ray, medium: Option<u32>, sampler: &mut Sampler) -> Rgb {
-        let prev = Previous { p: ray.o, pdf_dir: 1.0, singular: true };
+    pub fn radiance(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        medium: Option<u32>,
+        sampler: &mut Sampler,
+    ) -> Rgb {
+        let prev = Previous {
+            p: ray.o,
+            pdf_dir: 1.0,
+            singular: true,
+        };
         self.walk(scene, ray, medium, Rgb::ONE, 0, prev, sampler)
     }
 
     /// One sample of a meter's mean irradiance: a point uniform on the meter, then the meter
     /// treated as a vertex whose "BSDF" is 1 on its normal side, so that integrating it against
     /// L cos gives irradiance (light sampling there, then a cosine-sampled continuation).
-    pub fn meter_irradiance(&self, scene: &Scene, meter: &IrradianceMeter, sampler: &mut Sampler) -> Rgb {
+    pub fn meter_irradiance(
+        &self,
+        scene: &Scene,
+        meter: &IrradianceMeter,
+        sampler: &mut Sampler,
+    ) -> Rgb {
         let n = meter.normal();
         let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
         let mut l = self.next_event(scene, p, None, meter.medium, sampler, |wi| {
@@ -82,9 +97,21 @@ impl PathTracer {
             return l;
         }
         let wi = Frame::from_normal(n).to_world(local);
-        let prev = Previous { p, pdf_dir: local.z * std::f32::consts::FRAC_1_PI, singular: false };
+        let prev = Previous {
+            p,
+            pdf_dir: local.z * std::f32::consts::FRAC_1_PI,
+            singular: false,
+        };
         // f cos / pdf = cos / (cos / pi) = pi
-        l += self.walk(scene, Ray::new(p, wi), meter.medium, Rgb::splat(std::f32::consts::PI), 0, prev, sampler);
+        l += self.walk(
+            scene,
+            Ray::new(p, wi),
+            meter.medium,
+            Rgb::splat(std::f32::consts::PI),
+            0,
+            prev,
+            sampler,
+        );
         l
     }
 
@@ -120,13 +147,21 @@ impl PathTracer {
             Some(n) => offset_origin(p, n, ls.wi),
             None => p,
         };
-        let dist = if ls.dist.is_infinite() { f32::INFINITY } else { shadow_distance(origin, ls.p) };
+        let dist = if ls.dist.is_infinite() {
+            f32::INFINITY
+        } else {
+            shadow_distance(origin, ls.p)
+        };
         let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
         if tr == Rgb::ZERO {
             return Rgb::ZERO;
         }
         let pdf_light = pmf * ls.pdf;
-        let w = if ls.is_delta { 1.0 } else { power_heuristic(pdf_light, pdf_scatter) };
+        let w = if ls.is_delta {
+            1.0
+        } else {
+            power_heuristic(pdf_light, pdf_scatter)
+        };
         f * ls.value * tr * (w / pdf_light)
     }
     // ANCHOR_END: next_event
@@ -155,7 +190,8 @@ impl PathTracer {
             match prop.event {
                 Event::Escape => {
                     if let Some(e) = scene.environment {
-                        let crate::scene::Light::Environment(env) = &scene.lights[e as usize] else {
+                        let crate::scene::Light::Environment(env) = &scene.lights[e as usize]
+                        else {
                             break;
                         };
                         let w = if prev.singular {
@@ -175,10 +211,11 @@ impl PathTracer {
                     let phase = scene.media[m as usize].phase();
                     let wo = -ray.d;
                     // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
-                    l += beta * self.next_event(scene, p, None, Some(m), sampler, |wi| {
-                        let f = phase.eval(wo, wi);
-                        (Rgb::splat(f), f)
-                    });
+                    l += beta
+                        * self.next_event(scene, p, None, Some(m), sampler, |wi| {
+                            let f = phase.eval(wo, wi);
+                            (Rgb::splat(f), f)
+                        });
                     // no early stop here: a direction sampled at the last allowed vertex can still
                     // reach an emitter, the MIS partner of the light sample above
                     let ps = phase.sample(wo, sampler.next_2d());
@@ -186,7 +223,11 @@ impl PathTracer {
                         break;
                     }
                     beta *= ps.value / ps.pdf;
-                    prev = Previous { p, pdf_dir: ps.pdf, singular: false };
+                    prev = Previous {
+                        p,
+                        pdf_dir: ps.pdf,
+                        singular: false,
+                    };
                     ray = Ray::new(p, ps.wi);
                     medium = Some(m);
                 }
@@ -195,14 +236,22 @@ impl PathTracer {
                     let n = hit.ng;
                     if let Some(li) = shape.light {
                         if ray.d.dot(n) < 0.0 {
-                            let crate::scene::Light::Area { radiance, .. } = &scene.lights[li as usize] else {
+                            let crate::scene::Light::Area { radiance, .. } =
+                                &scene.lights[li as usize]
+                            else {
                                 break;
                             };
                             let w = if prev.singular {
                                 1.0
                             } else {
                                 let pdf_light = scene.light_pmf(li)
-                                    * scene.lights[li as usize].pdf_li(&scene.prims, prev.p, hit.p, n, hit.prim);
+                                    * scene.lights[li as usize].pdf_li(
+                                        &scene.prims,
+                                        prev.p,
+                                        hit.p,
+                                        n,
+                                        hit.prim,
+                                    );
                                 power_heuristic(prev.pdf_dir, pdf_light)
                             };
                             l += beta * *radiance * w;
@@ -215,10 +264,11 @@ impl PathTracer {
                     depth += 1;
                     let wo = -ray.d;
                     if !bsdf.is_singular() {
-                        l += beta * self.next_event(scene, hit.p, Some(n), m, sampler, |wi| {
-                            let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
-                            (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
-                        });
+                        l += beta
+                            * self.next_event(scene, hit.p, Some(n), m, sampler, |wi| {
+                                let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
+                                (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+                            });
                     }
                     let u = sampler.next_2d();
                     let uc = sampler.next_f32();
@@ -235,7 +285,11 @@ impl PathTracer {
                     } else {
                         medium = m;
                     }
-                    prev = Previous { p: hit.p, pdf_dir: bs.pdf, singular: bs.lobe.is_singular() };
+                    prev = Previous {
+                        p: hit.p,
+                        pdf_dir: bs.pdf,
+                        singular: bs.lobe.is_singular(),
+                    };
                     ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
                 }
             }

@@ -41,7 +41,11 @@ impl Homogeneous {
 
     /// Single-scattering albedo sigma_s / sigma_t per channel (0 where sigma_t = 0).
     pub fn albedo(&self) -> Rgb {
-        Rgb::select(self.sigma_t.cmpgt(Rgb::ZERO), self.sigma_s / self.sigma_t, Rgb::ZERO)
+        Rgb::select(
+            self.sigma_t.cmpgt(Rgb::ZERO),
+            self.sigma_s / self.sigma_t,
+            Rgb::ZERO,
+        )
     }
 
     /// exp(-sigma_t d).

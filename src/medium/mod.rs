@@ -88,7 +88,9 @@ impl Medium {
     #[inline]
     pub fn sample_free_flight(&self, _ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
         match self {
-            Medium::Homogeneous(h) => h.sample_free_flight(t_max, sampler.next_f32(), sampler.next_f32()),
+            Medium::Homogeneous(h) => {
+                h.sample_free_flight(t_max, sampler.next_f32(), sampler.next_f32())
+            }
         }
     }
 

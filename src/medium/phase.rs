@@ -71,7 +71,9 @@ impl Phase {
         }
         let total: f32 = lobes.iter().map(|l| l.0).sum();
         if lobes.iter().any(|l| !(l.0 >= 0.0) || !l.0.is_finite()) || !(total > 0.0) {
-            return Err(PhaseError::BadMixWeights(lobes.iter().map(|l| l.0).collect()));
+            return Err(PhaseError::BadMixWeights(
+                lobes.iter().map(|l| l.0).collect(),
+            ));
         }
         Ok(Phase::Mix(
             lobes.into_iter().map(|(w, p)| (w / total, p)).collect(),

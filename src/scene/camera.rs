@@ -35,7 +35,14 @@ pub struct CameraImportance {
 }
 
 impl Camera {
-    pub fn new(eye: Vec3, look_at: Vec3, up: Vec3, fov_deg: f32, width: u32, height: u32) -> Option<Self> {
+    pub fn new(
+        eye: Vec3,
+        look_at: Vec3,
+        up: Vec3,
+        fov_deg: f32,
+        width: u32,
+        height: u32,
+    ) -> Option<Self> {
         let forward = (look_at - eye).try_normalize()?;
         let right = forward.cross(up).try_normalize()?;
         let up = right.cross(forward);
@@ -56,12 +63,26 @@ impl Camera {
         })
     }
 
+    /// The same view at another resolution (the vertical field of view is kept).
+    pub fn with_resolution(&self, width: u32, height: u32) -> Option<Self> {
+        if width == 0 || height == 0 {
+            return None;
+        }
+        let mut c = self.clone();
+        c.width = width;
+        c.height = height;
+        c.tan_half_x = self.tan_half_y * width as f32 / height as f32;
+        Some(c)
+    }
+
     /// The primary ray through continuous raster position `raster`.
     #[inline]
     pub fn generate_ray(&self, raster: Vec2) -> Ray {
         let ndc_x = 2.0 * raster.x / self.width as f32 - 1.0;
         let ndc_y = 1.0 - 2.0 * raster.y / self.height as f32;
-        let d = self.forward + self.right * (ndc_x * self.tan_half_x) + self.up * (ndc_y * self.tan_half_y);
+        let d = self.forward
+            + self.right * (ndc_x * self.tan_half_x)
+            + self.up * (ndc_y * self.tan_half_y);
         Ray::new(self.eye, d.normalize())
     }
 

@@ -25,7 +25,11 @@ pub struct SceneError {
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.line {
-            Some(l) => write!(f, "{}:{}: key `{}`: {}", self.file, l, self.key, self.message),
+            Some(l) => write!(
+                f,
+                "{}:{}: key `{}`: {}",
+                self.file, l, self.key, self.message
+            ),
             None => write!(f, "{}: key `{}`: {}", self.file, self.key, self.message),
         }
     }
@@ -110,12 +114,16 @@ fn default_up() -> [f32; 3] {
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MaterialDesc {
-    Lambert { albedo: RgbValue },
+    Lambert {
+        albedo: RgbValue,
+    },
     Mirror {
         #[serde(default = "one_rgb")]
         reflectance: RgbValue,
     },
-    Dielectric { ior: f32 },
+    Dielectric {
+        ior: f32,
+    },
     Null {},
 }
 
@@ -128,9 +136,16 @@ fn one_rgb() -> RgbValue {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PhaseDesc {
     Isotropic {},
-    Hg { g: f32 },
-    Schlick { k: f32 },
-    Mix { weights: Vec<f32>, lobes: Vec<PhaseDesc> },
+    Hg {
+        g: f32,
+    },
+    Schlick {
+        k: f32,
+    },
+    Mix {
+        weights: Vec<f32>,
+        lobes: Vec<PhaseDesc>,
+    },
 }
 
 /// `[media.NAME]`.
@@ -201,10 +216,34 @@ impl ShapeDesc {
     /// The keys every shape shares.
     pub fn common(&self) -> ShapeCommon {
         match self {
-            ShapeDesc::Quad { material, emission, interior, exterior, .. }
-            | ShapeDesc::Box { material, emission, interior, exterior, .. }
-            | ShapeDesc::Sphere { material, emission, interior, exterior, .. }
-            | ShapeDesc::Mesh { material, emission, interior, exterior, .. } => ShapeCommon {
+            ShapeDesc::Quad {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
+            | ShapeDesc::Box {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
+            | ShapeDesc::Sphere {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
+            | ShapeDesc::Mesh {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            } => ShapeCommon {
                 material: material.clone(),
                 emission: *emission,
                 interior: interior.clone(),
@@ -229,9 +268,15 @@ impl ShapeDesc {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum LightDesc {
     /// Collimated light travelling along `direction`, irradiance on a plane facing it.
-    Directional { direction: [f32; 3], irradiance: RgbValue },
+    Directional {
+        direction: [f32; 3],
+        irradiance: RgbValue,
+    },
     /// Isotropic point light of radiant intensity `intensity` (W/sr).
-    Point { position: [f32; 3], intensity: RgbValue },
+    Point {
+        position: [f32; 3],
+        intensity: RgbValue,
+    },
     /// A spot light: `intensity` inside `cone_deg` (half-angle), smooth falloff over the last
     /// `falloff_deg` degrees.
     Spot {
@@ -326,7 +371,11 @@ pub fn path(k: &str) -> KeyPath {
 
 /// The 1-based line of the byte offset `pos` in `text`.
 pub fn line_of(text: &str, pos: usize) -> usize {
-    text[..pos.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
+    text[..pos.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
 }
 
 /// The line where the key path is written: the deepest existing part of the path, so a
@@ -357,7 +406,9 @@ pub fn locate(text: &str, key: &KeyPath) -> Option<usize> {
                 value = Some(v.get_ref());
             }
             KeySeg::Index(i) => {
-                let Some(DeValue::Array(a)) = value else { break };
+                let Some(DeValue::Array(a)) = value else {
+                    break;
+                };
                 let Some(item) = a.iter().nth(*i) else { break };
                 best = Some(line_of(text, item.span().start));
                 value = Some(item.get_ref());

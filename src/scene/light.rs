@@ -18,7 +18,11 @@ pub enum Environment {
     Constant(Rgb),
     /// Linear in the y component of the direction the light comes from: `horizon` at y = 0,
     /// `zenith` at y = 1, `nadir` at y = -1.
-    Gradient { zenith: Rgb, horizon: Rgb, nadir: Rgb },
+    Gradient {
+        zenith: Rgb,
+        horizon: Rgb,
+        nadir: Rgb,
+    },
 }
 
 impl Environment {
@@ -27,7 +31,11 @@ impl Environment {
     pub fn radiance(&self, w: Vec3) -> Rgb {
         match self {
             Environment::Constant(l) => *l,
-            Environment::Gradient { zenith, horizon, nadir } => {
+            Environment::Gradient {
+                zenith,
+                horizon,
+                nadir,
+            } => {
                 if w.y >= 0.0 {
                     horizon.lerp(*zenith, w.y)
                 } else {
@@ -41,7 +49,11 @@ impl Environment {
     pub fn mean_radiance(&self) -> Rgb {
         match self {
             Environment::Constant(l) => *l,
-            Environment::Gradient { zenith, horizon, nadir } => {
+            Environment::Gradient {
+                zenith,
+                horizon,
+                nadir,
+            } => {
                 // the mean of a function linear in y over each hemisphere is its value at y = 1/2
                 0.5 * (horizon.lerp(*zenith, 0.5) + horizon.lerp(*nadir, 0.5))
             }
@@ -61,7 +73,10 @@ pub enum Light {
         area: f32,
         radiance: Rgb,
     },
-    Point { position: Vec3, intensity: Rgb },
+    Point {
+        position: Vec3,
+        intensity: Rgb,
+    },
     Spot {
         position: Vec3,
         frame: Frame,
@@ -70,7 +85,10 @@ pub enum Light {
         cos_falloff: f32,
     },
     /// Collimated light travelling along `direction`.
-    Directional { direction: Vec3, irradiance: Rgb },
+    Directional {
+        direction: Vec3,
+        irradiance: Rgb,
+    },
     Environment(Environment),
 }
 
@@ -123,7 +141,10 @@ fn spot_falloff(cos: f32, cos_total: f32, cos_falloff: f32) -> f32 {
 
 impl Light {
     pub fn is_delta(&self) -> bool {
-        matches!(self, Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. })
+        matches!(
+            self,
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. }
+        )
     }
 
     pub fn is_infinite(&self) -> bool {
@@ -136,10 +157,15 @@ impl Light {
         match self {
             Light::Area { area, radiance, .. } => PI * area * lum(*radiance),
             Light::Point { intensity, .. } => 4.0 * PI * lum(*intensity),
-            Light::Spot { intensity, cos_total, cos_falloff, .. } => {
-                2.0 * PI * lum(*intensity) * (1.0 - 0.5 * (cos_total + cos_falloff))
+            Light::Spot {
+                intensity,
+                cos_total,
+                cos_falloff,
+                ..
+            } => 2.0 * PI * lum(*intensity) * (1.0 - 0.5 * (cos_total + cos_falloff)),
+            Light::Directional { irradiance, .. } => {
+                PI * scene_radius * scene_radius * lum(*irradiance)
             }
-            Light::Directional { irradiance, .. } => PI * scene_radius * scene_radius * lum(*irradiance),
             Light::Environment(env) => {
                 4.0 * PI * PI * scene_radius * scene_radius * lum(env.mean_radiance())
             }
@@ -147,9 +173,20 @@ impl Light {
     }
 
     /// Samples a direction towards the light from `p_ref` (next-event estimation).
-    pub fn sample_li(&self, prims: &[Primitive], p_ref: Vec3, u: Vec2, u_prim: f32) -> Option<LightSample> {
+    pub fn sample_li(
+        &self,
+        prims: &[Primitive],
+        p_ref: Vec3,
+        u: Vec2,
+        u_prim: f32,
+    ) -> Option<LightSample> {
         match self {
-            Light::Area { prims: ids, distr, radiance, .. } => {
+            Light::Area {
+                prims: ids,
+                distr,
+                radiance,
+                ..
+            } => {
                 let (k, pk, _) = distr.sample(u_prim);
                 let prim = &prims[ids[k] as usize];
                 let (p, n) = prim.sample_area(u);
@@ -166,9 +203,20 @@ impl Light {
                 }
                 // area density pk / A_k, converted to solid angle: d^2 / cos
                 let pdf = pk / prim.area() * d2 / cos_l;
-                Some(LightSample { wi, dist, p, n, value: *radiance, pdf, is_delta: false })
+                Some(LightSample {
+                    wi,
+                    dist,
+                    p,
+                    n,
+                    value: *radiance,
+                    pdf,
+                    is_delta: false,
+                })
             }
-            Light::Point { position, intensity } => {
+            Light::Point {
+                position,
+                intensity,
+            } => {
                 let to = *position - p_ref;
                 let d2 = to.length_squared();
                 let dist = d2.sqrt();
@@ -186,7 +234,13 @@ impl Light {
                     is_delta: true,
                 })
             }
-            Light::Spot { position, frame, intensity, cos_total, cos_falloff } => {
+            Light::Spot {
+                position,
+                frame,
+                intensity,
+                cos_total,
+                cos_falloff,
+            } => {
                 let to = *position - p_ref;
                 let d2 = to.length_squared();
                 let dist = d2.sqrt();
@@ -208,7 +262,10 @@ impl Light {
                     is_delta: true,
                 })
             }
-            Light::Directional { direction, irradiance } => Some(LightSample {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => Some(LightSample {
                 wi: -*direction,
                 dist: f32::INFINITY,
                 p: Vec3::ZERO,
@@ -236,7 +293,9 @@ impl Light {
     /// this area light from `p_ref`, or direction `wi` for the environment.
     pub fn pdf_li(&self, prims: &[Primitive], p_ref: Vec3, p: Vec3, n: Vec3, prim: u32) -> f32 {
         match self {
-            Light::Area { prims: ids, distr, .. } => {
+            Light::Area {
+                prims: ids, distr, ..
+            } => {
                 let Some(k) = ids.iter().position(|&i| i == prim) else {
                     return 0.0;
                 };
@@ -264,7 +323,12 @@ impl Light {
         radius: f32,
     ) -> Option<EmissionSample> {
         match self {
-            Light::Area { prims: ids, distr, radiance, .. } => {
+            Light::Area {
+                prims: ids,
+                distr,
+                radiance,
+                ..
+            } => {
                 let (k, pk, _) = distr.sample(u_prim);
                 let prim = &prims[ids[k] as usize];
                 let (p, n) = prim.sample_area(u_pos);
@@ -279,7 +343,10 @@ impl Light {
                     pdf_dir: warp::cosine_hemisphere_pdf(local),
                 })
             }
-            Light::Point { position, intensity } => Some(EmissionSample {
+            Light::Point {
+                position,
+                intensity,
+            } => Some(EmissionSample {
                 p: *position,
                 n: Vec3::ZERO,
                 d: warp::uniform_sphere(u_dir),
@@ -287,7 +354,13 @@ impl Light {
                 pdf_pos: 1.0,
                 pdf_dir: warp::INV_FOUR_PI,
             }),
-            Light::Spot { position, frame, intensity, cos_total, cos_falloff } => {
+            Light::Spot {
+                position,
+                frame,
+                intensity,
+                cos_total,
+                cos_falloff,
+            } => {
                 let local = warp::uniform_cone(u_dir, *cos_total);
                 let d = frame.to_world(local);
                 Some(EmissionSample {
@@ -299,7 +372,10 @@ impl Light {
                     pdf_dir: 1.0 / (2.0 * PI * (1.0 - cos_total)),
                 })
             }
-            Light::Directional { direction, irradiance } => {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
                 // a disk of the scene's radius facing the light, outside the scene
                 let frame = Frame::from_normal(*direction);
                 let disk = warp::concentric_disk(u_pos) * radius;

@@ -18,7 +18,7 @@ pub use sensor::IrradianceMeter;
 use glam::Vec3;
 
 use crate::bsdf::Bsdf;
-use crate::geometry::{offset_origin, Aabb, Bvh, Hit, Primitive, Ray};
+use crate::geometry::{Aabb, Bvh, Hit, Primitive, Ray};
 use crate::math::{Distribution1D, Sampler};
 use crate::medium::Medium;
 use crate::spectrum::Rgb;
@@ -140,6 +140,16 @@ pub struct Scene {
     pub source_name: String,
 }
 
+/// Relative step past a crossed null boundary before the next intersection query, so the same
+/// face is not found again (its t carries a few ulps of error). Coplanar opaque faces are not
+/// skipped: the BVH's tie-break returns them instead of the null face.
+const NULL_CROSSING_EPSILON: f32 = 1e-6;
+
+#[inline]
+fn past(t: f32, ray: &Ray) -> f32 {
+    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
+}
+
 /// Crossing more null boundaries than this along one ray means the geometry traps the ray.
 const MAX_NULL_CROSSINGS: usize = 256;
 
@@ -147,7 +157,8 @@ impl Scene {
     /// Closest hit along the ray, null boundaries included.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {
-        self.bvh.intersect(&self.prims, &self.prim_opaque, ray, t_max)
+        self.bvh
+            .intersect(&self.prims, &self.prim_opaque, ray, t_max)
     }
 
     #[inline]
@@ -158,36 +169,68 @@ impl Scene {
     /// Propagates `ray`, starting in `medium`, through media and null boundaries until a
     /// collision, a non-null surface or escape.
     // ANCHOR: propagate
-    pub fn propagate(&self, mut ray: Ray, mut medium: Option<u32>, sampler: &mut Sampler) -> Propagation {
+    pub fn propagate(
+        &self,
+        ray: Ray,
+        mut medium: Option<u32>,
+        sampler: &mut Sampler,
+    ) -> Propagation {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
+        // the ray is continued (not re-spawned) past null boundaries: segments stay contiguous
+        let mut t_start = 0.0f32;
+        let mut t_min = 0.0f32;
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.intersect(&ray, f32::INFINITY);
+            let hit = self.bvh.intersect_range(
+                &self.prims,
+                &self.prim_opaque,
+                &ray,
+                t_min,
+                f32::INFINITY,
+            );
             let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
             if let Some(m) = medium {
                 // Table 1 on this segment; memorylessness makes the segments independent
-                let ff = self.media[m as usize].sample_free_flight(&ray, t_hit, sampler);
+                let seg = Ray::new(ray.at(t_start), ray.d);
+                let ff = self.media[m as usize].sample_free_flight(&seg, t_hit - t_start, sampler);
                 transmittance *= ff.transmittance;
                 pdf *= ff.pdf;
                 if ff.scattered {
                     return Propagation {
-                        event: Event::Medium { p: ray.at(ff.t), medium: m, sigma_s: ff.sigma_s },
+                        event: Event::Medium {
+                            p: seg.at(ff.t),
+                            medium: m,
+                            sigma_s: ff.sigma_s,
+                        },
                         transmittance,
                         pdf,
                     };
                 }
             }
             let Some(hit) = hit else {
-                return Propagation { event: Event::Escape, transmittance, pdf };
+                return Propagation {
+                    event: Event::Escape,
+                    transmittance,
+                    pdf,
+                };
             };
             let shape = self.shape_of(&hit);
             if !shape.is_null() {
-                return Propagation { event: Event::Surface { hit, medium }, transmittance, pdf };
+                return Propagation {
+                    event: Event::Surface { hit, medium },
+                    transmittance,
+                    pdf,
+                };
             }
             medium = shape.medium_after(ray.d, hit.ng, medium);
-            ray.o = offset_origin(hit.p, hit.ng, ray.d);
+            t_start = hit.t;
+            t_min = past(hit.t, &ray);
         }
-        Propagation { event: Event::Escape, transmittance: Rgb::ZERO, pdf: 1.0 }
+        Propagation {
+            event: Event::Escape,
+            transmittance: Rgb::ZERO,
+            pdf: 1.0,
+        }
     }
     // ANCHOR_END: propagate
 
@@ -195,10 +238,20 @@ impl Scene {
     /// `medium`, through null boundaries; zero when an opaque surface is in the way. This is
     /// the tau of eq. (3) times the visibility V.
     // ANCHOR: transmittance
-    pub fn transmittance(&self, o: Vec3, d: Vec3, dist: f32, mut medium: Option<u32>, sampler: &mut Sampler) -> Rgb {
-        let mut ray = Ray::new(o, d);
+    pub fn transmittance(
+        &self,
+        o: Vec3,
+        d: Vec3,
+        dist: f32,
+        mut medium: Option<u32>,
+        sampler: &mut Sampler,
+    ) -> Rgb {
+        let ray = Ray::new(o, d);
         // one any-hit query against the opaque primitives settles visibility
-        if self.bvh.occluded(&self.prims, &self.prim_opaque, &ray, dist) {
+        if self
+            .bvh
+            .occluded(&self.prims, &self.prim_opaque, &ray, dist)
+        {
             return Rgb::ZERO;
         }
         if !self.has_null {
@@ -208,12 +261,15 @@ impl Scene {
             };
         }
         let mut tr = Rgb::ONE;
-        let mut remaining = dist;
+        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.intersect(&ray, remaining);
-            let seg = hit.map_or(remaining, |h| h.t);
+            let hit = self
+                .bvh
+                .intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
+            let t_end = hit.map_or(dist, |h| h.t);
             if let Some(m) = medium {
-                tr *= self.media[m as usize].transmittance(&ray, seg, sampler);
+                let seg = Ray::new(ray.at(t_start), d);
+                tr *= self.media[m as usize].transmittance(&seg, t_end - t_start, sampler);
                 if tr == Rgb::ZERO {
                     return tr;
                 }
@@ -223,13 +279,9 @@ impl Scene {
             if !shape.is_null() {
                 return Rgb::ZERO;
             }
-            medium = shape.medium_after(ray.d, hit.ng, medium);
-            let o2 = offset_origin(hit.p, hit.ng, ray.d);
-            remaining -= (o2 - ray.o).dot(ray.d);
-            ray.o = o2;
-            if remaining <= 0.0 {
-                return tr;
-            }
+            medium = shape.medium_after(d, hit.ng, medium);
+            t_start = hit.t;
+            t_min = past(hit.t, &ray);
         }
         Rgb::ZERO
     }
@@ -240,14 +292,25 @@ impl Scene {
     pub fn medium_at(&self, p: Vec3) -> Option<u32> {
         // an irrational-looking direction avoids grazing axis-aligned faces and edges
         let d = Vec3::new(0.389_312, 0.727_003, 0.565_516).normalize();
-        let mut ray = Ray::new(p, d);
+        let ray = Ray::new(p, d);
+        let mut t_min = 0.0;
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.intersect(&ray, f32::INFINITY)?;
+            let hit = self.bvh.intersect_range(
+                &self.prims,
+                &self.prim_opaque,
+                &ray,
+                t_min,
+                f32::INFINITY,
+            )?;
             let shape = self.shape_of(&hit);
             if shape.interface {
-                return if d.dot(hit.ng) > 0.0 { shape.interior } else { shape.exterior };
+                return if d.dot(hit.ng) > 0.0 {
+                    shape.interior
+                } else {
+                    shape.exterior
+                };
             }
-            ray.o = offset_origin(hit.p, hit.ng, d);
+            t_min = past(hit.t, &ray);
         }
         None
     }

@@ -1,0 +1,247 @@
+//! Oracles for the path tracer: analytic scenes with known answers (Pauly, Kollig, Keller 2000,
+//! eq. 3 and 4; the closed forms of the digest, section 1.9). Every Monte Carlo check is
+//! |mean - truth| < 4 standard errors with the standard error computed from the samples; checks of
+//! estimators that have no variance (a directional light seen by a meter) use a float tolerance.
+
+use pathspace::integrator::{IntegratorKind, MeterEstimate, Renderer};
+use pathspace::scene::{Scene, SceneSource};
+
+/// How many standard errors a Monte Carlo estimate may lie from the truth.
+const K_SIGMA: f64 = 4.0;
+
+fn load(text: &str) -> Scene {
+    Scene::load(&SceneSource::embedded("test.toml", text)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn meters(scene: &Scene, spp: u32, seed: u64, max_depth: Option<u32>) -> Vec<MeterEstimate> {
+    let mut r = Renderer::new(scene, IntegratorKind::Path, seed, max_depth);
+    r.pass(spp, &|| {});
+    r.meter_estimates()
+}
+
+fn check(name: &str, value: f64, stderr: f64, truth: f64) {
+    let tol = K_SIGMA * stderr;
+    assert!(
+        (value - truth).abs() <= tol,
+        "{name}: {value} +- {stderr} differs from the closed form {truth} by more than {K_SIGMA} sigma"
+    );
+}
+
+/// A slab of thickness 1 between z = 0 and z = -1 with optical thickness `tau` and albedo `a`,
+/// under a unit directional light along -z, with meters T (below, facing up) and R (above,
+/// facing down).
+fn slab(tau: f32, albedo: f32) -> String {
+    format!(
+        r#"
+[render]
+meter_samples = 4096
+
+[media.slab]
+type = "homogeneous"
+sigma_a = {sa}
+sigma_s = {ss}
+
+[[shapes]]
+type = "box"
+min = [-1000.0, -1000.0, -1.0]
+max = [1000.0, 1000.0, 0.0]
+material = "null"
+interior = "slab"
+
+[[lights]]
+type = "directional"
+direction = [0.0, 0.0, -1.0]
+irradiance = 1.0
+
+[[sensors]]
+type = "irradiance_meter"
+name = "T"
+origin = [-0.5, -0.5, -1.001]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+
+[[sensors]]
+type = "irradiance_meter"
+name = "R"
+origin = [-0.5, -0.5, 0.001]
+u = [0.0, 1.0, 0.0]
+v = [1.0, 0.0, 0.0]
+"#,
+        sa = tau * (1.0 - albedo),
+        ss = tau * albedo
+    )
+}
+
+/// With albedo 0 nothing scatters: T measures the transmittance e^-tau, R measures nothing.
+#[test]
+fn slab_unscattered_transmittance_is_exp_minus_tau() {
+    for tau in [0.5f32, 1.0, 2.0] {
+        let scene = load(&slab(tau, 0.0));
+        let m = meters(&scene, 8, 11, None);
+        let truth = (-(tau as f64)).exp();
+        for c in 0..3 {
+            // the direct term is one deterministic shadow ray: no variance, float tolerance
+            let t = m[0].value[c] as f64;
+            assert!(
+                (t - truth).abs() <= 1e-5 * truth,
+                "T(tau={tau}) = {t}, expected {truth}"
+            );
+            assert_eq!(
+                m[1].value[c], 0.0,
+                "R(tau={tau}) must be 0 without scattering"
+            );
+        }
+    }
+}
+
+/// Single scattering (max_depth = 1) in a slab under normal incidence, isotropic phase:
+/// T1 = (a/2) int_0^1 mu (e^-tau - e^(-tau/mu)) / (1 - mu) dmu,
+/// R1 = (a/2) int_0^1 mu (1 - e^(-tau (1 + 1/mu))) / (1 + mu) dmu
+/// (integrate the once-scattered radiance of each layer over the hemisphere; see the book).
+fn single_scattering_closed_form(tau: f64, a: f64) -> (f64, f64) {
+    let n = 200_000;
+    let (mut t, mut r) = (0.0, 0.0);
+    for i in 0..n {
+        let mu = (i as f64 + 0.5) / n as f64;
+        t += mu * ((-tau).exp() - (-tau / mu).exp()) / (1.0 - mu);
+        r += mu * (1.0 - (-tau * (1.0 + 1.0 / mu)).exp()) / (1.0 + mu);
+    }
+    (0.5 * a * t / n as f64, 0.5 * a * r / n as f64)
+}
+
+#[test]
+fn slab_single_scattering_matches_closed_form() {
+    for (tau, a) in [(0.1f32, 0.9f32), (1.0, 0.9), (1.0, 0.5)] {
+        let scene = load(&slab(tau, a));
+        let m = meters(&scene, 32, 5, Some(1));
+        let (t1, r1) = single_scattering_closed_form(tau as f64, a as f64);
+        let direct = (-(tau as f64)).exp();
+        check(
+            &format!("T(tau={tau}, a={a})"),
+            m[0].value.x as f64,
+            m[0].stderr.x as f64,
+            direct + t1,
+        );
+        check(
+            &format!("R(tau={tau}, a={a})"),
+            m[1].value.x as f64,
+            m[1].stderr.x as f64,
+            r1,
+        );
+    }
+}
+
+/// Energy conservation in a conservative slab (albedo 1): what is not transmitted is reflected,
+/// T + R = 1 (all orders of scattering, Russian roulette included).
+#[test]
+fn conservative_slab_conserves_energy() {
+    let scene = load(&slab(1.0, 1.0));
+    let m = meters(&scene, 32, 3, None);
+    let sum = (m[0].value.x + m[1].value.x) as f64;
+    // T and R use independent streams, so their variances add
+    let se = ((m[0].stderr.x as f64).powi(2) + (m[1].stderr.x as f64).powi(2)).sqrt();
+    check("T + R", sum, se, 1.0);
+}
+
+/// An irradiance meter under a directional light of irradiance E at angle theta measures
+/// E cos(theta) (Lambert's cosine law; one deterministic shadow ray).
+#[test]
+fn meter_measures_cosine_law() {
+    for deg in [0.0f32, 30.0, 60.0, 85.0] {
+        let th = deg.to_radians();
+        let text = format!(
+            r#"
+[render]
+meter_samples = 64
+[[lights]]
+type = "directional"
+direction = [{dx}, 0.0, {dz}]
+irradiance = 2.5
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.5, -0.5, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+"#,
+            dx = th.sin(),
+            dz = -th.cos()
+        );
+        let m = meters(&load(&text), 1, 1, None);
+        let truth = 2.5 * (th as f64).cos();
+        let v = m[0].value.x as f64;
+        assert!(
+            (v - truth).abs() <= 1e-5,
+            "E at {deg} deg = {v}, expected {truth}"
+        );
+    }
+}
+
+/// A point light of intensity I at height h above a small meter facing it: E = I / h^2.
+#[test]
+fn meter_under_point_light_follows_inverse_square() {
+    let text = r#"
+[render]
+meter_samples = 256
+[[lights]]
+type = "point"
+position = [0.0, 0.0, 2.0]
+intensity = 8.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.001, -0.001, 0.0]
+u = [0.002, 0.0, 0.0]
+v = [0.0, 0.002, 0.0]
+"#;
+    let m = meters(&load(text), 1, 1, None);
+    let v = m[0].value.x as f64;
+    // the meter's extent (1e-3 at distance 2) changes E by less than 1e-6 relative
+    assert!((v - 2.0).abs() <= 2e-5, "E = {v}, expected 8 / 2^2 = 2");
+}
+
+/// The white furnace: a conservative medium (albedo 1) inside a null sphere under a uniform
+/// environment of radiance 1 is in equilibrium with it, so every pixel is 1.
+#[test]
+fn white_furnace_renders_one_everywhere() {
+    let text = r#"
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 30.0
+resolution = [16, 16]
+
+[media.white]
+type = "homogeneous"
+sigma_a = 0.0
+sigma_s = 2.0
+phase = { type = "hg", g = 0.5 }
+
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "null"
+interior = "white"
+
+[[lights]]
+type = "environment"
+radiance = 1.0
+"#;
+    let scene = load(text);
+    let mut r = Renderer::new(&scene, IntegratorKind::Path, 9, None);
+    r.pass(64, &|| {});
+    let film = r.film.as_ref().unwrap();
+    let img = film.image();
+    let var = film.variance_of_mean();
+    let n = img.pixels.len() as f64;
+    let mean: f64 = img.pixels.iter().map(|p| p.x as f64).sum::<f64>() / n;
+    let se = (var.pixels.iter().map(|v| v.x as f64).sum::<f64>()).sqrt() / n;
+    check("furnace image mean", mean, se, 1.0);
+    // every pixel: 5 sigma, so that 256 pixels give a false alarm rate below 1e-3
+    for (i, (p, v)) in img.pixels.iter().zip(&var.pixels).enumerate() {
+        let (x, s) = (p.x as f64, (v.x as f64).sqrt());
+        assert!((x - 1.0).abs() <= 5.0 * s + 1e-6, "pixel {i}: {x} +- {s}");
+    }
+}
