@@ -1,0 +1,129 @@
+//! The book is part of the executable specification: it must build, and it must not drift from
+//! the code. mdBook prints an *empty* listing, silently, when an anchor is missing, so every
+//! `{{#include file:anchor}}` is checked here: the file exists and the anchor encloses code.
+//! Images the book shows must exist, and links between chapters must resolve.
+
+use std::path::{Path, PathBuf};
+
+fn book_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("book")
+}
+
+fn chapters() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(book_dir().join("src"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every `{{#include path[:anchor]}}` of a chapter: (path, anchor).
+fn includes(text: &str) -> Vec<(String, Option<String>)> {
+    let mut out = Vec::new();
+    let mut rest = text;
+    while let Some(i) = rest.find("{{#include ") {
+        let after = &rest[i + "{{#include ".len()..];
+        let end = after.find("}}").expect("unterminated include");
+        let spec = after[..end].trim();
+        match spec.split_once(':') {
+            Some((p, a)) => out.push((p.to_string(), Some(a.to_string()))),
+            None => out.push((spec.to_string(), None)),
+        }
+        rest = &after[end..];
+    }
+    out
+}
+
+/// The lines between `ANCHOR: name` and `ANCHOR_END: name` (mdBook's rule).
+fn anchored(text: &str, anchor: &str) -> Option<String> {
+    if anchor.chars().all(|c| c.is_ascii_digit() || c == ':') {
+        return Some(text.to_string()); // line ranges
+    }
+    let start_tag = format!("ANCHOR: {anchor}");
+    let end_tag = format!("ANCHOR_END: {anchor}");
+    let mut inside = false;
+    let mut found = false;
+    let mut body = String::new();
+    for line in text.lines() {
+        if line.contains(&end_tag) {
+            return if found { Some(body) } else { None };
+        }
+        if inside && !line.contains("ANCHOR") {
+            body.push_str(line);
+            body.push('\n');
+        }
+        if line.contains(&start_tag) && !line.contains(&end_tag) {
+            let tail = &line[line.find(&start_tag).unwrap() + start_tag.len()..];
+            if tail.trim().is_empty() {
+                inside = true;
+                found = true;
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn every_include_exists_and_every_anchor_is_non_empty() {
+    let mut checked = 0;
+    for ch in chapters() {
+        let text = std::fs::read_to_string(&ch).unwrap();
+        for (path, anchor) in includes(&text) {
+            let file = ch.parent().unwrap().join(&path);
+            let src = std::fs::read_to_string(&file)
+                .unwrap_or_else(|e| panic!("{}: include {path} not readable: {e}", ch.display()));
+            if let Some(a) = anchor {
+                let body = anchored(&src, &a)
+                    .unwrap_or_else(|| panic!("{}: anchor `{a}` not found in {path}", ch.display()));
+                assert!(!body.trim().is_empty(), "{}: anchor `{a}` in {path} is empty", ch.display());
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 0, "the book includes no code at all");
+}
+
+#[test]
+fn every_image_and_internal_link_resolves() {
+    for ch in chapters() {
+        let text = std::fs::read_to_string(&ch).unwrap();
+        // markdown links and images: ](target)
+        for part in text.split("](").skip(1) {
+            let Some(end) = part.find(')') else { continue };
+            let target = part[..end].split_whitespace().next().unwrap_or("");
+            if target.starts_with("http") || target.starts_with('#') || target.starts_with("mailto:") {
+                continue;
+            }
+            let file = target.split('#').next().unwrap();
+            if file.is_empty() {
+                continue;
+            }
+            let p = ch.parent().unwrap().join(file);
+            assert!(p.exists(), "{}: link or image `{target}` does not exist", ch.display());
+        }
+    }
+}
+
+#[test]
+fn every_chapter_is_in_the_summary() {
+    let summary = std::fs::read_to_string(book_dir().join("src/SUMMARY.md")).unwrap();
+    for ch in chapters() {
+        let name = ch.file_name().unwrap().to_string_lossy().to_string();
+        if name == "SUMMARY.md" {
+            continue;
+        }
+        assert!(summary.contains(&format!("({name})")), "{name} is not listed in SUMMARY.md");
+    }
+}
+
+#[test]
+fn the_book_builds() {
+    let out = std::env::temp_dir().join(format!("pathspace-book-{}", std::process::id()));
+    let mut book = mdbook_driver::MDBook::load(book_dir()).expect("book.toml and SUMMARY.md load");
+    book.config.build.build_dir = out.clone();
+    book.build().expect("the book builds");
+    assert!(out.join("index.html").exists() || out.join("html/index.html").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}
