@@ -75,9 +75,14 @@ fn every_include_exists_and_every_anchor_is_non_empty() {
             let src = std::fs::read_to_string(&file)
                 .unwrap_or_else(|e| panic!("{}: include {path} not readable: {e}", ch.display()));
             if let Some(a) = anchor {
-                let body = anchored(&src, &a)
-                    .unwrap_or_else(|| panic!("{}: anchor `{a}` not found in {path}", ch.display()));
-                assert!(!body.trim().is_empty(), "{}: anchor `{a}` in {path} is empty", ch.display());
+                let body = anchored(&src, &a).unwrap_or_else(|| {
+                    panic!("{}: anchor `{a}` not found in {path}", ch.display())
+                });
+                assert!(
+                    !body.trim().is_empty(),
+                    "{}: anchor `{a}` in {path} is empty",
+                    ch.display()
+                );
             }
             checked += 1;
         }
@@ -93,7 +98,10 @@ fn every_image_and_internal_link_resolves() {
         for part in text.split("](").skip(1) {
             let Some(end) = part.find(')') else { continue };
             let target = part[..end].split_whitespace().next().unwrap_or("");
-            if target.starts_with("http") || target.starts_with('#') || target.starts_with("mailto:") {
+            if target.starts_with("http")
+                || target.starts_with('#')
+                || target.starts_with("mailto:")
+            {
                 continue;
             }
             let file = target.split('#').next().unwrap();
@@ -101,7 +109,11 @@ fn every_image_and_internal_link_resolves() {
                 continue;
             }
             let p = ch.parent().unwrap().join(file);
-            assert!(p.exists(), "{}: link or image `{target}` does not exist", ch.display());
+            assert!(
+                p.exists(),
+                "{}: link or image `{target}` does not exist",
+                ch.display()
+            );
         }
     }
 }
@@ -114,7 +126,10 @@ fn every_chapter_is_in_the_summary() {
         if name == "SUMMARY.md" {
             continue;
         }
-        assert!(summary.contains(&format!("({name})")), "{name} is not listed in SUMMARY.md");
+        assert!(
+            summary.contains(&format!("({name})")),
+            "{name} is not listed in SUMMARY.md"
+        );
     }
 }
 

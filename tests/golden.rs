@@ -24,7 +24,8 @@ fn fog_box_matches_golden() {
     r.pass(SPP, &|| {});
     let film = r.film.as_ref().unwrap();
     let (img, var) = (film.image(), film.variance_of_mean());
-    let golden_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("golden/fog-box-32.exr");
+    let golden_path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("golden/fog-box-32.exr");
     let (golden, meta) = read_exr(&golden_path).unwrap();
     assert_eq!(meta.get("spp"), Some("16384"));
     let golden_spp = 16384.0f64;

@@ -50,6 +50,9 @@ pub const METER_CHUNK: u64 = 1024;
 /// Salt that keeps meter streams apart from pixel streams of the same index.
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
 
+/// One tile's results: (pixel index, sum, sum of squares) per pixel, and its NaN count.
+type TileResult = (Vec<(usize, [f64; 3], [f64; 3])>, u64);
+
 /// A meter's running statistics.
 #[derive(Clone, Debug, Default)]
 pub struct MeterAccum {
@@ -142,7 +145,7 @@ impl<'a> Renderer<'a> {
             let (w, h) = (cam.width, cam.height);
             let tiles_x = w.div_ceil(TILE);
             let tiles_y = h.div_ceil(TILE);
-            let results: Vec<(Vec<(usize, [f64; 3], [f64; 3])>, u64)> = (0..tiles_x * tiles_y)
+            let results: Vec<TileResult> = (0..tiles_x * tiles_y)
                 .into_par_iter()
                 .map(|t| {
                     let (tx, ty) = (t % tiles_x, t / tiles_x);

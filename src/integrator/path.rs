@@ -296,7 +296,7 @@ impl PathTracer {
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
             if depth >= RR_START_DEPTH {
                 let q = beta.max_element().min(RR_MAX_SURVIVAL);
-                if !(sampler.next_f32() < q) {
+                if sampler.next_f32() >= q || q.is_nan() {
                     break;
                 }
                 beta /= q;

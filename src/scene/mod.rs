@@ -247,19 +247,20 @@ impl Scene {
         sampler: &mut Sampler,
     ) -> Rgb {
         let ray = Ray::new(o, d);
-        // one any-hit query against the opaque primitives settles visibility
-        if self
-            .bvh
-            .occluded(&self.prims, &self.prim_opaque, &ray, dist)
-        {
-            return Rgb::ZERO;
-        }
         if !self.has_null {
+            // no boundary to cross: one any-hit query settles visibility
+            if self
+                .bvh
+                .occluded(&self.prims, &self.prim_opaque, &ray, dist)
+            {
+                return Rgb::ZERO;
+            }
             return match medium {
                 Some(m) => self.media[m as usize].transmittance(&ray, dist, sampler),
                 None => Rgb::ONE,
             };
         }
+        // with null boundaries the walk below meets any opaque occluder itself
         let mut tr = Rgb::ONE;
         let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
         for _ in 0..MAX_NULL_CROSSINGS {
