@@ -44,6 +44,17 @@ impl Film {
         }
     }
 
+    /// Adds a splat at continuous raster position `raster` (box filter: the pixel it falls in).
+    #[inline]
+    pub fn add_splat(&mut self, raster: glam::Vec2, l: Rgb) {
+        let x = (raster.x.max(0.0) as u32).min(self.width - 1);
+        let y = (raster.y.max(0.0) as u32).min(self.height - 1);
+        let i = (y * self.width + x) as usize;
+        for c in 0..3 {
+            self.splat[i][c] += l[c] as f64;
+        }
+    }
+
     /// The estimate: mean of the samples plus the splats.
     pub fn image(&self) -> Image {
         let inv_n = if self.spp > 0 {

@@ -4,6 +4,7 @@
 //! count.
 //! Book: "The Neumann series and the path tracer" (path), "Measuring a renderer" (statistics).
 
+pub mod bdpt;
 pub mod path;
 
 pub use path::PathTracer;
@@ -20,14 +21,20 @@ use crate::spectrum::Rgb;
 pub enum IntegratorKind {
     /// Volumetric path tracing with next-event estimation and MIS.
     Path,
+    /// Light tracing: light subpaths connected to the sensor (t = 1), splatted.
+    Light,
+    /// Bidirectional path tracing with MIS over all (s, t).
+    Bdpt,
 }
 
 impl IntegratorKind {
-    pub const ALL: &'static [IntegratorKind] = &[IntegratorKind::Path];
+    pub const ALL: &'static [IntegratorKind] = &[IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
 
     pub fn name(self) -> &'static str {
         match self {
             IntegratorKind::Path => "path",
+            IntegratorKind::Light => "light",
+            IntegratorKind::Bdpt => "bdpt",
         }
     }
 
@@ -50,8 +57,8 @@ pub const METER_CHUNK: u64 = 1024;
 /// Salt that keeps meter streams apart from pixel streams of the same index.
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
 
-/// One tile's results: (pixel index, sum, sum of squares) per pixel, and its NaN count.
-type TileResult = (Vec<(usize, [f64; 3], [f64; 3])>, u64);
+/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, and its NaN count.
+type TileResult = (Vec<(usize, [f64; 3], [f64; 3])>, Vec<bdpt::Splat>, u64);
 
 /// A meter's running statistics.
 #[derive(Clone, Debug, Default)]
@@ -100,6 +107,8 @@ pub struct Renderer<'a> {
     pub kind: IntegratorKind,
     pub seed: u64,
     pub tracer: PathTracer,
+    /// The bidirectional engine for `light` and `bdpt`.
+    pub bdpt: Option<bdpt::Bdpt>,
     pub film: Option<Film>,
     pub meters: Vec<MeterAccum>,
     /// Passes done so far (each pass has its own random streams).
@@ -119,6 +128,11 @@ impl<'a> Renderer<'a> {
             kind,
             seed,
             tracer: PathTracer::new(max_depth),
+            bdpt: match kind {
+                IntegratorKind::Path => None,
+                IntegratorKind::Light => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::LightTracing)),
+                IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All)),
+            },
             film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
             passes: 0,
@@ -140,6 +154,7 @@ impl<'a> Renderer<'a> {
         self.passes += 1;
         let scene = self.scene;
         let tracer = self.tracer;
+        let bidir = self.bdpt.as_ref();
         let seed = self.seed;
         if let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) {
             let (w, h) = (cam.width, cam.height);
@@ -150,6 +165,8 @@ impl<'a> Renderer<'a> {
                 .map(|t| {
                     let (tx, ty) = (t % tiles_x, t / tiles_x);
                     let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                    let mut splats = Vec::new();
+                    let mut scratch = bdpt::Scratch::default();
                     let mut nans = 0u64;
                     for y in ty * TILE..((ty + 1) * TILE).min(h) {
                         for x in tx * TILE..((tx + 1) * TILE).min(w) {
@@ -158,13 +175,19 @@ impl<'a> Renderer<'a> {
                             let mut sum = [0.0f64; 3];
                             let mut sum_sq = [0.0f64; 3];
                             for _ in 0..spp {
-                                let raster =
-                                    glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                                let ray = cam.generate_ray(raster);
-                                let l =
-                                    tracer.radiance(scene, ray, scene.camera_medium, &mut sampler);
-                                if !l.is_finite() {
+                                let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                                let first_splat = splats.len();
+                                let l = match bidir {
+                                    None => tracer.radiance(scene, cam.generate_ray(raster), scene.camera_medium, &mut sampler),
+                                    Some(b) => {
+                                        b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
+                                        b.light_subpath(scene, &mut sampler, &mut scratch.light);
+                                        b.combine(scene, &scratch, &mut sampler, &mut splats)
+                                    }
+                                };
+                                if !l.is_finite() || splats[first_splat..].iter().any(|s| !s.1.is_finite()) {
                                     nans += 1;
+                                    splats.truncate(first_splat);
                                     continue;
                                 }
                                 for c in 0..3 {
@@ -177,14 +200,20 @@ impl<'a> Renderer<'a> {
                         }
                     }
                     on_tile();
-                    (out, nans)
+                    (out, splats, nans)
                 })
                 .collect();
-            for (pixels, nans) in results {
+            for (pixels, splats, nans) in results {
                 self.nan_count += nans;
                 for (i, s, q) in pixels {
                     film.add_pixel(i, s, q);
                 }
+                for (r, l) in splats {
+                    film.add_splat(r, l);
+                }
+            }
+            if bidir.is_some() {
+                film.splat_count += (w * h) as u64 * spp as u64;
             }
             film.spp += spp as u64;
             self.paths += (w * h) as u64 * spp as u64;
@@ -200,8 +229,17 @@ impl<'a> Renderer<'a> {
                     let mut sampler = Sampler::new(seed, stream, pass);
                     let mut acc = MeterAccum::default();
                     let mut nans = 0;
+                    let mut scratch = bdpt::Scratch::default();
+                    let mut splats = Vec::new();
                     for _ in 0..n {
-                        let e = tracer.meter_irradiance(scene, meter, &mut sampler);
+                        let e = match bidir {
+                            None => tracer.meter_irradiance(scene, meter, &mut sampler),
+                            Some(b) => {
+                                b.meter_subpath(scene, mi as u32, &mut sampler, &mut scratch.eye);
+                                b.light_subpath(scene, &mut sampler, &mut scratch.light);
+                                b.combine(scene, &scratch, &mut sampler, &mut splats)
+                            }
+                        };
                         acc.samples += 1;
                         if !e.is_finite() {
                             nans += 1;

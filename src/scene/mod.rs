@@ -94,6 +94,10 @@ pub struct Propagation {
     /// Product of the free-flight pdfs of every segment (density of the collision times the
     /// passage probabilities of the segments before it).
     pub pdf: f32,
+    /// The same for the reverse walk, from where the ray ended back to its origin (a collision
+    /// density at the origin if it is a medium vertex); only computed by
+    /// [`Scene::propagate_bidirectional`], 1 otherwise.
+    pub pdf_rev: f32,
 }
 
 impl Propagation {
@@ -108,6 +112,24 @@ impl Propagation {
             _ => self.transmittance / self.pdf,
         }
     }
+}
+
+/// Transmittance (with visibility) and the propagation pdfs of an edge in both directions.
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeEval {
+    pub transmittance: Rgb,
+    pub pdf_ab: f32,
+    pub pdf_ba: f32,
+}
+
+/// One end of an edge: a point, its surface normal (zero in a medium or at a point light), the
+/// medium the edge leaves it into, and whether it is a medium vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct EdgeEnd {
+    pub p: Vec3,
+    pub n: Vec3,
+    pub medium: Option<u32>,
+    pub in_medium: bool,
 }
 
 /// A scene ready to render.
@@ -169,68 +191,75 @@ impl Scene {
     /// Propagates `ray`, starting in `medium`, through media and null boundaries until a
     /// collision, a non-null surface or escape.
     // ANCHOR: propagate
-    pub fn propagate(
+    pub fn propagate(&self, ray: Ray, medium: Option<u32>, sampler: &mut Sampler) -> Propagation {
+        self.propagate_impl::<false>(ray, medium, false, sampler)
+    }
+
+    /// [`Scene::propagate`] that also computes the reverse propagation pdf, for bidirectional
+    /// methods. `origin_in_medium` tells whether the ray starts at a medium vertex.
+    pub fn propagate_bidirectional(
+        &self,
+        ray: Ray,
+        medium: Option<u32>,
+        origin_in_medium: bool,
+        sampler: &mut Sampler,
+    ) -> Propagation {
+        self.propagate_impl::<true>(ray, medium, origin_in_medium, sampler)
+    }
+
+    #[inline]
+    fn propagate_impl<const REV: bool>(
         &self,
         ray: Ray,
         mut medium: Option<u32>,
+        origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
+        let mut pdf_rev = 1.0f32;
         // the ray is continued (not re-spawned) past null boundaries: segments stay contiguous
         let mut t_start = 0.0f32;
         let mut t_min = 0.0f32;
+        let mut first = true;
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.bvh.intersect_range(
-                &self.prims,
-                &self.prim_opaque,
-                &ray,
-                t_min,
-                f32::INFINITY,
-            );
+            let hit = self.bvh.intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, f32::INFINITY);
             let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
             if let Some(m) = medium {
                 // Table 1 on this segment; memorylessness makes the segments independent
                 let seg = Ray::new(ray.at(t_start), ray.d);
-                let ff = self.media[m as usize].sample_free_flight(&seg, t_hit - t_start, sampler);
+                let med = &self.media[m as usize];
+                let ff = med.sample_free_flight(&seg, t_hit - t_start, sampler);
                 transmittance *= ff.transmittance;
                 pdf *= ff.pdf;
+                if REV {
+                    // the reverse walk passes this segment, or collides at its far end (the
+                    // origin) when the origin is a medium vertex
+                    let back = Ray::new(seg.at(ff.t), -ray.d);
+                    pdf_rev *= med.free_flight_pdf(&back, ff.t, first && origin_in_medium);
+                }
                 if ff.scattered {
                     return Propagation {
-                        event: Event::Medium {
-                            p: seg.at(ff.t),
-                            medium: m,
-                            sigma_s: ff.sigma_s,
-                        },
+                        event: Event::Medium { p: seg.at(ff.t), medium: m, sigma_s: ff.sigma_s },
                         transmittance,
                         pdf,
+                        pdf_rev,
                     };
                 }
             }
+            first = false;
             let Some(hit) = hit else {
-                return Propagation {
-                    event: Event::Escape,
-                    transmittance,
-                    pdf,
-                };
+                return Propagation { event: Event::Escape, transmittance, pdf, pdf_rev };
             };
             let shape = self.shape_of(&hit);
             if !shape.is_null() {
-                return Propagation {
-                    event: Event::Surface { hit, medium },
-                    transmittance,
-                    pdf,
-                };
+                return Propagation { event: Event::Surface { hit, medium }, transmittance, pdf, pdf_rev };
             }
             medium = shape.medium_after(ray.d, hit.ng, medium);
             t_start = hit.t;
             t_min = past(hit.t, &ray);
         }
-        Propagation {
-            event: Event::Escape,
-            transmittance: Rgb::ZERO,
-            pdf: 1.0,
-        }
+        Propagation { event: Event::Escape, transmittance: Rgb::ZERO, pdf: 1.0, pdf_rev: 1.0 }
     }
     // ANCHOR_END: propagate
 
@@ -287,6 +316,58 @@ impl Scene {
         Rgb::ZERO
     }
     // ANCHOR_END: transmittance
+
+    /// Transmittance and propagation pdfs of the straight edge from `a` to `b` (a connection in
+    /// BDPT, or a re-evaluated edge in MLT): `pdf_ab` is the propagation pdf (Table 1) of
+    /// reaching `b` from `a` (a collision density if `b_in_medium`, else the passage
+    /// probabilities), `pdf_ba` the same from `b` to `a`. Transmittance includes visibility.
+    // ANCHOR: edge
+    pub fn edge(&self, a: EdgeEnd, b: EdgeEnd, sampler: &mut Sampler) -> EdgeEval {
+        let zero = EdgeEval { transmittance: Rgb::ZERO, pdf_ab: 0.0, pdf_ba: 0.0 };
+        let full = b.p - a.p;
+        let d = full.normalize_or_zero();
+        if d == Vec3::ZERO || !d.is_finite() {
+            return zero;
+        }
+        // lift surface endpoints off their surfaces so neither counts as an occluder
+        let o = if a.n != Vec3::ZERO { crate::geometry::offset_origin(a.p, a.n, d) } else { a.p };
+        let target = if b.n != Vec3::ZERO { crate::geometry::offset_origin(b.p, b.n, -d) } else { b.p };
+        let dist = (target - o).dot(d);
+        if !(dist > 0.0) || !dist.is_finite() {
+            return zero;
+        }
+        let (a, medium_a, a_in_medium, b_in_medium) = (o, a.medium, a.in_medium, b.in_medium);
+        let ray = Ray::new(a, d);
+        let mut medium = medium_a;
+        let mut out = EdgeEval { transmittance: Rgb::ONE, pdf_ab: 1.0, pdf_ba: 1.0 };
+        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
+        let mut first = true;
+        for _ in 0..MAX_NULL_CROSSINGS {
+            let hit = self.bvh.intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
+            let t_end = hit.map_or(dist, |h| h.t);
+            let last = hit.is_none();
+            if let Some(m) = medium {
+                let med = &self.media[m as usize];
+                let len = t_end - t_start;
+                let seg = Ray::new(ray.at(t_start), d);
+                out.transmittance *= med.transmittance(&seg, len, sampler);
+                out.pdf_ab *= med.free_flight_pdf(&seg, len, last && b_in_medium);
+                let back = Ray::new(ray.at(t_end), -d);
+                out.pdf_ba *= med.free_flight_pdf(&back, len, first && a_in_medium);
+            }
+            first = false;
+            let Some(hit) = hit else { return out };
+            let shape = self.shape_of(&hit);
+            if !shape.is_null() {
+                return zero;
+            }
+            medium = shape.medium_after(d, hit.ng, medium);
+            t_start = hit.t;
+            t_min = past(hit.t, &ray);
+        }
+        zero
+    }
+    // ANCHOR_END: edge
 
     /// The medium containing `p`: found from the first medium boundary a fixed ray from `p`
     /// meets (leaving through a boundary means being inside it).

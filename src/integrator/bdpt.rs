@@ -1,0 +1,567 @@
+//! Bidirectional path tracing with multiple importance sampling, with media (Lafortune and
+//! Willems 1996; Veach 1997 ch. 10; in the path-integral framework of Pauly, Kollig, Keller
+//! 2000, eq. 7).
+//!
+//! A light subpath y_0 ... y_{s-1} and an eye subpath z_{t-1} ... z_0 (z_0 on the sensor) are
+//! joined by one edge into a path of s + t vertices. Every (s, t) gives an unbiased estimate
+//! f_j / (p(y) p(z)); the power heuristic weights them with the densities every other split of
+//! the same path would have had. All densities are in the vertices' own measures (area on
+//! surfaces, volume in the medium) and include the propagation pdfs of Table 1, so the weights
+//! see medium vertices exactly as the path integral does.
+//! Book: "Bidirectional path tracing".
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::{Lobe, TransportMode};
+use crate::geometry::{offset_origin, Primitive, Ray};
+use crate::math::{warp, Frame, Sampler};
+use crate::path::vertex::to_area;
+use crate::path::{Vertex, VertexKind};
+use crate::scene::{Event, Light, Scene};
+use crate::spectrum::Rgb;
+
+use super::path::{RR_MAX_SURVIVAL, RR_START_DEPTH};
+
+/// Vertices per subpath at most, whatever Russian roulette decides (a safety net only).
+pub const MAX_SUBPATH_VERTICES: usize = 256;
+
+/// Which strategies are used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategies {
+    /// All (s, t), weighted by the power heuristic.
+    All,
+    /// Light tracing: only t = 1 (light subpaths connected to the sensor), unweighted.
+    LightTracing,
+    /// One strategy alone, unweighted: an unbiased estimator of the paths it can sample (the
+    /// debugging view, and the test that each strategy is unbiased on its own).
+    Only(usize, usize),
+}
+
+/// How the first vertex after the origin was sampled.
+#[derive(Clone, Copy)]
+enum FirstPdf {
+    /// A direction with this solid-angle density.
+    SolidAngle(f32),
+    /// A position on a disk perpendicular to the direction, with this area density (infinite
+    /// lights): the next vertex's density is this times its cosine factor.
+    Perpendicular(f32),
+}
+
+/// Reusable per-thread storage, so no sample allocates.
+#[derive(Default)]
+pub struct Scratch {
+    pub light: Vec<Vertex>,
+    pub eye: Vec<Vertex>,
+}
+
+/// One contribution for the film: to the sample's own pixel (`None`) or splatted.
+pub type Splat = (Vec2, Rgb);
+
+#[derive(Clone, Debug)]
+pub struct Bdpt {
+    pub max_depth: u32,
+    pub strategies: Strategies,
+    /// Medium around each light (for the first edge of light subpaths).
+    light_media: Vec<Option<u32>>,
+}
+
+impl Bdpt {
+    pub fn new(scene: &Scene, max_depth: Option<u32>, strategies: Strategies) -> Self {
+        let light_media = scene
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Area { prims, .. } => {
+                    let (p, n) = scene.prims[prims[0] as usize].sample_area(Vec2::splat(0.5));
+                    scene.medium_at(offset_origin(p, n, n))
+                }
+                Light::Point { position, .. } | Light::Spot { position, .. } => scene.medium_at(*position),
+                _ => None,
+            })
+            .collect();
+        Bdpt { max_depth: max_depth.unwrap_or(u32::MAX), strategies, light_media }
+    }
+
+    fn max_vertices(&self, extra: u32) -> usize {
+        (self.max_depth.saturating_add(extra) as usize).min(MAX_SUBPATH_VERTICES)
+    }
+
+    /// The random walk shared by both subpaths: propagate, record the vertex with its forward
+    /// density, scatter, and set the predecessor's reverse density.
+    // ANCHOR: random_walk
+    #[allow(clippy::too_many_arguments)]
+    fn random_walk(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut medium: Option<u32>,
+        mut beta: Rgb,
+        first: FirstPdf,
+        mode: TransportMode,
+        max_vertices: usize,
+        path: &mut Vec<Vertex>,
+        sampler: &mut Sampler,
+    ) {
+        let mut pdf_dir = match first {
+            FirstPdf::SolidAngle(p) => p,
+            FirstPdf::Perpendicular(_) => 0.0,
+        };
+        let mut first_edge = true;
+        let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
+        let mut origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        while path.len() < max_vertices {
+            let prev = path.len() - 1;
+            let prop = scene.propagate_bidirectional(ray, medium, origin_in_medium, sampler);
+            beta *= prop.weight();
+            if beta == Rgb::ZERO {
+                return;
+            }
+            let mut v = match prop.event {
+                Event::Escape => {
+                    if mode == TransportMode::Radiance {
+                        if let Some(env) = scene.environment {
+                            let mut v = Vertex::new(
+                                VertexKind::InfiniteLight { light: env },
+                                ray.o + ray.d * (4.0 * scene.radius + (ray.o - scene.center).length()),
+                                Vec3::ZERO,
+                                None,
+                                None,
+                            );
+                            v.beta = beta;
+                            v.pdf_fwd = pdf_dir * prop.pdf;
+                            v.prop_rev = prop.pdf_rev;
+                            path.push(v);
+                        }
+                    }
+                    return;
+                }
+                Event::Medium { p, medium: m, .. } => {
+                    Vertex::new(VertexKind::Medium { medium: m }, p, Vec3::ZERO, Some(m), Some(m))
+                }
+                Event::Surface { hit, medium: m } => {
+                    let shape = scene.shape_of(&hit);
+                    let (front, back) = if shape.interface { (shape.exterior, shape.interior) } else { (m, m) };
+                    Vertex::new(VertexKind::Surface { prim: hit.prim }, hit.p, hit.ng, front, back)
+                }
+            };
+            v.beta = beta;
+            let density = match (first, first_edge) {
+                (FirstPdf::Perpendicular(p), true) => p * crate::path::geometry_term::cosine_factor(&v, ray.d),
+                _ => to_area(pdf_dir, &path[prev], &v),
+            };
+            v.pdf_fwd = density * prop.pdf;
+            v.prop_rev = prop.pdf_rev;
+            first_edge = false;
+            path.push(v);
+            if path.len() >= max_vertices {
+                return;
+            }
+            let cur = path.len() - 1;
+            let wo = -ray.d;
+            let (wi, pdf_fwd_dir, pdf_rev_dir) = match v.kind {
+                VertexKind::Medium { medium: m } => {
+                    let phase = scene.media[m as usize].phase();
+                    let ps = phase.sample(wo, sampler.next_2d());
+                    if ps.pdf <= 0.0 {
+                        return;
+                    }
+                    beta *= ps.value / ps.pdf;
+                    path[cur].lobe = Lobe::Regular;
+                    medium = Some(m);
+                    origin_in_medium = true;
+                    ray = Ray::new(v.p, ps.wi);
+                    (ps.wi, ps.pdf, phase.pdf(ps.wi, wo))
+                }
+                VertexKind::Surface { .. } => {
+                    let Some(bsdf) = v.bsdf(scene) else { return };
+                    let u = sampler.next_2d();
+                    let uc = sampler.next_f32();
+                    let Some(bs) = bsdf.sample(wo, v.n, u, uc, mode) else { return };
+                    if bs.pdf <= 0.0 {
+                        return;
+                    }
+                    beta *= bs.weight(v.n);
+                    path[cur].lobe = bs.lobe;
+                    medium = v.medium_towards(bs.wi);
+                    origin_in_medium = false;
+                    ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
+                    if bs.lobe.is_singular() {
+                        path[cur].delta = true;
+                        (bs.wi, 0.0, 0.0)
+                    } else {
+                        (bs.wi, bs.pdf, bsdf.pdf(bs.wi, wo, v.n))
+                    }
+                }
+                _ => return,
+            };
+            let _ = wi;
+            pdf_dir = pdf_fwd_dir;
+            // the predecessor as sampled from here (the reverse walk)
+            path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
+            // Russian roulette on the scattering throughput (not on L_e / p of the origin)
+            if cur as u32 >= RR_START_DEPTH {
+                let q = (beta.max_element() / beta_start).min(RR_MAX_SURVIVAL);
+                if sampler.next_f32() >= q || q.is_nan() {
+                    return;
+                }
+                beta /= q;
+            }
+        }
+    }
+    // ANCHOR_END: random_walk
+
+    /// The eye subpath from the camera through raster position `raster`.
+    pub fn camera_subpath(&self, scene: &Scene, raster: Vec2, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+        path.clear();
+        let Some(cam) = scene.camera.as_ref() else { return };
+        let ray = cam.generate_ray(raster);
+        let mut v0 = Vertex::new(VertexKind::Camera, cam.eye, cam.forward, scene.camera_medium, scene.camera_medium);
+        v0.pdf_fwd = 1.0;
+        path.push(v0);
+        let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
+        // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
+        self.random_walk(scene, ray, scene.camera_medium, Rgb::ONE, FirstPdf::SolidAngle(pdf_dir), TransportMode::Radiance, self.max_vertices(2), path, sampler);
+    }
+
+    /// The eye subpath from a uniform point of meter `m`, cosine-distributed.
+    pub fn meter_subpath(&self, scene: &Scene, m: u32, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+        path.clear();
+        let meter = &scene.sensors[m as usize];
+        let q = Primitive::Quad(meter.quad);
+        let (p, n) = q.sample_area(sampler.next_2d());
+        let mut v0 = Vertex::new(VertexKind::Meter { meter: m }, p, n, meter.medium, meter.medium);
+        v0.pdf_fwd = 1.0 / q.area();
+        path.push(v0);
+        let local = warp::cosine_hemisphere(sampler.next_2d());
+        if local.z <= 0.0 {
+            return;
+        }
+        let wi = Frame::from_normal(n).to_world(local);
+        let pdf = local.z * std::f32::consts::FRAC_1_PI;
+        // W_e g / (p(x) p(w)) = (1/A) cos / ((1/A) cos/pi) = pi
+        self.random_walk(scene, Ray::new(p, wi), meter.medium, Rgb::splat(std::f32::consts::PI), FirstPdf::SolidAngle(pdf), TransportMode::Radiance, self.max_vertices(2), path, sampler);
+    }
+
+    /// The light subpath: a light chosen by power, an emitted ray, then the random walk with the
+    /// adjoint BSDF.
+    pub fn light_subpath(&self, scene: &Scene, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+        path.clear();
+        if scene.lights.is_empty() {
+            return;
+        }
+        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let light = &scene.lights[l];
+        let u_pos = sampler.next_2d();
+        let u_dir = sampler.next_2d();
+        let Some(es) = light.sample_le(&scene.prims, u_pos, u_dir, u_prim, scene.center, scene.radius) else { return };
+        if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
+            return;
+        }
+        let lm = self.light_media[l];
+        let (mut v0, origin, first) = match light {
+            Light::Area { prims, distr, .. } => {
+                let prim = prims[distr.sample(u_prim).0];
+                let v = Vertex::new(VertexKind::Light { light: l as u32, prim: Some(prim) }, es.p, es.n, lm, lm);
+                (v, offset_origin(es.p, es.n, es.d), FirstPdf::SolidAngle(es.pdf_dir))
+            }
+            Light::Point { .. } | Light::Spot { .. } => {
+                (Vertex::new(VertexKind::Light { light: l as u32, prim: None }, es.p, Vec3::ZERO, lm, lm), es.p, FirstPdf::SolidAngle(es.pdf_dir))
+            }
+            Light::Directional { .. } | Light::Environment(_) => (
+                Vertex::new(VertexKind::InfiniteLight { light: l as u32 }, es.p, Vec3::ZERO, None, None),
+                es.p,
+                FirstPdf::Perpendicular(es.pdf_pos),
+            ),
+        };
+        v0.beta = es.value;
+        v0.pdf_fwd = v0.light_origin_pdf(scene, es.p + es.d);
+        if let VertexKind::InfiniteLight { .. } = v0.kind {
+            v0.pdf_fwd = match light {
+                Light::Environment(_) => pmf * es.pdf_dir,
+                _ => 0.0,
+            };
+        }
+        let cos = if es.n == Vec3::ZERO || v0.is_infinite_light() { 1.0 } else { es.n.dot(es.d).abs() };
+        let beta = es.value * (cos / (pmf * es.pdf_pos * es.pdf_dir));
+        path.push(v0);
+        self.random_walk(scene, Ray::new(origin, es.d), lm, beta, first, TransportMode::Importance, self.max_vertices(1), path, sampler);
+    }
+
+    /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
+    fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
+        match v.kind {
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => scene.lights[light as usize].is_delta(),
+            _ => false,
+        }
+    }
+
+    /// The power-heuristic weight of strategy (s, t) for the path joined from `light[..s]` and
+    /// `eye[..t]`, with `sampled` replacing the endpoint that was sampled for the connection
+    /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
+    // ANCHOR: mis_weight
+    #[allow(clippy::too_many_arguments)]
+    fn mis_weight(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        sampled: Option<Vertex>,
+        s: usize,
+        t: usize,
+        conn_pdf_qp: f32,
+        conn_pdf_pq: f32,
+    ) -> f32 {
+        let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
+        // copies of the four vertices whose reverse densities the connection changes
+        let mut qs = if s > 0 { Some(if s == 1 { sampled.unwrap_or(light[0]) } else { light[s - 1] }) } else { None };
+        let mut pt = if t == 1 && s != 1 { sampled.unwrap_or(eye[0]) } else { eye[t - 1] };
+        let mut qs_minus = if s > 1 { Some(light[s - 2]) } else { None };
+        let mut pt_minus = if t > 1 { Some(eye[t - 2]) } else { None };
+
+        if let Some(q) = qs.as_mut() {
+            q.delta = false;
+        }
+        pt.delta = false;
+        // pt as sampled from the light side
+        pt.pdf_rev = match &qs {
+            Some(q) => q.pdf_area(scene, qs_minus.map(|v| v.p), &pt) * conn_pdf_qp,
+            None => pt.light_origin_pdf(scene, pt_minus.map_or(pt.p, |v| v.p)),
+        };
+        if let Some(pm) = pt_minus.as_mut() {
+            pm.pdf_rev = match &qs {
+                Some(q) => pt.pdf_area(scene, Some(q.p), pm),
+                None => pt.light_pdf_to(scene, pm),
+            } * pt.prop_rev;
+        }
+        if let Some(q) = qs.as_mut() {
+            q.pdf_rev = pt.pdf_area(scene, pt_minus.map(|v| v.p), q) * conn_pdf_pq;
+        }
+        if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
+            qm.pdf_rev = q.pdf_area(scene, Some(pt.p), qm) * q.prop_rev;
+        }
+
+        let eye_at = |i: usize| -> Vertex {
+            if i + 1 == t {
+                pt
+            } else if i + 2 == t {
+                pt_minus.unwrap_or(eye[i])
+            } else {
+                eye[i]
+            }
+        };
+        let light_at = |i: usize| -> Vertex {
+            if i + 1 == s {
+                qs.unwrap_or(light[i])
+            } else if i + 2 == s {
+                qs_minus.unwrap_or(light[i])
+            } else {
+                light[i]
+            }
+        };
+        let mut sum = 0.0f32;
+        let mut ri = 1.0f32;
+        for i in (1..t).rev() {
+            let v = eye_at(i);
+            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
+            if !v.delta && !eye_at(i - 1).delta {
+                sum += ri * ri;
+            }
+        }
+        ri = 1.0;
+        for i in (0..s).rev() {
+            let v = light_at(i);
+            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
+            let delta_before = if i > 0 { light_at(i - 1).delta } else { Self::is_delta_light(scene, &light_at(0)) };
+            if !v.delta && !delta_before {
+                sum += ri * ri;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+    // ANCHOR_END: mis_weight
+
+    /// The contribution of strategy (s, t), already MIS-weighted (unweighted for light
+    /// tracing), with the raster position when it lands elsewhere than the sample's pixel.
+    // ANCHOR: connect
+    pub fn connect(&self, scene: &Scene, light: &[Vertex], eye: &[Vertex], s: usize, t: usize, sampler: &mut Sampler) -> Option<(Rgb, Option<Vec2>)> {
+        let pt_last = eye[t - 1];
+        if t > 1 && s != 0 && pt_last.is_infinite_light() {
+            return None;
+        }
+        let mut sampled: Option<Vertex> = None;
+        let mut raster = None;
+        let (mut l, pdf_qp, pdf_pq);
+        if s == 0 {
+            // the eye subpath found an emitter by itself
+            let pt = &eye[t - 1];
+            let towards = eye[t - 2].p;
+            l = match pt.kind {
+                VertexKind::InfiniteLight { .. } => pt.emitted(scene, towards),
+                _ => pt.surface_emission(scene, towards),
+            } * pt.beta;
+            pdf_qp = 1.0;
+            pdf_pq = 1.0;
+        } else if t == 1 {
+            // connect the light subpath to the sensor
+            let qs = &light[s - 1];
+            if !qs.is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let sensor = match eye[0].kind {
+                VertexKind::Camera => {
+                    let cam = scene.camera.as_ref()?;
+                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
+                    raster = Some(imp.raster);
+                    let mut v = eye[0];
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                VertexKind::Meter { meter } => {
+                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
+                    let (p, n) = q.sample_area(sampler.next_2d());
+                    let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                    v.pdf_fwd = 1.0 / q.area();
+                    // W_e / p(x) = (1/A) / (1/A)
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                _ => return None,
+            };
+            let we = sensor.importance(scene, qs.p);
+            let area_inv = match sensor.kind {
+                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
+                _ => 1.0,
+            };
+            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+            if f == Rgb::ZERO || we == Rgb::ZERO {
+                return None;
+            }
+            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
+            l = qs.beta * f * e.transmittance * g * we * area_inv;
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+            sampled = Some(sensor);
+        } else if s == 1 {
+            // next-event estimation: sample a point on a light for the eye subpath's end
+            let pt = &eye[t - 1];
+            if !pt.is_connectible(scene) {
+                return None;
+            }
+            let (li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+            let light_ref = &scene.lights[li];
+            let ls = light_ref.sample_li(&scene.prims, pt.p, sampler.next_2d(), u_prim)?;
+            if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
+                return None;
+            }
+            let lm = self.light_media[li];
+            let mut v = match light_ref {
+                Light::Area { prims, distr, .. } => {
+                    Vertex::new(VertexKind::Light { light: li as u32, prim: Some(prims[distr.sample(u_prim).0]) }, ls.p, ls.n, lm, lm)
+                }
+                Light::Point { .. } | Light::Spot { .. } => Vertex::new(VertexKind::Light { light: li as u32, prim: None }, ls.p, Vec3::ZERO, lm, lm),
+                _ => Vertex::new(
+                    VertexKind::InfiniteLight { light: li as u32 },
+                    pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
+                    Vec3::ZERO,
+                    None,
+                    None,
+                ),
+            };
+            v.pdf_fwd = v.light_origin_pdf(scene, pt.p);
+            v.beta = ls.value / (pmf * ls.pdf);
+            let f = if t == 1 {
+                // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
+                // W_e lands in another pixel, A * (1/A) for a meter)
+                match pt.kind {
+                    VertexKind::Camera => {
+                        let imp = scene.camera.as_ref()?.importance(ls.wi)?;
+                        raster = Some(imp.raster);
+                        Rgb::splat(imp.we)
+                    }
+                    VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
+                    _ => return None,
+                }
+            } else {
+                pt.f_hat(scene, v.p, eye[t - 2].p)
+            };
+            if f == Rgb::ZERO {
+                return None;
+            }
+            let target = if ls.dist.is_infinite() { pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length()) } else { v.p };
+            let mut end_v = v;
+            end_v.p = target;
+            let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+            l = pt.beta * f * v.beta * e.transmittance * cos_pt;
+            // an infinite light's edge leaves the scene: only the passage of its segments counts
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+            sampled = Some(v);
+        } else {
+            let qs = &light[s - 1];
+            let pt = &eye[t - 1];
+            if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+                return None;
+            }
+            let fq = qs.f_hat(scene, light[s - 2].p, pt.p);
+            let fp = pt.f_hat(scene, qs.p, eye[t - 2].p);
+            if fq == Rgb::ZERO || fp == Rgb::ZERO {
+                return None;
+            }
+            let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
+            l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+        }
+        if l == Rgb::ZERO || !l.is_finite() {
+            return if l.is_finite() { None } else { Some((l, raster)) };
+        }
+        if self.strategies == Strategies::All {
+            l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
+        }
+        if let Strategies::Only(..) = self.strategies {
+            // unweighted, but a Dirac light or lobe at the joint makes the strategy impossible
+        }
+        Some((l, raster))
+    }
+    // ANCHOR_END: connect
+
+    /// All strategies for one sensor sample whose eye subpath is `scratch.eye`: returns the
+    /// contribution to the sample's own pixel (or meter) and pushes splats for t = 1.
+    pub fn combine(&self, scene: &Scene, scratch: &Scratch, sampler: &mut Sampler, splats: &mut Vec<Splat>) -> Rgb {
+        let (light, eye) = (&scratch.light, &scratch.eye);
+        let mut own = Rgb::ZERO;
+        let meter = matches!(eye.first().map(|v| v.kind), Some(VertexKind::Meter { .. }));
+        for t in 1..=eye.len() {
+            for s in 0..=light.len() {
+                let depth = s as i64 + t as i64 - 2;
+                if depth < 0 || depth as u64 > self.max_depth as u64 {
+                    continue;
+                }
+                match self.strategies {
+                    Strategies::LightTracing if t != 1 => continue,
+                    Strategies::Only(a, b) if (a, b) != (s, t) => continue,
+                    _ => {}
+                }
+                if let Some((l, raster)) = self.connect(scene, light, eye, s, t, sampler) {
+                    match raster {
+                        Some(r) if !meter => splats.push((r, l)),
+                        _ => own += l,
+                    }
+                }
+            }
+        }
+        own
+    }
+}
