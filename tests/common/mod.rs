@@ -101,7 +101,10 @@ pub fn assert_chi_square(what: &str, observed: &[u64], expected: &[f64]) {
 
 /// Composite Simpson rule of `f` on [a, b] with `n` (even) sub-intervals, in f64.
 pub fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
-    assert!(n >= 2 && n.is_multiple_of(2), "Simpson's rule needs an even count");
+    assert!(
+        n >= 2 && n.is_multiple_of(2),
+        "Simpson's rule needs an even count"
+    );
     let h = (b - a) / n as f64;
     let mut sum = f(a) + f(b);
     for i in 1..n {
