@@ -137,8 +137,8 @@ fn chromatic_weights_are_unbiased_in_every_channel() {
         .enumerate()
     {
         let mut s = sampler(104, i as u64);
-        let mut collide = vec![Vec::with_capacity(N); 3];
-        let mut pass = vec![Vec::with_capacity(N); 3];
+        let mut collide: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(N));
+        let mut pass: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(N));
         for _ in 0..N {
             let ff = flight(&medium, d, &mut s);
             let w = ff.weight();
