@@ -3,6 +3,12 @@
 //! Convention (see `conventions`): `wo` and `wi` both point away from the scattering point. Light
 //! arrives travelling along `-wi` and leaves along `wo`, so the deflection cosine is
 //! `cos_theta = -dot(wo, wi)`; with g > 0 Henyey-Greenstein scatters forwards.
+//!
+//! Every model is sampled exactly (inverse CDF of the deflection cosine, lobe selection for
+//! mixtures), so `pdf == eval` and `PhaseSample::value == PhaseSample::pdf`.
+//!
+//! Book: "Phase functions" (`book/src/phase-functions.md`), with the derivations of the inverse
+//! CDFs and of Schlick's mean cosine; executable spec: `tests/phase.rs`.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -64,7 +70,8 @@ impl Phase {
         }
     }
 
-    /// A mix; weights are normalized to sum to one.
+    /// A mix (the in-scattering term of [PKK00 eq. 1] with a convex combination of lobes);
+    /// weights must be finite and non-negative with a positive sum, and are normalized to one.
     pub fn mix(lobes: Vec<(f32, Phase)>) -> Result<Self, PhaseError> {
         if lobes.is_empty() {
             return Err(PhaseError::EmptyMix);
