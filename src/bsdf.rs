@@ -6,6 +6,8 @@
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
 //! without the cosine. Singular (delta) lobes return `value = weight * pdf / |cos wi|`, so that
 //! `value * |cos wi| / pdf` is the path weight, as every regular lobe.
+//!
+//! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/bsdf.rs`.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -13,6 +15,7 @@ use std::f32::consts::FRAC_1_PI;
 use crate::math::{warp, Frame};
 use crate::spectrum::Rgb;
 
+// ANCHOR: transport_mode
 /// Which quantity a path carries: radiance (eye paths) or importance (light paths, the adjoint
 /// BSDF f*_s). Only refraction differs (the eta^2 factor, Kristensen 2010 eq. 2.9).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,6 +23,7 @@ pub enum TransportMode {
     Radiance,
     Importance,
 }
+// ANCHOR_END: transport_mode
 
 /// The scattering mode of a sampled direction (Pauly et al. sec. 5.2: perturbations keep modes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -126,13 +130,8 @@ impl Bsdf {
     /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (zero for singular lobes).
     pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         match self {
-            Bsdf::Lambert { .. } => {
-                if wo.dot(n) * wi.dot(n) > 0.0 {
-                    wi.dot(n).abs() * FRAC_1_PI
-                } else {
-                    0.0
-                }
-            }
+            // cosine-weighted on wo's side: |cos wi| / pi, zero across the surface
+            Bsdf::Lambert { .. } if wo.dot(n) * wi.dot(n) > 0.0 => wi.dot(n).abs() * FRAC_1_PI,
             _ => 0.0,
         }
     }
@@ -176,6 +175,7 @@ impl Bsdf {
                     lobe: Lobe::SingularReflection,
                 })
             }
+            // ANCHOR: dielectric_sample
             Bsdf::Dielectric { ior } => {
                 // eta = eta_i / eta_t for light going from wo's side into the other side
                 let entering = cos_o > 0.0;
@@ -199,8 +199,9 @@ impl Bsdf {
                     let cos_t = (1.0 - sin2_t).sqrt();
                     let wi = -eta * wo + (eta * cos_i - cos_t) * nf;
                     let wi = wi.normalize();
-                    // radiance is scaled by (eta_wi_side / eta_wo_side)^2 ... the radiance that
-                    // reaches wo from wi's medium is divided by (eta_t/eta_o)^2 in radiance mode
+                    // radiance over eta^2 is invariant across the interface, so the radiance
+                    // reaching wo from wi's side is scaled by (eta_o / eta_t)^2 (Kristensen 2010
+                    // eq. 2.15); importance and flux are not (its adjoint has no factor)
                     let scale = match mode {
                         TransportMode::Radiance => (eta_o / eta_t) * (eta_o / eta_t),
                         TransportMode::Importance => 1.0,
@@ -213,6 +214,7 @@ impl Bsdf {
                     })
                 }
             }
+            // ANCHOR_END: dielectric_sample
             Bsdf::Null => None,
         }
     }

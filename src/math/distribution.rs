@@ -1,4 +1,6 @@
 //! A discrete distribution over indices, sampled by inversion of its cumulative sum.
+//! Executable spec: `tests/warp.rs` (sample frequencies against the pmf, uniformity of the
+//! remapped number).
 
 /// Piecewise-constant discrete distribution (light selection, triangle selection on meshes).
 #[derive(Clone, Debug, Default)]
@@ -62,7 +64,11 @@ impl Distribution1D {
     }
 
     /// Samples an index; returns it with its probability and `u` remapped to [0, 1) inside the
-    /// chosen bin, so one random number can serve two decisions.
+    /// chosen bin, so one random number can serve two decisions. Indices of weight zero are
+    /// never returned (unless all weights are zero, see [`Distribution1D::new`]).
+    ///
+    /// # Panics
+    /// If the distribution is empty.
     pub fn sample(&self, u: f32) -> (usize, f32, f32) {
         let n = self.pmf.len();
         // first i with cdf[i + 1] > u

@@ -1,5 +1,6 @@
 //! Warps from the unit square to directions and points, each with its density.
-//! Book: "Sampling toolbox".
+//! Book: "Sampling toolbox"; executable spec: `tests/warp.rs` (a chi-square test of every warp
+//! against the density stated here).
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -42,10 +43,15 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
-/// Uniform point on a triangle as barycentrics (b1, b2) (Heitz 2019 square-to-triangle map).
+/// Uniform point on a triangle as two barycentrics (b0, b1), the third being 1 - b0 - b1
+/// (Heitz 2019, "A low-distortion map between triangle and square", listing 1); density 2 on
+/// {b0, b1 >= 0, b0 + b1 <= 1}.
+// ANCHOR: uniform_triangle
 pub fn uniform_triangle(u: Vec2) -> Vec2 {
     let (mut b0, mut b1) = (u.x / 2.0, u.y / 2.0);
-    let offset = u.y - u.x;
+    // the offset is between the halved coordinates: with u.y - u.x instead, u = (0, 1) maps to
+    // (0, 1.5), outside the triangle
+    let offset = b1 - b0;
     if offset > 0.0 {
         b1 += offset;
     } else {
@@ -53,6 +59,7 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
     }
     Vec2::new(b0, b1)
 }
+// ANCHOR_END: uniform_triangle
 
 /// Uniform direction inside a cone of half-angle `acos(cos_max)` around +z; density
 /// `1 / (2 pi (1 - cos_max))`.

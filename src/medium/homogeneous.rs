@@ -7,10 +7,16 @@
 //! Chromatic media: the distance is drawn with the sigma_t of one channel picked uniformly, and
 //! the pdf is the average of the three channels' pdfs (one-sample MIS over channels), so no
 //! channel's contribution is lost or biased.
+//!
+//! Book: "Table 1: homogeneous media" (`book/src/table1-homogeneous.md`); executable spec:
+//! `tests/free_flight.rs`.
 
 use crate::spectrum::{average, Rgb};
 
 use super::{FreeFlight, MediumError, Phase};
+
+/// The number of colour channels a distance can be sampled for (`Rgb` has three).
+const N_CHANNELS: usize = 3;
 
 /// Constant coefficients throughout the medium.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,7 +32,7 @@ impl Homogeneous {
     pub fn new(sigma_a: Rgb, sigma_s: Rgb, phase: Phase) -> Result<Self, MediumError> {
         for (name, v) in [("sigma_a", sigma_a), ("sigma_s", sigma_s)] {
             for c in v.to_array() {
-                if !(c >= 0.0) || !c.is_finite() {
+                if !c.is_finite() || c < 0.0 {
                     return Err(MediumError::NegativeCoefficient { name, value: c });
                 }
             }
@@ -64,9 +70,10 @@ impl Homogeneous {
     // ANCHOR: homogeneous_sample
     #[inline]
     pub fn sample_free_flight(&self, t_max: f32, u_channel: f32, u: f32) -> FreeFlight {
-        let c = ((u_channel * 3.0) as usize).min(2);
+        // one-sample MIS over channels: pick c uniformly, sample with sigma_t[c]
+        let c = ((u_channel * N_CHANNELS as f32) as usize).min(N_CHANNELS - 1);
         let sigma = self.sigma_t[c];
-        // d = -ln(1 - xi) / sigma_t (inversion of the CDF 1 - exp(-sigma_t d))
+        // [PKK00 Table 1] d = -ln(1 - xi) / sigma_t, inverting the CDF 1 - exp(-sigma_t d)
         let t = if sigma > 0.0 {
             -(1.0 - u).ln() / sigma
         } else {
@@ -96,7 +103,10 @@ impl Homogeneous {
     }
     // ANCHOR_END: homogeneous_sample
 
-    /// The pdf of the outcome `(t, scattered)` under [`Self::sample_free_flight`].
+    /// The pdf of the outcome `(t, scattered)` under [`Self::sample_free_flight`]: the density
+    /// of a collision at `t`, or the probability of passing to `t = t_max`, each averaged over
+    /// the uniformly chosen channel.
+    // ANCHOR: homogeneous_pdf
     pub fn free_flight_pdf(&self, t: f32, scattered: bool) -> f32 {
         let tr = self.transmittance(t);
         if scattered {
@@ -105,4 +115,5 @@ impl Homogeneous {
             average(tr)
         }
     }
+    // ANCHOR_END: homogeneous_pdf
 }

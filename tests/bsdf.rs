@@ -1,0 +1,476 @@
+//! Executable specification of `src/bsdf.rs` (book: "Surface scattering").
+//!
+//! f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2): Lambert's
+//! reciprocity, energy and two-sidedness; the mirror's reflection law; the dielectric's Fresnel
+//! reflectance, total internal reflection, Snell's law, the probability of choosing each lobe,
+//! and the eta^2 asymmetry of refraction between radiance and importance transport
+//! (generalized reciprocity, Kristensen 2010 eq. 2.9, derived again in the book).
+
+mod common;
+
+use common::*;
+use glam::{Vec2, Vec3};
+use pathspace::bsdf::{fresnel_dielectric, reflect, Bsdf, BsdfSample, Lobe, TransportMode};
+use pathspace::math::distribution::ONE_MINUS_EPSILON;
+use pathspace::math::{warp, Frame};
+use pathspace::spectrum::Rgb;
+use std::f64::consts::TAU;
+
+/// Relative tolerance of deterministic f32 quantities (a reflection, a refraction, a Fresnel
+/// term): a few roundings of order-one terms, 64 ulps leaves room for the square roots and the
+/// renormalization in the refraction formula.
+const F32_TOL: f64 = 64.0 * f32::EPSILON as f64;
+
+/// Below this |cos| a direction is too close to grazing for a round trip through refraction to
+/// stay within `F32_TOL`: a cosine computed as sqrt(1 - sin^2) loses eps / cos^2 relatively,
+/// 25 eps at this limit, and the Fresnel term passes that error on.
+const GRAZING_LIMIT: f64 = 0.2;
+
+/// An albedo per channel, each below one, distinct so that a channel mix-up shows.
+const ALBEDO: Rgb = Vec3::new(0.2, 0.5, 0.9);
+
+/// Indices of refraction: water, glass, diamond, and below one (an interface seen from inside a
+/// denser medium is `1 / ior` of the reverse one).
+const IORS: [f32; 4] = [1.33, 1.5, 2.4, 0.75];
+
+/// Surface normals for the tests (the shape's geometric normal, any orientation).
+fn normals() -> Vec<Vec3> {
+    vec![Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.4, 0.866).normalize()]
+}
+
+/// A direction with cosine `cos` to `n` (either sign), at azimuth `phi` around it.
+fn at_cosine(n: Vec3, cos: f64, phi: f64) -> Vec3 {
+    direction(&Frame::from_normal(n), cos, phi)
+}
+
+fn modes() -> [TransportMode; 2] {
+    [TransportMode::Radiance, TransportMode::Importance]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lambert
+
+#[test]
+fn lambert_is_reciprocal_and_reflects_on_both_sides_only() {
+    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let mut s = sampler(10, 0);
+    for n in normals() {
+        for _ in 0..256 {
+            let wo = warp::uniform_sphere(s.next_2d());
+            let wi = warp::uniform_sphere(s.next_2d());
+            for mode in modes() {
+                let f = bsdf.eval(wo, wi, n, mode);
+                assert_eq!(f, bsdf.eval(wi, wo, n, mode), "not reciprocal");
+                if wo.dot(n) * wi.dot(n) > 0.0 {
+                    assert_eq!(f, ALBEDO * std::f32::consts::FRAC_1_PI);
+                    assert!(bsdf.pdf(wo, wi, n) > 0.0);
+                } else {
+                    assert_eq!(f, Rgb::ZERO, "Lambert transmits");
+                    assert_eq!(bsdf.pdf(wo, wi, n), 0.0, "Lambert samples transmission");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn lambert_directional_albedo_equals_albedo() {
+    // rho_hd(wo) = int f_s |cos wi| dsigma(wi) over wo's hemisphere = albedo. The integrand is
+    // linear in cos theta and constant in phi, so Simpson in cos and the trapezoid rule in phi
+    // are exact and only float rounding remains.
+    const N_COS: usize = 64;
+    const N_PHI: usize = 16;
+    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    for n in normals() {
+        for cos_o in [0.9, 0.3, -0.5, -0.05] {
+            let wo = at_cosine(n, cos_o, 1.0);
+            let side = if cos_o > 0.0 { 1.0 } else { -1.0 };
+            for c in 0..3 {
+                let rho_hd = simpson(
+                    |cos_i| {
+                        (0..N_PHI)
+                            .map(|j| {
+                                let wi = at_cosine(n, side * cos_i, TAU * j as f64 / N_PHI as f64);
+                                bsdf.eval(wo, wi, n, TransportMode::Radiance)[c] as f64 * cos_i
+                            })
+                            .sum::<f64>()
+                            * (TAU / N_PHI as f64)
+                    },
+                    0.0,
+                    1.0,
+                    N_COS,
+                );
+                assert_close("rho_hd", rho_hd, ALBEDO[c] as f64, F32_TOL);
+                assert!(rho_hd <= 1.0 + F32_TOL, "Lambert creates energy");
+            }
+        }
+    }
+}
+
+#[test]
+fn lambert_sample_record_matches_eval_and_pdf_and_its_weight_is_the_albedo() {
+    // the cosine-sampled weight f cos / pdf equals the albedo for every sample: a zero-variance
+    // estimator of rho_hd, so its mean is checked with the float allowance only
+    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let mut s = sampler(11, 0);
+    for n in normals() {
+        for wo in test_directions(11, 8) {
+            if wo.dot(n) == 0.0 {
+                continue;
+            }
+            for mode in modes() {
+                let Some(bs) = bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode) else {
+                    continue;
+                };
+                assert_eq!(bs.lobe, Lobe::Regular);
+                assert!(bs.wi.dot(n) * wo.dot(n) > 0.0, "sampled across the surface");
+                assert_eq!(bs.value, bsdf.eval(wo, bs.wi, n, mode));
+                assert_close("pdf", bs.pdf as f64, bsdf.pdf(wo, bs.wi, n) as f64, F32_TOL);
+                let w = bs.weight(n);
+                for c in 0..3 {
+                    assert_within_sigma("weight", w[c] as f64, 0.0, ALBEDO[c] as f64, 0.0);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn lambert_sampling_agrees_with_pdf_by_chi_square() {
+    // binned over the whole sphere around n: the far hemisphere expects nothing, so a sample
+    // leaking through the surface fails the test
+    const N_SAMPLES: u64 = 200_000;
+    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    for (i, n) in normals().into_iter().enumerate() {
+        for (j, cos_o) in [0.7f64, -0.4].into_iter().enumerate() {
+            let wo = at_cosine(n, cos_o, 2.0);
+            let grid = SphereGrid::new(Frame::from_normal(n), 20, 16);
+            let mut s = sampler(12, (2 * i + j) as u64);
+            assert_chi_square_sphere(
+                &format!("Lambert n {n}, cos_o {cos_o}"),
+                &grid,
+                || {
+                    bsdf.sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                        .map(|bs| bs.wi)
+                },
+                |wi| bsdf.pdf(wo, wi, n) as f64,
+                N_SAMPLES,
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Mirror
+
+#[test]
+fn mirror_reflects_about_the_normal_with_weight_reflectance() {
+    let reflectance = Vec3::new(0.9, 0.6, 0.3);
+    let bsdf = Bsdf::Mirror { reflectance };
+    let mut s = sampler(20, 0);
+    for n in normals() {
+        for wo in test_directions(20, 16) {
+            let cos_o = wo.dot(n) as f64;
+            if cos_o.abs() < 1e-3 {
+                continue; // grazing: the reflection is numerically ill-defined
+            }
+            let bs = bsdf
+                .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                .expect("a mirror always reflects");
+            assert_eq!(bs.lobe, Lobe::SingularReflection);
+            // equal angles on the same side, in the plane of wo and n, symmetric about n
+            assert_close("cos", bs.wi.dot(n) as f64, cos_o, F32_TOL);
+            assert_close("coplanar", wo.cross(n).dot(bs.wi) as f64, 0.0, F32_TOL);
+            assert_close(
+                "symmetric",
+                (bs.wi + wo).cross(n).length() as f64,
+                0.0,
+                F32_TOL,
+            );
+            assert_close("unit", bs.wi.length() as f64, 1.0, F32_TOL);
+            let w = bs.weight(n);
+            for c in 0..3 {
+                assert_close("weight", w[c] as f64, reflectance[c] as f64, F32_TOL);
+            }
+            // a Dirac lobe has no value or density at a given direction
+            assert_eq!(bsdf.eval(wo, bs.wi, n, TransportMode::Radiance), Rgb::ZERO);
+            assert_eq!(bsdf.pdf(wo, bs.wi, n), 0.0);
+            assert!(bsdf.is_singular());
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Dielectric
+
+/// Forces the reflection (`uc = 0`) or transmission (`uc` just below 1) lobe.
+fn dielectric_lobe(
+    ior: f32,
+    wo: Vec3,
+    n: Vec3,
+    transmit: bool,
+    mode: TransportMode,
+) -> Option<BsdfSample> {
+    let uc = if transmit { ONE_MINUS_EPSILON } else { 0.0 };
+    Bsdf::Dielectric { ior }.sample(wo, n, Vec2::new(0.5, 0.5), uc, mode)
+}
+
+/// The indices on wo's side and on the other side of an interface whose inside (behind `n`)
+/// has index `ior` and outside 1.
+fn etas(ior: f32, wo: Vec3, n: Vec3) -> (f64, f64) {
+    if wo.dot(n) > 0.0 {
+        (1.0, ior as f64)
+    } else {
+        (ior as f64, 1.0)
+    }
+}
+
+#[test]
+fn fresnel_at_normal_incidence_is_the_squared_index_ratio() {
+    for ior in IORS {
+        let r0 = ((ior as f64 - 1.0) / (ior as f64 + 1.0)).powi(2);
+        assert_close(
+            "F(0) entering",
+            fresnel_dielectric(1.0, ior) as f64,
+            r0,
+            F32_TOL,
+        );
+        assert_close(
+            "F(0) leaving",
+            fresnel_dielectric(1.0, 1.0 / ior) as f64,
+            r0,
+            F32_TOL,
+        );
+        assert_close(
+            "F(90)",
+            fresnel_dielectric(0.0, ior.max(1.0)) as f64,
+            1.0,
+            F32_TOL,
+        );
+    }
+}
+
+#[test]
+fn dielectric_reflects_totally_beyond_the_critical_angle() {
+    let mut s = sampler(30, 0);
+    for ior in IORS {
+        let (eta_dense, eta_thin) = (ior.max(1.0 / ior) as f64, 1.0);
+        let cos_critical = (1.0 - (eta_thin / eta_dense).powi(2)).sqrt();
+        // the dense side is behind n when ior > 1, in front of it otherwise
+        let dense_sign = if ior > 1.0 { -1.0 } else { 1.0 };
+        let n = Vec3::new(0.2, 0.1, 1.0).normalize();
+        for (cos_o, total) in [
+            (cos_critical * 0.9, true),
+            (cos_critical * 0.5, true),
+            ((cos_critical + 1.0) * 0.5, false),
+        ] {
+            let wo = at_cosine(n, dense_sign * cos_o, 0.3);
+            assert_eq!(
+                fresnel_dielectric(cos_o as f32, (eta_thin / eta_dense) as f32) == 1.0,
+                total,
+                "ior {ior}, cos {cos_o}: Fresnel"
+            );
+            for _ in 0..64 {
+                let bs = Bsdf::Dielectric { ior }
+                    .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                    .unwrap();
+                if total {
+                    assert_eq!(bs.lobe, Lobe::SingularReflection);
+                    assert_close("TIR weight", bs.weight(n).x as f64, 1.0, F32_TOL);
+                }
+            }
+            if !total {
+                let bs = dielectric_lobe(ior, wo, n, true, TransportMode::Radiance).unwrap();
+                assert_eq!(
+                    bs.lobe,
+                    Lobe::SingularTransmission,
+                    "ior {ior}: no refraction"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn dielectric_refraction_obeys_snells_law() {
+    for ior in IORS {
+        for n in normals() {
+            for wo in test_directions(31, 16) {
+                let (eta_o, eta_t) = etas(ior, wo, n);
+                let cos_o = (wo.dot(n) as f64).abs();
+                let sin_o = (1.0 - cos_o * cos_o).sqrt();
+                if eta_o * sin_o >= eta_t || cos_o < 1e-3 {
+                    continue; // total internal reflection, or grazing
+                }
+                for mode in modes() {
+                    let bs = dielectric_lobe(ior, wo, n, true, mode).unwrap();
+                    assert_eq!(bs.lobe, Lobe::SingularTransmission);
+                    assert!(bs.wi.dot(n) * wo.dot(n) < 0.0, "refracted to the same side");
+                    let cos_t = (bs.wi.dot(n) as f64).abs();
+                    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                    // eta_o sin_o = eta_t sin_t, in the plane of wo and n, across the normal
+                    assert_close("Snell", eta_t * sin_t, eta_o * sin_o, F32_TOL);
+                    assert_close("coplanar", wo.cross(n).dot(bs.wi) as f64, 0.0, F32_TOL);
+                    let tangent_o = wo - n * wo.dot(n);
+                    let tangent_i = bs.wi - n * bs.wi.dot(n);
+                    assert!(tangent_o.dot(tangent_i) <= 0.0, "not across the normal");
+                    assert_close("unit", bs.wi.length() as f64, 1.0, F32_TOL);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn dielectric_chooses_reflection_with_the_fresnel_probability() {
+    const N: u64 = 100_000;
+    let n = Vec3::Z;
+    for (i, ior) in IORS.into_iter().enumerate() {
+        for (j, cos_o) in [0.95f64, 0.5, 0.15].into_iter().enumerate() {
+            for side in [1.0, -1.0] {
+                let wo = at_cosine(n, side * cos_o, 0.7);
+                let (eta_o, eta_t) = etas(ior, wo, n);
+                let f = fresnel_dielectric(cos_o as f32, (eta_t / eta_o) as f32) as f64;
+                let mut s = sampler(32, (i * 8 + j * 2) as u64 + (side > 0.0) as u64);
+                let mut reflected = 0u64;
+                for _ in 0..N {
+                    let bs = Bsdf::Dielectric { ior }
+                        .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                        .unwrap();
+                    if bs.lobe == Lobe::SingularReflection {
+                        reflected += 1;
+                        assert_close("reflection pdf", bs.pdf as f64, f, F32_TOL);
+                    } else {
+                        assert_close("transmission pdf", bs.pdf as f64, 1.0 - f, F32_TOL);
+                    }
+                }
+                assert_binomial(&format!("ior {ior}, cos {}", side * cos_o), reflected, N, f);
+            }
+        }
+    }
+}
+
+/// The coefficient c of a singular lobe, f_s = c delta(wi - wi_0) / |cos wi|: the value times
+/// |cos wi|, i.e. the lobe's weight times its probability.
+fn coefficient(bs: &BsdfSample, n: Vec3) -> f64 {
+    bs.value.x as f64 * (bs.wi.dot(n) as f64).abs()
+}
+
+#[test]
+fn dielectric_conserves_flux_for_importance_and_scales_radiance_by_eta_squared() {
+    for ior in IORS {
+        for n in normals() {
+            for wo in test_directions(33, 16) {
+                let (eta_o, eta_t) = etas(ior, wo, n);
+                let cos_o = (wo.dot(n) as f64).abs();
+                if cos_o < 1e-3 || eta_o * (1.0 - cos_o * cos_o).sqrt() >= eta_t {
+                    continue; // grazing or total internal reflection (checked elsewhere)
+                }
+                for mode in modes() {
+                    let r = dielectric_lobe(ior, wo, n, false, mode).unwrap();
+                    let t = dielectric_lobe(ior, wo, n, true, mode).unwrap();
+                    assert_eq!(r.lobe, Lobe::SingularReflection);
+                    assert_eq!(t.lobe, Lobe::SingularTransmission);
+                    assert_close("lobe probabilities", (r.pdf + t.pdf) as f64, 1.0, F32_TOL);
+                    assert_close("reflection weight", r.weight(n).x as f64, 1.0, F32_TOL);
+                    let expected_t = match mode {
+                        // flux is conserved: nothing but Fresnel splits the particle
+                        TransportMode::Importance => 1.0,
+                        // radiance is compressed into a narrower cone: (eta_o / eta_t)^2
+                        TransportMode::Radiance => (eta_o / eta_t).powi(2),
+                    };
+                    assert_close(
+                        "transmission weight",
+                        t.weight(n).x as f64,
+                        expected_t,
+                        F32_TOL,
+                    );
+                    // sum over both lobes of weight x probability
+                    let total =
+                        r.weight(n).x as f64 * r.pdf as f64 + t.weight(n).x as f64 * t.pdf as f64;
+                    let expected_total = r.pdf as f64 + t.pdf as f64 * expected_t;
+                    assert_close("energy", total, expected_total, F32_TOL);
+                    if mode == TransportMode::Importance {
+                        assert_close("importance energy", total, 1.0, F32_TOL);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn dielectric_refraction_satisfies_generalized_reciprocity_and_its_adjoint() {
+    // For the transmitted pair (wo, wi), wi = T(wo), and its reverse (wi, wo):
+    //   generalized reciprocity  f(wi -> wo) / eta_o^2 = f(wo -> wi) / eta_i^2, which for the
+    //   Dirac coefficients reads c_R(wo, wi) eta_i^4 = c_R(wi, wo) eta_o^4 (the étendue
+    //   eta^2 dsigma_perp is preserved, see the book), and the adjoint f*(wo, wi) = f(wi, wo),
+    //   which reads c_I(wo, wi) = c_R(wi, wo) eta_o^2 / eta_i^2.
+    for ior in IORS {
+        for n in normals() {
+            for wo in test_directions(34, 16) {
+                let (eta_o, eta_i) = etas(ior, wo, n);
+                let cos_o = (wo.dot(n) as f64).abs();
+                if cos_o < GRAZING_LIMIT || eta_o * (1.0 - cos_o * cos_o).sqrt() >= eta_i {
+                    continue;
+                }
+                let fwd = dielectric_lobe(ior, wo, n, true, TransportMode::Radiance).unwrap();
+                let wi = fwd.wi;
+                if (wi.dot(n) as f64).abs() < GRAZING_LIMIT {
+                    continue;
+                }
+                let rev = dielectric_lobe(ior, wi, n, true, TransportMode::Radiance).unwrap();
+                assert_close("T(T(wo)) = wo", (rev.wi - wo).length() as f64, 0.0, F32_TOL);
+                let adj = dielectric_lobe(ior, wo, n, true, TransportMode::Importance).unwrap();
+                let (c_fwd, c_rev, c_adj) = (
+                    coefficient(&fwd, n),
+                    coefficient(&rev, n),
+                    coefficient(&adj, n),
+                );
+                assert_close(
+                    "generalized reciprocity",
+                    c_fwd * eta_i.powi(4),
+                    c_rev * eta_o.powi(4),
+                    F32_TOL,
+                );
+                assert_close("adjoint", c_adj, c_rev * (eta_o / eta_i).powi(2), F32_TOL);
+            }
+        }
+    }
+}
+
+#[test]
+fn null_boundary_never_scatters() {
+    let bsdf = Bsdf::Null;
+    assert!(bsdf.is_null() && bsdf.is_singular());
+    let mut s = sampler(40, 0);
+    for wo in test_directions(40, 8) {
+        let wi = warp::uniform_sphere(s.next_2d());
+        assert!(bsdf
+            .sample(
+                wo,
+                Vec3::Z,
+                s.next_2d(),
+                s.next_f32(),
+                TransportMode::Radiance
+            )
+            .is_none());
+        assert_eq!(
+            bsdf.eval(wo, wi, Vec3::Z, TransportMode::Radiance),
+            Rgb::ZERO
+        );
+        assert_eq!(bsdf.pdf(wo, wi, Vec3::Z), 0.0);
+    }
+}
+
+#[test]
+fn reflect_is_an_involution() {
+    let mut s = sampler(41, 0);
+    for n in normals() {
+        for _ in 0..64 {
+            let w = warp::uniform_sphere(s.next_2d());
+            let r = reflect(reflect(w, n), n);
+            assert_close("reflect twice", (r - w).length() as f64, 0.0, F32_TOL);
+        }
+    }
+}
