@@ -112,7 +112,12 @@ impl Bdpt {
         while path.len() < max_vertices {
             let prev = path.len() - 1;
             let prop = scene.propagate_bidirectional(ray, medium, origin_in_medium, sampler);
-            beta *= prop.weight();
+            // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
+            // the vertex scatters below and in every connection through it
+            if prop.pdf <= 0.0 {
+                return;
+            }
+            beta *= prop.transmittance / prop.pdf;
             if beta == Rgb::ZERO {
                 return;
             }
@@ -165,7 +170,7 @@ impl Bdpt {
                     if ps.pdf <= 0.0 {
                         return;
                     }
-                    beta *= ps.value / ps.pdf;
+                    beta *= scene.media[m as usize].sigma_s(v.p) * (ps.value / ps.pdf);
                     path[cur].lobe = Lobe::Regular;
                     medium = Some(m);
                     origin_in_medium = true;
@@ -401,50 +406,6 @@ impl Bdpt {
             } * pt.beta;
             pdf_qp = 1.0;
             pdf_pq = 1.0;
-        } else if t == 1 {
-            // connect the light subpath to the sensor
-            let qs = &light[s - 1];
-            if !qs.is_connectible(scene) || s < 2 {
-                return None;
-            }
-            let sensor = match eye[0].kind {
-                VertexKind::Camera => {
-                    let cam = scene.camera.as_ref()?;
-                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
-                    raster = Some(imp.raster);
-                    let mut v = eye[0];
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                VertexKind::Meter { meter } => {
-                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
-                    let (p, n) = q.sample_area(sampler.next_2d());
-                    let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
-                    v.pdf_fwd = 1.0 / q.area();
-                    // W_e / p(x) = (1/A) / (1/A)
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                _ => return None,
-            };
-            let we = sensor.importance(scene, qs.p);
-            let area_inv = match sensor.kind {
-                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
-                _ => 1.0,
-            };
-            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
-            if f == Rgb::ZERO || we == Rgb::ZERO {
-                return None;
-            }
-            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
-            l = qs.beta * f * e.transmittance * g * we * area_inv;
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
-            sampled = Some(sensor);
         } else if s == 1 {
             // next-event estimation: sample a point on a light for the eye subpath's end
             let pt = &eye[t - 1];
@@ -504,6 +465,50 @@ impl Bdpt {
             pdf_qp = e.pdf_ab;
             pdf_pq = e.pdf_ba;
             sampled = Some(v);
+        } else if t == 1 {
+            // connect the light subpath to the sensor
+            let qs = &light[s - 1];
+            if !qs.is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let sensor = match eye[0].kind {
+                VertexKind::Camera => {
+                    let cam = scene.camera.as_ref()?;
+                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
+                    raster = Some(imp.raster);
+                    let mut v = eye[0];
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                VertexKind::Meter { meter } => {
+                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
+                    let (p, n) = q.sample_area(sampler.next_2d());
+                    let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                    v.pdf_fwd = 1.0 / q.area();
+                    // W_e / p(x) = (1/A) / (1/A)
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                _ => return None,
+            };
+            let we = sensor.importance(scene, qs.p);
+            let area_inv = match sensor.kind {
+                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
+                _ => 1.0,
+            };
+            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+            if f == Rgb::ZERO || we == Rgb::ZERO {
+                return None;
+            }
+            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
+            l = qs.beta * f * e.transmittance * g * we * area_inv;
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+            sampled = Some(sensor);
         } else {
             let qs = &light[s - 1];
             let pt = &eye[t - 1];

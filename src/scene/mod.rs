@@ -372,29 +372,30 @@ impl Scene {
     /// The medium containing `p`: found from the first medium boundary a fixed ray from `p`
     /// meets (leaving through a boundary means being inside it).
     pub fn medium_at(&self, p: Vec3) -> Option<u32> {
-        // an irrational-looking direction avoids grazing axis-aligned faces and edges
+        // an irrational-looking direction avoids grazing axis-aligned faces and edges; only
+        // medium boundaries count (a wall coplanar with a boundary must not hide it), so this
+        // scans the primitives of interface shapes directly: it runs once per light, camera and
+        // meter, never per sample
         let d = Vec3::new(0.389_312, 0.727_003, 0.565_516).normalize();
         let ray = Ray::new(p, d);
-        let mut t_min = 0.0;
-        for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.bvh.intersect_range(
-                &self.prims,
-                &self.prim_opaque,
-                &ray,
-                t_min,
-                f32::INFINITY,
-            )?;
-            let shape = self.shape_of(&hit);
-            if shape.interface {
-                return if d.dot(hit.ng) > 0.0 {
-                    shape.interior
-                } else {
-                    shape.exterior
-                };
+        let mut best: Option<(f32, Vec3, u32)> = None;
+        for (i, prim) in self.prims.iter().enumerate() {
+            let shape = self.prim_shape[i];
+            if !self.shapes[shape as usize].interface {
+                continue;
             }
-            t_min = past(hit.t, &ray);
+            let limit = best.map_or(f32::INFINITY, |b| b.0);
+            if let Some((t, _, ng)) = prim.intersect(&ray, limit) {
+                best = Some((t, ng, shape));
+            }
         }
-        None
+        let (_, ng, shape) = best?;
+        let shape = &self.shapes[shape as usize];
+        if d.dot(ng) > 0.0 {
+            shape.interior
+        } else {
+            shape.exterior
+        }
     }
 
     /// The selection probability of light `l`.
