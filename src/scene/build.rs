@@ -4,8 +4,14 @@
 use glam::Vec3;
 use std::collections::{BTreeMap, HashMap};
 
-use super::file::{self, path, KeyPath, LightDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbValue, SensorDesc, ShapeDesc};
-use super::{Camera, Environment, IrradianceMeter, Light, RenderSettings, Scene, SceneError, SceneSource, ShapeInfo};
+use super::file::{
+    self, path, KeyPath, LightDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbValue, SensorDesc,
+    ShapeDesc,
+};
+use super::{
+    Camera, Environment, IrradianceMeter, Light, RenderSettings, Scene, SceneError, SceneSource,
+    ShapeInfo,
+};
 use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Quad, Sphere, Triangle};
 use crate::geometry::{Aabb, Bvh, Primitive};
@@ -23,19 +29,27 @@ fn finite3(src: &SceneSource, key: &KeyPath, v: [f32; 3]) -> Result<Vec3, SceneE
     }
 }
 
-fn non_negative(src: &SceneSource, key: &KeyPath, v: RgbValue, what: &str) -> Result<Vec3, SceneError> {
+fn non_negative(
+    src: &SceneSource,
+    key: &KeyPath,
+    v: RgbValue,
+    what: &str,
+) -> Result<Vec3, SceneError> {
     let c = v.to_rgb();
     if c.to_array().iter().all(|x| x.is_finite() && *x >= 0.0) {
         Ok(c)
     } else {
-        Err(src.error(key, format!("{what} must be finite and >= 0, got {v:?}")))
+        Err(src.error(key, format!("{what} must be finite and >= 0, got {v}")))
     }
 }
 
 fn albedo(src: &SceneSource, key: &KeyPath, v: RgbValue) -> Result<Vec3, SceneError> {
     let c = non_negative(src, key, v, "an albedo")?;
     if c.max_element() > 1.0 {
-        return Err(src.error(key, format!("albedo {v:?} is above 1: the surface would create energy")));
+        return Err(src.error(
+            key,
+            format!("albedo {v} is above 1: the surface would reflect more light than it receives"),
+        ));
     }
     Ok(c)
 }
@@ -43,8 +57,12 @@ fn albedo(src: &SceneSource, key: &KeyPath, v: RgbValue) -> Result<Vec3, SceneEr
 fn phase(src: &SceneSource, key: &KeyPath, p: &PhaseDesc) -> Result<Phase, SceneError> {
     match p {
         PhaseDesc::Isotropic {} => Ok(Phase::Isotropic),
-        PhaseDesc::Hg { g } => Phase::henyey_greenstein(*g)
-            .map_err(|e| src.error(&key.clone().key("g"), format!("{e}: |g| >= 1 is not a phase function"))),
+        PhaseDesc::Hg { g } => Phase::henyey_greenstein(*g).map_err(|e| {
+            src.error(
+                &key.clone().key("g"),
+                format!("{e}: |g| >= 1 is not a phase function"),
+            )
+        }),
         PhaseDesc::Schlick { k } => {
             Phase::schlick(*k).map_err(|e| src.error(&key.clone().key("k"), e.to_string()))
         }
@@ -64,15 +82,66 @@ fn phase(src: &SceneSource, key: &KeyPath, p: &PhaseDesc) -> Result<Phase, Scene
     }
 }
 
-/// Every edge of a closed triangle mesh is shared by exactly two triangles.
-fn mesh_is_closed(indices: &[u32]) -> bool {
+/// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
+/// triangles that traverse it in opposite directions. Vertices are welded by position first, so
+/// an OBJ that splits vertices along seams (for normals or texture coordinates) still counts.
+fn mesh_is_closed(positions: &[Vec3], indices: &[u32]) -> bool {
+    let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
+    let ids: Vec<u32> = positions
+        .iter()
+        .map(|p| {
+            let n = weld.len() as u32;
+            *weld.entry(p.to_array().map(f32::to_bits)).or_insert(n)
+        })
+        .collect();
     let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
     for t in indices.chunks_exact(3) {
+        let t = [ids[t[0] as usize], ids[t[1] as usize], ids[t[2] as usize]];
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            *edges.entry((a, b)).or_insert(0) += 1;
         }
     }
-    !edges.is_empty() && edges.values().all(|&c| c == 2)
+    !edges.is_empty()
+        && edges
+            .iter()
+            .all(|(&(a, b), &c)| c == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards.
+fn signed_volume(tris: &[Triangle]) -> f32 {
+    tris.iter().map(|t| t.p0.dot(t.e1.cross(t.e2)) / 6.0).sum()
+}
+
+/// Checks every face index of an OBJ file before tobj sees it, so the error names the OBJ line.
+fn check_obj_indices(text: &str) -> Result<(), String> {
+    let mut vertices = 0i64;
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => vertices += 1,
+            Some("f") | Some("l") => {
+                for w in words {
+                    let Some(Ok(k)) = w.split('/').next().map(str::parse::<i64>) else {
+                        return Err(format!("line {}: `{w}` is not a vertex index", n + 1));
+                    };
+                    // OBJ indices are 1-based; negative ones count back from the last vertex
+                    let ok = if k > 0 {
+                        k <= vertices
+                    } else {
+                        k < 0 && -k <= vertices
+                    };
+                    if !ok {
+                        return Err(format!(
+                            "line {}: face index {k} is out of range (the file has {vertices} vertices so far)",
+                            n + 1
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn box_quads(min: Vec3, max: Vec3) -> Vec<Quad> {
@@ -102,16 +171,24 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     for (name, m) in &desc.materials {
         let key = path("materials").key(name);
         if name == "null" {
-            return Err(src.error(&key, "`null` is the built-in index-matched boundary; choose another name"));
+            return Err(src.error(
+                &key,
+                "`null` is the built-in index-matched boundary; choose another name",
+            ));
         }
         let bsdf = match m {
-            MaterialDesc::Lambert { albedo: a } => Bsdf::Lambert { albedo: albedo(src, &key.clone().key("albedo"), *a)? },
+            MaterialDesc::Lambert { albedo: a } => Bsdf::Lambert {
+                albedo: albedo(src, &key.clone().key("albedo"), *a)?,
+            },
             MaterialDesc::Mirror { reflectance } => Bsdf::Mirror {
                 reflectance: albedo(src, &key.clone().key("reflectance"), *reflectance)?,
             },
             MaterialDesc::Dielectric { ior } => {
                 if !(ior.is_finite() && *ior > 0.0) {
-                    return Err(src.error(&key.clone().key("ior"), format!("ior = {ior} must be positive")));
+                    return Err(src.error(
+                        &key.clone().key("ior"),
+                        format!("ior = {ior} must be positive"),
+                    ));
                 }
                 Bsdf::Dielectric { ior: *ior }
             }
@@ -127,7 +204,11 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     for (name, m) in &desc.media {
         let key = path("media").key(name);
         let medium = match m {
-            MediumDesc::Homogeneous { sigma_a, sigma_s, phase: ph } => {
+            MediumDesc::Homogeneous {
+                sigma_a,
+                sigma_s,
+                phase: ph,
+            } => {
                 let sa = non_negative(src, &key.clone().key("sigma_a"), *sigma_a, "sigma_a")?;
                 let ss = non_negative(src, &key.clone().key("sigma_s"), *sigma_s, "sigma_s")?;
                 let ph = phase(src, &key.clone().key("phase"), ph)?;
@@ -146,7 +227,10 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
             Some(n) if n == "vacuum" => Ok(None),
             Some(n) => medium_index.get(n).copied().map(Some).ok_or_else(|| {
                 let known: Vec<&str> = desc.media.keys().map(String::as_str).collect();
-                src.error(key, format!("unknown medium `{n}` (defined: {known:?}, or `vacuum`)"))
+                src.error(
+                    key,
+                    format!("unknown medium `{n}` (defined: {known:?}, or `vacuum`)"),
+                )
             }),
         }
     };
@@ -160,14 +244,22 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         let key = path("shapes").index(i);
         let common = s.common();
         let emission = match common.emission {
-            Some(e) => Some(non_negative(src, &key.clone().key("emission"), e, "emission")?),
+            Some(e) => Some(non_negative(
+                src,
+                &key.clone().key("emission"),
+                e,
+                "emission",
+            )?),
             None => None,
         }
         .filter(|e| e.max_element() > 0.0);
         let bsdf = match &common.material {
             Some(m) => Some(materials.get(m).cloned().ok_or_else(|| {
                 let known: Vec<&str> = materials.keys().map(String::as_str).collect();
-                src.error(&key.clone().key("material"), format!("unknown material `{m}` (defined: {known:?})"))
+                src.error(
+                    &key.clone().key("material"),
+                    format!("unknown material `{m}` (defined: {known:?})"),
+                )
             })?),
             None if emission.is_some() => None,
             None => {
@@ -190,8 +282,12 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
                 let o = finite3(src, &key.clone().key("origin"), *origin)?;
                 let u = finite3(src, &key.clone().key("u"), *u)?;
                 let v = finite3(src, &key.clone().key("v"), *v)?;
-                let q = Quad::new(o, u, v)
-                    .ok_or_else(|| src.error(&key.clone().key("u"), "u and v are parallel: the quad has no area"))?;
+                let q = Quad::new(o, u, v).ok_or_else(|| {
+                    src.error(
+                        &key.clone().key("u"),
+                        "u and v are parallel: the quad has no area",
+                    )
+                })?;
                 new.push(Primitive::Quad(q));
                 closed = false;
             }
@@ -199,46 +295,97 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
                 let lo = finite3(src, &key.clone().key("min"), *min)?;
                 let hi = finite3(src, &key.clone().key("max"), *max)?;
                 if !(hi.cmpgt(lo).all()) {
-                    return Err(src.error(&key.clone().key("max"), format!("max {max:?} must exceed min {min:?} on every axis")));
+                    return Err(src.error(
+                        &key.clone().key("max"),
+                        format!("max {max:?} must exceed min {min:?} on every axis"),
+                    ));
                 }
                 new.extend(box_quads(lo, hi).into_iter().map(Primitive::Quad));
             }
             ShapeDesc::Sphere { center, radius, .. } => {
                 let c = finite3(src, &key.clone().key("center"), *center)?;
                 if !(radius.is_finite() && *radius > 0.0) {
-                    return Err(src.error(&key.clone().key("radius"), format!("radius = {radius} must be positive")));
+                    return Err(src.error(
+                        &key.clone().key("radius"),
+                        format!("radius = {radius} must be positive"),
+                    ));
                 }
-                new.push(Primitive::Sphere(Sphere { center: c, radius: *radius }));
+                new.push(Primitive::Sphere(Sphere {
+                    center: c,
+                    radius: *radius,
+                }));
             }
             ShapeDesc::Mesh { obj, .. } => {
                 let file = src.base_dir.join(obj);
-                let (models, _) = tobj::load_obj(&file, &tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() })
-                    .map_err(|e| src.error(&key.clone().key("obj"), format!("cannot load `{}`: {e}", file.display())))?;
+                let obj_key = key.clone().key("obj");
+                let text = std::fs::read_to_string(&file).map_err(|e| {
+                    src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
+                })?;
+                check_obj_indices(&text)
+                    .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
+                let options = tobj::LoadOptions {
+                    triangulate: true,
+                    single_index: true,
+                    ..Default::default()
+                };
+                let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+                    Err(tobj::LoadError::OpenFileFailed) // materials are not used
+                })
+                .map_err(|e| {
+                    src.error(&obj_key, format!("cannot load `{}`: {e}", file.display()))
+                })?;
                 let mut all_closed = true;
+                let mut tris = Vec::new();
                 for m in &models {
-                    let pos = &m.mesh.positions;
+                    let pos: Vec<Vec3> = m
+                        .mesh
+                        .positions
+                        .chunks_exact(3)
+                        .map(|c| Vec3::new(c[0], c[1], c[2]))
+                        .collect();
                     let idx = &m.mesh.indices;
-                    if idx.iter().any(|&k| (3 * k as usize + 2) >= pos.len()) {
-                        return Err(src.error(&key.clone().key("obj"), format!("`{}`: a face index is out of range", file.display())));
+                    if idx.iter().any(|&k| k as usize >= pos.len()) {
+                        return Err(src.error(
+                            &obj_key,
+                            format!("`{}`: a face index is out of range", file.display()),
+                        ));
                     }
-                    all_closed &= mesh_is_closed(idx);
-                    let p = |k: u32| Vec3::new(pos[3 * k as usize], pos[3 * k as usize + 1], pos[3 * k as usize + 2]);
-                    for t in idx.chunks_exact(3) {
-                        if let Some(tri) = Triangle::new(p(t[0]), p(t[1]), p(t[2])) {
-                            new.push(Primitive::Triangle(tri));
-                        }
+                    if pos.iter().any(|p| !p.is_finite()) {
+                        return Err(src.error(
+                            &obj_key,
+                            format!("`{}`: a vertex is not finite", file.display()),
+                        ));
                     }
+                    all_closed &= mesh_is_closed(&pos, idx);
+                    tris.extend(idx.chunks_exact(3).filter_map(|t| {
+                        Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+                    }));
                 }
-                if new.is_empty() {
-                    return Err(src.error(&key.clone().key("obj"), format!("`{}` has no triangles", file.display())));
+                if tris.is_empty() {
+                    return Err(
+                        src.error(&obj_key, format!("`{}` has no triangles", file.display()))
+                    );
                 }
                 closed = all_closed;
+                if closed && common.interior.is_some() && signed_volume(&tris) < 0.0 {
+                    return Err(src.error(
+                        &obj_key,
+                        format!(
+                            "`{}` is wound inside out (its normals point inwards), so `interior` would be outside; reverse the faces' vertex order",
+                            file.display()
+                        ),
+                    ));
+                }
+                new.extend(tris.into_iter().map(Primitive::Triangle));
             }
         }
         if common.interior.is_some() && !closed {
             return Err(src.error(
                 &key.clone().key("interior"),
-                format!("a {} is not a closed shape, so it cannot carry a medium inside", s.kind()),
+                format!(
+                    "a {} is not a closed shape (a mesh is closed when every edge joins exactly two consistently wound triangles), so it has no inside to hold a medium",
+                    s.kind()
+                ),
             ));
         }
         let shape_id = shapes.len() as u32;
@@ -273,7 +420,10 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     let (center, radius) = if bounds.is_empty() {
         (Vec3::ZERO, 1.0)
     } else {
-        (bounds.centroid(), (0.5 * bounds.extent().length()).max(1e-3))
+        (
+            bounds.centroid(),
+            (0.5 * bounds.extent().length()).max(1e-3),
+        )
     };
 
     // delta and infinite lights
@@ -281,35 +431,77 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     for (i, l) in desc.lights.iter().enumerate() {
         let key = path("lights").index(i);
         let light = match l {
-            LightDesc::Directional { direction, irradiance } => Light::Directional {
+            LightDesc::Directional {
+                direction,
+                irradiance,
+            } => Light::Directional {
                 direction: finite3(src, &key.clone().key("direction"), *direction)?
                     .try_normalize()
-                    .ok_or_else(|| src.error(&key.clone().key("direction"), "direction has zero length"))?,
-                irradiance: non_negative(src, &key.clone().key("irradiance"), *irradiance, "irradiance")?,
+                    .ok_or_else(|| {
+                        src.error(&key.clone().key("direction"), "direction has zero length")
+                    })?,
+                irradiance: non_negative(
+                    src,
+                    &key.clone().key("irradiance"),
+                    *irradiance,
+                    "irradiance",
+                )?,
             },
-            LightDesc::Point { position, intensity } => Light::Point {
+            LightDesc::Point {
+                position,
+                intensity,
+            } => Light::Point {
                 position: finite3(src, &key.clone().key("position"), *position)?,
-                intensity: non_negative(src, &key.clone().key("intensity"), *intensity, "intensity")?,
+                intensity: non_negative(
+                    src,
+                    &key.clone().key("intensity"),
+                    *intensity,
+                    "intensity",
+                )?,
             },
-            LightDesc::Spot { position, direction, intensity, cone_deg, falloff_deg } => {
+            LightDesc::Spot {
+                position,
+                direction,
+                intensity,
+                cone_deg,
+                falloff_deg,
+            } => {
                 if !(*cone_deg > 0.0 && *cone_deg <= 90.0) {
-                    return Err(src.error(&key.clone().key("cone_deg"), format!("cone_deg = {cone_deg} must be in (0, 90]")));
+                    return Err(src.error(
+                        &key.clone().key("cone_deg"),
+                        format!("cone_deg = {cone_deg} must be in (0, 90]"),
+                    ));
                 }
                 if !(*falloff_deg >= 0.0 && falloff_deg <= cone_deg) {
-                    return Err(src.error(&key.clone().key("falloff_deg"), format!("falloff_deg = {falloff_deg} must be in [0, cone_deg]")));
+                    return Err(src.error(
+                        &key.clone().key("falloff_deg"),
+                        format!("falloff_deg = {falloff_deg} must be in [0, cone_deg]"),
+                    ));
                 }
                 let dir = finite3(src, &key.clone().key("direction"), *direction)?
                     .try_normalize()
-                    .ok_or_else(|| src.error(&key.clone().key("direction"), "direction has zero length"))?;
+                    .ok_or_else(|| {
+                        src.error(&key.clone().key("direction"), "direction has zero length")
+                    })?;
                 Light::Spot {
                     position: finite3(src, &key.clone().key("position"), *position)?,
                     frame: Frame::from_normal(dir),
-                    intensity: non_negative(src, &key.clone().key("intensity"), *intensity, "intensity")?,
+                    intensity: non_negative(
+                        src,
+                        &key.clone().key("intensity"),
+                        *intensity,
+                        "intensity",
+                    )?,
                     cos_total: cone_deg.to_radians().cos(),
                     cos_falloff: (cone_deg - falloff_deg).to_radians().cos(),
                 }
             }
-            LightDesc::Environment { radiance, zenith, horizon, nadir } => {
+            LightDesc::Environment {
+                radiance,
+                zenith,
+                horizon,
+                nadir,
+            } => {
                 if environment.is_some() {
                     return Err(src.error(&key, "only one environment light is allowed"));
                 }
@@ -336,6 +528,19 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         lights.push(light);
     }
     let powers: Vec<f32> = lights.iter().map(|l| l.power(radius)).collect();
+    if let Some(i) = powers.iter().position(|p| !p.is_finite()) {
+        let key = match lights[i] {
+            Light::Area { shape, .. } => path("shapes").index(shape as usize).key("emission"),
+            // area lights come first, then `[[lights]]` in order
+            _ => path("lights").index(
+                i - lights
+                    .iter()
+                    .filter(|l| matches!(l, Light::Area { .. }))
+                    .count(),
+            ),
+        };
+        return Err(src.error(&key, "the light's power overflows a 32-bit float"));
+    }
     let light_distr = Distribution1D::new(&powers);
 
     let prim_opaque: Vec<bool> = prim_shape
@@ -379,20 +584,47 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         source_name: src.name.clone(),
     };
 
-    if let Some(file::CameraDesc::Pinhole { eye, look_at, up, fov_deg, resolution }) = &desc.camera {
+    if let Some(file::CameraDesc::Pinhole {
+        eye,
+        look_at,
+        up,
+        fov_deg,
+        resolution,
+    }) = &desc.camera
+    {
         let key = path("camera");
         let eye = finite3(src, &key.clone().key("eye"), *eye)?;
         let look_at = finite3(src, &key.clone().key("look_at"), *look_at)?;
         let up = finite3(src, &key.clone().key("up"), *up)?;
         if !(*fov_deg > 0.0 && *fov_deg < 180.0) {
-            return Err(src.error(&key.clone().key("fov_deg"), format!("fov_deg = {fov_deg} must be in (0, 180)")));
+            return Err(src.error(
+                &key.clone().key("fov_deg"),
+                format!("fov_deg = {fov_deg} must be in (0, 180)"),
+            ));
         }
-        if resolution[0] == 0 || resolution[1] == 0 || resolution[0] > 16384 || resolution[1] > 16384 {
-            return Err(src.error(&key.clone().key("resolution"), format!("resolution {resolution:?} must be in 1..=16384")));
+        if resolution[0] == 0
+            || resolution[1] == 0
+            || resolution[0] > 16384
+            || resolution[1] > 16384
+        {
+            return Err(src.error(
+                &key.clone().key("resolution"),
+                format!("resolution {resolution:?} must be in 1..=16384"),
+            ));
         }
-        let cam = Camera::new(eye, look_at, up, *fov_deg, resolution[0], resolution[1]).ok_or_else(|| {
-            src.error(&key.clone().key("look_at"), "eye, look_at and up do not define a view (coincident or parallel)")
-        })?;
+        if (look_at - eye).length_squared() == 0.0 {
+            return Err(src.error(
+                &key.clone().key("look_at"),
+                "look_at equals eye: the camera looks nowhere",
+            ));
+        }
+        let cam = Camera::new(eye, look_at, up, *fov_deg, resolution[0], resolution[1])
+            .ok_or_else(|| {
+                src.error(
+                    &key.clone().key("up"),
+                    "up is zero or parallel to the viewing direction look_at - eye",
+                )
+            })?;
         scene.camera_medium = scene.medium_at(eye);
         scene.camera = Some(cam);
     }
@@ -403,19 +635,34 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
                 let o = finite3(src, &key.clone().key("origin"), *origin)?;
                 let u = finite3(src, &key.clone().key("u"), *u)?;
                 let v = finite3(src, &key.clone().key("v"), *v)?;
-                let quad = Quad::new(o, u, v)
-                    .ok_or_else(|| src.error(&key.clone().key("u"), "u and v are parallel: the meter has no area"))?;
-                if scene.sensors.iter().any(|m: &IrradianceMeter| &m.name == name) {
-                    return Err(src.error(&key.clone().key("name"), format!("two sensors are called `{name}`")));
+                let quad = Quad::new(o, u, v).ok_or_else(|| {
+                    src.error(
+                        &key.clone().key("u"),
+                        "u and v are parallel: the meter has no area",
+                    )
+                })?;
+                if scene
+                    .sensors
+                    .iter()
+                    .any(|m: &IrradianceMeter| &m.name == name)
+                {
+                    return Err(src.error(
+                        &key.clone().key("name"),
+                        format!("two sensors are called `{name}`"),
+                    ));
                 }
                 let centre = o + 0.5 * (u + v);
                 let medium = scene.medium_at(centre);
-                scene.sensors.push(IrradianceMeter { name: name.clone(), quad, medium });
+                scene.sensors.push(IrradianceMeter {
+                    name: name.clone(),
+                    quad,
+                    medium,
+                });
             }
         }
     }
     if scene.camera.is_none() && scene.sensors.is_empty() {
-        return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor: nothing would be measured"));
+        return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }
     Ok(scene)
 }
