@@ -12,6 +12,10 @@ use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
 const MAX_LEAF: usize = 4;
+/// Deepest level the build creates: below it everything left becomes one leaf. Traversal keeps
+/// its to-do list in a fixed stack of this size, which therefore can never overflow (before
+/// this limit, a push onto a full stack was silently dropped, losing a subtree).
+pub const MAX_DEPTH: usize = 64;
 /// SAH cost of one traversal step relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
 
@@ -60,7 +64,7 @@ impl Bvh {
             indices: Vec::with_capacity(prims.len()),
         };
         if !items.is_empty() {
-            bvh.build_recursive(&mut items);
+            bvh.build_recursive(&mut items, 1);
         }
         bvh
     }
@@ -70,12 +74,29 @@ impl Bvh {
         self.nodes.len()
     }
 
+    /// Depth of the deepest leaf (the root alone has depth 1).
+    pub fn depth(&self) -> usize {
+        fn walk(nodes: &[Node], i: usize) -> usize {
+            let n = &nodes[i];
+            if n.count > 0 {
+                1
+            } else {
+                1 + walk(nodes, i + 1).max(walk(nodes, n.offset as usize))
+            }
+        }
+        if self.nodes.is_empty() {
+            0
+        } else {
+            walk(&self.nodes, 0)
+        }
+    }
+
     /// Bounds of everything.
     pub fn bounds(&self) -> Aabb {
         self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
     }
 
-    fn build_recursive(&mut self, items: &mut [BuildItem]) -> usize {
+    fn build_recursive(&mut self, items: &mut [BuildItem], depth: usize) -> usize {
         let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
         let node_index = self.nodes.len();
         self.nodes.push(Node {
@@ -90,12 +111,10 @@ impl Bvh {
             bvh.nodes[node_index].count = items.len() as u32;
             node_index
         };
-        if items.len() <= MAX_LEAF {
+        if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
             return make_leaf(self, items);
         }
-        let cb = items
-            .iter()
-            .fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+        let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
         let extent = cb.extent();
         let axis = if extent.x >= extent.y && extent.x >= extent.z {
             0
@@ -107,7 +126,7 @@ impl Bvh {
         if extent[axis] <= 0.0 {
             // all centroids coincide: split in the middle of the list
             let mid = items.len() / 2;
-            return self.split(node_index, items, mid);
+            return self.split(node_index, items, mid, depth);
         }
         // binned SAH along the widest centroid axis
         let mut bin_bounds = [Aabb::EMPTY; BINS];
@@ -144,7 +163,7 @@ impl Bvh {
             if best.0.is_infinite() {
                 let mid = items.len() / 2;
                 items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
-                return self.split(node_index, items, mid);
+                return self.split(node_index, items, mid, depth);
             }
             return make_leaf(self, items);
         }
@@ -155,13 +174,19 @@ impl Bvh {
                 mid += 1;
             }
         }
-        self.split(node_index, items, mid)
+        self.split(node_index, items, mid, depth)
     }
 
-    fn split(&mut self, node_index: usize, items: &mut [BuildItem], mid: usize) -> usize {
+    fn split(
+        &mut self,
+        node_index: usize,
+        items: &mut [BuildItem],
+        mid: usize,
+        depth: usize,
+    ) -> usize {
         let (left, right) = items.split_at_mut(mid);
-        self.build_recursive(left);
-        let r = self.build_recursive(right);
+        self.build_recursive(left, depth + 1);
+        let r = self.build_recursive(right, depth + 1);
         self.nodes[node_index].offset = r as u32;
         self.nodes[node_index].count = 0;
         node_index
@@ -182,7 +207,7 @@ impl Bvh {
         let inv_d = ray.d.recip();
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
@@ -221,14 +246,18 @@ impl Bvh {
                     let left = node + 1;
                     let right = n.offset as usize;
                     let axis_dir_neg = {
-                        let c = self.nodes[right].bounds.centroid() - self.nodes[left].bounds.centroid();
+                        let c = self.nodes[right].bounds.centroid()
+                            - self.nodes[left].bounds.centroid();
                         c.dot(ray.d) < 0.0
                     };
-                    let (first, second) = if axis_dir_neg { (right, left) } else { (left, right) };
-                    if sp < stack.len() {
-                        stack[sp] = second as u32;
-                        sp += 1;
-                    }
+                    let (first, second) = if axis_dir_neg {
+                        (right, left)
+                    } else {
+                        (left, right)
+                    };
+                    // at most depth - 1 nodes wait on the stack: it cannot overflow
+                    stack[sp] = second as u32;
+                    sp += 1;
                     node = first;
                     continue;
                 }
@@ -248,7 +277,7 @@ impl Bvh {
             return false;
         }
         let inv_d = ray.d.recip();
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
@@ -262,10 +291,8 @@ impl Bvh {
                         }
                     }
                 } else {
-                    if sp < stack.len() {
-                        stack[sp] = n.offset;
-                        sp += 1;
-                    }
+                    stack[sp] = n.offset;
+                    sp += 1;
                     node += 1;
                     continue;
                 }

@@ -105,9 +105,7 @@ impl Primitive {
                 q.origin + q.v,
                 q.origin + q.u + q.v,
             ]),
-            Primitive::Triangle(t) => {
-                Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2])
-            }
+            Primitive::Triangle(t) => Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2]),
             Primitive::Sphere(s) => Aabb {
                 min: s.center - Vec3::splat(s.radius),
                 max: s.center + Vec3::splat(s.radius),
@@ -187,7 +185,7 @@ impl Primitive {
                     std::mem::swap(&mut t0, &mut t1);
                 }
                 let t = if t0 > 0.0 { t0 } else { t1 };
-                if !(t > 0.0 && t < t_max) || !t.is_finite() {
+                if !(t > 0.0 && t < t_max && t.is_finite()) {
                     return None;
                 }
                 let n = (ray.at(t) - s.center).normalize();
