@@ -4,7 +4,8 @@
 //! Closest-hit queries break ties in favour of opaque primitives: where a null (index-matched)
 //! medium boundary lies in the same plane as a wall, the wall is what the ray hits. Without that
 //! rule a ray can cross the null face, be lifted off it and pass the wall: the light leak the
-//! coplanar test in `tests/coplanar.rs` guards against.
+//! coplanar tests in `tests/geometry.rs` guard against.
+//! Book: "Scenes and geometry".
 
 use glam::Vec3;
 
@@ -128,6 +129,7 @@ impl Bvh {
             let mid = items.len() / 2;
             return self.split(node_index, items, mid, depth);
         }
+        // ANCHOR: sah
         // binned SAH along the widest centroid axis
         let mut bin_bounds = [Aabb::EMPTY; BINS];
         let mut bin_count = [0usize; BINS];
@@ -157,6 +159,7 @@ impl Bvh {
                 best = (cost, i);
             }
         }
+        // ANCHOR_END: sah
         let leaf_cost = items.len() as f32;
         let split_cost = TRAVERSAL_COST + best.0 / bounds.surface_area().max(f32::MIN_POSITIVE);
         if best.0.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
@@ -225,6 +228,7 @@ impl Bvh {
                                     t_best = t;
                                 }
                                 Some(b) => {
+                                    // ANCHOR: tie_break
                                     let tie = (t - b.t).abs() <= TIE_EPSILON * (1.0 + b.t);
                                     let better = if tie {
                                         opaque[pi as usize] && !opaque[b.prim as usize]
@@ -233,6 +237,7 @@ impl Bvh {
                                     } else {
                                         t < b.t
                                     };
+                                    // ANCHOR_END: tie_break
                                     if better {
                                         best = Some(candidate);
                                         t_best = t;

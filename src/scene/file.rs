@@ -4,7 +4,7 @@
 //! errors come from the TOML deserializer with their span; semantic errors (negative sigma,
 //! |g| >= 1, an unknown material, an open shape carrying a medium, ...) are raised on the parsed
 //! description with a key path, which [`locate`] maps back to a line through a span-keeping parse.
-//! Book: "Scenes".
+//! Book: "Scenes and geometry" (tests: `tests/scene_errors.rs`).
 
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -623,6 +623,7 @@ fn value_at_mut<'a>(root: &'a mut toml::Value, key: &[KeySeg]) -> Option<&'a mut
     Some(v)
 }
 
+// ANCHOR: narrow
 /// Narrows the error `error` of the whole file down from `at`: the element of an array of
 /// tables, or the key of a table, whose deletion changes the error is where it lies (the `type`
 /// tag excepted: without it nothing inside the table is looked at). With `tables_only`, only
@@ -672,6 +673,7 @@ fn narrow(root: &toml::Value, at: KeyPath, error: &str, tables_only: bool) -> Ke
     }
     at
 }
+// ANCHOR_END: narrow
 
 fn schema_error(
     text: &str,
