@@ -1,7 +1,15 @@
-//! `pathspace info SCENE`: validates a scene and prints what it contains.
+//! `pathspace info SCENE`: validates a scene and prints what it contains, in the file's own
+//! terms (coefficients, albedos, light powers), so a scene can be checked by reading.
+//! Book: "Scenes and geometry".
 
 use clap::Args;
+use glam::Vec3;
 use std::path::PathBuf;
+
+use crate::bsdf::Bsdf;
+use crate::geometry::Primitive;
+use crate::medium::{Medium, Phase};
+use crate::scene::{Environment, Light, Scene};
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
@@ -9,29 +17,167 @@ pub struct InfoArgs {
     pub scene: PathBuf,
 }
 
+/// A colour or coefficient with three significant decimals: `[0.725, 0.725, 0.725]`, or `0.5` when
+/// all three components are equal.
+fn v3(v: Vec3) -> String {
+    if v.x == v.y && v.y == v.z {
+        format!("{}", round(v.x))
+    } else {
+        format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z))
+    }
+}
+
+/// A point or direction, always as a triple.
+fn p3(v: Vec3) -> String {
+    format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z))
+}
+
+fn round(x: f32) -> f32 {
+    (x * 1000.0).round() / 1000.0
+}
+
+fn bsdf(b: &Option<Bsdf>) -> String {
+    match b {
+        None => "black (emission only)".into(),
+        Some(Bsdf::Lambert { albedo }) => format!("lambert, albedo {}", v3(*albedo)),
+        Some(Bsdf::Mirror { reflectance }) => format!("mirror, reflectance {}", v3(*reflectance)),
+        Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
+        Some(Bsdf::Null) => "null (index-matched boundary)".into(),
+    }
+}
+
+fn phase(p: &Phase) -> String {
+    match p {
+        Phase::Isotropic => "isotropic".into(),
+        Phase::HenyeyGreenstein { g } => format!("Henyey-Greenstein g = {g}"),
+        Phase::Schlick { k } => format!("Schlick k = {k}"),
+        Phase::Mix(lobes) => {
+            let parts: Vec<String> = lobes
+                .iter()
+                .map(|(w, l)| format!("{} x {}", round(*w), phase(l)))
+                .collect();
+            format!("mix of {}", parts.join(" + "))
+        }
+    }
+}
+
+fn medium(m: &Medium) -> String {
+    match m {
+        Medium::Homogeneous(h) => format!(
+            "homogeneous, sigma_a {}, sigma_s {}, sigma_t {}, albedo {}, mean free path {}, phase {}",
+            v3(h.sigma_a),
+            v3(h.sigma_s),
+            v3(h.sigma_t),
+            v3(h.albedo()),
+            v3(h.sigma_t.recip()),
+            phase(&h.phase)
+        ),
+    }
+}
+
+fn light(l: &Light) -> String {
+    match l {
+        Light::Area {
+            shape,
+            prims,
+            area,
+            radiance,
+            ..
+        } => format!(
+            "area light on shapes[{shape}] ({} primitives), area {}, radiance {}",
+            prims.len(),
+            round(*area),
+            v3(*radiance)
+        ),
+        Light::Point {
+            position,
+            intensity,
+        } => {
+            format!(
+                "point at {}, intensity {} W/sr",
+                p3(*position),
+                v3(*intensity)
+            )
+        }
+        Light::Spot {
+            position,
+            frame,
+            intensity,
+            cos_total,
+            cos_falloff,
+        } => format!(
+            "spot at {} towards {}, intensity {} W/sr, cone {} deg, falloff from {} deg",
+            p3(*position),
+            p3(frame.n),
+            v3(*intensity),
+            round(cos_total.acos().to_degrees()),
+            round(cos_falloff.acos().to_degrees())
+        ),
+        Light::Directional {
+            direction,
+            irradiance,
+        } => {
+            format!(
+                "directional, travelling along {}, irradiance {}",
+                p3(*direction),
+                v3(*irradiance)
+            )
+        }
+        Light::Environment(Environment::Constant(r)) => {
+            format!("environment, constant radiance {}", v3(*r))
+        }
+        Light::Environment(Environment::Gradient {
+            zenith,
+            horizon,
+            nadir,
+        }) => format!(
+            "environment, gradient: zenith {}, horizon {}, nadir {}",
+            v3(*zenith),
+            v3(*horizon),
+            v3(*nadir)
+        ),
+    }
+}
+
+/// The name of a medium index (`vacuum` for none).
+fn medium_name(scene: &Scene, m: Option<u32>) -> String {
+    m.map_or("vacuum".to_string(), |i| {
+        scene.medium_names[i as usize].clone()
+    })
+}
+
 pub fn run(args: InfoArgs) -> Result<(), String> {
     let (scene, source) = super::load_scene(Some(&args.scene))?;
     println!("{}: valid (hash {:016x})", source.name, source.hash());
+    let r = &scene.render;
     println!(
-        "  render: integrator {}, {} spp, seed {}, max_depth {}",
-        scene.render.integrator,
-        scene.render.spp,
-        scene.render.seed,
-        scene
-            .render
-            .max_depth
-            .map_or("unlimited".to_string(), |d| d.to_string())
+        "  render: integrator {}, {} spp, seed {}, max_depth {}, {} meter samples per pass",
+        r.integrator,
+        r.spp,
+        r.seed,
+        r.max_depth
+            .map_or("unlimited (Russian roulette)".to_string(), |d| d
+                .to_string()),
+        r.meter_samples
     );
+    if scene.bounds.is_empty() {
+        println!("  bounds: empty (no geometry)");
+    } else {
+        println!(
+            "  bounds: {} to {}",
+            p3(scene.bounds.min),
+            p3(scene.bounds.max)
+        );
+    }
     match &scene.camera {
         Some(c) => println!(
-            "  camera: pinhole at {:?}, {}x{}, in {}",
-            c.eye.to_array(),
+            "  camera: pinhole at {} looking along {}, vertical fov {} deg, {}x{}, in {}",
+            p3(c.eye),
+            p3(c.forward),
+            round(2.0 * c.tan_half_y.atan().to_degrees()),
             c.width,
             c.height,
-            scene
-                .camera_medium
-                .map_or("vacuum".to_string(), |m| scene.medium_names[m as usize]
-                    .clone())
+            medium_name(&scene, scene.camera_medium)
         ),
         None => println!("  camera: none"),
     }
@@ -42,72 +188,46 @@ pub fn run(args: InfoArgs) -> Result<(), String> {
         scene.bvh.node_count()
     );
     for s in &scene.shapes {
-        let mat = match &s.bsdf {
-            Some(b) => format!("{b:?}"),
-            None => "black emitter".into(),
-        };
-        let med = |m: Option<u32>| {
-            m.map_or("vacuum".to_string(), |i| {
-                scene.medium_names[i as usize].clone()
-            })
-        };
+        let emits = s
+            .light
+            .map_or(String::new(), |l| format!(", emits (lights[{l}])"));
         let iface = if s.interface {
             format!(
                 ", interior {}, exterior {}",
-                med(s.interior),
-                med(s.exterior)
+                medium_name(&scene, s.interior),
+                medium_name(&scene, s.exterior)
             )
         } else {
             String::new()
         };
-        println!(
-            "    {}: {}{}{}",
-            s.label,
-            mat,
-            if s.light.is_some() { ", emits" } else { "" },
-            iface
-        );
+        println!("    {}: {}{}{}", s.label, bsdf(&s.bsdf), emits, iface);
     }
     println!("  media: {}", scene.media.len());
     for (n, m) in scene.medium_names.iter().zip(&scene.media) {
-        println!("    {n}: {m:?}");
+        println!("    {n}: {}", medium(m));
     }
-    println!("  lights: {}", scene.lights.len());
+    println!(
+        "  lights: {} (selected in proportion to power)",
+        scene.lights.len()
+    );
     for (i, l) in scene.lights.iter().enumerate() {
-        let kind = match l {
-            crate::scene::Light::Area {
-                shape,
-                area,
-                radiance,
-                ..
-            } => format!(
-                "area (shape {shape}, area {area:.4}, radiance {:?})",
-                radiance.to_array()
-            ),
-            crate::scene::Light::Point { .. } => "point".into(),
-            crate::scene::Light::Spot { .. } => "spot".into(),
-            crate::scene::Light::Directional {
-                direction,
-                irradiance,
-            } => format!(
-                "directional {:?}, irradiance {:?}",
-                direction.to_array(),
-                irradiance.to_array()
-            ),
-            crate::scene::Light::Environment(e) => format!("environment {e:?}"),
-        };
         println!(
-            "    [{i}] {kind}, selection probability {:.4}",
+            "    [{i}] {}, power {}, selection probability {:.4}",
+            light(l),
+            round(l.power(scene.radius)),
             scene.light_pmf(i as u32)
         );
     }
     println!("  sensors: {}", scene.sensors.len());
     for s in &scene.sensors {
+        let q = &s.quad;
         println!(
-            "    {}: irradiance meter, area {:.4}, normal {:?}",
+            "    {}: irradiance meter, centre {}, area {}, normal {}, in {}",
             s.name,
-            crate::geometry::Primitive::Quad(s.quad).area(),
-            s.normal().to_array()
+            p3(q.origin + 0.5 * (q.u + q.v)),
+            round(Primitive::Quad(*q).area()),
+            p3(s.normal()),
+            medium_name(&scene, s.medium)
         );
     }
     Ok(())

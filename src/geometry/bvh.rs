@@ -4,7 +4,8 @@
 //! Closest-hit queries break ties in favour of opaque primitives: where a null (index-matched)
 //! medium boundary lies in the same plane as a wall, the wall is what the ray hits. Without that
 //! rule a ray can cross the null face, be lifted off it and pass the wall: the light leak the
-//! coplanar test in `tests/coplanar.rs` guards against.
+//! coplanar tests in `tests/geometry.rs` guard against.
+//! Book: "Scenes and geometry".
 
 use glam::Vec3;
 
@@ -12,6 +13,10 @@ use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
 const MAX_LEAF: usize = 4;
+/// Deepest level the build creates: below it everything left becomes one leaf. Traversal keeps
+/// its to-do list in a fixed stack of this size, which therefore can never overflow (before
+/// this limit, a push onto a full stack was silently dropped, losing a subtree).
+pub const MAX_DEPTH: usize = 64;
 /// SAH cost of one traversal step relative to one primitive test.
 const TRAVERSAL_COST: f32 = 1.0;
 
@@ -60,7 +65,7 @@ impl Bvh {
             indices: Vec::with_capacity(prims.len()),
         };
         if !items.is_empty() {
-            bvh.build_recursive(&mut items);
+            bvh.build_recursive(&mut items, 1);
         }
         bvh
     }
@@ -70,12 +75,29 @@ impl Bvh {
         self.nodes.len()
     }
 
+    /// Depth of the deepest leaf (the root alone has depth 1).
+    pub fn depth(&self) -> usize {
+        fn walk(nodes: &[Node], i: usize) -> usize {
+            let n = &nodes[i];
+            if n.count > 0 {
+                1
+            } else {
+                1 + walk(nodes, i + 1).max(walk(nodes, n.offset as usize))
+            }
+        }
+        if self.nodes.is_empty() {
+            0
+        } else {
+            walk(&self.nodes, 0)
+        }
+    }
+
     /// Bounds of everything.
     pub fn bounds(&self) -> Aabb {
         self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
     }
 
-    fn build_recursive(&mut self, items: &mut [BuildItem]) -> usize {
+    fn build_recursive(&mut self, items: &mut [BuildItem], depth: usize) -> usize {
         let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
         let node_index = self.nodes.len();
         self.nodes.push(Node {
@@ -90,7 +112,7 @@ impl Bvh {
             bvh.nodes[node_index].count = items.len() as u32;
             node_index
         };
-        if items.len() <= MAX_LEAF {
+        if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
             return make_leaf(self, items);
         }
         let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
@@ -105,8 +127,9 @@ impl Bvh {
         if extent[axis] <= 0.0 {
             // all centroids coincide: split in the middle of the list
             let mid = items.len() / 2;
-            return self.split(node_index, items, mid);
+            return self.split(node_index, items, mid, depth);
         }
+        // ANCHOR: sah
         // binned SAH along the widest centroid axis
         let mut bin_bounds = [Aabb::EMPTY; BINS];
         let mut bin_count = [0usize; BINS];
@@ -136,13 +159,14 @@ impl Bvh {
                 best = (cost, i);
             }
         }
+        // ANCHOR_END: sah
         let leaf_cost = items.len() as f32;
         let split_cost = TRAVERSAL_COST + best.0 / bounds.surface_area().max(f32::MIN_POSITIVE);
         if best.0.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
             if best.0.is_infinite() {
                 let mid = items.len() / 2;
                 items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
-                return self.split(node_index, items, mid);
+                return self.split(node_index, items, mid, depth);
             }
             return make_leaf(self, items);
         }
@@ -153,13 +177,19 @@ impl Bvh {
                 mid += 1;
             }
         }
-        self.split(node_index, items, mid)
+        self.split(node_index, items, mid, depth)
     }
 
-    fn split(&mut self, node_index: usize, items: &mut [BuildItem], mid: usize) -> usize {
+    fn split(
+        &mut self,
+        node_index: usize,
+        items: &mut [BuildItem],
+        mid: usize,
+        depth: usize,
+    ) -> usize {
         let (left, right) = items.split_at_mut(mid);
-        self.build_recursive(left);
-        let r = self.build_recursive(right);
+        self.build_recursive(left, depth + 1);
+        let r = self.build_recursive(right, depth + 1);
         self.nodes[node_index].offset = r as u32;
         self.nodes[node_index].count = 0;
         node_index
@@ -192,7 +222,7 @@ impl Bvh {
         let inv_d = ray.d.recip();
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
@@ -212,6 +242,7 @@ impl Bvh {
                                     t_best = t;
                                 }
                                 Some(b) => {
+                                    // ANCHOR: tie_break
                                     let tie = (t - b.t).abs() <= TIE_EPSILON * (1.0 + b.t);
                                     let better = if tie {
                                         opaque[pi as usize] && !opaque[b.prim as usize]
@@ -220,6 +251,7 @@ impl Bvh {
                                     } else {
                                         t < b.t
                                     };
+                                    // ANCHOR_END: tie_break
                                     if better {
                                         best = Some(candidate);
                                         t_best = t;
@@ -242,10 +274,9 @@ impl Bvh {
                     } else {
                         (left, right)
                     };
-                    if sp < stack.len() {
-                        stack[sp] = second as u32;
-                        sp += 1;
-                    }
+                    // at most depth - 1 nodes wait on the stack: it cannot overflow
+                    stack[sp] = second as u32;
+                    sp += 1;
                     node = first;
                     continue;
                 }
@@ -265,7 +296,7 @@ impl Bvh {
             return false;
         }
         let inv_d = ray.d.recip();
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
@@ -279,10 +310,8 @@ impl Bvh {
                         }
                     }
                 } else {
-                    if sp < stack.len() {
-                        stack[sp] = n.offset;
-                        sp += 1;
-                    }
+                    stack[sp] = n.offset;
+                    sp += 1;
                     node += 1;
                     continue;
                 }

@@ -1,5 +1,5 @@
 //! Rays, primitives and the bounding volume hierarchy.
-//! Book: "Geometry: rays, shapes and the BVH".
+//! Book: "Scenes and geometry" (tests: `tests/geometry.rs`, bench: `benches/bvh.rs`).
 
 pub mod aabb;
 pub mod bvh;
@@ -36,6 +36,7 @@ impl Ray {
 /// scenes (the closest pair of parallel surfaces, light and ceiling in fog-box, are 1e-3 apart).
 pub const RAY_EPSILON: f32 = 2e-5;
 
+// ANCHOR: offset_origin
 /// The origin of a ray leaving a surface point `p` with geometric normal `ng` in direction `d`:
 /// `p` pushed off the surface to the side `d` goes to, so the ray cannot hit the same surface
 /// again. Moving along the normal (not along `d`) keeps grazing rays robust.
@@ -48,6 +49,7 @@ pub fn offset_origin(p: Vec3, ng: Vec3, d: Vec3) -> Vec3 {
         p - ng * scale
     }
 }
+// ANCHOR_END: offset_origin
 
 /// Distance shortened for a shadow ray towards a surface point, so the target itself does not
 /// count as an occluder.

@@ -193,7 +193,7 @@ impl Primitive {
                     std::mem::swap(&mut t0, &mut t1);
                 }
                 let t = if t0 > t_min { t0 } else { t1 };
-                if !(t > t_min && t < t_max) || !t.is_finite() {
+                if !(t > t_min && t < t_max && t.is_finite()) {
                     return None;
                 }
                 let n = (ray.at(t) - s.center).normalize();

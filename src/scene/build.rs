@@ -39,7 +39,7 @@ fn non_negative(
     if c.to_array().iter().all(|x| x.is_finite() && *x >= 0.0) {
         Ok(c)
     } else {
-        Err(src.error(key, format!("{what} must be finite and >= 0, got {v:?}")))
+        Err(src.error(key, format!("{what} must be finite and >= 0, got {v}")))
     }
 }
 
@@ -48,7 +48,7 @@ fn albedo(src: &SceneSource, key: &KeyPath, v: RgbValue) -> Result<Vec3, SceneEr
     if c.max_element() > 1.0 {
         return Err(src.error(
             key,
-            format!("albedo {v:?} is above 1: the surface would create energy"),
+            format!("albedo {v} is above 1: the surface would reflect more light than it receives"),
         ));
     }
     Ok(c)
@@ -82,15 +82,66 @@ fn phase(src: &SceneSource, key: &KeyPath, p: &PhaseDesc) -> Result<Phase, Scene
     }
 }
 
-/// Every edge of a closed triangle mesh is shared by exactly two triangles.
-fn mesh_is_closed(indices: &[u32]) -> bool {
+/// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
+/// triangles that traverse it in opposite directions. Vertices are welded by position first, so
+/// an OBJ that splits vertices along seams (for normals or texture coordinates) still counts.
+fn mesh_is_closed(positions: &[Vec3], indices: &[u32]) -> bool {
+    let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
+    let ids: Vec<u32> = positions
+        .iter()
+        .map(|p| {
+            let n = weld.len() as u32;
+            *weld.entry(p.to_array().map(f32::to_bits)).or_insert(n)
+        })
+        .collect();
     let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
     for t in indices.chunks_exact(3) {
+        let t = [ids[t[0] as usize], ids[t[1] as usize], ids[t[2] as usize]];
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            *edges.entry((a, b)).or_insert(0) += 1;
         }
     }
-    !edges.is_empty() && edges.values().all(|&c| c == 2)
+    !edges.is_empty()
+        && edges
+            .iter()
+            .all(|(&(a, b), &c)| c == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards.
+fn signed_volume(tris: &[Triangle]) -> f32 {
+    tris.iter().map(|t| t.p0.dot(t.e1.cross(t.e2)) / 6.0).sum()
+}
+
+/// Checks every face index of an OBJ file before tobj sees it, so the error names the OBJ line.
+fn check_obj_indices(text: &str) -> Result<(), String> {
+    let mut vertices = 0i64;
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => vertices += 1,
+            Some("f") | Some("l") => {
+                for w in words {
+                    let Some(Ok(k)) = w.split('/').next().map(str::parse::<i64>) else {
+                        return Err(format!("line {}: `{w}` is not a vertex index", n + 1));
+                    };
+                    // OBJ indices are 1-based; negative ones count back from the last vertex
+                    let ok = if k > 0 {
+                        k <= vertices
+                    } else {
+                        k < 0 && -k <= vertices
+                    };
+                    if !ok {
+                        return Err(format!(
+                            "line {}: face index {k} is out of range (the file has {vertices} vertices so far)",
+                            n + 1
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn box_quads(min: Vec3, max: Vec3) -> Vec<Quad> {
@@ -266,58 +317,73 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
             }
             ShapeDesc::Mesh { obj, .. } => {
                 let file = src.base_dir.join(obj);
-                let (models, _) = tobj::load_obj(
-                    &file,
-                    &tobj::LoadOptions {
-                        triangulate: true,
-                        single_index: true,
-                        ..Default::default()
-                    },
-                )
+                let obj_key = key.clone().key("obj");
+                let text = std::fs::read_to_string(&file).map_err(|e| {
+                    src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
+                })?;
+                check_obj_indices(&text)
+                    .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
+                let options = tobj::LoadOptions {
+                    triangulate: true,
+                    single_index: true,
+                    ..Default::default()
+                };
+                let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+                    Err(tobj::LoadError::OpenFileFailed) // materials are not used
+                })
                 .map_err(|e| {
-                    src.error(
-                        &key.clone().key("obj"),
-                        format!("cannot load `{}`: {e}", file.display()),
-                    )
+                    src.error(&obj_key, format!("cannot load `{}`: {e}", file.display()))
                 })?;
                 let mut all_closed = true;
+                let mut tris = Vec::new();
                 for m in &models {
-                    let pos = &m.mesh.positions;
+                    let pos: Vec<Vec3> = m
+                        .mesh
+                        .positions
+                        .chunks_exact(3)
+                        .map(|c| Vec3::new(c[0], c[1], c[2]))
+                        .collect();
                     let idx = &m.mesh.indices;
-                    if idx.iter().any(|&k| (3 * k as usize + 2) >= pos.len()) {
+                    if idx.iter().any(|&k| k as usize >= pos.len()) {
                         return Err(src.error(
-                            &key.clone().key("obj"),
+                            &obj_key,
                             format!("`{}`: a face index is out of range", file.display()),
                         ));
                     }
-                    all_closed &= mesh_is_closed(idx);
-                    let p = |k: u32| {
-                        Vec3::new(
-                            pos[3 * k as usize],
-                            pos[3 * k as usize + 1],
-                            pos[3 * k as usize + 2],
-                        )
-                    };
-                    for t in idx.chunks_exact(3) {
-                        if let Some(tri) = Triangle::new(p(t[0]), p(t[1]), p(t[2])) {
-                            new.push(Primitive::Triangle(tri));
-                        }
+                    if pos.iter().any(|p| !p.is_finite()) {
+                        return Err(src.error(
+                            &obj_key,
+                            format!("`{}`: a vertex is not finite", file.display()),
+                        ));
                     }
+                    all_closed &= mesh_is_closed(&pos, idx);
+                    tris.extend(idx.chunks_exact(3).filter_map(|t| {
+                        Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+                    }));
                 }
-                if new.is_empty() {
-                    return Err(src.error(
-                        &key.clone().key("obj"),
-                        format!("`{}` has no triangles", file.display()),
-                    ));
+                if tris.is_empty() {
+                    return Err(
+                        src.error(&obj_key, format!("`{}` has no triangles", file.display()))
+                    );
                 }
                 closed = all_closed;
+                if closed && common.interior.is_some() && signed_volume(&tris) < 0.0 {
+                    return Err(src.error(
+                        &obj_key,
+                        format!(
+                            "`{}` is wound inside out (its normals point inwards), so `interior` would be outside; reverse the faces' vertex order",
+                            file.display()
+                        ),
+                    ));
+                }
+                new.extend(tris.into_iter().map(Primitive::Triangle));
             }
         }
         if common.interior.is_some() && !closed {
             return Err(src.error(
                 &key.clone().key("interior"),
                 format!(
-                    "a {} is not a closed shape, so it cannot carry a medium inside",
+                    "a {} is not a closed shape (a mesh is closed when every edge joins exactly two consistently wound triangles), so it has no inside to hold a medium",
                     s.kind()
                 ),
             ));
@@ -462,6 +528,19 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         lights.push(light);
     }
     let powers: Vec<f32> = lights.iter().map(|l| l.power(radius)).collect();
+    if let Some(i) = powers.iter().position(|p| !p.is_finite()) {
+        let key = match lights[i] {
+            Light::Area { shape, .. } => path("shapes").index(shape as usize).key("emission"),
+            // area lights come first, then `[[lights]]` in order
+            _ => path("lights").index(
+                i - lights
+                    .iter()
+                    .filter(|l| matches!(l, Light::Area { .. }))
+                    .count(),
+            ),
+        };
+        return Err(src.error(&key, "the light's power overflows a 32-bit float"));
+    }
     let light_distr = Distribution1D::new(&powers);
 
     let prim_opaque: Vec<bool> = prim_shape
@@ -533,11 +612,17 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
                 format!("resolution {resolution:?} must be in 1..=16384"),
             ));
         }
+        if (look_at - eye).length_squared() == 0.0 {
+            return Err(src.error(
+                &key.clone().key("look_at"),
+                "look_at equals eye: the camera looks nowhere",
+            ));
+        }
         let cam = Camera::new(eye, look_at, up, *fov_deg, resolution[0], resolution[1])
             .ok_or_else(|| {
                 src.error(
-                    &key.clone().key("look_at"),
-                    "eye, look_at and up do not define a view (coincident or parallel)",
+                    &key.clone().key("up"),
+                    "up is zero or parallel to the viewing direction look_at - eye",
                 )
             })?;
         scene.camera_medium = scene.medium_at(eye);
@@ -577,10 +662,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         }
     }
     if scene.camera.is_none() && scene.sensors.is_empty() {
-        return Err(src.error(
-            &path("camera"),
-            "the scene has neither a camera nor a sensor: nothing would be measured",
-        ));
+        return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }
     Ok(scene)
 }

@@ -1,0 +1,124 @@
+//! BVH ray throughput: closest-hit and any-hit rays per second on one core, median of several
+//! runs, on the fog box (12 primitives, rays from inside the box) and on a soup of 100k random
+//! triangles (rays from inside the soup). A small harness instead of criterion: a dependency
+//! fewer, and the median of a handful of runs is what a reader needs to compare two builds.
+//!
+//! Run: `cargo bench --bench bvh`. Book: "Scenes and geometry".
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+use pathspace::geometry::shape::Triangle;
+use pathspace::geometry::{Bvh, Primitive, Ray};
+use pathspace::scene::Scene;
+
+/// Timed runs per measurement; the median is reported.
+const RUNS: usize = 7;
+
+fn unit(r: &mut Pcg64Mcg) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+        );
+        let l2 = v.length_squared();
+        if l2 > 1e-4 && l2 <= 1.0 {
+            return v / l2.sqrt();
+        }
+    }
+}
+
+fn point(r: &mut Pcg64Mcg, half: f32) -> Vec3 {
+    Vec3::new(
+        r.random_range(-half..half),
+        r.random_range(-half..half),
+        r.random_range(-half..half),
+    )
+}
+
+/// Rays from random points inside [-half, half]^3 in random directions, with the distance to
+/// a second random point as the any-hit range (a shadow ray's).
+fn rays(r: &mut Pcg64Mcg, n: usize, half: f32) -> Vec<(Ray, f32)> {
+    (0..n)
+        .map(|_| {
+            let o = point(r, half);
+            if r.random::<bool>() {
+                let to = point(r, half) - o;
+                (Ray::new(o, to.normalize()), to.length())
+            } else {
+                (Ray::new(o, unit(r)), f32::INFINITY)
+            }
+        })
+        .collect()
+}
+
+/// Median rays per second of `RUNS` passes over `rays`; `f` returns a count to keep the work.
+fn measure(rays: &[(Ray, f32)], f: impl Fn(&Ray, f32) -> bool) -> (f64, f64) {
+    let mut rates: Vec<f64> = (0..RUNS)
+        .map(|_| {
+            let start = Instant::now();
+            let mut hits = 0usize;
+            for (ray, t) in rays {
+                hits += f(black_box(ray), *t) as usize;
+            }
+            black_box(hits);
+            rays.len() as f64 / start.elapsed().as_secs_f64()
+        })
+        .collect();
+    rates.sort_by(f64::total_cmp);
+    let hit_fraction = rays.iter().filter(|(ray, t)| f(ray, *t)).count() as f64 / rays.len() as f64;
+    (rates[RUNS / 2], hit_fraction)
+}
+
+fn report(name: &str, prims: &[Primitive], opaque: &[bool], bvh: &Bvh, rays: &[(Ray, f32)]) {
+    let (closest, hit_c) = measure(rays, |ray, _| {
+        bvh.intersect(prims, opaque, ray, f32::INFINITY).is_some()
+    });
+    let (any, hit_a) = measure(rays, |ray, t| bvh.occluded(prims, opaque, ray, t));
+    println!(
+        "{name:<28} {:>7} prims {:>7} nodes depth {:>2} | closest hit {:>7.2} Mrays/s ({:>3.0}% hit) | any hit {:>7.2} Mrays/s ({:>3.0}% blocked)",
+        prims.len(),
+        bvh.node_count(),
+        bvh.depth(),
+        closest * 1e-6,
+        100.0 * hit_c,
+        any * 1e-6,
+        100.0 * hit_a
+    );
+}
+
+fn main() {
+    let mut r = Pcg64Mcg::seed_from_u64(7);
+    println!("BVH throughput, one thread, median of {RUNS} runs (rays per second per core)");
+
+    let scene = Scene::fog_box();
+    let fog_rays = rays(&mut r, 1_000_000, 0.99);
+    report(
+        "fog box (rays inside)",
+        &scene.prims,
+        &scene.prim_opaque,
+        &scene.bvh,
+        &fog_rays,
+    );
+
+    let n = 100_000;
+    let prims: Vec<Primitive> = std::iter::repeat_with(|| {
+        let c = point(&mut r, 1.0);
+        Triangle::new(c, c + 0.02 * unit(&mut r), c + 0.02 * unit(&mut r)).map(Primitive::Triangle)
+    })
+    .flatten()
+    .take(n)
+    .collect();
+    let opaque = vec![true; prims.len()];
+    let start = Instant::now();
+    let bvh = Bvh::build(&prims);
+    let build = start.elapsed().as_secs_f64();
+    let soup_rays = rays(&mut r, 200_000, 1.0);
+    report("100k triangle soup", &prims, &opaque, &bvh, &soup_rays);
+    println!("(100k-triangle BVH built in {:.0} ms)", build * 1e3);
+}

@@ -1,0 +1,478 @@
+//! Geometry, executable: the BVH agrees with brute force, the coplanar tie-break rule holds in
+//! either insertion order, spawned rays do not re-hit their own surface, spheres work from both
+//! sides, and a box's faces point outwards. Book: "Scenes and geometry".
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+use pathspace::geometry::bvh::TIE_EPSILON;
+use pathspace::geometry::shape::{Quad, Sphere, Triangle};
+use pathspace::geometry::{offset_origin, Bvh, Primitive, Ray};
+use pathspace::scene::{Scene, SceneSource};
+
+fn rng(seed: u64) -> Pcg64Mcg {
+    Pcg64Mcg::seed_from_u64(seed)
+}
+
+fn unit(r: &mut Pcg64Mcg) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+        );
+        let l2 = v.length_squared();
+        if l2 > 1e-4 && l2 <= 1.0 {
+            return v / l2.sqrt();
+        }
+    }
+}
+
+fn point(r: &mut Pcg64Mcg, half: f32) -> Vec3 {
+    Vec3::new(
+        r.random_range(-half..half),
+        r.random_range(-half..half),
+        r.random_range(-half..half),
+    )
+}
+
+/// A soup of `n` primitives in [-10, 10]^3: small and large triangles, quads and spheres.
+fn soup(r: &mut Pcg64Mcg, n: usize) -> Vec<Primitive> {
+    let mut prims = Vec::with_capacity(n);
+    while prims.len() < n {
+        let c = point(r, 10.0);
+        let size = if r.random::<f32>() < 0.1 { 5.0 } else { 0.8 };
+        let p = match r.random_range(0..4) {
+            0 | 1 => {
+                Triangle::new(c, c + size * unit(r), c + size * unit(r)).map(Primitive::Triangle)
+            }
+            2 => Quad::new(c, size * unit(r), size * unit(r)).map(Primitive::Quad),
+            _ => Some(Primitive::Sphere(Sphere {
+                center: c,
+                radius: 0.1 + 0.5 * size * r.random::<f32>(),
+            })),
+        };
+        prims.extend(p);
+    }
+    prims
+}
+
+/// The closest hit by testing every primitive: (t, primitive).
+fn brute_closest(prims: &[Primitive], ray: &Ray, t_max: f32) -> Option<(f32, u32)> {
+    let mut best: Option<(f32, u32)> = None;
+    for (i, p) in prims.iter().enumerate() {
+        if let Some((t, _, _)) = p.intersect(ray, t_max) {
+            if best.is_none_or(|(bt, _)| t < bt) {
+                best = Some((t, i as u32));
+            }
+        }
+    }
+    best
+}
+
+/// A random ray: from inside the soup's bounds or from outside towards it.
+fn random_ray(r: &mut Pcg64Mcg) -> Ray {
+    if r.random::<bool>() {
+        Ray::new(point(r, 12.0), unit(r))
+    } else {
+        let o = 30.0 * unit(r);
+        Ray::new(o, (point(r, 8.0) - o).normalize())
+    }
+}
+
+#[test]
+fn closest_hit_equals_brute_force() {
+    let mut r = rng(1);
+    let mut hits = 0;
+    for (scene, n) in [(0, 1), (1, 7), (2, 300), (3, 2000)] {
+        let prims = soup(&mut r, n);
+        let opaque = vec![true; prims.len()];
+        let bvh = Bvh::build(&prims);
+        for _ in 0..3000 {
+            let ray = random_ray(&mut r);
+            let t_max = if r.random::<f32>() < 0.3 {
+                r.random_range(0.0..40.0)
+            } else {
+                f32::INFINITY
+            };
+            let got = bvh
+                .intersect(&prims, &opaque, &ray, t_max)
+                .map(|h| (h.t, h.prim));
+            let want = brute_closest(&prims, &ray, t_max);
+            match (got, want) {
+                (None, None) => {}
+                (Some((t, p)), Some((tw, pw))) => {
+                    hits += 1;
+                    assert!(
+                        (t - tw).abs() <= 1e-5 * (1.0 + tw),
+                        "soup {scene}: t {t} vs {tw}"
+                    );
+                    // a different primitive only at an (almost) equal distance
+                    assert!(
+                        p == pw || (t - tw).abs() <= TIE_EPSILON * (1.0 + tw),
+                        "soup {scene}: {p} vs {pw}"
+                    );
+                }
+                _ => panic!(
+                    "soup {scene}: BVH {got:?}, brute force {want:?}, ray {ray:?} t_max {t_max}"
+                ),
+            }
+        }
+    }
+    assert!(hits > 3000, "the test rays mostly miss ({hits} hits)");
+}
+
+#[test]
+fn closest_hit_with_mixed_opacity_equals_brute_force() {
+    // random primitives are never coplanar, so the opacity flags must not change the answer
+    let mut r = rng(2);
+    let prims = soup(&mut r, 500);
+    let opaque: Vec<bool> = (0..prims.len()).map(|_| r.random()).collect();
+    let bvh = Bvh::build(&prims);
+    for _ in 0..3000 {
+        let ray = random_ray(&mut r);
+        let got = bvh
+            .intersect(&prims, &opaque, &ray, f32::INFINITY)
+            .map(|h| h.prim);
+        let want = brute_closest(&prims, &ray, f32::INFINITY).map(|h| h.1);
+        assert_eq!(got, want, "{ray:?}");
+    }
+}
+
+#[test]
+fn occluded_equals_brute_force() {
+    let mut r = rng(3);
+    let prims = soup(&mut r, 800);
+    let bvh = Bvh::build(&prims);
+    let mut blocked = 0;
+    for round in 0..4000 {
+        let blocks: Vec<bool> = if round % 2 == 0 {
+            vec![true; prims.len()]
+        } else {
+            (0..prims.len()).map(|_| r.random::<f32>() < 0.5).collect()
+        };
+        let ray = random_ray(&mut r);
+        let t_max = r.random_range(0.0..40.0);
+        let want = prims
+            .iter()
+            .zip(&blocks)
+            .any(|(p, &b)| b && p.intersect(&ray, t_max).is_some());
+        assert_eq!(
+            bvh.occluded(&prims, &blocks, &ray, t_max),
+            want,
+            "{ray:?} t_max {t_max}"
+        );
+        blocked += want as usize;
+    }
+    assert!(blocked > 500 && blocked < 3500, "{blocked} of 4000 blocked");
+}
+
+#[test]
+fn unbalanced_hierarchy_still_finds_every_hit() {
+    // triangles at geometrically growing distances: binned SAH peels a few off per level, so
+    // the tree is deeper than a balanced one; traversal must not lose any subtree
+    let prims: Vec<Primitive> = (0..300)
+        .map(|i| {
+            let x = 1.1f32.powi(i);
+            Primitive::Triangle(
+                Triangle::new(
+                    Vec3::new(x, -1.0, -1.0),
+                    Vec3::new(x, 1.0, -1.0),
+                    Vec3::new(x, 0.0, 1.0),
+                )
+                .unwrap(),
+            )
+        })
+        .collect();
+    let opaque = vec![true; prims.len()];
+    let bvh = Bvh::build(&prims);
+    assert!(bvh.depth() <= pathspace::geometry::bvh::MAX_DEPTH);
+    for i in 0..300 {
+        // a ray along -x starting just beyond triangle i must hit triangle i - 1
+        let x = 1.1f32.powi(i) * 1.05;
+        let ray = Ray::new(Vec3::new(x, 0.0, 0.0), Vec3::NEG_X);
+        let want = brute_closest(&prims, &ray, f32::INFINITY).map(|h| h.1);
+        assert_eq!(
+            bvh.intersect(&prims, &opaque, &ray, f32::INFINITY)
+                .map(|h| h.prim),
+            want,
+            "i = {i}"
+        );
+        assert_eq!(
+            bvh.occluded(&prims, &opaque, &ray, f32::INFINITY),
+            want.is_some(),
+            "i = {i}"
+        );
+    }
+}
+
+#[test]
+fn empty_bvh_hits_nothing() {
+    let bvh = Bvh::build(&[]);
+    let ray = Ray::new(Vec3::ZERO, Vec3::X);
+    assert!(bvh.intersect(&[], &[], &ray, f32::INFINITY).is_none());
+    assert!(!bvh.occluded(&[], &[], &ray, f32::INFINITY));
+}
+
+// ---- the coplanar tie-break rule ----
+
+#[test]
+fn opaque_wins_a_coplanar_tie_in_either_order() {
+    let mut r = rng(4);
+    // an opaque wall and a null boundary in the plane z = -1, written differently (other origin,
+    // other edge vectors, other winding) so the two computed distances differ by rounding
+    let wall = Primitive::Quad(
+        Quad::new(
+            Vec3::new(-1.0, -1.0, -1.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        )
+        .unwrap(),
+    );
+    let null = Primitive::Quad(
+        Quad::new(
+            Vec3::new(-3.0, -3.0, -1.0),
+            Vec3::new(0.0, 6.0, 0.0),
+            Vec3::new(6.0, 0.0, 0.0),
+        )
+        .unwrap(),
+    );
+    let clutter = soup(&mut r, 60)
+        .into_iter()
+        .map(|p| match p {
+            // keep the clutter out of the way of the rays (all of it above z = 2)
+            Primitive::Sphere(s) => Primitive::Sphere(Sphere {
+                center: s.center + Vec3::new(0.0, 0.0, 25.0),
+                ..s
+            }),
+            Primitive::Triangle(t) => Primitive::Triangle(
+                Triangle::new(
+                    t.p0 + 25.0 * Vec3::Z,
+                    t.p0 + t.e1 + 25.0 * Vec3::Z,
+                    t.p0 + t.e2 + 25.0 * Vec3::Z,
+                )
+                .unwrap(),
+            ),
+            Primitive::Quad(q) => {
+                Primitive::Quad(Quad::new(q.origin + 25.0 * Vec3::Z, q.u, q.v).unwrap())
+            }
+        })
+        .collect::<Vec<_>>();
+    for wall_first in [true, false] {
+        for with_clutter in [false, true] {
+            let mut prims = if wall_first {
+                vec![wall, null]
+            } else {
+                vec![null, wall]
+            };
+            let mut opaque = if wall_first {
+                vec![true, false]
+            } else {
+                vec![false, true]
+            };
+            if with_clutter {
+                // the two quads may end up in different leaves
+                prims.splice(1..1, clutter.iter().copied());
+                opaque.splice(1..1, clutter.iter().map(|_| true));
+            }
+            let wall_index = if wall_first {
+                0
+            } else {
+                prims.len() as u32 - 1
+            };
+            let bvh = Bvh::build(&prims);
+            for _ in 0..2000 {
+                let target = Vec3::new(
+                    r.random_range(-0.99..0.99),
+                    r.random_range(-0.99..0.99),
+                    -1.0,
+                );
+                let o = Vec3::new(
+                    r.random_range(-2.0..2.0),
+                    r.random_range(-2.0..2.0),
+                    r.random_range(-0.5..2.0),
+                );
+                let ray = Ray::new(o, (target - o).normalize());
+                let hit = bvh
+                    .intersect(&prims, &opaque, &ray, f32::INFINITY)
+                    .expect("the wall is in the way");
+                assert_eq!(
+                    hit.prim, wall_index,
+                    "wall_first {wall_first}, clutter {with_clutter}, {ray:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn fog_box_rays_stop_at_the_walls_not_at_the_null_boundary() {
+    // the shipped scene: the fog's null box is coplanar with five walls
+    let scene = Scene::fog_box();
+    let mut r = rng(5);
+    let mut walls = 0;
+    for _ in 0..20000 {
+        let ray = Ray::new(point(&mut r, 0.95), unit(&mut r));
+        let Some(hit) = scene.intersect(&ray, f32::INFINITY) else {
+            continue;
+        };
+        if scene.shape_of(&hit).is_null() {
+            // only through the open face (z = +1) may the ray meet the boundary itself
+            assert!((hit.p.z - 1.0).abs() < 1e-4, "null face hit at {:?}", hit.p);
+        } else {
+            walls += 1;
+        }
+    }
+    assert!(walls > 10000);
+}
+
+// ---- spawned rays ----
+
+fn primitives_for_offsets(r: &mut Pcg64Mcg) -> Vec<Primitive> {
+    let mut prims = Vec::new();
+    for scale in [0.01f32, 1.0, 100.0] {
+        for _ in 0..10 {
+            let c = point(r, 2.0 * scale) + Vec3::splat(scale);
+            prims.push(Primitive::Quad(
+                Quad::new(c, scale * unit(r), scale * unit(r)).unwrap(),
+            ));
+            prims.push(Primitive::Triangle(
+                Triangle::new(c, c + scale * unit(r), c + scale * unit(r)).unwrap(),
+            ));
+            prims.push(Primitive::Sphere(Sphere {
+                center: c,
+                radius: scale * r.random_range(0.2..1.0),
+            }));
+        }
+    }
+    prims
+}
+
+#[test]
+fn offset_rays_do_not_rehit_their_own_surface() {
+    let mut r = rng(6);
+    for prim in primitives_for_offsets(&mut r) {
+        for _ in 0..200 {
+            // a surface point as a ray finds it (reprojected), not as sampling places it
+            let (target, _) = prim.sample_area(glam::Vec2::new(r.random(), r.random()));
+            let o = target + 3.0 * prim.bounds().extent().length().max(1e-3) * unit(&mut r);
+            let Some((_, p, ng)) =
+                prim.intersect(&Ray::new(o, (target - o).normalize()), f32::INFINITY)
+            else {
+                continue;
+            };
+            for _ in 0..20 {
+                let d = unit(&mut r);
+                let ray = Ray::new(offset_origin(p, ng, d), d);
+                match (prim, prim.intersect(&ray, f32::INFINITY)) {
+                    (_, None) => {}
+                    (Primitive::Sphere(s), Some((t, _, _))) => {
+                        // going in, the ray must cross the chord 2 r |cos| to the far side, not
+                        // stop at once (the offset lengthens the chord a little, by up to
+                        // offset / |cos| for grazing rays)
+                        let chord = 2.0 * s.radius * d.dot(ng).abs();
+                        assert!(
+                            d.dot(ng) < 0.0,
+                            "a ray leaving a sphere hit it again at t = {t}"
+                        );
+                        assert!(t >= 0.5 * chord, "t {t}, chord {chord}, {s:?}");
+                    }
+                    (_, Some((t, q, _))) => {
+                        panic!("{prim:?} re-hit at t = {t} ({q:?}) from {p:?} along {d:?}")
+                    }
+                }
+            }
+        }
+    }
+}
+
+// ---- spheres ----
+
+#[test]
+fn sphere_from_outside_and_inside() {
+    let s = Primitive::Sphere(Sphere {
+        center: Vec3::new(1.0, 2.0, 3.0),
+        radius: 2.0,
+    });
+    // from outside, towards the centre: the near side, normal facing the ray
+    let (t, p, n) = s
+        .intersect(
+            &Ray::new(Vec3::new(1.0, 2.0, 10.0), Vec3::NEG_Z),
+            f32::INFINITY,
+        )
+        .unwrap();
+    assert!(
+        (t - 5.0).abs() < 1e-5
+            && (p - Vec3::new(1.0, 2.0, 5.0)).length() < 1e-5
+            && n.abs_diff_eq(Vec3::Z, 1e-6)
+    );
+    // from outside, away from it, or passing beside it: nothing
+    assert!(s
+        .intersect(&Ray::new(Vec3::new(1.0, 2.0, 10.0), Vec3::Z), f32::INFINITY)
+        .is_none());
+    assert!(s
+        .intersect(
+            &Ray::new(Vec3::new(1.0, 4.5, 10.0), Vec3::NEG_Z),
+            f32::INFINITY
+        )
+        .is_none());
+    // t_max shorter than the distance: nothing
+    assert!(s
+        .intersect(&Ray::new(Vec3::new(1.0, 2.0, 10.0), Vec3::NEG_Z), 4.9)
+        .is_none());
+    // from the centre: the far side at t = radius, normal outwards (along the ray)
+    let mut r = rng(7);
+    for _ in 0..1000 {
+        let d = unit(&mut r);
+        let o = Vec3::new(1.0, 2.0, 3.0) + 1.5 * point(&mut r, 0.5);
+        let (t, p, n) = s
+            .intersect(&Ray::new(o, d), f32::INFINITY)
+            .expect("from inside a ray always leaves");
+        assert!(t > 0.0 && ((p - Vec3::new(1.0, 2.0, 3.0)).length() - 2.0).abs() < 1e-5);
+        assert!(
+            n.dot(d) > 0.0,
+            "leaving, the outward normal faces along the ray"
+        );
+        assert!((o + t * d - p).length() < 1e-4);
+    }
+}
+
+// ---- boxes ----
+
+#[test]
+fn box_faces_point_outwards() {
+    let text = "[[shapes]]\ntype = \"box\"\nmin = [-1.0, -2.0, 0.5]\nmax = [3.0, 1.0, 2.0]\nmaterial = \"null\"\n\
+                \n[[sensors]]\ntype = \"irradiance_meter\"\nname = \"m\"\norigin = [9, 9, 9]\nu = [1, 0, 0]\nv = [0, 1, 0]\n";
+    let scene = Scene::load(&SceneSource::embedded("box.toml", text)).unwrap();
+    assert_eq!(scene.prims.len(), 6);
+    let centre = Vec3::new(1.0, -0.5, 1.25);
+    let mut normals = Vec::new();
+    for p in &scene.prims {
+        let Primitive::Quad(q) = p else {
+            panic!("a box is made of quads")
+        };
+        let face_centre = q.origin + 0.5 * (q.u + q.v);
+        assert!(
+            (face_centre - centre).dot(q.n) > 0.0,
+            "face at {face_centre:?} has normal {:?}",
+            q.n
+        );
+        // axis aligned
+        assert!((q.n.abs().max_element() - 1.0).abs() < 1e-6);
+        normals.push(q.n);
+    }
+    for axis in [
+        Vec3::X,
+        Vec3::Y,
+        Vec3::Z,
+        Vec3::NEG_X,
+        Vec3::NEG_Y,
+        Vec3::NEG_Z,
+    ] {
+        assert!(
+            normals.iter().any(|n| n.abs_diff_eq(axis, 1e-6)),
+            "no face with normal {axis:?}"
+        );
+    }
+}
