@@ -22,7 +22,7 @@ pub mod image_io;
 pub mod integrator;
 pub mod math;
 pub mod measure;
-pub mod path;
 pub mod medium;
+pub mod path;
 pub mod scene;
 pub mod spectrum;

@@ -75,11 +75,17 @@ impl Bdpt {
                     let (p, n) = scene.prims[prims[0] as usize].sample_area(Vec2::splat(0.5));
                     scene.medium_at(offset_origin(p, n, n))
                 }
-                Light::Point { position, .. } | Light::Spot { position, .. } => scene.medium_at(*position),
+                Light::Point { position, .. } | Light::Spot { position, .. } => {
+                    scene.medium_at(*position)
+                }
                 _ => None,
             })
             .collect();
-        Bdpt { max_depth: max_depth.unwrap_or(u32::MAX), strategies, light_media }
+        Bdpt {
+            max_depth: max_depth.unwrap_or(u32::MAX),
+            strategies,
+            light_media,
+        }
     }
 
     fn max_vertices(&self, extra: u32) -> usize {
@@ -127,7 +133,9 @@ impl Bdpt {
                         if let Some(env) = scene.environment {
                             let mut v = Vertex::new(
                                 VertexKind::InfiniteLight { light: env },
-                                ray.o + ray.d * (4.0 * scene.radius + (ray.o - scene.center).length()),
+                                ray.o
+                                    + ray.d
+                                        * (4.0 * scene.radius + (ray.o - scene.center).length()),
                                 Vec3::ZERO,
                                 None,
                                 None,
@@ -140,18 +148,34 @@ impl Bdpt {
                     }
                     return;
                 }
-                Event::Medium { p, medium: m, .. } => {
-                    Vertex::new(VertexKind::Medium { medium: m }, p, Vec3::ZERO, Some(m), Some(m))
-                }
+                Event::Medium { p, medium: m, .. } => Vertex::new(
+                    VertexKind::Medium { medium: m },
+                    p,
+                    Vec3::ZERO,
+                    Some(m),
+                    Some(m),
+                ),
                 Event::Surface { hit, medium: m } => {
                     let shape = scene.shape_of(&hit);
-                    let (front, back) = if shape.interface { (shape.exterior, shape.interior) } else { (m, m) };
-                    Vertex::new(VertexKind::Surface { prim: hit.prim }, hit.p, hit.ng, front, back)
+                    let (front, back) = if shape.interface {
+                        (shape.exterior, shape.interior)
+                    } else {
+                        (m, m)
+                    };
+                    Vertex::new(
+                        VertexKind::Surface { prim: hit.prim },
+                        hit.p,
+                        hit.ng,
+                        front,
+                        back,
+                    )
                 }
             };
             v.beta = beta;
             let density = match (first, first_edge) {
-                (FirstPdf::Perpendicular(p), true) => p * crate::path::geometry_term::cosine_factor(&v, ray.d),
+                (FirstPdf::Perpendicular(p), true) => {
+                    p * crate::path::geometry_term::cosine_factor(&v, ray.d)
+                }
                 _ => to_area(pdf_dir, &path[prev], &v),
             };
             v.pdf_fwd = density * prop.pdf;
@@ -181,7 +205,9 @@ impl Bdpt {
                     let Some(bsdf) = v.bsdf(scene) else { return };
                     let u = sampler.next_2d();
                     let uc = sampler.next_f32();
-                    let Some(bs) = bsdf.sample(wo, v.n, u, uc, mode) else { return };
+                    let Some(bs) = bsdf.sample(wo, v.n, u, uc, mode) else {
+                        return;
+                    };
                     if bs.pdf <= 0.0 {
                         return;
                     }
@@ -216,25 +242,61 @@ impl Bdpt {
     // ANCHOR_END: random_walk
 
     /// The eye subpath from the camera through raster position `raster`.
-    pub fn camera_subpath(&self, scene: &Scene, raster: Vec2, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+    pub fn camera_subpath(
+        &self,
+        scene: &Scene,
+        raster: Vec2,
+        sampler: &mut Sampler,
+        path: &mut Vec<Vertex>,
+    ) {
         path.clear();
-        let Some(cam) = scene.camera.as_ref() else { return };
+        let Some(cam) = scene.camera.as_ref() else {
+            return;
+        };
         let ray = cam.generate_ray(raster);
-        let mut v0 = Vertex::new(VertexKind::Camera, cam.eye, cam.forward, scene.camera_medium, scene.camera_medium);
+        let mut v0 = Vertex::new(
+            VertexKind::Camera,
+            cam.eye,
+            cam.forward,
+            scene.camera_medium,
+            scene.camera_medium,
+        );
         v0.pdf_fwd = 1.0;
         path.push(v0);
         let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
         // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
-        self.random_walk(scene, ray, scene.camera_medium, Rgb::ONE, FirstPdf::SolidAngle(pdf_dir), TransportMode::Radiance, self.max_vertices(2), path, sampler);
+        self.random_walk(
+            scene,
+            ray,
+            scene.camera_medium,
+            Rgb::ONE,
+            FirstPdf::SolidAngle(pdf_dir),
+            TransportMode::Radiance,
+            self.max_vertices(2),
+            path,
+            sampler,
+        );
     }
 
     /// The eye subpath from a uniform point of meter `m`, cosine-distributed.
-    pub fn meter_subpath(&self, scene: &Scene, m: u32, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+    pub fn meter_subpath(
+        &self,
+        scene: &Scene,
+        m: u32,
+        sampler: &mut Sampler,
+        path: &mut Vec<Vertex>,
+    ) {
         path.clear();
         let meter = &scene.sensors[m as usize];
         let q = Primitive::Quad(meter.quad);
         let (p, n) = q.sample_area(sampler.next_2d());
-        let mut v0 = Vertex::new(VertexKind::Meter { meter: m }, p, n, meter.medium, meter.medium);
+        let mut v0 = Vertex::new(
+            VertexKind::Meter { meter: m },
+            p,
+            n,
+            meter.medium,
+            meter.medium,
+        );
         v0.pdf_fwd = 1.0 / q.area();
         path.push(v0);
         let local = warp::cosine_hemisphere(sampler.next_2d());
@@ -244,7 +306,17 @@ impl Bdpt {
         let wi = Frame::from_normal(n).to_world(local);
         let pdf = local.z * std::f32::consts::FRAC_1_PI;
         // W_e g / (p(x) p(w)) = (1/A) cos / ((1/A) cos/pi) = pi
-        self.random_walk(scene, Ray::new(p, wi), meter.medium, Rgb::splat(std::f32::consts::PI), FirstPdf::SolidAngle(pdf), TransportMode::Radiance, self.max_vertices(2), path, sampler);
+        self.random_walk(
+            scene,
+            Ray::new(p, wi),
+            meter.medium,
+            Rgb::splat(std::f32::consts::PI),
+            FirstPdf::SolidAngle(pdf),
+            TransportMode::Radiance,
+            self.max_vertices(2),
+            path,
+            sampler,
+        );
     }
 
     /// The light subpath: a light chosen by power, an emitted ray, then the random walk with the
@@ -258,7 +330,16 @@ impl Bdpt {
         let light = &scene.lights[l];
         let u_pos = sampler.next_2d();
         let u_dir = sampler.next_2d();
-        let Some(es) = light.sample_le(&scene.prims, u_pos, u_dir, u_prim, scene.center, scene.radius) else { return };
+        let Some(es) = light.sample_le(
+            &scene.prims,
+            u_pos,
+            u_dir,
+            u_prim,
+            scene.center,
+            scene.radius,
+        ) else {
+            return;
+        };
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }
@@ -266,14 +347,44 @@ impl Bdpt {
         let (mut v0, origin, first) = match light {
             Light::Area { prims, distr, .. } => {
                 let prim = prims[distr.sample(u_prim).0];
-                let v = Vertex::new(VertexKind::Light { light: l as u32, prim: Some(prim) }, es.p, es.n, lm, lm);
-                (v, offset_origin(es.p, es.n, es.d), FirstPdf::SolidAngle(es.pdf_dir))
+                let v = Vertex::new(
+                    VertexKind::Light {
+                        light: l as u32,
+                        prim: Some(prim),
+                    },
+                    es.p,
+                    es.n,
+                    lm,
+                    lm,
+                );
+                (
+                    v,
+                    offset_origin(es.p, es.n, es.d),
+                    FirstPdf::SolidAngle(es.pdf_dir),
+                )
             }
-            Light::Point { .. } | Light::Spot { .. } => {
-                (Vertex::new(VertexKind::Light { light: l as u32, prim: None }, es.p, Vec3::ZERO, lm, lm), es.p, FirstPdf::SolidAngle(es.pdf_dir))
-            }
+            Light::Point { .. } | Light::Spot { .. } => (
+                Vertex::new(
+                    VertexKind::Light {
+                        light: l as u32,
+                        prim: None,
+                    },
+                    es.p,
+                    Vec3::ZERO,
+                    lm,
+                    lm,
+                ),
+                es.p,
+                FirstPdf::SolidAngle(es.pdf_dir),
+            ),
             Light::Directional { .. } | Light::Environment(_) => (
-                Vertex::new(VertexKind::InfiniteLight { light: l as u32 }, es.p, Vec3::ZERO, None, None),
+                Vertex::new(
+                    VertexKind::InfiniteLight { light: l as u32 },
+                    es.p,
+                    Vec3::ZERO,
+                    None,
+                    None,
+                ),
                 es.p,
                 FirstPdf::Perpendicular(es.pdf_pos),
             ),
@@ -286,16 +397,32 @@ impl Bdpt {
                 _ => 0.0,
             };
         }
-        let cos = if es.n == Vec3::ZERO || v0.is_infinite_light() { 1.0 } else { es.n.dot(es.d).abs() };
+        let cos = if es.n == Vec3::ZERO || v0.is_infinite_light() {
+            1.0
+        } else {
+            es.n.dot(es.d).abs()
+        };
         let beta = es.value * (cos / (pmf * es.pdf_pos * es.pdf_dir));
         path.push(v0);
-        self.random_walk(scene, Ray::new(origin, es.d), lm, beta, first, TransportMode::Importance, self.max_vertices(1), path, sampler);
+        self.random_walk(
+            scene,
+            Ray::new(origin, es.d),
+            lm,
+            beta,
+            first,
+            TransportMode::Importance,
+            self.max_vertices(1),
+            path,
+            sampler,
+        );
     }
 
     /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
     fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
         match v.kind {
-            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => scene.lights[light as usize].is_delta(),
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
+                scene.lights[light as usize].is_delta()
+            }
             _ => false,
         }
     }
@@ -318,8 +445,20 @@ impl Bdpt {
     ) -> f32 {
         let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
         // copies of the four vertices whose reverse densities the connection changes
-        let mut qs = if s > 0 { Some(if s == 1 { sampled.unwrap_or(light[0]) } else { light[s - 1] }) } else { None };
-        let mut pt = if t == 1 && s != 1 { sampled.unwrap_or(eye[0]) } else { eye[t - 1] };
+        let mut qs = if s > 0 {
+            Some(if s == 1 {
+                sampled.unwrap_or(light[0])
+            } else {
+                light[s - 1]
+            })
+        } else {
+            None
+        };
+        let mut pt = if t == 1 && s != 1 {
+            sampled.unwrap_or(eye[0])
+        } else {
+            eye[t - 1]
+        };
         let mut qs_minus = if s > 1 { Some(light[s - 2]) } else { None };
         let mut pt_minus = if t > 1 { Some(eye[t - 2]) } else { None };
 
@@ -376,7 +515,11 @@ impl Bdpt {
         for i in (0..s).rev() {
             let v = light_at(i);
             ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
-            let delta_before = if i > 0 { light_at(i - 1).delta } else { Self::is_delta_light(scene, &light_at(0)) };
+            let delta_before = if i > 0 {
+                light_at(i - 1).delta
+            } else {
+                Self::is_delta_light(scene, &light_at(0))
+            };
             if !v.delta && !delta_before {
                 sum += ri * ri;
             }
@@ -388,7 +531,15 @@ impl Bdpt {
     /// The contribution of strategy (s, t), already MIS-weighted (unweighted for light
     /// tracing), with the raster position when it lands elsewhere than the sample's pixel.
     // ANCHOR: connect
-    pub fn connect(&self, scene: &Scene, light: &[Vertex], eye: &[Vertex], s: usize, t: usize, sampler: &mut Sampler) -> Option<(Rgb, Option<Vec2>)> {
+    pub fn connect(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>)> {
         let pt_last = eye[t - 1];
         if t > 1 && s != 0 && pt_last.is_infinite_light() {
             return None;
@@ -420,10 +571,26 @@ impl Bdpt {
             }
             let lm = self.light_media[li];
             let mut v = match light_ref {
-                Light::Area { prims, distr, .. } => {
-                    Vertex::new(VertexKind::Light { light: li as u32, prim: Some(prims[distr.sample(u_prim).0]) }, ls.p, ls.n, lm, lm)
-                }
-                Light::Point { .. } | Light::Spot { .. } => Vertex::new(VertexKind::Light { light: li as u32, prim: None }, ls.p, Vec3::ZERO, lm, lm),
+                Light::Area { prims, distr, .. } => Vertex::new(
+                    VertexKind::Light {
+                        light: li as u32,
+                        prim: Some(prims[distr.sample(u_prim).0]),
+                    },
+                    ls.p,
+                    ls.n,
+                    lm,
+                    lm,
+                ),
+                Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                    VertexKind::Light {
+                        light: li as u32,
+                        prim: None,
+                    },
+                    ls.p,
+                    Vec3::ZERO,
+                    lm,
+                    lm,
+                ),
                 _ => Vertex::new(
                     VertexKind::InfiniteLight { light: li as u32 },
                     pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
@@ -452,7 +619,11 @@ impl Bdpt {
             if f == Rgb::ZERO {
                 return None;
             }
-            let target = if ls.dist.is_infinite() { pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length()) } else { v.p };
+            let target = if ls.dist.is_infinite() {
+                pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
+            } else {
+                v.p
+            };
             let mut end_v = v;
             end_v.p = target;
             let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
@@ -483,7 +654,8 @@ impl Bdpt {
                 VertexKind::Meter { meter } => {
                     let q = Primitive::Quad(scene.sensors[meter as usize].quad);
                     let (p, n) = q.sample_area(sampler.next_2d());
-                    let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                    let mut v =
+                        Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
                     v.pdf_fwd = 1.0 / q.area();
                     // W_e / p(x) = (1/A) / (1/A)
                     v.beta = Rgb::ONE;
@@ -530,7 +702,11 @@ impl Bdpt {
             pdf_pq = e.pdf_ba;
         }
         if l == Rgb::ZERO || !l.is_finite() {
-            return if l.is_finite() { None } else { Some((l, raster)) };
+            return if l.is_finite() {
+                None
+            } else {
+                Some((l, raster))
+            };
         }
         if self.strategies == Strategies::All {
             l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
@@ -544,7 +720,13 @@ impl Bdpt {
 
     /// All strategies for one sensor sample whose eye subpath is `scratch.eye`: returns the
     /// contribution to the sample's own pixel (or meter) and pushes splats for t = 1.
-    pub fn combine(&self, scene: &Scene, scratch: &Scratch, sampler: &mut Sampler, splats: &mut Vec<Splat>) -> Rgb {
+    pub fn combine(
+        &self,
+        scene: &Scene,
+        scratch: &Scratch,
+        sampler: &mut Sampler,
+        splats: &mut Vec<Splat>,
+    ) -> Rgb {
         let (light, eye) = (&scratch.light, &scratch.eye);
         let mut own = Rgb::ZERO;
         let meter = matches!(eye.first().map(|v| v.kind), Some(VertexKind::Meter { .. }));

@@ -28,7 +28,11 @@ pub enum IntegratorKind {
 }
 
 impl IntegratorKind {
-    pub const ALL: &'static [IntegratorKind] = &[IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+    pub const ALL: &'static [IntegratorKind] = &[
+        IntegratorKind::Path,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -130,8 +134,14 @@ impl<'a> Renderer<'a> {
             tracer: PathTracer::new(max_depth),
             bdpt: match kind {
                 IntegratorKind::Path => None,
-                IntegratorKind::Light => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::LightTracing)),
-                IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All)),
+                IntegratorKind::Light => Some(bdpt::Bdpt::new(
+                    scene,
+                    max_depth,
+                    bdpt::Strategies::LightTracing,
+                )),
+                IntegratorKind::Bdpt => {
+                    Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All))
+                }
             },
             film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
@@ -175,17 +185,30 @@ impl<'a> Renderer<'a> {
                             let mut sum = [0.0f64; 3];
                             let mut sum_sq = [0.0f64; 3];
                             for _ in 0..spp {
-                                let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                                let raster =
+                                    glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
                                 let first_splat = splats.len();
                                 let l = match bidir {
-                                    None => tracer.radiance(scene, cam.generate_ray(raster), scene.camera_medium, &mut sampler),
+                                    None => tracer.radiance(
+                                        scene,
+                                        cam.generate_ray(raster),
+                                        scene.camera_medium,
+                                        &mut sampler,
+                                    ),
                                     Some(b) => {
-                                        b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
+                                        b.camera_subpath(
+                                            scene,
+                                            raster,
+                                            &mut sampler,
+                                            &mut scratch.eye,
+                                        );
                                         b.light_subpath(scene, &mut sampler, &mut scratch.light);
                                         b.combine(scene, &scratch, &mut sampler, &mut splats)
                                     }
                                 };
-                                if !l.is_finite() || splats[first_splat..].iter().any(|s| !s.1.is_finite()) {
+                                if !l.is_finite()
+                                    || splats[first_splat..].iter().any(|s| !s.1.is_finite())
+                                {
                                     nans += 1;
                                     splats.truncate(first_splat);
                                     continue;

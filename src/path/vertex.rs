@@ -61,7 +61,13 @@ pub struct Vertex {
 }
 
 impl Vertex {
-    pub fn new(kind: VertexKind, p: Vec3, n: Vec3, medium_front: Option<u32>, medium_back: Option<u32>) -> Self {
+    pub fn new(
+        kind: VertexKind,
+        p: Vec3,
+        n: Vec3,
+        medium_front: Option<u32>,
+        medium_back: Option<u32>,
+    ) -> Self {
         Vertex {
             kind,
             p,
@@ -110,13 +116,20 @@ impl Vertex {
             VertexKind::Surface { .. } | VertexKind::Light { prim: Some(_), .. } => self.n,
             _ => Vec3::ZERO,
         };
-        EdgeEnd { p: self.p, n: surface_n, medium: self.medium_towards(w), in_medium: self.is_medium() }
+        EdgeEnd {
+            p: self.p,
+            n: surface_n,
+            medium: self.medium_towards(w),
+            in_medium: self.is_medium(),
+        }
     }
 
     /// The BSDF at a surface vertex (`None` elsewhere or at a black emitter).
     pub fn bsdf<'a>(&self, scene: &'a Scene) -> Option<&'a crate::bsdf::Bsdf> {
         match self.kind {
-            VertexKind::Surface { prim } => scene.shapes[scene.prim_shape[prim as usize] as usize].bsdf.as_ref(),
+            VertexKind::Surface { prim } => scene.shapes[scene.prim_shape[prim as usize] as usize]
+                .bsdf
+                .as_ref(),
             _ => None,
         }
     }
@@ -127,7 +140,9 @@ impl Vertex {
         match self.kind {
             VertexKind::Camera | VertexKind::Meter { .. } | VertexKind::Medium { .. } => true,
             VertexKind::Light { .. } => true,
-            VertexKind::InfiniteLight { light } => !matches!(scene.lights[light as usize], Light::Directional { .. }),
+            VertexKind::InfiniteLight { light } => {
+                !matches!(scene.lights[light as usize], Light::Directional { .. })
+            }
             VertexKind::Surface { .. } => self.bsdf(scene).is_some_and(|b| !b.is_singular()),
         }
     }
@@ -156,7 +171,8 @@ impl Vertex {
     /// L_e(self -> towards) at a light vertex (irradiance for a directional light, intensity for
     /// point and spot lights: their Dirac is consumed by the sampler).
     pub fn emitted(&self, scene: &Scene, towards: Vec3) -> Rgb {
-        let (VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light }) = self.kind else {
+        let (VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light }) = self.kind
+        else {
             return Rgb::ZERO;
         };
         let w = (towards - self.p).normalize_or_zero();
@@ -166,10 +182,17 @@ impl Vertex {
     /// Radiance this surface vertex emits towards `towards`, if it is on an area light.
     pub fn surface_emission(&self, scene: &Scene, towards: Vec3) -> Rgb {
         match self.kind {
-            VertexKind::Surface { prim } | VertexKind::Light { prim: Some(prim), .. } => {
+            VertexKind::Surface { prim }
+            | VertexKind::Light {
+                prim: Some(prim), ..
+            } => {
                 let shape = &scene.shapes[scene.prim_shape[prim as usize] as usize];
                 match shape.light {
-                    Some(l) => emitted_by(&scene.lights[l as usize], self.n, (towards - self.p).normalize_or_zero()),
+                    Some(l) => emitted_by(
+                        &scene.lights[l as usize],
+                        self.n,
+                        (towards - self.p).normalize_or_zero(),
+                    ),
                     None => Rgb::ZERO,
                 }
             }
@@ -203,7 +226,11 @@ impl Vertex {
     pub fn pdf_dir(&self, scene: &Scene, prev: Option<Vec3>, next: Vec3) -> f32 {
         let wn = (next - self.p).normalize_or_zero();
         match self.kind {
-            VertexKind::Camera => scene.camera.as_ref().and_then(|c| c.importance(wn)).map_or(0.0, |i| i.pdf_dir),
+            VertexKind::Camera => scene
+                .camera
+                .as_ref()
+                .and_then(|c| c.importance(wn))
+                .map_or(0.0, |i| i.pdf_dir),
             VertexKind::Meter { meter } => {
                 let c = wn.dot(scene.sensors[meter as usize].normal());
                 c.max(0.0) * FRAC_1_PI
@@ -212,7 +239,9 @@ impl Vertex {
                 emission_pdf_dir(&scene.lights[light as usize], self.n, wn)
             }
             VertexKind::Surface { .. } => {
-                let (Some(b), Some(prev)) = (self.bsdf(scene), prev) else { return 0.0 };
+                let (Some(b), Some(prev)) = (self.bsdf(scene), prev) else {
+                    return 0.0;
+                };
                 let wp = (prev - self.p).normalize_or_zero();
                 b.pdf(wp, wn, self.n)
             }
@@ -228,7 +257,10 @@ impl Vertex {
     /// g(next -> self) / d^2, or g(next) alone when `next` is an infinite light's vertex. The
     /// propagation pdf of the edge is not included.
     pub fn pdf_area(&self, scene: &Scene, prev: Option<Vec3>, next: &Vertex) -> f32 {
-        if matches!(self.kind, VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }) {
+        if matches!(
+            self.kind,
+            VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }
+        ) {
             return self.light_pdf_to(scene, next);
         }
         let pdf = self.pdf_dir(scene, prev, next.p);
@@ -258,7 +290,9 @@ impl Vertex {
 
     /// For an eye-path vertex that hit an area light: the light-path density of starting there.
     fn surface_light_origin_pdf(&self, scene: &Scene) -> f32 {
-        let VertexKind::Surface { prim } = self.kind else { return 0.0 };
+        let VertexKind::Surface { prim } = self.kind else {
+            return 0.0;
+        };
         match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
             Some(l) => scene.light_pmf(l) * area_pdf_of(scene, l, prim),
             None => 0.0,
@@ -271,10 +305,12 @@ impl Vertex {
     pub fn light_pdf_to(&self, scene: &Scene, next: &Vertex) -> f32 {
         let light = match self.kind {
             VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => light,
-            VertexKind::Surface { prim } => match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
-                Some(l) => l,
-                None => return 0.0,
-            },
+            VertexKind::Surface { prim } => {
+                match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
+                    Some(l) => l,
+                    None => return 0.0,
+                }
+            }
             _ => return 0.0,
         };
         let l = &scene.lights[light as usize];
@@ -325,7 +361,13 @@ pub fn emitted_by(light: &Light, n: Vec3, w: Vec3) -> Rgb {
             }
         }
         Light::Point { intensity, .. } => *intensity,
-        Light::Spot { frame, intensity, cos_total, cos_falloff, .. } => {
+        Light::Spot {
+            frame,
+            intensity,
+            cos_total,
+            cos_falloff,
+            ..
+        } => {
             let c = w.dot(frame.n);
             if c < *cos_total {
                 Rgb::ZERO
@@ -348,7 +390,9 @@ pub fn emission_pdf_dir(light: &Light, n: Vec3, w: Vec3) -> f32 {
     match light {
         Light::Area { .. } => n.dot(w).max(0.0) * FRAC_1_PI,
         Light::Point { .. } => warp::INV_FOUR_PI,
-        Light::Spot { frame, cos_total, .. } => {
+        Light::Spot {
+            frame, cos_total, ..
+        } => {
             if w.dot(frame.n) >= *cos_total {
                 1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_total))
             } else {

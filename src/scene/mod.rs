@@ -223,7 +223,13 @@ impl Scene {
         let mut t_min = 0.0f32;
         let mut first = true;
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.bvh.intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, f32::INFINITY);
+            let hit = self.bvh.intersect_range(
+                &self.prims,
+                &self.prim_opaque,
+                &ray,
+                t_min,
+                f32::INFINITY,
+            );
             let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
             if let Some(m) = medium {
                 // Table 1 on this segment; memorylessness makes the segments independent
@@ -240,7 +246,11 @@ impl Scene {
                 }
                 if ff.scattered {
                     return Propagation {
-                        event: Event::Medium { p: seg.at(ff.t), medium: m, sigma_s: ff.sigma_s },
+                        event: Event::Medium {
+                            p: seg.at(ff.t),
+                            medium: m,
+                            sigma_s: ff.sigma_s,
+                        },
                         transmittance,
                         pdf,
                         pdf_rev,
@@ -249,17 +259,32 @@ impl Scene {
             }
             first = false;
             let Some(hit) = hit else {
-                return Propagation { event: Event::Escape, transmittance, pdf, pdf_rev };
+                return Propagation {
+                    event: Event::Escape,
+                    transmittance,
+                    pdf,
+                    pdf_rev,
+                };
             };
             let shape = self.shape_of(&hit);
             if !shape.is_null() {
-                return Propagation { event: Event::Surface { hit, medium }, transmittance, pdf, pdf_rev };
+                return Propagation {
+                    event: Event::Surface { hit, medium },
+                    transmittance,
+                    pdf,
+                    pdf_rev,
+                };
             }
             medium = shape.medium_after(ray.d, hit.ng, medium);
             t_start = hit.t;
             t_min = past(hit.t, &ray);
         }
-        Propagation { event: Event::Escape, transmittance: Rgb::ZERO, pdf: 1.0, pdf_rev: 1.0 }
+        Propagation {
+            event: Event::Escape,
+            transmittance: Rgb::ZERO,
+            pdf: 1.0,
+            pdf_rev: 1.0,
+        }
     }
     // ANCHOR_END: propagate
 
@@ -323,27 +348,45 @@ impl Scene {
     /// probabilities), `pdf_ba` the same from `b` to `a`. Transmittance includes visibility.
     // ANCHOR: edge
     pub fn edge(&self, a: EdgeEnd, b: EdgeEnd, sampler: &mut Sampler) -> EdgeEval {
-        let zero = EdgeEval { transmittance: Rgb::ZERO, pdf_ab: 0.0, pdf_ba: 0.0 };
+        let zero = EdgeEval {
+            transmittance: Rgb::ZERO,
+            pdf_ab: 0.0,
+            pdf_ba: 0.0,
+        };
         let full = b.p - a.p;
         let d = full.normalize_or_zero();
         if d == Vec3::ZERO || !d.is_finite() {
             return zero;
         }
         // lift surface endpoints off their surfaces so neither counts as an occluder
-        let o = if a.n != Vec3::ZERO { crate::geometry::offset_origin(a.p, a.n, d) } else { a.p };
-        let target = if b.n != Vec3::ZERO { crate::geometry::offset_origin(b.p, b.n, -d) } else { b.p };
+        let o = if a.n != Vec3::ZERO {
+            crate::geometry::offset_origin(a.p, a.n, d)
+        } else {
+            a.p
+        };
+        let target = if b.n != Vec3::ZERO {
+            crate::geometry::offset_origin(b.p, b.n, -d)
+        } else {
+            b.p
+        };
         let dist = (target - o).dot(d);
-        if !(dist > 0.0) || !dist.is_finite() {
+        if dist.is_nan() || dist <= 0.0 || !dist.is_finite() {
             return zero;
         }
         let (a, medium_a, a_in_medium, b_in_medium) = (o, a.medium, a.in_medium, b.in_medium);
         let ray = Ray::new(a, d);
         let mut medium = medium_a;
-        let mut out = EdgeEval { transmittance: Rgb::ONE, pdf_ab: 1.0, pdf_ba: 1.0 };
+        let mut out = EdgeEval {
+            transmittance: Rgb::ONE,
+            pdf_ab: 1.0,
+            pdf_ba: 1.0,
+        };
         let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
         let mut first = true;
         for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.bvh.intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
+            let hit = self
+                .bvh
+                .intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
             let t_end = hit.map_or(dist, |h| h.t);
             let last = hit.is_none();
             if let Some(m) = medium {
