@@ -115,9 +115,13 @@ impl Bdpt {
         let mut first_edge = true;
         let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
         let mut origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
+        let mut lead = path
+            .last()
+            .map_or(0.0, |v| (ray.o - v.p).dot(ray.d).max(0.0));
         while path.len() < max_vertices {
             let prev = path.len() - 1;
-            let prop = scene.propagate_bidirectional(ray, medium, origin_in_medium, sampler);
+            let prop = scene.propagate_bidirectional(ray, lead, medium, origin_in_medium, sampler);
             // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
             // the vertex scatters below and in every connection through it
             if prop.pdf <= 0.0 {
@@ -199,6 +203,7 @@ impl Bdpt {
                     medium = Some(m);
                     origin_in_medium = true;
                     ray = Ray::new(v.p, ps.wi);
+                    lead = 0.0;
                     (ps.wi, ps.pdf, phase.pdf(ps.wi, wo))
                 }
                 VertexKind::Surface { .. } => {
@@ -216,6 +221,7 @@ impl Bdpt {
                     medium = v.medium_towards(bs.wi);
                     origin_in_medium = false;
                     ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
+                    lead = (ray.o - v.p).dot(bs.wi);
                     if bs.lobe.is_singular() {
                         path[cur].delta = true;
                         (bs.wi, 0.0, 0.0)
@@ -432,7 +438,7 @@ impl Bdpt {
     /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
     // ANCHOR: mis_weight
     #[allow(clippy::too_many_arguments)]
-    fn mis_weight(
+    pub fn mis_weight(
         &self,
         scene: &Scene,
         light: &[Vertex],
@@ -751,4 +757,44 @@ impl Bdpt {
         }
         own
     }
+}
+
+/// The power-heuristic weight of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
+/// with every density recomputed from the geometry ([`crate::path::pdf::densities`]): the
+/// subpaths are rebuilt as the samplers would have left them, then weighted as in `connect`.
+pub fn mis_weight_of_path(
+    bdpt: &Bdpt,
+    scene: &Scene,
+    path: &crate::path::Path,
+    s: usize,
+    d: &crate::path::pdf::Densities,
+) -> f32 {
+    let v = &path.vertices;
+    let n = v.len();
+    let t = n - s;
+    if t == 0 {
+        return 0.0; // the sensor cannot be hit by chance
+    }
+    let mut light: Vec<Vertex> = Vec::with_capacity(s);
+    for i in 0..s {
+        let mut x = v[i];
+        x.pdf_fwd = d.light[i];
+        x.pdf_rev = d.eye[i];
+        x.prop_rev = if i > 0 { d.prop_down[i - 1] } else { 1.0 };
+        light.push(x);
+    }
+    let mut eye: Vec<Vertex> = Vec::with_capacity(t);
+    for i in (s..n).rev() {
+        let mut x = v[i];
+        x.pdf_fwd = d.eye[i];
+        x.pdf_rev = d.light[i];
+        x.prop_rev = if i + 1 < n { d.prop_up[i] } else { 1.0 };
+        eye.push(x);
+    }
+    let (qp, pq) = if s > 0 {
+        (d.prop_up[s - 1], d.prop_down[s - 1])
+    } else {
+        (1.0, 1.0)
+    };
+    bdpt.mis_weight(scene, &light, &eye, None, s, t, qp, pq)
 }

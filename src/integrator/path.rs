@@ -180,9 +180,11 @@ impl PathTracer {
         sampler: &mut Sampler,
     ) -> Rgb {
         let mut l = Rgb::ZERO;
+        // distance between the scattering vertex and the lifted ray origin
+        let mut lead = 0.0f32;
         loop {
             // propagation: Table 1 through media and null boundaries
-            let prop = scene.propagate(ray, medium, sampler);
+            let prop = scene.propagate(ray, lead, medium, sampler);
             beta *= prop.weight();
             if beta == Rgb::ZERO {
                 break;
@@ -229,6 +231,7 @@ impl PathTracer {
                         singular: false,
                     };
                     ray = Ray::new(p, ps.wi);
+                    lead = 0.0;
                     medium = Some(m);
                 }
                 Event::Surface { hit, medium: m } => {
@@ -291,6 +294,7 @@ impl PathTracer {
                         singular: bs.lobe.is_singular(),
                     };
                     ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
+                    lead = (ray.o - hit.p).dot(bs.wi);
                 }
             }
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)

@@ -191,8 +191,14 @@ impl Scene {
     /// Propagates `ray`, starting in `medium`, through media and null boundaries until a
     /// collision, a non-null surface or escape.
     // ANCHOR: propagate
-    pub fn propagate(&self, ray: Ray, medium: Option<u32>, sampler: &mut Sampler) -> Propagation {
-        self.propagate_impl::<false>(ray, medium, false, sampler)
+    pub fn propagate(
+        &self,
+        ray: Ray,
+        lead: f32,
+        medium: Option<u32>,
+        sampler: &mut Sampler,
+    ) -> Propagation {
+        self.propagate_impl::<false>(ray, lead, medium, false, sampler)
     }
 
     /// [`Scene::propagate`] that also computes the reverse propagation pdf, for bidirectional
@@ -200,17 +206,19 @@ impl Scene {
     pub fn propagate_bidirectional(
         &self,
         ray: Ray,
+        lead: f32,
         medium: Option<u32>,
         origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
-        self.propagate_impl::<true>(ray, medium, origin_in_medium, sampler)
+        self.propagate_impl::<true>(ray, lead, medium, origin_in_medium, sampler)
     }
 
     #[inline]
     fn propagate_impl<const REV: bool>(
         &self,
         ray: Ray,
+        lead: f32,
         mut medium: Option<u32>,
         origin_in_medium: bool,
         sampler: &mut Sampler,
@@ -218,8 +226,9 @@ impl Scene {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
         let mut pdf_rev = 1.0f32;
-        // the ray is continued (not re-spawned) past null boundaries: segments stay contiguous
-        let mut t_start = 0.0f32;
+        // the ray is continued (not re-spawned) past null boundaries: segments stay contiguous;
+        // the first segment starts `lead` before the lifted origin, at the vertex itself
+        let mut t_start = -lead;
         let mut t_min = 0.0f32;
         let mut first = true;
         for _ in 0..MAX_NULL_CROSSINGS {
@@ -373,6 +382,10 @@ impl Scene {
         if dist.is_nan() || dist <= 0.0 || !dist.is_finite() {
             return zero;
         }
+        // medium segments are measured between the true end points, the lifted ones only serve
+        // the intersection queries (so f_j and the samplers' pdfs see the same lengths)
+        let lead_a = (o - a.p).dot(d);
+        let lead_b = (b.p - target).dot(d);
         let (a, medium_a, a_in_medium, b_in_medium) = (o, a.medium, a.in_medium, b.in_medium);
         let ray = Ray::new(a, d);
         let mut medium = medium_a;
@@ -381,13 +394,13 @@ impl Scene {
             pdf_ab: 1.0,
             pdf_ba: 1.0,
         };
-        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
+        let (mut t_start, mut t_min) = (-lead_a, 0.0f32);
         let mut first = true;
         for _ in 0..MAX_NULL_CROSSINGS {
             let hit = self
                 .bvh
                 .intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
-            let t_end = hit.map_or(dist, |h| h.t);
+            let t_end = hit.map_or(dist + lead_b, |h| h.t);
             let last = hit.is_none();
             if let Some(m) = medium {
                 let med = &self.media[m as usize];

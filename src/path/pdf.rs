@@ -1,0 +1,82 @@
+//! Densities of a path under local sampling from either end (Pauly, Kollig, Keller 2000,
+//! sec. 4): for every vertex x_i, the density p_L(x_i) with which a light subpath reaches it
+//! from x_{i-1} (and x_{i-2}), and the density p_E(x_i) with which an eye subpath reaches it
+//! from x_{i+1} (and x_{i+2}), in the vertex's own measure (area on surfaces, volume in the
+//! medium): the scattering pdf over solid angle converted by g / d^2, times the propagation pdf
+//! of Table 1 (sigma_t tau for a medium vertex, tau for a surface reached through the medium).
+//!
+//! The density of the path sampled by strategy (s, t) is prod_{i<s} p_L(x_i) prod_{i>=s} p_E(x_i);
+//! the sampler's cached densities must equal these (see `verify`).
+
+use super::{Path, Vertex, VertexKind};
+use crate::math::Sampler;
+use crate::scene::Scene;
+
+/// p_L(x_i) and p_E(x_i) for every vertex of a path x_0 (light) ... x_k (sensor).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Densities {
+    pub light: Vec<f32>,
+    pub eye: Vec<f32>,
+    /// Propagation pdf of edge (x_i, x_{i+1}) walked from x_i to x_{i+1}.
+    pub prop_up: Vec<f32>,
+    /// The same edge walked from x_{i+1} to x_i.
+    pub prop_down: Vec<f32>,
+}
+
+/// The densities of every vertex from both ends (the light vertex's own density is its
+/// light-origin density; the sensor vertex's is the sensor's position density).
+// ANCHOR: densities
+pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities {
+    let v = &path.vertices;
+    let n = v.len();
+    let mut d = Densities {
+        light: vec![0.0; n],
+        eye: vec![0.0; n],
+        prop_up: vec![0.0; n.saturating_sub(1)],
+        prop_down: vec![0.0; n.saturating_sub(1)],
+    };
+    if n < 2 {
+        return d;
+    }
+    for i in 0..n - 1 {
+        let e = scene.edge(
+            v[i].edge_end(v[i + 1].p),
+            v[i + 1].edge_end(v[i].p),
+            sampler,
+        );
+        d.prop_up[i] = e.pdf_ab;
+        d.prop_down[i] = e.pdf_ba;
+    }
+    // from the light
+    d.light[0] = v[0].light_origin_pdf(scene, v[1].p);
+    for i in 1..n {
+        let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
+        d.light[i] = v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1];
+    }
+    // from the sensor
+    d.eye[n - 1] = sensor_position_pdf(scene, &v[n - 1]);
+    for i in (0..n - 1).rev() {
+        let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
+        d.eye[i] = v[i + 1].pdf_area(scene, prev, &v[i]) * d.prop_down[i];
+    }
+    d
+}
+// ANCHOR_END: densities
+
+/// Density of the sensor vertex's position: 1 for the pinhole (a Dirac), 1/A on a meter.
+pub fn sensor_position_pdf(scene: &Scene, v: &Vertex) -> f32 {
+    match v.kind {
+        VertexKind::Camera => 1.0,
+        VertexKind::Meter { meter } => {
+            1.0 / crate::geometry::Primitive::Quad(scene.sensors[meter as usize].quad).area()
+        }
+        _ => 0.0,
+    }
+}
+
+/// The density of the path as sampled by strategy (s, t = k + 1 - s).
+pub fn strategy_pdf(d: &Densities, s: usize) -> f64 {
+    let light: f64 = d.light[..s].iter().map(|&p| p as f64).product();
+    let eye: f64 = d.eye[s..].iter().map(|&p| p as f64).product();
+    light * eye
+}

@@ -1,0 +1,385 @@
+//! Path space with media (Pauly, Kollig, Keller 2000, sec. 3-4) and BDPT's multiple importance
+//! sampling: the characteristic, the generalized G term, f_j / p against the sampler's own
+//! throughput, cached densities against recomputed ones, MIS weights, and every (s, t) strategy
+//! alone against the path tracer.
+
+mod common;
+
+use glam::Vec3;
+use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::math::Sampler;
+use pathspace::path::pdf::{densities, strategy_pdf};
+use pathspace::path::{
+    characteristic, geometry_term::geometry_term_unoccluded, measurement_contribution, Path,
+    Vertex, VertexKind,
+};
+use pathspace::scene::{Scene, SceneSource};
+
+const K_SIGMA: f64 = 4.0;
+
+/// A closed room [-1,1]^3 of Lambertian walls filled with fog (its null boundary coplanar with
+/// the walls), a ceiling light and a meter on the floor facing up, inside the fog.
+const ROOM: &str = r#"
+[render]
+meter_samples = 1024
+[materials.white]
+type = "lambert"
+albedo = 0.6
+[media.fog]
+type = "homogeneous"
+sigma_a = 0.3
+sigma_s = 0.7
+phase = { type = "hg", g = 0.4 }
+[[shapes]]
+type = "box"
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1.0]
+material = "null"
+interior = "fog"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -1.0]
+u = [0.0, 0.0, 2.0]
+v = [2.0, 0.0, 0.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [-1.0, 1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, 1.0]
+u = [0.0, 2.0, 0.0]
+v = [2.0, 0.0, 0.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -1.0]
+u = [0.0, 2.0, 0.0]
+v = [0.0, 0.0, 2.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [1.0, -1.0, -1.0]
+u = [0.0, 0.0, 2.0]
+v = [0.0, 2.0, 0.0]
+material = "white"
+[[shapes]]
+type = "quad"
+origin = [-0.3, 0.99, -0.3]
+u = [0.6, 0.0, 0.0]
+v = [0.0, 0.0, 0.6]
+emission = 5.0
+[[sensors]]
+type = "irradiance_meter"
+name = "floor"
+origin = [-0.2, -0.9, -0.2]
+u = [0.0, 0.0, 0.4]
+v = [0.4, 0.0, 0.0]
+"#;
+
+fn room() -> Scene {
+    Scene::load(&SceneSource::embedded("room.toml", ROOM)).unwrap()
+}
+
+fn v(kind: VertexKind, p: Vec3, n: Vec3) -> Vertex {
+    Vertex::new(kind, p, n, None, None)
+}
+
+/// Pauly et al. Figure 2: x_0, x_1, x_3 on surfaces and x_2 in the volume: l = 1011b = 11.
+#[test]
+fn characteristic_of_figure_2_is_eleven() {
+    let path = Path {
+        vertices: vec![
+            v(
+                VertexKind::Light {
+                    light: 0,
+                    prim: Some(0),
+                },
+                Vec3::ZERO,
+                Vec3::Y,
+            ),
+            v(VertexKind::Surface { prim: 1 }, Vec3::X, Vec3::Y),
+            v(
+                VertexKind::Medium { medium: 0 },
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::ZERO,
+            ),
+            v(VertexKind::Camera, Vec3::new(0.0, 2.0, 0.0), -Vec3::Y),
+        ],
+    };
+    assert_eq!(characteristic(&path.vertices), 0b1011);
+    assert_eq!(path.characteristic(), 11);
+    assert_eq!(pathspace::path::characteristic::measure_of(11, 2), "dV");
+    assert_eq!(pathspace::path::characteristic::measure_of(11, 1), "dA");
+}
+
+/// G of two medium vertices is 1/d^2; a surface and a medium vertex, cos/d^2; two surfaces,
+/// cos cos / d^2 (sec. 3.2: a medium vertex's "normal" is the edge direction itself).
+#[test]
+fn geometry_term_closed_forms() {
+    let m = |p: Vec3| v(VertexKind::Medium { medium: 0 }, p, Vec3::ZERO);
+    let s = |p: Vec3, n: Vec3| v(VertexKind::Surface { prim: 0 }, p, n);
+    let a = m(Vec3::ZERO);
+    let b = m(Vec3::new(0.0, 0.0, 2.0));
+    assert!((geometry_term_unoccluded(&a, &b) - 0.25).abs() < 1e-7);
+    let c = s(
+        Vec3::new(3.0, 0.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0).normalize(),
+    );
+    // from a at the origin to c at distance 3: the cosine at c is cos 45 degrees
+    let expect = std::f32::consts::FRAC_1_SQRT_2 / 9.0;
+    assert!((geometry_term_unoccluded(&a, &c) - expect).abs() < 1e-7);
+    assert!(
+        (geometry_term_unoccluded(&c, &a) - expect).abs() < 1e-7,
+        "G is symmetric"
+    );
+    let d = s(Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.0));
+    let e = s(Vec3::ZERO, Vec3::new(0.0, 0.6, 0.8));
+    assert!((geometry_term_unoccluded(&d, &e) - 1.0 * 0.6 / 4.0).abs() < 1e-7);
+}
+
+/// Paths sampled by the eye random walk (BSDF / phase sampling and Table 1, the path tracer's
+/// walk without light sampling) that end on the light: f_j(x) / p(x) from the path module equals
+/// the walk's own throughput times L_e, and the walk's cached densities equal the densities
+/// recomputed from the geometry (`Path::verify` in spirit).
+#[test]
+fn contribution_over_density_equals_walk_throughput() {
+    let scene = room();
+    // max_depth 2 keeps Russian roulette out (it starts after 3 vertices)
+    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    let mut sampler = Sampler::new(7, 0, 0);
+    let mut eye = Vec::new();
+    let mut checked = 0;
+    for _ in 0..20000 {
+        b.meter_subpath(&scene, 0, &mut sampler, &mut eye);
+        let last = *eye.last().unwrap();
+        let VertexKind::Surface { prim } = last.kind else {
+            continue;
+        };
+        let Some(light) = scene.shapes[scene.prim_shape[prim as usize] as usize].light else {
+            continue;
+        };
+        let le = last.surface_emission(&scene, eye[eye.len() - 2].p);
+        if le == Vec3::ZERO {
+            continue;
+        }
+        // the full path x_0 (light) ... x_k (meter)
+        let mut verts: Vec<Vertex> = eye.iter().rev().copied().collect();
+        verts[0].kind = VertexKind::Light {
+            light,
+            prim: Some(prim),
+        };
+        let path = Path { vertices: verts };
+        let f = measurement_contribution(&scene, &path, &mut sampler);
+        let p: f64 = eye.iter().map(|v| v.pdf_fwd as f64).product();
+        let expect = last.beta * le;
+        for c in 0..3 {
+            let got = f[c] as f64 / p;
+            let rel = (got - expect[c] as f64).abs() / (expect[c] as f64).max(1e-12);
+            assert!(
+                rel < 1e-3,
+                "f/p = {got}, walk throughput * Le = {}, path {:?}",
+                expect[c],
+                path.characteristic()
+            );
+        }
+        // cached densities against recomputed ones
+        let d = densities(&scene, &path, &mut sampler);
+        let n = path.vertices.len();
+        for (k, ev) in eye.iter().enumerate() {
+            let i = n - 1 - k;
+            let rel = (d.eye[i] - ev.pdf_fwd).abs() / ev.pdf_fwd.max(1e-12);
+            assert!(
+                rel < 1e-3,
+                "p_E(x_{i}) = {} but the walk cached {}",
+                d.eye[i],
+                ev.pdf_fwd
+            );
+            // the walk set pdf_rev of every vertex that has a scattering successor
+            if k + 2 < eye.len() && k > 0 {
+                let rel = (d.light[i] - ev.pdf_rev).abs() / ev.pdf_rev.max(1e-12);
+                assert!(
+                    rel < 1e-3,
+                    "p_L(x_{i}) = {} but the walk cached {}",
+                    d.light[i],
+                    ev.pdf_rev
+                );
+            }
+        }
+        checked += 1;
+    }
+    assert!(checked > 100, "only {checked} walks reached the light");
+}
+
+/// For random paths, the power-heuristic weights of all strategies sum to one and each equals
+/// p_s^2 / sum p_i^2 computed directly from the strategy densities.
+#[test]
+fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
+    let scene = room();
+    let b = Bdpt::new(&scene, Some(4), Strategies::All);
+    let mut sampler = Sampler::new(3, 1, 0);
+    let mut scratch = Scratch::default();
+    let mut checked = 0;
+    for _ in 0..5000 {
+        b.meter_subpath(&scene, 0, &mut sampler, &mut scratch.eye);
+        b.light_subpath(&scene, &mut sampler, &mut scratch.light);
+        // join the light subpath's first two vertices to the eye subpath: a random full path
+        if scratch.light.len() < 2 || scratch.eye.len() < 2 {
+            continue;
+        }
+        let mut verts: Vec<Vertex> = scratch.light[..2].to_vec();
+        verts.extend(scratch.eye.iter().rev().copied());
+        let path = Path { vertices: verts };
+        if measurement_contribution(&scene, &path, &mut sampler) == Vec3::ZERO {
+            continue; // the joining edge is blocked: not a path of positive contribution
+        }
+        let d = densities(&scene, &path, &mut sampler);
+        let n = path.vertices.len();
+        let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect(); // s = n (t = 0) excluded
+        let total: f64 = p.iter().map(|x| x * x).sum();
+        if !(total > 0.0) || !total.is_finite() {
+            continue;
+        }
+        let mut sum = 0.0f64;
+        for s in 0..n {
+            let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
+            let direct = p[s] * p[s] / total;
+            assert!(
+                (w - direct).abs() < 1e-3,
+                "strategy s={s}: weight {w}, power heuristic {direct}"
+            );
+            sum += w;
+        }
+        assert!((sum - 1.0).abs() < 1e-3, "weights sum to {sum}");
+        checked += 1;
+    }
+    assert!(checked > 1000, "only {checked} paths checked");
+}
+
+fn meter(
+    scene: &Scene,
+    kind: IntegratorKind,
+    seed: u64,
+    max_depth: Option<u32>,
+    only: Option<(usize, usize)>,
+    spp: u32,
+) -> (f64, f64) {
+    let mut r = Renderer::new(scene, kind, seed, max_depth);
+    if let Some((s, t)) = only {
+        r.bdpt = Some(Bdpt::new(scene, max_depth, Strategies::Only(s, t)));
+    }
+    r.pass(spp, &|| {});
+    let m = &r.meter_estimates()[0];
+    (m.value.x as f64, m.stderr.x as f64)
+}
+
+/// Every strategy alone is an unbiased estimator of the paths of its length: (s, t) with
+/// s + t - 2 = k scattering vertices against the path tracer's depth-k contribution,
+/// path(max_depth = k) - path(max_depth = k - 1).
+#[test]
+fn every_strategy_alone_is_unbiased() {
+    let scene = room();
+    for k in 1u32..=2 {
+        let (a, sa) = meter(&scene, IntegratorKind::Path, 11, Some(k), None, 64);
+        let (b, sb) = meter(&scene, IntegratorKind::Path, 12, Some(k - 1), None, 64);
+        let (truth, st) = (a - b, (sa * sa + sb * sb).sqrt());
+        for s in 0..=(k as usize + 1) {
+            let t = k as usize + 2 - s;
+            let (x, sx) = meter(
+                &scene,
+                IntegratorKind::Bdpt,
+                13 + s as u64,
+                Some(k),
+                Some((s, t)),
+                16,
+            );
+            let se = (sx * sx + st * st).sqrt();
+            assert!(
+                (x - truth).abs() <= K_SIGMA * se,
+                "strategy ({s}, {t}) at depth {k}: {x} +- {sx}, path tracer {truth} +- {st}"
+            );
+        }
+    }
+}
+
+/// bdpt, light tracing and path tracing agree on the room's meter, on the slab's meters
+/// (directional light) and on the fog box's image mean.
+#[test]
+fn bdpt_light_and_path_agree() {
+    let scene = room();
+    let (p, sp) = meter(&scene, IntegratorKind::Path, 1, None, None, 32);
+    for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
+        let (x, sx) = meter(&scene, kind, 2, None, None, 32);
+        let se = (sp * sp + sx * sx).sqrt();
+        assert!(
+            (x - p).abs() <= K_SIGMA * se,
+            "{kind:?} {x} +- {sx} vs path {p} +- {sp}"
+        );
+    }
+    let slab = Scene::load(
+        &SceneSource::read(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/slab.toml"
+        )))
+        .unwrap(),
+    )
+    .unwrap();
+    let run = |kind, seed| {
+        let mut r = Renderer::new(&slab, kind, seed, None);
+        r.meter_samples = 2048;
+        r.pass(8, &|| {});
+        r.meter_estimates()
+    };
+    let base = run(IntegratorKind::Path, 3);
+    let other = run(IntegratorKind::Bdpt, 4);
+    for (a, b) in base.iter().zip(&other) {
+        let se = ((a.stderr.x as f64).powi(2) + (b.stderr.x as f64).powi(2)).sqrt();
+        assert!(
+            ((a.value.x - b.value.x) as f64).abs() <= K_SIGMA * se,
+            "slab {}: path {} vs bdpt {} (+- {se})",
+            a.name,
+            a.value.x,
+            b.value.x
+        );
+    }
+}
+
+/// The fog box's image mean agrees between the three integrators.
+#[test]
+fn fog_box_image_means_agree() {
+    let text =
+        pathspace::scene::FOG_BOX.replace("resolution = [256, 256]", "resolution = [24, 24]");
+    let scene = Scene::load(&SceneSource::embedded("fog-box.toml", &text)).unwrap();
+    let mean = |kind, seed, spp| {
+        let mut r = Renderer::new(&scene, kind, seed, None);
+        r.pass(spp, &|| {});
+        let film = r.film.unwrap();
+        let img = film.image();
+        let n = img.pixels.len() as f64;
+        let m = img.pixels.iter().map(|p| p.y as f64).sum::<f64>() / n;
+        (m, film)
+    };
+    let (p, film) = mean(IntegratorKind::Path, 1, 256);
+    let var = film.variance_of_mean();
+    let sp = var.pixels.iter().map(|v| v.y as f64).sum::<f64>().sqrt() / var.pixels.len() as f64;
+    // splatted estimators have no per-pixel variance: estimate their error from 8 independent runs
+    for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
+        let runs: Vec<f64> = (0..8).map(|i| mean(kind, 100 + i, 16).0).collect();
+        let (m, s) = common::mean_and_stderr(&runs);
+        let se = (sp * sp + s * s).sqrt();
+        assert!(
+            (m - p).abs() <= K_SIGMA * se,
+            "{kind:?}: {m} +- {s} vs path {p} +- {sp}"
+        );
+    }
+}
