@@ -775,14 +775,17 @@ pub fn mis_weight_of_path(
     if t == 0 {
         return 0.0; // the sensor cannot be hit by chance
     }
-    let mut light: Vec<Vertex> = Vec::with_capacity(s);
-    for i in 0..s {
-        let mut x = v[i];
-        x.pdf_fwd = d.light[i];
-        x.pdf_rev = d.eye[i];
-        x.prop_rev = if i > 0 { d.prop_down[i - 1] } else { 1.0 };
-        light.push(x);
-    }
+    let light: Vec<Vertex> = v[..s]
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let mut x = *x;
+            x.pdf_fwd = d.light[i];
+            x.pdf_rev = d.eye[i];
+            x.prop_rev = if i > 0 { d.prop_down[i - 1] } else { 1.0 };
+            x
+        })
+        .collect();
     let mut eye: Vec<Vertex> = Vec::with_capacity(t);
     for i in (s..n).rev() {
         let mut x = v[i];
