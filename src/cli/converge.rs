@@ -22,7 +22,7 @@ pub struct ConvergeArgs {
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub budget: f64,
     /// Checkpoints, spaced geometrically from budget/100 to the budget.
     #[arg(long, default_value_t = 8)]
@@ -145,7 +145,14 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     convergence::write_csv(&csv, &rows)?;
     let curves = convergence::summarize(&rows);
     let mut written = vec![csv];
-    written.extend(chart::write_charts(&args.output, &curves)?);
+    let reference_relmse = meta
+        .get("estimated_relmse")
+        .and_then(|s| s.parse::<f64>().ok());
+    written.extend(chart::write_charts(
+        &args.output,
+        &curves,
+        reference_relmse,
+    )?);
     for c in &curves {
         println!("{}", summary_line(c));
     }

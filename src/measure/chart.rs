@@ -1,6 +1,7 @@
 //! Charts of a convergence study, drawn with plotters as SVG and PNG: relMSE against time on
 //! log-log axes (one line per integrator, mean over runs with +- one standard error bars, the
-//! fitted power law dashed, its slope in the legend) and efficiency against time.
+//! fitted power law dashed, its slope in the legend, the reference's own noise as a grey floor)
+//! and efficiency against time.
 //!
 //! Text is drawn with ab_glyph from DejaVu Sans embedded in the binary (`assets/fonts/`), so a
 //! machine without fonts or fontconfig draws the same PNG; PNGs are encoded with `png` through
@@ -129,16 +130,24 @@ fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     kind: ChartKind,
     curves: &[Curve],
+    reference_relmse: Option<f64>,
 ) -> Result<(), String> {
     let e =
         |e: DrawingAreaErrorKind<DB::ErrorType>| format!("drawing the {} chart: {e}", kind.stem());
     root.fill(&WHITE).map_err(e)?;
     let all = || curves.iter().flat_map(|c| c.points.iter());
     let x_range = log_range(all().map(|p| p.seconds.mean))?;
-    let y_range = log_range(all().flat_map(|p| {
-        let (m, s) = kind.value(p);
-        [m, m + s, m - s]
-    }))?;
+    // the reference's own noise is drawn on the error chart: no curve can fall below it
+    let floor =
+        reference_relmse.filter(|f| kind == ChartKind::ErrorVsTime && *f > 0.0 && f.is_finite());
+    let y_range = log_range(
+        all()
+            .flat_map(|p| {
+                let (m, s) = kind.value(p);
+                [m, m + s, m - s]
+            })
+            .chain(floor),
+    )?;
     let (caption, y_desc) = match kind {
         ChartKind::ErrorVsTime => (
             "relMSE against render time (equal-time, log-log)",
@@ -151,7 +160,7 @@ fn draw<DB: DrawingBackend>(
         .margin(16)
         .x_label_area_size(60)
         .y_label_area_size(90)
-        .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
+        .build_cartesian_2d(x_range.clone().log_scale(), y_range.log_scale())
         .map_err(e)?;
     chart
         .configure_mesh()
@@ -205,6 +214,20 @@ fn draw<DB: DrawingBackend>(
                 .map_err(e)?;
         }
     }
+    if let Some(f) = floor {
+        let grey = RGBColor(110, 110, 110);
+        let style = ShapeStyle::from(&grey).stroke_width(2);
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(x_range.start, f), (x_range.end, f)],
+                4,
+                6,
+                style,
+            ))
+            .map_err(e)?
+            .label(format!("reference noise: relMSE {f:.2e}"))
+            .legend(move |(x, y)| PathElement::new(vec![(x - 4, y), (x + 16, y)], style));
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
@@ -218,13 +241,19 @@ fn draw<DB: DrawingBackend>(
 // ANCHOR_END: draw_chart
 
 /// Writes `DIR/<stem>.svg` and `DIR/<stem>.png` for both charts; returns the files written.
-pub fn write_charts(dir: &Path, curves: &[Curve]) -> Result<Vec<PathBuf>, String> {
+/// `reference_relmse`, the reference's own estimated relMSE, is drawn as the floor of the error
+/// chart when known.
+pub fn write_charts(
+    dir: &Path,
+    curves: &[Curve],
+    reference_relmse: Option<f64>,
+) -> Result<Vec<PathBuf>, String> {
     let mut written = Vec::new();
     for kind in [ChartKind::ErrorVsTime, ChartKind::Efficiency] {
         let svg = dir.join(format!("{}.svg", kind.stem()));
         let png = dir.join(format!("{}.png", kind.stem()));
-        write_svg(&svg, kind, curves)?;
-        write_png(&png, kind, curves)?;
+        write_svg(&svg, kind, curves, reference_relmse)?;
+        write_png(&png, kind, curves, reference_relmse)?;
         written.push(svg);
         written.push(png);
     }
@@ -232,20 +261,30 @@ pub fn write_charts(dir: &Path, curves: &[Curve]) -> Result<Vec<PathBuf>, String
 }
 
 /// Draws a chart as SVG.
-pub fn write_svg(path: &Path, kind: ChartKind, curves: &[Curve]) -> Result<(), String> {
+pub fn write_svg(
+    path: &Path,
+    kind: ChartKind,
+    curves: &[Curve],
+    reference_relmse: Option<f64>,
+) -> Result<(), String> {
     register_font()?;
     let root = SVGBackend::new(path, CHART_SIZE).into_drawing_area();
-    draw(&root, kind, curves)
+    draw(&root, kind, curves, reference_relmse)
 }
 
 /// Draws a chart as PNG.
-pub fn write_png(path: &Path, kind: ChartKind, curves: &[Curve]) -> Result<(), String> {
+pub fn write_png(
+    path: &Path,
+    kind: ChartKind,
+    curves: &[Curve],
+    reference_relmse: Option<f64>,
+) -> Result<(), String> {
     register_font()?;
     let (w, h) = CHART_SIZE;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, CHART_SIZE).into_drawing_area();
-        draw(&root, kind, curves)?;
+        draw(&root, kind, curves, reference_relmse)?;
     }
     image_io::write_png_rgb8(path, w, h, &buf).map_err(|e| e.to_string())
 }

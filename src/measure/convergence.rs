@@ -203,7 +203,7 @@ pub fn write_csv(path: &Path, rows: &[CheckpointRow]) -> Result<(), String> {
     for r in rows {
         writeln!(
             f,
-            "{},{},{},{:.6},{},{:.6e},{:.6e},{:.6e}",
+            "{},{},{},{:.9},{},{:.9e},{:.9e},{:.9e}",
             r.integrator, r.run, r.checkpoint, r.seconds, r.samples, r.rmse, r.relmse, r.efficiency
         )
         .map_err(err)?;
@@ -291,10 +291,11 @@ pub struct CurvePoint {
 pub struct Curve {
     pub integrator: String,
     pub points: Vec<CurvePoint>,
-    /// log relMSE against log seconds (-1 for unbiased Monte Carlo); None below two points.
+    /// log relMSE against log seconds (-1 for unbiased Monte Carlo), mean over runs with the
+    /// standard error over runs (one run: the regression's); None below two points.
     pub relmse_vs_time: Option<PowerLawFit>,
-    /// log RMSE against log samples (-1/2 for unbiased Monte Carlo); None when the samples are
-    /// unknown or fewer than two points.
+    /// log RMSE against log samples (-1/2 for unbiased Monte Carlo), as above; None when the
+    /// samples are unknown (0) or fewer than two points.
     pub rmse_vs_samples: Option<PowerLawFit>,
 }
 
@@ -306,9 +307,10 @@ impl Curve {
 }
 
 // ANCHOR: summarize
-/// Groups the rows by integrator (in order of appearance) and checkpoint, takes the mean and
-/// standard error over runs, and fits the slopes through the means. Averaging the runs before
-/// fitting makes the points nearly independent of each other.
+/// Groups the rows by integrator (in order of appearance) and checkpoint and takes the mean and
+/// standard error over runs; fits the slopes run by run and combines them over runs
+/// (`stats::combine_fits`), whose spread is an honest standard error where the regression error
+/// of one run, with its correlated checkpoints, is not.
 pub fn summarize(rows: &[CheckpointRow]) -> Vec<Curve> {
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
@@ -342,15 +344,34 @@ pub fn summarize(rows: &[CheckpointRow]) -> Vec<Curve> {
                     }
                 })
                 .collect();
-            let fit = |x: &dyn Fn(&CurvePoint) -> f64, y: &dyn Fn(&CurvePoint) -> f64| {
-                let xs: Vec<f64> = points.iter().map(x).collect();
-                let ys: Vec<f64> = points.iter().map(y).collect();
-                stats::fit_power_law(&xs, &ys).ok()
+            let runs: Vec<usize> = {
+                let mut r: Vec<usize> = mine.iter().map(|r| r.run).collect();
+                r.sort_unstable();
+                r.dedup();
+                r
+            };
+            // one fit per run, combined over runs; a single run falls back on its regression error
+            let fit = |x: &dyn Fn(&CheckpointRow) -> f64, y: &dyn Fn(&CheckpointRow) -> f64| {
+                let fits: Vec<PowerLawFit> = runs
+                    .iter()
+                    .filter_map(|&run| {
+                        let at: Vec<&&CheckpointRow> =
+                            mine.iter().filter(|r| r.run == run).collect();
+                        let xs: Vec<f64> = at.iter().map(|r| x(r)).collect();
+                        let ys: Vec<f64> = at.iter().map(|r| y(r)).collect();
+                        stats::fit_power_law(&xs, &ys).ok()
+                    })
+                    .collect();
+                match fits.len() {
+                    0 => None,
+                    1 => Some(fits[0]),
+                    _ => stats::combine_fits(&fits).ok(),
+                }
             };
             Curve {
                 integrator: name.to_string(),
-                relmse_vs_time: fit(&|p| p.seconds.mean, &|p| p.relmse.mean),
-                rmse_vs_samples: fit(&|p| p.samples.mean, &|p| p.rmse.mean),
+                relmse_vs_time: fit(&|r| r.seconds, &|r| r.relmse),
+                rmse_vs_samples: fit(&|r| r.samples as f64, &|r| r.rmse),
                 points,
             }
         })

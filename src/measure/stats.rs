@@ -3,7 +3,8 @@
 //! runs, and the variance-based noise estimate of a single render without a reference.
 //!
 //! * Power law: error(t) = C t^s, so log error = log C + s log t, a straight line whose slope s
-//!   is fitted by ordinary least squares: s = S_xy / S_xx, se(s) = sqrt(SSR / (n - 2) / S_xx).
+//!   is fitted by ordinary least squares: s = S_xy / S_xx, se(s) = sqrt(SSR / (n - 2) / S_xx);
+//!   over R independent runs, the mean slope with standard error s.d. / sqrt(R).
 //! * Plain Monte Carlo: RMSE ~ N^(-1/2), so relMSE and MSE ~ N^(-1) (slope -1), RMSE slope -1/2.
 //! * Estimated relMSE: mean over pixels and channels of Var[mean] / (mean^2 + epsilon).
 //!
@@ -39,8 +40,8 @@ impl PowerLawFit {
 /// order of convergence whatever the constant C (which depends on the scene and the machine).
 /// The standard error is the textbook one for a regression slope,
 /// se(s) = sqrt(SSR / (n - 2) / S_xx). It assumes independent residuals: checkpoints of one run
-/// share their early samples, so with a single run it is optimistic; averaging independent runs
-/// first (see `convergence::summarize`) makes the points nearly independent.
+/// share their early samples, so for a convergence curve it is optimistic; with several runs
+/// `combine_fits` gives an honest one.
 pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, String> {
     if x.len() != y.len() {
         return Err(format!(
@@ -105,6 +106,30 @@ pub struct MeanStderr {
     /// sample standard deviation / sqrt(n); 0 for a single value (no spread is known).
     pub stderr: f64,
 }
+
+// ANCHOR: combine_fits
+/// Combines fits of independent runs: the slope is their mean and its standard error their spread,
+/// s.d. / sqrt(R). Unlike the regression error of one run, this one is honest: the checkpoints of a
+/// run share their early samples, so its residuals are correlated and understate the uncertainty,
+/// while separate runs are independent by construction. Needs R >= 2.
+pub fn combine_fits(fits: &[PowerLawFit]) -> Result<PowerLawFit, String> {
+    if fits.len() < 2 {
+        return Err(format!(
+            "combining fits needs at least 2 independent runs, not {}",
+            fits.len()
+        ));
+    }
+    let slopes: Vec<f64> = fits.iter().map(|f| f.slope).collect();
+    let intercepts: Vec<f64> = fits.iter().map(|f| f.intercept).collect();
+    let slope = mean_stderr(&slopes);
+    Ok(PowerLawFit {
+        slope: slope.mean,
+        slope_stderr: slope.stderr,
+        intercept: mean_stderr(&intercepts).mean,
+        points: fits.iter().map(|f| f.points).sum(),
+    })
+}
+// ANCHOR_END: combine_fits
 
 // ANCHOR: mean_stderr
 /// The mean of `values` and its standard error s / sqrt(n), with s the unbiased sample standard
