@@ -87,7 +87,8 @@ fn tick(v: &f64) -> String {
     }
 }
 
-/// A range with a margin of a fraction of a decade on each side, for a log axis.
+/// A log-axis range snapped outwards to whole decades, so every axis has at least two labelled
+/// powers of ten (plotters labels a log axis only at its decades).
 fn log_range(values: impl Iterator<Item = f64>) -> Result<std::ops::Range<f64>, String> {
     let (lo, hi) = values
         .filter(|v| *v > 0.0 && v.is_finite())
@@ -97,8 +98,21 @@ fn log_range(values: impl Iterator<Item = f64>) -> Result<std::ops::Range<f64>, 
     if !(lo.is_finite() && hi > 0.0) {
         return Err("nothing to chart: no positive finite values".into());
     }
-    let pad = 10f64.powf(0.1);
-    Ok(lo / pad..hi * pad)
+    let (lo_decade, mut hi_decade) = (lo.log10().floor(), hi.log10().ceil());
+    if hi_decade <= lo_decade {
+        hi_decade = lo_decade + 1.0;
+    }
+    Ok(10f64.powf(lo_decade)..10f64.powf(hi_decade))
+}
+
+/// A number with three significant digits, in plain decimals where they read well.
+fn sig3(v: f64) -> String {
+    if (0.01..10_000.0).contains(&v.abs()) {
+        let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        format!("{v:.2e}")
+    }
 }
 
 /// The legend text of a curve.
@@ -116,8 +130,10 @@ fn legend(kind: ChartKind, c: &Curve) -> String {
         },
         ChartKind::Efficiency => match c.last() {
             Some(p) => format!(
-                "{}: {:.3e} /s at {:.3} s",
-                c.integrator, p.efficiency.mean, p.seconds.mean
+                "{}: {} /s at {} s",
+                c.integrator,
+                sig3(p.efficiency.mean),
+                sig3(p.seconds.mean)
             ),
             None => c.integrator.clone(),
         },
