@@ -247,13 +247,13 @@ fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect(); // s = n (t = 0) excluded
         let total: f64 = p.iter().map(|x| x * x).sum();
-        if !(total > 0.0) || !total.is_finite() {
+        if total.is_nan() || total <= 0.0 || !total.is_finite() {
             continue;
         }
         let mut sum = 0.0f64;
-        for s in 0..n {
+        for (s, ps) in p.iter().enumerate() {
             let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
-            let direct = p[s] * p[s] / total;
+            let direct = ps * ps / total;
             assert!(
                 (w - direct).abs() < 1e-3,
                 "strategy s={s}: weight {w}, power heuristic {direct}"

@@ -1,10 +1,11 @@
-//! `pathspace diff A.exr B.exr [--json]`: error metrics of A against B (B is the reference).
+//! `pathspace diff A.exr B.exr [--json] [--heatmap OUT.png]`: error metrics of A against B (B is
+//! the reference), and optionally a false-colour map of the per-pixel relative error.
 
 use clap::Args;
 use std::path::PathBuf;
 
 use crate::image_io;
-use crate::measure::metrics;
+use crate::measure::{heatmap, metrics};
 
 #[derive(Args, Debug)]
 pub struct DiffArgs {
@@ -15,6 +16,10 @@ pub struct DiffArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Write a false-colour PNG of the per-pixel relative error (viridis on a log scale from
+    /// 0.1 % to 100 %; the mapping is printed).
+    #[arg(long, value_name = "OUT.png")]
+    pub heatmap: Option<PathBuf>,
 }
 
 pub fn run(args: DiffArgs) -> Result<(), String> {
@@ -22,20 +27,48 @@ pub fn run(args: DiffArgs) -> Result<(), String> {
     let (b, _) = image_io::read_exr(&args.b).map_err(|e| e.to_string())?;
     let m = metrics::compare(&a, &b)?;
     let (ma, mb) = (a.mean(), b.mean());
+    if let Some(out) = &args.heatmap {
+        heatmap::write_heatmap(out, &a, &b)?;
+    }
+    let legend = heatmap::legend_lines();
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs,
-                "mean_a": [ma.x, ma.y, ma.z], "mean_b": [mb.x, mb.y, mb.z],
-            })
-        );
+        let mut obj = serde_json::json!({
+            "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs,
+            "mean_a": [ma.x, ma.y, ma.z], "mean_b": [mb.x, mb.y, mb.z],
+        });
+        if let Some(out) = &args.heatmap {
+            let stops: Vec<serde_json::Value> = legend
+                .iter()
+                .map(|(c, e)| serde_json::json!({"colour": c, "relative_error": e}))
+                .collect();
+            obj["heatmap"] = serde_json::json!({
+                "path": out.display().to_string(),
+                "colour_map": "viridis, log10 of the relative error, clamped",
+                "stops": stops,
+            });
+        }
+        println!("{obj}");
     } else {
         println!("RMSE     {:.6e}", m.rmse);
         println!("relMSE   {:.6e}", m.relmse);
         println!("max |a-b| {:.6e}", m.max_abs);
         println!("mean A   ({:.5}, {:.5}, {:.5})", ma.x, ma.y, ma.z);
         println!("mean B   ({:.5}, {:.5}, {:.5})", mb.x, mb.y, mb.z);
+        if let Some(out) = &args.heatmap {
+            println!(
+                "heatmap  {}: per-pixel relative error sqrt(mean_c (a-b)^2/(b^2+{})), viridis on log10, clamped:",
+                out.display(),
+                metrics::RELMSE_EPSILON
+            );
+            for (i, (colour, e)) in legend.iter().enumerate() {
+                let edge = match i {
+                    0 => " or less",
+                    i if i + 1 == legend.len() => " or more (and NaN)",
+                    _ => "",
+                };
+                println!("  {colour}  {:>8}{edge}", format!("{:.3}%", e * 100.0));
+            }
+        }
     }
     Ok(())
 }

@@ -1,7 +1,9 @@
 //! The command line: one file per subcommand. Progress goes to stderr, results to stdout.
 
+pub mod converge;
 pub mod diff;
 pub mod info;
+pub mod reference;
 pub mod render;
 
 use clap::{Parser, Subcommand};
@@ -18,8 +20,12 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene (default: the embedded fog box).
     Render(render::RenderArgs),
-    /// Compare two EXR images: RMSE, relMSE, means, max abs difference.
+    /// Compare two EXR images: RMSE, relMSE, means, max abs difference, error heatmap.
     Diff(diff::DiffArgs),
+    /// Render a high-sample reference image with the most robust integrator.
+    Reference(reference::ReferenceArgs),
+    /// Equal-time convergence study of integrators against a reference: CSV and charts.
+    Converge(converge::ConvergeArgs),
     /// Validate a scene and print what it contains.
     Info(info::InfoArgs),
 }
@@ -30,6 +36,8 @@ pub fn run(cli: Cli) -> Result<(), String> {
         None => render::run(render::RenderArgs::default()),
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Diff(a)) => diff::run(a),
+        Some(Command::Reference(a)) => reference::run(a),
+        Some(Command::Converge(a)) => converge::run(a),
         Some(Command::Info(a)) => info::run(a),
     }
 }

@@ -69,6 +69,9 @@ pub struct RenderResult {
     pub nan_count: u64,
     pub image: Option<image_io::Image>,
     pub meters: Vec<MeterEstimate>,
+    /// relMSE expected from the image's own per-pixel variance (no reference needed); None
+    /// without a camera. See `measure::stats::estimated_relmse`.
+    pub estimated_relmse: Option<f64>,
 }
 
 impl RenderResult {
@@ -158,6 +161,10 @@ pub fn render_scene(
         nan_count: r.nan_count,
         image: r.film.as_ref().map(|f| f.image()),
         meters: r.meter_estimates(),
+        estimated_relmse: r
+            .film
+            .as_ref()
+            .and_then(|f| crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()),
     }
 }
 
@@ -246,6 +253,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             "paths_per_second": result.paths_per_second(),
             "mean": mean.map(rgb_json),
             "nan_count": result.nan_count,
+            "estimated_relmse": result.estimated_relmse,
             "sensors": sensors,
             "outputs": written,
         });

@@ -1,4 +1,6 @@
-//! Image error metrics over all pixels and channels.
+//! Image error metrics over all pixels and channels: RMSE = sqrt(mean (a - b)^2) and
+//! relMSE = mean (a - b)^2 / (b^2 + epsilon), b the reference.
+//! Book: "Measuring a renderer".
 
 use crate::image_io::Image;
 
@@ -17,6 +19,7 @@ pub struct Metrics {
     pub max_abs: f64,
 }
 
+// ANCHOR: compare
 /// Compares `a` against the reference `b`.
 pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
     if a.width != b.width || a.height != b.height {
@@ -42,3 +45,4 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
         max_abs,
     })
 }
+// ANCHOR_END: compare

@@ -1,0 +1,168 @@
+//! `pathspace converge SCENE --reference REF.exr --integrators path,... --budget SECONDS
+//! [--checkpoints K] [--runs R] [--seed S] [--threads N] [-o DIR] [--external NAME=DIR]...`:
+//! an equal-time convergence study, written as `DIR/convergence.csv`, `DIR/error-vs-time.{svg,png}`
+//! and `DIR/efficiency.{svg,png}`.
+
+use clap::Args;
+use std::path::PathBuf;
+
+use crate::image_io;
+use crate::integrator::IntegratorKind;
+use crate::measure::chart;
+use crate::measure::convergence::{self, ConvergeConfig, Curve};
+
+#[derive(Args, Debug, Clone)]
+pub struct ConvergeArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// The reference EXR (from `pathspace reference`).
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Integrators to compare, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "path")]
+    pub integrators: Vec<String>,
+    /// Wall-clock seconds of rendering per integrator and run.
+    #[arg(long, allow_negative_numbers = true)]
+    pub budget: f64,
+    /// Checkpoints, spaced geometrically from budget/100 to the budget.
+    #[arg(long, default_value_t = 8)]
+    pub checkpoints: usize,
+    /// Independent runs per integrator (mean and standard error over them).
+    #[arg(long, default_value_t = 1)]
+    pub runs: usize,
+    /// Base seed (default: the scene's `[render] seed`); run r uses a seed derived from it.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output directory.
+    #[arg(short = 'o', long = "output", default_value = "convergence")]
+    pub output: PathBuf,
+    /// Another renderer's images as one more line: NAME=DIR, DIR holding `<seconds>.exr` files
+    /// (or EXRs with a `seconds` attribute). Repeatable.
+    #[arg(long = "external", value_name = "NAME=DIR")]
+    pub external: Vec<String>,
+}
+
+/// One line of the summary printed at the end.
+fn summary_line(c: &Curve) -> String {
+    let mut s = c.integrator.to_string();
+    if let Some(p) = c.last() {
+        s += &format!(
+            ": at {:.2} s {:.0} spp, relMSE {:.3e} ± {:.1e}, RMSE {:.3e}, efficiency {:.3e} /s",
+            p.seconds.mean,
+            p.samples.mean,
+            p.relmse.mean,
+            p.relmse.stderr,
+            p.rmse.mean,
+            p.efficiency.mean
+        );
+    }
+    if let Some(f) = c.relmse_vs_time {
+        s += &format!(
+            "; relMSE-vs-time slope {:.3} ± {:.3}",
+            f.slope, f.slope_stderr
+        );
+    }
+    if let Some(f) = c.rmse_vs_samples {
+        s += &format!(
+            "; RMSE-vs-samples slope {:.3} ± {:.3}",
+            f.slope, f.slope_stderr
+        );
+    }
+    s
+}
+
+pub fn run(args: ConvergeArgs) -> Result<(), String> {
+    let (scene, source) = super::load_scene(Some(&args.scene))?;
+    let kinds = args
+        .integrators
+        .iter()
+        .map(|s| IntegratorKind::parse(s.trim()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let externals = args
+        .external
+        .iter()
+        .map(|e| {
+            e.split_once('=')
+                .filter(|(n, d)| !n.is_empty() && !d.is_empty())
+                .map(|(n, d)| (n.to_string(), PathBuf::from(d)))
+                .ok_or_else(|| format!("--external {e}: expected NAME=DIR"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let (reference, meta) = image_io::read_exr(&args.reference).map_err(|e| e.to_string())?;
+    let hash = super::reference::hash_hex(source.hash());
+    match meta.get("scene_hash") {
+        Some(h) if h != hash => {
+            return Err(format!(
+                "{} is a reference of another scene ({}, scene_hash {h}), not of {} (scene_hash {hash})",
+                args.reference.display(),
+                meta.get("scene").unwrap_or("unnamed"),
+                source.name
+            ))
+        }
+        Some(_) => {}
+        None => eprintln!(
+            "warning: {} has no scene_hash attribute; trusting that it shows {}",
+            args.reference.display(),
+            source.name
+        ),
+    }
+    let config = ConvergeConfig {
+        budget: args.budget,
+        checkpoints: args.checkpoints,
+        runs: args.runs,
+        seed: args.seed.unwrap_or(scene.render.seed),
+        max_depth: scene.render.max_depth,
+    };
+    // fail on bad numbers before spending the budget
+    convergence::checkpoint_times(config.budget, config.checkpoints)
+        .map_err(|e| format!("--budget/--checkpoints: {e}"))?;
+    if config.runs == 0 {
+        return Err("--runs must be at least 1".into());
+    }
+    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    let mut external_rows = Vec::new();
+    for (name, dir) in &externals {
+        external_rows.extend(convergence::external_rows(name, dir, &reference)?);
+    }
+
+    let pool = super::reference::thread_pool(args.threads)?;
+    let mut report = |rows: &[convergence::CheckpointRow]| {
+        if let Some(last) = rows.last() {
+            eprintln!(
+                "{} run {}: {} spp in {:.2} s, relMSE {:.3e}",
+                last.integrator, last.run, last.samples, last.seconds, last.relmse
+            );
+        }
+    };
+    let mut rows =
+        pool.install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+    rows.extend(external_rows);
+
+    let csv = args.output.join("convergence.csv");
+    convergence::write_csv(&csv, &rows)?;
+    let curves = convergence::summarize(&rows);
+    let mut written = vec![csv];
+    let reference_relmse = meta
+        .get("estimated_relmse")
+        .and_then(|s| s.parse::<f64>().ok());
+    written.extend(chart::write_charts(
+        &args.output,
+        &curves,
+        reference_relmse,
+    )?);
+    for c in &curves {
+        println!("{}", summary_line(c));
+    }
+    println!(
+        "wrote {}",
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}

@@ -1,0 +1,152 @@
+//! `pathspace reference SCENE [--spp N | --time SECONDS] [-o REF.exr] [--seed S] [--threads N]`:
+//! a high-sample render with the most robust integrator, the yardstick of `converge` and `diff`.
+//! The EXR records its integrator, spp, seed, seconds and scene hash; an existing reference of a
+//! different scene is never overwritten.
+
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+use crate::image_io::{self, ImageMeta};
+use crate::measure;
+
+/// Samples per pixel of a reference when neither --spp nor --time is given.
+pub const DEFAULT_REFERENCE_SPP: u32 = 4096;
+
+#[derive(Args, Debug, Clone)]
+pub struct ReferenceArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Samples per pixel (default 4096).
+    #[arg(long, conflicts_with = "time")]
+    pub spp: Option<u32>,
+    /// Render for this many seconds instead of a fixed spp.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Output EXR (default: the scene's name with -ref.exr, in the current directory).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Random seed (default: the scene's `[render] seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// A rayon pool of `threads` workers (all cores when None).
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        if t == 0 {
+            return Err("--threads must be at least 1".into());
+        }
+        pool = pool.num_threads(t);
+    }
+    pool.build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))
+}
+
+/// The scene hash as written in EXR attributes: 16 hex digits.
+pub fn hash_hex(hash: u64) -> String {
+    format!("{hash:016x}")
+}
+
+// ANCHOR: refuse_overwrite
+/// Refuses to replace `output` unless it is a reference of the same scene file (same
+/// `scene_hash`): a reference can take hours, and overwriting one with a render of another
+/// scene would silently invalidate every study measured against it.
+pub fn check_overwrite(output: &Path, scene_name: &str, scene_hash: &str) -> Result<(), String> {
+    if !output.exists() {
+        return Ok(());
+    }
+    let meta = match image_io::read_exr(output) {
+        Ok((_, meta)) => meta,
+        Err(e) => {
+            return Err(format!(
+                "refusing to overwrite {}: it exists and is not a readable EXR ({e}); remove it or choose another -o",
+                output.display()
+            ))
+        }
+    };
+    match meta.get("scene_hash") {
+        Some(h) if h == scene_hash => Ok(()),
+        Some(h) => Err(format!(
+            "refusing to overwrite {}: it is a reference of another scene ({}, scene_hash {h}), not of {scene_name} \
+             (scene_hash {scene_hash}); remove it or choose another -o",
+            output.display(),
+            meta.get("scene").unwrap_or("unnamed"),
+        )),
+        None => Err(format!(
+            "refusing to overwrite {}: it has no scene_hash attribute, so it is not a pathspace reference of \
+             {scene_name}; remove it or choose another -o",
+            output.display()
+        )),
+    }
+}
+// ANCHOR_END: refuse_overwrite
+
+pub fn run(args: ReferenceArgs) -> Result<(), String> {
+    let (scene, source) = super::load_scene(Some(&args.scene))?;
+    if scene.camera.is_none() {
+        return Err(format!(
+            "{}: the scene has no camera, so there is no image to render",
+            source.name
+        ));
+    }
+    let spp = args.spp.unwrap_or(DEFAULT_REFERENCE_SPP);
+    if spp == 0 {
+        return Err("--spp must be at least 1".into());
+    }
+    if let Some(t) = args.time {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(format!("--time {t} must be a positive number of seconds"));
+        }
+    }
+    let stem = args
+        .scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "scene".into());
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{stem}-ref.exr")));
+    let hash = hash_hex(source.hash());
+    check_overwrite(&output, &source.name, &hash)?;
+
+    let kind = measure::reference_integrator(&scene);
+    let seed = args.seed.unwrap_or(scene.render.seed);
+    let max_depth = scene.render.max_depth;
+    let pool = thread_pool(args.threads)?;
+    let result = pool.install(|| {
+        super::render::render_scene(&scene, kind, spp, args.time, seed, max_depth, true)
+    });
+    let estimated = result.estimated_relmse;
+    let image = result
+        .image
+        .as_ref()
+        .ok_or("the render produced no image")?;
+    let mut meta = ImageMeta::default();
+    meta.set("integrator", &result.integrator)
+        .set("spp", result.spp)
+        .set("seed", seed)
+        .set("seconds", format!("{:.3}", result.seconds))
+        .set("scene", &source.name)
+        .set("scene_hash", &hash)
+        .set("nan_count", result.nan_count)
+        .set("reference", "true");
+    if let Some(e) = estimated {
+        meta.set("estimated_relmse", format!("{e:.6e}"));
+    }
+    image_io::write_exr(&output, image, &meta).map_err(|e| e.to_string())?;
+    println!(
+        "reference of {} with {}: {} spp in {:.1} s, estimated relMSE {} -> {}",
+        source.name,
+        result.integrator,
+        result.spp,
+        result.seconds,
+        estimated.map_or("n/a".to_string(), |e| format!("{e:.3e}")),
+        output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,380 @@
+//! Equal-time convergence runs: each integrator gets the same wall-clock budget, renders passes
+//! of 1 sample per pixel, and its film is compared with a reference at checkpoints spaced
+//! geometrically in time.
+//!
+//! * Checkpoints: t_k = T f^(1 - k/(K-1)), k = 0..K-1, from f T to the budget T (f = 1/100).
+//! * At each: RMSE, relMSE against the reference, efficiency = 1 / (relMSE x seconds).
+//! * Runs r = 0..R-1 use independent seeds (run 0 uses the seed itself); their mean and standard
+//!   error per checkpoint, and the log-log slope of the means, summarize an integrator.
+//!
+//! Book: "Measuring a renderer".
+
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::image_io::{self, Image};
+use crate::integrator::{IntegratorKind, Renderer};
+use crate::math::sampler::mix64;
+use crate::measure::metrics;
+use crate::measure::stats::{self, MeanStderr, PowerLawFit};
+use crate::scene::Scene;
+
+/// The CSV header of `convergence.csv`; other tools read the columns by these names.
+pub const CSV_HEADER: &str = "integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency";
+
+/// The first checkpoint is at this fraction of the budget: two decades of time are enough to
+/// see a slope, and the first is still late enough to be more than one pass on most scenes.
+pub const FIRST_CHECKPOINT_FRACTION: f64 = 0.01;
+
+/// How a convergence study is run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvergeConfig {
+    /// Wall-clock seconds of rendering per integrator and run (metrics excluded).
+    pub budget: f64,
+    /// Number of checkpoints K.
+    pub checkpoints: usize,
+    /// Number of independent runs R.
+    pub runs: usize,
+    /// Base seed; run r renders with `run_seed(seed, r)`.
+    pub seed: u64,
+    /// Maximum path depth (None: Russian roulette only).
+    pub max_depth: Option<u32>,
+}
+
+/// One row of `convergence.csv`: one integrator, one run, one checkpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckpointRow {
+    pub integrator: String,
+    pub run: usize,
+    /// Index k of the checkpoint (0-based); checkpoints that fell inside one pass share a row,
+    /// which carries the index of the last of them.
+    pub checkpoint: usize,
+    /// Rendering time so far, metric computations excluded.
+    pub seconds: f64,
+    /// Samples per pixel so far (0 when unknown, for images from another renderer).
+    pub samples: u64,
+    pub rmse: f64,
+    pub relmse: f64,
+    /// 1 / (relMSE x seconds).
+    pub efficiency: f64,
+}
+
+// ANCHOR: efficiency
+/// Efficiency of an estimator: 1 / (relMSE x seconds), the inverse of the time needed for a
+/// relMSE of 1 if relMSE falls as 1/t. Constant in time for an unbiased Monte Carlo estimator
+/// (relMSE ~ 1/t), so it ranks integrators independently of the budget; it is the inverse of
+/// the "time-to-unit-variance" of Veach's thesis sec. 2.5.
+pub fn efficiency(relmse: f64, seconds: f64) -> f64 {
+    1.0 / (relmse * seconds)
+}
+// ANCHOR_END: efficiency
+
+// ANCHOR: checkpoint_times
+/// The K checkpoint times: geometric from `FIRST_CHECKPOINT_FRACTION x budget` to the budget, so
+/// they are evenly spaced on the log-log chart where the slope is fitted.
+pub fn checkpoint_times(budget: f64, checkpoints: usize) -> Result<Vec<f64>, String> {
+    if !(budget > 0.0 && budget.is_finite()) {
+        return Err(format!(
+            "the budget must be a positive number of seconds, not {budget}"
+        ));
+    }
+    if checkpoints == 0 {
+        return Err("at least one checkpoint is needed".into());
+    }
+    if checkpoints == 1 {
+        return Ok(vec![budget]);
+    }
+    let last = (checkpoints - 1) as f64;
+    Ok((0..checkpoints)
+        .map(|k| budget * FIRST_CHECKPOINT_FRACTION.powf(1.0 - k as f64 / last))
+        .collect())
+}
+// ANCHOR_END: checkpoint_times
+
+/// The seed of run `run`: run 0 keeps `seed` (so a one-run study renders what `render --seed`
+/// renders); later runs get decorrelated seeds through SplitMix64.
+pub fn run_seed(seed: u64, run: usize) -> u64 {
+    if run == 0 {
+        seed
+    } else {
+        mix64(seed ^ mix64(run as u64))
+    }
+}
+
+// ANCHOR: measure_run
+/// One run of one integrator: passes of 1 spp until the last checkpoint time; when the render
+/// time passes a checkpoint, the film is snapshotted and compared with the reference. Only the
+/// passes are timed, so the cost of the metrics is not charged to the integrator.
+pub fn measure_run(
+    scene: &Scene,
+    reference: &Image,
+    kind: IntegratorKind,
+    seed: u64,
+    max_depth: Option<u32>,
+    times: &[f64],
+    run: usize,
+) -> Result<Vec<CheckpointRow>, String> {
+    check_reference(scene, reference)?;
+    let mut renderer = Renderer::new(scene, kind, seed, max_depth);
+    let mut seconds = 0.0f64;
+    let mut next = 0;
+    let mut rows = Vec::with_capacity(times.len());
+    while next < times.len() {
+        let start = Instant::now();
+        renderer.pass(1, &|| {});
+        seconds += start.elapsed().as_secs_f64();
+        // a slow pass can pass several checkpoints at once: one row stands for them all
+        let mut passed = None;
+        while next < times.len() && seconds >= times[next] {
+            passed = Some(next);
+            next += 1;
+        }
+        let (Some(checkpoint), Some(film)) = (passed, renderer.film.as_ref()) else {
+            continue;
+        };
+        let m = metrics::compare(&film.image(), reference)?;
+        rows.push(CheckpointRow {
+            integrator: kind.name().to_string(),
+            run,
+            checkpoint,
+            seconds,
+            samples: film.spp,
+            rmse: m.rmse,
+            relmse: m.relmse,
+            efficiency: efficiency(m.relmse, seconds),
+        });
+    }
+    Ok(rows)
+}
+// ANCHOR_END: measure_run
+
+/// Checks that the scene renders an image the reference can be compared with.
+fn check_reference(scene: &Scene, reference: &Image) -> Result<(), String> {
+    let Some(cam) = scene.camera.as_ref() else {
+        return Err(
+            "the scene has no camera: there is no image to compare with the reference".into(),
+        );
+    };
+    if (cam.width, cam.height) != (reference.width, reference.height) {
+        return Err(format!(
+            "the scene renders {}x{} images but the reference is {}x{}",
+            cam.width, cam.height, reference.width, reference.height
+        ));
+    }
+    Ok(())
+}
+
+/// Runs every integrator `config.runs` times for the same budget and returns every checkpoint
+/// row, integrator by integrator, run by run. `on_run` hears of each finished run (progress).
+pub fn converge(
+    scene: &Scene,
+    reference: &Image,
+    kinds: &[IntegratorKind],
+    config: &ConvergeConfig,
+    on_run: &mut dyn FnMut(&[CheckpointRow]),
+) -> Result<Vec<CheckpointRow>, String> {
+    if kinds.is_empty() {
+        return Err("no integrator to measure".into());
+    }
+    if config.runs == 0 {
+        return Err("at least one run is needed".into());
+    }
+    check_reference(scene, reference)?;
+    let times = checkpoint_times(config.budget, config.checkpoints)?;
+    let mut rows = Vec::new();
+    for &kind in kinds {
+        for run in 0..config.runs {
+            let seed = run_seed(config.seed, run);
+            let run_rows =
+                measure_run(scene, reference, kind, seed, config.max_depth, &times, run)?;
+            on_run(&run_rows);
+            rows.extend(run_rows);
+        }
+    }
+    Ok(rows)
+}
+
+/// Writes the rows as `convergence.csv` (header `CSV_HEADER`).
+pub fn write_csv(path: &Path, rows: &[CheckpointRow]) -> Result<(), String> {
+    let err = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path).map_err(err)?);
+    writeln!(f, "{CSV_HEADER}").map_err(err)?;
+    for r in rows {
+        writeln!(
+            f,
+            "{},{},{},{:.9},{},{:.9e},{:.9e},{:.9e}",
+            r.integrator, r.run, r.checkpoint, r.seconds, r.samples, r.rmse, r.relmse, r.efficiency
+        )
+        .map_err(err)?;
+    }
+    f.flush().map_err(err)
+}
+
+/// Images of another renderer as one more line: every `*.exr` in `dir`, its time from a
+/// `seconds` attribute or else from its name (`12.5.exr`), its spp from an `spp` attribute
+/// (0 when absent). The rows are in time order, run 0, checkpoint = rank.
+pub fn external_rows(
+    name: &str,
+    dir: &Path,
+    reference: &Image,
+) -> Result<Vec<CheckpointRow>, String> {
+    let entries =
+        std::fs::read_dir(dir).map_err(|e| format!("--external {name}: {}: {e}", dir.display()))?;
+    let mut found = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        if path.extension().and_then(|e| e.to_str()) != Some("exr") {
+            continue;
+        }
+        let (image, meta) = image_io::read_exr(&path).map_err(|e| e.to_string())?;
+        let seconds = match meta.get("seconds") {
+            Some(s) => s.trim().parse::<f64>().ok(),
+            None => path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .and_then(|s| s.parse::<f64>().ok()),
+        }
+        .filter(|s| *s > 0.0 && s.is_finite())
+        .ok_or_else(|| {
+            format!(
+                "{}: no render time: give it a `seconds` attribute or name it `<seconds>.exr`",
+                path.display()
+            )
+        })?;
+        let samples = meta
+            .get("spp")
+            .and_then(|s| s.trim().parse::<u64>().ok())
+            .unwrap_or(0);
+        let m =
+            metrics::compare(&image, reference).map_err(|e| format!("{}: {e}", path.display()))?;
+        found.push((seconds, samples, m));
+    }
+    if found.is_empty() {
+        return Err(format!(
+            "--external {name}: no .exr images in {}",
+            dir.display()
+        ));
+    }
+    found.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(found
+        .into_iter()
+        .enumerate()
+        .map(|(k, (seconds, samples, m))| CheckpointRow {
+            integrator: name.to_string(),
+            run: 0,
+            checkpoint: k,
+            seconds,
+            samples,
+            rmse: m.rmse,
+            relmse: m.relmse,
+            efficiency: efficiency(m.relmse, seconds),
+        })
+        .collect())
+}
+
+/// One checkpoint of one integrator, over its runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurvePoint {
+    pub checkpoint: usize,
+    /// How many runs reached this checkpoint.
+    pub runs: usize,
+    pub seconds: MeanStderr,
+    pub samples: MeanStderr,
+    pub rmse: MeanStderr,
+    pub relmse: MeanStderr,
+    pub efficiency: MeanStderr,
+}
+
+/// An integrator's convergence curve and its fitted orders.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Curve {
+    pub integrator: String,
+    pub points: Vec<CurvePoint>,
+    /// log relMSE against log seconds (-1 for unbiased Monte Carlo), mean over runs with the
+    /// standard error over runs (one run: the regression's); None below two points.
+    pub relmse_vs_time: Option<PowerLawFit>,
+    /// log RMSE against log samples (-1/2 for unbiased Monte Carlo), as above; None when the
+    /// samples are unknown (0) or fewer than two points.
+    pub rmse_vs_samples: Option<PowerLawFit>,
+}
+
+impl Curve {
+    /// The last checkpoint (the end of the budget).
+    pub fn last(&self) -> Option<&CurvePoint> {
+        self.points.last()
+    }
+}
+
+// ANCHOR: summarize
+/// Groups the rows by integrator (in order of appearance) and checkpoint and takes the mean and
+/// standard error over runs; fits the slopes run by run and combines them over runs
+/// (`stats::combine_fits`), whose spread is an honest standard error where the regression error
+/// of one run, with its correlated checkpoints, is not.
+pub fn summarize(rows: &[CheckpointRow]) -> Vec<Curve> {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.integrator.as_str()) {
+            names.push(&r.integrator);
+        }
+    }
+    names
+        .into_iter()
+        .map(|name| {
+            let mine: Vec<&CheckpointRow> = rows.iter().filter(|r| r.integrator == name).collect();
+            let mut ks: Vec<usize> = mine.iter().map(|r| r.checkpoint).collect();
+            ks.sort_unstable();
+            ks.dedup();
+            let points: Vec<CurvePoint> = ks
+                .into_iter()
+                .map(|k| {
+                    let at: Vec<&&CheckpointRow> =
+                        mine.iter().filter(|r| r.checkpoint == k).collect();
+                    let col = |f: &dyn Fn(&CheckpointRow) -> f64| -> MeanStderr {
+                        stats::mean_stderr(&at.iter().map(|r| f(r)).collect::<Vec<f64>>())
+                    };
+                    CurvePoint {
+                        checkpoint: k,
+                        runs: at.len(),
+                        seconds: col(&|r| r.seconds),
+                        samples: col(&|r| r.samples as f64),
+                        rmse: col(&|r| r.rmse),
+                        relmse: col(&|r| r.relmse),
+                        efficiency: col(&|r| r.efficiency),
+                    }
+                })
+                .collect();
+            let runs: Vec<usize> = {
+                let mut r: Vec<usize> = mine.iter().map(|r| r.run).collect();
+                r.sort_unstable();
+                r.dedup();
+                r
+            };
+            // one fit per run, combined over runs; a single run falls back on its regression error
+            let fit = |x: &dyn Fn(&CheckpointRow) -> f64, y: &dyn Fn(&CheckpointRow) -> f64| {
+                let fits: Vec<PowerLawFit> = runs
+                    .iter()
+                    .filter_map(|&run| {
+                        let at: Vec<&&CheckpointRow> =
+                            mine.iter().filter(|r| r.run == run).collect();
+                        let xs: Vec<f64> = at.iter().map(|r| x(r)).collect();
+                        let ys: Vec<f64> = at.iter().map(|r| y(r)).collect();
+                        stats::fit_power_law(&xs, &ys).ok()
+                    })
+                    .collect();
+                match fits.len() {
+                    0 => None,
+                    1 => Some(fits[0]),
+                    _ => stats::combine_fits(&fits).ok(),
+                }
+            };
+            Curve {
+                integrator: name.to_string(),
+                relmse_vs_time: fit(&|r| r.seconds, &|r| r.relmse),
+                rmse_vs_samples: fit(&|r| r.samples as f64, &|r| r.rmse),
+                points,
+            }
+        })
+        .collect()
+}
+// ANCHOR_END: summarize

@@ -1,0 +1,623 @@
+//! The executable specification of the chapter "Measuring a renderer": error metrics against
+//! hand-computed values, the least-squares power-law fit on exact power laws, the convergence
+//! study's CSV, the order of convergence of the path tracer (an oracle: a white-furnace-like
+//! scene whose pixels are exactly albedo x radiance), the variance-based estimate, the heatmap,
+//! and the reference's refusal to overwrite another scene's reference.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use approx::assert_relative_eq;
+use pathspace::image_io::{self, Image, ImageMeta};
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::measure::convergence::{self, CheckpointRow, ConvergeConfig, CSV_HEADER};
+use pathspace::measure::{chart, heatmap, metrics, stats};
+use pathspace::scene::{Scene, SceneSource};
+use pathspace::spectrum::Rgb;
+
+/// Albedo of the furnace quad and radiance of its environment: every pixel converges to their
+/// product (the quad is flat, so it never sees itself, and it fills the view).
+const ALBEDO: f32 = 0.5;
+const RADIANCE: f32 = 1.0;
+
+/// A 16x16 camera looking at a huge lambert quad under a constant environment: smooth (every
+/// pixel has the same exact value ALBEDO x RADIANCE) yet noisy (light sampling of the sky).
+fn furnace_toml(albedo: f32) -> String {
+    format!(
+        r#"
+[render]
+seed = 7
+
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 1.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 40.0
+resolution = [16, 16]
+
+[materials.grey]
+type = "lambert"
+albedo = {albedo}
+
+[[shapes]]
+type = "quad"
+origin = [-50.0, -50.0, 0.0]
+u = [100.0, 0.0, 0.0]
+v = [0.0, 100.0, 0.0]
+material = "grey"
+
+[[lights]]
+type = "environment"
+radiance = {RADIANCE}
+"#
+    )
+}
+
+fn furnace() -> Scene {
+    Scene::load(&SceneSource::embedded(
+        "furnace.toml",
+        &furnace_toml(ALBEDO),
+    ))
+    .expect("the furnace scene loads")
+}
+
+/// The exact image of the furnace scene, times `scale`.
+fn exact(scale: f32) -> Image {
+    let mut image = Image::new(16, 16);
+    image.pixels.fill(Rgb::splat(ALBEDO * RADIANCE * scale));
+    image
+}
+
+/// A fresh directory under the test target's scratch space.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("measure")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn img(width: u32, height: u32, pixels: &[[f32; 3]]) -> Image {
+    Image {
+        width,
+        height,
+        pixels: pixels.iter().map(|p| Rgb::from_array(*p)).collect(),
+    }
+}
+
+#[test]
+fn metrics_match_hand_computed_values() {
+    let a = img(2, 1, &[[1.0, 2.0, 3.0], [0.0, 0.0, 0.0]]);
+    let b = img(2, 1, &[[1.0, 1.0, 1.0], [2.0, 0.0, 0.0]]);
+    let m = metrics::compare(&a, &b).unwrap();
+    // differences (0, 1, 2) and (-2, 0, 0): squared sum 9 over 6 values
+    assert_relative_eq!(m.rmse, (9.0f64 / 6.0).sqrt(), max_relative = 1e-12);
+    let eps = metrics::RELMSE_EPSILON;
+    let rel = (1.0 / (1.0 + eps) + 4.0 / (1.0 + eps) + 4.0 / (4.0 + eps)) / 6.0;
+    assert_relative_eq!(m.relmse, rel, max_relative = 1e-12);
+    assert_relative_eq!(m.max_abs, 2.0);
+    assert!(metrics::compare(&a, &img(1, 1, &[[0.0; 3]]))
+        .unwrap_err()
+        .contains("differ in size"));
+}
+
+#[test]
+fn power_law_fit_recovers_exact_power_laws() {
+    for (c, s) in [(3.0, -0.5), (0.02, -1.0), (7.0, 0.25)] {
+        let x: Vec<f64> = (0..8).map(|k| 2f64.powi(k)).collect();
+        let y: Vec<f64> = x.iter().map(|x| c * x.powf(s)).collect();
+        let fit = stats::fit_power_law(&x, &y).unwrap();
+        assert_relative_eq!(fit.slope, s, epsilon = 1e-12);
+        assert_relative_eq!(fit.intercept, f64::ln(c), epsilon = 1e-12);
+        assert!(
+            fit.slope_stderr < 1e-12,
+            "an exact power law has no residual: {}",
+            fit.slope_stderr
+        );
+        assert_relative_eq!(fit.predict(3.0), c * 3f64.powf(s), max_relative = 1e-12);
+    }
+    // by hand: ln x = 0, 1, 2 and ln y = 0, 1, 3: S_xx = 2, S_xy = 3, slope 3/2, residuals
+    // (1/6, -1/3, 1/6), SSR = 1/6, se = sqrt(SSR / (n - 2) / S_xx) = sqrt(1/12)
+    let x = [1.0, 1f64.exp(), 2f64.exp()];
+    let y = [1.0, 1f64.exp(), 3f64.exp()];
+    let fit = stats::fit_power_law(&x, &y).unwrap();
+    assert_relative_eq!(fit.slope, 1.5, epsilon = 1e-12);
+    assert_relative_eq!(fit.intercept, -1.0 / 6.0, epsilon = 1e-12);
+    assert_relative_eq!(fit.slope_stderr, (1.0f64 / 12.0).sqrt(), epsilon = 1e-12);
+    // independent runs: mean slope, standard error from their spread
+    let fits: Vec<stats::PowerLawFit> = [-0.4, -0.5, -0.6]
+        .iter()
+        .map(|&s| stats::PowerLawFit {
+            slope: s,
+            slope_stderr: 0.0,
+            intercept: 1.0,
+            points: 5,
+        })
+        .collect();
+    let combined = stats::combine_fits(&fits).unwrap();
+    assert_relative_eq!(combined.slope, -0.5, epsilon = 1e-12);
+    // sample s.d. 0.1 over 3 runs: se = 0.1 / sqrt(3)
+    assert_relative_eq!(combined.slope_stderr, 0.1 / 3f64.sqrt(), epsilon = 1e-12);
+    assert_eq!(combined.points, 15);
+    assert!(stats::combine_fits(&fits[..1]).is_err());
+    // two points: a slope but no standard error
+    assert!(stats::fit_power_law(&[1.0, 2.0], &[1.0, 0.5])
+        .unwrap()
+        .slope_stderr
+        .is_nan());
+}
+
+#[test]
+fn power_law_fit_rejects_bad_input() {
+    assert!(stats::fit_power_law(&[1.0], &[1.0])
+        .unwrap_err()
+        .contains("at least 2"));
+    assert!(stats::fit_power_law(&[1.0, 2.0], &[1.0, 0.0])
+        .unwrap_err()
+        .contains("positive"));
+    assert!(stats::fit_power_law(&[2.0, 2.0, 2.0], &[1.0, 2.0, 3.0])
+        .unwrap_err()
+        .contains("same"));
+    assert!(stats::fit_power_law(&[1.0, 2.0], &[1.0]).is_err());
+}
+
+#[test]
+fn mean_and_standard_error_by_hand() {
+    let m = stats::mean_stderr(&[1.0, 2.0, 3.0, 4.0]);
+    assert_relative_eq!(m.mean, 2.5);
+    // sample variance 5/3, standard error sqrt(5/3 / 4)
+    assert_relative_eq!(m.stderr, (5.0f64 / 12.0).sqrt(), epsilon = 1e-12);
+    assert_eq!(stats::mean_stderr(&[4.0]).stderr, 0.0);
+}
+
+#[test]
+fn checkpoints_are_geometric_up_to_the_budget() {
+    let t = convergence::checkpoint_times(10.0, 5).unwrap();
+    assert_eq!(t.len(), 5);
+    assert_relative_eq!(
+        t[0],
+        10.0 * convergence::FIRST_CHECKPOINT_FRACTION,
+        epsilon = 1e-12
+    );
+    assert_relative_eq!(t[4], 10.0, epsilon = 1e-12);
+    for w in t.windows(3) {
+        assert_relative_eq!(w[1] / w[0], w[2] / w[1], epsilon = 1e-12);
+    }
+    assert_eq!(convergence::checkpoint_times(3.0, 1).unwrap(), vec![3.0]);
+    assert!(convergence::checkpoint_times(0.0, 4).is_err());
+    assert!(convergence::checkpoint_times(f64::NAN, 4).is_err());
+    assert!(convergence::checkpoint_times(1.0, 0).is_err());
+}
+
+fn rows_of(csv: &str) -> Vec<Vec<String>> {
+    csv.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn converge_writes_the_csv_and_charts() {
+    let scene = furnace();
+    let dir = scratch("converge");
+    let config = ConvergeConfig {
+        budget: 0.2,
+        checkpoints: 6,
+        runs: 2,
+        seed: 1,
+        max_depth: None,
+    };
+    let mut runs_heard = 0;
+    let rows = convergence::converge(
+        &scene,
+        &exact(1.0),
+        &[IntegratorKind::Path],
+        &config,
+        &mut |_| runs_heard += 1,
+    )
+    .unwrap();
+    assert_eq!(runs_heard, 2);
+    let csv_path = dir.join("convergence.csv");
+    convergence::write_csv(&csv_path, &rows).unwrap();
+    let csv = std::fs::read_to_string(&csv_path).unwrap();
+    assert_eq!(
+        csv.lines().next(),
+        Some("integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency")
+    );
+    assert_eq!(
+        CSV_HEADER,
+        "integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency"
+    );
+    let table = rows_of(&csv);
+    assert_eq!(table.len(), rows.len());
+    for run in ["0", "1"] {
+        let mine: Vec<&Vec<String>> = table
+            .iter()
+            .filter(|r| r[0] == "path" && r[1] == run)
+            .collect();
+        assert!(
+            mine.len() >= 2,
+            "run {run} recorded {} checkpoints",
+            mine.len()
+        );
+        let seconds: Vec<f64> = mine.iter().map(|r| r[3].parse().unwrap()).collect();
+        let samples: Vec<u64> = mine.iter().map(|r| r[4].parse().unwrap()).collect();
+        let ks: Vec<usize> = mine.iter().map(|r| r[2].parse().unwrap()).collect();
+        assert!(
+            seconds.windows(2).all(|w| w[0] < w[1]),
+            "time must increase: {seconds:?}"
+        );
+        assert!(
+            samples.windows(2).all(|w| w[0] < w[1]),
+            "samples must increase: {samples:?}"
+        );
+        assert!(
+            ks.windows(2).all(|w| w[0] < w[1]),
+            "checkpoints must increase: {ks:?}"
+        );
+        assert_eq!(*ks.last().unwrap(), 5, "the last checkpoint is the budget");
+        assert!(*seconds.last().unwrap() >= 0.2);
+        for r in &mine {
+            let (relmse, secs, eff): (f64, f64, f64) = (
+                r[6].parse().unwrap(),
+                r[3].parse().unwrap(),
+                r[7].parse().unwrap(),
+            );
+            assert_relative_eq!(eff, 1.0 / (relmse * secs), max_relative = 1e-4);
+        }
+    }
+    let curves = convergence::summarize(&rows);
+    assert_eq!(curves.len(), 1);
+    assert!(curves[0].relmse_vs_time.is_some());
+    let written = chart::write_charts(&dir, &curves, Some(1e-5)).unwrap();
+    assert_eq!(written.len(), 4);
+    for name in [
+        "error-vs-time.svg",
+        "error-vs-time.png",
+        "efficiency.svg",
+        "efficiency.png",
+    ] {
+        assert!(
+            dir.join(name).metadata().unwrap().len() > 1000,
+            "{name} is missing or empty"
+        );
+    }
+    assert_eq!(png_size(&dir.join("error-vs-time.png")), chart::CHART_SIZE);
+    let svg = std::fs::read_to_string(dir.join("error-vs-time.svg")).unwrap();
+    assert!(
+        svg.contains("relMSE (dimensionless)")
+            && svg.contains("slope")
+            && svg.contains("reference noise"),
+        "axis label or legend missing"
+    );
+}
+
+/// Runs of the order-of-convergence test; the slope's standard error comes from their spread.
+const ORDER_RUNS: usize = 8;
+/// Two-sided significance level of the order-of-convergence test.
+const ORDER_ALPHA: f64 = 1e-3;
+
+/// Is the fitted order of convergence of RMSE against samples -1/2 at significance ORDER_ALPHA
+/// (Student's t with R - 1 degrees of freedom, as the standard error is estimated from R
+/// independent runs), with a standard error small enough (< 0.05) for the test to mean something?
+fn is_order_one_half(rows: &[CheckpointRow]) -> (bool, f64, f64) {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    let curve = &convergence::summarize(rows)[0];
+    let fit = curve.rmse_vs_samples.expect("enough checkpoints to fit");
+    let t = StudentsT::new(0.0, 1.0, (ORDER_RUNS - 1) as f64)
+        .unwrap()
+        .inverse_cdf(1.0 - ORDER_ALPHA / 2.0);
+    let ok = (fit.slope + 0.5).abs() <= t * fit.slope_stderr && fit.slope_stderr < 0.05;
+    (ok, fit.slope, fit.slope_stderr)
+}
+
+#[test]
+fn path_tracer_rmse_falls_as_samples_to_the_minus_one_half() {
+    let scene = furnace();
+    let config = ConvergeConfig {
+        budget: 0.15,
+        checkpoints: 10,
+        runs: ORDER_RUNS,
+        seed: 3,
+        max_depth: None,
+    };
+    let rows = convergence::converge(
+        &scene,
+        &exact(1.0),
+        &[IntegratorKind::Path],
+        &config,
+        &mut |_| {},
+    )
+    .unwrap();
+    let (ok, slope, se) = is_order_one_half(&rows);
+    eprintln!("unbiased: RMSE ~ samples^{slope:.3} +- {se:.3}");
+    assert!(ok, "RMSE ~ samples^{slope:.3} +- {se:.3}, expected -0.5");
+
+    // the check can fail: against a reference 2 % off (as a biased estimator would be), the
+    // error stalls at the bias and the fitted order is far from 1/2
+    let rows = convergence::converge(
+        &scene,
+        &exact(1.02),
+        &[IntegratorKind::Path],
+        &config,
+        &mut |_| {},
+    )
+    .unwrap();
+    let (ok, slope, se) = is_order_one_half(&rows);
+    eprintln!("2 % off: RMSE ~ samples^{slope:.3} +- {se:.3}");
+    assert!(
+        !ok,
+        "a 2 % bias went unnoticed: slope {slope:.3} +- {se:.3}"
+    );
+}
+
+#[test]
+fn variance_estimate_predicts_the_measured_relmse() {
+    let scene = furnace();
+    let mut renderer = Renderer::new(&scene, IntegratorKind::Path, 11, None);
+    for _ in 0..16 {
+        renderer.pass(4, &|| {});
+    }
+    let film = renderer.film.as_ref().unwrap();
+    let estimated = stats::estimated_relmse(&film.image(), &film.variance_of_mean()).unwrap();
+    let measured = metrics::compare(&film.image(), &exact(1.0)).unwrap().relmse;
+    // 256 pixels x 1 independent channel: the measured relMSE itself scatters by about
+    // sqrt(2/256) = 9 %, so 0.7..1.4 is a 4-sigma band
+    let ratio = measured / estimated;
+    assert!(
+        (0.7..1.4).contains(&ratio),
+        "measured {measured:.3e} against estimated {estimated:.3e}"
+    );
+}
+
+fn png_size(path: &Path) -> (u32, u32) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let reader = decoder.read_info().unwrap();
+    let info = reader.info();
+    (info.width, info.height)
+}
+
+fn png_pixels(path: &Path) -> Vec<u8> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    buf
+}
+
+#[test]
+fn heatmap_is_a_png_of_the_image_size_with_the_documented_colours() {
+    let dir = scratch("heatmap");
+    let (w, h) = (5, 3);
+    let b = img(w, h, &[[1.0; 3]; 15]);
+    let mut a = b.clone();
+    a.pixels[1] = Rgb::splat(3.0); // relative error ~2: past the top of the scale
+    a.pixels[2] = Rgb::splat(1.0 + 1e-1 * (1.0 + metrics::RELMSE_EPSILON).sqrt() as f32); // 10 %
+    let out = dir.join("heat.png");
+    heatmap::write_heatmap(&out, &a, &b).unwrap();
+    assert_eq!(png_size(&out), (w, h));
+    let px = png_pixels(&out);
+    assert_eq!(px.len(), (w * h * 3) as usize);
+    assert_eq!(
+        &px[0..3],
+        &heatmap::VIRIDIS[0],
+        "no error: the bottom colour"
+    );
+    assert_eq!(
+        &px[3..6],
+        &heatmap::VIRIDIS[8],
+        "error past 100 %: the top colour"
+    );
+    // 10 % = 10^-1 sits at 2/3 of the log scale from 10^-3 to 10^0
+    assert_eq!(&px[6..9], &heatmap::viridis(2.0 / 3.0));
+    let errors = heatmap::relative_error(&a, &b).unwrap();
+    assert_relative_eq!(errors[2], 0.1, max_relative = 1e-5);
+    assert!(heatmap::write_heatmap(&out, &a, &img(1, 1, &[[0.0; 3]])).is_err());
+}
+
+#[test]
+fn external_images_are_read_in_time_order() {
+    let dir = scratch("external");
+    let reference = exact(1.0);
+    image_io::write_exr(&dir.join("2.5.exr"), &exact(1.1), &ImageMeta::default()).unwrap();
+    let mut meta = ImageMeta::default();
+    meta.set("seconds", 0.5).set("spp", 16);
+    image_io::write_exr(&dir.join("early.exr"), &exact(1.2), &meta).unwrap();
+    let rows = convergence::external_rows("peer", &dir, &reference).unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(
+        (rows[0].seconds, rows[0].samples, rows[0].checkpoint),
+        (0.5, 16, 0)
+    );
+    assert_eq!(
+        (rows[1].seconds, rows[1].samples, rows[1].checkpoint),
+        (2.5, 0, 1)
+    );
+    assert!(rows[0].relmse > rows[1].relmse);
+    image_io::write_exr(&dir.join("unnamed.exr"), &exact(1.0), &ImageMeta::default()).unwrap();
+    let err = convergence::external_rows("peer", &dir, &reference).unwrap_err();
+    assert!(err.contains("seconds"), "{err}");
+}
+
+fn pathspace(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+#[test]
+fn a_reference_of_another_scene_is_refused() {
+    let dir = scratch("refuse");
+    let a = dir.join("a.toml");
+    let b = dir.join("b.toml");
+    std::fs::write(&a, furnace_toml(0.5)).unwrap();
+    std::fs::write(&b, furnace_toml(0.8)).unwrap();
+    let reference = dir.join("ref.exr");
+    let (a, b, r) = (
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        reference.to_str().unwrap(),
+    );
+
+    let out = pathspace(&["reference", a, "--spp", "4", "-o", r, "--threads", "1"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (_, meta) = image_io::read_exr(&reference).unwrap();
+    assert_eq!(meta.get("spp"), Some("4"));
+    assert_eq!(meta.get("integrator"), Some("path"));
+    assert_eq!(meta.get("scene_hash").map(str::len), Some(16));
+    // the same scene may refresh its own reference
+    let out = pathspace(&["reference", a, "--spp", "8", "-o", r, "--seed", "5"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        image_io::read_exr(&reference).unwrap().1.get("seed"),
+        Some("5")
+    );
+
+    let out = pathspace(&["reference", b, "--spp", "4", "-o", r]);
+    assert!(
+        !out.status.success(),
+        "another scene's reference was overwritten"
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("refusing to overwrite") && stderr.contains("another scene"),
+        "{stderr}"
+    );
+    assert_eq!(
+        image_io::read_exr(&reference).unwrap().1.get("spp"),
+        Some("8"),
+        "the file was touched"
+    );
+
+    // and converge will not measure scene b against it
+    let out = pathspace(&[
+        "converge",
+        b,
+        "--reference",
+        r,
+        "--budget",
+        "0.01",
+        "-o",
+        dir.join("c").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("another scene"));
+
+    // bad numbers are errors, not panics
+    let c = dir.join("c");
+    let c = c.to_str().unwrap();
+    for bad in [
+        &["converge", a, "--reference", r, "--budget", "-1", "-o", c][..],
+        &[
+            "converge",
+            a,
+            "--reference",
+            r,
+            "--budget",
+            "1",
+            "--checkpoints",
+            "0",
+            "-o",
+            c,
+        ],
+        &[
+            "converge",
+            a,
+            "--reference",
+            r,
+            "--budget",
+            "1",
+            "--integrators",
+            "nope",
+            "-o",
+            c,
+        ],
+        &["reference", a, "--spp", "0", "-o", r],
+    ] {
+        let out = pathspace(bad);
+        assert_eq!(
+            out.status.code(),
+            Some(1),
+            "{bad:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+#[test]
+fn diff_writes_a_heatmap_and_render_reports_its_estimated_relmse() {
+    let dir = scratch("cli");
+    let scene = dir.join("f.toml");
+    std::fs::write(&scene, furnace_toml(0.5)).unwrap();
+    let (s, x) = (scene.to_str().unwrap(), dir.join("x.exr"));
+    let out = pathspace(&[
+        "render",
+        s,
+        "--spp",
+        "8",
+        "--json",
+        "-o",
+        x.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(json["estimated_relmse"].as_f64().unwrap() > 0.0, "{json}");
+
+    let reference = dir.join("exact.exr");
+    image_io::write_exr(&reference, &exact(1.0), &ImageMeta::default()).unwrap();
+    let heat = dir.join("heat.png");
+    let out = pathspace(&[
+        "diff",
+        x.to_str().unwrap(),
+        reference.to_str().unwrap(),
+        "--heatmap",
+        heat.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(png_size(&heat), (16, 16));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("#440154") && stdout.contains("#fde725"),
+        "the legend is printed: {stdout}"
+    );
+}
+
+/// mdBook prints an empty listing when an anchor is missing: every include of the chapter must
+/// name an existing, non-empty anchor.
+#[test]
+fn the_chapter_includes_existing_anchors() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let chapter = std::fs::read_to_string(root.join("book/src/measuring.md")).unwrap();
+    let mut count = 0;
+    for part in chapter.split("{{#include ").skip(1) {
+        let spec = part.split("}}").next().unwrap();
+        let (file, anchor) = spec.rsplit_once(':').expect("includes name an anchor");
+        let source = std::fs::read_to_string(root.join("book/src").join(file))
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        let start = format!("// ANCHOR: {anchor}\n");
+        let end = format!("// ANCHOR_END: {anchor}");
+        let body = source
+            .split_once(&start)
+            .and_then(|(_, rest)| rest.split_once(&end))
+            .map(|(body, _)| body)
+            .unwrap_or_else(|| panic!("{file} has no anchor {anchor}"));
+        assert!(body.trim().len() > 20, "{file}:{anchor} is empty");
+        count += 1;
+    }
+    assert!(count >= 4, "the chapter includes only {count} listings");
+}
