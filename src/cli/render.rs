@@ -161,10 +161,9 @@ pub fn render_scene(
         nan_count: r.nan_count,
         image: r.film.as_ref().map(|f| f.image()),
         meters: r.meter_estimates(),
-        estimated_relmse: r
-            .film
-            .as_ref()
-            .and_then(|f| crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()),
+        estimated_relmse: r.film.as_ref().and_then(|f| {
+            crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
+        }),
     }
 }
 
