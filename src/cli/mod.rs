@@ -5,6 +5,7 @@ pub mod diff;
 pub mod info;
 pub mod reference;
 pub mod render;
+pub mod rooms;
 
 use clap::{Parser, Subcommand};
 
@@ -28,6 +29,8 @@ pub enum Command {
     Converge(converge::ConvergeArgs),
     /// Validate a scene and print what it contains.
     Info(info::InfoArgs),
+    /// Write the N x N rooms scene of Pauly et al. Fig. 8 (many lights, one medium).
+    Rooms(rooms::RoomsArgs),
 }
 
 /// Runs the command line; returns the process exit code.
@@ -39,6 +42,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Converge(a)) => converge::run(a),
         Some(Command::Info(a)) => info::run(a),
+        Some(Command::Rooms(a)) => rooms::run(a),
     }
 }
 

@@ -40,6 +40,13 @@ pub struct RenderArgs {
     /// PNG preview (default: next to the EXR).
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// bdpt only: also write each (s, t) strategy's MIS-weighted image to this directory, as
+    /// `s{S}-t{T}.exr` and `.png`, for paths of up to `--strategy-depth` scattering vertices.
+    #[arg(long)]
+    pub strategy_images: Option<PathBuf>,
+    /// Deepest strategies written by `--strategy-images` (default 3).
+    #[arg(long, default_value_t = 3)]
+    pub strategy_depth: u32,
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
@@ -206,6 +213,35 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let pool = pool
         .build()
         .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    if let Some(dir) = &args.strategy_images {
+        if kind != IntegratorKind::Bdpt {
+            return Err("--strategy-images needs --integrator bdpt".into());
+        }
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        let films = pool.install(|| {
+            crate::integrator::Renderer::new(&scene, kind, seed, max_depth)
+                .strategy_images(spp, args.strategy_depth)
+        });
+        for ((s, t), film) in &films {
+            let img = film.image();
+            let base = dir.join(format!("s{s}-t{t}"));
+            let mut meta = ImageMeta::default();
+            meta.set(
+                "integrator",
+                format!("bdpt strategy s={s} t={t} (MIS-weighted)"),
+            )
+            .set("spp", spp)
+            .set("seed", seed)
+            .set("scene_hash", format!("{:016x}", source.hash()));
+            image_io::write_exr(&base.with_extension("exr"), &img, &meta)
+                .map_err(|e| e.to_string())?;
+            image_io::write_png(&base.with_extension("png"), &img).map_err(|e| e.to_string())?;
+        }
+        if !args.json {
+            eprintln!("wrote {} strategy images to {}", films.len(), dir.display());
+        }
+    }
     let result =
         pool.install(|| render_scene(&scene, kind, spp, args.time, seed, max_depth, !args.json));
 

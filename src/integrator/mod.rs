@@ -290,6 +290,80 @@ impl<'a> Renderer<'a> {
         }
     }
 
+    /// BDPT's strategies one by one (MIS-weighted, so they sum to the BDPT image): one image per
+    /// (s, t) with s + t - 2 <= `max_depth_shown` scattering vertices, a user's favourite
+    /// debugging view. One pass of `spp` samples per pixel, deterministic like `pass`.
+    pub fn strategy_images(
+        &self,
+        spp: u32,
+        max_depth_shown: u32,
+    ) -> std::collections::BTreeMap<(usize, usize), Film> {
+        let mut films = std::collections::BTreeMap::new();
+        let (Some(b), Some(cam)) = (self.bdpt.as_ref(), self.scene.camera.as_ref()) else {
+            return films;
+        };
+        let scene = self.scene;
+        let seed = self.seed;
+        let pass = self.passes;
+        let (w, h) = (cam.width, cam.height);
+        type Row = Vec<(usize, usize, Option<glam::Vec2>, usize, Rgb)>;
+        let rows: Vec<Row> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut out = Vec::new();
+                let mut scratch = bdpt::Scratch::default();
+                for x in 0..w {
+                    let index = (y * w + x) as usize;
+                    let mut sampler = Sampler::new(seed, index as u64, pass);
+                    for _ in 0..spp {
+                        let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                        b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
+                        b.light_subpath(scene, &mut sampler, &mut scratch.light);
+                        for t in 1..=scratch.eye.len() {
+                            for s in 0..=scratch.light.len() {
+                                let depth = s + t;
+                                if depth < 2
+                                    || depth - 2 > max_depth_shown as usize
+                                    || depth - 2 > b.max_depth as usize
+                                {
+                                    continue;
+                                }
+                                if let Some((l, r)) = b.connect(
+                                    scene,
+                                    &scratch.light,
+                                    &scratch.eye,
+                                    s,
+                                    t,
+                                    &mut sampler,
+                                ) {
+                                    if l.is_finite() {
+                                        out.push((s, t, r, index, l));
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        for row in rows {
+            for (s, t, r, index, l) in row {
+                let film = films.entry((s, t)).or_insert_with(|| {
+                    let mut f = Film::new(w, h);
+                    f.spp = spp as u64;
+                    f.splat_count = (w * h) as u64 * spp as u64;
+                    f
+                });
+                match r {
+                    Some(r) => film.add_splat(r, l),
+                    None => film.add_pixel(index, [l.x as f64, l.y as f64, l.z as f64], [0.0; 3]),
+                }
+            }
+        }
+        films
+    }
+
     /// Every meter's estimate.
     pub fn meter_estimates(&self) -> Vec<MeterEstimate> {
         self.scene

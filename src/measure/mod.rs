@@ -14,9 +14,21 @@ use crate::scene::Scene;
 
 // ANCHOR: reference_integrator
 /// The integrator a reference is rendered with: the most robust one available (the one whose
-/// estimate converges to the right answer on every scene, however slowly). Today only the path
-/// tracer exists; when BDPT lands it will be the better choice for caustics through media.
-pub fn reference_integrator(_scene: &Scene) -> IntegratorKind {
-    IntegratorKind::Path
+/// estimate converges to the right answer on the scene, however slowly). The path tracer cannot
+/// sample light that reaches a Dirac light (point, spot) only through singular surfaces (glass,
+/// mirrors), so scenes with both get BDPT; every other scene gets the path tracer, which is
+/// faster per sample and has per-pixel variance estimates.
+pub fn reference_integrator(scene: &Scene) -> IntegratorKind {
+    let delta_light = scene.lights.iter().any(|l| l.is_delta());
+    let singular = scene.shapes.iter().any(|s| {
+        s.bsdf
+            .as_ref()
+            .is_some_and(|b| b.is_singular() && !b.is_null())
+    });
+    if delta_light && singular {
+        IntegratorKind::Bdpt
+    } else {
+        IntegratorKind::Path
+    }
 }
 // ANCHOR_END: reference_integrator
