@@ -191,7 +191,7 @@ impl Bdpt {
             }
             let cur = path.len() - 1;
             let wo = -ray.d;
-            let (wi, pdf_fwd_dir, pdf_rev_dir) = match v.kind {
+            let (pdf_fwd_dir, pdf_rev_dir) = match v.kind {
                 VertexKind::Medium { medium: m } => {
                     let phase = scene.media[m as usize].phase();
                     let ps = phase.sample(wo, sampler.next_2d());
@@ -204,7 +204,7 @@ impl Bdpt {
                     origin_in_medium = true;
                     ray = Ray::new(v.p, ps.wi);
                     lead = 0.0;
-                    (ps.wi, ps.pdf, phase.pdf(ps.wi, wo))
+                    (ps.pdf, phase.pdf(ps.wi, wo))
                 }
                 VertexKind::Surface { .. } => {
                     let Some(bsdf) = v.bsdf(scene) else { return };
@@ -224,14 +224,13 @@ impl Bdpt {
                     lead = (ray.o - v.p).dot(bs.wi);
                     if bs.lobe.is_singular() {
                         path[cur].delta = true;
-                        (bs.wi, 0.0, 0.0)
+                        (0.0, 0.0)
                     } else {
-                        (bs.wi, bs.pdf, bsdf.pdf(bs.wi, wo, v.n))
+                        (bs.pdf, bsdf.pdf(bs.wi, wo, v.n))
                     }
                 }
                 _ => return,
             };
-            let _ = wi;
             pdf_dir = pdf_fwd_dir;
             // the predecessor as sampled from here (the reverse walk)
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
@@ -396,7 +395,7 @@ impl Bdpt {
             ),
         };
         v0.beta = es.value;
-        v0.pdf_fwd = v0.light_origin_pdf(scene, es.p + es.d);
+        v0.pdf_fwd = v0.light_origin_pdf(scene);
         if let VertexKind::InfiniteLight { .. } = v0.kind {
             v0.pdf_fwd = match light {
                 Light::Environment(_) => pmf * es.pdf_dir,
@@ -475,7 +474,7 @@ impl Bdpt {
         // pt as sampled from the light side
         pt.pdf_rev = match &qs {
             Some(q) => q.pdf_area(scene, qs_minus.map(|v| v.p), &pt) * conn_pdf_qp,
-            None => pt.light_origin_pdf(scene, pt_minus.map_or(pt.p, |v| v.p)),
+            None => pt.light_origin_pdf(scene),
         };
         if let Some(pm) = pt_minus.as_mut() {
             pm.pdf_rev = match &qs {
@@ -605,7 +604,7 @@ impl Bdpt {
                     None,
                 ),
             };
-            v.pdf_fwd = v.light_origin_pdf(scene, pt.p);
+            v.pdf_fwd = v.light_origin_pdf(scene);
             v.beta = ls.value / (pmf * ls.pdf);
             let f = if t == 1 {
                 // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
@@ -716,9 +715,6 @@ impl Bdpt {
         }
         if self.strategies == Strategies::All {
             l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
-        }
-        if let Strategies::Only(..) = self.strategies {
-            // unweighted, but a Dirac light or lobe at the joint makes the strategy impossible
         }
         Some((l, raster))
     }

@@ -48,7 +48,7 @@ pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities
         d.prop_down[i] = e.pdf_ba;
     }
     // from the light
-    d.light[0] = v[0].light_origin_pdf(scene, v[1].p);
+    d.light[0] = v[0].light_origin_pdf(scene);
     for i in 1..n {
         let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
         d.light[i] = v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1];

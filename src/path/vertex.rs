@@ -268,8 +268,7 @@ impl Vertex {
     }
 
     /// Density (in its own measure) of choosing this light vertex as the start of a light path.
-    pub fn light_origin_pdf(&self, scene: &Scene, towards: Vec3) -> f32 {
-        let _ = towards;
+    pub fn light_origin_pdf(&self, scene: &Scene) -> f32 {
         match self.kind {
             VertexKind::Light { light, prim } => {
                 let pmf = scene.light_pmf(light);
