@@ -63,3 +63,42 @@ fn fog_box_matches_golden() {
         insta::assert_yaml_snapshot!("fog_box_32_blocks", summary);
     });
 }
+
+/// The slab's meters at 16 spp against golden values from a 512-spp run
+/// (`pathspace render scenes/slab.toml --spp 512 --seed 2024 --json > golden/slab-meters.json`),
+/// within 4 standard errors of both; the rounded values are pinned by an insta snapshot.
+#[test]
+fn slab_meters_match_golden() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let source = SceneSource::read(&root.join("scenes/slab.toml")).unwrap();
+    let scene = Scene::load(&source).unwrap();
+    let golden: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root.join("golden/slab-meters.json")).unwrap(),
+    )
+    .unwrap();
+    let mut r = Renderer::new(&scene, IntegratorKind::Path, 1, None);
+    r.pass(16, &|| {});
+    let mut summary = Vec::new();
+    for m in r.meter_estimates() {
+        let g = golden["sensors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["name"] == m.name.as_str())
+            .unwrap();
+        let gv = g["value"][0].as_f64().unwrap();
+        let gs = g["stderr"][0].as_f64().unwrap();
+        let se = ((m.stderr.x as f64).powi(2) + gs * gs).sqrt();
+        assert!(
+            ((m.value.x as f64) - gv).abs() <= K_SIGMA * se,
+            "meter {}: {} vs golden {gv} (+- {se})",
+            m.name,
+            m.value.x
+        );
+        summary.push(format!("{} {:.2}", m.name, m.value.x));
+    }
+    assert_eq!(r.nan_count, 0);
+    insta::with_settings!({snapshot_path => "../golden", prepend_module_to_snapshot => false}, {
+        insta::assert_yaml_snapshot!("slab_meters", summary);
+    });
+}
