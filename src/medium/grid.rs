@@ -80,9 +80,7 @@ impl Grid {
             .enumerate()
             .find(|(_, v)| !v.is_finite() || **v < 0.0)
         {
-            return Err(format!(
-                "value #{i} = {v} is not a finite density >= 0"
-            ));
+            return Err(format!("value #{i} = {v} is not a finite density >= 0"));
         }
         Ok(Grid { res, values })
     }
@@ -225,8 +223,12 @@ pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
         location,
         message,
     };
-    let bytes = std::fs::read(path).map_err(|e| err("(file)".into(), format!("cannot read: {e}")))?;
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("vol")) {
+    let bytes =
+        std::fs::read(path).map_err(|e| err("(file)".into(), format!("cannot read: {e}")))?;
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
+    {
         parse_vol(&bytes).map_err(|(loc, msg)| err(loc, msg))
     } else {
         let text = String::from_utf8(bytes)
@@ -318,7 +320,10 @@ pub fn parse_vol(b: &[u8]) -> Result<GridFile, (String, String)> {
         return Err((at(0), "does not start with `VOL`".into()));
     }
     if b[3] != VOL_VERSION {
-        return Err((at(3), format!("version {} (only {VOL_VERSION} is read)", b[3])));
+        return Err((
+            at(3),
+            format!("version {} (only {VOL_VERSION} is read)", b[3]),
+        ));
     }
     let i32_at = |o: usize| i32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
     let f32_at = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);

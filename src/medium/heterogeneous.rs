@@ -154,7 +154,10 @@ struct Local {
 enum Walk {
     /// A collision at `t` where the density (the marched box value, or the true density for
     /// tracking) is `f`.
-    Collision { t: f32, f: f32 },
+    Collision {
+        t: f32,
+        f: f32,
+    },
     Passage,
 }
 
@@ -207,7 +210,8 @@ impl Heterogeneous {
         if p.cmplt(self.bounds.min).any() || p.cmpgt(self.bounds.max).any() {
             return 0.0;
         }
-        self.density.eval((p - self.bounds.min) / self.bounds.extent())
+        self.density
+            .eval((p - self.bounds.min) / self.bounds.extent())
     }
 
     /// The part of [0, t_max) of `ray` inside the box, in local coordinates.

@@ -13,8 +13,8 @@ pub mod procedural;
 pub use grid::Grid;
 pub use heterogeneous::{Density, Heterogeneous, LineIntegral};
 pub use homogeneous::Homogeneous;
-pub use procedural::{Axis, Fbm, Field};
 pub use phase::{Phase, PhaseError, PhaseSample};
+pub use procedural::{Axis, Fbm, Field};
 
 use glam::Vec3;
 
