@@ -12,8 +12,11 @@ use glam::Vec3;
 const CENTRE: Vec3 = Vec3::splat(0.5);
 /// Cloud: radius (local units, the cube's half side is 0.5) beyond which the density is zero.
 const CLOUD_RADIUS: f32 = 0.48;
-/// Cloud: slope of the density ramp, density = gain (fbm - r / radius), clamped to [0, 1].
-const CLOUD_GAIN: f32 = 3.0;
+/// Cloud: density = clamp(gain (fbm - bias - falloff (r / radius)^2), 0, 1): dense in the
+/// middle (fbm ~ 1/2 there), billowy where the noise beats the radial falloff.
+const CLOUD_GAIN: f32 = 4.0;
+const CLOUD_BIAS: f32 = 0.2;
+const CLOUD_FALLOFF: f32 = 0.5;
 /// Plume: Gaussian width at the base and its growth per unit height (local units).
 const PLUME_WIDTH_BASE: f32 = 0.04;
 const PLUME_WIDTH_GROWTH: f32 = 0.16;
@@ -57,7 +60,8 @@ pub enum Field {
     Constant,
     /// density = from + (to - from) u[axis]: optical depth in closed form.
     Linear { axis: Axis, from: f32, to: f32 },
-    /// A noise cloud: clamp(gain (fbm(u) - r / R), 0, 1), r the distance to the centre.
+    /// A noise cloud: clamp(gain (fbm(u) - bias - falloff (r / R)^2), 0, 1), r the distance
+    /// to the centre, zero beyond R.
     Cloud(Fbm),
     /// A smoke plume rising along +y from the centre of the bottom face: a Gaussian of width
     /// growing with height, fading towards the top, modulated by fBm.
@@ -130,7 +134,8 @@ impl Field {
                 if r >= CLOUD_RADIUS {
                     return 0.0;
                 }
-                (CLOUD_GAIN * (fbm.eval(u) - r / CLOUD_RADIUS)).clamp(0.0, 1.0)
+                let q = r / CLOUD_RADIUS;
+                (CLOUD_GAIN * (fbm.eval(u) - CLOUD_BIAS - CLOUD_FALLOFF * q * q)).clamp(0.0, 1.0)
             }
             Field::Plume(fbm) => {
                 let h = u.y.clamp(0.0, 1.0);
@@ -153,7 +158,11 @@ impl Field {
             Field::Cloud(_) => {
                 // fbm < 1 and r >= the distance to the box's nearest point
                 let r = nearest(CENTRE, lo, hi);
-                (CLOUD_GAIN * (1.0 - r / CLOUD_RADIUS)).clamp(0.0, 1.0)
+                if r >= CLOUD_RADIUS {
+                    return 0.0;
+                }
+                let q = r / CLOUD_RADIUS;
+                (CLOUD_GAIN * (1.0 - CLOUD_BIAS - CLOUD_FALLOFF * q * q)).clamp(0.0, 1.0)
             }
             Field::Plume(_) => {
                 // the widest Gaussian (top of the box), the nearest point to the axis, the
