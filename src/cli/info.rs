@@ -72,6 +72,14 @@ fn medium(m: &Medium) -> String {
             v3(h.sigma_t.recip()),
             phase(&h.phase)
         ),
+        Medium::Heterogeneous(h) => format!(
+            "heterogeneous, sigma_a {} and sigma_s {} per unit density, {}, Delta {}, phase {}",
+            v3(h.sigma_a),
+            v3(h.sigma_s),
+            h.line_integral.name(),
+            round(h.delta),
+            phase(&h.phase)
+        ),
     }
 }
 

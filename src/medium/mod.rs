@@ -1,13 +1,20 @@
 //! Participating media: the coefficients sigma_a, sigma_s, sigma_t = sigma_a + sigma_s of the
 //! global balance equation (Pauly, Kollig, Keller 2000, eq. 1), transmittance (eq. 3) and the
-//! propagation sampling of Table 1.
-//! Book: "Participating media and Table 1".
+//! propagation sampling of Table 1 (left column: `homogeneous`; right column, ray marching and
+//! tracking through grids and procedural fields: `heterogeneous`, `grid`, `procedural`).
+//! Book: "Participating media and Table 1", "Table 1: inhomogeneous media".
 
+pub mod grid;
+pub mod heterogeneous;
 pub mod homogeneous;
 pub mod phase;
+pub mod procedural;
 
+pub use grid::Grid;
+pub use heterogeneous::{Density, Heterogeneous, LineIntegral};
 pub use homogeneous::Homogeneous;
 pub use phase::{Phase, PhaseError, PhaseSample};
+pub use procedural::{Axis, Fbm, Field};
 
 use glam::Vec3;
 
@@ -63,50 +70,59 @@ impl FreeFlight {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Medium {
     Homogeneous(Homogeneous),
+    /// Boxed: the density grid and the majorant make it much larger than the homogeneous case.
+    Heterogeneous(Box<Heterogeneous>),
 }
 
 impl Medium {
     pub fn phase(&self) -> &Phase {
         match self {
             Medium::Homogeneous(h) => &h.phase,
+            Medium::Heterogeneous(h) => &h.phase,
         }
     }
 
-    pub fn sigma_s(&self, _p: Vec3) -> Rgb {
+    pub fn sigma_s(&self, p: Vec3) -> Rgb {
         match self {
             Medium::Homogeneous(h) => h.sigma_s,
+            Medium::Heterogeneous(h) => h.sigma_s * h.density_at(p),
         }
     }
 
-    pub fn sigma_t(&self, _p: Vec3) -> Rgb {
+    pub fn sigma_t(&self, p: Vec3) -> Rgb {
         match self {
             Medium::Homogeneous(h) => h.sigma_t,
+            Medium::Heterogeneous(h) => h.sigma_t * h.density_at(p),
         }
     }
 
     /// Samples a collision distance in [0, t_max) along `ray` (Table 1).
     #[inline]
-    pub fn sample_free_flight(&self, _ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
+    pub fn sample_free_flight(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
         match self {
             Medium::Homogeneous(h) => {
                 h.sample_free_flight(t_max, sampler.next_f32(), sampler.next_f32())
             }
+            Medium::Heterogeneous(h) => h.sample_free_flight(ray, t_max, sampler),
         }
     }
 
-    /// Transmittance exp(-tau) over [0, t_max) along `ray` (eq. 3).
+    /// Transmittance exp(-tau) over [0, t_max) along `ray` (eq. 3); for inhomogeneous media an
+    /// estimate (ratio tracking, unbiased; or the marched value, biased).
     #[inline]
-    pub fn transmittance(&self, _ray: &Ray, t_max: f32, _sampler: &mut Sampler) -> Rgb {
+    pub fn transmittance(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> Rgb {
         match self {
             Medium::Homogeneous(h) => h.transmittance(t_max),
+            Medium::Heterogeneous(h) => h.transmittance(ray, t_max, sampler),
         }
     }
 
     /// The density (collision) or probability (passage) of a free flight of length `t` on
     /// [0, t_max), as `sample_free_flight` would have produced it. For path pdfs in BDPT/MLT.
-    pub fn free_flight_pdf(&self, _ray: &Ray, t: f32, scattered: bool) -> f32 {
+    pub fn free_flight_pdf(&self, ray: &Ray, t: f32, scattered: bool) -> f32 {
         match self {
             Medium::Homogeneous(h) => h.free_flight_pdf(t, scattered),
+            Medium::Heterogeneous(h) => h.free_flight_pdf(ray, t, scattered),
         }
     }
 }

@@ -8,6 +8,7 @@ use super::file::{
     self, path, KeyPath, LightDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbValue, SensorDesc,
     ShapeDesc,
 };
+use super::file::{AxisDesc, DensityDesc, PropagationDesc};
 use super::{
     Camera, Environment, IrradianceMeter, Light, RenderSettings, Scene, SceneError, SceneSource,
     ShapeInfo,
@@ -16,7 +17,9 @@ use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Quad, Sphere, Triangle};
 use crate::geometry::{Aabb, Bvh, Primitive};
 use crate::math::{Distribution1D, Frame};
-use crate::medium::{Homogeneous, Medium, Phase};
+use crate::medium::grid::read_grid_file;
+use crate::medium::{Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral};
+use crate::medium::{Medium, Phase};
 
 /// Default number of irradiance-meter samples per pass.
 pub const DEFAULT_METER_SAMPLES: u32 = 4096;
@@ -161,6 +164,221 @@ fn box_quads(min: Vec3, max: Vec3) -> Vec<Quad> {
     .collect()
 }
 
+/// Default marching step, as a fraction of the medium box's largest side.
+pub const DEFAULT_RELATIVE_STEP: f32 = 1.0 / 64.0;
+/// Default fBm parameters of the procedural cloud and plume.
+pub const DEFAULT_OCTAVES: u32 = 5;
+pub const DEFAULT_FREQUENCY: f32 = 4.0;
+/// Accepted fBm octaves (more are below f32 resolution of the lattice hash).
+pub const MAX_OCTAVES: u32 = 12;
+/// Largest accepted bake resolution (vertices per axis): 256^3 floats are 64 MiB.
+pub const MAX_BAKE_RESOLUTION: u32 = 256;
+
+fn key_of(key: &KeyPath, k: &str) -> KeyPath {
+    key.clone().key(k)
+}
+
+/// A `grid` or `procedural` medium.
+fn heterogeneous(src: &SceneSource, key: &KeyPath, m: &MediumDesc) -> Result<Medium, SceneError> {
+    let (sigma_a, sigma_s, ph, propagation, step) = match m {
+        MediumDesc::Grid {
+            sigma_a,
+            sigma_s,
+            phase,
+            propagation,
+            step,
+            ..
+        }
+        | MediumDesc::Procedural {
+            sigma_a,
+            sigma_s,
+            phase,
+            propagation,
+            step,
+            ..
+        } => (sigma_a, sigma_s, phase, propagation, step),
+        MediumDesc::Homogeneous { .. } => unreachable!("only called for grid and procedural"),
+    };
+    let sa = non_negative(src, &key_of(key, "sigma_a"), *sigma_a, "sigma_a")?;
+    let ss = non_negative(src, &key_of(key, "sigma_s"), *sigma_s, "sigma_s")?;
+    let ph = phase(src, &key_of(key, "phase"), ph)?;
+    let line_integral = match propagation {
+        PropagationDesc::Equidistant => LineIntegral::Equidistant,
+        PropagationDesc::Stratified => LineIntegral::Stratified,
+        PropagationDesc::RandomOffset => LineIntegral::RandomOffset,
+        PropagationDesc::DeltaTracking => LineIntegral::DeltaTracking,
+    };
+    let step = step.unwrap_or(DEFAULT_RELATIVE_STEP);
+    if !(step.is_finite() && step > 0.0 && step <= 1.0) {
+        return Err(src.error(
+            &key_of(key, "step"),
+            format!(
+                "step = {step} must be in (0, 1] (a fraction of the medium box's largest side)"
+            ),
+        ));
+    }
+    let bounds = |lo: Vec3, hi: Vec3, at: &str| -> Result<Aabb, SceneError> {
+        if lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all() {
+            Ok(Aabb { min: lo, max: hi })
+        } else {
+            Err(src.error(
+                &key_of(key, at),
+                format!("the medium box {lo} .. {hi} must be finite with min < max on every axis"),
+            ))
+        }
+    };
+    let (density, aabb) = match m {
+        MediumDesc::Grid { file, min, max, .. } => {
+            let fkey = key_of(key, "file");
+            let gf = read_grid_file(&src.base_dir.join(file))
+                .map_err(|e| src.error(&fkey, e.to_string()))?;
+            let (lo, hi) = match (min, max, gf.bounds) {
+                (Some(lo), Some(hi), _) => (
+                    finite3(src, &key_of(key, "min"), *lo)?,
+                    finite3(src, &key_of(key, "max"), *hi)?,
+                ),
+                (None, None, Some(b)) => b,
+                (Some(_), None, _) | (None, Some(_), _) => {
+                    let k = if min.is_none() { "min" } else { "max" };
+                    return Err(src.error(&key_of(key, k), "give both `min` and `max`, or neither"));
+                }
+                (None, None, None) => {
+                    return Err(src.error(
+                        &key_of(key, "min"),
+                        format!(
+                            "a text grid has no bounding box: give `min` and `max` for `{file}`"
+                        ),
+                    ))
+                }
+            };
+            (Density::Grid(gf.grid), bounds(lo, hi, "min")?)
+        }
+        MediumDesc::Procedural {
+            density,
+            min,
+            max,
+            axis,
+            from,
+            to,
+            octaves,
+            frequency,
+            seed,
+            resolution,
+            ..
+        } => {
+            let aabb = bounds(
+                finite3(src, &key_of(key, "min"), *min)?,
+                finite3(src, &key_of(key, "max"), *max)?,
+                "min",
+            )?;
+            let linear_keys = [
+                ("axis", axis.is_some()),
+                ("from", from.is_some()),
+                ("to", to.is_some()),
+            ];
+            let noise_keys = [
+                ("octaves", octaves.is_some()),
+                ("frequency", frequency.is_some()),
+                ("seed", seed.is_some()),
+            ];
+            let reject = |keys: &[(&str, bool)], what: &str| -> Result<(), SceneError> {
+                match keys.iter().find(|(_, set)| *set) {
+                    Some((k, _)) => Err(src.error(
+                        &key_of(key, k),
+                        format!("`{k}` applies only to density = {what}"),
+                    )),
+                    None => Ok(()),
+                }
+            };
+            let fbm = || -> Result<Fbm, SceneError> {
+                let octaves = octaves.unwrap_or(DEFAULT_OCTAVES);
+                if !(1..=MAX_OCTAVES).contains(&octaves) {
+                    return Err(src.error(
+                        &key_of(key, "octaves"),
+                        format!("octaves = {octaves} must be in 1..={MAX_OCTAVES}"),
+                    ));
+                }
+                let frequency = frequency.unwrap_or(DEFAULT_FREQUENCY);
+                if !(frequency.is_finite() && frequency > 0.0) {
+                    return Err(src.error(
+                        &key_of(key, "frequency"),
+                        format!("frequency = {frequency} must be positive"),
+                    ));
+                }
+                Ok(Fbm {
+                    octaves,
+                    frequency,
+                    seed: seed.unwrap_or(0),
+                })
+            };
+            let field = match density {
+                DensityDesc::Constant => {
+                    reject(&linear_keys, "linear")?;
+                    reject(&noise_keys, "cloud or plume")?;
+                    Field::Constant
+                }
+                DensityDesc::Linear => {
+                    reject(&noise_keys, "cloud or plume")?;
+                    let need = |k: &str, v: Option<f32>| -> Result<f32, SceneError> {
+                        match v {
+                            None => Err(src.error(
+                                key,
+                                format!("density = linear needs `{k}` (the density at the {} end of the axis)", if k == "from" { "min" } else { "max" }),
+                            )),
+                            Some(x) if !(x.is_finite() && x >= 0.0) => Err(src.error(
+                                &key_of(key, k),
+                                format!("{k} = {x} must be a finite density >= 0"),
+                            )),
+                            Some(x) => Ok(x),
+                        }
+                    };
+                    let axis = match axis {
+                        Some(AxisDesc::X) => Axis::X,
+                        Some(AxisDesc::Y) => Axis::Y,
+                        Some(AxisDesc::Z) => Axis::Z,
+                        None => {
+                            return Err(src.error(
+                                key,
+                                "density = linear needs `axis` (\"x\", \"y\" or \"z\")",
+                            ))
+                        }
+                    };
+                    Field::Linear {
+                        axis,
+                        from: need("from", *from)?,
+                        to: need("to", *to)?,
+                    }
+                }
+                DensityDesc::Cloud => {
+                    reject(&linear_keys, "linear")?;
+                    Field::Cloud(fbm()?)
+                }
+                DensityDesc::Plume => {
+                    reject(&linear_keys, "linear")?;
+                    Field::Plume(fbm()?)
+                }
+            };
+            let density = match resolution {
+                None => Density::Field(field),
+                Some(n) if (2..=MAX_BAKE_RESOLUTION).contains(n) => {
+                    Density::Grid(Grid::bake(*n as usize, |u| field.eval(u)))
+                }
+                Some(n) => {
+                    return Err(src.error(
+                        &key_of(key, "resolution"),
+                        format!("resolution = {n} must be in 2..={MAX_BAKE_RESOLUTION}"),
+                    ))
+                }
+            };
+            (density, aabb)
+        }
+        MediumDesc::Homogeneous { .. } => unreachable!("only called for grid and procedural"),
+    };
+    let h = Heterogeneous::new(density, aabb, sa, ss, ph, line_integral, step)
+        .map_err(|e| src.error(key, e.to_string()))?;
+    Ok(Medium::Heterogeneous(Box::new(h)))
+}
+
 /// Builds the scene described by `src`.
 pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     let desc = file::parse(&src.text, &src.name)?;
@@ -216,6 +434,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
                     Homogeneous::new(sa, ss, ph).map_err(|e| src.error(&key, e.to_string()))?,
                 )
             }
+            MediumDesc::Grid { .. } | MediumDesc::Procedural { .. } => heterogeneous(src, &key, m)?,
         };
         medium_index.insert(name.clone(), media.len() as u32);
         media.push(medium);

@@ -1,0 +1,411 @@
+//! Density grids: values on the vertices of a regular lattice spanning the medium's bounding box,
+//! trilinearly interpolated in between (Pauly, Kollig, Keller 2000, footnote 5: "We store
+//! inhomogeneous media on a three-dimensional grid with intermediate values being computed
+//! through tri-linear interpolation"), read from a file or baked from a procedural field.
+//!
+//! Along a ray, trilinear interpolation inside one cell is a product of three affine functions
+//! of t, a cubic; two-point Gauss-Legendre quadrature integrates cubics exactly, so
+//! [`Grid::integrate`] computes the optical depth of the interpolated density exactly (to float
+//! rounding) by visiting every cell the ray crosses (a 3-D DDA, [`cell_segments`]).
+//!
+//! File formats (both put the value of vertex (x, y, z) at index x + nx (y + ny z)):
+//! * text (any extension but `.vol`): `#` starts a comment; the first three numbers are
+//!   nx ny nz (each >= 2), then nx ny nz density values, whitespace-separated;
+//! * Mitsuba's binary `.vol`: bytes `VOL`, version 3, i32 encoding (1 = float32, the only one
+//!   read), i32 nx, ny, nz, i32 channels (1), six f32 for the bounding box (min xyz, max xyz),
+//!   then the float32 values, all little-endian. DEVIATION: Mitsuba 3 places values at cell
+//!   centres; pathspace, like Mitsuba 0.6, at the lattice vertices spanning the box.
+//!
+//! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
+//! `tests/media_inhomogeneous.rs`.
+
+use glam::Vec3;
+use std::path::Path;
+
+/// Largest accepted lattice side (vertices per axis): keeps a malformed header from allocating.
+pub const MAX_GRID_SIDE: usize = 1024;
+
+/// Size of the `.vol` header in bytes: 3 magic + 1 version + 5 i32 + 6 f32.
+const VOL_HEADER_BYTES: usize = 48;
+/// The `.vol` version byte pathspace reads.
+const VOL_VERSION: u8 = 3;
+/// The `.vol` encoding code of float32 data.
+const VOL_FLOAT32: i32 = 1;
+
+/// Gauss-Legendre 2-point abscissae on [0, 1]: (1 -+ 1/sqrt(3)) / 2; exact for cubics.
+pub const GAUSS2: [f32; 2] = [0.211_324_87, 0.788_675_1];
+
+/// A lattice of density values on the unit cube of the medium's local coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// Vertices per axis (each >= 2).
+    pub res: [usize; 3],
+    /// `res[0] * res[1] * res[2]` values, x fastest.
+    pub values: Vec<f32>,
+}
+
+/// Why a grid was rejected: the message names the file and the line or byte offset.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}: {location}: {message}")]
+pub struct GridError {
+    pub file: String,
+    /// `line N` (text) or `byte offset N` (binary), or `header`.
+    pub location: String,
+    pub message: String,
+}
+
+/// A grid file's content: the lattice and, for `.vol`, the bounding box it declares.
+pub struct GridFile {
+    pub grid: Grid,
+    pub bounds: Option<(Vec3, Vec3)>,
+}
+
+impl Grid {
+    /// Validated constructor: every side >= 2, the right number of values, each finite and >= 0.
+    pub fn new(res: [usize; 3], values: Vec<f32>) -> Result<Self, String> {
+        if res.iter().any(|&n| !(2..=MAX_GRID_SIDE).contains(&n)) {
+            return Err(format!(
+                "grid resolution {res:?}: every side must be in 2..={MAX_GRID_SIDE}"
+            ));
+        }
+        let n = res[0] * res[1] * res[2];
+        if values.len() != n {
+            return Err(format!(
+                "grid {res:?} needs {n} values, got {}",
+                values.len()
+            ));
+        }
+        if let Some((i, v)) = values
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite() || **v < 0.0)
+        {
+            return Err(format!("value #{i} = {v} is not a finite density >= 0"));
+        }
+        Ok(Grid { res, values })
+    }
+
+    /// Bakes `f` (on local coordinates in [0,1]^3) onto an `n`^3 lattice.
+    pub fn bake(n: usize, f: impl Fn(Vec3) -> f32) -> Self {
+        let mut values = Vec::with_capacity(n * n * n);
+        let scale = 1.0 / (n - 1) as f32;
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    values.push(f(Vec3::new(x as f32, y as f32, z as f32) * scale));
+                }
+            }
+        }
+        Grid {
+            res: [n, n, n],
+            values,
+        }
+    }
+
+    #[inline]
+    fn at(&self, x: usize, y: usize, z: usize) -> f32 {
+        self.values[x + self.res[0] * (y + self.res[1] * z)]
+    }
+
+    /// Lattice coordinates of local point `u`: u * (res - 1).
+    #[inline]
+    pub fn lattice(&self) -> Vec3 {
+        Vec3::new(
+            (self.res[0] - 1) as f32,
+            (self.res[1] - 1) as f32,
+            (self.res[2] - 1) as f32,
+        )
+    }
+
+    // ANCHOR: trilinear
+    /// Trilinear interpolation at local point `u` in [0,1]^3 (clamped to the box).
+    #[inline]
+    pub fn eval(&self, u: Vec3) -> f32 {
+        let g = (u.clamp(Vec3::ZERO, Vec3::ONE)) * self.lattice();
+        let i = g.floor().min(self.lattice() - Vec3::ONE).max(Vec3::ZERO);
+        let f = g - i;
+        let (x, y, z) = (i.x as usize, i.y as usize, i.z as usize);
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let c00 = lerp(self.at(x, y, z), self.at(x + 1, y, z), f.x);
+        let c10 = lerp(self.at(x, y + 1, z), self.at(x + 1, y + 1, z), f.x);
+        let c01 = lerp(self.at(x, y, z + 1), self.at(x + 1, y, z + 1), f.x);
+        let c11 = lerp(self.at(x, y + 1, z + 1), self.at(x + 1, y + 1, z + 1), f.x);
+        lerp(lerp(c00, c10, f.y), lerp(c01, c11, f.y), f.z)
+    }
+    // ANCHOR_END: trilinear
+
+    /// The largest vertex value in the local box [lo, hi]: an upper bound of the trilinear
+    /// interpolant there (it is a convex combination of the surrounding vertices).
+    pub fn max_in(&self, lo: Vec3, hi: Vec3) -> f32 {
+        let l = self.lattice();
+        let a = (lo.clamp(Vec3::ZERO, Vec3::ONE) * l).floor();
+        let b = (hi.clamp(Vec3::ZERO, Vec3::ONE) * l).ceil();
+        let mut m = 0.0f32;
+        for z in a.z as usize..=b.z as usize {
+            for y in a.y as usize..=b.y as usize {
+                for x in a.x as usize..=b.x as usize {
+                    m = m.max(self.at(x, y, z));
+                }
+            }
+        }
+        m
+    }
+
+    // ANCHOR: grid_integrate
+    /// The exact integral of the interpolated density over t in [ta, tb] along the local line
+    /// u(t) = u0 + t du: cell by cell, two-point Gauss-Legendre (exact for the cubic that
+    /// trilinear interpolation is along a line).
+    pub fn integrate(&self, u0: Vec3, du: Vec3, ta: f32, tb: f32) -> f32 {
+        let l = self.lattice();
+        let mut sum = 0.0f32;
+        for (a, b, _) in cell_segments(u0 * l, du * l, ta, tb, self.res.map(|n| n - 1)) {
+            let h = b - a;
+            let f0 = self.eval(u0 + du * (a + GAUSS2[0] * h));
+            let f1 = self.eval(u0 + du * (a + GAUSS2[1] * h));
+            sum += 0.5 * h * (f0 + f1);
+        }
+        sum
+    }
+    // ANCHOR_END: grid_integrate
+}
+
+// ANCHOR: dda
+/// The pieces of t in [ta, tb] during which the line g(t) = g0 + t gd (in lattice units, cells
+/// of side 1, `cells` per axis) stays in one cell: (t_start, t_end, cell index). A 3-D DDA
+/// (Amanatides and Woo 1987): the next crossing along each axis is tracked, the nearest taken.
+pub fn cell_segments(
+    g0: Vec3,
+    gd: Vec3,
+    ta: f32,
+    tb: f32,
+    cells: [usize; 3],
+) -> impl Iterator<Item = (f32, f32, [usize; 3])> {
+    let start = g0 + gd * ta;
+    let mut next = [f32::INFINITY; 3];
+    let mut step = [f32::INFINITY; 3];
+    for a in 0..3 {
+        if gd[a] > 0.0 {
+            next[a] = ta + (start[a].floor() + 1.0 - start[a]) / gd[a];
+            step[a] = 1.0 / gd[a];
+        } else if gd[a] < 0.0 {
+            next[a] = ta + (start[a].ceil() - 1.0 - start[a]) / gd[a];
+            step[a] = -1.0 / gd[a];
+        }
+    }
+    let mut t = ta;
+    std::iter::from_fn(move || {
+        if t >= tb {
+            return None;
+        }
+        let a = if next[0] <= next[1] && next[0] <= next[2] {
+            0
+        } else if next[1] <= next[2] {
+            1
+        } else {
+            2
+        };
+        let end = next[a].min(tb);
+        let mid = g0 + gd * (0.5 * (t + end));
+        let cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
+        let seg = (t, end, cell);
+        t = end;
+        next[a] += step[a];
+        Some(seg)
+    })
+}
+// ANCHOR_END: dda
+
+/// Reads a grid file: Mitsuba `.vol` by extension, the text format otherwise.
+pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
+    let name = path.display().to_string();
+    let err = |location: String, message: String| GridError {
+        file: name.clone(),
+        location,
+        message,
+    };
+    let bytes =
+        std::fs::read(path).map_err(|e| err("(file)".into(), format!("cannot read: {e}")))?;
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
+    {
+        parse_vol(&bytes).map_err(|(loc, msg)| err(loc, msg))
+    } else {
+        let text = String::from_utf8(bytes)
+            .map_err(|e| err("(file)".into(), format!("not UTF-8 text: {e}")))?;
+        parse_text(&text)
+            .map(|grid| GridFile { grid, bounds: None })
+            .map_err(|(loc, msg)| err(loc, msg))
+    }
+}
+
+/// The text format: `nx ny nz` then the values; errors as (location, message).
+pub fn parse_text(text: &str) -> Result<Grid, (String, String)> {
+    let mut tokens = text.lines().enumerate().flat_map(|(i, l)| {
+        l.split('#')
+            .next()
+            .unwrap_or("")
+            .split_whitespace()
+            .map(move |t| (i + 1, t))
+    });
+    let mut res = [0usize; 3];
+    for (k, axis) in ["nx", "ny", "nz"].iter().enumerate() {
+        let (line, tok) = tokens
+            .next()
+            .ok_or_else(|| ("header".to_string(), format!("missing {axis}")))?;
+        res[k] = tok
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (2..=MAX_GRID_SIDE).contains(n))
+            .ok_or_else(|| {
+                (
+                    format!("line {line}"),
+                    format!("{axis} = `{tok}` is not an integer in 2..={MAX_GRID_SIDE}"),
+                )
+            })?;
+    }
+    let n = res[0] * res[1] * res[2];
+    let mut values = Vec::with_capacity(n);
+    let mut last_line = 1;
+    for (line, tok) in tokens {
+        last_line = line;
+        if values.len() == n {
+            return Err((
+                format!("line {line}"),
+                format!("more than the {n} values a {res:?} grid holds (`{tok}`)"),
+            ));
+        }
+        let v = tok.parse::<f32>().map_err(|_| {
+            (
+                format!("line {line}"),
+                format!("`{tok}` (value #{}) is not a number", values.len()),
+            )
+        })?;
+        if !v.is_finite() || v < 0.0 {
+            return Err((
+                format!("line {line}"),
+                format!(
+                    "value #{} = {tok} is not a finite density >= 0",
+                    values.len()
+                ),
+            ));
+        }
+        values.push(v);
+    }
+    if values.len() != n {
+        return Err((
+            format!("line {last_line}"),
+            format!(
+                "a {res:?} grid needs {n} values, the file ends after {}",
+                values.len()
+            ),
+        ));
+    }
+    Ok(Grid { res, values })
+}
+
+/// Mitsuba's `.vol`; errors as (location, message).
+pub fn parse_vol(b: &[u8]) -> Result<GridFile, (String, String)> {
+    let at = |o: usize| format!("byte offset {o}");
+    if b.len() < VOL_HEADER_BYTES {
+        return Err((
+            "header".into(),
+            format!(
+                "{} bytes, shorter than the {VOL_HEADER_BYTES}-byte .vol header",
+                b.len()
+            ),
+        ));
+    }
+    if &b[0..3] != b"VOL" {
+        return Err((at(0), "does not start with `VOL`".into()));
+    }
+    if b[3] != VOL_VERSION {
+        return Err((
+            at(3),
+            format!("version {} (only {VOL_VERSION} is read)", b[3]),
+        ));
+    }
+    let i32_at = |o: usize| i32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+    let f32_at = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]);
+    let encoding = i32_at(4);
+    if encoding != VOL_FLOAT32 {
+        return Err((
+            at(4),
+            format!("encoding {encoding} (only {VOL_FLOAT32} = float32 is read)"),
+        ));
+    }
+    let mut res = [0usize; 3];
+    for (k, axis) in ["xres", "yres", "zres"].iter().enumerate() {
+        let v = i32_at(8 + 4 * k);
+        res[k] = usize::try_from(v)
+            .ok()
+            .filter(|n| (2..=MAX_GRID_SIDE).contains(n))
+            .ok_or_else(|| {
+                (
+                    at(8 + 4 * k),
+                    format!("{axis} = {v} is not in 2..={MAX_GRID_SIDE}"),
+                )
+            })?;
+    }
+    let channels = i32_at(20);
+    if channels != 1 {
+        return Err((
+            at(20),
+            format!("{channels} channels (a density grid has 1)"),
+        ));
+    }
+    let lo = Vec3::new(f32_at(24), f32_at(28), f32_at(32));
+    let hi = Vec3::new(f32_at(36), f32_at(40), f32_at(44));
+    if !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()) {
+        return Err((
+            at(24),
+            format!("bounding box {lo} .. {hi} is not a finite box with min < max"),
+        ));
+    }
+    let n = res[0] * res[1] * res[2];
+    let want = VOL_HEADER_BYTES + 4 * n;
+    if b.len() != want {
+        return Err((
+            at(VOL_HEADER_BYTES),
+            format!(
+                "a {res:?} float32 grid needs {want} bytes, the file has {}",
+                b.len()
+            ),
+        ));
+    }
+    let mut values = Vec::with_capacity(n);
+    for i in 0..n {
+        let o = VOL_HEADER_BYTES + 4 * i;
+        let v = f32_at(o);
+        if !v.is_finite() || v < 0.0 {
+            return Err((
+                at(o),
+                format!("value #{i} = {v} is not a finite density >= 0"),
+            ));
+        }
+        values.push(v);
+    }
+    Ok(GridFile {
+        grid: Grid { res, values },
+        bounds: Some((lo, hi)),
+    })
+}
+
+/// Encodes a grid as a Mitsuba float32 `.vol` (for tests and tools).
+pub fn encode_vol(grid: &Grid, lo: Vec3, hi: Vec3) -> Vec<u8> {
+    let mut b = Vec::with_capacity(VOL_HEADER_BYTES + 4 * grid.values.len());
+    b.extend_from_slice(b"VOL");
+    b.push(VOL_VERSION);
+    b.extend_from_slice(&VOL_FLOAT32.to_le_bytes());
+    for n in grid.res {
+        b.extend_from_slice(&(n as i32).to_le_bytes());
+    }
+    b.extend_from_slice(&1i32.to_le_bytes());
+    for v in lo.to_array().into_iter().chain(hi.to_array()) {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in &grid.values {
+        b.extend_from_slice(&v.to_le_bytes());
+    }
+    b
+}
