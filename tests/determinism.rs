@@ -6,6 +6,10 @@ use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::scene::{Scene, SceneSource, FOG_BOX};
 
 fn render(threads: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
+    render_with(IntegratorKind::Path, threads, seed)
+}
+
+fn render_with(kind: IntegratorKind, threads: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
     let text = FOG_BOX.replace("resolution = [256, 256]", "resolution = [40, 24]");
     let mut text = text;
     text.push_str(
@@ -17,12 +21,16 @@ fn render(threads: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
         .build()
         .unwrap();
     pool.install(|| {
-        let mut r = Renderer::new(&scene, IntegratorKind::Path, seed, None);
-        r.meter_samples = 512;
+        let mut r = Renderer::new(&scene, kind, seed, None);
+        r.meter_samples = 256;
         r.pass(3, &|| {});
         r.pass(2, &|| {});
         let meters = r.meters.iter().flat_map(|m| m.sum).collect();
-        (r.film.unwrap().sum, meters)
+        let film = r.film.unwrap();
+        let mut pixels = film.sum;
+        // splatted contributions (light tracing, BDPT's t = 1) must be just as reproducible
+        pixels.extend(film.splat);
+        (pixels, meters)
     })
 }
 
@@ -39,4 +47,14 @@ fn different_seeds_give_different_images() {
     let (a, _) = render(2, 1);
     let (b, _) = render(2, 2);
     assert!(a != b, "the seed has no effect");
+}
+
+#[test]
+fn bidirectional_integrators_are_deterministic_with_splats() {
+    for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
+        let (a, ma) = render_with(kind, 1, 5);
+        let (b, mb) = render_with(kind, 2, 5);
+        assert!(a == b, "{kind:?}: the image depends on the thread count");
+        assert!(ma == mb, "{kind:?}: the meters depend on the thread count");
+    }
 }
