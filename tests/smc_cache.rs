@@ -87,10 +87,7 @@ fn integral_by_quadrature(c: &Coefficients, order1: bool) -> Rgb {
     let mut sum = [0.0f64; 3];
     for j in 0..mt {
         for i in 0..ms {
-            let st = Vec2::new(
-                (i as f32 + 0.5) / ms as f32,
-                (j as f32 + 0.5) / mt as f32,
-            );
+            let st = Vec2::new((i as f32 + 0.5) / ms as f32, (j as f32 + 0.5) / mt as f32);
             let v = if order1 {
                 c.eval_order1(st)
             } else {
@@ -102,7 +99,11 @@ fn integral_by_quadrature(c: &Coefficients, order1: bool) -> Rgb {
         }
     }
     let n = (ms * mt) as f64;
-    Rgb::new((sum[0] / n) as f32, (sum[1] / n) as f32, (sum[2] / n) as f32)
+    Rgb::new(
+        (sum[0] / n) as f32,
+        (sum[1] / n) as f32,
+        (sum[2] / n) as f32,
+    )
 }
 
 #[test]
@@ -161,7 +162,11 @@ fn partial_sums_sample_cells_in_proportion_and_keep_the_root_equal_to_the_sum() 
     let mut tree = PartialSums::new(&values).unwrap();
     for _ in 0..500 {
         let i = s.next_index(n);
-        let v = if s.next_f32() < 0.2 { 0.0 } else { 5.0 * s.next_f64() };
+        let v = if s.next_f32() < 0.2 {
+            0.0
+        } else {
+            5.0 * s.next_f64()
+        };
         values[i] = v;
         tree.set(i, v);
         let sum: f64 = values.iter().sum();
@@ -203,7 +208,9 @@ fn partial_sums_reject_bad_input() {
 fn pdf_integral(c: &RadianceCache) -> f64 {
     let grid = c.grid();
     (0..grid.cells())
-        .map(|k| c.pdf(grid.sample_in_cell(k, Vec2::splat(0.5))) as f64 * grid.cell_solid_angle() as f64)
+        .map(|k| {
+            c.pdf(grid.sample_in_cell(k, Vec2::splat(0.5))) as f64 * grid.cell_solid_angle() as f64
+        })
         .sum()
 }
 
@@ -211,12 +218,27 @@ fn pdf_integral(c: &RadianceCache) -> f64 {
 fn every_pdf_integrates_to_one_and_is_never_zero_after_writes_and_refinements() {
     let mut s = sampler(7, 0);
     // a low threshold refines often; radiance with exact zeros and a hard edge
-    let mut octree = Octree::new(Vec3::splat(-1.0), Vec3::splat(1.0), 4.0, 1 << 26, ControlVariate::Order1);
+    let mut octree = Octree::new(
+        Vec3::splat(-1.0),
+        Vec3::splat(1.0),
+        4.0,
+        1 << 26,
+        ControlVariate::Order1,
+    );
     for step in 0..40_000 {
         let p = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 2.0 - Vec3::ONE;
         let wi = warp::uniform_sphere(s.next_2d());
-        let radiance = if wi.y > 0.3 { Rgb::splat(2.0) } else { Rgb::ZERO };
-        octree.add_record(&Record { p, wi, radiance, phase_value: warp::INV_FOUR_PI });
+        let radiance = if wi.y > 0.3 {
+            Rgb::splat(2.0)
+        } else {
+            Rgb::ZERO
+        };
+        octree.add_record(&Record {
+            p,
+            wi,
+            radiance,
+            phase_value: warp::INV_FOUR_PI,
+        });
         if step % 4000 == 3999 {
             for c in octree.caches() {
                 if !c.pdf_is_positive() {
@@ -225,10 +247,16 @@ fn every_pdf_integrates_to_one_and_is_never_zero_after_writes_and_refinements() 
                     continue;
                 }
                 for k in 0..c.grid().cells() {
-                    assert!(c.pdf_coefficient(k) > 0.0, "a zero pdf cell after refinement");
+                    assert!(
+                        c.pdf_coefficient(k) > 0.0,
+                        "a zero pdf cell after refinement"
+                    );
                 }
                 let integral = pdf_integral(c);
-                assert!((integral - 1.0).abs() < 1e-4, "pdf integrates to {integral}");
+                assert!(
+                    (integral - 1.0).abs() < 1e-4,
+                    "pdf integrates to {integral}"
+                );
             }
         }
     }
@@ -238,15 +266,35 @@ fn every_pdf_integrates_to_one_and_is_never_zero_after_writes_and_refinements() 
 
 #[test]
 fn the_root_waits_for_both_cells_and_counters_never_round_to_zero() {
-    let mut octree = Octree::new(Vec3::splat(-1.0), Vec3::splat(1.0), 2.0, 1 << 20, ControlVariate::None);
+    let mut octree = Octree::new(
+        Vec3::splat(-1.0),
+        Vec3::splat(1.0),
+        2.0,
+        1 << 20,
+        ControlVariate::None,
+    );
     // records only in the s < 1/2 hemisphere (z > 0 has phi in (0, pi)): cell 1 stays zero
     let w = Vec3::new(0.0, 0.0, 1.0);
     for _ in 0..100 {
-        octree.add_record(&Record { p: Vec3::ZERO, wi: w, radiance: Rgb::ONE, phase_value: 1.0 });
+        octree.add_record(&Record {
+            p: Vec3::ZERO,
+            wi: w,
+            radiance: Rgb::ONE,
+            phase_value: 1.0,
+        });
     }
-    assert_eq!(octree.stats().nodes, 1, "the root refined with a zero pdf cell");
+    assert_eq!(
+        octree.stats().nodes,
+        1,
+        "the root refined with a zero pdf cell"
+    );
     // one record in the other cell allows the refinement
-    octree.add_record(&Record { p: Vec3::ZERO, wi: -w, radiance: Rgb::ONE, phase_value: 1.0 });
+    octree.add_record(&Record {
+        p: Vec3::ZERO,
+        wi: -w,
+        radiance: Rgb::ONE,
+        phase_value: 1.0,
+    });
     assert_eq!(octree.stats().nodes, 9);
     for c in octree.caches() {
         for k in 0..c.grid().cells() {
@@ -263,11 +311,22 @@ fn the_root_waits_for_both_cells_and_counters_never_round_to_zero() {
 fn the_memory_budget_stops_refinement_and_says_so() {
     let mut s = sampler(8, 0);
     let budget = 64 * 1024;
-    let mut octree = Octree::new(Vec3::splat(-1.0), Vec3::splat(1.0), 1.0, budget, ControlVariate::Order1);
+    let mut octree = Octree::new(
+        Vec3::splat(-1.0),
+        Vec3::splat(1.0),
+        1.0,
+        budget,
+        ControlVariate::Order1,
+    );
     for _ in 0..50_000 {
         let p = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 2.0 - Vec3::ONE;
         let wi = warp::uniform_sphere(s.next_2d());
-        octree.add_record(&Record { p, wi, radiance: Rgb::ONE + wi, phase_value: 1.0 });
+        octree.add_record(&Record {
+            p,
+            wi,
+            radiance: Rgb::ONE + wi,
+            phase_value: 1.0,
+        });
     }
     let stats = octree.stats();
     assert!(stats.budget_reached, "{stats}");

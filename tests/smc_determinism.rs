@@ -12,9 +12,16 @@ const TESTBED: &str = include_str!("../scenes/smc-testbed-albedo-0.8.toml");
 fn render(threads: usize, seed: u64, form: EstimatorForm) -> (Vec<[f64; 3]>, OctreeStats) {
     let text = TESTBED.replace("resolution = [32, 32]", "resolution = [24, 20]");
     let scene = Scene::load(&SceneSource::embedded("smc-testbed.toml", &text)).unwrap();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
     pool.install(|| {
-        let settings = SmcSettings { threshold: 4.0, form, ..Default::default() };
+        let settings = SmcSettings {
+            threshold: 4.0,
+            form,
+            ..Default::default()
+        };
         let mut r = Renderer::new(&scene, IntegratorKind::Smc, seed, None)
             .with_smc_settings(settings)
             .unwrap();
@@ -28,11 +35,18 @@ fn render(threads: usize, seed: u64, form: EstimatorForm) -> (Vec<[f64; 3]>, Oct
 
 #[test]
 fn one_and_two_threads_give_bit_identical_images_and_structures() {
-    for form in [EstimatorForm::Distance, EstimatorForm::RayMarching { step: 1.0 }] {
+    for form in [
+        EstimatorForm::Distance,
+        EstimatorForm::RayMarching { step: 1.0 },
+    ] {
         let (a, sa) = render(1, 42, form);
         let (b, sb) = render(2, 42, form);
         assert!(sa.max_depth >= 2, "the structure did not refine: {sa}");
-        assert!(a == b, "the image depends on the thread count ({})", form.name());
+        assert!(
+            a == b,
+            "the image depends on the thread count ({})",
+            form.name()
+        );
         assert_eq!(sa, sb, "the structure depends on the thread count");
         let (c, _) = render(2, 43, form);
         assert!(a != c, "the seed has no effect");

@@ -34,7 +34,13 @@ fn image_mean(r: &Renderer) -> (f64, f64) {
     (mean / count, var_of_mean.sqrt() / count)
 }
 
-fn render(scene: &Scene, kind: IntegratorKind, settings: Option<SmcSettings>, spp: u32, seed: u64) -> Renderer<'_> {
+fn render(
+    scene: &Scene,
+    kind: IntegratorKind,
+    settings: Option<SmcSettings>,
+    spp: u32,
+    seed: u64,
+) -> Renderer<'_> {
     let mut r = Renderer::new(scene, kind, seed, None);
     if let Some(s) = settings {
         r = r.with_smc_settings(s).unwrap();
@@ -50,7 +56,10 @@ fn render(scene: &Scene, kind: IntegratorKind, settings: Option<SmcSettings>, sp
 const THRESHOLDS: [f64; 2] = [64.0, 1.0];
 
 fn forms() -> [EstimatorForm; 2] {
-    [EstimatorForm::Distance, EstimatorForm::RayMarching { step: 1.0 }]
+    [
+        EstimatorForm::Distance,
+        EstimatorForm::RayMarching { step: 1.0 },
+    ]
 }
 
 #[test]
@@ -61,11 +70,20 @@ fn every_variant_keeps_the_white_furnace_white() {
     for form in forms() {
         for variant in Variant::ALL {
             for threshold in THRESHOLDS {
-                let settings = SmcSettings { variant, threshold, form, ..Default::default() };
+                let settings = SmcSettings {
+                    variant,
+                    threshold,
+                    form,
+                    ..Default::default()
+                };
                 let r = render(&scene, IntegratorKind::Smc, Some(settings), 32, 11);
                 let (mean, stderr) = image_mean(&r);
                 assert_within_sigma(
-                    &format!("furnace {} {} threshold {threshold}", variant.name(), form.name()),
+                    &format!(
+                        "furnace {} {} threshold {threshold}",
+                        variant.name(),
+                        form.name()
+                    ),
                     mean,
                     stderr,
                     1.0,
@@ -90,9 +108,22 @@ fn every_variant_agrees_with_the_path_tracer_on_the_fog_box() {
     let (truth, truth_err) = image_mean(&render(&scene, IntegratorKind::Path, None, 2048, 3));
     for form in forms() {
         for variant in Variant::ALL {
-            let settings = SmcSettings { variant, form, ..Default::default() };
+            let settings = SmcSettings {
+                variant,
+                form,
+                ..Default::default()
+            };
             let means: Vec<f64> = (0..FOG_BOX_RUNS)
-                .map(|seed| image_mean(&render(&scene, IntegratorKind::Smc, Some(settings), 32, 100 + seed)).0)
+                .map(|seed| {
+                    image_mean(&render(
+                        &scene,
+                        IntegratorKind::Smc,
+                        Some(settings),
+                        32,
+                        100 + seed,
+                    ))
+                    .0
+                })
                 .collect();
             let (mean, stderr) = common::mean_and_stderr(&means);
             let combined = (stderr * stderr + truth_err * truth_err).sqrt();
@@ -115,8 +146,13 @@ fn meters_and_delta_lights_agree_with_the_path_tracer_on_the_slab() {
     path.meter_samples = 4096;
     path.pass(4, &|| {});
     for form in forms() {
-        let settings = SmcSettings { form, ..Default::default() };
-        let mut smc = Renderer::new(&scene, IntegratorKind::Smc, 2, None).with_smc_settings(settings).unwrap();
+        let settings = SmcSettings {
+            form,
+            ..Default::default()
+        };
+        let mut smc = Renderer::new(&scene, IntegratorKind::Smc, 2, None)
+            .with_smc_settings(settings)
+            .unwrap();
         smc.meter_samples = 4096;
         for _ in 0..4 {
             smc.pass(1, &|| {});

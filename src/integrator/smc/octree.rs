@@ -60,15 +60,15 @@ impl std::fmt::Display for OctreeStats {
         write!(
             f,
             "smc structure: refinement threshold {}, max depth {}, {} nodes, {} leaves, {} cells, \
-             {} bytes ({:.1} MiB of a {:.1} MiB budget), {} records",
+             {} bytes ({} of a {} budget), {} records",
             self.threshold,
             self.max_depth,
             self.nodes,
             self.leaves,
             self.cells,
             self.bytes,
-            self.bytes as f64 / MIB,
-            self.budget as f64 / MIB,
+            human_bytes(self.bytes),
+            human_bytes(self.budget),
             self.records
         )?;
         if self.budget_reached {
@@ -82,7 +82,18 @@ impl std::fmt::Display for OctreeStats {
     }
 }
 
-const MIB: f64 = 1024.0 * 1024.0;
+/// `bytes` with a binary unit, for the statistics line.
+fn human_bytes(bytes: usize) -> String {
+    const KIB: f64 = 1024.0;
+    let b = bytes as f64;
+    if b >= KIB * KIB * KIB {
+        format!("{:.2} GiB", b / (KIB * KIB * KIB))
+    } else if b >= KIB * KIB {
+        format!("{:.1} MiB", b / (KIB * KIB))
+    } else {
+        format!("{:.1} KiB", b / KIB)
+    }
+}
 
 /// The spatial octree of radiance caches.
 #[derive(Clone, Debug)]
