@@ -83,7 +83,11 @@ pub fn parse_bytes(s: &str) -> Result<usize, String> {
         "KiB" => 1 << 10,
         "MiB" => 1 << 20,
         "GiB" => 1 << 30,
-        u => return Err(format!("`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)")),
+        u => {
+            return Err(format!(
+                "`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)"
+            ))
+        }
     };
     digits
         .parse::<usize>()
@@ -258,7 +262,11 @@ pub fn render_scene_with(
     };
     Ok(RenderResult {
         integrator: match &r.smc {
-            Some(s) => format!("smc ({}, {})", s.settings.variant.name(), s.settings.form.name()),
+            Some(s) => format!(
+                "smc ({}, {})",
+                s.settings.variant.name(),
+                s.settings.form.name()
+            ),
             None => kind.name().to_string(),
         },
         spp: if time.is_some() { spp_done } else { spp as u64 },
