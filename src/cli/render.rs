@@ -1,11 +1,14 @@
 //! `pathspace render [SCENE] [--integrator I] [--spp N | --time S] [--seed S] [--threads N]
-//! [--max-depth D] [-o OUT.exr] [--png OUT.png] [--json]`
+//! [--max-depth D] [-o OUT.exr] [--png OUT.png] [--json]`, and for `--integrator smc`
+//! `[--smc-variant is1_cv2] [--smc-threshold T] [--cache-budget BYTES] [--smc-estimator
+//! distance|march] [--smc-step MFP]`.
 
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::image_io::{self, ImageMeta};
+use crate::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings, Variant};
 use crate::integrator::{IntegratorKind, MeterEstimate, Renderer};
 use crate::scene::Scene;
 
@@ -50,6 +53,92 @@ pub struct RenderArgs {
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
+    /// Options of the `smc` integrator (boxed: they are rarely given).
+    #[command(flatten)]
+    pub smc: Box<SmcArgs>,
+}
+
+/// The options of `--integrator smc`.
+#[derive(Args, Debug, Default, Clone)]
+pub struct SmcArgs {
+    /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
+    #[arg(long)]
+    pub smc_variant: Option<String>,
+    /// SMC: the refinement threshold on the average record count (default 64).
+    #[arg(long)]
+    pub smc_threshold: Option<f64>,
+    /// SMC: memory budget of the structure, bytes or with a KiB/MiB/GiB suffix (default 1GiB).
+    #[arg(long, value_parser = parse_bytes)]
+    pub cache_budget: Option<usize>,
+    /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
+    #[arg(long)]
+    pub smc_estimator: Option<String>,
+    /// SMC: the ray-marching step in mean free paths (default 1).
+    #[arg(long)]
+    pub smc_step: Option<f32>,
+}
+
+/// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB`.
+pub fn parse_bytes(s: &str) -> Result<usize, String> {
+    let t = s.trim();
+    let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
+        Some(i) => t.split_at(i),
+        None => (t, ""),
+    };
+    let scale: usize = match unit.trim() {
+        "" | "B" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        u => {
+            return Err(format!(
+                "`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)"
+            ))
+        }
+    };
+    digits
+        .parse::<usize>()
+        .ok()
+        .and_then(|n| n.checked_mul(scale))
+        .ok_or_else(|| format!("`{s}` is not a byte count such as 1073741824 or 512MiB"))
+}
+
+impl SmcArgs {
+    /// The SMC settings from the options; an error when they are invalid or given to another
+    /// integrator.
+    pub fn smc_settings(&self, kind: IntegratorKind) -> Result<Option<SmcSettings>, String> {
+        let given = self.smc_variant.is_some()
+            || self.smc_threshold.is_some()
+            || self.cache_budget.is_some()
+            || self.smc_estimator.is_some()
+            || self.smc_step.is_some();
+        if kind != IntegratorKind::Smc {
+            if given {
+                return Err(format!(
+                    "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
+                    kind.name()
+                ));
+            }
+            return Ok(None);
+        }
+        let mut s = SmcSettings::default();
+        if let Some(v) = &self.smc_variant {
+            s.variant = Variant::parse(v)?;
+        }
+        if let Some(t) = self.smc_threshold {
+            s.threshold = t;
+        }
+        if let Some(b) = self.cache_budget {
+            s.budget = b;
+        }
+        if self.smc_step.is_some() && self.smc_estimator.as_deref() != Some("march") {
+            return Err("--smc-step needs --smc-estimator march".into());
+        }
+        if let Some(e) = &self.smc_estimator {
+            s.form = EstimatorForm::parse(e, self.smc_step)?;
+        }
+        Ok(Some(s))
+    }
 }
 
 /// Parses `WxH`.
@@ -79,6 +168,8 @@ pub struct RenderResult {
     /// relMSE expected from the image's own per-pixel variance (no reference needed); None
     /// without a camera. See `measure::stats::estimated_relmse`.
     pub estimated_relmse: Option<f64>,
+    /// The SMC structure's statistics after the render (Pegoraro et al. Table 1).
+    pub smc_stats: Option<OctreeStats>,
 }
 
 impl RenderResult {
@@ -101,7 +192,26 @@ pub fn render_scene(
     max_depth: Option<u32>,
     progress: bool,
 ) -> RenderResult {
+    render_scene_with(scene, kind, None, spp, time, seed, max_depth, progress)
+        .expect("the default SMC settings are valid")
+}
+
+/// [`render_scene`] with SMC settings (for `smc`; `None`: the defaults).
+#[allow(clippy::too_many_arguments)]
+pub fn render_scene_with(
+    scene: &Scene,
+    kind: IntegratorKind,
+    smc: Option<SmcSettings>,
+    spp: u32,
+    time: Option<f64>,
+    seed: u64,
+    max_depth: Option<u32>,
+    progress: bool,
+) -> Result<RenderResult, String> {
     let mut r = Renderer::new(scene, kind, seed, max_depth);
+    if let Some(settings) = smc {
+        r = r.with_smc_settings(settings)?;
+    }
     let tiles = scene.camera.as_ref().map_or(1, |c| {
         (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE))
             as u64
@@ -160,8 +270,15 @@ pub fn render_scene(
     } else {
         r.passes
     };
-    RenderResult {
-        integrator: kind.name().to_string(),
+    Ok(RenderResult {
+        integrator: match &r.smc {
+            Some(s) => format!(
+                "smc ({}, {})",
+                s.settings.variant.name(),
+                s.settings.form.name()
+            ),
+            None => kind.name().to_string(),
+        },
         spp: if time.is_some() { spp_done } else { spp as u64 },
         seconds,
         paths: r.paths,
@@ -171,7 +288,8 @@ pub fn render_scene(
         estimated_relmse: r.film.as_ref().and_then(|f| {
             crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
         }),
-    }
+        smc_stats: r.smc.as_ref().map(|s| s.stats()),
+    })
 }
 
 fn rgb_json(c: glam::Vec3) -> serde_json::Value {
@@ -201,6 +319,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             return Err(format!("--time {t} must be a positive number of seconds"));
         }
     }
+    let smc = args.smc.smc_settings(kind)?;
     let seed = args.seed.unwrap_or(scene.render.seed);
     let max_depth = args.max_depth.or(scene.render.max_depth);
     let mut pool = rayon::ThreadPoolBuilder::new();
@@ -242,8 +361,11 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             eprintln!("wrote {} strategy images to {}", films.len(), dir.display());
         }
     }
-    let result =
-        pool.install(|| render_scene(&scene, kind, spp, args.time, seed, max_depth, !args.json));
+    let result = pool.install(|| {
+        render_scene_with(
+            &scene, kind, smc, spp, args.time, seed, max_depth, !args.json,
+        )
+    })?;
 
     let stem = args
         .scene
@@ -291,6 +413,17 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             "estimated_relmse": result.estimated_relmse,
             "sensors": sensors,
             "outputs": written,
+            "smc": result.smc_stats.as_ref().map(|s| serde_json::json!({
+                "refinement_threshold": s.threshold,
+                "max_depth": s.max_depth,
+                "nodes": s.nodes,
+                "leaves": s.leaves,
+                "cells": s.cells,
+                "bytes": s.bytes,
+                "budget": s.budget,
+                "budget_reached": s.budget_reached,
+                "records": s.records,
+            })),
         });
         println!("{out}");
     } else {
@@ -323,6 +456,9 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 m.stderr.z,
                 m.samples
             );
+        }
+        if let Some(s) = &result.smc_stats {
+            println!("  {s}");
         }
     }
     Ok(())

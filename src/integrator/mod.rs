@@ -2,10 +2,12 @@
 //! with rayon) and over irradiance meters, with every random stream derived from the seed and
 //! the pixel (or meter chunk) and pass index, so the image is bit-identical whatever the thread
 //! count.
-//! Book: "The Neumann series and the path tracer" (path), "Measuring a renderer" (statistics).
+//! Book: "The Neumann series and the path tracer" (path), "Measuring a renderer" (statistics),
+//! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
 pub mod path;
+pub mod smc;
 
 pub use path::PathTracer;
 
@@ -25,6 +27,8 @@ pub enum IntegratorKind {
     Light,
     /// Bidirectional path tracing with MIS over all (s, t).
     Bdpt,
+    /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
+    Smc,
 }
 
 impl IntegratorKind {
@@ -32,6 +36,7 @@ impl IntegratorKind {
         IntegratorKind::Path,
         IntegratorKind::Light,
         IntegratorKind::Bdpt,
+        IntegratorKind::Smc,
     ];
 
     pub fn name(self) -> &'static str {
@@ -39,6 +44,7 @@ impl IntegratorKind {
             IntegratorKind::Path => "path",
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Smc => "smc",
         }
     }
 
@@ -61,8 +67,14 @@ pub const METER_CHUNK: u64 = 1024;
 /// Salt that keeps meter streams apart from pixel streams of the same index.
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
 
-/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, and its NaN count.
-type TileResult = (Vec<(usize, [f64; 3], [f64; 3])>, Vec<bdpt::Splat>, u64);
+/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
+/// its SMC records.
+type TileResult = (
+    Vec<(usize, [f64; 3], [f64; 3])>,
+    Vec<bdpt::Splat>,
+    u64,
+    Vec<smc::Record>,
+);
 
 /// A meter's running statistics.
 #[derive(Clone, Debug, Default)]
@@ -123,6 +135,9 @@ pub struct Renderer<'a> {
     pub paths: u64,
     /// Meter samples per pixel sample.
     pub meter_samples: u64,
+    /// The SMC state for `smc`: the structure is read-only during a pass, its records are
+    /// merged after it.
+    pub smc: Option<smc::Smc>,
 }
 
 impl<'a> Renderer<'a> {
@@ -133,7 +148,7 @@ impl<'a> Renderer<'a> {
             seed,
             tracer: PathTracer::new(max_depth),
             bdpt: match kind {
-                IntegratorKind::Path => None,
+                IntegratorKind::Path | IntegratorKind::Smc => None,
                 IntegratorKind::Light => Some(bdpt::Bdpt::new(
                     scene,
                     max_depth,
@@ -149,7 +164,27 @@ impl<'a> Renderer<'a> {
             nan_count: 0,
             paths: 0,
             meter_samples: scene.render.meter_samples as u64,
+            smc: match kind {
+                IntegratorKind::Smc => {
+                    smc::Smc::new(scene, smc::SmcSettings::default(), max_depth).ok()
+                }
+                _ => None,
+            },
         }
+    }
+
+    /// Replaces the SMC settings (before the first pass); an error for invalid settings or
+    /// another integrator.
+    pub fn with_smc_settings(mut self, settings: smc::SmcSettings) -> Result<Self, String> {
+        if self.kind != IntegratorKind::Smc {
+            return Err(format!(
+                "SMC options apply to the `smc` integrator, not `{}`",
+                self.kind.name()
+            ));
+        }
+        let max_depth = Some(self.tracer.max_depth);
+        self.smc = Some(smc::Smc::new(self.scene, settings, max_depth)?);
+        Ok(self)
     }
 
     /// Samples per pixel so far.
@@ -165,7 +200,9 @@ impl<'a> Renderer<'a> {
         let scene = self.scene;
         let tracer = self.tracer;
         let bidir = self.bdpt.as_ref();
+        let smc_state = self.smc.as_ref();
         let seed = self.seed;
+        let mut smc_records: Vec<Vec<smc::Record>> = Vec::new();
         if let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) {
             let (w, h) = (cam.width, cam.height);
             let tiles_x = w.div_ceil(TILE);
@@ -177,6 +214,8 @@ impl<'a> Renderer<'a> {
                     let mut out = Vec::with_capacity((TILE * TILE) as usize);
                     let mut splats = Vec::new();
                     let mut scratch = bdpt::Scratch::default();
+                    let mut smc_scratch = smc::Scratch::default();
+                    let mut records = Vec::new();
                     let mut nans = 0u64;
                     for y in ty * TILE..((ty + 1) * TILE).min(h) {
                         for x in tx * TILE..((tx + 1) * TILE).min(w) {
@@ -188,14 +227,22 @@ impl<'a> Renderer<'a> {
                                 let raster =
                                     glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
                                 let first_splat = splats.len();
-                                let l = match bidir {
-                                    None => tracer.radiance(
+                                let l = match (bidir, smc_state) {
+                                    (None, Some(s)) => s.radiance(
+                                        scene,
+                                        cam.generate_ray(raster),
+                                        scene.camera_medium,
+                                        &mut sampler,
+                                        &mut smc_scratch,
+                                        &mut records,
+                                    ),
+                                    (None, None) => tracer.radiance(
                                         scene,
                                         cam.generate_ray(raster),
                                         scene.camera_medium,
                                         &mut sampler,
                                     ),
-                                    Some(b) => {
+                                    (Some(b), _) => {
                                         b.camera_subpath(
                                             scene,
                                             raster,
@@ -223,10 +270,11 @@ impl<'a> Renderer<'a> {
                         }
                     }
                     on_tile();
-                    (out, splats, nans)
+                    (out, splats, nans, records)
                 })
                 .collect();
-            for (pixels, splats, nans) in results {
+            for (pixels, splats, nans, records) in results {
+                smc_records.push(records);
                 self.nan_count += nans;
                 for (i, s, q) in pixels {
                     film.add_pixel(i, s, q);
@@ -244,7 +292,7 @@ impl<'a> Renderer<'a> {
         let per_meter = spp as u64 * self.meter_samples;
         for (mi, meter) in scene.sensors.iter().enumerate() {
             let chunks = per_meter.div_ceil(METER_CHUNK);
-            let results: Vec<(MeterAccum, u64)> = (0..chunks)
+            let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)
                 .into_par_iter()
                 .map(|c| {
                     let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
@@ -254,10 +302,19 @@ impl<'a> Renderer<'a> {
                     let mut nans = 0;
                     let mut scratch = bdpt::Scratch::default();
                     let mut splats = Vec::new();
+                    let mut smc_scratch = smc::Scratch::default();
+                    let mut records = Vec::new();
                     for _ in 0..n {
-                        let e = match bidir {
-                            None => tracer.meter_irradiance(scene, meter, &mut sampler),
-                            Some(b) => {
+                        let e = match (bidir, smc_state) {
+                            (None, Some(s)) => s.meter_irradiance(
+                                scene,
+                                meter,
+                                &mut sampler,
+                                &mut smc_scratch,
+                                &mut records,
+                            ),
+                            (None, None) => tracer.meter_irradiance(scene, meter, &mut sampler),
+                            (Some(b), _) => {
                                 b.meter_subpath(scene, mi as u32, &mut sampler, &mut scratch.eye);
                                 b.light_subpath(scene, &mut sampler, &mut scratch.light);
                                 b.combine(scene, &scratch, &mut sampler, &mut splats)
@@ -274,10 +331,11 @@ impl<'a> Renderer<'a> {
                             acc.sum_sq[ch] += v * v;
                         }
                     }
-                    (acc, nans)
+                    (acc, nans, records)
                 })
                 .collect();
-            for (acc, nans) in results {
+            for (acc, nans, records) in results {
+                smc_records.push(records);
                 let m = &mut self.meters[mi];
                 for ch in 0..3 {
                     m.sum[ch] += acc.sum[ch];
@@ -287,6 +345,13 @@ impl<'a> Renderer<'a> {
                 self.nan_count += nans;
             }
             self.paths += per_meter;
+        }
+        // SMC: the pass's records, in tile then meter-chunk order, refine the structure for
+        // the next pass [PWP08 Fig. 2 lines 13-14]
+        if let Some(s) = self.smc.as_mut() {
+            for records in &smc_records {
+                s.merge(records);
+            }
         }
     }
 

@@ -1,0 +1,129 @@
+//! The unbiased distance-sampling estimator (Pegoraro, Wald, Parker 2008, eq. 7 and the
+//! pseudo-code of Fig. 2).
+//!
+//! eq. (7): L(x, w) = int_x^x_inf e^-tau sigma_t [x' - x < x_0 - x ? L_t(x') : L_b(x_0)] dx'
+//! with the source L_t = (sigma_a L_e + sigma_s L_i) / sigma_t: a free-flight distance sampled
+//! with density sigma_t e^-tau either lands in the medium, where L_i is estimated by the
+//! combined estimator of eq. (1) with the cache of the leaf containing the point, or passes,
+//! and the background (or the next surface) is seen.
+//!
+//! Fig. 2, line by line (anchor `fig2` below):
+//!  2 `GetSamplePositionFromRayPDF` -> `scene.propagate` (Table 1 free flight, through null
+//!    boundaries); `weight` is its transmittance times sigma_s over its pdf (the albedo);
+//!  3 `position < mediumBoundary` -> `Event::Medium`;
+//!  4 `octree.GetCache(position)` -> `smc.octree.cache(p)`, a snapshot of the structure;
+//!  5-8 `GetSampleDirection`, `GetIntegralForIsotropicPhaseFunction`, `GetRadiance` times the
+//!    isotropic phase function -> `smc.in_scatter` (wi, p, G, g);
+//!  9-10 `TraceRay` times the phase function -> the rest of the chain: f = f_p R_{k+1};
+//!  11 `estimate = G + (f - g) / p` -> the link a = G - g / p, b = f_p / p;
+//!  12-14 `AddRecordToCache`, `Refine` -> the link's record, merged after the pass
+//!    ([`super::Smc::merge`]) so that every estimate of the pass sees the same snapshot;
+//!  15-16 `TraceBackgroundRay` -> `Event::Escape` (or a surface vertex);
+//!  17 `estimate * weight` -> every link is multiplied by `weight`.
+//!
+//! Book: "SMC: the estimators", section "Distance sampling (eq. 7, Fig. 2)".
+
+use super::walk::{self, Link, Previous, Scratch};
+use super::Smc;
+use crate::geometry::Ray;
+use crate::math::Sampler;
+use crate::scene::{Event, Scene};
+use crate::spectrum::Rgb;
+
+/// The walk from `ray` (in `medium`) with throughput `beta`, appending links to `scratch`.
+// ANCHOR: fig2
+#[allow(clippy::too_many_arguments)]
+pub fn walk(
+    smc: &Smc,
+    scene: &Scene,
+    mut ray: Ray,
+    mut medium: Option<u32>,
+    mut prev: Previous,
+    mut beta: Rgb,
+    sampler: &mut Sampler,
+    scratch: &mut Scratch,
+) {
+    let mut depth = 0;
+    loop {
+        // line 2: a distance by the free-flight pdf of the ray (eq. 7)
+        // medium segments are measured from the vertex itself, not the lifted origin
+        let lead = (ray.o - prev.p).dot(ray.d).max(0.0);
+        let prop = scene.propagate(ray, lead, medium, sampler);
+        let weight = prop.weight();
+        if weight == Rgb::ZERO {
+            return;
+        }
+        match prop.event {
+            // lines 3-14: a medium vertex
+            Event::Medium { p, medium: m, .. } => {
+                if depth >= smc.max_depth {
+                    return;
+                }
+                depth += 1;
+                let phase = scene.media[m as usize].phase();
+                let wo = -ray.d;
+                // line 4: the snapshot's cache at the position
+                let cache = smc.octree.cache(p);
+                // lines 5-8: (direction, p), G, g
+                let s = smc.in_scatter(cache, phase, wo, sampler);
+                let delta = walk::delta_lights(scene, p, Some(m), sampler, |wi| phase.eval(wo, wi));
+                if s.pdf.is_nan() || s.pdf <= 0.0 {
+                    scratch.links.push(Link::plain(weight * delta, Rgb::ZERO));
+                    return;
+                }
+                // line 11: G + (f - g) / p with f = f_p * TraceRay (lines 9-10)
+                let b = weight * (s.phase_value / s.pdf);
+                let mut link = Link {
+                    a: weight * (delta + s.G - s.g / s.pdf),
+                    b,
+                    // line 13: the record (direction, radiance), merged after the pass
+                    record: Some((p, s.wi, s.phase_value)),
+                    roulette: None,
+                };
+                beta *= b;
+                let c = cache.radiance(s.wi, smc.settings.variant.cv);
+                let alive = walk::roulette(depth, &mut beta, c, &mut link, sampler);
+                scratch.links.push(link);
+                if !alive {
+                    return;
+                }
+                ray = Ray::new(p, s.wi);
+                medium = Some(m);
+                prev = Previous::singular(p);
+            }
+            // line 16: the background
+            Event::Escape => {
+                let a = weight * walk::escaped(scene, ray.d, &prev);
+                scratch.links.push(Link::plain(a, Rgb::ZERO));
+                return;
+            }
+            Event::Surface { hit, medium: m } => {
+                let st = walk::surface(
+                    scene,
+                    &ray,
+                    &hit,
+                    m,
+                    &prev,
+                    &mut depth,
+                    smc.max_depth,
+                    sampler,
+                );
+                let Some((w, next_ray, next_medium, next_prev)) = st.next else {
+                    scratch.links.push(Link::plain(weight * st.a, Rgb::ZERO));
+                    return;
+                };
+                let mut link = Link::plain(weight * st.a, weight * w);
+                beta *= weight * w;
+                let alive = walk::roulette(depth, &mut beta, Rgb::ZERO, &mut link, sampler);
+                scratch.links.push(link);
+                if !alive {
+                    return;
+                }
+                ray = next_ray;
+                medium = next_medium;
+                prev = next_prev;
+            }
+        }
+    }
+}
+// ANCHOR_END: fig2

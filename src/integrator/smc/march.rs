@@ -1,0 +1,245 @@
+//! The ray-marching estimator with the joint virtual domain (Pegoraro, Wald, Parker 2008,
+//! eq. 8 and 9).
+//!
+//! eq. (8): over an interval dx where the medium is constant,
+//!   L(x + dx) = kappa_t L(x) + kappa_s L_i,  kappa_t = e^(-sigma_t dx),
+//!   kappa_s = (1 - e^(-sigma_t dx)) sigma_s / sigma_t.
+//! eq. (9): both terms are one integral I over the virtual domain Omega_t U Omega_s, Omega_t a
+//! single point of measure 1 (the transmission direction) and Omega_s the sphere (measure
+//! 4 pi), so one sample decides between continuing the ray and scattering, and one ray
+//! estimates both the transmitted and the in-scattered radiance.
+//!
+//! Predicates on the joint domain [PWP08 sec. 4.5]: G = kappa_s G_s + kappa_t L~(d) where G_s
+//! is the cache's spherical integral and L~(d) its reconstruction in the transmission
+//! direction d; the probability tree is completed on the fly by the two masses
+//! kappa_t c(d) (the pdf coefficient of d's cell) and kappa_s mean(c) (the root over N), so
+//! P_t = kappa_t c(d) / (kappa_t c(d) + kappa_s mean(c)). On Omega_t, p = P_t and f = kappa_t L
+//! (a newly traced continuation); on Omega_s, p = (1 - P_t) p_cache(w) and
+//! f = kappa_s f_p L(w). Without an adaptive pdf (is0, or a root whose pdf is incomplete) the
+//! masses are kappa_t and kappa_s and Omega_s is sampled by the phase function (is0) or
+//! uniformly.
+//!
+//! DEVIATION: eq. (8) evaluates L_i at the start of the interval, an O(dx) bias. Here the
+//! scattering point is jittered in the interval by the truncated exponential density
+//! q(s) = sigma e^(-sigma s) / (1 - e^(-sigma dx)) (sigma the channel mean of sigma_t), and
+//! the in-scattered term is weighted by sigma_s e^(-sigma_t s) / q(s), whose expectation is
+//! exactly int_0^dx sigma_s e^(-sigma_t s) L_i(x + s) ds: the march is unbiased in piecewise
+//! constant media, while g, G and the sampling probabilities keep the paper's kappa_s.
+//! Book: "SMC: the estimators", section "Ray marching on Omega_t U Omega_s (eq. 8, 9)".
+
+use super::walk::{self, Link, Previous, Scratch};
+use super::{ImportanceSampling, Smc};
+use crate::geometry::Ray;
+use crate::math::{warp, Sampler};
+use crate::scene::Scene;
+use crate::spectrum::{self, Rgb};
+
+/// Relative step past a crossed null boundary, the same rule as `Scene::propagate` (the ray
+/// is continued, never re-spawned).
+const NULL_CROSSING_EPSILON: f32 = 1e-6;
+/// More null crossings than this along one ray means the geometry traps the ray.
+const MAX_NULL_CROSSINGS: usize = 256;
+/// Marching steps along one ray after which the ray is abandoned (its remaining transmittance
+/// is below e^-MAX_MARCH_STEPS * step in a medium of any thickness that reaches this count).
+const MAX_MARCH_STEPS: usize = 1 << 20;
+
+#[inline]
+fn past(t: f32, ray: &Ray) -> f32 {
+    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
+}
+
+/// sigma_s / sigma_t per channel (0 where sigma_t is 0).
+#[inline]
+fn albedo(sigma_s: Rgb, sigma_t: Rgb) -> Rgb {
+    Rgb::select(sigma_t.cmpgt(Rgb::ZERO), sigma_s / sigma_t, Rgb::ZERO)
+}
+
+/// The marching walk from `ray` (in `medium`) with throughput `beta`; `step_mfp` is the step
+/// in mean free paths.
+// ANCHOR: march
+#[allow(clippy::too_many_arguments)]
+pub fn walk(
+    smc: &Smc,
+    scene: &Scene,
+    mut ray: Ray,
+    mut medium: Option<u32>,
+    mut prev: Previous,
+    mut beta: Rgb,
+    step_mfp: f32,
+    sampler: &mut Sampler,
+    scratch: &mut Scratch,
+) {
+    let variant = smc.settings.variant;
+    let cv = variant.cv;
+    let mut depth = 0;
+    'rays: loop {
+        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
+        let mut crossings = 0;
+        loop {
+            crossings += 1;
+            if crossings > MAX_NULL_CROSSINGS {
+                return;
+            }
+            let hit = scene.bvh.intersect_range(
+                &scene.prims,
+                &scene.prim_opaque,
+                &ray,
+                t_min,
+                f32::INFINITY,
+            );
+            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
+            if let Some(m) = medium {
+                let med = &scene.media[m as usize];
+                let x0 = ray.at(t_start);
+                let (sigma_t, sigma_s) = (med.sigma_t(x0), med.sigma_s(x0));
+                let sigma_mean = spectrum::average(sigma_t);
+                if sigma_mean > 0.0 {
+                    let step = step_mfp / sigma_mean;
+                    let d = ray.d;
+                    let mut t = t_start;
+                    let mut steps = 0;
+                    while t < t_hit {
+                        steps += 1;
+                        if steps > MAX_MARCH_STEPS {
+                            return;
+                        }
+                        let dx = step.min(t_hit - t);
+                        let kappa_t = (-sigma_t * dx).exp();
+                        let kappa_s = if depth < smc.max_depth {
+                            (Rgb::ONE - kappa_t) * albedo(sigma_s, sigma_t)
+                        } else {
+                            Rgb::ZERO
+                        };
+                        // the scattering point, jittered in the step (see DEVIATION above);
+                        // drawn before the branch so that both branches share G
+                        let one_minus = -(-sigma_mean * dx).exp_m1();
+                        let s = (-(1.0 - sampler.next_f32() * one_minus).ln() / sigma_mean)
+                            .clamp(0.0, dx);
+                        let q = sigma_mean * (-sigma_mean * s).exp() / one_minus;
+                        let kappa_s_jit = sigma_s * (-sigma_t * s).exp() / q;
+                        let xs = ray.at(t + s);
+                        let x_end = ray.at(t + dx);
+                        // the snapshot's caches: where the transmitted radiance L(x + dx, d)
+                        // arrives, and where the in-scattered radiance is estimated
+                        let cache_t = smc.octree.cache(x_end);
+                        let cache_s = smc.octree.cache(xs);
+                        let use_cache = variant.is == ImportanceSampling::Order0
+                            && cache_s.pdf_is_positive()
+                            && cache_t.pdf_is_positive();
+                        // the probability tree completed on the fly [PWP08 sec. 4.5]
+                        let (mass_t, mass_s) = if use_cache {
+                            let cell = cache_t.grid().cell_of_direction(d);
+                            (
+                                spectrum::average(kappa_t) as f64 * cache_t.pdf_coefficient(cell),
+                                spectrum::average(kappa_s) as f64 * cache_s.pdf_coefficient_mean(),
+                            )
+                        } else {
+                            (
+                                spectrum::average(kappa_t) as f64,
+                                spectrum::average(kappa_s) as f64,
+                            )
+                        };
+                        let p_t = if mass_s > 0.0 {
+                            (mass_t / (mass_t + mass_s)) as f32
+                        } else {
+                            1.0
+                        };
+                        // g on Omega_t and G on the joint domain
+                        let g_t = kappa_t * cache_t.radiance(d, cv);
+                        let big_g = kappa_s * cache_s.integral(cv) + g_t;
+                        if sampler.next_f32() < p_t {
+                            // Omega_t: the transmitted radiance, by continuing the ray
+                            let b = kappa_t / p_t;
+                            scratch.links.push(Link {
+                                a: big_g - g_t / p_t,
+                                b,
+                                record: Some((x_end, d, warp::INV_FOUR_PI)),
+                                roulette: None,
+                            });
+                            beta *= b;
+                            t += dx;
+                            continue;
+                        }
+                        // Omega_s: the in-scattered radiance at the jittered point
+                        let p_s = 1.0 - p_t;
+                        let phase = med.phase();
+                        let wo = -d;
+                        let (wi, pdf_dir) = if use_cache {
+                            cache_s.sample(sampler.next_f64(), sampler.next_2d())
+                        } else if variant.is == ImportanceSampling::Phase {
+                            let ps = phase.sample(wo, sampler.next_2d());
+                            (ps.wi, ps.pdf)
+                        } else {
+                            (warp::uniform_sphere(sampler.next_2d()), warp::INV_FOUR_PI)
+                        };
+                        let p = p_s * pdf_dir;
+                        if p.is_nan() || p <= 0.0 {
+                            return;
+                        }
+                        let phase_value = phase.eval(wo, wi);
+                        let g = kappa_s * cache_s.g(wi, cv);
+                        let delta =
+                            walk::delta_lights(scene, xs, Some(m), sampler, |w| phase.eval(wo, w));
+                        let b = kappa_s_jit * (phase_value / p);
+                        let mut link = Link {
+                            a: big_g - g / p + kappa_s_jit * delta / p_s,
+                            b,
+                            record: Some((xs, wi, phase_value)),
+                            roulette: None,
+                        };
+                        depth += 1;
+                        beta *= b;
+                        let c = cache_s.radiance(wi, cv);
+                        let alive = walk::roulette(depth, &mut beta, c, &mut link, sampler);
+                        scratch.links.push(link);
+                        if !alive {
+                            return;
+                        }
+                        ray = Ray::new(xs, wi);
+                        prev = Previous::singular(xs);
+                        continue 'rays;
+                    }
+                }
+            }
+            // the end of the segment: background, null boundary or surface
+            let Some(hit) = hit else {
+                let a = walk::escaped(scene, ray.d, &prev);
+                scratch.links.push(Link::plain(a, Rgb::ZERO));
+                return;
+            };
+            let shape = scene.shape_of(&hit);
+            if shape.is_null() {
+                medium = shape.medium_after(ray.d, hit.ng, medium);
+                t_start = hit.t;
+                t_min = past(hit.t, &ray);
+                continue;
+            }
+            let st = walk::surface(
+                scene,
+                &ray,
+                &hit,
+                medium,
+                &prev,
+                &mut depth,
+                smc.max_depth,
+                sampler,
+            );
+            let Some((w, next_ray, next_medium, next_prev)) = st.next else {
+                scratch.links.push(Link::plain(st.a, Rgb::ZERO));
+                return;
+            };
+            let mut link = Link::plain(st.a, w);
+            beta *= w;
+            let alive = walk::roulette(depth, &mut beta, Rgb::ZERO, &mut link, sampler);
+            scratch.links.push(link);
+            if !alive {
+                return;
+            }
+            ray = next_ray;
+            medium = next_medium;
+            prev = next_prev;
+            continue 'rays;
+        }
+    }
+}
+// ANCHOR_END: march

@@ -1,0 +1,302 @@
+//! Sequential Monte Carlo adaptation in low-anisotropy participating media (Pegoraro, Wald,
+//! Parker, EGSR 2008).
+//!
+//! Radiance estimates computed during rendering are cached in a 5-D structure, a spatial
+//! octree whose leaves hold adaptive directional grids, which defines at every moment a control
+//! variate g and an importance-sampling pdf p for the in-scattering integral at medium vertices
+//! (eq. 5). Each estimate uses a fixed snapshot of both predicates, so the estimator stays
+//! unbiased while they keep improving (eq. 1-3).
+//!
+//! | paper | module |
+//! |---|---|
+//! | eq. (1)-(3), the variants of Fig. 3 | [`estimator`] |
+//! | sec. 4.1 the (s, t) grid | [`grid`] |
+//! | sec. 4.1 B-spline control variates | [`bspline`] |
+//! | sec. 4.2 the tree of partial sums | [`partial_sums`] |
+//! | sec. 4.1-4.3 one leaf's cache, inheritance | [`cache`] |
+//! | sec. 4.3-4.4 the octree, refinement criterion | [`octree`] |
+//! | eq. (7), Fig. 2 distance sampling | [`distance`] |
+//! | eq. (8), (9) ray marching on Omega_t U Omega_s | [`march`] |
+//!
+//! Parallelism and determinism: during a pass every thread reads the same snapshot of the
+//! octree; the records of the pass are collected per tile and merged between passes in tile
+//! order (then meter-chunk order), refinements happening during that serial merge. The result
+//! is bit-identical for a seed whatever the thread count.
+//! Book: "Sequential Monte Carlo adaptation", "SMC: the radiance cache", "SMC: the estimators",
+//! "SMC: experiments".
+
+pub mod bspline;
+pub mod cache;
+pub mod distance;
+pub mod estimator;
+pub mod grid;
+pub mod march;
+pub mod octree;
+pub mod partial_sums;
+pub mod walk;
+
+pub use estimator::{ControlVariate, ImportanceSampling, Variant};
+pub use octree::{Octree, OctreeStats, Record};
+pub use walk::Scratch;
+
+use glam::Vec3;
+
+use crate::geometry::Ray;
+use crate::math::{warp, Frame, Sampler};
+use crate::medium::Phase;
+use crate::scene::{IrradianceMeter, Scene};
+use crate::spectrum::Rgb;
+use cache::RadianceCache;
+
+/// The default refinement threshold on the average record count (the method's single
+/// parameter, [PWP08 sec. 4.4]); Table 1 uses 256 and 512 for 512x512 renders. This default
+/// was chosen by the threshold sweep of the experiments chapter on the 32x32 test bed.
+pub const DEFAULT_REFINEMENT_THRESHOLD: f64 = 64.0;
+/// The default memory budget of the structure: 1 GiB (Table 1's largest structure is 0.98 GB).
+pub const DEFAULT_CACHE_BUDGET: usize = 1 << 30;
+/// The default ray-marching step, in mean free paths of the medium (1 / mean sigma_t).
+pub const DEFAULT_MARCH_STEP_MFP: f32 = 1.0;
+
+/// Which form of the radiative transfer the in-scattering estimates enter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum EstimatorForm {
+    /// eq. (7): free-flight distance sampling, the pseudo-code of Fig. 2.
+    Distance,
+    /// eq. (8) with the joint domain Omega_t U Omega_s of eq. (9); `step` in mean free paths.
+    RayMarching { step: f32 },
+}
+
+impl EstimatorForm {
+    pub fn parse(s: &str, step: Option<f32>) -> Result<Self, String> {
+        match s {
+            "distance" => Ok(EstimatorForm::Distance),
+            "march" => {
+                let step = step.unwrap_or(DEFAULT_MARCH_STEP_MFP);
+                if !(step.is_finite() && step > 0.0) {
+                    return Err(format!(
+                        "the ray-marching step {step} must be a positive number of mean free paths"
+                    ));
+                }
+                Ok(EstimatorForm::RayMarching { step })
+            }
+            _ => Err(format!(
+                "unknown SMC estimator `{s}` (available: distance, march)"
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            EstimatorForm::Distance => "distance",
+            EstimatorForm::RayMarching { .. } => "march",
+        }
+    }
+}
+
+/// The SMC integrator's options.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SmcSettings {
+    pub variant: Variant,
+    /// Refinement threshold on the average record count of a cache.
+    pub threshold: f64,
+    /// Memory budget of the structure in bytes.
+    pub budget: usize,
+    pub form: EstimatorForm,
+}
+
+impl Default for SmcSettings {
+    fn default() -> Self {
+        SmcSettings {
+            variant: Variant::SMC,
+            threshold: DEFAULT_REFINEMENT_THRESHOLD,
+            budget: DEFAULT_CACHE_BUDGET,
+            // the joint domain of eq. (9) controls the transmitted radiance too, which the
+            // distance form leaves to plain sampling (see the experiments chapter)
+            form: EstimatorForm::RayMarching {
+                step: DEFAULT_MARCH_STEP_MFP,
+            },
+        }
+    }
+}
+
+/// The SMC integrator: settings, the structure (read-only during a pass) and path limits.
+#[derive(Clone, Debug)]
+pub struct Smc {
+    pub settings: SmcSettings,
+    pub octree: Octree,
+    pub max_depth: u32,
+}
+
+/// A sampled direction of the in-scattering integral with everything eq. (1) needs.
+#[derive(Clone, Copy, Debug)]
+#[allow(non_snake_case)]
+pub struct InScatter {
+    pub wi: Vec3,
+    /// Solid-angle density of `wi`.
+    pub pdf: f32,
+    /// f_p(wo, wi).
+    pub phase_value: f32,
+    /// The control variate at `wi` (zero for cv0).
+    pub g: Rgb,
+    /// Its integral over the sphere.
+    #[allow(non_snake_case)]
+    pub G: Rgb,
+}
+
+impl Smc {
+    /// Validates the settings and builds the root of the structure over the scene's bounds.
+    pub fn new(
+        scene: &Scene,
+        settings: SmcSettings,
+        max_depth: Option<u32>,
+    ) -> Result<Self, String> {
+        if !(settings.threshold.is_finite() && settings.threshold > 0.0) {
+            return Err(format!(
+                "the refinement threshold {} must be a positive number of records",
+                settings.threshold
+            ));
+        }
+        let root_bytes = RadianceCache::root().bytes();
+        if settings.budget < root_bytes {
+            return Err(format!(
+                "the cache budget of {} bytes cannot hold even the root cache ({root_bytes} bytes)",
+                settings.budget
+            ));
+        }
+        let (min, max) = if scene.bounds.is_empty() {
+            (Vec3::splat(-1.0), Vec3::splat(1.0))
+        } else {
+            (scene.bounds.min, scene.bounds.max)
+        };
+        Ok(Smc {
+            settings,
+            octree: Octree::new(
+                min,
+                max,
+                settings.threshold,
+                settings.budget,
+                settings.variant.cv,
+            ),
+            max_depth: max_depth.unwrap_or(u32::MAX),
+        })
+    }
+
+    /// [PWP08 Fig. 2 lines 4-8]: a direction for the in-scattering integral at `p` from the
+    /// snapshot's cache (or the phase function for is0), with g and G.
+    // ANCHOR: in_scatter
+    #[inline]
+    pub fn in_scatter(
+        &self,
+        cache: &RadianceCache,
+        phase: &Phase,
+        wo: Vec3,
+        sampler: &mut Sampler,
+    ) -> InScatter {
+        let cv = self.settings.variant.cv;
+        let (wi, pdf) = match self.settings.variant.is {
+            ImportanceSampling::Phase => {
+                let ps = phase.sample(wo, sampler.next_2d());
+                (ps.wi, ps.pdf)
+            }
+            ImportanceSampling::Order0 if cache.pdf_is_positive() => {
+                cache.sample(sampler.next_f64(), sampler.next_2d())
+            }
+            // the root before its pdf is complete: uniform directions [PWP08 sec. 4.3]
+            ImportanceSampling::Order0 => {
+                (warp::uniform_sphere(sampler.next_2d()), warp::INV_FOUR_PI)
+            }
+        };
+        InScatter {
+            wi,
+            pdf,
+            phase_value: phase.eval(wo, wi),
+            g: cache.g(wi, cv),
+            G: cache.integral(cv),
+        }
+    }
+    // ANCHOR_END: in_scatter
+
+    /// The radiance arriving at the camera along `ray` (which starts in `medium`); the path's
+    /// records are appended to `records`.
+    pub fn radiance(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        medium: Option<u32>,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+        records: &mut Vec<Record>,
+    ) -> Rgb {
+        scratch.links.clear();
+        let prev = walk::Previous::singular(ray.o);
+        self.walk(scene, ray, medium, prev, Rgb::ONE, sampler, scratch);
+        walk::resolve(&scratch.links, records)
+    }
+
+    /// One sample of a meter's mean irradiance: a uniform point, delta lights by shadow rays,
+    /// then a cosine-distributed direction (weight pi) continued by the SMC walk.
+    pub fn meter_irradiance(
+        &self,
+        scene: &Scene,
+        meter: &IrradianceMeter,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+        records: &mut Vec<Record>,
+    ) -> Rgb {
+        let n = meter.normal();
+        let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
+        let direct = walk::delta_lights(scene, p, meter.medium, sampler, |wi| wi.dot(n).max(0.0));
+        let local = warp::cosine_hemisphere(sampler.next_2d());
+        if local.z <= 0.0 {
+            return direct;
+        }
+        let wi = Frame::from_normal(n).to_world(local);
+        scratch.links.clear();
+        scratch
+            .links
+            .push(walk::Link::plain(direct, Rgb::splat(std::f32::consts::PI)));
+        let prev = walk::Previous::singular(p);
+        self.walk(
+            scene,
+            Ray::new(p, wi),
+            meter.medium,
+            prev,
+            Rgb::splat(std::f32::consts::PI),
+            sampler,
+            scratch,
+        );
+        walk::resolve(&scratch.links, records)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn walk(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        medium: Option<u32>,
+        prev: walk::Previous,
+        beta: Rgb,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+    ) {
+        match self.settings.form {
+            EstimatorForm::Distance => {
+                distance::walk(self, scene, ray, medium, prev, beta, sampler, scratch)
+            }
+            EstimatorForm::RayMarching { step } => {
+                march::walk(self, scene, ray, medium, prev, beta, step, sampler, scratch)
+            }
+        }
+    }
+
+    /// Merges a pass's records in their order, refining as the criterion is met.
+    pub fn merge(&mut self, records: &[Record]) {
+        for r in records {
+            self.octree.add_record(r);
+        }
+    }
+
+    pub fn stats(&self) -> OctreeStats {
+        self.octree.stats()
+    }
+}

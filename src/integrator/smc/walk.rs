@@ -1,0 +1,314 @@
+//! The parts of a camera path that SMC shares between its two estimators: the linear recursion
+//! that turns a path into radiance records, surface vertices (next-event estimation with MIS,
+//! as in the path tracer), delta lights at medium vertices, and emission found by chance.
+//!
+//! A path is a chain of links R_k = a_k + b_k R_{k+1}, where R_k is the estimate of the
+//! radiance carried back along the k-th ray. At a medium vertex the combined estimator of
+//! eq. (1) is a link: G + (f_p L - g) / p = (G - g / p) + (f_p / p) L. Solving the chain from
+//! the end gives every R_{k+1}, the "radiance = TraceRay(position, direction)" of
+//! [PWP08 Fig. 2 line 9], which becomes the record of vertex k.
+//!
+//! Lights. At medium vertices SMC samples light implicitly (the in-scattering integral
+//! includes emitters hit by chance, as in [PWP08 sec. 5]); delta lights, which no direction can
+//! hit, are added by a shadow ray. At surfaces next-event estimation and BSDF sampling are
+//! combined by MIS exactly as in the path tracer, so emission reached after a medium vertex has
+//! weight 1 and after a surface the power-heuristic weight.
+//! Book: "SMC: the estimators".
+
+use glam::Vec3;
+
+use super::octree::Record;
+use crate::bsdf::TransportMode;
+use crate::geometry::{offset_origin, shadow_distance, Hit, Ray};
+use crate::integrator::path::power_heuristic;
+use crate::math::{warp, Sampler};
+use crate::scene::{Light, Scene};
+use crate::spectrum::Rgb;
+
+/// One link R_k = a_k + b_k R'_{k+1}; `record` is the vertex at the end of ray k whose
+/// incoming radiance along `wi` is R'_{k+1}. After Russian roulette with control value c and
+/// survival probability q (`roulette = Some((c, 1 / q))`, 1 / q = 0 when the path ended there),
+/// R'_{k+1} = c + (R_{k+1} - c) / q; without it R'_{k+1} = R_{k+1}.
+#[derive(Clone, Copy, Debug)]
+pub struct Link {
+    pub a: Rgb,
+    pub b: Rgb,
+    pub record: Option<(Vec3, Vec3, f32)>,
+    pub roulette: Option<(Rgb, f32)>,
+}
+
+impl Link {
+    /// A link without record.
+    pub fn plain(a: Rgb, b: Rgb) -> Self {
+        Link {
+            a,
+            b,
+            record: None,
+            roulette: None,
+        }
+    }
+}
+
+/// Per-thread scratch storage for a path's links (no allocation per sample).
+#[derive(Clone, Debug, Default)]
+pub struct Scratch {
+    pub links: Vec<Link>,
+}
+
+/// Solves the chain from its end (R after the last link is 0), appending one record per
+/// medium vertex, and returns R_0, the pixel's radiance.
+// ANCHOR: resolve
+pub fn resolve(links: &[Link], records: &mut Vec<Record>) -> Rgb {
+    let mut r = Rgb::ZERO;
+    for link in links.iter().rev() {
+        let mut ended = false;
+        if let Some((c, inv_q)) = link.roulette {
+            r = c + (r - c) * inv_q;
+            ended = inv_q == 0.0;
+        }
+        if let Some((p, wi, phase_value)) = link.record {
+            // a path ended by the roulette records nothing: c is the cache's own value
+            if r.is_finite() && !ended {
+                records.push(Record {
+                    p,
+                    wi,
+                    radiance: r,
+                    phase_value,
+                });
+            }
+        }
+        r = link.a + link.b * r;
+    }
+    r
+}
+// ANCHOR_END: resolve
+
+/// Where the previous scattering happened, for the MIS weight of emission found by chance.
+#[derive(Clone, Copy, Debug)]
+pub struct Previous {
+    pub p: Vec3,
+    /// Solid-angle density of the direction sampled there.
+    pub pdf_dir: f32,
+    /// True when no light sampling at that vertex could have produced the direction: a
+    /// primary ray, a Dirac BSDF lobe, or an SMC medium vertex (implicit light sampling).
+    pub singular: bool,
+}
+
+impl Previous {
+    pub fn singular(p: Vec3) -> Self {
+        Previous {
+            p,
+            pdf_dir: 1.0,
+            singular: true,
+        }
+    }
+}
+
+/// Radiance of the environment along an escaping ray, MIS-weighted against next-event
+/// estimation at the previous vertex.
+pub fn escaped(scene: &Scene, d: Vec3, prev: &Previous) -> Rgb {
+    let Some(e) = scene.environment else {
+        return Rgb::ZERO;
+    };
+    let Light::Environment(env) = &scene.lights[e as usize] else {
+        return Rgb::ZERO;
+    };
+    let w = if prev.singular {
+        1.0
+    } else {
+        power_heuristic(prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
+    };
+    env.radiance(d) * w
+}
+
+/// The direct light of every delta light (point, spot, directional) at `p` in `medium`, with
+/// `scatter(wi)` the phase function or cosine factor: these lights cannot be found by chance.
+pub fn delta_lights(
+    scene: &Scene,
+    p: Vec3,
+    medium: Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> f32,
+) -> Rgb {
+    let mut l = Rgb::ZERO;
+    for light in scene.lights.iter().filter(|l| l.is_delta()) {
+        let u = sampler.next_2d();
+        let Some(ls) = light.sample_li(&scene.prims, p, u, 0.0) else {
+            continue;
+        };
+        let f = scatter(ls.wi);
+        if f <= 0.0 || ls.value == Rgb::ZERO {
+            continue;
+        }
+        let dist = if ls.dist.is_infinite() {
+            f32::INFINITY
+        } else {
+            shadow_distance(p, ls.p)
+        };
+        let tr = scene.transmittance(p, ls.wi, dist, medium, sampler);
+        l += f * ls.value * tr / ls.pdf;
+    }
+    l
+}
+
+/// Next-event estimation at a surface point with MIS against BSDF sampling (the path tracer's
+/// strategy): `scatter(wi)` returns (f |cos|, BSDF pdf of wi).
+fn next_event(
+    scene: &Scene,
+    p: Vec3,
+    n: Vec3,
+    medium: Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> (Rgb, f32),
+) -> Rgb {
+    if scene.lights.is_empty() {
+        return Rgb::ZERO;
+    }
+    let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+    let light = &scene.lights[l];
+    let u = sampler.next_2d();
+    let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
+        return Rgb::ZERO;
+    };
+    if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let (f, pdf_scatter) = scatter(ls.wi);
+    if f == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let origin = offset_origin(p, n, ls.wi);
+    let dist = if ls.dist.is_infinite() {
+        f32::INFINITY
+    } else {
+        shadow_distance(origin, ls.p)
+    };
+    let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
+    if tr == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let pdf_light = pmf * ls.pdf;
+    let w = if ls.is_delta {
+        1.0
+    } else {
+        power_heuristic(pdf_light, pdf_scatter)
+    };
+    f * ls.value * tr * (w / pdf_light)
+}
+
+/// What a surface vertex contributes: emitted (MIS-weighted) plus next-event radiance `a`, and
+/// the continuation (BSDF weight, next ray, its medium, the new previous vertex) if any.
+pub struct SurfaceStep {
+    pub a: Rgb,
+    pub next: Option<(Rgb, Ray, Option<u32>, Previous)>,
+}
+
+/// A surface vertex: emission found by chance, NEE with MIS, BSDF sampling. `depth` counts
+/// scattering vertices and is incremented here when the surface scatters.
+// ANCHOR: surface
+#[allow(clippy::too_many_arguments)]
+pub fn surface(
+    scene: &Scene,
+    ray: &Ray,
+    hit: &Hit,
+    medium: Option<u32>,
+    prev: &Previous,
+    depth: &mut u32,
+    max_depth: u32,
+    sampler: &mut Sampler,
+) -> SurfaceStep {
+    let shape = scene.shape_of(hit);
+    let n = hit.ng;
+    let mut a = Rgb::ZERO;
+    if let Some(li) = shape.light {
+        if ray.d.dot(n) < 0.0 {
+            if let Light::Area { radiance, .. } = &scene.lights[li as usize] {
+                let w = if prev.singular {
+                    1.0
+                } else {
+                    let pdf_light = scene.light_pmf(li)
+                        * scene.lights[li as usize].pdf_li(
+                            &scene.prims,
+                            prev.p,
+                            hit.p,
+                            n,
+                            hit.prim,
+                        );
+                    power_heuristic(prev.pdf_dir, pdf_light)
+                };
+                a += *radiance * w;
+            }
+        }
+    }
+    let Some(bsdf) = &shape.bsdf else {
+        return SurfaceStep { a, next: None };
+    };
+    if *depth >= max_depth {
+        return SurfaceStep { a, next: None };
+    }
+    *depth += 1;
+    let wo = -ray.d;
+    if !bsdf.is_singular() {
+        a += next_event(scene, hit.p, n, medium, sampler, |wi| {
+            let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
+            (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+        });
+    }
+    let u = sampler.next_2d();
+    let uc = sampler.next_f32();
+    let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+        return SurfaceStep { a, next: None };
+    };
+    if bs.pdf <= 0.0 {
+        return SurfaceStep { a, next: None };
+    }
+    let next_medium = if bs.wi.dot(n) * wo.dot(n) < 0.0 {
+        shape.medium_after(bs.wi, n, medium)
+    } else {
+        medium
+    };
+    let prev = Previous {
+        p: hit.p,
+        pdf_dir: bs.pdf,
+        singular: bs.lobe.is_singular(),
+    };
+    let ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
+    SurfaceStep {
+        a,
+        next: Some((bs.weight(n), ray, next_medium, prev)),
+    }
+}
+// ANCHOR_END: surface
+
+/// Russian roulette after a scattering vertex, with a control value: survive with
+/// q = min(max beta, 0.95); the radiance R along the continuation is then estimated by
+/// c + (R - c) / q if the path survives and by c if it ends, unbiased for any c
+/// (E = c + q (E[R] - c) / q = E[R]). This is eq. (1) applied to the decision to continue.
+/// With c = 0 it is the path tracer's roulette; SMC passes the cache's reconstruction L~(wi),
+/// so that ending a path costs only the cache's error instead of the whole radiance.
+/// DEVIATION: the paper does not discuss path termination; plain roulette (c = 0) would leave
+/// a variance floor that no adaptation removes (see the experiments chapter).
+/// Returns false to end the path.
+// ANCHOR: roulette
+#[inline]
+pub fn roulette(
+    depth: u32,
+    beta: &mut Rgb,
+    c: Rgb,
+    link: &mut Link,
+    sampler: &mut Sampler,
+) -> bool {
+    use crate::integrator::path::{RR_MAX_SURVIVAL, RR_START_DEPTH};
+    if depth < RR_START_DEPTH {
+        return true;
+    }
+    let q = beta.abs().max_element().min(RR_MAX_SURVIVAL);
+    if q.is_nan() || sampler.next_f32() >= q {
+        link.roulette = Some((c, 0.0));
+        return false;
+    }
+    link.roulette = Some((c, 1.0 / q));
+    *beta /= q;
+    true
+}
+// ANCHOR_END: roulette
