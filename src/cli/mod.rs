@@ -3,6 +3,7 @@
 pub mod converge;
 pub mod diff;
 pub mod info;
+pub mod merge;
 pub mod reference;
 pub mod render;
 
@@ -28,6 +29,8 @@ pub enum Command {
     Converge(converge::ConvergeArgs),
     /// Validate a scene and print what it contains.
     Info(info::InfoArgs),
+    /// Average renders of the same scene, weighted by their sample counts (EXR `spp`).
+    Merge(merge::MergeArgs),
 }
 
 /// Runs the command line; returns the process exit code.
@@ -39,6 +42,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Converge(a)) => converge::run(a),
         Some(Command::Info(a)) => info::run(a),
+        Some(Command::Merge(a)) => merge::run(a),
     }
 }
 

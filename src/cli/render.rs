@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::image_io::{self, ImageMeta};
+use crate::integrator::mlt::{MutationStats, mutation::MutationKind};
 use crate::integrator::{IntegratorKind, MeterEstimate, Renderer};
 use crate::scene::Scene;
 
@@ -16,9 +17,22 @@ pub struct RenderArgs {
     /// Integrator (default: the scene's `[render] integrator`).
     #[arg(long)]
     pub integrator: Option<String>,
-    /// Samples per pixel (default: the scene's `[render] spp`).
-    #[arg(long, conflicts_with = "time")]
+    /// Samples per pixel (default: the scene's `[render] spp`); for mlt, mutations per pixel.
+    #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
     pub spp: Option<u32>,
+    /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
+    #[arg(long, conflicts_with = "time")]
+    pub mutations_per_pixel: Option<u32>,
+    /// MLT: independent chains (default: the scene's `[render.mlt] chains`).
+    #[arg(long)]
+    pub chains: Option<u32>,
+    /// MLT: BDPT pre-pass samples n (default: `[render.mlt] bootstrap`).
+    #[arg(long)]
+    pub bootstrap: Option<u64>,
+    /// MLT: mutation selection weights, e.g. `bidirectional=1,sensor=100,light=100`
+    /// (unnamed types get 0; default: `[render.mlt]`, all 1).
+    #[arg(long)]
+    pub mutation_weights: Option<String>,
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
@@ -72,6 +86,8 @@ pub struct RenderResult {
     /// relMSE expected from the image's own per-pixel variance (no reference needed); None
     /// without a camera. See `measure::stats::estimated_relmse`.
     pub estimated_relmse: Option<f64>,
+    /// MLT: b of the pre-pass and each mutation type's counts.
+    pub mlt: Option<(f64, Vec<(MutationKind, MutationStats)>)>,
 }
 
 impl RenderResult {
@@ -161,10 +177,27 @@ pub fn render_scene(
         nan_count: r.nan_count,
         image: r.film.as_ref().map(|f| f.image()),
         meters: r.meter_estimates(),
-        estimated_relmse: r.film.as_ref().and_then(|f| {
-            crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
-        }),
+        estimated_relmse: if kind == IntegratorKind::Mlt {
+            None // the per-pixel variance of splats is not recorded
+        } else {
+            r.film.as_ref().and_then(|f| {
+                crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
+            })
+        },
+        mlt: r.mlt.as_ref().map(|m| (m.b, m.report())),
     }
+}
+
+fn mlt_json(m: &(f64, Vec<(MutationKind, MutationStats)>)) -> serde_json::Value {
+    let mut muts = serde_json::Map::new();
+    for (k, st) in &m.1 {
+        muts.insert(
+            k.name().to_string(),
+            serde_json::json!({"attempted": st.attempted, "proposed": st.proposed,
+                "accepted": st.accepted, "acceptance_rate": st.acceptance_rate()}),
+        );
+    }
+    serde_json::json!({"b": m.0, "mutations": muts})
 }
 
 fn rgb_json(c: glam::Vec3) -> serde_json::Value {
@@ -185,7 +218,25 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             .as_deref()
             .unwrap_or(&scene.render.integrator),
     )?;
-    let spp = args.spp.unwrap_or(scene.render.spp);
+    if let Some(c) = args.chains {
+        scene.render.mlt.chains = c;
+    }
+    if let Some(n) = args.bootstrap {
+        scene.render.mlt.bootstrap = n;
+    }
+    if let Some(w) = &args.mutation_weights {
+        scene.render.mlt.weights = crate::integrator::mlt::MltSettings::parse_weights(w)?;
+    }
+    if kind == IntegratorKind::Mlt {
+        scene.render.mlt.validate()?;
+        crate::integrator::mlt::check_scene(&scene)?;
+    } else if args.mutations_per_pixel.is_some() {
+        return Err("--mutations-per-pixel needs --integrator mlt".into());
+    }
+    let spp = args
+        .mutations_per_pixel
+        .or(args.spp)
+        .unwrap_or(scene.render.spp);
     if spp == 0 {
         return Err("--spp must be at least 1".into());
     }
@@ -255,6 +306,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             "estimated_relmse": result.estimated_relmse,
             "sensors": sensors,
             "outputs": written,
+            "mlt": result.mlt.as_ref().map(mlt_json),
         });
         println!("{out}");
     } else {
@@ -275,6 +327,19 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 format!(" -> {}", written.join(", "))
             }
         );
+        if let Some((b, stats)) = &result.mlt {
+            println!("  mlt: b = {b:.5}");
+            for (k, st) in stats {
+                println!(
+                    "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
+                    k.name(),
+                    st.attempted,
+                    st.proposed,
+                    st.accepted,
+                    st.acceptance_rate()
+                );
+            }
+        }
         for m in &result.meters {
             println!(
                 "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",

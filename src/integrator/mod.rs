@@ -5,6 +5,7 @@
 //! Book: "The Neumann series and the path tracer" (path), "Measuring a renderer" (statistics).
 
 pub mod bdpt;
+pub mod mlt;
 pub mod path;
 
 pub use path::PathTracer;
@@ -25,6 +26,8 @@ pub enum IntegratorKind {
     Light,
     /// Bidirectional path tracing with MIS over all (s, t).
     Bdpt,
+    /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
+    Mlt,
 }
 
 impl IntegratorKind {
@@ -32,6 +35,7 @@ impl IntegratorKind {
         IntegratorKind::Path,
         IntegratorKind::Light,
         IntegratorKind::Bdpt,
+        IntegratorKind::Mlt,
     ];
 
     pub fn name(self) -> &'static str {
@@ -39,6 +43,7 @@ impl IntegratorKind {
             IntegratorKind::Path => "path",
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Mlt => "mlt",
         }
     }
 
@@ -123,6 +128,9 @@ pub struct Renderer<'a> {
     pub paths: u64,
     /// Meter samples per pixel sample.
     pub meter_samples: u64,
+    /// The Metropolis engine for `mlt` (None if the scene cannot be rendered by it: see
+    /// `mlt::check_scene`, which the command line runs first).
+    pub mlt: Option<mlt::Mlt>,
 }
 
 impl<'a> Renderer<'a> {
@@ -132,8 +140,14 @@ impl<'a> Renderer<'a> {
             kind,
             seed,
             tracer: PathTracer::new(max_depth),
+            mlt: match kind {
+                IntegratorKind::Mlt => {
+                    mlt::Mlt::new(scene, scene.render.mlt.clone(), seed, max_depth).ok()
+                }
+                _ => None,
+            },
             bdpt: match kind {
-                IntegratorKind::Path => None,
+                IntegratorKind::Path | IntegratorKind::Mlt => None,
                 IntegratorKind::Light => Some(bdpt::Bdpt::new(
                     scene,
                     max_depth,
@@ -162,6 +176,17 @@ impl<'a> Renderer<'a> {
     pub fn pass(&mut self, spp: u32, on_tile: &(dyn Fn() + Sync)) {
         let pass = self.passes;
         self.passes += 1;
+        if self.kind == IntegratorKind::Mlt {
+            // film-wide: spp mutations per pixel over all chains (meters are not rendered)
+            if let (Some(film), Some(engine)) = (self.film.as_mut(), self.mlt.as_mut()) {
+                let n = film.width as u64 * film.height as u64 * spp as u64;
+                engine.run(self.scene, film, n);
+                film.spp += spp as u64;
+                self.paths += n;
+            }
+            on_tile();
+            return;
+        }
         let scene = self.scene;
         let tracer = self.tracer;
         let bidir = self.bdpt.as_ref();
