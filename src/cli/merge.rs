@@ -78,7 +78,9 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
         .filter_map(|(_, _, m)| m.get("scene_hash"))
         .collect();
     if scenes.windows(2).any(|w| w[0] != w[1]) {
-        return Err("the inputs were rendered from different scene files (scene_hash differs)".into());
+        return Err(
+            "the inputs were rendered from different scene files (scene_hash differs)".into(),
+        );
     }
     let (image, total) = merge(&inputs)?;
     let mut meta = inputs[0].2.clone();

@@ -170,7 +170,10 @@ pub fn singular_densities(scene: &Scene, v: &[Vertex]) -> Densities {
 /// True for the vertices a path may have between its ends: surfaces and medium points.
 #[inline]
 pub fn is_scatterer(v: &Vertex) -> bool {
-    matches!(v.kind, VertexKind::Surface { .. } | VertexKind::Medium { .. })
+    matches!(
+        v.kind,
+        VertexKind::Surface { .. } | VertexKind::Medium { .. }
+    )
 }
 
 /// True when a light vertex sits at a Dirac position (point and spot lights): resampling it

@@ -70,7 +70,8 @@ fn run_sample(
             else {
                 continue;
             };
-            let path = (want_path == Some((s, t))).then(|| joined_path(scene, &light, &eye, s, t, sampled));
+            let path = (want_path == Some((s, t)))
+                .then(|| joined_path(scene, &light, &eye, s, t, sampled));
             if !visit(s, t, l, splat.is_some(), path) {
                 return;
             }
@@ -173,13 +174,20 @@ impl Bootstrap {
     /// Regenerates a candidate's path (the same random stream, replayed).
     pub fn path_of(scene: &Scene, bdpt: &Bdpt, seed: u64, c: &Candidate) -> Option<Vec<Vertex>> {
         let mut found = None;
-        run_sample(scene, bdpt, seed, c.sample, Some((c.s, c.t)), &mut |s, t, _, _, p| {
-            if (s, t) == (c.s, c.t) {
-                found = p;
-                return false;
-            }
-            true
-        });
+        run_sample(
+            scene,
+            bdpt,
+            seed,
+            c.sample,
+            Some((c.s, c.t)),
+            &mut |s, t, _, _, p| {
+                if (s, t) == (c.s, c.t) {
+                    found = p;
+                    return false;
+                }
+                true
+            },
+        );
         found
     }
 }

@@ -320,14 +320,19 @@ impl Mlt {
     fn choose(&self, u: f64) -> MutationKind {
         let i = self.cdf.iter().position(|&c| u < c).unwrap_or_else(|| {
             // u beyond the last cumulative value by rounding: the last type with weight
-            self.settings.weights.iter().rposition(|&w| w > 0.0).unwrap_or(0)
+            self.settings
+                .weights
+                .iter()
+                .rposition(|&w| w > 0.0)
+                .unwrap_or(0)
         });
         MutationKind::ALL[i]
     }
 
-    /// One Metropolis step of a chain with expected-value splatting.
+    /// One Metropolis step of a chain with expected-value splatting: the deposits go to
+    /// `splats` (raster, value; the film divides them by N), the counts to `stats`.
     // ANCHOR: step
-    fn step(
+    pub fn step(
         &self,
         scene: &Scene,
         chain: &mut Chain,

@@ -27,7 +27,11 @@ pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
     match v.kind {
         VertexKind::Surface { .. } | VertexKind::Light { prim: Some(_), .. } => {
             let o = offset_origin(v.p, v.n, d);
-            (Ray::new(o, d), (o - v.p).dot(d).max(0.0), v.medium_towards(d))
+            (
+                Ray::new(o, d),
+                (o - v.p).dot(d).max(0.0),
+                v.medium_towards(d),
+            )
         }
         VertexKind::Camera => (Ray::new(v.p, d), 0.0, scene.camera_medium),
         _ => (Ray::new(v.p, d), 0.0, v.medium_front),
@@ -170,10 +174,13 @@ pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
     let (ray, _, mut medium) = ray_from(scene, v, d);
     let mut t_min = 0.0f32;
     for _ in 0..MAX_NULL_CROSSINGS {
-        let hit =
-            scene
-                .bvh
-                .intersect_range(&scene.prims, &scene.prim_opaque, &ray, t_min, f32::INFINITY)?;
+        let hit = scene.bvh.intersect_range(
+            &scene.prims,
+            &scene.prim_opaque,
+            &ray,
+            t_min,
+            f32::INFINITY,
+        )?;
         let shape = scene.shape_of(&hit);
         if !shape.is_null() {
             return Some(surface_vertex(scene, &hit, medium));
@@ -193,13 +200,10 @@ pub fn point_along(scene: &Scene, v: &Vertex, d: Vec3, dist: f32) -> Option<Vert
     let (ray, lead, mut medium) = ray_from(scene, v, d);
     let mut t_min = 0.0f32;
     for _ in 0..MAX_NULL_CROSSINGS {
-        let hit = scene.bvh.intersect_range(
-            &scene.prims,
-            &scene.prim_opaque,
-            &ray,
-            t_min,
-            f32::INFINITY,
-        );
+        let hit =
+            scene
+                .bvh
+                .intersect_range(&scene.prims, &scene.prim_opaque, &ray, t_min, f32::INFINITY);
         match hit {
             Some(h) if h.t + lead < dist => {
                 let shape = scene.shape_of(&h);

@@ -11,8 +11,10 @@
 //!    normalized; the first kept vertex x_l, l uniform in -1 ..= k - k_d; m = l + k_d.
 //! 2. Added edges k_a with weight 2^-|k_a - k_d| (Veach: favour k_a = k_d), normalized over
 //!    1 ..= (the length cap); at least 2 when l = -1 (a new light vertex is needed).
-//! 3. s' of the k_a - 1 new vertices from the light side (at least 1 when l = -1), uniform;
-//!    t' = k_a - 1 - s' from the eye side.
+//! 3. s' of the k_a - 1 new vertices from the light side, uniform in 0 ..= k_a - 1;
+//!    t' = k_a - 1 - s' from the eye side. With l = -1 and s' = 0 the eye side must hit an
+//!    emitter by itself (BDPT's s = 0): the only way to reach paths such as L S D S E, which
+//!    have no edge with two non-specular ends.
 //!
 //! Transition density (Veach eq. 11.6's form in the generalized path measure):
 //! T(x -> y) = p_d(k_d) / (k - k_d + 2) * p_a(k_a | k_d, l) *
@@ -24,10 +26,24 @@
 
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
-use crate::path::Vertex;
+use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 
-use super::super::contribution::{is_delta_position_light, is_specular, same_vertex, singular_densities};
+/// The light-vertex kind of a surface vertex on an area light (`None` elsewhere).
+fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
+    let VertexKind::Surface { prim } = v.kind else {
+        return None;
+    };
+    let light = scene.shapes[scene.prim_shape[prim as usize] as usize].light?;
+    Some(VertexKind::Light {
+        light,
+        prim: Some(prim),
+    })
+}
+
+use super::super::contribution::{
+    is_delta_position_light, is_specular, same_vertex, singular_densities,
+};
 use super::super::trace::{extend, sample_direction, sample_light_vertex};
 use super::Mutation;
 
@@ -113,8 +129,7 @@ impl Mutation for Bidirectional {
         }
         let ka = Self::sample_discrete(sampler.next_f64(), lo, hi, |j| addition_weight(j, kd));
         let added = ka - 1;
-        let s_min = usize::from(l < 0);
-        let s_new = s_min + sampler.next_index(added + 1 - s_min);
+        let s_new = sampler.next_index(added + 1);
         let mut light: Vec<Vertex> = x[..(l + 1) as usize].to_vec();
         for _ in 0..s_new {
             let v = match light.len() {
@@ -136,6 +151,17 @@ impl Mutation for Bidirectional {
             let d = sample_direction(scene, prev, cur, TransportMode::Radiance, sampler)?;
             let v = extend(scene, cur, d, sampler)?;
             eye.push(v);
+        }
+        if light.is_empty() {
+            // s' = 0 after deleting the light: the eye side must have found an emitter
+            let last = eye.last_mut()?;
+            last.kind = emitter_kind(scene, last)?;
+        } else if is_specular(scene, &light[light.len() - 1])
+            || is_specular(scene, &eye[eye.len() - 1])
+        {
+            // a joining edge at a Dirac lobe has f = 0 (a re-sampled specular chain can meet
+            // its old direction within `SPECULAR_COS_TOLERANCE`: not a path T counts)
+            return None;
         }
         light.extend(eye.into_iter().rev());
         Some(light)
@@ -184,15 +210,21 @@ impl Mutation for Bidirectional {
                 continue;
             }
             let added = ka - 1;
-            let s_min = usize::from(l < 0);
-            let splits = added + 1 - s_min;
+            let splits = added + 1;
             let first = (l + 1) as usize; // index in y of the first new vertex
             let mut sum = 0.0f64;
-            for s_new in s_min..=added {
-                // the joining edge (y_a, y_a+1); l < 0 implies s_new >= 1
-                let a = first + s_new - 1;
-                if is_specular(scene, &y[a]) || is_specular(scene, &y[a + 1]) {
-                    continue;
+            for s_new in 0..=added {
+                if l < 0 && s_new == 0 {
+                    // no joining edge: the eye side reached the light by itself
+                    if !matches!(y[0].kind, VertexKind::Light { prim: Some(_), .. }) {
+                        continue;
+                    }
+                } else {
+                    // the joining edge (y_a, y_a+1)
+                    let a = first + s_new - 1;
+                    if is_specular(scene, &y[a]) || is_specular(scene, &y[a + 1]) {
+                        continue;
+                    }
                 }
                 let mut p = 1.0f64;
                 for i in first..first + s_new {

@@ -101,7 +101,10 @@ impl Mutation for MultiChainPerturbation {
                 return 0.0;
             }
             if x[e].is_medium()
-                && !same_distance((x[e].p - x[e + 1].p).length(), (y[e].p - y[e + 1].p).length())
+                && !same_distance(
+                    (x[e].p - x[e + 1].p).length(),
+                    (y[e].p - y[e + 1].p).length(),
+                )
             {
                 return 0.0;
             }

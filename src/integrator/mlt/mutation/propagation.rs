@@ -37,7 +37,11 @@ impl Mutation for PropagationPerturbation {
         let w = dir(&x[k - 2], &x[k - 1]);
         let t = (x[k - 1].p - x[k - 2].p).length();
         let d = self.distance.sample(sampler.next_f32());
-        let t_new = if (sampler.next_f32() as f64) < DIRECTION_PROBABILITY { t + d } else { t - d };
+        let t_new = if (sampler.next_f32() as f64) < DIRECTION_PROBABILITY {
+            t + d
+        } else {
+            t - d
+        };
         let v = point_along(scene, &x[k - 2], w, t_new)?;
         if v.kind != x[k - 1].kind {
             return None; // left the medium
@@ -53,8 +57,7 @@ impl Mutation for PropagationPerturbation {
     fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
         let _ = scene;
         let k = x.len() - 1;
-        if k < 2 || y.len() != x.len() || !x[k - 1].is_medium() || y[k - 1].kind != x[k - 1].kind
-        {
+        if k < 2 || y.len() != x.len() || !x[k - 1].is_medium() || y[k - 1].kind != x[k - 1].kind {
             return 0.0;
         }
         if !same_prefix(x, y, k - 1) || y[k].p != x[k].p {

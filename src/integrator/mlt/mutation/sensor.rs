@@ -100,7 +100,10 @@ pub fn lens_chain_density(
         return 0.0;
     }
     if x[m].is_medium()
-        && !same_distance((x[m].p - x[m + 1].p).length(), (y[m].p - y[m + 1].p).length())
+        && !same_distance(
+            (x[m].p - x[m + 1].p).length(),
+            (y[m].p - y[m + 1].p).length(),
+        )
     {
         return 0.0;
     }
