@@ -47,7 +47,7 @@ use mutation::{
 /// it is below 1e-3 of the fog box's).
 pub const DEFAULT_MAX_DEPTH: u32 = 30;
 /// Salt that keeps chain streams apart from pixel streams.
-const CHAIN_STREAM_SALT: u64 = 0x636861_696e_0000;
+const CHAIN_STREAM_SALT: u64 = 0x0063_6861_696e_0000;
 /// Seed draws a chain tries before giving up (a pre-pass path whose f is zero when re-evaluated
 /// with singular vertices checked, e.g. a specular relation off by more than the tolerance).
 const MAX_SEED_DRAWS: usize = 64;
@@ -193,6 +193,9 @@ impl MutationStats {
         self.accepted += o.accepted;
     }
 }
+
+/// What one chain produced in a pass: its deposits and counts.
+type ChainPass = (Vec<(Vec2, Rgb)>, [MutationStats; 5]);
 
 /// One Markov chain: its stream and its current path with f and the pixel.
 pub struct Chain {
@@ -388,7 +391,7 @@ impl Mlt {
         }
         let mut chains = std::mem::take(&mut self.chains);
         let this = &*self;
-        let results: Vec<(Vec<(Vec2, Rgb)>, [MutationStats; 5])> = chains
+        let results: Vec<ChainPass> = chains
             .par_iter_mut()
             .enumerate()
             .map(|(c, chain)| {
