@@ -585,3 +585,44 @@ fn mlt_image_is_unbiased_against_bdpt_with_every_mutation_set() {
         assert_agree(kind.name(), &mlt_runs(&scene, w), &bdpt);
     }
 }
+
+#[test]
+fn merge_weights_renders_by_their_sample_counts() {
+    use pathspace::cli::merge::merge;
+    use pathspace::image_io::{Image, ImageMeta};
+    let img = |v: f32| Image {
+        width: 2,
+        height: 1,
+        pixels: vec![Vec3::splat(v); 2],
+    };
+    let meta = |spp: u64| {
+        let mut m = ImageMeta::default();
+        m.set("spp", spp);
+        m
+    };
+    let (out, total) = merge(&[
+        ("a".into(), img(1.0), meta(1)),
+        ("b".into(), img(5.0), meta(3)),
+    ])
+    .unwrap();
+    assert_eq!(total, 4);
+    assert_eq!(out.pixels[0], Vec3::splat(4.0)); // (1 * 1 + 3 * 5) / 4
+    let err = merge(&[("c".into(), img(1.0), ImageMeta::default())]).unwrap_err();
+    assert!(err.contains("spp"), "{err}");
+}
+
+#[test]
+fn bad_mlt_settings_are_clear_errors() {
+    let err = MltSettings::parse_weights("bidirectional=1,lens=3").unwrap_err();
+    assert!(err.contains("unknown mutation `lens`"), "{err}");
+    let text =
+        pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nchains = 0");
+    let err = Scene::load(&SceneSource::embedded("bad", &text))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("chains"), "{err}");
+    let text =
+        pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nsensor = -1.0");
+    assert!(Scene::load(&SceneSource::embedded("bad", &text)).is_err());
+}
