@@ -3,6 +3,7 @@
 pub mod converge;
 pub mod diff;
 pub mod info;
+pub mod merge;
 pub mod reference;
 pub mod render;
 pub mod rooms;
@@ -31,6 +32,8 @@ pub enum Command {
     Info(info::InfoArgs),
     /// Write the N x N rooms scene of Pauly et al. Fig. 8 (many lights, one medium).
     Rooms(rooms::RoomsArgs),
+    /// Average renders of the same scene, weighted by their sample counts (EXR `spp`).
+    Merge(merge::MergeArgs),
 }
 
 /// Runs the command line; returns the process exit code.
@@ -43,6 +46,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Some(Command::Converge(a)) => converge::run(a),
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Rooms(a)) => rooms::run(a),
+        Some(Command::Merge(a)) => merge::run(a),
     }
 }
 

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::image_io::{self, ImageMeta};
+use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings, Variant};
 use crate::integrator::{IntegratorKind, MeterEstimate, Renderer};
 use crate::scene::Scene;
@@ -19,9 +20,22 @@ pub struct RenderArgs {
     /// Integrator (default: the scene's `[render] integrator`).
     #[arg(long)]
     pub integrator: Option<String>,
-    /// Samples per pixel (default: the scene's `[render] spp`).
-    #[arg(long, conflicts_with = "time")]
+    /// Samples per pixel (default: the scene's `[render] spp`); for mlt, mutations per pixel.
+    #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
     pub spp: Option<u32>,
+    /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
+    #[arg(long, conflicts_with = "time")]
+    pub mutations_per_pixel: Option<u32>,
+    /// MLT: independent chains (default: the scene's `[render.mlt] chains`).
+    #[arg(long)]
+    pub chains: Option<u32>,
+    /// MLT: BDPT pre-pass samples n (default: `[render.mlt] bootstrap`).
+    #[arg(long)]
+    pub bootstrap: Option<u64>,
+    /// MLT: mutation selection weights, e.g. `bidirectional=1,sensor=100,light=100`
+    /// (unnamed types get 0; default: `[render.mlt]`, all 1).
+    #[arg(long)]
+    pub mutation_weights: Option<String>,
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
@@ -170,6 +184,8 @@ pub struct RenderResult {
     pub estimated_relmse: Option<f64>,
     /// The SMC structure's statistics after the render (Pegoraro et al. Table 1).
     pub smc_stats: Option<OctreeStats>,
+    /// MLT: b of the pre-pass and each mutation type's counts.
+    pub mlt: Option<(f64, Vec<(MutationKind, MutationStats)>)>,
 }
 
 impl RenderResult {
@@ -285,11 +301,28 @@ pub fn render_scene_with(
         nan_count: r.nan_count,
         image: r.film.as_ref().map(|f| f.image()),
         meters: r.meter_estimates(),
-        estimated_relmse: r.film.as_ref().and_then(|f| {
-            crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
-        }),
+        estimated_relmse: if kind == IntegratorKind::Mlt {
+            None // the per-pixel variance of splats is not recorded
+        } else {
+            r.film.as_ref().and_then(|f| {
+                crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
+            })
+        },
+        mlt: r.mlt.as_ref().map(|m| (m.b, m.report())),
         smc_stats: r.smc.as_ref().map(|s| s.stats()),
     })
+}
+
+fn mlt_json(m: &(f64, Vec<(MutationKind, MutationStats)>)) -> serde_json::Value {
+    let mut muts = serde_json::Map::new();
+    for (k, st) in &m.1 {
+        muts.insert(
+            k.name().to_string(),
+            serde_json::json!({"attempted": st.attempted, "proposed": st.proposed,
+                "accepted": st.accepted, "acceptance_rate": st.acceptance_rate()}),
+        );
+    }
+    serde_json::json!({"b": m.0, "mutations": muts})
 }
 
 fn rgb_json(c: glam::Vec3) -> serde_json::Value {
@@ -310,7 +343,25 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             .as_deref()
             .unwrap_or(&scene.render.integrator),
     )?;
-    let spp = args.spp.unwrap_or(scene.render.spp);
+    if let Some(c) = args.chains {
+        scene.render.mlt.chains = c;
+    }
+    if let Some(n) = args.bootstrap {
+        scene.render.mlt.bootstrap = n;
+    }
+    if let Some(w) = &args.mutation_weights {
+        scene.render.mlt.weights = crate::integrator::mlt::MltSettings::parse_weights(w)?;
+    }
+    if kind == IntegratorKind::Mlt {
+        scene.render.mlt.validate()?;
+        crate::integrator::mlt::check_scene(&scene)?;
+    } else if args.mutations_per_pixel.is_some() {
+        return Err("--mutations-per-pixel needs --integrator mlt".into());
+    }
+    let spp = args
+        .mutations_per_pixel
+        .or(args.spp)
+        .unwrap_or(scene.render.spp);
     if spp == 0 {
         return Err("--spp must be at least 1".into());
     }
@@ -424,6 +475,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 "budget_reached": s.budget_reached,
                 "records": s.records,
             })),
+            "mlt": result.mlt.as_ref().map(mlt_json),
         });
         println!("{out}");
     } else {
@@ -444,6 +496,19 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 format!(" -> {}", written.join(", "))
             }
         );
+        if let Some((b, stats)) = &result.mlt {
+            println!("  mlt: b = {b:.5}");
+            for (k, st) in stats {
+                println!(
+                    "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
+                    k.name(),
+                    st.attempted,
+                    st.proposed,
+                    st.accepted,
+                    st.acceptance_rate()
+                );
+            }
+        }
         for m in &result.meters {
             println!(
                 "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",

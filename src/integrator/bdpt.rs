@@ -88,6 +88,16 @@ impl Bdpt {
         }
     }
 
+    /// The medium around light `l` (where its light subpaths start).
+    pub fn light_medium(&self, l: usize) -> Option<u32> {
+        self.light_media.get(l).copied().flatten()
+    }
+
+    /// The media around every light.
+    pub fn light_media(&self) -> &[Option<u32>] {
+        &self.light_media
+    }
+
     fn max_vertices(&self, extra: u32) -> usize {
         (self.max_depth.saturating_add(extra) as usize).min(MAX_SUBPATH_VERTICES)
     }
@@ -545,6 +555,21 @@ impl Bdpt {
         t: usize,
         sampler: &mut Sampler,
     ) -> Option<(Rgb, Option<Vec2>)> {
+        self.connect_sampled(scene, light, eye, s, t, sampler)
+            .map(|(l, raster, _)| (l, raster))
+    }
+
+    /// [`Bdpt::connect`] that also returns the endpoint it sampled for s = 1 (a light vertex)
+    /// or t = 1 (the sensor vertex), so the joined path can be rebuilt (MLT's initialization).
+    pub fn connect_sampled(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
         let pt_last = eye[t - 1];
         if t > 1 && s != 0 && pt_last.is_infinite_light() {
             return None;
@@ -710,13 +735,13 @@ impl Bdpt {
             return if l.is_finite() {
                 None
             } else {
-                Some((l, raster))
+                Some((l, raster, sampled))
             };
         }
         if self.strategies == Strategies::All {
             l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
         }
-        Some((l, raster))
+        Some((l, raster, sampled))
     }
     // ANCHOR_END: connect
 

@@ -6,6 +6,7 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
+pub mod mlt;
 pub mod path;
 pub mod smc;
 
@@ -29,6 +30,8 @@ pub enum IntegratorKind {
     Bdpt,
     /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
     Smc,
+    /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
+    Mlt,
 }
 
 impl IntegratorKind {
@@ -37,6 +40,7 @@ impl IntegratorKind {
         IntegratorKind::Light,
         IntegratorKind::Bdpt,
         IntegratorKind::Smc,
+        IntegratorKind::Mlt,
     ];
 
     pub fn name(self) -> &'static str {
@@ -45,6 +49,7 @@ impl IntegratorKind {
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
             IntegratorKind::Smc => "smc",
+            IntegratorKind::Mlt => "mlt",
         }
     }
 
@@ -138,6 +143,9 @@ pub struct Renderer<'a> {
     /// The SMC state for `smc`: the structure is read-only during a pass, its records are
     /// merged after it.
     pub smc: Option<smc::Smc>,
+    /// The Metropolis engine for `mlt` (None if the scene cannot be rendered by it: see
+    /// `mlt::check_scene`, which the command line runs first).
+    pub mlt: Option<mlt::Mlt>,
 }
 
 impl<'a> Renderer<'a> {
@@ -147,8 +155,14 @@ impl<'a> Renderer<'a> {
             kind,
             seed,
             tracer: PathTracer::new(max_depth),
+            mlt: match kind {
+                IntegratorKind::Mlt => {
+                    mlt::Mlt::new(scene, scene.render.mlt.clone(), seed, max_depth).ok()
+                }
+                _ => None,
+            },
             bdpt: match kind {
-                IntegratorKind::Path | IntegratorKind::Smc => None,
+                IntegratorKind::Path | IntegratorKind::Smc | IntegratorKind::Mlt => None,
                 IntegratorKind::Light => Some(bdpt::Bdpt::new(
                     scene,
                     max_depth,
@@ -197,6 +211,17 @@ impl<'a> Renderer<'a> {
     pub fn pass(&mut self, spp: u32, on_tile: &(dyn Fn() + Sync)) {
         let pass = self.passes;
         self.passes += 1;
+        if self.kind == IntegratorKind::Mlt {
+            // film-wide: spp mutations per pixel over all chains (meters are not rendered)
+            if let (Some(film), Some(engine)) = (self.film.as_mut(), self.mlt.as_mut()) {
+                let n = film.width as u64 * film.height as u64 * spp as u64;
+                engine.run(self.scene, film, n);
+                film.spp += spp as u64;
+                self.paths += n;
+            }
+            on_tile();
+            return;
+        }
         let scene = self.scene;
         let tracer = self.tracer;
         let bidir = self.bdpt.as_ref();

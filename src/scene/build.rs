@@ -775,9 +775,13 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         seed: desc.render.seed,
         max_depth: desc.render.max_depth,
         meter_samples: desc.render.meter_samples.unwrap_or(DEFAULT_METER_SAMPLES),
+        mlt: mlt_settings(desc.render.mlt.as_ref()),
     };
     if render.spp == 0 {
         return Err(src.error(&path("render").key("spp"), "spp must be at least 1"));
+    }
+    if let Err(e) = render.mlt.validate() {
+        return Err(src.error(&path("render").key("mlt"), e));
     }
 
     let mut scene = Scene {
@@ -884,4 +888,40 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }
     Ok(scene)
+}
+
+/// MLT settings from `[render.mlt]`, defaults where a key is absent.
+fn mlt_settings(desc: Option<&crate::scene::file::MltDesc>) -> crate::integrator::mlt::MltSettings {
+    let mut m = crate::integrator::mlt::MltSettings::default();
+    let Some(d) = desc else { return m };
+    if let Some(v) = d.bootstrap {
+        m.bootstrap = v;
+    }
+    if let Some(v) = d.chains {
+        m.chains = v;
+    }
+    for (i, w) in [
+        d.bidirectional,
+        d.sensor,
+        d.light,
+        d.propagation,
+        d.multichain,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        if let Some(w) = w {
+            m.weights[i] = w;
+        }
+    }
+    if let Some([a, b]) = d.sensor_offset {
+        m.sensor_offset = (a, b);
+    }
+    if let Some([a, b]) = d.light_angle {
+        m.light_angle = (a, b);
+    }
+    if let Some([a, b]) = d.propagation_distance {
+        m.propagation_distance = (a, b);
+    }
+    m
 }

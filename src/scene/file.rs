@@ -76,6 +76,28 @@ pub struct RenderDesc {
     pub max_depth: Option<u32>,
     /// Samples per irradiance meter per pixel-sample pass (default 4096).
     pub meter_samples: Option<u32>,
+    /// `[render.mlt]`: Metropolis light transport settings.
+    pub mlt: Option<MltDesc>,
+}
+
+/// `[render.mlt]`: pre-pass size, chains, mutation selection weights and perturbation ranges
+/// (defaults in `integrator::mlt`).
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MltDesc {
+    pub bootstrap: Option<u64>,
+    pub chains: Option<u32>,
+    pub bidirectional: Option<f64>,
+    pub sensor: Option<f64>,
+    pub light: Option<f64>,
+    pub propagation: Option<f64>,
+    pub multichain: Option<f64>,
+    /// Sensor perturbation film offset [min, max] in pixels.
+    pub sensor_offset: Option<[f32; 2]>,
+    /// Light and multi-chain perturbation angle [min, max] in radians.
+    pub light_angle: Option<[f32; 2]>,
+    /// Propagation perturbation distance [min, max] as fractions of the scene radius.
+    pub propagation_distance: Option<[f32; 2]>,
 }
 
 fn default_integrator() -> String {
@@ -96,6 +118,7 @@ impl Default for RenderDesc {
             seed: default_seed(),
             max_depth: None,
             meter_samples: None,
+            mlt: None,
         }
     }
 }

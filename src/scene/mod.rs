@@ -72,6 +72,8 @@ pub struct RenderSettings {
     pub seed: u64,
     pub max_depth: Option<u32>,
     pub meter_samples: u32,
+    /// Metropolis light transport settings (`[render.mlt]`).
+    pub mlt: crate::integrator::mlt::MltSettings,
 }
 
 /// Where a ray's propagation ended.

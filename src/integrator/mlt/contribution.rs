@@ -1,0 +1,202 @@
+//! The image contribution f of Metropolis light transport (Pauly, Kollig, Keller 2000, sec. 5:
+//! f_j(x) = h_j(x) f(x)) for an explicit path x_0 (light) ... x_k (pinhole), and the densities
+//! of its vertices under local sampling, both with the Dirac factors of singular scattering
+//! removed in the same way.
+//!
+//! A mirror or glass vertex has f_s = R delta(w - w_s) / |cos| (Veach 1997 eq. 5.x; the digest's
+//! eq. 2.13/2.15). Every sampler that produces such a vertex produces the same delta (the
+//! direction is forced), so the delta cancels in every ratio MLT forms: f(y) / T(x -> y) and
+//! f(x) / T(y -> x). Here f keeps R / |cos| (the "Dirac-free" value `BsdfSample::value`) and a
+//! density keeps the probability of the lobe (`BsdfSample::pdf`), converted to area by the same
+//! g / d^2 as any direction: the convention BDPT's throughputs already use.
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::{Bsdf, Lobe, TransportMode};
+use crate::math::distribution::ONE_MINUS_EPSILON;
+use crate::math::Sampler;
+use crate::path::geometry_term::geometry_term;
+use crate::path::pdf::{densities, Densities};
+use crate::path::vertex::to_area;
+use crate::path::{Path, Vertex, VertexKind};
+use crate::scene::{Light, Scene};
+use crate::spectrum::{luminance, Rgb};
+
+/// 1 - cos of the largest angle between a vertex's specular direction and the direction to its
+/// neighbour that still counts as the same direction. Vertices come from traced rays whose
+/// origins are lifted by `RAY_EPSILON`; this admits ~4.5e-3 rad, far above that error and far
+/// below any perturbation that would change a path.
+pub const SPECULAR_COS_TOLERANCE: f32 = 1e-5;
+
+/// The singular BSDF at a surface vertex, if it has one.
+pub fn singular_bsdf<'a>(scene: &'a Scene, v: &Vertex) -> Option<&'a Bsdf> {
+    v.bsdf(scene).filter(|b| b.is_singular())
+}
+
+/// True when vertex `v` scatters only through Dirac lobes (mirror, glass).
+pub fn is_specular(scene: &Scene, v: &Vertex) -> bool {
+    singular_bsdf(scene, v).is_some()
+}
+
+/// The singular lobe `bsdf` uses to turn direction `wo` into `lobe`'s direction, with the
+/// sample record (Dirac-free value and lobe probability). `None` if the lobe cannot occur.
+pub fn specular_sample(
+    bsdf: &Bsdf,
+    wo: Vec3,
+    n: Vec3,
+    lobe: Lobe,
+    mode: TransportMode,
+) -> Option<crate::bsdf::BsdfSample> {
+    // the dielectric picks reflection when uc < F: uc = 0 forces reflection, uc -> 1 forces
+    // transmission (and falls back to reflection under total internal reflection)
+    let uc = match lobe {
+        Lobe::SingularTransmission => ONE_MINUS_EPSILON,
+        _ => 0.0,
+    };
+    let s = bsdf.sample(wo, n, Vec2::ZERO, uc, mode)?;
+    (s.lobe == lobe && s.pdf > 0.0).then_some(s)
+}
+
+/// The lobe of the scattering at surface vertex `v` between neighbours `a` and `b`:
+/// reflection when both lie on the same side of the surface.
+pub fn lobe_between(scene: &Scene, v: &Vertex, a: Vec3, b: Vec3) -> Lobe {
+    if !is_specular(scene, v) {
+        return Lobe::Regular;
+    }
+    if (a - v.p).dot(v.n) * (b - v.p).dot(v.n) > 0.0 {
+        Lobe::SingularReflection
+    } else {
+        Lobe::SingularTransmission
+    }
+}
+
+/// The lobe at vertex i of a path (Regular for anything but a specular surface vertex).
+pub fn lobe_at(scene: &Scene, path: &[Vertex], i: usize) -> Lobe {
+    if i == 0 || i + 1 >= path.len() {
+        return Lobe::Regular;
+    }
+    lobe_between(scene, &path[i], path[i - 1].p, path[i + 1].p)
+}
+
+/// Dirac-free f-hat(from -> v -> to) in radiance mode: f_s or sigma_s f_p for regular vertices,
+/// R / |cos| of the lobe for a specular vertex whose neighbours satisfy the specular relation
+/// (zero otherwise).
+pub fn f_hat_singular(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> Rgb {
+    let Some(bsdf) = singular_bsdf(scene, v) else {
+        return v.f_hat(scene, from, to);
+    };
+    let wo = (to - v.p).normalize_or_zero();
+    let wi = (from - v.p).normalize_or_zero();
+    let lobe = lobe_between(scene, v, from, to);
+    match specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) {
+        Some(s) if s.wi.dot(wi) >= 1.0 - SPECULAR_COS_TOLERANCE => s.value,
+        _ => Rgb::ZERO,
+    }
+}
+
+/// Probability of the lobe that carries `from -> v -> to` when `v` samples from `from`'s side
+/// (the Dirac-free direction density of a specular vertex; zero if the relation fails).
+pub fn lobe_probability(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> f32 {
+    let Some(bsdf) = singular_bsdf(scene, v) else {
+        return 0.0;
+    };
+    let wo = (from - v.p).normalize_or_zero();
+    let wi = (to - v.p).normalize_or_zero();
+    let lobe = lobe_between(scene, v, from, to);
+    match specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) {
+        Some(s) if s.wi.dot(wi) >= 1.0 - SPECULAR_COS_TOLERANCE => s.pdf,
+        _ => 0.0,
+    }
+}
+
+/// The image contribution of a path: f (RGB, Dirac-free, eq. 6 with W_e of the pixel the path
+/// lands in) and that pixel's continuous raster position. `None` when f = 0 or the path is not
+/// light ... pinhole.
+// ANCHOR: image_contribution
+pub fn image_contribution(scene: &Scene, v: &[Vertex]) -> Option<(Rgb, Vec2)> {
+    let n = v.len();
+    if n < 2 || !matches!(v[0].kind, VertexKind::Light { .. }) {
+        return None;
+    }
+    if v[n - 1].kind != VertexKind::Camera || v[1..n - 1].iter().any(|x| !is_scatterer(x)) {
+        return None;
+    }
+    let cam = scene.camera.as_ref()?;
+    let imp = cam.importance((v[n - 2].p - v[n - 1].p).normalize_or_zero())?;
+    // the homogeneous media of pathspace make tau deterministic: the sampler is never drawn
+    let mut unused = Sampler::new(0, 0, 0);
+    let mut f = v[0].emitted(scene, v[1].p);
+    for i in 0..n - 1 {
+        if f == Rgb::ZERO {
+            return None;
+        }
+        if i > 0 {
+            f *= f_hat_singular(scene, &v[i], v[i - 1].p, v[i + 1].p);
+        }
+        let (g, tau) = geometry_term(scene, &v[i], &v[i + 1], &mut unused);
+        f *= tau * g;
+    }
+    f *= imp.we;
+    (f.is_finite() && luminance(f) > 0.0).then_some((f, imp.raster))
+}
+// ANCHOR_END: image_contribution
+
+/// p_L and p_E of every vertex (`path::pdf::densities`) with specular vertices' directions
+/// given the probability of their lobe instead of a Dirac (see the module note).
+// ANCHOR: singular_densities
+pub fn singular_densities(scene: &Scene, v: &[Vertex]) -> Densities {
+    let path = Path {
+        vertices: v.to_vec(),
+    };
+    let mut unused = Sampler::new(0, 0, 0);
+    let mut d = densities(scene, &path, &mut unused);
+    let n = v.len();
+    for i in 2..n {
+        if is_specular(scene, &v[i - 1]) {
+            let p = lobe_probability(scene, &v[i - 1], v[i - 2].p, v[i].p);
+            d.light[i] = to_area(p, &v[i - 1], &v[i]) * d.prop_up[i - 1];
+        }
+    }
+    for i in 0..n.saturating_sub(2) {
+        if is_specular(scene, &v[i + 1]) {
+            let p = lobe_probability(scene, &v[i + 1], v[i + 2].p, v[i].p);
+            d.eye[i] = to_area(p, &v[i + 1], &v[i]) * d.prop_down[i];
+        }
+    }
+    d
+}
+// ANCHOR_END: singular_densities
+
+/// True for the vertices a path may have between its ends: surfaces and medium points.
+#[inline]
+pub fn is_scatterer(v: &Vertex) -> bool {
+    matches!(
+        v.kind,
+        VertexKind::Surface { .. } | VertexKind::Medium { .. }
+    )
+}
+
+/// True when a light vertex sits at a Dirac position (point and spot lights): resampling it
+/// can land exactly on the old vertex.
+pub fn is_delta_position_light(scene: &Scene, v: &Vertex) -> bool {
+    match v.kind {
+        VertexKind::Light { light, .. } => matches!(
+            scene.lights[light as usize],
+            Light::Point { .. } | Light::Spot { .. }
+        ),
+        _ => false,
+    }
+}
+
+/// Same vertex (copied, not recomputed): kind and position bit-equal.
+#[inline]
+pub fn same_vertex(a: &Vertex, b: &Vertex) -> bool {
+    a.kind == b.kind && a.p == b.p
+}
+
+/// The scalar target f* of the chain: the luminance of f (Pauly et al. sec. 5 leave the
+/// choice open; Veach 1997 sec. 11.3 uses luminance for colour images).
+#[inline]
+pub fn scalar_contribution(f: Rgb) -> f32 {
+    luminance(f)
+}

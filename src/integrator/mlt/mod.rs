@@ -1,0 +1,427 @@
+//! Metropolis light transport for participating media (Pauly, Kollig, Keller 2000, sec. 5;
+//! Veach 1997 ch. 11): a random walk x_0, x_1, ... through path space whose stationary density
+//! is f*/b, with f* the luminance of the image contribution f (f_j = h_j f) and
+//! b = integral of f* over path space. Each step proposes y by a mutation chosen at random,
+//! accepts it with alpha of eq. (8), and deposits b/N at the image positions: with Veach's
+//! expected-value splatting, alpha (b/N) f(y)/f*(y) at y's pixel and (1 - alpha) (b/N)
+//! f(x)/f*(x) at x's.
+//!
+//! - `contribution`: f with singular scattering, densities of vertices (Dirac-free);
+//! - `init`: the BDPT pre-pass that estimates b and seeds the chains (sec. 5.1);
+//! - `acceptance`: eq. (8);
+//! - `mutation`: bidirectional, sensor (lens), light (caustic), propagation, multi-chain;
+//! - `trace`: local sampling and deterministic retracing of vertices.
+//!
+//! Chains are independent, each with its own seed path and random stream
+//! (`Sampler::new(seed, chain, 0)`), run in parallel and merged in chain order: an image depends
+//! on the seed and the chain count, never on the thread count.
+//! Book: "Metropolis light transport".
+
+pub mod acceptance;
+pub mod contribution;
+pub mod init;
+pub mod mutation;
+pub mod trace;
+
+use glam::Vec2;
+use rayon::prelude::*;
+
+use crate::film::Film;
+use crate::integrator::bdpt::{Bdpt, Strategies};
+use crate::math::Sampler;
+use crate::path::Vertex;
+use crate::scene::{Light, Scene};
+use crate::spectrum::Rgb;
+
+use acceptance::acceptance;
+use contribution::{image_contribution, scalar_contribution};
+use init::Bootstrap;
+use mutation::{
+    Bidirectional, InverseDistance, LightPerturbation, MultiChainPerturbation, Mutation,
+    MutationKind, PropagationPerturbation, SensorPerturbation,
+};
+
+/// Scattering vertices per path when no `max_depth` is given: the target is f restricted to
+/// paths of at most this many bounces (a DEVIATION from the unbounded path space: the chain
+/// needs a finite space for its bidirectional mutation's length distribution; the energy beyond
+/// it is below 1e-3 of the fog box's).
+pub const DEFAULT_MAX_DEPTH: u32 = 30;
+/// Salt that keeps chain streams apart from pixel streams.
+const CHAIN_STREAM_SALT: u64 = 0x0063_6861_696e_0000;
+/// Seed draws a chain tries before giving up (a pre-pass path whose f is zero when re-evaluated
+/// with singular vertices checked, e.g. a specular relation off by more than the tolerance).
+const MAX_SEED_DRAWS: usize = 64;
+
+/// MLT settings (the scene's `[render.mlt]` table and the CLI flags).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MltSettings {
+    /// Pre-pass samples n (sec. 5.1).
+    pub bootstrap: u64,
+    /// Independent chains.
+    pub chains: u32,
+    /// Selection weights of the mutations, in `MutationKind::ALL` order (normalized when used).
+    pub weights: [f64; 5],
+    /// Sensor perturbation film offset [D_min, D_max] in pixels.
+    pub sensor_offset: (f32, f32),
+    /// Light and multi-chain perturbation angle [theta_min, theta_max] in radians.
+    pub light_angle: (f32, f32),
+    /// Propagation perturbation distance [D_min, D_max] as fractions of the scene's radius.
+    pub propagation_distance: (f32, f32),
+}
+
+/// Default pre-pass size ([K] draws 65536; a quarter keeps previews quick).
+pub const DEFAULT_BOOTSTRAP: u64 = 16384;
+/// Default chain count: enough to keep both cores busy, few enough for long chains.
+pub const DEFAULT_CHAINS: u32 = 16;
+/// Veach's lens perturbation range: 0.1 pixel to a tenth of a typical image (sec. 11.4.2 uses
+/// r1 = 0.1 pixels and r2 = 10% of the image size).
+pub const DEFAULT_SENSOR_OFFSET: (f32, f32) = (0.1, 25.0);
+/// Caustic perturbation angles (Veach 1997 sec. 11.4.3 names 0.0001 and 0.1 radians).
+pub const DEFAULT_LIGHT_ANGLE: (f32, f32) = (1e-4, 0.1);
+/// Propagation perturbation distances relative to the scene radius (Pauly et al. leave D_min
+/// and D_max open; these mirror the sensor range's 1 : 250 ratio).
+pub const DEFAULT_PROPAGATION_DISTANCE: (f32, f32) = (4e-4, 0.1);
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings {
+            bootstrap: DEFAULT_BOOTSTRAP,
+            chains: DEFAULT_CHAINS,
+            // Pauly et al. 2000 sec. 6: "all images ... rendered with equal weights"
+            weights: [1.0; 5],
+            sensor_offset: DEFAULT_SENSOR_OFFSET,
+            light_angle: DEFAULT_LIGHT_ANGLE,
+            propagation_distance: DEFAULT_PROPAGATION_DISTANCE,
+        }
+    }
+}
+
+impl MltSettings {
+    /// Checks every value; the message names the setting.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.bootstrap == 0 {
+            return Err("mlt bootstrap must be at least 1 sample".into());
+        }
+        if self.chains == 0 {
+            return Err("mlt chains must be at least 1".into());
+        }
+        for (w, k) in self.weights.iter().zip(MutationKind::ALL) {
+            if !(w.is_finite() && *w >= 0.0) {
+                return Err(format!(
+                    "mutation weight {} = {w} must be finite and >= 0",
+                    k.name()
+                ));
+            }
+        }
+        if self.weights.iter().sum::<f64>() <= 0.0 {
+            return Err("at least one mutation weight must be positive".into());
+        }
+        InverseDistance::new(self.sensor_offset.0, self.sensor_offset.1)?;
+        InverseDistance::new(self.light_angle.0, self.light_angle.1)?;
+        InverseDistance::new(self.propagation_distance.0, self.propagation_distance.1)?;
+        Ok(())
+    }
+
+    /// Parses `name=weight,...` (e.g. `bidirectional=1,sensor=100`); unnamed kinds get 0.
+    pub fn parse_weights(s: &str) -> Result<[f64; 5], String> {
+        let mut w = [0.0; 5];
+        for part in s.split(',').filter(|p| !p.trim().is_empty()) {
+            let (name, value) = part
+                .split_once('=')
+                .ok_or_else(|| format!("`{part}` is not NAME=WEIGHT"))?;
+            let kind = MutationKind::ALL
+                .iter()
+                .find(|k| k.name() == name.trim())
+                .ok_or_else(|| {
+                    let names: Vec<&str> = MutationKind::ALL.iter().map(|k| k.name()).collect();
+                    format!(
+                        "unknown mutation `{}` (available: {})",
+                        name.trim(),
+                        names.join(", ")
+                    )
+                })?;
+            w[kind.index()] = value
+                .trim()
+                .parse::<f64>()
+                .map_err(|_| format!("`{value}` is not a number"))?;
+        }
+        Ok(w)
+    }
+}
+
+/// The set of mutations with their parameters.
+pub struct Mutations {
+    pub bidirectional: Bidirectional,
+    pub sensor: SensorPerturbation,
+    pub light: LightPerturbation,
+    pub propagation: PropagationPerturbation,
+    pub multichain: MultiChainPerturbation,
+}
+
+impl Mutations {
+    pub fn get(&self, kind: MutationKind) -> &dyn Mutation {
+        match kind {
+            MutationKind::Bidirectional => &self.bidirectional,
+            MutationKind::Sensor => &self.sensor,
+            MutationKind::Light => &self.light,
+            MutationKind::Propagation => &self.propagation,
+            MutationKind::MultiChain => &self.multichain,
+        }
+    }
+}
+
+/// Counts of one mutation type.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MutationStats {
+    /// Times the type was chosen.
+    pub attempted: u64,
+    /// Times it produced a path (it applied and did not leave path space).
+    pub proposed: u64,
+    /// Times the chain moved.
+    pub accepted: u64,
+}
+
+impl MutationStats {
+    /// accepted / attempted (what the chain experiences).
+    pub fn acceptance_rate(&self) -> f64 {
+        self.accepted as f64 / self.attempted.max(1) as f64
+    }
+
+    fn add(&mut self, o: &MutationStats) {
+        self.attempted += o.attempted;
+        self.proposed += o.proposed;
+        self.accepted += o.accepted;
+    }
+}
+
+/// What one chain produced in a pass: its deposits and counts.
+type ChainPass = (Vec<(Vec2, Rgb)>, [MutationStats; 5]);
+
+/// One Markov chain: its stream and its current path with f and the pixel.
+pub struct Chain {
+    pub sampler: Sampler,
+    pub x: Vec<Vertex>,
+    pub f: Rgb,
+    pub raster: Vec2,
+}
+
+/// The MLT engine: settings, the pre-pass result, the chains and their statistics.
+pub struct Mlt {
+    pub settings: MltSettings,
+    pub mutations: Mutations,
+    pub bdpt: Bdpt,
+    pub seed: u64,
+    /// b_n of the pre-pass (sec. 5.1), luminance.
+    pub b: f64,
+    pub chains: Vec<Chain>,
+    pub stats: [MutationStats; 5],
+    pub initialized: bool,
+    /// Mutations run so far (N).
+    pub mutations_done: u64,
+    cdf: [f64; 5],
+}
+
+/// Checks that MLT can render `scene`: a pinhole camera and finite lights only.
+pub fn check_scene(scene: &Scene) -> Result<(), String> {
+    if scene.camera.is_none() {
+        return Err("mlt renders images: the scene needs a camera".into());
+    }
+    if scene.lights.iter().any(Light::is_infinite) {
+        return Err(
+            "mlt does not support directional or environment lights (their vertices lie outside \
+             the scene's measure)"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
+impl Mlt {
+    pub fn new(
+        scene: &Scene,
+        settings: MltSettings,
+        seed: u64,
+        max_depth: Option<u32>,
+    ) -> Result<Self, String> {
+        settings.validate()?;
+        check_scene(scene)?;
+        let depth = max_depth.unwrap_or(DEFAULT_MAX_DEPTH);
+        let bdpt = Bdpt::new(scene, Some(depth), Strategies::All);
+        let r = scene.radius.max(f32::MIN_POSITIVE);
+        let (d0, d1) = settings.propagation_distance;
+        let mutations = Mutations {
+            bidirectional: Bidirectional {
+                max_vertices: depth as usize + 2,
+                light_media: bdpt.light_media().to_vec(),
+            },
+            sensor: SensorPerturbation {
+                offset: InverseDistance::new(settings.sensor_offset.0, settings.sensor_offset.1)?,
+            },
+            light: LightPerturbation {
+                angle: InverseDistance::new(settings.light_angle.0, settings.light_angle.1)?,
+            },
+            propagation: PropagationPerturbation {
+                distance: InverseDistance::new(d0 * r, d1 * r)?,
+            },
+            multichain: MultiChainPerturbation {
+                offset: InverseDistance::new(settings.sensor_offset.0, settings.sensor_offset.1)?,
+                angle: InverseDistance::new(settings.light_angle.0, settings.light_angle.1)?,
+            },
+        };
+        let total: f64 = settings.weights.iter().sum();
+        let mut cdf = [0.0; 5];
+        let mut acc = 0.0;
+        for (i, w) in settings.weights.iter().enumerate() {
+            acc += w / total;
+            cdf[i] = acc;
+        }
+        Ok(Mlt {
+            settings,
+            mutations,
+            bdpt,
+            seed,
+            b: 0.0,
+            chains: Vec::new(),
+            stats: [MutationStats::default(); 5],
+            initialized: false,
+            mutations_done: 0,
+            cdf,
+        })
+    }
+
+    /// The pre-pass and the chains' seed paths (sec. 5.1).
+    // ANCHOR: initialize
+    pub fn initialize(&mut self, scene: &Scene) {
+        self.initialized = true;
+        let boot = Bootstrap::run(scene, &self.bdpt, self.settings.bootstrap, self.seed);
+        self.b = boot.b;
+        let chains: Vec<Option<Chain>> = (0..self.settings.chains as u64)
+            .into_par_iter()
+            .map(|c| {
+                let mut sampler = Sampler::new(self.seed, CHAIN_STREAM_SALT ^ c, 0);
+                for _ in 0..MAX_SEED_DRAWS {
+                    let cand = boot.select(sampler.next_f64())?;
+                    let Some(x) = Bootstrap::path_of(scene, &self.bdpt, self.seed, cand) else {
+                        continue;
+                    };
+                    if let Some((f, raster)) = image_contribution(scene, &x) {
+                        return Some(Chain {
+                            sampler,
+                            x,
+                            f,
+                            raster,
+                        });
+                    }
+                }
+                None
+            })
+            .collect();
+        self.chains = chains.into_iter().flatten().collect();
+    }
+    // ANCHOR_END: initialize
+
+    fn choose(&self, u: f64) -> MutationKind {
+        let i = self.cdf.iter().position(|&c| u < c).unwrap_or_else(|| {
+            // u beyond the last cumulative value by rounding: the last type with weight
+            self.settings
+                .weights
+                .iter()
+                .rposition(|&w| w > 0.0)
+                .unwrap_or(0)
+        });
+        MutationKind::ALL[i]
+    }
+
+    /// One Metropolis step of a chain with expected-value splatting: the deposits go to
+    /// `splats` (raster, value; the film divides them by N), the counts to `stats`.
+    // ANCHOR: step
+    pub fn step(
+        &self,
+        scene: &Scene,
+        chain: &mut Chain,
+        splats: &mut Vec<(Vec2, Rgb)>,
+        stats: &mut [MutationStats; 5],
+    ) {
+        let kind = self.choose(chain.sampler.next_f64());
+        let st = &mut stats[kind.index()];
+        st.attempted += 1;
+        let mutation = self.mutations.get(kind);
+        let fx = scalar_contribution(chain.f) as f64;
+        let mut proposal = None;
+        let mut a = 0.0;
+        if let Some(y) = mutation.sample(scene, &chain.x, &mut chain.sampler) {
+            st.proposed += 1;
+            if let Some((fy, ry)) = image_contribution(scene, &y) {
+                let t_xy = mutation.transition_density(scene, &chain.x, &y);
+                let t_yx = mutation.transition_density(scene, &y, &chain.x);
+                a = acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
+                proposal = Some((y, fy, ry));
+            }
+        }
+        // expected-value splatting: each deposit is b/N in luminance, N divided by the film
+        if a < 1.0 {
+            splats.push((chain.raster, chain.f * ((1.0 - a) * self.b / fx) as f32));
+        }
+        if let Some((y, fy, ry)) = proposal {
+            if a > 0.0 {
+                let fy_lum = scalar_contribution(fy) as f64;
+                splats.push((ry, fy * (a * self.b / fy_lum) as f32));
+            }
+            if chain.sampler.next_f64() < a {
+                st.accepted += 1;
+                chain.x = y;
+                chain.f = fy;
+                chain.raster = ry;
+            }
+        }
+    }
+    // ANCHOR_END: step
+
+    /// Runs `mutations` Metropolis steps in total over the chains and splats them into `film`
+    /// (whose splat count grows by `mutations`).
+    pub fn run(&mut self, scene: &Scene, film: &mut Film, mutations: u64) {
+        if !self.initialized {
+            self.initialize(scene);
+        }
+        film.splat_count += mutations;
+        self.mutations_done += mutations;
+        let n = self.chains.len() as u64;
+        if n == 0 || self.b <= 0.0 {
+            return; // no path reaches the camera: the image is black
+        }
+        let mut chains = std::mem::take(&mut self.chains);
+        let this = &*self;
+        let results: Vec<ChainPass> = chains
+            .par_iter_mut()
+            .enumerate()
+            .map(|(c, chain)| {
+                let quota = mutations / n + u64::from((c as u64) < mutations % n);
+                let mut splats = Vec::with_capacity(2 * quota as usize);
+                let mut stats = [MutationStats::default(); 5];
+                for _ in 0..quota {
+                    this.step(scene, chain, &mut splats, &mut stats);
+                }
+                (splats, stats)
+            })
+            .collect();
+        self.chains = chains;
+        for (splats, stats) in results {
+            for (r, l) in splats {
+                if l.is_finite() {
+                    film.add_splat(r, l);
+                }
+            }
+            for (a, b) in self.stats.iter_mut().zip(&stats) {
+                a.add(b);
+            }
+        }
+    }
+
+    /// Mutation types with their statistics.
+    pub fn report(&self) -> Vec<(MutationKind, MutationStats)> {
+        MutationKind::ALL
+            .iter()
+            .map(|&k| (k, self.stats[k.index()]))
+            .collect()
+    }
+}

@@ -1,0 +1,243 @@
+//! The bidirectional mutation (Veach 1997 sec. 11.4.1; Pauly, Kollig, Keller 2000 sec. 5.2,
+//! Fig. 4): delete a contiguous section of x and regenerate it by local sampling from both ends
+//! (Pauly et al. sec. 4: BSDF or phase function, then a free-flight distance by Table 1), then
+//! join the two subpaths by one edge. Any path with a non-specular edge can be produced from
+//! any other in one step, so the mutation is ergodic on its own.
+//!
+//! Indexing. x_0 ... x_k with x_k the pinhole, which is never deleted (its position is fixed).
+//! A virtual vertex x_{-1} stands before the light so that the light vertex itself can be
+//! deleted: the k + 1 edges (x_{-1}, x_0) ... (x_{k-1}, x_k) are candidates.
+//! 1. Deleted edges k_d in 1 ..= k + 1 with Veach's p_d: weights 1/4, 1/2, then 2^-k_d,
+//!    normalized; the first kept vertex x_l, l uniform in -1 ..= k - k_d; m = l + k_d.
+//! 2. Added edges k_a with weight 2^-|k_a - k_d| (Veach: favour k_a = k_d), normalized over
+//!    1 ..= (the length cap); at least 2 when l = -1 (a new light vertex is needed).
+//! 3. s' of the k_a - 1 new vertices from the light side, uniform in 0 ..= k_a - 1;
+//!    t' = k_a - 1 - s' from the eye side. With l = -1 and s' = 0 the eye side must hit an
+//!    emitter by itself (BDPT's s = 0): the only way to reach paths such as L S D S E, which
+//!    have no edge with two non-specular ends.
+//!
+//! Transition density (Veach eq. 11.6's form in the generalized path measure):
+//! T(x -> y) = p_d(k_d) / (k - k_d + 2) * p_a(k_a | k_d, l) *
+//!             sum_{s'} (1 / #splits) prod_{new light-side i} p_L(y_i) prod_{new eye-side i} p_E(y_i),
+//! summed over the splits s' whose joining edge has two non-specular ends (the others cannot
+//! produce a path with f > 0). p_L, p_E are `contribution::singular_densities` of y. The kept
+//! vertices fix l and m: for continuous vertices only one decomposition of y -> x agrees with
+//! both paths; a point light at x_0 adds the one that resampled it onto itself.
+
+use crate::bsdf::TransportMode;
+use crate::math::Sampler;
+use crate::path::{Vertex, VertexKind};
+use crate::scene::Scene;
+
+/// The light-vertex kind of a surface vertex on an area light (`None` elsewhere).
+fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
+    let VertexKind::Surface { prim } = v.kind else {
+        return None;
+    };
+    let light = scene.shapes[scene.prim_shape[prim as usize] as usize].light?;
+    Some(VertexKind::Light {
+        light,
+        prim: Some(prim),
+    })
+}
+
+use super::super::contribution::{
+    is_delta_position_light, is_specular, same_vertex, singular_densities,
+};
+use super::super::trace::{extend, sample_direction, sample_light_vertex};
+use super::Mutation;
+
+/// Veach's weight of deleting k_d edges (sec. 11.4.1: "p_d[1] = 0.25, p_d[2] = 0.5, and
+/// p_d[k] = 2^-k for k >= 3").
+// ANCHOR: deletion_weight
+pub fn deletion_weight(kd: usize) -> f64 {
+    match kd {
+        1 => 0.25,
+        2 => 0.5,
+        _ => 0.5f64.powi(kd as i32),
+    }
+}
+// ANCHOR_END: deletion_weight
+
+/// Weight of adding k_a edges after deleting k_d (favours equal lengths).
+pub fn addition_weight(ka: usize, kd: usize) -> f64 {
+    0.5f64.powi((ka as i64 - kd as i64).unsigned_abs() as i32)
+}
+
+/// The bidirectional mutation.
+#[derive(Clone, Debug)]
+pub struct Bidirectional {
+    /// Vertices a path may have (the length cap of the target, from `max_depth`).
+    pub max_vertices: usize,
+    /// Medium around each light (the light subpaths' first edge).
+    pub light_media: Vec<Option<u32>>,
+}
+
+impl Bidirectional {
+    /// p_d(k_d) for a path of k edges.
+    pub fn deletion_pmf(&self, kd: usize, k: usize) -> f64 {
+        if kd == 0 || kd > k + 1 {
+            return 0.0;
+        }
+        let total: f64 = (1..=k + 1).map(deletion_weight).sum();
+        deletion_weight(kd) / total
+    }
+
+    /// The admissible k_a for l, k_d and a path of n vertices.
+    pub fn addition_range(&self, l: i64, kd: usize, n: usize) -> (usize, usize) {
+        let min = if l < 0 { 2 } else { 1 };
+        let max = (self.max_vertices + kd).saturating_sub(n);
+        (min, max)
+    }
+
+    /// p_a(k_a | k_d, l) for a path of n vertices.
+    pub fn addition_pmf(&self, ka: usize, kd: usize, l: i64, n: usize) -> f64 {
+        let (lo, hi) = self.addition_range(l, kd, n);
+        if ka < lo || ka > hi {
+            return 0.0;
+        }
+        let total: f64 = (lo..=hi).map(|j| addition_weight(j, kd)).sum();
+        addition_weight(ka, kd) / total
+    }
+
+    fn sample_discrete(u: f64, lo: usize, hi: usize, w: impl Fn(usize) -> f64) -> usize {
+        let total: f64 = (lo..=hi).map(&w).sum();
+        let mut acc = 0.0;
+        for j in lo..=hi {
+            acc += w(j) / total;
+            if u < acc {
+                return j;
+            }
+        }
+        hi
+    }
+}
+
+impl Mutation for Bidirectional {
+    // ANCHOR: bidirectional_sample
+    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+        let n = x.len();
+        let k = n - 1;
+        // 1. delete k_d edges after x_l
+        let kd = Self::sample_discrete(sampler.next_f64(), 1, k + 1, deletion_weight);
+        let l = sampler.next_index(k + 2 - kd) as i64 - 1;
+        let m = (l + kd as i64) as usize;
+        // 2. add k_a edges, 3. split the k_a - 1 new vertices
+        let (lo, hi) = self.addition_range(l, kd, n);
+        if hi < lo {
+            return None;
+        }
+        let ka = Self::sample_discrete(sampler.next_f64(), lo, hi, |j| addition_weight(j, kd));
+        let added = ka - 1;
+        let s_new = sampler.next_index(added + 1);
+        let mut light: Vec<Vertex> = x[..(l + 1) as usize].to_vec();
+        for _ in 0..s_new {
+            let v = match light.len() {
+                0 => sample_light_vertex(scene, &self.light_media, sampler)?,
+                len => {
+                    let prev = len.checked_sub(2).map(|i| &light[i]);
+                    let cur = &light[len - 1];
+                    let d = sample_direction(scene, prev, cur, TransportMode::Importance, sampler)?;
+                    extend(scene, cur, d, sampler)?
+                }
+            };
+            light.push(v);
+        }
+        let mut eye: Vec<Vertex> = x[m..].iter().rev().copied().collect();
+        for _ in 0..added - s_new {
+            let len = eye.len();
+            let prev = len.checked_sub(2).map(|i| &eye[i]);
+            let cur = &eye[len - 1];
+            let d = sample_direction(scene, prev, cur, TransportMode::Radiance, sampler)?;
+            let v = extend(scene, cur, d, sampler)?;
+            eye.push(v);
+        }
+        if light.is_empty() {
+            // s' = 0 after deleting the light: the eye side must have found an emitter
+            let last = eye.last_mut()?;
+            last.kind = emitter_kind(scene, last)?;
+        } else if is_specular(scene, &light[light.len() - 1])
+            || is_specular(scene, &eye[eye.len() - 1])
+        {
+            // a joining edge at a Dirac lobe has f = 0 (a re-sampled specular chain can meet
+            // its old direction within `SPECULAR_COS_TOLERANCE`: not a path T counts)
+            return None;
+        }
+        light.extend(eye.into_iter().rev());
+        Some(light)
+    }
+    // ANCHOR_END: bidirectional_sample
+
+    // ANCHOR: bidirectional_density
+    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+        let (nx, ny) = (x.len(), y.len());
+        if nx < 2 || ny < 2 || ny > self.max_vertices {
+            return 0.0;
+        }
+        let common_suffix = x
+            .iter()
+            .rev()
+            .zip(y.iter().rev())
+            .take_while(|(a, b)| same_vertex(a, b))
+            .count();
+        if common_suffix == 0 {
+            return 0.0; // the pinhole is never deleted
+        }
+        let common_prefix = x
+            .iter()
+            .zip(y)
+            .take_while(|(a, b)| same_vertex(a, b))
+            .count()
+            .min(nx - common_suffix)
+            .min(ny - common_suffix);
+        let mut decompositions = vec![common_prefix as i64 - 1];
+        if common_prefix == 1 && is_delta_position_light(scene, &x[0]) {
+            decompositions.push(-1);
+        }
+        let dy = singular_densities(scene, y);
+        let k = nx - 1;
+        let mut total = 0.0f64;
+        for l in decompositions {
+            let kd = (nx - common_suffix) as i64 - l;
+            let ka = (ny - common_suffix) as i64 - l;
+            if kd < 1 || ka < 1 {
+                continue;
+            }
+            let (kd, ka) = (kd as usize, ka as usize);
+            let p_delete = self.deletion_pmf(kd, k) / (k + 2 - kd) as f64;
+            let p_add = self.addition_pmf(ka, kd, l, nx);
+            if p_delete == 0.0 || p_add == 0.0 {
+                continue;
+            }
+            let added = ka - 1;
+            let splits = added + 1;
+            let first = (l + 1) as usize; // index in y of the first new vertex
+            let mut sum = 0.0f64;
+            for s_new in 0..=added {
+                if l < 0 && s_new == 0 {
+                    // no joining edge: the eye side reached the light by itself
+                    if !matches!(y[0].kind, VertexKind::Light { prim: Some(_), .. }) {
+                        continue;
+                    }
+                } else {
+                    // the joining edge (y_a, y_a+1)
+                    let a = first + s_new - 1;
+                    if is_specular(scene, &y[a]) || is_specular(scene, &y[a + 1]) {
+                        continue;
+                    }
+                }
+                let mut p = 1.0f64;
+                for i in first..first + s_new {
+                    p *= dy.light[i] as f64;
+                }
+                for i in first + s_new..first + added {
+                    p *= dy.eye[i] as f64;
+                }
+                sum += p;
+            }
+            total += p_delete * p_add * sum / splits as f64;
+        }
+        total
+    }
+    // ANCHOR_END: bidirectional_density
+}

@@ -1,0 +1,121 @@
+//! The mutations of Metropolis light transport, one interface (Veach 1997 sec. 11.3; Pauly,
+//! Kollig, Keller 2000 sec. 5.2): `sample(x) -> y` proposes a path and
+//! `transition_density(x, y)` is Veach's T(x -> y), the density of proposing y from x in the
+//! measure of the vertices the mutation changes, with the Dirac factors of specular vertices
+//! removed as in `contribution`. Eq. (8) needs T both ways; no mutation assumes symmetry.
+
+pub mod bidirectional;
+pub mod light;
+pub mod multichain;
+pub mod propagation;
+pub mod sensor;
+
+use crate::math::Sampler;
+use crate::path::Vertex;
+use crate::scene::Scene;
+
+pub use bidirectional::Bidirectional;
+pub use light::LightPerturbation;
+pub use multichain::MultiChainPerturbation;
+pub use propagation::PropagationPerturbation;
+pub use sensor::SensorPerturbation;
+
+/// A proposal distribution over paths (Mitsuba 0.6's `Mutator::{sampleMutation, Q}`).
+pub trait Mutation: Sync {
+    /// Proposes y from x; `None` when the mutation does not apply to x or the proposal left
+    /// path space (escaped, changed the characteristic): the chain then stays at x.
+    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>>;
+    /// T(x -> y); zero when `sample` cannot produce y from x.
+    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64;
+}
+
+/// The closed set of mutation types, in the order of the configuration keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MutationKind {
+    Bidirectional,
+    Sensor,
+    Light,
+    Propagation,
+    MultiChain,
+}
+
+impl MutationKind {
+    pub const ALL: [MutationKind; 5] = [
+        MutationKind::Bidirectional,
+        MutationKind::Sensor,
+        MutationKind::Light,
+        MutationKind::Propagation,
+        MutationKind::MultiChain,
+    ];
+
+    /// The configuration key and report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            MutationKind::Bidirectional => "bidirectional",
+            MutationKind::Sensor => "sensor",
+            MutationKind::Light => "light",
+            MutationKind::Propagation => "propagation",
+            MutationKind::MultiChain => "multichain",
+        }
+    }
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// p(D) proportional to 1/D on [min, max] (Pauly et al. sec. 5.2.1), sampled as Veach's eq.
+/// (11.11), D = max exp(-ln(max/min) u): the same law written from the other end.
+// ANCHOR: inverse_distance
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InverseDistance {
+    pub min: f32,
+    pub max: f32,
+}
+
+impl InverseDistance {
+    /// Requires 0 < min < max, finite.
+    pub fn new(min: f32, max: f32) -> Result<Self, String> {
+        if min > 0.0 && max > min && max.is_finite() {
+            Ok(InverseDistance { min, max })
+        } else {
+            Err(format!(
+                "perturbation range [{min}, {max}] must satisfy 0 < min < max"
+            ))
+        }
+    }
+
+    /// D for a uniform u in [0, 1) [Veach eq. 11.11].
+    pub fn sample(&self, u: f32) -> f32 {
+        self.max * (-(self.max / self.min).ln() * u).exp()
+    }
+
+    /// p(D) = 1 / (D ln(max/min)) on [min, max].
+    pub fn pdf(&self, d: f32) -> f64 {
+        // a sampled D can round a hair outside the range
+        let slack = 1e-5;
+        if d < self.min * (1.0 - slack) || d > self.max * (1.0 + slack) {
+            return 0.0;
+        }
+        1.0 / (d as f64 * ((self.max / self.min) as f64).ln())
+    }
+}
+// ANCHOR_END: inverse_distance
+
+/// The prefix x[..n] of both paths is the same vertices.
+pub(crate) fn same_prefix(x: &[Vertex], y: &[Vertex], n: usize) -> bool {
+    x.len() >= n
+        && y.len() >= n
+        && x[..n]
+            .iter()
+            .zip(&y[..n])
+            .all(|(a, b)| super::contribution::same_vertex(a, b))
+}
+
+/// Relative tolerance on a kept distance (medium vertices placed at their old distance).
+pub(crate) const DISTANCE_TOLERANCE: f32 = 1e-4;
+
+/// True when `a` and `b` agree within `DISTANCE_TOLERANCE`.
+pub(crate) fn same_distance(a: f32, b: f32) -> bool {
+    (a - b).abs() <= DISTANCE_TOLERANCE * a.abs().max(b.abs())
+}

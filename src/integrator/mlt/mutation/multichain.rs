@@ -1,0 +1,120 @@
+//! Veach's multi-chain perturbation (1997 sec. 11.4.4) for paths whose lens chain x_k S* x_m
+//! is followed by more specular vertices, (L|D|V) S* D S* ... D S* E: the lens chain is perturbed
+//! as in the sensor perturbation; then at each non-specular vertex x_c whose predecessor is
+//! specular, the old direction x_c -> x_{c-1} is turned by theta, p(theta) ~ 1/theta on
+//! [theta_min, theta_max], and the next chain is retraced in its old lobes, until a chain ends
+//! at a vertex whose predecessor is non-specular (connect) or on the light itself.
+//!
+//! Transition density: the lens chain's (sensor perturbation) times, per further chain,
+//! p(theta_c) / (2 pi sin theta_c) prod_i (g_i / d_i^2) over its retraced vertices.
+
+use std::f32::consts::TAU;
+
+use crate::math::Sampler;
+use crate::path::vertex::to_area;
+use crate::path::Vertex;
+use crate::scene::Scene;
+
+use super::super::contribution::{is_specular, lobe_at};
+use super::super::trace::{angle_between, chain_end_of, dir, perturb_direction, retrace_chain};
+use super::light::direction_density;
+use super::sensor::{lens_chain_density, lens_chain_end, perturb_lens_chain};
+use super::{same_distance, same_prefix, InverseDistance, Mutation};
+use crate::bsdf::Lobe;
+
+/// The multi-chain perturbation.
+#[derive(Clone, Copy, Debug)]
+pub struct MultiChainPerturbation {
+    /// Film offset of the lens chain, in pixels.
+    pub offset: InverseDistance,
+    /// Turning angle at the later chains, in radians.
+    pub angle: InverseDistance,
+}
+
+/// The chains after the lens chain: (c, e) with x_c the non-specular start (towards the light)
+/// and x_e the end, e < c, every x_i with e < i < c specular. The last chain ends where the
+/// predecessor of x_e is non-specular, or at the light (e = 0).
+fn later_chains(scene: &Scene, x: &[Vertex], m: usize) -> Vec<(usize, usize)> {
+    let mut chains = Vec::new();
+    let mut c = m;
+    while c >= 1 && is_specular(scene, &x[c - 1]) {
+        let mut e = c - 1;
+        while e >= 1 && is_specular(scene, &x[e]) {
+            e -= 1;
+        }
+        chains.push((c, e));
+        c = e;
+    }
+    chains
+}
+
+fn chain_lobes(scene: &Scene, x: &[Vertex], c: usize, e: usize) -> Vec<Lobe> {
+    (e + 1..c).rev().map(|i| lobe_at(scene, x, i)).collect()
+}
+
+impl Mutation for MultiChainPerturbation {
+    // ANCHOR: multichain_sample
+    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+        let k = x.len() - 1;
+        let m = lens_chain_end(scene, x)?;
+        let chains = later_chains(scene, x, m);
+        if chains.is_empty() {
+            return None; // the sensor perturbation's case
+        }
+        let mut y = x.to_vec();
+        let lens = perturb_lens_chain(scene, x, m, &self.offset, sampler)?;
+        for (i, v) in (m..k).rev().zip(lens) {
+            y[i] = v;
+        }
+        for &(c, e) in &chains {
+            let theta = self.angle.sample(sampler.next_f32());
+            let phi = TAU * sampler.next_f32();
+            let d = perturb_direction(dir(&x[c], &x[c - 1]), theta, phi);
+            let end = chain_end_of(scene, &x[e], x[e + 1].p);
+            let chain = retrace_chain(scene, &y[c], d, &chain_lobes(scene, x, c, e), end)?;
+            for (i, v) in (e..c).rev().zip(chain) {
+                y[i] = v;
+            }
+        }
+        Some(y)
+    }
+    // ANCHOR_END: multichain_sample
+
+    // ANCHOR: multichain_density
+    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+        let Some(m) = lens_chain_end(scene, x) else {
+            return 0.0;
+        };
+        let chains = later_chains(scene, x, m);
+        if chains.is_empty() || y.len() != x.len() || later_chains(scene, y, m) != chains {
+            return 0.0;
+        }
+        let mut t = lens_chain_density(scene, x, y, m, &self.offset);
+        let kept = chains[chains.len() - 1].1;
+        if t == 0.0 || !same_prefix(x, y, kept) {
+            return 0.0;
+        }
+        for &(c, e) in &chains {
+            if chain_lobes(scene, x, c, e) != chain_lobes(scene, y, c, e)
+                || x[e].is_medium() != y[e].is_medium()
+            {
+                return 0.0;
+            }
+            if x[e].is_medium()
+                && !same_distance(
+                    (x[e].p - x[e + 1].p).length(),
+                    (y[e].p - y[e + 1].p).length(),
+                )
+            {
+                return 0.0;
+            }
+            let theta = angle_between(dir(&x[c], &x[c - 1]), dir(&y[c], &y[c - 1]));
+            t *= direction_density(&self.angle, theta);
+            for i in (e..c).rev() {
+                t *= to_area(1.0, &y[i + 1], &y[i]) as f64;
+            }
+        }
+        t
+    }
+    // ANCHOR_END: multichain_density
+}

@@ -1,0 +1,74 @@
+//! The propagation perturbation (Pauly, Kollig, Keller 2000 sec. 5.2.2), the mutation designed
+//! for media: if x_{k-1} is a medium vertex, it slides along the line x_{k-2} x_{k-1} by D,
+//! p(D) ~ 1/D on [D_min, D_max], forwards or backwards with probability 1/2, and is connected
+//! to the eye (one occlusion test). Rejected when y_{k-1} leaves the medium of x_{k-1} (or a
+//! surface cuts the segment) or when x_{k-1} is on a surface.
+//!
+//! Transition density. The move keeps the direction w of x_{k-2} -> x_{k-1} and changes only
+//! the distance t; in the coordinates (w, t) about x_{k-2} the volume measure is
+//! dV = t^2 dw dt, so the density of y_{k-1} per unit of the measure the move explores is
+//! T(x -> y) = (1/2) p(|t_y - t_x|) / t_y^2. The 1/2 p(D) part is symmetric; t^2 is not.
+
+use crate::math::Sampler;
+use crate::path::Vertex;
+use crate::scene::Scene;
+
+use super::super::contribution::SPECULAR_COS_TOLERANCE;
+use super::super::trace::{dir, point_along};
+use super::{same_prefix, InverseDistance, Mutation};
+
+/// Probability of moving towards x_{k-2} (and of moving away).
+const DIRECTION_PROBABILITY: f64 = 0.5;
+
+/// The propagation perturbation.
+#[derive(Clone, Copy, Debug)]
+pub struct PropagationPerturbation {
+    /// Displacement in scene units.
+    pub distance: InverseDistance,
+}
+
+impl Mutation for PropagationPerturbation {
+    // ANCHOR: propagation_sample
+    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+        let k = x.len() - 1;
+        if k < 2 || !x[k - 1].is_medium() {
+            return None;
+        }
+        let w = dir(&x[k - 2], &x[k - 1]);
+        let t = (x[k - 1].p - x[k - 2].p).length();
+        let d = self.distance.sample(sampler.next_f32());
+        let t_new = if (sampler.next_f32() as f64) < DIRECTION_PROBABILITY {
+            t + d
+        } else {
+            t - d
+        };
+        let v = point_along(scene, &x[k - 2], w, t_new)?;
+        if v.kind != x[k - 1].kind {
+            return None; // left the medium
+        }
+        let mut y = x[..k - 1].to_vec();
+        y.push(v);
+        y.push(x[k]);
+        Some(y)
+    }
+    // ANCHOR_END: propagation_sample
+
+    // ANCHOR: propagation_density
+    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+        let _ = scene;
+        let k = x.len() - 1;
+        if k < 2 || y.len() != x.len() || !x[k - 1].is_medium() || y[k - 1].kind != x[k - 1].kind {
+            return 0.0;
+        }
+        if !same_prefix(x, y, k - 1) || y[k].p != x[k].p {
+            return 0.0;
+        }
+        if dir(&x[k - 2], &x[k - 1]).dot(dir(&y[k - 2], &y[k - 1])) < 1.0 - SPECULAR_COS_TOLERANCE {
+            return 0.0;
+        }
+        let tx = (x[k - 1].p - x[k - 2].p).length();
+        let ty = (y[k - 1].p - y[k - 2].p).length();
+        DIRECTION_PROBABILITY * self.distance.pdf((ty - tx).abs()) / (ty as f64 * ty as f64)
+    }
+    // ANCHOR_END: propagation_density
+}

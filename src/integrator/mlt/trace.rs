@@ -1,0 +1,324 @@
+//! Building path vertices for mutations: sampling a direction at a vertex and propagating to the
+//! next one with a sampled free-flight distance (the local sampling of the bidirectional
+//! mutation, Pauly et al. sec. 4), and the deterministic retracing the perturbations need (sec.
+//! 5.2: "retracing the original path with the same scattering interaction types" and the same
+//! characteristic): rays cast to the first non-null surface without collisions, medium vertices
+//! placed at a given distance, specular vertices continued in their old lobe.
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::{Lobe, TransportMode};
+use crate::geometry::{offset_origin, Hit, Ray};
+use crate::math::{warp, Frame, Sampler};
+use crate::path::{Vertex, VertexKind};
+use crate::scene::{Event, Light, Scene};
+
+use super::contribution::{singular_bsdf, specular_sample};
+
+/// Relative step past a crossed null boundary (the value `Scene::propagate` uses), so the same
+/// face is not found again.
+const NULL_CROSSING_EPSILON: f32 = 1e-6;
+/// Null boundaries crossed along one ray before the geometry counts as a trap.
+const MAX_NULL_CROSSINGS: usize = 256;
+
+/// The ray leaving vertex `v` along unit `d`: its origin (lifted off surfaces), the distance
+/// between the vertex and that origin, and the medium it starts in.
+pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
+    match v.kind {
+        VertexKind::Surface { .. } | VertexKind::Light { prim: Some(_), .. } => {
+            let o = offset_origin(v.p, v.n, d);
+            (
+                Ray::new(o, d),
+                (o - v.p).dot(d).max(0.0),
+                v.medium_towards(d),
+            )
+        }
+        VertexKind::Camera => (Ray::new(v.p, d), 0.0, scene.camera_medium),
+        _ => (Ray::new(v.p, d), 0.0, v.medium_front),
+    }
+}
+
+/// The surface vertex at a hit, with the media on both sides (`medium`: the one the ray came
+/// through, for shapes that separate none).
+pub fn surface_vertex(scene: &Scene, hit: &Hit, medium: Option<u32>) -> Vertex {
+    let shape = scene.shape_of(hit);
+    let (front, back) = if shape.interface {
+        (shape.exterior, shape.interior)
+    } else {
+        (medium, medium)
+    };
+    Vertex::new(
+        VertexKind::Surface { prim: hit.prim },
+        hit.p,
+        hit.ng,
+        front,
+        back,
+    )
+}
+
+/// Samples a direction at `v` as a light or eye subpath would: emission for a light vertex,
+/// uniform film position for the pinhole, the BSDF or phase function elsewhere (`prev` is the
+/// subpath predecessor).
+pub fn sample_direction(
+    scene: &Scene,
+    prev: Option<&Vertex>,
+    v: &Vertex,
+    mode: TransportMode,
+    sampler: &mut Sampler,
+) -> Option<Vec3> {
+    let u = sampler.next_2d();
+    match v.kind {
+        VertexKind::Camera => {
+            let cam = scene.camera.as_ref()?;
+            let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
+            Some(cam.generate_ray(raster).d)
+        }
+        VertexKind::Light { light, .. } => match &scene.lights[light as usize] {
+            Light::Area { .. } => {
+                let local = warp::cosine_hemisphere(u);
+                (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))
+            }
+            Light::Point { .. } => Some(warp::uniform_sphere(u)),
+            Light::Spot {
+                frame, cos_total, ..
+            } => Some(frame.to_world(warp::uniform_cone(u, *cos_total))),
+            _ => None,
+        },
+        VertexKind::Surface { .. } => {
+            let wo = (prev?.p - v.p).normalize_or_zero();
+            let uc = sampler.next_f32();
+            v.bsdf(scene)?
+                .sample(wo, v.n, u, uc, mode)
+                .filter(|s| s.pdf > 0.0)
+                .map(|s| s.wi)
+        }
+        VertexKind::Medium { medium } => {
+            let wo = (prev?.p - v.p).normalize_or_zero();
+            let s = scene.media[medium as usize].phase().sample(wo, u);
+            (s.pdf > 0.0).then_some(s.wi)
+        }
+        _ => None,
+    }
+}
+
+/// The next vertex along `d` from `v`, with a free-flight distance sampled by Table 1
+/// (`Scene::propagate`); `None` when the ray escapes.
+pub fn extend(scene: &Scene, v: &Vertex, d: Vec3, sampler: &mut Sampler) -> Option<Vertex> {
+    let (ray, lead, medium) = ray_from(scene, v, d);
+    let prop = scene.propagate(ray, lead, medium, sampler);
+    if prop.pdf <= 0.0 {
+        return None;
+    }
+    match prop.event {
+        Event::Escape => None,
+        Event::Medium { p, medium: m, .. } => Some(Vertex::new(
+            VertexKind::Medium { medium: m },
+            p,
+            Vec3::ZERO,
+            Some(m),
+            Some(m),
+        )),
+        Event::Surface { hit, medium } => Some(surface_vertex(scene, &hit, medium)),
+    }
+}
+
+/// A light vertex sampled as a light subpath starts: a light by power, a point on it.
+pub fn sample_light_vertex(
+    scene: &Scene,
+    light_media: &[Option<u32>],
+    sampler: &mut Sampler,
+) -> Option<Vertex> {
+    if scene.lights.is_empty() {
+        return None;
+    }
+    let (l, _, u_prim) = scene.light_distr.sample(sampler.next_f32());
+    let light = &scene.lights[l];
+    let es = light.sample_le(
+        &scene.prims,
+        sampler.next_2d(),
+        sampler.next_2d(),
+        u_prim,
+        scene.center,
+        scene.radius,
+    )?;
+    if es.pdf_pos <= 0.0 {
+        return None;
+    }
+    let lm = light_media[l];
+    let prim = match light {
+        Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+        Light::Point { .. } | Light::Spot { .. } => None,
+        _ => return None,
+    };
+    let n = if prim.is_some() { es.n } else { Vec3::ZERO };
+    Some(Vertex::new(
+        VertexKind::Light {
+            light: l as u32,
+            prim,
+        },
+        es.p,
+        n,
+        lm,
+        lm,
+    ))
+}
+
+#[inline]
+fn past(t: f32, ray: &Ray) -> f32 {
+    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
+}
+
+/// The first non-null surface along `d` from `v`, no collisions sampled (the ray passes
+/// through media; their transmittance enters f, not the proposal).
+pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
+    let (ray, _, mut medium) = ray_from(scene, v, d);
+    let mut t_min = 0.0f32;
+    for _ in 0..MAX_NULL_CROSSINGS {
+        let hit = scene.bvh.intersect_range(
+            &scene.prims,
+            &scene.prim_opaque,
+            &ray,
+            t_min,
+            f32::INFINITY,
+        )?;
+        let shape = scene.shape_of(&hit);
+        if !shape.is_null() {
+            return Some(surface_vertex(scene, &hit, medium));
+        }
+        medium = shape.medium_after(ray.d, hit.ng, medium);
+        t_min = past(hit.t, &ray);
+    }
+    None
+}
+
+/// A medium vertex at distance `dist` along `d` from `v`; `None` when a surface comes first or
+/// no medium is there.
+pub fn point_along(scene: &Scene, v: &Vertex, d: Vec3, dist: f32) -> Option<Vertex> {
+    if !(dist > 0.0 && dist.is_finite()) {
+        return None;
+    }
+    let (ray, lead, mut medium) = ray_from(scene, v, d);
+    let mut t_min = 0.0f32;
+    for _ in 0..MAX_NULL_CROSSINGS {
+        let hit =
+            scene
+                .bvh
+                .intersect_range(&scene.prims, &scene.prim_opaque, &ray, t_min, f32::INFINITY);
+        match hit {
+            Some(h) if h.t + lead < dist => {
+                let shape = scene.shape_of(&h);
+                if !shape.is_null() {
+                    return None;
+                }
+                medium = shape.medium_after(ray.d, h.ng, medium);
+                t_min = past(h.t, &ray);
+            }
+            _ => {
+                let m = medium?;
+                return Some(Vertex::new(
+                    VertexKind::Medium { medium: m },
+                    v.p + d * dist,
+                    Vec3::ZERO,
+                    Some(m),
+                    Some(m),
+                ));
+            }
+        }
+    }
+    None
+}
+
+/// How a retraced chain ends (the old end vertex's kind: the characteristic is kept).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ChainEnd {
+    /// A surface with a regular (non-singular) BSDF.
+    Surface,
+    /// A medium vertex at this distance from its predecessor.
+    Medium { dist: f32 },
+    /// A point on an area light.
+    Light,
+}
+
+/// The end of the old chain whose vertex is `end` and whose predecessor in tracing order is at
+/// `before`.
+pub fn chain_end_of(scene: &Scene, end: &Vertex, before: Vec3) -> ChainEnd {
+    if end.is_medium() {
+        ChainEnd::Medium {
+            dist: (end.p - before).length(),
+        }
+    } else if matches!(end.kind, VertexKind::Light { .. }) {
+        ChainEnd::Light
+    } else {
+        let _ = scene;
+        ChainEnd::Surface
+    }
+}
+
+/// Retraces a chain from `start` along `d`: one specular vertex per entry of `lobes`, each
+/// continued in that lobe, then the end vertex. The new vertices in tracing order.
+// ANCHOR: retrace_chain
+pub fn retrace_chain(
+    scene: &Scene,
+    start: &Vertex,
+    d: Vec3,
+    lobes: &[Lobe],
+    end: ChainEnd,
+) -> Option<Vec<Vertex>> {
+    let mut out = Vec::with_capacity(lobes.len() + 1);
+    let mut cur = *start;
+    let mut d = d;
+    for &lobe in lobes {
+        let v = trace_surface(scene, &cur, d)?;
+        let bsdf = singular_bsdf(scene, &v)?;
+        let s = specular_sample(bsdf, -d, v.n, lobe, TransportMode::Radiance)?;
+        out.push(v);
+        d = s.wi;
+        cur = v;
+    }
+    let v = match end {
+        ChainEnd::Medium { dist } => point_along(scene, &cur, d, dist)?,
+        ChainEnd::Surface => {
+            let v = trace_surface(scene, &cur, d)?;
+            let b = v.bsdf(scene)?;
+            if b.is_singular() {
+                return None;
+            }
+            v
+        }
+        ChainEnd::Light => {
+            let v = trace_surface(scene, &cur, d)?;
+            let VertexKind::Surface { prim } = v.kind else {
+                return None;
+            };
+            let light = scene.shapes[scene.prim_shape[prim as usize] as usize].light?;
+            let mut l = v;
+            l.kind = VertexKind::Light {
+                light,
+                prim: Some(prim),
+            };
+            l
+        }
+    };
+    out.push(v);
+    Some(out)
+}
+// ANCHOR_END: retrace_chain
+
+/// `w` turned by polar angle `theta` and azimuth `phi` about itself.
+pub fn perturb_direction(w: Vec3, theta: f32, phi: f32) -> Vec3 {
+    let (s, c) = theta.sin_cos();
+    Frame::from_normal(w)
+        .to_world(Vec3::new(s * phi.cos(), s * phi.sin(), c))
+        .normalize()
+}
+
+/// The angle between unit vectors, accurate for small angles.
+pub fn angle_between(a: Vec3, b: Vec3) -> f32 {
+    a.cross(b).length().atan2(a.dot(b))
+}
+
+/// Unit direction from `a` to `b`.
+#[inline]
+pub fn dir(a: &Vertex, b: &Vertex) -> Vec3 {
+    (b.p - a.p).normalize_or_zero()
+}
