@@ -31,6 +31,10 @@ pub struct ReferenceArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Override the integrator (default: the most robust one for the scene, see
+    /// `measure::reference_integrator`), e.g. `bdpt` where light arrives through long chains.
+    #[arg(long)]
+    pub integrator: Option<String>,
 }
 
 /// A rayon pool of `threads` workers (all cores when None).
@@ -114,7 +118,10 @@ pub fn run(args: ReferenceArgs) -> Result<(), String> {
     let hash = hash_hex(source.hash());
     check_overwrite(&output, &source.name, &hash)?;
 
-    let kind = measure::reference_integrator(&scene);
+    let kind = match &args.integrator {
+        Some(name) => crate::integrator::IntegratorKind::parse(name)?,
+        None => measure::reference_integrator(&scene),
+    };
     let seed = args.seed.unwrap_or(scene.render.seed);
     let max_depth = scene.render.max_depth;
     let pool = thread_pool(args.threads)?;
