@@ -621,3 +621,116 @@ fn the_chapter_includes_existing_anchors() {
     }
     assert!(count >= 4, "the chapter includes only {count} listings");
 }
+
+/// `converge --propagation` compares the strategies of an inhomogeneous medium on one scene and
+/// one reference, one line per integrator and strategy; a scene without such a medium is refused.
+#[test]
+fn converge_compares_propagation_strategies() {
+    let dir = scratch("propagation");
+    let scene = dir.join("linear.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 30.0
+resolution = [8, 8]
+[media.ramp]
+type = "procedural"
+density = "linear"
+axis = "y"
+from = 0.0
+to = 2.0
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1.0]
+sigma_a = 0.2
+sigma_s = 0.5
+propagation = "delta-tracking"
+[[shapes]]
+type = "box"
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1.0]
+material = "null"
+interior = "ramp"
+[[lights]]
+type = "environment"
+radiance = 1.0
+"#,
+    )
+    .unwrap();
+    let reference = dir.join("ref.exr");
+    let out = pathspace(&[
+        "reference",
+        scene.to_str().unwrap(),
+        "--spp",
+        "64",
+        "-o",
+        reference.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let conv = dir.join("conv");
+    let out = pathspace(&[
+        "converge",
+        scene.to_str().unwrap(),
+        "--reference",
+        reference.to_str().unwrap(),
+        "--integrators",
+        "path",
+        "--propagation",
+        "equidistant,delta-tracking",
+        "--budget",
+        "0.2",
+        "--checkpoints",
+        "3",
+        "-o",
+        conv.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(conv.join("convergence.csv")).unwrap();
+    assert!(
+        csv.lines().any(|l| l.starts_with("path/equidistant,")),
+        "{csv}"
+    );
+    assert!(
+        csv.lines().any(|l| l.starts_with("path/delta-tracking,")),
+        "{csv}"
+    );
+    // the same option on a scene without an inhomogeneous medium is an error, not a silent no-op
+    let plain = dir.join("plain.toml");
+    std::fs::write(&plain, furnace_toml(0.5)).unwrap();
+    let plain_ref = dir.join("plain-ref.exr");
+    assert!(pathspace(&[
+        "reference",
+        plain.to_str().unwrap(),
+        "--spp",
+        "4",
+        "-o",
+        plain_ref.to_str().unwrap()
+    ])
+    .status
+    .success());
+    let out = pathspace(&[
+        "converge",
+        plain.to_str().unwrap(),
+        "--reference",
+        plain_ref.to_str().unwrap(),
+        "--propagation",
+        "stratified",
+        "--budget",
+        "0.1",
+        "-o",
+        dir.join("c2").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no inhomogeneous medium"));
+}

@@ -43,6 +43,11 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
+    /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
+    /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
+    /// labelled `integrator/strategy`. The reference stays the same (same scene file).
+    #[arg(long, value_delimiter = ',')]
+    pub propagation: Vec<String>,
 }
 
 /// One line of the summary printed at the end.
@@ -137,8 +142,29 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
             );
         }
     };
-    let mut rows =
-        pool.install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+    let mut rows = Vec::new();
+    if args.propagation.is_empty() {
+        rows = pool
+            .install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+    } else {
+        for name in &args.propagation {
+            let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
+            let (mut variant, _) = super::load_scene(Some(&args.scene))?;
+            if variant.set_line_integral(li) == 0 {
+                return Err(format!(
+                    "--propagation: {} has no inhomogeneous medium",
+                    source.name
+                ));
+            }
+            let mut part = pool.install(|| {
+                convergence::converge(&variant, &reference, &kinds, &config, &mut report)
+            })?;
+            for r in &mut part {
+                r.integrator = format!("{}/{}", r.integrator, li.name());
+            }
+            rows.extend(part);
+        }
+    }
     rows.extend(external_rows);
 
     let csv = args.output.join("convergence.csv");

@@ -66,6 +66,25 @@ impl LineIntegral {
         }
     }
 
+    /// Every strategy, in the order of the paper (then tracking).
+    pub const ALL: [LineIntegral; 4] = [
+        LineIntegral::Equidistant,
+        LineIntegral::Stratified,
+        LineIntegral::RandomOffset,
+        LineIntegral::DeltaTracking,
+    ];
+
+    /// From the scene-file spelling.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|l| l.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|l| l.name()).collect();
+                format!("unknown propagation `{s}` (one of: {})", names.join(", "))
+            })
+    }
+
     /// True for the ray-marching strategies, biased for any finite step.
     pub fn is_marching(self) -> bool {
         !matches!(self, LineIntegral::DeltaTracking)

@@ -467,6 +467,19 @@ impl Scene {
         build::build(source)
     }
 
+    /// Sets the propagation strategy of every inhomogeneous medium (for comparing strategies
+    /// on one scene, `pathspace converge --propagation`); returns how many media changed.
+    pub fn set_line_integral(&mut self, li: crate::medium::heterogeneous::LineIntegral) -> usize {
+        let mut n = 0;
+        for m in &mut self.media {
+            if let Medium::Heterogeneous(h) = m {
+                h.line_integral = li;
+                n += 1;
+            }
+        }
+        n
+    }
+
     /// The embedded fog box.
     pub fn fog_box() -> Scene {
         Scene::load(&SceneSource::embedded("fog-box.toml (embedded)", FOG_BOX))
