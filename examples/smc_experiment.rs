@@ -7,7 +7,9 @@
 //! - `converge SCENE REF.exr OUT.json [key=value...]`: RMSE and efficiency against samples per
 //!   pixel (x4 steps) for a list of variants, averaged over independent runs; keys `variants`
 //!   (comma list, `path` allowed), `max_spp`, `threshold`, `runs`, `form` (march|distance),
-//!   `threads`, `scene_replace` (`old=>new`, repeated with `;`, to derive a scene variant);
+//!   `threads`, `scene_replace` (`old=>new`, repeated with `;`, to derive a scene variant),
+//!   `time` (seconds: also render each variant for that long, runs seeded 2000, 2001, ..., and
+//!   report the RMSE at equal time);
 //! - `chart OUT.json OUT.svg TITLE`: the log-log charts of RMSE and efficiency;
 //! - `leaf SCENE SPP OUT.png`: g and p of the leaf at the scene's centre over (s, t) (Fig. 1).
 //!
@@ -124,6 +126,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
     let mut threshold = pathspace::integrator::smc::DEFAULT_REFINEMENT_THRESHOLD;
     let mut form = EstimatorForm::RayMarching { step: 1.0 };
     let mut replace = None;
+    let mut time: Option<f64> = None;
     for kv in keys {
         let (k, v) = kv
             .split_once('=')
@@ -136,6 +139,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
             "threshold" => threshold = parse(v, "threshold")?,
             "form" => form = EstimatorForm::parse(v, None)?,
             "scene_replace" => replace = Some(v.to_string()),
+            "time" => time = Some(parse(v, "number of seconds")?),
             _ => return Err(format!("unknown key `{k}`")),
         }
     }
@@ -163,6 +167,8 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
         s *= SPP_FACTOR;
     }
     let mut curves = vec![];
+    // equal time: (name, mean spp reached, mean MSE)
+    let mut equal_time: Vec<(String, f64, f64)> = vec![];
     for name in variants.split(',') {
         let (kind, settings) = if name == "path" {
             (IntegratorKind::Path, None)
@@ -204,6 +210,28 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                 }
                 Ok(())
             })?;
+        }
+        if let Some(t) = time {
+            let (mut spp_sum, mut mse_t) = (0.0, 0.0);
+            for run in 0..runs {
+                pool.install(|| -> Result<(), String> {
+                    let mut r = Renderer::new(&scene, kind, 2000 + run, None);
+                    if let Some(st) = settings {
+                        r = r.with_smc_settings(st)?;
+                    }
+                    let start = Instant::now();
+                    let mut done = 0;
+                    while start.elapsed().as_secs_f64() < t {
+                        r.pass(FIRST_SPP, &|| {});
+                        done += FIRST_SPP;
+                    }
+                    spp_sum += done as f64;
+                    mse_t += mse(&r.film.as_ref().ok_or("no camera")?.image(), &ref_img);
+                    Ok(())
+                })?;
+            }
+            let m = (mse_t / runs as f64 - ref_var).max(f64::MIN_POSITIVE);
+            equal_time.push((name.to_string(), spp_sum / runs as f64, m));
         }
         let mse: Vec<f64> = mse_sum
             .iter()
@@ -250,7 +278,19 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
             speedup.map_or("-".into(), |s| format!("{s:.2}x")),
         );
     }
+    if let Some(t) = time {
+        println!("  equal time, {t} s per run:");
+        for (name, spp, m) in &equal_time {
+            println!("  {name:8} {spp:.0} spp  RMSE {:.2e}", m.sqrt());
+        }
+    }
     let json = serde_json::json!({
+        "equal_time": time.map(|t| serde_json::json!({
+            "seconds": t,
+            "curves": equal_time.iter().map(|(n, spp, m)| serde_json::json!({
+                "name": n, "spp": spp, "mse": m,
+            })).collect::<Vec<_>>(),
+        })),
         "scene": scene_path,
         "form": form.name(),
         "threshold": threshold,

@@ -92,35 +92,18 @@ pub struct SmcArgs {
     pub smc_step: Option<f32>,
 }
 
-/// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB`.
-pub fn parse_bytes(s: &str) -> Result<usize, String> {
-    let t = s.trim();
-    let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
-        Some(i) => t.split_at(i),
-        None => (t, ""),
-    };
-    let scale: usize = match unit.trim() {
-        "" | "B" => 1,
-        "KiB" => 1 << 10,
-        "MiB" => 1 << 20,
-        "GiB" => 1 << 30,
-        u => {
-            return Err(format!(
-                "`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)"
-            ))
-        }
-    };
-    digits
-        .parse::<usize>()
-        .ok()
-        .and_then(|n| n.checked_mul(scale))
-        .ok_or_else(|| format!("`{s}` is not a byte count such as 1073741824 or 512MiB"))
-}
+/// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB` (shared with the scene key
+/// `[render.smc] cache_budget`).
+pub use crate::integrator::smc::parse_bytes;
 
 impl SmcArgs {
-    /// The SMC settings from the options; an error when they are invalid or given to another
-    /// integrator.
-    pub fn smc_settings(&self, kind: IntegratorKind) -> Result<Option<SmcSettings>, String> {
+    /// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an
+    /// error when they are invalid or given to another integrator.
+    pub fn smc_settings(
+        &self,
+        kind: IntegratorKind,
+        base: SmcSettings,
+    ) -> Result<Option<SmcSettings>, String> {
         let given = self.smc_variant.is_some()
             || self.smc_threshold.is_some()
             || self.cache_budget.is_some()
@@ -135,7 +118,7 @@ impl SmcArgs {
             }
             return Ok(None);
         }
-        let mut s = SmcSettings::default();
+        let mut s = base;
         if let Some(v) = &self.smc_variant {
             s.variant = Variant::parse(v)?;
         }
@@ -145,12 +128,18 @@ impl SmcArgs {
         if let Some(b) = self.cache_budget {
             s.budget = b;
         }
-        if self.smc_step.is_some() && self.smc_estimator.as_deref() != Some("march") {
-            return Err("--smc-step needs --smc-estimator march".into());
+        // the step of the scene's march form carries over unless --smc-step replaces it
+        let base_step = match base.form {
+            EstimatorForm::RayMarching { step } => Some(step),
+            EstimatorForm::Distance => None,
+        };
+        let estimator = self.smc_estimator.as_deref().unwrap_or(base.form.name());
+        if self.smc_step.is_some() && estimator != "march" {
+            return Err(format!(
+                "--smc-step applies to the march estimator, not `{estimator}`"
+            ));
         }
-        if let Some(e) = &self.smc_estimator {
-            s.form = EstimatorForm::parse(e, self.smc_step)?;
-        }
+        s.form = EstimatorForm::parse(estimator, self.smc_step.or(base_step))?;
         Ok(Some(s))
     }
 }
@@ -370,7 +359,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             return Err(format!("--time {t} must be a positive number of seconds"));
         }
     }
-    let smc = args.smc.smc_settings(kind)?;
+    let smc = args.smc.smc_settings(kind, scene.render.smc)?;
     let seed = args.seed.unwrap_or(scene.render.seed);
     let max_depth = args.max_depth.or(scene.render.max_depth);
     let mut pool = rayon::ThreadPoolBuilder::new();

@@ -180,7 +180,8 @@ impl<'a> Renderer<'a> {
             meter_samples: scene.render.meter_samples as u64,
             smc: match kind {
                 IntegratorKind::Smc => {
-                    smc::Smc::new(scene, smc::SmcSettings::default(), max_depth).ok()
+                    // the scene's `[render.smc]`, validated when the scene was built
+                    smc::Smc::new(scene, scene.render.smc, max_depth).ok()
                 }
                 _ => None,
             },

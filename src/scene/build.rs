@@ -776,6 +776,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         max_depth: desc.render.max_depth,
         meter_samples: desc.render.meter_samples.unwrap_or(DEFAULT_METER_SAMPLES),
         mlt: mlt_settings(desc.render.mlt.as_ref()),
+        smc: smc_settings(src, desc.render.smc.as_ref())?,
     };
     if render.spp == 0 {
         return Err(src.error(&path("render").key("spp"), "spp must be at least 1"));
@@ -924,4 +925,63 @@ fn mlt_settings(desc: Option<&crate::scene::file::MltDesc>) -> crate::integrator
         m.propagation_distance = (a, b);
     }
     m
+}
+
+/// SMC settings from `[render.smc]`, defaults where a key is absent; every value is checked
+/// here so that a bad one is reported at its line and key.
+fn smc_settings(
+    src: &SceneSource,
+    desc: Option<&crate::scene::file::SmcDesc>,
+) -> Result<crate::integrator::smc::SmcSettings, SceneError> {
+    use crate::integrator::smc::{parse_bytes, EstimatorForm, SmcSettings, Variant};
+    let mut s = SmcSettings::default();
+    let Some(d) = desc else { return Ok(s) };
+    let key = |k: &str| path("render").key("smc").key(k);
+    if let Some(v) = &d.variant {
+        s.variant = Variant::parse(v).map_err(|e| src.error(&key("variant"), e))?;
+    }
+    if let Some(t) = d.threshold {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(src.error(
+                &key("threshold"),
+                format!("threshold = {t} must be a positive number of records"),
+            ));
+        }
+        s.threshold = t;
+    }
+    if let Some(b) = &d.cache_budget {
+        let bytes = match b {
+            file::ByteCount::Bytes(n) => {
+                usize::try_from(*n).map_err(|_| format!("cache_budget = {n} is not a byte count"))
+            }
+            file::ByteCount::Text(t) => parse_bytes(t),
+        }
+        .map_err(|e| src.error(&key("cache_budget"), e))?;
+        let root = crate::integrator::smc::cache::RadianceCache::root().bytes();
+        if bytes < root {
+            return Err(src.error(
+                &key("cache_budget"),
+                format!(
+                    "cache_budget = {bytes} bytes cannot hold even the root cache ({root} bytes)"
+                ),
+            ));
+        }
+        s.budget = bytes;
+    }
+    let estimator = d.estimator.as_deref().unwrap_or(s.form.name());
+    if d.step.is_some() && estimator != "march" {
+        return Err(src.error(
+            &key("step"),
+            format!("step applies to the march estimator, not `{estimator}`"),
+        ));
+    }
+    s.form = EstimatorForm::parse(estimator, d.step).map_err(|e| {
+        let k = if d.estimator.is_some() && !matches!(estimator, "march" | "distance") {
+            "estimator"
+        } else {
+            "step"
+        };
+        src.error(&key(k), e)
+    })?;
+    Ok(s)
 }

@@ -78,6 +78,33 @@ pub struct RenderDesc {
     pub meter_samples: Option<u32>,
     /// `[render.mlt]`: Metropolis light transport settings.
     pub mlt: Option<MltDesc>,
+    /// `[render.smc]`: sequential Monte Carlo settings.
+    pub smc: Option<SmcDesc>,
+}
+
+/// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
+/// override them.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SmcDesc {
+    /// `is0|is1` x `cv0|cv1|cv2` (default `is1_cv2`).
+    pub variant: Option<String>,
+    /// Refinement threshold on the average record count of a cache.
+    pub threshold: Option<f64>,
+    /// Memory budget of the structure: bytes, or a string with a unit (`"512MiB"`).
+    pub cache_budget: Option<ByteCount>,
+    /// `march` (eq. 8-9) or `distance` (eq. 7).
+    pub estimator: Option<String>,
+    /// Ray-marching step in mean free paths (march only).
+    pub step: Option<f32>,
+}
+
+/// A byte count written as an integer or as a string with a unit.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum ByteCount {
+    Bytes(i64),
+    Text(String),
 }
 
 /// `[render.mlt]`: pre-pass size, chains, mutation selection weights and perturbation ranges
@@ -119,6 +146,7 @@ impl Default for RenderDesc {
             max_depth: None,
             meter_samples: None,
             mlt: None,
+            smc: None,
         }
     }
 }

@@ -74,6 +74,9 @@ pub struct RenderSettings {
     pub meter_samples: u32,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: crate::integrator::mlt::MltSettings,
+    /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
+    /// `--smc-*` and `--cache-budget` options override them.
+    pub smc: crate::integrator::smc::SmcSettings,
 }
 
 /// Where a ray's propagation ended.

@@ -93,6 +93,32 @@ impl EstimatorForm {
     }
 }
 
+/// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB` (the `--cache-budget` option
+/// and the `[render.smc] cache_budget` key).
+pub fn parse_bytes(s: &str) -> Result<usize, String> {
+    let t = s.trim();
+    let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
+        Some(i) => t.split_at(i),
+        None => (t, ""),
+    };
+    let scale: usize = match unit.trim() {
+        "" | "B" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        u => {
+            return Err(format!(
+                "`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)"
+            ))
+        }
+    };
+    digits
+        .parse::<usize>()
+        .ok()
+        .and_then(|n| n.checked_mul(scale))
+        .ok_or_else(|| format!("`{s}` is not a byte count such as 1073741824 or 512MiB"))
+}
+
 /// The SMC integrator's options.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SmcSettings {

@@ -1,0 +1,186 @@
+//! The `[render.smc]` keys, executable: a scene's keys become the SMC settings the renderer
+//! starts from, the `--smc-*` options override them key by key, and every bad value is
+//! reported at its file, line and key. Book: "SMC: experiments", section "Settings".
+
+use pathspace::cli::render::SmcArgs;
+use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::scene::{Scene, SceneError, SceneSource};
+
+/// A valid scene of 17 lines ending in `[render.smc]`: a key appended is line 18.
+const BASE: &str = r#"# base scene for the [render.smc] tests
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 40.0
+resolution = [4, 4]
+
+[media.fog]
+type = "homogeneous"
+sigma_a = 0.4
+sigma_s = 1.6
+
+[render]
+integrator = "smc"
+
+[render.smc]
+"#;
+const BASE_LINES: usize = 17;
+
+fn load(extra: &str) -> Result<Scene, SceneError> {
+    Scene::load(&SceneSource::embedded(
+        "smc.toml",
+        &format!("{BASE}{extra}"),
+    ))
+}
+
+/// Expects the error at line `BASE_LINES + line` (1-based in `extra`) on `render.smc.KEY`,
+/// with every one of `words` in the message.
+#[track_caller]
+fn expect_error(extra: &str, line: usize, key: &str, words: &[&str]) {
+    let e = match load(extra) {
+        Ok(_) => panic!("the scene loaded, but it should not have:\n{extra}"),
+        Err(e) => e,
+    };
+    let key = format!("render.smc.{key}");
+    assert_eq!(e.file, "smc.toml");
+    assert_eq!(
+        (e.line, e.key.as_str()),
+        (Some(BASE_LINES + line), key.as_str()),
+        "{e}"
+    );
+    for w in words {
+        assert!(e.message.contains(w), "message of `{e}` lacks `{w}`");
+    }
+}
+
+#[test]
+fn base_has_the_stated_length_and_default_settings() {
+    assert_eq!(BASE.lines().count(), BASE_LINES);
+    assert_eq!(load("").unwrap().render.smc, SmcSettings::default());
+}
+
+#[test]
+fn keys_become_the_settings() {
+    let scene = load(
+        "variant = \"is0_cv1\"\nthreshold = 12.5\ncache_budget = \"3MiB\"\nestimator = \"march\"\nstep = 0.25\n",
+    )
+    .unwrap();
+    let want = SmcSettings {
+        variant: Variant::parse("is0_cv1").unwrap(),
+        threshold: 12.5,
+        budget: 3 << 20,
+        form: EstimatorForm::RayMarching { step: 0.25 },
+    };
+    assert_eq!(scene.render.smc, want);
+    // an integer budget, and the distance form
+    let scene = load("cache_budget = 5000000\nestimator = \"distance\"\n").unwrap();
+    assert_eq!(scene.render.smc.budget, 5_000_000);
+    assert_eq!(scene.render.smc.form, EstimatorForm::Distance);
+    // the renderer starts from the scene's settings
+    let scene = load("variant = \"is0_cv2\"\nthreshold = 7\n").unwrap();
+    let r = Renderer::new(&scene, IntegratorKind::Smc, 1, None);
+    let smc = r.smc.as_ref().expect("an smc renderer");
+    assert_eq!(smc.settings.variant, Variant::parse("is0_cv2").unwrap());
+    assert_eq!(smc.settings.threshold, 7.0);
+}
+
+#[test]
+fn options_override_the_keys() {
+    let scene = load("variant = \"is0_cv1\"\nthreshold = 12.5\nstep = 0.25\n").unwrap();
+    let base = scene.render.smc;
+    // no option: the scene's settings
+    let none = SmcArgs::default();
+    assert_eq!(none.smc_settings(IntegratorKind::Smc, base), Ok(Some(base)));
+    // one option replaces one key; the scene's march step carries over
+    let args = SmcArgs {
+        smc_threshold: Some(99.0),
+        smc_estimator: Some("march".into()),
+        ..Default::default()
+    };
+    let s = args
+        .smc_settings(IntegratorKind::Smc, base)
+        .unwrap()
+        .unwrap();
+    assert_eq!(s.threshold, 99.0);
+    assert_eq!(s.variant, base.variant);
+    assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.25 });
+    let args = SmcArgs {
+        smc_variant: Some("is1_cv0".into()),
+        smc_estimator: Some("distance".into()),
+        ..Default::default()
+    };
+    let s = args
+        .smc_settings(IntegratorKind::Smc, base)
+        .unwrap()
+        .unwrap();
+    assert_eq!(s.variant, Variant::parse("is1_cv0").unwrap());
+    assert_eq!(s.form, EstimatorForm::Distance);
+    assert_eq!(s.threshold, 12.5);
+    // --smc-step on a scene whose estimator is distance
+    let distance = load("estimator = \"distance\"\n").unwrap().render.smc;
+    let args = SmcArgs {
+        smc_step: Some(0.5),
+        ..Default::default()
+    };
+    let e = args
+        .smc_settings(IntegratorKind::Smc, distance)
+        .unwrap_err();
+    assert!(e.contains("march"), "{e}");
+    // and on the default (march) form it applies
+    let s = args
+        .smc_settings(IntegratorKind::Smc, SmcSettings::default())
+        .unwrap()
+        .unwrap();
+    assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.5 });
+}
+
+#[test]
+fn bad_variant() {
+    expect_error(
+        "threshold = 4\nvariant = \"is3_cv9\"\n",
+        2,
+        "variant",
+        &["is3_cv9", "is1_cv2"],
+    );
+}
+
+#[test]
+fn bad_threshold() {
+    expect_error("threshold = 0\n", 1, "threshold", &["positive"]);
+    expect_error("threshold = -3.5\n", 1, "threshold", &["positive"]);
+}
+
+#[test]
+fn bad_cache_budget() {
+    expect_error(
+        "cache_budget = \"12 parsecs\"\n",
+        1,
+        "cache_budget",
+        &["unit"],
+    );
+    expect_error("cache_budget = -1\n", 1, "cache_budget", &["byte count"]);
+    expect_error("cache_budget = 16\n", 1, "cache_budget", &["root cache"]);
+}
+
+#[test]
+fn bad_estimator_and_step() {
+    expect_error("estimator = \"walk\"\n", 1, "estimator", &["walk", "march"]);
+    expect_error("step = 0.0\n", 1, "step", &["positive"]);
+    expect_error(
+        "estimator = \"distance\"\nstep = 0.5\n",
+        2,
+        "step",
+        &["march", "distance"],
+    );
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let Err(e) = load("varient = \"is1_cv2\"\n") else {
+        panic!("an unknown key was accepted")
+    };
+    assert_eq!(e.line, Some(BASE_LINES + 1), "{e}");
+    assert!(e.to_string().contains("varient"), "{e}");
+}
