@@ -1,0 +1,203 @@
+//! Where MLT fails (book: "MLT experiments", section "Where MLT fails"): the qualitative claims
+//! of the three experiments, each at a size that runs in seconds.
+//!
+//! - Start-up: b_n, the pre-pass estimate of b (Pauly, Kollig, Keller 2000 sec. 5.1), spreads
+//!   over runs like 1/sqrt(n) and its mean over runs is b (unbiased whatever n).
+//! - Small light + singular-diffuse-singular chains: on L S+ D S+ E paths every mutation is
+//!   accepted far less often than on the fog box's paths.
+//! - MLT no better than BDPT on a soft light in a high-albedo medium: at equal samples MLT's
+//!   error is not below BDPT's.
+
+mod common;
+
+use pathspace::integrator::mlt::contribution::{image_contribution, is_specular, scalar_contribution};
+use pathspace::integrator::mlt::acceptance::acceptance;
+use pathspace::integrator::mlt::init::Bootstrap;
+use pathspace::integrator::mlt::mutation::MutationKind;
+use pathspace::integrator::mlt::{Mlt, MltSettings};
+use pathspace::math::Sampler;
+use pathspace::path::{Vertex, VertexKind};
+use pathspace::scene::{Scene, SceneSource};
+
+use common::SIGMA_BOUND;
+
+fn fog_box(w: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX.replace(
+        "resolution = [256, 256]",
+        &format!("resolution = [{w}, {w}]"),
+    );
+    Scene::load(&SceneSource::embedded("fog-box", &text)).expect("valid fog box")
+}
+
+fn scene_file(name: &str, w: u32) -> Scene {
+    let path = format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).expect("scene file");
+    let text = text.replace("resolution = [64, 64]", &format!("resolution = [{w}, {w}]"));
+    Scene::load(&SceneSource::embedded(name, &text)).expect("valid scene")
+}
+
+fn engine(scene: &Scene, max_depth: u32) -> Mlt {
+    Mlt::new(scene, MltSettings::default(), 1, Some(max_depth)).expect("mlt applies")
+}
+
+/// Sample mean, standard deviation and kurtosis (fourth central moment over variance squared).
+fn moments(x: &[f64]) -> (f64, f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let m2 = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    let m4 = x.iter().map(|v| (v - mean).powi(4)).sum::<f64>() / n;
+    (mean, (m2 * n / (n - 1.0)).sqrt(), m4 / (m2 * m2))
+}
+
+/// Variance of ln(s) for the sample standard deviation s of `runs` values with kurtosis
+/// `kurtosis` (delta method: Var(s^2) = sigma^4 (kurtosis - 1 + 2/(R - 1)) / R, and
+/// Var(ln s) = Var(s^2) / (4 sigma^4)). For normal data (kurtosis 3) it is about 1/(2R).
+fn var_ln_sd(kurtosis: f64, runs: usize) -> f64 {
+    let r = runs as f64;
+    (kurtosis - 1.0 + 2.0 / (r - 1.0)) / (4.0 * r)
+}
+
+const STARTUP_RUNS: u64 = 32;
+const STARTUP_DEPTH: u32 = 3;
+
+#[test]
+fn startup_spread_of_b_falls_like_one_over_sqrt_n_and_its_mean_is_unbiased() {
+    let scene = fog_box(8);
+    let mlt = engine(&scene, STARTUP_DEPTH);
+    let (n_small, n_large) = (64u64, 4096u64);
+    let b_of = |n: u64| -> Vec<f64> {
+        (0..STARTUP_RUNS)
+            .map(|r| Bootstrap::run(&scene, &mlt.bdpt, n, 100 + r).b)
+            .collect()
+    };
+    let small = b_of(n_small);
+    let large = b_of(n_large);
+    let (m_s, sd_s, k_s) = moments(&small);
+    let (m_l, sd_l, k_l) = moments(&large);
+    // the spread shrinks by sqrt(n_large / n_small) = 8: ln of the ratio of the standard
+    // deviations against ln 8, within SIGMA_BOUND of its sampling error
+    let expected = 0.5 * (n_large as f64 / n_small as f64).ln();
+    let observed = (sd_s / sd_l).ln();
+    let sigma = (var_ln_sd(k_s, small.len()) + var_ln_sd(k_l, large.len())).sqrt();
+    assert!(
+        (observed - expected).abs() < SIGMA_BOUND * sigma,
+        "sd(b_64) / sd(b_4096) = {} (ln {observed:.3}), expected 8 (ln {expected:.3}) +- {:.3} in ln",
+        sd_s / sd_l,
+        SIGMA_BOUND * sigma
+    );
+    // unbiased over runs, initialization included: the mean of b_n over runs at n = 64 agrees
+    // with an independent BDPT estimate (the mean over runs at n = 4096, other seeds)
+    let reference: Vec<f64> = (0..8)
+        .map(|r| Bootstrap::run(&scene, &mlt.bdpt, n_large, 900 + r).b)
+        .collect();
+    let (m_ref, sd_ref, _) = moments(&reference);
+    let se = |sd: f64, n: usize| sd / (n as f64).sqrt();
+    let se_diff = (se(sd_s, small.len()).powi(2) + se(sd_ref, reference.len()).powi(2)).sqrt();
+    assert!(
+        (m_s - m_ref).abs() < SIGMA_BOUND * se_diff,
+        "mean b_64 over runs {m_s} vs BDPT {m_ref} +- {se_diff}"
+    );
+    let se_diff_l = (se(sd_l, large.len()).powi(2) + se(sd_ref, reference.len()).powi(2)).sqrt();
+    assert!(
+        (m_l - m_ref).abs() < SIGMA_BOUND * se_diff_l,
+        "mean b_4096 over runs {m_l} vs BDPT {m_ref} +- {se_diff_l}"
+    );
+}
+
+/// L S+ D S+ E: a light, specular vertices, one diffuse surface vertex, specular vertices, the
+/// camera.
+fn is_sds(scene: &Scene, x: &[Vertex]) -> bool {
+    let k = x.len();
+    if k < 5 || !matches!(x[0].kind, VertexKind::Light { .. }) {
+        return false;
+    }
+    let inner = &x[1..k - 1];
+    let diffuse: Vec<usize> = (0..inner.len())
+        .filter(|&i| !is_specular(scene, &inner[i]))
+        .collect();
+    diffuse.len() == 1
+        && diffuse[0] > 0
+        && diffuse[0] + 1 < inner.len()
+        && matches!(inner[diffuse[0]].kind, VertexKind::Surface { .. })
+}
+
+/// Pre-pass paths drawn proportionally to their contribution, filtered by `keep`.
+fn paths(scene: &Scene, mlt: &Mlt, n: u64, count: usize, keep: impl Fn(&[Vertex]) -> bool) -> Vec<Vec<Vertex>> {
+    let boot = Bootstrap::run(scene, &mlt.bdpt, n, 7);
+    let mut s = Sampler::new(7, 1, 0);
+    let mut out = Vec::new();
+    for _ in 0..count * 40 {
+        let Some(c) = boot.select(s.next_f64()) else {
+            break;
+        };
+        if let Some(x) = Bootstrap::path_of(scene, &mlt.bdpt, 7, c) {
+            if image_contribution(scene, &x).is_some() && keep(&x) {
+                out.push(x);
+            }
+        }
+        if out.len() == count {
+            break;
+        }
+    }
+    out
+}
+
+/// Mean acceptance probability alpha of eq. (8) over `tries` attempts of every mutation type
+/// (equal weights, as the renderer's default) from each path; alpha = 0 when the mutation does
+/// not apply or leaves path space, as the chain experiences it. Returns (sum of alpha,
+/// attempts).
+fn mean_alpha(scene: &Scene, mlt: &Mlt, xs: &[Vec<Vertex>], tries: usize) -> (f64, usize) {
+    let mut sampler = Sampler::new(5, 0, 0);
+    let (mut sum, mut count) = (0.0, 0);
+    for x in xs {
+        let fx = scalar_contribution(image_contribution(scene, x).unwrap().0) as f64;
+        for kind in MutationKind::ALL {
+            let m = mlt.mutations.get(kind);
+            for _ in 0..tries {
+                count += 1;
+                let Some(y) = m.sample(scene, x, &mut sampler) else {
+                    continue;
+                };
+                let Some((fy, _)) = image_contribution(scene, &y) else {
+                    continue;
+                };
+                let t_xy = m.transition_density(scene, x, &y);
+                let t_yx = m.transition_density(scene, &y, x);
+                sum += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
+            }
+        }
+    }
+    (sum, count)
+}
+
+/// Hoeffding's bound for a mean of `n` values in [0, 1] at two-sided level
+/// `common::SIGNIFICANCE`: |mean - E| < sqrt(ln(2 / level) / (2 n)).
+fn hoeffding(n: usize) -> f64 {
+    ((2.0 / common::SIGNIFICANCE).ln() / (2.0 * n as f64)).sqrt()
+}
+
+/// "Far below": the claim of the book is that S-D-S paths are moved at most half as often as
+/// the fog box's paths (the measured ratio is about 1/5, see the book).
+const FAR_BELOW: f64 = 0.5;
+
+#[test]
+fn sds_paths_from_a_small_light_are_rarely_moved() {
+    const DEPTH: u32 = 6;
+    let sds = scene_file("mlt-sds.toml", 16);
+    let mlt_sds = engine(&sds, DEPTH);
+    let xs = paths(&sds, &mlt_sds, 20_000, 150, |x| is_sds(&sds, x));
+    assert!(xs.len() >= 100, "only {} S-D-S paths", xs.len());
+    let (a_sds, n_sds) = mean_alpha(&sds, &mlt_sds, &xs, 8);
+    let fog = fog_box(16);
+    let mlt_fog = engine(&fog, DEPTH);
+    let ys = paths(&fog, &mlt_fog, 20_000, 150, |_| true);
+    let (a_fog, n_fog) = mean_alpha(&fog, &mlt_fog, &ys, 8);
+    let (p_sds, p_fog) = (a_sds / n_sds as f64, a_fog / n_fog as f64);
+    println!("mean alpha: S-D-S {p_sds:.4} ({n_sds}), fog box {p_fog:.4} ({n_fog})");
+    assert!(
+        p_sds + hoeffding(n_sds) < FAR_BELOW * (p_fog - hoeffding(n_fog)),
+        "S-D-S mean acceptance {p_sds:.4} +- {:.4} is not far below the fog box's {p_fog:.4} +- {:.4}",
+        hoeffding(n_sds),
+        hoeffding(n_fog)
+    );
+}
