@@ -10,8 +10,10 @@
 
 mod common;
 
-use pathspace::integrator::mlt::contribution::{image_contribution, is_specular, scalar_contribution};
 use pathspace::integrator::mlt::acceptance::acceptance;
+use pathspace::integrator::mlt::contribution::{
+    image_contribution, is_specular, scalar_contribution,
+};
 use pathspace::integrator::mlt::init::Bootstrap;
 use pathspace::integrator::mlt::mutation::MutationKind;
 use pathspace::integrator::mlt::{Mlt, MltSettings};
@@ -118,7 +120,13 @@ fn is_sds(scene: &Scene, x: &[Vertex]) -> bool {
 }
 
 /// Pre-pass paths drawn proportionally to their contribution, filtered by `keep`.
-fn paths(scene: &Scene, mlt: &Mlt, n: u64, count: usize, keep: impl Fn(&[Vertex]) -> bool) -> Vec<Vec<Vertex>> {
+fn paths(
+    scene: &Scene,
+    mlt: &Mlt,
+    n: u64,
+    count: usize,
+    keep: impl Fn(&[Vertex]) -> bool,
+) -> Vec<Vec<Vertex>> {
     let boot = Bootstrap::run(scene, &mlt.bdpt, n, 7);
     let mut s = Sampler::new(7, 1, 0);
     let mut out = Vec::new();
@@ -214,5 +222,84 @@ fn sds_paths_from_a_small_light_are_rarely_moved() {
         "light-side perturbations on S...S paths: mean acceptance {p_sds:.4} +- {:.4} is not far below the fog box's {p_fog:.4} +- {:.4}",
         hoeffding(n_sds),
         hoeffding(n_fog)
+    );
+}
+
+/// Luminance of every pixel of an image.
+fn luminances(img: &pathspace::image_io::Image) -> Vec<f64> {
+    let mut out = Vec::new();
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let p = img.get(x, y);
+            out.push(0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64);
+        }
+    }
+    out
+}
+
+/// Total variance over runs, sum over pixels of the per-pixel sample variance, with the
+/// standard error of its logarithm: V = sum_r D_r / (R - 1) with D_r = sum_j (I_rj - mean_j)^2,
+/// and SE(ln V) from the spread of the D_r (a mean of R terms) divided by their mean.
+fn total_variance(runs: &[Vec<f64>]) -> (f64, f64) {
+    let r = runs.len() as f64;
+    let pixels = runs[0].len();
+    let mean: Vec<f64> = (0..pixels)
+        .map(|j| runs.iter().map(|i| i[j]).sum::<f64>() / r)
+        .collect();
+    let d: Vec<f64> = runs
+        .iter()
+        .map(|i| i.iter().zip(&mean).map(|(a, m)| (a - m).powi(2)).sum())
+        .collect();
+    let (m, sd, _) = moments(&d);
+    (m * r / (r - 1.0), sd / r.sqrt() / m)
+}
+
+const SOFT_RUNS: u64 = 16;
+const SOFT_RES: u32 = 8;
+const SOFT_SAMPLES: u64 = 16;
+const SOFT_DEPTH: u32 = 12;
+
+#[test]
+fn mlt_is_no_better_than_bdpt_under_a_soft_light_in_a_high_albedo_medium() {
+    let scene = scene_file("mlt-soft-fog.toml", SOFT_RES);
+    let bdpt: Vec<Vec<f64>> = (0..SOFT_RUNS)
+        .map(|r| {
+            let mut rd = pathspace::integrator::Renderer::new(
+                &scene,
+                pathspace::integrator::IntegratorKind::Bdpt,
+                300 + r,
+                Some(SOFT_DEPTH),
+            );
+            rd.pass(SOFT_SAMPLES as u32, &|| {});
+            luminances(&rd.film.as_ref().unwrap().image())
+        })
+        .collect();
+    let mlt: Vec<Vec<f64>> = (0..SOFT_RUNS)
+        .map(|r| {
+            let settings = MltSettings {
+                bootstrap: 4096,
+                chains: 4,
+                ..MltSettings::default()
+            };
+            let mut m = Mlt::new(&scene, settings, 500 + r, Some(SOFT_DEPTH)).unwrap();
+            let mut film = pathspace::film::Film::new(SOFT_RES, SOFT_RES);
+            m.run(
+                &scene,
+                &mut film,
+                (SOFT_RES * SOFT_RES) as u64 * SOFT_SAMPLES,
+            );
+            luminances(&film.image())
+        })
+        .collect();
+    let (v_mlt, se_mlt) = total_variance(&mlt);
+    let (v_bdpt, se_bdpt) = total_variance(&bdpt);
+    println!("total variance at {SOFT_SAMPLES} samples per pixel: mlt {v_mlt:.4e} (ln +- {se_mlt:.3}), bdpt {v_bdpt:.4e} (ln +- {se_bdpt:.3})");
+    // both are unbiased, so their MSE is their variance: MLT's must not be below BDPT's by more
+    // than SIGMA_BOUND standard errors of the log ratio
+    let sigma = (se_mlt * se_mlt + se_bdpt * se_bdpt).sqrt();
+    assert!(
+        (v_mlt / v_bdpt).ln() > -SIGMA_BOUND * sigma,
+        "MLT's variance {v_mlt:.4e} is below BDPT's {v_bdpt:.4e} (ln ratio {:.3}, +- {sigma:.3})",
+        (v_mlt / v_bdpt).ln()
     );
 }
