@@ -169,21 +169,7 @@ impl Bdpt {
                     Some(m),
                     Some(m),
                 ),
-                Event::Surface { hit, medium: m } => {
-                    let shape = scene.shape_of(&hit);
-                    let (front, back) = if shape.interface {
-                        (shape.exterior, shape.interior)
-                    } else {
-                        (m, m)
-                    };
-                    Vertex::new(
-                        VertexKind::Surface { prim: hit.prim },
-                        hit.p,
-                        hit.ng,
-                        front,
-                        back,
-                    )
-                }
+                Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
             };
             v.beta = beta;
             let density = match (first, first_edge) {

@@ -84,7 +84,7 @@ impl PathTracer {
     ) -> Rgb {
         let n = meter.normal();
         let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
-        let mut l = self.next_event(scene, p, None, meter.medium, sampler, |wi| {
+        let mut l = next_event(scene, p, None, meter.medium, sampler, |wi| {
             let c = wi.dot(n);
             if c > 0.0 {
                 (Rgb::splat(c), c * std::f32::consts::FRAC_1_PI)
@@ -114,57 +114,6 @@ impl PathTracer {
         );
         l
     }
-
-    /// Next-event estimation from `p` (surface normal `n` if on a surface) in `medium`.
-    /// `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of sampling wi there).
-    // ANCHOR: next_event
-    fn next_event(
-        &self,
-        scene: &Scene,
-        p: Vec3,
-        n: Option<Vec3>,
-        medium: Option<u32>,
-        sampler: &mut Sampler,
-        scatter: impl Fn(Vec3) -> (Rgb, f32),
-    ) -> Rgb {
-        if scene.lights.is_empty() {
-            return Rgb::ZERO;
-        }
-        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-        let light = &scene.lights[l];
-        let u = sampler.next_2d();
-        let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
-            return Rgb::ZERO;
-        };
-        if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
-            return Rgb::ZERO;
-        }
-        let (f, pdf_scatter) = scatter(ls.wi);
-        if f == Rgb::ZERO {
-            return Rgb::ZERO;
-        }
-        let origin = match n {
-            Some(n) => offset_origin(p, n, ls.wi),
-            None => p,
-        };
-        let dist = if ls.dist.is_infinite() {
-            f32::INFINITY
-        } else {
-            shadow_distance(origin, ls.p)
-        };
-        let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
-        if tr == Rgb::ZERO {
-            return Rgb::ZERO;
-        }
-        let pdf_light = pmf * ls.pdf;
-        let w = if ls.is_delta {
-            1.0
-        } else {
-            power_heuristic(pdf_light, pdf_scatter)
-        };
-        f * ls.value * tr * (w / pdf_light)
-    }
-    // ANCHOR_END: next_event
 
     /// The random walk from `ray` with throughput `beta` after `depth` scattering vertices.
     // ANCHOR: walk
@@ -214,7 +163,7 @@ impl PathTracer {
                     let wo = -ray.d;
                     // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
                     l += beta
-                        * self.next_event(scene, p, None, Some(m), sampler, |wi| {
+                        * next_event(scene, p, None, Some(m), sampler, |wi| {
                             let f = phase.eval(wo, wi);
                             (Rgb::splat(f), f)
                         });
@@ -268,7 +217,7 @@ impl PathTracer {
                     let wo = -ray.d;
                     if !bsdf.is_singular() {
                         l += beta
-                            * self.next_event(scene, hit.p, Some(n), m, sampler, |wi| {
+                            * next_event(scene, hit.p, Some(n), m, sampler, |wi| {
                                 let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
                                 (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
                             });
@@ -310,3 +259,54 @@ impl PathTracer {
     }
     // ANCHOR_END: walk
 }
+
+/// Next-event estimation from `p` (surface normal `n` if on a surface) in `medium`, with MIS
+/// against the scattering sampler: `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of
+/// sampling wi there). Shared by the path tracer and SMC's surface vertices.
+// ANCHOR: next_event
+pub fn next_event(
+    scene: &Scene,
+    p: Vec3,
+    n: Option<Vec3>,
+    medium: Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> (Rgb, f32),
+) -> Rgb {
+    if scene.lights.is_empty() {
+        return Rgb::ZERO;
+    }
+    let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+    let light = &scene.lights[l];
+    let u = sampler.next_2d();
+    let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
+        return Rgb::ZERO;
+    };
+    if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let (f, pdf_scatter) = scatter(ls.wi);
+    if f == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let origin = match n {
+        Some(n) => offset_origin(p, n, ls.wi),
+        None => p,
+    };
+    let dist = if ls.dist.is_infinite() {
+        f32::INFINITY
+    } else {
+        shadow_distance(origin, ls.p)
+    };
+    let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
+    if tr == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let pdf_light = pmf * ls.pdf;
+    let w = if ls.is_delta {
+        1.0
+    } else {
+        power_heuristic(pdf_light, pdf_scatter)
+    };
+    f * ls.value * tr * (w / pdf_light)
+}
+// ANCHOR_END: next_event

@@ -83,6 +83,24 @@ impl Vertex {
         }
     }
 
+    /// The surface vertex at a hit, with the media on both sides: the shape's interior and
+    /// exterior where it separates media, else the medium the ray came through (`medium`).
+    pub fn on_surface(scene: &Scene, hit: &crate::geometry::Hit, medium: Option<u32>) -> Self {
+        let shape = scene.shape_of(hit);
+        let (front, back) = if shape.interface {
+            (shape.exterior, shape.interior)
+        } else {
+            (medium, medium)
+        };
+        Vertex::new(
+            VertexKind::Surface { prim: hit.prim },
+            hit.p,
+            hit.ng,
+            front,
+            back,
+        )
+    }
+
     #[inline]
     pub fn is_medium(&self) -> bool {
         matches!(self.kind, VertexKind::Medium { .. })

@@ -8,7 +8,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::{Lobe, TransportMode};
-use crate::geometry::{offset_origin, Hit, Ray};
+use crate::geometry::{offset_origin, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::{Vertex, VertexKind};
 use crate::scene::{Event, Light, Scene};
@@ -36,24 +36,6 @@ pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
         VertexKind::Camera => (Ray::new(v.p, d), 0.0, scene.camera_medium),
         _ => (Ray::new(v.p, d), 0.0, v.medium_front),
     }
-}
-
-/// The surface vertex at a hit, with the media on both sides (`medium`: the one the ray came
-/// through, for shapes that separate none).
-pub fn surface_vertex(scene: &Scene, hit: &Hit, medium: Option<u32>) -> Vertex {
-    let shape = scene.shape_of(hit);
-    let (front, back) = if shape.interface {
-        (shape.exterior, shape.interior)
-    } else {
-        (medium, medium)
-    };
-    Vertex::new(
-        VertexKind::Surface { prim: hit.prim },
-        hit.p,
-        hit.ng,
-        front,
-        back,
-    )
 }
 
 /// Samples a direction at `v` as a light or eye subpath would: emission for a light vertex,
@@ -118,7 +100,7 @@ pub fn extend(scene: &Scene, v: &Vertex, d: Vec3, sampler: &mut Sampler) -> Opti
             Some(m),
             Some(m),
         )),
-        Event::Surface { hit, medium } => Some(surface_vertex(scene, &hit, medium)),
+        Event::Surface { hit, medium } => Some(Vertex::on_surface(scene, &hit, medium)),
     }
 }
 
@@ -183,7 +165,7 @@ pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
         )?;
         let shape = scene.shape_of(&hit);
         if !shape.is_null() {
-            return Some(surface_vertex(scene, &hit, medium));
+            return Some(Vertex::on_surface(scene, &hit, medium));
         }
         medium = shape.medium_after(ray.d, hit.ng, medium);
         t_min = past(hit.t, &ray);

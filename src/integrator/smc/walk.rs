@@ -151,51 +151,6 @@ pub fn delta_lights(
     l
 }
 
-/// Next-event estimation at a surface point with MIS against BSDF sampling (the path tracer's
-/// strategy): `scatter(wi)` returns (f |cos|, BSDF pdf of wi).
-fn next_event(
-    scene: &Scene,
-    p: Vec3,
-    n: Vec3,
-    medium: Option<u32>,
-    sampler: &mut Sampler,
-    scatter: impl Fn(Vec3) -> (Rgb, f32),
-) -> Rgb {
-    if scene.lights.is_empty() {
-        return Rgb::ZERO;
-    }
-    let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-    let light = &scene.lights[l];
-    let u = sampler.next_2d();
-    let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
-        return Rgb::ZERO;
-    };
-    if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
-        return Rgb::ZERO;
-    }
-    let (f, pdf_scatter) = scatter(ls.wi);
-    if f == Rgb::ZERO {
-        return Rgb::ZERO;
-    }
-    let origin = offset_origin(p, n, ls.wi);
-    let dist = if ls.dist.is_infinite() {
-        f32::INFINITY
-    } else {
-        shadow_distance(origin, ls.p)
-    };
-    let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
-    if tr == Rgb::ZERO {
-        return Rgb::ZERO;
-    }
-    let pdf_light = pmf * ls.pdf;
-    let w = if ls.is_delta {
-        1.0
-    } else {
-        power_heuristic(pdf_light, pdf_scatter)
-    };
-    f * ls.value * tr * (w / pdf_light)
-}
-
 /// What a surface vertex contributes: emitted (MIS-weighted) plus next-event radiance `a`, and
 /// the continuation (BSDF weight, next ray, its medium, the new previous vertex) if any.
 pub struct SurfaceStep {
@@ -249,7 +204,7 @@ pub fn surface(
     *depth += 1;
     let wo = -ray.d;
     if !bsdf.is_singular() {
-        a += next_event(scene, hit.p, n, medium, sampler, |wi| {
+        a += crate::integrator::path::next_event(scene, hit.p, Some(n), medium, sampler, |wi| {
             let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
             (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
         });
