@@ -25,3 +25,12 @@ if want "$sel" bdpt; then
     [ -f "out/vc-strategies/$st.png" ] && cp "out/vc-strategies/$st.png" "$d/strategy-$st.png" || true
   done
 fi
+
+if want "$sel" cloud; then
+  sed 's/propagation = "random-offset"/propagation = "delta-tracking"/' scenes/cloud.toml > out/cloud-dt.toml
+  $PS reference out/cloud-dt.toml --time 360 -o out/cloud-ref.exr
+  $PS converge out/cloud-dt.toml --reference out/cloud-ref.exr --integrators path \
+      --propagation equidistant,stratified,random-offset,delta-tracking --budget 30 --checkpoints 6 -o out/cloud-conv
+  cp out/cloud-conv/error-vs-time.png book/src/figures/cloud/converge-error-vs-time.png
+  cp out/cloud-conv/convergence.csv book/src/figures/cloud/converge.csv
+fi
