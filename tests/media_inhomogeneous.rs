@@ -306,41 +306,7 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 /// A slab z in [-1, 0] (optical thickness 1, albedo 0.8) under a directional light, with a
 /// transmission and a reflection meter; `medium` is the body of `[media.slab]`.
 fn slab_scene(medium: &str) -> String {
-    format!(
-        r#"
-[render]
-meter_samples = 4096
-
-[media.slab]
-{medium}
-
-[[shapes]]
-type = "box"
-min = [-50.0, -50.0, -1.0]
-max = [50.0, 50.0, 0.0]
-material = "null"
-interior = "slab"
-
-[[lights]]
-type = "directional"
-direction = [0.0, 0.0, -1.0]
-irradiance = 1.0
-
-[[sensors]]
-type = "irradiance_meter"
-name = "T"
-origin = [-0.5, -0.5, -1.001]
-u = [1.0, 0.0, 0.0]
-v = [0.0, 1.0, 0.0]
-
-[[sensors]]
-type = "irradiance_meter"
-name = "R"
-origin = [-0.5, -0.5, 0.001]
-u = [0.0, 1.0, 0.0]
-v = [1.0, 0.0, 0.0]
-"#
-    )
+    common::slab_scene(medium, 50.0)
 }
 
 fn meters(scene: &Scene, spp: u32, seed: u64) -> Vec<MeterEstimate> {

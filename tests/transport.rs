@@ -3,6 +3,8 @@
 //! |mean - truth| < 4 standard errors with the standard error computed from the samples; checks of
 //! estimators that have no variance (a directional light seen by a meter) use a float tolerance.
 
+mod common;
+
 use pathspace::integrator::{IntegratorKind, MeterEstimate, Renderer};
 use pathspace::scene::{Scene, SceneSource};
 
@@ -31,45 +33,12 @@ fn check(name: &str, value: f64, stderr: f64, truth: f64) {
 /// under a unit directional light along -z, with meters T (below, facing up) and R (above,
 /// facing down).
 fn slab(tau: f32, albedo: f32) -> String {
-    format!(
-        r#"
-[render]
-meter_samples = 4096
-
-[media.slab]
-type = "homogeneous"
-sigma_a = {sa}
-sigma_s = {ss}
-
-[[shapes]]
-type = "box"
-min = [-1000.0, -1000.0, -1.0]
-max = [1000.0, 1000.0, 0.0]
-material = "null"
-interior = "slab"
-
-[[lights]]
-type = "directional"
-direction = [0.0, 0.0, -1.0]
-irradiance = 1.0
-
-[[sensors]]
-type = "irradiance_meter"
-name = "T"
-origin = [-0.5, -0.5, -1.001]
-u = [1.0, 0.0, 0.0]
-v = [0.0, 1.0, 0.0]
-
-[[sensors]]
-type = "irradiance_meter"
-name = "R"
-origin = [-0.5, -0.5, 0.001]
-u = [0.0, 1.0, 0.0]
-v = [1.0, 0.0, 0.0]
-"#,
-        sa = tau * (1.0 - albedo),
-        ss = tau * albedo
-    )
+    let medium = format!(
+        "type = \"homogeneous\"\nsigma_a = {}\nsigma_s = {}",
+        tau * (1.0 - albedo),
+        tau * albedo
+    );
+    common::slab_scene(&medium, 1000.0)
 }
 
 /// With albedo 0 nothing scatters: T measures the transmittance e^-tau, R measures nothing.

@@ -324,3 +324,45 @@ pub fn test_directions(seed: u64, n_random: usize) -> Vec<Vec3> {
     }
     dirs
 }
+
+/// A slab z in [-1, 0] extending to +-`half_width` in x and y, under a unit directional light
+/// along -z, with meters `T` (just below, facing up) and `R` (just above, facing down);
+/// `medium` is the body of its `[media.slab]` table. The scene of the slab oracles.
+#[allow(dead_code)]
+pub fn slab_scene(medium: &str, half_width: f32) -> String {
+    format!(
+        r#"
+[render]
+meter_samples = 4096
+
+[media.slab]
+{medium}
+
+[[shapes]]
+type = "box"
+min = [-{half_width:.1}, -{half_width:.1}, -1.0]
+max = [{half_width:.1}, {half_width:.1}, 0.0]
+material = "null"
+interior = "slab"
+
+[[lights]]
+type = "directional"
+direction = [0.0, 0.0, -1.0]
+irradiance = 1.0
+
+[[sensors]]
+type = "irradiance_meter"
+name = "T"
+origin = [-0.5, -0.5, -1.001]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+
+[[sensors]]
+type = "irradiance_meter"
+name = "R"
+origin = [-0.5, -0.5, 0.001]
+u = [0.0, 1.0, 0.0]
+v = [1.0, 0.0, 0.0]
+"#
+    )
+}
