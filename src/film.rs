@@ -19,6 +19,9 @@ pub struct Film {
     pub splat: Vec<[f64; 3]>,
     /// How many light paths (or mutations) the splat buffer stands for; it is divided by this.
     pub splat_count: u64,
+    /// Factor on the splat buffer (1 except for MLT, whose deposits are in units of b: the
+    /// buffer is scaled by the current estimate of b, which keeps improving during a run).
+    pub splat_scale: f64,
 }
 
 impl Film {
@@ -32,6 +35,7 @@ impl Film {
             spp: 0,
             splat: vec![[0.0; 3]; n],
             splat_count: 0,
+            splat_scale: 1.0,
         }
     }
 
@@ -63,7 +67,7 @@ impl Film {
             0.0
         };
         let inv_s = if self.splat_count > 0 {
-            1.0 / self.splat_count as f64
+            self.splat_scale / self.splat_count as f64
         } else {
             0.0
         };

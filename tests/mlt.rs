@@ -463,19 +463,13 @@ fn chain_distribution_matches_f_over_b_on_a_small_path_space() {
     );
     // chains started all at one path (a wrong start) must forget it
     let start = test_paths(&scene, &mlt, 1, 23).pop().unwrap();
-    let (f0, r0) = image_contribution(&scene, &start).unwrap();
     let chains = 3000;
     let steps = 60;
     let mut counts = vec![0u64; CELLS];
     let mut splats = Vec::new();
     let mut stats = Default::default();
     for c in 0..chains {
-        let mut chain = Chain {
-            sampler: Sampler::new(24, c, 0),
-            x: start.clone(),
-            f: f0,
-            raster: r0,
-        };
+        let mut chain = Chain::new(&scene, Sampler::new(24, c, 0), start.clone()).unwrap();
         for _ in 0..steps {
             splats.clear();
             mlt.step(&scene, &mut chain, &mut splats, &mut stats);
@@ -625,4 +619,80 @@ fn bad_mlt_settings_are_clear_errors() {
     let text =
         pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nsensor = -1.0");
     assert!(Scene::load(&SceneSource::embedded("bad", &text)).is_err());
+}
+
+/// The chain re-evaluates f(y) reusing the edge factors of x for the edges y shares with it
+/// (aligned from either end). That must change nothing: for proposals of every mutation type
+/// the reused evaluation equals the evaluation from scratch to the bit, and the edges it
+/// reports are the path's own.
+#[test]
+fn reused_edge_factors_give_the_same_contribution_to_the_bit() {
+    use pathspace::integrator::mlt::contribution::image_contribution_reusing;
+    let scene = mixed_scene();
+    let mlt = engine(&scene, [1.0; 5], Some(6), 31);
+    let paths = test_paths(&scene, &mlt, 200, 31);
+    let mut reused_any = [0usize; 5];
+    for kind in MutationKind::ALL {
+        let m = mlt.mutations.get(kind);
+        let mut sampler = Sampler::new(32, kind.index() as u64, 0);
+        for x in &paths {
+            let mut ex = Vec::new();
+            image_contribution_reusing(&scene, x, None, &mut ex).unwrap();
+            let Some(y) = m.sample(&scene, x, &mut sampler) else {
+                continue;
+            };
+            let (mut fresh, mut reused) = (Vec::new(), Vec::new());
+            let a = image_contribution_reusing(&scene, &y, None, &mut fresh);
+            let b = image_contribution_reusing(&scene, &y, Some((x, &ex)), &mut reused);
+            assert_eq!(a, b, "{}: f(y) differs with reuse", kind.name());
+            if a.is_some() {
+                assert_eq!(fresh, reused, "{}: edge factors differ", kind.name());
+                let shared = y
+                    .windows(2)
+                    .zip(x.windows(2))
+                    .any(|(p, q)| p[0].p == q[0].p && p[1].p == q[1].p && p[0].kind == q[0].kind);
+                reused_any[kind.index()] += usize::from(shared);
+            }
+        }
+    }
+    // perturbations keep the light end: reuse must actually happen for them
+    for k in [MutationKind::Sensor, MutationKind::Propagation] {
+        assert!(reused_any[k.index()] > 10, "{}: {reused_any:?}", k.name());
+    }
+}
+
+/// With `b_refine` the estimate of b keeps growing its sample: after N mutations it is exactly
+/// the pre-pass estimate over n + round(b_refine N) samples (the same sample indices), and the
+/// image's luminance sum is that b (every deposit is b / N).
+#[test]
+fn refined_b_is_the_prepass_estimate_over_more_samples_and_the_image_sum() {
+    let scene = fog_box(8);
+    let settings = MltSettings {
+        bootstrap: 1000,
+        chains: 4,
+        b_refine: 0.5,
+        ..MltSettings::default()
+    };
+    let mut mlt = Mlt::new(&scene, settings, 41, None).unwrap();
+    let mut film = Film::new(8, 8);
+    mlt.run(&scene, &mut film, 64 * 40);
+    let more = Bootstrap::run(&scene, &mlt.bdpt, 1000 + 64 * 20, 41).b;
+    assert!(
+        (mlt.b - more).abs() <= 1e-9 * more,
+        "refined b {} vs pre-pass over n + m samples {more}",
+        mlt.b
+    );
+    let prepass = Bootstrap::run(&scene, &mlt.bdpt, 1000, 41).b;
+    assert_ne!(mlt.b, prepass, "b was not refined");
+    let sum: f64 = film
+        .image()
+        .pixels
+        .iter()
+        .map(|p| pathspace::spectrum::luminance(*p) as f64)
+        .sum();
+    assert!(
+        (sum - mlt.b).abs() <= 1e-4 * mlt.b,
+        "image sum {sum} vs b {}",
+        mlt.b
+    );
 }

@@ -32,6 +32,10 @@ pub struct RenderArgs {
     /// MLT: BDPT pre-pass samples n (default: `[render.mlt] bootstrap`).
     #[arg(long)]
     pub bootstrap: Option<u64>,
+    /// MLT: BDPT samples per mutation that keep refining b during the run; 0 keeps the
+    /// pre-pass estimate (default: `[render.mlt] b_refine`, 1/32).
+    #[arg(long)]
+    pub b_refine: Option<f64>,
     /// MLT: mutation selection weights, e.g. `bidirectional=1,sensor=100,light=100`
     /// (unnamed types get 0; default: `[render.mlt]`, all 1).
     #[arg(long)]
@@ -337,6 +341,9 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     }
     if let Some(n) = args.bootstrap {
         scene.render.mlt.bootstrap = n;
+    }
+    if let Some(r) = args.b_refine {
+        scene.render.mlt.b_refine = r;
     }
     if let Some(w) = &args.mutation_weights {
         scene.render.mlt.weights = crate::integrator::mlt::MltSettings::parse_weights(w)?;

@@ -901,6 +901,9 @@ fn mlt_settings(desc: Option<&crate::scene::file::MltDesc>) -> crate::integrator
     if let Some(v) = d.chains {
         m.chains = v;
     }
+    if let Some(v) = d.b_refine {
+        m.b_refine = v;
+    }
     for (i, w) in [
         d.bidirectional,
         d.sensor,

@@ -125,6 +125,8 @@ pub struct MltDesc {
     pub light_angle: Option<[f32; 2]>,
     /// Propagation perturbation distance [min, max] as fractions of the scene radius.
     pub propagation_distance: Option<[f32; 2]>,
+    /// BDPT samples per mutation that keep refining b during the run (0: pre-pass only).
+    pub b_refine: Option<f64>,
 }
 
 fn default_integrator() -> String {

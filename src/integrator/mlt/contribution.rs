@@ -112,8 +112,27 @@ pub fn lobe_probability(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> f32 
 /// The image contribution of a path: f (RGB, Dirac-free, eq. 6 with W_e of the pixel the path
 /// lands in) and that pixel's continuous raster position. `None` when f = 0 or the path is not
 /// light ... pinhole.
-// ANCHOR: image_contribution
 pub fn image_contribution(scene: &Scene, v: &[Vertex]) -> Option<(Rgb, Vec2)> {
+    image_contribution_reusing(scene, v, None, &mut Vec::new())
+}
+
+/// The edge factors G V and tau of a path, one per edge x_i x_{i+1} (what `image_contribution`
+/// spends its ray casts on).
+pub type EdgeFactors = Vec<(f32, Rgb)>;
+
+/// `image_contribution`, reusing the edge factors of a previous path `old` (with its factors)
+/// for every edge whose two vertices it shares, aligned from the light end or from the eye end:
+/// a perturbation changes a few edges of a long path, and each edge costs a ray cast through
+/// the media. The factors are a function of the two vertices only, so the result is the same to
+/// the bit. `edges` receives this path's factors (complete only when f > 0).
+// ANCHOR: image_contribution
+pub fn image_contribution_reusing(
+    scene: &Scene,
+    v: &[Vertex],
+    old: Option<(&[Vertex], &[(f32, Rgb)])>,
+    edges: &mut EdgeFactors,
+) -> Option<(Rgb, Vec2)> {
+    edges.clear();
     let n = v.len();
     if n < 2 || !matches!(v[0].kind, VertexKind::Light { .. }) {
         return None;
@@ -133,13 +152,39 @@ pub fn image_contribution(scene: &Scene, v: &[Vertex]) -> Option<(Rgb, Vec2)> {
         if i > 0 {
             f *= f_hat_singular(scene, &v[i], v[i - 1].p, v[i + 1].p);
         }
-        let (g, tau) = geometry_term(scene, &v[i], &v[i + 1], &mut unused);
+        let (g, tau) = reused_edge(v, i, old)
+            .unwrap_or_else(|| geometry_term(scene, &v[i], &v[i + 1], &mut unused));
+        edges.push((g, tau));
         f *= tau * g;
     }
     f *= imp.we;
     (f.is_finite() && luminance(f) > 0.0).then_some((f, imp.raster))
 }
 // ANCHOR_END: image_contribution
+
+/// The factors of edge i of `v` if `old` has the same two vertices at the same place counted
+/// from the light end, or from the eye end.
+fn reused_edge(
+    v: &[Vertex],
+    i: usize,
+    old: Option<(&[Vertex], &[(f32, Rgb)])>,
+) -> Option<(f32, Rgb)> {
+    let (x, e) = old?;
+    if e.len() + 1 != x.len() {
+        return None;
+    }
+    if i + 1 < x.len() && same_vertex(&v[i], &x[i]) && same_vertex(&v[i + 1], &x[i + 1]) {
+        return Some(e[i]);
+    }
+    let from_end = v.len() - 1 - i; // edge i joins v[i] and v[i + 1]; from the eye end
+    if from_end < x.len() {
+        let j = x.len() - 1 - from_end;
+        if same_vertex(&v[i], &x[j]) && same_vertex(&v[i + 1], &x[j + 1]) {
+            return Some(e[j]);
+        }
+    }
+    None
+}
 
 /// p_L and p_E of every vertex (`path::pdf::densities`) with specular vertices' directions
 /// given the probability of their lobe instead of a Dirac (see the module note).

@@ -116,14 +116,25 @@ pub fn joined_path(
     v
 }
 
+/// The resampling weight of one strategy's contribution: its luminance as an estimate of the
+/// film sum (a contribution to the sample's own pixel estimates that pixel, so times the pixel
+/// count; a splat already estimates the film).
+fn film_weight(l: Rgb, splat: bool, npix: f64) -> f64 {
+    luminance(l) as f64 * if splat { 1.0 } else { npix }
+}
+
+fn pixel_count(scene: &Scene) -> f64 {
+    scene
+        .camera
+        .as_ref()
+        .map_or(1.0, |c| (c.width * c.height) as f64)
+}
+
 impl Bootstrap {
     /// The pre-pass of `n` samples (parallel, deterministic for `seed`).
     // ANCHOR: bootstrap
     pub fn run(scene: &Scene, bdpt: &Bdpt, n: u64, seed: u64) -> Bootstrap {
-        let npix = scene
-            .camera
-            .as_ref()
-            .map_or(1.0, |c| (c.width * c.height) as f64);
+        let npix = pixel_count(scene);
         let chunks = n.div_ceil(BOOTSTRAP_CHUNK);
         let parts: Vec<Vec<Candidate>> = (0..chunks)
             .into_par_iter()
@@ -131,9 +142,7 @@ impl Bootstrap {
                 let mut out = Vec::new();
                 for sample in c * BOOTSTRAP_CHUNK..((c + 1) * BOOTSTRAP_CHUNK).min(n) {
                     run_sample(scene, bdpt, seed, sample, None, &mut |s, t, l, splat, _| {
-                        // a contribution to the sample's own pixel estimates that pixel: times
-                        // the pixel count it estimates the film sum; a splat already does
-                        let w = luminance(l) as f64 * if splat { 1.0 } else { npix };
+                        let w = film_weight(l, splat, npix);
                         if w > 0.0 && w.is_finite() {
                             out.push(Candidate {
                                 sample,
@@ -163,6 +172,36 @@ impl Bootstrap {
         }
     }
     // ANCHOR_END: bootstrap
+
+    /// The sum of the film weights of pre-pass samples `start..end` (the same samples `run`
+    /// would draw with those indices): more samples for the estimate of b, without keeping
+    /// candidates. Summed per chunk in index order, so the result is independent of threads.
+    // ANCHOR: refine
+    pub fn weight_sum(scene: &Scene, bdpt: &Bdpt, seed: u64, start: u64, end: u64) -> f64 {
+        let npix = pixel_count(scene);
+        let first = start / BOOTSTRAP_CHUNK;
+        let last = end.div_ceil(BOOTSTRAP_CHUNK);
+        let parts: Vec<f64> = (first..last)
+            .into_par_iter()
+            .map(|c| {
+                let mut acc = 0.0;
+                let lo = (c * BOOTSTRAP_CHUNK).max(start);
+                let hi = ((c + 1) * BOOTSTRAP_CHUNK).min(end);
+                for sample in lo..hi {
+                    run_sample(scene, bdpt, seed, sample, None, &mut |_, _, l, splat, _| {
+                        let w = film_weight(l, splat, npix);
+                        if w > 0.0 && w.is_finite() {
+                            acc += w;
+                        }
+                        true
+                    });
+                }
+                acc
+            })
+            .collect();
+        parts.iter().sum()
+    }
+    // ANCHOR_END: refine
 
     /// The candidate a uniform `u` in [0, 1) selects, with probability proportional to weight.
     pub fn select(&self, u: f64) -> Option<&Candidate> {
