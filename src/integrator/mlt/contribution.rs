@@ -120,6 +120,9 @@ pub fn image_contribution(scene: &Scene, v: &[Vertex]) -> Option<(Rgb, Vec2)> {
 /// spends its ray casts on).
 pub type EdgeFactors = Vec<(f32, Rgb)>;
 
+/// A path with its edge factors, for reuse.
+pub type PathEdges<'a> = (&'a [Vertex], &'a [(f32, Rgb)]);
+
 /// `image_contribution`, reusing the edge factors of a previous path `old` (with its factors)
 /// for every edge whose two vertices it shares, aligned from the light end or from the eye end:
 /// a perturbation changes a few edges of a long path, and each edge costs a ray cast through
@@ -129,7 +132,7 @@ pub type EdgeFactors = Vec<(f32, Rgb)>;
 pub fn image_contribution_reusing(
     scene: &Scene,
     v: &[Vertex],
-    old: Option<(&[Vertex], &[(f32, Rgb)])>,
+    old: Option<PathEdges>,
     edges: &mut EdgeFactors,
 ) -> Option<(Rgb, Vec2)> {
     edges.clear();
@@ -164,11 +167,7 @@ pub fn image_contribution_reusing(
 
 /// The factors of edge i of `v` if `old` has the same two vertices at the same place counted
 /// from the light end, or from the eye end.
-fn reused_edge(
-    v: &[Vertex],
-    i: usize,
-    old: Option<(&[Vertex], &[(f32, Rgb)])>,
-) -> Option<(f32, Rgb)> {
+fn reused_edge(v: &[Vertex], i: usize, old: Option<PathEdges>) -> Option<(f32, Rgb)> {
     let (x, e) = old?;
     if e.len() + 1 != x.len() {
         return None;
