@@ -27,7 +27,19 @@ pub struct Densities {
 /// light-origin density; the sensor vertex's is the sensor's position density).
 // ANCHOR: densities
 pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities {
-    let v = &path.vertices;
+    let n = path.vertices.len();
+    densities_in(scene, &path.vertices, 0..n, sampler)
+}
+
+/// `densities` for the vertices `range` only (the others stay 0), tracing only the edges they
+/// need: p_L(x_i) needs edge (x_{i-1}, x_i), p_E(x_i) edge (x_i, x_{i+1}). A bidirectional
+/// mutation's transition density needs just the vertices it added.
+pub fn densities_in(
+    scene: &Scene,
+    v: &[Vertex],
+    range: std::ops::Range<usize>,
+    sampler: &mut Sampler,
+) -> Densities {
     let n = v.len();
     let mut d = Densities {
         light: vec![0.0; n],
@@ -35,10 +47,11 @@ pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities
         prop_up: vec![0.0; n.saturating_sub(1)],
         prop_down: vec![0.0; n.saturating_sub(1)],
     };
-    if n < 2 {
+    let range = range.start.min(n)..range.end.min(n);
+    if n < 2 || range.is_empty() {
         return d;
     }
-    for i in 0..n - 1 {
+    for i in range.start.saturating_sub(1)..range.end.min(n - 1) {
         let e = scene.edge(
             v[i].edge_end(v[i + 1].p),
             v[i + 1].edge_end(v[i].p),
@@ -48,16 +61,22 @@ pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities
         d.prop_down[i] = e.pdf_ba;
     }
     // from the light
-    d.light[0] = v[0].light_origin_pdf(scene);
-    for i in 1..n {
-        let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
-        d.light[i] = v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1];
+    for i in range.clone() {
+        d.light[i] = if i == 0 {
+            v[0].light_origin_pdf(scene)
+        } else {
+            let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
+            v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1]
+        };
     }
     // from the sensor
-    d.eye[n - 1] = sensor_position_pdf(scene, &v[n - 1]);
-    for i in (0..n - 1).rev() {
-        let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
-        d.eye[i] = v[i + 1].pdf_area(scene, prev, &v[i]) * d.prop_down[i];
+    for i in range.rev() {
+        d.eye[i] = if i == n - 1 {
+            sensor_position_pdf(scene, &v[n - 1])
+        } else {
+            let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
+            v[i + 1].pdf_area(scene, prev, &v[i]) * d.prop_down[i]
+        };
     }
     d
 }

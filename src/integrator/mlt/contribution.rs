@@ -10,15 +10,17 @@
 //! density keeps the probability of the lobe (`BsdfSample::pdf`), converted to area by the same
 //! g / d^2 as any direction: the convention BDPT's throughputs already use.
 
+use std::ops::Range;
+
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::{Bsdf, Lobe, TransportMode};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
 use crate::path::geometry_term::geometry_term;
-use crate::path::pdf::{densities, Densities};
+use crate::path::pdf::{densities_in, Densities};
 use crate::path::vertex::to_area;
-use crate::path::{Path, Vertex, VertexKind};
+use crate::path::{Vertex, VertexKind};
 use crate::scene::{Light, Scene};
 use crate::spectrum::{luminance, Rgb};
 
@@ -189,19 +191,21 @@ fn reused_edge(v: &[Vertex], i: usize, old: Option<PathEdges>) -> Option<(f32, R
 /// given the probability of their lobe instead of a Dirac (see the module note).
 // ANCHOR: singular_densities
 pub fn singular_densities(scene: &Scene, v: &[Vertex]) -> Densities {
-    let path = Path {
-        vertices: v.to_vec(),
-    };
+    singular_densities_in(scene, v, 0..v.len())
+}
+
+/// `singular_densities` of the vertices `range` only (the others stay 0).
+pub fn singular_densities_in(scene: &Scene, v: &[Vertex], range: Range<usize>) -> Densities {
     let mut unused = Sampler::new(0, 0, 0);
-    let mut d = densities(scene, &path, &mut unused);
+    let mut d = densities_in(scene, v, range.clone(), &mut unused);
     let n = v.len();
-    for i in 2..n {
+    for i in range.start.max(2)..range.end.min(n) {
         if is_specular(scene, &v[i - 1]) {
             let p = lobe_probability(scene, &v[i - 1], v[i - 2].p, v[i].p);
             d.light[i] = to_area(p, &v[i - 1], &v[i]) * d.prop_up[i - 1];
         }
     }
-    for i in 0..n.saturating_sub(2) {
+    for i in range.start..range.end.min(n.saturating_sub(2)) {
         if is_specular(scene, &v[i + 1]) {
             let p = lobe_probability(scene, &v[i + 1], v[i + 2].p, v[i].p);
             d.eye[i] = to_area(p, &v[i + 1], &v[i]) * d.prop_down[i];

@@ -42,7 +42,7 @@ fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
 }
 
 use super::super::contribution::{
-    is_delta_position_light, is_specular, same_vertex, singular_densities,
+    is_delta_position_light, is_specular, same_vertex, singular_densities_in,
 };
 use super::super::trace::{extend, sample_direction, sample_light_vertex};
 use super::Mutation;
@@ -194,7 +194,6 @@ impl Mutation for Bidirectional {
         if common_prefix == 1 && is_delta_position_light(scene, &x[0]) {
             decompositions.push(-1);
         }
-        let dy = singular_densities(scene, y);
         let k = nx - 1;
         let mut total = 0.0f64;
         for l in decompositions {
@@ -212,6 +211,8 @@ impl Mutation for Bidirectional {
             let added = ka - 1;
             let splits = added + 1;
             let first = (l + 1) as usize; // index in y of the first new vertex
+                                          // only the added vertices' densities enter (and only their edges are traced)
+            let dy = singular_densities_in(scene, y, first..first + added);
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {
