@@ -292,12 +292,16 @@ pub fn next_event(
         Some(n) => offset_origin(p, n, ls.wi),
         None => p,
     };
-    let dist = if ls.dist.is_infinite() {
-        f32::INFINITY
+    // aim from the lifted origin at the light point itself: along ls.wi (which leaves the
+    // unlifted p) the ray would end behind the light's surface whenever both ends see each
+    // other at grazing angles, and the light would occlude itself
+    let (dir, dist) = if ls.dist.is_infinite() {
+        (ls.wi, f32::INFINITY)
     } else {
-        shadow_distance(origin, ls.p)
+        let dir = (ls.p - origin).normalize_or_zero();
+        (dir, shadow_distance(origin, ls.p))
     };
-    let tr = scene.transmittance(origin, ls.wi, dist, medium, sampler);
+    let tr = scene.transmittance(origin, dir, dist, medium, sampler);
     if tr == Rgb::ZERO {
         return Rgb::ZERO;
     }

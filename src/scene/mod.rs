@@ -383,10 +383,16 @@ impl Scene {
         } else {
             b.p
         };
-        let dist = (target - o).dot(d);
+        // the query runs between the lifted points themselves: a ray along the unlifted
+        // direction, stopped at the lifted target's projection, ends behind b's surface when
+        // both ends see each other at more than 45 degrees from their normals, and the
+        // target's own surface would occlude the edge
+        let lifted = target - o;
+        let dist = lifted.length();
         if dist.is_nan() || dist <= 0.0 || !dist.is_finite() {
             return zero;
         }
+        let d = lifted / dist;
         // medium segments are measured between the true end points, the lifted ones only serve
         // the intersection queries (so f_j and the samplers' pdfs see the same lengths)
         let lead_a = (o - a.p).dot(d);

@@ -68,6 +68,13 @@ impl Mutation for LightPerturbation {
         let mut y = x[..=j].to_vec();
         y.extend(chain);
         y.push(x[k]);
+        // the retraced end may land on a specular surface (a mirror strip next to the old
+        // diffuse one), a specular vertex may change its lobe, or the angle measured between
+        // the vertices may round out of [theta_min, theta_max]: y is then outside the
+        // perturbation's support (T(x -> y) = 0), so it is no proposal at all
+        if self.transition_density(scene, x, &y) <= 0.0 {
+            return None;
+        }
         Some(y)
     }
     // ANCHOR_END: light_sample
