@@ -296,7 +296,10 @@ fn check_plane_density(
             counts[b] += 1;
         }
     }
-    assert!(none * 1000 <= samples, "{none} of {samples} moves left the wall");
+    assert!(
+        none * 1000 <= samples,
+        "{none} of {samples} moves left the wall"
+    );
     let kept = (samples - none) as f64;
     let expected: Vec<f64> = expected_p.iter().map(|p| p * kept).collect();
     let p = chi_square_p_value(&counts, &expected);
