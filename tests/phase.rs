@@ -357,3 +357,22 @@ fn mix_with_a_zero_weight_lobe_never_samples_it() {
         assert!((a.wi - b.wi).length() < 1e-5, "{:?} vs {:?}", a.wi, b.wi);
     }
 }
+
+/// The convention of `conventions.rs`: wo and wi both point away from the vertex, so light that
+/// arrives along -wi and leaves along wo is undeflected when wo = -wi (cosine 1) and sent back
+/// when wo = wi (cosine -1); in general the cosine is that of the angle between -wi and wo.
+#[test]
+fn the_deflection_cosine_follows_the_convention() {
+    for (k, wo) in test_directions(0xdef1, 32).into_iter().enumerate() {
+        let wi = test_directions(0xdef2 + k as u64, 1)[0];
+        assert_close("forward", deflection_cosine(wo, -wo) as f64, 1.0, 1e-6);
+        assert_close("backward", deflection_cosine(wo, wo) as f64, -1.0, 1e-6);
+        let propagation_before = -wi;
+        assert_close(
+            "general",
+            deflection_cosine(wo, wi) as f64,
+            propagation_before.dot(wo) as f64,
+            1e-6,
+        );
+    }
+}
