@@ -75,10 +75,13 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         chapter_file: "phase-functions.md",
         files: &["src/medium/phase.rs"],
         task: "the Henyey-Greenstein phase function of the deflection cosine, without cancellation",
-        tests: &[t(
-            "phase",
-            "every_phase_function_integrates_to_one_over_the_deflection_cosine",
-        )],
+        tests: &[
+            t("phase", "hg_matches_its_closed_form"),
+            t(
+                "phase",
+                "every_phase_function_integrates_to_one_over_the_deflection_cosine",
+            ),
+        ],
     },
     Assignment {
         name: "hg_sample",

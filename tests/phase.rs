@@ -376,3 +376,21 @@ fn the_deflection_cosine_follows_the_convention() {
         );
     }
 }
+
+/// Henyey-Greenstein against its textbook form, evaluated in f64:
+/// p(mu) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2)), forward (mu = 1) for g > 0.
+#[test]
+fn hg_matches_its_closed_form() {
+    for g in [-0.9f64, -0.3, 0.0, 0.2, 0.7, 0.95] {
+        let phase = Phase::henyey_greenstein(g as f32).unwrap();
+        for i in 0..=40 {
+            let mu = -1.0 + 2.0 * i as f64 / 40.0;
+            let truth = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
+            let value = phase.eval_cos(mu as f32) as f64;
+            assert!(
+                (value - truth).abs() <= 1e-5 * truth,
+                "g = {g}, mu = {mu}: {value} vs {truth}"
+            );
+        }
+    }
+}
