@@ -128,6 +128,25 @@ fn a_leaked_line_is_found_anywhere_in_the_copy() {
     );
 }
 
+/// Builds a copy's book into a fresh directory of its own under `target/assignments`; returns
+/// (that directory, the directory of its HTML). The caller removes exactly the first.
+fn build_book(copy: &Path, out: &Path) -> PathBuf {
+    assert!(
+        out.ends_with("book-html"),
+        "refusing to build into {}",
+        out.display()
+    );
+    let _ = std::fs::remove_dir_all(out);
+    let mut book = mdbook_driver::MDBook::load(copy.join("book")).expect("the copy's book loads");
+    book.config.build.build_dir = out.to_path_buf();
+    book.build().expect("the copy's book builds");
+    if out.join("html").is_dir() {
+        out.join("html")
+    } else {
+        out.to_path_buf()
+    }
+}
+
 /// Hard-links the release build's dependencies into `target/assignments/release`, so that
 /// Cargo finds them fresh there (best effort: without it they are compiled once).
 fn seed_target_dir(target: &Path) {
@@ -228,6 +247,30 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
             );
         }
     }
+
+    // the copy's book builds, and its listings show the todo!() instead of the solution
+    let book_out = target.join("book-html");
+    let html = build_book(&copy, &book_out);
+    for (page, name) in [
+        ("path-space.html", "geometry_term"),
+        ("path-space.html", "characteristic"),
+        ("phase-functions.html", "hg_eval"),
+        ("phase-functions.html", "hg_sample"),
+        ("table1-homogeneous.html", "free_flight"),
+        ("mlt.html", "acceptance"),
+        ("mlt.html", "propagation_perturbation"),
+        ("smc-cache.html", "partial_sums"),
+        ("smc-cache.html", "bspline_control_variate"),
+    ] {
+        let text = std::fs::read_to_string(html.join(page)).unwrap();
+        assert!(
+            text.contains(&format!("assignment {name}: see book chapter")),
+            "{page} does not show the todo!() of {name}"
+        );
+    }
+    let path_space = std::fs::read_to_string(html.join("path-space.html")).unwrap();
+    assert!(!path_space.contains("cosine_factor(x, w) * cosine_factor(y, w) / d2"));
+    let _ = std::fs::remove_dir_all(&book_out);
 
     // the copy compiles, and every graded test fails on its own assignment's todo!()
     let mut files: Vec<&str> = ASSIGNMENTS
