@@ -9,10 +9,10 @@
 //!   in the original (they are part of the normal suite; `assignment check` on the original
 //!   is run here for one assignment to show the table's "passed" path).
 //!
-//! Cost: copies build in `target/assignments`, whose `deps` are hard links to the release
-//! build's (the dependencies are the same crates with the same profile, so Cargo reuses them),
-//! and the copy's own crate is compiled at opt-level 0, which is what makes one copy and eleven
-//! test binaries affordable (about 50 s from cold on two busy cores); in the blank copy every
+//! Cost: copies build in `target/assignments` (next to this build's `release`), whose `deps`
+//! are hard links to the release build's (the same crates with the same profile, so Cargo
+//! reuses them), and the copy's own crate is compiled at opt-level 0, which is what makes one
+//! copy and eleven test binaries affordable (about 50 s from cold on two busy cores); in the blank copy every
 //! graded test stops at its `todo!()` within milliseconds.
 
 use std::collections::BTreeMap;
@@ -23,6 +23,13 @@ use pathspace::course::{self, Assignment, ASSIGNMENTS};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The release profile's directory of this build (`.../target/release`, wherever
+/// CARGO_TARGET_DIR puts it): this test runs from its `deps`.
+fn release_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
 }
 
 fn original() -> course::Tree {
@@ -150,7 +157,7 @@ fn build_book(copy: &Path, out: &Path) -> PathBuf {
 /// Hard-links the release build's dependencies into `target/assignments/release`, so that
 /// Cargo finds them fresh there (best effort: without it they are compiled once).
 fn seed_target_dir(target: &Path) {
-    let release = root().join("target/release");
+    let release = release_dir();
     let dest = target.join("release");
     std::fs::create_dir_all(&dest).unwrap();
     for sub in ["deps", "build", ".fingerprint"] {
@@ -209,7 +216,7 @@ fn build_graded_tests(copy: &Path, target: &Path, files: &[&str]) -> BTreeMap<St
 
 #[test]
 fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its_own_todo() {
-    let target = root().join("target/assignments");
+    let target = release_dir().parent().unwrap().join("assignments");
     let copy = target.join("all");
     let _ = std::fs::remove_dir_all(&copy);
     seed_target_dir(&target);
@@ -354,7 +361,7 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
         String::from_utf8_lossy(&out.stderr).contains("give"),
         "a shared target directory is refused"
     );
-    let target_original = root().join("target/assignments-original");
+    let target_original = release_dir().parent().unwrap().join("assignments-original");
     seed_target_dir(&target_original);
     let out = pathspace(&[
         "assignment",
