@@ -109,15 +109,9 @@ fn mse(a: &Image, b: &Image) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
-/// Least-squares slope of log y against log x.
+/// Least-squares slope of log y against log x (NaN when a value is not positive).
 fn log_slope(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len() as f64;
-    let lx: Vec<f64> = x.iter().map(|v| v.ln()).collect();
-    let ly: Vec<f64> = y.iter().map(|v| v.ln()).collect();
-    let (mx, my) = (lx.iter().sum::<f64>() / n, ly.iter().sum::<f64>() / n);
-    let sxy: f64 = lx.iter().zip(&ly).map(|(a, b)| (a - mx) * (b - my)).sum();
-    let sxx: f64 = lx.iter().map(|a| (a - mx) * (a - mx)).sum();
-    sxy / sxx
+    pathspace::measure::stats::fit_power_law(x, y).map_or(f64::NAN, |f| f.slope)
 }
 
 fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Result<(), String> {

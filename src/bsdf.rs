@@ -78,6 +78,7 @@ pub enum Bsdf {
 /// the side the light arrives from, `eta` = eta_transmitted / eta_incident.
 // ANCHOR: fresnel
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    // ASSIGNMENT: fresnel
     let cos_i = cos_i.clamp(0.0, 1.0);
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
     if sin2_t >= 1.0 {
@@ -87,6 +88,7 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     let r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     0.5 * (r_par * r_par + r_perp * r_perp)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: fresnel
 

@@ -16,6 +16,8 @@
 /// The deflection cosine of a phase function for directions in pathspace's convention.
 #[inline]
 pub fn deflection_cosine(wo: glam::Vec3, wi: glam::Vec3) -> f32 {
+    // ASSIGNMENT: deflection_cosine
     -wo.dot(wi)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: deflection

@@ -18,10 +18,12 @@
 //! | Pegoraro, Wald, Parker 2008, eq. (1)-(9): sequential Monte Carlo | [`integrator::smc`] |
 //! | measuring: relMSE, efficiency, convergence order | [`measure`] |
 //! | conventions and measures | [`conventions`] |
+//! | the book as a course: assignments, student copies | [`course`] |
 
 pub mod bsdf;
 pub mod cli;
 pub mod conventions;
+pub mod course;
 pub mod film;
 pub mod geometry;
 pub mod image_io;

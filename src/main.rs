@@ -1,5 +1,9 @@
 use clap::Parser;
 
+mod source_tree {
+    include!(concat!(env!("OUT_DIR"), "/source_tree.rs"));
+}
+
 fn main() {
     // `pathspace info scene.toml | head` must end quietly, not panic on a closed pipe
     #[cfg(unix)]
@@ -8,7 +12,7 @@ fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = pathspace::cli::Cli::parse();
-    if let Err(e) = pathspace::cli::run(cli) {
+    if let Err(e) = pathspace::cli::run_with_source(cli, source_tree::SOURCE_TREE) {
         eprintln!("error: {e}");
         std::process::exit(1);
     }

@@ -142,3 +142,45 @@ fn the_book_builds() {
     assert!(out.join("index.html").exists() || out.join("html/index.html").exists());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// The chapters of the papers' equations, in paper order (Pauly et al. eqs. 1-8 and Table 1,
+/// Pegoraro et al. eqs. 1-9, BDPT's MIS, measuring).
+const EQUATION_CHAPTERS: [&str; 15] = [
+    "conventions.md",
+    "scenes.md",
+    "transport-equations.md",
+    "phase-functions.md",
+    "bsdf.md",
+    "table1-homogeneous.md",
+    "table1-inhomogeneous.md",
+    "neumann-series.md",
+    "path-space.md",
+    "bdpt.md",
+    "mlt.md",
+    "smc.md",
+    "smc-cache.md",
+    "smc-estimators.md",
+    "measuring.md",
+];
+
+/// Every chapter of an equation maps its symbols to code names in a table, and ends with a
+/// "Check it yourself" section that names the exact test command.
+#[test]
+fn every_equation_chapter_has_a_symbol_table_and_a_check_it_yourself_section() {
+    for name in EQUATION_CHAPTERS {
+        let text = std::fs::read_to_string(book_dir().join("src").join(name)).unwrap();
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with("| symbol |") && l.contains("code")),
+            "{name}: no table of symbols and code names"
+        );
+        let check = text
+            .split("## Check it yourself")
+            .nth(1)
+            .unwrap_or_else(|| panic!("{name}: no 'Check it yourself' section"));
+        assert!(
+            check.contains("cargo test --release --test "),
+            "{name}: 'Check it yourself' names no test command"
+        );
+    }
+}

@@ -13,7 +13,9 @@ use pathspace::film::Film;
 use pathspace::integrator::mlt::acceptance::acceptance;
 use pathspace::integrator::mlt::contribution::{image_contribution, scalar_contribution};
 use pathspace::integrator::mlt::init::Bootstrap;
-use pathspace::integrator::mlt::mutation::{InverseDistance, Mutation, MutationKind};
+use pathspace::integrator::mlt::mutation::{
+    InverseDistance, Mutation, MutationKind, PropagationPerturbation,
+};
 use pathspace::integrator::mlt::{Chain, Mlt, MltSettings};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::{Vertex, VertexKind};
@@ -199,8 +201,19 @@ fn log_edges(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 }
 
 /// A fog-box path light -> x_1 -> x_2 -> pinhole with x_2 near the middle of the back wall and
-/// x_1 on the floor, built by hand.
+/// x_1 on the floor, built by hand, and checked to carry light.
 fn back_wall_path(scene: &Scene) -> Vec<Vertex> {
+    let x = back_wall_path_unchecked(scene);
+    assert!(
+        image_contribution(scene, &x).is_some(),
+        "the hand-built path carries light"
+    );
+    x
+}
+
+/// [`back_wall_path`] without evaluating its contribution (a test of one mutation then
+/// depends on nothing else of MLT).
+fn back_wall_path_unchecked(scene: &Scene) -> Vec<Vertex> {
     let light_prim = (0..scene.prims.len())
         .find(|&p| scene.shapes[scene.prim_shape[p] as usize].light.is_some())
         .unwrap() as u32;
@@ -249,12 +262,7 @@ fn back_wall_path(scene: &Scene) -> Vec<Vertex> {
     );
     let cam = scene.camera.as_ref().unwrap();
     let eye = Vertex::new(VertexKind::Camera, cam.eye, cam.forward, None, None);
-    let x = vec![l, floor, wall, eye];
-    assert!(
-        image_contribution(scene, &x).is_some(),
-        "the hand-built path carries light"
-    );
-    x
+    vec![l, floor, wall, eye]
 }
 
 /// Samples of the mutation's moved end vertex (index `i`) binned by distance from the old one,
@@ -341,8 +349,13 @@ fn light_perturbation_density_matches_its_samples() {
 #[test]
 fn propagation_perturbation_density_matches_its_samples() {
     let scene = fog_box(64);
-    let mlt = engine(&scene, [1.0; 5], None, 7);
-    let mut x = back_wall_path(&scene);
+    // the mutation as `Mlt::new` configures it, built alone
+    let (d0, d1) = MltSettings::default().propagation_distance;
+    let r = scene.radius.max(f32::MIN_POSITIVE);
+    let m = &PropagationPerturbation {
+        distance: InverseDistance::new(d0 * r, d1 * r).unwrap(),
+    };
+    let mut x = back_wall_path_unchecked(&scene);
     // x_2 in the fog, 1.0 from the floor point towards the back wall's old point
     let w = (x[2].p - x[1].p).normalize();
     let p = x[1].p + w * 1.0;
@@ -353,7 +366,6 @@ fn propagation_perturbation_density_matches_its_samples() {
         Some(0),
         Some(0),
     );
-    let m = &mlt.mutations.propagation;
     // T over the line in the measure t^2 dt (dV = t^2 dw dt): signed displacement bins
     let d = m.distance;
     let edges = log_edges(d.min as f64 * 0.5, d.max as f64 * 1.5, 8);
@@ -704,4 +716,71 @@ fn refined_b_is_the_prepass_estimate_over_more_samples_and_the_image_sum() {
         "image sum {sum} vs b {}",
         mlt.b
     );
+}
+
+/// Eq. (8) by hand: alpha(x -> y) = min(1, f(y) T(y -> x) / (f(x) T(x -> y))), zero for a
+/// proposal that has no contribution or cannot be taken back, and detailed balance
+/// f(x) T(x -> y) alpha(x -> y) = f(y) T(y -> x) alpha(y -> x).
+#[test]
+fn acceptance_is_eq_8() {
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b.abs().max(1.0);
+    assert_eq!(acceptance(1.0, 2.0, 1.0, 1.0), 1.0);
+    assert!(close(acceptance(2.0, 1.0, 1.0, 1.0), 0.5));
+    assert!(close(acceptance(1.0, 1.0, 4.0, 1.0), 0.25));
+    assert!(close(
+        acceptance(3.0, 2.0, 0.5, 0.25),
+        (2.0 * 0.25) / (3.0 * 0.5)
+    ));
+    assert_eq!(acceptance(1.0, 0.0, 1.0, 1.0), 0.0, "f(y) = 0");
+    assert_eq!(acceptance(1.0, 1.0, 1.0, 0.0), 0.0, "T(y -> x) = 0");
+    assert_eq!(acceptance(1.0, 1.0, 0.0, 1.0), 0.0, "T(x -> y) = 0");
+    assert_eq!(acceptance(0.0, 1.0, 1.0, 1.0), 1.0, "leaving f(x) = 0");
+    for (fx, fy, txy, tyx) in [
+        (1.0, 2.0, 0.3, 0.7),
+        (5.0, 0.1, 2.0, 0.01),
+        (0.4, 0.4, 1.0, 3.0),
+    ] {
+        let lhs = fx * txy * acceptance(fx, fy, txy, tyx);
+        let rhs = fy * tyx * acceptance(fy, fx, tyx, txy);
+        assert!(close(lhs, rhs), "{lhs} != {rhs}");
+    }
+}
+
+/// Perturbation sizes with p(D) ~ 1/D on [min, max] (Pauly et al. sec. 5.2.1, Veach eq.
+/// 11.11): the pdf is 1 / (D ln(max/min)) inside and 0 outside, it integrates to one, and
+/// stratified samples put equal shares into bins of equal width in ln D.
+#[test]
+fn inverse_distance_follows_one_over_d() {
+    let (min, max) = (0.01f32, 1.0f32);
+    let d = InverseDistance::new(min, max).unwrap();
+    let ln_ratio = ((max / min) as f64).ln();
+    for x in [0.02f32, 0.1, 0.5] {
+        let expected = 1.0 / (x as f64 * ln_ratio);
+        assert!((d.pdf(x) - expected).abs() < 1e-6 * expected, "p({x})");
+    }
+    assert_eq!(d.pdf(0.001), 0.0);
+    assert_eq!(d.pdf(2.0), 0.0);
+    // int p(D) dD over [min, max], in s = ln D where dD = D ds
+    let n = 10_000;
+    let h = ln_ratio / n as f64;
+    let integral: f64 = (0..n)
+        .map(|i| {
+            let dd = ((min as f64).ln() + (i as f64 + 0.5) * h).exp();
+            d.pdf(dd as f32) * dd * h
+        })
+        .sum();
+    assert!((integral - 1.0).abs() < 1e-4, "integral {integral}");
+    let bins = 10;
+    let mut counts = vec![0usize; bins];
+    let samples = 100_000;
+    for i in 0..samples {
+        let x = d.sample((i as f32 + 0.5) / samples as f32);
+        assert!((min * 0.999..=max * 1.001).contains(&x), "D = {x}");
+        let b = (((x / min) as f64).ln() / ln_ratio * bins as f64) as usize;
+        counts[b.min(bins - 1)] += 1;
+    }
+    for (b, c) in counts.iter().enumerate() {
+        let share = *c as f64 / samples as f64;
+        assert!((share - 0.1).abs() < 1e-3, "bin {b}: {share}");
+    }
 }

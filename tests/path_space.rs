@@ -460,3 +460,22 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
         "the path tracer ({p}) should miss the caustic that bdpt ({b}) renders"
     );
 }
+
+/// Veach's power heuristic with beta = 2 by hand: a^2 / (a^2 + b^2), 0 when neither strategy
+/// can produce the sample, 1 for a strategy with an infinite (Dirac) density.
+#[test]
+fn power_heuristic_by_hand() {
+    use pathspace::integrator::path::power_heuristic;
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+    assert!(close(power_heuristic(1.0, 1.0), 0.5));
+    assert!(close(power_heuristic(3.0, 1.0), 0.9));
+    assert!(close(power_heuristic(1.0, 3.0), 0.1));
+    assert!(close(power_heuristic(0.2, 0.1), 0.8));
+    for (a, b) in [(0.3f32, 7.0f32), (2.0, 2.5), (1e-3, 1e-4)] {
+        assert!(close(power_heuristic(a, b) + power_heuristic(b, a), 1.0));
+    }
+    assert_eq!(power_heuristic(0.0, 2.0), 0.0);
+    assert_eq!(power_heuristic(0.0, 0.0), 0.0);
+    assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+    assert_eq!(power_heuristic(1.0, f32::INFINITY), 0.0);
+}

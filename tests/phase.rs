@@ -357,3 +357,40 @@ fn mix_with_a_zero_weight_lobe_never_samples_it() {
         assert!((a.wi - b.wi).length() < 1e-5, "{:?} vs {:?}", a.wi, b.wi);
     }
 }
+
+/// The convention of `conventions.rs`: wo and wi both point away from the vertex, so light that
+/// arrives along -wi and leaves along wo is undeflected when wo = -wi (cosine 1) and sent back
+/// when wo = wi (cosine -1); in general the cosine is that of the angle between -wi and wo.
+#[test]
+fn the_deflection_cosine_follows_the_convention() {
+    for (k, wo) in test_directions(0xdef1, 32).into_iter().enumerate() {
+        let wi = test_directions(0xdef2 + k as u64, 1)[0];
+        assert_close("forward", deflection_cosine(wo, -wo) as f64, 1.0, 1e-6);
+        assert_close("backward", deflection_cosine(wo, wo) as f64, -1.0, 1e-6);
+        let propagation_before = -wi;
+        assert_close(
+            "general",
+            deflection_cosine(wo, wi) as f64,
+            propagation_before.dot(wo) as f64,
+            1e-6,
+        );
+    }
+}
+
+/// Henyey-Greenstein against its textbook form, evaluated in f64:
+/// p(mu) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^(3/2)), forward (mu = 1) for g > 0.
+#[test]
+fn hg_matches_its_closed_form() {
+    for g in [-0.9f64, -0.3, 0.0, 0.2, 0.7, 0.95] {
+        let phase = Phase::henyey_greenstein(g as f32).unwrap();
+        for i in 0..=40 {
+            let mu = -1.0 + 2.0 * i as f64 / 40.0;
+            let truth = (1.0 - g * g) / (4.0 * PI * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
+            let value = phase.eval_cos(mu as f32) as f64;
+            assert!(
+                (value - truth).abs() <= 1e-5 * truth,
+                "g = {g}, mu = {mu}: {value} vs {truth}"
+            );
+        }
+    }
+}

@@ -224,3 +224,83 @@ fn meters_and_delta_lights_agree_with_the_path_tracer_on_the_slab() {
         }
     }
 }
+
+/// Eq. (1) for one sample: G + (f - g) / p, per channel; its mean is int f for any control
+/// variate g of known integral G (here f = x^2 and g = x on [0, 1], G = 1/2, p uniform or
+/// p = 2x).
+#[test]
+fn combined_estimator_is_eq_1() {
+    use pathspace::integrator::smc::estimator::combined;
+    use pathspace::spectrum::Rgb;
+    let one = combined(
+        Rgb::new(1.0, 2.0, 3.0),
+        Rgb::splat(4.0),
+        Rgb::new(2.0, 1.0, 0.0),
+        0.5,
+    );
+    assert_eq!(one, Rgb::new(5.0, 8.0, 11.0));
+    let n = 100_000;
+    let pdfs: [fn(f32) -> f32; 2] = [|_| 1.0, |x| 2.0 * x];
+    for p in pdfs {
+        // stratified x, weighted by the density of x under p relative to uniform
+        let mean: f64 = (0..n)
+            .map(|i| {
+                let x = (i as f32 + 0.5) / n as f32;
+                let e = combined(Rgb::splat(0.5), Rgb::splat(x * x), Rgb::splat(x), p(x));
+                (e.x * p(x)) as f64
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((mean - 1.0 / 3.0).abs() < 1e-5, "mean {mean}");
+    }
+}
+
+/// Russian roulette with a control value c (walk.rs): before `RR_START_DEPTH` the path always
+/// continues; after it, it survives with q = min(max beta, RR_MAX_SURVIVAL) and is then
+/// weighted 1/q (beta too), or ends at c with weight 0. The estimate c + w (R - c) is then
+/// unbiased for R whatever c, because E[w] = 1.
+#[test]
+fn roulette_is_unbiased_for_any_c() {
+    use pathspace::integrator::path::{RR_MAX_SURVIVAL, RR_START_DEPTH};
+    use pathspace::integrator::smc::walk::{roulette, Link};
+    use pathspace::math::Sampler;
+    use pathspace::spectrum::Rgb;
+    let c = Rgb::new(0.2, 0.3, 0.4);
+    let mut sampler = Sampler::new(0x5011, 0, 0);
+    let mut beta = Rgb::splat(0.5);
+    let mut link = Link::plain(Rgb::ZERO, Rgb::ONE);
+    assert!(roulette(0, &mut beta, c, &mut link, &mut sampler));
+    assert_eq!(beta, Rgb::splat(0.5));
+    assert!(link.roulette.is_none(), "no roulette before RR_START_DEPTH");
+    for beta0 in [Rgb::splat(0.5), Rgb::new(0.1, 0.3, 0.2), Rgb::splat(2.0)] {
+        let q = beta0.max_element().min(RR_MAX_SURVIVAL);
+        let n = 200_000;
+        let (mut survived, mut w_sum) = (0u64, 0.0f64);
+        for _ in 0..n {
+            let mut beta = beta0;
+            let mut link = Link::plain(Rgb::ZERO, Rgb::ONE);
+            let go_on = roulette(RR_START_DEPTH, &mut beta, c, &mut link, &mut sampler);
+            let (c_seen, w) = link.roulette.expect("a roulette decision is recorded");
+            assert_eq!(c_seen, c);
+            if go_on {
+                survived += 1;
+                assert!((w - 1.0 / q).abs() < 1e-6 / q);
+                assert!((beta - beta0 / q).abs().max_element() < 1e-6);
+            } else {
+                assert_eq!(w, 0.0);
+            }
+            w_sum += w as f64;
+        }
+        let share = survived as f64 / n as f64;
+        let se = (q as f64 * (1.0 - q as f64) / n as f64).sqrt();
+        assert!(
+            (share - q as f64).abs() < 5.0 * se + 1e-12,
+            "survival {share} vs q {q}"
+        );
+        let mean_w = w_sum / n as f64;
+        assert!(
+            (mean_w - 1.0).abs() < 5.0 * se / q as f64 + 1e-9,
+            "E[w] = {mean_w}"
+        );
+    }
+}

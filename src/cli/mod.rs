@@ -1,5 +1,6 @@
 //! The command line: one file per subcommand. Progress goes to stderr, results to stdout.
 
+pub mod assignment;
 pub mod converge;
 pub mod diff;
 pub mod info;
@@ -34,10 +35,18 @@ pub enum Command {
     Rooms(rooms::RoomsArgs),
     /// Average renders of the same scene, weighted by their sample counts (EXR `spp`).
     Merge(merge::MergeArgs),
+    /// The book as a course: list assignments, make a student copy, grade a copy.
+    Assignment(assignment::AssignmentArgs),
 }
 
 /// Runs the command line; returns the process exit code.
 pub fn run(cli: Cli) -> Result<(), String> {
+    run_with_source(cli, &[])
+}
+
+/// Runs the command line with the crate's source tree embedded by `build.rs` (the binary passes
+/// it; `assignment make` writes student copies from it).
+pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), String> {
     match cli.command {
         None => render::run(render::RenderArgs::default()),
         Some(Command::Render(a)) => render::run(a),
@@ -47,6 +56,7 @@ pub fn run(cli: Cli) -> Result<(), String> {
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Rooms(a)) => rooms::run(a),
         Some(Command::Merge(a)) => merge::run(a),
+        Some(Command::Assignment(a)) => assignment::run(a, source_tree),
     }
 }
 

@@ -17,6 +17,7 @@ use crate::spectrum::Rgb;
 /// Power heuristic with beta = 2 (Veach 1997): the weight of the strategy with density `a`.
 #[inline]
 pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    // ASSIGNMENT: power_heuristic
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
         a2 / (a2 + b2)
@@ -25,6 +26,7 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
     } else {
         0.0
     }
+    // END ASSIGNMENT
 }
 
 /// The number of scattering vertices after which Russian roulette starts.
@@ -272,6 +274,7 @@ pub fn next_event(
     sampler: &mut Sampler,
     scatter: impl Fn(Vec3) -> (Rgb, f32),
 ) -> Rgb {
+    // ASSIGNMENT: next_event
     if scene.lights.is_empty() {
         return Rgb::ZERO;
     }
@@ -312,5 +315,6 @@ pub fn next_event(
         power_heuristic(pdf_light, pdf_scatter)
     };
     f * ls.value * tr * (w / pdf_light)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: next_event

@@ -48,6 +48,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 /// {b0, b1 >= 0, b0 + b1 <= 1}.
 // ANCHOR: uniform_triangle
 pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    // ASSIGNMENT: uniform_triangle
     let (mut b0, mut b1) = (u.x / 2.0, u.y / 2.0);
     // the offset is between the halved coordinates: with u.y - u.x instead, u = (0, 1) maps to
     // (0, 1.5), outside the triangle
@@ -58,6 +59,7 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
         b0 -= offset;
     }
     Vec2::new(b0, b1)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: uniform_triangle
 

@@ -65,6 +65,7 @@ pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, String> {
             "cannot fit a slope through {n} point(s): at least 2 are needed"
         ));
     }
+    // ASSIGNMENT: fit_power_law
     let lx: Vec<f64> = x.iter().map(|v| v.ln()).collect();
     let ly: Vec<f64> = y.iter().map(|v| v.ln()).collect();
     let mean_x = lx.iter().sum::<f64>() / n as f64;
@@ -96,6 +97,7 @@ pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, String> {
         intercept,
         points: n,
     })
+    // END ASSIGNMENT
 }
 // ANCHOR_END: fit_power_law
 

@@ -341,6 +341,7 @@ impl Heterogeneous {
     /// (1 - sigma_t(x) / sigma_bar) over tentative collisions drawn at the majorant rate
     /// sigma_bar = max_c(sigma_t[c]) max_density.
     fn ratio_tracking(&self, l: &Local, sampler: &mut Sampler) -> Rgb {
+        // ASSIGNMENT: ratio_tracking
         let k_max = self.sigma_t.max_element();
         if k_max <= 0.0 {
             return Rgb::ONE;
@@ -369,13 +370,14 @@ impl Heterogeneous {
             }
         }
         tr
+        // END ASSIGNMENT
     }
     // ANCHOR_END: ratio_tracking
 
     // ANCHOR: heterogeneous_sample
     /// Table 1, right column: a collision distance in [0, t_max) along `ray`, or passage.
     pub fn sample_free_flight(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
-        // one-sample MIS over channels: pick c uniformly, sample with sigma_t[c]
+        // one channel c chosen uniformly, distances with sigma_t[c] (one-sample MIS)
         let c = sampler.next_index(N_CHANNELS);
         let k = self.sigma_t[c];
         let passage = |d: f32, t: f32| {

@@ -58,11 +58,13 @@ impl Homogeneous {
     // ANCHOR: homogeneous_transmittance
     #[inline]
     pub fn transmittance(&self, d: f32) -> Rgb {
+        // ASSIGNMENT: transmittance
         if d.is_infinite() {
             // a ray to infinity is extinguished in every channel with sigma_t > 0
             return Rgb::select(self.sigma_t.cmpgt(Rgb::ZERO), Rgb::ZERO, Rgb::ONE);
         }
         (-self.sigma_t * d).exp()
+        // END ASSIGNMENT
     }
     // ANCHOR_END: homogeneous_transmittance
 
@@ -70,6 +72,7 @@ impl Homogeneous {
     // ANCHOR: homogeneous_sample
     #[inline]
     pub fn sample_free_flight(&self, t_max: f32, u_channel: f32, u: f32) -> FreeFlight {
+        // ASSIGNMENT: free_flight
         // one-sample MIS over channels: pick c uniformly, sample with sigma_t[c]
         let c = ((u_channel * N_CHANNELS as f32) as usize).min(N_CHANNELS - 1);
         let sigma = self.sigma_t[c];
@@ -100,6 +103,7 @@ impl Homogeneous {
                 pdf: average(tr),
             }
         }
+        // END ASSIGNMENT
     }
     // ANCHOR_END: homogeneous_sample
 
@@ -108,12 +112,14 @@ impl Homogeneous {
     /// the uniformly chosen channel.
     // ANCHOR: homogeneous_pdf
     pub fn free_flight_pdf(&self, t: f32, scattered: bool) -> f32 {
+        // ASSIGNMENT: free_flight
         let tr = self.transmittance(t);
         if scattered {
             average(self.sigma_t * tr)
         } else {
             average(tr)
         }
+        // END ASSIGNMENT
     }
     // ANCHOR_END: homogeneous_pdf
 }

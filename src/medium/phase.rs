@@ -100,10 +100,12 @@ impl Phase {
         match self {
             Phase::Isotropic => warp::INV_FOUR_PI,
             Phase::HenyeyGreenstein { g } => {
+                // ASSIGNMENT: hg_eval
                 // 1 + g^2 - 2 g mu, without cancellation
                 let a = 1.0 - g.abs();
                 let denom = a * a + 2.0 * g.abs() * (1.0 - g.signum() * cos_theta);
                 warp::INV_FOUR_PI * (1.0 - g * g) / (denom * denom.max(0.0).sqrt())
+                // END ASSIGNMENT
             }
             Phase::Schlick { k } => {
                 // 1 - k mu, without cancellation
@@ -177,6 +179,7 @@ impl Phase {
         let cos_theta = match *self {
             Phase::Isotropic => 1.0 - 2.0 * u,
             Phase::HenyeyGreenstein { g } => {
+                // ASSIGNMENT: hg_sample
                 let g = g as f64;
                 if g.abs() < HG_ISOTROPIC_LIMIT {
                     1.0 - 2.0 * u
@@ -185,6 +188,7 @@ impl Phase {
                     let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
                     (1.0 + g * g - s * s) / (2.0 * g)
                 }
+                // END ASSIGNMENT
             }
             Phase::Schlick { k } => {
                 // mu = (2u - 1 + k) / (2 k u + 1 - k)

@@ -11,12 +11,14 @@ use super::Vertex;
 /// than 63 edges keep their first 64 bits.
 // ANCHOR: characteristic
 pub fn characteristic(vertices: &[Vertex]) -> u64 {
+    // ASSIGNMENT: characteristic
     vertices
         .iter()
         .take(64)
         .enumerate()
         .filter(|(_, v)| !v.is_medium())
         .fold(0u64, |l, (i, _)| l | (1u64 << i))
+    // END ASSIGNMENT
 }
 // ANCHOR_END: characteristic
 

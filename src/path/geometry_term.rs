@@ -25,6 +25,7 @@ pub fn cosine_factor(v: &Vertex, w: glam::Vec3) -> f32 {
 /// perpendicular to the direction).
 // ANCHOR: geometry_term
 pub fn geometry_term_unoccluded(x: &Vertex, y: &Vertex) -> f32 {
+    // ASSIGNMENT: geometry_term
     let d = y.p - x.p;
     let d2 = d.length_squared();
     if d2 == 0.0 {
@@ -38,6 +39,7 @@ pub fn geometry_term_unoccluded(x: &Vertex, y: &Vertex) -> f32 {
         return cosine_factor(x, w);
     }
     cosine_factor(x, w) * cosine_factor(y, w) / d2
+    // END ASSIGNMENT
 }
 // ANCHOR_END: geometry_term
 

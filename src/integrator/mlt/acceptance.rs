@@ -9,6 +9,7 @@
 /// proposal the mutation could not take back (T(y -> x) = 0) or with f(y) = 0 is rejected.
 // ANCHOR: acceptance
 pub fn acceptance(f_x: f64, f_y: f64, t_xy: f64, t_yx: f64) -> f64 {
+    // ASSIGNMENT: acceptance
     let possible = f_y > 0.0 && t_xy > 0.0 && t_yx > 0.0 && (f_y * t_yx).is_finite();
     if !possible {
         return 0.0;
@@ -17,5 +18,6 @@ pub fn acceptance(f_x: f64, f_y: f64, t_xy: f64, t_yx: f64) -> f64 {
         return 1.0;
     }
     ((f_y * t_yx) / (f_x * t_xy)).min(1.0)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: acceptance

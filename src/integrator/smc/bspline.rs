@@ -141,6 +141,7 @@ impl Coefficients {
     // ANCHOR: eval_order1
     #[inline]
     pub fn eval_order1(&self, st: Vec2) -> Rgb {
+        // ASSIGNMENT: bspline_control_variate
         let (n_s, n_t) = (self.grid.n_s as usize, self.grid.n_t as usize);
         // s: centres at (i + 1/2) / n_s, periodic
         let x = st.x * n_s as f32 - 0.5;
@@ -164,6 +165,7 @@ impl Coefficients {
         let j0 = (y.floor() as usize).min(n_t - 2);
         let fy = y - j0 as f32;
         row(j0) * (1.0 - fy) + row(j0 + 1) * fy
+        // END ASSIGNMENT
     }
     // ANCHOR_END: eval_order1
 

@@ -23,7 +23,9 @@ use crate::spectrum::Rgb;
 #[inline]
 #[allow(non_snake_case)]
 pub fn combined(G: Rgb, f: Rgb, g: Rgb, p: f32) -> Rgb {
+    // ASSIGNMENT: combined_estimator
     G + (f - g) / p
+    // END ASSIGNMENT
 }
 // ANCHOR_END: combined
 

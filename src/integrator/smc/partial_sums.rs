@@ -53,18 +53,21 @@ impl PartialSums {
     /// Sets cell `i` and updates its branch up to the root: O(log N).
     #[inline]
     pub fn set(&mut self, i: usize, value: f64) {
+        // ASSIGNMENT: partial_sums
         let mut k = self.n - 1 + i;
         self.nodes[k] = value;
         while k > 0 {
             k = (k - 1) / 2;
             self.nodes[k] = self.nodes[2 * k + 1] + self.nodes[2 * k + 2];
         }
+        // END ASSIGNMENT
     }
 
     /// Samples a cell with probability value / total from `u` in [0, 1): O(log N).
     /// Returns the cell and its probability. The total must be positive.
     #[inline]
     pub fn sample(&self, u: f64) -> (usize, f64) {
+        // ASSIGNMENT: partial_sums
         let mut x = u * self.nodes[0];
         let mut k = 0;
         while k < self.n - 1 {
@@ -79,6 +82,7 @@ impl PartialSums {
         }
         let i = k - (self.n - 1);
         (i, self.nodes[k] / self.nodes[0])
+        // END ASSIGNMENT
     }
 }
 // ANCHOR_END: tree

@@ -253,6 +253,7 @@ pub fn roulette(
     link: &mut Link,
     sampler: &mut Sampler,
 ) -> bool {
+    // ASSIGNMENT: cv_roulette
     use crate::integrator::path::{RR_MAX_SURVIVAL, RR_START_DEPTH};
     if depth < RR_START_DEPTH {
         return true;
@@ -265,5 +266,6 @@ pub fn roulette(
     link.roulette = Some((c, 1.0 / q));
     *beta /= q;
     true
+    // END ASSIGNMENT
 }
 // ANCHOR_END: roulette

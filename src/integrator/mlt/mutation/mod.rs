@@ -87,17 +87,21 @@ impl InverseDistance {
 
     /// D for a uniform u in [0, 1) [Veach eq. 11.11].
     pub fn sample(&self, u: f32) -> f32 {
+        // ASSIGNMENT: inverse_distance
         self.max * (-(self.max / self.min).ln() * u).exp()
+        // END ASSIGNMENT
     }
 
     /// p(D) = 1 / (D ln(max/min)) on [min, max].
     pub fn pdf(&self, d: f32) -> f64 {
+        // ASSIGNMENT: inverse_distance
         // a sampled D can round a hair outside the range
         let slack = 1e-5;
         if d < self.min * (1.0 - slack) || d > self.max * (1.0 + slack) {
             return 0.0;
         }
         1.0 / (d as f64 * ((self.max / self.min) as f64).ln())
+        // END ASSIGNMENT
     }
 }
 // ANCHOR_END: inverse_distance

@@ -30,6 +30,7 @@ pub struct PropagationPerturbation {
 impl Mutation for PropagationPerturbation {
     // ANCHOR: propagation_sample
     fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+        // ASSIGNMENT: propagation_perturbation
         let k = x.len() - 1;
         if k < 2 || !x[k - 1].is_medium() {
             return None;
@@ -50,11 +51,13 @@ impl Mutation for PropagationPerturbation {
         y.push(v);
         y.push(x[k]);
         Some(y)
+        // END ASSIGNMENT
     }
     // ANCHOR_END: propagation_sample
 
     // ANCHOR: propagation_density
     fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+        // ASSIGNMENT: propagation_perturbation
         let _ = scene;
         let k = x.len() - 1;
         if k < 2 || y.len() != x.len() || !x[k - 1].is_medium() || y[k - 1].kind != x[k - 1].kind {
@@ -69,6 +72,7 @@ impl Mutation for PropagationPerturbation {
         let tx = (x[k - 1].p - x[k - 2].p).length();
         let ty = (y[k - 1].p - y[k - 2].p).length();
         DIRECTION_PROBABILITY * self.distance.pdf((ty - tx).abs()) / (ty as f64 * ty as f64)
+        // END ASSIGNMENT
     }
     // ANCHOR_END: propagation_density
 }

@@ -1,0 +1,351 @@
+//! `pathspace assignment list | make | check`: the book as a course (book: "Course use:
+//! assignments"). The registry and the blanking live in [`crate::course`].
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use clap::{Args, Subcommand};
+
+use crate::course::{self, Assignment, Tree};
+
+/// Leaked lines listed by `make` before it gives up.
+const MAX_LEAKS_SHOWN: usize = 40;
+
+#[derive(Args, Debug)]
+pub struct AssignmentArgs {
+    #[command(subcommand)]
+    pub command: AssignmentCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum AssignmentCommand {
+    /// List the assignments: name, chapter, source file, graded tests.
+    List,
+    /// Write a student copy of the crate with the named assignments' bodies replaced by todo!().
+    Make(MakeArgs),
+    /// Run a copy's graded tests and print a pass/fail table to grade from.
+    Check(CheckArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct MakeArgs {
+    /// Assignments to blank (see `pathspace assignment list`).
+    pub names: Vec<String>,
+    /// Blank every assignment (a copy for a whole course).
+    #[arg(long, conflicts_with = "names")]
+    pub all: bool,
+    /// Directory to write the copy to (must not exist or be empty).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Take the crate from this directory [default: the source tree embedded in the binary
+    /// (feature `embed-source`), else the directory the binary was built from].
+    #[arg(long)]
+    pub from: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// The student's copy (a crate written by `assignment make`).
+    pub dir: PathBuf,
+    /// Grade only this assignment.
+    #[arg(long)]
+    pub only: Option<String>,
+    /// Cargo's target directory for the copy (default: DIR/target). One per copy: copies of
+    /// the crate get the same artifact names, and Cargo judges freshness by modification times,
+    /// so a shared directory could grade one student's build for another's (refused).
+    #[arg(long)]
+    pub target_dir: Option<PathBuf>,
+    /// Optimization level of the copy's own crate (dependencies keep the release profile):
+    /// 0 compiles fastest, 3 runs fastest.
+    #[arg(long, default_value_t = 3)]
+    pub opt_level: u8,
+}
+
+pub fn run(args: AssignmentArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
+    match args.command {
+        AssignmentCommand::List => {
+            list();
+            Ok(())
+        }
+        AssignmentCommand::Make(a) => make(a, embedded),
+        AssignmentCommand::Check(a) => check(a),
+    }
+}
+
+fn tests_of(a: &Assignment) -> String {
+    a.tests
+        .iter()
+        .map(|t| format!("--test {} {}", t.file, t.name))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+fn list() {
+    println!(
+        "{:<26} {:<24} {:<44} graded tests",
+        "assignment", "chapter", "file"
+    );
+    for a in course::ASSIGNMENTS {
+        println!(
+            "{:<26} {:<24} {:<44} {}",
+            a.name,
+            a.chapter_file,
+            a.files.join(", "),
+            tests_of(a)
+        );
+    }
+}
+
+fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
+    let tree: Tree = match &args.from {
+        Some(dir) => course::read_tree(dir)?,
+        None if embedded.is_empty() => {
+            let built_from = Path::new(env!("CARGO_MANIFEST_DIR"));
+            course::read_tree(built_from).map_err(|e| {
+                format!(
+                    "{e}: the binary was built from {} and carries no source tree \
+                     (feature `embed-source`); pass --from CRATE_DIR",
+                    built_from.display()
+                )
+            })?
+        }
+        None => embedded
+            .iter()
+            .map(|(p, b)| (p.to_string(), b.to_vec()))
+            .collect(),
+    };
+    let chosen: Vec<&Assignment> = if args.all {
+        course::ASSIGNMENTS.iter().collect()
+    } else {
+        if args.names.is_empty() {
+            return Err(
+                "name at least one assignment (or --all); `pathspace assignment list` shows them"
+                    .to_string(),
+            );
+        }
+        args.names
+            .iter()
+            .map(|n| {
+                course::find(n).ok_or_else(|| {
+                    format!("no assignment `{n}`; `pathspace assignment list` shows them")
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let copy = course::student_copy(&tree, &chosen)?;
+    let leaks = course::leaks(&copy);
+    if !leaks.is_empty() {
+        let shown: Vec<String> = leaks
+            .iter()
+            .take(MAX_LEAKS_SHOWN)
+            .map(|(name, file, line, text)| format!("  {name}: {file}:{line}: `{text}`"))
+            .collect();
+        return Err(format!(
+            "the copy would still contain solution text ({} lines; move it into the marked \
+             region or reword it):\n{}",
+            leaks.len(),
+            shown.join("\n")
+        ));
+    }
+    course::write_copy(&copy, &args.out)?;
+    for a in &chosen {
+        eprintln!(
+            "{}: blanked in {} (book/src/{}); graded by {}",
+            a.name,
+            a.files.join(", "),
+            a.chapter_file,
+            tests_of(a)
+        );
+    }
+    println!(
+        "wrote {} files to {}; grade with `pathspace assignment check {}`",
+        copy.tree.len(),
+        args.out.display(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// The outcome of one assignment's graded tests.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    Passed,
+    /// The tests reached this assignment's `todo!()`.
+    NotImplemented,
+    Failed,
+    BuildError,
+}
+
+impl Outcome {
+    pub fn label(&self) -> &'static str {
+        match self {
+            Outcome::Passed => "passed",
+            Outcome::NotImplemented => "failed (todo!)",
+            Outcome::Failed => "failed",
+            Outcome::BuildError => "build error",
+        }
+    }
+}
+
+fn cargo(dir: &Path, args: &CheckArgs) -> Command {
+    let mut c = Command::new(std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into()));
+    c.current_dir(dir);
+    c.arg("test").arg("--release");
+    c.arg("--config").arg(format!(
+        "profile.release.package.pathspace.opt-level={}",
+        args.opt_level
+    ));
+    if let Some(t) = &args.target_dir {
+        // cargo runs in the copy: a relative target directory means one from here
+        let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
+        c.arg("--target-dir").arg(t);
+    }
+    c
+}
+
+/// The file in a target directory that names the copy it builds.
+const TARGET_OWNER_FILE: &str = "pathspace-assignment-copy.txt";
+
+/// Records `dir` as the only copy built in target directory `t`, or refuses when another copy
+/// owns it.
+fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), String> {
+    let me = std::fs::canonicalize(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .to_string_lossy()
+        .to_string();
+    let owner_file = t.join(TARGET_OWNER_FILE);
+    match std::fs::read_to_string(&owner_file) {
+        Ok(owner) if owner.trim() != me => Err(format!(
+            "target directory {} builds the copy {}; give {} its own (copies of the crate \
+             share artifact names, so one could be graded with the other's build)",
+            t.display(),
+            owner.trim(),
+            me
+        )),
+        Ok(_) => Ok(()),
+        Err(_) => {
+            std::fs::create_dir_all(t).map_err(|e| format!("{}: {e}", t.display()))?;
+            std::fs::write(&owner_file, format!("{me}\n"))
+                .map_err(|e| format!("{}: {e}", owner_file.display()))
+        }
+    }
+}
+
+/// Number of tests a libtest summary reports as passed, summed over the output.
+fn passed_count(out: &str) -> usize {
+    out.lines()
+        .filter_map(|l| l.strip_prefix("test result: "))
+        .filter_map(|l| l.split(';').next())
+        .filter_map(|l| l.split_whitespace().nth(1)?.parse::<usize>().ok())
+        .sum()
+}
+
+fn check(args: CheckArgs) -> Result<(), String> {
+    if !args.dir.join("Cargo.toml").is_file() {
+        return Err(format!("{} holds no Cargo.toml", args.dir.display()));
+    }
+    if let Some(t) = &args.target_dir {
+        claim_target_dir(t, &args.dir)?;
+    }
+    let chosen: Vec<&Assignment> = match &args.only {
+        Some(n) => vec![course::find(n).ok_or_else(|| format!("no assignment `{n}`"))?],
+        None => course::ASSIGNMENTS.iter().collect(),
+    };
+    // build every graded test binary in one cargo call (in parallel, and once)
+    let mut files: Vec<&str> = chosen
+        .iter()
+        .flat_map(|a| a.tests.iter().map(|t| t.file))
+        .collect();
+    files.sort();
+    files.dedup();
+    eprintln!("building the graded tests ({})", files.join(", "));
+    let mut build = cargo(&args.dir, &args);
+    build.arg("--no-run");
+    for f in &files {
+        build.arg("--test").arg(f);
+    }
+    let built = build
+        .output()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    let build_ok = built.status.success();
+    if !build_ok {
+        eprintln!("{}", String::from_utf8_lossy(&built.stderr));
+    }
+    println!(
+        "{:<26} {:<15} {:>8}  graded tests",
+        "assignment", "result", "time"
+    );
+    let mut passed = 0;
+    for a in &chosen {
+        let start = Instant::now();
+        let mut outcome = if build_ok {
+            Outcome::Passed
+        } else {
+            Outcome::BuildError
+        };
+        for file in a
+            .tests
+            .iter()
+            .map(|t| t.file)
+            .collect::<std::collections::BTreeSet<_>>()
+        {
+            if outcome != Outcome::Passed {
+                break;
+            }
+            let names: Vec<&str> = a
+                .tests
+                .iter()
+                .filter(|t| t.file == file)
+                .map(|t| t.name)
+                .collect();
+            let mut c = cargo(&args.dir, &args);
+            c.arg("--test").arg(file).arg("--").arg("--exact");
+            c.args(&names);
+            let o = c.output().map_err(|e| format!("cannot run cargo: {e}"))?;
+            let text = format!(
+                "{}{}",
+                String::from_utf8_lossy(&o.stdout),
+                String::from_utf8_lossy(&o.stderr)
+            );
+            outcome = if o.status.success() && passed_count(&text) == names.len() {
+                Outcome::Passed
+            } else if text.contains(&format!("assignment {}:", a.name)) {
+                Outcome::NotImplemented
+            } else if o.status.success() {
+                // a graded test that no longer exists must not count as passed
+                Outcome::Failed
+            } else if text.contains("could not compile") {
+                Outcome::BuildError
+            } else {
+                Outcome::Failed
+            };
+        }
+        if outcome == Outcome::Passed {
+            passed += 1;
+        }
+        let names = a
+            .tests
+            .iter()
+            .map(|t| format!("{}::{}", t.file, t.name))
+            .collect::<Vec<_>>()
+            .join(", ");
+        println!(
+            "{:<26} {:<15} {:>6.1} s  {}",
+            a.name,
+            outcome.label(),
+            start.elapsed().as_secs_f64(),
+            names
+        );
+    }
+    println!("{passed} of {} assignments passed", chosen.len());
+    if passed == chosen.len() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} of {} assignments failed",
+            chosen.len() - passed,
+            chosen.len()
+        ))
+    }
+}

@@ -1,0 +1,389 @@
+//! The book as a course (book: "Course use: assignments"): the `// ASSIGNMENT:` markers and the
+//! registry in `src/course.rs` agree, every graded test exists, every chapter names its
+//! assignments, and a student copy with every assignment blanked
+//!
+//! - contains no line of any removed region, in any file (sources, tests, the book, examples);
+//! - compiles;
+//! - fails each graded test on that assignment's own `todo!()` (so each assignment's tests
+//!   fail in a copy where it is blank, whatever the other blanks), while the same tests pass
+//!   in the original (they are part of the normal suite; `assignment check` on the original
+//!   is run here for one assignment to show the table's "passed" path).
+//!
+//! Cost: copies build in `target/assignments` (next to this build's `release`), whose `deps`
+//! are hard links to the release build's (the same crates with the same profile, so Cargo
+//! reuses them), and the copy's own crate is compiled at opt-level 0, which is what makes one
+//! copy and eleven test binaries affordable (about 50 s from cold on two busy cores); in the blank copy every
+//! graded test stops at its `todo!()` within milliseconds.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use pathspace::course::{self, Assignment, ASSIGNMENTS};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The release profile's directory of this build (`.../target/release`, wherever
+/// CARGO_TARGET_DIR puts it): this test runs from its `deps`.
+fn release_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+}
+
+fn original() -> course::Tree {
+    course::read_tree(&root()).unwrap()
+}
+
+#[test]
+fn every_marker_is_registered_and_every_assignment_is_marked() {
+    course::check_registry(&original()).unwrap();
+}
+
+#[test]
+fn every_graded_test_exists() {
+    for a in ASSIGNMENTS {
+        for t in a.tests {
+            let file = root().join("tests").join(format!("{}.rs", t.file));
+            let text = std::fs::read_to_string(&file)
+                .unwrap_or_else(|e| panic!("{}: {}: {e}", a.name, file.display()));
+            let decl = format!("#[test]\nfn {}()", t.name);
+            assert!(
+                text.contains(&decl),
+                "assignment {}: tests/{}.rs has no #[test] fn {}",
+                a.name,
+                t.file,
+                t.name
+            );
+        }
+    }
+}
+
+#[test]
+fn every_chapter_names_its_assignments_and_the_course_page_lists_all() {
+    let course_page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
+    for a in ASSIGNMENTS {
+        let chapter = std::fs::read_to_string(root().join("book/src").join(a.chapter_file))
+            .unwrap_or_else(|e| panic!("{}: {e}", a.chapter_file));
+        let check = chapter
+            .split("## Check it yourself")
+            .nth(1)
+            .unwrap_or_else(|| panic!("{} has no 'Check it yourself' section", a.chapter_file));
+        assert!(
+            check.contains(&format!("`{}`", a.name)),
+            "{}: 'Check it yourself' does not name assignment `{}`",
+            a.chapter_file,
+            a.name
+        );
+        assert!(
+            course_page.contains(&format!("`{}`", a.name)),
+            "course.md does not list assignment `{}`",
+            a.name
+        );
+        let summary = std::fs::read_to_string(root().join("book/src/SUMMARY.md")).unwrap();
+        assert!(summary.contains(&format!("({})", a.chapter_file)));
+    }
+}
+
+#[test]
+fn blanking_keeps_the_markers_and_replaces_the_body() {
+    let a = course::find("characteristic").unwrap();
+    let text = "fn f() -> u64 {\n    // ASSIGNMENT: characteristic\n    let x = 1;\n    x + 1\n    // END ASSIGNMENT\n}\n";
+    let (out, removed) = course::blank(text, &[a]).unwrap();
+    assert_eq!(removed, vec!["    let x = 1;", "    x + 1"]);
+    assert_eq!(
+        out,
+        format!(
+            "fn f() -> u64 {{\n    // ASSIGNMENT: characteristic\n    {}\n    // END ASSIGNMENT\n}}\n",
+            course::todo_line(a)
+        )
+    );
+    // other assignments' regions are left alone
+    let b = course::find("acceptance").unwrap();
+    assert_eq!(course::blank(text, &[b]).unwrap().0, text);
+    // malformed markers are errors
+    assert!(course::regions("// ASSIGNMENT: a\n").is_err());
+    assert!(course::regions("// END ASSIGNMENT\n").is_err());
+    assert!(course::regions("// ASSIGNMENT: a\n// ASSIGNMENT: b\n").is_err());
+}
+
+#[test]
+fn a_leaked_line_is_found_anywhere_in_the_copy() {
+    let mut tree = original();
+    let a = course::find("geometry_term").unwrap();
+    let copy = course::student_copy(&tree, &[a]).unwrap();
+    assert!(
+        course::leaks(&copy).is_empty(),
+        "{:?}",
+        course::leaks(&copy)
+    );
+    // a chapter quoting the solution by hand (rather than by anchor) is caught
+    let line = copy.removed[0]
+        .1
+        .iter()
+        .find(|l| course::is_solution_text(l) && !copy.shared.contains(l.trim()))
+        .expect("geometry_term removes a line of solution text")
+        .clone();
+    let page = tree.get_mut("book/src/path-space.md").unwrap();
+    page.extend_from_slice(format!("\n```rust\n{line}\n```\n").as_bytes());
+    let copy = course::student_copy(&tree, &[a]).unwrap();
+    let leaks = course::leaks(&copy);
+    assert!(
+        leaks.iter().any(|l| l.1 == "book/src/path-space.md"),
+        "{leaks:?}"
+    );
+}
+
+/// Builds a copy's book into a fresh directory of its own under `target/assignments`; returns
+/// (that directory, the directory of its HTML). The caller removes exactly the first.
+fn build_book(copy: &Path, out: &Path) -> PathBuf {
+    assert!(
+        out.ends_with("book-html"),
+        "refusing to build into {}",
+        out.display()
+    );
+    let _ = std::fs::remove_dir_all(out);
+    let mut book = mdbook_driver::MDBook::load(copy.join("book")).expect("the copy's book loads");
+    book.config.build.build_dir = out.to_path_buf();
+    book.build().expect("the copy's book builds");
+    if out.join("html").is_dir() {
+        out.join("html")
+    } else {
+        out.to_path_buf()
+    }
+}
+
+/// Hard-links the release build's dependencies into `target/assignments/release`, so that
+/// Cargo finds them fresh there (best effort: without it they are compiled once).
+fn seed_target_dir(target: &Path) {
+    let release = release_dir();
+    let dest = target.join("release");
+    std::fs::create_dir_all(&dest).unwrap();
+    for sub in ["deps", "build", ".fingerprint"] {
+        if release.join(sub).is_dir() {
+            let _ = Command::new("cp")
+                .args(["-al", "-n"])
+                .arg(release.join(sub))
+                .arg(&dest)
+                .status();
+        }
+    }
+}
+
+fn pathspace(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Builds the copy's graded test binaries; returns test target name -> executable.
+fn build_graded_tests(copy: &Path, target: &Path, files: &[&str]) -> BTreeMap<String, PathBuf> {
+    let mut c = Command::new(env!("CARGO"));
+    c.current_dir(copy)
+        .args(["test", "--release", "--no-run", "--message-format=json"])
+        .args(["--config", "profile.release.package.pathspace.opt-level=0"])
+        .arg("--target-dir")
+        .arg(target);
+    for f in files {
+        c.arg("--test").arg(f);
+    }
+    let out = c.output().unwrap();
+    assert!(
+        out.status.success(),
+        "the student copy does not compile:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut exes = BTreeMap::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let Ok(v) = serde_json::from_str::<serde_json::Value>(line) else {
+            continue;
+        };
+        let kinds = &v["target"]["kind"];
+        if let (Some(exe), true) = (
+            v["executable"].as_str(),
+            kinds
+                .as_array()
+                .is_some_and(|k| k.iter().any(|k| k == "test")),
+        ) {
+            let name = v["target"]["name"].as_str().unwrap().to_string();
+            exes.insert(name, PathBuf::from(exe));
+        }
+    }
+    exes
+}
+
+#[test]
+fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its_own_todo() {
+    let target = release_dir().parent().unwrap().join("assignments");
+    let copy = target.join("all");
+    let _ = std::fs::remove_dir_all(&copy);
+    seed_target_dir(&target);
+
+    // make: refuses to leave solution text anywhere (checked again in-process below)
+    let out = pathspace(&[
+        "assignment",
+        "make",
+        "--all",
+        "--out",
+        copy.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let all: Vec<&Assignment> = ASSIGNMENTS.iter().collect();
+    let in_memory = course::student_copy(&original(), &all).unwrap();
+    assert!(course::leaks(&in_memory).is_empty());
+    assert!(!copy.join("tests/assignments.rs").exists());
+    for a in ASSIGNMENTS {
+        let removed = &in_memory.removed.iter().find(|r| r.0 == a.name).unwrap().1;
+        assert!(
+            removed.iter().any(|l| !l.trim().is_empty()),
+            "{} removes nothing",
+            a.name
+        );
+        for f in a.files {
+            let text = std::fs::read_to_string(copy.join(f)).unwrap();
+            assert!(
+                text.contains(&course::todo_line(a)),
+                "{f}: no todo for {}",
+                a.name
+            );
+        }
+    }
+
+    // the copy's book builds, and its listings show the todo!() instead of the solution
+    let book_out = target.join("book-html");
+    let html = build_book(&copy, &book_out);
+    for (page, name) in [
+        ("path-space.html", "geometry_term"),
+        ("path-space.html", "characteristic"),
+        ("phase-functions.html", "hg_eval"),
+        ("phase-functions.html", "hg_sample"),
+        ("table1-homogeneous.html", "free_flight"),
+        ("mlt.html", "acceptance"),
+        ("mlt.html", "propagation_perturbation"),
+        ("smc-cache.html", "partial_sums"),
+        ("smc-cache.html", "bspline_control_variate"),
+    ] {
+        let text = std::fs::read_to_string(html.join(page)).unwrap();
+        assert!(
+            text.contains(&format!("assignment {name}: see book chapter")),
+            "{page} does not show the todo!() of {name}"
+        );
+    }
+    let path_space = std::fs::read_to_string(html.join("path-space.html")).unwrap();
+    assert!(!path_space.contains("cosine_factor(x, w) * cosine_factor(y, w) / d2"));
+    let _ = std::fs::remove_dir_all(&book_out);
+
+    // the copy compiles, and every graded test fails on its own assignment's todo!()
+    let mut files: Vec<&str> = ASSIGNMENTS
+        .iter()
+        .flat_map(|a| a.tests.iter().map(|t| t.file))
+        .collect();
+    files.sort();
+    files.dedup();
+    let exes = build_graded_tests(&copy, &target, &files);
+    let mut problems = Vec::new();
+    for a in ASSIGNMENTS {
+        for t in a.tests {
+            let exe = &exes[t.file];
+            let out = Command::new(exe)
+                .current_dir(&copy)
+                .args(["--exact", t.name, "--test-threads", "1"])
+                .env("RUST_BACKTRACE", "0")
+                .output()
+                .unwrap();
+            let text = format!(
+                "{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            if out.status.success() || !text.contains("1 failed") {
+                problems.push(format!(
+                    "assignment {}: {}::{} does not fail while blank",
+                    a.name, t.file, t.name
+                ));
+            } else if !text.contains(&format!("assignment {}:", a.name)) {
+                let why = text
+                    .lines()
+                    .find(|l| l.contains("panicked at"))
+                    .map(|l| {
+                        format!(
+                            "{l} {}",
+                            text.lines().skip_while(|x| *x != l).nth(1).unwrap_or("")
+                        )
+                    })
+                    .unwrap_or_default();
+                problems.push(format!(
+                    "assignment {}: {}::{} fails, but not on its todo!(): {why}",
+                    a.name, t.file, t.name
+                ));
+            }
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+
+    // the grading table: a blank assignment is "failed (todo!)", the original "passed"
+    let target_s = target.to_str().unwrap();
+    let out = pathspace(&[
+        "assignment",
+        "check",
+        copy.to_str().unwrap(),
+        "--only",
+        "characteristic",
+        "--target-dir",
+        target_s,
+        "--opt-level",
+        "0",
+    ]);
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success(), "{table}");
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("characteristic") && l.contains("failed (todo!)")),
+        "{table}"
+    );
+    // another copy (here the original) needs its own target directory: the two crates' artifacts
+    // have the same names, and Cargo judges freshness by modification times
+    let out = pathspace(&[
+        "assignment",
+        "check",
+        root().to_str().unwrap(),
+        "--target-dir",
+        target_s,
+    ]);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("give"),
+        "a shared target directory is refused"
+    );
+    let target_original = release_dir().parent().unwrap().join("assignments-original");
+    seed_target_dir(&target_original);
+    let out = pathspace(&[
+        "assignment",
+        "check",
+        root().to_str().unwrap(),
+        "--only",
+        "characteristic",
+        "--target-dir",
+        target_original.to_str().unwrap(),
+        "--opt-level",
+        "0",
+    ]);
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{table}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        table
+            .lines()
+            .any(|l| l.starts_with("characteristic") && l.contains("passed")),
+        "{table}"
+    );
+}
