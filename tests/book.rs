@@ -184,3 +184,65 @@ fn every_equation_chapter_has_a_symbol_table_and_a_check_it_yourself_section() {
         );
     }
 }
+
+/// Markdown eats a backslash before punctuation before MathJax sees the formula: `\,` becomes a
+/// comma, `\\` (a line break in `cases`) a single backslash, `\|` a bar. Inside `$$ ... $$` and
+/// `\\( ... \\)`, `\\[ ... \\]` every such TeX command must be written with its backslash doubled.
+#[test]
+fn math_keeps_its_backslashes_through_markdown() {
+    let mut bad = Vec::new();
+    for ch in chapters() {
+        let text = std::fs::read_to_string(&ch).unwrap();
+        // drop fenced code: listings may contain anything
+        let prose: String = text
+            .split("```")
+            .enumerate()
+            .filter(|(i, _)| i % 2 == 0)
+            .map(|(_, p)| p)
+            .collect::<Vec<_>>()
+            .join("\n");
+        let mut segments = Vec::new();
+        for (open, close) in [("$$", "$$"), ("\\\\(", "\\\\)"), ("\\\\[", "\\\\]")] {
+            let mut rest = prose.as_str();
+            while let Some(a) = rest.find(open) {
+                let after = &rest[a + open.len()..];
+                let Some(b) = after.find(close) else { break };
+                segments.push(after[..b].to_string());
+                rest = &after[b + close.len()..];
+            }
+        }
+        for seg in segments {
+            let bytes = seg.as_bytes();
+            let mut i = 0;
+            while i < bytes.len() {
+                if bytes[i] == b'\\' {
+                    let mut run = 0;
+                    while i + run < bytes.len() && bytes[i + run] == b'\\' {
+                        run += 1;
+                    }
+                    let next = bytes.get(i + run).copied().unwrap_or(b' ');
+                    // one backslash before punctuation, or two meaning a TeX line break
+                    let eaten = (run == 1 && b",;!{}|".contains(&next))
+                        || (run == 2 && !next.is_ascii_punctuation());
+                    if eaten {
+                        let s = i.saturating_sub(20);
+                        let e = (i + 20).min(bytes.len());
+                        bad.push(format!(
+                            "{}: …{}…",
+                            ch.file_name().unwrap().to_string_lossy(),
+                            String::from_utf8_lossy(&bytes[s..e])
+                        ));
+                    }
+                    i += run;
+                } else {
+                    i += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "TeX escapes markdown will eat:\n{}",
+        bad.join("\n")
+    );
+}
