@@ -734,3 +734,68 @@ radiance = 1.0
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no inhomogeneous medium"));
 }
+
+/// The twin estimate of relMSE's variance part: two renders with independent noise of known
+/// variance around the same image give mean(sigma^2 / (r^2 + eps)), within 4 standard errors of
+/// its per-pixel terms, whatever a (biased) reference says; a biased reference moves relMSE but
+/// not the twin estimate.
+#[test]
+fn twin_variance_recovers_the_noise_of_independent_renders() {
+    let (w, h) = (64u32, 64u32);
+    let truth: Vec<Rgb> = (0..w * h)
+        .map(|i| Rgb::splat(0.05 + 0.5 * (i % 17) as f32 / 17.0))
+        .collect();
+    let half = 0.05f32; // uniform noise on [-half, half]: variance half^2 / 3
+    let noisy = |seed: u64| Image {
+        width: w,
+        height: h,
+        pixels: truth
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let mut s = pathspace::math::Sampler::new(seed, i as u64, 0);
+                *t + Rgb::new(s.next_f32(), s.next_f32(), s.next_f32()) * (2.0 * half)
+                    - Rgb::splat(half)
+            })
+            .collect(),
+    };
+    let (a1, a2) = (noisy(1), noisy(2));
+    // a reference 10% too bright: relMSE grows, the twin estimate only reweights pixels
+    let reference = Image {
+        width: w,
+        height: h,
+        pixels: truth.clone(),
+    };
+    let v = metrics::twin_variance(&a1, &a2, &reference).unwrap();
+    let var = (half as f64).powi(2) / 3.0;
+    let terms: Vec<f64> = truth
+        .iter()
+        .flat_map(|t| (0..3).map(move |c| var / ((t[c] as f64).powi(2) + metrics::RELMSE_EPSILON)))
+        .collect();
+    let expected = terms.iter().sum::<f64>() / terms.len() as f64;
+    // the estimate's own spread: each term (d^2/2) has variance (var^2) per unit weight^2
+    let se = (terms.iter().map(|t| t * t).sum::<f64>()).sqrt() / terms.len() as f64;
+    assert!(
+        (v - expected).abs() < 4.0 * se,
+        "twin variance {v} vs {expected} +- {se}"
+    );
+    let biased = Image {
+        width: w,
+        height: h,
+        pixels: truth.iter().map(|t| *t * 1.1).collect(),
+    };
+    let m = metrics::compare(&a1, &biased).unwrap().relmse;
+    let vb = metrics::twin_variance(&a1, &a2, &biased).unwrap();
+    let bias: f64 = truth
+        .iter()
+        .map(|t| {
+            let t = t.x as f64;
+            (0.1 * t).powi(2) / ((1.1 * t).powi(2) + metrics::RELMSE_EPSILON)
+        })
+        .sum::<f64>()
+        / truth.len() as f64;
+    assert!(
+        (m - vb - bias).abs() < 0.25 * bias,
+        "relMSE {m} minus twin {vb} should be the squared bias {bias}"
+    );
+}

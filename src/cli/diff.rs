@@ -20,6 +20,11 @@ pub struct DiffArgs {
     /// 0.1 % to 100 %; the mapping is printed).
     #[arg(long, value_name = "OUT.png")]
     pub heatmap: Option<PathBuf>,
+    /// A second render of A's scene by the same estimator with another seed: also prints the
+    /// variance part of A's relMSE, mean (a1 - a2)^2 / 2 / (b^2 + 1e-2), which needs no
+    /// noise-free reference.
+    #[arg(long, value_name = "A2.exr")]
+    pub twin: Option<PathBuf>,
 }
 
 pub fn run(args: DiffArgs) -> Result<(), String> {
@@ -30,12 +35,22 @@ pub fn run(args: DiffArgs) -> Result<(), String> {
     if let Some(out) = &args.heatmap {
         heatmap::write_heatmap(out, &a, &b)?;
     }
+    let twin = match &args.twin {
+        Some(p) => {
+            let (a2, _) = image_io::read_exr(p).map_err(|e| e.to_string())?;
+            Some(metrics::twin_variance(&a, &a2, &b)?)
+        }
+        None => None,
+    };
     let legend = heatmap::legend_lines();
     if args.json {
         let mut obj = serde_json::json!({
             "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs,
             "mean_a": [ma.x, ma.y, ma.z], "mean_b": [mb.x, mb.y, mb.z],
         });
+        if let Some(v) = twin {
+            obj["relmse_variance"] = serde_json::json!(v);
+        }
         if let Some(out) = &args.heatmap {
             let stops: Vec<serde_json::Value> = legend
                 .iter()
@@ -54,6 +69,9 @@ pub fn run(args: DiffArgs) -> Result<(), String> {
         println!("max |a-b| {:.6e}", m.max_abs);
         println!("mean A   ({:.5}, {:.5}, {:.5})", ma.x, ma.y, ma.z);
         println!("mean B   ({:.5}, {:.5}, {:.5})", mb.x, mb.y, mb.z);
+        if let Some(v) = twin {
+            println!("relMSE variance part (from the twin) {v:.6e}");
+        }
         if let Some(out) = &args.heatmap {
             println!(
                 "heatmap  {}: per-pixel relative error sqrt(mean_c (a-b)^2/(b^2+{})), viridis on log10, clamped:",

@@ -46,3 +46,29 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
     })
 }
 // ANCHOR_END: compare
+
+/// The variance part of relMSE from two independent renders `a1`, `a2` of the same estimator:
+/// mean over pixels and channels of (a1 - a2)^2 / 2 / (r^2 + epsilon), with r only weighting the
+/// pixels. E[(a1 - a2)^2] / 2 is the variance of one render whatever the reference's own error,
+/// so this separates an estimator's noise from a noisy (or biased) reference; relMSE against the
+/// reference minus this is the estimator's squared bias plus the reference's error.
+// ANCHOR: twin_variance
+pub fn twin_variance(a1: &Image, a2: &Image, r: &Image) -> Result<f64, String> {
+    if a1.width != a2.width
+        || a1.height != a2.height
+        || a1.width != r.width
+        || a1.height != r.height
+    {
+        return Err("the twin renders and the reference differ in size".into());
+    }
+    let mut sum = 0.0f64;
+    for ((p, q), w) in a1.pixels.iter().zip(&a2.pixels).zip(&r.pixels) {
+        for c in 0..3 {
+            let d = p[c] as f64 - q[c] as f64;
+            let y = w[c] as f64;
+            sum += d * d / 2.0 / (y * y + RELMSE_EPSILON);
+        }
+    }
+    Ok(sum / (a1.pixels.len() * 3).max(1) as f64)
+}
+// ANCHOR_END: twin_variance
