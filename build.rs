@@ -10,21 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-/// Top-level files of a student copy.
-const FILES: [&str; 7] = [
-    "Cargo.toml",
-    "Cargo.lock",
-    "build.rs",
-    "README.md",
-    "ARCHITECTURE.md",
-    ".gitignore",
-    ".ci/run",
-];
-
-/// Directories of a student copy, walked recursively.
-const DIRS: [&str; 8] = [
-    "src", "tests", "scenes", "golden", "book", "assets", "benches", "examples",
-];
+include!("src/course_tree.rs");
 
 /// Generated or pending files that are not part of the source.
 fn skipped(rel: &str) -> bool {
@@ -64,6 +50,7 @@ fn main() {
                   pub static SOURCE_TREE: &[(&str, &[u8])] = &[\n";
     if std::env::var_os("CARGO_FEATURE_EMBED_SOURCE").is_none() {
         println!("cargo:rerun-if-changed=build.rs");
+        println!("cargo:rerun-if-changed=src/course_tree.rs");
         std::fs::write(out, format!("{header}];\n")).unwrap();
         return;
     }

@@ -366,20 +366,10 @@ pub fn excluded_from_copy(path: &str) -> bool {
     path == "tests/assignments.rs"
 }
 
+include!("course_tree.rs");
+
 /// Reads a crate's source tree from a directory (the same selection as `build.rs` embeds).
 pub fn read_tree(root: &Path) -> Result<Tree, String> {
-    const FILES: [&str; 7] = [
-        "Cargo.toml",
-        "Cargo.lock",
-        "build.rs",
-        "README.md",
-        "ARCHITECTURE.md",
-        ".gitignore",
-        ".ci/run",
-    ];
-    const DIRS: [&str; 8] = [
-        "src", "tests", "scenes", "golden", "book", "assets", "benches", "examples",
-    ];
     fn walk(root: &Path, dir: &Path, out: &mut Tree) -> Result<(), String> {
         let Ok(entries) = std::fs::read_dir(dir) else {
             return Ok(());
