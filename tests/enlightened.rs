@@ -32,9 +32,7 @@ const LE: f32 = 10.0;
 /// A closed box room lit by a ceiling quad, with a meter over the floor patch, optionally
 /// filled with fog (the fog box's geometry and medium).
 fn room(fog: bool) -> Scene {
-    let mut text = pathspace::scene::FOG_BOX
-        .replace("[camera]", "[unused_camera]")
-        .replace("[media.fog]", "[media.fog]");
+    let mut text = pathspace::scene::FOG_BOX.replace("[camera]", "[unused_camera]");
     // drop the camera table: only the meter is measured
     let start = text.find("[unused_camera]").unwrap();
     let end = text[start..].find("[materials.white]").unwrap() + start;
