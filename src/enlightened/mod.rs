@@ -16,6 +16,8 @@
 //!
 //! Book: "Enlightened local path sampling: the adjoint image and particles".
 
+pub mod adjoint;
 pub mod particles;
 
+pub use adjoint::{AdjointImage, AdjointSettings, LightMap};
 pub use particles::{Particle, Quantity};
