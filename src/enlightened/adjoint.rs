@@ -261,7 +261,7 @@ impl AdjointImage {
             return Err("the adjoint image needs at least one area light".into());
         }
         let n = cols as usize * rows as usize;
-        if estimate.len() != n || cols % map.len() as u32 != 0 {
+        if estimate.len() != n || !cols.is_multiple_of(map.len() as u32) {
             return Err(format!(
                 "adjoint grid {cols}x{rows} with {} estimates for {} area lights",
                 estimate.len(),
