@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use crate::image_io;
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
-use crate::measure::convergence::{self, ConvergeConfig, Curve};
+use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergeArgs {
@@ -18,7 +18,9 @@ pub struct ConvergeArgs {
     /// The reference EXR (from `pathspace reference`).
     #[arg(long)]
     pub reference: PathBuf,
-    /// Integrators to compare, comma-separated.
+    /// Integrators to compare, comma-separated; `bdpt+adjoint`, `light+adjoint`, `mlt+adjoint`
+    /// use the adjoint image (its pre-pass time counts in the budget; settings from the
+    /// scene's `[render.adjoint]`).
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -80,12 +82,16 @@ fn summary_line(c: &Curve) -> String {
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
-    let kinds = args
+    let (mut scene, source) = super::load_scene(Some(&args.scene))?;
+    let variants = args
         .integrators
         .iter()
-        .map(|s| IntegratorKind::parse(s.trim()))
+        .map(|s| Variant::parse(s.trim(), scene.render.adjoint))
         .collect::<Result<Vec<_>, _>>()?;
+    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
+    if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
+        return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
+    }
     let externals = args
         .external
         .iter()
@@ -144,8 +150,9 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        rows = pool
-            .install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+        rows = pool.install(|| {
+            convergence::converge_variants(&mut scene, &reference, &variants, &config, &mut report)
+        })?;
     } else {
         for name in &args.propagation {
             let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;

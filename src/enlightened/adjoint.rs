@@ -466,6 +466,27 @@ impl AdjointImage {
     }
     // ANCHOR_END: adjoint_render
 
+    /// Estimates the adjoint image with the scene's classical light starts and installs it in
+    /// the scene (replacing any installed one); returns the pre-pass statistics.
+    pub fn install(
+        scene: &mut Scene,
+        settings: &AdjointSettings,
+        seed: u64,
+        max_depth: Option<u32>,
+    ) -> Result<AdjointStats, String> {
+        scene.adjoint = None;
+        let image = Self::render(scene, settings, seed, max_depth)?;
+        let stats = image.stats;
+        scene.adjoint = Some(image);
+        Ok(stats)
+    }
+
+    /// Whether integrator `kind` samples light start points (and so can use the image).
+    pub fn applies_to(kind: crate::integrator::IntegratorKind) -> bool {
+        use crate::integrator::IntegratorKind as K;
+        matches!(kind, K::Bdpt | K::Light | K::Mlt)
+    }
+
     /// Cell values as an image (columns along u_1, rows along u_2): the estimate plus eps.
     pub fn to_image(&self) -> crate::image_io::Image {
         let data = self

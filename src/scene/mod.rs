@@ -77,6 +77,10 @@ pub struct RenderSettings {
     /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
     /// `--smc-*` and `--cache-budget` options override them.
     pub smc: crate::integrator::smc::SmcSettings,
+    /// `[render] adjoint_image`: sample area-light starts from the adjoint image.
+    pub adjoint_image: bool,
+    /// `[render.adjoint]` (defaults where a key is absent); `--adjoint-*` override them.
+    pub adjoint: crate::enlightened::AdjointSettings,
 }
 
 /// Where a ray's propagation ended.
