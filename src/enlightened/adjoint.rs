@@ -487,12 +487,18 @@ impl AdjointImage {
         matches!(kind, K::Bdpt | K::Light | K::Mlt)
     }
 
-    /// Cell values as an image (columns along u_1, rows along u_2): the estimate plus eps.
+    /// Cell values as an image (columns along u_1, rows along u_2): the estimate plus eps,
+    /// divided by the largest cell so it can be viewed as it is.
     pub fn to_image(&self) -> crate::image_io::Image {
+        let max = self
+            .estimate
+            .iter()
+            .fold(0.0f64, |a, &v| a.max(v + self.epsilon))
+            .max(f64::MIN_POSITIVE);
         let data = self
             .estimate
             .iter()
-            .map(|&v| glam::Vec3::splat((v + self.epsilon) as f32))
+            .map(|&v| glam::Vec3::splat(((v + self.epsilon) / max) as f32))
             .collect();
         crate::image_io::Image {
             width: self.cols,
