@@ -12,7 +12,9 @@
 
 mod common;
 
-use pathspace::enlightened::particles::{trace_importons, trace_photons, ImportonSource, Particle};
+use pathspace::enlightened::particles::{
+    trace_bidirectional, trace_importons, trace_photons, ImportonSource, Particle,
+};
 use pathspace::integrator::bdpt::{Bdpt, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::scene::{Scene, SceneSource};
@@ -133,6 +135,50 @@ fn classical_particles_reproduce_the_meter() {
         let tag = if fog { "fog" } else { "empty" };
         assert_agrees(&format!("photons ({tag})"), batch_stats(&photon), truth);
         assert_agrees(&format!("importons ({tag})"), batch_stats(&importon), truth);
+    }
+}
+
+/// T16 for the bidirectional particle sampler (with the three precisions that make it unbiased,
+/// see `trace_bidirectional`): photons give <W_e, L_i>, importons give <L_e, W_i>.
+#[test]
+fn bidirectional_particles_reproduce_the_meter() {
+    const BATCHES: u64 = 24;
+    const PATHS: u64 = 16_384;
+    for fog in [false, true] {
+        let scene = room(fog);
+        let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
+        let mut photon = Vec::new();
+        let mut importon = Vec::new();
+        for b in 0..BATCHES {
+            let sets = trace_bidirectional(&scene, ImportonSource::Meter(0), PATHS, 3000 + b);
+            photon.push(
+                sets.photons
+                    .iter()
+                    .filter(|p| on_floor_patch(p))
+                    .map(|p| p.weight.y as f64)
+                    .sum::<f64>()
+                    / area,
+            );
+            importon.push(
+                sets.importons
+                    .iter()
+                    .filter(|p| on_light(p))
+                    .map(|p| (p.weight.y * LE) as f64)
+                    .sum::<f64>(),
+            );
+        }
+        let truth = meter_truth(&scene, 64);
+        let tag = if fog { "fog" } else { "empty" };
+        assert_agrees(
+            &format!("bidirectional photons ({tag})"),
+            batch_stats(&photon),
+            truth,
+        );
+        assert_agrees(
+            &format!("bidirectional importons ({tag})"),
+            batch_stats(&importon),
+            truth,
+        );
     }
 }
 
