@@ -481,9 +481,10 @@ fn bidirectional_sample(
         if w <= 0.0 || p <= 0.0 {
             continue;
         }
+        // f_L(x_0 ... x_i) = L_e prod G T prod f-hat (x_i's own scattering not included)
         let mut f = le;
-        for m in 0..i {
-            f *= gt[m];
+        for (m, g) in gt.iter().enumerate().take(i) {
+            f *= *g;
             if m >= 1 {
                 f *= f_inner(m);
             }
@@ -506,9 +507,10 @@ fn bidirectional_sample(
         if w <= 0.0 || p <= 0.0 {
             continue;
         }
+        // f_E(x_i ... x_k) = W_e prod G T prod f-hat (x_i's own scattering not included)
         let mut f = we;
-        for m in i..k {
-            f *= gt[m];
+        for (m, g) in gt.iter().enumerate().skip(i) {
+            f *= *g;
             if m > i {
                 f *= f_inner(m);
             }
