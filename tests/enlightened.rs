@@ -559,3 +559,46 @@ fn mlt_with_the_adjoint_image_agrees_with_bdpt() {
         &plain,
     );
 }
+
+/// Bad adjoint settings are reported at their line and key; the image refuses scenes it cannot
+/// serve instead of panicking.
+#[test]
+fn bad_adjoint_settings_are_clear_errors() {
+    let base = pathspace::scene::FOG_BOX;
+    let base_lines = base.lines().count();
+    for (extra, key, word) in [
+        (
+            "[render.adjoint]\nepsilon = 0.0\n",
+            "render.adjoint.epsilon",
+            "positive",
+        ),
+        (
+            "[render.adjoint]\nresolution = [0, 64]\n",
+            "render.adjoint.resolution",
+            "1..=4096",
+        ),
+        (
+            "[render.adjoint]\nsamples_per_cell = 0\n",
+            "render.adjoint.samples_per_cell",
+            "at least 1",
+        ),
+    ] {
+        let text = format!("{base}\n{extra}");
+        let e = match Scene::load(&SceneSource::embedded("bad.toml", &text)) {
+            Ok(_) => panic!("loaded with {extra}"),
+            Err(e) => e,
+        };
+        assert_eq!(e.key, key, "{e}");
+        assert_eq!(e.line, Some(base_lines + 3), "{e}");
+        assert!(e.message.contains(word), "{e}");
+    }
+    // a scene without area lights, and one without a camera
+    let point_only = load(&format!(
+        "{}\n[[lights]]\ntype = \"point\"\nposition = [0.0, 0.0, 0.0]\nintensity = 1.0\n",
+        &base[..base.find("# ceiling light").unwrap()]
+    ));
+    let e = AdjointImage::render(&point_only, &AdjointSettings::default(), 1, None).unwrap_err();
+    assert!(e.contains("no area light"), "{e}");
+    let e = AdjointImage::render(&room(false), &AdjointSettings::default(), 1, None).unwrap_err();
+    assert!(e.contains("camera"), "{e}");
+}

@@ -45,6 +45,15 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
+    /// `+adjoint` variants: adjoint grid COLSxROWS (default: the scene's `[render.adjoint]`).
+    #[arg(long, value_parser = super::render::parse_resolution)]
+    pub adjoint_resolution: Option<(u32, u32)>,
+    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 32).
+    #[arg(long)]
+    pub adjoint_samples: Option<u32>,
+    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.01).
+    #[arg(long)]
+    pub adjoint_epsilon: Option<f32>,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
@@ -83,10 +92,23 @@ fn summary_line(c: &Curve) -> String {
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
     let (mut scene, source) = super::load_scene(Some(&args.scene))?;
+    let mut adjoint = scene.render.adjoint;
+    if let Some(r) = args.adjoint_resolution {
+        adjoint.resolution = r;
+    }
+    if let Some(n) = args.adjoint_samples {
+        adjoint.samples_per_cell = n;
+    }
+    if let Some(e) = args.adjoint_epsilon {
+        adjoint.epsilon = e;
+    }
+    adjoint
+        .validate()
+        .map_err(|e| format!("--adjoint-*: {e}"))?;
     let variants = args
         .integrators
         .iter()
-        .map(|s| Variant::parse(s.trim(), scene.render.adjoint))
+        .map(|s| Variant::parse(s.trim(), adjoint))
         .collect::<Result<Vec<_>, _>>()?;
     let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
