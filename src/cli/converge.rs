@@ -48,10 +48,10 @@ pub struct ConvergeArgs {
     /// `+adjoint` variants: adjoint grid COLSxROWS (default: the scene's `[render.adjoint]`).
     #[arg(long, value_parser = super::render::parse_resolution)]
     pub adjoint_resolution: Option<(u32, u32)>,
-    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 32).
+    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 8).
     #[arg(long)]
     pub adjoint_samples: Option<u32>,
-    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.01).
+    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.5).
     #[arg(long)]
     pub adjoint_epsilon: Option<f32>,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media

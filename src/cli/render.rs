@@ -88,10 +88,10 @@ pub struct AdjointArgs {
     #[arg(long, value_parser = parse_resolution)]
     pub adjoint_resolution: Option<(u32, u32)>,
     /// Pre-pass BDPT samples per adjoint cell (default `[render.adjoint] samples_per_cell`
-    /// or 32).
+    /// or 8).
     #[arg(long)]
     pub adjoint_samples: Option<u32>,
-    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.01).
+    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
     #[arg(long)]
     pub adjoint_epsilon: Option<f32>,
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
