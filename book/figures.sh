@@ -39,7 +39,7 @@ if want "$sel" enlightened; then
   # book chapter "Enlightened local path sampling": the maze with and without the adjoint image
   d=book/src/figures/enlightened
   mkdir -p "$d"
-  $PS reference scenes/maze.toml --time 600 --threads 2 -o out/maze-ref.exr
+  $PS reference scenes/maze.toml --time 300 --threads 2 -o out/maze-ref.exr
   $PS converge scenes/maze.toml --reference out/maze-ref.exr --integrators bdpt,bdpt+adjoint,mlt,mlt+adjoint \
       --budget 40 --runs 2 --threads 2 -o out/maze-conv
   cp out/maze-conv/error-vs-time.svg "$d/maze-error-vs-time.svg"
@@ -48,7 +48,7 @@ if want "$sel" enlightened; then
   $PS render scenes/maze.toml --integrator bdpt --adjoint-image --spp 32 --threads 2 -o out/maze-bdpt-adj.exr \
       --png "$d/maze-bdpt-adjoint-32spp.png" --adjoint-output out/maze-adjoint.exr
   cp out/maze-adjoint.png "$d/maze-adjoint-image.png"
-  $PS reference scenes/maze-fog.toml --time 420 --threads 2 -o out/maze-fog-ref.exr
+  $PS reference scenes/maze-fog.toml --time 240 --threads 2 -o out/maze-fog-ref.exr
   $PS converge scenes/maze-fog.toml --reference out/maze-fog-ref.exr --integrators bdpt,bdpt+adjoint,mlt,mlt+adjoint \
       --budget 40 --runs 2 --threads 2 -o out/maze-fog-conv
   cp out/maze-fog-conv/error-vs-time.svg "$d/maze-fog-error-vs-time.svg"

@@ -48,8 +48,8 @@ use crate::scene::{Light, Scene};
 pub const DEFAULT_RESOLUTION: (u32, u32) = (64, 64);
 /// Default pre-pass size: BDPT samples per grid cell. The thesis rendered its 72x72 maze image
 /// with 50 samples per pixel, about one sample per pixel of its 512x512 image; 8 per cell of
-/// 72x64 is about 2 per pixel of the 128x128 maze, and measured as good as 32 per cell once the
-/// floor below is large (book, "Measured: the maze").
+/// 72x64 is about 2 per pixel of the 128x128 maze; with the floor below it gave the best of the
+/// settings measured on the maze (book, "Measured: the maze").
 pub const DEFAULT_SAMPLES_PER_CELL: u32 = 8;
 /// Default floor eps as a fraction of the mean cell value (the thesis gives no value). With
 /// eps = 0.5 the floor carries eps / (1 + eps) = 1/3 of all area-light starts, spread over the
