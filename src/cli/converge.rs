@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use crate::image_io;
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
-use crate::measure::convergence::{self, ConvergeConfig, Curve};
+use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergeArgs {
@@ -18,7 +18,9 @@ pub struct ConvergeArgs {
     /// The reference EXR (from `pathspace reference`).
     #[arg(long)]
     pub reference: PathBuf,
-    /// Integrators to compare, comma-separated.
+    /// Integrators to compare, comma-separated; `bdpt+adjoint`, `light+adjoint`, `mlt+adjoint`
+    /// use the adjoint image (its pre-pass time counts in the budget; settings from the
+    /// scene's `[render.adjoint]`).
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -43,6 +45,15 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
+    /// `+adjoint` variants: adjoint grid COLSxROWS (default: the scene's `[render.adjoint]`).
+    #[arg(long, value_parser = super::render::parse_resolution)]
+    pub adjoint_resolution: Option<(u32, u32)>,
+    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 8).
+    #[arg(long)]
+    pub adjoint_samples: Option<u32>,
+    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.5).
+    #[arg(long)]
+    pub adjoint_epsilon: Option<f32>,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
@@ -80,12 +91,29 @@ fn summary_line(c: &Curve) -> String {
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
-    let kinds = args
+    let (mut scene, source) = super::load_scene(Some(&args.scene))?;
+    let mut adjoint = scene.render.adjoint;
+    if let Some(r) = args.adjoint_resolution {
+        adjoint.resolution = r;
+    }
+    if let Some(n) = args.adjoint_samples {
+        adjoint.samples_per_cell = n;
+    }
+    if let Some(e) = args.adjoint_epsilon {
+        adjoint.epsilon = e;
+    }
+    adjoint
+        .validate()
+        .map_err(|e| format!("--adjoint-*: {e}"))?;
+    let variants = args
         .integrators
         .iter()
-        .map(|s| IntegratorKind::parse(s.trim()))
+        .map(|s| Variant::parse(s.trim(), adjoint))
         .collect::<Result<Vec<_>, _>>()?;
+    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
+    if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
+        return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
+    }
     let externals = args
         .external
         .iter()
@@ -144,8 +172,9 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        rows = pool
-            .install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+        rows = pool.install(|| {
+            convergence::converge_variants(&mut scene, &reference, &variants, &config, &mut report)
+        })?;
     } else {
         for name in &args.propagation {
             let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;

@@ -63,6 +63,12 @@ pub struct Bdpt {
     pub strategies: Strategies,
     /// Medium around each light (for the first edge of light subpaths).
     light_media: Vec<Option<u32>>,
+    /// Russian roulette in the walks (on by default; samplers that fix the walk lengths
+    /// themselves, such as the bidirectional particle sampler, switch it off).
+    pub roulette: bool,
+    /// Vertices per subpath at most, below [`MAX_SUBPATH_VERTICES`] (a walk of exactly n
+    /// vertices for the bidirectional particle sampler).
+    pub vertex_cap: usize,
 }
 
 impl Bdpt {
@@ -85,6 +91,8 @@ impl Bdpt {
             max_depth: max_depth.unwrap_or(u32::MAX),
             strategies,
             light_media,
+            roulette: true,
+            vertex_cap: MAX_SUBPATH_VERTICES,
         }
     }
 
@@ -99,7 +107,9 @@ impl Bdpt {
     }
 
     fn max_vertices(&self, extra: u32) -> usize {
-        (self.max_depth.saturating_add(extra) as usize).min(MAX_SUBPATH_VERTICES)
+        (self.max_depth.saturating_add(extra) as usize)
+            .min(MAX_SUBPATH_VERTICES)
+            .min(self.vertex_cap)
     }
 
     /// The random walk shared by both subpaths: propagate, record the vertex with its forward
@@ -231,7 +241,7 @@ impl Bdpt {
             // the predecessor as sampled from here (the reverse walk)
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
-            if cur as u32 >= RR_START_DEPTH {
+            if self.roulette && cur as u32 >= RR_START_DEPTH {
                 let q = (beta.max_element() / beta_start).min(RR_MAX_SURVIVAL);
                 if sampler.next_f32() >= q || q.is_nan() {
                     return;
@@ -327,27 +337,46 @@ impl Bdpt {
         if scene.lights.is_empty() {
             return;
         }
-        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-        let light = &scene.lights[l];
+        let (mut l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
         let u_pos = sampler.next_2d();
         let u_dir = sampler.next_2d();
-        let Some(es) = light.sample_le(
-            &scene.prims,
-            u_pos,
-            u_dir,
-            u_prim,
-            scene.center,
-            scene.radius,
-        ) else {
-            return;
+        // the light start: by power and area, or from the adjoint image for area lights
+        // (Kristensen 2010, sec. 5.3.1); `start_pdf` is the position density with the selection
+        let (es, start_pdf, start_prim) = match (&scene.adjoint, &scene.lights[l]) {
+            (Some(_), Light::Area { .. }) => {
+                let Some(st) = scene.sample_adjoint_start(u_pos, sampler.next_2d()) else {
+                    return;
+                };
+                l = st.point.light as usize;
+                let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
+                (es, st.pdf, Some(st.point.prim))
+            }
+            (_, light) => {
+                let Some(es) = light.sample_le(
+                    &scene.prims,
+                    u_pos,
+                    u_dir,
+                    u_prim,
+                    scene.center,
+                    scene.radius,
+                ) else {
+                    return;
+                };
+                let prim = match light {
+                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                    _ => None,
+                };
+                (es, pmf * es.pdf_pos, prim)
+            }
         };
+        let light = &scene.lights[l];
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }
         let lm = self.light_media[l];
         let (mut v0, origin, first) = match light {
-            Light::Area { prims, distr, .. } => {
-                let prim = prims[distr.sample(u_prim).0];
+            Light::Area { .. } => {
+                let Some(prim) = start_prim else { return };
                 let v = Vertex::new(
                     VertexKind::Light {
                         light: l as u32,
@@ -403,7 +432,7 @@ impl Bdpt {
         } else {
             es.n.dot(es.d).abs()
         };
-        let beta = es.value * (cos / (pmf * es.pdf_pos * es.pdf_dir));
+        let beta = es.value * (cos / (start_pdf * es.pdf_dir));
         path.push(v0);
         self.random_walk(
             scene,
@@ -579,18 +608,36 @@ impl Bdpt {
             if !pt.is_connectible(scene) {
                 return None;
             }
-            let (li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-            let light_ref = &scene.lights[li];
-            let ls = light_ref.sample_li(&scene.prims, pt.p, sampler.next_2d(), u_prim)?;
+            let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+            let u = sampler.next_2d();
+            // `sel_pdf`: the solid-angle density with the light selection included
+            let (ls, sel_pdf, start_prim) = match (&scene.adjoint, &scene.lights[li]) {
+                (Some(_), Light::Area { .. }) => {
+                    // the light vertex from the adjoint image, as light subpaths start
+                    let st = scene.sample_adjoint_start(u, sampler.next_2d())?;
+                    li = st.point.light as usize;
+                    let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                    (ls, ls.pdf, Some(st.point.prim))
+                }
+                (_, light) => {
+                    let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                    let prim = match light {
+                        Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                        _ => None,
+                    };
+                    (ls, pmf * ls.pdf, prim)
+                }
+            };
             if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
                 return None;
             }
+            let light_ref = &scene.lights[li];
             let lm = self.light_media[li];
             let mut v = match light_ref {
-                Light::Area { prims, distr, .. } => Vertex::new(
+                Light::Area { .. } => Vertex::new(
                     VertexKind::Light {
                         light: li as u32,
-                        prim: Some(prims[distr.sample(u_prim).0]),
+                        prim: start_prim,
                     },
                     ls.p,
                     ls.n,
@@ -616,7 +663,7 @@ impl Bdpt {
                 ),
             };
             v.pdf_fwd = v.light_origin_pdf(scene);
-            v.beta = ls.value / (pmf * ls.pdf);
+            v.beta = ls.value / sel_pdf;
             let f = if t == 1 {
                 // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
                 // W_e lands in another pixel, A * (1/A) for a meter)
