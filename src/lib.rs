@@ -22,6 +22,7 @@
 pub mod bsdf;
 pub mod cli;
 pub mod conventions;
+pub mod enlightened;
 pub mod film;
 pub mod geometry;
 pub mod image_io;

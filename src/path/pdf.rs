@@ -9,6 +9,7 @@
 //! the sampler's cached densities must equal these (see `verify`).
 
 use super::{Path, Vertex, VertexKind};
+use crate::bsdf::TransportMode::{Importance, Radiance};
 use crate::math::Sampler;
 use crate::scene::Scene;
 
@@ -51,13 +52,13 @@ pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities
     d.light[0] = v[0].light_origin_pdf(scene);
     for i in 1..n {
         let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
-        d.light[i] = v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1];
+        d.light[i] = v[i - 1].pdf_area(scene, prev, &v[i], Importance) * d.prop_up[i - 1];
     }
     // from the sensor
     d.eye[n - 1] = sensor_position_pdf(scene, &v[n - 1]);
     for i in (0..n - 1).rev() {
         let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
-        d.eye[i] = v[i + 1].pdf_area(scene, prev, &v[i]) * d.prop_down[i];
+        d.eye[i] = v[i + 1].pdf_area(scene, prev, &v[i], Radiance) * d.prop_down[i];
     }
     d
 }

@@ -806,6 +806,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         has_null,
         hash: src.hash(),
         source_name: src.name.clone(),
+        guide: None,
     };
 
     if let Some(file::CameraDesc::Pinhole {

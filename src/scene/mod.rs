@@ -165,6 +165,9 @@ pub struct Scene {
     /// Hash of the scene file text.
     pub hash: u64,
     pub source_name: String,
+    /// Guided local sampling (Kristensen 2010, sec. 5.3), when built: every scattering density
+    /// (`Vertex::pdf_dir`) and sampler consults it, so all methods see the same mixture.
+    pub guide: Option<std::sync::Arc<crate::enlightened::Guide>>,
 }
 
 /// Relative step past a crossed null boundary before the next intersection query, so the same

@@ -66,18 +66,12 @@ pub fn sample_direction(
             } => Some(frame.to_world(warp::uniform_cone(u, *cos_total))),
             _ => None,
         },
-        VertexKind::Surface { .. } => {
+        VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
+            // the BSDF or phase function, or the guided mixture (`enlightened::guide`)
             let wo = (prev?.p - v.p).normalize_or_zero();
-            let uc = sampler.next_f32();
-            v.bsdf(scene)?
-                .sample(wo, v.n, u, uc, mode)
+            crate::enlightened::guide::sample_scatter_with(scene, v, wo, mode, u, sampler)
                 .filter(|s| s.pdf > 0.0)
                 .map(|s| s.wi)
-        }
-        VertexKind::Medium { medium } => {
-            let wo = (prev?.p - v.p).normalize_or_zero();
-            let s = scene.media[medium as usize].phase().sample(wo, u);
-            (s.pdf > 0.0).then_some(s.wi)
         }
         _ => None,
     }
