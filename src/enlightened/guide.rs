@@ -494,3 +494,42 @@ pub fn roulette_survival(
     let l = lhat?;
     Some((alpha * throughput_ratio * l).min(q_max))
 }
+
+impl From<&crate::enlightened::Particle> for Deposit {
+    /// A particle's position, normal (surfaces) or medium (volumes), incident direction and
+    /// luminance weight.
+    fn from(p: &crate::enlightened::Particle) -> Self {
+        Deposit {
+            point: RegionPoint {
+                p: p.position,
+                n: p.normal.unwrap_or(Vec3::ZERO),
+                medium: if p.normal.is_some() { None } else { p.medium },
+            },
+            direction: p.direction,
+            weight: crate::spectrum::luminance(p.weight),
+        }
+    }
+}
+
+/// The preprocessing pass (Kristensen 2010, sec. 5.1, steps 1-5): traces `settings.particles`
+/// light subpaths (photons) and as many eye subpaths (importons) with the classical tracer,
+/// then clusters and projects them. The scene must not be guided yet (the particles are
+/// traced with the unguided walks).
+// ANCHOR: build_guide
+pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
+    use crate::enlightened::particles::{trace_classical, Quantity};
+    let t0 = std::time::Instant::now();
+    let paths = settings.particles as u64;
+    let photons: Vec<Deposit> = trace_classical(scene, Quantity::Radiance, paths, settings.seed)
+        .iter()
+        .map(Deposit::from)
+        .collect();
+    let importons: Vec<Deposit> =
+        trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1)
+            .iter()
+            .map(Deposit::from)
+            .collect();
+    let seconds_particles = t0.elapsed().as_secs_f64();
+    Guide::build(&photons, &importons, settings, seconds_particles)
+}
+// ANCHOR_END: build_guide
