@@ -129,10 +129,10 @@ impl DirectionMap {
         let (cols, rows) = (self.cols as usize, self.rows as usize);
         let mut row_sum = vec![0.0f64; rows];
         self.col_cdf = vec![0.0; rows * (cols + 1)];
-        for r in 0..rows {
+        for (r, rs) in row_sum.iter_mut().enumerate() {
             let texels = &self.weight[r * cols..(r + 1) * cols];
             let s: f64 = texels.iter().map(|&w| w as f64).sum();
-            row_sum[r] = s;
+            *rs = s;
             let cdf = &mut self.col_cdf[r * (cols + 1)..(r + 1) * (cols + 1)];
             let mut acc = 0.0f64;
             for (c, &w) in texels.iter().enumerate() {
