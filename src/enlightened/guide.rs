@@ -116,6 +116,55 @@ impl GuideSettings {
         }
     }
 
+    /// A region count must be in 1..=2^20.
+    pub fn check_regions(&self, k: Option<usize>) -> Result<(), String> {
+        match k {
+            Some(k) if !(1..=1 << 20).contains(&k) => {
+                Err(format!("regions = {k} must be in 1..=1048576"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// A particle path count must be in 1..=10^9.
+    pub fn check_particles(&self, n: Option<usize>) -> Result<(), String> {
+        match n {
+            Some(n) if !(1..=1_000_000_000).contains(&n) => {
+                Err(format!("particles = {n} must be in 1..=1000000000"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// c2 must be in (0, 1): c1 = 1 - c2 > 0 keeps the BSDF's support (unbiasedness).
+    pub fn check_weight(w: f32) -> Result<f32, String> {
+        if w > 0.0 && w < 1.0 {
+            Ok(w)
+        } else {
+            Err(format!(
+                "weight = {w} must be in (0, 1): the BSDF or phase function keeps 1 - weight > 0"
+            ))
+        }
+    }
+
+    /// alpha of eq. (5.16) must be positive and finite.
+    pub fn check_alpha(a: f32) -> Result<f32, String> {
+        if a > 0.0 && a.is_finite() {
+            Ok(a)
+        } else {
+            Err(format!("alpha = {a} must be a positive number per unit length"))
+        }
+    }
+
+    /// The roulette normalization must be positive and finite.
+    pub fn check_roulette(r: f32) -> Result<f32, String> {
+        if r > 0.0 && r.is_finite() {
+            Ok(r)
+        } else {
+            Err(format!("roulette = {r} must be a positive number"))
+        }
+    }
+
     /// Parses `COLSxROWS`.
     pub fn parse_map(s: &str) -> Result<(u32, u32), String> {
         let bad = || format!("map size `{s}` is not COLSxROWS with both in 1..=1024 (e.g. 32x16)");
@@ -533,3 +582,20 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
     Guide::build(&photons, &importons, settings, seconds_particles)
 }
 // ANCHOR_END: build_guide
+
+/// Builds the guide the scene's `render.guide` settings ask for (with `seed` for particles
+/// and clustering) and installs it in the scene; `None` when guiding is off. Any guide already
+/// installed is removed first, so the particles are traced with the unguided walks.
+pub fn install(scene: &mut Scene, seed: u64) -> Option<GuideStats> {
+    scene.guide = None;
+    let mut settings = scene.render.guide;
+    if settings.kind == GuideKind::Off {
+        return None;
+    }
+    settings.seed = seed;
+    settings.regions.seed = crate::math::sampler::mix64(seed ^ 0x5245_4749_4f4e);
+    let guide = build_guide(scene, settings);
+    let stats = guide.stats.clone();
+    scene.guide = Some(std::sync::Arc::new(guide));
+    Some(stats)
+}

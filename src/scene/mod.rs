@@ -77,6 +77,8 @@ pub struct RenderSettings {
     /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
     /// `--smc-*` and `--cache-budget` options override them.
     pub smc: crate::integrator::smc::SmcSettings,
+    /// Guided local sampling (`[render.guide]`; `--guide*` options override it).
+    pub guide: crate::enlightened::GuideSettings,
 }
 
 /// Where a ray's propagation ended.
