@@ -152,3 +152,209 @@ fn particles_are_identical_with_any_thread_count() {
     assert!(!a.is_empty());
     assert_eq!(a, b);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The adjoint image (Kristensen 2010, sec. 5.2.1 and 5.3.1)
+// ---------------------------------------------------------------------------------------------
+
+use glam::Vec2;
+use pathspace::enlightened::adjoint::{AdjointImage, LightMap};
+use pathspace::geometry::Primitive;
+use pathspace::scene::Light;
+
+/// The fog box at `res` x `res` pixels with four more lights: an emitting cube (six quads of
+/// equal area), an emitting sphere, a second ceiling quad, and a point light (which the
+/// adjoint image does not cover: the area lights get their share of the power selection).
+fn many_lights(res: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX.replace(
+        "resolution = [256, 256]",
+        &format!("resolution = [{res}, {res}]"),
+    ) + r#"
+[[shapes]]
+type = "box"
+min = [0.5, -1.0, -0.9]
+max = [0.8, -0.7, -0.6]
+emission = [1.0, 2.0, 1.0]
+
+[[shapes]]
+type = "sphere"
+center = [-0.6, -0.6, 0.3]
+radius = 0.15
+emission = [3.0, 1.0, 1.0]
+
+[[shapes]]
+type = "quad"
+origin = [0.4, 0.999, 0.3]
+u = [0.3, 0.0, 0.0]
+v = [0.0, 0.0, 0.3]
+emission = [4.0, 4.0, 4.0]
+
+[[lights]]
+type = "point"
+position = [0.0, 0.5, 0.5]
+intensity = 0.5
+"#;
+    load(&text)
+}
+
+/// A deliberately lumpy cell estimate with zero cells: a fixed pseudo-random pattern.
+fn lumpy_estimate(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| {
+            let h = pathspace::math::sampler::mix64(i as u64 + 17);
+            match h % 5 {
+                0 => 0.0,
+                1 => 50.0,
+                _ => (h % 1000) as f64 / 100.0,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn light_map_round_trips() {
+    let scene = many_lights(8);
+    let map = LightMap::new(&scene);
+    assert_eq!(
+        map.len(),
+        4,
+        "the ceiling quad, the cube, the sphere, the second quad"
+    );
+    let mut s = common::sampler(31, 0);
+    let mut worst_u = 0.0f32;
+    let mut worst_x = 0.0f32;
+    for _ in 0..20_000 {
+        let u = s.next_2d();
+        let x = map
+            .forward(&scene, u)
+            .expect("F is defined on the whole square");
+        let back = map
+            .inverse(&scene, x.light, x.prim, x.p)
+            .expect("F^-1 of a light point");
+        // u_2 near 0 or 1 on the sphere (a pole) loses the angle: compare F(F^-1(x)) there
+        worst_u = worst_u.max((back - u).abs().max_element());
+        let again = map.forward(&scene, back).unwrap();
+        assert_eq!((again.light, again.prim), (x.light, x.prim));
+        worst_x = worst_x.max((again.p - x.p).length());
+    }
+    eprintln!("F round trip: |F^-1(F(u)) - u| <= {worst_u}, |F(F^-1(x)) - x| <= {worst_x}");
+    assert!(worst_x < 1e-4, "F(F^-1(x)) moved a point by {worst_x}");
+    assert!(worst_u < 1e-3, "F^-1(F(u)) moved u by {worst_u}");
+    // the inverse of every primitive's area sampling
+    let prims = [
+        Primitive::Quad(
+            pathspace::geometry::shape::Quad::new(
+                glam::Vec3::new(0.1, 0.2, 0.3),
+                glam::Vec3::new(0.5, 0.1, 0.0),
+                glam::Vec3::new(-0.2, 0.4, 0.3),
+            )
+            .unwrap(),
+        ),
+        Primitive::Triangle(
+            pathspace::geometry::shape::Triangle::new(
+                glam::Vec3::new(0.0, 0.0, 0.0),
+                glam::Vec3::new(1.0, 0.2, 0.0),
+                glam::Vec3::new(0.3, 1.0, 0.5),
+            )
+            .unwrap(),
+        ),
+    ];
+    for prim in prims {
+        for _ in 0..2000 {
+            let u = s.next_2d();
+            let back = prim.sample_area_inverse(prim.sample_area(u).0);
+            assert!(
+                (back - u).abs().max_element() < 1e-4,
+                "{prim:?}: {u} -> {back}"
+            );
+        }
+    }
+}
+
+/// The adjoint image's density p(x_0) = P(area) P_j N p_F(x_0), integrated over bins of every
+/// light primitive in the primitive's own parametrization, against the frequencies of its
+/// sampler (chi-square); and p > 0 wherever light is emitted, zero cells included.
+#[test]
+fn adjoint_pdf_matches_its_sampler_and_is_positive_where_light_is_emitted() {
+    let scene = many_lights(8);
+    let m = LightMap::new(&scene).len();
+    // 12 columns per light: cell edges fall on the bin edges below for the one-primitive
+    // lights and the cube's six faces alike, so the quadrature of the piecewise-constant pdf
+    // is exact
+    let (cols, rows) = (12 * m as u32, 8);
+    let image = AdjointImage::from_estimate(
+        &scene,
+        cols,
+        rows,
+        lumpy_estimate((cols * rows) as usize),
+        0.01,
+    )
+    .unwrap();
+    assert!(image.stats.zero_cells > 0);
+    assert!(image.area_fraction < 1.0 && image.area_fraction > 0.5);
+    // bins: per light primitive, 4 x 4 in its sample_area coordinates
+    const B: usize = 4;
+    // quadrature points per bin and axis: a multiple of the 3 columns and 2 rows per bin
+    const Q: usize = 6;
+    let mut prims: Vec<(u32, u32)> = Vec::new();
+    for (l, light) in scene.lights.iter().enumerate() {
+        if let Light::Area { prims: ids, .. } = light {
+            prims.extend(ids.iter().map(|&p| (l as u32, p)));
+        }
+    }
+    let bin_of = |prim_index: usize, u: Vec2| -> usize {
+        let bx = ((u.x * B as f32) as usize).min(B - 1);
+        let by = ((u.y * B as f32) as usize).min(B - 1);
+        prim_index * B * B + by * B + bx
+    };
+    let samples: u64 = 200_000;
+    let mut expected = vec![0.0f64; prims.len() * B * B];
+    let mut min_pdf = f32::INFINITY;
+    for (pi, &(l, p)) in prims.iter().enumerate() {
+        let prim = &scene.prims[p as usize];
+        let area = prim.area() as f64;
+        for by in 0..B {
+            for bx in 0..B {
+                let mut sum = 0.0f64;
+                for qy in 0..Q {
+                    for qx in 0..Q {
+                        let u = Vec2::new((bx * Q + qx) as f32 + 0.5, (by * Q + qy) as f32 + 0.5)
+                            / (B * Q) as f32;
+                        let x = prim.sample_area(u).0;
+                        let pdf = image.pdf(&scene, l, p, x);
+                        min_pdf = min_pdf.min(pdf);
+                        sum += pdf as f64;
+                    }
+                }
+                // the sampler is conditional on the area-light category
+                expected[pi * B * B + by * B + bx] = samples as f64 * sum / (Q * Q) as f64 * area
+                    / (B * B) as f64
+                    / image.area_fraction as f64;
+            }
+        }
+    }
+    assert!(
+        min_pdf > 0.0,
+        "the adjoint pdf is zero on a light point: eps must keep it positive"
+    );
+    let total: f64 = expected.iter().sum();
+    assert!(
+        (total / samples as f64 - 1.0).abs() < 1e-3,
+        "the adjoint pdf integrates to {} over the area lights",
+        total / samples as f64
+    );
+    let mut observed = vec![0u64; expected.len()];
+    let mut s = common::sampler(32, 0);
+    for _ in 0..samples {
+        let st = image
+            .sample(&scene, s.next_2d(), s.next_2d())
+            .expect("a start point");
+        let pi = prims
+            .iter()
+            .position(|&(l, p)| (l, p) == (st.point.light, st.point.prim))
+            .unwrap();
+        let u = scene.prims[st.point.prim as usize].sample_area_inverse(st.point.p);
+        observed[bin_of(pi, u)] += 1;
+    }
+    common::assert_chi_square("adjoint image light starts", &observed, &expected);
+}

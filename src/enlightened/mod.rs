@@ -20,11 +20,13 @@
 //! Book: "Enlightened local path sampling: the adjoint image and particles" and
 //! "Enlightened local path sampling: guiding".
 
+pub mod adjoint;
 pub mod direction_map;
 pub mod guide;
 pub mod particles;
 pub mod regions;
 
+pub use adjoint::{AdjointImage, AdjointSettings, LightMap};
 pub use direction_map::DirectionMap;
 pub use guide::{Deposit, Guide, GuideKind, GuideSettings, GuideStats};
 pub use particles::{Particle, Quantity};

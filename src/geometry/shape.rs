@@ -4,6 +4,7 @@
 use glam::{Vec2, Vec3};
 
 use super::{Aabb, Ray};
+use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::warp;
 
 /// A parallelogram `origin + a u + b v`, a, b in [0, 1]; geometric normal `normalize(u x v)`.
@@ -216,4 +217,39 @@ impl Primitive {
             }
         }
     }
+
+    /// The inverse of [`Primitive::sample_area`]: the `u` in [0, 1)^2 that samples point `p` (a
+    /// point on the primitive; others are projected onto its plane or sphere). The adjoint image
+    /// needs it to find the cell of a light point an eye path hit (Kristensen 2010, sec. 5.3.1).
+    pub fn sample_area_inverse(&self, p: Vec3) -> Vec2 {
+        let clamp = |u: Vec2| u.clamp(Vec2::ZERO, Vec2::splat(ONE_MINUS_EPSILON));
+        match self {
+            Primitive::Quad(q) => {
+                let (a, b) = plane_coordinates(p - q.origin, q.u, q.v);
+                clamp(Vec2::new(a, b))
+            }
+            Primitive::Triangle(t) => {
+                let (b0, b1) = plane_coordinates(p - t.p0, t.e1, t.e2);
+                clamp(warp::uniform_triangle_inverse(Vec2::new(b0, b1)))
+            }
+            Primitive::Sphere(s) => {
+                let n = (p - s.center).normalize_or_zero();
+                clamp(warp::uniform_sphere_inverse(n))
+            }
+        }
+    }
+}
+
+/// Coordinates (a, b) of `d = a u + b v` in the plane of `u`, `v` (least squares).
+fn plane_coordinates(d: Vec3, u: Vec3, v: Vec3) -> (f32, f32) {
+    let (uu, uv, vv) = (u.dot(u) as f64, u.dot(v) as f64, v.dot(v) as f64);
+    let (du, dv) = (d.dot(u) as f64, d.dot(v) as f64);
+    let det = uu * vv - uv * uv;
+    if det <= 0.0 {
+        return (0.0, 0.0);
+    }
+    (
+        ((du * vv - dv * uv) / det) as f32,
+        ((dv * uu - du * uv) / det) as f32,
+    )
 }

@@ -329,27 +329,46 @@ impl Bdpt {
         if scene.lights.is_empty() {
             return;
         }
-        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-        let light = &scene.lights[l];
+        let (mut l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
         let u_pos = sampler.next_2d();
         let u_dir = sampler.next_2d();
-        let Some(es) = light.sample_le(
-            &scene.prims,
-            u_pos,
-            u_dir,
-            u_prim,
-            scene.center,
-            scene.radius,
-        ) else {
-            return;
+        // the light start: by power and area, or from the adjoint image for area lights
+        // (Kristensen 2010, sec. 5.3.1); `start_pdf` is the position density with the selection
+        let (es, start_pdf, start_prim) = match (&scene.adjoint, &scene.lights[l]) {
+            (Some(_), Light::Area { .. }) => {
+                let Some(st) = scene.sample_adjoint_start(u_pos, sampler.next_2d()) else {
+                    return;
+                };
+                l = st.point.light as usize;
+                let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
+                (es, st.pdf, Some(st.point.prim))
+            }
+            (_, light) => {
+                let Some(es) = light.sample_le(
+                    &scene.prims,
+                    u_pos,
+                    u_dir,
+                    u_prim,
+                    scene.center,
+                    scene.radius,
+                ) else {
+                    return;
+                };
+                let prim = match light {
+                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                    _ => None,
+                };
+                (es, pmf * es.pdf_pos, prim)
+            }
         };
+        let light = &scene.lights[l];
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }
         let lm = self.light_media[l];
         let (mut v0, origin, first) = match light {
-            Light::Area { prims, distr, .. } => {
-                let prim = prims[distr.sample(u_prim).0];
+            Light::Area { .. } => {
+                let Some(prim) = start_prim else { return };
                 let v = Vertex::new(
                     VertexKind::Light {
                         light: l as u32,
@@ -405,7 +424,7 @@ impl Bdpt {
         } else {
             es.n.dot(es.d).abs()
         };
-        let beta = es.value * (cos / (pmf * es.pdf_pos * es.pdf_dir));
+        let beta = es.value * (cos / (start_pdf * es.pdf_dir));
         path.push(v0);
         self.random_walk(
             scene,
@@ -582,18 +601,36 @@ impl Bdpt {
             if !pt.is_connectible(scene) {
                 return None;
             }
-            let (li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-            let light_ref = &scene.lights[li];
-            let ls = light_ref.sample_li(&scene.prims, pt.p, sampler.next_2d(), u_prim)?;
+            let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+            let u = sampler.next_2d();
+            // `sel_pdf`: the solid-angle density with the light selection included
+            let (ls, sel_pdf, start_prim) = match (&scene.adjoint, &scene.lights[li]) {
+                (Some(_), Light::Area { .. }) => {
+                    // the light vertex from the adjoint image, as light subpaths start
+                    let st = scene.sample_adjoint_start(u, sampler.next_2d())?;
+                    li = st.point.light as usize;
+                    let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                    (ls, ls.pdf, Some(st.point.prim))
+                }
+                (_, light) => {
+                    let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                    let prim = match light {
+                        Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                        _ => None,
+                    };
+                    (ls, pmf * ls.pdf, prim)
+                }
+            };
             if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
                 return None;
             }
+            let light_ref = &scene.lights[li];
             let lm = self.light_media[li];
             let mut v = match light_ref {
-                Light::Area { prims, distr, .. } => Vertex::new(
+                Light::Area { .. } => Vertex::new(
                     VertexKind::Light {
                         light: li as u32,
-                        prim: Some(prims[distr.sample(u_prim).0]),
+                        prim: start_prim,
                     },
                     ls.p,
                     ls.n,
@@ -619,7 +656,7 @@ impl Bdpt {
                 ),
             };
             v.pdf_fwd = v.light_origin_pdf(scene);
-            v.beta = ls.value / (pmf * ls.pdf);
+            v.beta = ls.value / sel_pdf;
             let f = if t == 1 {
                 // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
                 // W_e lands in another pixel, A * (1/A) for a meter)

@@ -63,6 +63,12 @@ impl Distribution1D {
         self.pmf[i]
     }
 
+    /// Cumulative probability of the indices below `i` (`cdf(len()) = 1`).
+    #[inline]
+    pub fn cdf(&self, i: usize) -> f32 {
+        self.cdf[i]
+    }
+
     /// Samples an index; returns it with its probability and `u` remapped to [0, 1) inside the
     /// chosen bin, so one random number can serve two decisions. Indices of weight zero are
     /// never returned (unless all weights are zero, see [`Distribution1D::new`]).

@@ -16,6 +16,15 @@ pub fn uniform_sphere(u: Vec2) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// The inverse of [`uniform_sphere`]: the `u` that maps to the unit direction `w`.
+pub fn uniform_sphere_inverse(w: Vec3) -> Vec2 {
+    let mut phi = w.y.atan2(w.x);
+    if phi < 0.0 {
+        phi += 2.0 * PI;
+    }
+    Vec2::new(0.5 * (1.0 - w.z), phi / (2.0 * PI))
+}
+
 /// Cosine-weighted direction on the +z hemisphere (Malley's method); density `cos / pi`.
 pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
     let d = concentric_disk(u);
@@ -60,6 +69,17 @@ pub fn uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(b0, b1)
 }
 // ANCHOR_END: uniform_triangle
+
+/// The inverse of [`uniform_triangle`]: the `u` that maps to barycentrics (b0, b1).
+pub fn uniform_triangle_inverse(b: Vec2) -> Vec2 {
+    if b.y > b.x {
+        // the offset > 0 branch: b0 = u.x / 2, b1 = u.y - u.x / 2
+        Vec2::new(2.0 * b.x, b.y + b.x)
+    } else {
+        // b1 = u.y / 2, b0 = u.x - u.y / 2
+        Vec2::new(b.x + b.y, 2.0 * b.y)
+    }
+}
 
 /// Uniform direction inside a cone of half-angle `acos(cos_max)` around +z; density
 /// `1 / (2 pi (1 - cos_max))`.

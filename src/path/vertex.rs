@@ -299,7 +299,7 @@ impl Vertex {
             VertexKind::Light { light, prim } => {
                 let pmf = scene.light_pmf(light);
                 match (&scene.lights[light as usize], prim) {
-                    (Light::Area { .. }, Some(p)) => pmf * area_pdf_of(scene, light, p),
+                    (Light::Area { .. }, Some(p)) => scene.area_light_start_pdf(light, p, self.p),
                     _ => pmf,
                 }
             }
@@ -319,7 +319,7 @@ impl Vertex {
             return 0.0;
         };
         match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
-            Some(l) => scene.light_pmf(l) * area_pdf_of(scene, l, prim),
+            Some(l) => scene.area_light_start_pdf(l, prim, self.p),
             None => 0.0,
         }
     }

@@ -312,6 +312,55 @@ impl Light {
         }
     }
 
+    /// The emitted ray of an area light from a given point `p` (normal `n`, position density
+    /// `pdf_pos`): a cosine-distributed direction from `u_dir`, as [`Light::sample_le`] draws
+    /// it. Used when the position comes from elsewhere (the adjoint image).
+    pub fn emission_at(&self, p: Vec3, n: Vec3, pdf_pos: f32, u_dir: Vec2) -> EmissionSample {
+        let local = warp::cosine_hemisphere(u_dir);
+        let d = Frame::from_normal(n).to_world(local);
+        let value = match self {
+            Light::Area { radiance, .. } => *radiance,
+            _ => Rgb::ZERO,
+        };
+        EmissionSample {
+            p,
+            n,
+            d,
+            value,
+            pdf_pos,
+            pdf_dir: warp::cosine_hemisphere_pdf(local),
+        }
+    }
+
+    /// A [`LightSample`] towards point `p` (normal `n`) of this area light from `p_ref`, the
+    /// point having been drawn elsewhere with area density `pdf_area`; `pdf` is converted to
+    /// solid angle at `p_ref`. `None` from behind the emitter or at zero distance.
+    pub fn li_from(&self, p_ref: Vec3, p: Vec3, n: Vec3, pdf_area: f32) -> Option<LightSample> {
+        let Light::Area { radiance, .. } = self else {
+            return None;
+        };
+        let to = p - p_ref;
+        let d2 = to.length_squared();
+        if d2 <= 0.0 {
+            return None;
+        }
+        let dist = d2.sqrt();
+        let wi = to / dist;
+        let cos_l = -wi.dot(n);
+        if cos_l <= 0.0 {
+            return None;
+        }
+        Some(LightSample {
+            wi,
+            dist,
+            p,
+            n,
+            value: *radiance,
+            pdf: pdf_area * d2 / cos_l,
+            is_delta: false,
+        })
+    }
+
     /// Samples an emitted ray (for light paths). `center`, `radius` bound the scene.
     pub fn sample_le(
         &self,

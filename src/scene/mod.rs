@@ -166,6 +166,9 @@ pub struct Scene {
     pub has_null: bool,
     /// Hash of the scene file text.
     pub hash: u64,
+    /// The adjoint image, when installed: area-light start points are sampled from it and
+    /// their densities evaluated by it (Kristensen 2010, sec. 5.3.1); `None`: by power and area.
+    pub adjoint: Option<crate::enlightened::AdjointImage>,
     pub source_name: String,
     /// Guided local sampling (Kristensen 2010, sec. 5.3), when built: every scattering density
     /// (`Vertex::pdf_dir`) and sampler consults it, so all methods see the same mixture.
@@ -468,6 +471,30 @@ impl Scene {
     #[inline]
     pub fn light_pmf(&self, l: u32) -> f32 {
         self.light_distr.pmf(l as usize)
+    }
+
+    /// The light-start density (per area, light selection included) of point `p` on primitive
+    /// `prim` of area light `light`: power-proportional selection times uniform by area, or the
+    /// adjoint image's density when one is installed.
+    // ANCHOR: area_light_start_pdf
+    #[inline]
+    pub fn area_light_start_pdf(&self, light: u32, prim: u32, p: Vec3) -> f32 {
+        match &self.adjoint {
+            Some(a) => a.pdf(self, light, prim, p),
+            None => self.light_pmf(light) * crate::path::vertex::area_pdf_of(self, light, prim),
+        }
+    }
+    // ANCHOR_END: area_light_start_pdf
+
+    /// A light start point from the adjoint image (`None` without one, or when the pick fails):
+    /// two numbers choose the cell, two place the point in it.
+    #[inline]
+    pub fn sample_adjoint_start(
+        &self,
+        u_cell: glam::Vec2,
+        u_in: glam::Vec2,
+    ) -> Option<crate::enlightened::adjoint::LightStart> {
+        self.adjoint.as_ref()?.sample(self, u_cell, u_in)
     }
 
     /// Loads, validates and builds a scene.

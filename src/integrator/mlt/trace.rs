@@ -107,25 +107,39 @@ pub fn sample_light_vertex(
     if scene.lights.is_empty() {
         return None;
     }
-    let (l, _, u_prim) = scene.light_distr.sample(sampler.next_f32());
-    let light = &scene.lights[l];
-    let es = light.sample_le(
-        &scene.prims,
-        sampler.next_2d(),
-        sampler.next_2d(),
-        u_prim,
-        scene.center,
-        scene.radius,
-    )?;
+    let (mut l, _, u_prim) = scene.light_distr.sample(sampler.next_f32());
+    let u_pos = sampler.next_2d();
+    let u_dir = sampler.next_2d();
+    let (es, prim) = match (&scene.adjoint, &scene.lights[l]) {
+        // the adjoint image's start density (Kristensen 2010, sec. 5.3.1): the transition
+        // density of the bidirectional mutation evaluates the same one (`light_origin_pdf`)
+        (Some(_), Light::Area { .. }) => {
+            let st = scene.sample_adjoint_start(u_pos, sampler.next_2d())?;
+            l = st.point.light as usize;
+            let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
+            (es, Some(st.point.prim))
+        }
+        (_, light) => {
+            let es = light.sample_le(
+                &scene.prims,
+                u_pos,
+                u_dir,
+                u_prim,
+                scene.center,
+                scene.radius,
+            )?;
+            let prim = match light {
+                Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                Light::Point { .. } | Light::Spot { .. } => None,
+                _ => return None,
+            };
+            (es, prim)
+        }
+    };
     if es.pdf_pos <= 0.0 {
         return None;
     }
     let lm = light_media[l];
-    let prim = match light {
-        Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-        Light::Point { .. } | Light::Spot { .. } => None,
-        _ => return None,
-    };
     let n = if prim.is_some() { es.n } else { Vec3::ZERO };
     Some(Vertex::new(
         VertexKind::Light {
