@@ -18,7 +18,9 @@ pub struct ConvergeArgs {
     /// The reference EXR (from `pathspace reference`).
     #[arg(long)]
     pub reference: PathBuf,
-    /// Integrators to compare, comma-separated.
+    /// Integrators to compare, comma-separated; `bdpt+guide`, `light+guide` and `mlt+guide`
+    /// render with guided local sampling (the `--guide*` options; `--guide` defaults to
+    /// `surface` for them), the preprocessing time counted in the equal-time budget.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -48,6 +50,100 @@ pub struct ConvergeArgs {
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
     #[arg(long, value_delimiter = ',')]
     pub propagation: Vec<String>,
+    /// Guided local sampling of the `+guide` variants.
+    #[command(flatten)]
+    pub guide: super::render::GuideArgs,
+}
+
+/// An integrator named on the command line: a kind and its variant modifiers (`+guide`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    pub kind: IntegratorKind,
+    pub guide: bool,
+}
+
+impl Variant {
+    /// Parses `KIND` or `KIND+guide`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let mut parts = s.trim().split('+');
+        let kind = IntegratorKind::parse(parts.next().unwrap_or(""))?;
+        let mut v = Variant { kind, guide: false };
+        for m in parts {
+            match m {
+                "guide" if super::render::guides(kind) => v.guide = true,
+                "guide" => {
+                    return Err(format!(
+                        "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
+                        kind.name()
+                    ))
+                }
+                _ => return Err(format!("`{s}`: unknown variant `+{m}` (available: +guide)")),
+            }
+        }
+        Ok(v)
+    }
+}
+
+/// The label of a guided line: `KIND+guide:VERTICES:COLSxROWS:K`.
+fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> String {
+    format!(
+        "{}+guide:{}:{}x{}:{}",
+        kind.name(),
+        g.kind.name(),
+        g.cols,
+        g.rows,
+        g.regions.regions
+    )
+}
+
+/// Equal-time runs of a guided variant: each run loads the scene, builds its guide (timed,
+/// seeded by the run) and renders until the same checkpoint times as the other lines, the
+/// preprocessing counted in them (checkpoints it overruns are not reached).
+#[allow(clippy::too_many_arguments)]
+fn converge_guided(
+    args: &ConvergeArgs,
+    reference: &crate::image_io::Image,
+    kind: IntegratorKind,
+    config: &ConvergeConfig,
+    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
+) -> Result<Vec<convergence::CheckpointRow>, String> {
+    let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
+    let mut rows = Vec::new();
+    for run in 0..config.runs {
+        let (mut scene, _) = super::load_scene(Some(&args.scene))?;
+        let mut g = args.guide.apply(scene.render.guide)?;
+        if g.kind == crate::enlightened::GuideKind::Off {
+            g.kind = crate::enlightened::GuideKind::Surface;
+        }
+        scene.render.guide = g;
+        let seed = convergence::run_seed(config.seed, run);
+        let t0 = std::time::Instant::now();
+        let stats = crate::enlightened::guide::install(&mut scene, seed);
+        let pre = t0.elapsed().as_secs_f64();
+        if let Some(st) = &stats {
+            eprint!("{}", st.table());
+        }
+        let skipped = times.iter().take_while(|&&t| t <= pre).count();
+        let left: Vec<f64> = times[skipped..].iter().map(|t| t - pre).collect();
+        if left.is_empty() {
+            eprintln!(
+                "{}: the preprocessing ({pre:.2} s) overran the budget",
+                guided_label(kind, &g)
+            );
+            continue;
+        }
+        let mut part =
+            convergence::measure_run(&scene, reference, kind, seed, config.max_depth, &left, run)?;
+        for r in &mut part {
+            r.integrator = guided_label(kind, &g);
+            r.seconds += pre;
+            r.efficiency = convergence::efficiency(r.relmse, r.seconds);
+            r.checkpoint += skipped;
+        }
+        report(&part);
+        rows.extend(part);
+    }
+    Ok(rows)
 }
 
 /// One line of the summary printed at the end.
@@ -81,11 +177,27 @@ fn summary_line(c: &Curve) -> String {
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
     let (scene, source) = super::load_scene(Some(&args.scene))?;
-    let kinds = args
+    let variants = args
         .integrators
         .iter()
-        .map(|s| IntegratorKind::parse(s.trim()))
+        .map(|s| Variant::parse(s))
         .collect::<Result<Vec<_>, _>>()?;
+    let kinds: Vec<IntegratorKind> = variants
+        .iter()
+        .filter(|v| !v.guide)
+        .map(|v| v.kind)
+        .collect();
+    let guided: Vec<IntegratorKind> = variants
+        .iter()
+        .filter(|v| v.guide)
+        .map(|v| v.kind)
+        .collect();
+    if args.guide.any() && guided.is_empty() {
+        return Err("--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into());
+    }
+    if !guided.is_empty() && !args.propagation.is_empty() {
+        return Err("`+guide` integrators cannot be combined with --propagation".into());
+    }
     let externals = args
         .external
         .iter()
@@ -144,8 +256,16 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        rows = pool
-            .install(|| convergence::converge(&scene, &reference, &kinds, &config, &mut report))?;
+        if !kinds.is_empty() {
+            rows = pool.install(|| {
+                convergence::converge(&scene, &reference, &kinds, &config, &mut report)
+            })?;
+        }
+        for &k in &guided {
+            let part =
+                pool.install(|| converge_guided(&args, &reference, k, &config, &mut report))?;
+            rows.extend(part);
+        }
     } else {
         for name in &args.propagation {
             let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;

@@ -125,7 +125,8 @@ impl GuideArgs {
             s.kind = GuideKind::parse(k).map_err(|e| format!("--guide: {e}"))?;
         }
         if let Some(m) = &self.guide_map {
-            (s.cols, s.rows) = GuideSettings::parse_map(m).map_err(|e| format!("--guide-map: {e}"))?;
+            (s.cols, s.rows) =
+                GuideSettings::parse_map(m).map_err(|e| format!("--guide-map: {e}"))?;
         }
         s.check_regions(self.guide_regions)
             .map_err(|e| format!("--guide-regions: {e}"))?;
@@ -138,7 +139,8 @@ impl GuideArgs {
             s.particles = n;
         }
         if let Some(w) = self.guide_weight {
-            s.c_guide = GuideSettings::check_weight(w).map_err(|e| format!("--guide-weight: {e}"))?;
+            s.c_guide =
+                GuideSettings::check_weight(w).map_err(|e| format!("--guide-weight: {e}"))?;
         }
         if let Some(a) = self.guide_alpha {
             s.regions.alpha =

@@ -152,7 +152,9 @@ impl GuideSettings {
         if a > 0.0 && a.is_finite() {
             Ok(a)
         } else {
-            Err(format!("alpha = {a} must be a positive number per unit length"))
+            Err(format!(
+                "alpha = {a} must be a positive number per unit length"
+            ))
         }
     }
 
