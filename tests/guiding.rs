@@ -590,3 +590,52 @@ fn guide_off_changes_nothing() {
     };
     assert_eq!(render(&plain), render(&off));
 }
+
+/// `[render.guide]` is read and every bad value is reported at its key.
+#[test]
+fn render_guide_table_is_parsed_and_checked() {
+    let load = |extra: &str| {
+        let text = format!("{}\n[render.guide]\n{extra}\n", pathspace::scene::FOG_BOX);
+        Scene::load(&SceneSource::embedded("guide.toml", &text))
+    };
+    let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0").unwrap();
+    let g = s.render.guide;
+    assert_eq!(
+        (g.kind, g.cols, g.rows, g.regions.regions, g.particles),
+        (GuideKind::Both, 16, 8, 128, 1000)
+    );
+    assert_eq!((g.c_guide, g.roulette), (0.25, Some(2.0)));
+    for (extra, key, word) in [
+        ("weight = 1.0", "render.guide.weight", "(0, 1)"),
+        ("vertices = \"walls\"", "render.guide.vertices", "surface"),
+        ("map = \"32by16\"", "render.guide.map", "COLSxROWS"),
+        ("regions = 0", "render.guide.regions", "1..="),
+        ("alpha = -1.0", "render.guide.alpha", "positive"),
+        ("roulete = 1.0", "render.guide.roulete", "unknown field"),
+    ] {
+        let e = load(extra)
+            .err()
+            .unwrap_or_else(|| panic!("`{extra}` loaded"));
+        assert_eq!(e.key, key, "{e}");
+        assert!(e.message.contains(word), "{e}");
+    }
+}
+
+/// The guide (particles, k-means, maps) and the guided image are bit-identical whatever the
+/// thread count.
+#[test]
+fn guided_render_is_deterministic_across_thread_counts() {
+    let render = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let scene = guided_fog_box(RES, GuideKind::Both);
+            let mut rd = Renderer::new(&scene, IntegratorKind::Bdpt, 5, Some(DEPTH));
+            rd.pass(2, &|| {});
+            rd.film.as_ref().unwrap().image().pixels
+        })
+    };
+    assert_eq!(render(1), render(3));
+}

@@ -55,22 +55,85 @@ pub struct ConvergeArgs {
     pub guide: super::render::GuideArgs,
 }
 
-/// An integrator named on the command line: a kind and its variant modifiers (`+guide`).
+/// An integrator named on the command line: a kind and its variant modifiers: `+guide`, or
+/// `+guide:VERTICES:COLSxROWS:K` overriding `--guide`, `--guide-map` and `--guide-regions`
+/// for this line (trailing fields may be left out), so that one run sweeps the guide's
+/// parameters. A guided line's label has the full form.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Variant {
     pub kind: IntegratorKind,
-    pub guide: bool,
+    /// `Some` for a guided line: (vertices, map, regions) given in the name.
+    pub guide: Option<GuideOverride>,
+}
+
+/// The guide parameters a `+guide:...` name sets.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GuideOverride {
+    pub kind: Option<crate::enlightened::GuideKind>,
+    pub map: Option<(u32, u32)>,
+    pub regions: Option<usize>,
+}
+
+impl GuideOverride {
+    fn parse(fields: &[&str]) -> Result<Self, String> {
+        use crate::enlightened::{GuideKind, GuideSettings};
+        if fields.len() > 3 {
+            return Err("expected +guide:VERTICES:COLSxROWS:K".into());
+        }
+        let mut o = GuideOverride::default();
+        if let Some(v) = fields.first() {
+            o.kind = Some(GuideKind::parse(v)?);
+        }
+        if let Some(m) = fields.get(1) {
+            o.map = Some(GuideSettings::parse_map(m)?);
+        }
+        if let Some(k) = fields.get(2) {
+            let k: usize = k
+                .parse()
+                .ok()
+                .filter(|k| (1..=1usize << 20).contains(k))
+                .ok_or_else(|| format!("regions `{k}` is not a count in 1..=1048576"))?;
+            o.regions = Some(k);
+        }
+        Ok(o)
+    }
+
+    /// `base` with these fields replaced (vertices `surface` when neither sets them).
+    pub fn apply(
+        &self,
+        base: crate::enlightened::GuideSettings,
+    ) -> crate::enlightened::GuideSettings {
+        let mut g = base;
+        if let Some(k) = self.kind {
+            g.kind = k;
+        }
+        if g.kind == crate::enlightened::GuideKind::Off {
+            g.kind = crate::enlightened::GuideKind::Surface;
+        }
+        if let Some((c, r)) = self.map {
+            (g.cols, g.rows) = (c, r);
+        }
+        if let Some(k) = self.regions {
+            g.regions.regions = k;
+        }
+        g
+    }
 }
 
 impl Variant {
-    /// Parses `KIND` or `KIND+guide`.
+    /// Parses `KIND`, `KIND+guide` or `KIND+guide:VERTICES:COLSxROWS:K`.
     pub fn parse(s: &str) -> Result<Self, String> {
         let mut parts = s.trim().split('+');
         let kind = IntegratorKind::parse(parts.next().unwrap_or(""))?;
-        let mut v = Variant { kind, guide: false };
+        let mut v = Variant { kind, guide: None };
         for m in parts {
-            match m {
-                "guide" if super::render::guides(kind) => v.guide = true,
+            let fields: Vec<&str> = m.split(':').collect();
+            match fields[0] {
+                "guide" if super::render::guides(kind) => {
+                    v.guide = Some(
+                        GuideOverride::parse(&fields[1..]).map_err(|e| format!("`{s}`: {e}"))?,
+                    )
+                }
                 "guide" => {
                     return Err(format!(
                         "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
@@ -104,6 +167,7 @@ fn converge_guided(
     args: &ConvergeArgs,
     reference: &crate::image_io::Image,
     kind: IntegratorKind,
+    over: &GuideOverride,
     config: &ConvergeConfig,
     report: &mut dyn FnMut(&[convergence::CheckpointRow]),
 ) -> Result<Vec<convergence::CheckpointRow>, String> {
@@ -111,10 +175,7 @@ fn converge_guided(
     let mut rows = Vec::new();
     for run in 0..config.runs {
         let (mut scene, _) = super::load_scene(Some(&args.scene))?;
-        let mut g = args.guide.apply(scene.render.guide)?;
-        if g.kind == crate::enlightened::GuideKind::Off {
-            g.kind = crate::enlightened::GuideKind::Surface;
-        }
+        let g = over.apply(args.guide.apply(scene.render.guide)?);
         scene.render.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();
@@ -184,13 +245,12 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
         .collect::<Result<Vec<_>, _>>()?;
     let kinds: Vec<IntegratorKind> = variants
         .iter()
-        .filter(|v| !v.guide)
+        .filter(|v| v.guide.is_none())
         .map(|v| v.kind)
         .collect();
-    let guided: Vec<IntegratorKind> = variants
+    let guided: Vec<(IntegratorKind, GuideOverride)> = variants
         .iter()
-        .filter(|v| v.guide)
-        .map(|v| v.kind)
+        .filter_map(|v| v.guide.clone().map(|g| (v.kind, g)))
         .collect();
     if args.guide.any() && guided.is_empty() {
         return Err("--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into());
@@ -261,9 +321,9 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
                 convergence::converge(&scene, &reference, &kinds, &config, &mut report)
             })?;
         }
-        for &k in &guided {
-            let part =
-                pool.install(|| converge_guided(&args, &reference, k, &config, &mut report))?;
+        for (k, over) in &guided {
+            let part = pool
+                .install(|| converge_guided(&args, &reference, *k, over, &config, &mut report))?;
             rows.extend(part);
         }
     } else {

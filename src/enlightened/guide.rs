@@ -314,6 +314,32 @@ pub struct Guide {
     /// Built from importons: guides light subpaths (mode Importance).
     pub importance: GuideField,
     pub stats: GuideStats,
+    /// A process-unique id, the key of the per-thread region memo ([`RegionMemo`]).
+    id: u64,
+}
+
+/// Ids of guides, so that a memo entry of a dropped guide can never be taken for a new one's.
+static NEXT_GUIDE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+/// Slots of the per-thread region memo (direct-mapped).
+const MEMO_SLOTS: usize = 512;
+
+/// A per-thread memo of region lookups. A path's vertices are looked up again and again (the
+/// walk's forward and reverse densities, then every MIS weight and transition density that
+/// involves them), and each lookup is a k-nearest query with eq. (5.16) refinement. The memo
+/// only caches a pure function of (guide, mode, position, normal, medium), compared bit for
+/// bit, so results, and images, do not depend on it or on the thread; it is allocated once per
+/// thread.
+struct RegionMemo {
+    keys: Vec<[u32; 9]>,
+    regions: Vec<Option<u32>>,
+}
+
+thread_local! {
+    static MEMO: std::cell::RefCell<RegionMemo> = std::cell::RefCell::new(RegionMemo {
+        keys: vec![[0; 9]; MEMO_SLOTS],
+        regions: vec![None; MEMO_SLOTS],
+    });
 }
 
 impl Guide {
@@ -347,6 +373,7 @@ impl Guide {
             radiance,
             importance,
             stats,
+            id: NEXT_GUIDE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
@@ -372,22 +399,64 @@ impl Guide {
         mode: TransportMode,
     ) -> Option<(&DirectionMap, f32)> {
         let field = self.field(mode);
-        let region = match v.kind {
+        let medium = match v.kind {
             VertexKind::Surface { .. } if self.settings.kind.surface() => {
                 if v.bsdf(scene).is_none_or(Bsdf::is_singular) {
                     return None;
                 }
-                field.regions.surface_region(v.p, v.n)?
+                None
             }
-            VertexKind::Medium { medium } if self.settings.kind.volume() => {
-                field.regions.volume_region(v.p, medium)?
-            }
+            VertexKind::Medium { medium } if self.settings.kind.volume() => Some(medium),
             _ => return None,
         };
+        let region = self.region_memoized(field, mode, v.p, v.n, medium)?;
         let map = &field.maps[region as usize];
         (!map.is_empty()).then(|| (map, field.level[region as usize]))
     }
     // ANCHOR_END: map_at
+
+    /// The region of a surface point (`medium` None) or a medium point, through the memo.
+    fn region_memoized(
+        &self,
+        field: &GuideField,
+        mode: TransportMode,
+        p: Vec3,
+        n: Vec3,
+        medium: Option<u32>,
+    ) -> Option<u32> {
+        let key = [
+            self.id as u32,
+            (self.id >> 32) as u32 ^ ((mode == TransportMode::Importance) as u32) << 31,
+            p.x.to_bits(),
+            p.y.to_bits(),
+            p.z.to_bits(),
+            n.x.to_bits(),
+            n.y.to_bits(),
+            n.z.to_bits(),
+            medium.map_or(u32::MAX, |m| m),
+        ];
+        let mut h = 0u64;
+        for k in key {
+            h = crate::math::sampler::mix64(h ^ k as u64);
+        }
+        let slot = (h as usize) % MEMO_SLOTS;
+        let lookup = || match medium {
+            None => field.regions.surface_region(p, n),
+            Some(m) => field.regions.volume_region(p, m),
+        };
+        MEMO.with(|memo| {
+            let Ok(mut memo) = memo.try_borrow_mut() else {
+                return lookup();
+            };
+            if memo.keys[slot] == key && key[0] | key[1] != 0 {
+                return memo.regions[slot];
+            }
+            let r = lookup();
+            memo.keys[slot] = key;
+            memo.regions[slot] = r;
+            r
+        })
+    }
 }
 
 /// The mixture density c1 p_local + c2 p_map of eqs. (5.18), (5.19) and their medium

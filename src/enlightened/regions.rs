@@ -43,6 +43,9 @@ pub struct RegionParams {
     pub candidates: usize,
     /// Seed of the initial centres.
     pub seed: u64,
+    /// At most this many points are clustered (an even stride through the set); all of them
+    /// are projected into the maps afterwards.
+    pub cluster_sample: usize,
 }
 
 /// alpha = this / scene radius: a normal turned by 90 degrees costs as much as a twentieth of
@@ -53,7 +56,9 @@ pub const DEFAULT_REGIONS: usize = 512;
 /// Lloyd iterations by default.
 pub const DEFAULT_ITERATIONS: u32 = 8;
 /// Surface lookups refine this many Euclidean neighbours by eq. (5.16).
-pub const DEFAULT_CANDIDATES: usize = 8;
+pub const DEFAULT_CANDIDATES: usize = 4;
+/// Points clustered at most by default (the thesis clustered about 10^6).
+pub const DEFAULT_CLUSTER_SAMPLE: usize = 65_536;
 /// Upper bound of `candidates` (a fixed-size buffer: lookups do not allocate).
 pub const MAX_CANDIDATES: usize = 16;
 
@@ -66,6 +71,7 @@ impl RegionParams {
             iterations: DEFAULT_ITERATIONS,
             candidates: DEFAULT_CANDIDATES,
             seed: 0x5245_4749_4f4e,
+            cluster_sample: DEFAULT_CLUSTER_SAMPLE,
         }
     }
 }
@@ -222,8 +228,10 @@ pub struct Regions {
 impl Regions {
     /// Clusters `points` (surface points have a non-zero normal; volume points a medium).
     pub fn build(points: &[RegionPoint], params: RegionParams) -> Self {
+        let stride = points.len().div_ceil(params.cluster_sample.max(1)).max(1);
         let (surf, vol): (Vec<RegionPoint>, Vec<RegionPoint>) = points
             .iter()
+            .step_by(stride)
             .copied()
             .filter(|x| x.p.is_finite())
             .partition(|x| x.n != Vec3::ZERO || x.medium.is_none());
