@@ -34,3 +34,25 @@ if want "$sel" cloud; then
   cp out/cloud-conv/error-vs-time.png book/src/figures/cloud/converge-error-vs-time.png
   cp out/cloud-conv/convergence.csv book/src/figures/cloud/converge.csv
 fi
+
+if want "$sel" guiding; then
+  # Guided local sampling on the door slit at equal time, the preprocessing counted: map size
+  # (8x4, 16x8, 32x16) and region count (64, 512, 4096) swept for surface guiding, then volume
+  # and both. The reference is a 1200 s BDPT render of the same scene file (scene_hash
+  # a33b702e61f3b65a); `pathspace reference scenes/door-slit.toml --integrator bdpt --time 1200
+  # -o out/door-ref.exr` makes one.
+  d=book/src/figures/guiding
+  mkdir -p "$d"
+  ref="${DOOR_REF:-out/door-ref.exr}"
+  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 -o out/guide-mlt --integrators \
+      mlt,mlt+guide:surface:8x4:512,mlt+guide:surface:16x8:512,mlt+guide:surface:32x16:512,mlt+guide:surface:16x8:64,mlt+guide:surface:16x8:4096,mlt+guide:volume:16x8:512,mlt+guide:both:16x8:512
+  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 -o out/guide-bdpt --integrators \
+      bdpt,bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512
+  for x in mlt bdpt; do
+    cp out/guide-$x/convergence.csv "$d/door-$x.csv"
+    cp out/guide-$x/error-vs-time.png "$d/door-$x-error-vs-time.png"
+    cp out/guide-$x/efficiency.png "$d/door-$x-efficiency.png"
+  done
+fi

@@ -553,6 +553,28 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
         let scene = guided_fog_box(RES, kind);
         assert_agree(kind.name(), &bdpt_runs(&scene, 5000), &plain);
     }
+    // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
+    let mut scene = fog_box(RES);
+    let mut settings = GuideSettings::for_radius(scene.radius);
+    settings.kind = GuideKind::Both;
+    settings.particles = 20_000;
+    settings.regions.regions = 64;
+    settings.roulette = Some(0.5);
+    scene.guide = Some(Arc::new(build_guide(&scene, settings)));
+    let deep = |scene: &Scene, seed: u64| -> Vec<Vec<f64>> {
+        (0..RUNS)
+            .map(|r| {
+                let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(8));
+                rd.pass(32, &|| {});
+                quadrant_means(&rd.film.as_ref().unwrap().image())
+            })
+            .collect()
+    };
+    assert_agree(
+        "guided roulette",
+        &deep(&scene, 6000),
+        &deep(&fog_box(RES), 1000),
+    );
 }
 
 /// Guided MLT (surface and volume guiding in every subpath the bidirectional mutation

@@ -601,8 +601,9 @@ impl ScatterSample {
     }
 }
 
-/// The guided roulette's survival probability (sec. 5.3.4), capped by `q_max`; `None` where
-/// the vertex is not guided or guided roulette is off.
+/// The guided roulette's survival probability (sec. 5.3.4), within [`ROULETTE_MIN_SURVIVAL`,
+/// `q_max`]; `None` where the vertex is not guided or guided roulette is off.
+// ANCHOR: roulette
 #[inline]
 pub fn roulette_survival(
     scene: &Scene,
@@ -612,8 +613,20 @@ pub fn roulette_survival(
 ) -> Option<f32> {
     let alpha = scene.guide.as_deref()?.settings.roulette?;
     let l = lhat?;
-    Some((alpha * throughput_ratio * l).min(q_max))
+    let q = alpha * throughput_ratio * l;
+    Some(if q.is_nan() {
+        q_max
+    } else {
+        q.clamp(ROULETTE_MIN_SURVIVAL, q_max)
+    })
 }
+// ANCHOR_END: roulette
+
+/// The least survival probability of guided roulette. Roulette is unbiased only where q > 0
+/// for every path that can still contribute; a map that saw no particle in a direction says
+/// Lhat = 0 there, which is an estimate, not a fact (DEVIATION: the thesis's formula has no
+/// floor; without one the fog box loses 5% of its light, see `tests/guiding.rs`).
+pub const ROULETTE_MIN_SURVIVAL: f32 = 0.05;
 
 impl From<&crate::enlightened::Particle> for Deposit {
     /// A particle's position, normal (surfaces) or medium (volumes), incident direction and
