@@ -661,3 +661,60 @@ fn guided_render_is_deterministic_across_thread_counts() {
     };
     assert_eq!(render(1), render(3));
 }
+
+/// Eq. (5.17): the guided emission density at area-light points integrates to one and the
+/// emission sampler (the light's cosine lobe or, with c2, the importance map) follows it.
+#[test]
+fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
+    use pathspace::enlightened::guide::{emission_pdf, sample_emission};
+    use pathspace::math::warp;
+    let scene = guided_fog_box(8, GuideKind::Surface);
+    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    let mut s = Sampler::new(51, 0, 0);
+    let mut light = Vec::new();
+    let mut points = Vec::new();
+    while points.len() < 2 {
+        b.light_subpath(&scene, &mut s, &mut light);
+        if let Some(v) = light.first() {
+            if points
+                .iter()
+                .all(|(p, _): &(Vec3, Vec3)| (*p - v.p).length() > 0.05)
+            {
+                points.push((v.p, v.n));
+            }
+        }
+    }
+    for (k, (p, n)) in points.into_iter().enumerate() {
+        let cos_pdf = |w: Vec3| (w.dot(n).max(0.0)) * std::f32::consts::FRAC_1_PI;
+        let pdf = |w: Vec3| emission_pdf(&scene, p, n, w, cos_pdf(w)) as f64;
+        assert!(
+            (pdf(n) - cos_pdf(n) as f64).abs() > 1e-6,
+            "the point is guided"
+        );
+        let grid = SphereGrid::new(world(), 16, 32);
+        let count = 100_000;
+        let expected = expected_midpoint(&grid, pdf, 6, count);
+        let mass: f64 = expected.iter().sum::<f64>() / count as f64;
+        assert!(
+            (mass - 1.0).abs() < 2e-3,
+            "light point {k}: integral {mass}"
+        );
+        let mut sm = Sampler::new(52, k as u64, 0);
+        let frame = Frame::from_normal(n);
+        let observed = grid.observe(
+            || {
+                let u = sm.next_2d();
+                let d = frame.to_world(warp::cosine_hemisphere(u));
+                let (w, q) = sample_emission(&scene, p, n, d, u, cos_pdf, &mut sm)?;
+                assert!((q as f64 - pdf(w)).abs() <= 1e-4 * q as f64);
+                Some(w)
+            },
+            count,
+        );
+        assert_chi_square(
+            &format!("emission at light point {k}"),
+            &observed,
+            &expected,
+        );
+    }
+}

@@ -683,3 +683,53 @@ pub fn install(scene: &mut Scene, seed: u64) -> Option<GuideStats> {
     scene.guide = Some(std::sync::Arc::new(guide));
     Some(stats)
 }
+
+/// The importance map guiding emission from area-light point (p, n), with c2: surface
+/// guiding on and the point's importance region non-empty.
+#[inline]
+fn emission_map(scene: &Scene, p: Vec3, n: Vec3) -> Option<(f32, &DirectionMap)> {
+    let g = scene.guide.as_deref()?;
+    if !g.settings.kind.surface() || n == Vec3::ZERO {
+        return None;
+    }
+    let field = &g.importance;
+    let region = g.region_memoized(field, TransportMode::Importance, p, n, None)?;
+    let map = &field.maps[region as usize];
+    (!map.is_empty()).then_some((g.settings.c_guide, map))
+}
+
+/// Eq. (5.17): the density of emission direction `w` at area-light point (p, n) whose own
+/// emission density is `p_le`: c1 p_Le + c2 p_Wi where an importance map guides the point.
+// ANCHOR: emission_pdf
+#[inline]
+pub fn emission_pdf(scene: &Scene, p: Vec3, n: Vec3, w: Vec3, p_le: f32) -> f32 {
+    match emission_map(scene, p, n) {
+        Some((c, map)) => mixture(c, p_le, map, w),
+        None => p_le,
+    }
+}
+// ANCHOR_END: emission_pdf
+
+/// Eq. (5.17), sampling: the emission direction `d_le` the light drew from its own density
+/// (with numbers `u`), or, with probability c2, a direction from the importance map drawn with
+/// the same `u` (one extra number picks the component, only where a map guides the point).
+/// Returns the direction and its mixture density (`p_le_of` gives the light's own density).
+pub fn sample_emission(
+    scene: &Scene,
+    p: Vec3,
+    n: Vec3,
+    d_le: Vec3,
+    u: Vec2,
+    p_le_of: impl Fn(Vec3) -> f32,
+    sampler: &mut Sampler,
+) -> Option<(Vec3, f32)> {
+    let Some((c, map)) = emission_map(scene, p, n) else {
+        return Some((d_le, p_le_of(d_le)));
+    };
+    let d = if sampler.next_f32() < c {
+        map.sample(u)?.0
+    } else {
+        d_le
+    };
+    Some((d, mixture(c, p_le_of(d), map, d)))
+}

@@ -362,6 +362,25 @@ impl Bdpt {
             }
         };
         let light = &scene.lights[l];
+        // eq. (5.17): the emission direction from c1 p_Le + c2 p_Wi where guiding is on
+        let mut es = es;
+        if let (Light::Area { .. }, Some(_)) = (light, scene.guide.as_ref()) {
+            let n = es.n;
+            let Some((d, pdf)) = guide::sample_emission(
+                scene,
+                es.p,
+                n,
+                es.d,
+                u_dir,
+                |w| crate::path::vertex::emission_pdf_dir(light, n, w),
+                sampler,
+            ) else {
+                return;
+            };
+            es.value = crate::path::vertex::emitted_by(light, n, d);
+            es.d = d;
+            es.pdf_dir = pdf;
+        }
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }

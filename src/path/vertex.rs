@@ -263,7 +263,7 @@ impl Vertex {
                 c.max(0.0) * FRAC_1_PI
             }
             VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
-                emission_pdf_dir(&scene.lights[light as usize], self.n, wn)
+                self.guided_emission_pdf(scene, &scene.lights[light as usize], wn)
             }
             VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
                 let Some(prev) = prev else { return 0.0 };
@@ -344,7 +344,19 @@ impl Vertex {
             return cosine_factor(next, w) / (std::f32::consts::PI * scene.radius * scene.radius);
         }
         let wn = (next.p - self.p).normalize_or_zero();
-        to_area(emission_pdf_dir(l, self.n, wn), self, next)
+        to_area(self.guided_emission_pdf(scene, l, wn), self, next)
+    }
+
+    /// The emission density of direction `wn` from this light point: the light's own, or the
+    /// guided mixture of Kristensen 2010 eq. (5.17) for area lights when guiding is on.
+    fn guided_emission_pdf(&self, scene: &Scene, l: &Light, wn: Vec3) -> f32 {
+        let p_le = emission_pdf_dir(l, self.n, wn);
+        match l {
+            Light::Area { .. } if scene.guide.is_some() => {
+                crate::enlightened::guide::emission_pdf(scene, self.p, self.n, wn, p_le)
+            }
+            _ => p_le,
+        }
     }
 }
 

@@ -56,9 +56,23 @@ pub fn sample_direction(
             Some(cam.generate_ray(raster).d)
         }
         VertexKind::Light { light, .. } => match &scene.lights[light as usize] {
-            Light::Area { .. } => {
+            l @ Light::Area { .. } => {
                 let local = warp::cosine_hemisphere(u);
-                (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))
+                let d = (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))?;
+                if scene.guide.is_none() {
+                    return Some(d);
+                }
+                // eq. (5.17) where guiding is on
+                crate::enlightened::guide::sample_emission(
+                    scene,
+                    v.p,
+                    v.n,
+                    d,
+                    u,
+                    |w| crate::path::vertex::emission_pdf_dir(l, v.n, w),
+                    sampler,
+                )
+                .map(|(d, _)| d)
             }
             Light::Point { .. } => Some(warp::uniform_sphere(u)),
             Light::Spot {
