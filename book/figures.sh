@@ -4,7 +4,7 @@
 # the crate itself (`cargo build --release` first).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PS=target/release/pathspace
+PS="${PS:-target/release/pathspace}"
 mkdir -p out
 want() { [ $# -eq 0 ] || [ "$1" = "$2" ]; }
 sel="${1:-}"
