@@ -101,7 +101,7 @@ impl KdTree {
             .map(|(i, &p)| (p, i as u32))
             .collect();
         let mut axis = vec![0u8; items.len()];
-        Self::build_range(&mut items, &mut axis, 0);
+        Self::build_range(&mut items, &mut axis);
         KdTree {
             pts: items.iter().map(|x| x.0).collect(),
             ids: items.iter().map(|x| x.1).collect(),
@@ -109,7 +109,7 @@ impl KdTree {
         }
     }
 
-    fn build_range(items: &mut [(Vec3, u32)], axis: &mut [u8], _depth: u32) {
+    fn build_range(items: &mut [(Vec3, u32)], axis: &mut [u8]) {
         if items.len() <= 1 {
             return;
         }
@@ -135,8 +135,8 @@ impl KdTree {
         axis[mid] = a as u8;
         let (left, right) = items.split_at_mut(mid);
         let (al, ar) = axis.split_at_mut(mid);
-        Self::build_range(left, al, _depth + 1);
-        Self::build_range(&mut right[1..], &mut ar[1..], _depth + 1);
+        Self::build_range(left, al);
+        Self::build_range(&mut right[1..], &mut ar[1..]);
     }
 
     pub fn len(&self) -> usize {
