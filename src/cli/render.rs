@@ -455,7 +455,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     scene.render.guide = args.guide.apply(scene.render.guide)?;
     if scene.render.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
         return Err(format!(
-            "--guide applies to bdpt, light and mlt, not `{}`",
+            "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
             kind.name()
         ));
     }
