@@ -513,6 +513,11 @@ pub fn sample_scatter(
     mode: TransportMode,
     sampler: &mut Sampler,
 ) -> Option<ScatterSample> {
+    // a surface without a BSDF ends the walk before any number is drawn (as it always did:
+    // the streams of unguided renders are unchanged)
+    if matches!(v.kind, VertexKind::Surface { .. }) && v.bsdf(scene).is_none() {
+        return None;
+    }
     let u = sampler.next_2d();
     sample_scatter_with(scene, v, wo, mode, u, sampler)
 }
@@ -532,8 +537,8 @@ pub fn sample_scatter_with(
     });
     match v.kind {
         VertexKind::Surface { .. } => {
-            let bsdf = v.bsdf(scene)?;
             let uc = sampler.next_f32();
+            let bsdf = v.bsdf(scene)?;
             let Some((c, map, level)) = guided else {
                 let bs = bsdf.sample(wo, v.n, u, uc, mode)?;
                 return Some(ScatterSample {
