@@ -56,3 +56,16 @@ if want "$sel" guiding; then
     cp out/guide-$x/efficiency.png "$d/door-$x-efficiency.png"
   done
 fi
+
+if want "$sel" guiding-fog; then
+  # The fog box at 64x64: guided BDPT and MLT (surface, volume, both) against unguided, equal time.
+  d=book/src/figures/guiding
+  mkdir -p "$d"
+  sed 's/resolution = \[256, 256\]/resolution = [64, 64]/' scenes/fog-box.toml > out/fog-64.toml
+  [ -f out/fog-64-ref.exr ] || $PS reference out/fog-64.toml --integrator bdpt --time 240 --threads 1 -o out/fog-64-ref.exr
+  $PS converge out/fog-64.toml --reference out/fog-64-ref.exr --budget 20 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 50000 -o out/guide-fog --integrators \
+      bdpt,bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512,mlt,mlt+guide:both:16x8:512
+  cp out/guide-fog/convergence.csv "$d/fog.csv"
+  cp out/guide-fog/error-vs-time.png "$d/fog-error-vs-time.png"
+fi
