@@ -69,3 +69,17 @@ if want "$sel" guiding-fog; then
   cp out/guide-fog/convergence.csv "$d/fog.csv"
   cp out/guide-fog/error-vs-time.png "$d/fog-error-vs-time.png"
 fi
+
+if want "$sel" guiding-indirect; then
+  # The same with maps from indirect particles only (--guide-min-depth 2): the direct light and
+  # the camera's direct view are left to BDPT's connections.
+  d=book/src/figures/guiding
+  $PS converge out/fog-64.toml --reference out/fog-64-ref.exr --budget 20 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 50000 --guide-min-depth 2 -o out/guide-fog-indirect --integrators \
+      bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
+  cp out/guide-fog-indirect/convergence.csv "$d/fog-indirect.csv"
+  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 --guide-min-depth 2 -o out/guide-door-indirect --integrators \
+      bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
+  cp out/guide-door-indirect/convergence.csv "$d/door-indirect.csv"
+fi

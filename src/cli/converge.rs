@@ -147,10 +147,16 @@ impl Variant {
     }
 }
 
-/// The label of a guided line: `KIND+guide:VERTICES:COLSxROWS:K`.
+/// The label of a guided line: `KIND+guide:VERTICES:COLSxROWS:K`, with `:indirect` (or
+/// `:depthD`) when `--guide-min-depth` keeps shallow particles out of the maps.
 fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> String {
+    let depth = match g.min_depth {
+        1 => String::new(),
+        2 => ":indirect".into(),
+        d => format!(":depth{d}"),
+    };
     format!(
-        "{}+guide:{}:{}x{}:{}",
+        "{}+guide:{}:{}x{}:{}{depth}",
         kind.name(),
         g.kind.name(),
         g.cols,

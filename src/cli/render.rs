@@ -100,6 +100,10 @@ pub struct GuideArgs {
     /// Guided Russian roulette with this normalization (default: the ordinary roulette).
     #[arg(long)]
     pub guide_roulette: Option<f32>,
+    /// Only particles at this depth or deeper shape the maps (default 1: all; 2: indirect
+    /// light and importance only).
+    #[arg(long)]
+    pub guide_min_depth: Option<u32>,
 }
 
 impl GuideArgs {
@@ -112,6 +116,7 @@ impl GuideArgs {
             || self.guide_weight.is_some()
             || self.guide_alpha.is_some()
             || self.guide_roulette.is_some()
+            || self.guide_min_depth.is_some()
     }
 
     /// The scene's settings with these options applied, each checked.
@@ -145,6 +150,12 @@ impl GuideArgs {
         if let Some(a) = self.guide_alpha {
             s.regions.alpha =
                 GuideSettings::check_alpha(a).map_err(|e| format!("--guide-alpha: {e}"))?;
+        }
+        if let Some(d) = self.guide_min_depth {
+            if !(1..=64).contains(&d) {
+                return Err(format!("--guide-min-depth {d} must be in 1..=64"));
+            }
+            s.min_depth = d;
         }
         if let Some(r) = self.guide_roulette {
             s.roulette = Some(

@@ -93,6 +93,10 @@ pub struct GuideSettings {
     pub regions: RegionParams,
     /// Particles per quantity (photons and importons each).
     pub particles: usize,
+    /// Only particles at this depth or deeper go into the maps (1: all; 2: indirect only, so
+    /// the maps leave to BDPT's connections what they already sample well: the direct light
+    /// and the direct view of the camera). A choice of this crate, not the thesis's.
+    pub min_depth: u32,
     /// c2: probability of sampling the map (c1 = 1 - c2 for the BSDF or phase function).
     pub c_guide: f32,
     /// Guided Russian roulette with this normalization alpha (None: the renderer's own roulette).
@@ -110,6 +114,7 @@ impl GuideSettings {
             rows: DEFAULT_ROWS,
             regions: RegionParams::for_radius(radius),
             particles: DEFAULT_PARTICLES,
+            min_depth: 1,
             c_guide: DEFAULT_GUIDE_WEIGHT,
             roulette: None,
             seed: 0x454c_5053,
@@ -658,13 +663,16 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
     use crate::enlightened::particles::{trace_classical, Quantity};
     let t0 = std::time::Instant::now();
     let paths = settings.particles as u64;
+    let deep = |p: &&crate::enlightened::Particle| p.depth >= settings.min_depth;
     let photons: Vec<Deposit> = trace_classical(scene, Quantity::Radiance, paths, settings.seed)
         .iter()
+        .filter(deep)
         .map(Deposit::from)
         .collect();
     let importons: Vec<Deposit> =
         trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1)
             .iter()
+            .filter(deep)
             .map(Deposit::from)
             .collect();
     let seconds_particles = t0.elapsed().as_secs_f64();

@@ -963,6 +963,15 @@ fn guide_settings(
     if let Some(a) = d.alpha {
         s.regions.alpha = GuideSettings::check_alpha(a).map_err(|e| src.error(&key("alpha"), e))?;
     }
+    if let Some(m) = d.min_depth {
+        if !(1..=64).contains(&m) {
+            return Err(src.error(
+                &key("min_depth"),
+                format!("min_depth = {m} must be in 1..=64"),
+            ));
+        }
+        s.min_depth = m;
+    }
     if let Some(r) = d.roulette {
         s.roulette =
             Some(GuideSettings::check_roulette(r).map_err(|e| src.error(&key("roulette"), e))?);

@@ -103,6 +103,8 @@ pub struct GuideDesc {
     pub alpha: Option<f32>,
     /// Guided Russian roulette with this normalization (absent: the ordinary roulette).
     pub roulette: Option<f32>,
+    /// Only particles at this depth or deeper shape the maps (1: all, 2: indirect only).
+    pub min_depth: Option<u32>,
 }
 
 /// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
