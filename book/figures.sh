@@ -83,3 +83,23 @@ if want "$sel" guiding-indirect; then
       bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
   cp out/guide-door-indirect/convergence.csv "$d/door-indirect.csv"
 fi
+
+if want "$sel" enlightened; then
+  # book chapter "Enlightened local path sampling": the maze with and without the adjoint image
+  d=book/src/figures/enlightened
+  mkdir -p "$d"
+  $PS reference scenes/maze.toml --time 600 --threads 2 -o out/maze-ref.exr
+  $PS converge scenes/maze.toml --reference out/maze-ref.exr --integrators bdpt,bdpt+adjoint,mlt,mlt+adjoint \
+      --budget 40 --runs 2 --threads 2 -o out/maze-conv
+  cp out/maze-conv/error-vs-time.svg "$d/maze-error-vs-time.svg"
+  cp out/maze-conv/convergence.csv "$d/maze-convergence.csv"
+  $PS render scenes/maze.toml --integrator bdpt --spp 32 --threads 2 -o out/maze-bdpt.exr --png "$d/maze-bdpt-32spp.png"
+  $PS render scenes/maze.toml --integrator bdpt --adjoint-image --spp 32 --threads 2 -o out/maze-bdpt-adj.exr \
+      --png "$d/maze-bdpt-adjoint-32spp.png" --adjoint-output out/maze-adjoint.exr
+  cp out/maze-adjoint.png "$d/maze-adjoint-image.png"
+  $PS reference scenes/maze-fog.toml --time 420 --threads 2 -o out/maze-fog-ref.exr
+  $PS converge scenes/maze-fog.toml --reference out/maze-fog-ref.exr --integrators bdpt,bdpt+adjoint,mlt,mlt+adjoint \
+      --budget 40 --runs 2 --threads 2 -o out/maze-fog-conv
+  cp out/maze-fog-conv/error-vs-time.svg "$d/maze-fog-error-vs-time.svg"
+  cp out/maze-fog-conv/convergence.csv "$d/maze-fog-convergence.csv"
+fi

@@ -16,6 +16,7 @@
 //! | sec. 5, eq. (8): Metropolis light transport, mutations (and Veach ch. 11) | [`integrator::mlt`] |
 //! | Table 1, right column: inhomogeneous media, ray marching, tracking | [`medium::heterogeneous`] |
 //! | Pegoraro, Wald, Parker 2008, eq. (1)-(9): sequential Monte Carlo | [`integrator::smc`] |
+//! | Kristensen 2010 ch. 5: adjoint image, photons and importons | [`enlightened`] |
 //! | measuring: relMSE, efficiency, convergence order | [`measure`] |
 //! | conventions and measures | [`conventions`] |
 

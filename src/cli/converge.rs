@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use crate::image_io;
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
-use crate::measure::convergence::{self, ConvergeConfig, Curve};
+use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergeArgs {
@@ -18,9 +18,11 @@ pub struct ConvergeArgs {
     /// The reference EXR (from `pathspace reference`).
     #[arg(long)]
     pub reference: PathBuf,
-    /// Integrators to compare, comma-separated; `bdpt+guide`, `light+guide` and `mlt+guide`
-    /// render with guided local sampling (the `--guide*` options; `--guide` defaults to
-    /// `surface` for them), the preprocessing time counted in the equal-time budget.
+    /// Integrators to compare, comma-separated; `bdpt+adjoint`, `light+adjoint`, `mlt+adjoint`
+    /// use the adjoint image (its pre-pass time counts in the budget; settings from the
+    /// scene's `[render.adjoint]`); `bdpt+guide`, `light+guide`, `mlt+guide` and
+    /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (the `--guide*`
+    /// options; vertices default to `surface`), the preprocessing counted in the budget.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -45,6 +47,15 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
+    /// `+adjoint` variants: adjoint grid COLSxROWS (default: the scene's `[render.adjoint]`).
+    #[arg(long, value_parser = super::render::parse_resolution)]
+    pub adjoint_resolution: Option<(u32, u32)>,
+    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 8).
+    #[arg(long)]
+    pub adjoint_samples: Option<u32>,
+    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.5).
+    #[arg(long)]
+    pub adjoint_epsilon: Option<f32>,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
@@ -60,7 +71,7 @@ pub struct ConvergeArgs {
 /// for this line (trailing fields may be left out), so that one run sweeps the guide's
 /// parameters. A guided line's label has the full form.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Variant {
+pub struct GuidedVariant {
     pub kind: IntegratorKind,
     /// `Some` for a guided line: (vertices, map, regions) given in the name.
     pub guide: Option<GuideOverride>,
@@ -120,12 +131,12 @@ impl GuideOverride {
     }
 }
 
-impl Variant {
+impl GuidedVariant {
     /// Parses `KIND`, `KIND+guide` or `KIND+guide:VERTICES:COLSxROWS:K`.
     pub fn parse(s: &str) -> Result<Self, String> {
         let mut parts = s.trim().split('+');
         let kind = IntegratorKind::parse(parts.next().unwrap_or(""))?;
-        let mut v = Variant { kind, guide: None };
+        let mut v = GuidedVariant { kind, guide: None };
         for m in parts {
             let fields: Vec<&str> = m.split(':').collect();
             match fields[0] {
@@ -243,21 +254,37 @@ fn summary_line(c: &Curve) -> String {
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
-    let variants = args
-        .integrators
-        .iter()
-        .map(|s| Variant::parse(s))
-        .collect::<Result<Vec<_>, _>>()?;
-    let kinds: Vec<IntegratorKind> = variants
-        .iter()
-        .filter(|v| v.guide.is_none())
-        .map(|v| v.kind)
-        .collect();
-    let guided: Vec<(IntegratorKind, GuideOverride)> = variants
-        .iter()
-        .filter_map(|v| v.guide.clone().map(|g| (v.kind, g)))
-        .collect();
+    let (mut scene, source) = super::load_scene(Some(&args.scene))?;
+    let mut adjoint = scene.render.adjoint;
+    if let Some(r) = args.adjoint_resolution {
+        adjoint.resolution = r;
+    }
+    if let Some(n) = args.adjoint_samples {
+        adjoint.samples_per_cell = n;
+    }
+    if let Some(e) = args.adjoint_epsilon {
+        adjoint.epsilon = e;
+    }
+    adjoint
+        .validate()
+        .map_err(|e| format!("--adjoint-*: {e}"))?;
+    // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
+    let mut variants = Vec::new();
+    let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();
+    for s in &args.integrators {
+        if s.contains("+guide") {
+            let g = GuidedVariant::parse(s)?;
+            if let Some(o) = g.guide {
+                guided.push((g.kind, o));
+            }
+        } else {
+            variants.push(Variant::parse(s.trim(), adjoint)?);
+        }
+    }
+    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
+    if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
+        return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
+    }
     if args.guide.any() && guided.is_empty() {
         return Err("--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into());
     }
@@ -322,9 +349,15 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        if !kinds.is_empty() {
+        if !variants.is_empty() {
             rows = pool.install(|| {
-                convergence::converge(&scene, &reference, &kinds, &config, &mut report)
+                convergence::converge_variants(
+                    &mut scene,
+                    &reference,
+                    &variants,
+                    &config,
+                    &mut report,
+                )
             })?;
         }
         for (k, over) in &guided {

@@ -7,6 +7,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::enlightened::{AdjointImage, AdjointSettings};
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings, Variant};
@@ -73,6 +74,77 @@ pub struct RenderArgs {
     /// Guided local sampling (bdpt, light, mlt).
     #[command(flatten)]
     pub guide: GuideArgs,
+    /// Options of the adjoint image (boxed: they are rarely given).
+    #[command(flatten)]
+    pub adjoint: Box<AdjointArgs>,
+}
+
+/// The adjoint image's options (Kristensen 2010, sec. 5.3.1).
+#[derive(Args, Debug, Default, Clone)]
+pub struct AdjointArgs {
+    /// bdpt, light, mlt: sample area-light start points from the adjoint image, estimated by a
+    /// BDPT pre-pass first (default: the scene's `[render] adjoint_image`).
+    #[arg(long)]
+    pub adjoint_image: bool,
+    /// Adjoint grid COLSxROWS (columns rounded up to a multiple of the area lights; default
+    /// `[render.adjoint] resolution` or 64x64).
+    #[arg(long, value_parser = parse_resolution)]
+    pub adjoint_resolution: Option<(u32, u32)>,
+    /// Pre-pass BDPT samples per adjoint cell (default `[render.adjoint] samples_per_cell`
+    /// or 8).
+    #[arg(long)]
+    pub adjoint_samples: Option<u32>,
+    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
+    #[arg(long)]
+    pub adjoint_epsilon: Option<f32>,
+    /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
+    #[arg(long)]
+    pub adjoint_output: Option<PathBuf>,
+}
+
+impl AdjointArgs {
+    /// The adjoint settings if the image is wanted (flag or scene key): the scene's
+    /// `[render.adjoint]` overridden by the options; an error for invalid values, for options
+    /// without the image, or for an integrator that samples no light starts.
+    pub fn settings(
+        &self,
+        kind: IntegratorKind,
+        scene: &Scene,
+    ) -> Result<Option<AdjointSettings>, String> {
+        let wanted = self.adjoint_image || scene.render.adjoint_image;
+        let given = self.adjoint_resolution.is_some()
+            || self.adjoint_samples.is_some()
+            || self.adjoint_epsilon.is_some()
+            || self.adjoint_output.is_some();
+        if !wanted {
+            if given {
+                return Err("--adjoint-* options need --adjoint-image".into());
+            }
+            return Ok(None);
+        }
+        if !AdjointImage::applies_to(kind) {
+            if self.adjoint_image {
+                return Err(format!(
+                    "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
+                    kind.name()
+                ));
+            }
+            // the scene's key is a default for the integrators it applies to
+            return Ok(None);
+        }
+        let mut s = scene.render.adjoint;
+        if let Some(r) = self.adjoint_resolution {
+            s.resolution = r;
+        }
+        if let Some(n) = self.adjoint_samples {
+            s.samples_per_cell = n;
+        }
+        if let Some(e) = self.adjoint_epsilon {
+            s.epsilon = e;
+        }
+        s.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
+        Ok(Some(s))
+    }
 }
 
 /// The options of guided local sampling (Kristensen 2010, sec. 5.3; book chapter
@@ -481,6 +553,42 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let pool = pool
         .build()
         .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    let adjoint = match args.adjoint.settings(kind, &scene)? {
+        Some(settings) => {
+            let stats =
+                pool.install(|| AdjointImage::install(&mut scene, &settings, seed, max_depth))?;
+            let image = scene
+                .adjoint
+                .as_ref()
+                .ok_or("the adjoint image was not installed")?;
+            if !args.json {
+                eprintln!(
+                    "adjoint image: {}x{} cells over {} area lights, {} pre-pass samples in {:.2} s, {} empty cells (floor eps = {:.3e})",
+                    image.cols,
+                    image.rows,
+                    image.map.len(),
+                    stats.samples,
+                    stats.seconds,
+                    stats.zero_cells,
+                    image.epsilon
+                );
+            }
+            if let Some(out) = &args.adjoint.adjoint_output {
+                let img = image.to_image();
+                let mut meta = ImageMeta::default();
+                meta.set(
+                    "adjoint_image",
+                    "cells: I* + eps, columns along u1 (light strips)",
+                )
+                .set("seed", seed)
+                .set("scene_hash", format!("{:016x}", source.hash()));
+                image_io::write_exr(out, &img, &meta).map_err(|e| e.to_string())?;
+                image_io::write_png(&out.with_extension("png"), &img).map_err(|e| e.to_string())?;
+            }
+            Some(image.stats)
+        }
+        None => None,
+    };
     // the preprocessing pass of guided sampling (Kristensen 2010 Table 5.1's statistics)
     let guide_stats = pool.install(|| crate::enlightened::guide::install(&mut scene, seed));
     if let (Some(g), false) = (&guide_stats, args.json) {
@@ -606,6 +714,11 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 "bytes_importance": g.bytes_importance,
                 "seconds_particles": g.seconds_particles,
                 "seconds_build": g.seconds_build,
+            })),
+            "adjoint": adjoint.map(|a| serde_json::json!({
+                "samples": a.samples,
+                "seconds": a.seconds,
+                "zero_cells": a.zero_cells,
             })),
         });
         println!("{out}");

@@ -120,6 +120,27 @@ pub fn particle_at(path: &[Vertex], i: usize, scale: f32) -> Option<Particle> {
     })
 }
 
+/// The particle at vertex `v` with incident direction `direction` and `weight` (`None` for
+/// vertices that are no particle or a zero, non-finite weight).
+fn particle_with(v: &Vertex, direction: Vec3, weight: Rgb, depth: usize) -> Option<Particle> {
+    let (normal, medium) = match v.kind {
+        VertexKind::Surface { .. } => (Some(v.n), None),
+        VertexKind::Medium { medium } => (None, Some(medium)),
+        _ => return None,
+    };
+    if direction == Vec3::ZERO || !weight.is_finite() || weight == Rgb::ZERO {
+        return None;
+    }
+    Some(Particle {
+        position: v.p,
+        normal,
+        medium,
+        direction,
+        weight,
+        depth: depth as u32,
+    })
+}
+
 /// Runs `per_path` for `paths` paths in chunks of [`PARTICLE_CHUNK`] (one stream each) in
 /// parallel and concatenates the chunks' particles in chunk order.
 fn in_chunks<F>(paths: u64, seed: u64, salt: u64, per_path: F) -> Vec<Particle>
@@ -207,5 +228,302 @@ pub fn trace_classical(scene: &Scene, quantity: Quantity, paths: u64, seed: u64)
             Some(src) => trace_importons(scene, &bdpt, src, paths, seed),
             None => Vec::new(),
         },
+    }
+}
+
+/// Longest path the bidirectional particle sampler draws (edges): p_k = 2^-k is truncated
+/// here and renormalized, which changes p_k by 2^-24.
+pub const BIDIRECTIONAL_MAX_LENGTH: usize = 24;
+const BIDIRECTIONAL_SALT: u64 = 0x6269_6469_7200_0000;
+
+/// p_k of the truncated length distribution, k in 1..=[`BIDIRECTIONAL_MAX_LENGTH`].
+fn length_pmf(k: usize) -> f64 {
+    let z = 1.0 - 0.5f64.powi(BIDIRECTIONAL_MAX_LENGTH as i32);
+    if (1..=BIDIRECTIONAL_MAX_LENGTH).contains(&k) {
+        0.5f64.powi(k as i32) / z
+    } else {
+        0.0
+    }
+}
+
+/// P(K >= n): the probability that the drawn length can hold a particle n edges from its
+/// source with at least one more edge behind it (q of Kristensen 2010, sec. 5.2.2).
+fn length_at_least(n: usize) -> f64 {
+    (n..=BIDIRECTIONAL_MAX_LENGTH).map(length_pmf).sum()
+}
+
+fn sample_length(u: f64) -> usize {
+    let mut acc = 0.0;
+    for k in 1..=BIDIRECTIONAL_MAX_LENGTH {
+        acc += length_pmf(k);
+        if u < acc {
+            return k;
+        }
+    }
+    BIDIRECTIONAL_MAX_LENGTH
+}
+
+/// Photons and importons from one sampler.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParticleSets {
+    pub photons: Vec<Particle>,
+    pub importons: Vec<Particle>,
+}
+
+/// The bidirectional particle sampler (Kristensen 2010, sec. 5.2.2), made unbiased.
+///
+/// One sample is one path x_0 (light) ... x_k (sensor): the length k with p_k = 2^-k, the split
+/// s uniform in 0..=k+1, a light walk of s vertices and an eye walk of t = k + 1 - s vertices
+/// (no Russian roulette: k is the roulette). A photon at x_i (1 <= i <= k - 1) represents the
+/// light subpath x_0 ... x_i; an importon at x_i the eye subpath x_i ... x_k.
+///
+/// What the thesis prints, alpha = (k+2) p_{s,t}^2 / sum p^2 f_L / (p_{s,t} q_i), is unbiased
+/// only with three precisions, derived here (book, "Bidirectional particles"):
+/// 1. Which splits compete. For the photon at x_i the eye-sampled vertices' densities depend on
+///    x_{i+1}, x_{i+2} (the "tail" the eye walk drew first). A power-heuristic weight that
+///    depends on the tail sums to one over the splits that see the same tail distribution:
+///    s' = 0 ..= i (x_i eye-sampled, the tail is the eye walk's first k - i vertices) and
+///    s' = i + 1 (x_0 ... x_i light-sampled, the tail an independent eye walk of k - i
+///    vertices). Splits s' > i + 1 draw the tail's first vertices from the light side, so the
+///    photons of a light walk count at its last vertex only.
+/// 2. Walks that stop early. When the eye walk of s = i + 1 ends before its tail is complete, no
+///    other split could have produced x_i with it: the weight is 1.
+/// 3. q. Combining the lengths k >= i + 1 (the sensor vertex x_k carries no scene particle)
+///    gives q = P(K >= i + 1) = 2^-i for a photon i edges from the light: the thesis's "q_1 for
+///    direct light, q_{n+1} for the n-th bounce".
+///
+/// Importons mirror this with j = k - i edges from the sensor: splits s' = i ..= k compete, and
+/// q = P(K >= j + 1). The camera's importons carry the mean pixel's importance (as
+/// [`ImportonSource::Camera`]).
+///
+/// Limitation: f-hat of a Dirac lobe is not evaluated, so subpaths through a mirror or glass
+/// vertex carry no particle (the classical tracer has them). Infinite lights are not handled
+/// (their vertices lie outside the scene): the sets are empty.
+// ANCHOR: trace_bidirectional
+pub fn trace_bidirectional(
+    scene: &Scene,
+    source: ImportonSource,
+    paths: u64,
+    seed: u64,
+) -> ParticleSets {
+    if paths == 0 || scene.lights.is_empty() || scene.lights.iter().any(|l| l.is_infinite()) {
+        return ParticleSets::default();
+    }
+    match source {
+        ImportonSource::Camera if scene.camera.is_none() => return ParticleSets::default(),
+        ImportonSource::Meter(m) if m as usize >= scene.sensors.len() => {
+            return ParticleSets::default()
+        }
+        _ => {}
+    }
+    let base = {
+        let mut b = Bdpt::new(scene, None, crate::integrator::bdpt::Strategies::All);
+        b.roulette = false;
+        b
+    };
+    let scale = 1.0 / paths as f64;
+    let chunks = paths.div_ceil(PARTICLE_CHUNK);
+    let parts: Vec<ParticleSets> = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            let mut sampler = Sampler::new(seed, c ^ BIDIRECTIONAL_SALT, 0);
+            let mut bdpt = base.clone();
+            let mut light = Vec::new();
+            let mut eye = Vec::new();
+            let mut out = ParticleSets::default();
+            for _ in 0..PARTICLE_CHUNK.min(paths - c * PARTICLE_CHUNK) {
+                bidirectional_sample(
+                    scene,
+                    &mut bdpt,
+                    source,
+                    scale,
+                    &mut sampler,
+                    &mut light,
+                    &mut eye,
+                    &mut out,
+                );
+            }
+            out
+        })
+        .collect();
+    let mut all = ParticleSets::default();
+    for p in parts {
+        all.photons.extend(p.photons);
+        all.importons.extend(p.importons);
+    }
+    all
+}
+// ANCHOR_END: trace_bidirectional
+
+/// The power-heuristic weight of split `s` among `candidates` (densities; zero ones cannot
+/// produce the subpath and are left out).
+fn power_weight(s: usize, densities: &[(usize, f64)]) -> f64 {
+    let own = densities.iter().find(|(i, _)| *i == s).map_or(0.0, |d| d.1);
+    let sum: f64 = densities
+        .iter()
+        .filter(|(_, p)| *p > 0.0 && p.is_finite())
+        .map(|(_, p)| p * p)
+        .sum();
+    if own > 0.0 && sum > 0.0 {
+        own * own / sum
+    } else {
+        0.0
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn bidirectional_sample(
+    scene: &Scene,
+    bdpt: &mut Bdpt,
+    source: ImportonSource,
+    scale: f64,
+    sampler: &mut Sampler,
+    light: &mut Vec<Vertex>,
+    eye: &mut Vec<Vertex>,
+    out: &mut ParticleSets,
+) {
+    use crate::path::geometry_term::geometry_term_unoccluded;
+    let k = sample_length(sampler.next_f64());
+    let s = sampler.next_index(k + 2);
+    let t = k + 1 - s; // t = 0: the light walk would have to hit the sensor
+    light.clear();
+    if s > 0 {
+        bdpt.vertex_cap = s;
+        bdpt.light_subpath(scene, sampler, light);
+    }
+    bdpt.vertex_cap = t.max(1);
+    let n_pix = match source {
+        ImportonSource::Camera => {
+            let Some(cam) = scene.camera.as_ref() else {
+                return;
+            };
+            let film = Vec2::new(cam.width as f32, cam.height as f32);
+            let raster = sampler.next_2d() * film;
+            bdpt.camera_subpath(scene, raster, sampler, eye);
+            (cam.width as f64) * (cam.height as f64)
+        }
+        ImportonSource::Meter(m) => {
+            bdpt.meter_subpath(scene, m, sampler, eye);
+            1.0
+        }
+    };
+    if t == 0 {
+        return;
+    }
+    let light_done = light.len() == s;
+    let eye_done = eye.len() == t;
+    let q_photon = |i: usize| length_at_least(i + 1);
+    if !(light_done && eye_done) {
+        // 2. a walk ended early: the last vertex of the complete light walk is a photon with
+        // weight 1 among the splits (no tail for the others); the last vertex of a complete eye
+        // walk an importon likewise
+        if light_done && s >= 2 && s - 1 < k {
+            let i = s - 1;
+            let f = (k + 2) as f64 / q_photon(i) * scale;
+            if let Some(p) = particle_at(light, i, f as f32) {
+                out.photons.push(p);
+            }
+        }
+        if eye_done && t >= 2 && s >= 1 {
+            // the importon at x_s, j = k - s edges from the sensor
+            let j = t - 1;
+            let f = (k + 2) as f64 / length_at_least(j + 1) * scale;
+            if let Some(p) = particle_at(eye, t - 1, f as f32) {
+                out.importons.push(p);
+            }
+        }
+        return;
+    }
+    // the full path x_0 ... x_k
+    let mut x: Vec<Vertex> = Vec::with_capacity(k + 1);
+    x.extend_from_slice(light);
+    x.extend(eye.iter().rev().copied());
+    if s == 0 {
+        // the eye walk must have found an emitter: make it the light vertex
+        let VertexKind::Surface { prim } = x[0].kind else {
+            return;
+        };
+        let Some(l) = scene.shapes[scene.prim_shape[prim as usize] as usize].light else {
+            return;
+        };
+        x[0].kind = VertexKind::Light {
+            light: l,
+            prim: Some(prim),
+        };
+    }
+    let path = crate::path::Path { vertices: x };
+    let x = &path.vertices;
+    let d = crate::path::pdf::densities(scene, &path, sampler);
+    // G T of every edge and f-hat of every inner vertex (physical light flow, x_0 -> x_k)
+    let mut gt = vec![Rgb::ZERO; k];
+    for m in 0..k {
+        let e = scene.edge(
+            x[m].edge_end(x[m + 1].p),
+            x[m + 1].edge_end(x[m].p),
+            sampler,
+        );
+        gt[m] = e.transmittance * geometry_term_unoccluded(&x[m], &x[m + 1]);
+    }
+    let f_inner = |m: usize| x[m].f_hat(scene, x[m - 1].p, x[m + 1].p);
+    let le = x[0].emitted(scene, x[1].p);
+    let we = match x[k].kind {
+        VertexKind::Camera => x[k].importance(scene, x[k - 1].p) / n_pix as f32,
+        _ => x[k].importance(scene, x[k - 1].p),
+    };
+    let light_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.light[m] as f64).product() };
+    let eye_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.eye[m] as f64).product() };
+    // photons at x_i, 1 <= i <= k - 1, from splits s <= i + 1
+    for i in s.saturating_sub(1).max(1)..k {
+        let split_pdf = |sp: usize| light_d(0, sp) * eye_d(sp, i + 1);
+        let cands: Vec<(usize, f64)> = (0..=i + 1).map(|sp| (sp, split_pdf(sp))).collect();
+        let w = power_weight(s, &cands);
+        let p = split_pdf(s);
+        if w <= 0.0 || p <= 0.0 {
+            continue;
+        }
+        // f_L(x_0 ... x_i) = L_e prod G T prod f-hat (x_i's own scattering not included)
+        let mut f = le;
+        for (m, g) in gt.iter().enumerate().take(i) {
+            f *= *g;
+            if m >= 1 {
+                f *= f_inner(m);
+            }
+        }
+        if f == Rgb::ZERO {
+            continue;
+        }
+        let a = (k + 2) as f64 / q_photon(i) * w / p * scale;
+        let towards = (x[i - 1].p - x[i].p).normalize_or_zero();
+        if let Some(ph) = particle_with(&x[i], towards, f * a as f32, i) {
+            out.photons.push(ph);
+        }
+    }
+    // importons at x_i, 1 <= i <= k - 1, from splits s >= i (x_i ... x_k), j = k - i
+    for i in 1..=s.min(k - 1) {
+        let split_pdf = |sp: usize| light_d(i, sp) * eye_d(sp, k + 1);
+        let cands: Vec<(usize, f64)> = (i..=k).map(|sp| (sp, split_pdf(sp))).collect();
+        let w = power_weight(s, &cands);
+        let p = split_pdf(s);
+        if w <= 0.0 || p <= 0.0 {
+            continue;
+        }
+        // f_E(x_i ... x_k) = W_e prod G T prod f-hat (x_i's own scattering not included)
+        let mut f = we;
+        for (m, g) in gt.iter().enumerate().skip(i) {
+            f *= *g;
+            if m > i {
+                f *= f_inner(m);
+            }
+        }
+        if f == Rgb::ZERO {
+            continue;
+        }
+        let j = k - i;
+        let a = (k + 2) as f64 / length_at_least(j + 1) * w / p * scale;
+        // the importon's direction points towards the sensor: from x_i to x_{i+1}
+        let towards = (x[i + 1].p - x[i].p).normalize_or_zero();
+        if let Some(im) = particle_with(&x[i], towards, f * a as f32, j) {
+            out.importons.push(im);
+        }
     }
 }

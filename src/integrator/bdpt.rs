@@ -64,6 +64,12 @@ pub struct Bdpt {
     pub strategies: Strategies,
     /// Medium around each light (for the first edge of light subpaths).
     light_media: Vec<Option<u32>>,
+    /// Russian roulette in the walks (on by default; samplers that fix the walk lengths
+    /// themselves, such as the bidirectional particle sampler, switch it off).
+    pub roulette: bool,
+    /// Vertices per subpath at most, below [`MAX_SUBPATH_VERTICES`] (a walk of exactly n
+    /// vertices for the bidirectional particle sampler).
+    pub vertex_cap: usize,
 }
 
 impl Bdpt {
@@ -86,6 +92,8 @@ impl Bdpt {
             max_depth: max_depth.unwrap_or(u32::MAX),
             strategies,
             light_media,
+            roulette: true,
+            vertex_cap: MAX_SUBPATH_VERTICES,
         }
     }
 
@@ -100,7 +108,9 @@ impl Bdpt {
     }
 
     fn max_vertices(&self, extra: u32) -> usize {
-        (self.max_depth.saturating_add(extra) as usize).min(MAX_SUBPATH_VERTICES)
+        (self.max_depth.saturating_add(extra) as usize)
+            .min(MAX_SUBPATH_VERTICES)
+            .min(self.vertex_cap)
     }
 
     /// The random walk shared by both subpaths: propagate, record the vertex with its forward
@@ -231,7 +241,7 @@ impl Bdpt {
             // the predecessor as sampled from here (the reverse walk)
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
-            if cur as u32 >= RR_START_DEPTH {
+            if self.roulette && cur as u32 >= RR_START_DEPTH {
                 let ratio = beta.max_element() / beta_start;
                 let q = guide::roulette_survival(scene, ss.lhat, ratio, RR_MAX_SURVIVAL)
                     .unwrap_or(ratio.min(RR_MAX_SURVIVAL));

@@ -115,9 +115,37 @@ pub fn measure_run(
     times: &[f64],
     run: usize,
 ) -> Result<Vec<CheckpointRow>, String> {
+    measure_run_from(
+        scene,
+        reference,
+        kind,
+        seed,
+        max_depth,
+        times,
+        run,
+        kind.name(),
+        0.0,
+    )
+}
+// ANCHOR_END: measure_run
+
+/// [`measure_run`] with a label for the rows and `seconds0` already spent (a pre-pass charged
+/// to the integrator, such as the adjoint image's).
+#[allow(clippy::too_many_arguments)]
+pub fn measure_run_from(
+    scene: &Scene,
+    reference: &Image,
+    kind: IntegratorKind,
+    seed: u64,
+    max_depth: Option<u32>,
+    times: &[f64],
+    run: usize,
+    label: &str,
+    seconds0: f64,
+) -> Result<Vec<CheckpointRow>, String> {
     check_reference(scene, reference)?;
     let mut renderer = Renderer::new(scene, kind, seed, max_depth);
-    let mut seconds = 0.0f64;
+    let mut seconds = seconds0;
     let mut next = 0;
     let mut rows = Vec::with_capacity(times.len());
     while next < times.len() {
@@ -135,7 +163,7 @@ pub fn measure_run(
         };
         let m = metrics::compare(&film.image(), reference)?;
         rows.push(CheckpointRow {
-            integrator: kind.name().to_string(),
+            integrator: label.to_string(),
             run,
             checkpoint,
             seconds,
@@ -147,7 +175,6 @@ pub fn measure_run(
     }
     Ok(rows)
 }
-// ANCHOR_END: measure_run
 
 /// Checks that the scene renders an image the reference can be compared with.
 fn check_reference(scene: &Scene, reference: &Image) -> Result<(), String> {
@@ -188,6 +215,103 @@ pub fn converge(
             let seed = run_seed(config.seed, run);
             let run_rows =
                 measure_run(scene, reference, kind, seed, config.max_depth, &times, run)?;
+            on_run(&run_rows);
+            rows.extend(run_rows);
+        }
+    }
+    Ok(rows)
+}
+
+/// An integrator as `converge` names it: a kind, optionally with the adjoint image
+/// (`bdpt+adjoint`, `mlt+adjoint`, `light+adjoint`; Kristensen 2010, sec. 5.3.1).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    pub kind: IntegratorKind,
+    pub adjoint: Option<crate::enlightened::AdjointSettings>,
+}
+
+impl Variant {
+    /// Suffix that asks for the adjoint image.
+    pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
+
+    /// Parses `NAME` or `NAME+adjoint`; `adjoint` holds the settings of the image.
+    pub fn parse(s: &str, adjoint: crate::enlightened::AdjointSettings) -> Result<Self, String> {
+        match s.strip_suffix(Self::ADJOINT_SUFFIX) {
+            Some(base) => {
+                let kind = IntegratorKind::parse(base)?;
+                if !crate::enlightened::AdjointImage::applies_to(kind) {
+                    return Err(format!(
+                        "`{s}`: the adjoint image applies to bdpt, light and mlt, not `{base}`"
+                    ));
+                }
+                Ok(Variant {
+                    kind,
+                    adjoint: Some(adjoint),
+                })
+            }
+            None => Ok(Variant {
+                kind: IntegratorKind::parse(s)?,
+                adjoint: None,
+            }),
+        }
+    }
+
+    /// The label of its rows.
+    pub fn name(&self) -> String {
+        match self.adjoint {
+            Some(_) => format!("{}{}", self.kind.name(), Self::ADJOINT_SUFFIX),
+            None => self.kind.name().to_string(),
+        }
+    }
+}
+
+/// [`converge`] over variants: a `+adjoint` variant estimates the adjoint image with the run's
+/// seed before each run, charges its time to the run (the first checkpoints it overruns are
+/// reported at the first pass), and removes it afterwards.
+pub fn converge_variants(
+    scene: &mut Scene,
+    reference: &Image,
+    variants: &[Variant],
+    config: &ConvergeConfig,
+    on_run: &mut dyn FnMut(&[CheckpointRow]),
+) -> Result<Vec<CheckpointRow>, String> {
+    if variants.is_empty() {
+        return Err("no integrator to measure".into());
+    }
+    if config.runs == 0 {
+        return Err("at least one run is needed".into());
+    }
+    check_reference(scene, reference)?;
+    let times = checkpoint_times(config.budget, config.checkpoints)?;
+    let mut rows = Vec::new();
+    for v in variants {
+        for run in 0..config.runs {
+            let seed = run_seed(config.seed, run);
+            let seconds0 = match &v.adjoint {
+                Some(settings) => {
+                    crate::enlightened::AdjointImage::install(
+                        scene,
+                        settings,
+                        seed,
+                        config.max_depth,
+                    )?
+                    .seconds
+                }
+                None => 0.0,
+            };
+            let result = measure_run_from(
+                scene,
+                reference,
+                v.kind,
+                seed,
+                config.max_depth,
+                &times,
+                run,
+                &v.name(),
+                seconds0,
+            );
+            scene.adjoint = None;
+            let run_rows = result?;
             on_run(&run_rows);
             rows.extend(run_rows);
         }

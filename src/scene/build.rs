@@ -778,6 +778,8 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         mlt: mlt_settings(desc.render.mlt.as_ref()),
         smc: smc_settings(src, desc.render.smc.as_ref())?,
         guide: guide_settings(src, desc.render.guide.as_ref(), radius)?,
+        adjoint_image: desc.render.adjoint_image.unwrap_or(false),
+        adjoint: adjoint_settings(src, desc.render.adjoint.as_ref())?,
     };
     if render.spp == 0 {
         return Err(src.error(&path("render").key("spp"), "spp must be at least 1"));
@@ -975,6 +977,45 @@ fn guide_settings(
     if let Some(r) = d.roulette {
         s.roulette =
             Some(GuideSettings::check_roulette(r).map_err(|e| src.error(&key("roulette"), e))?);
+    }
+    Ok(s)
+}
+
+/// Adjoint-image settings from `[render.adjoint]`, defaults where a key is absent; each value
+/// is checked here so a bad one is reported at its line and key.
+fn adjoint_settings(
+    src: &SceneSource,
+    desc: Option<&crate::scene::file::AdjointDesc>,
+) -> Result<crate::enlightened::AdjointSettings, SceneError> {
+    let mut s = crate::enlightened::AdjointSettings::default();
+    let Some(d) = desc else { return Ok(s) };
+    let key = |k: &str| path("render").key("adjoint").key(k);
+    if let Some([c, r]) = d.resolution {
+        s.resolution = (c, r);
+        crate::enlightened::AdjointSettings {
+            resolution: (c, r),
+            ..Default::default()
+        }
+        .validate()
+        .map_err(|e| src.error(&key("resolution"), e))?;
+    }
+    if let Some(n) = d.samples_per_cell {
+        s.samples_per_cell = n;
+        crate::enlightened::AdjointSettings {
+            samples_per_cell: n,
+            ..Default::default()
+        }
+        .validate()
+        .map_err(|e| src.error(&key("samples_per_cell"), e))?;
+    }
+    if let Some(e) = d.epsilon {
+        s.epsilon = e;
+        crate::enlightened::AdjointSettings {
+            epsilon: e,
+            ..Default::default()
+        }
+        .validate()
+        .map_err(|m| src.error(&key("epsilon"), m))?;
     }
     Ok(s)
 }

@@ -82,6 +82,24 @@ pub struct RenderDesc {
     pub smc: Option<SmcDesc>,
     /// `[render.guide]`: guided local sampling (enlightened local path sampling).
     pub guide: Option<GuideDesc>,
+    /// Sample area-light start points from the adjoint image (bdpt, light, mlt; Kristensen
+    /// 2010, sec. 5.3.1).
+    pub adjoint_image: Option<bool>,
+    /// `[render.adjoint]`: the adjoint image's grid, pre-pass size and floor.
+    pub adjoint: Option<AdjointDesc>,
+}
+
+/// `[render.adjoint]`: the keys of the `--adjoint-*` options (defaults in
+/// `enlightened::adjoint`), which override them.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AdjointDesc {
+    /// Grid [columns, rows]; columns are rounded up to a multiple of the area lights.
+    pub resolution: Option<[u32; 2]>,
+    /// Pre-pass BDPT samples per grid cell.
+    pub samples_per_cell: Option<u32>,
+    /// Floor added to every cell, as a fraction of the mean cell value.
+    pub epsilon: Option<f32>,
 }
 
 /// `[render.guide]`: the keys of the `--guide*` options (defaults in `enlightened::guide`),
@@ -173,6 +191,8 @@ impl Default for RenderDesc {
             mlt: None,
             smc: None,
             guide: None,
+            adjoint_image: None,
+            adjoint: None,
         }
     }
 }

@@ -79,6 +79,10 @@ pub struct RenderSettings {
     pub smc: crate::integrator::smc::SmcSettings,
     /// Guided local sampling (`[render.guide]`; `--guide*` options override it).
     pub guide: crate::enlightened::GuideSettings,
+    /// `[render] adjoint_image`: sample area-light starts from the adjoint image.
+    pub adjoint_image: bool,
+    /// `[render.adjoint]` (defaults where a key is absent); `--adjoint-*` override them.
+    pub adjoint: crate::enlightened::AdjointSettings,
 }
 
 /// Where a ray's propagation ended.
