@@ -103,3 +103,12 @@ if want "$sel" enlightened; then
   cp out/maze-fog-conv/error-vs-time.svg "$d/maze-fog-error-vs-time.svg"
   cp out/maze-fog-conv/convergence.csv "$d/maze-fog-convergence.csv"
 fi
+
+if want "$sel" guiding-bidir; then
+  # Guide maps from the bidirectional particle sampler (indirect particles only).
+  d=book/src/figures/guiding
+  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 2000000 --guide-sampler bidirectional --guide-min-depth 2 -o out/guide-door-bidir --integrators \
+      mlt+guide:both:16x8:512
+  cp out/guide-door-bidir/convergence.csv "$d/door-bidir.csv"
+fi

@@ -166,8 +166,9 @@ fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> 
         2 => ":indirect".into(),
         d => format!(":depth{d}"),
     };
+    let sampler = if g.bidirectional { ":bidir" } else { "" };
     format!(
-        "{}+guide:{}:{}x{}:{}{depth}",
+        "{}+guide:{}:{}x{}:{}{depth}{sampler}",
         kind.name(),
         g.kind.name(),
         g.cols,

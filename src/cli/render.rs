@@ -176,6 +176,9 @@ pub struct GuideArgs {
     /// light and importance only).
     #[arg(long)]
     pub guide_min_depth: Option<u32>,
+    /// Particle sampler of the guide: `classical` (default) or `bidirectional`.
+    #[arg(long)]
+    pub guide_sampler: Option<String>,
 }
 
 impl GuideArgs {
@@ -189,6 +192,7 @@ impl GuideArgs {
             || self.guide_alpha.is_some()
             || self.guide_roulette.is_some()
             || self.guide_min_depth.is_some()
+            || self.guide_sampler.is_some()
     }
 
     /// The scene's settings with these options applied, each checked.
@@ -222,6 +226,17 @@ impl GuideArgs {
         if let Some(a) = self.guide_alpha {
             s.regions.alpha =
                 GuideSettings::check_alpha(a).map_err(|e| format!("--guide-alpha: {e}"))?;
+        }
+        if let Some(m) = &self.guide_sampler {
+            s.bidirectional = match m.as_str() {
+                "classical" => false,
+                "bidirectional" => true,
+                _ => {
+                    return Err(format!(
+                        "--guide-sampler `{m}`: expected classical or bidirectional"
+                    ))
+                }
+            };
         }
         if let Some(d) = self.guide_min_depth {
             if !(1..=64).contains(&d) {

@@ -97,6 +97,10 @@ pub struct GuideSettings {
     /// the maps leave to BDPT's connections what they already sample well: the direct light
     /// and the direct view of the camera). A choice of this crate, not the thesis's.
     pub min_depth: u32,
+    /// Trace the particles with the bidirectional particle sampler (Kristensen 2010, sec.
+    /// 5.2.2) instead of the classical tracer: more photons where the camera looks, more
+    /// importons near the lights.
+    pub bidirectional: bool,
     /// c2: probability of sampling the map (c1 = 1 - c2 for the BSDF or phase function).
     pub c_guide: f32,
     /// Guided Russian roulette with this normalization alpha (None: the renderer's own roulette).
@@ -115,6 +119,7 @@ impl GuideSettings {
             regions: RegionParams::for_radius(radius),
             particles: DEFAULT_PARTICLES,
             min_depth: 1,
+            bidirectional: false,
             c_guide: DEFAULT_GUIDE_WEIGHT,
             roulette: None,
             seed: 0x454c_5053,
@@ -664,17 +669,21 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
     let t0 = std::time::Instant::now();
     let paths = settings.particles as u64;
     let deep = |p: &&crate::enlightened::Particle| p.depth >= settings.min_depth;
-    let photons: Vec<Deposit> = trace_classical(scene, Quantity::Radiance, paths, settings.seed)
-        .iter()
-        .filter(deep)
-        .map(Deposit::from)
-        .collect();
-    let importons: Vec<Deposit> =
-        trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1)
-            .iter()
-            .filter(deep)
-            .map(Deposit::from)
-            .collect();
+    let (photons, importons) = if settings.bidirectional {
+        use crate::enlightened::particles::{trace_bidirectional, ImportonSource};
+        let sets = match ImportonSource::default_for(scene) {
+            Some(src) => trace_bidirectional(scene, src, paths, settings.seed),
+            None => Default::default(),
+        };
+        (sets.photons, sets.importons)
+    } else {
+        (
+            trace_classical(scene, Quantity::Radiance, paths, settings.seed),
+            trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1),
+        )
+    };
+    let photons: Vec<Deposit> = photons.iter().filter(deep).map(Deposit::from).collect();
+    let importons: Vec<Deposit> = importons.iter().filter(deep).map(Deposit::from).collect();
     let seconds_particles = t0.elapsed().as_secs_f64();
     Guide::build(&photons, &importons, settings, seconds_particles)
 }
