@@ -718,3 +718,41 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
         );
     }
 }
+
+/// Guides from indirect particles only and from the bidirectional particle sampler: both have
+/// particles in their maps, and their mixtures still integrate to one.
+#[test]
+fn guide_options_min_depth_and_bidirectional_particles() {
+    for bidirectional in [false, true] {
+        let mut scene = fog_box(8);
+        let mut settings = GuideSettings::for_radius(scene.radius);
+        settings.kind = GuideKind::Both;
+        settings.particles = if bidirectional { 200_000 } else { 20_000 };
+        settings.regions.regions = 64;
+        settings.min_depth = 2;
+        settings.bidirectional = bidirectional;
+        let g = build_guide(&scene, settings);
+        assert!(
+            g.stats.photons > 1000 && g.stats.importons > 1000,
+            "bidirectional {bidirectional}: {:?}",
+            g.stats
+        );
+        let all = {
+            let mut s = settings;
+            s.min_depth = 1;
+            build_guide(&scene, s).stats
+        };
+        assert!(
+            all.photons > g.stats.photons,
+            "min_depth 2 drops the direct photons"
+        );
+        scene.guide = Some(Arc::new(g));
+        let (v, wo) = guided_vertices(&scene, true, 1)[0];
+        let grid = SphereGrid::new(world(), 16, 32);
+        for mode in [TransportMode::Radiance, TransportMode::Importance] {
+            let pdf = |w: Vec3| scatter_pdf(&scene, &v, wo, w, mode) as f64;
+            let mass: f64 = expected_midpoint(&grid, pdf, 4, 1).iter().sum();
+            assert!((mass - 1.0).abs() < 3e-3, "{mode:?}: integral {mass}");
+        }
+    }
+}
