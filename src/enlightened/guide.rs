@@ -8,6 +8,9 @@
 //! importons. At a medium vertex the phase function takes the BSDF's place,
 //!   p(w) = c1 p_fp(w) + c2 p_{Li|Wi}(w),
 //! with the maps of the volume regions: the thesis proposes this (sec. 5.3.3) but never ran it.
+//! A light subpath leaving an area light samples its direction from
+//!   p(w) = c1 p_Le(w) + c2 p_Wi(w)                 [Kristensen 2010, eq. (5.17)]
+//! with the importance map of the light point's surface region.
 //!
 //! The mixture is exact: its density is a function of the vertex (position, normal, medium),
 //! the incoming direction, the outgoing direction and the transport mode only, so the density
