@@ -4,7 +4,7 @@
 # the crate itself (`cargo build --release` first).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PS=target/release/pathspace
+PS="${PS:-target/release/pathspace}"
 mkdir -p out
 want() { [ $# -eq 0 ] || [ "$1" = "$2" ]; }
 sel="${1:-}"
@@ -35,6 +35,55 @@ if want "$sel" cloud; then
   cp out/cloud-conv/convergence.csv book/src/figures/cloud/converge.csv
 fi
 
+if want "$sel" guiding; then
+  # Guided local sampling on the door slit at equal time, the preprocessing counted: map size
+  # (8x4, 16x8, 32x16) and region count (64, 512, 4096) swept for surface guiding, then volume
+  # and both. The reference is a 1200 s BDPT render of the same scene file (scene_hash
+  # a33b702e61f3b65a); `pathspace reference scenes/door-slit.toml --integrator bdpt --time 1200
+  # -o out/door-ref.exr` makes one.
+  d=book/src/figures/guiding
+  mkdir -p "$d"
+  ref="${DOOR_REF:-out/door-ref.exr}"
+  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 -o out/guide-mlt --integrators \
+      mlt,mlt+guide:surface:8x4:512,mlt+guide:surface:16x8:512,mlt+guide:surface:32x16:512,mlt+guide:surface:16x8:64,mlt+guide:surface:16x8:4096,mlt+guide:volume:16x8:512,mlt+guide:both:16x8:512
+  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 -o out/guide-bdpt --integrators \
+      bdpt,bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512
+  for x in mlt bdpt; do
+    cp out/guide-$x/convergence.csv "$d/door-$x.csv"
+    cp out/guide-$x/error-vs-time.png "$d/door-$x-error-vs-time.png"
+    cp out/guide-$x/efficiency.png "$d/door-$x-efficiency.png"
+  done
+fi
+
+if want "$sel" guiding-fog; then
+  # The fog box at 64x64: guided BDPT and MLT (surface, volume, both) against unguided, equal time.
+  d=book/src/figures/guiding
+  mkdir -p "$d"
+  sed 's/resolution = \[256, 256\]/resolution = [64, 64]/' scenes/fog-box.toml > out/fog-64.toml
+  [ -f out/fog-64-ref.exr ] || $PS reference out/fog-64.toml --integrator bdpt --time 240 --threads 1 -o out/fog-64-ref.exr
+  $PS converge out/fog-64.toml --reference out/fog-64-ref.exr --budget 20 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 50000 -o out/guide-fog --integrators \
+      bdpt,bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512,mlt,mlt+guide:both:16x8:512
+  cp out/guide-fog/convergence.csv "$d/fog.csv"
+  cp out/guide-fog/error-vs-time.png "$d/fog-error-vs-time.png"
+fi
+
+if want "$sel" guiding-indirect; then
+  # The same with maps from indirect particles only (--guide-min-depth 2): the direct light and
+  # the camera's direct view are left to BDPT's connections.
+  d=book/src/figures/guiding
+  $PS converge out/fog-64.toml --reference out/fog-64-ref.exr --budget 20 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 50000 --guide-min-depth 2 -o out/guide-fog-indirect --integrators \
+      bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
+  cp out/guide-fog-indirect/convergence.csv "$d/fog-indirect.csv"
+  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 100000 --guide-min-depth 2 -o out/guide-door-indirect --integrators \
+      bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
+  cp out/guide-door-indirect/convergence.csv "$d/door-indirect.csv"
+fi
+
 if want "$sel" enlightened; then
   # book chapter "Enlightened local path sampling": the maze with and without the adjoint image
   d=book/src/figures/enlightened
@@ -53,4 +102,13 @@ if want "$sel" enlightened; then
       --budget 40 --runs 2 --threads 2 -o out/maze-fog-conv
   cp out/maze-fog-conv/error-vs-time.svg "$d/maze-fog-error-vs-time.svg"
   cp out/maze-fog-conv/convergence.csv "$d/maze-fog-convergence.csv"
+fi
+
+if want "$sel" guiding-bidir; then
+  # Guide maps from the bidirectional particle sampler (indirect particles only).
+  d=book/src/figures/guiding
+  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+      --guide-particles 2000000 --guide-sampler bidirectional --guide-min-depth 2 -o out/guide-door-bidir --integrators \
+      mlt+guide:both:16x8:512
+  cp out/guide-door-bidir/convergence.csv "$d/door-bidir.csv"
 fi

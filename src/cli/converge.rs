@@ -20,7 +20,9 @@ pub struct ConvergeArgs {
     pub reference: PathBuf,
     /// Integrators to compare, comma-separated; `bdpt+adjoint`, `light+adjoint`, `mlt+adjoint`
     /// use the adjoint image (its pre-pass time counts in the budget; settings from the
-    /// scene's `[render.adjoint]`).
+    /// scene's `[render.adjoint]`); `bdpt+guide`, `light+guide`, `mlt+guide` and
+    /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (the `--guide*`
+    /// options; vertices default to `surface`), the preprocessing counted in the budget.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -59,6 +61,168 @@ pub struct ConvergeArgs {
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
     #[arg(long, value_delimiter = ',')]
     pub propagation: Vec<String>,
+    /// Guided local sampling of the `+guide` variants.
+    #[command(flatten)]
+    pub guide: super::render::GuideArgs,
+}
+
+/// An integrator named on the command line: a kind and its variant modifiers: `+guide`, or
+/// `+guide:VERTICES:COLSxROWS:K` overriding `--guide`, `--guide-map` and `--guide-regions`
+/// for this line (trailing fields may be left out), so that one run sweeps the guide's
+/// parameters. A guided line's label has the full form.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GuidedVariant {
+    pub kind: IntegratorKind,
+    /// `Some` for a guided line: (vertices, map, regions) given in the name.
+    pub guide: Option<GuideOverride>,
+}
+
+/// The guide parameters a `+guide:...` name sets.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GuideOverride {
+    pub kind: Option<crate::enlightened::GuideKind>,
+    pub map: Option<(u32, u32)>,
+    pub regions: Option<usize>,
+}
+
+impl GuideOverride {
+    fn parse(fields: &[&str]) -> Result<Self, String> {
+        use crate::enlightened::{GuideKind, GuideSettings};
+        if fields.len() > 3 {
+            return Err("expected +guide:VERTICES:COLSxROWS:K".into());
+        }
+        let mut o = GuideOverride::default();
+        if let Some(v) = fields.first() {
+            o.kind = Some(GuideKind::parse(v)?);
+        }
+        if let Some(m) = fields.get(1) {
+            o.map = Some(GuideSettings::parse_map(m)?);
+        }
+        if let Some(k) = fields.get(2) {
+            let k: usize = k
+                .parse()
+                .ok()
+                .filter(|k| (1..=1usize << 20).contains(k))
+                .ok_or_else(|| format!("regions `{k}` is not a count in 1..=1048576"))?;
+            o.regions = Some(k);
+        }
+        Ok(o)
+    }
+
+    /// `base` with these fields replaced (vertices `surface` when neither sets them).
+    pub fn apply(
+        &self,
+        base: crate::enlightened::GuideSettings,
+    ) -> crate::enlightened::GuideSettings {
+        let mut g = base;
+        if let Some(k) = self.kind {
+            g.kind = k;
+        }
+        if g.kind == crate::enlightened::GuideKind::Off {
+            g.kind = crate::enlightened::GuideKind::Surface;
+        }
+        if let Some((c, r)) = self.map {
+            (g.cols, g.rows) = (c, r);
+        }
+        if let Some(k) = self.regions {
+            g.regions.regions = k;
+        }
+        g
+    }
+}
+
+impl GuidedVariant {
+    /// Parses `KIND`, `KIND+guide` or `KIND+guide:VERTICES:COLSxROWS:K`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let mut parts = s.trim().split('+');
+        let kind = IntegratorKind::parse(parts.next().unwrap_or(""))?;
+        let mut v = GuidedVariant { kind, guide: None };
+        for m in parts {
+            let fields: Vec<&str> = m.split(':').collect();
+            match fields[0] {
+                "guide" if super::render::guides(kind) => {
+                    v.guide = Some(
+                        GuideOverride::parse(&fields[1..]).map_err(|e| format!("`{s}`: {e}"))?,
+                    )
+                }
+                "guide" => {
+                    return Err(format!(
+                        "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
+                        kind.name()
+                    ))
+                }
+                _ => return Err(format!("`{s}`: unknown variant `+{m}` (available: +guide)")),
+            }
+        }
+        Ok(v)
+    }
+}
+
+/// The label of a guided line: `KIND+guide:VERTICES:COLSxROWS:K`, with `:indirect` (or
+/// `:depthD`) when `--guide-min-depth` keeps shallow particles out of the maps.
+fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> String {
+    let depth = match g.min_depth {
+        1 => String::new(),
+        2 => ":indirect".into(),
+        d => format!(":depth{d}"),
+    };
+    let sampler = if g.bidirectional { ":bidir" } else { "" };
+    format!(
+        "{}+guide:{}:{}x{}:{}{depth}{sampler}",
+        kind.name(),
+        g.kind.name(),
+        g.cols,
+        g.rows,
+        g.regions.regions
+    )
+}
+
+/// Equal-time runs of a guided variant: each run loads the scene, builds its guide (timed,
+/// seeded by the run) and renders until the same checkpoint times as the other lines, the
+/// preprocessing counted in them (checkpoints it overruns are not reached).
+#[allow(clippy::too_many_arguments)]
+fn converge_guided(
+    args: &ConvergeArgs,
+    reference: &crate::image_io::Image,
+    kind: IntegratorKind,
+    over: &GuideOverride,
+    config: &ConvergeConfig,
+    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
+) -> Result<Vec<convergence::CheckpointRow>, String> {
+    let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
+    let mut rows = Vec::new();
+    for run in 0..config.runs {
+        let (mut scene, _) = super::load_scene(Some(&args.scene))?;
+        let g = over.apply(args.guide.apply(scene.render.guide)?);
+        scene.render.guide = g;
+        let seed = convergence::run_seed(config.seed, run);
+        let t0 = std::time::Instant::now();
+        let stats = crate::enlightened::guide::install(&mut scene, seed);
+        let pre = t0.elapsed().as_secs_f64();
+        if let Some(st) = &stats {
+            eprint!("{}", st.table());
+        }
+        let skipped = times.iter().take_while(|&&t| t <= pre).count();
+        let left: Vec<f64> = times[skipped..].iter().map(|t| t - pre).collect();
+        if left.is_empty() {
+            eprintln!(
+                "{}: the preprocessing ({pre:.2} s) overran the budget",
+                guided_label(kind, &g)
+            );
+            continue;
+        }
+        let mut part =
+            convergence::measure_run(&scene, reference, kind, seed, config.max_depth, &left, run)?;
+        for r in &mut part {
+            r.integrator = guided_label(kind, &g);
+            r.seconds += pre;
+            r.efficiency = convergence::efficiency(r.relmse, r.seconds);
+            r.checkpoint += skipped;
+        }
+        report(&part);
+        rows.extend(part);
+    }
+    Ok(rows)
 }
 
 /// One line of the summary printed at the end.
@@ -105,14 +269,28 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     adjoint
         .validate()
         .map_err(|e| format!("--adjoint-*: {e}"))?;
-    let variants = args
-        .integrators
-        .iter()
-        .map(|s| Variant::parse(s.trim(), adjoint))
-        .collect::<Result<Vec<_>, _>>()?;
+    // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
+    let mut variants = Vec::new();
+    let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();
+    for s in &args.integrators {
+        if s.contains("+guide") {
+            let g = GuidedVariant::parse(s)?;
+            if let Some(o) = g.guide {
+                guided.push((g.kind, o));
+            }
+        } else {
+            variants.push(Variant::parse(s.trim(), adjoint)?);
+        }
+    }
     let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
         return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
+    }
+    if args.guide.any() && guided.is_empty() {
+        return Err("--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into());
+    }
+    if !guided.is_empty() && !args.propagation.is_empty() {
+        return Err("`+guide` integrators cannot be combined with --propagation".into());
     }
     let externals = args
         .external
@@ -172,9 +350,22 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        rows = pool.install(|| {
-            convergence::converge_variants(&mut scene, &reference, &variants, &config, &mut report)
-        })?;
+        if !variants.is_empty() {
+            rows = pool.install(|| {
+                convergence::converge_variants(
+                    &mut scene,
+                    &reference,
+                    &variants,
+                    &config,
+                    &mut report,
+                )
+            })?;
+        }
+        for (k, over) in &guided {
+            let part = pool
+                .install(|| converge_guided(&args, &reference, *k, over, &config, &mut report))?;
+            rows.extend(part);
+        }
     } else {
         for name in &args.propagation {
             let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;

@@ -75,6 +75,9 @@ pub struct RenderArgs {
     /// Options of the `smc` integrator (boxed: they are rarely given).
     #[command(flatten)]
     pub smc: Box<SmcArgs>,
+    /// Guided local sampling (bdpt, light, mlt).
+    #[command(flatten)]
+    pub guide: GuideArgs,
     /// Options of the adjoint image (boxed: they are rarely given).
     #[command(flatten)]
     pub adjoint: Box<AdjointArgs>,
@@ -146,6 +149,120 @@ impl AdjointArgs {
         s.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
         Ok(Some(s))
     }
+}
+
+/// The options of guided local sampling (Kristensen 2010, sec. 5.3; book chapter
+/// "Enlightened local path sampling: guiding"); each overrides its `[render.guide]` key.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct GuideArgs {
+    /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
+    #[arg(long)]
+    pub guide: Option<String>,
+    /// Direction map resolution COLSxROWS (default 32x16, the thesis's).
+    #[arg(long)]
+    pub guide_map: Option<String>,
+    /// Regions (k-means centres) per quantity (default 512).
+    #[arg(long)]
+    pub guide_regions: Option<usize>,
+    /// Light and eye subpaths traced for photons and importons (default 200000 each).
+    #[arg(long)]
+    pub guide_particles: Option<usize>,
+    /// c2 of eqs. (5.17)-(5.19), the probability of sampling the map (default 0.5).
+    #[arg(long)]
+    pub guide_weight: Option<f32>,
+    /// alpha of eq. (5.16) per unit length (default 20 / scene radius).
+    #[arg(long)]
+    pub guide_alpha: Option<f32>,
+    /// Guided Russian roulette with this normalization (default: the ordinary roulette).
+    #[arg(long)]
+    pub guide_roulette: Option<f32>,
+    /// Only particles at this depth or deeper shape the maps (default 1: all; 2: indirect
+    /// light and importance only).
+    #[arg(long)]
+    pub guide_min_depth: Option<u32>,
+    /// Particle sampler of the guide: `classical` (default) or `bidirectional`.
+    #[arg(long)]
+    pub guide_sampler: Option<String>,
+}
+
+impl GuideArgs {
+    /// True when any option was given.
+    pub fn any(&self) -> bool {
+        self.guide.is_some()
+            || self.guide_map.is_some()
+            || self.guide_regions.is_some()
+            || self.guide_particles.is_some()
+            || self.guide_weight.is_some()
+            || self.guide_alpha.is_some()
+            || self.guide_roulette.is_some()
+            || self.guide_min_depth.is_some()
+            || self.guide_sampler.is_some()
+    }
+
+    /// The scene's settings with these options applied, each checked.
+    pub fn apply(
+        &self,
+        base: crate::enlightened::GuideSettings,
+    ) -> Result<crate::enlightened::GuideSettings, String> {
+        use crate::enlightened::{GuideKind, GuideSettings};
+        let mut s = base;
+        if let Some(k) = &self.guide {
+            s.kind = GuideKind::parse(k).map_err(|e| format!("--guide: {e}"))?;
+        }
+        if let Some(m) = &self.guide_map {
+            (s.cols, s.rows) =
+                GuideSettings::parse_map(m).map_err(|e| format!("--guide-map: {e}"))?;
+        }
+        s.check_regions(self.guide_regions)
+            .map_err(|e| format!("--guide-regions: {e}"))?;
+        if let Some(k) = self.guide_regions {
+            s.regions.regions = k;
+        }
+        s.check_particles(self.guide_particles)
+            .map_err(|e| format!("--guide-particles: {e}"))?;
+        if let Some(n) = self.guide_particles {
+            s.particles = n;
+        }
+        if let Some(w) = self.guide_weight {
+            s.c_guide =
+                GuideSettings::check_weight(w).map_err(|e| format!("--guide-weight: {e}"))?;
+        }
+        if let Some(a) = self.guide_alpha {
+            s.regions.alpha =
+                GuideSettings::check_alpha(a).map_err(|e| format!("--guide-alpha: {e}"))?;
+        }
+        if let Some(m) = &self.guide_sampler {
+            s.bidirectional = match m.as_str() {
+                "classical" => false,
+                "bidirectional" => true,
+                _ => {
+                    return Err(format!(
+                        "--guide-sampler `{m}`: expected classical or bidirectional"
+                    ))
+                }
+            };
+        }
+        if let Some(d) = self.guide_min_depth {
+            if !(1..=64).contains(&d) {
+                return Err(format!("--guide-min-depth {d} must be in 1..=64"));
+            }
+            s.min_depth = d;
+        }
+        if let Some(r) = self.guide_roulette {
+            s.roulette = Some(
+                GuideSettings::check_roulette(r).map_err(|e| format!("--guide-roulette: {e}"))?,
+            );
+        }
+        Ok(s)
+    }
+}
+
+/// Whether integrator `kind` samples with the guide (the ones built on BDPT's walks).
+pub fn guides(kind: IntegratorKind) -> bool {
+    matches!(
+        kind,
+        IntegratorKind::Bdpt | IntegratorKind::Light | IntegratorKind::Mlt
+    )
 }
 
 /// The options of `--integrator smc`.
@@ -440,6 +557,13 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     }
     let smc = args.smc.smc_settings(kind, scene.render.smc)?;
     let seed = args.seed.unwrap_or(scene.render.seed);
+    scene.render.guide = args.guide.apply(scene.render.guide)?;
+    if scene.render.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
+        return Err(format!(
+            "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
+            kind.name()
+        ));
+    }
     let max_depth = args.max_depth.or(scene.render.max_depth);
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = args.threads {
@@ -487,6 +611,11 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
         None => None,
     };
+    // the preprocessing pass of guided sampling (Kristensen 2010 Table 5.1's statistics)
+    let guide_stats = pool.install(|| crate::enlightened::guide::install(&mut scene, seed));
+    if let (Some(g), false) = (&guide_stats, args.json) {
+        eprint!("{}", g.table());
+    }
     if let Some(dir) = &args.strategy_images {
         if kind != IntegratorKind::Bdpt {
             return Err("--strategy-images needs --integrator bdpt".into());
@@ -546,6 +675,22 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             .set("scene", &source.name)
             .set("scene_hash", format!("{:016x}", source.hash()))
             .set("nan_count", result.nan_count);
+        if let Some(g) = &guide_stats {
+            let gs = scene.render.guide;
+            meta.set(
+                "guide",
+                format!(
+                    "{} map {}x{} regions {} particles {} weight {} preprocessing {:.3} s",
+                    gs.kind.name(),
+                    gs.cols,
+                    gs.rows,
+                    gs.regions.regions,
+                    gs.particles,
+                    gs.c_guide,
+                    g.seconds()
+                ),
+            );
+        }
         image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
         image_io::write_png(&png, image).map_err(|e| e.to_string())?;
         written.push(exr.display().to_string());
@@ -580,6 +725,18 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
                 "records": s.records,
             })),
             "mlt": result.mlt.as_ref().map(mlt_json),
+            "guide": guide_stats.as_ref().map(|g| serde_json::json!({
+                "vertices": scene.render.guide.kind.name(),
+                "map": [g.map.0, g.map.1],
+                "photons": g.photons,
+                "importons": g.importons,
+                "regions_radiance": [g.regions_radiance.0, g.regions_radiance.1],
+                "regions_importance": [g.regions_importance.0, g.regions_importance.1],
+                "bytes_radiance": g.bytes_radiance,
+                "bytes_importance": g.bytes_importance,
+                "seconds_particles": g.seconds_particles,
+                "seconds_build": g.seconds_build,
+            })),
             "adjoint": adjoint.map(|a| serde_json::json!({
                 "samples": a.samples,
                 "seconds": a.seconds,

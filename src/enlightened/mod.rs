@@ -13,11 +13,21 @@
 //!   low-resolution grid of the adjoint measurement I* over it, and light start points sampled
 //!   from that grid with their exact area density, used by BDPT's MIS and MLT's transition
 //!   densities.
+//! - [`regions`], [`direction_map`], [`guide`]: regions by k-means with eq. (5.16), per-region
+//!   equal-area maps of L_i and W_i (sec. 5.2.3, 5.2.4), and the guided mixtures of eqs.
+//!   (5.17)-(5.19) extended to medium vertices (sec. 5.3).
 //!
-//! Book: "Enlightened local path sampling: the adjoint image and particles".
+//! Book: "Enlightened local path sampling: the adjoint image and particles" and
+//! "Enlightened local path sampling: guiding".
 
 pub mod adjoint;
+pub mod direction_map;
+pub mod guide;
 pub mod particles;
+pub mod regions;
 
 pub use adjoint::{AdjointImage, AdjointSettings, LightMap};
+pub use direction_map::DirectionMap;
+pub use guide::{Deposit, Guide, GuideKind, GuideSettings, GuideStats};
 pub use particles::{Particle, Quantity};
+pub use regions::{RegionParams, RegionPoint, Regions};

@@ -13,6 +13,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::{Lobe, TransportMode};
+use crate::enlightened::guide;
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::vertex::to_area;
@@ -197,31 +198,30 @@ impl Bdpt {
             }
             let cur = path.len() - 1;
             let wo = -ray.d;
+            // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
+            // 5.19 and their medium extension), with the density of the reverse walk
+            let Some(ss) = guide::sample_scatter(scene, &v, wo, mode, sampler) else {
+                return;
+            };
+            if ss.pdf <= 0.0 {
+                return;
+            }
+            let reverse = match mode {
+                TransportMode::Radiance => TransportMode::Importance,
+                TransportMode::Importance => TransportMode::Radiance,
+            };
             let (pdf_fwd_dir, pdf_rev_dir) = match v.kind {
                 VertexKind::Medium { medium: m } => {
-                    let phase = scene.media[m as usize].phase();
-                    let ps = phase.sample(wo, sampler.next_2d());
-                    if ps.pdf <= 0.0 {
-                        return;
-                    }
-                    beta *= scene.media[m as usize].sigma_s(v.p) * (ps.value / ps.pdf);
+                    beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
                     path[cur].lobe = Lobe::Regular;
                     medium = Some(m);
                     origin_in_medium = true;
-                    ray = Ray::new(v.p, ps.wi);
+                    ray = Ray::new(v.p, ss.wi);
                     lead = 0.0;
-                    (ps.pdf, phase.pdf(ps.wi, wo))
+                    (ss.pdf, guide::scatter_pdf(scene, &v, ss.wi, wo, reverse))
                 }
                 VertexKind::Surface { .. } => {
-                    let Some(bsdf) = v.bsdf(scene) else { return };
-                    let u = sampler.next_2d();
-                    let uc = sampler.next_f32();
-                    let Some(bs) = bsdf.sample(wo, v.n, u, uc, mode) else {
-                        return;
-                    };
-                    if bs.pdf <= 0.0 {
-                        return;
-                    }
+                    let bs = ss.as_bsdf_sample();
                     beta *= bs.weight(v.n);
                     path[cur].lobe = bs.lobe;
                     medium = v.medium_towards(bs.wi);
@@ -232,7 +232,7 @@ impl Bdpt {
                         path[cur].delta = true;
                         (0.0, 0.0)
                     } else {
-                        (bs.pdf, bsdf.pdf(bs.wi, wo, v.n))
+                        (bs.pdf, guide::scatter_pdf(scene, &v, bs.wi, wo, reverse))
                     }
                 }
                 _ => return,
@@ -242,7 +242,9 @@ impl Bdpt {
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
             if self.roulette && cur as u32 >= RR_START_DEPTH {
-                let q = (beta.max_element() / beta_start).min(RR_MAX_SURVIVAL);
+                let ratio = beta.max_element() / beta_start;
+                let q = guide::roulette_survival(scene, ss.lhat, ratio, RR_MAX_SURVIVAL)
+                    .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
                 if sampler.next_f32() >= q || q.is_nan() {
                     return;
                 }
@@ -370,6 +372,25 @@ impl Bdpt {
             }
         };
         let light = &scene.lights[l];
+        // eq. (5.17): the emission direction from c1 p_Le + c2 p_Wi where guiding is on
+        let mut es = es;
+        if let (Light::Area { .. }, Some(_)) = (light, scene.guide.as_ref()) {
+            let n = es.n;
+            let Some((d, pdf)) = guide::sample_emission(
+                scene,
+                es.p,
+                n,
+                es.d,
+                u_dir,
+                |w| crate::path::vertex::emission_pdf_dir(light, n, w),
+                sampler,
+            ) else {
+                return;
+            };
+            es.value = crate::path::vertex::emitted_by(light, n, d);
+            es.d = d;
+            es.pdf_dir = pdf;
+        }
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }
@@ -473,6 +494,7 @@ impl Bdpt {
         conn_pdf_qp: f32,
         conn_pdf_pq: f32,
     ) -> f32 {
+        use TransportMode::{Importance, Radiance};
         let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
         // copies of the four vertices whose reverse densities the connection changes
         let mut qs = if s > 0 {
@@ -498,20 +520,20 @@ impl Bdpt {
         pt.delta = false;
         // pt as sampled from the light side
         pt.pdf_rev = match &qs {
-            Some(q) => q.pdf_area(scene, qs_minus.map(|v| v.p), &pt) * conn_pdf_qp,
+            Some(q) => q.pdf_area(scene, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp,
             None => pt.light_origin_pdf(scene),
         };
         if let Some(pm) = pt_minus.as_mut() {
             pm.pdf_rev = match &qs {
-                Some(q) => pt.pdf_area(scene, Some(q.p), pm),
+                Some(q) => pt.pdf_area(scene, Some(q.p), pm, Importance),
                 None => pt.light_pdf_to(scene, pm),
             } * pt.prop_rev;
         }
         if let Some(q) = qs.as_mut() {
-            q.pdf_rev = pt.pdf_area(scene, pt_minus.map(|v| v.p), q) * conn_pdf_pq;
+            q.pdf_rev = pt.pdf_area(scene, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
         }
         if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
-            qm.pdf_rev = q.pdf_area(scene, Some(pt.p), qm) * q.prop_rev;
+            qm.pdf_rev = q.pdf_area(scene, Some(pt.p), qm, Radiance) * q.prop_rev;
         }
 
         let eye_at = |i: usize| -> Vertex {

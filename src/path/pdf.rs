@@ -9,6 +9,7 @@
 //! the sampler's cached densities must equal these (see `verify`).
 
 use super::{Path, Vertex, VertexKind};
+use crate::bsdf::TransportMode::{Importance, Radiance};
 use crate::math::Sampler;
 use crate::scene::Scene;
 
@@ -66,7 +67,7 @@ pub fn densities_in(
             v[0].light_origin_pdf(scene)
         } else {
             let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
-            v[i - 1].pdf_area(scene, prev, &v[i]) * d.prop_up[i - 1]
+            v[i - 1].pdf_area(scene, prev, &v[i], Importance) * d.prop_up[i - 1]
         };
     }
     // from the sensor
@@ -75,7 +76,7 @@ pub fn densities_in(
             sensor_position_pdf(scene, &v[n - 1])
         } else {
             let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
-            v[i + 1].pdf_area(scene, prev, &v[i]) * d.prop_down[i]
+            v[i + 1].pdf_area(scene, prev, &v[i], Radiance) * d.prop_down[i]
         };
     }
     d

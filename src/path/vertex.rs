@@ -240,8 +240,17 @@ impl Vertex {
     }
 
     /// Solid-angle density with which this vertex samples the direction towards `next`, given
-    /// its subpath predecessor at `prev` (none for lights and sensors).
-    pub fn pdf_dir(&self, scene: &Scene, prev: Option<Vec3>, next: Vec3) -> f32 {
+    /// its subpath predecessor at `prev` (none for lights and sensors). `mode` is the quantity
+    /// of the subpath that samples it (Radiance: an eye subpath walking towards the lights,
+    /// Importance: a light subpath): it selects the guide's map (Kristensen 2010, eqs. 5.18,
+    /// 5.19) and is ignored when guiding is off.
+    pub fn pdf_dir(
+        &self,
+        scene: &Scene,
+        prev: Option<Vec3>,
+        next: Vec3,
+        mode: TransportMode,
+    ) -> f32 {
         let wn = (next - self.p).normalize_or_zero();
         match self.kind {
             VertexKind::Camera => scene
@@ -254,19 +263,12 @@ impl Vertex {
                 c.max(0.0) * FRAC_1_PI
             }
             VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
-                emission_pdf_dir(&scene.lights[light as usize], self.n, wn)
+                self.guided_emission_pdf(scene, &scene.lights[light as usize], wn)
             }
-            VertexKind::Surface { .. } => {
-                let (Some(b), Some(prev)) = (self.bsdf(scene), prev) else {
-                    return 0.0;
-                };
-                let wp = (prev - self.p).normalize_or_zero();
-                b.pdf(wp, wn, self.n)
-            }
-            VertexKind::Medium { medium } => {
+            VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
                 let Some(prev) = prev else { return 0.0 };
                 let wp = (prev - self.p).normalize_or_zero();
-                scene.media[medium as usize].phase().pdf(wp, wn)
+                crate::enlightened::guide::scatter_pdf(scene, self, wp, wn, mode)
             }
         }
     }
@@ -274,14 +276,20 @@ impl Vertex {
     /// [`Vertex::pdf_dir`] converted to the measure of `next` (area or volume): times
     /// g(next -> self) / d^2, or g(next) alone when `next` is an infinite light's vertex. The
     /// propagation pdf of the edge is not included.
-    pub fn pdf_area(&self, scene: &Scene, prev: Option<Vec3>, next: &Vertex) -> f32 {
+    pub fn pdf_area(
+        &self,
+        scene: &Scene,
+        prev: Option<Vec3>,
+        next: &Vertex,
+        mode: TransportMode,
+    ) -> f32 {
         if matches!(
             self.kind,
             VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }
         ) {
             return self.light_pdf_to(scene, next);
         }
-        let pdf = self.pdf_dir(scene, prev, next.p);
+        let pdf = self.pdf_dir(scene, prev, next.p, mode);
         to_area(pdf, self, next)
     }
 
@@ -336,7 +344,19 @@ impl Vertex {
             return cosine_factor(next, w) / (std::f32::consts::PI * scene.radius * scene.radius);
         }
         let wn = (next.p - self.p).normalize_or_zero();
-        to_area(emission_pdf_dir(l, self.n, wn), self, next)
+        to_area(self.guided_emission_pdf(scene, l, wn), self, next)
+    }
+
+    /// The emission density of direction `wn` from this light point: the light's own, or the
+    /// guided mixture of Kristensen 2010 eq. (5.17) for area lights when guiding is on.
+    fn guided_emission_pdf(&self, scene: &Scene, l: &Light, wn: Vec3) -> f32 {
+        let p_le = emission_pdf_dir(l, self.n, wn);
+        match l {
+            Light::Area { .. } if scene.guide.is_some() => {
+                crate::enlightened::guide::emission_pdf(scene, self.p, self.n, wn, p_le)
+            }
+            _ => p_le,
+        }
     }
 }
 

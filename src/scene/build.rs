@@ -777,6 +777,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         meter_samples: desc.render.meter_samples.unwrap_or(DEFAULT_METER_SAMPLES),
         mlt: mlt_settings(desc.render.mlt.as_ref()),
         smc: smc_settings(src, desc.render.smc.as_ref())?,
+        guide: guide_settings(src, desc.render.guide.as_ref(), radius)?,
         adjoint_image: desc.render.adjoint_image.unwrap_or(false),
         adjoint: adjoint_settings(src, desc.render.adjoint.as_ref())?,
     };
@@ -809,6 +810,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         hash: src.hash(),
         source_name: src.name.clone(),
         adjoint: None,
+        guide: None,
     };
 
     if let Some(file::CameraDesc::Pinhole {
@@ -931,6 +933,55 @@ fn mlt_settings(desc: Option<&crate::scene::file::MltDesc>) -> crate::integrator
         m.propagation_distance = (a, b);
     }
     m
+}
+
+/// Guide settings from `[render.guide]`, defaults where a key is absent; every value is checked
+/// here so that a bad one is reported at its line and key.
+fn guide_settings(
+    src: &SceneSource,
+    desc: Option<&crate::scene::file::GuideDesc>,
+    radius: f32,
+) -> Result<crate::enlightened::GuideSettings, SceneError> {
+    use crate::enlightened::{GuideKind, GuideSettings};
+    let mut s = GuideSettings::for_radius(radius);
+    let Some(d) = desc else { return Ok(s) };
+    let key = |k: &str| path("render").key("guide").key(k);
+    if let Some(v) = &d.vertices {
+        s.kind = GuideKind::parse(v).map_err(|e| src.error(&key("vertices"), e))?;
+    }
+    if let Some(m) = &d.map {
+        (s.cols, s.rows) = GuideSettings::parse_map(m).map_err(|e| src.error(&key("map"), e))?;
+    }
+    s.check_regions(d.regions)
+        .map_err(|e| src.error(&key("regions"), e))?;
+    if let Some(k) = d.regions {
+        s.regions.regions = k;
+    }
+    s.check_particles(d.particles)
+        .map_err(|e| src.error(&key("particles"), e))?;
+    if let Some(n) = d.particles {
+        s.particles = n;
+    }
+    if let Some(w) = d.weight {
+        s.c_guide = GuideSettings::check_weight(w).map_err(|e| src.error(&key("weight"), e))?;
+    }
+    if let Some(a) = d.alpha {
+        s.regions.alpha = GuideSettings::check_alpha(a).map_err(|e| src.error(&key("alpha"), e))?;
+    }
+    if let Some(m) = d.min_depth {
+        if !(1..=64).contains(&m) {
+            return Err(src.error(
+                &key("min_depth"),
+                format!("min_depth = {m} must be in 1..=64"),
+            ));
+        }
+        s.min_depth = m;
+    }
+    if let Some(r) = d.roulette {
+        s.roulette =
+            Some(GuideSettings::check_roulette(r).map_err(|e| src.error(&key("roulette"), e))?);
+    }
+    Ok(s)
 }
 
 /// Adjoint-image settings from `[render.adjoint]`, defaults where a key is absent; each value

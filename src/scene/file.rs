@@ -80,6 +80,8 @@ pub struct RenderDesc {
     pub mlt: Option<MltDesc>,
     /// `[render.smc]`: sequential Monte Carlo settings.
     pub smc: Option<SmcDesc>,
+    /// `[render.guide]`: guided local sampling (enlightened local path sampling).
+    pub guide: Option<GuideDesc>,
     /// Sample area-light start points from the adjoint image (bdpt, light, mlt; Kristensen
     /// 2010, sec. 5.3.1).
     pub adjoint_image: Option<bool>,
@@ -98,6 +100,29 @@ pub struct AdjointDesc {
     pub samples_per_cell: Option<u32>,
     /// Floor added to every cell, as a fraction of the mean cell value.
     pub epsilon: Option<f32>,
+}
+
+/// `[render.guide]`: the keys of the `--guide*` options (defaults in `enlightened::guide`),
+/// which override them.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GuideDesc {
+    /// `off`, `surface`, `volume` or `both`.
+    pub vertices: Option<String>,
+    /// Map resolution `COLSxROWS` (default `32x16`).
+    pub map: Option<String>,
+    /// Regions per quantity (k-means centres).
+    pub regions: Option<usize>,
+    /// Light and eye subpaths traced for the photons and importons.
+    pub particles: Option<usize>,
+    /// c2 of eqs. (5.17)-(5.19): probability of sampling the map, in (0, 1).
+    pub weight: Option<f32>,
+    /// alpha of eq. (5.16) per unit length (default 20 / scene radius).
+    pub alpha: Option<f32>,
+    /// Guided Russian roulette with this normalization (absent: the ordinary roulette).
+    pub roulette: Option<f32>,
+    /// Only particles at this depth or deeper shape the maps (1: all, 2: indirect only).
+    pub min_depth: Option<u32>,
 }
 
 /// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
@@ -167,6 +192,7 @@ impl Default for RenderDesc {
             meter_samples: None,
             mlt: None,
             smc: None,
+            guide: None,
             adjoint_image: None,
             adjoint: None,
         }

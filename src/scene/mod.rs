@@ -77,6 +77,8 @@ pub struct RenderSettings {
     /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
     /// `--smc-*` and `--cache-budget` options override them.
     pub smc: crate::integrator::smc::SmcSettings,
+    /// Guided local sampling (`[render.guide]`; `--guide*` options override it).
+    pub guide: crate::enlightened::GuideSettings,
     /// `[render] adjoint_image`: sample area-light starts from the adjoint image.
     pub adjoint_image: bool,
     /// `[render.adjoint]` (defaults where a key is absent); `--adjoint-*` override them.
@@ -172,6 +174,9 @@ pub struct Scene {
     /// their densities evaluated by it (Kristensen 2010, sec. 5.3.1); `None`: by power and area.
     pub adjoint: Option<crate::enlightened::AdjointImage>,
     pub source_name: String,
+    /// Guided local sampling (Kristensen 2010, sec. 5.3), when built: every scattering density
+    /// (`Vertex::pdf_dir`) and sampler consults it, so all methods see the same mixture.
+    pub guide: Option<std::sync::Arc<crate::enlightened::Guide>>,
 }
 
 /// Relative step past a crossed null boundary before the next intersection query, so the same

@@ -56,9 +56,23 @@ pub fn sample_direction(
             Some(cam.generate_ray(raster).d)
         }
         VertexKind::Light { light, .. } => match &scene.lights[light as usize] {
-            Light::Area { .. } => {
+            l @ Light::Area { .. } => {
                 let local = warp::cosine_hemisphere(u);
-                (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))
+                let d = (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))?;
+                if scene.guide.is_none() {
+                    return Some(d);
+                }
+                // eq. (5.17) where guiding is on
+                crate::enlightened::guide::sample_emission(
+                    scene,
+                    v.p,
+                    v.n,
+                    d,
+                    u,
+                    |w| crate::path::vertex::emission_pdf_dir(l, v.n, w),
+                    sampler,
+                )
+                .map(|(d, _)| d)
             }
             Light::Point { .. } => Some(warp::uniform_sphere(u)),
             Light::Spot {
@@ -66,18 +80,12 @@ pub fn sample_direction(
             } => Some(frame.to_world(warp::uniform_cone(u, *cos_total))),
             _ => None,
         },
-        VertexKind::Surface { .. } => {
+        VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
+            // the BSDF or phase function, or the guided mixture (`enlightened::guide`)
             let wo = (prev?.p - v.p).normalize_or_zero();
-            let uc = sampler.next_f32();
-            v.bsdf(scene)?
-                .sample(wo, v.n, u, uc, mode)
+            crate::enlightened::guide::sample_scatter_with(scene, v, wo, mode, u, sampler)
                 .filter(|s| s.pdf > 0.0)
                 .map(|s| s.wi)
-        }
-        VertexKind::Medium { medium } => {
-            let wo = (prev?.p - v.p).normalize_or_zero();
-            let s = scene.media[medium as usize].phase().sample(wo, u);
-            (s.pdf > 0.0).then_some(s.wi)
         }
         _ => None,
     }

@@ -113,7 +113,12 @@ pub fn lens_chain_density(
     let r = (uy - ux).length();
     let p_film = offset.pdf(r) / (std::f64::consts::TAU * r as f64);
     let npix = (cam.width * cam.height) as f64;
-    let p_dir = y[k].pdf_dir(scene, None, y[k - 1].p);
+    let p_dir = y[k].pdf_dir(
+        scene,
+        None,
+        y[k - 1].p,
+        crate::bsdf::TransportMode::Radiance,
+    );
     let mut jac = npix * to_area(p_dir, &y[k], &y[k - 1]) as f64;
     for i in (m..k - 1).rev() {
         jac *= to_area(1.0, &y[i + 1], &y[i]) as f64;

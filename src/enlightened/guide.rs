@@ -1,0 +1,760 @@
+//! Guided local sampling (Kristensen 2010, sec. 5.3), extended to medium vertices.
+//!
+//! At a surface vertex of an eye subpath the direction is drawn from the one-sample mixture
+//!   p(w) = c1 p_fs(w) + c2 p_Li(w)                 [Kristensen 2010, eq. (5.18)]
+//! and at a surface vertex of a light subpath from
+//!   p(w) = c1 p_f*s(w) + c2 p_Wi(w)                [Kristensen 2010, eq. (5.19)]
+//! where p_Li and p_Wi are the equal-area maps of the vertex's region built from photons and
+//! importons. At a medium vertex the phase function takes the BSDF's place,
+//!   p(w) = c1 p_fp(w) + c2 p_{Li|Wi}(w),
+//! with the maps of the volume regions: the thesis proposes this (sec. 5.3.3) but never ran it.
+//! A light subpath leaving an area light samples its direction from
+//!   p(w) = c1 p_Le(w) + c2 p_Wi(w)                 [Kristensen 2010, eq. (5.17)]
+//! with the importance map of the light point's surface region.
+//!
+//! The mixture is exact: its density is a function of the vertex (position, normal, medium),
+//! the incoming direction, the outgoing direction and the transport mode only, so the density
+//! of any given path can be evaluated again from its vertices ([`Vertex::pdf_dir`] calls
+//! [`scatter_pdf`]), which BDPT's MIS weights, `path::pdf::densities` and MLT's transition
+//! densities all do. The component with c1 keeps the support of the BSDF or phase function, so
+//! the estimator stays unbiased however poor the maps are. Dirac BSDFs are not guided.
+//!
+//! Guided Russian roulette (sec. 5.3.4) continues a path with probability
+//!   q = min(q_max, alpha * |beta'| / |beta_0| * Lhat(w'))
+//! where w' is the direction already sampled, beta' the throughput after it, and
+//! Lhat(w') = level(region) * 4 pi p_map(w') the map's incident quantity in w' relative to the
+//! mean over all regions and directions; alpha ([`GuideSettings::roulette`]) is the
+//! normalization the thesis leaves open.
+//! Book: "Enlightened local path sampling: guiding".
+
+use glam::{Vec2, Vec3};
+
+use super::direction_map::{DirectionMap, DEFAULT_COLS, DEFAULT_ROWS};
+use super::regions::{RegionParams, RegionPoint, Regions};
+use crate::bsdf::{Bsdf, BsdfSample, Lobe, TransportMode};
+use crate::math::Sampler;
+use crate::path::{Vertex, VertexKind};
+use crate::scene::Scene;
+use crate::spectrum::Rgb;
+
+/// Which vertices are guided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GuideKind {
+    Off,
+    /// Surface vertices (the thesis's method).
+    Surface,
+    /// Medium vertices only (the thesis's proposal).
+    Volume,
+    /// Both.
+    Both,
+}
+
+impl GuideKind {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "off" => Ok(GuideKind::Off),
+            "surface" => Ok(GuideKind::Surface),
+            "volume" => Ok(GuideKind::Volume),
+            "both" => Ok(GuideKind::Both),
+            _ => Err(format!(
+                "unknown guide `{s}` (available: off, surface, volume, both)"
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            GuideKind::Off => "off",
+            GuideKind::Surface => "surface",
+            GuideKind::Volume => "volume",
+            GuideKind::Both => "both",
+        }
+    }
+
+    pub fn surface(self) -> bool {
+        matches!(self, GuideKind::Surface | GuideKind::Both)
+    }
+
+    pub fn volume(self) -> bool {
+        matches!(self, GuideKind::Volume | GuideKind::Both)
+    }
+}
+
+/// c2 of eqs. (5.17)-(5.19): the thesis uses c1 = c2 = 1/2.
+pub const DEFAULT_GUIDE_WEIGHT: f32 = 0.5;
+/// Particles of each quantity traced for the maps by default.
+pub const DEFAULT_PARTICLES: usize = 200_000;
+
+/// Everything that shapes the guide.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GuideSettings {
+    pub kind: GuideKind,
+    /// Map columns (phi) and rows (cos theta).
+    pub cols: u32,
+    pub rows: u32,
+    /// Region count and clustering parameters (alpha of eq. 5.16 in scene units).
+    pub regions: RegionParams,
+    /// Particles per quantity (photons and importons each).
+    pub particles: usize,
+    /// Only particles at this depth or deeper go into the maps (1: all; 2: indirect only, so
+    /// the maps leave to BDPT's connections what they already sample well: the direct light
+    /// and the direct view of the camera). A choice of this crate, not the thesis's.
+    pub min_depth: u32,
+    /// Trace the particles with the bidirectional particle sampler (Kristensen 2010, sec.
+    /// 5.2.2) instead of the classical tracer: more photons where the camera looks, more
+    /// importons near the lights.
+    pub bidirectional: bool,
+    /// c2: probability of sampling the map (c1 = 1 - c2 for the BSDF or phase function).
+    pub c_guide: f32,
+    /// Guided Russian roulette with this normalization alpha (None: the renderer's own roulette).
+    pub roulette: Option<f32>,
+    /// Seed of the particle tracing and the clustering.
+    pub seed: u64,
+}
+
+impl GuideSettings {
+    /// The defaults for a scene of bounding radius `radius` (guiding off).
+    pub fn for_radius(radius: f32) -> Self {
+        GuideSettings {
+            kind: GuideKind::Off,
+            cols: DEFAULT_COLS,
+            rows: DEFAULT_ROWS,
+            regions: RegionParams::for_radius(radius),
+            particles: DEFAULT_PARTICLES,
+            min_depth: 1,
+            bidirectional: false,
+            c_guide: DEFAULT_GUIDE_WEIGHT,
+            roulette: None,
+            seed: 0x454c_5053,
+        }
+    }
+
+    /// A region count must be in 1..=2^20.
+    pub fn check_regions(&self, k: Option<usize>) -> Result<(), String> {
+        match k {
+            Some(k) if !(1..=1 << 20).contains(&k) => {
+                Err(format!("regions = {k} must be in 1..=1048576"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// A particle path count must be in 1..=10^9.
+    pub fn check_particles(&self, n: Option<usize>) -> Result<(), String> {
+        match n {
+            Some(n) if !(1..=1_000_000_000).contains(&n) => {
+                Err(format!("particles = {n} must be in 1..=1000000000"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// c2 must be in (0, 1): c1 = 1 - c2 > 0 keeps the BSDF's support (unbiasedness).
+    pub fn check_weight(w: f32) -> Result<f32, String> {
+        if w > 0.0 && w < 1.0 {
+            Ok(w)
+        } else {
+            Err(format!(
+                "weight = {w} must be in (0, 1): the BSDF or phase function keeps 1 - weight > 0"
+            ))
+        }
+    }
+
+    /// alpha of eq. (5.16) must be positive and finite.
+    pub fn check_alpha(a: f32) -> Result<f32, String> {
+        if a > 0.0 && a.is_finite() {
+            Ok(a)
+        } else {
+            Err(format!(
+                "alpha = {a} must be a positive number per unit length"
+            ))
+        }
+    }
+
+    /// The roulette normalization must be positive and finite.
+    pub fn check_roulette(r: f32) -> Result<f32, String> {
+        if r > 0.0 && r.is_finite() {
+            Ok(r)
+        } else {
+            Err(format!("roulette = {r} must be a positive number"))
+        }
+    }
+
+    /// Parses `COLSxROWS`.
+    pub fn parse_map(s: &str) -> Result<(u32, u32), String> {
+        let bad = || format!("map size `{s}` is not COLSxROWS with both in 1..=1024 (e.g. 32x16)");
+        let (a, b) = s.split_once('x').ok_or_else(bad)?;
+        let c: u32 = a.trim().parse().map_err(|_| bad())?;
+        let r: u32 = b.trim().parse().map_err(|_| bad())?;
+        if !(1..=1024).contains(&c) || !(1..=1024).contains(&r) {
+            return Err(bad());
+        }
+        Ok((c, r))
+    }
+}
+
+/// One deposit: a particle's position (with normal on surfaces, medium in volumes), its
+/// incident direction (pointing back towards the source) and its scalar weight.
+#[derive(Clone, Copy, Debug)]
+pub struct Deposit {
+    pub point: RegionPoint,
+    pub direction: Vec3,
+    pub weight: f32,
+}
+
+/// The regions and maps of one quantity.
+#[derive(Clone, Debug, Default)]
+pub struct GuideField {
+    pub regions: Regions,
+    pub maps: Vec<DirectionMap>,
+    /// Each region's total weight over the mean total of the non-empty regions.
+    pub level: Vec<f32>,
+    /// Deposits that went into the maps.
+    pub particles: usize,
+}
+
+impl GuideField {
+    /// Clusters the deposits into regions, then splats each into its region's map.
+    // ANCHOR: field_build
+    pub fn build(deposits: &[Deposit], settings: &GuideSettings) -> Self {
+        let points: Vec<RegionPoint> = deposits.iter().map(|d| d.point).collect();
+        let regions = Regions::build(&points, settings.regions);
+        let mut maps = vec![DirectionMap::new(settings.cols, settings.rows); regions.len()];
+        let mut particles = 0;
+        for d in deposits {
+            if let Some(r) = regions.region_of(&d.point) {
+                maps[r as usize].splat(d.direction, d.weight);
+                particles += 1;
+            }
+        }
+        for m in &mut maps {
+            m.build();
+        }
+        let nonempty: Vec<f64> = maps
+            .iter()
+            .filter(|m| !m.is_empty())
+            .map(|m| m.total())
+            .collect();
+        let mean = nonempty.iter().sum::<f64>() / nonempty.len().max(1) as f64;
+        let level = maps
+            .iter()
+            .map(|m| {
+                if mean > 0.0 {
+                    (m.total() / mean) as f32
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        GuideField {
+            regions,
+            maps,
+            level,
+            particles,
+        }
+    }
+    // ANCHOR_END: field_build
+
+    pub fn bytes(&self) -> usize {
+        self.regions.bytes()
+            + self.maps.iter().map(DirectionMap::bytes).sum::<usize>()
+            + self.level.len() * 4
+    }
+}
+
+/// Preprocessing statistics (the columns of the thesis's Table 5.1, plus time).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GuideStats {
+    /// Photons and importons deposited.
+    pub photons: usize,
+    pub importons: usize,
+    /// Regions (surface + volume) for radiance and importance.
+    pub regions_radiance: (usize, usize),
+    pub regions_importance: (usize, usize),
+    pub map: (u32, u32),
+    /// Bytes of regions, trees and maps, per quantity.
+    pub bytes_radiance: usize,
+    pub bytes_importance: usize,
+    pub seconds_particles: f64,
+    pub seconds_build: f64,
+}
+
+impl GuideStats {
+    pub fn seconds(&self) -> f64 {
+        self.seconds_particles + self.seconds_build
+    }
+
+    /// One line per quantity, Table 5.1's columns.
+    pub fn table(&self) -> String {
+        let row = |q: &str, n: usize, r: (usize, usize), b: usize| {
+            format!(
+                "  {q:<10} particles {n:>9}  regions {:>6} ({} surface, {} volume)  map {}x{}  {:.2} MiB\n",
+                r.0 + r.1,
+                r.0,
+                r.1,
+                self.map.0,
+                self.map.1,
+                b as f64 / (1024.0 * 1024.0)
+            )
+        };
+        format!(
+            "guide preprocessing: {:.2} s (particles {:.2} s, regions and maps {:.2} s)\n{}{}",
+            self.seconds(),
+            self.seconds_particles,
+            self.seconds_build,
+            row(
+                "radiance",
+                self.photons,
+                self.regions_radiance,
+                self.bytes_radiance
+            ),
+            row(
+                "importance",
+                self.importons,
+                self.regions_importance,
+                self.bytes_importance
+            ),
+        )
+    }
+}
+
+/// The guide: L_i and W_i per region, and the settings that say where they are used.
+#[derive(Clone, Debug)]
+pub struct Guide {
+    pub settings: GuideSettings,
+    /// Built from photons: guides eye subpaths (mode Radiance).
+    pub radiance: GuideField,
+    /// Built from importons: guides light subpaths (mode Importance).
+    pub importance: GuideField,
+    pub stats: GuideStats,
+    /// A process-unique id, the key of the per-thread region memo ([`RegionMemo`]).
+    id: u64,
+}
+
+/// Ids of guides, so that a memo entry of a dropped guide can never be taken for a new one's.
+static NEXT_GUIDE_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+/// Slots of the per-thread region memo (direct-mapped).
+const MEMO_SLOTS: usize = 512;
+
+/// A per-thread memo of region lookups. A path's vertices are looked up again and again (the
+/// walk's forward and reverse densities, then every MIS weight and transition density that
+/// involves them), and each lookup is a k-nearest query with eq. (5.16) refinement. The memo
+/// only caches a pure function of (guide, mode, position, normal, medium), compared bit for
+/// bit, so results, and images, do not depend on it or on the thread; it is allocated once per
+/// thread.
+struct RegionMemo {
+    keys: Vec<[u32; 9]>,
+    regions: Vec<Option<u32>>,
+}
+
+thread_local! {
+    static MEMO: std::cell::RefCell<RegionMemo> = std::cell::RefCell::new(RegionMemo {
+        keys: vec![[0; 9]; MEMO_SLOTS],
+        regions: vec![None; MEMO_SLOTS],
+    });
+}
+
+impl Guide {
+    /// Builds both fields from deposits (`seconds_particles` is the caller's tracing time).
+    pub fn build(
+        photons: &[Deposit],
+        importons: &[Deposit],
+        settings: GuideSettings,
+        seconds_particles: f64,
+    ) -> Self {
+        let t0 = std::time::Instant::now();
+        let radiance = GuideField::build(photons, &settings);
+        let importance = GuideField::build(importons, &settings);
+        let split = |f: &GuideField| {
+            let s = f.regions.surface_len();
+            (s, f.regions.len() - s)
+        };
+        let stats = GuideStats {
+            photons: radiance.particles,
+            importons: importance.particles,
+            regions_radiance: split(&radiance),
+            regions_importance: split(&importance),
+            map: (settings.cols, settings.rows),
+            bytes_radiance: radiance.bytes(),
+            bytes_importance: importance.bytes(),
+            seconds_particles,
+            seconds_build: t0.elapsed().as_secs_f64(),
+        };
+        Guide {
+            settings,
+            radiance,
+            importance,
+            stats,
+            id: NEXT_GUIDE_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        }
+    }
+
+    /// The field that guides a subpath carrying `mode`: photons (L_i) for eye subpaths,
+    /// importons (W_i) for light subpaths.
+    #[inline]
+    pub fn field(&self, mode: TransportMode) -> &GuideField {
+        match mode {
+            TransportMode::Radiance => &self.radiance,
+            TransportMode::Importance => &self.importance,
+        }
+    }
+
+    /// The map and region level guiding vertex `v` in `mode`, if any: surface vertices with a
+    /// regular BSDF when surface guiding is on, medium vertices when volume guiding is on,
+    /// and only where the region's map holds weight.
+    // ANCHOR: map_at
+    #[inline]
+    pub fn map_at(
+        &self,
+        scene: &Scene,
+        v: &Vertex,
+        mode: TransportMode,
+    ) -> Option<(&DirectionMap, f32)> {
+        let field = self.field(mode);
+        let medium = match v.kind {
+            VertexKind::Surface { .. } if self.settings.kind.surface() => {
+                if v.bsdf(scene).is_none_or(Bsdf::is_singular) {
+                    return None;
+                }
+                None
+            }
+            VertexKind::Medium { medium } if self.settings.kind.volume() => Some(medium),
+            _ => return None,
+        };
+        let region = self.region_memoized(field, mode, v.p, v.n, medium)?;
+        let map = &field.maps[region as usize];
+        (!map.is_empty()).then(|| (map, field.level[region as usize]))
+    }
+    // ANCHOR_END: map_at
+
+    /// The region of a surface point (`medium` None) or a medium point, through the memo.
+    fn region_memoized(
+        &self,
+        field: &GuideField,
+        mode: TransportMode,
+        p: Vec3,
+        n: Vec3,
+        medium: Option<u32>,
+    ) -> Option<u32> {
+        let key = [
+            self.id as u32,
+            (self.id >> 32) as u32 ^ ((mode == TransportMode::Importance) as u32) << 31,
+            p.x.to_bits(),
+            p.y.to_bits(),
+            p.z.to_bits(),
+            n.x.to_bits(),
+            n.y.to_bits(),
+            n.z.to_bits(),
+            medium.map_or(u32::MAX, |m| m),
+        ];
+        let mut h = 0u64;
+        for k in key {
+            h = crate::math::sampler::mix64(h ^ k as u64);
+        }
+        let slot = (h as usize) % MEMO_SLOTS;
+        let lookup = || match medium {
+            None => field.regions.surface_region(p, n),
+            Some(m) => field.regions.volume_region(p, m),
+        };
+        MEMO.with(|memo| {
+            let Ok(mut memo) = memo.try_borrow_mut() else {
+                return lookup();
+            };
+            if memo.keys[slot] == key && key[0] | key[1] != 0 {
+                return memo.regions[slot];
+            }
+            let r = lookup();
+            memo.keys[slot] = key;
+            memo.regions[slot] = r;
+            r
+        })
+    }
+}
+
+/// The mixture density c1 p_local + c2 p_map of eqs. (5.18), (5.19) and their medium
+/// extension, given the local model's density `p_local` of `wi`.
+#[inline]
+pub fn mixture(c_guide: f32, p_local: f32, map: &DirectionMap, wi: Vec3) -> f32 {
+    (1.0 - c_guide) * p_local + c_guide * map.pdf(wi)
+}
+
+/// Solid-angle density with which a `mode` subpath at surface or medium vertex `v`, reached
+/// from direction `wo` (pointing away from `v`), samples `wi`: the BSDF's or phase function's
+/// own density, or the guided mixture where a map guides `v`.
+// ANCHOR: scatter_pdf
+pub fn scatter_pdf(scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3, mode: TransportMode) -> f32 {
+    let local = match v.kind {
+        VertexKind::Surface { .. } => match v.bsdf(scene) {
+            Some(b) => b.pdf(wo, wi, v.n),
+            None => return 0.0,
+        },
+        VertexKind::Medium { medium } => scene.media[medium as usize].phase().pdf(wo, wi),
+        _ => return 0.0,
+    };
+    match scene
+        .guide
+        .as_deref()
+        .and_then(|g| g.map_at(scene, v, mode).map(|(m, _)| (g, m)))
+    {
+        Some((g, map)) => mixture(g.settings.c_guide, local, map, wi),
+        None => local,
+    }
+}
+// ANCHOR_END: scatter_pdf
+
+/// A sampled scattering direction: f (f_s at surfaces, f_p in the medium, sigma_s not
+/// included), the mixture density, the lobe, and the guided roulette's estimate Lhat(wi)
+/// (`None` where no map guides the vertex).
+#[derive(Clone, Copy, Debug)]
+pub struct ScatterSample {
+    pub wi: Vec3,
+    pub value: Rgb,
+    pub pdf: f32,
+    pub lobe: Lobe,
+    pub lhat: Option<f32>,
+}
+
+/// Samples a scattering direction at surface or medium vertex `v` for a `mode` subpath, from
+/// the guided mixture where a map guides `v` (one extra random number picks the component),
+/// else exactly as the unguided walk does (same random numbers).
+// ANCHOR: sample_scatter
+pub fn sample_scatter(
+    scene: &Scene,
+    v: &Vertex,
+    wo: Vec3,
+    mode: TransportMode,
+    sampler: &mut Sampler,
+) -> Option<ScatterSample> {
+    // a surface without a BSDF ends the walk before any number is drawn (as it always did:
+    // the streams of unguided renders are unchanged)
+    if matches!(v.kind, VertexKind::Surface { .. }) && v.bsdf(scene).is_none() {
+        return None;
+    }
+    let u = sampler.next_2d();
+    sample_scatter_with(scene, v, wo, mode, u, sampler)
+}
+
+/// [`sample_scatter`] with its first two random numbers `u` already drawn.
+pub fn sample_scatter_with(
+    scene: &Scene,
+    v: &Vertex,
+    wo: Vec3,
+    mode: TransportMode,
+    u: Vec2,
+    sampler: &mut Sampler,
+) -> Option<ScatterSample> {
+    let guided = scene.guide.as_deref().and_then(|g| {
+        g.map_at(scene, v, mode)
+            .map(|(m, l)| (g.settings.c_guide, m, l))
+    });
+    match v.kind {
+        VertexKind::Surface { .. } => {
+            let uc = sampler.next_f32();
+            let bsdf = v.bsdf(scene)?;
+            let Some((c, map, level)) = guided else {
+                let bs = bsdf.sample(wo, v.n, u, uc, mode)?;
+                return Some(ScatterSample {
+                    wi: bs.wi,
+                    value: bs.value,
+                    pdf: bs.pdf,
+                    lobe: bs.lobe,
+                    lhat: None,
+                });
+            };
+            let wi = if sampler.next_f32() < c {
+                map.sample(u)?.0
+            } else {
+                bsdf.sample(wo, v.n, u, uc, mode)?.wi
+            };
+            let pdf = mixture(c, bsdf.pdf(wo, wi, v.n), map, wi);
+            Some(ScatterSample {
+                wi,
+                value: bsdf.eval(wo, wi, v.n, mode),
+                pdf,
+                lobe: Lobe::Regular,
+                lhat: Some(level * map.relative(wi)),
+            })
+        }
+        VertexKind::Medium { medium } => {
+            let phase = scene.media[medium as usize].phase();
+            let Some((c, map, level)) = guided else {
+                let ps = phase.sample(wo, u);
+                return Some(ScatterSample {
+                    wi: ps.wi,
+                    value: Rgb::splat(ps.value),
+                    pdf: ps.pdf,
+                    lobe: Lobe::Regular,
+                    lhat: None,
+                });
+            };
+            let wi = if sampler.next_f32() < c {
+                map.sample(u)?.0
+            } else {
+                phase.sample(wo, u).wi
+            };
+            let pdf = mixture(c, phase.pdf(wo, wi), map, wi);
+            Some(ScatterSample {
+                wi,
+                value: Rgb::splat(phase.eval(wo, wi)),
+                pdf,
+                lobe: Lobe::Regular,
+                lhat: Some(level * map.relative(wi)),
+            })
+        }
+        _ => None,
+    }
+}
+// ANCHOR_END: sample_scatter
+
+impl ScatterSample {
+    /// As a BSDF sample (for code that multiplies by value |cos| / pdf).
+    pub fn as_bsdf_sample(&self) -> BsdfSample {
+        BsdfSample {
+            wi: self.wi,
+            value: self.value,
+            pdf: self.pdf,
+            lobe: self.lobe,
+        }
+    }
+}
+
+/// The guided roulette's survival probability (sec. 5.3.4), within [`ROULETTE_MIN_SURVIVAL`,
+/// `q_max`]; `None` where the vertex is not guided or guided roulette is off.
+// ANCHOR: roulette
+#[inline]
+pub fn roulette_survival(
+    scene: &Scene,
+    lhat: Option<f32>,
+    throughput_ratio: f32,
+    q_max: f32,
+) -> Option<f32> {
+    let alpha = scene.guide.as_deref()?.settings.roulette?;
+    let l = lhat?;
+    let q = alpha * throughput_ratio * l;
+    Some(if q.is_nan() {
+        q_max
+    } else {
+        q.clamp(ROULETTE_MIN_SURVIVAL, q_max)
+    })
+}
+// ANCHOR_END: roulette
+
+/// The least survival probability of guided roulette. Roulette is unbiased only where q > 0
+/// for every path that can still contribute; a map that saw no particle in a direction says
+/// Lhat = 0 there, which is an estimate, not a fact (DEVIATION: the thesis's formula has no
+/// floor; without one the fog box loses 5% of its light, see `tests/guiding.rs`).
+pub const ROULETTE_MIN_SURVIVAL: f32 = 0.05;
+
+impl From<&crate::enlightened::Particle> for Deposit {
+    /// A particle's position, normal (surfaces) or medium (volumes), incident direction and
+    /// luminance weight.
+    fn from(p: &crate::enlightened::Particle) -> Self {
+        Deposit {
+            point: RegionPoint {
+                p: p.position,
+                n: p.normal.unwrap_or(Vec3::ZERO),
+                medium: if p.normal.is_some() { None } else { p.medium },
+            },
+            direction: p.direction,
+            weight: crate::spectrum::luminance(p.weight),
+        }
+    }
+}
+
+/// The preprocessing pass (Kristensen 2010, sec. 5.1, steps 1-5): traces `settings.particles`
+/// light subpaths (photons) and as many eye subpaths (importons) with the classical tracer,
+/// then clusters and projects them. The scene must not be guided yet (the particles are
+/// traced with the unguided walks).
+// ANCHOR: build_guide
+pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
+    use crate::enlightened::particles::{trace_classical, Quantity};
+    let t0 = std::time::Instant::now();
+    let paths = settings.particles as u64;
+    let deep = |p: &&crate::enlightened::Particle| p.depth >= settings.min_depth;
+    let (photons, importons) = if settings.bidirectional {
+        use crate::enlightened::particles::{trace_bidirectional, ImportonSource};
+        let sets = match ImportonSource::default_for(scene) {
+            Some(src) => trace_bidirectional(scene, src, paths, settings.seed),
+            None => Default::default(),
+        };
+        (sets.photons, sets.importons)
+    } else {
+        (
+            trace_classical(scene, Quantity::Radiance, paths, settings.seed),
+            trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1),
+        )
+    };
+    let photons: Vec<Deposit> = photons.iter().filter(deep).map(Deposit::from).collect();
+    let importons: Vec<Deposit> = importons.iter().filter(deep).map(Deposit::from).collect();
+    let seconds_particles = t0.elapsed().as_secs_f64();
+    Guide::build(&photons, &importons, settings, seconds_particles)
+}
+// ANCHOR_END: build_guide
+
+/// Builds the guide the scene's `render.guide` settings ask for (with `seed` for particles
+/// and clustering) and installs it in the scene; `None` when guiding is off. Any guide already
+/// installed is removed first, so the particles are traced with the unguided walks.
+pub fn install(scene: &mut Scene, seed: u64) -> Option<GuideStats> {
+    scene.guide = None;
+    let mut settings = scene.render.guide;
+    if settings.kind == GuideKind::Off {
+        return None;
+    }
+    settings.seed = seed;
+    settings.regions.seed = crate::math::sampler::mix64(seed ^ 0x5245_4749_4f4e);
+    let guide = build_guide(scene, settings);
+    let stats = guide.stats.clone();
+    scene.guide = Some(std::sync::Arc::new(guide));
+    Some(stats)
+}
+
+/// The importance map guiding emission from area-light point (p, n), with c2: surface
+/// guiding on and the point's importance region non-empty.
+#[inline]
+fn emission_map(scene: &Scene, p: Vec3, n: Vec3) -> Option<(f32, &DirectionMap)> {
+    let g = scene.guide.as_deref()?;
+    if !g.settings.kind.surface() || n == Vec3::ZERO {
+        return None;
+    }
+    let field = &g.importance;
+    let region = g.region_memoized(field, TransportMode::Importance, p, n, None)?;
+    let map = &field.maps[region as usize];
+    (!map.is_empty()).then_some((g.settings.c_guide, map))
+}
+
+/// Eq. (5.17): the density of emission direction `w` at area-light point (p, n) whose own
+/// emission density is `p_le`: c1 p_Le + c2 p_Wi where an importance map guides the point.
+// ANCHOR: emission_pdf
+#[inline]
+pub fn emission_pdf(scene: &Scene, p: Vec3, n: Vec3, w: Vec3, p_le: f32) -> f32 {
+    match emission_map(scene, p, n) {
+        Some((c, map)) => mixture(c, p_le, map, w),
+        None => p_le,
+    }
+}
+// ANCHOR_END: emission_pdf
+
+/// Eq. (5.17), sampling: the emission direction `d_le` the light drew from its own density
+/// (with numbers `u`), or, with probability c2, a direction from the importance map drawn with
+/// the same `u` (one extra number picks the component, only where a map guides the point).
+/// Returns the direction and its mixture density (`p_le_of` gives the light's own density).
+pub fn sample_emission(
+    scene: &Scene,
+    p: Vec3,
+    n: Vec3,
+    d_le: Vec3,
+    u: Vec2,
+    p_le_of: impl Fn(Vec3) -> f32,
+    sampler: &mut Sampler,
+) -> Option<(Vec3, f32)> {
+    let Some((c, map)) = emission_map(scene, p, n) else {
+        return Some((d_le, p_le_of(d_le)));
+    };
+    let d = if sampler.next_f32() < c {
+        map.sample(u)?.0
+    } else {
+        d_le
+    };
+    Some((d, mixture(c, p_le_of(d), map, d)))
+}
