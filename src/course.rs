@@ -194,6 +194,22 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         tests: &[t("mlt", "inverse_distance_follows_one_over_d")],
     },
     Assignment {
+        name: "light_map_inverse",
+        chapter: "Enlightened local path sampling: the adjoint image and particles",
+        chapter_file: "enlightened-adjoint.md",
+        files: &["src/enlightened/adjoint.rs"],
+        task: "F^-1: the point of the unit square that the light-sampling map F sends to a light point",
+        tests: &[t("enlightened", "light_map_round_trips")],
+    },
+    Assignment {
+        name: "equal_area_texel",
+        chapter: "Enlightened local path sampling: guiding",
+        chapter_file: "enlightened-guiding.md",
+        files: &["src/enlightened/direction_map.rs"],
+        task: "the texel of a direction in the equal-solid-angle map (rows uniform in cos theta)",
+        tests: &[t("guiding", "direction_map_texels_round_trip")],
+    },
+    Assignment {
         name: "combined_estimator",
         chapter: "Sequential Monte Carlo adaptation (Pegoraro et al. 2008)",
         chapter_file: "smc.md",

@@ -174,6 +174,7 @@ impl LightMap {
 
     /// F^-1: the u with F(u) = p for point `p` on primitive `prim` of area light `light`.
     pub fn inverse(&self, scene: &Scene, light: u32, prim: u32, p: Vec3) -> Option<Vec2> {
+        // ASSIGNMENT: light_map_inverse
         let i = self.slot(light)?;
         let Light::Area { prims, distr, .. } = &scene.lights[light as usize] else {
             return None;
@@ -186,6 +187,7 @@ impl LightMap {
             ((i as f32 + rem) / m).clamp(0.0, ONE_MINUS_EPSILON),
             a.y,
         ))
+        // END ASSIGNMENT
     }
 
     /// p_F(x), F's area density at a point of primitive `prim` of light `light`: 1/m times the

@@ -88,6 +88,7 @@ impl DirectionMap {
     // ANCHOR: texel_of
     #[inline]
     pub fn texel_of(&self, w: Vec3) -> (u32, u32) {
+        // ASSIGNMENT: equal_area_texel
         let u = ((w.z.clamp(-1.0, 1.0) + 1.0) * 0.5).min(ONE_MINUS_EPSILON);
         let mut phi = w.y.atan2(w.x);
         if phi < 0.0 {
@@ -97,6 +98,7 @@ impl DirectionMap {
         let col = ((v * self.cols as f32) as u32).min(self.cols - 1);
         let row = ((u * self.rows as f32) as u32).min(self.rows - 1);
         (col, row)
+        // END ASSIGNMENT
     }
     // ANCHOR_END: texel_of
 
