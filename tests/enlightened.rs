@@ -412,51 +412,6 @@ fn adjoint_pdf_matches_its_sampler_and_is_positive_where_light_is_emitted() {
 use pathspace::film::Film;
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 
-/// Mean RGB of the four image quadrants (12 numbers).
-fn quadrant_means(img: &pathspace::image_io::Image) -> Vec<f64> {
-    let (w, h) = (img.width, img.height);
-    let mut out = vec![0.0; 12];
-    for y in 0..h {
-        for x in 0..w {
-            let q = (usize::from(y >= h / 2)) * 2 + usize::from(x >= w / 2);
-            let p = img.get(x, y);
-            for c in 0..3 {
-                out[q * 3 + c] += p[c] as f64 / (w * h / 4) as f64;
-            }
-        }
-    }
-    out
-}
-
-fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
-    let n = runs.len() as f64;
-    (0..runs[0].len())
-        .map(|i| {
-            let m = runs.iter().map(|r| r[i]).sum::<f64>() / n;
-            let v = runs.iter().map(|r| (r[i] - m).powi(2)).sum::<f64>() / (n - 1.0);
-            (m, (v / n).sqrt())
-        })
-        .unzip()
-}
-
-fn assert_quadrants_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
-    let (ma, sa) = mean_and_se(a);
-    let (mb, sb) = mean_and_se(b);
-    for i in 0..ma.len() {
-        let sigma = (sa[i] * sa[i] + sb[i] * sb[i]).sqrt();
-        assert!(
-            (ma[i] - mb[i]).abs() < common::SIGMA_BOUND * sigma && sigma > 0.0,
-            "{name}: quadrant {} channel {}: {} +- {} vs {} +- {}",
-            i / 3,
-            i % 3,
-            ma[i],
-            sa[i],
-            mb[i],
-            sb[i]
-        );
-    }
-}
-
 const RUNS: u64 = 16;
 const RES: u32 = 8;
 const DEPTH: u32 = 3;
@@ -466,7 +421,7 @@ fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
         .map(|r| {
             let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(DEPTH));
             rd.pass(32, &|| {});
-            quadrant_means(&rd.film.as_ref().unwrap().image())
+            common::quadrant_means(&rd.film.as_ref().unwrap().image())
         })
         .collect()
 }
@@ -482,7 +437,7 @@ fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
             let mut m = Mlt::new(scene, settings, seed + r, Some(DEPTH)).unwrap();
             let mut film = Film::new(RES, RES);
             m.run(scene, &mut film, (RES * RES * 128) as u64);
-            quadrant_means(&film.image())
+            common::quadrant_means(&film.image())
         })
         .collect()
 }
@@ -523,7 +478,7 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
         } else {
             many_lights(RES)
         });
-        assert_quadrants_agree(
+        common::assert_quadrants_agree(
             &format!("{name}: bdpt + lumpy adjoint"),
             &bdpt_runs(&lumpy, 200),
             &plain,
@@ -536,7 +491,7 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
         let image = AdjointImage::render(&estimated, &settings, 7, Some(DEPTH)).unwrap();
         assert!(image.estimate.iter().sum::<f64>() > 0.0);
         estimated.adjoint = Some(image);
-        assert_quadrants_agree(
+        common::assert_quadrants_agree(
             &format!("{name}: bdpt + adjoint"),
             &bdpt_runs(&estimated, 300),
             &plain,
@@ -553,7 +508,7 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
 fn mlt_with_the_adjoint_image_agrees_with_bdpt() {
     let plain = bdpt_runs(&many_lights(RES), 400);
     let scene = with_lumpy_adjoint(many_lights(RES));
-    assert_quadrants_agree(
+    common::assert_quadrants_agree(
         "many lights: mlt + lumpy adjoint",
         &mlt_runs(&scene, 500),
         &plain,

@@ -481,55 +481,6 @@ fn guided_mis_weights_sum_to_one() {
     assert!(checked > 200, "only {checked} paths");
 }
 
-/// Mean RGB of the four image quadrants (12 numbers).
-fn quadrant_means(img: &pathspace::image_io::Image) -> Vec<f64> {
-    let (w, h) = (img.width, img.height);
-    let mut out = vec![0.0; 12];
-    for y in 0..h {
-        for x in 0..w {
-            let q = (usize::from(y >= h / 2)) * 2 + usize::from(x >= w / 2);
-            let p = img.get(x, y);
-            for c in 0..3 {
-                out[q * 3 + c] += p[c] as f64 / (w * h / 4) as f64;
-            }
-        }
-    }
-    out
-}
-
-fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
-    let n = runs.len() as f64;
-    let k = runs[0].len();
-    let mean: Vec<f64> = (0..k)
-        .map(|i| runs.iter().map(|r| r[i]).sum::<f64>() / n)
-        .collect();
-    let se = (0..k)
-        .map(|i| {
-            let v = runs.iter().map(|r| (r[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0);
-            (v / n).sqrt()
-        })
-        .collect();
-    (mean, se)
-}
-
-fn assert_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
-    let (ma, sa) = mean_and_se(a);
-    let (mb, sb) = mean_and_se(b);
-    for i in 0..ma.len() {
-        let sigma = (sa[i] * sa[i] + sb[i] * sb[i]).sqrt();
-        assert!(
-            (ma[i] - mb[i]).abs() < SIGMA_BOUND * sigma,
-            "{name}: quadrant {} channel {}: {} +- {} vs {} +- {}",
-            i / 3,
-            i % 3,
-            ma[i],
-            sa[i],
-            mb[i],
-            sb[i]
-        );
-    }
-}
-
 const RUNS: u64 = 16;
 const RES: u32 = 8;
 const DEPTH: u32 = 4;
@@ -539,7 +490,7 @@ fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
         .map(|r| {
             let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(DEPTH));
             rd.pass(32, &|| {});
-            quadrant_means(&rd.film.as_ref().unwrap().image())
+            common::quadrant_means(&rd.film.as_ref().unwrap().image())
         })
         .collect()
 }
@@ -551,7 +502,7 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     let plain = bdpt_runs(&fog_box(RES), 1000);
     for kind in [GuideKind::Surface, GuideKind::Both] {
         let scene = guided_fog_box(RES, kind);
-        assert_agree(kind.name(), &bdpt_runs(&scene, 5000), &plain);
+        common::assert_quadrants_agree(kind.name(), &bdpt_runs(&scene, 5000), &plain);
     }
     // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
     let mut scene = fog_box(RES);
@@ -566,11 +517,11 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
             .map(|r| {
                 let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(8));
                 rd.pass(32, &|| {});
-                quadrant_means(&rd.film.as_ref().unwrap().image())
+                common::quadrant_means(&rd.film.as_ref().unwrap().image())
             })
             .collect()
     };
-    assert_agree(
+    common::assert_quadrants_agree(
         "guided roulette",
         &deep(&scene, 6000),
         &deep(&fog_box(RES), 1000),
@@ -593,10 +544,10 @@ fn guided_mlt_agrees_with_bdpt() {
             let mut m = Mlt::new(&scene, settings, 7000 + r, Some(DEPTH)).unwrap();
             let mut film = Film::new(RES, RES);
             m.run(&scene, &mut film, (RES * RES * 128) as u64);
-            quadrant_means(&film.image())
+            common::quadrant_means(&film.image())
         })
         .collect();
-    assert_agree("guided mlt", &runs, &plain);
+    common::assert_quadrants_agree("guided mlt", &runs, &plain);
 }
 
 /// Guiding off leaves the renderers' random streams untouched: an unguided scene renders the

@@ -505,37 +505,6 @@ fn chain_distribution_matches_f_over_b_on_a_small_path_space() {
     );
 }
 
-/// Mean RGB of the four image quadrants (12 numbers).
-fn quadrant_means(img: &pathspace::image_io::Image) -> Vec<f64> {
-    let (w, h) = (img.width, img.height);
-    let mut out = vec![0.0; 12];
-    for y in 0..h {
-        for x in 0..w {
-            let q = (usize::from(y >= h / 2)) * 2 + usize::from(x >= w / 2);
-            let p = img.get(x, y);
-            for c in 0..3 {
-                out[q * 3 + c] += p[c] as f64 / (w * h / 4) as f64;
-            }
-        }
-    }
-    out
-}
-
-fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
-    let n = runs.len() as f64;
-    let k = runs[0].len();
-    let mean: Vec<f64> = (0..k)
-        .map(|i| runs.iter().map(|r| r[i]).sum::<f64>() / n)
-        .collect();
-    let se = (0..k)
-        .map(|i| {
-            let v = runs.iter().map(|r| (r[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0);
-            (v / n).sqrt()
-        })
-        .collect();
-    (mean, se)
-}
-
 const RUNS: u64 = 16;
 const RES: u32 = 8;
 const DEPTH: u32 = 3;
@@ -550,7 +519,7 @@ fn bdpt_runs(scene: &Scene) -> Vec<Vec<f64>> {
                 Some(DEPTH),
             );
             rd.pass(32, &|| {});
-            quadrant_means(&rd.film.as_ref().unwrap().image())
+            common::quadrant_means(&rd.film.as_ref().unwrap().image())
         })
         .collect()
 }
@@ -561,34 +530,16 @@ fn mlt_runs(scene: &Scene, weights: [f64; 5]) -> Vec<Vec<f64>> {
             let mut m = engine(scene, weights, Some(DEPTH), 2000 + r);
             let mut film = Film::new(RES, RES);
             m.run(scene, &mut film, (RES * RES * 128) as u64);
-            quadrant_means(&film.image())
+            common::quadrant_means(&film.image())
         })
         .collect()
-}
-
-fn assert_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
-    let (ma, sa) = mean_and_se(a);
-    let (mb, sb) = mean_and_se(b);
-    for i in 0..ma.len() {
-        let sigma = (sa[i] * sa[i] + sb[i] * sb[i]).sqrt();
-        assert!(
-            (ma[i] - mb[i]).abs() < common::SIGMA_BOUND * sigma,
-            "{name}: quadrant {} channel {}: mlt {} +- {} vs bdpt {} +- {}",
-            i / 3,
-            i % 3,
-            ma[i],
-            sa[i],
-            mb[i],
-            sb[i]
-        );
-    }
 }
 
 #[test]
 fn mlt_image_is_unbiased_against_bdpt_with_every_mutation_set() {
     let scene = fog_box(RES);
     let bdpt = bdpt_runs(&scene);
-    assert_agree("all mutations", &mlt_runs(&scene, [1.0; 5]), &bdpt);
+    common::assert_quadrants_agree("all mutations", &mlt_runs(&scene, [1.0; 5]), &bdpt);
     for kind in [
         MutationKind::Sensor,
         MutationKind::Light,
@@ -597,7 +548,7 @@ fn mlt_image_is_unbiased_against_bdpt_with_every_mutation_set() {
         let mut w = [0.0; 5];
         w[0] = 1.0;
         w[kind.index()] = 1.0;
-        assert_agree(kind.name(), &mlt_runs(&scene, w), &bdpt);
+        common::assert_quadrants_agree(kind.name(), &mlt_runs(&scene, w), &bdpt);
     }
 }
 

@@ -366,3 +366,55 @@ v = [1.0, 0.0, 0.0]
 "#
     )
 }
+
+/// Mean RGB of the four image quadrants (12 numbers): a coarse picture of an image that
+/// independent runs of two integrators must agree on.
+pub fn quadrant_means(img: &pathspace::image_io::Image) -> Vec<f64> {
+    let (w, h) = (img.width, img.height);
+    let mut out = vec![0.0; 12];
+    for y in 0..h {
+        for x in 0..w {
+            let q = (usize::from(y >= h / 2)) * 2 + usize::from(x >= w / 2);
+            let p = img.get(x, y);
+            for c in 0..3 {
+                out[q * 3 + c] += p[c] as f64 / (w * h / 4) as f64;
+            }
+        }
+    }
+    out
+}
+
+/// Per-component mean and standard error of the mean over independent runs.
+pub fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
+    let n = runs.len() as f64;
+    let k = runs[0].len();
+    let mean: Vec<f64> = (0..k)
+        .map(|i| runs.iter().map(|r| r[i]).sum::<f64>() / n)
+        .collect();
+    let se = (0..k)
+        .map(|i| {
+            let v = runs.iter().map(|r| (r[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0);
+            (v / n).sqrt()
+        })
+        .collect();
+    (mean, se)
+}
+
+/// The quadrant means of two sets of runs agree within [`SIGMA_BOUND`] combined standard errors.
+pub fn assert_quadrants_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
+    let (ma, sa) = mean_and_se(a);
+    let (mb, sb) = mean_and_se(b);
+    for i in 0..ma.len() {
+        let sigma = (sa[i] * sa[i] + sb[i] * sb[i]).sqrt();
+        assert!(
+            (ma[i] - mb[i]).abs() < SIGMA_BOUND * sigma,
+            "{name}: quadrant {} channel {}: {} +- {} vs {} +- {}",
+            i / 3,
+            i % 3,
+            ma[i],
+            sa[i],
+            mb[i],
+            sb[i]
+        );
+    }
+}
