@@ -429,20 +429,15 @@ impl AdjointImage {
                     let raster = sampler.next_2d() * film;
                     bdpt.camera_subpath(scene, raster, &mut sampler, &mut eye);
                     bdpt.light_subpath(scene, &mut sampler, &mut light);
-                    for t in 1..=eye.len() {
-                        for s in 0..=light.len() {
-                            let depth = s as i64 + t as i64 - 2;
-                            if depth < 0 || depth as u64 > bdpt.max_depth as u64 {
-                                continue;
-                            }
-                            let Some((l, _, sampled)) =
-                                bdpt.connect_sampled(scene, &light, &eye, s, t, &mut sampler)
-                            else {
-                                continue;
-                            };
+                    bdpt.for_each_strategy(
+                        scene,
+                        &light,
+                        &eye,
+                        &mut sampler,
+                        &mut |s, t, l, _, sampled| {
                             let y = crate::spectrum::average(l) as f64;
                             if !(y.is_finite() && y > 0.0) {
-                                continue;
+                                return true;
                             }
                             let y0 = match s {
                                 0 => eye.get(t - 1),
@@ -452,8 +447,9 @@ impl AdjointImage {
                             if let Some(j) = y0.and_then(cell_index) {
                                 out.push((j, y));
                             }
-                        }
-                    }
+                            true
+                        },
+                    );
                 }
                 out
             })

@@ -596,6 +596,36 @@ impl Bdpt {
             .map(|(l, raster, _)| (l, raster))
     }
 
+    /// Every strategy (s, t) of one pair of subpaths within the depth limit, in the order
+    /// `combine` uses, connected with [`Bdpt::connect_sampled`]: `visit(s, t, contribution,
+    /// splat, sampled endpoint)` sees each non-zero one and returns false to stop. The pre-passes
+    /// of MLT and of the adjoint image walk the strategies this way.
+    pub fn for_each_strategy(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        sampler: &mut Sampler,
+        visit: &mut dyn FnMut(usize, usize, Rgb, Option<Vec2>, Option<Vertex>) -> bool,
+    ) {
+        for t in 1..=eye.len() {
+            for s in 0..=light.len() {
+                let depth = s as i64 + t as i64 - 2;
+                if depth < 0 || depth as u64 > self.max_depth as u64 {
+                    continue;
+                }
+                let Some((l, splat, sampled)) =
+                    self.connect_sampled(scene, light, eye, s, t, sampler)
+                else {
+                    continue;
+                };
+                if !visit(s, t, l, splat, sampled) {
+                    return;
+                }
+            }
+        }
+    }
+
     /// [`Bdpt::connect`] that also returns the endpoint it sampled for s = 1 (a light vertex)
     /// or t = 1 (the sensor vertex), so the joined path can be rebuilt (MLT's initialization).
     pub fn connect_sampled(

@@ -59,24 +59,17 @@ fn run_sample(
     let (mut eye, mut light) = (Vec::new(), Vec::new());
     bdpt.camera_subpath(scene, raster, &mut sampler, &mut eye);
     bdpt.light_subpath(scene, &mut sampler, &mut light);
-    for t in 1..=eye.len() {
-        for s in 0..=light.len() {
-            let depth = s as i64 + t as i64 - 2;
-            if depth < 0 || depth as u64 > bdpt.max_depth as u64 {
-                continue;
-            }
-            let Some((l, splat, sampled)) =
-                bdpt.connect_sampled(scene, &light, &eye, s, t, &mut sampler)
-            else {
-                continue;
-            };
+    bdpt.for_each_strategy(
+        scene,
+        &light,
+        &eye,
+        &mut sampler,
+        &mut |s, t, l, splat, sampled| {
             let path = (want_path == Some((s, t)))
                 .then(|| joined_path(scene, &light, &eye, s, t, sampled));
-            if !visit(s, t, l, splat.is_some(), path) {
-                return;
-            }
-        }
-    }
+            visit(s, t, l, splat.is_some(), path)
+        },
+    );
 }
 
 /// The path x_0 (light) ... x_k (pinhole) of strategy (s, t): `light[..s]`, then `eye[..t]`
