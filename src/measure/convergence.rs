@@ -192,6 +192,24 @@ fn check_reference(scene: &Scene, reference: &Image) -> Result<(), String> {
     Ok(())
 }
 
+/// The checks every study makes before it starts (something to measure, at least one run, a
+/// reference of this scene) and its checkpoint times.
+fn study_checkpoints(
+    scene: &Scene,
+    reference: &Image,
+    integrators: usize,
+    config: &ConvergeConfig,
+) -> Result<Vec<f64>, String> {
+    if integrators == 0 {
+        return Err("no integrator to measure".into());
+    }
+    if config.runs == 0 {
+        return Err("at least one run is needed".into());
+    }
+    check_reference(scene, reference)?;
+    checkpoint_times(config.budget, config.checkpoints)
+}
+
 /// Runs every integrator `config.runs` times for the same budget and returns every checkpoint
 /// row, integrator by integrator, run by run. `on_run` hears of each finished run (progress).
 pub fn converge(
@@ -201,14 +219,7 @@ pub fn converge(
     config: &ConvergeConfig,
     on_run: &mut dyn FnMut(&[CheckpointRow]),
 ) -> Result<Vec<CheckpointRow>, String> {
-    if kinds.is_empty() {
-        return Err("no integrator to measure".into());
-    }
-    if config.runs == 0 {
-        return Err("at least one run is needed".into());
-    }
-    check_reference(scene, reference)?;
-    let times = checkpoint_times(config.budget, config.checkpoints)?;
+    let times = study_checkpoints(scene, reference, kinds.len(), config)?;
     let mut rows = Vec::new();
     for &kind in kinds {
         for run in 0..config.runs {
@@ -275,14 +286,7 @@ pub fn converge_variants(
     config: &ConvergeConfig,
     on_run: &mut dyn FnMut(&[CheckpointRow]),
 ) -> Result<Vec<CheckpointRow>, String> {
-    if variants.is_empty() {
-        return Err("no integrator to measure".into());
-    }
-    if config.runs == 0 {
-        return Err("at least one run is needed".into());
-    }
-    check_reference(scene, reference)?;
-    let times = checkpoint_times(config.budget, config.checkpoints)?;
+    let times = study_checkpoints(scene, reference, variants.len(), config)?;
     let mut rows = Vec::new();
     for v in variants {
         for run in 0..config.runs {
