@@ -4,6 +4,8 @@
 //! scene whose pixels are exactly albedo x radiance), the variance-based estimate, the heatmap,
 //! and the reference's refusal to overwrite another scene's reference.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -786,16 +788,32 @@ fn twin_variance_recovers_the_noise_of_independent_renders() {
     };
     let m = metrics::compare(&a1, &biased).unwrap().relmse;
     let vb = metrics::twin_variance(&a1, &a2, &biased).unwrap();
-    let bias: f64 = truth
+    // per pixel and channel, (a1 - b)^2 w - (a1 - a2)^2 w / 2 has mean bias^2 w: its sample
+    // standard error bounds how far m - vb may lie from the squared bias
+    let mut diffs = Vec::new();
+    let mut bias = 0.0;
+    for (((p, q), t), b) in a1
+        .pixels
         .iter()
-        .map(|t| {
-            let t = t.x as f64;
-            (0.1 * t).powi(2) / ((1.1 * t).powi(2) + metrics::RELMSE_EPSILON)
-        })
-        .sum::<f64>()
-        / truth.len() as f64;
+        .zip(&a2.pixels)
+        .zip(&truth)
+        .zip(&biased.pixels)
+    {
+        for c in 0..3 {
+            let (x, y, r, b) = (p[c] as f64, q[c] as f64, t[c] as f64, b[c] as f64);
+            let w = 1.0 / (b * b + metrics::RELMSE_EPSILON);
+            diffs.push((x - b).powi(2) * w - (x - y).powi(2) * w / 2.0);
+            bias += (b - r).powi(2) * w;
+        }
+    }
+    bias /= diffs.len() as f64;
+    let (d, se) = common::mean_and_stderr(&diffs);
     assert!(
-        (m - vb - bias).abs() < 0.25 * bias,
-        "relMSE {m} minus twin {vb} should be the squared bias {bias}"
+        (d - (m - vb)).abs() < 1e-9 * m,
+        "relMSE {m} minus twin {vb} is the mean of the per-term differences {d}"
+    );
+    assert!(
+        (d - bias).abs() < common::SIGMA_BOUND * se,
+        "relMSE {m} minus twin {vb} = {d} +- {se} should be the squared bias {bias}"
     );
 }
