@@ -12,8 +12,10 @@
 
 mod common;
 
+use pathspace::enlightened::metropolis::{trace_metropolis, MetropolisParticleSettings};
 use pathspace::enlightened::particles::{
-    trace_bidirectional, trace_importons, trace_photons, ImportonSource, Particle,
+    trace_bidirectional, trace_bidirectional_where, trace_classical, trace_importons,
+    trace_photons, ImportonSource, Particle, ParticleSets, Quantity,
 };
 use pathspace::integrator::bdpt::{Bdpt, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
@@ -182,6 +184,141 @@ fn bidirectional_particles_reproduce_the_meter() {
     }
 }
 
+/// Photon and importon batch estimates of the meter from a particle sampler run `batches`
+/// times with seeds `seed0 + b`.
+fn meter_batches(
+    batches: u64,
+    seed0: u64,
+    mut run: impl FnMut(u64) -> ParticleSets,
+) -> ((f64, f64), (f64, f64)) {
+    let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
+    let mut photon = Vec::new();
+    let mut importon = Vec::new();
+    for b in 0..batches {
+        let sets = run(seed0 + b);
+        photon.push(
+            sets.photons
+                .iter()
+                .filter(|p| on_floor_patch(p))
+                .map(|p| p.weight.y as f64)
+                .sum::<f64>()
+                / area,
+        );
+        importon.push(
+            sets.importons
+                .iter()
+                .filter(|p| on_light(p))
+                .map(|p| (p.weight.y * LE) as f64)
+                .sum::<f64>(),
+        );
+    }
+    (batch_stats(&photon), batch_stats(&importon))
+}
+
+/// Small Metropolis runs for the tests: 2048 bootstrap samples, 64 chains.
+fn metropolis_settings(defensive: f64) -> MetropolisParticleSettings {
+    MetropolisParticleSettings {
+        bootstrap: 2048,
+        chains: 64,
+        defensive,
+        ..Default::default()
+    }
+}
+
+/// T16 for the Metropolis particle sampler (eq. (5.15) with the defensive floor): photons give
+/// <W_e, L_i>, importons give <L_e, W_i>, each batch one independent run (bootstrap and chains).
+#[test]
+fn metropolis_particles_reproduce_the_meter() {
+    for fog in [false, true] {
+        let scene = room(fog);
+        let settings = MetropolisParticleSettings {
+            bootstrap: 8192,
+            chains: 128,
+            ..Default::default()
+        };
+        let (photon, importon) = meter_batches(32, 4000, |seed| {
+            let (sets, stats) =
+                trace_metropolis(&scene, ImportonSource::Meter(0), 65_536, seed, &settings);
+            if seed == 4000 {
+                eprintln!("{stats:?}");
+            }
+            sets
+        });
+        let truth = meter_truth(&scene, 64);
+        let tag = if fog { "fog" } else { "empty" };
+        assert_agrees(&format!("Metropolis photons ({tag})"), photon, truth);
+        assert_agrees(&format!("Metropolis importons ({tag})"), importon, truth);
+    }
+}
+
+/// Without the defensive part (delta = 0, eq. (5.15) as printed) the Metropolis particles
+/// represent exactly the particles of the samples whose full path carries light: they agree with
+/// the bidirectional particles restricted to I(u) > 0 (total photon weight, total importon
+/// weight, photons on the floor patch). In this room that part is visibly short of the meter:
+/// the floor patch's photons whose connection reaches the meter through its back are lost, and
+/// so is every importon on the black light (digest F15). That is what the defensive part is for.
+#[test]
+fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths() {
+    let scene = room(false);
+    let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
+    let functionals = |sets: &ParticleSets| {
+        [
+            sets.photons.iter().map(|p| p.weight.y as f64).sum::<f64>(),
+            sets.importons
+                .iter()
+                .map(|p| p.weight.y as f64)
+                .sum::<f64>(),
+            sets.photons
+                .iter()
+                .filter(|p| on_floor_patch(p))
+                .map(|p| p.weight.y as f64)
+                .sum::<f64>()
+                / area,
+            sets.importons
+                .iter()
+                .filter(|p| on_light(p))
+                .map(|p| (p.weight.y * LE) as f64)
+                .sum::<f64>(),
+        ]
+    };
+    let batches = |seed0: u64, run: &dyn Fn(u64) -> ParticleSets| {
+        let runs: Vec<[f64; 4]> = (0..24).map(|b| functionals(&run(seed0 + b))).collect();
+        (0..4)
+            .map(|j| batch_stats(&runs.iter().map(|r| r[j]).collect::<Vec<_>>()))
+            .collect::<Vec<_>>()
+    };
+    let settings = metropolis_settings(0.0);
+    let metro = batches(5000, &|seed| {
+        trace_metropolis(&scene, ImportonSource::Meter(0), 16_384, seed, &settings).0
+    });
+    let connected = batches(6000, &|seed| {
+        trace_bidirectional_where(&scene, ImportonSource::Meter(0), 16_384, seed, |i| i > 0.0)
+    });
+    for (j, what) in ["all photons", "all importons", "floor-patch photons"]
+        .iter()
+        .enumerate()
+    {
+        assert_agrees(
+            &format!("{what}: Metropolis vs connected bidirectional"),
+            metro[j],
+            connected[j],
+        );
+    }
+    assert_eq!(metro[3].0, 0.0, "no importon on the black light");
+    assert_eq!(connected[3].0, 0.0, "no importon on the black light");
+    let truth = meter_truth(&scene, 64);
+    let (c, sc) = connected[2];
+    eprintln!(
+        "connected floor photons {c} vs meter {}: {:.1}% short",
+        truth.0,
+        100.0 * (truth.0 - c) / truth.0
+    );
+    assert!(
+        truth.0 - c > common::SIGMA_BOUND * (truth.1 * truth.1 + sc * sc).sqrt(),
+        "the connected part should miss the floor photons seen only through the meter's back"
+    );
+}
+
 /// Particle lists do not depend on the thread count.
 #[test]
 fn particles_are_identical_with_any_thread_count() {
@@ -197,6 +334,52 @@ fn particles_are_identical_with_any_thread_count() {
     let (a, b) = (run(1), run(3));
     assert!(!a.is_empty());
     assert_eq!(a, b);
+    let settings = metropolis_settings(0.1);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| trace_metropolis(&scene, ImportonSource::Meter(0), 5000, 5, &settings))
+    };
+    let (a, b) = (run(1), run(3));
+    assert!(!a.0.photons.is_empty() && !a.0.importons.is_empty());
+    assert_eq!(a, b, "Metropolis particles");
+}
+
+/// Digest F10 (Kristensen 2010, Fig. 5.5 and 5.13): the classical tracer's photons stay near
+/// the light, the Metropolis sampler's crowd where the camera looks. On the door slit the light
+/// is in the far room (x > 0) and the camera looks into its own room (x < 0): the share of the
+/// photons (by count) in the camera's room must at least double.
+#[test]
+fn metropolis_photons_crowd_where_the_camera_looks() {
+    let scene = Scene::load(
+        &SceneSource::read(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/door-slit.toml"
+        )))
+        .unwrap(),
+    )
+    .unwrap();
+    let share = |ph: &[Particle]| {
+        ph.iter().filter(|p| p.position.x < 0.0).count() as f64 / ph.len().max(1) as f64
+    };
+    let classical = trace_classical(&scene, Quantity::Radiance, 20_000, 7);
+    let settings = MetropolisParticleSettings {
+        bootstrap: 8192,
+        chains: 64,
+        ..Default::default()
+    };
+    let (metro, stats) = trace_metropolis(&scene, ImportonSource::Camera, 20_000, 7, &settings);
+    let (c, m) = (share(&classical), share(&metro.photons));
+    eprintln!(
+        "photons in the camera's room: classical {:.3} of {}, Metropolis {:.3} of {} ({stats:?})",
+        c,
+        classical.len(),
+        m,
+        metro.photons.len()
+    );
+    assert!(m > 2.0 * c, "classical {c}, Metropolis {m}");
 }
 
 // ---------------------------------------------------------------------------------------------

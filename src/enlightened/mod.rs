@@ -8,6 +8,9 @@
 //! - [`particles`]: weighted rays (r_i, alpha_i) with E[sum alpha_i W_e(r_i)] = <W_e, L_i>
 //!   (Kristensen 2010, eq. (5.8)-(5.12)): the classical photon / importon tracer and the
 //!   bidirectional particle sampler.
+//! - [`metropolis`]: the Metropolis particle sampler (eq. (5.15)): the bidirectional sampler
+//!   as a Markov chain in primary sample space, so particles crowd where light reaches the
+//!   sensor.
 //! - [`adjoint`]: the adjoint image (Kristensen 2010, sec. 5.2.1 and 5.3.1, eq. (5.3), (5.6),
 //!   (5.7)): an invertible light-sampling map F from the unit square onto the area lights, a
 //!   low-resolution grid of the adjoint measurement I* over it, and light start points sampled
@@ -23,6 +26,7 @@
 pub mod adjoint;
 pub mod direction_map;
 pub mod guide;
+pub mod metropolis;
 pub mod particles;
 pub mod regions;
 

@@ -270,6 +270,30 @@ pub struct ParticleSets {
     pub importons: Vec<Particle>,
 }
 
+impl ParticleSets {
+    pub fn clear(&mut self) {
+        self.photons.clear();
+        self.importons.clear();
+    }
+
+    /// Moves `other`'s particles to the end of these.
+    pub fn append(&mut self, other: &mut ParticleSets) {
+        self.photons.append(&mut other.photons);
+        self.importons.append(&mut other.importons);
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty() && self.importons.is_empty()
+    }
+
+    /// Multiplies every weight by `f`.
+    pub(crate) fn scale(&mut self, f: f32) {
+        for p in self.photons.iter_mut().chain(self.importons.iter_mut()) {
+            p.weight *= f;
+        }
+    }
+}
+
 /// The bidirectional particle sampler (Kristensen 2010, sec. 5.2.2), made unbiased.
 ///
 /// One sample is one path x_0 (light) ... x_k (sensor): the length k with p_k = 2^-k, the split
@@ -306,21 +330,24 @@ pub fn trace_bidirectional(
     paths: u64,
     seed: u64,
 ) -> ParticleSets {
-    if paths == 0 || scene.lights.is_empty() || scene.lights.iter().any(|l| l.is_infinite()) {
+    trace_bidirectional_where(scene, source, paths, seed, |_| true)
+}
+// ANCHOR_END: trace_bidirectional
+
+/// [`trace_bidirectional`] keeping only the particles of the samples whose full-path
+/// contribution I(u) passes `keep` (`|i| i > 0`: the part of the particle set the Metropolis
+/// sampler without its defensive floor represents).
+pub fn trace_bidirectional_where(
+    scene: &Scene,
+    source: ImportonSource,
+    paths: u64,
+    seed: u64,
+    keep: impl Fn(f64) -> bool + Sync,
+) -> ParticleSets {
+    if paths == 0 || !can_trace(scene, source) {
         return ParticleSets::default();
     }
-    match source {
-        ImportonSource::Camera if scene.camera.is_none() => return ParticleSets::default(),
-        ImportonSource::Meter(m) if m as usize >= scene.sensors.len() => {
-            return ParticleSets::default()
-        }
-        _ => {}
-    }
-    let base = {
-        let mut b = Bdpt::new(scene, None, crate::integrator::bdpt::Strategies::All);
-        b.roulette = false;
-        b
-    };
+    let base = particle_bdpt(scene);
     let scale = 1.0 / paths as f64;
     let chunks = paths.div_ceil(PARTICLE_CHUNK);
     let parts: Vec<ParticleSets> = (0..chunks)
@@ -331,8 +358,10 @@ pub fn trace_bidirectional(
             let mut light = Vec::new();
             let mut eye = Vec::new();
             let mut out = ParticleSets::default();
+            let mut one = ParticleSets::default();
             for _ in 0..PARTICLE_CHUNK.min(paths - c * PARTICLE_CHUNK) {
-                bidirectional_sample(
+                one.clear();
+                let i = bidirectional_sample(
                     scene,
                     &mut bdpt,
                     source,
@@ -340,8 +369,11 @@ pub fn trace_bidirectional(
                     &mut sampler,
                     &mut light,
                     &mut eye,
-                    &mut out,
+                    &mut one,
                 );
+                if keep(i) {
+                    out.append(&mut one);
+                }
             }
             out
         })
@@ -353,7 +385,25 @@ pub fn trace_bidirectional(
     }
     all
 }
-// ANCHOR_END: trace_bidirectional
+
+/// BDPT's walks as the particle samplers use them: no Russian roulette (the path length is
+/// drawn instead).
+pub(crate) fn particle_bdpt(scene: &Scene) -> Bdpt {
+    let mut b = Bdpt::new(scene, None, crate::integrator::bdpt::Strategies::All);
+    b.roulette = false;
+    b
+}
+
+/// Whether `source` can start importons in `scene` (and the scene's lights can be handled).
+pub(crate) fn can_trace(scene: &Scene, source: ImportonSource) -> bool {
+    if scene.lights.is_empty() || scene.lights.iter().any(|l| l.is_infinite()) {
+        return false;
+    }
+    match source {
+        ImportonSource::Camera => scene.camera.is_some(),
+        ImportonSource::Meter(m) => (m as usize) < scene.sensors.len(),
+    }
+}
 
 /// The power-heuristic weight of split `s` among `candidates` (densities; zero ones cannot
 /// produce the subpath and are left out).
@@ -371,8 +421,21 @@ fn power_weight(s: usize, densities: &[(usize, f64)]) -> f64 {
     }
 }
 
+/// Primary-sample streams of one bidirectional particle sample: the length and split, the light
+/// walk, the eye walk, the evaluation (transmittance estimates of the densities and edges).
+const STREAM_CHOICE: usize = 0;
+const STREAM_LIGHT: usize = 1;
+const STREAM_EYE: usize = 2;
+const STREAM_EVAL: usize = 3;
+
+/// One sample of the bidirectional particle sampler: pushes its particles (weights times
+/// `scale`) into `out` and returns I(u), the luminance of the full path's own contribution to
+/// the measurement (the target of the Metropolis particle sampler, Kristensen 2010, eq. (5.15)):
+/// (k + 2) / p_k * w_s f(x) / p_s(x), with the power heuristic over the splits s' = 0 ..= k that
+/// reach the sensor. Zero when a walk ended early or the full path carries no light.
+// ANCHOR: bidirectional_sample
 #[allow(clippy::too_many_arguments)]
-fn bidirectional_sample(
+pub(crate) fn bidirectional_sample(
     scene: &Scene,
     bdpt: &mut Bdpt,
     source: ImportonSource,
@@ -381,21 +444,24 @@ fn bidirectional_sample(
     light: &mut Vec<Vertex>,
     eye: &mut Vec<Vertex>,
     out: &mut ParticleSets,
-) {
+) -> f64 {
     use crate::path::geometry_term::geometry_term_unoccluded;
+    sampler.set_stream(STREAM_CHOICE);
     let k = sample_length(sampler.next_f64());
     let s = sampler.next_index(k + 2);
     let t = k + 1 - s; // t = 0: the light walk would have to hit the sensor
     light.clear();
     if s > 0 {
+        sampler.set_stream(STREAM_LIGHT);
         bdpt.vertex_cap = s;
         bdpt.light_subpath(scene, sampler, light);
     }
+    sampler.set_stream(STREAM_EYE);
     bdpt.vertex_cap = t.max(1);
     let n_pix = match source {
         ImportonSource::Camera => {
             let Some(cam) = scene.camera.as_ref() else {
-                return;
+                return 0.0;
             };
             let film = Vec2::new(cam.width as f32, cam.height as f32);
             let raster = sampler.next_2d() * film;
@@ -407,8 +473,9 @@ fn bidirectional_sample(
             1.0
         }
     };
+    sampler.set_stream(STREAM_EVAL);
     if t == 0 {
-        return;
+        return 0.0;
     }
     let light_done = light.len() == s;
     let eye_done = eye.len() == t;
@@ -432,7 +499,7 @@ fn bidirectional_sample(
                 out.importons.push(p);
             }
         }
-        return;
+        return 0.0;
     }
     // the full path x_0 ... x_k
     let mut x: Vec<Vertex> = Vec::with_capacity(k + 1);
@@ -441,10 +508,10 @@ fn bidirectional_sample(
     if s == 0 {
         // the eye walk must have found an emitter: make it the light vertex
         let VertexKind::Surface { prim } = x[0].kind else {
-            return;
+            return 0.0;
         };
         let Some(l) = scene.shapes[scene.prim_shape[prim as usize] as usize].light else {
-            return;
+            return 0.0;
         };
         x[0].kind = VertexKind::Light {
             light: l,
@@ -472,6 +539,26 @@ fn bidirectional_sample(
     };
     let light_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.light[m] as f64).product() };
     let eye_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.eye[m] as f64).product() };
+    // I(u): the full path's contribution, power heuristic over the splits that reach the sensor
+    let contribution = {
+        let split_pdf = |sp: usize| light_d(0, sp) * eye_d(sp, k + 1);
+        let cands: Vec<(usize, f64)> = (0..=k).map(|sp| (sp, split_pdf(sp))).collect();
+        let w = power_weight(s, &cands);
+        let p = split_pdf(s);
+        let mut f = le * we;
+        for (m, g) in gt.iter().enumerate() {
+            f *= *g;
+            if m >= 1 {
+                f *= f_inner(m);
+            }
+        }
+        let c = crate::spectrum::luminance(f) as f64 * w / p * (k + 2) as f64 / length_pmf(k);
+        if w > 0.0 && p > 0.0 && c.is_finite() && c > 0.0 {
+            c
+        } else {
+            0.0
+        }
+    };
     // photons at x_i, 1 <= i <= k - 1, from splits s <= i + 1
     for i in s.saturating_sub(1).max(1)..k {
         let split_pdf = |sp: usize| light_d(0, sp) * eye_d(sp, i + 1);
@@ -526,4 +613,6 @@ fn bidirectional_sample(
             out.importons.push(im);
         }
     }
+    contribution
 }
+// ANCHOR_END: bidirectional_sample

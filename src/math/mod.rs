@@ -4,9 +4,11 @@
 
 pub mod distribution;
 pub mod frame;
+pub mod primary_sample;
 pub mod sampler;
 pub mod warp;
 
 pub use distribution::Distribution1D;
 pub use frame::Frame;
+pub use primary_sample::PrimarySamples;
 pub use sampler::Sampler;

@@ -6,10 +6,18 @@ use rand::RngCore;
 use rand_pcg::Pcg32;
 
 use super::distribution::ONE_MINUS_EPSILON;
+use super::primary_sample::PrimarySamples;
 
-/// A uniform random number source on [0, 1).
+/// A uniform random number source on [0, 1): a PCG stream, or the coordinates of a
+/// primary-sample-space Markov chain ([`PrimarySamples`]), which turns any sampler of this crate
+/// into a Metropolis sampler without changing it.
 pub struct Sampler {
-    rng: Pcg32,
+    source: Source,
+}
+
+enum Source {
+    Stream(Pcg32),
+    Primary(Box<PrimarySamples>),
 }
 
 /// SplitMix64 finalizer: decorrelates consecutive indices before they seed PCG.
@@ -27,21 +35,53 @@ impl Sampler {
         let state = mix64(seed ^ mix64(index ^ mix64(pass.wrapping_add(0x5851_F42D))));
         let stream = mix64(index.wrapping_mul(0x2545_F491_4F6C_DD1D) ^ pass);
         Sampler {
-            rng: Pcg32::new(state, stream),
+            source: Source::Stream(Pcg32::new(state, stream)),
+        }
+    }
+
+    /// A sampler that reads the coordinates of a primary-sample-space chain.
+    pub fn primary(chain: PrimarySamples) -> Self {
+        Sampler {
+            source: Source::Primary(Box::new(chain)),
+        }
+    }
+
+    /// The chain of a [`Sampler::primary`] sampler.
+    pub fn chain(&mut self) -> Option<&mut PrimarySamples> {
+        match &mut self.source {
+            Source::Primary(p) => Some(p),
+            Source::Stream(_) => None,
+        }
+    }
+
+    /// Reads primary-sample stream `s` from now on (see [`PrimarySamples`]); no effect on a
+    /// PCG stream.
+    #[inline]
+    pub fn set_stream(&mut self, s: usize) {
+        if let Source::Primary(p) = &mut self.source {
+            p.set_stream(s);
         }
     }
 
     /// Uniform in [0, 1).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        // 24 random bits: every value is exactly representable and < 1
-        ((self.rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)).min(ONE_MINUS_EPSILON)
+        match &mut self.source {
+            // 24 random bits: every value is exactly representable and < 1
+            Source::Stream(rng) => {
+                ((rng.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)).min(ONE_MINUS_EPSILON)
+            }
+            Source::Primary(p) => (p.next_number() as f32).min(ONE_MINUS_EPSILON),
+        }
     }
 
     /// Uniform in [0, 1) with 53 random bits.
     #[inline]
     pub fn next_f64(&mut self) -> f64 {
-        (self.rng.next_u64() >> 11) as f64 * (1.0 / 9_007_199_254_740_992.0)
+        match &mut self.source {
+            Source::Stream(rng) => (rng.next_u64() >> 11) as f64 * (1.0 / 9_007_199_254_740_992.0),
+            Source::Primary(p) => p.next_number(),
+        }
     }
 
     /// Two uniform numbers.
