@@ -571,8 +571,12 @@ fn render_guide_table_is_parsed_and_checked() {
         let text = format!("{}\n[render.guide]\n{extra}\n", pathspace::scene::FOG_BOX);
         Scene::load(&SceneSource::embedded("guide.toml", &text))
     };
-    let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0").unwrap();
+    let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0\nsampler = \"metropolis\"").unwrap();
     let g = s.render.guide;
+    assert_eq!(
+        g.sampler,
+        pathspace::enlightened::guide::ParticleSampler::Metropolis
+    );
     assert_eq!(
         (g.kind, g.cols, g.rows, g.regions.regions, g.particles),
         (GuideKind::Both, 16, 8, 128, 1000)
@@ -585,6 +589,7 @@ fn render_guide_table_is_parsed_and_checked() {
         ("regions = 0", "render.guide.regions", "1..="),
         ("alpha = -1.0", "render.guide.alpha", "positive"),
         ("roulete = 1.0", "render.guide.roulete", "unknown field"),
+        ("sampler = \"pssmlt\"", "render.guide.sampler", "metropolis"),
     ] {
         let e = load(extra)
             .err()
@@ -670,22 +675,30 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     }
 }
 
-/// Guides from indirect particles only and from the bidirectional particle sampler: both have
-/// particles in their maps, and their mixtures still integrate to one.
+/// Guides from indirect particles only and from each particle sampler: all have particles in
+/// their maps, and their mixtures still integrate to one.
 #[test]
-fn guide_options_min_depth_and_bidirectional_particles() {
-    for bidirectional in [false, true] {
+fn guide_options_min_depth_and_particle_samplers() {
+    use pathspace::enlightened::guide::ParticleSampler;
+    for sampler in [
+        ParticleSampler::Classical,
+        ParticleSampler::Bidirectional,
+        ParticleSampler::Metropolis,
+    ] {
         let mut scene = fog_box(8);
         let mut settings = GuideSettings::for_radius(scene.radius);
         settings.kind = GuideKind::Both;
-        settings.particles = if bidirectional { 200_000 } else { 20_000 };
+        settings.particles = match sampler {
+            ParticleSampler::Classical => 20_000,
+            _ => 200_000,
+        };
         settings.regions.regions = 64;
         settings.min_depth = 2;
-        settings.bidirectional = bidirectional;
+        settings.sampler = sampler;
         let g = build_guide(&scene, settings);
         assert!(
             g.stats.photons > 1000 && g.stats.importons > 1000,
-            "bidirectional {bidirectional}: {:?}",
+            "{sampler:?}: {:?}",
             g.stats
         );
         let all = {

@@ -166,7 +166,11 @@ fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> 
         2 => ":indirect".into(),
         d => format!(":depth{d}"),
     };
-    let sampler = if g.bidirectional { ":bidir" } else { "" };
+    let sampler = match g.sampler {
+        crate::enlightened::guide::ParticleSampler::Classical => "",
+        crate::enlightened::guide::ParticleSampler::Bidirectional => ":bidir",
+        crate::enlightened::guide::ParticleSampler::Metropolis => ":metro",
+    };
     format!(
         "{}+guide:{}:{}x{}:{}{depth}{sampler}",
         kind.name(),

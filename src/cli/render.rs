@@ -180,7 +180,7 @@ pub struct GuideArgs {
     /// light and importance only).
     #[arg(long)]
     pub guide_min_depth: Option<u32>,
-    /// Particle sampler of the guide: `classical` (default) or `bidirectional`.
+    /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
     #[arg(long)]
     pub guide_sampler: Option<String>,
 }
@@ -232,15 +232,8 @@ impl GuideArgs {
                 GuideSettings::check_alpha(a).map_err(|e| format!("--guide-alpha: {e}"))?;
         }
         if let Some(m) = &self.guide_sampler {
-            s.bidirectional = match m.as_str() {
-                "classical" => false,
-                "bidirectional" => true,
-                _ => {
-                    return Err(format!(
-                        "--guide-sampler `{m}`: expected classical or bidirectional"
-                    ))
-                }
-            };
+            s.sampler = crate::enlightened::guide::ParticleSampler::parse(m)
+                .map_err(|e| format!("--guide-sampler: {e}"))?;
         }
         if let Some(d) = self.guide_min_depth {
             if !(1..=64).contains(&d) {

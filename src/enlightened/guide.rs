@@ -80,6 +80,42 @@ impl GuideKind {
     }
 }
 
+/// The particle samplers of Kristensen 2010, sec. 5.2.2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParticleSampler {
+    /// Photons from light subpaths, importons from eye subpaths (eqs. (5.11)-(5.12)): `particles`
+    /// subpaths of each kind.
+    Classical,
+    /// The bidirectional particle sampler: `particles` full paths, photons and importons from
+    /// each.
+    Bidirectional,
+    /// The Metropolis particle sampler (eq. (5.15)): `particles` chain steps over the
+    /// bidirectional sampler, after a bootstrap of a quarter as many (between 1024 and the
+    /// thesis's 65536) and a pilot: particles crowd where light reaches the camera.
+    Metropolis,
+}
+
+impl ParticleSampler {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "classical" => Ok(ParticleSampler::Classical),
+            "bidirectional" => Ok(ParticleSampler::Bidirectional),
+            "metropolis" => Ok(ParticleSampler::Metropolis),
+            _ => Err(format!(
+                "unknown particle sampler `{s}` (available: classical, bidirectional, metropolis)"
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ParticleSampler::Classical => "classical",
+            ParticleSampler::Bidirectional => "bidirectional",
+            ParticleSampler::Metropolis => "metropolis",
+        }
+    }
+}
+
 /// c2 of eqs. (5.17)-(5.19): the thesis uses c1 = c2 = 1/2.
 pub const DEFAULT_GUIDE_WEIGHT: f32 = 0.5;
 /// Particles of each quantity traced for the maps by default.
@@ -100,10 +136,8 @@ pub struct GuideSettings {
     /// the maps leave to BDPT's connections what they already sample well: the direct light
     /// and the direct view of the camera). A choice of this crate, not the thesis's.
     pub min_depth: u32,
-    /// Trace the particles with the bidirectional particle sampler (Kristensen 2010, sec.
-    /// 5.2.2) instead of the classical tracer: more photons where the camera looks, more
-    /// importons near the lights.
-    pub bidirectional: bool,
+    /// Which particle sampler traces the photons and importons (Kristensen 2010, sec. 5.2.2).
+    pub sampler: ParticleSampler,
     /// c2: probability of sampling the map (c1 = 1 - c2 for the BSDF or phase function).
     pub c_guide: f32,
     /// Guided Russian roulette with this normalization alpha (None: the renderer's own roulette).
@@ -122,7 +156,7 @@ impl GuideSettings {
             regions: RegionParams::for_radius(radius),
             particles: DEFAULT_PARTICLES,
             min_depth: 1,
-            bidirectional: false,
+            sampler: ParticleSampler::Classical,
             c_guide: DEFAULT_GUIDE_WEIGHT,
             roulette: None,
             seed: 0x454c_5053,
@@ -668,22 +702,36 @@ impl From<&crate::enlightened::Particle> for Deposit {
 /// traced with the unguided walks).
 // ANCHOR: build_guide
 pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
-    use crate::enlightened::particles::{trace_classical, Quantity};
+    use crate::enlightened::metropolis::{trace_metropolis, MetropolisParticleSettings};
+    use crate::enlightened::particles::{
+        trace_bidirectional, trace_classical, ImportonSource, Quantity,
+    };
     let t0 = std::time::Instant::now();
     let paths = settings.particles as u64;
     let deep = |p: &&crate::enlightened::Particle| p.depth >= settings.min_depth;
-    let (photons, importons) = if settings.bidirectional {
-        use crate::enlightened::particles::{trace_bidirectional, ImportonSource};
-        let sets = match ImportonSource::default_for(scene) {
-            Some(src) => trace_bidirectional(scene, src, paths, settings.seed),
-            None => Default::default(),
-        };
-        (sets.photons, sets.importons)
-    } else {
-        (
+    let (photons, importons) = match settings.sampler {
+        ParticleSampler::Classical => (
             trace_classical(scene, Quantity::Radiance, paths, settings.seed),
             trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1),
-        )
+        ),
+        ParticleSampler::Bidirectional => {
+            let sets = match ImportonSource::default_for(scene) {
+                Some(src) => trace_bidirectional(scene, src, paths, settings.seed),
+                None => Default::default(),
+            };
+            (sets.photons, sets.importons)
+        }
+        ParticleSampler::Metropolis => {
+            let mp = MetropolisParticleSettings {
+                bootstrap: (paths / 4).clamp(1024, 65_536),
+                ..Default::default()
+            };
+            let sets = match ImportonSource::default_for(scene) {
+                Some(src) => trace_metropolis(scene, src, paths, settings.seed, &mp).0,
+                None => Default::default(),
+            };
+            (sets.photons, sets.importons)
+        }
     };
     let photons: Vec<Deposit> = photons.iter().filter(deep).map(Deposit::from).collect();
     let importons: Vec<Deposit> = importons.iter().filter(deep).map(Deposit::from).collect();

@@ -981,6 +981,10 @@ fn guide_settings(
         s.roulette =
             Some(GuideSettings::check_roulette(r).map_err(|e| src.error(&key("roulette"), e))?);
     }
+    if let Some(m) = &d.sampler {
+        s.sampler = crate::enlightened::guide::ParticleSampler::parse(m)
+            .map_err(|e| src.error(&key("sampler"), e))?;
+    }
     Ok(s)
 }
 

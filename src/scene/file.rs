@@ -123,6 +123,8 @@ pub struct GuideDesc {
     pub roulette: Option<f32>,
     /// Only particles at this depth or deeper shape the maps (1: all, 2: indirect only).
     pub min_depth: Option<u32>,
+    /// Particle sampler: `classical`, `bidirectional` or `metropolis`.
+    pub sampler: Option<String>,
 }
 
 /// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
