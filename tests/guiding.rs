@@ -495,6 +495,23 @@ fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Quadrant means of `RUNS` small MLT renders (seeds `seed + r`).
+fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
+    (0..RUNS)
+        .map(|r| {
+            let settings = MltSettings {
+                bootstrap: 2000,
+                chains: 4,
+                ..MltSettings::default()
+            };
+            let mut m = Mlt::new(scene, settings, seed + r, Some(DEPTH)).unwrap();
+            let mut film = Film::new(RES, RES);
+            m.run(scene, &mut film, (RES * RES * 128) as u64);
+            common::quadrant_means(&film.image())
+        })
+        .collect()
+}
+
 /// Guided BDPT (surface guiding; surface and volume guiding) agrees with unguided BDPT on the
 /// fog box, a scene with a medium, over independent runs.
 #[test]
@@ -534,20 +551,7 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
 fn guided_mlt_agrees_with_bdpt() {
     let plain = bdpt_runs(&fog_box(RES), 3000);
     let scene = guided_fog_box(RES, GuideKind::Both);
-    let runs: Vec<Vec<f64>> = (0..RUNS)
-        .map(|r| {
-            let settings = MltSettings {
-                bootstrap: 2000,
-                chains: 4,
-                ..MltSettings::default()
-            };
-            let mut m = Mlt::new(&scene, settings, 7000 + r, Some(DEPTH)).unwrap();
-            let mut film = Film::new(RES, RES);
-            m.run(&scene, &mut film, (RES * RES * 128) as u64);
-            common::quadrant_means(&film.image())
-        })
-        .collect();
-    common::assert_quadrants_agree("guided mlt", &runs, &plain);
+    common::assert_quadrants_agree("guided mlt", &mlt_runs(&scene, 7000), &plain);
 }
 
 /// Guiding off leaves the renderers' random streams untouched: an unguided scene renders the
@@ -719,4 +723,186 @@ fn guide_options_min_depth_and_particle_samplers() {
             assert!((mass - 1.0).abs() < 3e-3, "{mode:?}: integral {mass}");
         }
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Guided lobe choice at glass (Kristensen 2010, sec. 5.3)
+// ---------------------------------------------------------------------------------------------
+
+/// The fog box with a glass ball in the fog, at `w` x `w` pixels.
+fn glass_fog_box(w: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX.replace(
+        "resolution = [256, 256]",
+        &format!("resolution = [{w}, {w}]"),
+    ) + "\n[materials.glass]\ntype = \"dielectric\"\nior = 1.5\n\n[[shapes]]\ntype = \"sphere\"\n\
+         center = [0.25, -0.55, 0.1]\nradius = 0.4\nmaterial = \"glass\"\nexterior = \"fog\"\n";
+    Scene::load(&SceneSource::embedded("glass-fog-box", &text)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// [`glass_fog_box`], surface-guided.
+fn guided_glass_fog_box(w: u32) -> Scene {
+    let mut scene = glass_fog_box(w);
+    let mut settings = GuideSettings::for_radius(scene.radius);
+    settings.kind = GuideKind::Surface;
+    settings.particles = 40_000;
+    settings.regions.regions = 64;
+    settings.cols = 16;
+    settings.rows = 8;
+    scene.guide = Some(Arc::new(build_guide(&scene, settings)));
+    scene
+}
+
+/// At a guided glass vertex the choice between reflection and transmission follows Fresnel
+/// times the map in each direction (mixed with plain Fresnel): the sampler picks reflection
+/// with the probability `guided_fresnel` states (binomial test), reports it as the sample's
+/// pdf, and MLT's transition densities (`lobe_probability`) use the same number, in both
+/// modes. The guide does change the choice somewhere, and never to 0 or 1 where Fresnel is
+/// strictly between them.
+#[test]
+fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
+    use pathspace::bsdf::{Bsdf, Lobe};
+    use pathspace::enlightened::guide::guided_fresnel;
+    use pathspace::integrator::mlt::contribution::lobe_probability;
+    let scene = guided_glass_fog_box(16);
+    let b = Bdpt::new(&scene, Some(6), Strategies::All);
+    let mut s = Sampler::new(31, 0, 0);
+    let cam = scene.camera.as_ref().unwrap();
+    let mut eye = Vec::new();
+    let mut glass = Vec::new();
+    for _ in 0..20_000 {
+        let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
+        b.camera_subpath(&scene, raster, &mut s, &mut eye);
+        for i in 1..eye.len() {
+            if matches!(eye[i].bsdf(&scene), Some(Bsdf::Dielectric { .. })) {
+                glass.push((eye[i], (eye[i - 1].p - eye[i].p).normalize()));
+                break;
+            }
+        }
+        if glass.len() == 24 {
+            break;
+        }
+    }
+    assert_eq!(glass.len(), 24, "too few glass vertices");
+    let mut changed = 0;
+    for (k, (v, wo)) in glass.iter().enumerate() {
+        for mode in [TransportMode::Radiance, TransportMode::Importance] {
+            let Some((p_r, r, t)) = guided_fresnel(&scene, v, *wo, mode) else {
+                continue;
+            };
+            let f = r.pdf as f64;
+            if t.is_some() {
+                assert!(p_r > 0.0 && p_r < 1.0, "P(reflect) = {p_r} with F = {f}");
+            } else {
+                assert_eq!(p_r, 1.0, "total internal reflection");
+            }
+            if (p_r as f64 - f).abs() > 0.02 {
+                changed += 1;
+            }
+            let n = 4000u64;
+            let mut hits = 0;
+            let mut sm = Sampler::new(32, k as u64, mode as u64);
+            for _ in 0..n {
+                let ss = sample_scatter(&scene, v, *wo, mode, &mut sm).expect("a lobe");
+                let want = if ss.lobe == Lobe::SingularReflection {
+                    hits += 1;
+                    p_r
+                } else {
+                    1.0 - p_r
+                };
+                assert!((ss.pdf - want).abs() <= 1e-6, "pdf {} vs {want}", ss.pdf);
+                let density = lobe_probability(&scene, v, v.p + *wo, v.p + ss.wi, mode);
+                assert!(
+                    (density - want).abs() <= 1e-5,
+                    "lobe_probability {density} vs sampled {want}"
+                );
+            }
+            if t.is_some() {
+                common::assert_binomial("reflections", hits, n, p_r as f64);
+            }
+        }
+    }
+    assert!(
+        changed >= 4,
+        "the maps changed the choice at only {changed} vertices"
+    );
+}
+
+/// Guided BDPT and guided MLT (surface guiding, with the guided lobe choice at the glass ball)
+/// agree with unguided BDPT through glass in fog.
+#[test]
+fn guided_bdpt_and_mlt_agree_with_bdpt_through_glass() {
+    let scene = guided_glass_fog_box(RES);
+    let reference = bdpt_runs(&glass_fog_box(RES), 8000);
+    common::assert_quadrants_agree("guided bdpt, glass", &bdpt_runs(&scene, 9000), &reference);
+    common::assert_quadrants_agree("guided mlt, glass", &mlt_runs(&scene, 9500), &reference);
+}
+
+/// MLT's transition densities divide by the probability of each glass lobe with the mode of
+/// the subpath that drew it: at a glass vertex x_j of a full path, the density of x_{j+1} as
+/// the light walk's next vertex carries the importance-guided choice, the density of x_{j-1}
+/// as the eye walk's next vertex the radiance-guided one (each relative to plain Fresnel, which
+/// the unguided densities carry). With the previous test (the walks choose with exactly
+/// `guided_fresnel`'s probability), this ties MLT's densities to the walks' frequencies.
+#[test]
+fn mlt_densities_carry_each_subpaths_guided_lobe_choice() {
+    use pathspace::bsdf::{Bsdf, Lobe};
+    use pathspace::enlightened::guide::guided_fresnel;
+    use pathspace::integrator::mlt::contribution::{lobe_between, singular_densities_in};
+    use pathspace::integrator::mlt::init::Bootstrap;
+    let mut scene = guided_glass_fog_box(16);
+    let bdpt = Bdpt::new(&scene, Some(8), Strategies::All);
+    let boot = Bootstrap::run(&scene, &bdpt, 20_000, 5);
+    let mut s = Sampler::new(5, 99, 0);
+    let (mut checked, mut modes_differ) = (0, 0);
+    for _ in 0..2000 {
+        let Some(c) = boot.select(s.next_f64()) else {
+            break;
+        };
+        let Some(x) = Bootstrap::path_of(&scene, &bdpt, 5, c) else {
+            continue;
+        };
+        let n = x.len();
+        let Some(j) =
+            (1..n - 1).find(|&j| matches!(x[j].bsdf(&scene), Some(Bsdf::Dielectric { .. })))
+        else {
+            continue;
+        };
+        let guided = singular_densities_in(&scene, &x, 0..n);
+        let guide = scene.guide.take();
+        let plain = singular_densities_in(&scene, &x, 0..n);
+        scene.guide = guide;
+        let lobe = lobe_between(&scene, &x[j], x[j - 1].p, x[j + 1].p);
+        let choice = |from: Vec3, mode| {
+            let (p_r, r, _) = guided_fresnel(&scene, &x[j], (from - x[j].p).normalize(), mode)?;
+            Some(match lobe {
+                Lobe::SingularTransmission => ((1.0 - p_r) / (1.0 - r.pdf)) as f64,
+                _ => (p_r / r.pdf) as f64,
+            })
+        };
+        let (Some(light), Some(eye)) = (
+            choice(x[j - 1].p, TransportMode::Importance),
+            choice(x[j + 1].p, TransportMode::Radiance),
+        ) else {
+            continue;
+        };
+        let ratio_light = guided.light[j + 1] as f64 / plain.light[j + 1] as f64;
+        let ratio_eye = guided.eye[j - 1] as f64 / plain.eye[j - 1] as f64;
+        assert!(
+            (ratio_light - light).abs() <= 1e-4 * light,
+            "light side: densities {ratio_light}, guided choice {light}"
+        );
+        assert!(
+            (ratio_eye - eye).abs() <= 1e-4 * eye,
+            "eye side: densities {ratio_eye}, guided choice {eye}"
+        );
+        if (light - eye).abs() > 0.05 * light {
+            modes_differ += 1;
+        }
+        checked += 1;
+    }
+    assert!(checked >= 50, "only {checked} paths through glass");
+    assert!(
+        modes_differ >= 5,
+        "the two modes' choices differ at only {modes_differ} vertices: the test cannot tell them apart"
+    );
 }

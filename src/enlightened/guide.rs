@@ -32,6 +32,7 @@ use glam::{Vec2, Vec3};
 use super::direction_map::{DirectionMap, DEFAULT_COLS, DEFAULT_ROWS};
 use super::regions::{RegionParams, RegionPoint, Regions};
 use crate::bsdf::{Bsdf, BsdfSample, Lobe, TransportMode};
+use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
@@ -537,6 +538,54 @@ pub fn scatter_pdf(scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3, mode: Transpor
 }
 // ANCHOR_END: scatter_pdf
 
+/// The guided choice between a glass vertex's two lobes (Kristensen 2010, sec. 5.3: Fresnel
+/// times the map's value in each candidate direction), mixed with the plain Fresnel choice by
+/// the guide weight c so that it stays positive wherever the BSDF's is:
+///
+/// P(reflect) = (1 - c) F + c F L(w_r) / (F L(w_r) + (1 - F) L(w_t)),
+///
+/// with L the `mode` map of the vertex's region (L_i on eye subpaths, W_i on light subpaths);
+/// plain F where the map sees neither direction. Returns P(reflect) with the reflection sample
+/// and the transmission sample (`None` under total internal reflection, where P = 1), or `None`
+/// where no map guides the vertex (surface guiding off, no dielectric, empty region).
+// ANCHOR: guided_fresnel
+pub fn guided_fresnel(
+    scene: &Scene,
+    v: &Vertex,
+    wo: Vec3,
+    mode: TransportMode,
+) -> Option<(f32, BsdfSample, Option<BsdfSample>)> {
+    let g = scene.guide.as_deref()?;
+    let bsdf = v.bsdf(scene)?;
+    if !g.settings.kind.surface() || !matches!(bsdf, Bsdf::Dielectric { .. }) {
+        return None;
+    }
+    let field = g.field(mode);
+    let region = g.region_memoized(field, mode, v.p, v.n, None)?;
+    let map = &field.maps[region as usize];
+    if map.is_empty() {
+        return None;
+    }
+    // uc = 0 always reflects, uc -> 1 transmits unless the light is totally reflected
+    let r = bsdf.sample(wo, v.n, Vec2::ZERO, 0.0, mode)?;
+    let t = bsdf
+        .sample(wo, v.n, Vec2::ZERO, ONE_MINUS_EPSILON, mode)
+        .filter(|t| t.lobe == Lobe::SingularTransmission);
+    let Some(t) = t else {
+        return Some((1.0, r, None));
+    };
+    let f = r.pdf;
+    let (lr, lt) = (f * map.relative(r.wi), (1.0 - f) * map.relative(t.wi));
+    let c = g.settings.c_guide;
+    let p = if lr + lt > 0.0 {
+        (1.0 - c) * f + c * lr / (lr + lt)
+    } else {
+        f
+    };
+    Some((p, r, Some(t)))
+}
+// ANCHOR_END: guided_fresnel
+
 /// A sampled scattering direction: f (f_s at surfaces, f_p in the medium, sigma_s not
 /// included), the mixture density, the lobe, and the guided roulette's estimate Lhat(wi)
 /// (`None` where no map guides the vertex).
@@ -586,6 +635,20 @@ pub fn sample_scatter_with(
         VertexKind::Surface { .. } => {
             let uc = sampler.next_f32();
             let bsdf = v.bsdf(scene)?;
+            if let Some((p_r, r, t)) = guided_fresnel(scene, v, wo, mode) {
+                // glass: reflection or transmission with the guided choice probability
+                let (bs, pdf) = match t {
+                    Some(t) if uc >= p_r => (t, 1.0 - p_r),
+                    _ => (r, p_r),
+                };
+                return Some(ScatterSample {
+                    wi: bs.wi,
+                    value: bs.value,
+                    pdf,
+                    lobe: bs.lobe,
+                    lhat: None,
+                });
+            }
             let Some((c, map, level)) = guided else {
                 let bs = bsdf.sample(wo, v.n, u, uc, mode)?;
                 return Some(ScatterSample {

@@ -160,6 +160,7 @@ impl Evaluator<'_> {
     }
 }
 
+// ANCHOR: target
 /// The target T(u) = I(u)/b_I + delta/2 (P_photon(u)/b_photon + P_importon(u)/b_importon)
 /// from the bootstrap means `b` of the three parts (a part whose mean is zero is left out).
 #[derive(Clone, Copy)]
@@ -183,6 +184,7 @@ impl Target {
         x[0] * self.inv[0] + x[1] * self.inv[1] + x[2] * self.inv[2]
     }
 }
+// ANCHOR_END: target
 
 fn stream(seed: u64, salt: u64, index: u64) -> Pcg32 {
     Pcg32::new(mix64(seed ^ salt ^ mix64(index)), mix64(index ^ salt))

@@ -98,16 +98,35 @@ pub fn f_hat_singular(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> Rgb {
 
 /// Probability of the lobe that carries `from -> v -> to` when `v` samples from `from`'s side
 /// (the Dirac-free direction density of a specular vertex; zero if the relation fails).
-pub fn lobe_probability(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> f32 {
+///
+/// A guided glass vertex chooses its lobe with the guided probability of `mode`'s map
+/// ([`crate::enlightened::guide::guided_fresnel`]): light subpaths (`Importance`) with W_i,
+/// eye subpaths (`Radiance`) with L_i.
+pub fn lobe_probability(
+    scene: &Scene,
+    v: &Vertex,
+    from: Vec3,
+    to: Vec3,
+    mode: TransportMode,
+) -> f32 {
     let Some(bsdf) = singular_bsdf(scene, v) else {
         return 0.0;
     };
     let wo = (from - v.p).normalize_or_zero();
     let wi = (to - v.p).normalize_or_zero();
     let lobe = lobe_between(scene, v, from, to);
-    match specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) {
-        Some(s) if s.wi.dot(wi) >= 1.0 - SPECULAR_COS_TOLERANCE => s.pdf,
-        _ => 0.0,
+    let Some(s) = specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) else {
+        return 0.0;
+    };
+    if s.wi.dot(wi) < 1.0 - SPECULAR_COS_TOLERANCE {
+        return 0.0;
+    }
+    match crate::enlightened::guide::guided_fresnel(scene, v, wo, mode) {
+        Some((p_r, _, _)) => match lobe {
+            Lobe::SingularTransmission => 1.0 - p_r,
+            _ => p_r,
+        },
+        None => s.pdf,
     }
 }
 
@@ -201,13 +220,25 @@ pub fn singular_densities_in(scene: &Scene, v: &[Vertex], range: Range<usize>) -
     let n = v.len();
     for i in range.start.max(2)..range.end.min(n) {
         if is_specular(scene, &v[i - 1]) {
-            let p = lobe_probability(scene, &v[i - 1], v[i - 2].p, v[i].p);
+            let p = lobe_probability(
+                scene,
+                &v[i - 1],
+                v[i - 2].p,
+                v[i].p,
+                TransportMode::Importance,
+            );
             d.light[i] = to_area(p, &v[i - 1], &v[i]) * d.prop_up[i - 1];
         }
     }
     for i in range.start..range.end.min(n.saturating_sub(2)) {
         if is_specular(scene, &v[i + 1]) {
-            let p = lobe_probability(scene, &v[i + 1], v[i + 2].p, v[i].p);
+            let p = lobe_probability(
+                scene,
+                &v[i + 1],
+                v[i + 2].p,
+                v[i].p,
+                TransportMode::Radiance,
+            );
             d.eye[i] = to_area(p, &v[i + 1], &v[i]) * d.prop_down[i];
         }
     }
