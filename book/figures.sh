@@ -57,6 +57,38 @@ if want "$sel" guiding; then
   done
 fi
 
+if want "$sel" guiding-sweep; then
+  # The door-slit sweep on the fixed code (chapter "guiding"): one core per run (taskset), 60 s,
+  # 3 runs per line; then Metropolis particles; then 8 more runs of the key lines in two
+  # halves, one per core. The reference is a 4096-spp BDPT render:
+  # `pathspace reference scenes/door-slit.toml --integrator bdpt --spp 4096 --seed 77 -o out/door-ref-4096.exr`.
+  d=book/src/figures/guiding
+  ref="${DOOR_REF:-out/door-ref-4096.exr}"
+  one() { taskset -c "$1" $PS converge scenes/door-slit.toml --reference "$ref" --budget 60 --checkpoints 5 \
+      --threads 1 "${@:2}"; }
+  one 1 --runs 3 --guide-particles 100000 -o out/sweep --integrators \
+      mlt,mlt+guide:surface:8x4:512,mlt+guide:surface:16x8:512,mlt+guide:surface:32x16:512,mlt+guide:surface:16x8:64,mlt+guide:surface:16x8:4096,mlt+guide:surface:32x16:4096,mlt+guide:volume:8x4:512,mlt+guide:volume:16x8:512,mlt+guide:volume:32x16:512,mlt+guide:volume:16x8:64,mlt+guide:volume:16x8:4096,mlt+guide:volume:32x16:4096
+  one 0 --runs 3 --guide-particles 400000 --guide-sampler metropolis -o out/metro --integrators \
+      mlt+guide:surface:16x8:512,mlt+guide:volume:16x8:512,mlt+guide:both:16x8:512
+  one 0 --runs 4 --seed 101 --guide-particles 100000 -o out/settle-a \
+      --integrators mlt,mlt+guide:volume:16x8:512,mlt+guide:surface:16x8:512 &
+  one 1 --runs 4 --seed 202 --guide-particles 100000 -o out/settle-b \
+      --integrators mlt,mlt+guide:volume:16x8:512,mlt+guide:surface:16x8:512
+  wait
+  one 0 --runs 4 --seed 303 --guide-particles 100000 -o out/settle2-0 \
+      --integrators mlt,mlt+guide:volume:32x16:4096,mlt+guide:volume:16x8:4096 &
+  one 1 --runs 4 --seed 404 --guide-particles 100000 -o out/settle2-1 \
+      --integrators mlt,mlt+guide:volume:32x16:4096,mlt+guide:volume:16x8:4096
+  wait
+  cp out/settle2-0/convergence.csv "$d/door-settle2-0.csv"
+  cp out/settle2-1/convergence.csv "$d/door-settle2-1.csv"
+  cp out/sweep/convergence.csv "$d/door-sweep.csv"
+  cp out/sweep/error-vs-time.svg "$d/door-sweep-error-vs-time.svg"
+  cp out/metro/convergence.csv "$d/door-metropolis.csv"
+  cp out/settle-a/convergence.csv "$d/door-settle-a.csv"
+  cp out/settle-b/convergence.csv "$d/door-settle-b.csv"
+fi
+
 if want "$sel" guiding-fog; then
   # The fog box at 64x64: guided BDPT and MLT (surface, volume, both) against unguided, equal time.
   d=book/src/figures/guiding

@@ -312,6 +312,8 @@ pub struct GuideStats {
     pub bytes_importance: usize,
     pub seconds_particles: f64,
     pub seconds_build: f64,
+    /// The Metropolis particle sampler's run, when it traced the particles.
+    pub metropolis: Option<crate::enlightened::metropolis::MetropolisParticleStats>,
 }
 
 impl GuideStats {
@@ -349,7 +351,15 @@ impl GuideStats {
                 self.regions_importance,
                 self.bytes_importance
             ),
-        )
+        ) + &self.metropolis.map_or(String::new(), |m| {
+            format!(
+                "  metropolis {} steps, acceptance {:.3}; bootstrap: {:.4} of samples carry light to the sensor, {:.4} carry particles\n",
+                m.steps,
+                m.accepted as f64 / m.steps.max(1) as f64,
+                m.connected,
+                m.with_particles
+            )
+        })
     }
 }
 
@@ -415,6 +425,7 @@ impl Guide {
             bytes_importance: importance.bytes(),
             seconds_particles,
             seconds_build: t0.elapsed().as_secs_f64(),
+            metropolis: None,
         };
         Guide {
             settings,
@@ -772,6 +783,7 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
     let t0 = std::time::Instant::now();
     let paths = settings.particles as u64;
     let deep = |p: &&crate::enlightened::Particle| p.depth >= settings.min_depth;
+    let mut metropolis = None;
     let (photons, importons) = match settings.sampler {
         ParticleSampler::Classical => (
             trace_classical(scene, Quantity::Radiance, paths, settings.seed),
@@ -789,17 +801,20 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
                 bootstrap: (paths / 4).clamp(1024, 65_536),
                 ..Default::default()
             };
-            let sets = match ImportonSource::default_for(scene) {
-                Some(src) => trace_metropolis(scene, src, paths, settings.seed, &mp).0,
+            let (sets, stats) = match ImportonSource::default_for(scene) {
+                Some(src) => trace_metropolis(scene, src, paths, settings.seed, &mp),
                 None => Default::default(),
             };
+            metropolis = Some(stats);
             (sets.photons, sets.importons)
         }
     };
     let photons: Vec<Deposit> = photons.iter().filter(deep).map(Deposit::from).collect();
     let importons: Vec<Deposit> = importons.iter().filter(deep).map(Deposit::from).collect();
     let seconds_particles = t0.elapsed().as_secs_f64();
-    Guide::build(&photons, &importons, settings, seconds_particles)
+    let mut guide = Guide::build(&photons, &importons, settings, seconds_particles);
+    guide.stats.metropolis = metropolis;
+    guide
 }
 // ANCHOR_END: build_guide
 
