@@ -202,6 +202,17 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         tests: &[t("enlightened", "light_map_round_trips")],
     },
     Assignment {
+        name: "small_step",
+        chapter: "Enlightened local path sampling: the adjoint image and particles",
+        chapter_file: "enlightened-adjoint.md",
+        files: &["src/math/primary_sample.rs"],
+        task: "the small step of primary sample space: a wrapped normal offset, symmetric, n steps at once",
+        tests: &[
+            t("primary_sample", "small_steps_keep_the_target_invariant"),
+            t("primary_sample", "mixed_steps_keep_the_target_invariant"),
+        ],
+    },
+    Assignment {
         name: "equal_area_texel",
         chapter: "Enlightened local path sampling: guiding",
         chapter_file: "enlightened-guiding.md",

@@ -162,7 +162,7 @@ impl Evaluator<'_> {
 
 // ANCHOR: target
 /// The target T(u) = I(u)/b_I + delta/2 (P_photon(u)/b_photon + P_importon(u)/b_importon)
-/// from the bootstrap means `b` of the three parts (a part whose mean is zero is left out).
+/// from the pilot run's means `b` of the three parts (a part whose mean is zero is left out).
 #[derive(Clone, Copy)]
 struct Target {
     inv: [f64; 3],

@@ -51,6 +51,25 @@ struct Coordinate {
     backup: (f64, u64, bool),
 }
 
+/// `n` small steps of deviation `sigma` at once, from number `value` with the standard normal
+/// number `z`: the offset sigma sqrt(n) z, wrapped into [0, 1). The wrap keeps the step
+/// symmetric (the density of going from u to v is that of the wrapped difference, the same as
+/// from v to u), and n steps of a normal offset are one of deviation sigma sqrt(n).
+// ANCHOR: small_step
+pub fn small_step(value: f64, sigma: f64, n: f64, z: f64) -> f64 {
+    // ASSIGNMENT: small_step
+    let v = value + sigma * n.sqrt() * z;
+    let v = v - v.floor();
+    // v - floor(v) rounds to 1.0 for tiny negative v
+    if v >= 1.0 {
+        0.0
+    } else {
+        v
+    }
+    // END ASSIGNMENT
+}
+// ANCHOR_END: small_step
+
 /// The state of a primary-sample-space Markov chain (Kelemen et al. 2002).
 // ANCHOR: primary_samples
 #[derive(Clone, Debug)]
@@ -149,14 +168,8 @@ impl PrimarySamples {
         } else {
             // the small steps it missed since it was last read, and this one
             let n = (self.iteration - modified) as f64;
-            let v = value + self.sigma * n.sqrt() * self.normal();
-            let v = v - v.floor();
-            // v - floor(v) rounds to 1.0 for tiny negative v
-            if v >= 1.0 {
-                0.0
-            } else {
-                v
-            }
+            let z = self.normal();
+            small_step(value, self.sigma, n, z)
         };
         let c = &mut self.coords[i];
         c.value = value;
