@@ -575,12 +575,13 @@ fn render_guide_table_is_parsed_and_checked() {
         let text = format!("{}\n[render.guide]\n{extra}\n", pathspace::scene::FOG_BOX);
         Scene::load(&SceneSource::embedded("guide.toml", &text))
     };
-    let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0\nsampler = \"metropolis\"").unwrap();
+    let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0\nsampler = \"metropolis\"\nsigma = 0.03\ndefensive = 0.25").unwrap();
     let g = s.render.guide;
     assert_eq!(
         g.sampler,
         pathspace::enlightened::guide::ParticleSampler::Metropolis
     );
+    assert_eq!((g.metropolis.sigma, g.metropolis.defensive), (0.03, 0.25));
     assert_eq!(
         (g.kind, g.cols, g.rows, g.regions.regions, g.particles),
         (GuideKind::Both, 16, 8, 128, 1000)
@@ -594,6 +595,8 @@ fn render_guide_table_is_parsed_and_checked() {
         ("alpha = -1.0", "render.guide.alpha", "positive"),
         ("roulete = 1.0", "render.guide.roulete", "unknown field"),
         ("sampler = \"pssmlt\"", "render.guide.sampler", "metropolis"),
+        ("sigma = 1.5", "render.guide.sigma", "(0, 1)"),
+        ("defensive = -0.5", "render.guide.defensive", ">= 0"),
     ] {
         let e = load(extra)
             .err()

@@ -183,6 +183,13 @@ pub struct GuideArgs {
     /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
     #[arg(long)]
     pub guide_sampler: Option<String>,
+    /// Metropolis particles: small-step deviation in primary sample space (default 1/64).
+    #[arg(long)]
+    pub guide_sigma: Option<f64>,
+    /// Metropolis particles: weight delta of the defensive part of the target (default 0.1;
+    /// 0 is the thesis's eq. (5.15) alone).
+    #[arg(long)]
+    pub guide_defensive: Option<f64>,
 }
 
 impl GuideArgs {
@@ -197,6 +204,8 @@ impl GuideArgs {
             || self.guide_roulette.is_some()
             || self.guide_min_depth.is_some()
             || self.guide_sampler.is_some()
+            || self.guide_sigma.is_some()
+            || self.guide_defensive.is_some()
     }
 
     /// The scene's settings with these options applied, each checked.
@@ -235,6 +244,15 @@ impl GuideArgs {
             s.sampler = crate::enlightened::guide::ParticleSampler::parse(m)
                 .map_err(|e| format!("--guide-sampler: {e}"))?;
         }
+        if let Some(x) = self.guide_sigma {
+            s.metropolis.sigma = x;
+        }
+        if let Some(x) = self.guide_defensive {
+            s.metropolis.defensive = x;
+        }
+        s.metropolis
+            .check()
+            .map_err(|e| format!("--guide-sigma / --guide-defensive: {e}"))?;
         if let Some(d) = self.guide_min_depth {
             if !(1..=64).contains(&d) {
                 return Err(format!("--guide-min-depth {d} must be in 1..=64"));

@@ -139,6 +139,9 @@ pub struct GuideSettings {
     pub min_depth: u32,
     /// Which particle sampler traces the photons and importons (Kristensen 2010, sec. 5.2.2).
     pub sampler: ParticleSampler,
+    /// The Metropolis particle sampler's chain parameters (its bootstrap is set from
+    /// `particles`: a quarter of the chain steps, 1024 to 65536).
+    pub metropolis: crate::enlightened::metropolis::MetropolisParticleSettings,
     /// c2: probability of sampling the map (c1 = 1 - c2 for the BSDF or phase function).
     pub c_guide: f32,
     /// Guided Russian roulette with this normalization alpha (None: the renderer's own roulette).
@@ -158,6 +161,7 @@ impl GuideSettings {
             particles: DEFAULT_PARTICLES,
             min_depth: 1,
             sampler: ParticleSampler::Classical,
+            metropolis: Default::default(),
             c_guide: DEFAULT_GUIDE_WEIGHT,
             roulette: None,
             seed: 0x454c_5053,
@@ -799,7 +803,7 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
         ParticleSampler::Metropolis => {
             let mp = MetropolisParticleSettings {
                 bootstrap: (paths / 4).clamp(1024, 65_536),
-                ..Default::default()
+                ..settings.metropolis
             };
             let (sets, stats) = match ImportonSource::default_for(scene) {
                 Some(src) => trace_metropolis(scene, src, paths, settings.seed, &mp),

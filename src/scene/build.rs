@@ -985,6 +985,18 @@ fn guide_settings(
         s.sampler = crate::enlightened::guide::ParticleSampler::parse(m)
             .map_err(|e| src.error(&key("sampler"), e))?;
     }
+    if let Some(v) = d.sigma {
+        s.metropolis.sigma = v;
+        s.metropolis
+            .check()
+            .map_err(|e| src.error(&key("sigma"), e))?;
+    }
+    if let Some(v) = d.defensive {
+        s.metropolis.defensive = v;
+        s.metropolis
+            .check()
+            .map_err(|e| src.error(&key("defensive"), e))?;
+    }
     Ok(s)
 }
 

@@ -125,6 +125,10 @@ pub struct GuideDesc {
     pub min_depth: Option<u32>,
     /// Particle sampler: `classical`, `bidirectional` or `metropolis`.
     pub sampler: Option<String>,
+    /// Metropolis particles: small-step deviation in primary sample space.
+    pub sigma: Option<f64>,
+    /// Metropolis particles: weight of the defensive part of the target.
+    pub defensive: Option<f64>,
 }
 
 /// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
