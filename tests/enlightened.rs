@@ -106,26 +106,13 @@ fn classical_particles_reproduce_the_meter() {
     for fog in [false, true] {
         let scene = room(fog);
         let bdpt = Bdpt::new(&scene, None, Strategies::All);
-        let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
         let mut photon = Vec::new();
         let mut importon = Vec::new();
         for b in 0..BATCHES {
             let ph = trace_photons(&scene, &bdpt, PATHS, 1000 + b);
-            // W_e = 1 / A on the patch's front side
-            photon.push(
-                ph.iter()
-                    .filter(|p| on_floor_patch(p))
-                    .map(|p| p.weight.y as f64)
-                    .sum::<f64>()
-                    / area,
-            );
+            photon.push(floor_patch_photons(&ph));
             let im = trace_importons(&scene, &bdpt, ImportonSource::Meter(0), PATHS, 2000 + b);
-            importon.push(
-                im.iter()
-                    .filter(|p| on_light(p))
-                    .map(|p| (p.weight.y * LE) as f64)
-                    .sum::<f64>(),
-            );
+            importon.push(light_importons(&im));
             if fog && b == 0 {
                 assert!(
                     ph.iter().any(|p| p.medium.is_some() && p.normal.is_none()),
@@ -144,44 +131,37 @@ fn classical_particles_reproduce_the_meter() {
 /// see `trace_bidirectional`): photons give <W_e, L_i>, importons give <L_e, W_i>.
 #[test]
 fn bidirectional_particles_reproduce_the_meter() {
-    const BATCHES: u64 = 24;
-    const PATHS: u64 = 16_384;
     for fog in [false, true] {
         let scene = room(fog);
-        let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
-        let mut photon = Vec::new();
-        let mut importon = Vec::new();
-        for b in 0..BATCHES {
-            let sets = trace_bidirectional(&scene, ImportonSource::Meter(0), PATHS, 3000 + b);
-            photon.push(
-                sets.photons
-                    .iter()
-                    .filter(|p| on_floor_patch(p))
-                    .map(|p| p.weight.y as f64)
-                    .sum::<f64>()
-                    / area,
-            );
-            importon.push(
-                sets.importons
-                    .iter()
-                    .filter(|p| on_light(p))
-                    .map(|p| (p.weight.y * LE) as f64)
-                    .sum::<f64>(),
-            );
-        }
+        let (photon, importon) = meter_batches(24, 3000, |seed| {
+            trace_bidirectional(&scene, ImportonSource::Meter(0), 16_384, seed)
+        });
         let truth = meter_truth(&scene, 64);
         let tag = if fog { "fog" } else { "empty" };
-        assert_agrees(
-            &format!("bidirectional photons ({tag})"),
-            batch_stats(&photon),
-            truth,
-        );
-        assert_agrees(
-            &format!("bidirectional importons ({tag})"),
-            batch_stats(&importon),
-            truth,
-        );
+        assert_agrees(&format!("bidirectional photons ({tag})"), photon, truth);
+        assert_agrees(&format!("bidirectional importons ({tag})"), importon, truth);
     }
+}
+
+/// <W_e, L_i> of the meter from photons: their weights on the floor patch over its area
+/// (W_e = 1 / A on the patch's front side).
+fn floor_patch_photons(photons: &[Particle]) -> f64 {
+    let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
+    photons
+        .iter()
+        .filter(|p| on_floor_patch(p))
+        .map(|p| p.weight.y as f64)
+        .sum::<f64>()
+        / area
+}
+
+/// <L_e, W_i> of the meter from importons: their weights on the light times L_e.
+fn light_importons(importons: &[Particle]) -> f64 {
+    importons
+        .iter()
+        .filter(|p| on_light(p))
+        .map(|p| (p.weight.y * LE) as f64)
+        .sum::<f64>()
 }
 
 /// Photon and importon batch estimates of the meter from a particle sampler run `batches`
@@ -191,26 +171,12 @@ fn meter_batches(
     seed0: u64,
     mut run: impl FnMut(u64) -> ParticleSets,
 ) -> ((f64, f64), (f64, f64)) {
-    let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
     let mut photon = Vec::new();
     let mut importon = Vec::new();
     for b in 0..batches {
         let sets = run(seed0 + b);
-        photon.push(
-            sets.photons
-                .iter()
-                .filter(|p| on_floor_patch(p))
-                .map(|p| p.weight.y as f64)
-                .sum::<f64>()
-                / area,
-        );
-        importon.push(
-            sets.importons
-                .iter()
-                .filter(|p| on_light(p))
-                .map(|p| (p.weight.y * LE) as f64)
-                .sum::<f64>(),
-        );
+        photon.push(floor_patch_photons(&sets.photons));
+        importon.push(light_importons(&sets.importons));
     }
     (batch_stats(&photon), batch_stats(&importon))
 }
@@ -260,7 +226,6 @@ fn metropolis_particles_reproduce_the_meter() {
 #[test]
 fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths() {
     let scene = room(false);
-    let area = (2.0 * PATCH as f64) * (2.0 * PATCH as f64);
     let functionals = |sets: &ParticleSets| {
         [
             sets.photons.iter().map(|p| p.weight.y as f64).sum::<f64>(),
@@ -268,17 +233,8 @@ fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths
                 .iter()
                 .map(|p| p.weight.y as f64)
                 .sum::<f64>(),
-            sets.photons
-                .iter()
-                .filter(|p| on_floor_patch(p))
-                .map(|p| p.weight.y as f64)
-                .sum::<f64>()
-                / area,
-            sets.importons
-                .iter()
-                .filter(|p| on_light(p))
-                .map(|p| (p.weight.y * LE) as f64)
-                .sum::<f64>(),
+            floor_patch_photons(&sets.photons),
+            light_importons(&sets.importons),
         ]
     };
     let batches = |seed0: u64, run: &dyn Fn(u64) -> ParticleSets| {
@@ -592,37 +548,16 @@ fn adjoint_pdf_matches_its_sampler_and_is_positive_where_light_is_emitted() {
 // Renderers with the adjoint image agree with renderers without it
 // ---------------------------------------------------------------------------------------------
 
-use pathspace::film::Film;
-use pathspace::integrator::mlt::{Mlt, MltSettings};
-
 const RUNS: u64 = 16;
 const RES: u32 = 8;
 const DEPTH: u32 = 3;
 
 fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    (0..RUNS)
-        .map(|r| {
-            let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(DEPTH));
-            rd.pass(32, &|| {});
-            common::quadrant_means(&rd.film.as_ref().unwrap().image())
-        })
-        .collect()
+    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, 32)
 }
 
 fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    (0..RUNS)
-        .map(|r| {
-            let settings = MltSettings {
-                bootstrap: 2000,
-                chains: 4,
-                ..MltSettings::default()
-            };
-            let mut m = Mlt::new(scene, settings, seed + r, Some(DEPTH)).unwrap();
-            let mut film = Film::new(RES, RES);
-            m.run(scene, &mut film, (RES * RES * 128) as u64);
-            common::quadrant_means(&film.image())
-        })
-        .collect()
+    common::mlt_quadrant_runs(scene, RUNS, seed, DEPTH)
 }
 
 /// Installs a lumpy adjoint image (zero cells and 50x contrasts): the starkest test that

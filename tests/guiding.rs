@@ -16,9 +16,7 @@ use pathspace::enlightened::regions::{surface_distance, KdTree};
 use pathspace::enlightened::{
     DirectionMap, GuideKind, GuideSettings, RegionParams, RegionPoint, Regions,
 };
-use pathspace::film::Film;
 use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
-use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::pdf::{densities, strategy_pdf};
@@ -255,17 +253,22 @@ fn fog_box(w: u32) -> Scene {
     Scene::load(&SceneSource::embedded("fog-box", &text)).expect("valid fog box")
 }
 
-/// The fog box with a guide of `kind` installed (few particles and regions: cheap, coarse).
-fn guided_fog_box(w: u32, kind: GuideKind) -> Scene {
-    let mut scene = fog_box(w);
+/// Installs a cheap, coarse guide of `kind` (`particles` subpaths of each kind, 64 regions,
+/// 16x8 maps).
+fn with_guide(mut scene: Scene, kind: GuideKind, particles: usize) -> Scene {
     let mut settings = GuideSettings::for_radius(scene.radius);
     settings.kind = kind;
-    settings.particles = 20_000;
+    settings.particles = particles;
     settings.regions.regions = 64;
     settings.cols = 16;
     settings.rows = 8;
     scene.guide = Some(Arc::new(build_guide(&scene, settings)));
     scene
+}
+
+/// The fog box with a guide of `kind` installed.
+fn guided_fog_box(w: u32, kind: GuideKind) -> Scene {
+    with_guide(fog_box(w), kind, 20_000)
 }
 
 /// Guided vertices of eye walks in the fog box: surface and medium vertices with a map in both
@@ -486,30 +489,11 @@ const RES: u32 = 8;
 const DEPTH: u32 = 4;
 
 fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    (0..RUNS)
-        .map(|r| {
-            let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(DEPTH));
-            rd.pass(32, &|| {});
-            common::quadrant_means(&rd.film.as_ref().unwrap().image())
-        })
-        .collect()
+    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, 32)
 }
 
-/// Quadrant means of `RUNS` small MLT renders (seeds `seed + r`).
 fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    (0..RUNS)
-        .map(|r| {
-            let settings = MltSettings {
-                bootstrap: 2000,
-                chains: 4,
-                ..MltSettings::default()
-            };
-            let mut m = Mlt::new(scene, settings, seed + r, Some(DEPTH)).unwrap();
-            let mut film = Film::new(RES, RES);
-            m.run(scene, &mut film, (RES * RES * 128) as u64);
-            common::quadrant_means(&film.image())
-        })
-        .collect()
+    common::mlt_quadrant_runs(scene, RUNS, seed, DEPTH)
 }
 
 /// Guided BDPT (surface guiding; surface and volume guiding) agrees with unguided BDPT on the
@@ -744,15 +728,7 @@ fn glass_fog_box(w: u32) -> Scene {
 
 /// [`glass_fog_box`], surface-guided.
 fn guided_glass_fog_box(w: u32) -> Scene {
-    let mut scene = glass_fog_box(w);
-    let mut settings = GuideSettings::for_radius(scene.radius);
-    settings.kind = GuideKind::Surface;
-    settings.particles = 40_000;
-    settings.regions.regions = 64;
-    settings.cols = 16;
-    settings.rows = 8;
-    scene.guide = Some(Arc::new(build_guide(&scene, settings)));
-    scene
+    with_guide(glass_fog_box(w), GuideKind::Surface, 40_000)
 }
 
 /// At a guided glass vertex the choice between reflection and transmission follows Fresnel

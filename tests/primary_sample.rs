@@ -51,6 +51,23 @@ fn expected(n: u64) -> Vec<f64> {
     p.iter().map(|x| x / total * n as f64).collect()
 }
 
+/// One Metropolis step of the chain in `s` from a state of target value `t_x` (a large step
+/// with probability `large_step`); returns the new state's target value.
+fn step(s: &mut Sampler, t_x: f64, large_step: f64) -> f64 {
+    let chain = s.chain().unwrap();
+    let large = chain.uniform() < large_step;
+    chain.start_iteration(large);
+    let (t_y, _) = target(s);
+    let chain = s.chain().unwrap();
+    if chain.uniform() < (t_y / t_x).min(1.0) {
+        chain.accept();
+        t_y
+    } else {
+        chain.reject();
+        t_x
+    }
+}
+
 /// Runs `chains` chains of `steps` steps, each started from an exact sample of the target
 /// (rejection sampling on large steps), and bins their final states.
 fn final_states(chains: u64, steps: u32, large_step: f64, sigma: f64) -> Vec<u64> {
@@ -69,17 +86,7 @@ fn final_states(chains: u64, steps: u32, large_step: f64, sigma: f64) -> Vec<u64
             chain.reject();
         };
         for _ in 0..steps {
-            let chain = s.chain().unwrap();
-            let large = chain.uniform() < large_step;
-            chain.start_iteration(large);
-            let (t_y, _) = target(&mut s);
-            let chain = s.chain().unwrap();
-            if chain.uniform() < (t_y / t_x).min(1.0) {
-                chain.accept();
-                t_x = t_y;
-            } else {
-                chain.reject();
-            }
+            t_x = step(&mut s, t_x, large_step);
         }
         let (a, b) = last_state(&mut s);
         counts[a * BINS + b] += 1;
@@ -132,16 +139,7 @@ fn small_steps_move_the_state() {
         s.chain().unwrap().accept();
         let start = last_state(&mut s);
         for _ in 0..40 {
-            let chain = s.chain().unwrap();
-            chain.start_iteration(false);
-            let (t_y, _) = target(&mut s);
-            let chain = s.chain().unwrap();
-            if chain.uniform() < (t_y / t_x).min(1.0) {
-                chain.accept();
-                t_x = t_y;
-            } else {
-                chain.reject();
-            }
+            t_x = step(&mut s, t_x, 0.0);
         }
         if last_state(&mut s) != start {
             moved += 1;

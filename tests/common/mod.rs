@@ -418,3 +418,47 @@ pub fn assert_quadrants_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
         );
     }
 }
+
+/// Quadrant means of `runs` BDPT renders of `spp` samples per pixel, depth limit `depth`,
+/// seeds `seed + r`.
+pub fn bdpt_quadrant_runs(
+    scene: &pathspace::scene::Scene,
+    runs: u64,
+    seed: u64,
+    depth: u32,
+    spp: u32,
+) -> Vec<Vec<f64>> {
+    use pathspace::integrator::{IntegratorKind, Renderer};
+    (0..runs)
+        .map(|r| {
+            let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(depth));
+            rd.pass(spp, &|| {});
+            quadrant_means(&rd.film.as_ref().unwrap().image())
+        })
+        .collect()
+}
+
+/// Quadrant means of `runs` small MLT renders of the scene's camera image (2000 bootstrap
+/// samples, 4 chains, 128 mutations per pixel), depth limit `depth`, seeds `seed + r`.
+pub fn mlt_quadrant_runs(
+    scene: &pathspace::scene::Scene,
+    runs: u64,
+    seed: u64,
+    depth: u32,
+) -> Vec<Vec<f64>> {
+    use pathspace::integrator::mlt::{Mlt, MltSettings};
+    let cam = scene.camera.as_ref().expect("a camera");
+    (0..runs)
+        .map(|r| {
+            let settings = MltSettings {
+                bootstrap: 2000,
+                chains: 4,
+                ..MltSettings::default()
+            };
+            let mut m = Mlt::new(scene, settings, seed + r, Some(depth)).unwrap();
+            let mut film = pathspace::film::Film::new(cam.width, cam.height);
+            m.run(scene, &mut film, (cam.width * cam.height * 128) as u64);
+            quadrant_means(&film.image())
+        })
+        .collect()
+}
