@@ -675,3 +675,80 @@ fn bad_adjoint_settings_are_clear_errors() {
     let e = AdjointImage::render(&room(false), &AdjointSettings::default(), 1, None).unwrap_err();
     assert!(e.contains("camera"), "{e}");
 }
+
+/// The thesis's way of estimating the adjoint image, as a by-product of Metropolis sampling
+/// (each state of a chain over full paths deposits its weight at F^-1(x_0)), estimates the same
+/// I* as the BDPT pre-pass: per light (strip of cells), over 12 independent runs each, within 4
+/// standard errors. The scene is the many-lights fog box made gray, because the BDPT pre-pass
+/// deposits the channel mean and the chains the luminance (equal for gray light); it has no
+/// mirror or glass, which the bidirectional sampler's paths do not cross. The chains' I(u) is
+/// the mean pixel's, the BDPT estimate the sum over pixels: the test scales by the pixel count.
+#[test]
+fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass() {
+    use pathspace::enlightened::adjoint::AdjointEstimator;
+    let gray = |s: String| {
+        s.replace("[0.63, 0.065, 0.05]", "[0.5, 0.5, 0.5]")
+            .replace("[0.14, 0.45, 0.091]", "[0.3, 0.3, 0.3]")
+            .replace("emission = [1.0, 2.0, 1.0]", "emission = [1.5, 1.5, 1.5]")
+            .replace("emission = [3.0, 1.0, 1.0]", "emission = [2.0, 2.0, 2.0]")
+    };
+    let text = gray(
+        pathspace::scene::FOG_BOX.replace("resolution = [256, 256]", "resolution = [8, 8]")
+            + r#"
+[[shapes]]
+type = "box"
+min = [0.5, -1.0, -0.9]
+max = [0.8, -0.7, -0.6]
+emission = [1.0, 2.0, 1.0]
+
+[[shapes]]
+type = "sphere"
+center = [-0.6, -0.6, 0.3]
+radius = 0.15
+emission = [3.0, 1.0, 1.0]
+
+[[shapes]]
+type = "quad"
+origin = [0.4, 0.999, 0.3]
+u = [0.3, 0.0, 0.0]
+v = [0.0, 0.0, 0.3]
+emission = [4.0, 4.0, 4.0]
+
+[[lights]]
+type = "point"
+position = [0.0, 0.5, 0.5]
+intensity = 0.5
+"#,
+    );
+    let scene = load(&text);
+    let m = LightMap::new(&scene).len();
+    assert!(m >= 4, "{m} area lights");
+    let n_pix = 64.0;
+    let strips = |estimator, seed: u64| -> Vec<f64> {
+        let settings = AdjointSettings {
+            resolution: (m as u32, 1),
+            samples_per_cell: 12_000,
+            estimator,
+            ..AdjointSettings::default()
+        };
+        let image = AdjointImage::render(&scene, &settings, seed, None).unwrap();
+        let scale = match estimator {
+            AdjointEstimator::Metropolis => n_pix,
+            AdjointEstimator::Bdpt => 1.0,
+        };
+        image.estimate.iter().map(|v| v * scale).collect()
+    };
+    let runs = |estimator, seed0: u64| -> Vec<Vec<f64>> {
+        (0..12).map(|r| strips(estimator, seed0 + r)).collect()
+    };
+    let bdpt = runs(AdjointEstimator::Bdpt, 800);
+    let metro = runs(AdjointEstimator::Metropolis, 900);
+    for j in 0..m {
+        let column = |rs: &[Vec<f64>]| batch_stats(&rs.iter().map(|r| r[j]).collect::<Vec<_>>());
+        assert_agrees(
+            &format!("light {j}: Metropolis vs BDPT pre-pass"),
+            column(&metro),
+            column(&bdpt),
+        );
+    }
+}

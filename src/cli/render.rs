@@ -101,6 +101,10 @@ pub struct AdjointArgs {
     /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
     #[arg(long)]
     pub adjoint_epsilon: Option<f32>,
+    /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
+    /// Metropolis particle sampler, `--adjoint-samples` steps per cell).
+    #[arg(long)]
+    pub adjoint_estimator: Option<String>,
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
     #[arg(long)]
     pub adjoint_output: Option<PathBuf>,
@@ -119,6 +123,7 @@ impl AdjointArgs {
         let given = self.adjoint_resolution.is_some()
             || self.adjoint_samples.is_some()
             || self.adjoint_epsilon.is_some()
+            || self.adjoint_estimator.is_some()
             || self.adjoint_output.is_some();
         if !wanted {
             if given {
@@ -145,6 +150,10 @@ impl AdjointArgs {
         }
         if let Some(e) = self.adjoint_epsilon {
             s.epsilon = e;
+        }
+        if let Some(e) = &self.adjoint_estimator {
+            s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
+                .map_err(|e| format!("--adjoint-estimator: {e}"))?;
         }
         s.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
         Ok(Some(s))

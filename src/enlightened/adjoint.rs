@@ -70,6 +70,33 @@ pub struct AdjointSettings {
     pub samples_per_cell: u32,
     /// The floor eps added to every cell, as a fraction of the mean cell value.
     pub epsilon: f32,
+    /// How I* is estimated: a BDPT pre-pass, or the chains of the Metropolis particle sampler
+    /// (the thesis's way).
+    pub estimator: AdjointEstimator,
+}
+
+/// The pre-pass that estimates the adjoint image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdjointEstimator {
+    /// `samples_per_cell` BDPT camera samples per cell; every MIS-weighted contribution goes to
+    /// the cell of its light vertex.
+    Bdpt,
+    /// `samples_per_cell` steps per cell of Metropolis particle chains over full paths (eq.
+    /// (5.15), without the defensive part): each state deposits its weight at F^-1(x_0)
+    /// (Kristensen 2010, sec. 5.2.1).
+    Metropolis,
+}
+
+impl AdjointEstimator {
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "bdpt" => Ok(AdjointEstimator::Bdpt),
+            "metropolis" => Ok(AdjointEstimator::Metropolis),
+            _ => Err(format!(
+                "unknown adjoint estimator `{s}` (available: bdpt, metropolis)"
+            )),
+        }
+    }
 }
 
 impl Default for AdjointSettings {
@@ -78,6 +105,7 @@ impl Default for AdjointSettings {
             resolution: DEFAULT_RESOLUTION,
             samples_per_cell: DEFAULT_SAMPLES_PER_CELL,
             epsilon: DEFAULT_EPSILON,
+            estimator: AdjointEstimator::Bdpt,
         }
     }
 }
@@ -408,9 +436,13 @@ impl AdjointImage {
         let (cols, rows) = Self::grid_size(settings.resolution, map.len());
         let cells = cols as usize * rows as usize;
         let samples = settings.samples_per_cell as u64 * cells as u64;
+        if settings.estimator == AdjointEstimator::Metropolis {
+            return Self::render_metropolis(scene, settings, seed, &map, (cols, rows), start);
+        }
         let bdpt = Bdpt::new(scene, max_depth, Strategies::All);
         let film = Vec2::new(cam.width as f32, cam.height as f32);
         let chunks = samples.div_ceil(CHUNK);
+        let n_pix = cam.width as f64 * cam.height as f64;
         let cell_index = |v: &Vertex| -> Option<usize> {
             let (light, prim) = Self::light_point(scene, v)?;
             let u = map.inverse(scene, light, prim, v.p)?;
@@ -434,8 +466,12 @@ impl AdjointImage {
                         &light,
                         &eye,
                         &mut sampler,
-                        &mut |s, t, l, _, sampled| {
-                            let y = crate::spectrum::average(l) as f64;
+                        &mut |s, t, l, splat, sampled| {
+                            // a splat lands on any pixel and the film divides it by the number
+                            // of light paths (one per camera sample): per sample it counts 1 /
+                            // n_pix of a camera contribution in the sum of pixel values
+                            let y = crate::spectrum::average(l) as f64
+                                / if splat.is_some() { n_pix } else { 1.0 };
                             if !(y.is_finite() && y > 0.0) {
                                 return true;
                             }
@@ -468,6 +504,56 @@ impl AdjointImage {
         Ok(image)
     }
     // ANCHOR_END: adjoint_render
+
+    /// The Metropolis pre-pass (`AdjointEstimator::Metropolis`): chains over the
+    /// bidirectional particle sampler's full paths from the camera, each state depositing
+    /// I(u) b_T / (T(u) N) in the cell of its light vertex. With the target T = I (no
+    /// defensive part) that weight is the same for every state, so a cell's estimate is the
+    /// share of states whose path starts in it, times b: the thesis's by-product of its
+    /// preprocessing MLT. Paths through mirrors or glass carry no contribution in that sampler
+    /// (see `particles::trace_bidirectional`), so the cells they would raise keep the floor.
+    // ANCHOR: adjoint_metropolis
+    fn render_metropolis(
+        scene: &Scene,
+        settings: &AdjointSettings,
+        seed: u64,
+        map: &LightMap,
+        (cols, rows): (u32, u32),
+        start: Instant,
+    ) -> Result<Self, String> {
+        use crate::enlightened::metropolis::{
+            trace_metropolis_with_starts, MetropolisParticleSettings,
+        };
+        use crate::enlightened::particles::ImportonSource;
+        let cells = cols as usize * rows as usize;
+        let steps = settings.samples_per_cell as u64 * cells as u64;
+        let chain_settings = MetropolisParticleSettings {
+            bootstrap: (steps / 4).clamp(1024, 65_536),
+            defensive: 0.0,
+            ..Default::default()
+        };
+        let (_, _, starts) = trace_metropolis_with_starts(
+            scene,
+            ImportonSource::Camera,
+            steps,
+            seed ^ ADJOINT_SALT,
+            &chain_settings,
+            true,
+        );
+        let mut estimate = vec![0.0f64; cells];
+        for s in &starts {
+            if let Some(u) = map.inverse(scene, s.light, s.prim, s.p) {
+                let c = ((u.x * cols as f32) as u32).min(cols - 1);
+                let r = ((u.y * rows as f32) as u32).min(rows - 1);
+                estimate[(r * cols + c) as usize] += s.weight;
+            }
+        }
+        let mut image = Self::from_estimate(scene, cols, rows, estimate, settings.epsilon)?;
+        image.stats.samples = steps;
+        image.stats.seconds = start.elapsed().as_secs_f64();
+        Ok(image)
+    }
+    // ANCHOR_END: adjoint_metropolis
 
     /// Estimates the adjoint image with the scene's classical light starts and installs it in
     /// the scene (replacing any installed one); returns the pre-pass statistics.

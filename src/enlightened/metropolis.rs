@@ -158,6 +158,30 @@ impl Evaluator<'_> {
         };
         [i, sum(&out.photons), sum(&out.importons)]
     }
+
+    /// The light vertex x_0 of the full path the last evaluation built (valid when its I > 0):
+    /// the light walk's first vertex, or, for s = 0, the emitter the eye walk ended on.
+    fn light_vertex(&self) -> Option<LightStart> {
+        let v = self.light.first().or(self.eye.last())?;
+        let (light, prim) = crate::enlightened::AdjointImage::light_point(self.scene, v)?;
+        Some(LightStart {
+            light,
+            prim,
+            p: v.p,
+            weight: 0.0,
+        })
+    }
+}
+
+/// A light start point of a chain state's full path, with the state's weight for the adjoint
+/// image: I(u) b_T / (T(u) N) per step the state was held (Kristensen 2010, sec. 5.2.1: each
+/// Markov state deposits its weight at F^-1(x_0)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightStart {
+    pub light: u32,
+    pub prim: u32,
+    pub p: glam::Vec3,
+    pub weight: f64,
 }
 
 // ANCHOR: target
@@ -202,9 +226,26 @@ pub fn trace_metropolis(
     seed: u64,
     settings: &MetropolisParticleSettings,
 ) -> (ParticleSets, MetropolisParticleStats) {
+    let (sets, stats, _) =
+        trace_metropolis_with_starts(scene, source, steps, seed, settings, false);
+    (sets, stats)
+}
+// ANCHOR_END: trace_metropolis
+
+/// [`trace_metropolis`], and, if `starts` is set, the light start point of every chain state
+/// with I(u) > 0, weighted so that their sum per region of the lights estimates the part of
+/// the measurement whose paths start there (the adjoint image's I*, eq. (5.7)).
+pub fn trace_metropolis_with_starts(
+    scene: &Scene,
+    source: ImportonSource,
+    steps: u64,
+    seed: u64,
+    settings: &MetropolisParticleSettings,
+    starts: bool,
+) -> (ParticleSets, MetropolisParticleStats, Vec<LightStart>) {
     let mut stats = MetropolisParticleStats::default();
     if steps == 0 || settings.check().is_err() || !super::particles::can_trace(scene, source) {
-        return (ParticleSets::default(), stats);
+        return (ParticleSets::default(), stats, Vec::new());
     }
     let base = super::particles::particle_bdpt(scene);
     let evaluator = || Evaluator {
@@ -252,7 +293,7 @@ pub fn trace_metropolis(
     stats.connected = boot.iter().filter(|b| b[0] > 0.0).count() as f64 / n_boot;
     stats.with_particles = boot.iter().filter(|b| b[1] + b[2] > 0.0).count() as f64 / n_boot;
     if !(b_t > 0.0 && b_t.is_finite()) {
-        return (ParticleSets::default(), stats);
+        return (ParticleSets::default(), stats, Vec::new());
     }
     // 2. chain starts: bootstrap samples drawn in proportion to T
     let cdf: Vec<f64> = boot
@@ -266,7 +307,7 @@ pub fn trace_metropolis(
     let chains = settings.chains as u64;
     // 3. the chains
     let per_chain = |c: u64| steps / chains + u64::from(c < steps % chains);
-    let parts: Vec<(ParticleSets, u64)> = (0..chains)
+    let parts: Vec<(ParticleSets, u64, Vec<LightStart>)> = (0..chains)
         .into_par_iter()
         .map(|c| {
             let mut rng = Sampler::new(seed, c ^ CHAIN_SALT, 1);
@@ -281,7 +322,12 @@ pub fn trace_metropolis(
             ));
             sampler.chain().unwrap().start_iteration(true);
             let mut current = ParticleSets::default();
-            let mut t_x = target(ev.eval(&mut sampler, &mut current));
+            let e = ev.eval(&mut sampler, &mut current);
+            let mut t_x = target(e);
+            // the current state's light start and I(u) (for the adjoint image)
+            let mut start_x = (e[0] > 0.0).then(|| ev.light_vertex()).flatten();
+            let mut i_x = e[0];
+            let mut light_starts = Vec::new();
             let chain = sampler.chain().unwrap();
             chain.accept();
             chain.reseed(stream(seed, CHAIN_SALT, c));
@@ -289,25 +335,33 @@ pub fn trace_metropolis(
             let mut accepted = 0u64;
             let mut deposit = ParticleSets::default();
             // the state's particles, once per step it was held, as one particle of that weight
-            let mut flush = |state: &mut ParticleSets, t: f64, held: u64| {
-                if held > 0 && t > 0.0 {
-                    state.scale((held as f64 * b_t / (t * steps as f64)) as f32);
-                    deposit.append(state);
-                }
-                state.clear();
-            };
+            let mut flush =
+                |state: &mut ParticleSets, t: f64, held: u64, start: Option<LightStart>, i: f64| {
+                    if held > 0 && t > 0.0 {
+                        let w = held as f64 * b_t / (t * steps as f64);
+                        state.scale(w as f32);
+                        deposit.append(state);
+                        if let Some(s) = start.filter(|_| starts) {
+                            light_starts.push(LightStart { weight: w * i, ..s });
+                        }
+                    }
+                    state.clear();
+                };
             for _ in 0..per_chain(c) {
                 let chain = sampler.chain().unwrap();
                 let large = chain.uniform() < settings.large_step;
                 chain.start_iteration(large);
-                let t_y = target(ev.eval(&mut sampler, &mut out));
+                let e = ev.eval(&mut sampler, &mut out);
+                let t_y = target(e);
                 let chain = sampler.chain().unwrap();
                 let a = if t_x > 0.0 { (t_y / t_x).min(1.0) } else { 1.0 };
                 if chain.uniform() < a {
                     chain.accept();
-                    flush(&mut current, t_x, held);
+                    flush(&mut current, t_x, held, start_x, i_x);
                     std::mem::swap(&mut current, &mut out);
                     t_x = t_y;
+                    i_x = e[0];
+                    start_x = (i_x > 0.0 && starts).then(|| ev.light_vertex()).flatten();
                     held = 1;
                     accepted += 1;
                 } else {
@@ -315,16 +369,17 @@ pub fn trace_metropolis(
                     held += 1;
                 }
             }
-            flush(&mut current, t_x, held);
-            (deposit, accepted)
+            flush(&mut current, t_x, held, start_x, i_x);
+            (deposit, accepted, light_starts)
         })
         .collect();
     let mut all = ParticleSets::default();
-    for (mut p, a) in parts {
+    let mut all_starts = Vec::new();
+    for (mut p, a, st) in parts {
         all.append(&mut p);
         stats.accepted += a;
+        all_starts.extend(st);
     }
     stats.steps = steps;
-    (all, stats)
+    (all, stats, all_starts)
 }
-// ANCHOR_END: trace_metropolis

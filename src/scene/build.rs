@@ -1036,6 +1036,10 @@ fn adjoint_settings(
         .validate()
         .map_err(|m| src.error(&key("epsilon"), m))?;
     }
+    if let Some(e) = &d.estimator {
+        s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
+            .map_err(|m| src.error(&key("estimator"), m))?;
+    }
     Ok(s)
 }
 

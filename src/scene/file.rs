@@ -100,6 +100,8 @@ pub struct AdjointDesc {
     pub samples_per_cell: Option<u32>,
     /// Floor added to every cell, as a fraction of the mean cell value.
     pub epsilon: Option<f32>,
+    /// `bdpt` (default) or `metropolis`: how the pre-pass estimates the cells.
+    pub estimator: Option<String>,
 }
 
 /// `[render.guide]`: the keys of the `--guide*` options (defaults in `enlightened::guide`),
