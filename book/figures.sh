@@ -125,6 +125,10 @@ if want "$sel" enlightened; then
       --budget 40 --runs 2 --threads 2 -o out/maze-conv
   cp out/maze-conv/error-vs-time.svg "$d/maze-error-vs-time.svg"
   cp out/maze-conv/convergence.csv "$d/maze-convergence.csv"
+  # the adjoint image from the Metropolis particle chains (the thesis's estimator)
+  $PS converge scenes/maze.toml --reference out/maze-ref.exr --adjoint-estimator metropolis \
+      --integrators bdpt+adjoint,mlt+adjoint --budget 40 --runs 2 --threads 2 -o out/maze-metro-conv
+  cp out/maze-metro-conv/convergence.csv "$d/maze-convergence-metropolis-adjoint.csv"
   $PS render scenes/maze.toml --integrator bdpt --spp 32 --threads 2 -o out/maze-bdpt.exr --png "$d/maze-bdpt-32spp.png"
   $PS render scenes/maze.toml --integrator bdpt --adjoint-image --spp 32 --threads 2 -o out/maze-bdpt-adj.exr \
       --png "$d/maze-bdpt-adjoint-32spp.png" --adjoint-output out/maze-adjoint.exr

@@ -655,6 +655,11 @@ fn bad_adjoint_settings_are_clear_errors() {
             "render.adjoint.samples_per_cell",
             "at least 1",
         ),
+        (
+            "[render.adjoint]\nestimator = \"mlt\"\n",
+            "render.adjoint.estimator",
+            "metropolis",
+        ),
     ] {
         let text = format!("{base}\n{extra}");
         let e = match Scene::load(&SceneSource::embedded("bad.toml", &text)) {

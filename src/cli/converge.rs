@@ -56,6 +56,9 @@ pub struct ConvergeArgs {
     /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.5).
     #[arg(long)]
     pub adjoint_epsilon: Option<f32>,
+    /// `+adjoint` variants: `bdpt` (default) or `metropolis` pre-pass.
+    #[arg(long)]
+    pub adjoint_estimator: Option<String>,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
@@ -269,6 +272,10 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     }
     if let Some(e) = args.adjoint_epsilon {
         adjoint.epsilon = e;
+    }
+    if let Some(e) = &args.adjoint_estimator {
+        adjoint.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
+            .map_err(|e| format!("--adjoint-estimator: {e}"))?;
     }
     adjoint
         .validate()
