@@ -350,8 +350,8 @@ use pathspace::scene::Light;
 /// The fog box at `res` x `res` pixels with four more lights: an emitting cube (six quads of
 /// equal area), an emitting sphere, a second ceiling quad, and a point light (which the
 /// adjoint image does not cover: the area lights get their share of the power selection).
-fn many_lights(res: u32) -> Scene {
-    let text = pathspace::scene::FOG_BOX.replace(
+fn many_lights_text(res: u32) -> String {
+    pathspace::scene::FOG_BOX.replace(
         "resolution = [256, 256]",
         &format!("resolution = [{res}, {res}]"),
     ) + r#"
@@ -378,8 +378,12 @@ emission = [4.0, 4.0, 4.0]
 type = "point"
 position = [0.0, 0.5, 0.5]
 intensity = 0.5
-"#;
-    load(&text)
+"#
+}
+
+/// [`many_lights_text`], loaded.
+fn many_lights(res: u32) -> Scene {
+    load(&many_lights_text(res))
 }
 
 /// A deliberately lumpy cell estimate with zero cells: a fixed pseudo-random pattern.
@@ -697,34 +701,7 @@ fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass(
             .replace("emission = [1.0, 2.0, 1.0]", "emission = [1.5, 1.5, 1.5]")
             .replace("emission = [3.0, 1.0, 1.0]", "emission = [2.0, 2.0, 2.0]")
     };
-    let text = gray(
-        pathspace::scene::FOG_BOX.replace("resolution = [256, 256]", "resolution = [8, 8]")
-            + r#"
-[[shapes]]
-type = "box"
-min = [0.5, -1.0, -0.9]
-max = [0.8, -0.7, -0.6]
-emission = [1.0, 2.0, 1.0]
-
-[[shapes]]
-type = "sphere"
-center = [-0.6, -0.6, 0.3]
-radius = 0.15
-emission = [3.0, 1.0, 1.0]
-
-[[shapes]]
-type = "quad"
-origin = [0.4, 0.999, 0.3]
-u = [0.3, 0.0, 0.0]
-v = [0.0, 0.0, 0.3]
-emission = [4.0, 4.0, 4.0]
-
-[[lights]]
-type = "point"
-position = [0.0, 0.5, 0.5]
-intensity = 0.5
-"#,
-    );
+    let text = gray(many_lights_text(8));
     let scene = load(&text);
     let m = LightMap::new(&scene).len();
     assert!(m >= 4, "{m} area lights");
