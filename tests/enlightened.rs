@@ -674,6 +674,22 @@ fn bad_adjoint_settings_are_clear_errors() {
         assert_eq!(e.line, Some(base_lines + 3), "{e}");
         assert!(e.message.contains(word), "{e}");
     }
+    // the command line's overrides (render and converge share them)
+    let d = AdjointSettings::default();
+    let e = d.overridden(None, None, None, Some("mlt")).unwrap_err();
+    assert!(
+        e.contains("--adjoint-estimator") && e.contains("metropolis"),
+        "{e}"
+    );
+    let e = d.overridden(None, Some(0), None, None).unwrap_err();
+    assert!(e.contains("samples per cell"), "{e}");
+    let ok = d
+        .overridden(Some((18, 9)), Some(3), Some(0.25), Some("metropolis"))
+        .unwrap();
+    assert_eq!(
+        (ok.resolution, ok.samples_per_cell, ok.epsilon),
+        ((18, 9), 3, 0.25)
+    );
     // a scene without area lights, and one without a camera
     let point_only = load(&format!(
         "{}\n[[lights]]\ntype = \"point\"\nposition = [0.0, 0.0, 0.0]\nintensity = 1.0\n",

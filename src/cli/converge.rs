@@ -263,23 +263,12 @@ fn summary_line(c: &Curve) -> String {
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
     let (mut scene, source) = super::load_scene(Some(&args.scene))?;
-    let mut adjoint = scene.render.adjoint;
-    if let Some(r) = args.adjoint_resolution {
-        adjoint.resolution = r;
-    }
-    if let Some(n) = args.adjoint_samples {
-        adjoint.samples_per_cell = n;
-    }
-    if let Some(e) = args.adjoint_epsilon {
-        adjoint.epsilon = e;
-    }
-    if let Some(e) = &args.adjoint_estimator {
-        adjoint.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
-            .map_err(|e| format!("--adjoint-estimator: {e}"))?;
-    }
-    adjoint
-        .validate()
-        .map_err(|e| format!("--adjoint-*: {e}"))?;
+    let adjoint = scene.render.adjoint.overridden(
+        args.adjoint_resolution,
+        args.adjoint_samples,
+        args.adjoint_epsilon,
+        args.adjoint_estimator.as_deref(),
+    )?;
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
     let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();

@@ -141,22 +141,16 @@ impl AdjointArgs {
             // the scene's key is a default for the integrators it applies to
             return Ok(None);
         }
-        let mut s = scene.render.adjoint;
-        if let Some(r) = self.adjoint_resolution {
-            s.resolution = r;
-        }
-        if let Some(n) = self.adjoint_samples {
-            s.samples_per_cell = n;
-        }
-        if let Some(e) = self.adjoint_epsilon {
-            s.epsilon = e;
-        }
-        if let Some(e) = &self.adjoint_estimator {
-            s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
-                .map_err(|e| format!("--adjoint-estimator: {e}"))?;
-        }
-        s.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
-        Ok(Some(s))
+        scene
+            .render
+            .adjoint
+            .overridden(
+                self.adjoint_resolution,
+                self.adjoint_samples,
+                self.adjoint_epsilon,
+                self.adjoint_estimator.as_deref(),
+            )
+            .map(Some)
     }
 }
 

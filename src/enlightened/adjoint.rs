@@ -111,6 +111,32 @@ impl Default for AdjointSettings {
 }
 
 impl AdjointSettings {
+    /// These settings with the command line's `--adjoint-*` overrides (resolution, samples per
+    /// cell, epsilon, estimator), checked; the message names the option.
+    pub fn overridden(
+        mut self,
+        resolution: Option<(u32, u32)>,
+        samples_per_cell: Option<u32>,
+        epsilon: Option<f32>,
+        estimator: Option<&str>,
+    ) -> Result<Self, String> {
+        if let Some(r) = resolution {
+            self.resolution = r;
+        }
+        if let Some(n) = samples_per_cell {
+            self.samples_per_cell = n;
+        }
+        if let Some(e) = epsilon {
+            self.epsilon = e;
+        }
+        if let Some(e) = estimator {
+            self.estimator =
+                AdjointEstimator::parse(e).map_err(|e| format!("--adjoint-estimator: {e}"))?;
+        }
+        self.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
+        Ok(self)
+    }
+
     /// Checks the values; the message names the offending one.
     pub fn validate(&self) -> Result<(), String> {
         let (c, r) = self.resolution;
