@@ -265,13 +265,17 @@ pub fn trace_metropolis_with_starts(
             .flat_map_iter(|c| {
                 let mut ev = evaluator();
                 let mut out = ParticleSets::default();
+                // one chain object per chunk, restarted for every sample (no allocation per
+                // sample once its storage has grown)
+                let mut sampler = Sampler::primary(PrimarySamples::new(
+                    stream(seed, salt, c * chunk),
+                    settings.sigma,
+                ));
                 (c * chunk..((c + 1) * chunk).min(n))
                     .map(|b| {
-                        let mut sampler = Sampler::primary(PrimarySamples::new(
-                            stream(seed, salt, b),
-                            settings.sigma,
-                        ));
-                        sampler.chain().unwrap().start_iteration(true);
+                        let chain = sampler.chain().unwrap();
+                        chain.restart(stream(seed, salt, b));
+                        chain.start_iteration(true);
                         ev.eval(&mut sampler, &mut out)
                     })
                     .collect::<Vec<_>>()

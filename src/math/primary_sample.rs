@@ -107,6 +107,18 @@ impl PrimarySamples {
         }
     }
 
+    /// Starts over as [`PrimarySamples::new`] with `rng`, keeping the storage (a bootstrap
+    /// evaluates many independent first states with one chain object).
+    pub fn restart(&mut self, rng: Pcg32) {
+        self.coords.clear();
+        self.rng = rng;
+        self.iteration = 0;
+        self.large_step = true;
+        self.last_large_step = 0;
+        self.next = [0; STREAMS];
+        self.stream = 0;
+    }
+
     /// Gives the chain a new stream for its mutations and decisions (a chain started from a
     /// bootstrap state re-created with that state's stream must not then repeat the
     /// bootstrap's numbers, or two chains started from one state would stay identical).
