@@ -47,18 +47,10 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
-    /// `+adjoint` variants: adjoint grid COLSxROWS (default: the scene's `[render.adjoint]`).
-    #[arg(long, value_parser = super::render::parse_resolution)]
-    pub adjoint_resolution: Option<(u32, u32)>,
-    /// `+adjoint` variants: pre-pass samples per cell (default: `[render.adjoint]`, or 8).
-    #[arg(long)]
-    pub adjoint_samples: Option<u32>,
-    /// `+adjoint` variants: the floor as a fraction of the mean cell (default 0.5).
-    #[arg(long)]
-    pub adjoint_epsilon: Option<f32>,
-    /// `+adjoint` variants: `bdpt` (default) or `metropolis` pre-pass.
-    #[arg(long)]
-    pub adjoint_estimator: Option<String>,
+    /// `+adjoint` variants: the adjoint image's pre-pass (default: the scene's
+    /// `[render.adjoint]`).
+    #[command(flatten)]
+    pub adjoint: super::render::AdjointTuning,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
@@ -263,12 +255,7 @@ fn summary_line(c: &Curve) -> String {
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
     let (mut scene, source) = super::load_scene(Some(&args.scene))?;
-    let adjoint = scene.render.adjoint.overridden(
-        args.adjoint_resolution,
-        args.adjoint_samples,
-        args.adjoint_epsilon,
-        args.adjoint_estimator.as_deref(),
-    )?;
+    let adjoint = args.adjoint.apply(scene.render.adjoint)?;
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
     let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();

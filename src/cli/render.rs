@@ -83,6 +83,47 @@ pub struct RenderArgs {
     pub adjoint: Box<AdjointArgs>,
 }
 
+/// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines);
+/// each overrides its `[render.adjoint]` key.
+#[derive(Args, Debug, Default, Clone)]
+pub struct AdjointTuning {
+    /// Adjoint grid COLSxROWS (columns rounded up to a multiple of the area lights; default
+    /// `[render.adjoint] resolution` or 64x64).
+    #[arg(long, value_parser = parse_resolution)]
+    pub adjoint_resolution: Option<(u32, u32)>,
+    /// Pre-pass samples (BDPT) or chain steps (Metropolis) per adjoint cell (default
+    /// `[render.adjoint] samples_per_cell` or 8).
+    #[arg(long)]
+    pub adjoint_samples: Option<u32>,
+    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
+    #[arg(long)]
+    pub adjoint_epsilon: Option<f32>,
+    /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
+    /// Metropolis particle sampler).
+    #[arg(long)]
+    pub adjoint_estimator: Option<String>,
+}
+
+impl AdjointTuning {
+    /// True when any option was given.
+    pub fn any(&self) -> bool {
+        self.adjoint_resolution.is_some()
+            || self.adjoint_samples.is_some()
+            || self.adjoint_epsilon.is_some()
+            || self.adjoint_estimator.is_some()
+    }
+
+    /// `base` with these overrides, checked.
+    pub fn apply(&self, base: AdjointSettings) -> Result<AdjointSettings, String> {
+        base.overridden(
+            self.adjoint_resolution,
+            self.adjoint_samples,
+            self.adjoint_epsilon,
+            self.adjoint_estimator.as_deref(),
+        )
+    }
+}
+
 /// The adjoint image's options (Kristensen 2010, sec. 5.3.1).
 #[derive(Args, Debug, Default, Clone)]
 pub struct AdjointArgs {
@@ -90,21 +131,8 @@ pub struct AdjointArgs {
     /// BDPT pre-pass first (default: the scene's `[render] adjoint_image`).
     #[arg(long)]
     pub adjoint_image: bool,
-    /// Adjoint grid COLSxROWS (columns rounded up to a multiple of the area lights; default
-    /// `[render.adjoint] resolution` or 64x64).
-    #[arg(long, value_parser = parse_resolution)]
-    pub adjoint_resolution: Option<(u32, u32)>,
-    /// Pre-pass BDPT samples per adjoint cell (default `[render.adjoint] samples_per_cell`
-    /// or 8).
-    #[arg(long)]
-    pub adjoint_samples: Option<u32>,
-    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
-    #[arg(long)]
-    pub adjoint_epsilon: Option<f32>,
-    /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
-    /// Metropolis particle sampler, `--adjoint-samples` steps per cell).
-    #[arg(long)]
-    pub adjoint_estimator: Option<String>,
+    #[command(flatten)]
+    pub tuning: AdjointTuning,
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
     #[arg(long)]
     pub adjoint_output: Option<PathBuf>,
@@ -120,11 +148,7 @@ impl AdjointArgs {
         scene: &Scene,
     ) -> Result<Option<AdjointSettings>, String> {
         let wanted = self.adjoint_image || scene.render.adjoint_image;
-        let given = self.adjoint_resolution.is_some()
-            || self.adjoint_samples.is_some()
-            || self.adjoint_epsilon.is_some()
-            || self.adjoint_estimator.is_some()
-            || self.adjoint_output.is_some();
+        let given = self.tuning.any() || self.adjoint_output.is_some();
         if !wanted {
             if given {
                 return Err("--adjoint-* options need --adjoint-image".into());
@@ -141,16 +165,7 @@ impl AdjointArgs {
             // the scene's key is a default for the integrators it applies to
             return Ok(None);
         }
-        scene
-            .render
-            .adjoint
-            .overridden(
-                self.adjoint_resolution,
-                self.adjoint_samples,
-                self.adjoint_epsilon,
-                self.adjoint_estimator.as_deref(),
-            )
-            .map(Some)
+        self.tuning.apply(scene.render.adjoint).map(Some)
     }
 }
 

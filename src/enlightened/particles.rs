@@ -100,24 +100,8 @@ pub fn particle_at(path: &[Vertex], i: usize, scale: f32) -> Option<Particle> {
         return None;
     }
     let v = &path[i];
-    let (normal, medium) = match v.kind {
-        VertexKind::Surface { .. } => (Some(v.n), None),
-        VertexKind::Medium { medium } => (None, Some(medium)),
-        _ => return None,
-    };
     let direction = (path[i - 1].p - v.p).normalize_or_zero();
-    let weight = v.beta * scale;
-    if direction == Vec3::ZERO || !weight.is_finite() || weight == Rgb::ZERO {
-        return None;
-    }
-    Some(Particle {
-        position: v.p,
-        normal,
-        medium,
-        direction,
-        weight,
-        depth: i as u32,
-    })
+    particle_with(v, direction, v.beta * scale, i)
 }
 
 /// The particle at vertex `v` with incident direction `direction` and `weight` (`None` for

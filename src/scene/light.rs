@@ -182,36 +182,13 @@ impl Light {
     ) -> Option<LightSample> {
         match self {
             Light::Area {
-                prims: ids,
-                distr,
-                radiance,
-                ..
+                prims: ids, distr, ..
             } => {
                 let (k, pk, _) = distr.sample(u_prim);
                 let prim = &prims[ids[k] as usize];
                 let (p, n) = prim.sample_area(u);
-                let to = p - p_ref;
-                let d2 = to.length_squared();
-                if d2 <= 0.0 {
-                    return None;
-                }
-                let dist = d2.sqrt();
-                let wi = to / dist;
-                let cos_l = -wi.dot(n);
-                if cos_l <= 0.0 {
-                    return None; // the back of an emitter is black
-                }
-                // area density pk / A_k, converted to solid angle: d^2 / cos
-                let pdf = pk / prim.area() * d2 / cos_l;
-                Some(LightSample {
-                    wi,
-                    dist,
-                    p,
-                    n,
-                    value: *radiance,
-                    pdf,
-                    is_delta: false,
-                })
+                // area density pk / A_k; the back of an emitter is black
+                self.li_from(p_ref, p, n, pk / prim.area())
             }
             Light::Point {
                 position,
