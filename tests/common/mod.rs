@@ -12,6 +12,8 @@
 //! - [`mean_and_stderr`] and [`assert_within_sigma`]: a Monte Carlo mean against a known value.
 #![allow(dead_code)]
 
+pub mod stats;
+
 use glam::Vec3;
 use pathspace::math::{Frame, Sampler};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
