@@ -468,6 +468,18 @@ impl Bdpt {
         );
     }
 
+    /// The largest s to try with a light subpath `light`: its length, but at least 1 when the
+    /// scene has lights, because s = 1 samples its own light vertex (next-event estimation)
+    /// whatever became of the light subpath: a walk that ended before its first vertex (a
+    /// guided emission direction behind the light) must not take that strategy with it.
+    pub fn max_light_vertices(scene: &Scene, light: &[Vertex]) -> usize {
+        if scene.lights.is_empty() {
+            0
+        } else {
+            light.len().max(1)
+        }
+    }
+
     /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
     fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
         match v.kind {
@@ -499,7 +511,7 @@ impl Bdpt {
         // copies of the four vertices whose reverse densities the connection changes
         let mut qs = if s > 0 {
             Some(if s == 1 {
-                sampled.unwrap_or(light[0])
+                sampled.unwrap_or_else(|| light[0])
             } else {
                 light[s - 1]
             })
@@ -507,7 +519,7 @@ impl Bdpt {
             None
         };
         let mut pt = if t == 1 && s != 1 {
-            sampled.unwrap_or(eye[0])
+            sampled.unwrap_or_else(|| eye[0])
         } else {
             eye[t - 1]
         };
@@ -540,16 +552,16 @@ impl Bdpt {
             if i + 1 == t {
                 pt
             } else if i + 2 == t {
-                pt_minus.unwrap_or(eye[i])
+                pt_minus.unwrap_or_else(|| eye[i])
             } else {
                 eye[i]
             }
         };
         let light_at = |i: usize| -> Vertex {
             if i + 1 == s {
-                qs.unwrap_or(light[i])
+                qs.unwrap_or_else(|| light[i])
             } else if i + 2 == s {
-                qs_minus.unwrap_or(light[i])
+                qs_minus.unwrap_or_else(|| light[i])
             } else {
                 light[i]
             }
@@ -609,7 +621,7 @@ impl Bdpt {
         visit: &mut dyn FnMut(usize, usize, Rgb, Option<Vec2>, Option<Vertex>) -> bool,
     ) {
         for t in 1..=eye.len() {
-            for s in 0..=light.len() {
+            for s in 0..=Self::max_light_vertices(scene, light) {
                 let depth = s as i64 + t as i64 - 2;
                 if depth < 0 || depth as u64 > self.max_depth as u64 {
                     continue;
@@ -843,7 +855,7 @@ impl Bdpt {
         let mut own = Rgb::ZERO;
         let meter = matches!(eye.first().map(|v| v.kind), Some(VertexKind::Meter { .. }));
         for t in 1..=eye.len() {
-            for s in 0..=light.len() {
+            for s in 0..=Self::max_light_vertices(scene, light) {
                 let depth = s as i64 + t as i64 - 2;
                 if depth < 0 || depth as u64 > self.max_depth as u64 {
                     continue;

@@ -83,12 +83,11 @@ pub fn joined_path(
     t: usize,
     sampled: Option<Vertex>,
 ) -> Vec<Vertex> {
-    let mut v: Vec<Vertex> = light[..s].to_vec();
-    if s == 1 {
-        if let Some(q) = sampled {
-            v[0] = q;
-        }
-    }
+    // s = 1 samples its light vertex itself, whatever the light subpath holds
+    let mut v: Vec<Vertex> = match (s, sampled) {
+        (1, Some(q)) => vec![q],
+        _ => light[..s].to_vec(),
+    };
     let start = v.len();
     v.extend(eye[..t].iter().rev().copied());
     if t == 1 && s != 1 {
