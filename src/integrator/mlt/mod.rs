@@ -41,11 +41,6 @@ use mutation::{
     MutationKind, PropagationPerturbation, SensorPerturbation,
 };
 
-/// Scattering vertices per path when no `max_depth` is given: the target is f restricted to
-/// paths of at most this many bounces (a DEVIATION from the unbounded path space: the chain
-/// needs a finite space for its bidirectional mutation's length distribution; the energy beyond
-/// it is below 1e-3 of the fog box's).
-pub const DEFAULT_MAX_DEPTH: u32 = 30;
 /// Salt that keeps chain streams apart from pixel streams.
 const CHAIN_STREAM_SALT: u64 = 0x0063_6861_696e_0000;
 /// Seed draws a chain tries before giving up (a pre-pass path whose f is zero when re-evaluated
@@ -283,13 +278,14 @@ impl Mlt {
     ) -> Result<Self, String> {
         settings.validate()?;
         check_scene(scene)?;
-        let depth = max_depth.unwrap_or(DEFAULT_MAX_DEPTH);
-        let bdpt = Bdpt::new(scene, Some(depth), Strategies::All);
+        // without a depth limit the target is f on the whole, unbounded path space: the
+        // bidirectional mutation's length law has an infinite geometric tail
+        let bdpt = Bdpt::new(scene, max_depth, Strategies::All);
         let r = scene.radius.max(f32::MIN_POSITIVE);
         let (d0, d1) = settings.propagation_distance;
         let mutations = Mutations {
             bidirectional: Bidirectional {
-                max_vertices: depth as usize + 2,
+                max_vertices: max_depth.map_or(usize::MAX, |d| d as usize + 2),
                 light_media: bdpt.light_media().to_vec(),
             },
             sensor: SensorPerturbation {

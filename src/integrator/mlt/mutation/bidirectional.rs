@@ -61,13 +61,20 @@ pub fn deletion_weight(kd: usize) -> f64 {
 
 /// Weight of adding k_a edges after deleting k_d (favours equal lengths).
 pub fn addition_weight(ka: usize, kd: usize) -> f64 {
-    0.5f64.powi((ka as i64 - kd as i64).unsigned_abs() as i32)
+    0.5f64.powi((ka as i64 - kd as i64).unsigned_abs().min(2000) as i32)
+}
+
+/// sum_{e = a}^{b} 2^-e (a <= b; b may be astronomically large: the tail is then below f64).
+fn geometric_sum(a: usize, b: usize) -> f64 {
+    let terms = (b - a).saturating_add(1).min(2000) as i32;
+    2.0 * 0.5f64.powi(a.min(2000) as i32) * (1.0 - 0.5f64.powi(terms))
 }
 
 /// The bidirectional mutation.
 #[derive(Clone, Debug)]
 pub struct Bidirectional {
-    /// Vertices a path may have (the length cap of the target, from `max_depth`).
+    /// Vertices a path may have (the length cap of the target, from `max_depth`);
+    /// `usize::MAX` for the unbounded path space of an unlimited depth.
     pub max_vertices: usize,
     /// Medium around each light (the light subpaths' first edge).
     pub light_media: Vec<Option<u32>>,
@@ -83,11 +90,33 @@ impl Bidirectional {
         deletion_weight(kd) / total
     }
 
-    /// The admissible k_a for l, k_d and a path of n vertices.
+    /// The admissible k_a for l, k_d and a path of n vertices (the upper end unbounded, as
+    /// `usize::MAX`, without a depth limit).
     pub fn addition_range(&self, l: i64, kd: usize, n: usize) -> (usize, usize) {
         let min = if l < 0 { 2 } else { 1 };
-        let max = (self.max_vertices + kd).saturating_sub(n);
+        let max = self.max_vertices.saturating_add(kd).saturating_sub(n);
         (min, max)
+    }
+
+    /// The sum of the addition weights over [lo, hi], in closed form (hi may be unbounded).
+    fn addition_total(lo: usize, hi: usize, kd: usize) -> f64 {
+        if hi < lo {
+            return 0.0;
+        }
+        // below k_d the weights are 2^-(k_d - j), from k_d up 2^-(j - k_d)
+        let below = if lo < kd {
+            let top = hi.min(kd - 1);
+            geometric_sum(kd - top, kd - lo)
+        } else {
+            0.0
+        };
+        let above = if hi >= kd {
+            let bottom = lo.max(kd);
+            geometric_sum(bottom - kd, hi - kd)
+        } else {
+            0.0
+        };
+        below + above
     }
 
     /// p_a(k_a | k_d, l) for a path of n vertices.
@@ -96,8 +125,24 @@ impl Bidirectional {
         if ka < lo || ka > hi {
             return 0.0;
         }
-        let total: f64 = (lo..=hi).map(|j| addition_weight(j, kd)).sum();
-        addition_weight(ka, kd) / total
+        addition_weight(ka, kd) / Self::addition_total(lo, hi, kd)
+    }
+
+    /// k_a by inversion of p_a: the weights decay geometrically on both sides of k_d, so the
+    /// walk up from `lo` ends within a few steps of k_d whatever the cap.
+    fn sample_addition(u: f64, lo: usize, hi: usize, kd: usize) -> usize {
+        /// Beyond this many steps past k_d the remaining mass is below 2^-64.
+        const TAIL: usize = 64;
+        let total = Self::addition_total(lo, hi, kd);
+        let last = hi.min(kd.max(lo).saturating_add(TAIL));
+        let mut acc = 0.0;
+        for j in lo..=last {
+            acc += addition_weight(j, kd) / total;
+            if u < acc {
+                return j;
+            }
+        }
+        last
     }
 
     fn sample_discrete(u: f64, lo: usize, hi: usize, w: impl Fn(usize) -> f64) -> usize {
@@ -127,7 +172,7 @@ impl Mutation for Bidirectional {
         if hi < lo {
             return None;
         }
-        let ka = Self::sample_discrete(sampler.next_f64(), lo, hi, |j| addition_weight(j, kd));
+        let ka = Self::sample_addition(sampler.next_f64(), lo, hi, kd);
         let added = ka - 1;
         let s_new = sampler.next_index(added + 1);
         let mut light: Vec<Vertex> = x[..(l + 1) as usize].to_vec();
