@@ -233,6 +233,11 @@ impl Heterogeneous {
             .eval((p - self.bounds.min) / self.bounds.extent())
     }
 
+    /// The largest density anywhere (the maximum of the majorant grid).
+    pub fn max_density(&self) -> f32 {
+        self.majorant.iter().copied().fold(0.0, f32::max)
+    }
+
     /// The part of [0, t_max) of `ray` inside the box, in local coordinates.
     #[inline]
     fn local(&self, ray: &Ray, t_max: f32) -> Option<Local> {
@@ -252,6 +257,44 @@ impl Heterogeneous {
             Some(l) => self.density.integrate(l.u0, l.du, l.t0, l.t1),
             None => 0.0,
         }
+    }
+
+    /// The distance along `ray` at which the density integral D reaches `target`, if it does
+    /// before `t_max`: the exact inverse of [`Heterogeneous::density_integral`], found block by
+    /// block of the majorant grid and by bisection inside the block where D crosses the target
+    /// (SMC's march takes steps of equal optical depth with it).
+    pub fn invert_density_integral(&self, ray: &Ray, target: f32, t_max: f32) -> Option<f32> {
+        /// Bisection steps: the bracket shrinks below f32 resolution of any block long before.
+        const BISECTIONS: usize = 40;
+        if target <= 0.0 {
+            return Some(0.0);
+        }
+        let l = self.local(ray, t_max)?;
+        let mut acc = 0.0f32;
+        for (a, b, m) in self.majorant_segments(&l) {
+            if m <= 0.0 {
+                continue;
+            }
+            let piece = self.density.integrate(l.u0, l.du, a, b);
+            if acc + piece < target {
+                acc += piece;
+                continue;
+            }
+            let (mut lo, mut hi) = (a, b);
+            for _ in 0..BISECTIONS {
+                let mid = 0.5 * (lo + hi);
+                if mid <= lo || mid >= hi {
+                    break;
+                }
+                if acc + self.density.integrate(l.u0, l.du, a, mid) < target {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            return Some(hi);
+        }
+        None
     }
 
     // ANCHOR: march

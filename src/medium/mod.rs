@@ -96,6 +96,55 @@ impl Medium {
         }
     }
 
+    /// The optical depth tau = integral of sigma_t over [0, t] along `ray` (eq. 3), per
+    /// channel, deterministic: closed forms and the exact per-cell quadrature of grids (the fixed
+    /// lattice quadrature of fBm fields, see [`Density::integrate`]).
+    #[inline]
+    pub fn optical_depth(&self, ray: &Ray, t: f32) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_t * t,
+            Medium::Heterogeneous(h) => h.sigma_t * h.density_integral(ray, t),
+        }
+    }
+
+    /// The distance along `ray` at which the optical depth, averaged over the channels,
+    /// reaches `tau` (the inverse of [`Medium::optical_depth`]), if it does before `t_max`.
+    pub fn advance(&self, ray: &Ray, tau: f32, t_max: f32) -> Option<f32> {
+        let t = match self {
+            Medium::Homogeneous(h) => {
+                let k = crate::spectrum::average(h.sigma_t);
+                (k > 0.0).then(|| tau / k)
+            }
+            Medium::Heterogeneous(h) => {
+                let k = crate::spectrum::average(h.sigma_t);
+                if k > 0.0 {
+                    h.invert_density_integral(ray, tau / k, t_max)
+                } else {
+                    None
+                }
+            }
+        };
+        t.filter(|&t| t < t_max)
+    }
+
+    /// An upper bound of sigma_t over the whole medium (its majorant), per channel.
+    pub fn sigma_t_max(&self) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_t,
+            Medium::Heterogeneous(h) => h.sigma_t * h.max_density(),
+        }
+    }
+
+    /// sigma_s / sigma_t per channel (0 where sigma_t is 0): the same everywhere in a medium,
+    /// because an inhomogeneous medium scales both by one density.
+    pub fn albedo(&self) -> Rgb {
+        let (s, t) = match self {
+            Medium::Homogeneous(h) => (h.sigma_s, h.sigma_t),
+            Medium::Heterogeneous(h) => (h.sigma_s, h.sigma_t),
+        };
+        Rgb::select(t.cmpgt(Rgb::ZERO), s / t, Rgb::ZERO)
+    }
+
     /// Samples a collision distance in [0, t_max) along `ray` (Table 1).
     #[inline]
     pub fn sample_free_flight(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {

@@ -147,6 +147,11 @@ impl RadianceCache {
     /// weights C / (C + 1) and 1 / (C + 1) [PWP08 sec. 4.1, 4.2].
     // ANCHOR: write
     pub fn write(&mut self, wi: Vec3, radiance: Rgb, phase_value: f32, cv: ControlVariate) {
+        // radiance is never negative; a negative record is an excursion of the combined
+        // estimator (G + (f - g) / p dips below zero where g exceeds f), and writing it would
+        // feed the next estimates a negative g (see `RadianceCache` on why the cache may be
+        // any function: it shapes the estimator's variance, never its mean)
+        let radiance = radiance.max(Rgb::ZERO);
         let cell = self.grid().cell_of_direction(wi);
         let g = self.g(wi, cv);
         let pdf_sample = spectrum::average((radiance * phase_value - g).abs()) as f64;

@@ -28,7 +28,7 @@
 //! Book: "SMC: the estimators", section "Ray marching on Omega_t U Omega_s (eq. 8, 9)".
 
 use super::walk::{self, Link, Previous, Scratch};
-use super::{ImportanceSampling, Smc};
+use super::{ImportanceSampling, Smc, MAX_RATE_RATIO};
 use crate::geometry::Ray;
 use crate::math::{warp, Sampler};
 use crate::scene::Scene;
@@ -48,10 +48,56 @@ fn past(t: f32, ray: &Ray) -> f32 {
     t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
 }
 
-/// sigma_s / sigma_t per channel (0 where sigma_t is 0).
+/// The adaptive probability of Omega_s kept within [p_s0 / K, K p_s0] (and that of Omega_t
+/// above (1 - p_s0) / K), K = [`MAX_RATE_RATIO`]: over a step of small optical depth the march
+/// may then scatter at most K times as often as the medium does, so the weight of a ray
+/// that passes n steps stays (1 + O(step)) per step instead of up to K per step, and a finer
+/// step cannot make the variance explode.
+fn bounded_scatter_probability(p_sa: f64, p_s0: f64) -> f64 {
+    let k = MAX_RATE_RATIO;
+    let lo = p_s0 / k;
+    let hi = (k * p_s0).min(1.0 - (1.0 - p_s0) / k);
+    p_sa.clamp(lo, hi.max(lo))
+}
+
+/// The probability of Omega_t for masses `m_t` (transmission) and `m_s` (scattering).
 #[inline]
-fn albedo(sigma_s: Rgb, sigma_t: Rgb) -> Rgb {
-    Rgb::select(sigma_t.cmpgt(Rgb::ZERO), sigma_s / sigma_t, Rgb::ZERO)
+fn transmit_probability(m_t: f64, m_s: f64) -> f64 {
+    if m_s > 0.0 {
+        m_t / (m_t + m_s)
+    } else {
+        1.0
+    }
+}
+
+/// A point s in [0, dx) of the step `here` of mean optical depth `tau`, drawn by the free-flight
+/// density truncated to the step, q(s) = sigma(s) e^(-tau(s)) / (1 - e^(-tau)) with the
+/// channel means (inverted in optical depth, exactly), and the weight
+/// sigma_s(s) e^(-tau(s)) / q(s) per channel that makes the in-scattered term unbiased for the
+/// integral of sigma_s e^-tau L_i over the step.
+#[inline]
+fn jittered_point(
+    med: &crate::medium::Medium,
+    here: &Ray,
+    dx: f32,
+    tau: f32,
+    sampler: &mut Sampler,
+) -> (f32, Rgb) {
+    let u = sampler.next_f32();
+    if tau.is_nan() || tau <= 0.0 {
+        // no extinction in the step: nothing scatters (kappa_s is zero too)
+        return (u * dx, Rgb::ZERO);
+    }
+    let one_minus = -(-tau).exp_m1();
+    let tau_s = -(1.0 - u * one_minus).ln();
+    let s = med.advance(here, tau_s, dx).unwrap_or(dx).clamp(0.0, dx);
+    let p = here.at(s);
+    let tau_s = med.optical_depth(here, s);
+    let q = spectrum::average(med.sigma_t(p)) * (-spectrum::average(tau_s)).exp() / one_minus;
+    if q.is_nan() || q <= 0.0 {
+        return (s, Rgb::ZERO);
+    }
+    (s, med.sigma_s(p) * (-tau_s).exp() / q)
 }
 
 /// The marching walk from `ray` (in `medium`) with throughput `beta`; `step_mfp` is the step
@@ -90,11 +136,11 @@ pub fn walk(
             let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
             if let Some(m) = medium {
                 let med = &scene.media[m as usize];
-                let x0 = ray.at(t_start);
-                let (sigma_t, sigma_s) = (med.sigma_t(x0), med.sigma_s(x0));
-                let sigma_mean = spectrum::average(sigma_t);
-                if sigma_mean > 0.0 {
-                    let step = step_mfp / sigma_mean;
+                // steps of `step_mfp` mean free paths: equal optical depth, so that an
+                // inhomogeneous medium gets as many decisions per mean free path as a
+                // homogeneous one (see DEVIATION above)
+                if spectrum::average(med.sigma_t_max()) > 0.0 {
+                    let albedo = med.albedo();
                     let d = ray.d;
                     let mut t = t_start;
                     let mut steps = 0;
@@ -103,20 +149,21 @@ pub fn walk(
                         if steps > MAX_MARCH_STEPS {
                             return;
                         }
-                        let dx = step.min(t_hit - t);
-                        let kappa_t = (-sigma_t * dx).exp();
+                        let here = Ray::new(ray.at(t), d);
+                        let dx = med.advance(&here, step_mfp, t_hit - t).unwrap_or(t_hit - t);
+                        // the step's exact optical depth (eq. 8's kappas for the medium as it is
+                        // along the step)
+                        let tau = med.optical_depth(&here, dx);
+                        let kappa_t = (-tau).exp();
                         let kappa_s = if depth < smc.max_depth {
-                            (Rgb::ONE - kappa_t) * albedo(sigma_s, sigma_t)
+                            (Rgb::ONE - kappa_t) * albedo
                         } else {
                             Rgb::ZERO
                         };
                         // the scattering point, jittered in the step (see DEVIATION above);
                         // drawn before the branch so that both branches share G
-                        let one_minus = -(-sigma_mean * dx).exp_m1();
-                        let s = (-(1.0 - sampler.next_f32() * one_minus).ln() / sigma_mean)
-                            .clamp(0.0, dx);
-                        let q = sigma_mean * (-sigma_mean * s).exp() / one_minus;
-                        let kappa_s_jit = sigma_s * (-sigma_t * s).exp() / q;
+                        let (s, kappa_s_jit) =
+                            jittered_point(med, &here, dx, spectrum::average(tau), sampler);
                         let xs = ray.at(t + s);
                         let x_end = ray.at(t + dx);
                         // the snapshot's caches: where the transmitted radiance L(x + dx, d)
@@ -126,24 +173,25 @@ pub fn walk(
                         let use_cache = variant.is == ImportanceSampling::Order0
                             && cache_s.pdf_is_positive()
                             && cache_t.pdf_is_positive();
-                        // the probability tree completed on the fly [PWP08 sec. 4.5]
-                        let (mass_t, mass_s) = if use_cache {
+                        // the probability tree completed on the fly [PWP08 sec. 4.5], kept within
+                        // a factor of the analog choice (see DEVIATION in `super::DEFENSIVE`)
+                        let (k_t, k_s) = (
+                            spectrum::average(kappa_t) as f64,
+                            spectrum::average(kappa_s) as f64,
+                        );
+                        let p_s0 = 1.0 - transmit_probability(k_t, k_s);
+                        let p_s = if use_cache {
                             let cell = cache_t.grid().cell_of_direction(d);
-                            (
-                                spectrum::average(kappa_t) as f64 * cache_t.pdf_coefficient(cell),
-                                spectrum::average(kappa_s) as f64 * cache_s.pdf_coefficient_mean(),
-                            )
+                            let p_sa = 1.0
+                                - transmit_probability(
+                                    k_t * cache_t.pdf_coefficient(cell),
+                                    k_s * cache_s.pdf_coefficient_mean(),
+                                );
+                            bounded_scatter_probability(p_sa, p_s0)
                         } else {
-                            (
-                                spectrum::average(kappa_t) as f64,
-                                spectrum::average(kappa_s) as f64,
-                            )
+                            p_s0
                         };
-                        let p_t = if mass_s > 0.0 {
-                            (mass_t / (mass_t + mass_s)) as f32
-                        } else {
-                            1.0
-                        };
+                        let p_t = (1.0 - p_s) as f32;
                         // g on Omega_t and G on the joint domain
                         let g_t = kappa_t * cache_t.radiance(d, cv);
                         let big_g = kappa_s * cache_s.integral(cv) + g_t;
@@ -160,19 +208,22 @@ pub fn walk(
                             t += dx;
                             continue;
                         }
-                        // Omega_s: the in-scattered radiance at the jittered point
+                        // Omega_s: the in-scattered radiance at the jittered point; p is the
+                        // joint density of (Omega_s, wi)
                         let p_s = 1.0 - p_t;
                         let phase = med.phase();
                         let wo = -d;
-                        let (wi, pdf_dir) = if use_cache {
-                            cache_s.sample(sampler.next_f64(), sampler.next_2d())
+                        let (wi, p) = if use_cache {
+                            let (wi, p_dir) =
+                                super::defensive_direction(cache_s, phase, wo, sampler);
+                            (wi, p_s * p_dir)
                         } else if variant.is == ImportanceSampling::Phase {
                             let ps = phase.sample(wo, sampler.next_2d());
-                            (ps.wi, ps.pdf)
+                            (ps.wi, p_s * ps.pdf)
                         } else {
-                            (warp::uniform_sphere(sampler.next_2d()), warp::INV_FOUR_PI)
+                            let wi = warp::uniform_sphere(sampler.next_2d());
+                            (wi, p_s * warp::INV_FOUR_PI)
                         };
-                        let p = p_s * pdf_dir;
                         if p.is_nan() || p <= 0.0 {
                             return;
                         }
