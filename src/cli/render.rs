@@ -435,7 +435,7 @@ pub fn render_scene_with(
     max_depth: Option<u32>,
     progress: bool,
 ) -> Result<RenderResult, String> {
-    let mut r = Renderer::new(scene, kind, seed, max_depth);
+    let mut r = Renderer::try_new(scene, kind, seed, max_depth)?;
     if let Some(settings) = smc {
         r = r.with_smc_settings(settings)?;
     }
@@ -572,6 +572,10 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     } else if args.mutations_per_pixel.is_some() {
         return Err("--mutations-per-pixel needs --integrator mlt".into());
     }
+    // light paths this integrator cannot sample: said once, before the work
+    if let Some(w) = crate::integrator::reach::unreachable_paths(&scene, kind) {
+        eprintln!("warning: {w}");
+    }
     let spp = args
         .mutations_per_pixel
         .or(args.spp)
@@ -651,10 +655,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        let films = pool.install(|| {
-            crate::integrator::Renderer::new(&scene, kind, seed, max_depth)
-                .strategy_images(spp, args.strategy_depth)
-        });
+        let renderer = crate::integrator::Renderer::try_new(&scene, kind, seed, max_depth)?;
+        let films = pool.install(|| renderer.strategy_images(spp, args.strategy_depth));
         for ((s, t), film) in &films {
             let img = film.image();
             let base = dir.join(format!("s{s}-t{t}"));

@@ -8,6 +8,7 @@
 pub mod bdpt;
 pub mod mlt;
 pub mod path;
+pub mod reach;
 pub mod smc;
 
 pub use path::PathTracer;
@@ -69,6 +70,8 @@ impl IntegratorKind {
 pub const TILE: u32 = 16;
 /// Meter samples per parallel work item.
 pub const METER_CHUNK: u64 = 1024;
+/// The stream of the path tracer's direct view of delta lights (apart from every pixel's).
+const DELTA_VIEW_STREAM: u64 = u64::MAX - 1;
 /// Salt that keeps meter streams apart from pixel streams of the same index.
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
 
@@ -143,49 +146,65 @@ pub struct Renderer<'a> {
     /// The SMC state for `smc`: the structure is read-only during a pass, its records are
     /// merged after it.
     pub smc: Option<smc::Smc>,
-    /// The Metropolis engine for `mlt` (None if the scene cannot be rendered by it: see
-    /// `mlt::check_scene`, which the command line runs first).
+    /// The Metropolis engine for `mlt`.
     pub mlt: Option<mlt::Mlt>,
 }
 
 impl<'a> Renderer<'a> {
+    /// A renderer of `scene` with integrator `kind`.
+    ///
+    /// # Panics
+    /// If the integrator refuses the scene or its settings ([`Renderer::try_new`] returns the
+    /// reason instead: use it for scenes a user wrote).
     pub fn new(scene: &'a Scene, kind: IntegratorKind, seed: u64, max_depth: Option<u32>) -> Self {
-        Renderer {
+        Self::try_new(scene, kind, seed, max_depth).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// A renderer of `scene` with integrator `kind`, or the reason the integrator refuses the
+    /// scene (e.g. MLT without a camera) or the scene's `[render.mlt]` / `[render.smc]`.
+    pub fn try_new(
+        scene: &'a Scene,
+        kind: IntegratorKind,
+        seed: u64,
+        max_depth: Option<u32>,
+    ) -> Result<Self, String> {
+        let mlt = match kind {
+            IntegratorKind::Mlt => Some(mlt::Mlt::new(
+                scene,
+                scene.render.mlt.clone(),
+                seed,
+                max_depth,
+            )?),
+            _ => None,
+        };
+        let smc = match kind {
+            IntegratorKind::Smc => Some(smc::Smc::new(scene, scene.render.smc, max_depth)?),
+            _ => None,
+        };
+        let bdpt = match kind {
+            IntegratorKind::Path | IntegratorKind::Smc | IntegratorKind::Mlt => None,
+            IntegratorKind::Light => Some(bdpt::Bdpt::new(
+                scene,
+                max_depth,
+                bdpt::Strategies::LightTracing,
+            )),
+            IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All)),
+        };
+        Ok(Renderer {
             scene,
             kind,
             seed,
             tracer: PathTracer::new(max_depth),
-            mlt: match kind {
-                IntegratorKind::Mlt => {
-                    mlt::Mlt::new(scene, scene.render.mlt.clone(), seed, max_depth).ok()
-                }
-                _ => None,
-            },
-            bdpt: match kind {
-                IntegratorKind::Path | IntegratorKind::Smc | IntegratorKind::Mlt => None,
-                IntegratorKind::Light => Some(bdpt::Bdpt::new(
-                    scene,
-                    max_depth,
-                    bdpt::Strategies::LightTracing,
-                )),
-                IntegratorKind::Bdpt => {
-                    Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All))
-                }
-            },
+            mlt,
+            bdpt,
             film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
             passes: 0,
             nan_count: 0,
             paths: 0,
             meter_samples: scene.render.meter_samples as u64,
-            smc: match kind {
-                IntegratorKind::Smc => {
-                    // the scene's `[render.smc]`, validated when the scene was built
-                    smc::Smc::new(scene, scene.render.smc, max_depth).ok()
-                }
-                _ => None,
-            },
-        }
+            smc,
+        })
     }
 
     /// Replaces the SMC settings (before the first pass); an error for invalid settings or
@@ -309,8 +328,18 @@ impl<'a> Renderer<'a> {
                     film.add_splat(r, l);
                 }
             }
+            let samples = (w * h) as u64 * spp as u64;
             if bidir.is_some() {
-                film.splat_count += (w * h) as u64 * spp as u64;
+                film.splat_count += samples;
+            } else {
+                // the path tracer and SMC: the direct image of delta lights, one splat per light
+                // standing for the pass's camera samples (BDPT's (1, 1) strategy does this per
+                // sample)
+                let mut sampler = Sampler::new(seed, DELTA_VIEW_STREAM, pass);
+                for (raster, l) in path::delta_light_view(scene, &mut sampler) {
+                    film.add_splat(raster, l * samples as f32);
+                }
+                film.splat_count += samples;
             }
             film.spp += spp as u64;
             self.paths += (w * h) as u64 * spp as u64;
@@ -411,7 +440,7 @@ impl<'a> Renderer<'a> {
                         b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
                         b.light_subpath(scene, &mut sampler, &mut scratch.light);
                         for t in 1..=scratch.eye.len() {
-                            for s in 0..=scratch.light.len() {
+                            for s in 0..=bdpt::Bdpt::max_light_vertices(scene, &scratch.light) {
                                 let depth = s + t;
                                 if depth < 2
                                     || depth - 2 > max_depth_shown as usize

@@ -262,6 +262,47 @@ impl PathTracer {
     // ANCHOR_END: walk
 }
 
+/// The direct image of every delta light (point, spot, directional) on the pinhole camera's
+/// film: one splat per light the camera sees, with its transmittance from `sampler`.
+///
+/// A path x_0 x_1 from a Dirac light to the pinhole has no vertex a walk from the camera can hit
+/// (Pauly et al. 2000, eq. 5: both ends are Diracs), yet its measurement is finite: the light
+/// images to a point of the film, all of its flux in one pixel. BDPT reaches it as strategy
+/// (s, t) = (1, 1); the path tracer and SMC add it here, once per light and pass, so that every
+/// integrator renders the same image (the flux of a point light in view is not lost).
+// ANCHOR: delta_light_view
+pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2, Rgb)> {
+    let Some(cam) = scene.camera.as_ref() else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for light in scene.lights.iter().filter(|l| l.is_delta()) {
+        let Some(ls) = light.sample_li(&scene.prims, cam.eye, sampler.next_2d(), 0.0) else {
+            continue;
+        };
+        let Some(imp) = cam.importance(ls.wi) else {
+            continue;
+        };
+        if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
+            continue;
+        }
+        let dist = if ls.dist.is_infinite() {
+            f32::INFINITY
+        } else {
+            shadow_distance(cam.eye, ls.p)
+        };
+        let tr = scene.transmittance(cam.eye, ls.wi, dist, scene.camera_medium, sampler);
+        // W_e times the pinhole's cosine (its delta position absorbs the area measure)
+        let cos = ls.wi.dot(cam.forward);
+        let l = ls.value * tr * (imp.we * cos / ls.pdf);
+        if l != Rgb::ZERO && l.is_finite() {
+            out.push((imp.raster, l));
+        }
+    }
+    out
+}
+// ANCHOR_END: delta_light_view
+
 /// Next-event estimation from `p` (surface normal `n` if on a surface) in `medium`, with MIS
 /// against the scattering sampler: `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of
 /// sampling wi there). Shared by the path tracer and SMC's surface vertices.

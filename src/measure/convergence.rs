@@ -144,7 +144,7 @@ pub fn measure_run_from(
     seconds0: f64,
 ) -> Result<Vec<CheckpointRow>, String> {
     check_reference(scene, reference)?;
-    let mut renderer = Renderer::new(scene, kind, seed, max_depth);
+    let mut renderer = Renderer::try_new(scene, kind, seed, max_depth)?;
     let mut seconds = seconds0;
     let mut next = 0;
     let mut rows = Vec::with_capacity(times.len());
