@@ -1,0 +1,509 @@
+//! The agreement matrix: every integrator and variant on small scenes that together cover every
+//! feature of the scene format, each cell compared with an unbiased reference, or refused with
+//! an error naming what the integrator cannot handle, or warned about at render time where an
+//! integrator cannot reach some light paths. A silent wrong image is the one outcome not
+//! allowed.
+//!
+//! Statistics. Every cell renders `k` independent runs (seeds `seed + r`); a run gives a few
+//! functionals (the mean of each image quadrant per channel, each meter per channel). The mean
+//! of the k runs is compared with the reference's by Welch's t test, whose standard errors come
+//! from the spread of the runs themselves, so MLT's correlated mutations and SMC's adapting
+//! predicates need no model of their own. A scene's comparisons form one Holm family
+//! (`tests/common/stats.rs`). References: the path tracer with delta tracking (the scene's
+//! marching strategies switched off), BDPT where the path tracer cannot reach some light paths
+//! (a delta light behind glass), or a closed form (the white furnace).
+//!
+//! Marching. Equidistant, stratified and random-offset marching are biased by design; their
+//! cells use a step of 1/32 of the box, where the chapter's bound on the optical-depth error of
+//! the midpoint rule (Delta^2 / 24 times the density's second derivative, per unit length) is
+//! far below the cells' resolution, and are compared with the delta-tracking reference.
+//! Book: "Measuring a renderer", section "The agreement matrix".
+
+mod common;
+
+use common::stats::{runs_mean, Family};
+use pathspace::enlightened::{AdjointImage, AdjointSettings, GuideKind};
+use pathspace::integrator::mlt::{Mlt, MltSettings};
+use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::scene::{Scene, SceneSource};
+
+/// Where the scenes live.
+fn fixture_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement")
+}
+
+fn load(name: &str, text: &str) -> Scene {
+    let source = SceneSource {
+        name: name.to_string(),
+        text: text.to_string(),
+        base_dir: fixture_dir(),
+    };
+    Scene::load(&source).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn fixture(name: &str) -> String {
+    std::fs::read_to_string(fixture_dir().join(name)).unwrap()
+}
+
+/// One column of the matrix.
+#[derive(Clone, Copy, Debug)]
+enum Config {
+    Plain(IntegratorKind),
+    Smc(Variant, EstimatorForm),
+    Guided(IntegratorKind),
+    Adjoint(IntegratorKind),
+}
+
+impl Config {
+    fn name(self) -> String {
+        match self {
+            Config::Plain(k) => k.name().to_string(),
+            Config::Smc(v, f) => format!("smc:{}:{}", v.name(), f.name()),
+            Config::Guided(k) => format!("{}+guide", k.name()),
+            Config::Adjoint(k) => format!("{}+adjoint", k.name()),
+        }
+    }
+
+    fn kind(self) -> IntegratorKind {
+        match self {
+            Config::Plain(k) | Config::Guided(k) | Config::Adjoint(k) => k,
+            Config::Smc(..) => IntegratorKind::Smc,
+        }
+    }
+
+    /// Every column.
+    fn all() -> Vec<Config> {
+        use IntegratorKind::*;
+        let mut v = vec![
+            Config::Plain(Path),
+            Config::Plain(Light),
+            Config::Plain(Bdpt),
+            Config::Plain(Mlt),
+        ];
+        for form in [
+            EstimatorForm::Distance,
+            EstimatorForm::RayMarching { step: 1.0 },
+        ] {
+            for variant in Variant::ALL {
+                v.push(Config::Smc(variant, form));
+            }
+        }
+        for k in [Light, Bdpt, Mlt] {
+            v.push(Config::Guided(k));
+            v.push(Config::Adjoint(k));
+        }
+        v
+    }
+}
+
+/// The small MLT of the matrix: a short pre-pass and few chains (each run pays for its own).
+fn mlt_settings() -> MltSettings {
+    MltSettings {
+        bootstrap: 4096,
+        chains: 4,
+        ..MltSettings::default()
+    }
+}
+
+/// Installs (or removes) the guide and the adjoint image a column needs.
+fn prepare(scene: &mut Scene, config: Config, max_depth: Option<u32>) -> Result<(), String> {
+    scene.guide = None;
+    scene.adjoint = None;
+    match config {
+        Config::Guided(_) => {
+            let mut g = scene.render.guide;
+            g.kind = GuideKind::Both;
+            g.particles = 4000;
+            g.regions.regions = 32;
+            g.cols = 8;
+            g.rows = 4;
+            scene.render.guide = g;
+            pathspace::enlightened::guide::install(scene, 0x6775_6964);
+            scene.render.guide.kind = GuideKind::Off;
+        }
+        Config::Adjoint(_) => {
+            let settings = AdjointSettings {
+                resolution: (8, 8),
+                samples_per_cell: 4,
+                ..AdjointSettings::default()
+            };
+            AdjointImage::install(scene, &settings, 0x0061_646a, max_depth)?;
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// The functionals of one run: quadrant means of the image per channel, then every meter per
+/// channel (`channels` = 1 for grey scenes, whose channels are identical).
+fn functionals(r: &Renderer, channels: usize) -> Vec<f64> {
+    let mut out = Vec::new();
+    if let Some(film) = r.film.as_ref() {
+        let q = common::quadrant_means(&film.image());
+        for quadrant in 0..4 {
+            out.extend_from_slice(&q[quadrant * 3..quadrant * 3 + channels]);
+        }
+    }
+    for m in r.meter_estimates() {
+        for c in 0..channels {
+            out.push(m.value[c] as f64);
+        }
+    }
+    out
+}
+
+/// `k` runs of a column: each run's functionals, or the refusal.
+fn runs(
+    scene: &Scene,
+    config: Config,
+    k: u64,
+    spp: u32,
+    max_depth: Option<u32>,
+    channels: usize,
+) -> Result<Vec<Vec<f64>>, String> {
+    let mut out = Vec::new();
+    for run in 0..k {
+        let seed = 1000 + run;
+        let mut r = Renderer::try_new(scene, config.kind(), seed, max_depth)?;
+        if let Config::Smc(variant, form) = config {
+            r = r.with_smc_settings(SmcSettings {
+                variant,
+                form,
+                ..SmcSettings::default()
+            })?;
+        }
+        if config.kind() == IntegratorKind::Mlt {
+            r.mlt = Some(Mlt::new(scene, mlt_settings(), seed, max_depth)?);
+        }
+        for _ in 0..spp / 4 {
+            r.pass(4, &|| {});
+        }
+        out.push(functionals(&r, channels));
+    }
+    Ok(out)
+}
+
+/// The reference a row is compared with.
+#[derive(Clone, Copy)]
+enum Reference {
+    /// An integrator with delta tracking (2 x the runs, 2 x the samples of a cell).
+    Integrator(IntegratorKind),
+    /// A closed form, the same for every functional.
+    Exact(f64),
+}
+
+/// A row of the matrix.
+struct Row {
+    name: &'static str,
+    text: String,
+    /// Channels compared (1 for grey scenes).
+    channels: usize,
+    max_depth: Option<u32>,
+    runs: u64,
+    spp: u32,
+    reference: Reference,
+    /// Columns that must refuse the scene, with a word their error must contain (patterns:
+    /// `mlt*` a prefix, `*+adjoint` a suffix, otherwise the exact name; the first match wins).
+    refuse: &'static [(&'static str, &'static str)],
+    /// Columns that must warn that they cannot reach some light paths, with a word of the
+    /// warning; they are not compared. Every other column must not warn.
+    warn: &'static [(&'static str, &'static str)],
+}
+
+fn matches(pattern: &str, name: &str) -> bool {
+    if let Some(prefix) = pattern.strip_suffix('*') {
+        name.starts_with(prefix)
+    } else if let Some(suffix) = pattern.strip_prefix('*') {
+        name.ends_with(suffix)
+    } else {
+        pattern == name
+    }
+}
+
+fn expected<'a>(list: &'a [(&'static str, &'static str)], name: &str) -> Option<&'a str> {
+    list.iter().find(|(p, _)| matches(p, name)).map(|(_, w)| *w)
+}
+
+/// Renders every column of `row` into `fam`.
+fn check_row(fam: &mut Family, row: &Row) {
+    let reference = match row.reference {
+        Reference::Integrator(kind) => {
+            let scene = load(row.name, &delta_tracking(&row.text));
+            let config = Config::Plain(kind);
+            Some(
+                runs(
+                    &scene,
+                    config,
+                    row.runs * 2,
+                    row.spp * 2,
+                    row.max_depth,
+                    row.channels,
+                )
+                .unwrap(),
+            )
+        }
+        Reference::Exact(_) => None,
+    };
+    let mut scene = load(row.name, &row.text);
+    for config in Config::all() {
+        let name = config.name();
+        let t0 = std::time::Instant::now();
+        let warning = pathspace::integrator::reach::unreachable_paths(&scene, config.kind());
+        match (expected(row.warn, &name), &warning) {
+            (Some(word), Some(w)) => {
+                assert!(
+                    w.contains(word),
+                    "{}: {name} warns `{w}`, expected `{word}`",
+                    row.name
+                );
+                continue;
+            }
+            (Some(word), None) => panic!(
+                "{}: {name} gives no warning, expected one about `{word}`",
+                row.name
+            ),
+            (None, Some(w)) => panic!("{}: {name} warns unexpectedly: {w}", row.name),
+            (None, None) => {}
+        }
+        let outcome = prepare(&mut scene, config, row.max_depth).and_then(|_| {
+            runs(
+                &scene,
+                config,
+                row.runs,
+                row.spp,
+                row.max_depth,
+                row.channels,
+            )
+        });
+        eprintln!("{}: {name}: {:.2} s", row.name, t0.elapsed().as_secs_f64());
+        let cell = match (expected(row.refuse, &name), outcome) {
+            (None, Ok(cell)) => cell,
+            (None, Err(e)) => panic!("{}: {name} refused the scene: {e}", row.name),
+            (Some(word), Err(e)) => {
+                assert!(
+                    e.contains(word),
+                    "{}: {name} refused with `{e}`, expected a reason naming `{word}`",
+                    row.name
+                );
+                continue;
+            }
+            (Some(word), Ok(_)) => panic!(
+                "{}: {name} rendered the scene, expected a refusal naming `{word}`",
+                row.name
+            ),
+        };
+        let mut worst = (0.0f64, 0usize);
+        for i in 0..cell[0].len() {
+            let a: Vec<f64> = cell.iter().map(|r| r[i]).collect();
+            let what = format!("{} {name} functional {i}", row.name);
+            let (ma, sa, _) = runs_mean(&a);
+            let z = match (&reference, row.reference) {
+                (Some(reference), _) => {
+                    let b: Vec<f64> = reference.iter().map(|r| r[i]).collect();
+                    let (mb, sb, _) = runs_mean(&b);
+                    fam.runs_agree(&what, &a, &b);
+                    (ma - mb) / (sa * sa + sb * sb).sqrt()
+                }
+                (None, Reference::Exact(truth)) => {
+                    fam.runs_are(&what, &a, truth);
+                    (ma - truth) / sa
+                }
+                _ => unreachable!(),
+            };
+            if z.is_nan() || z.abs() > worst.0.abs() {
+                worst = (z, i);
+            }
+        }
+        eprintln!("   worst {:+.2} se at functional {}", worst.0, worst.1);
+    }
+}
+
+/// The scene with every medium switched to delta tracking (the unbiased reference).
+fn delta_tracking(text: &str) -> String {
+    text.lines()
+        .map(|l| {
+            if l.trim_start().starts_with("propagation =") {
+                "propagation = \"delta-tracking\"".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn with_propagation(text: &str, p: &str) -> String {
+    text.replace(
+        "propagation = \"delta-tracking\"",
+        &format!("propagation = \"{p}\""),
+    )
+}
+
+const RUNS: u64 = 16;
+const SPP: u32 = 32;
+const NO_AREA_LIGHT: (&str, &str) = ("*+adjoint", "no area light");
+
+fn row(name: &'static str, text: String, channels: usize) -> Row {
+    Row {
+        name,
+        text,
+        channels,
+        max_depth: None,
+        runs: RUNS,
+        spp: SPP,
+        reference: Reference::Integrator(IntegratorKind::Path),
+        refuse: &[],
+        warn: &[],
+    }
+}
+
+#[test]
+fn agreement_fog_box() {
+    let mut fam = Family::new("agreement: fog box");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fog-box.toml"))
+        .unwrap()
+        .replace("resolution = [256, 256]", "resolution = [8, 8]");
+    check_row(&mut fam, &row("fog-box", text, 3));
+    fam.finish();
+}
+
+#[test]
+fn agreement_furnace() {
+    let mut fam = Family::new("agreement: furnace");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace.toml"))
+        .unwrap()
+        .replace("resolution = [32, 32]", "resolution = [8, 8]");
+    check_row(
+        &mut fam,
+        &Row {
+            reference: Reference::Exact(1.0),
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            ..row("furnace", text, 1)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_chromatic() {
+    let mut fam = Family::new("agreement: chromatic");
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[NO_AREA_LIGHT],
+            ..row("chromatic", fixture("chromatic.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_grid() {
+    let mut fam = Family::new("agreement: grid");
+    check_row(&mut fam, &row("grid", fixture("grid.toml"), 1));
+    fam.finish();
+}
+
+#[test]
+fn agreement_grid_marching() {
+    let mut fam = Family::new("agreement: grid, marching");
+    for p in ["equidistant", "stratified", "random-offset"] {
+        check_row(
+            &mut fam,
+            &row("grid", with_propagation(&fixture("grid.toml"), p), 1),
+        );
+    }
+    fam.finish();
+}
+
+#[test]
+fn agreement_procedural() {
+    let mut fam = Family::new("agreement: procedural");
+    check_row(&mut fam, &row("procedural", fixture("procedural.toml"), 1));
+    fam.finish();
+}
+
+#[test]
+fn agreement_procedural_marching() {
+    let mut fam = Family::new("agreement: procedural, marching");
+    for p in ["equidistant", "stratified", "random-offset"] {
+        check_row(
+            &mut fam,
+            &row(
+                "procedural",
+                with_propagation(&fixture("procedural.toml"), p),
+                1,
+            ),
+        );
+    }
+    fam.finish();
+}
+
+#[test]
+fn agreement_nested() {
+    let mut fam = Family::new("agreement: nested");
+    check_row(&mut fam, &row("nested", fixture("nested.toml"), 3));
+    fam.finish();
+}
+
+#[test]
+fn agreement_specular() {
+    let mut fam = Family::new("agreement: specular");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("specular", fixture("specular.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_caustic() {
+    let mut fam = Family::new("agreement: caustic");
+    check_row(
+        &mut fam,
+        &Row {
+            reference: Reference::Integrator(IntegratorKind::Bdpt),
+            refuse: &[NO_AREA_LIGHT],
+            warn: &[("path", "Dirac light"), ("smc*", "Dirac light")],
+            ..row("caustic", fixture("caustic.toml"), 1)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_sky() {
+    let mut fam = Family::new("agreement: sky");
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            ..row("sky", fixture("sky.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_meters() {
+    let mut fam = Family::new("agreement: meters");
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera")],
+            ..row("meters", fixture("meters.toml"), 1)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
+fn agreement_deep() {
+    let mut fam = Family::new("agreement: deep");
+    check_row(&mut fam, &row("deep", fixture("deep.toml"), 1));
+    fam.finish();
+}
