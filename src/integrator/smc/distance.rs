@@ -65,7 +65,7 @@ pub fn walk(
                 // line 4: the snapshot's cache at the position
                 let cache = smc.octree.cache(p);
                 // lines 5-8: (direction, p), G, g
-                let s = smc.in_scatter(cache, phase, wo, sampler);
+                let s = smc.in_scatter(cache, phase, wo, depth, sampler);
                 let delta = walk::delta_lights(scene, p, Some(m), sampler, |wi| phase.eval(wo, wi));
                 if s.pdf.is_nan() || s.pdf <= 0.0 {
                     scratch.links.push(Link::plain(weight * delta, Rgb::ZERO));

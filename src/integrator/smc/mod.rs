@@ -123,22 +123,30 @@ pub fn parse_bytes(s: &str) -> Result<usize, String> {
 /// from the cache's pdf with probability 1 - DEFENSIVE and from the phase function otherwise,
 /// and weighted by the mixture's density.
 ///
-/// DEVIATION: Pegoraro et al. sample the cache's pdf alone, and let the march choose between
-/// Omega_t and Omega_s by the cache's masses alone. The pdf coefficients are running means of
-/// |f - g| over few records, so a cell can hold a coefficient orders of magnitude below what
-/// arrives through it; (f - g) / p then has a practically infinite variance, and in the march
-/// the choice is made at every step, so its weights multiply along a ray. Measured before the
-/// change on the heterogeneous cloud at 64 spp: is1_cv2 image means of 0.307, 0.220, 0.223
-/// (distance form, seeds 1-3) against the path tracer's 0.234; on `mlt-sds.toml` the march
-/// diverged to 1e20. With the mixture every direction weight is at most 1 / DEFENSIVE times the
-/// phase-sampling one (defensive importance sampling, Hesterberg 1995), at the cost of at most
-/// 1 / (1 - DEFENSIVE) in variance where the cache is good; the march's choice is kept within
-/// [`MAX_RATE_RATIO`] of the analog one.
+/// DEVIATION: Pegoraro et al. sample the cache's pdf alone. Its coefficients are running means
+/// of |f - g| over few records, so a cell can hold a coefficient orders of magnitude below what
+/// arrives through it, and (f - g) / p then has a practically infinite variance. Measured before
+/// the change on the heterogeneous cloud at 64 spp (distance form, seeds 1-3): is1_cv2 image
+/// means of 0.307, 0.220, 0.223 against the path tracer's 0.234. With the mixture every
+/// direction weight is at most 1 / DEFENSIVE times the phase-sampling one (defensive importance
+/// sampling, Hesterberg 1995), at the cost of at most 1 / (1 - DEFENSIVE) in variance where the
+/// cache is good.
 pub const DEFENSIVE: f64 = 0.25;
 
-/// The largest factor by which the march's adaptive probability of scattering in a step may
-/// exceed or fall short of the analog kappa_s / (kappa_t + kappa_s) (see [`DEFENSIVE`]).
-pub const MAX_RATE_RATIO: f64 = 1.0;
+/// The deepest scattering vertex of a path whose direction comes from the cache's pdf; deeper
+/// vertices sample the phase function (their control variates stay).
+///
+/// DEVIATION: Pegoraro et al. sample the cache at every vertex. Each vertex multiplies the path
+/// by f_p / p, a weight of mean one whose logarithm has a negative mean, so over many vertices
+/// the product of weights is typically small and occasionally huge: in a bright hazy room
+/// (albedo 0.9 walls, 0.97 haze, paths of some 30 vertices) is1_cv0 came out 24% dark at 24 spp
+/// and is1_cv1's error bars were 120% of the image, with the defensive mixture. The first
+/// vertices carry the image's directional structure, which is where the cache helps; beyond them
+/// the light is diffuse and the phase function samples it as well. The cache's pdf before it is
+/// complete is replaced by the phase function too (the paper's uniform directions, the same
+/// thing for isotropic media; for a forward phase function they made weights up to
+/// (1 + g) / (1 - g)^2).
+pub const ADAPTIVE_DEPTH: u32 = 2;
 
 /// Samples `wi` at a medium vertex from the defensive mixture (1 - DEFENSIVE) p_cache +
 /// DEFENSIVE f_p(wo, .); returns wi and the mixture's solid-angle density.
@@ -246,8 +254,10 @@ impl Smc {
         })
     }
 
-    /// [PWP08 Fig. 2 lines 4-8]: a direction for the in-scattering integral at `p` from the
-    /// snapshot's cache (or the phase function for is0), with g and G.
+    /// [PWP08 Fig. 2 lines 4-8]: a direction for the in-scattering integral at the `vertex`-th
+    /// scattering vertex of a path (1 = the first) from the snapshot's cache (or the phase
+    /// function for is0, deeper than [`ADAPTIVE_DEPTH`], and before the cache's pdf is complete),
+    /// with g and G.
     // ANCHOR: in_scatter
     #[inline]
     pub fn in_scatter(
@@ -255,21 +265,15 @@ impl Smc {
         cache: &RadianceCache,
         phase: &Phase,
         wo: Vec3,
+        vertex: u32,
         sampler: &mut Sampler,
     ) -> InScatter {
         let cv = self.settings.variant.cv;
-        let (wi, pdf) = match self.settings.variant.is {
-            ImportanceSampling::Phase => {
-                let ps = phase.sample(wo, sampler.next_2d());
-                (ps.wi, ps.pdf)
-            }
-            ImportanceSampling::Order0 if cache.pdf_is_positive() => {
-                defensive_direction(cache, phase, wo, sampler)
-            }
-            // the root before its pdf is complete: uniform directions [PWP08 sec. 4.3]
-            ImportanceSampling::Order0 => {
-                (warp::uniform_sphere(sampler.next_2d()), warp::INV_FOUR_PI)
-            }
+        let (wi, pdf) = if self.adaptive(cache, vertex) {
+            defensive_direction(cache, phase, wo, sampler)
+        } else {
+            let ps = phase.sample(wo, sampler.next_2d());
+            (ps.wi, ps.pdf)
         };
         InScatter {
             wi,
@@ -278,6 +282,15 @@ impl Smc {
             g: cache.g(wi, cv),
             G: cache.integral(cv),
         }
+    }
+
+    /// Whether the `vertex`-th scattering vertex samples from `cache`'s pdf (is1, a complete
+    /// pdf, and no deeper than [`ADAPTIVE_DEPTH`]).
+    #[inline]
+    pub fn adaptive(&self, cache: &RadianceCache, vertex: u32) -> bool {
+        self.settings.variant.is == ImportanceSampling::Order0
+            && vertex <= ADAPTIVE_DEPTH
+            && cache.pdf_is_positive()
     }
     // ANCHOR_END: in_scatter
 
