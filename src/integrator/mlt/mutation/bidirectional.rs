@@ -130,7 +130,7 @@ impl Bidirectional {
 
     /// k_a by inversion of p_a: the weights decay geometrically on both sides of k_d, so the
     /// walk up from `lo` ends within a few steps of k_d whatever the cap.
-    fn sample_addition(u: f64, lo: usize, hi: usize, kd: usize) -> usize {
+    pub fn sample_addition(u: f64, lo: usize, hi: usize, kd: usize) -> usize {
         /// Beyond this many steps past k_d the remaining mass is below 2^-64.
         const TAIL: usize = 64;
         let total = Self::addition_total(lo, hi, kd);
