@@ -19,7 +19,6 @@
 //! Run with `cargo run --release --example smc_experiment -- SUBCOMMAND ...`.
 
 use std::path::Path;
-use std::time::Instant;
 
 use glam::Vec2;
 use pathspace::image_io::{self, Image, ImageMeta};
@@ -101,12 +100,25 @@ struct Curve {
     spp: Vec<u32>,
     mse: Vec<f64>,
     seconds: Vec<f64>,
+    /// Per run at the last checkpoint: (MSE with the reference's variance removed, CPU seconds).
+    last: Vec<(f64, f64)>,
 }
 
 fn mse(a: &Image, b: &Image) -> f64 {
     pathspace::measure::metrics::compare(a, b)
         .map(|m| m.rmse * m.rmse)
         .unwrap_or(f64::NAN)
+}
+
+/// Mean and standard error of the mean (0 with a single value).
+fn mean_se(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    if v.len() < 2 {
+        return (m, 0.0);
+    }
+    let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
 }
 
 /// Least-squares slope of log y against log x (NaN when a value is not positive).
@@ -164,22 +176,24 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
     // equal time: (name, mean spp reached, mean MSE)
     let mut equal_time: Vec<(String, f64, f64)> = vec![];
     for name in variants.split(',') {
-        let (kind, settings) = if name == "path" {
-            (IntegratorKind::Path, None)
-        } else {
-            let variant = Variant::parse(name)?;
-            (
-                IntegratorKind::Smc,
-                Some(SmcSettings {
-                    variant,
-                    threshold,
-                    form,
-                    ..Default::default()
-                }),
-            )
+        let (kind, settings) = match IntegratorKind::parse(name) {
+            Ok(kind) if kind != IntegratorKind::Smc => (kind, None),
+            _ => {
+                let variant = Variant::parse(name)?;
+                (
+                    IntegratorKind::Smc,
+                    Some(SmcSettings {
+                        variant,
+                        threshold,
+                        form,
+                        ..Default::default()
+                    }),
+                )
+            }
         };
         let mut mse_sum = vec![0.0; checkpoints.len()];
         let mut sec_sum = vec![0.0; checkpoints.len()];
+        let mut last = Vec::new();
         let mut last_stats = String::new();
         for run in 0..runs {
             pool.install(|| -> Result<(), String> {
@@ -187,7 +201,8 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                 if let Some(st) = settings {
                     r = r.with_smc_settings(st)?;
                 }
-                let start = Instant::now();
+                // CPU seconds, not wall-clock: the machine is shared
+                let start = pathspace::measure::cpu_seconds();
                 let mut done = 0;
                 for (i, &cp) in checkpoints.iter().enumerate() {
                     while done < cp {
@@ -195,9 +210,14 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                         r.pass(n, &|| {});
                         done += n;
                     }
-                    sec_sum[i] += start.elapsed().as_secs_f64();
+                    let seconds = pathspace::measure::cpu_seconds() - start;
+                    sec_sum[i] += seconds;
                     let img = r.film.as_ref().ok_or("no camera")?.image();
-                    mse_sum[i] += mse(&img, &ref_img);
+                    let m = mse(&img, &ref_img);
+                    mse_sum[i] += m;
+                    if i + 1 == checkpoints.len() {
+                        last.push(((m - ref_var).max(f64::MIN_POSITIVE), seconds));
+                    }
                 }
                 if let Some(smc) = &r.smc {
                     last_stats = smc.stats().to_string();
@@ -213,9 +233,9 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                     if let Some(st) = settings {
                         r = r.with_smc_settings(st)?;
                     }
-                    let start = Instant::now();
+                    let start = pathspace::measure::cpu_seconds();
                     let mut done = 0;
-                    while start.elapsed().as_secs_f64() < t {
+                    while pathspace::measure::cpu_seconds() - start < t {
                         r.pass(FIRST_SPP, &|| {});
                         done += FIRST_SPP;
                     }
@@ -238,38 +258,48 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
             spp: checkpoints.clone(),
             mse,
             seconds,
+            last,
         });
     }
-    // the table: RMSE, efficiency 1 / (MSE seconds), slope, speed-up at the highest rate
-    let base = curves
-        .iter()
-        .find(|c| c.name == "is0_cv0" || c.name == "path");
+    // the table: RMSE, efficiency 1 / (MSE seconds), slope; at the highest rate the CPU seconds
+    // and the efficiency over the runs with standard errors, and the speed-ups (efficiency
+    // ratios) over SMC's own Monte Carlo march (is0_cv0) and over pathspace's path tracer
     println!("scene {scene_path}, form {}, threshold {threshold}, {runs} runs, reference variance {ref_var:.3e}", form.name());
+    let summary = |c: &Curve| -> (f64, f64, f64, f64) {
+        let t: Vec<f64> = c.last.iter().map(|l| l.1).collect();
+        let e: Vec<f64> = c.last.iter().map(|l| 1.0 / (l.0 * l.1)).collect();
+        let (mt, st) = mean_se(&t);
+        let (me, se) = mean_se(&e);
+        (mt, st, me, se)
+    };
+    let baseline = |n: &str| curves.iter().find(|c| c.name == n).map(summary);
+    let (mc, path) = (baseline("is0_cv0"), baseline("path"));
+    let ratio = |a: (f64, f64), b: Option<(f64, f64, f64, f64)>| -> String {
+        match b {
+            Some((_, _, mb, sb)) if mb > 0.0 => {
+                let r = a.0 / mb;
+                let se = r * ((a.1 / a.0).powi(2) + (sb / mb).powi(2)).sqrt();
+                format!("{r:.2}x +- {se:.2}")
+            }
+            _ => "-".into(),
+        }
+    };
     for c in &curves {
         let x: Vec<f64> = c.spp.iter().map(|&s| s as f64).collect();
         let rmse: Vec<f64> = c.mse.iter().map(|m| m.sqrt()).collect();
-        let eff: Vec<f64> = c
-            .mse
-            .iter()
-            .zip(&c.seconds)
-            .map(|(m, t)| 1.0 / (m * t))
-            .collect();
         let slope = -log_slope(&x, &rmse);
         let last = c.spp.len() - 1;
-        let speedup = base.map(|b| eff[last] * b.mse[last] * b.seconds[last]);
+        let (mt, st, me, se) = summary(c);
         println!(
-            "  {:8} RMSE slope {slope:.3}  RMSE {}  efficiency {}  speed-up at {} spp {}",
+            "  {:8} RMSE slope {slope:.3}  RMSE {}  at {} spp: CPU {mt:.2} +- {st:.2} s, efficiency {me:.3e} +- {se:.1e}, vs is0_cv0 {}, vs path {}",
             c.name,
             rmse.iter()
                 .map(|v| format!("{v:.2e}"))
                 .collect::<Vec<_>>()
                 .join(" "),
-            eff.iter()
-                .map(|v| format!("{v:.2e}"))
-                .collect::<Vec<_>>()
-                .join(" "),
             c.spp[last],
-            speedup.map_or("-".into(), |s| format!("{s:.2}x")),
+            ratio((me, se), mc),
+            ratio((me, se), path),
         );
     }
     if let Some(t) = time {
@@ -292,6 +322,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
         "reference_variance": ref_var,
         "curves": curves.iter().map(|c| serde_json::json!({
             "name": c.name, "spp": c.spp, "mse": c.mse, "seconds": c.seconds,
+            "last_runs": c.last.iter().map(|(m, t)| serde_json::json!({"mse": m, "cpu_seconds": t})).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
     });
     std::fs::write(out, serde_json::to_string_pretty(&json).unwrap()).map_err(|e| e.to_string())?;

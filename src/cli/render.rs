@@ -388,6 +388,10 @@ pub struct RenderResult {
     pub seconds: f64,
     pub paths: u64,
     pub nan_count: u64,
+    /// Pixels whose estimate is negative in some channel: radiance never is, so each one is an
+    /// estimator excursion (SMC's control variates before they converge) or a bug; the image's
+    /// finite garbage that `nan_count` cannot see.
+    pub negative_pixels: u64,
     pub image: Option<image_io::Image>,
     pub meters: Vec<MeterEstimate>,
     /// relMSE expected from the image's own per-pixel variance (no reference needed); None
@@ -497,6 +501,10 @@ pub fn render_scene_with(
     } else {
         r.passes
     };
+    let image = r.film.as_ref().map(|f| f.image());
+    let negative_pixels = image.as_ref().map_or(0, |img| {
+        img.pixels.iter().filter(|p| p.min_element() < 0.0).count() as u64
+    });
     Ok(RenderResult {
         integrator: match &r.smc {
             Some(s) => format!(
@@ -510,7 +518,8 @@ pub fn render_scene_with(
         seconds,
         paths: r.paths,
         nan_count: r.nan_count,
-        image: r.film.as_ref().map(|f| f.image()),
+        negative_pixels,
+        image,
         meters: r.meter_estimates(),
         estimated_relmse: if kind == IntegratorKind::Mlt {
             None // the per-pixel variance of splats is not recorded
@@ -705,7 +714,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             .set("seconds", format!("{:.3}", result.seconds))
             .set("scene", &source.name)
             .set("scene_hash", format!("{:016x}", source.hash()))
-            .set("nan_count", result.nan_count);
+            .set("nan_count", result.nan_count)
+            .set("negative_pixels", result.negative_pixels);
         if let Some(g) = &guide_stats {
             let gs = scene.render.guide;
             meta.set(
@@ -727,6 +737,18 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         written.push(exr.display().to_string());
         written.push(png.display().to_string());
     }
+    if result.negative_pixels > 0 {
+        eprintln!(
+            "warning: {} pixels have a negative estimate (radiance is never negative): the \
+             estimator has not converged there{}",
+            result.negative_pixels,
+            if kind == IntegratorKind::Smc {
+                " (SMC's control variates: more samples per pixel, or --smc-variant is1_cv0)"
+            } else {
+                ""
+            }
+        );
+    }
     let mean = result.image.as_ref().map(|i| i.mean());
     if args.json {
         let sensors: Vec<serde_json::Value> = result
@@ -741,6 +763,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             "paths_per_second": result.paths_per_second(),
             "mean": mean.map(rgb_json),
             "nan_count": result.nan_count,
+            "negative_pixels": result.negative_pixels,
             "estimated_relmse": result.estimated_relmse,
             "sensors": sensors,
             "outputs": written,
