@@ -26,6 +26,7 @@ use super::IntegratorKind;
 use crate::geometry::Aabb;
 use crate::scene::{Light, Scene};
 
+// ANCHOR: unreachable
 /// The warning for `kind` on `scene`, if the integrator cannot reach some of its light paths.
 pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> {
     let specular = specular_shapes(scene);
@@ -73,6 +74,7 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
         IntegratorKind::Bdpt | IntegratorKind::Mlt => None,
     }
 }
+// ANCHOR_END: unreachable
 
 /// Labels and bounds of the shapes with a specular (mirror or dielectric) BSDF.
 fn specular_shapes(scene: &Scene) -> Vec<(String, Aabb)> {

@@ -223,6 +223,7 @@ impl Family {
         self.comparisons.iter().map(|c| c.p).fold(1.0, f64::min)
     }
 
+    // ANCHOR: holm
     /// Holm's step-down verdict: the comparisons rejected at the family's level.
     pub fn rejected(&self) -> Vec<Comparison> {
         let mut sorted = self.comparisons.clone();
@@ -237,6 +238,7 @@ impl Family {
         }
         out
     }
+    // ANCHOR_END: holm
 
     /// Judges the family: panics listing every rejected comparison.
     pub fn finish(mut self) {
