@@ -122,6 +122,18 @@ impl Family {
         }
     }
 
+    /// A family at another level `alpha`: only for testing the procedure itself
+    /// (`tests/statistics.rs` simulates its false-alarm rate at a level where a rate can be
+    /// measured in a few thousand repetitions). Renderer tests use [`Family::new`].
+    pub fn with_alpha(name: &str, alpha: f64) -> Self {
+        Family {
+            name: name.to_string(),
+            alpha,
+            comparisons: Vec::new(),
+            finished: false,
+        }
+    }
+
     /// Adds a comparison by its p-value.
     pub fn p_value(&mut self, what: &str, p: f64, detail: String) {
         let p = if p.is_nan() { 0.0 } else { p };
@@ -238,6 +250,13 @@ impl Family {
         out
     }
 
+    /// Holm's verdict without panicking: the rejected comparisons (the family is finished).
+    /// For simulations of the procedure; renderer tests call [`Family::finish`].
+    pub fn into_rejected(mut self) -> Vec<Comparison> {
+        self.finished = true;
+        self.rejected()
+    }
+
     /// Judges the family: panics listing every rejected comparison.
     pub fn finish(mut self) {
         self.finished = true;
@@ -270,4 +289,15 @@ impl Drop for Family {
             panic!("{}: Family dropped without finish()", self.name);
         }
     }
+}
+
+/// A power check: a difference the suite claims to see (a deliberately wrong reference, a
+/// known defect of a variant) must be significant at [`TEST_ALPHA`], so that the test that
+/// guards against it could fail. `p` is the p-value of "no difference".
+pub fn assert_significant(what: &str, p: f64) {
+    assert!(
+        p <= TEST_ALPHA,
+        "{what}: p = {p:.2e} > {TEST_ALPHA:.1e}: the difference is not significant, so the \
+         test that should see it has no power"
+    );
 }
