@@ -531,11 +531,12 @@ pub fn mlt_quadrant_runs_with(
 /// Channel `c` of a film's image mean (over pixels) with its standard error from the pixels'
 /// own sample variances (pixels are independent) and the Welch-Satterthwaite degrees of freedom
 /// of that variance estimate, (sum v)^2 / sum(v^2 / (spp - 1)): between spp - 1 and
-/// pixels x (spp - 1). Only for films without splats (their variance is not recorded).
+/// pixels x (spp - 1). Only for films whose splat buffer is empty (the variance of splats is
+/// not recorded; the path tracer splats only the direct image of delta lights).
 pub fn film_mean(film: &pathspace::film::Film, c: usize) -> (f64, f64, f64) {
-    assert_eq!(
-        film.splat_count, 0,
-        "a splatted film has no per-pixel variance"
+    assert!(
+        film.splat.iter().all(|s| s[c] == 0.0),
+        "a film with splats has no per-pixel variance"
     );
     let n = film.spp as f64;
     assert!(n >= 2.0, "a standard error needs two samples per pixel");
