@@ -265,6 +265,16 @@ impl Family {
             "{}: a statistical test without comparisons",
             self.name
         );
+        if std::env::var_os("PATHSPACE_STATS").is_some() {
+            // PATHSPACE_STATS=1 lists every comparison, smallest p first (power and calibration
+            // of a test at a glance; run with --nocapture)
+            let mut sorted = self.comparisons.clone();
+            sorted.sort_by(|a, b| a.p.total_cmp(&b.p));
+            eprintln!("{}: {} comparisons", self.name, sorted.len());
+            for c in &sorted {
+                eprintln!("  {}: p = {:.2e}: {}", c.what, c.p, c.detail);
+            }
+        }
         let rejected = self.rejected();
         if !rejected.is_empty() {
             let lines: Vec<String> = rejected
