@@ -23,7 +23,8 @@ use pathspace::path::pdf::{densities, strategy_pdf};
 use pathspace::path::{measurement_contribution, Path, Vertex};
 use pathspace::scene::{Scene, SceneSource};
 
-use common::{assert_chi_square, SphereGrid, SIGMA_BOUND};
+use common::stats::Family;
+use common::SphereGrid;
 
 /// The world frame: the maps' (cos theta, phi) are those of +z and atan2(y, x).
 fn world() -> Frame {
@@ -92,6 +93,7 @@ fn direction_map_texels_round_trip() {
 /// texel centres; a Monte Carlo integral over uniform directions agrees within its error.
 #[test]
 fn direction_map_pdf_integrates_to_one() {
+    let mut fam = Family::new("guiding: direction map pdf integrates to one");
     for (cols, rows) in [(8, 4), (16, 8), (32, 16)] {
         let m = random_map(cols, rows, 3);
         let n = (cols * rows) as f64;
@@ -115,8 +117,16 @@ fn direction_map_pdf_integrates_to_one() {
             })
             .collect();
         let (mean, se) = common::mean_and_stderr(&xs);
-        common::assert_within_sigma("map pdf over the sphere", mean, se, 1.0, SIGMA_BOUND);
+        let dof = (xs.len() - 1) as f64;
+        fam.mean_is(
+            &format!("{cols}x{rows}: pdf over the sphere"),
+            mean,
+            se,
+            dof,
+            1.0,
+        );
     }
+    fam.finish();
 }
 
 /// Chi-square over a grid twice as fine as the texels: the texel choice and the uniform
@@ -140,7 +150,9 @@ fn direction_map_sampler_agrees_with_pdf() {
         n,
     );
     let expected = expected_midpoint(&grid, |w| m.pdf(w) as f64, 1, n);
-    assert_chi_square("map sampler", &observed, &expected);
+    let mut fam = Family::new("guiding: direction map sampler vs pdf");
+    fam.chi_square("map sampler", &observed, &expected);
+    fam.finish();
     // an empty map cannot be sampled and has density zero
     let mut e = DirectionMap::new(4, 2);
     e.build();
@@ -309,6 +321,7 @@ fn guided_vertices(scene: &Scene, want_medium: bool, count: usize) -> Vec<(Verte
 #[test]
 fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
     let scene = guided_fog_box(8, GuideKind::Both);
+    let mut fam = Family::new("guiding: guided mixtures vs their samplers");
     for want_medium in [false, true] {
         for (k, (v, wo)) in guided_vertices(&scene, want_medium, 3)
             .into_iter()
@@ -335,10 +348,11 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                     },
                     n,
                 );
-                assert_chi_square(&what, &observed, &expected);
+                fam.chi_square(&what, &observed, &expected);
             }
         }
     }
+    fam.finish();
 }
 
 /// Relative tolerance of cached against recomputed densities.
@@ -484,26 +498,33 @@ fn guided_mis_weights_sum_to_one() {
     assert!(checked > 200, "only {checked} paths");
 }
 
-const RUNS: u64 = 16;
+/// Independent BDPT renders per quadrant comparison and their samples per pixel (the standard
+/// error is Student-t over the runs: many short runs see more than a few long ones).
+const RUNS: u64 = 64;
+const SPP: u32 = 8;
+/// Independent MLT renders per quadrant comparison, and their mutations per pixel.
+const MLT_RUNS: u64 = 32;
+const MLT_MUTATIONS: u64 = 64;
 const RES: u32 = 8;
 const DEPTH: u32 = 4;
 
 fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, 32)
+    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, SPP)
 }
 
 fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::mlt_quadrant_runs(scene, RUNS, seed, DEPTH)
+    common::mlt_quadrant_runs_with(scene, MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
 }
 
 /// Guided BDPT (surface guiding; surface and volume guiding) agrees with unguided BDPT on the
 /// fog box, a scene with a medium, over independent runs.
 #[test]
 fn guided_bdpt_agrees_with_unguided_bdpt() {
+    let mut fam = Family::new("guiding: guided bdpt vs bdpt");
     let plain = bdpt_runs(&fog_box(RES), 1000);
     for kind in [GuideKind::Surface, GuideKind::Both] {
         let scene = guided_fog_box(RES, kind);
-        common::assert_quadrants_agree(kind.name(), &bdpt_runs(&scene, 5000), &plain);
+        common::quadrants_agree(&mut fam, kind.name(), &bdpt_runs(&scene, 5000), &plain);
     }
     // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
     let mut scene = fog_box(RES);
@@ -517,16 +538,18 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
         (0..RUNS)
             .map(|r| {
                 let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(8));
-                rd.pass(32, &|| {});
+                rd.pass(SPP, &|| {});
                 common::quadrant_means(&rd.film.as_ref().unwrap().image())
             })
             .collect()
     };
-    common::assert_quadrants_agree(
+    common::quadrants_agree(
+        &mut fam,
         "guided roulette",
         &deep(&scene, 6000),
         &deep(&fog_box(RES), 1000),
     );
+    fam.finish();
 }
 
 /// Guided MLT (surface and volume guiding in every subpath the bidirectional mutation
@@ -535,7 +558,9 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
 fn guided_mlt_agrees_with_bdpt() {
     let plain = bdpt_runs(&fog_box(RES), 3000);
     let scene = guided_fog_box(RES, GuideKind::Both);
-    common::assert_quadrants_agree("guided mlt", &mlt_runs(&scene, 7000), &plain);
+    let mut fam = Family::new("guiding: guided mlt vs bdpt");
+    common::quadrants_agree(&mut fam, "guided mlt", &mlt_runs(&scene, 7000), &plain);
+    fam.finish();
 }
 
 /// Guiding off leaves the renderers' random streams untouched: an unguided scene renders the
@@ -620,6 +645,7 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     let mut s = Sampler::new(51, 0, 0);
     let mut light = Vec::new();
     let mut points = Vec::new();
+    let mut fam = Family::new("guiding: guided emission vs its sampler");
     while points.len() < 2 {
         b.light_subpath(&scene, &mut s, &mut light);
         if let Some(v) = light.first() {
@@ -658,12 +684,13 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
             },
             count,
         );
-        assert_chi_square(
+        fam.chi_square(
             &format!("emission at light point {k}"),
             &observed,
             &expected,
         );
     }
+    fam.finish();
 }
 
 /// Guides from indirect particles only and from each particle sampler: all have particles in
@@ -762,6 +789,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
         }
     }
     assert_eq!(glass.len(), 24, "too few glass vertices");
+    let mut fam = Family::new("guiding: guided Fresnel choice");
     let mut changed = 0;
     for (k, (v, wo)) in glass.iter().enumerate() {
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
@@ -796,10 +824,11 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                 );
             }
             if t.is_some() {
-                common::assert_binomial("reflections", hits, n, p_r as f64);
+                fam.binomial(&format!("vertex {k} {mode:?}"), hits, n, p_r as f64);
             }
         }
     }
+    fam.finish();
     assert!(
         changed >= 4,
         "the maps changed the choice at only {changed} vertices"
@@ -812,8 +841,12 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
 fn guided_bdpt_and_mlt_agree_with_bdpt_through_glass() {
     let scene = guided_glass_fog_box(RES);
     let reference = bdpt_runs(&glass_fog_box(RES), 8000);
-    common::assert_quadrants_agree("guided bdpt, glass", &bdpt_runs(&scene, 9000), &reference);
-    common::assert_quadrants_agree("guided mlt, glass", &mlt_runs(&scene, 9500), &reference);
+    let mut fam = Family::new("guiding: guided bdpt and mlt through glass");
+    let guided = bdpt_runs(&scene, 9000);
+    common::quadrants_agree(&mut fam, "guided bdpt, glass", &guided, &reference);
+    let guided = mlt_runs(&scene, 9500);
+    common::quadrants_agree(&mut fam, "guided mlt, glass", &guided, &reference);
+    fam.finish();
 }
 
 /// MLT's transition densities divide by the probability of each glass lobe with the mode of
