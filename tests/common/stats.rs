@@ -10,7 +10,7 @@
 //!
 //! The p-values. A mean over k independent runs with its standard error estimated from the same
 //! k runs is Student-t distributed with k - 1 degrees of freedom, not normal: with 8 runs the
-//! 1e-6 two-sided quantile is 14.2 standard errors, not 4.9. Two independent sets of runs are
+//! 1e-6 two-sided quantile is 15.8 standard errors, not 4.9. Two independent sets of runs are
 //! compared by Welch's t with the Welch-Satterthwaite degrees of freedom. A mean of n
 //! independent samples inside one render uses n - 1 (normal in effect). Goodness of fit uses
 //! Pearson's chi-square, Kolmogorov-Smirnov or the exact binomial tail.
