@@ -20,7 +20,7 @@ use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies}
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::pdf::{densities, strategy_pdf};
-use pathspace::path::{measurement_contribution, Path, Vertex};
+use pathspace::path::{measurement_contribution, Path, Vertex, VertexKind};
 use pathspace::scene::{Scene, SceneSource};
 
 use common::stats::Family;
@@ -265,10 +265,16 @@ fn fog_box(w: u32) -> Scene {
     Scene::load(&SceneSource::embedded("fog-box", &text)).expect("valid fog box")
 }
 
+/// The guide weight c of the tests' guides: the map's share of the mixtures (eq. 5.18) and of
+/// the guided lobe choice. Not the default 0.5, at which c and 1 - c are equal, so that
+/// exchanging them (in a density, in a sampler, or in both) changed nothing any test sees.
+const GUIDE_WEIGHT: f32 = 0.3;
+
 /// Installs a cheap, coarse guide of `kind` (`particles` subpaths of each kind, 64 regions,
-/// 16x8 maps).
+/// 16x8 maps, guide weight [`GUIDE_WEIGHT`]).
 fn with_guide(mut scene: Scene, kind: GuideKind, particles: usize) -> Scene {
     let mut settings = GuideSettings::for_radius(scene.radius);
+    settings.c_guide = GUIDE_WEIGHT;
     settings.kind = kind;
     settings.particles = particles;
     settings.regions.regions = 64;
@@ -334,6 +340,7 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                 );
                 let grid = SphereGrid::new(world(), 16, 32);
                 let pdf = |w: Vec3| scatter_pdf(&scene, &v, wo, w, mode) as f64;
+                check_mixture_weights(&scene, &v, wo, mode);
                 let n = 100_000;
                 let expected = expected_midpoint(&grid, pdf, 6, n);
                 let mass: f64 = expected.iter().sum::<f64>() / n as f64;
@@ -353,6 +360,29 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
         }
     }
     fam.finish();
+}
+
+/// Eq. (5.18) and its medium form: the guided density is (1 - c) p_local + c p_map with c the
+/// guide weight (the map's share), at the vertex's own BSDF or phase-function density and its
+/// region's map; deterministic (f32 rounding of one sum of two products).
+fn check_mixture_weights(scene: &Scene, v: &Vertex, wo: Vec3, mode: TransportMode) {
+    let g = scene.guide.as_deref().unwrap();
+    let c = g.settings.c_guide;
+    assert_eq!(c, GUIDE_WEIGHT);
+    let (map, _) = g.map_at(scene, v, mode).expect("a guided vertex");
+    for wi in common::test_directions(61, 32) {
+        let local = match v.kind {
+            VertexKind::Surface { .. } => v.bsdf(scene).unwrap().pdf(wo, wi, v.n),
+            VertexKind::Medium { medium } => scene.media[medium as usize].phase().pdf(wo, wi),
+            _ => unreachable!("guided vertices are surface or medium vertices"),
+        };
+        let want = (1.0 - c) * local + c * map.pdf(wi);
+        let got = scatter_pdf(scene, v, wo, wi, mode);
+        assert!(
+            (got - want).abs() <= 4.0 * f32::EPSILON * want,
+            "{mode:?}: guided density {got}, (1 - c) p_local + c p_map = {want}"
+        );
+    }
 }
 
 /// Relative tolerance of cached against recomputed densities.
@@ -533,6 +563,7 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     settings.particles = 20_000;
     settings.regions.regions = 64;
     settings.roulette = Some(0.5);
+    settings.c_guide = GUIDE_WEIGHT;
     scene.guide = Some(Arc::new(build_guide(&scene, settings)));
     let deep = |scene: &Scene, seed: u64| -> Vec<Vec<f64>> {
         (0..RUNS)
@@ -797,8 +828,27 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                 continue;
             };
             let f = r.pdf as f64;
-            if t.is_some() {
+            if let Some(t) = &t {
                 assert!(p_r > 0.0 && p_r < 1.0, "P(reflect) = {p_r} with F = {f}");
+                // sec. 5.3 with the mixture: (1 - c) F + c F L(w_r) / (F L(w_r) + (1 - F)
+                // L(w_t)), L the map relative to its mean, c the map's share
+                let g = scene.guide.as_deref().unwrap();
+                let field = g.field(mode);
+                let region = field.regions.surface_region(v.p, v.n).expect("a region");
+                let map = &field.maps[region as usize];
+                let c = g.settings.c_guide as f64;
+                assert_eq!(c, GUIDE_WEIGHT as f64);
+                let lr = f * map.relative(r.wi) as f64;
+                let lt = (1.0 - f) * map.relative(t.wi) as f64;
+                let want = if lr + lt > 0.0 {
+                    (1.0 - c) * f + c * lr / (lr + lt)
+                } else {
+                    f
+                };
+                assert!(
+                    (p_r as f64 - want).abs() <= 1e-6,
+                    "P(reflect) = {p_r}, (1 - c) F + c F L_r / (F L_r + (1 - F) L_t) = {want}"
+                );
             } else {
                 assert_eq!(p_r, 1.0, "total internal reflection");
             }
