@@ -93,10 +93,8 @@ fn test_sources() -> Vec<(String, String)> {
 #[test]
 fn the_false_alarm_budget_covers_every_family() {
     assert_eq!(TEST_ALPHA, SUITE_FALSE_ALARM / STATISTICAL_TESTS as f64);
-    assert!(
-        SUITE_FALSE_ALARM <= 1e-3,
-        "the stated budget is < 1e-3 per CI run"
-    );
+    // the stated budget: below 1e-3 per CI run (a const assertion: checked at compile time)
+    const _: () = assert!(SUITE_FALSE_ALARM <= 1e-3);
     let sources = test_sources();
     assert!(sources.len() > 20, "tests/ was not found");
     let mut total = 0;
