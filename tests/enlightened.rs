@@ -3,15 +3,19 @@
 //!
 //! - Particles are unbiased (the thesis's test T16): summed photon weights on a surface patch
 //!   reproduce <W_e, L_i> of an irradiance meter on that patch, summed importon weights on the
-//!   light reproduce <L_e, W_i> of the same meter, each within 4 standard errors of an
-//!   independent path-tracer estimate of the meter, in an empty room and in fog.
+//!   light reproduce <L_e, W_i> of the same meter, each against an independent path-tracer
+//!   estimate of the meter (Welch's test), in an empty room and in fog.
 //! - Particle lists are identical whatever the thread count.
 //!
 //! Standard errors of particle sums come from independent batches (each batch one seed): the
-//! particles of one path are correlated, batches are not.
+//! particles of one path are correlated, batches are not. A standard error from k batches is
+//! Student-t with k - 1 degrees of freedom, so the tests buy many small batches rather than a
+//! few large ones. Every test judges its comparisons in one `Family` (Holm at the suite's
+//! per-test level).
 
 mod common;
 
+use common::stats::{assert_significant, p_welch, runs_mean, Family};
 use pathspace::enlightened::metropolis::{trace_metropolis, MetropolisParticleSettings};
 use pathspace::enlightened::particles::{
     trace_bidirectional, trace_bidirectional_where, trace_classical, trace_importons,
@@ -57,20 +61,17 @@ fn room(fog: bool) -> Scene {
     load(&text)
 }
 
-/// The path tracer's meter estimate (value, standard error), green channel.
-fn meter_truth(scene: &Scene, spp: u32) -> (f64, f64) {
+/// The path tracer's meter estimate (value, standard error, degrees of freedom), green
+/// channel.
+fn meter_truth(scene: &Scene, spp: u32) -> (f64, f64, f64) {
     let mut r = Renderer::new(scene, IntegratorKind::Path, 99, None);
     r.pass(spp, &|| {});
-    let m = &r.meter_estimates()[0];
-    (m.value.y as f64, m.stderr.y as f64)
+    common::meter_mean(&r.meter_estimates()[0], 1)
 }
 
-/// Mean and standard error of batch estimates.
-fn batch_stats(x: &[f64]) -> (f64, f64) {
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    let var = x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
+/// Mean, standard error and degrees of freedom (batches - 1) of batch estimates.
+fn batch_stats(x: &[f64]) -> (f64, f64, f64) {
+    runs_mean(x)
 }
 
 fn on_floor_patch(p: &Particle) -> bool {
@@ -89,20 +90,22 @@ fn on_light(p: &Particle) -> bool {
         && p.direction.y < 0.0
 }
 
-fn assert_agrees(what: &str, (a, sa): (f64, f64), (b, sb): (f64, f64)) {
-    let tol = common::SIGMA_BOUND * (sa * sa + sb * sb).sqrt();
-    eprintln!("{what}: particles {a} +- {sa}, path tracer {b} +- {sb}");
-    assert!(
-        (a - b).abs() <= tol && sa > 0.0,
-        "{what}: particle estimate {a} +- {sa} vs meter {b} +- {sb} (tolerance {tol})"
-    );
+/// A particle estimate `a` agrees with a reference `b` (Welch's test, a comparison of `fam`);
+/// a particle estimate without spread cannot be judged and fails at once.
+fn agrees(fam: &mut Family, what: &str, a: (f64, f64, f64), b: (f64, f64, f64)) {
+    eprintln!("{what}: {} +- {} vs {} +- {}", a.0, a.1, b.0, b.1);
+    assert!(a.1 > 0.0, "{what}: the estimate has no spread");
+    fam.means_agree(what, a, b);
 }
+
+/// Independent batches of the particle tests (each batch one seed).
+const BATCHES: u64 = 48;
 
 /// T16 for the classical tracer: photons give <W_e, L_i>, importons give <L_e, W_i>.
 #[test]
 fn classical_particles_reproduce_the_meter() {
-    const BATCHES: u64 = 24;
-    const PATHS: u64 = 16_384;
+    const PATHS: u64 = 8192;
+    let mut fam = Family::new("enlightened: classical particles reproduce the meter");
     for fog in [false, true] {
         let scene = room(fog);
         let bdpt = Bdpt::new(&scene, None, Strategies::All);
@@ -122,25 +125,44 @@ fn classical_particles_reproduce_the_meter() {
         }
         let truth = meter_truth(&scene, 64);
         let tag = if fog { "fog" } else { "empty" };
-        assert_agrees(&format!("photons ({tag})"), batch_stats(&photon), truth);
-        assert_agrees(&format!("importons ({tag})"), batch_stats(&importon), truth);
+        agrees(
+            &mut fam,
+            &format!("photons ({tag})"),
+            batch_stats(&photon),
+            truth,
+        );
+        let importon = batch_stats(&importon);
+        agrees(&mut fam, &format!("importons ({tag})"), importon, truth);
     }
+    fam.finish();
 }
 
 /// T16 for the bidirectional particle sampler (with the three precisions that make it unbiased,
 /// see `trace_bidirectional`): photons give <W_e, L_i>, importons give <L_e, W_i>.
 #[test]
 fn bidirectional_particles_reproduce_the_meter() {
+    let mut fam = Family::new("enlightened: bidirectional particles reproduce the meter");
     for fog in [false, true] {
         let scene = room(fog);
-        let (photon, importon) = meter_batches(24, 3000, |seed| {
-            trace_bidirectional(&scene, ImportonSource::Meter(0), 16_384, seed)
+        let (photon, importon) = meter_batches(BATCHES, 3000, |seed| {
+            trace_bidirectional(&scene, ImportonSource::Meter(0), 8192, seed)
         });
         let truth = meter_truth(&scene, 64);
         let tag = if fog { "fog" } else { "empty" };
-        assert_agrees(&format!("bidirectional photons ({tag})"), photon, truth);
-        assert_agrees(&format!("bidirectional importons ({tag})"), importon, truth);
+        agrees(
+            &mut fam,
+            &format!("bidirectional photons ({tag})"),
+            photon,
+            truth,
+        );
+        agrees(
+            &mut fam,
+            &format!("bidirectional importons ({tag})"),
+            importon,
+            truth,
+        );
     }
+    fam.finish();
 }
 
 /// <W_e, L_i> of the meter from photons: their weights on the floor patch over its area
@@ -170,7 +192,7 @@ fn meter_batches(
     batches: u64,
     seed0: u64,
     mut run: impl FnMut(u64) -> ParticleSets,
-) -> ((f64, f64), (f64, f64)) {
+) -> ((f64, f64, f64), (f64, f64, f64)) {
     let mut photon = Vec::new();
     let mut importon = Vec::new();
     for b in 0..batches {
@@ -191,20 +213,33 @@ fn metropolis_settings(defensive: f64) -> MetropolisParticleSettings {
     }
 }
 
+/// Batches of the Metropolis particle test, Metropolis steps per batch, and each batch's
+/// bootstrap samples and chains.
+const METRO_BATCHES: u64 = 64;
+const METRO_STEPS: u64 = 32_768;
+const METRO_BOOTSTRAP: u64 = 4096;
+const METRO_CHAINS: u32 = 64;
+
 /// T16 for the Metropolis particle sampler (eq. (5.15) with the defensive floor): photons give
 /// <W_e, L_i>, importons give <L_e, W_i>, each batch one independent run (bootstrap and chains).
 #[test]
 fn metropolis_particles_reproduce_the_meter() {
+    let mut fam = Family::new("enlightened: Metropolis particles reproduce the meter");
     for fog in [false, true] {
         let scene = room(fog);
         let settings = MetropolisParticleSettings {
-            bootstrap: 8192,
-            chains: 128,
+            bootstrap: METRO_BOOTSTRAP,
+            chains: METRO_CHAINS,
             ..Default::default()
         };
-        let (photon, importon) = meter_batches(32, 4000, |seed| {
-            let (sets, stats) =
-                trace_metropolis(&scene, ImportonSource::Meter(0), 65_536, seed, &settings);
+        let (photon, importon) = meter_batches(METRO_BATCHES, 4000, |seed| {
+            let (sets, stats) = trace_metropolis(
+                &scene,
+                ImportonSource::Meter(0),
+                METRO_STEPS,
+                seed,
+                &settings,
+            );
             if seed == 4000 {
                 eprintln!("{stats:?}");
             }
@@ -212,9 +247,20 @@ fn metropolis_particles_reproduce_the_meter() {
         });
         let truth = meter_truth(&scene, 64);
         let tag = if fog { "fog" } else { "empty" };
-        assert_agrees(&format!("Metropolis photons ({tag})"), photon, truth);
-        assert_agrees(&format!("Metropolis importons ({tag})"), importon, truth);
+        agrees(
+            &mut fam,
+            &format!("Metropolis photons ({tag})"),
+            photon,
+            truth,
+        );
+        agrees(
+            &mut fam,
+            &format!("Metropolis importons ({tag})"),
+            importon,
+            truth,
+        );
     }
+    fam.finish();
 }
 
 /// Without the defensive part (delta = 0, eq. (5.15) as printed) the Metropolis particles
@@ -238,40 +284,44 @@ fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths
         ]
     };
     let batches = |seed0: u64, run: &dyn Fn(u64) -> ParticleSets| {
-        let runs: Vec<[f64; 4]> = (0..24).map(|b| functionals(&run(seed0 + b))).collect();
+        let runs: Vec<[f64; 4]> = (0..BATCHES).map(|b| functionals(&run(seed0 + b))).collect();
         (0..4)
             .map(|j| batch_stats(&runs.iter().map(|r| r[j]).collect::<Vec<_>>()))
             .collect::<Vec<_>>()
     };
     let settings = metropolis_settings(0.0);
     let metro = batches(5000, &|seed| {
-        trace_metropolis(&scene, ImportonSource::Meter(0), 16_384, seed, &settings).0
+        trace_metropolis(&scene, ImportonSource::Meter(0), 8192, seed, &settings).0
     });
     let connected = batches(6000, &|seed| {
-        trace_bidirectional_where(&scene, ImportonSource::Meter(0), 16_384, seed, |i| i > 0.0)
+        trace_bidirectional_where(&scene, ImportonSource::Meter(0), 8192, seed, |i| i > 0.0)
     });
+    let mut fam = Family::new("enlightened: Metropolis without defensive part");
     for (j, what) in ["all photons", "all importons", "floor-patch photons"]
         .iter()
         .enumerate()
     {
-        assert_agrees(
+        agrees(
+            &mut fam,
             &format!("{what}: Metropolis vs connected bidirectional"),
             metro[j],
             connected[j],
         );
     }
+    fam.finish();
     assert_eq!(metro[3].0, 0.0, "no importon on the black light");
     assert_eq!(connected[3].0, 0.0, "no importon on the black light");
     let truth = meter_truth(&scene, 64);
-    let (c, sc) = connected[2];
+    let c = connected[2].0;
     eprintln!(
         "connected floor photons {c} vs meter {}: {:.1}% short",
         truth.0,
         100.0 * (truth.0 - c) / truth.0
     );
-    assert!(
-        truth.0 - c > common::SIGMA_BOUND * (truth.1 * truth.1 + sc * sc).sqrt(),
-        "the connected part should miss the floor photons seen only through the meter's back"
+    assert!(c < truth.0, "the connected part is brighter than the meter");
+    assert_significant(
+        "the floor photons the connected part misses (seen only through the meter's back)",
+        p_welch(connected[2], truth),
     );
 }
 
@@ -545,23 +595,32 @@ fn adjoint_pdf_matches_its_sampler_and_is_positive_where_light_is_emitted() {
         let u = scene.prims[st.point.prim as usize].sample_area_inverse(st.point.p);
         observed[bin_of(pi, u)] += 1;
     }
-    common::assert_chi_square("adjoint image light starts", &observed, &expected);
+    let mut fam = Family::new("enlightened: adjoint pdf vs its sampler");
+    fam.chi_square("adjoint image light starts", &observed, &expected);
+    fam.finish();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Renderers with the adjoint image agree with renderers without it
 // ---------------------------------------------------------------------------------------------
 
-const RUNS: u64 = 16;
+/// Independent BDPT renders per quadrant comparison (short: the standard error is Student-t
+/// over the runs, so many short runs see more than a few long ones at the same cost).
+const RUNS: u64 = 64;
+/// Samples per pixel of each BDPT run.
+const SPP: u32 = 8;
+/// Independent MLT renders per quadrant comparison, and their mutations per pixel.
+const MLT_RUNS: u64 = 32;
+const MLT_MUTATIONS: u64 = 64;
 const RES: u32 = 8;
 const DEPTH: u32 = 3;
 
 fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, 32)
+    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, SPP)
 }
 
 fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::mlt_quadrant_runs(scene, RUNS, seed, DEPTH)
+    common::mlt_quadrant_runs_with(scene, MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
 }
 
 /// Installs a lumpy adjoint image (zero cells and 50x contrasts): the starkest test that
@@ -593,6 +652,7 @@ fn fog_box(res: u32) -> Scene {
 /// fog box, and the fog box with four area lights and a point light.
 #[test]
 fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
+    let mut fam = Family::new("enlightened: bdpt with the adjoint image");
     for (name, scene) in [("fog box", fog_box(RES)), ("many lights", many_lights(RES))] {
         let plain = bdpt_runs(&scene, 100);
         let lumpy = with_lumpy_adjoint(if name == "fog box" {
@@ -600,7 +660,8 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
         } else {
             many_lights(RES)
         });
-        common::assert_quadrants_agree(
+        common::quadrants_agree(
+            &mut fam,
             &format!("{name}: bdpt + lumpy adjoint"),
             &bdpt_runs(&lumpy, 200),
             &plain,
@@ -613,12 +674,14 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
         let image = AdjointImage::render(&estimated, &settings, 7, Some(DEPTH)).unwrap();
         assert!(image.estimate.iter().sum::<f64>() > 0.0);
         estimated.adjoint = Some(image);
-        common::assert_quadrants_agree(
+        common::quadrants_agree(
+            &mut fam,
             &format!("{name}: bdpt + adjoint"),
             &bdpt_runs(&estimated, 300),
             &plain,
         );
     }
+    fam.finish();
 }
 
 /// MLT's initialization and bidirectional mutation regenerate light vertices from the adjoint
@@ -630,11 +693,14 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
 fn mlt_with_the_adjoint_image_agrees_with_bdpt() {
     let plain = bdpt_runs(&many_lights(RES), 400);
     let scene = with_lumpy_adjoint(many_lights(RES));
-    common::assert_quadrants_agree(
+    let mut fam = Family::new("enlightened: mlt with the adjoint image");
+    common::quadrants_agree(
+        &mut fam,
         "many lights: mlt + lumpy adjoint",
         &mlt_runs(&scene, 500),
         &plain,
     );
+    fam.finish();
 }
 
 /// Bad adjoint settings are reported at their line and key; the image refuses scenes it cannot
@@ -701,10 +767,13 @@ fn bad_adjoint_settings_are_clear_errors() {
     assert!(e.contains("camera"), "{e}");
 }
 
+/// Independent runs of each estimator of the adjoint image, and its samples per cell.
+const ADJOINT_RUNS: u64 = 24;
+const ADJOINT_SAMPLES_PER_CELL: u32 = 6000;
+
 /// The thesis's way of estimating the adjoint image, as a by-product of Metropolis sampling
 /// (each state of a chain over full paths deposits its weight at F^-1(x_0)), estimates the same
-/// I* as the BDPT pre-pass: per light (strip of cells), over 12 independent runs each, within 4
-/// standard errors. The scene is the many-lights fog box made gray, because the BDPT pre-pass
+/// I* as the BDPT pre-pass: per light (strip of cells), over independent runs each (Welch). The scene is the many-lights fog box made gray, because the BDPT pre-pass
 /// deposits the channel mean and the chains the luminance (equal for gray light); it has no
 /// mirror or glass, which the bidirectional sampler's paths do not cross. The chains' I(u) is
 /// the mean pixel's, the BDPT estimate the sum over pixels: the test scales by the pixel count.
@@ -725,7 +794,7 @@ fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass(
     let strips = |estimator, seed: u64| -> Vec<f64> {
         let settings = AdjointSettings {
             resolution: (m as u32, 1),
-            samples_per_cell: 12_000,
+            samples_per_cell: ADJOINT_SAMPLES_PER_CELL,
             estimator,
             ..AdjointSettings::default()
         };
@@ -737,16 +806,21 @@ fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass(
         image.estimate.iter().map(|v| v * scale).collect()
     };
     let runs = |estimator, seed0: u64| -> Vec<Vec<f64>> {
-        (0..12).map(|r| strips(estimator, seed0 + r)).collect()
+        (0..ADJOINT_RUNS)
+            .map(|r| strips(estimator, seed0 + r))
+            .collect()
     };
     let bdpt = runs(AdjointEstimator::Bdpt, 800);
     let metro = runs(AdjointEstimator::Metropolis, 900);
+    let mut fam = Family::new("enlightened: Metropolis adjoint image vs BDPT pre-pass");
     for j in 0..m {
         let column = |rs: &[Vec<f64>]| batch_stats(&rs.iter().map(|r| r[j]).collect::<Vec<_>>());
-        assert_agrees(
+        agrees(
+            &mut fam,
             &format!("light {j}: Metropolis vs BDPT pre-pass"),
             column(&metro),
             column(&bdpt),
         );
     }
+    fam.finish();
 }

@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::stats::Family;
 use common::*;
 use glam::Vec3;
 use pathspace::geometry::Ray;
@@ -54,6 +55,7 @@ const F32_TOL: f64 = 16.0 * f32::EPSILON as f64;
 #[test]
 fn gray_collision_distances_follow_the_exponential_cdf() {
     const N: usize = 50_000;
+    let mut fam = Family::new("free flight: gray exponential CDF");
     for (i, sigma_t) in [0.3f32, 1.0, 4.0].into_iter().enumerate() {
         let medium = gray(0.25 * sigma_t, 0.75 * sigma_t);
         let mut s = sampler(100, i as u64);
@@ -65,10 +67,11 @@ fn gray_collision_distances_follow_the_exponential_cdf() {
             })
             .collect();
         let sigma = sigma_t as f64;
-        assert_ks(&format!("sigma_t {sigma_t}"), &mut t, |t| {
+        fam.ks(&format!("sigma_t {sigma_t}"), &mut t, |t| {
             1.0 - (-sigma * t).exp()
         });
     }
+    fam.finish();
 }
 
 #[test]
@@ -88,7 +91,9 @@ fn collision_distances_before_a_surface_follow_the_truncated_cdf() {
     }
     let (sigma, d) = (sigma_t as f64, d as f64);
     let norm = 1.0 - (-sigma * d).exp();
-    assert_ks("truncated", &mut t, |t| (1.0 - (-sigma * t).exp()) / norm);
+    let mut fam = Family::new("free flight: truncated CDF");
+    fam.ks("truncated", &mut t, |t| (1.0 - (-sigma * t).exp()) / norm);
+    fam.finish();
 }
 
 #[test]
@@ -102,9 +107,11 @@ fn chromatic_collision_distances_follow_the_channel_average_cdf() {
         .map(|_| flight(&medium, f32::INFINITY, &mut s).t as f64)
         .collect();
     let sigma = medium.sigma_t.as_dvec3();
-    assert_ks("chromatic", &mut t, |t| {
+    let mut fam = Family::new("free flight: chromatic CDF");
+    fam.ks("chromatic", &mut t, |t| {
         1.0 - ((-sigma.x * t).exp() + (-sigma.y * t).exp() + (-sigma.z * t).exp()) / 3.0
     });
+    fam.finish();
 }
 
 #[test]
@@ -115,6 +122,7 @@ fn passing_probability_is_the_transmittance() {
         (gray(0.1, 0.2), 3.0),
         (chromatic(), 0.8),
     ];
+    let mut fam = Family::new("free flight: passing probability");
     for (i, (medium, d)) in cases.into_iter().enumerate() {
         let mut s = sampler(103, i as u64);
         let passed = (0..N)
@@ -122,8 +130,9 @@ fn passing_probability_is_the_transmittance() {
             .count() as u64;
         // exp(-sigma_t d) per channel, averaged over the uniformly chosen channel
         let p = average((-medium.sigma_t * d).exp()) as f64;
-        assert_binomial(&format!("case {i}, d {d}"), passed, N, p);
+        fam.binomial(&format!("case {i}, d {d}"), passed, N, p);
     }
+    fam.finish();
 }
 
 #[test]
@@ -132,6 +141,7 @@ fn chromatic_weights_are_unbiased_in_every_channel() {
     //                          = (sigma_s,c / sigma_t,c) (1 - exp(-sigma_t,c d)),
     // E[weight 1{pass}]_c      = exp(-sigma_t,c d).
     const N: usize = 200_000;
+    let mut fam = Family::new("free flight: chromatic weights");
     for (i, (medium, d)) in [(chromatic(), 0.7f32), (with_clear_channel(), 1.5)]
         .into_iter()
         .enumerate()
@@ -161,25 +171,15 @@ fn chromatic_weights_are_unbiased_in_every_channel() {
             } else {
                 0.0
             };
+            let dof = (N - 1) as f64;
             let (m, se) = mean_and_stderr(&collide[c]);
             let what = format!("medium {i}, channel {c}");
-            assert_within_sigma(
-                &format!("{what}, collision"),
-                m,
-                se,
-                collision_truth,
-                SIGMA_BOUND,
-            );
+            fam.mean_is(&format!("{what}, collision"), m, se, dof, collision_truth);
             let (m, se) = mean_and_stderr(&pass[c]);
-            assert_within_sigma(
-                &format!("{what}, pass"),
-                m,
-                se,
-                (-sigma_t * d).exp(),
-                SIGMA_BOUND,
-            );
+            fam.mean_is(&format!("{what}, pass"), m, se, dof, (-sigma_t * d).exp());
         }
     }
+    fam.finish();
 }
 
 #[test]
@@ -247,10 +247,11 @@ fn transmittance_is_exp_minus_sigma_t_d() {
 fn a_channel_without_extinction_passes_to_infinity() {
     // with t_max infinite, only the clear channel reaches "the surface at infinity"; it is
     // picked with probability 1/3 and weighted 3, so its expected pass weight is exactly 1
+    const N: u64 = 10_000;
     let medium = with_clear_channel();
     let mut s = sampler(106, 0);
     let mut passes = 0;
-    for _ in 0..10_000 {
+    for _ in 0..N {
         let ff = flight(&medium, f32::INFINITY, &mut s);
         let w = ff.weight();
         assert!(w.is_finite(), "weight {w}");
@@ -262,7 +263,10 @@ fn a_channel_without_extinction_passes_to_infinity() {
             assert_eq!(w.x, 0.0, "the clear channel scatters");
         }
     }
-    assert!(passes > 0);
+    // the flight passes exactly when the clear channel is picked
+    let mut fam = Family::new("free flight: the clear channel passes");
+    fam.binomial("passes", passes, N, 1.0 / 3.0);
+    fam.finish();
     // a medium that is entirely vacuum never collides and passes with weight one
     let vacuum = gray(0.0, 0.0);
     let ff = flight(&vacuum, 2.0, &mut s);

@@ -20,10 +20,11 @@ use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies}
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::pdf::{densities, strategy_pdf};
-use pathspace::path::{measurement_contribution, Path, Vertex};
+use pathspace::path::{measurement_contribution, Path, Vertex, VertexKind};
 use pathspace::scene::{Scene, SceneSource};
 
-use common::{assert_chi_square, SphereGrid, SIGMA_BOUND};
+use common::stats::Family;
+use common::SphereGrid;
 
 /// The world frame: the maps' (cos theta, phi) are those of +z and atan2(y, x).
 fn world() -> Frame {
@@ -92,6 +93,7 @@ fn direction_map_texels_round_trip() {
 /// texel centres; a Monte Carlo integral over uniform directions agrees within its error.
 #[test]
 fn direction_map_pdf_integrates_to_one() {
+    let mut fam = Family::new("guiding: direction map pdf integrates to one");
     for (cols, rows) in [(8, 4), (16, 8), (32, 16)] {
         let m = random_map(cols, rows, 3);
         let n = (cols * rows) as f64;
@@ -115,8 +117,16 @@ fn direction_map_pdf_integrates_to_one() {
             })
             .collect();
         let (mean, se) = common::mean_and_stderr(&xs);
-        common::assert_within_sigma("map pdf over the sphere", mean, se, 1.0, SIGMA_BOUND);
+        let dof = (xs.len() - 1) as f64;
+        fam.mean_is(
+            &format!("{cols}x{rows}: pdf over the sphere"),
+            mean,
+            se,
+            dof,
+            1.0,
+        );
     }
+    fam.finish();
 }
 
 /// Chi-square over a grid twice as fine as the texels: the texel choice and the uniform
@@ -140,7 +150,9 @@ fn direction_map_sampler_agrees_with_pdf() {
         n,
     );
     let expected = expected_midpoint(&grid, |w| m.pdf(w) as f64, 1, n);
-    assert_chi_square("map sampler", &observed, &expected);
+    let mut fam = Family::new("guiding: direction map sampler vs pdf");
+    fam.chi_square("map sampler", &observed, &expected);
+    fam.finish();
     // an empty map cannot be sampled and has density zero
     let mut e = DirectionMap::new(4, 2);
     e.build();
@@ -253,10 +265,16 @@ fn fog_box(w: u32) -> Scene {
     Scene::load(&SceneSource::embedded("fog-box", &text)).expect("valid fog box")
 }
 
+/// The guide weight c of the tests' guides: the map's share of the mixtures (eq. 5.18) and of
+/// the guided lobe choice. Not the default 0.5, at which c and 1 - c are equal, so that
+/// exchanging them (in a density, in a sampler, or in both) changed nothing any test sees.
+const GUIDE_WEIGHT: f32 = 0.3;
+
 /// Installs a cheap, coarse guide of `kind` (`particles` subpaths of each kind, 64 regions,
-/// 16x8 maps).
+/// 16x8 maps, guide weight [`GUIDE_WEIGHT`]).
 fn with_guide(mut scene: Scene, kind: GuideKind, particles: usize) -> Scene {
     let mut settings = GuideSettings::for_radius(scene.radius);
+    settings.c_guide = GUIDE_WEIGHT;
     settings.kind = kind;
     settings.particles = particles;
     settings.regions.regions = 64;
@@ -309,6 +327,7 @@ fn guided_vertices(scene: &Scene, want_medium: bool, count: usize) -> Vec<(Verte
 #[test]
 fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
     let scene = guided_fog_box(8, GuideKind::Both);
+    let mut fam = Family::new("guiding: guided mixtures vs their samplers");
     for want_medium in [false, true] {
         for (k, (v, wo)) in guided_vertices(&scene, want_medium, 3)
             .into_iter()
@@ -321,6 +340,7 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                 );
                 let grid = SphereGrid::new(world(), 16, 32);
                 let pdf = |w: Vec3| scatter_pdf(&scene, &v, wo, w, mode) as f64;
+                check_mixture_weights(&scene, &v, wo, mode);
                 let n = 100_000;
                 let expected = expected_midpoint(&grid, pdf, 6, n);
                 let mass: f64 = expected.iter().sum::<f64>() / n as f64;
@@ -335,9 +355,33 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                     },
                     n,
                 );
-                assert_chi_square(&what, &observed, &expected);
+                fam.chi_square(&what, &observed, &expected);
             }
         }
+    }
+    fam.finish();
+}
+
+/// Eq. (5.18) and its medium form: the guided density is (1 - c) p_local + c p_map with c the
+/// guide weight (the map's share), at the vertex's own BSDF or phase-function density and its
+/// region's map; deterministic (f32 rounding of one sum of two products).
+fn check_mixture_weights(scene: &Scene, v: &Vertex, wo: Vec3, mode: TransportMode) {
+    let g = scene.guide.as_deref().unwrap();
+    let c = g.settings.c_guide;
+    assert_eq!(c, GUIDE_WEIGHT);
+    let (map, _) = g.map_at(scene, v, mode).expect("a guided vertex");
+    for wi in common::test_directions(61, 32) {
+        let local = match v.kind {
+            VertexKind::Surface { .. } => v.bsdf(scene).unwrap().pdf(wo, wi, v.n),
+            VertexKind::Medium { medium } => scene.media[medium as usize].phase().pdf(wo, wi),
+            _ => unreachable!("guided vertices are surface or medium vertices"),
+        };
+        let want = (1.0 - c) * local + c * map.pdf(wi);
+        let got = scatter_pdf(scene, v, wo, wi, mode);
+        assert!(
+            (got - want).abs() <= 4.0 * f32::EPSILON * want,
+            "{mode:?}: guided density {got}, (1 - c) p_local + c p_map = {want}"
+        );
     }
 }
 
@@ -484,26 +528,33 @@ fn guided_mis_weights_sum_to_one() {
     assert!(checked > 200, "only {checked} paths");
 }
 
-const RUNS: u64 = 16;
+/// Independent BDPT renders per quadrant comparison and their samples per pixel (the standard
+/// error is Student-t over the runs: many short runs see more than a few long ones).
+const RUNS: u64 = 64;
+const SPP: u32 = 8;
+/// Independent MLT renders per quadrant comparison, and their mutations per pixel.
+const MLT_RUNS: u64 = 32;
+const MLT_MUTATIONS: u64 = 64;
 const RES: u32 = 8;
 const DEPTH: u32 = 4;
 
 fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, 32)
+    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, SPP)
 }
 
 fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::mlt_quadrant_runs(scene, RUNS, seed, DEPTH)
+    common::mlt_quadrant_runs_with(scene, MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
 }
 
 /// Guided BDPT (surface guiding; surface and volume guiding) agrees with unguided BDPT on the
 /// fog box, a scene with a medium, over independent runs.
 #[test]
 fn guided_bdpt_agrees_with_unguided_bdpt() {
+    let mut fam = Family::new("guiding: guided bdpt vs bdpt");
     let plain = bdpt_runs(&fog_box(RES), 1000);
     for kind in [GuideKind::Surface, GuideKind::Both] {
         let scene = guided_fog_box(RES, kind);
-        common::assert_quadrants_agree(kind.name(), &bdpt_runs(&scene, 5000), &plain);
+        common::quadrants_agree(&mut fam, kind.name(), &bdpt_runs(&scene, 5000), &plain);
     }
     // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
     let mut scene = fog_box(RES);
@@ -512,21 +563,24 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     settings.particles = 20_000;
     settings.regions.regions = 64;
     settings.roulette = Some(0.5);
+    settings.c_guide = GUIDE_WEIGHT;
     scene.guide = Some(Arc::new(build_guide(&scene, settings)));
     let deep = |scene: &Scene, seed: u64| -> Vec<Vec<f64>> {
         (0..RUNS)
             .map(|r| {
                 let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(8));
-                rd.pass(32, &|| {});
+                rd.pass(SPP, &|| {});
                 common::quadrant_means(&rd.film.as_ref().unwrap().image())
             })
             .collect()
     };
-    common::assert_quadrants_agree(
+    common::quadrants_agree(
+        &mut fam,
         "guided roulette",
         &deep(&scene, 6000),
         &deep(&fog_box(RES), 1000),
     );
+    fam.finish();
 }
 
 /// Guided MLT (surface and volume guiding in every subpath the bidirectional mutation
@@ -535,7 +589,9 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
 fn guided_mlt_agrees_with_bdpt() {
     let plain = bdpt_runs(&fog_box(RES), 3000);
     let scene = guided_fog_box(RES, GuideKind::Both);
-    common::assert_quadrants_agree("guided mlt", &mlt_runs(&scene, 7000), &plain);
+    let mut fam = Family::new("guiding: guided mlt vs bdpt");
+    common::quadrants_agree(&mut fam, "guided mlt", &mlt_runs(&scene, 7000), &plain);
+    fam.finish();
 }
 
 /// Guiding off leaves the renderers' random streams untouched: an unguided scene renders the
@@ -620,6 +676,7 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     let mut s = Sampler::new(51, 0, 0);
     let mut light = Vec::new();
     let mut points = Vec::new();
+    let mut fam = Family::new("guiding: guided emission vs its sampler");
     while points.len() < 2 {
         b.light_subpath(&scene, &mut s, &mut light);
         if let Some(v) = light.first() {
@@ -658,12 +715,13 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
             },
             count,
         );
-        assert_chi_square(
+        fam.chi_square(
             &format!("emission at light point {k}"),
             &observed,
             &expected,
         );
     }
+    fam.finish();
 }
 
 /// Guides from indirect particles only and from each particle sampler: all have particles in
@@ -762,6 +820,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
         }
     }
     assert_eq!(glass.len(), 24, "too few glass vertices");
+    let mut fam = Family::new("guiding: guided Fresnel choice");
     let mut changed = 0;
     for (k, (v, wo)) in glass.iter().enumerate() {
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
@@ -769,8 +828,27 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                 continue;
             };
             let f = r.pdf as f64;
-            if t.is_some() {
+            if let Some(t) = &t {
                 assert!(p_r > 0.0 && p_r < 1.0, "P(reflect) = {p_r} with F = {f}");
+                // sec. 5.3 with the mixture: (1 - c) F + c F L(w_r) / (F L(w_r) + (1 - F)
+                // L(w_t)), L the map relative to its mean, c the map's share
+                let g = scene.guide.as_deref().unwrap();
+                let field = g.field(mode);
+                let region = field.regions.surface_region(v.p, v.n).expect("a region");
+                let map = &field.maps[region as usize];
+                let c = g.settings.c_guide as f64;
+                assert_eq!(c, GUIDE_WEIGHT as f64);
+                let lr = f * map.relative(r.wi) as f64;
+                let lt = (1.0 - f) * map.relative(t.wi) as f64;
+                let want = if lr + lt > 0.0 {
+                    (1.0 - c) * f + c * lr / (lr + lt)
+                } else {
+                    f
+                };
+                assert!(
+                    (p_r as f64 - want).abs() <= 1e-6,
+                    "P(reflect) = {p_r}, (1 - c) F + c F L_r / (F L_r + (1 - F) L_t) = {want}"
+                );
             } else {
                 assert_eq!(p_r, 1.0, "total internal reflection");
             }
@@ -796,10 +874,11 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                 );
             }
             if t.is_some() {
-                common::assert_binomial("reflections", hits, n, p_r as f64);
+                fam.binomial(&format!("vertex {k} {mode:?}"), hits, n, p_r as f64);
             }
         }
     }
+    fam.finish();
     assert!(
         changed >= 4,
         "the maps changed the choice at only {changed} vertices"
@@ -812,8 +891,12 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
 fn guided_bdpt_and_mlt_agree_with_bdpt_through_glass() {
     let scene = guided_glass_fog_box(RES);
     let reference = bdpt_runs(&glass_fog_box(RES), 8000);
-    common::assert_quadrants_agree("guided bdpt, glass", &bdpt_runs(&scene, 9000), &reference);
-    common::assert_quadrants_agree("guided mlt, glass", &mlt_runs(&scene, 9500), &reference);
+    let mut fam = Family::new("guiding: guided bdpt and mlt through glass");
+    let guided = bdpt_runs(&scene, 9000);
+    common::quadrants_agree(&mut fam, "guided bdpt, glass", &guided, &reference);
+    let guided = mlt_runs(&scene, 9500);
+    common::quadrants_agree(&mut fam, "guided mlt, glass", &guided, &reference);
+    fam.finish();
 }
 
 /// MLT's transition densities divide by the probability of each glass lobe with the mode of

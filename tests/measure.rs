@@ -6,6 +6,7 @@
 
 mod common;
 
+use common::stats::{assert_significant, p_mean, Family};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -295,62 +296,76 @@ fn converge_writes_the_csv_and_charts() {
     );
 }
 
-/// Runs of the order-of-convergence test; the slope's standard error comes from their spread.
-const ORDER_RUNS: usize = 8;
-/// Two-sided significance level of the order-of-convergence test.
-const ORDER_ALPHA: f64 = 1e-3;
+/// Runs of the order-of-convergence test; the slope's standard error comes from their spread
+/// (Student-t with ORDER_RUNS - 1 degrees of freedom).
+const ORDER_RUNS: usize = 16;
+/// The checkpoints of the order-of-convergence test, in samples per pixel: seven doublings.
+/// Counted in samples, not seconds, so that the test measures the same thing on any machine
+/// and under any load.
+const ORDER_CHECKPOINTS: [u64; 8] = [4, 8, 16, 32, 64, 128, 256, 512];
 
-/// Is the fitted order of convergence of RMSE against samples -1/2 at significance ORDER_ALPHA
-/// (Student's t with R - 1 degrees of freedom, as the standard error is estimated from R
-/// independent runs), with a standard error small enough (< 0.05) for the test to mean something?
-fn is_order_one_half(rows: &[CheckpointRow]) -> (bool, f64, f64) {
-    use statrs::distribution::{ContinuousCDF, StudentsT};
+/// A convergence study counted in samples: each run renders passes of 1 sample per pixel (seed
+/// `convergence::run_seed(seed, run)`, as `converge` seeds its runs) and is compared with the
+/// reference at every checkpoint. The clock is not read: the rows' seconds and efficiency are
+/// NaN (so `summarize` fits no time slope), their samples, RMSE and relMSE are measured.
+fn sample_study(scene: &Scene, reference: &Image, seed: u64) -> Vec<CheckpointRow> {
+    let mut rows = Vec::new();
+    for run in 0..ORDER_RUNS {
+        let mut renderer = Renderer::new(
+            scene,
+            IntegratorKind::Path,
+            convergence::run_seed(seed, run),
+            None,
+        );
+        for (k, &spp) in ORDER_CHECKPOINTS.iter().enumerate() {
+            while renderer.film.as_ref().unwrap().spp < spp {
+                renderer.pass(1, &|| {});
+            }
+            let film = renderer.film.as_ref().unwrap();
+            let m = metrics::compare(&film.image(), reference).unwrap();
+            rows.push(CheckpointRow {
+                integrator: "path".into(),
+                run,
+                checkpoint: k,
+                seconds: f64::NAN,
+                samples: film.spp,
+                rmse: m.rmse,
+                relmse: m.relmse,
+                efficiency: f64::NAN,
+            });
+        }
+    }
+    rows
+}
+
+/// The fitted order of RMSE against samples, over the runs: (mean slope, its standard error
+/// from the runs' spread, degrees of freedom).
+fn rmse_order(rows: &[CheckpointRow]) -> (f64, f64, f64) {
     let curve = &convergence::summarize(rows)[0];
+    assert!(curve.relmse_vs_time.is_none(), "no clock was read");
     let fit = curve.rmse_vs_samples.expect("enough checkpoints to fit");
-    let t = StudentsT::new(0.0, 1.0, (ORDER_RUNS - 1) as f64)
-        .unwrap()
-        .inverse_cdf(1.0 - ORDER_ALPHA / 2.0);
-    let ok = (fit.slope + 0.5).abs() <= t * fit.slope_stderr && fit.slope_stderr < 0.05;
-    (ok, fit.slope, fit.slope_stderr)
+    assert_eq!(fit.points, ORDER_RUNS * ORDER_CHECKPOINTS.len());
+    (fit.slope, fit.slope_stderr, (ORDER_RUNS - 1) as f64)
 }
 
 #[test]
 fn path_tracer_rmse_falls_as_samples_to_the_minus_one_half() {
     let scene = furnace();
-    let config = ConvergeConfig {
-        budget: 0.15,
-        checkpoints: 10,
-        runs: ORDER_RUNS,
-        seed: 3,
-        max_depth: None,
-    };
-    let rows = convergence::converge(
-        &scene,
-        &exact(1.0),
-        &[IntegratorKind::Path],
-        &config,
-        &mut |_| {},
-    )
-    .unwrap();
-    let (ok, slope, se) = is_order_one_half(&rows);
+    let rows = sample_study(&scene, &exact(1.0), 3);
+    let (slope, se, dof) = rmse_order(&rows);
     eprintln!("unbiased: RMSE ~ samples^{slope:.3} +- {se:.3}");
-    assert!(ok, "RMSE ~ samples^{slope:.3} +- {se:.3}, expected -0.5");
+    let mut fam = Family::new("measure: RMSE order of the path tracer");
+    fam.mean_is("RMSE order", slope, se, dof, -0.5);
+    fam.finish();
 
     // the check can fail: against a reference 2 % off (as a biased estimator would be), the
     // error stalls at the bias and the fitted order is far from 1/2
-    let rows = convergence::converge(
-        &scene,
-        &exact(1.02),
-        &[IntegratorKind::Path],
-        &config,
-        &mut |_| {},
-    )
-    .unwrap();
-    let (ok, slope, se) = is_order_one_half(&rows);
+    let rows = sample_study(&scene, &exact(1.02), 3);
+    let (slope, se, dof) = rmse_order(&rows);
     eprintln!("2 % off: RMSE ~ samples^{slope:.3} +- {se:.3}");
-    assert!(
-        !ok,
-        "a 2 % bias went unnoticed: slope {slope:.3} +- {se:.3}"
+    assert_significant(
+        "the order against a 2 % biased reference",
+        p_mean(slope, se, dof, -0.5),
     );
 }
 
@@ -362,15 +377,44 @@ fn variance_estimate_predicts_the_measured_relmse() {
         renderer.pass(4, &|| {});
     }
     let film = renderer.film.as_ref().unwrap();
-    let estimated = stats::estimated_relmse(&film.image(), &film.variance_of_mean()).unwrap();
-    let measured = metrics::compare(&film.image(), &exact(1.0)).unwrap().relmse;
-    // 256 pixels x 1 independent channel: the measured relMSE itself scatters by about
-    // sqrt(2/256) = 9 %, so 0.7..1.4 is a 4-sigma band
-    let ratio = measured / estimated;
-    assert!(
-        (0.7..1.4).contains(&ratio),
-        "measured {measured:.3e} against estimated {estimated:.3e}"
+    let (image, variance) = (film.image(), film.variance_of_mean());
+    let estimated = stats::estimated_relmse(&image, &variance).unwrap();
+    let measured = metrics::compare(&image, &exact(1.0)).unwrap().relmse;
+    eprintln!("measured relMSE {measured:.3e}, estimated {estimated:.3e}");
+    // the estimate by hand: mean over pixels and channels of Var[mean] / (mean^2 + eps), in f64
+    // on the f32 images (only summation order differs)
+    let by_hand = image
+        .pixels
+        .iter()
+        .zip(&variance.pixels)
+        .flat_map(|(m, v)| {
+            (0..3).map(move |c| v[c] as f64 / ((m[c] as f64).powi(2) + metrics::RELMSE_EPSILON))
+        })
+        .sum::<f64>()
+        / (3 * image.pixels.len()) as f64;
+    assert_relative_eq!(estimated, by_hand, max_relative = 1e-12);
+    // What makes it a prediction: the per-pixel variance of the mean is an unbiased estimate of
+    // the pixel's squared error against the exact value r = ALBEDO x RADIANCE, so the terms
+    // ((x - r)^2 - Var[mean]) / (r^2 + eps) of the 256 independent pixels (the furnace is gray:
+    // one channel) have mean zero exactly.
+    let r = (ALBEDO * RADIANCE) as f64;
+    let w = 1.0 / (r * r + metrics::RELMSE_EPSILON);
+    let terms: Vec<f64> = image
+        .pixels
+        .iter()
+        .zip(&variance.pixels)
+        .map(|(x, v)| ((x.x as f64 - r).powi(2) - v.x as f64) * w)
+        .collect();
+    let (mean, se) = common::mean_and_stderr(&terms);
+    let mut fam = Family::new("measure: the variance estimate predicts relMSE");
+    fam.mean_is(
+        "squared error minus estimated variance",
+        mean,
+        se,
+        (terms.len() - 1) as f64,
+        0.0,
     );
+    fam.finish();
 }
 
 fn png_size(path: &Path) -> (u32, u32) {
@@ -738,9 +782,9 @@ radiance = 1.0
 }
 
 /// The twin estimate of relMSE's variance part: two renders with independent noise of known
-/// variance around the same image give mean(sigma^2 / (r^2 + eps)), within 4 standard errors of
-/// its per-pixel terms, whatever a (biased) reference says; a biased reference moves relMSE but
-/// not the twin estimate.
+/// variance around the same image give mean(sigma^2 / (r^2 + eps)) (a mean of its independent
+/// per-pixel terms, tested with their own spread), whatever a (biased) reference says; a biased
+/// reference moves relMSE but not the twin estimate.
 #[test]
 fn twin_variance_recovers_the_noise_of_independent_renders() {
     let (w, h) = (64u32, 64u32);
@@ -775,12 +819,28 @@ fn twin_variance_recovers_the_noise_of_independent_renders() {
         .flat_map(|t| (0..3).map(move |c| var / ((t[c] as f64).powi(2) + metrics::RELMSE_EPSILON)))
         .collect();
     let expected = terms.iter().sum::<f64>() / terms.len() as f64;
-    // the estimate's own spread: each term (d^2/2) has variance (var^2) per unit weight^2
-    let se = (terms.iter().map(|t| t * t).sum::<f64>()).sqrt() / terms.len() as f64;
+    // the twin estimate is the mean of the per-term (a1 - a2)^2 / 2 / (r^2 + eps), independent
+    // terms whose own spread gives its standard error
+    let twin_terms: Vec<f64> = a1
+        .pixels
+        .iter()
+        .zip(&a2.pixels)
+        .zip(&reference.pixels)
+        .flat_map(|((p, q), r)| {
+            (0..3).map(move |c| {
+                let d = p[c] as f64 - q[c] as f64;
+                d * d / 2.0 / ((r[c] as f64).powi(2) + metrics::RELMSE_EPSILON)
+            })
+        })
+        .collect();
+    let (t, t_se) = common::mean_and_stderr(&twin_terms);
     assert!(
-        (v - expected).abs() < 4.0 * se,
-        "twin variance {v} vs {expected} +- {se}"
+        (t - v).abs() <= 1e-9 * v,
+        "twin variance {v} is the mean of its terms {t}"
     );
+    let mut fam = Family::new("measure: twin variance");
+    let dof = (twin_terms.len() - 1) as f64;
+    fam.mean_is("twin variance", v, t_se, dof, expected);
     let biased = Image {
         width: w,
         height: h,
@@ -812,8 +872,12 @@ fn twin_variance_recovers_the_noise_of_independent_renders() {
         (d - (m - vb)).abs() < 1e-9 * m,
         "relMSE {m} minus twin {vb} is the mean of the per-term differences {d}"
     );
-    assert!(
-        (d - bias).abs() < common::SIGMA_BOUND * se,
-        "relMSE {m} minus twin {vb} = {d} +- {se} should be the squared bias {bias}"
+    fam.mean_is(
+        "relMSE minus twin variance is the squared bias",
+        d,
+        se,
+        (diffs.len() - 1) as f64,
+        bias,
     );
+    fam.finish();
 }

@@ -5,6 +5,7 @@
 
 mod common;
 
+use common::stats::{assert_significant, p_welch, runs_mean, Family};
 use glam::Vec3;
 use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
@@ -15,8 +16,6 @@ use pathspace::path::{
     Vertex, VertexKind,
 };
 use pathspace::scene::{Scene, SceneSource};
-
-const K_SIGMA: f64 = 4.0;
 
 /// A closed room [-1,1]^3 of Lambertian walls filled with fog (its null boundary coplanar with
 /// the walls), a ceiling light and a meter on the floor facing up, inside the fog.
@@ -273,14 +272,21 @@ fn meter(
     max_depth: Option<u32>,
     only: Option<(usize, usize)>,
     spp: u32,
-) -> (f64, f64) {
+) -> (f64, f64, f64) {
     let mut r = Renderer::new(scene, kind, seed, max_depth);
     if let Some((s, t)) = only {
         r.bdpt = Some(Bdpt::new(scene, max_depth, Strategies::Only(s, t)));
     }
     r.pass(spp, &|| {});
-    let m = &r.meter_estimates()[0];
-    (m.value.x as f64, m.stderr.x as f64)
+    common::meter_mean(&r.meter_estimates()[0], 0)
+}
+
+/// The difference a - b of two independent estimates (mean, standard error, degrees of
+/// freedom), with Welch-Satterthwaite degrees of freedom.
+fn difference(a: (f64, f64, f64), b: (f64, f64, f64)) -> (f64, f64, f64) {
+    let (va, vb) = (a.1 * a.1, b.1 * b.1);
+    let dof = (va + vb).powi(2) / (va * va / a.2 + vb * vb / b.2);
+    (a.0 - b.0, (va + vb).sqrt(), dof)
 }
 
 /// Every strategy alone is an unbiased estimator of the paths of its length: (s, t) with
@@ -289,13 +295,14 @@ fn meter(
 #[test]
 fn every_strategy_alone_is_unbiased() {
     let scene = room();
+    let mut fam = Family::new("path space: every strategy alone");
     for k in 1u32..=2 {
-        let (a, sa) = meter(&scene, IntegratorKind::Path, 11, Some(k), None, 64);
-        let (b, sb) = meter(&scene, IntegratorKind::Path, 12, Some(k - 1), None, 64);
-        let (truth, st) = (a - b, (sa * sa + sb * sb).sqrt());
+        let a = meter(&scene, IntegratorKind::Path, 11, Some(k), None, 64);
+        let b = meter(&scene, IntegratorKind::Path, 12, Some(k - 1), None, 64);
+        let truth = difference(a, b);
         for s in 0..=(k as usize + 1) {
             let t = k as usize + 2 - s;
-            let (x, sx) = meter(
+            let x = meter(
                 &scene,
                 IntegratorKind::Bdpt,
                 13 + s as u64,
@@ -303,13 +310,14 @@ fn every_strategy_alone_is_unbiased() {
                 Some((s, t)),
                 16,
             );
-            let se = (sx * sx + st * st).sqrt();
-            assert!(
-                (x - truth).abs() <= K_SIGMA * se,
-                "strategy ({s}, {t}) at depth {k}: {x} +- {sx}, path tracer {truth} +- {st}"
+            fam.means_agree(
+                &format!("strategy ({s}, {t}) at depth {k} vs the path tracer"),
+                x,
+                truth,
             );
         }
     }
+    fam.finish();
 }
 
 /// bdpt, light tracing and path tracing agree on the room's meter, on the slab's meters
@@ -317,14 +325,11 @@ fn every_strategy_alone_is_unbiased() {
 #[test]
 fn bdpt_light_and_path_agree() {
     let scene = room();
-    let (p, sp) = meter(&scene, IntegratorKind::Path, 1, None, None, 32);
+    let mut fam = Family::new("path space: bdpt, light and path agree");
+    let p = meter(&scene, IntegratorKind::Path, 1, None, None, 32);
     for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
-        let (x, sx) = meter(&scene, kind, 2, None, None, 32);
-        let se = (sp * sp + sx * sx).sqrt();
-        assert!(
-            (x - p).abs() <= K_SIGMA * se,
-            "{kind:?} {x} +- {sx} vs path {p} +- {sp}"
-        );
+        let x = meter(&scene, kind, 2, None, None, 32);
+        fam.means_agree(&format!("room: {kind:?} vs path"), x, p);
     }
     let slab = Scene::load(
         &SceneSource::read(std::path::Path::new(concat!(
@@ -343,16 +348,19 @@ fn bdpt_light_and_path_agree() {
     let base = run(IntegratorKind::Path, 3);
     let other = run(IntegratorKind::Bdpt, 4);
     for (a, b) in base.iter().zip(&other) {
-        let se = ((a.stderr.x as f64).powi(2) + (b.stderr.x as f64).powi(2)).sqrt();
-        assert!(
-            ((a.value.x - b.value.x) as f64).abs() <= K_SIGMA * se,
-            "slab {}: path {} vs bdpt {} (+- {se})",
-            a.name,
-            a.value.x,
-            b.value.x
+        fam.means_agree(
+            &format!("slab {}: path vs bdpt", a.name),
+            common::meter_mean(a, 0),
+            common::meter_mean(b, 0),
         );
     }
+    fam.finish();
 }
+
+/// Independent runs of the splatting estimators (BDPT's light-tracing strategies, light
+/// tracing): their standard error comes from the runs' spread (Student-t with runs - 1 degrees
+/// of freedom), so many short runs rather than a few long ones.
+const SPLAT_RUNS: u64 = 32;
 
 /// The fog box's image mean agrees between the three integrators.
 #[test]
@@ -369,19 +377,15 @@ fn fog_box_image_means_agree() {
         let m = img.pixels.iter().map(|p| p.y as f64).sum::<f64>() / n;
         (m, film)
     };
-    let (p, film) = mean(IntegratorKind::Path, 1, 256);
-    let var = film.variance_of_mean();
-    let sp = var.pixels.iter().map(|v| v.y as f64).sum::<f64>().sqrt() / var.pixels.len() as f64;
-    // splatted estimators have no per-pixel variance: estimate their error from 8 independent runs
+    let (_, film) = mean(IntegratorKind::Path, 1, 256);
+    let path = common::film_mean(&film, 1);
+    let mut fam = Family::new("path space: fog box image means");
+    // splatted estimators have no per-pixel variance: their error comes from independent runs
     for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
-        let runs: Vec<f64> = (0..8).map(|i| mean(kind, 100 + i, 16).0).collect();
-        let (m, s) = common::mean_and_stderr(&runs);
-        let se = (sp * sp + s * s).sqrt();
-        assert!(
-            (m - p).abs() <= K_SIGMA * se,
-            "{kind:?}: {m} +- {s} vs path {p} +- {sp}"
-        );
+        let runs: Vec<f64> = (0..SPLAT_RUNS).map(|i| mean(kind, 100 + i, 4).0).collect();
+        fam.means_agree(&format!("{kind:?} vs path"), runs_mean(&runs), path);
     }
+    fam.finish();
 }
 
 /// The volume caustic (a spot light focused by glass into haze), where singular vertices decide
@@ -434,7 +438,7 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
     );
     let masked_mean = |kind, seed| {
         let mut r = Renderer::new(&scene, kind, seed, None);
-        r.pass(16, &|| {});
+        r.pass(4, &|| {});
         let img = r.film.unwrap().image();
         let (mut s, mut n) = (0.0f64, 0.0f64);
         for (p, m) in img.pixels.iter().zip(&mask) {
@@ -445,20 +449,25 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
         }
         s / n
     };
-    let runs = |kind| -> Vec<f64> { (0..8).map(|i| masked_mean(kind, 500 + i)).collect() };
-    let (b, sb) = common::mean_and_stderr(&runs(IntegratorKind::Bdpt));
-    let (l, sl) = common::mean_and_stderr(&runs(IntegratorKind::Light));
-    let se = (sb * sb + sl * sl).sqrt();
-    assert!(
-        (b - l).abs() <= K_SIGMA * se,
-        "bdpt {b} +- {sb} vs light tracing {l} +- {sl}"
+    let runs = |kind| -> Vec<f64> {
+        (0..SPLAT_RUNS)
+            .map(|i| masked_mean(kind, 500 + i))
+            .collect()
+    };
+    let bdpt = runs_mean(&runs(IntegratorKind::Bdpt));
+    let light = runs_mean(&runs(IntegratorKind::Light));
+    let mut fam = Family::new("path space: volume caustic");
+    fam.means_agree("bdpt vs light tracing", bdpt, light);
+    fam.finish();
+    // and the caustic is really there: the path tracer, blind to it, is darker beyond doubt
+    // (else two estimators that both lost it would agree)
+    let path = runs_mean(&runs(IntegratorKind::Path));
+    eprintln!(
+        "masked mean: bdpt {:.4} +- {:.4}, light {:.4} +- {:.4}, path {:.4} +- {:.4}",
+        bdpt.0, bdpt.1, light.0, light.1, path.0, path.1
     );
-    // and the caustic is really there: the path tracer, blind to it, is far darker
-    let (p, _) = common::mean_and_stderr(&runs(IntegratorKind::Path));
-    assert!(
-        p < 0.5 * b,
-        "the path tracer ({p}) should miss the caustic that bdpt ({b}) renders"
-    );
+    assert!(path.0 < bdpt.0, "the path tracer is brighter than bdpt");
+    assert_significant("the caustic the path tracer misses", p_welch(path, bdpt));
 }
 
 /// Veach's power heuristic with beta = 2 by hand: a^2 / (a^2 + b^2), 0 when neither strategy

@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::stats::Family;
 use common::*;
 use glam::{Vec2, Vec3};
 use pathspace::conventions::deflection_cosine;
@@ -205,6 +206,7 @@ fn sampling_agrees_with_pdf_by_chi_square() {
     const N_COS: usize = 40;
     const N_PHI: usize = 16;
     let wos = [Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.5, 0.8).normalize()];
+    let mut fam = Family::new("phase: sampling vs pdf");
     for (i, (name, phase)) in phases().into_iter().enumerate() {
         for (j, &wo) in wos.iter().enumerate() {
             let mut grid = SphereGrid::new(deflection_frame(wo), N_COS, N_PHI);
@@ -212,7 +214,8 @@ fn sampling_agrees_with_pdf_by_chi_square() {
             grid.quad_phi = 2;
             grid.quad_cos = 128;
             let mut s = sampler(3, (i * wos.len() + j) as u64);
-            assert_chi_square_sphere(
+            chi_square_sphere(
+                &mut fam,
                 &format!("{name}, wo {wo}"),
                 &grid,
                 || Some(phase.sample(wo, s.next_2d()).wi),
@@ -221,6 +224,7 @@ fn sampling_agrees_with_pdf_by_chi_square() {
             );
         }
     }
+    fam.finish();
 }
 
 #[test]
@@ -238,25 +242,36 @@ fn hg_with_zero_asymmetry_is_isotropic() {
     }
 }
 
-/// The mean deflection cosine of `n` samples, with its standard error.
-fn sampled_mean_cosine(phase: &Phase, wo: Vec3, seed: u64, n: usize) -> (f64, f64) {
+/// The mean deflection cosine of `n` samples equals `truth` (a comparison of `fam`).
+fn sampled_mean_cosine_is(
+    fam: &mut Family,
+    what: &str,
+    phase: &Phase,
+    wo: Vec3,
+    seed: u64,
+    n: usize,
+    truth: f64,
+) {
     let mut s = sampler(seed, 0);
     let cosines: Vec<f64> = (0..n)
         .map(|_| deflection_cosine(wo, phase.sample(wo, s.next_2d()).wi) as f64)
         .collect();
-    mean_and_stderr(&cosines)
+    let (mean, se) = mean_and_stderr(&cosines);
+    fam.mean_is(what, mean, se, (n - 1) as f64, truth);
 }
 
 #[test]
 fn hg_mean_deflection_cosine_is_g() {
     const N: usize = 200_000;
     let wo = Vec3::new(-0.2, 0.9, 0.1).normalize();
+    let mut fam = Family::new("phase: HG mean cosine");
     for (i, g) in HG_G.into_iter().enumerate() {
         let phase = Phase::henyey_greenstein(g).unwrap();
-        let (mean, se) = sampled_mean_cosine(&phase, wo, 50 + i as u64, N);
-        assert_within_sigma(&format!("HG g={g}"), mean, se, g as f64, SIGMA_BOUND);
+        let what = format!("HG g={g}");
+        sampled_mean_cosine_is(&mut fam, &what, &phase, wo, 50 + i as u64, N, g as f64);
         assert_eq!(phase.mean_cosine(), g);
     }
+    fam.finish();
 }
 
 /// Mean cosine by quadrature of mu p(mu), p(mu) = 2 pi f_p(mu), in f64 on f32 evaluations.
@@ -284,6 +299,7 @@ fn schlick_and_mix_mean_cosine_matches_quadrature_and_samples() {
     cases.push(("mix".into(), two_lobe_mix()));
     // a near-zero k exercises the series branch of the closed form
     cases.push(("Schlick k=1e-5".into(), Phase::schlick(1e-5).unwrap()));
+    let mut fam = Family::new("phase: Schlick and mix mean cosine");
     for (i, (name, phase)) in cases.into_iter().enumerate() {
         let closed = phase.mean_cosine() as f64;
         assert_close(
@@ -292,9 +308,9 @@ fn schlick_and_mix_mean_cosine_matches_quadrature_and_samples() {
             quadrature_mean_cosine(&phase),
             QUAD_TOL,
         );
-        let (mean, se) = sampled_mean_cosine(&phase, wo, 70 + i as u64, N);
-        assert_within_sigma(&name, mean, se, closed, SIGMA_BOUND);
+        sampled_mean_cosine_is(&mut fam, &name, &phase, wo, 70 + i as u64, N, closed);
     }
+    fam.finish();
 }
 
 #[test]

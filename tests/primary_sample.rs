@@ -109,21 +109,27 @@ fn last_state(s: &mut Sampler) -> (usize, usize) {
 fn small_steps_keep_the_target_invariant() {
     let n = 4000;
     let counts = final_states(n, 40, 0.0, 1.0 / 16.0);
-    common::assert_chi_square("small steps", &counts, &expected(n));
+    let mut fam = common::stats::Family::new("primary sample: small steps keep the target");
+    fam.chi_square("small steps", &counts, &expected(n));
+    fam.finish();
 }
 
 #[test]
 fn large_steps_keep_the_target_invariant() {
     let n = 4000;
     let counts = final_states(n, 10, 1.0, 1.0 / 16.0);
-    common::assert_chi_square("large steps", &counts, &expected(n));
+    let mut fam = common::stats::Family::new("primary sample: large steps keep the target");
+    fam.chi_square("large steps", &counts, &expected(n));
+    fam.finish();
 }
 
 #[test]
 fn mixed_steps_keep_the_target_invariant() {
     let n = 4000;
     let counts = final_states(n, 40, 0.3, 1.0 / 32.0);
-    common::assert_chi_square("mixed steps", &counts, &expected(n));
+    let mut fam = common::stats::Family::new("primary sample: mixed steps keep the target");
+    fam.chi_square("mixed steps", &counts, &expected(n));
+    fam.finish();
 }
 
 /// The chain must move: after 40 small steps most chains have left their starting bin (a chain

@@ -5,7 +5,8 @@
 
 mod common;
 
-use common::{assert_chi_square, sampler};
+use common::sampler;
+use common::stats::Family;
 use glam::{Vec2, Vec3};
 use pathspace::integrator::smc::bspline::Coefficients;
 use pathspace::integrator::smc::cache::RadianceCache;
@@ -43,6 +44,7 @@ fn st_and_direction_are_inverse_and_cells_have_equal_solid_angle() {
         assert!((back - w).length() < 1e-5, "{w} -> {back}");
     }
     // uniform directions fall in every cell with probability 1 / N: chi-square
+    let mut fam = Family::new("smc cache: cells of equal solid angle");
     for grid in grids().into_iter().take(4) {
         let n = 20_000u64;
         let mut counts = vec![0u64; grid.cells()];
@@ -50,13 +52,14 @@ fn st_and_direction_are_inverse_and_cells_have_equal_solid_angle() {
             counts[grid.cell_of_direction(warp::uniform_sphere(s.next_2d()))] += 1;
         }
         let expected = vec![n as f64 / grid.cells() as f64; grid.cells()];
-        assert_chi_square(&format!("cells of {grid:?}"), &counts, &expected);
+        fam.chi_square(&format!("cells of {grid:?}"), &counts, &expected);
         // and a direction sampled inside a cell lies in it
         for cell in 0..grid.cells() {
             let w = grid.sample_in_cell(cell, s.next_2d());
             assert_eq!(grid.cell_of_direction(w), cell);
         }
     }
+    fam.finish();
 }
 
 #[test]
@@ -187,7 +190,9 @@ fn partial_sums_sample_cells_in_proportion_and_keep_the_root_equal_to_the_sum() 
         counts[i] += 1;
     }
     let expected: Vec<f64> = values.iter().map(|v| v / total * samples as f64).collect();
-    assert_chi_square("partial sums", &counts, &expected);
+    let mut fam = Family::new("smc cache: partial sums sampling");
+    fam.chi_square("partial sums", &counts, &expected);
+    fam.finish();
 }
 
 #[test]

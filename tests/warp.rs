@@ -6,6 +6,7 @@
 
 mod common;
 
+use common::stats::Family;
 use common::*;
 use glam::Vec3;
 use pathspace::math::{warp, Distribution1D, Frame};
@@ -21,29 +22,35 @@ fn z_frame() -> Frame {
 
 #[test]
 fn uniform_sphere_has_density_one_over_four_pi() {
+    let mut fam = Family::new("warp: uniform sphere");
     let grid = SphereGrid::new(z_frame(), 40, 16);
     let mut s = sampler(200, 0);
-    assert_chi_square_sphere(
+    chi_square_sphere(
+        &mut fam,
         "uniform sphere",
         &grid,
         || Some(warp::uniform_sphere(s.next_2d())),
         |_| warp::INV_FOUR_PI as f64,
         N_SAMPLES,
     );
+    fam.finish();
 }
 
 #[test]
 fn cosine_hemisphere_has_density_cos_over_pi() {
     // the whole sphere is binned: the lower hemisphere expects nothing
+    let mut fam = Family::new("warp: cosine hemisphere");
     let grid = SphereGrid::new(z_frame(), 40, 16);
     let mut s = sampler(201, 0);
-    assert_chi_square_sphere(
+    chi_square_sphere(
+        &mut fam,
         "cosine hemisphere",
         &grid,
         || Some(warp::cosine_hemisphere(s.next_2d())),
         |w| warp::cosine_hemisphere_pdf(w) as f64,
         N_SAMPLES,
     );
+    fam.finish();
     // and the stated density is the normalized cos / pi
     let mut s = sampler(201, 1);
     for _ in 0..1000 {
@@ -66,11 +73,13 @@ fn uniform_cone_has_density_one_over_its_solid_angle() {
     // counting it inside would give the empty bin below the edge a spurious expectation.
     const N_COS: usize = 40;
     const EDGE: f32 = 1e-6;
+    let mut fam = Family::new("warp: uniform cone");
     for (i, cos_max) in [0.9f32, 0.0, -0.5].into_iter().enumerate() {
         let grid = SphereGrid::new(z_frame(), N_COS, 16);
         let mut s = sampler(202, i as u64);
         let density = 1.0 / (TAU * (1.0 - cos_max as f64));
-        assert_chi_square_sphere(
+        chi_square_sphere(
+            &mut fam,
             &format!("cone cos_max {cos_max}"),
             &grid,
             || Some(warp::uniform_cone(s.next_2d(), cos_max)),
@@ -78,6 +87,7 @@ fn uniform_cone_has_density_one_over_its_solid_angle() {
             N_SAMPLES,
         );
     }
+    fam.finish();
 }
 
 #[test]
@@ -98,7 +108,9 @@ fn concentric_disk_is_uniform_on_the_unit_disk() {
         counts[i * N_PHI + j] += 1;
     }
     let expected = vec![N_SAMPLES as f64 / (N_R2 * N_PHI) as f64; N_R2 * N_PHI];
-    assert_chi_square("concentric disk", &counts, &expected);
+    let mut fam = Family::new("warp: concentric disk");
+    fam.chi_square("concentric disk", &counts, &expected);
+    fam.finish();
 }
 
 #[test]
@@ -130,7 +142,9 @@ fn uniform_triangle_is_uniform_on_the_triangle() {
             }
         })
         .collect();
-    assert_chi_square("uniform triangle", &counts, &expected);
+    let mut fam = Family::new("warp: uniform triangle");
+    fam.chi_square("uniform triangle", &counts, &expected);
+    fam.finish();
 }
 
 /// Weights with zeros at both ends and in the middle, and a dominant entry.
@@ -155,7 +169,9 @@ fn distribution_samples_indices_with_their_pmf() {
         })
         .collect();
     // zero-weight entries expect nothing, so one sample there fails the test
-    assert_chi_square("Distribution1D", &counts, &expected);
+    let mut fam = Family::new("warp: Distribution1D pmf");
+    fam.chi_square("Distribution1D", &counts, &expected);
+    fam.finish();
 }
 
 #[test]
@@ -169,13 +185,15 @@ fn distribution_remaps_u_uniformly_within_the_chosen_bin() {
         assert!((0.0..1.0).contains(&rem), "remapped u = {rem}");
         rems[i].push(rem as f64);
     }
+    let mut fam = Family::new("warp: Distribution1D remapped u");
     for (i, r) in rems.iter_mut().enumerate() {
         if WEIGHTS[i] > 0.0 {
-            assert_ks(&format!("bin {i}"), r, |x| x.clamp(0.0, 1.0));
+            fam.ks(&format!("bin {i}"), r, |x| x.clamp(0.0, 1.0));
         } else {
             assert!(r.is_empty());
         }
     }
+    fam.finish();
 }
 
 #[test]
@@ -189,5 +207,7 @@ fn distribution_with_zero_weights_falls_back_to_uniform() {
     for _ in 0..N_SAMPLES {
         counts[dist.sample(s.next_f32()).0] += 1;
     }
-    assert_chi_square("zero weights", &counts, &[N_SAMPLES as f64 / 4.0; 4]);
+    let mut fam = Family::new("warp: Distribution1D of zero weights");
+    fam.chi_square("zero weights", &counts, &[N_SAMPLES as f64 / 4.0; 4]);
+    fam.finish();
 }

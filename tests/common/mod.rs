@@ -464,3 +464,104 @@ pub fn mlt_quadrant_runs(
         })
         .collect()
 }
+
+// ---------------------------------------------------------------------------------------------
+// Calibrated forms of the helpers above: each adds its comparisons to the test's `Family`.
+
+/// Chi-square test of a direction sampler against the solid-angle density it claims, added to
+/// `fam`.
+pub fn chi_square_sphere(
+    fam: &mut stats::Family,
+    what: &str,
+    grid: &SphereGrid,
+    sample: impl FnMut() -> Option<Vec3>,
+    pdf: impl Fn(Vec3) -> f64,
+    n_samples: u64,
+) {
+    let observed = grid.observe(sample, n_samples);
+    let expected = grid.expected(pdf, n_samples);
+    fam.chi_square(what, &observed, &expected);
+}
+
+/// The quadrant means of two sets of independent runs agree, component by component (Welch's
+/// test with the runs' own spread: Student-t, not normal, for few runs).
+pub fn quadrants_agree(fam: &mut stats::Family, name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
+    let column = |runs: &[Vec<f64>], i: usize| runs.iter().map(|r| r[i]).collect::<Vec<f64>>();
+    for i in 0..a[0].len() {
+        fam.runs_agree(
+            &format!("{name}: quadrant {} channel {}", i / 3, i % 3),
+            &column(a, i),
+            &column(b, i),
+        );
+    }
+}
+
+/// Quadrant means of `runs` small MLT renders of the scene's camera image (2000 bootstrap
+/// samples, 4 chains, `mutations_per_pixel` mutations per pixel), depth limit `depth`, seeds
+/// `seed + r`: [`mlt_quadrant_runs`] with the run length as a parameter, so that a test can
+/// buy more, shorter runs (a standard error from more runs has more degrees of freedom).
+pub fn mlt_quadrant_runs_with(
+    scene: &pathspace::scene::Scene,
+    runs: u64,
+    seed: u64,
+    depth: u32,
+    mutations_per_pixel: u64,
+) -> Vec<Vec<f64>> {
+    use pathspace::integrator::mlt::{Mlt, MltSettings};
+    let cam = scene.camera.as_ref().expect("a camera");
+    (0..runs)
+        .map(|r| {
+            let settings = MltSettings {
+                bootstrap: 2000,
+                chains: 4,
+                ..MltSettings::default()
+            };
+            let mut m = Mlt::new(scene, settings, seed + r, Some(depth)).unwrap();
+            let mut film = pathspace::film::Film::new(cam.width, cam.height);
+            m.run(
+                scene,
+                &mut film,
+                (cam.width * cam.height) as u64 * mutations_per_pixel,
+            );
+            quadrant_means(&film.image())
+        })
+        .collect()
+}
+
+/// Channel `c` of a film's image mean (over pixels) with its standard error from the pixels'
+/// own sample variances (pixels are independent) and the Welch-Satterthwaite degrees of freedom
+/// of that variance estimate, (sum v)^2 / sum(v^2 / (spp - 1)): between spp - 1 and
+/// pixels x (spp - 1). Only for films whose splat buffer is empty (the variance of splats is
+/// not recorded; the path tracer splats only the direct image of delta lights).
+pub fn film_mean(film: &pathspace::film::Film, c: usize) -> (f64, f64, f64) {
+    assert!(
+        film.splat.iter().all(|s| s[c] == 0.0),
+        "a film with splats has no per-pixel variance"
+    );
+    let n = film.spp as f64;
+    assert!(n >= 2.0, "a standard error needs two samples per pixel");
+    let pixels = film.sum.len() as f64;
+    let (mut mean, mut var, mut var_sq) = (0.0, 0.0, 0.0);
+    for (s, q) in film.sum.iter().zip(&film.sum_sq) {
+        let m = s[c] / n;
+        let v = ((q[c] / n - m * m) * n / (n - 1.0)).max(0.0) / n;
+        mean += m;
+        var += v;
+        var_sq += v * v / (n - 1.0);
+    }
+    let dof = if var_sq > 0.0 {
+        var * var / var_sq
+    } else {
+        n - 1.0
+    };
+    (mean / pixels, var.sqrt() / pixels, dof)
+}
+
+/// Channel `c` of a meter's estimate: (value, standard error, samples - 1 degrees of freedom).
+pub fn meter_mean(m: &pathspace::integrator::MeterEstimate, c: usize) -> (f64, f64, f64) {
+    (
+        m.value[c] as f64,
+        m.stderr[c] as f64,
+        (m.samples as f64 - 1.0).max(1.0),
+    )
+}

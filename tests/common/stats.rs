@@ -10,7 +10,7 @@
 //!
 //! The p-values. A mean over k independent runs with its standard error estimated from the same
 //! k runs is Student-t distributed with k - 1 degrees of freedom, not normal: with 8 runs the
-//! 1e-6 two-sided quantile is 14.2 standard errors, not 4.9. Two independent sets of runs are
+//! 1e-6 two-sided quantile is 15.8 standard errors, not 4.9. Two independent sets of runs are
 //! compared by Welch's t with the Welch-Satterthwaite degrees of freedom. A mean of n
 //! independent samples inside one render uses n - 1 (normal in effect). Goodness of fit uses
 //! Pearson's chi-square, Kolmogorov-Smirnov or the exact binomial tail.
@@ -117,6 +117,18 @@ impl Family {
         Family {
             name: name.to_string(),
             alpha: TEST_ALPHA,
+            comparisons: Vec::new(),
+            finished: false,
+        }
+    }
+
+    /// A family at another level `alpha`: only for testing the procedure itself
+    /// (`tests/statistics.rs` simulates its false-alarm rate at a level where a rate can be
+    /// measured in a few thousand repetitions). Renderer tests use [`Family::new`].
+    pub fn with_alpha(name: &str, alpha: f64) -> Self {
+        Family {
+            name: name.to_string(),
+            alpha,
             comparisons: Vec::new(),
             finished: false,
         }
@@ -240,6 +252,13 @@ impl Family {
     }
     // ANCHOR_END: holm
 
+    /// Holm's verdict without panicking: the rejected comparisons (the family is finished).
+    /// For simulations of the procedure; renderer tests call [`Family::finish`].
+    pub fn into_rejected(mut self) -> Vec<Comparison> {
+        self.finished = true;
+        self.rejected()
+    }
+
     /// Judges the family: panics listing every rejected comparison.
     pub fn finish(mut self) {
         self.finished = true;
@@ -248,6 +267,16 @@ impl Family {
             "{}: a statistical test without comparisons",
             self.name
         );
+        if std::env::var_os("PATHSPACE_STATS").is_some() {
+            // PATHSPACE_STATS=1 lists every comparison, smallest p first (power and calibration
+            // of a test at a glance; run with --nocapture)
+            let mut sorted = self.comparisons.clone();
+            sorted.sort_by(|a, b| a.p.total_cmp(&b.p));
+            eprintln!("{}: {} comparisons", self.name, sorted.len());
+            for c in &sorted {
+                eprintln!("  {}: p = {:.2e}: {}", c.what, c.p, c.detail);
+            }
+        }
         let rejected = self.rejected();
         if !rejected.is_empty() {
             let lines: Vec<String> = rejected
@@ -272,4 +301,15 @@ impl Drop for Family {
             panic!("{}: Family dropped without finish()", self.name);
         }
     }
+}
+
+/// A power check: a difference the suite claims to see (a deliberately wrong reference, a
+/// known defect of a variant) must be significant at [`TEST_ALPHA`], so that the test that
+/// guards against it could fail. `p` is the p-value of "no difference".
+pub fn assert_significant(what: &str, p: f64) {
+    assert!(
+        p <= TEST_ALPHA,
+        "{what}: p = {p:.2e} > {TEST_ALPHA:.1e}: the difference is not significant, so the \
+         test that should see it has no power"
+    );
 }
