@@ -77,6 +77,33 @@ fn mirror_box(w: u32) -> Scene {
     Scene::load(&SceneSource::embedded("mirror-box", &text)).expect("valid mirror box")
 }
 
+/// The fog box with the light grown to 1.8 x 1.8 (of the ceiling's 2 x 2): eye subpaths then
+/// reach it often, so the bidirectional mutation's s' = 0 term (the eye side finds the light)
+/// carries a large share of T.
+fn big_light_box(w: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX
+        .replace(
+            "resolution = [256, 256]",
+            &format!("resolution = [{w}, {w}]"),
+        )
+        .replace(
+            "origin = [-0.25, 0.999, -0.25]\nu = [0.5, 0.0, 0.0]\nv = [0.0, 0.0, 0.5]",
+            "origin = [-0.9, 0.999, -0.9]\nu = [1.8, 0.0, 0.0]\nv = [0.0, 0.0, 1.8]",
+        );
+    assert!(text.contains("[-0.9, 0.999, -0.9]"), "light replaced");
+    Scene::load(&SceneSource::embedded("big-light-box", &text)).expect("valid box")
+}
+
+/// The light of [`big_light_box`].
+fn big_light_rect() -> Rect {
+    Rect {
+        o: Vec3::new(-0.9, 0.999, -0.9),
+        a: Vec3::new(1.8, 0.0, 0.0),
+        b: Vec3::new(0.0, 0.0, 1.8),
+        n: -Vec3::Y,
+    }
+}
+
 fn engine(scene: &Scene, weights: [f64; 5], max_depth: Option<u32>, seed: u64) -> Mlt {
     let settings = MltSettings {
         weights,
@@ -1011,10 +1038,11 @@ struct BidirCells {
     /// Wall templates (kind, media, normal) and their rectangles.
     walls: Vec<(Vertex, Rect)>,
     light: Vertex,
+    light_rect: Rect,
 }
 
 impl BidirCells {
-    fn new(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>) -> Self {
+    fn new(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>, light_rect: Rect) -> Self {
         let b = &mlt.mutations.bidirectional;
         let n = x.len();
         let k = n - 1;
@@ -1044,13 +1072,14 @@ impl BidirCells {
             .iter()
             .map(|(_, r)| (vertex_at(scene, r.uniform(Vec2::splat(0.5)), r.n), *r))
             .collect();
-        let light = light_vertex_at(scene, mlt, light_rect().uniform(Vec2::splat(0.5)));
+        let light = light_vertex_at(scene, mlt, light_rect.uniform(Vec2::splat(0.5)));
         BidirCells {
             x,
             structures,
             weights,
             walls,
             light,
+            light_rect,
         }
     }
 
@@ -1060,7 +1089,9 @@ impl BidirCells {
 
     fn region_of(&self, v: &Vertex, first: bool) -> Option<usize> {
         match v.kind {
-            VertexKind::Light { .. } if first && light_rect().contains(v.p) => Some(LIGHT_REGION),
+            VertexKind::Light { .. } if first && self.light_rect.contains(v.p) => {
+                Some(LIGHT_REGION)
+            }
             VertexKind::Medium { .. } if in_box(v.p) => Some(MEDIUM_REGION),
             VertexKind::Surface { .. } => self
                 .walls
@@ -1125,7 +1156,7 @@ impl BidirCells {
             return Some((medium_vertex(p), q));
         }
         let (template, rect) = if region == LIGHT_REGION {
-            (self.light, light_rect())
+            (self.light, self.light_rect)
         } else {
             self.walls[region - 1]
         };
@@ -1183,7 +1214,7 @@ impl BidirCells {
     }
 }
 
-/// Pre-pass paths of the fog box (depth limit 4), drawn by contribution: for each k = 1 ..= 5
+/// Pre-pass paths of the box (depth limit 4), drawn by contribution: for each k = 1 ..= 5
 /// edges the first whose inner vertices lie below `REGION_TOP`.
 fn paths_by_length(scene: &Scene, mlt: &Mlt) -> Vec<Vec<Vertex>> {
     let boot = Bootstrap::run(scene, &mlt.bdpt, 20_000, 51);
@@ -1216,7 +1247,7 @@ fn paths_by_length(scene: &Scene, mlt: &Mlt) -> Vec<Vec<Vertex>> {
 #[test]
 fn bidirectional_proposals_follow_t_at_depths_one_to_five() {
     let mut fam = Family::new("mlt_mutations: bidirectional proposals");
-    let scene = fog_box(16);
+    let scene = big_light_box(16);
     let mlt = engine(&scene, [1.0; 5], Some(4), 51);
     let b: &Bidirectional = &mlt.mutations.bidirectional;
     for x in paths_by_length(&scene, &mlt) {
@@ -1225,7 +1256,7 @@ fn bidirectional_proposals_follow_t_at_depths_one_to_five() {
             .iter()
             .map(|v| if v.is_medium() { 'V' } else { 'D' })
             .collect();
-        let cells = BidirCells::new(&scene, &mlt, x.clone());
+        let cells = BidirCells::new(&scene, &mlt, x.clone(), big_light_rect());
         proposals_follow_t(
             &mut fam,
             &format!("k = {k} (L{kinds}E)"),
