@@ -9,10 +9,14 @@
 //!     (positions on the known geometry, with a density of its own), so their noise enters the
 //!     chi-square; failed proposals (`None`) fall into no cell, so a T that integrates to more
 //!     than the success probability fails too.
+//!     The bidirectional mutation is tested at k = 1 ..= 5 edges on a box with a large light,
+//!     where its s' = 0 term (the eye side reaches the light by itself) carries weight.
 //! (b) Stationarity. On the 4 x 4 fog box (and a mirror box for the multi-chain perturbation),
 //!     many independent chains of one mutation (plus the bidirectional one, for ergodicity) run
 //!     from seed paths and their last states are binned by pixel and path class; the counts
 //!     must follow f/b, estimated per cell by an independent path tracer.
+//!
+//! Set `MLT_DEBUG` to list the cells more than 3 standard deviations off.
 //!
 //! Specular vertices: T keeps the Dirac-free convention of `contribution` (each edge through a
 //! mirror contributes g / d^2), so against the area of the chain's end on a planar mirror the
@@ -436,6 +440,9 @@ fn cells_agree(fam: &mut Family, what: &str, observed: &[u64], n: u64, p: &[f64]
     fam.p_value(what, pv, detail);
 }
 
+/// A sampler of paths y for the cell integrals: y and its weight (see `proposals_follow_t`).
+type Draw<'a> = dyn Fn(&mut Sampler) -> Option<(Vec<Vertex>, f64)> + Sync + 'a;
+
 /// Test (a) for one fixed x: `n_prop` proposals of `m` binned by `cell_of` against the cell
 /// integrals of T(x -> y), estimated from `n_q` draws of `draw` (a path y and its weight
 /// 1 / q(y), times the Dirac-free-to-real factor where specular vertices are moved).
@@ -450,7 +457,7 @@ fn proposals_follow_t(
     cell_of: &(dyn Fn(&[Vertex]) -> Option<usize> + Sync),
     n_prop: u64,
     n_q: u64,
-    draw: &(dyn Fn(&mut Sampler) -> Option<(Vec<Vertex>, f64)> + Sync),
+    draw: &Draw<'_>,
     seed: u64,
 ) {
     const CHUNK: u64 = 4096;
@@ -526,6 +533,9 @@ fn proposals_follow_t(
     cells_agree(fam, what, &observed, n_prop, &p, &var);
 }
 
+/// The path with a moved vertex at a point, and its real-over-Dirac-free factor.
+type Rebuild<'a> = dyn Fn(Vec3) -> Option<(Vec<Vertex>, f64)> + Sync + 'a;
+
 /// Cells and draws for a perturbation that moves one vertex `i` of x on a plane (normal `n`)
 /// around x_i, with `factor(y)` the real-over-Dirac-free factor: radius bins over [r0, r1]
 /// crossed with 8 sectors; the draws log-polar over [r0 / 2, 2 r1] (the rectangle `rect`
@@ -537,7 +547,7 @@ struct PlaneMove<'a> {
     r1: f64,
     i: usize,
     rect: Rect,
-    rebuild: &'a (dyn Fn(Vec3) -> Option<(Vec<Vertex>, f64)> + Sync),
+    rebuild: &'a Rebuild<'a>,
 }
 
 const RADIUS_BINS: usize = 8;
@@ -1266,7 +1276,7 @@ fn bidirectional_proposals_follow_t_at_depths_one_to_five() {
             cells.cells(),
             &|y| cells.cell_of(y),
             150_000,
-            std::env::var("MLT_NQ").map_or(2_000_000, |v| v.parse().unwrap()),
+            2_000_000,
             &|s| cells.draw(s),
             52 + k as u64,
         );
