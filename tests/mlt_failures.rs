@@ -23,7 +23,7 @@ use pathspace::math::Sampler;
 use pathspace::path::{Vertex, VertexKind};
 use pathspace::scene::{Scene, SceneSource};
 
-use common::SIGMA_BOUND;
+use common::stats::{runs_mean, student_two_sided, Family};
 
 fn fog_box(w: u32) -> Scene {
     let text = pathspace::scene::FOG_BOX.replace(
@@ -66,6 +66,7 @@ const STARTUP_DEPTH: u32 = 3;
 
 #[test]
 fn startup_spread_of_b_falls_like_one_over_sqrt_n_and_its_mean_is_unbiased() {
+    let mut fam = Family::new("mlt_failures: start-up spread and mean of b");
     let scene = fog_box(8);
     let mlt = engine(&scene, STARTUP_DEPTH);
     let (n_small, n_large) = (64u64, 4096u64);
@@ -76,36 +77,28 @@ fn startup_spread_of_b_falls_like_one_over_sqrt_n_and_its_mean_is_unbiased() {
     };
     let small = b_of(n_small);
     let large = b_of(n_large);
-    let (m_s, sd_s, k_s) = moments(&small);
-    let (m_l, sd_l, k_l) = moments(&large);
+    let (_, sd_s, k_s) = moments(&small);
+    let (_, sd_l, k_l) = moments(&large);
     // the spread shrinks by sqrt(n_large / n_small) = 8: ln of the ratio of the standard
-    // deviations against ln 8, within SIGMA_BOUND of its sampling error
+    // deviations against ln 8, with its delta-method standard error (runs - 1 dof)
     let expected = 0.5 * (n_large as f64 / n_small as f64).ln();
     let observed = (sd_s / sd_l).ln();
     let sigma = (var_ln_sd(k_s, small.len()) + var_ln_sd(k_l, large.len())).sqrt();
-    assert!(
-        (observed - expected).abs() < SIGMA_BOUND * sigma,
-        "sd(b_64) / sd(b_4096) = {} (ln {observed:.3}), expected 8 (ln {expected:.3}) +- {:.3} in ln",
-        sd_s / sd_l,
-        SIGMA_BOUND * sigma
+    fam.mean_is(
+        "ln(sd(b_64) / sd(b_4096)) against ln 8",
+        observed,
+        sigma,
+        (STARTUP_RUNS - 1) as f64,
+        expected,
     );
     // unbiased over runs, initialization included: the mean of b_n over runs at n = 64 agrees
     // with an independent BDPT estimate (the mean over runs at n = 4096, other seeds)
     let reference: Vec<f64> = (0..8)
         .map(|r| Bootstrap::run(&scene, &mlt.bdpt, n_large, 900 + r).b)
         .collect();
-    let (m_ref, sd_ref, _) = moments(&reference);
-    let se = |sd: f64, n: usize| sd / (n as f64).sqrt();
-    let se_diff = (se(sd_s, small.len()).powi(2) + se(sd_ref, reference.len()).powi(2)).sqrt();
-    assert!(
-        (m_s - m_ref).abs() < SIGMA_BOUND * se_diff,
-        "mean b_64 over runs {m_s} vs BDPT {m_ref} +- {se_diff}"
-    );
-    let se_diff_l = (se(sd_l, large.len()).powi(2) + se(sd_ref, reference.len()).powi(2)).sqrt();
-    assert!(
-        (m_l - m_ref).abs() < SIGMA_BOUND * se_diff_l,
-        "mean b_4096 over runs {m_l} vs BDPT {m_ref} +- {se_diff_l}"
-    );
+    fam.runs_agree("mean of b_64 over runs against BDPT", &small, &reference);
+    fam.runs_agree("mean of b_4096 over runs against BDPT", &large, &reference);
+    fam.finish();
 }
 
 /// L S+ ... S+ E: paths with a specular chain at both ends (the light's glass ball at the light,
@@ -149,18 +142,18 @@ fn paths(
 }
 
 /// Mean acceptance probability alpha of eq. (8) over `tries` attempts of each of `kinds` (equal
-/// weights) from each path; alpha = 0 when the mutation does not apply or leaves path space, as
-/// the chain experiences it. Returns (sum over paths of each path's mean alpha, paths): the
-/// paths are independent draws, the attempts from one path are not.
+/// weights) from each path; alpha = 0 when the mutation does not apply or leaves path space,
+/// as the chain experiences it. Returns each path's mean alpha: the paths are independent
+/// draws, the attempts from one path are not.
 fn mean_alpha(
     scene: &Scene,
     mlt: &Mlt,
     xs: &[Vec<Vertex>],
     kinds: &[MutationKind],
     tries: usize,
-) -> (f64, usize) {
+) -> Vec<f64> {
     let mut sampler = Sampler::new(5, 0, 0);
-    let mut sum = 0.0;
+    let mut out = Vec::with_capacity(xs.len());
     for x in xs {
         let (mut path_sum, mut count) = (0.0, 0);
         let fx = scalar_contribution(image_contribution(scene, x).unwrap().0) as f64;
@@ -179,9 +172,9 @@ fn mean_alpha(
                 path_sum += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
             }
         }
-        sum += path_sum / count as f64;
+        out.push(path_sum / count as f64);
     }
-    (sum, xs.len())
+    out
 }
 
 /// Hoeffding's one-sided bound for a mean of `n` independent values in [0, 1] at level
@@ -208,23 +201,32 @@ fn light_side_perturbations_do_not_move_paths_specular_at_both_ends() {
     // paths per scene: Hoeffding's bound at 600 is 0.076, below half the fog box's 0.30
     const SDS_PATHS: usize = 600;
     const TRIES: usize = 4;
+    let mut fam = Family::new("mlt_failures: light-side perturbations on S...S paths");
     let sds = scene_file("mlt-sds.toml", 16);
     let mlt_sds = engine(&sds, DEPTH);
     let xs = paths(&sds, &mlt_sds, 20_000, SDS_PATHS, |x| is_sds(&sds, x));
     assert!(xs.len() == SDS_PATHS, "only {} S-D-S paths", xs.len());
-    let (a_sds, n_sds) = mean_alpha(&sds, &mlt_sds, &xs, &LIGHT_SIDE, TRIES);
+    let a_sds = mean_alpha(&sds, &mlt_sds, &xs, &LIGHT_SIDE, TRIES);
     let fog = fog_box(16);
     let mlt_fog = engine(&fog, DEPTH);
     let ys = paths(&fog, &mlt_fog, 20_000, SDS_PATHS, |_| true);
-    let (a_fog, n_fog) = mean_alpha(&fog, &mlt_fog, &ys, &LIGHT_SIDE, TRIES);
-    let (p_sds, p_fog) = (a_sds / n_sds as f64, a_fog / n_fog as f64);
-    println!("mean alpha of light-side perturbations: S...S paths {p_sds:.4} ({n_sds}), fog box {p_fog:.4} ({n_fog})");
-    assert!(
-        p_sds + hoeffding(n_sds) < FAR_BELOW * (p_fog - hoeffding(n_fog)),
-        "light-side perturbations on S...S paths: mean acceptance {p_sds:.4} +- {:.4} is not far below the fog box's {p_fog:.4} +- {:.4}",
-        hoeffding(n_sds),
-        hoeffding(n_fog)
+    let a_fog = mean_alpha(&fog, &mlt_fog, &ys, &LIGHT_SIDE, TRIES);
+    let (p_sds, se_sds, dof_sds) = runs_mean(&a_sds);
+    let (p_fog, se_fog, dof_fog) = runs_mean(&a_fog);
+    println!("mean alpha of light-side perturbations: S...S paths {p_sds:.4} +- {se_sds:.4}, fog box {p_fog:.4} +- {se_fog:.4}");
+    // the claim p_sds <= FAR_BELOW p_fog, tested one-sided at its boundary: the p-value of a
+    // difference p_sds - FAR_BELOW p_fog this far above zero (Welch's degrees of freedom)
+    let (va, vb) = (se_sds * se_sds, (FAR_BELOW * se_fog).powi(2));
+    let se = (va + vb).sqrt();
+    let dof = (va + vb).powi(2) / (va * va / dof_sds + vb * vb / dof_fog);
+    let z = (p_sds - FAR_BELOW * p_fog) / se;
+    let tail = student_two_sided(z, dof) / 2.0;
+    fam.p_value(
+        "mean alpha on S...S paths is at most half the fog box's",
+        if z > 0.0 { tail } else { 1.0 - tail },
+        format!("{p_sds:.4} +- {se_sds:.4} vs {FAR_BELOW} x {p_fog:.4} +- {se_fog:.4}: {z:+.2} se"),
     );
+    fam.finish();
 }
 
 /// Paths the multi-chain perturbation applies to: the eye sees x_m through a specular chain
@@ -340,6 +342,7 @@ const SOFT_DEPTH: u32 = 12;
 
 #[test]
 fn mlt_is_no_better_than_bdpt_under_a_soft_light_in_a_high_albedo_medium() {
+    let mut fam = Family::new("mlt_failures: MLT no better than BDPT under a soft light");
     let scene = scene_file("mlt-soft-fog.toml", SOFT_RES);
     let bdpt: Vec<Vec<f64>> = (0..SOFT_RUNS)
         .map(|r| {
@@ -373,12 +376,16 @@ fn mlt_is_no_better_than_bdpt_under_a_soft_light_in_a_high_albedo_medium() {
     let (v_mlt, se_mlt) = total_variance(&mlt);
     let (v_bdpt, se_bdpt) = total_variance(&bdpt);
     println!("total variance at {SOFT_SAMPLES} samples per pixel: mlt {v_mlt:.4e} (ln +- {se_mlt:.3}), bdpt {v_bdpt:.4e} (ln +- {se_bdpt:.3})");
-    // both are unbiased, so their MSE is their variance: MLT's must not be below BDPT's by more
-    // than SIGMA_BOUND standard errors of the log ratio
+    // both are unbiased, so their MSE is their variance: the claim "MLT's is not below BDPT's"
+    // tested one-sided at its boundary (ln ratio 0) with the standard error of the log ratio
+    // (runs - 1 dof)
     let sigma = (se_mlt * se_mlt + se_bdpt * se_bdpt).sqrt();
-    assert!(
-        (v_mlt / v_bdpt).ln() > -SIGMA_BOUND * sigma,
-        "MLT's variance {v_mlt:.4e} is below BDPT's {v_bdpt:.4e} (ln ratio {:.3}, +- {sigma:.3})",
-        (v_mlt / v_bdpt).ln()
+    let z = (v_mlt / v_bdpt).ln() / sigma;
+    let tail = student_two_sided(z, (SOFT_RUNS - 1) as f64) / 2.0;
+    fam.p_value(
+        "MLT's total variance is not below BDPT's",
+        if z < 0.0 { tail } else { 1.0 - tail },
+        format!("mlt {v_mlt:.4e}, bdpt {v_bdpt:.4e}: ln ratio {z:+.2} se"),
     );
+    fam.finish();
 }
