@@ -312,6 +312,10 @@ impl Bdpt {
         );
         v0.pdf_fwd = 1.0 / q.area();
         path.push(v0);
+        if self.strategies == Strategies::LightTracing {
+            // light tracing uses z_0 alone (t = 1): the walk would be traced for nothing
+            return;
+        }
         let local = warp::cosine_hemisphere(sampler.next_2d());
         if local.z <= 0.0 {
             return;
@@ -763,6 +767,19 @@ impl Bdpt {
             pdf_qp = e.pdf_ab;
             pdf_pq = e.pdf_ba;
             sampled = Some(v);
+        } else if t == 1
+            && self.strategies == Strategies::LightTracing
+            && matches!(eye[0].kind, VertexKind::Meter { .. })
+        {
+            // light tracing to a meter: two direction samplers combined by MIS
+            if !light[s - 1].is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let (c, z0) = self.light_tracing_meter(scene, light, s, &eye[0], sampler)?;
+            l = c;
+            pdf_qp = 1.0;
+            pdf_pq = 1.0;
+            sampled = Some(z0);
         } else if t == 1 {
             // connect the light subpath to the sensor
             let qs = &light[s - 1];
@@ -841,6 +858,90 @@ impl Bdpt {
         Some((l, raster, sampled))
     }
     // ANCHOR_END: connect
+
+    /// Light tracing's connection of y_{s-1} to the meter of `z0` (t = 1), unweighted across
+    /// strategies like the rest of light tracing, but with two samplers of the connection
+    /// direction w combined by the power heuristic (Veach 1997, sec. 9.2.4):
+    ///
+    /// - the meter point uniform in the solid angle Omega the meter subtends at y_{s-1}
+    ///   ([`IrradianceMeter::connection_from`]: Arvo's spherical triangles; by area when Omega is
+    ///   tiny), density p_m(w) = 1 / Omega. Area sampling's G / p = g g' A / d^2 has infinite
+    ///   variance for a meter touching a medium (int dz / z^2); by solid angle it is g Omega;
+    /// - at a medium vertex, w from the phase function (density p_f), kept when it hits the
+    ///   meter's front: the estimate sigma_s tau W_e w_f, bounded whatever the phase function's
+    ///   peak, where the first one's f g Omega is not (a photon already heading for the meter
+    ///   through a forward HG lobe).
+    ///
+    /// With w_m = p_m^2 / (p_m^2 + p_f^2) and w_f = 1 - w_m both terms stay below
+    /// beta sigma_s tau / A. Returns the contribution and z_0 of the first sampler (or of the
+    /// second when the first produced none).
+    ///
+    /// [`IrradianceMeter::connection_from`]: crate::scene::sensor::IrradianceMeter::connection_from
+    fn light_tracing_meter(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        s: usize,
+        z0: &Vertex,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Vertex)> {
+        let VertexKind::Meter { meter } = z0.kind else {
+            return None;
+        };
+        let qs = &light[s - 1];
+        let prev = light[s - 2].p;
+        let m = &scene.sensors[meter as usize];
+        // both numbers drawn up front, so the streams do not depend on what each sampler finds
+        let (u_meter, u_phase) = (sampler.next_2d(), sampler.next_2d());
+        // None: y_{s-1} is behind the meter's measuring side
+        let conn = m.connection_from(qs.p)?;
+        let w_prev = (prev - qs.p).normalize_or_zero();
+        let phase = match qs.kind {
+            VertexKind::Medium { medium } => Some(scene.media[medium as usize].phase()),
+            _ => None,
+        };
+        let vertex_at = |p: Vec3, pdf_area: f32| {
+            let mut v = Vertex::new(z0.kind, p, m.normal(), z0.medium_front, z0.medium_back);
+            v.pdf_fwd = pdf_area;
+            v.beta = Rgb::ONE;
+            v
+        };
+        // beta f tau W_e g(y_{s-1} -> z_0) / p(w), the unweighted estimate of one direction
+        let estimate = |z: &Vertex, pdf_dir: f32, sampler: &mut Sampler| -> Rgb {
+            let f = qs.f_hat(scene, prev, z.p);
+            let we = z.importance(scene, qs.p);
+            if f == Rgb::ZERO || we == Rgb::ZERO || pdf_dir.is_nan() || pdf_dir <= 0.0 {
+                return Rgb::ZERO;
+            }
+            let e = scene.edge(qs.edge_end(z.p), z.edge_end(qs.p), sampler);
+            let w = (z.p - qs.p).normalize_or_zero();
+            let cos_q = crate::path::geometry_term::cosine_factor(qs, w);
+            qs.beta * f * e.transmittance * we * (cos_q / pdf_dir)
+        };
+        let mut l = Rgb::ZERO;
+        let mut first = None;
+        if let Some(mp) = conn.sample(u_meter) {
+            let z = vertex_at(mp.p, mp.pdf_area);
+            let w = (mp.p - qs.p).normalize_or_zero();
+            let p_f = phase.map_or(0.0, |ph| ph.pdf(w_prev, w));
+            let p_m = mp.pdf_solid_angle;
+            let weight = p_m * p_m / (p_m * p_m + p_f * p_f);
+            l += estimate(&z, p_m, sampler) * weight;
+            first = Some(z);
+        }
+        if let Some(ph) = phase {
+            let w = ph.sample(w_prev, u_phase).wi;
+            if let Some(p) = conn.hit(w) {
+                let p_f = ph.pdf(w_prev, w);
+                let p_m = conn.pdf_solid_angle(p);
+                let z = vertex_at(p, conn.pdf_area(p));
+                let weight = p_f * p_f / (p_m * p_m + p_f * p_f);
+                l += estimate(&z, p_f, sampler) * weight;
+                first.get_or_insert(z);
+            }
+        }
+        first.map(|z| (l, z))
+    }
 
     /// All strategies for one sensor sample whose eye subpath is `scratch.eye`: returns the
     /// contribution to the sample's own pixel (or meter) and pushes splats for t = 1.

@@ -1,11 +1,12 @@
-//! Small numerical building blocks: orthonormal frames, warps from the unit square, discrete
-//! distributions and the random number streams.
+//! Small numerical building blocks: orthonormal frames, warps from the unit square, sampling by
+//! solid angle, discrete distributions and the random number streams.
 //! Book: "Notation and conventions" (frames, measures) and "Sampling toolbox".
 
 pub mod distribution;
 pub mod frame;
 pub mod primary_sample;
 pub mod sampler;
+pub mod spherical;
 pub mod warp;
 
 pub use distribution::Distribution1D;
