@@ -180,10 +180,12 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         chapter_file: "mlt.md",
         files: &["src/integrator/mlt/mutation/propagation.rs"],
         task: "the propagation perturbation of sec. 5.2.2 and its transition density T(x -> y)",
-        tests: &[t(
-            "mlt",
-            "propagation_perturbation_density_matches_its_samples",
-        )],
+        tests: &[
+            t(
+                "mlt_mutations",
+                "propagation_perturbation_proposals_follow_t_along_the_line_and_out_of_the_medium",
+            ),
+        ],
     },
     Assignment {
         name: "inverse_distance",

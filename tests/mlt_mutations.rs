@@ -875,16 +875,56 @@ fn light_perturbation_proposals_follow_t_on_a_wall_in_the_fog_and_through_a_mirr
     fam.finish();
 }
 
+/// [`floor_wall_path`] from the scene's primitives alone (no tracing, no free flights).
+fn floor_wall_path_by_hand(scene: &Scene, wall_p: Vec3) -> Vec<Vertex> {
+    let light_prim = (0..scene.prims.len())
+        .find(|&p| scene.shapes[scene.prim_shape[p] as usize].light.is_some())
+        .unwrap() as u32;
+    let prim_at = |p: Vec3, n: Vec3| -> u32 {
+        (0..scene.prims.len())
+            .find(|&i| {
+                let shape = &scene.shapes[scene.prim_shape[i] as usize];
+                !shape.is_null()
+                    && shape.light.is_none()
+                    && scene.prims[i]
+                        .intersect(&pathspace::geometry::Ray::new(p + n * 0.01, -n), 1.0)
+                        .is_some()
+            })
+            .unwrap() as u32
+    };
+    let fog = Some(0);
+    let light = VertexKind::Light {
+        light: 0,
+        prim: Some(light_prim),
+    };
+    let l = Vertex::new(light, Vec3::new(0.05, 0.999, -0.1), -Vec3::Y, fog, fog);
+    let floor_p = Vec3::new(0.1, -1.0, 0.0);
+    let floor_kind = VertexKind::Surface {
+        prim: prim_at(floor_p, Vec3::Y),
+    };
+    let floor = Vertex::new(floor_kind, floor_p, Vec3::Y, fog, fog);
+    let wall_kind = VertexKind::Surface {
+        prim: prim_at(wall_p, Vec3::Z),
+    };
+    let wall = Vertex::new(wall_kind, wall_p, Vec3::Z, fog, fog);
+    vec![l, floor, wall, eye_vertex(scene)]
+}
+
 #[test]
 fn propagation_perturbation_proposals_follow_t_along_the_line_and_out_of_the_medium() {
     let mut fam = Family::new("mlt_mutations: propagation perturbation proposals");
     let scene = fog_box(64);
-    let mlt = engine(&scene, [1.0; 5], None, 7);
-    let m = &mlt.mutations.propagation;
+    // the mutation as `Mlt::new` configures it and the path built by hand, so that this test
+    // (the `propagation_perturbation` assignment's) reaches nothing else of MLT or the media
+    let (d0, d1) = MltSettings::default().propagation_distance;
+    let r = scene.radius.max(f32::MIN_POSITIVE);
+    let m = &PropagationPerturbation {
+        distance: InverseDistance::new(d0 * r, d1 * r).unwrap(),
+    };
     let d = m.distance;
     // x_2 in the fog, 1.0 from the floor point towards the back wall and (second case) just
     // before the back wall, so that forward moves leave the medium (no proposal)
-    let base = floor_wall_path(&scene, &mlt, Vec3::new(-0.05, 0.1, -1.0));
+    let base = floor_wall_path_by_hand(&scene, Vec3::new(-0.05, 0.1, -1.0));
     let from = base[1].p;
     let w = (base[2].p - from).normalize();
     let to_wall = (base[2].p - from).length();

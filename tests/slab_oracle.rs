@@ -3,10 +3,15 @@
 //! 60 degrees) whose reflectance and transmittance two deterministic solvers (adding-doubling
 //! and discrete ordinates) agree on to about 4e-8; `tests/fixtures/slab/README.md` gives the
 //! provenance and the meter convention. Every integrator that measures irradiance meters is
-//! compared with them on every case whose estimator has a finite variance (see [`VARIANCE`]):
-//! `path`, `bdpt` and `light` by a meter mean with its own standard error (the samples of one
-//! render are independent), `smc`, whose records adapt it from pass to pass, by independent
-//! runs. MLT renders camera images only and refuses a scene without a camera: that is asserted.
+//! compared with them, on both meters of every case whose estimators have a finite variance
+//! (35 of 40, see [`VARIANCE`]): `path` and `bdpt` by a meter mean with its own standard error
+//! (the samples of one render are independent), `light` the same way where a sample can hold
+//! enough of its rare full-weight light paths (48 of the 70 meters, see [`light_samples`]),
+//! `smc`, whose records adapt it from pass to pass, by independent runs (the proposed variant
+//! is biased on forward-scattering slabs: its test is ignored, with the numbers; the variant
+//! that samples the phase function runs). Sample counts aim at a relative standard error per
+//! integrator, from a pilot render of another seed. MLT renders camera images only and
+//! refuses a scene without a camera: that is asserted.
 //!
 //! The geometry. The oracle's slab is laterally infinite; a rendered one is a box of half-width
 //! W with a 1 x 1 meter at its centre, 0.001 outside it. At normal incidence the box's sides are
@@ -34,8 +39,8 @@ use pathspace::math::spherical::SphericalParallelogram;
 use pathspace::scene::{Scene, SceneSource};
 
 /// The largest truncation error of a rendered slab relative to the oracle's value. The finest
-/// comparison below has a relative standard error of about [`TARGET_PATH`], so this is a tenth
-/// of a standard error at most.
+/// comparisons below (the path tracer's) have relative standard errors of about
+/// [`TARGET_PATH`], so this is a tenth of a standard error at most.
 const EPSILON: f64 = 1e-3;
 /// Gap between the slab and a meter.
 const GAP: f64 = 1e-3;
@@ -290,9 +295,10 @@ fn sized(scene: &Scene, kind: IntegratorKind, truth: f64, target: f64, range: (u
 }
 
 const PILOT_SEED: u64 = 0x5eed_0000;
-/// Relative standard errors the sample counts aim at: the path tracer is the finest check, the
-/// others are each a few times coarser (their samples cost more or vary more).
-const TARGET_PATH: f64 = 0.02;
+/// Relative standard errors the sample counts aim at: the path tracer is the finest check (at
+/// 1% a phase function 5% too bright fails on the isotropic slabs; at 2% it passed), the others
+/// are a few times coarser (their samples cost more or vary more).
+const TARGET_PATH: f64 = 0.01;
 const TARGET_BDPT: f64 = 0.04;
 const TARGET_LIGHT: f64 = 0.08;
 const TARGET_SMC: f64 = 0.08;
@@ -435,7 +441,7 @@ fn very_long_paths_are_listed() {
 #[test]
 fn path_matches_slab_oracle() {
     let mut fam = Family::new("slab_oracle: path_matches_slab_oracle");
-    compare_renders(&mut fam, IntegratorKind::Path, TARGET_PATH, (4096, 1 << 17));
+    compare_renders(&mut fam, IntegratorKind::Path, TARGET_PATH, (4096, 1 << 18));
     fam.finish();
 }
 
