@@ -178,9 +178,9 @@ fn mean_alpha(
 }
 
 /// Hoeffding's one-sided bound for a mean of `n` independent values in [0, 1] at level
-/// `common::SIGNIFICANCE`: P(mean - E > t) <= exp(-2 n t^2), t = sqrt(ln(1 / level) / (2 n)).
+/// `TEST_ALPHA`, one test's level: P(mean - E > t) <= exp(-2 n t^2), t = sqrt(ln(1 / level) / (2 n)).
 fn hoeffding(n: usize) -> f64 {
-    ((1.0 / common::SIGNIFICANCE).ln() / (2.0 * n as f64)).sqrt()
+    ((1.0 / common::stats::TEST_ALPHA).ln() / (2.0 * n as f64)).sqrt()
 }
 
 /// The perturbations that must retrace a chain from the light side: the light (caustic)

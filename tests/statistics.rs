@@ -43,35 +43,6 @@ const UNCALIBRATED: [&str; 10] = [
     "ORDER_SLACK",
 ];
 
-/// The test files whose Monte Carlo assertions all go through a `Family` (or that make none):
-/// the uncalibrated helpers are an error there. The files not listed still use them while
-/// they migrate on other branches; the list becomes all files of `tests/` when the MLT tests
-/// (`mlt.rs`, `mlt_failures.rs`) and `golden.rs` have migrated, and the helpers are removed.
-const MIGRATED: [&str; 22] = [
-    "assignments.rs",
-    "book.rs",
-    "bsdf.rs",
-    "coplanar.rs",
-    "determinism.rs",
-    "enlightened.rs",
-    "free_flight.rs",
-    "geometry.rs",
-    "guiding.rs",
-    "measure.rs",
-    "media_inhomogeneous.rs",
-    "path_space.rs",
-    "phase.rs",
-    "primary_sample.rs",
-    "scene_errors.rs",
-    "smc_cache.rs",
-    "smc_determinism.rs",
-    "smc_settings.rs",
-    "smc_unbiased.rs",
-    "transport.rs",
-    "warp.rs",
-    "statistics.rs",
-];
-
 /// The sources of `tests/*.rs` (not `tests/common`), by file name.
 fn test_sources() -> Vec<(String, String)> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
@@ -129,44 +100,33 @@ fn the_false_alarm_budget_covers_every_family() {
 }
 
 #[test]
-fn migrated_files_use_no_uncalibrated_helper() {
-    let mut offenders = Vec::new();
-    let mut pending = Vec::new();
-    for (name, text) in test_sources() {
-        if name == "statistics.rs" {
-            continue; // it names them
-        }
-        let used: Vec<&str> = UNCALIBRATED
-            .iter()
-            .copied()
-            .filter(|h| text.contains(h))
-            .collect();
-        if used.is_empty() {
-            continue;
-        }
-        let line = format!("{name}: {}", used.join(", "));
-        if MIGRATED.contains(&name.as_str()) {
-            offenders.push(line);
-        } else {
-            pending.push(line);
-        }
+fn no_file_uses_an_uncalibrated_helper() {
+    // every Monte Carlo assertion of the suite goes through a `Family`: the old helpers and
+    // tolerances are gone from tests/common, and none may come back in a test or a helper
+    let common = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/common");
+    let mut sources = test_sources();
+    for entry in std::fs::read_dir(common).unwrap() {
+        let path = entry.unwrap().path();
+        let name = format!("common/{}", path.file_name().unwrap().to_string_lossy());
+        sources.push((name, std::fs::read_to_string(&path).unwrap()));
     }
-    if !pending.is_empty() {
-        eprintln!(
-            "still on the uncalibrated helpers (not yet migrated):\n  {}",
-            pending.join("\n  ")
-        );
-    }
+    let offenders: Vec<String> = sources
+        .iter()
+        .filter(|(name, _)| name != "statistics.rs") // it names them
+        .filter_map(|(name, text)| {
+            let used: Vec<&str> = UNCALIBRATED
+                .iter()
+                .copied()
+                .filter(|h| text.contains(h))
+                .collect();
+            (!used.is_empty()).then(|| format!("{name}: {}", used.join(", ")))
+        })
+        .collect();
     assert!(
         offenders.is_empty(),
-        "migrated files use uncalibrated helpers:\n  {}",
+        "uncalibrated helpers in use:\n  {}",
         offenders.join("\n  ")
     );
-    // every listed file exists (a renamed file would silently leave the list)
-    let names: Vec<String> = test_sources().into_iter().map(|(n, _)| n).collect();
-    for m in MIGRATED {
-        assert!(names.iter().any(|n| n == m), "{m} is listed but missing");
-    }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,15 +1,16 @@
 //! Shared statistical helpers of the executable specification (`tests/*.rs`).
 //!
-//! Every statistical test in pathspace uses a fixed seed and a stated significance level, so a
-//! failure is reproducible and means "this would happen by chance less than once in 1/alpha
-//! runs" (STYLE.md, tier 2). The helpers here are:
+//! Every statistical test in pathspace uses a fixed seed and judges its comparisons as one
+//! [`stats::Family`] (p-values, Holm's correction, a level shared out over the suite), so a
+//! failure is reproducible and means "a correct renderer does this less than once in 1/alpha
+//! runs". The helpers here compute statistics; only a `Family` decides:
 //!
 //! - [`chi_square_p_value`]: Pearson's goodness-of-fit test of binned counts against expected
 //!   counts, pooling bins whose expectation is below [`CHI2_MIN_EXPECTED`];
 //! - [`chi_square_sphere`]: the same test for directions, binned over (cos theta, phi) of a
 //!   frame, with expected counts from quadrature of a solid-angle density;
 //! - [`ks_p_value`]: the one-sample Kolmogorov-Smirnov test against a continuous CDF;
-//! - [`mean_and_stderr`] and [`assert_within_sigma`]: a Monte Carlo mean against a known value.
+//! - [`mean_and_stderr`], [`film_mean`], [`meter_mean`]: Monte Carlo means with their errors.
 #![allow(dead_code)]
 
 pub mod stats;
@@ -18,18 +19,9 @@ use glam::Vec3;
 use pathspace::math::{Frame, Sampler};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-/// The significance level of every goodness-of-fit test: with a correct sampler and a fixed
-/// seed a test fails with probability below this (Mitsuba 3's `ChiSquareTest` uses 1e-2 over
-/// several runs; one fixed-seed run at 1e-3 keeps false alarms rare).
-pub const SIGNIFICANCE: f64 = 1e-3;
-
 /// Pearson's chi-square statistic is only chi-square distributed when every bin expects at
 /// least about five samples (Cochran's rule); smaller bins are pooled.
 pub const CHI2_MIN_EXPECTED: f64 = 5.0;
-
-/// The number of standard errors a Monte Carlo mean may deviate from the truth: the two-sided
-/// normal tail beyond 4 sigma has probability 6.3e-5, below [`SIGNIFICANCE`].
-pub const SIGMA_BOUND: f64 = 4.0;
 
 /// The allowance for an estimator whose standard error is exactly zero (a deterministic
 /// quantity computed in f32): a few units in the last place of an f32 result of order one.
@@ -90,15 +82,6 @@ pub fn chi_square_p_value(observed: &[u64], expected: &[f64]) -> f64 {
         return 1.0;
     }
     ChiSquared::new(dof as f64).unwrap().sf(statistic)
-}
-
-/// Asserts the chi-square test passes at [`SIGNIFICANCE`].
-pub fn assert_chi_square(what: &str, observed: &[u64], expected: &[f64]) {
-    let p = chi_square_p_value(observed, expected);
-    assert!(
-        p > SIGNIFICANCE,
-        "{what}: chi-square p-value {p:e} <= {SIGNIFICANCE:e}"
-    );
 }
 
 /// Composite Simpson rule of `f` on [a, b] with `n` (even) sub-intervals, in f64.
@@ -214,19 +197,6 @@ impl SphereGrid {
     }
 }
 
-/// Chi-square test of a direction sampler against the solid-angle density it claims.
-pub fn assert_chi_square_sphere(
-    what: &str,
-    grid: &SphereGrid,
-    sample: impl FnMut() -> Option<Vec3>,
-    pdf: impl Fn(Vec3) -> f64,
-    n_samples: u64,
-) {
-    let observed = grid.observe(sample, n_samples);
-    let expected = grid.expected(pdf, n_samples);
-    assert_chi_square(what, &observed, &expected);
-}
-
 /// The Kolmogorov distribution's survival function Q(lambda) = 2 sum_{j>=1} (-1)^(j-1)
 /// exp(-2 j^2 lambda^2), the asymptotic law of sqrt(n) D_n.
 pub fn kolmogorov_q(lambda: f64) -> f64 {
@@ -264,15 +234,6 @@ pub fn ks_p_value(samples: &mut [f64], cdf: impl Fn(f64) -> f64) -> f64 {
     kolmogorov_q((sqrt_n + STEPHENS_A + STEPHENS_B / sqrt_n) * d)
 }
 
-/// Asserts the KS test passes at [`SIGNIFICANCE`].
-pub fn assert_ks(what: &str, samples: &mut [f64], cdf: impl Fn(f64) -> f64) {
-    let p = ks_p_value(samples, cdf);
-    assert!(
-        p > SIGNIFICANCE,
-        "{what}: KS p-value {p:e} <= {SIGNIFICANCE:e}"
-    );
-}
-
 /// Sample mean and its standard error sqrt(s^2 / n), s^2 the unbiased sample variance.
 pub fn mean_and_stderr(samples: &[f64]) -> (f64, f64) {
     let n = samples.len() as f64;
@@ -280,26 +241,6 @@ pub fn mean_and_stderr(samples: &[f64]) -> (f64, f64) {
     let mean = samples.iter().sum::<f64>() / n;
     let var = samples.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
-}
-
-/// Asserts |mean - truth| <= k * stderr. When the estimator has zero variance (stderr = 0,
-/// e.g. every sample equal) the test would demand bit equality of an f32 computation, so
-/// [`ZERO_VARIANCE_ALLOWANCE`] relative to max(1, |truth|) is added.
-pub fn assert_within_sigma(what: &str, mean: f64, stderr: f64, truth: f64, k: f64) {
-    let allowance = ZERO_VARIANCE_ALLOWANCE * truth.abs().max(1.0);
-    let err = (mean - truth).abs();
-    assert!(
-        err <= k * stderr + allowance,
-        "{what}: mean {mean} vs truth {truth}: |error| {err:e} > {k} x stderr {stderr:e}"
-    );
-}
-
-/// Asserts the proportion of `hits` in `n` Bernoulli trials matches `p` within
-/// [`SIGMA_BOUND`] binomial standard deviations.
-pub fn assert_binomial(what: &str, hits: u64, n: u64, p: f64) {
-    let mean = hits as f64 / n as f64;
-    let stderr = (p * (1.0 - p) / n as f64).sqrt();
-    assert_within_sigma(what, mean, stderr, p, SIGMA_BOUND);
 }
 
 /// Asserts |a - b| <= tol * max(1, |b|): comparison of deterministic f32 quantities.
@@ -400,25 +341,6 @@ pub fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
         })
         .collect();
     (mean, se)
-}
-
-/// The quadrant means of two sets of runs agree within [`SIGMA_BOUND`] combined standard errors.
-pub fn assert_quadrants_agree(name: &str, a: &[Vec<f64>], b: &[Vec<f64>]) {
-    let (ma, sa) = mean_and_se(a);
-    let (mb, sb) = mean_and_se(b);
-    for i in 0..ma.len() {
-        let sigma = (sa[i] * sa[i] + sb[i] * sb[i]).sqrt();
-        assert!(
-            (ma[i] - mb[i]).abs() < SIGMA_BOUND * sigma,
-            "{name}: quadrant {} channel {}: {} +- {} vs {} +- {}",
-            i / 3,
-            i % 3,
-            ma[i],
-            sa[i],
-            mb[i],
-            sb[i]
-        );
-    }
 }
 
 /// Quadrant means of `runs` BDPT renders of `spp` samples per pixel, depth limit `depth`,
