@@ -146,6 +146,17 @@ pub const DEFENSIVE: f64 = 0.25;
 /// complete is replaced by the phase function too (the paper's uniform directions, the same
 /// thing for isotropic media; for a forward phase function they made weights up to
 /// (1 + g) / (1 - g)^2).
+///
+/// The slab oracle (`tests/slab_oracle.rs`) shows the same on forward-scattering slabs
+/// (Henyey-Greenstein g = 0.8, a beam at 60 degrees, paths of tens of vertices): with the pdf at
+/// every vertex, uniform directions before it was complete and the adaptive march choice,
+/// is1_cv2 transmitted 0.0020 +- 0.0007 of a tau 10, albedo 0.9 slab against the oracle's
+/// 0.0229 (8 runs of 2 passes of 1024 samples); with the pdf at every vertex alone (the rest as
+/// now) is1_cv0 transmitted 0.0148 +- 0.0008 (32 runs); with this limit 0.0244 +- 0.0008 (32
+/// runs of 2 passes of 4096 samples; is1_cv2 0.0209 +- 0.0019). None of these
+/// densities is wrong (eq. 1 stays unbiased [PWP08]); the product of weights is heavy-tailed,
+/// and a few runs see its typical, small value. Book: "SMC: the estimators", section
+/// "Forward scattering".
 pub const ADAPTIVE_DEPTH: u32 = 2;
 
 /// Samples `wi` at a medium vertex from the defensive mixture (1 - DEFENSIVE) p_cache +
