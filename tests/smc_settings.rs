@@ -184,3 +184,38 @@ fn unknown_key_is_named() {
     assert_eq!(e.line, Some(BASE_LINES + 1), "{e}");
     assert!(e.to_string().contains("varient"), "{e}");
 }
+
+/// SMC's control variates are warned against in strongly anisotropic media (their residual
+/// grows with the phase function's departure from isotropy), and only there: not for the
+/// variants without a control variate, not for isotropic or mildly anisotropic media.
+#[test]
+fn control_variates_are_warned_against_in_anisotropic_media() {
+    use pathspace::integrator::smc::{anisotropy_warning, CONTROL_VARIATE_ANISOTROPY};
+    let with_phase = |phase: &str| {
+        let text = pathspace::scene::FOG_BOX.replace("type = \"isotropic\"", phase);
+        Scene::load(&SceneSource::embedded("fog-box", &text)).unwrap()
+    };
+    let iso = Scene::load(&SceneSource::embedded("fog-box", pathspace::scene::FOG_BOX)).unwrap();
+    let forward = with_phase("type = \"hg\", g = 0.9");
+    let backward = with_phase("type = \"hg\", g = -0.5");
+    let mild = with_phase(&format!(
+        "type = \"hg\", g = {}",
+        CONTROL_VARIATE_ANISOTROPY * 0.5
+    ));
+    for v in Variant::ALL {
+        let cv = v.name().ends_with("cv1") || v.name().ends_with("cv2");
+        let w = anisotropy_warning(&forward, v);
+        assert_eq!(w.is_some(), cv, "{}: {w:?}", v.name());
+        if let Some(w) = w {
+            assert!(w.contains("0.9") && w.contains(&v.name()), "{w}");
+        }
+        assert_eq!(
+            anisotropy_warning(&backward, v).is_some(),
+            cv,
+            "{}",
+            v.name()
+        );
+        assert!(anisotropy_warning(&iso, v).is_none(), "{}", v.name());
+        assert!(anisotropy_warning(&mild, v).is_none(), "{}", v.name());
+    }
+}

@@ -598,6 +598,10 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
     }
     let smc = args.smc.smc_settings(kind, scene.render.smc)?;
+    if let Some(w) = smc.and_then(|s| crate::integrator::smc::anisotropy_warning(&scene, s.variant))
+    {
+        eprintln!("warning: {w}");
+    }
     let seed = args.seed.unwrap_or(scene.render.seed);
     scene.render.guide = args.guide.apply(scene.render.guide)?;
     if scene.render.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
