@@ -258,6 +258,8 @@ fn every_pdf_integrates_to_one_and_is_never_zero_after_writes_and_refinements() 
                         "a zero pdf cell after refinement"
                     );
                 }
+                // the memory budget's forecast of a cache is what the cache occupies
+                assert_eq!(c.bytes(), RadianceCache::bytes_for(cells), "{cells} cells");
                 // the mean coefficient (root / N) is the mean over the cells
                 let mean = (0..cells).map(|k| c.pdf_coefficient(k)).sum::<f64>() / cells as f64;
                 assert!(
