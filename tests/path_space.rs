@@ -420,6 +420,44 @@ v = [0.2, 0.0, 0.0]
     assert!((w - 1.0).abs() < 1e-6, "w(s = 0) = {w}");
 }
 
+/// The medium an edge from a vertex runs through: on an interface (a glass surface between
+/// media 0 outside and 1 inside) the one on the side the direction points to, the normal's
+/// side being the front; on a surface between equal media and at a medium vertex (no normal)
+/// the one medium. Edges (transmittance, propagation pdfs) are traced in it.
+#[test]
+fn vertex_media_follow_the_side_of_the_direction() {
+    let up = Vec3::new(0.0, 1.0, 0.0);
+    let w = Vec3::new(0.3, 0.5, 0.1);
+    let interface = Vertex::new(
+        VertexKind::Surface { prim: 0 },
+        Vec3::ZERO,
+        up,
+        Some(0),
+        Some(1),
+    );
+    assert_eq!(interface.medium_towards(w), Some(0));
+    assert_eq!(interface.medium_towards(-w), Some(1));
+    assert_eq!(interface.edge_end(-w).medium, Some(1));
+    assert_eq!(interface.edge_end(w).medium, Some(0));
+    let wall = Vertex::new(
+        VertexKind::Surface { prim: 0 },
+        Vec3::ZERO,
+        up,
+        Some(1),
+        Some(1),
+    );
+    assert_eq!(wall.medium_towards(-w), Some(1));
+    let fog = Vertex::new(
+        VertexKind::Medium { medium: 1 },
+        Vec3::ZERO,
+        Vec3::ZERO,
+        Some(1),
+        Some(1),
+    );
+    assert_eq!(fog.medium_towards(-w), Some(1));
+    assert_eq!(fog.medium_towards(w), Some(1));
+}
+
 /// For random paths, the power-heuristic weights of all strategies sum to one and each equals
 /// p_s^2 / sum p_i^2 computed directly from the strategy densities.
 #[test]

@@ -261,28 +261,38 @@ type = "point"
 position = [0.0, 0.0, 1.0]
 intensity = 8.0
 "#;
-    let scene = load(text);
-    let cam = scene.camera.as_ref().unwrap();
-    let mut sampler = pathspace::math::Sampler::new(1, 0, 0);
-    let splats = pathspace::integrator::path::delta_light_view(&scene, &mut sampler);
-    assert_eq!(
-        splats.len(),
-        1,
-        "one splat per delta light in view: {splats:?}"
-    );
-    let (raster, l) = splats[0];
-    assert!(
-        (raster - glam::Vec2::new(8.0, 6.0)).length() < 1e-4,
-        "{raster:?}"
-    );
-    let e = 8.0 / 4.0;
-    let expect = e * (16.0 * 12.0) / cam.film_area() as f64;
-    for c in 0..3 {
-        let got = l[c] as f64;
-        assert!(
-            (got - expect).abs() < 1e-5 * expect,
-            "{got} vs W_e cos E = {expect}"
+    // on the axis, and off it at cosine c to the axis, where W_e cos = npixels / (A_film c^3)
+    for (position, centre) in [("[0.0, 0.0, 1.0]", true), ("[0.3, 0.2, 1.0]", false)] {
+        let scene = load(&text.replace("[0.0, 0.0, 1.0]", position));
+        let cam = scene.camera.as_ref().unwrap();
+        let mut sampler = pathspace::math::Sampler::new(1, 0, 0);
+        let splats = pathspace::integrator::path::delta_light_view(&scene, &mut sampler);
+        assert_eq!(
+            splats.len(),
+            1,
+            "one splat per delta light in view: {splats:?}"
         );
+        let (raster, l) = splats[0];
+        if centre {
+            assert!(
+                (raster - glam::Vec2::new(8.0, 6.0)).length() < 1e-4,
+                "{raster:?}"
+            );
+        }
+        let pathspace::scene::Light::Point { position: p, .. } = scene.lights[0] else {
+            unreachable!()
+        };
+        let d = (p - cam.eye).as_dvec3();
+        let c = d.normalize().dot(cam.forward.as_dvec3());
+        let e = 8.0 / d.length_squared();
+        let expect = e * (16.0 * 12.0) / (cam.film_area() as f64 * c * c * c);
+        for ch in 0..3 {
+            let got = l[ch] as f64;
+            assert!(
+                (got - expect).abs() < 1e-5 * expect,
+                "{got} vs W_e cos E = {expect}"
+            );
+        }
     }
 }
 
