@@ -391,6 +391,8 @@ v = [0.2, 0.0, 0.0]
     ))
     .unwrap();
     let b = Bdpt::new(&scene, Some(4), Strategies::All);
+    // this light is in vacuum
+    assert_eq!(b.light_medium(0), None);
     let x0 = Vertex::new(
         VertexKind::Light {
             light: 0,
