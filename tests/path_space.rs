@@ -597,6 +597,53 @@ fn bdpt_light_and_path_agree() {
     fam.finish();
 }
 
+/// Refraction into a medium: a meter inside a glass box of absorbing ink, under an area light
+/// outside. Every path leaves through the glass, where the walk must switch from the ink to the
+/// vacuum outside (the path tracer by the side the refracted direction takes, BDPT by
+/// `Vertex::medium_towards`); the two agree only if both switch.
+#[test]
+fn refraction_out_of_an_absorbing_box_switches_the_medium() {
+    let scene = Scene::load(&SceneSource::embedded(
+        "ink.toml",
+        r#"
+[render]
+meter_samples = 4096
+[materials.glass]
+type = "dielectric"
+ior = 1.3
+[media.ink]
+type = "homogeneous"
+sigma_a = 0.5
+sigma_s = 0.0
+[[shapes]]
+type = "box"
+min = [-0.5, -0.5, -0.5]
+max = [0.5, 0.5, 0.5]
+material = "glass"
+interior = "ink"
+[[shapes]]
+type = "quad"
+origin = [-1.5, 2.0, -1.5]
+u = [3.0, 0.0, 0.0]
+v = [0.0, 0.0, 3.0]
+emission = 1.0
+[[sensors]]
+type = "irradiance_meter"
+name = "inside"
+origin = [-0.05, -0.3, -0.05]
+u = [0.0, 0.0, 0.1]
+v = [0.1, 0.0, 0.0]
+"#,
+    ))
+    .unwrap();
+    let mut fam = Family::new("path space: refraction out of an absorbing box");
+    let p = meter(&scene, IntegratorKind::Path, 1, Some(8), None, 8);
+    let b = meter(&scene, IntegratorKind::Bdpt, 2, Some(8), None, 8);
+    assert!(p.0 > 0.0, "no light reaches the meter: {p:?}");
+    fam.means_agree("bdpt vs path", b, p);
+    fam.finish();
+}
+
 /// Independent runs of the splatting estimators (BDPT's light-tracing strategies, light
 /// tracing): their standard error comes from the runs' spread (Student-t with runs - 1 degrees
 /// of freedom), so many short runs rather than a few long ones.
