@@ -540,3 +540,204 @@ fn procedural_media_keys_are_validated() {
     assert_eq!(h.line_integral, LineIntegral::DeltaTracking);
     assert_close("default Delta", h.delta as f64, 1.0 / 64.0, 1e-7);
 }
+
+/// The procedural fields and their block majorants (deterministic): fBm is normalized to
+/// [0, 1) and is not constant; the cloud is dense somewhere near its centre and zero beyond
+/// its radius; and `max_in` bounds the field in every block of an 8^3 partition of the unit
+/// box, at a lattice of points of each block including its corners. Delta and ratio tracking
+/// are unbiased only under a true bound, so a majorant below the field anywhere is an error
+/// (the tracking tests above cannot see it where the field happens to be thin).
+#[test]
+fn procedural_majorants_bound_their_fields() {
+    let fbm = Fbm {
+        octaves: 5,
+        frequency: 4.0,
+        seed: 7,
+    };
+    let (mut lo_v, mut hi_v) = (f32::INFINITY, f32::NEG_INFINITY);
+    for i in 0..4096u32 {
+        let u = Vec3::new(
+            (i % 16) as f32 / 15.0,
+            (i / 16 % 16) as f32 / 15.0,
+            (i / 256) as f32 / 15.0,
+        ) * 0.97
+            + Vec3::splat(0.013);
+        let v = fbm.eval(u);
+        lo_v = lo_v.min(v);
+        hi_v = hi_v.max(v);
+    }
+    assert!(
+        lo_v >= 0.0 && hi_v < 1.0 && hi_v - lo_v > 0.3,
+        "fBm over the box spans [{lo_v}, {hi_v}]: normalized to [0, 1) and not flat"
+    );
+    for field in [Field::Cloud(fbm), Field::Plume(fbm)] {
+        let n = 8;
+        let mut peak = 0.0f32;
+        for b in 0..n * n * n {
+            let lo = Vec3::new((b % n) as f32, (b / n % n) as f32, (b / (n * n)) as f32) / n as f32;
+            let hi = lo + Vec3::splat(1.0 / n as f32);
+            let bound = field.max_in(lo, hi);
+            for k in 0..125 {
+                let f = Vec3::new((k % 5) as f32, (k / 5 % 5) as f32, (k / 25) as f32) / 4.0;
+                let u = lo + (hi - lo) * f;
+                let v = field.eval(u);
+                peak = peak.max(v);
+                assert!(
+                    v <= bound,
+                    "{field:?}: density {v} at {u} above the block majorant {bound} of [{lo}, {hi}]"
+                );
+            }
+        }
+        assert!(peak > 0.3, "{field:?}: peak density {peak}");
+    }
+    // the cloud is dense in the middle and thins out towards its radius (the radial falloff
+    // beats the noise), and beyond the radius (0.48 around the centre) there is nothing
+    let cloud = Field::Cloud(fbm);
+    let (mut inner, mut outer) = ((0.0f64, 0u32), (0.0f64, 0u32));
+    for i in 0..32768u32 {
+        let u = Vec3::new(
+            (i % 32) as f32 + 0.5,
+            (i / 32 % 32) as f32 + 0.5,
+            (i / 1024) as f32 + 0.5,
+        ) / 32.0;
+        let r = (u - Vec3::splat(0.5)).length();
+        let shell = if r < 0.2 {
+            &mut inner
+        } else if (0.36..0.48).contains(&r) {
+            &mut outer
+        } else {
+            continue;
+        };
+        shell.0 += cloud.eval(u) as f64;
+        shell.1 += 1;
+    }
+    let (inner, outer) = (inner.0 / inner.1 as f64, outer.0 / outer.1 as f64);
+    assert!(
+        inner > 2.0 * outer,
+        "cloud: mean density {inner} within r < 0.2, {outer} in 0.36 <= r < 0.48"
+    );
+    for u in [
+        Vec3::ZERO,
+        Vec3::new(0.99, 0.5, 0.5),
+        Vec3::new(0.5, 0.01, 0.5),
+    ] {
+        assert_eq!(cloud.eval(u), 0.0, "cloud density at {u}");
+    }
+}
+
+/// Two estimators of exp(-tau) where the tests above are blind:
+/// - ratio tracking in a medium denser than one (a constant grid of density 2.5, sigma_t 2, 0.25
+///   deep: tau = 1.25), where the majorant rate is sigma_t times the block's density bound and
+///   a smaller rate makes the factors 1 - sigma_t f / rate negative;
+/// - the marched free flight (equidistant, Delta = 0.05) on the affine field, whose midpoint
+///   sum is its exact optical depth: a flight passes the segment with probability exp(-tau)
+///   exactly (the exact binomial tail).
+#[test]
+fn dense_ratio_tracking_and_marched_free_flight_are_exp_minus_tau() {
+    const N: usize = 20_000;
+    let mut fam = Family::new("media: dense ratio tracking, marched free flight");
+    let dense = medium(
+        Density::Grid(Grid::bake(3, |_| 2.5)),
+        Vec3::splat(2.0),
+        LineIntegral::DeltaTracking,
+        1.0,
+    );
+    let ray = Ray::new(Vec3::new(0.5, 0.5, 0.0), Vec3::Z);
+    let truth = dense.transmittance_exact(&ray, 0.25).x as f64;
+    assert!(
+        (truth - (-1.25f64).exp()).abs() < 1e-5,
+        "exact transmittance {truth}"
+    );
+    let mut s = sampler(12, 0);
+    let tr: Vec<f64> = (0..N)
+        .map(|_| dense.transmittance(&ray, 0.25, &mut s).x as f64)
+        .collect();
+    let (mean, se) = mean_and_stderr(&tr);
+    fam.mean_is(
+        "ratio tracking, density 2.5",
+        mean,
+        se,
+        (N - 1) as f64,
+        truth,
+    );
+
+    let marched = medium(linear(), Vec3::ONE, LineIntegral::Equidistant, 0.05);
+    let (ray, len) = oblique();
+    let truth = marched.transmittance_exact(&ray, len).x as f64;
+    let mut s = sampler(12, 1);
+    let passed = (0..N)
+        .filter(|_| !marched.sample_free_flight(&ray, len, &mut s).scattered)
+        .count();
+    fam.binomial(
+        "marched free flight: passage",
+        passed as u64,
+        N as u64,
+        truth,
+    );
+    fam.finish();
+}
+
+/// A baked grid samples its function on the lattice u = (i, j, k) / (n - 1) of the unit box,
+/// so trilinear interpolation reproduces an affine function exactly everywhere in the box.
+#[test]
+fn a_baked_affine_function_is_reproduced_exactly() {
+    let f = |u: Vec3| 0.3 + 0.5 * u.x + 1.25 * u.y + 0.75 * u.z;
+    for n in [2usize, 3, 5] {
+        let g = Grid::bake(n, f);
+        for i in 0..64u32 {
+            let u = Vec3::new(
+                (i % 4) as f32 / 3.0,
+                (i / 4 % 4) as f32 / 3.0,
+                (i / 16) as f32 / 3.0,
+            ) * 0.9
+                + Vec3::new(0.03, 0.07, 0.05);
+            let (got, expect) = (g.eval(u), f(u));
+            assert!(
+                (got - expect).abs() < 1e-5,
+                "n = {n}, u = {u}: {got} vs {expect}"
+            );
+        }
+    }
+}
+
+/// The grid's line integral is exact cell by cell (two-point Gauss on the cubic of each cell)
+/// along rays in every octant of directions, starting inside a cell: against composite Simpson
+/// on 20000 pieces of the interpolated density itself (whose kinks at the cell faces cost it
+/// about 1e-9). A DDA piece that straddles a cell face breaks the exactness.
+#[test]
+fn grid_line_integrals_are_exact_in_every_direction() {
+    let g = Grid::bake(5, |u| {
+        let k = (u * 4.0).round();
+        0.1 + 0.45 * ((k.x * 7.0 + k.y * 3.0 + k.z * 5.0) % 4.0)
+    });
+    let u0 = Vec3::new(0.52, 0.47, 0.56);
+    for sx in [-1.0f32, 1.0] {
+        for sy in [-1.0f32, 1.0] {
+            for sz in [-1.0f32, 1.0] {
+                let du = Vec3::new(0.31 * sx, 0.27 * sy, 0.22 * sz);
+                let tb = 1.4;
+                let got = g.integrate(u0, du, 0.0, tb) as f64;
+                let n = 20_000;
+                let h = tb as f64 / n as f64;
+                let simpson: f64 = (0..=n)
+                    .map(|i| {
+                        let w = if i == 0 || i == n {
+                            1.0
+                        } else if i % 2 == 1 {
+                            4.0
+                        } else {
+                            2.0
+                        };
+                        w * g.eval(u0 + du * (i as f64 * h) as f32) as f64
+                    })
+                    .sum::<f64>()
+                    * h
+                    / 3.0;
+                assert!(
+                    (got - simpson).abs() < 2e-5 * simpson,
+                    "direction {du}: the grid integrates {got}, Simpson {simpson}"
+                );
+            }
+        }
+    }
+}

@@ -395,3 +395,81 @@ fn inverse_distance_follows_one_over_d() {
         assert!(c.abs_diff(samples / bins) <= 1, "bin {b}: {c}");
     }
 }
+
+/// The probability of the lobe at a specular vertex (the Dirac-free density a bidirectional
+/// mutation gives a direction through glass or a mirror) against Fresnel's equations in f64:
+/// light leaving a glass surface (ior 1.5) at cos 0.8 towards the reflection takes the
+/// reflection lobe with probability F, towards the refraction the transmission lobe with
+/// 1 - F; a mirror reflects with probability one; any direction off both laws has zero.
+#[test]
+fn lobe_probability_is_fresnel_at_glass_and_one_at_a_mirror() {
+    use pathspace::bsdf::TransportMode;
+    use pathspace::integrator::mlt::contribution::lobe_probability;
+    use pathspace::path::VertexKind;
+    let scene = Scene::load(&SceneSource::embedded(
+        "lobes.toml",
+        r#"
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+[materials.chrome]
+type = "mirror"
+[[shapes]]
+type = "quad"
+origin = [-1.0, 0.0, -1.0]
+u = [0.0, 0.0, 2.0]
+v = [2.0, 0.0, 0.0]
+material = "glass"
+[[shapes]]
+type = "quad"
+origin = [-1.0, 3.0, -1.0]
+u = [0.0, 0.0, 2.0]
+v = [2.0, 0.0, 0.0]
+material = "chrome"
+[[lights]]
+type = "point"
+position = [0.0, 1.0, 0.0]
+intensity = 1.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.1, 2.0, -0.1]
+u = [0.0, 0.0, 0.2]
+v = [0.2, 0.0, 0.0]
+"#,
+    ))
+    .unwrap();
+    let (cos_i, eta) = (0.8f64, 1.5f64);
+    let cos_t = (1.0 - (1.0 - cos_i * cos_i) / (eta * eta)).sqrt();
+    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let fresnel = 0.5 * (r_s * r_s + r_p * r_p);
+    for (prim, p, n) in [
+        (0u32, Vec3::ZERO, Vec3::Y),
+        (1, Vec3::new(0.0, 3.0, 0.0), Vec3::Y),
+    ] {
+        let v = Vertex::new(VertexKind::Surface { prim }, p, n, None, None);
+        let from = p + Vec3::new(0.6, 0.8, 0.0);
+        let reflected = p + Vec3::new(-0.6, 0.8, 0.0);
+        let refracted = p + Vec3::new(-0.6 / eta as f32, -cos_t as f32, 0.0);
+        let off = p + Vec3::new(0.0, 1.0, 0.0);
+        let (r, t) = if prim == 0 {
+            (fresnel, 1.0 - fresnel)
+        } else {
+            (1.0, 0.0)
+        };
+        for mode in [TransportMode::Radiance, TransportMode::Importance] {
+            for (what, to, expect) in [
+                ("reflection", reflected, r),
+                ("refraction", refracted, t),
+                ("off both laws", off, 0.0),
+            ] {
+                let got = lobe_probability(&scene, &v, from, to, mode) as f64;
+                assert!(
+                    (got - expect).abs() < 1e-5,
+                    "prim {prim} {mode:?}, {what}: {got}, expected {expect}"
+                );
+            }
+        }
+    }
+}

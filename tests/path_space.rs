@@ -12,8 +12,8 @@ use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::Sampler;
 use pathspace::path::pdf::{densities, strategy_pdf};
 use pathspace::path::{
-    characteristic, geometry_term::geometry_term_unoccluded, measurement_contribution, Path,
-    Vertex, VertexKind,
+    characteristic, geometry_term, geometry_term::geometry_term_unoccluded,
+    measurement_contribution, Path, Vertex, VertexKind,
 };
 use pathspace::scene::{Scene, SceneSource};
 
@@ -220,6 +220,246 @@ fn contribution_over_density_equals_walk_throughput() {
     assert!(checked > 100, "only {checked} walks reached the light");
 }
 
+/// The light side of the same identity. x_0 is uniform on the room's only light (a 0.6 x 0.6
+/// quad): p_L(x_0) = 1 / 0.36 exactly. For a surface vertex x_1, the throughput the light walk
+/// carries there equals L_e(x_0 -> x_1) G tau / (p_L(x_0) p_L(x_1)) with the densities recomputed
+/// by `densities`, and the walk's cached p_L(x_1) is the recomputed one. MIS weights are a
+/// partition of unity for any consistent densities, so only this pins their values.
+#[test]
+fn light_subpath_densities_reproduce_its_throughput() {
+    let scene = room();
+    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    // the ceiling light hangs inside the fog (medium 0): its subpaths start there
+    assert_eq!(b.light_medium(0), Some(0));
+    assert_eq!(b.light_media(), &[Some(0)]);
+    let mut sampler = Sampler::new(11, 0, 0);
+    let mut light = Vec::new();
+    let mut checked = 0;
+    for _ in 0..4000 {
+        b.light_subpath(&scene, &mut sampler, &mut light);
+        if light.len() < 2 {
+            continue;
+        }
+        let (x0, x1) = (light[0], light[1]);
+        let path = Path {
+            vertices: vec![x0, x1],
+        };
+        let d = densities(&scene, &path, &mut sampler);
+        let area = 0.6f32 * 0.6;
+        assert!(
+            (d.light[0] * area - 1.0).abs() < 1e-5 && (x0.pdf_fwd * area - 1.0).abs() < 1e-5,
+            "p_L(x_0) = {} (cached {}), 1 / A = {}",
+            d.light[0],
+            x0.pdf_fwd,
+            1.0 / area
+        );
+        if !matches!(x1.kind, VertexKind::Surface { .. }) {
+            continue;
+        }
+        let rel = (d.light[1] - x1.pdf_fwd).abs() / x1.pdf_fwd.max(1e-12);
+        assert!(
+            rel < 1e-3,
+            "p_L(x_1) = {} but the walk cached {}",
+            d.light[1],
+            x1.pdf_fwd
+        );
+        let (g, tau) = geometry_term(&scene, &x0, &x1, &mut sampler);
+        let f = x0.emitted(&scene, x1.p) * tau * g;
+        let p = d.light[0] as f64 * d.light[1] as f64;
+        for c in 0..3 {
+            let got = f[c] as f64 / p;
+            let rel = (got - x1.beta[c] as f64).abs() / (x1.beta[c] as f64).max(1e-12);
+            assert!(
+                rel < 1e-3,
+                "f / p = {got}, the walk's throughput {}",
+                x1.beta[c]
+            );
+        }
+        checked += 1;
+    }
+    assert!(
+        checked > 500,
+        "only {checked} light walks reached a surface"
+    );
+}
+
+/// A spot light's intensity I(c) in a direction of cosine c to its axis: 0 outside the cone
+/// (c < cos_total), I inside the falloff (c >= cos_falloff), and I s(x) between, with the
+/// smoothstep s(x) = x^2 (3 - 2x) of x = (c - cos_total) / (cos_falloff - cos_total). Its
+/// integral 2 pi int_{-1}^{1} I(c) dc is the power `Light::power` states, 2 pi I (1 - (cos_total +
+/// cos_falloff) / 2), because int_0^1 s = 1/2 (Simpson's rule integrates the cubic exactly).
+#[test]
+fn spot_light_intensity_has_its_closed_form_falloff() {
+    use pathspace::math::Frame;
+    use pathspace::path::vertex::emitted_by;
+    use pathspace::scene::Light;
+    let axis = Vec3::new(0.0, -0.6, 0.8);
+    let (cos_total, cos_falloff) = (0.5f32, 0.8f32);
+    let spot = Light::Spot {
+        position: Vec3::ZERO,
+        frame: Frame::from_normal(axis),
+        intensity: Vec3::splat(2.0),
+        cos_total,
+        cos_falloff,
+    };
+    let frame = Frame::from_normal(axis);
+    let at = |c: f32| {
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        let w = frame.to_world(Vec3::new(s * 0.6, s * 0.8, c));
+        emitted_by(&spot, Vec3::ZERO, w).x as f64
+    };
+    let smooth = |x: f64| x * x * (3.0 - 2.0 * x);
+    for (c, expect) in [
+        (-1.0f32, 0.0),
+        (0.2, 0.0),
+        (0.499, 0.0),
+        (0.5 + 0.3 * 0.25, 2.0 * smooth(0.25)),
+        (0.5 + 0.3 * 0.7, 2.0 * smooth(0.7)),
+        (0.8, 2.0),
+        (1.0, 2.0),
+    ] {
+        let got = at(c);
+        assert!(
+            (got - expect).abs() < 1e-5,
+            "I({c}) = {got}, closed form {expect}"
+        );
+    }
+    // composite Simpson on [-1, cos_total], [cos_total, cos_falloff], [cos_falloff, 1]
+    let simpson = |a: f32, b: f32| {
+        let n = 64;
+        let h = (b - a) / n as f32;
+        (0..=n)
+            .map(|i| {
+                let w = if i == 0 || i == n {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                w * at(a + h * i as f32)
+            })
+            .sum::<f64>()
+            * h as f64
+            / 3.0
+    };
+    // the three pieces, each clear of the kinks at the ends (on one side the integrand is 0)
+    let eps = 1e-6;
+    let integral = simpson(-1.0, cos_total - eps)
+        + simpson(cos_total + eps, cos_falloff - eps)
+        + simpson(cos_falloff + eps, 1.0);
+    let power = spot.power(1.0) as f64;
+    let from_falloff = 2.0 * std::f64::consts::PI * integral;
+    assert!(
+        (from_falloff - power).abs() < 1e-4 * power,
+        "2 pi int I(c) dc = {from_falloff}, Light::power = {power}"
+    );
+}
+
+/// A path through a mirror: light x_0 on the floor, the mirror ceiling x_1 (a Dirac: its
+/// outgoing direction was sampled from the singular lobe), the meter x_2. No strategy can
+/// connect at x_1 or end at it, so the only strategy that samples this path, the eye walk that
+/// hits the light (s = 0), has MIS weight one exactly: the sum over the other strategies skips
+/// every one whose connection touches a Dirac vertex.
+#[test]
+fn a_path_through_a_mirror_has_one_strategy_of_weight_one() {
+    let scene = Scene::load(&SceneSource::embedded(
+        "mirror.toml",
+        r#"
+[materials.mirror]
+type = "mirror"
+reflectance = 0.9
+[[shapes]]
+type = "quad"
+origin = [-1.0, 1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+material = "mirror"
+[[shapes]]
+type = "quad"
+origin = [0.2, -1.0, -0.4]
+u = [0.0, 0.0, 0.8]
+v = [0.8, 0.0, 0.0]
+emission = 2.0
+[[sensors]]
+type = "irradiance_meter"
+name = "floor"
+origin = [-0.6, -0.9, -0.1]
+u = [0.0, 0.0, 0.2]
+v = [0.2, 0.0, 0.0]
+"#,
+    ))
+    .unwrap();
+    let b = Bdpt::new(&scene, Some(4), Strategies::All);
+    // this light is in vacuum
+    assert_eq!(b.light_medium(0), None);
+    let x0 = Vertex::new(
+        VertexKind::Light {
+            light: 0,
+            prim: Some(1),
+        },
+        Vec3::new(0.5, -1.0, 0.0),
+        Vec3::Y,
+        None,
+        None,
+    );
+    // the reflection point of x_0 towards x_2 (the image of x_2 in the mirror is at y = 2.9)
+    let x2p = Vec3::new(-0.5, -0.9, 0.0);
+    let along = 2.0 / 3.9;
+    let mut x1 = v(
+        VertexKind::Surface { prim: 0 },
+        Vec3::new(0.5 - along, 1.0, 0.0),
+        Vec3::NEG_Y,
+    );
+    x1.delta = true;
+    let x2 = v(VertexKind::Meter { meter: 0 }, x2p, Vec3::Y);
+    let path = Path {
+        vertices: vec![x0, x1, x2],
+    };
+    let mut sampler = Sampler::new(1, 0, 0);
+    let d = densities(&scene, &path, &mut sampler);
+    let w = mis_weight_of_path(&b, &scene, &path, 0, &d);
+    assert!((w - 1.0).abs() < 1e-6, "w(s = 0) = {w}");
+}
+
+/// The medium an edge from a vertex runs through: on an interface (a glass surface between
+/// media 0 outside and 1 inside) the one on the side the direction points to, the normal's
+/// side being the front; on a surface between equal media and at a medium vertex (no normal)
+/// the one medium. Edges (transmittance, propagation pdfs) are traced in it.
+#[test]
+fn vertex_media_follow_the_side_of_the_direction() {
+    let up = Vec3::new(0.0, 1.0, 0.0);
+    let w = Vec3::new(0.3, 0.5, 0.1);
+    let interface = Vertex::new(
+        VertexKind::Surface { prim: 0 },
+        Vec3::ZERO,
+        up,
+        Some(0),
+        Some(1),
+    );
+    assert_eq!(interface.medium_towards(w), Some(0));
+    assert_eq!(interface.medium_towards(-w), Some(1));
+    assert_eq!(interface.edge_end(-w).medium, Some(1));
+    assert_eq!(interface.edge_end(w).medium, Some(0));
+    let wall = Vertex::new(
+        VertexKind::Surface { prim: 0 },
+        Vec3::ZERO,
+        up,
+        Some(1),
+        Some(1),
+    );
+    assert_eq!(wall.medium_towards(-w), Some(1));
+    let fog = Vertex::new(
+        VertexKind::Medium { medium: 1 },
+        Vec3::ZERO,
+        Vec3::ZERO,
+        Some(1),
+        Some(1),
+    );
+    assert_eq!(fog.medium_towards(-w), Some(1));
+    assert_eq!(fog.medium_towards(w), Some(1));
+}
+
 /// For random paths, the power-heuristic weights of all strategies sum to one and each equals
 /// p_s^2 / sum p_i^2 computed directly from the strategy densities.
 #[test]
@@ -354,6 +594,53 @@ fn bdpt_light_and_path_agree() {
             common::meter_mean(b, 0),
         );
     }
+    fam.finish();
+}
+
+/// Refraction into a medium: a meter inside a glass box of absorbing ink, under an area light
+/// outside. Every path leaves through the glass, where the walk must switch from the ink to the
+/// vacuum outside (the path tracer by the side the refracted direction takes, BDPT by
+/// `Vertex::medium_towards`); the two agree only if both switch.
+#[test]
+fn refraction_out_of_an_absorbing_box_switches_the_medium() {
+    let scene = Scene::load(&SceneSource::embedded(
+        "ink.toml",
+        r#"
+[render]
+meter_samples = 4096
+[materials.glass]
+type = "dielectric"
+ior = 1.3
+[media.ink]
+type = "homogeneous"
+sigma_a = 0.5
+sigma_s = 0.0
+[[shapes]]
+type = "box"
+min = [-0.5, -0.5, -0.5]
+max = [0.5, 0.5, 0.5]
+material = "glass"
+interior = "ink"
+[[shapes]]
+type = "quad"
+origin = [-1.5, 2.0, -1.5]
+u = [3.0, 0.0, 0.0]
+v = [0.0, 0.0, 3.0]
+emission = 1.0
+[[sensors]]
+type = "irradiance_meter"
+name = "inside"
+origin = [-0.05, -0.3, -0.05]
+u = [0.0, 0.0, 0.1]
+v = [0.1, 0.0, 0.0]
+"#,
+    ))
+    .unwrap();
+    let mut fam = Family::new("path space: refraction out of an absorbing box");
+    let p = meter(&scene, IntegratorKind::Path, 1, Some(8), None, 8);
+    let b = meter(&scene, IntegratorKind::Bdpt, 2, Some(8), None, 8);
+    assert!(p.0 > 0.0, "no light reaches the meter: {p:?}");
+    fam.means_agree("bdpt vs path", b, p);
     fam.finish();
 }
 

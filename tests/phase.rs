@@ -366,8 +366,22 @@ fn mix_with_a_zero_weight_lobe_never_samples_it() {
     .unwrap();
     let mut s = sampler(9, 0);
     let wo = Vec3::Z;
-    for _ in 0..10_000 {
-        let u = s.next_2d();
+    // u.x = 0 is where a first zero-weight lobe's interval [0, 0) begins and ends: an
+    // inclusive bound there would pick it. Every HG and Schlick lobe maps u = 0 to the same
+    // backward direction, the isotropic lobe to the forward one, so a zero-weight isotropic
+    // lobe in front shows the choice.
+    let iso_first = Phase::mix(vec![(0.0, Phase::Isotropic), (1.0, forward.clone())]).unwrap();
+    for i in 0..=8 {
+        let u = Vec2::new(0.0, i as f32 / 8.0 * 0.999);
+        let (a, b) = (iso_first.sample(wo, u), forward.sample(wo, u));
+        assert!(
+            (a.wi - b.wi).length() < 1e-5,
+            "u = {u}: {:?} vs {:?}",
+            a.wi,
+            b.wi
+        );
+    }
+    for u in (0..10_000).map(|_| s.next_2d()) {
         let a = mix.sample(wo, u);
         let b = forward.sample(wo, Vec2::new(u.x, u.y));
         assert!((a.wi - b.wi).length() < 1e-5, "{:?} vs {:?}", a.wi, b.wi);

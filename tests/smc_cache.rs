@@ -251,12 +251,22 @@ fn every_pdf_integrates_to_one_and_is_never_zero_after_writes_and_refinements() 
                     assert_eq!(octree.stats().nodes, 1);
                     continue;
                 }
-                for k in 0..c.grid().cells() {
+                let cells = c.grid().cells();
+                for k in 0..cells {
                     assert!(
                         c.pdf_coefficient(k) > 0.0,
                         "a zero pdf cell after refinement"
                     );
                 }
+                // the memory budget's forecast of a cache is what the cache occupies
+                assert_eq!(c.bytes(), RadianceCache::bytes_for(cells), "{cells} cells");
+                // the mean coefficient (root / N) is the mean over the cells
+                let mean = (0..cells).map(|k| c.pdf_coefficient(k)).sum::<f64>() / cells as f64;
+                assert!(
+                    (c.pdf_coefficient_mean() - mean).abs() <= 1e-9 * mean,
+                    "root / N = {} but the cells average {mean}",
+                    c.pdf_coefficient_mean()
+                );
                 let integral = pdf_integral(c);
                 assert!(
                     (integral - 1.0).abs() < 1e-4,

@@ -205,6 +205,97 @@ v = [0.0, 0.002, 0.0]
     assert!((v - 2.0).abs() <= 2e-5, "E = {v}, expected 8 / 2^2 = 2");
 }
 
+/// An irradiance meter inside a closed box whose six black walls all emit radiance L inwards
+/// sees L in every direction of its hemisphere: E = pi L exactly. Both of the path tracer's
+/// strategies reach these lights (next-event estimation and the cosine-sampled continuation
+/// that hits a wall), so the estimate is pi L only when the two MIS weights of every direction
+/// sum to one: the scattering density the light sample is weighted against must be the
+/// continuation's cos / pi. Both strategies are low-variance here, so a percent of bias shows.
+#[test]
+fn meter_inside_an_emitting_box_measures_pi_l() {
+    let mut text = String::from("[render]\nmeter_samples = 65536\n");
+    // u x v is the emitting (inner) side of each wall
+    for (o, u, v) in [
+        ("[-1.0, -1.0, -1.0]", "[0.0, 0.0, 2.0]", "[2.0, 0.0, 0.0]"),
+        ("[-1.0, 1.0, -1.0]", "[2.0, 0.0, 0.0]", "[0.0, 0.0, 2.0]"),
+        ("[-1.0, -1.0, -1.0]", "[2.0, 0.0, 0.0]", "[0.0, 2.0, 0.0]"),
+        ("[-1.0, -1.0, 1.0]", "[0.0, 2.0, 0.0]", "[2.0, 0.0, 0.0]"),
+        ("[-1.0, -1.0, -1.0]", "[0.0, 2.0, 0.0]", "[0.0, 0.0, 2.0]"),
+        ("[1.0, -1.0, -1.0]", "[0.0, 0.0, 2.0]", "[0.0, 2.0, 0.0]"),
+    ] {
+        text += &format!(
+            "[[shapes]]\ntype = \"quad\"\norigin = {o}\nu = {u}\nv = {v}\nemission = 0.5\n"
+        );
+    }
+    text += r#"
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.1, -0.5, -0.1]
+u = [0.0, 0.0, 0.2]
+v = [0.2, 0.0, 0.0]
+"#;
+    let m = meters(&load(&text), 1, 5, None);
+    let mut fam = Family::new("transport: meter inside an emitting box");
+    check(&mut fam, "E = pi L", &m[0], 0, std::f64::consts::PI * 0.5);
+    fam.finish();
+}
+
+/// The image of a point light on the pinhole's film (Pauly et al. eq. 5 with both ends
+/// Diracs: no walk from the camera can hit it, so `delta_light_view` splats it): a light of
+/// intensity I on the optical axis at distance d puts its irradiance E = I / d^2 into one
+/// point of the film, the centre, with the value W_e cos E = E npixels / A_film (W_e integrates
+/// to one over a pixel's directions, A_film is the film's area at distance 1). Deterministic.
+#[test]
+fn point_light_in_view_images_its_irradiance_on_the_film() {
+    let text = r#"
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 30.0
+resolution = [16, 12]
+
+[[lights]]
+type = "point"
+position = [0.0, 0.0, 1.0]
+intensity = 8.0
+"#;
+    // on the axis, and off it at cosine c to the axis, where W_e cos = npixels / (A_film c^3)
+    for (position, centre) in [("[0.0, 0.0, 1.0]", true), ("[0.3, 0.2, 1.0]", false)] {
+        let scene = load(&text.replace("[0.0, 0.0, 1.0]", position));
+        let cam = scene.camera.as_ref().unwrap();
+        let mut sampler = pathspace::math::Sampler::new(1, 0, 0);
+        let splats = pathspace::integrator::path::delta_light_view(&scene, &mut sampler);
+        assert_eq!(
+            splats.len(),
+            1,
+            "one splat per delta light in view: {splats:?}"
+        );
+        let (raster, l) = splats[0];
+        if centre {
+            assert!(
+                (raster - glam::Vec2::new(8.0, 6.0)).length() < 1e-4,
+                "{raster:?}"
+            );
+        }
+        let pathspace::scene::Light::Point { position: p, .. } = scene.lights[0] else {
+            unreachable!()
+        };
+        let d = (p - cam.eye).as_dvec3();
+        let c = d.normalize().dot(cam.forward.as_dvec3());
+        let e = 8.0 / d.length_squared();
+        let expect = e * (16.0 * 12.0) / (cam.film_area() as f64 * c * c * c);
+        for ch in 0..3 {
+            let got = l[ch] as f64;
+            assert!(
+                (got - expect).abs() < 1e-5 * expect,
+                "{got} vs W_e cos E = {expect}"
+            );
+        }
+    }
+}
+
 /// The white furnace: a conservative medium (albedo 1) inside a null sphere under a uniform
 /// environment of radiance 1 is in equilibrium with it, so every pixel is 1.
 #[test]
