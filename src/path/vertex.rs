@@ -374,18 +374,6 @@ pub fn to_area(pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
     pdf * cosine_factor(to, d / d2.sqrt()) / d2
 }
 
-/// The position density (per area) of point `prim` of area light `light` (selection of the
-/// primitive by area, then uniform), without the light's selection probability.
-pub fn area_pdf_of(scene: &Scene, light: u32, prim: u32) -> f32 {
-    match &scene.lights[light as usize] {
-        Light::Area { prims, distr, .. } => match prims.iter().position(|&q| q == prim) {
-            Some(k) => distr.pmf(k) / scene.prims[prim as usize].area(),
-            None => 0.0,
-        },
-        _ => 0.0,
-    }
-}
-
 /// Emitted radiance (or intensity, irradiance) of `light` in direction `w` from a point with
 /// normal `n`.
 pub fn emitted_by(light: &Light, n: Vec3, w: Vec3) -> Rgb {

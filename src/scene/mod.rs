@@ -483,6 +483,18 @@ impl Scene {
         self.light_distr.pmf(l as usize)
     }
 
+    /// The position density (per area) of point `prim` of area light `light` (selection of the
+    /// primitive by area, then uniform), without the light's selection probability.
+    pub fn area_pdf_of(&self, light: u32, prim: u32) -> f32 {
+        match &self.lights[light as usize] {
+            Light::Area { prims, distr, .. } => match prims.iter().position(|&q| q == prim) {
+                Some(k) => distr.pmf(k) / self.prims[prim as usize].area(),
+                None => 0.0,
+            },
+            _ => 0.0,
+        }
+    }
+
     /// The light-start density (per area, light selection included) of point `p` on primitive
     /// `prim` of area light `light`: power-proportional selection times uniform by area, or the
     /// adjoint image's density when one is installed.
@@ -491,7 +503,7 @@ impl Scene {
     pub fn area_light_start_pdf(&self, light: u32, prim: u32, p: Vec3) -> f32 {
         match &self.adjoint {
             Some(a) => a.pdf(self, light, prim, p),
-            None => self.light_pmf(light) * crate::path::vertex::area_pdf_of(self, light, prim),
+            None => self.light_pmf(light) * self.area_pdf_of(light, prim),
         }
     }
     // ANCHOR_END: area_light_start_pdf
