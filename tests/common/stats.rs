@@ -277,6 +277,10 @@ impl Family {
                 eprintln!("  {}: p = {:.2e}: {}", c.what, c.p, c.detail);
             }
         }
+        if let Some(path) = std::env::var_os("PATHSPACE_STATS_DUMP") {
+            // scripts/bit-identity.sh: the exact p of every comparison, one line each
+            self.dump(std::path::Path::new(&path));
+        }
         let rejected = self.rejected();
         if !rejected.is_empty() {
             let lines: Vec<String> = rejected
@@ -292,6 +296,25 @@ impl Family {
                 lines.join("\n")
             );
         }
+    }
+}
+
+impl Family {
+    /// Appends `family<TAB>comparison<TAB>p` (p exactly, as `{:?}` prints it) to `path`.
+    fn dump(&self, path: &std::path::Path) {
+        use std::io::Write;
+        let lines: String = self
+            .comparisons
+            .iter()
+            .map(|c| format!("{}\t{}\t{:?}\n", self.name, c.what, c.p))
+            .collect();
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .expect("PATHSPACE_STATS_DUMP: cannot open the file");
+        f.write_all(lines.as_bytes())
+            .expect("PATHSPACE_STATS_DUMP: cannot write");
     }
 }
 
