@@ -23,7 +23,7 @@ configs() {
     done
   done
   echo "fog-bdpt-guide|scenes/fog-box.toml|--integrator bdpt --guide both --guide-particles 2000 --guide-regions 16"
-  echo "fog-path-guide|scenes/fog-box.toml|--integrator path --guide volume --guide-particles 2000 --guide-regions 16 --guide-roulette 1"
+  echo "fog-light-guide|scenes/fog-box.toml|--integrator light --guide volume --guide-particles 2000 --guide-regions 16 --guide-roulette 1"
   echo "fog-mlt-guide|scenes/fog-box.toml|--integrator mlt --guide both --guide-particles 2000 --guide-regions 16 --guide-sampler metropolis"
   echo "fog-bdpt-adjoint|scenes/fog-box.toml|--integrator bdpt --adjoint-image --adjoint-resolution 8x8"
   echo "fog-light-adjoint|scenes/fog-box.toml|--integrator light --adjoint-image --adjoint-resolution 8x8 --adjoint-estimator metropolis"
@@ -41,8 +41,10 @@ record() {
   dir=$(abs "$1")
   cargo build --release --quiet || exit 1
   configs | while IFS='|' read -r name scene opts; do
+    local res="--resolution 12x12"
+    grep -q '^\[camera\]' "$scene" || res=""
     # shellcheck disable=SC2086
-    if $BIN render "$scene" $opts --resolution 12x12 --spp 4 --seed 7 --threads 2 --json \
+    if $BIN render "$scene" $opts $res --spp 4 --seed 7 --threads 2 --json \
         -o "$dir/$name.exr" >"$dir/$name.json.raw" 2>"$dir/$name.err"; then
       jq -S 'del(.seconds, .paths_per_second, .outputs)' "$dir/$name.json.raw" >"$dir/$name.json"
     else
