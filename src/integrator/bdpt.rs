@@ -13,10 +13,11 @@
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::{Lobe, TransportMode};
-use crate::enlightened::guide;
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
+use crate::path::technique::{sample_emitted_start, EmittedStart, StartDraw};
 use crate::path::vertex::to_area;
+use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::{Event, Light, Scene};
 use crate::spectrum::Rgb;
@@ -59,7 +60,9 @@ pub struct Scratch {
 pub type Splat = (Vec2, Rgb);
 
 #[derive(Clone, Debug)]
-pub struct Bdpt {
+pub struct Bdpt<'t> {
+    /// The local-sampling technique of both walks, their MIS densities and light starts.
+    pub tech: &'t dyn LocalSampling,
     pub max_depth: u32,
     pub strategies: Strategies,
     /// Medium around each light (for the first edge of light subpaths).
@@ -72,8 +75,14 @@ pub struct Bdpt {
     pub vertex_cap: usize,
 }
 
-impl Bdpt {
-    pub fn new(scene: &Scene, max_depth: Option<u32>, strategies: Strategies) -> Self {
+impl<'t> Bdpt<'t> {
+    /// BDPT on `scene` sampling with technique `tech`.
+    pub fn new(
+        scene: &Scene,
+        tech: &'t dyn LocalSampling,
+        max_depth: Option<u32>,
+        strategies: Strategies,
+    ) -> Self {
         let light_media = scene
             .lights
             .iter()
@@ -89,6 +98,7 @@ impl Bdpt {
             })
             .collect();
         Bdpt {
+            tech,
             max_depth: max_depth.unwrap_or(u32::MAX),
             strategies,
             light_media,
@@ -200,7 +210,7 @@ impl Bdpt {
             let wo = -ray.d;
             // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
             // 5.19 and their medium extension), with the density of the reverse walk
-            let Some(ss) = guide::sample_scatter(scene, &v, wo, mode, sampler) else {
+            let Some(ss) = self.tech.sample_scatter(scene, &v, wo, mode, sampler) else {
                 return;
             };
             if ss.pdf <= 0.0 {
@@ -218,7 +228,7 @@ impl Bdpt {
                     origin_in_medium = true;
                     ray = Ray::new(v.p, ss.wi);
                     lead = 0.0;
-                    (ss.pdf, guide::scatter_pdf(scene, &v, ss.wi, wo, reverse))
+                    (ss.pdf, self.tech.scatter_pdf(scene, &v, ss.wi, wo, reverse))
                 }
                 VertexKind::Surface { .. } => {
                     let bs = ss.as_bsdf_sample();
@@ -232,7 +242,7 @@ impl Bdpt {
                         path[cur].delta = true;
                         (0.0, 0.0)
                     } else {
-                        (bs.pdf, guide::scatter_pdf(scene, &v, bs.wi, wo, reverse))
+                        (bs.pdf, self.tech.scatter_pdf(scene, &v, bs.wi, wo, reverse))
                     }
                 }
                 _ => return,
@@ -243,7 +253,8 @@ impl Bdpt {
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
             if self.roulette && cur as u32 >= RR_START_DEPTH {
                 let ratio = beta.max_element() / beta_start;
-                let q = guide::roulette_survival(scene, ss.lhat, ratio, RR_MAX_SURVIVAL)
+                let q = (self.tech)
+                    .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
                     .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
                 if sampler.next_f32() >= q || q.is_nan() {
                     return;
@@ -343,55 +354,30 @@ impl Bdpt {
         if scene.lights.is_empty() {
             return;
         }
-        let (mut l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-        let u_pos = sampler.next_2d();
-        let u_dir = sampler.next_2d();
-        // the light start: by power and area, or from the adjoint image for area lights
-        // (Kristensen 2010, sec. 5.3.1); `start_pdf` is the position density with the selection
-        let (es, start_pdf, start_prim) = match (&scene.adjoint, &scene.lights[l]) {
-            (Some(_), Light::Area { .. }) => {
-                let Some(st) = scene.sample_adjoint_start(u_pos, sampler.next_2d()) else {
-                    return;
-                };
-                l = st.point.light as usize;
-                let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
-                (es, st.pdf, Some(st.point.prim))
-            }
-            (_, light) => {
-                let Some(es) = light.sample_le(
-                    &scene.prims,
-                    u_pos,
-                    u_dir,
-                    u_prim,
-                    scene.center,
-                    scene.radius,
-                ) else {
-                    return;
-                };
-                let prim = match light {
-                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-                    _ => None,
-                };
-                (es, pmf * es.pdf_pos, prim)
-            }
+        // the light start: by power and area, or the technique's own (the adjoint image for
+        // area lights, Kristensen 2010, sec. 5.3.1); `start_pdf` is the position density with
+        // the selection
+        let Some(EmittedStart {
+            light: l,
+            pmf,
+            mut es,
+            start_pdf,
+            prim: start_prim,
+            u_dir,
+        }) = sample_emitted_start(self.tech, scene, sampler)
+        else {
+            return;
         };
         let light = &scene.lights[l];
         // eq. (5.17): the emission direction from c1 p_Le + c2 p_Wi where guiding is on
-        let mut es = es;
-        if let (Light::Area { .. }, Some(_)) = (light, scene.guide.as_ref()) {
+        if self.tech.guides_emission(light) {
             let n = es.n;
-            let Some((d, pdf)) = guide::sample_emission(
-                scene,
-                es.p,
-                n,
-                es.d,
-                u_dir,
-                |w| crate::path::vertex::emission_pdf_dir(light, n, w),
-                sampler,
-            ) else {
+            let Some((d, pdf)) =
+                (self.tech).sample_emission(scene, light, (es.p, n), es.d, u_dir, sampler)
+            else {
                 return;
             };
-            es.value = crate::path::vertex::emitted_by(light, n, d);
+            es.value = crate::scene::light::emitted_by(light, n, d);
             es.d = d;
             es.pdf_dir = pdf;
         }
@@ -445,7 +431,7 @@ impl Bdpt {
             ),
         };
         v0.beta = es.value;
-        v0.pdf_fwd = v0.light_origin_pdf(scene);
+        v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
         if let VertexKind::InfiniteLight { .. } = v0.kind {
             v0.pdf_fwd = match light {
                 Light::Environment(_) => pmf * es.pdf_dir,
@@ -536,20 +522,23 @@ impl Bdpt {
         pt.delta = false;
         // pt as sampled from the light side
         pt.pdf_rev = match &qs {
-            Some(q) => q.pdf_area(scene, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp,
-            None => pt.light_origin_pdf(scene),
+            Some(q) => {
+                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp
+            }
+            None => pt.light_origin_pdf(scene, self.tech),
         };
         if let Some(pm) = pt_minus.as_mut() {
             pm.pdf_rev = match &qs {
-                Some(q) => pt.pdf_area(scene, Some(q.p), pm, Importance),
-                None => pt.light_pdf_to(scene, pm),
+                Some(q) => pt.pdf_area(scene, self.tech, Some(q.p), pm, Importance),
+                None => pt.light_pdf_to(scene, self.tech, pm),
             } * pt.prop_rev;
         }
         if let Some(q) = qs.as_mut() {
-            q.pdf_rev = pt.pdf_area(scene, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
+            q.pdf_rev =
+                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
         }
         if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
-            qm.pdf_rev = q.pdf_area(scene, Some(pt.p), qm, Radiance) * q.prop_rev;
+            qm.pdf_rev = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
         }
 
         let eye_at = |i: usize| -> Vertex {
@@ -679,23 +668,25 @@ impl Bdpt {
             let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
             let u = sampler.next_2d();
             // `sel_pdf`: the solid-angle density with the light selection included
-            let (ls, sel_pdf, start_prim) = match (&scene.adjoint, &scene.lights[li]) {
-                (Some(_), Light::Area { .. }) => {
-                    // the light vertex from the adjoint image, as light subpaths start
-                    let st = scene.sample_adjoint_start(u, sampler.next_2d())?;
-                    li = st.point.light as usize;
-                    let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
-                    (ls, ls.pdf, Some(st.point.prim))
-                }
-                (_, light) => {
-                    let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
-                    let prim = match light {
-                        Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-                        _ => None,
-                    };
-                    (ls, pmf * ls.pdf, prim)
-                }
-            };
+            let (ls, sel_pdf, start_prim) =
+                match self.tech.sample_light_start(scene, li, u, sampler) {
+                    StartDraw::Failed => return None,
+                    StartDraw::Drawn(st) => {
+                        // the light vertex from the technique, as light subpaths start
+                        li = st.point.light as usize;
+                        let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                        (ls, ls.pdf, Some(st.point.prim))
+                    }
+                    StartDraw::ByPower => {
+                        let light = &scene.lights[li];
+                        let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                        let prim = match light {
+                            Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                            _ => None,
+                        };
+                        (ls, pmf * ls.pdf, prim)
+                    }
+                };
             if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
                 return None;
             }
@@ -730,7 +721,7 @@ impl Bdpt {
                     None,
                 ),
             };
-            v.pdf_fwd = v.light_origin_pdf(scene);
+            v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
             v.beta = ls.value / sel_pdf;
             let f = if t == 1 {
                 // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
