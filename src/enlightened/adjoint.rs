@@ -37,9 +37,9 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::integrator::bdpt::{Bdpt, Strategies};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{Distribution1D, Sampler};
+use crate::path::bidirectional::{Bdpt, Strategies};
 pub use crate::path::technique::{LightStart, MapPoint};
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Light, Scene};

@@ -45,9 +45,9 @@ use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
 use crate::enlightened::particles::{bidirectional_sample, ImportonSource, ParticleSets};
-use crate::integrator::bdpt::Bdpt;
 use crate::math::sampler::mix64;
 use crate::math::{PrimarySamples, Sampler};
+use crate::path::bidirectional::Bdpt;
 use crate::path::LocalSampling;
 use crate::scene::Scene;
 use crate::spectrum::luminance;

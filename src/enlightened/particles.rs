@@ -25,8 +25,8 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::integrator::bdpt::Bdpt;
 use crate::math::Sampler;
+use crate::path::bidirectional::Bdpt;
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
@@ -211,7 +211,12 @@ pub fn trace_classical(
     paths: u64,
     seed: u64,
 ) -> Vec<Particle> {
-    let bdpt = Bdpt::new(scene, tech, None, crate::integrator::bdpt::Strategies::All);
+    let bdpt = Bdpt::new(
+        scene,
+        tech,
+        None,
+        crate::path::bidirectional::Strategies::All,
+    );
     match quantity {
         Quantity::Radiance => trace_photons(scene, &bdpt, paths, seed),
         Quantity::Importance => match ImportonSource::default_for(scene) {
@@ -381,7 +386,12 @@ pub fn trace_bidirectional_where(
 /// BDPT's walks as the particle samplers use them: no Russian roulette (the path length is
 /// drawn instead).
 pub(crate) fn particle_bdpt<'t>(scene: &Scene, tech: &'t dyn LocalSampling) -> Bdpt<'t> {
-    let mut b = Bdpt::new(scene, tech, None, crate::integrator::bdpt::Strategies::All);
+    let mut b = Bdpt::new(
+        scene,
+        tech,
+        None,
+        crate::path::bidirectional::Strategies::All,
+    );
     b.roulette = false;
     b
 }

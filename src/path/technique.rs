@@ -198,6 +198,11 @@ pub trait LocalSampling: Sync + std::fmt::Debug {
     }
 }
 
+/// The number of scattering vertices after which Russian roulette starts.
+pub const RR_START_DEPTH: u32 = 3;
+/// Survival probabilities are capped below one so every path ends with probability one.
+pub const RR_MAX_SURVIVAL: f32 = 0.95;
+
 /// The plain technique: lights by power and area, emission by the light's own density, the
 /// BSDF's or phase function's own sampling, Fresnel at glass, roulette by throughput.
 #[derive(Clone, Copy, Debug, Default)]
