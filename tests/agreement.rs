@@ -22,10 +22,11 @@
 mod common;
 
 use common::stats::{runs_mean, Family};
-use pathspace::enlightened::{AdjointImage, AdjointSettings, GuideKind};
+use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::path::{LocalSampling, PLAIN};
 use pathspace::scene::{Scene, SceneSource};
 
 /// Where the scenes live.
@@ -123,10 +124,13 @@ fn mlt_settings(bootstrap: u64) -> MltSettings {
     }
 }
 
-/// Installs (or removes) the guide and the adjoint image a column needs.
-fn prepare(scene: &mut Scene, config: Config, max_depth: Option<u32>) -> Result<(), String> {
-    scene.guide = None;
-    scene.adjoint = None;
+/// Builds the technique a column needs: the guide or the adjoint image (or neither).
+fn prepare(
+    scene: &mut Scene,
+    config: Config,
+    max_depth: Option<u32>,
+) -> Result<Enlightened, String> {
+    let mut technique = Enlightened::default();
     match config {
         Config::Guided(_) => {
             let mut g = scene.render.guide;
@@ -136,7 +140,7 @@ fn prepare(scene: &mut Scene, config: Config, max_depth: Option<u32>) -> Result<
             g.cols = 8;
             g.rows = 4;
             scene.render.guide = g;
-            pathspace::enlightened::guide::install(scene, 0x6775_6964);
+            technique.install_guide(scene, 0x6775_6964);
             scene.render.guide.kind = GuideKind::Off;
         }
         Config::Adjoint(_) => {
@@ -145,11 +149,11 @@ fn prepare(scene: &mut Scene, config: Config, max_depth: Option<u32>) -> Result<
                 samples_per_cell: 4,
                 ..AdjointSettings::default()
             };
-            AdjointImage::install(scene, &settings, 0x0061_646a, max_depth)?;
+            technique.install_adjoint(scene, &settings, 0x0061_646a, max_depth)?;
         }
         _ => {}
     }
-    Ok(())
+    Ok(technique)
 }
 
 /// The functionals of one run, per channel (`channels` = 1 for grey scenes, whose channels are
@@ -176,9 +180,9 @@ fn functionals(r: &Renderer, channels: usize) -> Vec<f64> {
     out
 }
 
-/// `k` runs of a column: each run's functionals, or the refusal.
+/// `k` runs of a column with its technique: each run's functionals, or the refusal.
 fn runs(
-    scene: &Scene,
+    (scene, technique): (&Scene, &dyn LocalSampling),
     config: Config,
     k: u64,
     spp: u32,
@@ -189,7 +193,7 @@ fn runs(
     let mut out = Vec::new();
     for run in 0..k {
         let seed = 1000 + run;
-        let mut r = Renderer::try_new(scene, config.kind(), seed, max_depth)?;
+        let mut r = Renderer::try_with(scene, technique, config.kind(), seed, max_depth)?;
         if let Config::Smc(variant, form) = config {
             r = r.with_smc_settings(SmcSettings {
                 variant,
@@ -198,7 +202,13 @@ fn runs(
             })?;
         }
         if config.kind() == IntegratorKind::Mlt {
-            r.mlt = Some(Mlt::new(scene, mlt_settings(bootstrap), seed, max_depth)?);
+            r.mlt = Some(Mlt::new(
+                scene,
+                technique,
+                mlt_settings(bootstrap),
+                seed,
+                max_depth,
+            )?);
         }
         if config.kind() == IntegratorKind::Smc {
             // SMC adapts between passes: the CLI's passes of 4 samples per pixel
@@ -264,7 +274,7 @@ fn check_row(fam: &mut Family, row: &Row) {
             let config = Config::Plain(kind);
             Some(
                 runs(
-                    &scene,
+                    (&scene, &PLAIN),
                     config,
                     row.runs * REFERENCE_RUNS,
                     row.spp * REFERENCE_SPP,
@@ -299,9 +309,17 @@ fn check_row(fam: &mut Family, row: &Row) {
             (None, None) => {}
         }
         let spp = ((row.spp as f64 * config.spp_factor()).round() as u32).max(1);
-        let outcome = prepare(&mut scene, config, row.max_depth).and_then(|_| {
+        let outcome = prepare(&mut scene, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);
-            runs(&scene, config, k, spp, depth, ch, row.mlt_bootstrap)
+            runs(
+                (&scene, &technique),
+                config,
+                k,
+                spp,
+                depth,
+                ch,
+                row.mlt_bootstrap,
+            )
         });
         eprintln!(
             "{}: {name}: {spp} spp: {:.2} s",

@@ -23,6 +23,7 @@ use pathspace::enlightened::particles::{
 };
 use pathspace::integrator::bdpt::{Bdpt, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::path::{LocalSampling, PLAIN};
 use pathspace::scene::{Scene, SceneSource};
 
 fn load(text: &str) -> Scene {
@@ -108,7 +109,7 @@ fn classical_particles_reproduce_the_meter() {
     let mut fam = Family::new("enlightened: classical particles reproduce the meter");
     for fog in [false, true] {
         let scene = room(fog);
-        let bdpt = Bdpt::new(&scene, None, Strategies::All);
+        let bdpt = Bdpt::new(&scene, &PLAIN, None, Strategies::All);
         let mut photon = Vec::new();
         let mut importon = Vec::new();
         for b in 0..BATCHES {
@@ -145,7 +146,7 @@ fn bidirectional_particles_reproduce_the_meter() {
     for fog in [false, true] {
         let scene = room(fog);
         let (photon, importon) = meter_batches(BATCHES, 3000, |seed| {
-            trace_bidirectional(&scene, ImportonSource::Meter(0), 8192, seed)
+            trace_bidirectional(&scene, &PLAIN, ImportonSource::Meter(0), 8192, seed)
         });
         let truth = meter_truth(&scene, 64);
         let tag = if fog { "fog" } else { "empty" };
@@ -235,6 +236,7 @@ fn metropolis_particles_reproduce_the_meter() {
         let (photon, importon) = meter_batches(METRO_BATCHES, 4000, |seed| {
             let (sets, stats) = trace_metropolis(
                 &scene,
+                &PLAIN,
                 ImportonSource::Meter(0),
                 METRO_STEPS,
                 seed,
@@ -291,10 +293,20 @@ fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths
     };
     let settings = metropolis_settings(0.0);
     let metro = batches(5000, &|seed| {
-        trace_metropolis(&scene, ImportonSource::Meter(0), 8192, seed, &settings).0
+        trace_metropolis(
+            &scene,
+            &PLAIN,
+            ImportonSource::Meter(0),
+            8192,
+            seed,
+            &settings,
+        )
+        .0
     });
     let connected = batches(6000, &|seed| {
-        trace_bidirectional_where(&scene, ImportonSource::Meter(0), 8192, seed, |i| i > 0.0)
+        trace_bidirectional_where(&scene, &PLAIN, ImportonSource::Meter(0), 8192, seed, |i| {
+            i > 0.0
+        })
     });
     let mut fam = Family::new("enlightened: Metropolis without defensive part");
     for (j, what) in ["all photons", "all importons", "floor-patch photons"]
@@ -329,7 +341,7 @@ fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths
 #[test]
 fn particles_are_identical_with_any_thread_count() {
     let scene = room(true);
-    let bdpt = Bdpt::new(&scene, None, Strategies::All);
+    let bdpt = Bdpt::new(&scene, &PLAIN, None, Strategies::All);
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -346,7 +358,9 @@ fn particles_are_identical_with_any_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| trace_metropolis(&scene, ImportonSource::Meter(0), 5000, 5, &settings))
+            .install(|| {
+                trace_metropolis(&scene, &PLAIN, ImportonSource::Meter(0), 5000, 5, &settings)
+            })
     };
     let (a, b) = (run(1), run(3));
     assert!(!a.0.photons.is_empty() && !a.0.importons.is_empty());
@@ -370,13 +384,14 @@ fn metropolis_photons_crowd_where_the_camera_looks() {
     let share = |ph: &[Particle]| {
         ph.iter().filter(|p| p.position.x < 0.0).count() as f64 / ph.len().max(1) as f64
     };
-    let classical = trace_classical(&scene, Quantity::Radiance, 20_000, 7);
+    let classical = trace_classical(&scene, &PLAIN, Quantity::Radiance, 20_000, 7);
     let settings = MetropolisParticleSettings {
         bootstrap: 8192,
         chains: 64,
         ..Default::default()
     };
-    let (metro, stats) = trace_metropolis(&scene, ImportonSource::Camera, 20_000, 7, &settings);
+    let (metro, stats) =
+        trace_metropolis(&scene, &PLAIN, ImportonSource::Camera, 20_000, 7, &settings);
     let (c, m) = (share(&classical), share(&metro.photons));
     eprintln!(
         "photons in the camera's room: classical {:.3} of {}, Metropolis {:.3} of {} ({stats:?})",
@@ -394,6 +409,7 @@ fn metropolis_photons_crowd_where_the_camera_looks() {
 
 use glam::Vec2;
 use pathspace::enlightened::adjoint::{AdjointImage, AdjointSettings, LightMap};
+use pathspace::enlightened::Enlightened;
 use pathspace::geometry::Primitive;
 use pathspace::scene::Light;
 
@@ -615,30 +631,32 @@ const MLT_MUTATIONS: u64 = 64;
 const RES: u32 = 8;
 const DEPTH: u32 = 3;
 
-fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, SPP)
+fn bdpt_runs(scene: &Scene, tech: &dyn LocalSampling, seed: u64) -> Vec<Vec<f64>> {
+    common::bdpt_quadrant_runs((scene, tech), RUNS, seed, DEPTH, SPP)
 }
 
-fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::mlt_quadrant_runs_with(scene, MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
+fn mlt_runs(scene: &Scene, tech: &dyn LocalSampling, seed: u64) -> Vec<Vec<f64>> {
+    common::mlt_quadrant_runs_with((scene, tech), MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
 }
 
-/// Installs a lumpy adjoint image (zero cells and 50x contrasts): the starkest test that
+/// A lumpy adjoint image (zero cells and 50x contrasts) for `scene`: the starkest test that
 /// sampling, 1/p and the MIS densities use one density.
-fn with_lumpy_adjoint(mut scene: Scene) -> Scene {
-    let m = LightMap::new(&scene).len() as u32;
+fn lumpy_adjoint(scene: &Scene) -> Enlightened {
+    let m = LightMap::new(scene).len() as u32;
     let (cols, rows) = AdjointImage::grid_size((16, 16), m as usize);
-    scene.adjoint = Some(
-        AdjointImage::from_estimate(
-            &scene,
-            cols,
-            rows,
-            lumpy_estimate((cols * rows) as usize),
-            0.01,
-        )
-        .unwrap(),
-    );
-    scene
+    Enlightened {
+        adjoint: Some(
+            AdjointImage::from_estimate(
+                scene,
+                cols,
+                rows,
+                lumpy_estimate((cols * rows) as usize),
+                0.01,
+            )
+            .unwrap(),
+        ),
+        ..Enlightened::default()
+    }
 }
 
 fn fog_box(res: u32) -> Scene {
@@ -654,30 +672,33 @@ fn fog_box(res: u32) -> Scene {
 fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
     let mut fam = Family::new("enlightened: bdpt with the adjoint image");
     for (name, scene) in [("fog box", fog_box(RES)), ("many lights", many_lights(RES))] {
-        let plain = bdpt_runs(&scene, 100);
-        let lumpy = with_lumpy_adjoint(if name == "fog box" {
+        let plain = bdpt_runs(&scene, &PLAIN, 100);
+        let lumpy = if name == "fog box" {
             fog_box(RES)
         } else {
             many_lights(RES)
-        });
+        };
         common::quadrants_agree(
             &mut fam,
             &format!("{name}: bdpt + lumpy adjoint"),
-            &bdpt_runs(&lumpy, 200),
+            &bdpt_runs(&lumpy, &lumpy_adjoint(&lumpy), 200),
             &plain,
         );
-        let mut estimated = scene;
+        let estimated = scene;
         let settings = AdjointSettings {
             samples_per_cell: 4,
             ..AdjointSettings::default()
         };
-        let image = AdjointImage::render(&estimated, &settings, 7, Some(DEPTH)).unwrap();
+        let image = AdjointImage::render(&estimated, &PLAIN, &settings, 7, Some(DEPTH)).unwrap();
         assert!(image.estimate.iter().sum::<f64>() > 0.0);
-        estimated.adjoint = Some(image);
+        let technique = Enlightened {
+            adjoint: Some(image),
+            ..Enlightened::default()
+        };
         common::quadrants_agree(
             &mut fam,
             &format!("{name}: bdpt + adjoint"),
-            &bdpt_runs(&estimated, 300),
+            &bdpt_runs(&estimated, &technique, 300),
             &plain,
         );
     }
@@ -691,13 +712,14 @@ fn bdpt_with_the_adjoint_image_agrees_with_bdpt() {
 /// against BDPT's 0.32 +- 0.002: the test sees the mistake this guards against.)
 #[test]
 fn mlt_with_the_adjoint_image_agrees_with_bdpt() {
-    let plain = bdpt_runs(&many_lights(RES), 400);
-    let scene = with_lumpy_adjoint(many_lights(RES));
+    let plain = bdpt_runs(&many_lights(RES), &PLAIN, 400);
+    let scene = many_lights(RES);
+    let lumpy = lumpy_adjoint(&scene);
     let mut fam = Family::new("enlightened: mlt with the adjoint image");
     common::quadrants_agree(
         &mut fam,
         "many lights: mlt + lumpy adjoint",
-        &mlt_runs(&scene, 500),
+        &mlt_runs(&scene, &lumpy, 500),
         &plain,
     );
     fam.finish();
@@ -761,9 +783,11 @@ fn bad_adjoint_settings_are_clear_errors() {
         "{}\n[[lights]]\ntype = \"point\"\nposition = [0.0, 0.0, 0.0]\nintensity = 1.0\n",
         &base[..base.find("# ceiling light").unwrap()]
     ));
-    let e = AdjointImage::render(&point_only, &AdjointSettings::default(), 1, None).unwrap_err();
+    let e = AdjointImage::render(&point_only, &PLAIN, &AdjointSettings::default(), 1, None)
+        .unwrap_err();
     assert!(e.contains("no area light"), "{e}");
-    let e = AdjointImage::render(&room(false), &AdjointSettings::default(), 1, None).unwrap_err();
+    let e = AdjointImage::render(&room(false), &PLAIN, &AdjointSettings::default(), 1, None)
+        .unwrap_err();
     assert!(e.contains("camera"), "{e}");
 }
 
@@ -798,7 +822,7 @@ fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass(
             estimator,
             ..AdjointSettings::default()
         };
-        let image = AdjointImage::render(&scene, &settings, seed, None).unwrap();
+        let image = AdjointImage::render(&scene, &PLAIN, &settings, seed, None).unwrap();
         let scale = match estimator {
             AdjointEstimator::Metropolis => n_pix,
             AdjointEstimator::Bdpt => 1.0,

@@ -11,16 +11,16 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use pathspace::bsdf::TransportMode;
-use pathspace::enlightened::guide::{build_guide, sample_scatter, scatter_pdf};
+use pathspace::enlightened::guide::build_guide;
 use pathspace::enlightened::regions::{surface_distance, KdTree};
 use pathspace::enlightened::{
-    DirectionMap, GuideKind, GuideSettings, RegionParams, RegionPoint, Regions,
+    DirectionMap, Enlightened, GuideKind, GuideSettings, RegionParams, RegionPoint, Regions,
 };
 use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::pdf::{densities, strategy_pdf};
-use pathspace::path::{measurement_contribution, Path, Vertex, VertexKind};
+use pathspace::path::{measurement_contribution, LocalSampling, Path, Vertex, VertexKind, PLAIN};
 use pathspace::scene::{Scene, SceneSource};
 
 use common::stats::Family;
@@ -270,9 +270,20 @@ fn fog_box(w: u32) -> Scene {
 /// exchanging them (in a density, in a sampler, or in both) changed nothing any test sees.
 const GUIDE_WEIGHT: f32 = 0.3;
 
-/// Installs a cheap, coarse guide of `kind` (`particles` subpaths of each kind, 64 regions,
+/// A scene with the enlightened technique that guides it.
+type Guided = (Scene, Enlightened);
+
+/// The technique of a guide alone (no adjoint image).
+fn guiding(guide: pathspace::enlightened::Guide) -> Enlightened {
+    Enlightened {
+        guide: Some(Arc::new(guide)),
+        adjoint: None,
+    }
+}
+
+/// A cheap, coarse guide of `kind` for `scene` (`particles` subpaths of each kind, 64 regions,
 /// 16x8 maps, guide weight [`GUIDE_WEIGHT`]).
-fn with_guide(mut scene: Scene, kind: GuideKind, particles: usize) -> Scene {
+fn with_guide(scene: Scene, kind: GuideKind, particles: usize) -> Guided {
     let mut settings = GuideSettings::for_radius(scene.radius);
     settings.c_guide = GUIDE_WEIGHT;
     settings.kind = kind;
@@ -280,20 +291,24 @@ fn with_guide(mut scene: Scene, kind: GuideKind, particles: usize) -> Scene {
     settings.regions.regions = 64;
     settings.cols = 16;
     settings.rows = 8;
-    scene.guide = Some(Arc::new(build_guide(&scene, settings)));
-    scene
+    let technique = guiding(build_guide(&scene, &PLAIN, settings));
+    (scene, technique)
 }
 
-/// The fog box with a guide of `kind` installed.
-fn guided_fog_box(w: u32, kind: GuideKind) -> Scene {
+/// The fog box with a guide of `kind`.
+fn guided_fog_box(w: u32, kind: GuideKind) -> Guided {
     with_guide(fog_box(w), kind, 20_000)
 }
 
 /// Guided vertices of eye walks in the fog box: surface and medium vertices with a map in both
 /// modes, and the direction they were reached from.
-fn guided_vertices(scene: &Scene, want_medium: bool, count: usize) -> Vec<(Vertex, Vec3)> {
-    let g = scene.guide.as_deref().unwrap();
-    let b = Bdpt::new(scene, Some(4), Strategies::All);
+fn guided_vertices(
+    (scene, tech): (&Scene, &Enlightened),
+    want_medium: bool,
+    count: usize,
+) -> Vec<(Vertex, Vec3)> {
+    let g = tech.guide.as_deref().unwrap();
+    let b = Bdpt::new(scene, tech, Some(4), Strategies::All);
     let mut s = Sampler::new(21, 0, 0);
     let mut out = Vec::new();
     let mut eye = Vec::new();
@@ -326,10 +341,10 @@ fn guided_vertices(scene: &Scene, want_medium: bool, count: usize) -> Vec<(Verte
 /// sampler follows it (chi-square), at surface and medium vertices, in both modes.
 #[test]
 fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
-    let scene = guided_fog_box(8, GuideKind::Both);
+    let (scene, tech) = guided_fog_box(8, GuideKind::Both);
     let mut fam = Family::new("guiding: guided mixtures vs their samplers");
     for want_medium in [false, true] {
-        for (k, (v, wo)) in guided_vertices(&scene, want_medium, 3)
+        for (k, (v, wo)) in guided_vertices((&scene, &tech), want_medium, 3)
             .into_iter()
             .enumerate()
         {
@@ -339,8 +354,8 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                     if want_medium { "medium" } else { "surface" }
                 );
                 let grid = SphereGrid::new(world(), 16, 32);
-                let pdf = |w: Vec3| scatter_pdf(&scene, &v, wo, w, mode) as f64;
-                check_mixture_weights(&scene, &v, wo, mode);
+                let pdf = |w: Vec3| tech.scatter_pdf(&scene, &v, wo, w, mode) as f64;
+                check_mixture_weights((&scene, &tech), &v, wo, mode);
                 let n = 100_000;
                 let expected = expected_midpoint(&grid, pdf, 6, n);
                 let mass: f64 = expected.iter().sum::<f64>() / n as f64;
@@ -348,8 +363,8 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
                 let mut s = Sampler::new(31, k as u64, want_medium as u64);
                 let observed = grid.observe(
                     || {
-                        let ss = sample_scatter(&scene, &v, wo, mode, &mut s)?;
-                        let p = scatter_pdf(&scene, &v, wo, ss.wi, mode);
+                        let ss = tech.sample_scatter(&scene, &v, wo, mode, &mut s)?;
+                        let p = tech.scatter_pdf(&scene, &v, wo, ss.wi, mode);
                         assert!((ss.pdf - p).abs() <= 1e-4 * p, "{what}: {} vs {p}", ss.pdf);
                         Some(ss.wi)
                     },
@@ -365,8 +380,13 @@ fn guided_mixture_pdfs_integrate_to_one_and_match_their_samplers() {
 /// Eq. (5.18) and its medium form: the guided density is (1 - c) p_local + c p_map with c the
 /// guide weight (the map's share), at the vertex's own BSDF or phase-function density and its
 /// region's map; deterministic (f32 rounding of one sum of two products).
-fn check_mixture_weights(scene: &Scene, v: &Vertex, wo: Vec3, mode: TransportMode) {
-    let g = scene.guide.as_deref().unwrap();
+fn check_mixture_weights(
+    (scene, tech): (&Scene, &Enlightened),
+    v: &Vertex,
+    wo: Vec3,
+    mode: TransportMode,
+) {
+    let g = tech.guide.as_deref().unwrap();
     let c = g.settings.c_guide;
     assert_eq!(c, GUIDE_WEIGHT);
     let (map, _) = g.map_at(scene, v, mode).expect("a guided vertex");
@@ -377,7 +397,7 @@ fn check_mixture_weights(scene: &Scene, v: &Vertex, wo: Vec3, mode: TransportMod
             _ => unreachable!("guided vertices are surface or medium vertices"),
         };
         let want = (1.0 - c) * local + c * map.pdf(wi);
-        let got = scatter_pdf(scene, v, wo, wi, mode);
+        let got = tech.scatter_pdf(scene, v, wo, wi, mode);
         assert!(
             (got - want).abs() <= 4.0 * f32::EPSILON * want,
             "{mode:?}: guided density {got}, (1 - c) p_local + c p_map = {want}"
@@ -394,12 +414,13 @@ const TOL: f32 = 1e-2;
 #[test]
 fn guided_walk_densities_match_path_densities() {
     // unguided first: the same check and tolerance hold without the guide
-    check_walk_densities(&fog_box(8));
-    check_walk_densities(&guided_fog_box(8, GuideKind::Both));
+    check_walk_densities(&fog_box(8), &Enlightened::default());
+    let (scene, tech) = guided_fog_box(8, GuideKind::Both);
+    check_walk_densities(&scene, &tech);
 }
 
-fn check_walk_densities(scene: &Scene) {
-    let b = Bdpt::new(scene, Some(5), Strategies::All);
+fn check_walk_densities(scene: &Scene, tech: &Enlightened) {
+    let b = Bdpt::new(scene, tech, Some(5), Strategies::All);
     let mut s = Sampler::new(41, 0, 0);
     let mut scratch = Scratch::default();
     let cam = scene.camera.as_ref().unwrap();
@@ -417,7 +438,7 @@ fn check_walk_densities(scene: &Scene) {
         let mut verts: Vec<Vertex> = light.clone();
         verts.extend(eye.iter().rev().copied());
         let path = Path { vertices: verts };
-        let d = densities(scene, &path, &mut s);
+        let d = densities(scene, tech, &path, &mut s);
         let n = path.vertices.len();
         // f32 free-flight exponentials over edges from lifted origins put up to a few 1e-3
         // between walk and recomputation (the unguided walk in the fog box shows the same);
@@ -471,13 +492,13 @@ fn check_walk_densities(scene: &Scene) {
     assert!(
         (off.len() as u64) * 200 < vertices,
         "guided: {}; {} of {vertices} densities disagree: {:?}",
-        scene.guide.is_some(),
+        tech.guide.is_some(),
         off.len(),
         &off[..off.len().min(5)]
     );
     eprintln!(
         "guided {}: {vertices} densities, {} off by >= {TOL}, {impassable} impassable",
-        scene.guide.is_some(),
+        tech.guide.is_some(),
         off.len()
     );
 }
@@ -486,8 +507,8 @@ fn check_walk_densities(scene: &Scene) {
 /// equal p_s^2 / sum p_i^2 from the guided densities.
 #[test]
 fn guided_mis_weights_sum_to_one() {
-    let scene = guided_fog_box(8, GuideKind::Both);
-    let b = Bdpt::new(&scene, Some(5), Strategies::All);
+    let (scene, tech) = guided_fog_box(8, GuideKind::Both);
+    let b = Bdpt::new(&scene, &tech, Some(5), Strategies::All);
     let mut s = Sampler::new(43, 0, 0);
     let mut scratch = Scratch::default();
     let cam = scene.camera.as_ref().unwrap();
@@ -505,7 +526,7 @@ fn guided_mis_weights_sum_to_one() {
         if measurement_contribution(&scene, &path, &mut s) == Vec3::ZERO {
             continue;
         }
-        let d = densities(&scene, &path, &mut s);
+        let d = densities(&scene, &tech, &path, &mut s);
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|k| strategy_pdf(&d, k)).collect();
         let total: f64 = p.iter().map(|x| x * x).sum();
@@ -538,12 +559,12 @@ const MLT_MUTATIONS: u64 = 64;
 const RES: u32 = 8;
 const DEPTH: u32 = 4;
 
-fn bdpt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::bdpt_quadrant_runs(scene, RUNS, seed, DEPTH, SPP)
+fn bdpt_runs(scene: &Scene, tech: &dyn LocalSampling, seed: u64) -> Vec<Vec<f64>> {
+    common::bdpt_quadrant_runs((scene, tech), RUNS, seed, DEPTH, SPP)
 }
 
-fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
-    common::mlt_quadrant_runs_with(scene, MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
+fn mlt_runs(scene: &Scene, tech: &dyn LocalSampling, seed: u64) -> Vec<Vec<f64>> {
+    common::mlt_quadrant_runs_with((scene, tech), MLT_RUNS, seed, DEPTH, MLT_MUTATIONS)
 }
 
 /// Guided BDPT (surface guiding; surface and volume guiding) agrees with unguided BDPT on the
@@ -551,24 +572,27 @@ fn mlt_runs(scene: &Scene, seed: u64) -> Vec<Vec<f64>> {
 #[test]
 fn guided_bdpt_agrees_with_unguided_bdpt() {
     let mut fam = Family::new("guiding: guided bdpt vs bdpt");
-    let plain = bdpt_runs(&fog_box(RES), 1000);
+    let plain = bdpt_runs(&fog_box(RES), &PLAIN, 1000);
     for kind in [GuideKind::Surface, GuideKind::Both] {
-        let scene = guided_fog_box(RES, kind);
-        common::quadrants_agree(&mut fam, kind.name(), &bdpt_runs(&scene, 5000), &plain);
+        let (scene, tech) = guided_fog_box(RES, kind);
+        let guided = bdpt_runs(&scene, &tech, 5000);
+        common::quadrants_agree(&mut fam, kind.name(), &guided, &plain);
     }
     // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
-    let mut scene = fog_box(RES);
+    let scene = fog_box(RES);
     let mut settings = GuideSettings::for_radius(scene.radius);
     settings.kind = GuideKind::Both;
     settings.particles = 20_000;
     settings.regions.regions = 64;
     settings.roulette = Some(0.5);
     settings.c_guide = GUIDE_WEIGHT;
-    scene.guide = Some(Arc::new(build_guide(&scene, settings)));
-    let deep = |scene: &Scene, seed: u64| -> Vec<Vec<f64>> {
+    let tech = guiding(build_guide(&scene, &PLAIN, settings));
+    let deep = |scene: &Scene, tech: &dyn LocalSampling, seed: u64| -> Vec<Vec<f64>> {
         (0..RUNS)
             .map(|r| {
-                let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(8));
+                let mut rd =
+                    Renderer::try_with(scene, tech, IntegratorKind::Bdpt, seed + r, Some(8))
+                        .unwrap();
                 rd.pass(SPP, &|| {});
                 common::quadrant_means(&rd.film.as_ref().unwrap().image())
             })
@@ -577,8 +601,8 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     common::quadrants_agree(
         &mut fam,
         "guided roulette",
-        &deep(&scene, 6000),
-        &deep(&fog_box(RES), 1000),
+        &deep(&scene, &tech, 6000),
+        &deep(&fog_box(RES), &PLAIN, 1000),
     );
     fam.finish();
 }
@@ -587,10 +611,15 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
 /// regenerates, and in its transition densities) agrees with unguided BDPT.
 #[test]
 fn guided_mlt_agrees_with_bdpt() {
-    let plain = bdpt_runs(&fog_box(RES), 3000);
-    let scene = guided_fog_box(RES, GuideKind::Both);
+    let plain = bdpt_runs(&fog_box(RES), &PLAIN, 3000);
+    let (scene, tech) = guided_fog_box(RES, GuideKind::Both);
     let mut fam = Family::new("guiding: guided mlt vs bdpt");
-    common::quadrants_agree(&mut fam, "guided mlt", &mlt_runs(&scene, 7000), &plain);
+    common::quadrants_agree(
+        &mut fam,
+        "guided mlt",
+        &mlt_runs(&scene, &tech, 7000),
+        &plain,
+    );
     fam.finish();
 }
 
@@ -599,13 +628,14 @@ fn guided_mlt_agrees_with_bdpt() {
 #[test]
 fn guide_off_changes_nothing() {
     let plain = fog_box(RES);
-    let off = guided_fog_box(RES, GuideKind::Off);
-    let render = |scene: &Scene| {
-        let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, 77, Some(DEPTH));
+    let (off, off_tech) = guided_fog_box(RES, GuideKind::Off);
+    let render = |scene: &Scene, tech: &dyn LocalSampling| {
+        let mut rd =
+            Renderer::try_with(scene, tech, IntegratorKind::Bdpt, 77, Some(DEPTH)).unwrap();
         rd.pass(4, &|| {});
         rd.film.as_ref().unwrap().image().pixels
     };
-    assert_eq!(render(&plain), render(&off));
+    assert_eq!(render(&plain, &PLAIN), render(&off, &off_tech));
 }
 
 /// `[render.guide]` is read and every bad value is reported at its key.
@@ -656,8 +686,9 @@ fn guided_render_is_deterministic_across_thread_counts() {
             .build()
             .unwrap();
         pool.install(|| {
-            let scene = guided_fog_box(RES, GuideKind::Both);
-            let mut rd = Renderer::new(&scene, IntegratorKind::Bdpt, 5, Some(DEPTH));
+            let (scene, tech) = guided_fog_box(RES, GuideKind::Both);
+            let mut rd =
+                Renderer::try_with(&scene, &tech, IntegratorKind::Bdpt, 5, Some(DEPTH)).unwrap();
             rd.pass(2, &|| {});
             rd.film.as_ref().unwrap().image().pixels
         })
@@ -671,8 +702,9 @@ fn guided_render_is_deterministic_across_thread_counts() {
 fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     use pathspace::enlightened::guide::{emission_pdf, sample_emission};
     use pathspace::math::warp;
-    let scene = guided_fog_box(8, GuideKind::Surface);
-    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    let (scene, tech) = guided_fog_box(8, GuideKind::Surface);
+    let g = tech.guide.as_deref().unwrap();
+    let b = Bdpt::new(&scene, &tech, Some(2), Strategies::All);
     let mut s = Sampler::new(51, 0, 0);
     let mut light = Vec::new();
     let mut points = Vec::new();
@@ -690,7 +722,7 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     }
     for (k, (p, n)) in points.into_iter().enumerate() {
         let cos_pdf = |w: Vec3| (w.dot(n).max(0.0)) * std::f32::consts::FRAC_1_PI;
-        let pdf = |w: Vec3| emission_pdf(&scene, p, n, w, cos_pdf(w)) as f64;
+        let pdf = |w: Vec3| emission_pdf(g, p, n, w, cos_pdf(w)) as f64;
         assert!(
             (pdf(n) - cos_pdf(n) as f64).abs() > 1e-6,
             "the point is guided"
@@ -709,7 +741,7 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
             || {
                 let u = sm.next_2d();
                 let d = frame.to_world(warp::cosine_hemisphere(u));
-                let (w, q) = sample_emission(&scene, p, n, d, u, cos_pdf, &mut sm)?;
+                let (w, q) = sample_emission(g, (p, n), d, u, cos_pdf, &mut sm)?;
                 assert!((q as f64 - pdf(w)).abs() <= 1e-4 * q as f64);
                 Some(w)
             },
@@ -734,7 +766,7 @@ fn guide_options_min_depth_and_particle_samplers() {
         ParticleSampler::Bidirectional,
         ParticleSampler::Metropolis,
     ] {
-        let mut scene = fog_box(8);
+        let scene = fog_box(8);
         let mut settings = GuideSettings::for_radius(scene.radius);
         settings.kind = GuideKind::Both;
         settings.particles = match sampler {
@@ -744,7 +776,7 @@ fn guide_options_min_depth_and_particle_samplers() {
         settings.regions.regions = 64;
         settings.min_depth = 2;
         settings.sampler = sampler;
-        let g = build_guide(&scene, settings);
+        let g = build_guide(&scene, &PLAIN, settings);
         assert!(
             g.stats.photons > 1000 && g.stats.importons > 1000,
             "{sampler:?}: {:?}",
@@ -753,17 +785,17 @@ fn guide_options_min_depth_and_particle_samplers() {
         let all = {
             let mut s = settings;
             s.min_depth = 1;
-            build_guide(&scene, s).stats
+            build_guide(&scene, &PLAIN, s).stats
         };
         assert!(
             all.photons > g.stats.photons,
             "min_depth 2 drops the direct photons"
         );
-        scene.guide = Some(Arc::new(g));
-        let (v, wo) = guided_vertices(&scene, true, 1)[0];
+        let tech = guiding(g);
+        let (v, wo) = guided_vertices((&scene, &tech), true, 1)[0];
         let grid = SphereGrid::new(world(), 16, 32);
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
-            let pdf = |w: Vec3| scatter_pdf(&scene, &v, wo, w, mode) as f64;
+            let pdf = |w: Vec3| tech.scatter_pdf(&scene, &v, wo, w, mode) as f64;
             let mass: f64 = expected_midpoint(&grid, pdf, 4, 1).iter().sum();
             assert!((mass - 1.0).abs() < 3e-3, "{mode:?}: integral {mass}");
         }
@@ -785,7 +817,7 @@ fn glass_fog_box(w: u32) -> Scene {
 }
 
 /// [`glass_fog_box`], surface-guided.
-fn guided_glass_fog_box(w: u32) -> Scene {
+fn guided_glass_fog_box(w: u32) -> Guided {
     with_guide(glass_fog_box(w), GuideKind::Surface, 40_000)
 }
 
@@ -798,10 +830,9 @@ fn guided_glass_fog_box(w: u32) -> Scene {
 #[test]
 fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
     use pathspace::bsdf::{Bsdf, Lobe};
-    use pathspace::enlightened::guide::guided_fresnel;
     use pathspace::integrator::mlt::contribution::lobe_probability;
-    let scene = guided_glass_fog_box(16);
-    let b = Bdpt::new(&scene, Some(6), Strategies::All);
+    let (scene, tech) = guided_glass_fog_box(16);
+    let b = Bdpt::new(&scene, &tech, Some(6), Strategies::All);
     let mut s = Sampler::new(31, 0, 0);
     let cam = scene.camera.as_ref().unwrap();
     let mut eye = Vec::new();
@@ -824,7 +855,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
     let mut changed = 0;
     for (k, (v, wo)) in glass.iter().enumerate() {
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
-            let Some((p_r, r, t)) = guided_fresnel(&scene, v, *wo, mode) else {
+            let Some((p_r, r, t)) = tech.lobe_choice(&scene, v, *wo, mode) else {
                 continue;
             };
             let f = r.pdf as f64;
@@ -832,7 +863,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                 assert!(p_r > 0.0 && p_r < 1.0, "P(reflect) = {p_r} with F = {f}");
                 // sec. 5.3 with the mixture: (1 - c) F + c F L(w_r) / (F L(w_r) + (1 - F)
                 // L(w_t)), L the map relative to its mean, c the map's share
-                let g = scene.guide.as_deref().unwrap();
+                let g = tech.guide.as_deref().unwrap();
                 let field = g.field(mode);
                 let region = field.regions.surface_region(v.p, v.n).expect("a region");
                 let map = &field.maps[region as usize];
@@ -859,7 +890,9 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
             let mut hits = 0;
             let mut sm = Sampler::new(32, k as u64, mode as u64);
             for _ in 0..n {
-                let ss = sample_scatter(&scene, v, *wo, mode, &mut sm).expect("a lobe");
+                let ss = tech
+                    .sample_scatter(&scene, v, *wo, mode, &mut sm)
+                    .expect("a lobe");
                 let want = if ss.lobe == Lobe::SingularReflection {
                     hits += 1;
                     p_r
@@ -867,7 +900,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
                     1.0 - p_r
                 };
                 assert!((ss.pdf - want).abs() <= 1e-6, "pdf {} vs {want}", ss.pdf);
-                let density = lobe_probability(&scene, v, v.p + *wo, v.p + ss.wi, mode);
+                let density = lobe_probability(&scene, &tech, v, v.p + *wo, v.p + ss.wi, mode);
                 assert!(
                     (density - want).abs() <= 1e-5,
                     "lobe_probability {density} vs sampled {want}"
@@ -889,12 +922,12 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
 /// agree with unguided BDPT through glass in fog.
 #[test]
 fn guided_bdpt_and_mlt_agree_with_bdpt_through_glass() {
-    let scene = guided_glass_fog_box(RES);
-    let reference = bdpt_runs(&glass_fog_box(RES), 8000);
+    let (scene, tech) = guided_glass_fog_box(RES);
+    let reference = bdpt_runs(&glass_fog_box(RES), &PLAIN, 8000);
     let mut fam = Family::new("guiding: guided bdpt and mlt through glass");
-    let guided = bdpt_runs(&scene, 9000);
+    let guided = bdpt_runs(&scene, &tech, 9000);
     common::quadrants_agree(&mut fam, "guided bdpt, glass", &guided, &reference);
-    let guided = mlt_runs(&scene, 9500);
+    let guided = mlt_runs(&scene, &tech, 9500);
     common::quadrants_agree(&mut fam, "guided mlt, glass", &guided, &reference);
     fam.finish();
 }
@@ -908,11 +941,10 @@ fn guided_bdpt_and_mlt_agree_with_bdpt_through_glass() {
 #[test]
 fn mlt_densities_carry_each_subpaths_guided_lobe_choice() {
     use pathspace::bsdf::{Bsdf, Lobe};
-    use pathspace::enlightened::guide::guided_fresnel;
     use pathspace::integrator::mlt::contribution::{lobe_between, singular_densities_in};
     use pathspace::integrator::mlt::init::Bootstrap;
-    let mut scene = guided_glass_fog_box(16);
-    let bdpt = Bdpt::new(&scene, Some(8), Strategies::All);
+    let (scene, tech) = guided_glass_fog_box(16);
+    let bdpt = Bdpt::new(&scene, &tech, Some(8), Strategies::All);
     let boot = Bootstrap::run(&scene, &bdpt, 20_000, 5);
     let mut s = Sampler::new(5, 99, 0);
     let (mut checked, mut modes_differ) = (0, 0);
@@ -929,13 +961,11 @@ fn mlt_densities_carry_each_subpaths_guided_lobe_choice() {
         else {
             continue;
         };
-        let guided = singular_densities_in(&scene, &x, 0..n);
-        let guide = scene.guide.take();
-        let plain = singular_densities_in(&scene, &x, 0..n);
-        scene.guide = guide;
+        let guided = singular_densities_in(&scene, &tech, &x, 0..n);
+        let plain = singular_densities_in(&scene, &PLAIN, &x, 0..n);
         let lobe = lobe_between(&scene, &x[j], x[j - 1].p, x[j + 1].p);
         let choice = |from: Vec3, mode| {
-            let (p_r, r, _) = guided_fresnel(&scene, &x[j], (from - x[j].p).normalize(), mode)?;
+            let (p_r, r, _) = tech.lobe_choice(&scene, &x[j], (from - x[j].p).normalize(), mode)?;
             Some(match lobe {
                 Lobe::SingularTransmission => ((1.0 - p_r) / (1.0 - r.pdf)) as f64,
                 _ => (p_r / r.pdf) as f64,

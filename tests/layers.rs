@@ -28,27 +28,7 @@ fn layer(module: &str) -> Option<u32> {
 }
 
 /// (file under `src/`, module it reaches up to): the upward imports of today's house.
-const KNOWN_UPWARD: [(&str, &str, &str); 8] = [
-    (
-        "enlightened/adjoint.rs",
-        "integrator",
-        "the adjoint image's pre-pass runs BDPT, and it names the integrators it applies to",
-    ),
-    (
-        "enlightened/metropolis.rs",
-        "integrator",
-        "the Metropolis particle sampler borrows BDPT's light walk",
-    ),
-    (
-        "enlightened/particles.rs",
-        "integrator",
-        "photons and importons are traced by BDPT's walks",
-    ),
-    (
-        "path/vertex.rs",
-        "enlightened",
-        "a vertex's direction density asks the scene's guide",
-    ),
+const KNOWN_UPWARD: [(&str, &str, &str); 4] = [
     (
         "scene/build.rs",
         "enlightened",
@@ -62,7 +42,7 @@ const KNOWN_UPWARD: [(&str, &str, &str); 8] = [
     (
         "scene/mod.rs",
         "enlightened",
-        "the scene holds the installed guide and adjoint image",
+        "the scene's render settings hold the guide's and the adjoint image's settings",
     ),
     (
         "scene/mod.rs",

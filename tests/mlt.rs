@@ -39,14 +39,15 @@ fn fog_box(w: u32) -> Scene {
     Scene::load(&SceneSource::embedded("fog-box", &text)).expect("valid fog box")
 }
 
-fn engine(scene: &Scene, weights: [f64; 5], max_depth: Option<u32>, seed: u64) -> Mlt {
+fn engine(scene: &Scene, weights: [f64; 5], max_depth: Option<u32>, seed: u64) -> Mlt<'_> {
     let settings = MltSettings {
         weights,
         bootstrap: 2000,
         chains: 4,
         ..MltSettings::default()
     };
-    Mlt::new(scene, settings, seed, max_depth).expect("mlt applies to the scene")
+    Mlt::new(scene, &pathspace::path::PLAIN, settings, seed, max_depth)
+        .expect("mlt applies to the scene")
 }
 
 /// Test paths x with f(x) > 0: pre-pass paths drawn proportionally to their contribution.
@@ -94,7 +95,7 @@ fn every_proposal_has_a_density_and_perturbations_can_take_it_back() {
             let (fx, _) = image_contribution(&scene, x).unwrap();
             let fx = scalar_contribution(fx) as f64;
             for _ in 0..4 {
-                let Some(y) = m.sample(&scene, x, &mut sampler) else {
+                let Some(y) = m.sample(&scene, &pathspace::path::PLAIN, x, &mut sampler) else {
                     continue;
                 };
                 let Some((fy, _)) = image_contribution(&scene, &y) else {
@@ -105,8 +106,8 @@ fn every_proposal_has_a_density_and_perturbations_can_take_it_back() {
                     continue;
                 }
                 let fy = scalar_contribution(fy) as f64;
-                let t_xy = m.transition_density(&scene, x, &y);
-                let t_yx = m.transition_density(&scene, &y, x);
+                let t_xy = m.transition_density(&scene, &pathspace::path::PLAIN, x, &y);
+                let t_yx = m.transition_density(&scene, &pathspace::path::PLAIN, &y, x);
                 assert!(
                     t_xy > 0.0 && t_xy.is_finite(),
                     "{}: T(x -> y) = {t_xy} for a y it proposed",
@@ -269,7 +270,7 @@ fn reused_edge_factors_give_the_same_contribution_to_the_bit() {
         for x in &paths {
             let mut ex = Vec::new();
             image_contribution_reusing(&scene, x, None, &mut ex).unwrap();
-            let Some(y) = m.sample(&scene, x, &mut sampler) else {
+            let Some(y) = m.sample(&scene, &pathspace::path::PLAIN, x, &mut sampler) else {
                 continue;
             };
             let (mut fresh, mut reused) = (Vec::new(), Vec::new());
@@ -304,7 +305,7 @@ fn refined_b_is_the_prepass_estimate_over_more_samples_and_the_image_sum() {
         b_refine: 0.5,
         ..MltSettings::default()
     };
-    let mut mlt = Mlt::new(&scene, settings, 41, None).unwrap();
+    let mut mlt = Mlt::new(&scene, &pathspace::path::PLAIN, settings, 41, None).unwrap();
     let mut film = Film::new(8, 8);
     mlt.run(&scene, &mut film, 64 * 40);
     let more = Bootstrap::run(&scene, &mlt.bdpt, 1000 + 64 * 20, 41).b;
@@ -464,7 +465,8 @@ v = [0.2, 0.0, 0.0]
                 ("refraction", refracted, t),
                 ("off both laws", off, 0.0),
             ] {
-                let got = lobe_probability(&scene, &v, from, to, mode) as f64;
+                let got =
+                    lobe_probability(&scene, &pathspace::path::PLAIN, &v, from, to, mode) as f64;
                 assert!(
                     (got - expect).abs() < 1e-5,
                     "prim {prim} {mode:?}, {what}: {got}, expected {expect}"

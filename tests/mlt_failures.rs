@@ -40,8 +40,15 @@ fn scene_file(name: &str, w: u32) -> Scene {
     Scene::load(&SceneSource::embedded(name, &text)).expect("valid scene")
 }
 
-fn engine(scene: &Scene, max_depth: u32) -> Mlt {
-    Mlt::new(scene, MltSettings::default(), 1, Some(max_depth)).expect("mlt applies")
+fn engine(scene: &Scene, max_depth: u32) -> Mlt<'_> {
+    Mlt::new(
+        scene,
+        &pathspace::path::PLAIN,
+        MltSettings::default(),
+        1,
+        Some(max_depth),
+    )
+    .expect("mlt applies")
 }
 
 /// Sample mean, standard deviation and kurtosis (fourth central moment over variance squared).
@@ -161,14 +168,14 @@ fn mean_alpha(
             let m = mlt.mutations.get(kind);
             for _ in 0..tries {
                 count += 1;
-                let Some(y) = m.sample(scene, x, &mut sampler) else {
+                let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut sampler) else {
                     continue;
                 };
                 let Some((fy, _)) = image_contribution(scene, &y) else {
                     continue;
                 };
-                let t_xy = m.transition_density(scene, x, &y);
-                let t_yx = m.transition_density(scene, &y, x);
+                let t_xy = m.transition_density(scene, &pathspace::path::PLAIN, x, &y);
+                let t_yx = m.transition_density(scene, &pathspace::path::PLAIN, &y, x);
                 path_sum += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
             }
         }
@@ -284,15 +291,15 @@ fn experiment_multichain_acceptance_against_light_size() {
             let fx = scalar_contribution(image_contribution(&sc, x).unwrap().0) as f64;
             for _ in 0..4 {
                 n += 1;
-                let Some(y) = m.sample(&sc, x, &mut s) else {
+                let Some(y) = m.sample(&sc, &pathspace::path::PLAIN, x, &mut s) else {
                     none += 1;
                     continue;
                 };
                 let Some((fy, _)) = image_contribution(&sc, &y) else {
                     continue;
                 };
-                let t_xy = m.transition_density(&sc, x, &y);
-                let t_yx = m.transition_density(&sc, &y, x);
+                let t_xy = m.transition_density(&sc, &pathspace::path::PLAIN, x, &y);
+                let t_yx = m.transition_density(&sc, &pathspace::path::PLAIN, &y, x);
                 a += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
             }
         }
@@ -363,7 +370,14 @@ fn mlt_is_no_better_than_bdpt_under_a_soft_light_in_a_high_albedo_medium() {
                 chains: 4,
                 ..MltSettings::default()
             };
-            let mut m = Mlt::new(&scene, settings, 500 + r, Some(SOFT_DEPTH)).unwrap();
+            let mut m = Mlt::new(
+                &scene,
+                &pathspace::path::PLAIN,
+                settings,
+                500 + r,
+                Some(SOFT_DEPTH),
+            )
+            .unwrap();
             let mut film = pathspace::film::Film::new(SOFT_RES, SOFT_RES);
             m.run(
                 &scene,

@@ -108,14 +108,15 @@ fn big_light_rect() -> Rect {
     }
 }
 
-fn engine(scene: &Scene, weights: [f64; 5], max_depth: Option<u32>, seed: u64) -> Mlt {
+fn engine(scene: &Scene, weights: [f64; 5], max_depth: Option<u32>, seed: u64) -> Mlt<'_> {
     let settings = MltSettings {
         weights,
         bootstrap: 2000,
         chains: 4,
         ..MltSettings::default()
     };
-    Mlt::new(scene, settings, seed, max_depth).expect("mlt applies to the scene")
+    Mlt::new(scene, &pathspace::path::PLAIN, settings, seed, max_depth)
+        .expect("mlt applies to the scene")
 }
 
 // ------------------------------------------------------------------------------------------
@@ -300,8 +301,13 @@ fn vertex_at(scene: &Scene, target: Vec3, n: Vec3) -> Vertex {
 /// The light vertex at `p` on the fog box's light, as `sample_light_vertex` makes it.
 fn light_vertex_at(scene: &Scene, mlt: &Mlt, p: Vec3) -> Vertex {
     let mut s = Sampler::new(8, 0, 0);
-    let mut v = sample_light_vertex(scene, &mlt.mutations.bidirectional.light_media, &mut s)
-        .expect("the light samples a vertex");
+    let mut v = sample_light_vertex(
+        scene,
+        &pathspace::path::PLAIN,
+        &mlt.mutations.bidirectional.light_media,
+        &mut s,
+    )
+    .expect("the light samples a vertex");
     v.p = p;
     v
 }
@@ -468,7 +474,7 @@ fn proposals_follow_t(
             let mut s = Sampler::new(seed, c, 0);
             let mut counts = vec![0u64; cells];
             for _ in c * CHUNK..((c + 1) * CHUNK).min(n_prop) {
-                if let Some(y) = m.sample(scene, x, &mut s) {
+                if let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut s) {
                     if let Some(i) = cell_of(&y) {
                         counts[i] += 1;
                     }
@@ -493,7 +499,7 @@ fn proposals_follow_t(
                 let Some(i) = cell_of(&y) else {
                     continue;
                 };
-                let w = m.transition_density(scene, x, &y) * factor;
+                let w = m.transition_density(scene, &pathspace::path::PLAIN, x, &y) * factor;
                 acc[i].0 += w;
                 acc[i].1 += w * w;
             }
@@ -1399,6 +1405,7 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                     let cur = sub[len - 1];
                     let Some(d) = sample_direction(
                         scene,
+                        &pathspace::path::PLAIN,
                         prev.as_ref(),
                         &cur,
                         TransportMode::Radiance,
@@ -1422,7 +1429,8 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                             };
                             if path.len() == 2 || is_specular(scene, &path[1]) {
                                 if let Some((f, r)) = image_contribution(scene, &path) {
-                                    let dens = singular_densities(scene, &path);
+                                    let dens =
+                                        singular_densities(scene, &pathspace::path::PLAIN, &path);
                                     let p: f64 = dens.eye[..path.len() - 1]
                                         .iter()
                                         .map(|&p| p as f64)
@@ -1444,13 +1452,15 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                     if is_specular(scene, &v) {
                         continue;
                     }
-                    let Some(l) = sample_light_vertex(scene, &media, &mut s) else {
+                    let Some(l) =
+                        sample_light_vertex(scene, &pathspace::path::PLAIN, &media, &mut s)
+                    else {
                         continue;
                     };
                     let mut path = vec![l];
                     path.extend(sub.iter().rev().copied());
                     if let Some((f, r)) = image_contribution(scene, &path) {
-                        let dens = singular_densities(scene, &path);
+                        let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
                         let p: f64 = dens.light[0] as f64
                             * dens.eye[1..path.len() - 1]
                                 .iter()

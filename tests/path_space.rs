@@ -155,7 +155,7 @@ fn geometry_term_closed_forms() {
 fn contribution_over_density_equals_walk_throughput() {
     let scene = room();
     // max_depth 2 keeps Russian roulette out (it starts after 3 vertices)
-    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(2), Strategies::All);
     let mut sampler = Sampler::new(7, 0, 0);
     let mut eye = Vec::new();
     let mut checked = 0;
@@ -193,7 +193,7 @@ fn contribution_over_density_equals_walk_throughput() {
             );
         }
         // cached densities against recomputed ones
-        let d = densities(&scene, &path, &mut sampler);
+        let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
         let n = path.vertices.len();
         for (k, ev) in eye.iter().enumerate() {
             let i = n - 1 - k;
@@ -228,7 +228,7 @@ fn contribution_over_density_equals_walk_throughput() {
 #[test]
 fn light_subpath_densities_reproduce_its_throughput() {
     let scene = room();
-    let b = Bdpt::new(&scene, Some(2), Strategies::All);
+    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(2), Strategies::All);
     // the ceiling light hangs inside the fog (medium 0): its subpaths start there
     assert_eq!(b.light_medium(0), Some(0));
     assert_eq!(b.light_media(), &[Some(0)]);
@@ -244,7 +244,7 @@ fn light_subpath_densities_reproduce_its_throughput() {
         let path = Path {
             vertices: vec![x0, x1],
         };
-        let d = densities(&scene, &path, &mut sampler);
+        let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
         let area = 0.6f32 * 0.6;
         assert!(
             (d.light[0] * area - 1.0).abs() < 1e-5 && (x0.pdf_fwd * area - 1.0).abs() < 1e-5,
@@ -291,7 +291,7 @@ fn light_subpath_densities_reproduce_its_throughput() {
 #[test]
 fn spot_light_intensity_has_its_closed_form_falloff() {
     use pathspace::math::Frame;
-    use pathspace::path::vertex::emitted_by;
+    use pathspace::scene::light::emitted_by;
     use pathspace::scene::Light;
     let axis = Vec3::new(0.0, -0.6, 0.8);
     let (cos_total, cos_falloff) = (0.5f32, 0.8f32);
@@ -390,7 +390,7 @@ v = [0.2, 0.0, 0.0]
 "#,
     ))
     .unwrap();
-    let b = Bdpt::new(&scene, Some(4), Strategies::All);
+    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(4), Strategies::All);
     // this light is in vacuum
     assert_eq!(b.light_medium(0), None);
     let x0 = Vertex::new(
@@ -417,7 +417,7 @@ v = [0.2, 0.0, 0.0]
         vertices: vec![x0, x1, x2],
     };
     let mut sampler = Sampler::new(1, 0, 0);
-    let d = densities(&scene, &path, &mut sampler);
+    let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
     let w = mis_weight_of_path(&b, &scene, &path, 0, &d);
     assert!((w - 1.0).abs() < 1e-6, "w(s = 0) = {w}");
 }
@@ -465,7 +465,7 @@ fn vertex_media_follow_the_side_of_the_direction() {
 #[test]
 fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
     let scene = room();
-    let b = Bdpt::new(&scene, Some(4), Strategies::All);
+    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(4), Strategies::All);
     let mut sampler = Sampler::new(3, 1, 0);
     let mut scratch = Scratch::default();
     let mut checked = 0;
@@ -482,7 +482,7 @@ fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
         if measurement_contribution(&scene, &path, &mut sampler) == Vec3::ZERO {
             continue; // the joining edge is blocked: not a path of positive contribution
         }
-        let d = densities(&scene, &path, &mut sampler);
+        let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect(); // s = n (t = 0) excluded
         let total: f64 = p.iter().map(|x| x * x).sum();
@@ -515,7 +515,12 @@ fn meter(
 ) -> (f64, f64, f64) {
     let mut r = Renderer::new(scene, kind, seed, max_depth);
     if let Some((s, t)) = only {
-        r.bdpt = Some(Bdpt::new(scene, max_depth, Strategies::Only(s, t)));
+        r.bdpt = Some(Bdpt::new(
+            scene,
+            &pathspace::path::PLAIN,
+            max_depth,
+            Strategies::Only(s, t),
+        ));
     }
     r.pass(spp, &|| {});
     common::meter_mean(&r.meter_estimates()[0], 0)

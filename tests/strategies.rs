@@ -34,7 +34,7 @@ fn fog_box(w: u32) -> Scene {
 #[test]
 fn next_event_estimation_does_not_need_the_light_subpath() {
     let scene = fog_box(8);
-    let all = Bdpt::new(&scene, Some(3), Strategies::All);
+    let all = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(3), Strategies::All);
     let mut scratch = Scratch::default();
     let mut nonzero = 0;
     for i in 0..2000u64 {
@@ -158,6 +158,7 @@ fn the_unbounded_path_length_law_sums_to_one_and_is_sampled() {
     let scene = fog_box(4);
     let mlt = pathspace::integrator::mlt::Mlt::new(
         &scene,
+        &pathspace::path::PLAIN,
         pathspace::integrator::mlt::MltSettings {
             bootstrap: 2000,
             chains: 1,

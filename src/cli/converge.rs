@@ -196,7 +196,8 @@ fn converge_guided(
         scene.render.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();
-        let stats = crate::enlightened::guide::install(&mut scene, seed);
+        let mut technique = crate::enlightened::Enlightened::default();
+        let stats = technique.install_guide(&scene, seed);
         let pre = t0.elapsed().as_secs_f64();
         if let Some(st) = &stats {
             eprint!("{}", st.table());
@@ -210,8 +211,18 @@ fn converge_guided(
             );
             continue;
         }
-        let mut part =
-            convergence::measure_run(&scene, reference, kind, seed, config.max_depth, &left, run)?;
+        let mut part = convergence::measure_run_from(
+            &scene,
+            &technique,
+            reference,
+            kind,
+            seed,
+            config.max_depth,
+            &left,
+            run,
+            kind.name(),
+            0.0,
+        )?;
         for r in &mut part {
             r.integrator = guided_label(kind, &g);
             r.seconds += pre;
@@ -254,7 +265,7 @@ fn summary_line(c: &Curve) -> String {
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (mut scene, source) = super::load_scene(Some(&args.scene))?;
+    let (scene, source) = super::load_scene(Some(&args.scene))?;
     let adjoint = args.adjoint.apply(scene.render.adjoint)?;
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
@@ -339,13 +350,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     if args.propagation.is_empty() {
         if !variants.is_empty() {
             rows = pool.install(|| {
-                convergence::converge_variants(
-                    &mut scene,
-                    &reference,
-                    &variants,
-                    &config,
-                    &mut report,
-                )
+                convergence::converge_variants(&scene, &reference, &variants, &config, &mut report)
             })?;
         }
         for (k, over) in &guided {

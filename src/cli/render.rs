@@ -7,7 +7,7 @@ use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::enlightened::{AdjointImage, AdjointSettings};
+use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings, Variant};
@@ -155,7 +155,7 @@ impl AdjointArgs {
             }
             return Ok(None);
         }
-        if !AdjointImage::applies_to(kind) {
+        if !kind.samples_light_starts() {
             if self.adjoint_image {
                 return Err(format!(
                     "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
@@ -423,14 +423,26 @@ pub fn render_scene(
     max_depth: Option<u32>,
     progress: bool,
 ) -> RenderResult {
-    render_scene_with(scene, kind, None, spp, time, seed, max_depth, progress)
-        .expect("the default SMC settings are valid")
+    render_scene_with(
+        scene,
+        &crate::path::PLAIN,
+        kind,
+        None,
+        spp,
+        time,
+        seed,
+        max_depth,
+        progress,
+    )
+    .expect("the default SMC settings are valid")
 }
 
-/// [`render_scene`] with SMC settings (for `smc`; `None`: the defaults).
+/// [`render_scene`] with SMC settings (for `smc`; `None`: the defaults) and the local-sampling
+/// technique `technique` (plain, or the enlightened one the preprocessing built).
 #[allow(clippy::too_many_arguments)]
 pub fn render_scene_with(
     scene: &Scene,
+    technique: &dyn crate::path::LocalSampling,
     kind: IntegratorKind,
     smc: Option<SmcSettings>,
     spp: u32,
@@ -439,7 +451,7 @@ pub fn render_scene_with(
     max_depth: Option<u32>,
     progress: bool,
 ) -> Result<RenderResult, String> {
-    let mut r = Renderer::try_new(scene, kind, seed, max_depth)?;
+    let mut r = Renderer::try_with(scene, technique, kind, seed, max_depth)?;
     if let Some(settings) = smc {
         r = r.with_smc_settings(settings)?;
     }
@@ -621,11 +633,15 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let pool = pool
         .build()
         .map_err(|e| format!("cannot start worker threads: {e}"))?;
+    // the enlightened technique, built as a preprocessing stage: the adjoint image first (its
+    // pre-pass samples with the plain technique), then the guide (its particles start from
+    // the adjoint image when there is one)
+    let mut technique = crate::enlightened::Enlightened::default();
     let adjoint = match args.adjoint.settings(kind, &scene)? {
         Some(settings) => {
             let stats =
-                pool.install(|| AdjointImage::install(&mut scene, &settings, seed, max_depth))?;
-            let image = scene
+                pool.install(|| technique.install_adjoint(&scene, &settings, seed, max_depth))?;
+            let image = technique
                 .adjoint
                 .as_ref()
                 .ok_or("the adjoint image was not installed")?;
@@ -658,7 +674,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         None => None,
     };
     // the preprocessing pass of guided sampling (Kristensen 2010 Table 5.1's statistics)
-    let guide_stats = pool.install(|| crate::enlightened::guide::install(&mut scene, seed));
+    let guide_stats = pool.install(|| technique.install_guide(&scene, seed));
     if let (Some(g), false) = (&guide_stats, args.json) {
         eprint!("{}", g.table());
     }
@@ -668,7 +684,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         }
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        let renderer = crate::integrator::Renderer::try_new(&scene, kind, seed, max_depth)?;
+        let renderer =
+            crate::integrator::Renderer::try_with(&scene, &technique, kind, seed, max_depth)?;
         let films = pool.install(|| renderer.strategy_images(spp, args.strategy_depth));
         for ((s, t), film) in &films {
             let img = film.image();
@@ -691,7 +708,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     }
     let result = pool.install(|| {
         render_scene_with(
-            &scene, kind, smc, spp, args.time, seed, max_depth, !args.json,
+            &scene, &technique, kind, smc, spp, args.time, seed, max_depth, !args.json,
         )
     })?;
 

@@ -27,7 +27,7 @@
 //! an area light the start point comes from the adjoint image instead, so the total density of an
 //! area-light point is P(area lights) p_A(x_0).
 //!
-//! Installed in the scene ([`crate::scene::Scene::adjoint`]), the image is used by every sampler
+//! Held by the enlightened technique ([`crate::enlightened::Enlightened`]), the image is used by every sampler
 //! of light start points (BDPT's light subpaths and its s = 1 connections, light tracing, MLT's
 //! initialization and its bidirectional mutation) and every density of one
 //! ([`crate::path::Vertex::light_origin_pdf`]: BDPT's MIS weights, MLT's transition densities).
@@ -37,10 +37,11 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::integrator::bdpt::{Bdpt, Strategies};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{Distribution1D, Sampler};
-use crate::path::{Vertex, VertexKind};
+use crate::path::bidirectional::{Bdpt, Strategies};
+pub use crate::path::technique::{LightStart, MapPoint};
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Light, Scene};
 
 /// Default grid: 64 x 64 cells (the thesis's "typically 64x64"); columns are rounded up to a
@@ -159,15 +160,6 @@ impl AdjointSettings {
     }
 }
 
-/// A point F(u) on an area light.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MapPoint {
-    pub light: u32,
-    pub prim: u32,
-    pub p: Vec3,
-    pub n: Vec3,
-}
-
 /// The light-sampling map F: [0,1)^2 -> area lights (Kristensen 2010, sec. 5.2.1).
 // ANCHOR: light_map
 #[derive(Clone, Debug)]
@@ -260,15 +252,6 @@ impl LightMap {
     }
 }
 // ANCHOR_END: light_map
-
-/// A light start point sampled from the adjoint image.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LightStart {
-    pub point: MapPoint,
-    /// Area density of the point, the light selection included:
-    /// P(area lights) P_j N_cells p_F(x_0).
-    pub pdf: f32,
-}
 
 /// What the pre-pass cost and found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -440,11 +423,12 @@ impl AdjointImage {
     /// Estimates the adjoint image with a BDPT pre-pass: `settings.samples_per_cell` camera
     /// samples per cell at raster positions uniform over the film; every MIS-weighted
     /// contribution (splats included) is deposited, as luminance, in the cell of its path's
-    /// light vertex. The scene's own light-start density is used (install no adjoint image
-    /// first for the classical one). Deterministic for a seed, whatever the thread count.
+    /// light vertex. The light starts are `tech`'s (one without an adjoint image for the
+    /// classical ones). Deterministic for a seed, whatever the thread count.
     // ANCHOR: adjoint_render
     pub fn render(
         scene: &Scene,
+        tech: &dyn LocalSampling,
         settings: &AdjointSettings,
         seed: u64,
         max_depth: Option<u32>,
@@ -463,9 +447,9 @@ impl AdjointImage {
         let cells = cols as usize * rows as usize;
         let samples = settings.samples_per_cell as u64 * cells as u64;
         if settings.estimator == AdjointEstimator::Metropolis {
-            return Self::render_metropolis(scene, settings, seed, &map, (cols, rows), start);
+            return Self::render_metropolis(scene, tech, settings, seed, &map, (cols, rows), start);
         }
-        let bdpt = Bdpt::new(scene, max_depth, Strategies::All);
+        let bdpt = Bdpt::new(scene, tech, max_depth, Strategies::All);
         let film = Vec2::new(cam.width as f32, cam.height as f32);
         let chunks = samples.div_ceil(CHUNK);
         let n_pix = cam.width as f64 * cam.height as f64;
@@ -541,6 +525,7 @@ impl AdjointImage {
     // ANCHOR: adjoint_metropolis
     fn render_metropolis(
         scene: &Scene,
+        tech: &dyn LocalSampling,
         settings: &AdjointSettings,
         seed: u64,
         map: &LightMap,
@@ -560,6 +545,7 @@ impl AdjointImage {
         };
         let (_, _, starts) = trace_metropolis_with_starts(
             scene,
+            tech,
             ImportonSource::Camera,
             steps,
             seed ^ ADJOINT_SALT,
@@ -580,27 +566,6 @@ impl AdjointImage {
         Ok(image)
     }
     // ANCHOR_END: adjoint_metropolis
-
-    /// Estimates the adjoint image with the scene's classical light starts and installs it in
-    /// the scene (replacing any installed one); returns the pre-pass statistics.
-    pub fn install(
-        scene: &mut Scene,
-        settings: &AdjointSettings,
-        seed: u64,
-        max_depth: Option<u32>,
-    ) -> Result<AdjointStats, String> {
-        scene.adjoint = None;
-        let image = Self::render(scene, settings, seed, max_depth)?;
-        let stats = image.stats;
-        scene.adjoint = Some(image);
-        Ok(stats)
-    }
-
-    /// Whether integrator `kind` samples light start points (and so can use the image).
-    pub fn applies_to(kind: crate::integrator::IntegratorKind) -> bool {
-        use crate::integrator::IntegratorKind as K;
-        matches!(kind, K::Bdpt | K::Light | K::Mlt)
-    }
 
     /// Cell values as an image (columns along u_1, rows along u_2): the estimate plus eps,
     /// divided by the largest cell so it can be viewed as it is.

@@ -31,9 +31,11 @@ use glam::{Vec2, Vec3};
 
 use super::direction_map::{DirectionMap, DEFAULT_COLS, DEFAULT_ROWS};
 use super::regions::{RegionParams, RegionPoint, Regions};
-use crate::bsdf::{Bsdf, BsdfSample, Lobe, TransportMode};
+use crate::bsdf::{Bsdf, Lobe, TransportMode};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
+pub use crate::path::technique::ScatterSample;
+use crate::path::technique::{local_scatter_pdf, LobeChoice, LocalSampling};
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
@@ -533,21 +535,19 @@ pub fn mixture(c_guide: f32, p_local: f32, map: &DirectionMap, wi: Vec3) -> f32 
 /// from direction `wo` (pointing away from `v`), samples `wi`: the BSDF's or phase function's
 /// own density, or the guided mixture where a map guides `v`.
 // ANCHOR: scatter_pdf
-pub fn scatter_pdf(scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3, mode: TransportMode) -> f32 {
-    let local = match v.kind {
-        VertexKind::Surface { .. } => match v.bsdf(scene) {
-            Some(b) => b.pdf(wo, wi, v.n),
-            None => return 0.0,
-        },
-        VertexKind::Medium { medium } => scene.media[medium as usize].phase().pdf(wo, wi),
-        _ => return 0.0,
+pub fn scatter_pdf(
+    g: &Guide,
+    scene: &Scene,
+    v: &Vertex,
+    wo: Vec3,
+    wi: Vec3,
+    mode: TransportMode,
+) -> f32 {
+    let Some(local) = local_scatter_pdf(scene, v, wo, wi) else {
+        return 0.0;
     };
-    match scene
-        .guide
-        .as_deref()
-        .and_then(|g| g.map_at(scene, v, mode).map(|(m, _)| (g, m)))
-    {
-        Some((g, map)) => mixture(g.settings.c_guide, local, map, wi),
+    match g.map_at(scene, v, mode) {
+        Some((map, _)) => mixture(g.settings.c_guide, local, map, wi),
         None => local,
     }
 }
@@ -565,12 +565,12 @@ pub fn scatter_pdf(scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3, mode: Transpor
 /// where no map guides the vertex (surface guiding off, no dielectric, empty region).
 // ANCHOR: guided_fresnel
 pub fn guided_fresnel(
+    g: &Guide,
     scene: &Scene,
     v: &Vertex,
     wo: Vec3,
     mode: TransportMode,
-) -> Option<(f32, BsdfSample, Option<BsdfSample>)> {
-    let g = scene.guide.as_deref()?;
+) -> Option<LobeChoice> {
     let bsdf = v.bsdf(scene)?;
     if !g.settings.kind.surface() || !matches!(bsdf, Bsdf::Dielectric { .. }) {
         return None;
@@ -601,40 +601,13 @@ pub fn guided_fresnel(
 }
 // ANCHOR_END: guided_fresnel
 
-/// A sampled scattering direction: f (f_s at surfaces, f_p in the medium, sigma_s not
-/// included), the mixture density, the lobe, and the guided roulette's estimate Lhat(wi)
-/// (`None` where no map guides the vertex).
-#[derive(Clone, Copy, Debug)]
-pub struct ScatterSample {
-    pub wi: Vec3,
-    pub value: Rgb,
-    pub pdf: f32,
-    pub lobe: Lobe,
-    pub lhat: Option<f32>,
-}
-
 /// Samples a scattering direction at surface or medium vertex `v` for a `mode` subpath, from
 /// the guided mixture where a map guides `v` (one extra random number picks the component),
-/// else exactly as the unguided walk does (same random numbers).
+/// else exactly as the plain technique does (same random numbers). `u` are the first two
+/// numbers, already drawn (`LocalSampling::sample_scatter` draws them).
 // ANCHOR: sample_scatter
-pub fn sample_scatter(
-    scene: &Scene,
-    v: &Vertex,
-    wo: Vec3,
-    mode: TransportMode,
-    sampler: &mut Sampler,
-) -> Option<ScatterSample> {
-    // a surface without a BSDF ends the walk before any number is drawn (as it always did:
-    // the streams of unguided renders are unchanged)
-    if matches!(v.kind, VertexKind::Surface { .. }) && v.bsdf(scene).is_none() {
-        return None;
-    }
-    let u = sampler.next_2d();
-    sample_scatter_with(scene, v, wo, mode, u, sampler)
-}
-
-/// [`sample_scatter`] with its first two random numbers `u` already drawn.
 pub fn sample_scatter_with(
+    g: &Guide,
     scene: &Scene,
     v: &Vertex,
     wo: Vec3,
@@ -642,15 +615,14 @@ pub fn sample_scatter_with(
     u: Vec2,
     sampler: &mut Sampler,
 ) -> Option<ScatterSample> {
-    let guided = scene.guide.as_deref().and_then(|g| {
-        g.map_at(scene, v, mode)
-            .map(|(m, l)| (g.settings.c_guide, m, l))
-    });
+    let guided = g
+        .map_at(scene, v, mode)
+        .map(|(m, l)| (g.settings.c_guide, m, l));
     match v.kind {
         VertexKind::Surface { .. } => {
             let uc = sampler.next_f32();
             let bsdf = v.bsdf(scene)?;
-            if let Some((p_r, r, t)) = guided_fresnel(scene, v, wo, mode) {
+            if let Some((p_r, r, t)) = guided_fresnel(g, scene, v, wo, mode) {
                 // glass: reflection or transmission with the guided choice probability
                 let (bs, pdf) = match t {
                     Some(t) if uc >= p_r => (t, 1.0 - p_r),
@@ -665,14 +637,9 @@ pub fn sample_scatter_with(
                 });
             }
             let Some((c, map, level)) = guided else {
-                let bs = bsdf.sample(wo, v.n, u, uc, mode)?;
-                return Some(ScatterSample {
-                    wi: bs.wi,
-                    value: bs.value,
-                    pdf: bs.pdf,
-                    lobe: bs.lobe,
-                    lhat: None,
-                });
+                return bsdf
+                    .sample(wo, v.n, u, uc, mode)
+                    .map(ScatterSample::from_bsdf);
             };
             let wi = if sampler.next_f32() < c {
                 map.sample(u)?.0
@@ -691,14 +658,7 @@ pub fn sample_scatter_with(
         VertexKind::Medium { medium } => {
             let phase = scene.media[medium as usize].phase();
             let Some((c, map, level)) = guided else {
-                let ps = phase.sample(wo, u);
-                return Some(ScatterSample {
-                    wi: ps.wi,
-                    value: Rgb::splat(ps.value),
-                    pdf: ps.pdf,
-                    lobe: Lobe::Regular,
-                    lhat: None,
-                });
+                return Some(ScatterSample::from_phase(phase.sample(wo, u)));
             };
             let wi = if sampler.next_f32() < c {
                 map.sample(u)?.0
@@ -719,29 +679,17 @@ pub fn sample_scatter_with(
 }
 // ANCHOR_END: sample_scatter
 
-impl ScatterSample {
-    /// As a BSDF sample (for code that multiplies by value |cos| / pdf).
-    pub fn as_bsdf_sample(&self) -> BsdfSample {
-        BsdfSample {
-            wi: self.wi,
-            value: self.value,
-            pdf: self.pdf,
-            lobe: self.lobe,
-        }
-    }
-}
-
 /// The guided roulette's survival probability (sec. 5.3.4), within [`ROULETTE_MIN_SURVIVAL`,
 /// `q_max`]; `None` where the vertex is not guided or guided roulette is off.
 // ANCHOR: roulette
 #[inline]
 pub fn roulette_survival(
-    scene: &Scene,
+    g: &Guide,
     lhat: Option<f32>,
     throughput_ratio: f32,
     q_max: f32,
 ) -> Option<f32> {
-    let alpha = scene.guide.as_deref()?.settings.roulette?;
+    let alpha = g.settings.roulette?;
     let l = lhat?;
     let q = alpha * throughput_ratio * l;
     Some(if q.is_nan() {
@@ -776,10 +724,10 @@ impl From<&crate::enlightened::Particle> for Deposit {
 
 /// The preprocessing pass (Kristensen 2010, sec. 5.1, steps 1-5): traces `settings.particles`
 /// light subpaths (photons) and as many eye subpaths (importons) with the classical tracer,
-/// then clusters and projects them. The scene must not be guided yet (the particles are
-/// traced with the unguided walks).
+/// then clusters and projects them, the particles traced with technique `tech` (unguided: the
+/// plain one, or the adjoint image's light starts).
 // ANCHOR: build_guide
-pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
+pub fn build_guide(scene: &Scene, tech: &dyn LocalSampling, settings: GuideSettings) -> Guide {
     use crate::enlightened::metropolis::{trace_metropolis, MetropolisParticleSettings};
     use crate::enlightened::particles::{
         trace_bidirectional, trace_classical, ImportonSource, Quantity,
@@ -790,12 +738,18 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
     let mut metropolis = None;
     let (photons, importons) = match settings.sampler {
         ParticleSampler::Classical => (
-            trace_classical(scene, Quantity::Radiance, paths, settings.seed),
-            trace_classical(scene, Quantity::Importance, paths, settings.seed ^ 0x1),
+            trace_classical(scene, tech, Quantity::Radiance, paths, settings.seed),
+            trace_classical(
+                scene,
+                tech,
+                Quantity::Importance,
+                paths,
+                settings.seed ^ 0x1,
+            ),
         ),
         ParticleSampler::Bidirectional => {
             let sets = match ImportonSource::default_for(scene) {
-                Some(src) => trace_bidirectional(scene, src, paths, settings.seed),
+                Some(src) => trace_bidirectional(scene, tech, src, paths, settings.seed),
                 None => Default::default(),
             };
             (sets.photons, sets.importons)
@@ -806,7 +760,7 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
                 ..settings.metropolis
             };
             let (sets, stats) = match ImportonSource::default_for(scene) {
-                Some(src) => trace_metropolis(scene, src, paths, settings.seed, &mp),
+                Some(src) => trace_metropolis(scene, tech, src, paths, settings.seed, &mp),
                 None => Default::default(),
             };
             metropolis = Some(stats);
@@ -822,28 +776,10 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
 }
 // ANCHOR_END: build_guide
 
-/// Builds the guide the scene's `render.guide` settings ask for (with `seed` for particles
-/// and clustering) and installs it in the scene; `None` when guiding is off. Any guide already
-/// installed is removed first, so the particles are traced with the unguided walks.
-pub fn install(scene: &mut Scene, seed: u64) -> Option<GuideStats> {
-    scene.guide = None;
-    let mut settings = scene.render.guide;
-    if settings.kind == GuideKind::Off {
-        return None;
-    }
-    settings.seed = seed;
-    settings.regions.seed = crate::math::sampler::mix64(seed ^ 0x5245_4749_4f4e);
-    let guide = build_guide(scene, settings);
-    let stats = guide.stats.clone();
-    scene.guide = Some(std::sync::Arc::new(guide));
-    Some(stats)
-}
-
 /// The importance map guiding emission from area-light point (p, n), with c2: surface
 /// guiding on and the point's importance region non-empty.
 #[inline]
-fn emission_map(scene: &Scene, p: Vec3, n: Vec3) -> Option<(f32, &DirectionMap)> {
-    let g = scene.guide.as_deref()?;
+fn emission_map(g: &Guide, p: Vec3, n: Vec3) -> Option<(f32, &DirectionMap)> {
     if !g.settings.kind.surface() || n == Vec3::ZERO {
         return None;
     }
@@ -857,8 +793,8 @@ fn emission_map(scene: &Scene, p: Vec3, n: Vec3) -> Option<(f32, &DirectionMap)>
 /// emission density is `p_le`: c1 p_Le + c2 p_Wi where an importance map guides the point.
 // ANCHOR: emission_pdf
 #[inline]
-pub fn emission_pdf(scene: &Scene, p: Vec3, n: Vec3, w: Vec3, p_le: f32) -> f32 {
-    match emission_map(scene, p, n) {
+pub fn emission_pdf(g: &Guide, p: Vec3, n: Vec3, w: Vec3, p_le: f32) -> f32 {
+    match emission_map(g, p, n) {
         Some((c, map)) => mixture(c, p_le, map, w),
         None => p_le,
     }
@@ -870,15 +806,14 @@ pub fn emission_pdf(scene: &Scene, p: Vec3, n: Vec3, w: Vec3, p_le: f32) -> f32 
 /// the same `u` (one extra number picks the component, only where a map guides the point).
 /// Returns the direction and its mixture density (`p_le_of` gives the light's own density).
 pub fn sample_emission(
-    scene: &Scene,
-    p: Vec3,
-    n: Vec3,
+    g: &Guide,
+    (p, n): (Vec3, Vec3),
     d_le: Vec3,
     u: Vec2,
     p_le_of: impl Fn(Vec3) -> f32,
     sampler: &mut Sampler,
 ) -> Option<(Vec3, f32)> {
-    let Some((c, map)) = emission_map(scene, p, n) else {
+    let Some((c, map)) = emission_map(g, p, n) else {
         return Some((d_le, p_le_of(d_le)));
     };
     let d = if sampler.next_f32() < c {

@@ -45,9 +45,10 @@ use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
 use crate::enlightened::particles::{bidirectional_sample, ImportonSource, ParticleSets};
-use crate::integrator::bdpt::Bdpt;
 use crate::math::sampler::mix64;
 use crate::math::{PrimarySamples, Sampler};
+use crate::path::bidirectional::Bdpt;
+use crate::path::LocalSampling;
 use crate::scene::Scene;
 use crate::spectrum::luminance;
 
@@ -131,7 +132,7 @@ const CHAIN_SALT: u64 = 0x6d70_6368_6169_6e00;
 /// The bidirectional particle sampler, evaluated at a chain's proposals.
 struct Evaluator<'a> {
     scene: &'a Scene,
-    bdpt: Bdpt,
+    bdpt: Bdpt<'a>,
     source: ImportonSource,
     light: Vec<crate::path::Vertex>,
     eye: Vec<crate::path::Vertex>,
@@ -221,13 +222,14 @@ fn stream(seed: u64, salt: u64, index: u64) -> Pcg32 {
 // ANCHOR: trace_metropolis
 pub fn trace_metropolis(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     source: ImportonSource,
     steps: u64,
     seed: u64,
     settings: &MetropolisParticleSettings,
 ) -> (ParticleSets, MetropolisParticleStats) {
     let (sets, stats, _) =
-        trace_metropolis_with_starts(scene, source, steps, seed, settings, false);
+        trace_metropolis_with_starts(scene, tech, source, steps, seed, settings, false);
     (sets, stats)
 }
 // ANCHOR_END: trace_metropolis
@@ -237,6 +239,7 @@ pub fn trace_metropolis(
 /// the measurement whose paths start there (the adjoint image's I*, eq. (5.7)).
 pub fn trace_metropolis_with_starts(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     source: ImportonSource,
     steps: u64,
     seed: u64,
@@ -247,7 +250,7 @@ pub fn trace_metropolis_with_starts(
     if steps == 0 || settings.check().is_err() || !super::particles::can_trace(scene, source) {
         return (ParticleSets::default(), stats, Vec::new());
     }
-    let base = super::particles::particle_bdpt(scene);
+    let base = super::particles::particle_bdpt(scene, tech);
     let evaluator = || Evaluator {
         scene,
         bdpt: base.clone(),

@@ -29,9 +29,11 @@ pub mod guide;
 pub mod metropolis;
 pub mod particles;
 pub mod regions;
+pub mod technique;
 
 pub use adjoint::{AdjointImage, AdjointSettings, LightMap};
 pub use direction_map::DirectionMap;
 pub use guide::{Deposit, Guide, GuideKind, GuideSettings, GuideStats};
 pub use particles::{Particle, Quantity};
 pub use regions::{RegionParams, RegionPoint, Regions};
+pub use technique::Enlightened;

@@ -25,9 +25,9 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::integrator::bdpt::Bdpt;
 use crate::math::Sampler;
-use crate::path::{Vertex, VertexKind};
+use crate::path::bidirectional::Bdpt;
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
@@ -204,8 +204,19 @@ pub fn trace_importons(
 
 /// The classical tracer for either quantity with BDPT's default walks (Russian roulette, no
 /// depth limit); importons start at [`ImportonSource::default_for`] the scene.
-pub fn trace_classical(scene: &Scene, quantity: Quantity, paths: u64, seed: u64) -> Vec<Particle> {
-    let bdpt = Bdpt::new(scene, None, crate::integrator::bdpt::Strategies::All);
+pub fn trace_classical(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    quantity: Quantity,
+    paths: u64,
+    seed: u64,
+) -> Vec<Particle> {
+    let bdpt = Bdpt::new(
+        scene,
+        tech,
+        None,
+        crate::path::bidirectional::Strategies::All,
+    );
     match quantity {
         Quantity::Radiance => trace_photons(scene, &bdpt, paths, seed),
         Quantity::Importance => match ImportonSource::default_for(scene) {
@@ -310,11 +321,12 @@ impl ParticleSets {
 // ANCHOR: trace_bidirectional
 pub fn trace_bidirectional(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     source: ImportonSource,
     paths: u64,
     seed: u64,
 ) -> ParticleSets {
-    trace_bidirectional_where(scene, source, paths, seed, |_| true)
+    trace_bidirectional_where(scene, tech, source, paths, seed, |_| true)
 }
 // ANCHOR_END: trace_bidirectional
 
@@ -323,6 +335,7 @@ pub fn trace_bidirectional(
 /// sampler without its defensive floor represents).
 pub fn trace_bidirectional_where(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     source: ImportonSource,
     paths: u64,
     seed: u64,
@@ -331,7 +344,7 @@ pub fn trace_bidirectional_where(
     if paths == 0 || !can_trace(scene, source) {
         return ParticleSets::default();
     }
-    let base = particle_bdpt(scene);
+    let base = particle_bdpt(scene, tech);
     let scale = 1.0 / paths as f64;
     let chunks = paths.div_ceil(PARTICLE_CHUNK);
     let parts: Vec<ParticleSets> = (0..chunks)
@@ -372,8 +385,13 @@ pub fn trace_bidirectional_where(
 
 /// BDPT's walks as the particle samplers use them: no Russian roulette (the path length is
 /// drawn instead).
-pub(crate) fn particle_bdpt(scene: &Scene) -> Bdpt {
-    let mut b = Bdpt::new(scene, None, crate::integrator::bdpt::Strategies::All);
+pub(crate) fn particle_bdpt<'t>(scene: &Scene, tech: &'t dyn LocalSampling) -> Bdpt<'t> {
+    let mut b = Bdpt::new(
+        scene,
+        tech,
+        None,
+        crate::path::bidirectional::Strategies::All,
+    );
     b.roulette = false;
     b
 }
@@ -504,7 +522,7 @@ pub(crate) fn bidirectional_sample(
     }
     let path = crate::path::Path { vertices: x };
     let x = &path.vertices;
-    let d = crate::path::pdf::densities(scene, &path, sampler);
+    let d = crate::path::pdf::densities(scene, bdpt.tech, &path, sampler);
     // G T of every edge and f-hat of every inner vertex (physical light flow, x_0 -> x_k)
     let mut gt = vec![Rgb::ZERO; k];
     for m in 0..k {

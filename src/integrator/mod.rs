@@ -17,6 +17,7 @@ use rayon::prelude::*;
 
 use crate::film::Film;
 use crate::math::Sampler;
+use crate::path::{LocalSampling, PLAIN};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
@@ -63,6 +64,11 @@ impl IntegratorKind {
                 let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
                 format!("unknown integrator `{s}` (available: {})", names.join(", "))
             })
+    }
+
+    /// Whether the integrator samples light start points (and so can use the adjoint image).
+    pub fn samples_light_starts(self) -> bool {
+        matches!(self, Self::Bdpt | Self::Light | Self::Mlt)
     }
 }
 
@@ -128,11 +134,13 @@ impl MeterAccum {
 /// Accumulates passes of an integrator over the camera film and the meters.
 pub struct Renderer<'a> {
     pub scene: &'a Scene,
+    /// The local-sampling technique of every walk and density (plain or enlightened).
+    pub technique: &'a dyn LocalSampling,
     pub kind: IntegratorKind,
     pub seed: u64,
     pub tracer: PathTracer,
     /// The bidirectional engine for `light` and `bdpt`.
-    pub bdpt: Option<bdpt::Bdpt>,
+    pub bdpt: Option<bdpt::Bdpt<'a>>,
     pub film: Option<Film>,
     pub meters: Vec<MeterAccum>,
     /// Passes done so far (each pass has its own random streams).
@@ -147,7 +155,7 @@ pub struct Renderer<'a> {
     /// merged after it.
     pub smc: Option<smc::Smc>,
     /// The Metropolis engine for `mlt`.
-    pub mlt: Option<mlt::Mlt>,
+    pub mlt: Option<mlt::Mlt<'a>>,
 }
 
 impl<'a> Renderer<'a> {
@@ -168,9 +176,22 @@ impl<'a> Renderer<'a> {
         seed: u64,
         max_depth: Option<u32>,
     ) -> Result<Self, String> {
+        Self::try_with(scene, &PLAIN, kind, seed, max_depth)
+    }
+
+    /// [`Renderer::try_new`] sampling with `technique` (the enlightened one, built by
+    /// `enlightened::Enlightened` from the scene) instead of the plain one.
+    pub fn try_with(
+        scene: &'a Scene,
+        technique: &'a dyn LocalSampling,
+        kind: IntegratorKind,
+        seed: u64,
+        max_depth: Option<u32>,
+    ) -> Result<Self, String> {
         let mlt = match kind {
             IntegratorKind::Mlt => Some(mlt::Mlt::new(
                 scene,
+                technique,
                 scene.render.mlt.clone(),
                 seed,
                 max_depth,
@@ -185,13 +206,20 @@ impl<'a> Renderer<'a> {
             IntegratorKind::Path | IntegratorKind::Smc | IntegratorKind::Mlt => None,
             IntegratorKind::Light => Some(bdpt::Bdpt::new(
                 scene,
+                technique,
                 max_depth,
                 bdpt::Strategies::LightTracing,
             )),
-            IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(scene, max_depth, bdpt::Strategies::All)),
+            IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(
+                scene,
+                technique,
+                max_depth,
+                bdpt::Strategies::All,
+            )),
         };
         Ok(Renderer {
             scene,
+            technique,
             kind,
             seed,
             tracer: PathTracer::new(max_depth),

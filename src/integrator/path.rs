@@ -29,10 +29,7 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
     // END ASSIGNMENT
 }
 
-/// The number of scattering vertices after which Russian roulette starts.
-pub const RR_START_DEPTH: u32 = 3;
-/// Survival probabilities are capped below one so every path ends with probability one.
-pub const RR_MAX_SURVIVAL: f32 = 0.95;
+pub use crate::path::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
 /// The path tracer's parameters.
 #[derive(Clone, Copy, Debug)]

@@ -117,6 +117,7 @@ pub fn measure_run(
 ) -> Result<Vec<CheckpointRow>, String> {
     measure_run_from(
         scene,
+        &crate::path::PLAIN,
         reference,
         kind,
         seed,
@@ -130,10 +131,11 @@ pub fn measure_run(
 // ANCHOR_END: measure_run
 
 /// [`measure_run`] with a label for the rows and `seconds0` already spent (a pre-pass charged
-/// to the integrator, such as the adjoint image's).
+/// to the integrator, such as the adjoint image's), sampling with `technique`.
 #[allow(clippy::too_many_arguments)]
 pub fn measure_run_from(
     scene: &Scene,
+    technique: &dyn crate::path::LocalSampling,
     reference: &Image,
     kind: IntegratorKind,
     seed: u64,
@@ -144,7 +146,7 @@ pub fn measure_run_from(
     seconds0: f64,
 ) -> Result<Vec<CheckpointRow>, String> {
     check_reference(scene, reference)?;
-    let mut renderer = Renderer::try_new(scene, kind, seed, max_depth)?;
+    let mut renderer = Renderer::try_with(scene, technique, kind, seed, max_depth)?;
     let mut seconds = seconds0;
     let mut next = 0;
     let mut rows = Vec::with_capacity(times.len());
@@ -250,7 +252,7 @@ impl Variant {
         match s.strip_suffix(Self::ADJOINT_SUFFIX) {
             Some(base) => {
                 let kind = IntegratorKind::parse(base)?;
-                if !crate::enlightened::AdjointImage::applies_to(kind) {
+                if !kind.samples_light_starts() {
                     return Err(format!(
                         "`{s}`: the adjoint image applies to bdpt, light and mlt, not `{base}`"
                     ));
@@ -278,9 +280,9 @@ impl Variant {
 
 /// [`converge`] over variants: a `+adjoint` variant estimates the adjoint image with the run's
 /// seed before each run, charges its time to the run (the first checkpoints it overruns are
-/// reported at the first pass), and removes it afterwards.
+/// reported at the first pass); the image lives in that run's technique only.
 pub fn converge_variants(
-    scene: &mut Scene,
+    scene: &Scene,
     reference: &Image,
     variants: &[Variant],
     config: &ConvergeConfig,
@@ -291,20 +293,18 @@ pub fn converge_variants(
     for v in variants {
         for run in 0..config.runs {
             let seed = run_seed(config.seed, run);
+            let mut technique = crate::enlightened::Enlightened::default();
             let seconds0 = match &v.adjoint {
                 Some(settings) => {
-                    crate::enlightened::AdjointImage::install(
-                        scene,
-                        settings,
-                        seed,
-                        config.max_depth,
-                    )?
-                    .seconds
+                    technique
+                        .install_adjoint(scene, settings, seed, config.max_depth)?
+                        .seconds
                 }
                 None => 0.0,
             };
             let result = measure_run_from(
                 scene,
+                &technique,
                 reference,
                 v.kind,
                 seed,
@@ -314,7 +314,6 @@ pub fn converge_variants(
                 &v.name(),
                 seconds0,
             );
-            scene.adjoint = None;
             let run_rows = result?;
             on_run(&run_rows);
             rows.extend(run_rows);

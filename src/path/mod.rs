@@ -9,15 +9,18 @@
 //! estimator of the path integral (7) whichever technique sampled the path.
 //! Book: "Path space (eqs. 5-7)".
 
+pub mod bidirectional;
 pub mod characteristic;
 pub mod contribution;
 pub mod geometry_term;
 pub mod pdf;
+pub mod technique;
 pub mod vertex;
 
 pub use characteristic::characteristic;
 pub use contribution::measurement_contribution;
 pub use geometry_term::geometry_term;
+pub use technique::{LocalSampling, Plain, PLAIN};
 pub use vertex::{Vertex, VertexKind};
 
 /// A path in the index arena style: vertices in order from the light (x_0) to the sensor (x_k).

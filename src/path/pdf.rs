@@ -8,7 +8,7 @@
 //! The density of the path sampled by strategy (s, t) is prod_{i<s} p_L(x_i) prod_{i>=s} p_E(x_i);
 //! the sampler's cached densities must equal these (see `verify`).
 
-use super::{Path, Vertex, VertexKind};
+use super::{LocalSampling, Path, Vertex, VertexKind};
 use crate::bsdf::TransportMode::{Importance, Radiance};
 use crate::math::Sampler;
 use crate::scene::Scene;
@@ -27,9 +27,14 @@ pub struct Densities {
 /// The densities of every vertex from both ends (the light vertex's own density is its
 /// light-origin density; the sensor vertex's is the sensor's position density).
 // ANCHOR: densities
-pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities {
+pub fn densities(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    path: &Path,
+    sampler: &mut Sampler,
+) -> Densities {
     let n = path.vertices.len();
-    densities_in(scene, &path.vertices, 0..n, sampler)
+    densities_in(scene, tech, &path.vertices, 0..n, sampler)
 }
 
 /// `densities` for the vertices `range` only (the others stay 0), tracing only the edges they
@@ -37,6 +42,7 @@ pub fn densities(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Densities
 /// mutation's transition density needs just the vertices it added.
 pub fn densities_in(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     v: &[Vertex],
     range: std::ops::Range<usize>,
     sampler: &mut Sampler,
@@ -64,10 +70,10 @@ pub fn densities_in(
     // from the light
     for i in range.clone() {
         d.light[i] = if i == 0 {
-            v[0].light_origin_pdf(scene)
+            v[0].light_origin_pdf(scene, tech)
         } else {
             let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
-            v[i - 1].pdf_area(scene, prev, &v[i], Importance) * d.prop_up[i - 1]
+            v[i - 1].pdf_area(scene, tech, prev, &v[i], Importance) * d.prop_up[i - 1]
         };
     }
     // from the sensor
@@ -76,7 +82,7 @@ pub fn densities_in(
             sensor_position_pdf(scene, &v[n - 1])
         } else {
             let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
-            v[i + 1].pdf_area(scene, prev, &v[i], Radiance) * d.prop_down[i]
+            v[i + 1].pdf_area(scene, tech, prev, &v[i], Radiance) * d.prop_down[i]
         };
     }
     d

@@ -10,9 +10,11 @@ use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
 use super::geometry_term::cosine_factor;
+use super::technique::LocalSampling;
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::Primitive;
 use crate::math::warp;
+use crate::scene::light::emitted_by;
 use crate::scene::{EdgeEnd, Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -243,10 +245,11 @@ impl Vertex {
     /// its subpath predecessor at `prev` (none for lights and sensors). `mode` is the quantity
     /// of the subpath that samples it (Radiance: an eye subpath walking towards the lights,
     /// Importance: a light subpath): it selects the guide's map (Kristensen 2010, eqs. 5.18,
-    /// 5.19) and is ignored when guiding is off.
+    /// 5.19) and is ignored when guiding is off. `tech` is the technique that sampled it.
     pub fn pdf_dir(
         &self,
         scene: &Scene,
+        tech: &dyn LocalSampling,
         prev: Option<Vec3>,
         next: Vec3,
         mode: TransportMode,
@@ -263,12 +266,12 @@ impl Vertex {
                 c.max(0.0) * FRAC_1_PI
             }
             VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
-                self.guided_emission_pdf(scene, &scene.lights[light as usize], wn)
+                tech.emission_pdf(scene, &scene.lights[light as usize], self.p, self.n, wn)
             }
             VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
                 let Some(prev) = prev else { return 0.0 };
                 let wp = (prev - self.p).normalize_or_zero();
-                crate::enlightened::guide::scatter_pdf(scene, self, wp, wn, mode)
+                tech.scatter_pdf(scene, self, wp, wn, mode)
             }
         }
     }
@@ -279,6 +282,7 @@ impl Vertex {
     pub fn pdf_area(
         &self,
         scene: &Scene,
+        tech: &dyn LocalSampling,
         prev: Option<Vec3>,
         next: &Vertex,
         mode: TransportMode,
@@ -287,19 +291,21 @@ impl Vertex {
             self.kind,
             VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }
         ) {
-            return self.light_pdf_to(scene, next);
+            return self.light_pdf_to(scene, tech, next);
         }
-        let pdf = self.pdf_dir(scene, prev, next.p, mode);
+        let pdf = self.pdf_dir(scene, tech, prev, next.p, mode);
         to_area(pdf, self, next)
     }
 
     /// Density (in its own measure) of choosing this light vertex as the start of a light path.
-    pub fn light_origin_pdf(&self, scene: &Scene) -> f32 {
+    pub fn light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
         match self.kind {
             VertexKind::Light { light, prim } => {
                 let pmf = scene.light_pmf(light);
                 match (&scene.lights[light as usize], prim) {
-                    (Light::Area { .. }, Some(p)) => scene.area_light_start_pdf(light, p, self.p),
+                    (Light::Area { .. }, Some(p)) => {
+                        tech.area_light_start_pdf(scene, light, p, self.p)
+                    }
                     _ => pmf,
                 }
             }
@@ -309,17 +315,17 @@ impl Vertex {
                 Light::Environment(_) => scene.light_pmf(light) * warp::INV_FOUR_PI,
                 _ => 0.0,
             },
-            _ => self.surface_light_origin_pdf(scene),
+            _ => self.surface_light_origin_pdf(scene, tech),
         }
     }
 
     /// For an eye-path vertex that hit an area light: the light-path density of starting there.
-    fn surface_light_origin_pdf(&self, scene: &Scene) -> f32 {
+    fn surface_light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
         let VertexKind::Surface { prim } = self.kind else {
             return 0.0;
         };
         match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
-            Some(l) => scene.area_light_start_pdf(l, prim, self.p),
+            Some(l) => tech.area_light_start_pdf(scene, l, prim, self.p),
             None => 0.0,
         }
     }
@@ -327,7 +333,7 @@ impl Vertex {
     /// Density (in `next`'s measure) with which a light path starting at this emitting vertex
     /// reaches `next` (direction sampling converted; for infinite lights the disk density times
     /// g(next)). Propagation not included.
-    pub fn light_pdf_to(&self, scene: &Scene, next: &Vertex) -> f32 {
+    pub fn light_pdf_to(&self, scene: &Scene, tech: &dyn LocalSampling, next: &Vertex) -> f32 {
         let light = match self.kind {
             VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => light,
             VertexKind::Surface { prim } => {
@@ -344,19 +350,7 @@ impl Vertex {
             return cosine_factor(next, w) / (std::f32::consts::PI * scene.radius * scene.radius);
         }
         let wn = (next.p - self.p).normalize_or_zero();
-        to_area(self.guided_emission_pdf(scene, l, wn), self, next)
-    }
-
-    /// The emission density of direction `wn` from this light point: the light's own, or the
-    /// guided mixture of Kristensen 2010 eq. (5.17) for area lights when guiding is on.
-    fn guided_emission_pdf(&self, scene: &Scene, l: &Light, wn: Vec3) -> f32 {
-        let p_le = emission_pdf_dir(l, self.n, wn);
-        match l {
-            Light::Area { .. } if scene.guide.is_some() => {
-                crate::enlightened::guide::emission_pdf(scene, self.p, self.n, wn, p_le)
-            }
-            _ => p_le,
-        }
+        to_area(tech.emission_pdf(scene, l, self.p, self.n, wn), self, next)
     }
 }
 
@@ -372,59 +366,4 @@ pub fn to_area(pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
         return 0.0;
     }
     pdf * cosine_factor(to, d / d2.sqrt()) / d2
-}
-
-/// Emitted radiance (or intensity, irradiance) of `light` in direction `w` from a point with
-/// normal `n`.
-pub fn emitted_by(light: &Light, n: Vec3, w: Vec3) -> Rgb {
-    match light {
-        Light::Area { radiance, .. } => {
-            if n.dot(w) > 0.0 {
-                *radiance
-            } else {
-                Rgb::ZERO
-            }
-        }
-        Light::Point { intensity, .. } => *intensity,
-        Light::Spot {
-            frame,
-            intensity,
-            cos_total,
-            cos_falloff,
-            ..
-        } => {
-            let c = w.dot(frame.n);
-            if c < *cos_total {
-                Rgb::ZERO
-            } else if c >= *cos_falloff {
-                *intensity
-            } else {
-                let x = (c - cos_total) / (cos_falloff - cos_total);
-                *intensity * (x * x * (3.0 - 2.0 * x))
-            }
-        }
-        Light::Directional { irradiance, .. } => *irradiance,
-        // an infinite light's vertex sits far out along -w: radiance arriving along w... the
-        // light comes from direction -w as seen from the scene
-        Light::Environment(env) => env.radiance(-w),
-    }
-}
-
-/// Solid-angle density of the emission direction `w` of `light` at a point with normal `n`.
-pub fn emission_pdf_dir(light: &Light, n: Vec3, w: Vec3) -> f32 {
-    match light {
-        Light::Area { .. } => n.dot(w).max(0.0) * FRAC_1_PI,
-        Light::Point { .. } => warp::INV_FOUR_PI,
-        Light::Spot {
-            frame, cos_total, ..
-        } => {
-            if w.dot(frame.n) >= *cos_total {
-                1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_total))
-            } else {
-                0.0
-            }
-        }
-        Light::Directional { .. } => 0.0,
-        Light::Environment(_) => warp::INV_FOUR_PI,
-    }
 }

@@ -105,8 +105,6 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         has_null,
         hash: src.hash(),
         source_name: src.name.clone(),
-        adjoint: None,
-        guide: None,
     };
 
     sensors::camera(src, &desc, &mut scene)?;

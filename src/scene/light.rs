@@ -433,3 +433,58 @@ impl Light {
         }
     }
 }
+
+/// Emitted radiance (or intensity, irradiance) of `light` in direction `w` from a point with
+/// normal `n`.
+pub fn emitted_by(light: &Light, n: Vec3, w: Vec3) -> Rgb {
+    match light {
+        Light::Area { radiance, .. } => {
+            if n.dot(w) > 0.0 {
+                *radiance
+            } else {
+                Rgb::ZERO
+            }
+        }
+        Light::Point { intensity, .. } => *intensity,
+        Light::Spot {
+            frame,
+            intensity,
+            cos_total,
+            cos_falloff,
+            ..
+        } => {
+            let c = w.dot(frame.n);
+            if c < *cos_total {
+                Rgb::ZERO
+            } else if c >= *cos_falloff {
+                *intensity
+            } else {
+                let x = (c - cos_total) / (cos_falloff - cos_total);
+                *intensity * (x * x * (3.0 - 2.0 * x))
+            }
+        }
+        Light::Directional { irradiance, .. } => *irradiance,
+        // an infinite light's vertex sits far out along -w: radiance arriving along w... the
+        // light comes from direction -w as seen from the scene
+        Light::Environment(env) => env.radiance(-w),
+    }
+}
+
+/// Solid-angle density of the emission direction `w` of `light` at a point with normal `n`.
+pub fn emission_pdf_dir(light: &Light, n: Vec3, w: Vec3) -> f32 {
+    match light {
+        Light::Area { .. } => n.dot(w).max(0.0) * std::f32::consts::FRAC_1_PI,
+        Light::Point { .. } => warp::INV_FOUR_PI,
+        Light::Spot {
+            frame, cos_total, ..
+        } => {
+            if w.dot(frame.n) >= *cos_total {
+                1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_total))
+            } else {
+                0.0
+            }
+        }
+        Light::Directional { .. } => 0.0,
+        Light::Environment(_) => warp::INV_FOUR_PI,
+    }
+}

@@ -170,13 +170,7 @@ pub struct Scene {
     pub has_null: bool,
     /// Hash of the scene file text.
     pub hash: u64,
-    /// The adjoint image, when installed: area-light start points are sampled from it and
-    /// their densities evaluated by it (Kristensen 2010, sec. 5.3.1); `None`: by power and area.
-    pub adjoint: Option<crate::enlightened::AdjointImage>,
     pub source_name: String,
-    /// Guided local sampling (Kristensen 2010, sec. 5.3), when built: every scattering density
-    /// (`Vertex::pdf_dir`) and sampler consults it, so all methods see the same mixture.
-    pub guide: Option<std::sync::Arc<crate::enlightened::Guide>>,
 }
 
 /// Relative step past a crossed null boundary before the next intersection query, so the same
@@ -493,30 +487,6 @@ impl Scene {
             },
             _ => 0.0,
         }
-    }
-
-    /// The light-start density (per area, light selection included) of point `p` on primitive
-    /// `prim` of area light `light`: power-proportional selection times uniform by area, or the
-    /// adjoint image's density when one is installed.
-    // ANCHOR: area_light_start_pdf
-    #[inline]
-    pub fn area_light_start_pdf(&self, light: u32, prim: u32, p: Vec3) -> f32 {
-        match &self.adjoint {
-            Some(a) => a.pdf(self, light, prim, p),
-            None => self.light_pmf(light) * self.area_pdf_of(light, prim),
-        }
-    }
-    // ANCHOR_END: area_light_start_pdf
-
-    /// A light start point from the adjoint image (`None` without one, or when the pick fails):
-    /// two numbers choose the cell, two place the point in it.
-    #[inline]
-    pub fn sample_adjoint_start(
-        &self,
-        u_cell: glam::Vec2,
-        u_in: glam::Vec2,
-    ) -> Option<crate::enlightened::adjoint::LightStart> {
-        self.adjoint.as_ref()?.sample(self, u_cell, u_in)
     }
 
     /// Loads, validates and builds a scene.

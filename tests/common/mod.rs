@@ -344,9 +344,12 @@ pub fn mean_and_se(runs: &[Vec<f64>]) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// Quadrant means of `runs` BDPT renders of `spp` samples per pixel, depth limit `depth`,
-/// seeds `seed + r`.
+/// seeds `seed + r`, sampling with technique `tech`.
 pub fn bdpt_quadrant_runs(
-    scene: &pathspace::scene::Scene,
+    (scene, tech): (
+        &pathspace::scene::Scene,
+        &dyn pathspace::path::LocalSampling,
+    ),
     runs: u64,
     seed: u64,
     depth: u32,
@@ -355,7 +358,9 @@ pub fn bdpt_quadrant_runs(
     use pathspace::integrator::{IntegratorKind, Renderer};
     (0..runs)
         .map(|r| {
-            let mut rd = Renderer::new(scene, IntegratorKind::Bdpt, seed + r, Some(depth));
+            let mut rd =
+                Renderer::try_with(scene, tech, IntegratorKind::Bdpt, seed + r, Some(depth))
+                    .unwrap();
             rd.pass(spp, &|| {});
             quadrant_means(&rd.film.as_ref().unwrap().image())
         })
@@ -379,7 +384,14 @@ pub fn mlt_quadrant_runs(
                 chains: 4,
                 ..MltSettings::default()
             };
-            let mut m = Mlt::new(scene, settings, seed + r, Some(depth)).unwrap();
+            let mut m = Mlt::new(
+                scene,
+                &pathspace::path::PLAIN,
+                settings,
+                seed + r,
+                Some(depth),
+            )
+            .unwrap();
             let mut film = pathspace::film::Film::new(cam.width, cam.height);
             m.run(scene, &mut film, (cam.width * cam.height * 128) as u64);
             quadrant_means(&film.image())
@@ -420,10 +432,13 @@ pub fn quadrants_agree(fam: &mut stats::Family, name: &str, a: &[Vec<f64>], b: &
 
 /// Quadrant means of `runs` small MLT renders of the scene's camera image (2000 bootstrap
 /// samples, 4 chains, `mutations_per_pixel` mutations per pixel), depth limit `depth`, seeds
-/// `seed + r`: [`mlt_quadrant_runs`] with the run length as a parameter, so that a test can
+/// `seed + r`, technique `tech`: [`mlt_quadrant_runs`] with the run length as a parameter, so that a test can
 /// buy more, shorter runs (a standard error from more runs has more degrees of freedom).
 pub fn mlt_quadrant_runs_with(
-    scene: &pathspace::scene::Scene,
+    (scene, tech): (
+        &pathspace::scene::Scene,
+        &dyn pathspace::path::LocalSampling,
+    ),
     runs: u64,
     seed: u64,
     depth: u32,
@@ -438,7 +453,7 @@ pub fn mlt_quadrant_runs_with(
                 chains: 4,
                 ..MltSettings::default()
             };
-            let mut m = Mlt::new(scene, settings, seed + r, Some(depth)).unwrap();
+            let mut m = Mlt::new(scene, tech, settings, seed + r, Some(depth)).unwrap();
             let mut film = pathspace::film::Film::new(cam.width, cam.height);
             m.run(
                 scene,

@@ -20,7 +20,7 @@ use crate::math::Sampler;
 use crate::path::geometry_term::geometry_term;
 use crate::path::pdf::{densities_in, Densities};
 use crate::path::vertex::to_area;
-use crate::path::{Vertex, VertexKind};
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Light, Scene};
 use crate::spectrum::{luminance, Rgb};
 
@@ -100,10 +100,11 @@ pub fn f_hat_singular(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> Rgb {
 /// (the Dirac-free direction density of a specular vertex; zero if the relation fails).
 ///
 /// A guided glass vertex chooses its lobe with the guided probability of `mode`'s map
-/// ([`crate::enlightened::guide::guided_fresnel`]): light subpaths (`Importance`) with W_i,
+/// (the technique's [`LocalSampling::lobe_choice`], `guide::guided_fresnel`): light subpaths (`Importance`) with W_i,
 /// eye subpaths (`Radiance`) with L_i.
 pub fn lobe_probability(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     v: &Vertex,
     from: Vec3,
     to: Vec3,
@@ -121,7 +122,7 @@ pub fn lobe_probability(
     if s.wi.dot(wi) < 1.0 - SPECULAR_COS_TOLERANCE {
         return 0.0;
     }
-    match crate::enlightened::guide::guided_fresnel(scene, v, wo, mode) {
+    match tech.lobe_choice(scene, v, wo, mode) {
         Some((p_r, _, _)) => match lobe {
             Lobe::SingularTransmission => 1.0 - p_r,
             _ => p_r,
@@ -209,19 +210,25 @@ fn reused_edge(v: &[Vertex], i: usize, old: Option<PathEdges>) -> Option<(f32, R
 /// p_L and p_E of every vertex (`path::pdf::densities`) with specular vertices' directions
 /// given the probability of their lobe instead of a Dirac (see the module note).
 // ANCHOR: singular_densities
-pub fn singular_densities(scene: &Scene, v: &[Vertex]) -> Densities {
-    singular_densities_in(scene, v, 0..v.len())
+pub fn singular_densities(scene: &Scene, tech: &dyn LocalSampling, v: &[Vertex]) -> Densities {
+    singular_densities_in(scene, tech, v, 0..v.len())
 }
 
 /// `singular_densities` of the vertices `range` only (the others stay 0).
-pub fn singular_densities_in(scene: &Scene, v: &[Vertex], range: Range<usize>) -> Densities {
+pub fn singular_densities_in(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    v: &[Vertex],
+    range: Range<usize>,
+) -> Densities {
     let mut unused = Sampler::new(0, 0, 0);
-    let mut d = densities_in(scene, v, range.clone(), &mut unused);
+    let mut d = densities_in(scene, tech, v, range.clone(), &mut unused);
     let n = v.len();
     for i in range.start.max(2)..range.end.min(n) {
         if is_specular(scene, &v[i - 1]) {
             let p = lobe_probability(
                 scene,
+                tech,
                 &v[i - 1],
                 v[i - 2].p,
                 v[i].p,
@@ -234,6 +241,7 @@ pub fn singular_densities_in(scene: &Scene, v: &[Vertex], range: Range<usize>) -
         if is_specular(scene, &v[i + 1]) {
             let p = lobe_probability(
                 scene,
+                tech,
                 &v[i + 1],
                 v[i + 2].p,
                 v[i].p,

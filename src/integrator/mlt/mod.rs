@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use crate::film::Film;
 use crate::integrator::bdpt::{Bdpt, Strategies};
 use crate::math::Sampler;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -235,10 +235,11 @@ impl Chain {
 }
 
 /// The MLT engine: settings, the pre-pass result, the chains and their statistics.
-pub struct Mlt {
+pub struct Mlt<'t> {
     pub settings: MltSettings,
     pub mutations: Mutations,
-    pub bdpt: Bdpt,
+    /// The pre-pass's BDPT, with the technique every mutation samples and evaluates by.
+    pub bdpt: Bdpt<'t>,
     pub seed: u64,
     /// The current estimate of b (luminance): b_n of the pre-pass (sec. 5.1), refined by
     /// `b_refine` BDPT samples per mutation as the run goes on.
@@ -269,9 +270,12 @@ pub fn check_scene(scene: &Scene) -> Result<(), String> {
     Ok(())
 }
 
-impl Mlt {
+impl<'t> Mlt<'t> {
+    /// MLT on `scene` with local-sampling technique `tech` (the pre-pass's walks, the
+    /// bidirectional mutation's, and every transition density).
     pub fn new(
         scene: &Scene,
+        tech: &'t dyn LocalSampling,
         settings: MltSettings,
         seed: u64,
         max_depth: Option<u32>,
@@ -280,7 +284,7 @@ impl Mlt {
         check_scene(scene)?;
         // without a depth limit the target is f on the whole, unbounded path space: the
         // bidirectional mutation's length law has an infinite geometric tail
-        let bdpt = Bdpt::new(scene, max_depth, Strategies::All);
+        let bdpt = Bdpt::new(scene, tech, max_depth, Strategies::All);
         let r = scene.radius.max(f32::MIN_POSITIVE);
         let (d0, d1) = settings.propagation_distance;
         let mutations = Mutations {
@@ -392,12 +396,13 @@ impl Mlt {
         let fx = scalar_contribution(chain.f) as f64;
         let mut proposal = None;
         let mut a = 0.0;
-        if let Some(y) = mutation.sample(scene, &chain.x, &mut chain.sampler) {
+        let tech = self.bdpt.tech;
+        if let Some(y) = mutation.sample(scene, tech, &chain.x, &mut chain.sampler) {
             st.proposed += 1;
             let old = Some((chain.x.as_slice(), chain.edges.as_slice()));
             if let Some((fy, ry)) = image_contribution_reusing(scene, &y, old, &mut chain.scratch) {
-                let t_xy = mutation.transition_density(scene, &chain.x, &y);
-                let t_yx = mutation.transition_density(scene, &y, &chain.x);
+                let t_xy = mutation.transition_density(scene, tech, &chain.x, &y);
+                let t_yx = mutation.transition_density(scene, tech, &y, &chain.x);
                 a = acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
                 proposal = Some((y, fy, ry));
             }

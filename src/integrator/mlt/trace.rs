@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{warp, Frame, Sampler};
-use crate::path::{Vertex, VertexKind};
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Event, Light, Scene};
 
 use super::contribution::{singular_bsdf, specular_sample};
@@ -43,6 +43,7 @@ pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
 /// subpath predecessor).
 pub fn sample_direction(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     prev: Option<&Vertex>,
     v: &Vertex,
     mode: TransportMode,
@@ -59,20 +60,12 @@ pub fn sample_direction(
             l @ Light::Area { .. } => {
                 let local = warp::cosine_hemisphere(u);
                 let d = (local.z > 0.0).then(|| Frame::from_normal(v.n).to_world(local))?;
-                if scene.guide.is_none() {
+                if !tech.guides_emission(l) {
                     return Some(d);
                 }
                 // eq. (5.17) where guiding is on
-                crate::enlightened::guide::sample_emission(
-                    scene,
-                    v.p,
-                    v.n,
-                    d,
-                    u,
-                    |w| crate::path::vertex::emission_pdf_dir(l, v.n, w),
-                    sampler,
-                )
-                .map(|(d, _)| d)
+                tech.sample_emission(scene, l, (v.p, v.n), d, u, sampler)
+                    .map(|(d, _)| d)
             }
             Light::Point { .. } => Some(warp::uniform_sphere(u)),
             Light::Spot {
@@ -81,9 +74,9 @@ pub fn sample_direction(
             _ => None,
         },
         VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
-            // the BSDF or phase function, or the guided mixture (`enlightened::guide`)
+            // the BSDF or phase function, or the guided mixture (the technique's)
             let wo = (prev?.p - v.p).normalize_or_zero();
-            crate::enlightened::guide::sample_scatter_with(scene, v, wo, mode, u, sampler)
+            tech.sample_scatter_with(scene, v, wo, mode, u, sampler)
                 .filter(|s| s.pdf > 0.0)
                 .map(|s| s.wi)
         }
@@ -112,44 +105,24 @@ pub fn extend(scene: &Scene, v: &Vertex, d: Vec3, sampler: &mut Sampler) -> Opti
     }
 }
 
-/// A light vertex sampled as a light subpath starts: a light by power, a point on it.
+/// A light vertex sampled as a light subpath starts (`path::technique::sample_emitted_start`):
+/// a light by power, a point on it by the technique (the adjoint image's start density,
+/// Kristensen 2010, sec. 5.3.1, which the bidirectional mutation's transition density evaluates
+/// through `light_origin_pdf`) or by area.
 pub fn sample_light_vertex(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     light_media: &[Option<u32>],
     sampler: &mut Sampler,
 ) -> Option<Vertex> {
     if scene.lights.is_empty() {
         return None;
     }
-    let (mut l, _, u_prim) = scene.light_distr.sample(sampler.next_f32());
-    let u_pos = sampler.next_2d();
-    let u_dir = sampler.next_2d();
-    let (es, prim) = match (&scene.adjoint, &scene.lights[l]) {
-        // the adjoint image's start density (Kristensen 2010, sec. 5.3.1): the transition
-        // density of the bidirectional mutation evaluates the same one (`light_origin_pdf`)
-        (Some(_), Light::Area { .. }) => {
-            let st = scene.sample_adjoint_start(u_pos, sampler.next_2d())?;
-            l = st.point.light as usize;
-            let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
-            (es, Some(st.point.prim))
-        }
-        (_, light) => {
-            let es = light.sample_le(
-                &scene.prims,
-                u_pos,
-                u_dir,
-                u_prim,
-                scene.center,
-                scene.radius,
-            )?;
-            let prim = match light {
-                Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-                Light::Point { .. } | Light::Spot { .. } => None,
-                _ => return None,
-            };
-            (es, prim)
-        }
-    };
+    let start = crate::path::technique::sample_emitted_start(tech, scene, sampler)?;
+    let (l, es, prim) = (start.light, start.es, start.prim);
+    if prim.is_none() && !matches!(scene.lights[l], Light::Point { .. } | Light::Spot { .. }) {
+        return None;
+    }
     if es.pdf_pos <= 0.0 {
         return None;
     }

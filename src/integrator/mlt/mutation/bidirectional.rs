@@ -26,7 +26,7 @@
 
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
-use crate::path::{Vertex, VertexKind};
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 
 /// The light-vertex kind of a surface vertex on an area light (`None` elsewhere).
@@ -160,7 +160,13 @@ impl Bidirectional {
 
 impl Mutation for Bidirectional {
     // ANCHOR: bidirectional_sample
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+    fn sample(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>> {
         let n = x.len();
         let k = n - 1;
         // 1. delete k_d edges after x_l
@@ -178,11 +184,18 @@ impl Mutation for Bidirectional {
         let mut light: Vec<Vertex> = x[..(l + 1) as usize].to_vec();
         for _ in 0..s_new {
             let v = match light.len() {
-                0 => sample_light_vertex(scene, &self.light_media, sampler)?,
+                0 => sample_light_vertex(scene, tech, &self.light_media, sampler)?,
                 len => {
                     let prev = len.checked_sub(2).map(|i| &light[i]);
                     let cur = &light[len - 1];
-                    let d = sample_direction(scene, prev, cur, TransportMode::Importance, sampler)?;
+                    let d = sample_direction(
+                        scene,
+                        tech,
+                        prev,
+                        cur,
+                        TransportMode::Importance,
+                        sampler,
+                    )?;
                     extend(scene, cur, d, sampler)?
                 }
             };
@@ -193,7 +206,7 @@ impl Mutation for Bidirectional {
             let len = eye.len();
             let prev = len.checked_sub(2).map(|i| &eye[i]);
             let cur = &eye[len - 1];
-            let d = sample_direction(scene, prev, cur, TransportMode::Radiance, sampler)?;
+            let d = sample_direction(scene, tech, prev, cur, TransportMode::Radiance, sampler)?;
             let v = extend(scene, cur, d, sampler)?;
             eye.push(v);
         }
@@ -214,7 +227,13 @@ impl Mutation for Bidirectional {
     // ANCHOR_END: bidirectional_sample
 
     // ANCHOR: bidirectional_density
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64 {
         let (nx, ny) = (x.len(), y.len());
         if nx < 2 || ny < 2 || ny > self.max_vertices {
             return 0.0;
@@ -257,7 +276,7 @@ impl Mutation for Bidirectional {
             let splits = added + 1;
             let first = (l + 1) as usize; // index in y of the first new vertex
                                           // only the added vertices' densities enter (and only their edges are traced)
-            let dy = singular_densities_in(scene, y, first..first + added);
+            let dy = singular_densities_in(scene, tech, y, first..first + added);
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {

@@ -13,7 +13,7 @@ use std::f32::consts::TAU;
 
 use crate::math::Sampler;
 use crate::path::vertex::to_area;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
 use super::super::contribution::{is_specular, lobe_at};
@@ -57,7 +57,13 @@ pub fn direction_density(angle: &InverseDistance, theta: f32) -> f64 {
 
 impl Mutation for LightPerturbation {
     // ANCHOR: light_sample
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+    fn sample(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>> {
         let k = x.len() - 1;
         let j = caustic_chain_start(scene, x)?;
         let theta = self.angle.sample(sampler.next_f32());
@@ -72,7 +78,7 @@ impl Mutation for LightPerturbation {
         // diffuse one), a specular vertex may change its lobe, or the angle measured between
         // the vertices may round out of [theta_min, theta_max]: y is then outside the
         // perturbation's support (T(x -> y) = 0), so it is no proposal at all
-        if self.transition_density(scene, x, &y) <= 0.0 {
+        if self.transition_density(scene, tech, x, &y) <= 0.0 {
             return None;
         }
         Some(y)
@@ -80,7 +86,13 @@ impl Mutation for LightPerturbation {
     // ANCHOR_END: light_sample
 
     // ANCHOR: light_density
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        _tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64 {
         let k = x.len() - 1;
         let Some(j) = caustic_chain_start(scene, x) else {
             return 0.0;

@@ -11,7 +11,7 @@ pub mod propagation;
 pub mod sensor;
 
 use crate::math::Sampler;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
 pub use bidirectional::Bidirectional;
@@ -24,9 +24,21 @@ pub use sensor::SensorPerturbation;
 pub trait Mutation: Sync {
     /// Proposes y from x; `None` when the mutation does not apply to x or the proposal left
     /// path space (escaped, changed the characteristic): the chain then stays at x.
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>>;
+    fn sample(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>>;
     /// T(x -> y); zero when `sample` cannot produce y from x.
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64;
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64;
 }
 
 /// The closed set of mutation types, in the order of the configuration keys.

@@ -12,7 +12,7 @@ use std::f32::consts::TAU;
 
 use crate::math::Sampler;
 use crate::path::vertex::to_area;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
 use super::super::contribution::{is_specular, lobe_at};
@@ -54,7 +54,13 @@ fn chain_lobes(scene: &Scene, x: &[Vertex], c: usize, e: usize) -> Vec<Lobe> {
 
 impl Mutation for MultiChainPerturbation {
     // ANCHOR: multichain_sample
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+    fn sample(
+        &self,
+        scene: &Scene,
+        _tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>> {
         let k = x.len() - 1;
         let m = lens_chain_end(scene, x)?;
         let chains = later_chains(scene, x, m);
@@ -81,7 +87,13 @@ impl Mutation for MultiChainPerturbation {
     // ANCHOR_END: multichain_sample
 
     // ANCHOR: multichain_density
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64 {
         let Some(m) = lens_chain_end(scene, x) else {
             return 0.0;
         };
@@ -89,7 +101,7 @@ impl Mutation for MultiChainPerturbation {
         if chains.is_empty() || y.len() != x.len() || later_chains(scene, y, m) != chains {
             return 0.0;
         }
-        let mut t = lens_chain_density(scene, x, y, m, &self.offset);
+        let mut t = lens_chain_density(scene, tech, x, y, m, &self.offset);
         let kept = chains[chains.len() - 1].1;
         if t == 0.0 || !same_prefix(x, y, kept) {
             return 0.0;

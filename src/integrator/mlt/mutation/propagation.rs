@@ -10,7 +10,7 @@
 //! T(x -> y) = (1/2) p(|t_y - t_x|) / t_y^2. The 1/2 p(D) part is symmetric; t^2 is not.
 
 use crate::math::Sampler;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
 use super::super::contribution::SPECULAR_COS_TOLERANCE;
@@ -29,7 +29,13 @@ pub struct PropagationPerturbation {
 
 impl Mutation for PropagationPerturbation {
     // ANCHOR: propagation_sample
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+    fn sample(
+        &self,
+        scene: &Scene,
+        _tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>> {
         // ASSIGNMENT: propagation_perturbation
         let k = x.len() - 1;
         if k < 2 || !x[k - 1].is_medium() {
@@ -56,7 +62,13 @@ impl Mutation for PropagationPerturbation {
     // ANCHOR_END: propagation_sample
 
     // ANCHOR: propagation_density
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        _tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64 {
         // ASSIGNMENT: propagation_perturbation
         let _ = scene;
         let k = x.len() - 1;

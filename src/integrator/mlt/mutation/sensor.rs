@@ -17,7 +17,7 @@ use glam::Vec2;
 
 use crate::math::Sampler;
 use crate::path::vertex::to_area;
-use crate::path::Vertex;
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
 use super::super::contribution::{is_specular, lobe_at};
@@ -81,6 +81,7 @@ pub fn perturb_lens_chain(
 /// medium distance). The vertices before x_m are the caller's to check.
 pub fn lens_chain_density(
     scene: &Scene,
+    tech: &dyn LocalSampling,
     x: &[Vertex],
     y: &[Vertex],
     m: usize,
@@ -115,6 +116,7 @@ pub fn lens_chain_density(
     let npix = (cam.width * cam.height) as f64;
     let p_dir = y[k].pdf_dir(
         scene,
+        tech,
         None,
         y[k - 1].p,
         crate::bsdf::TransportMode::Radiance,
@@ -135,7 +137,13 @@ pub struct SensorPerturbation {
 
 impl Mutation for SensorPerturbation {
     // ANCHOR: sensor_sample
-    fn sample(&self, scene: &Scene, x: &[Vertex], sampler: &mut Sampler) -> Option<Vec<Vertex>> {
+    fn sample(
+        &self,
+        scene: &Scene,
+        _tech: &dyn LocalSampling,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<Vec<Vertex>> {
         let m = lens_chain_end(scene, x)?;
         if is_specular(scene, &x[m - 1]) {
             return None; // (D|L) S D S* E: the multi-chain perturbation's case
@@ -149,14 +157,20 @@ impl Mutation for SensorPerturbation {
     // ANCHOR_END: sensor_sample
 
     // ANCHOR: sensor_density
-    fn transition_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+    fn transition_density(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        x: &[Vertex],
+        y: &[Vertex],
+    ) -> f64 {
         let Some(m) = lens_chain_end(scene, x) else {
             return 0.0;
         };
         if is_specular(scene, &x[m - 1]) || !same_prefix(x, y, m) {
             return 0.0;
         }
-        lens_chain_density(scene, x, y, m, &self.offset)
+        lens_chain_density(scene, tech, x, y, m, &self.offset)
     }
     // ANCHOR_END: sensor_density
 }

@@ -1,0 +1,980 @@
+//! Bidirectional path tracing with multiple importance sampling, with media (Lafortune and
+//! Willems 1996; Veach 1997 ch. 10; in the path-integral framework of Pauly, Kollig, Keller
+//! 2000, eq. 7).
+//!
+//! A light subpath y_0 ... y_{s-1} and an eye subpath z_{t-1} ... z_0 (z_0 on the sensor) are
+//! joined by one edge into a path of s + t vertices. Every (s, t) gives an unbiased estimate
+//! f_j / (p(y) p(z)); the power heuristic weights them with the densities every other split of
+//! the same path would have had. All densities are in the vertices' own measures (area on
+//! surfaces, volume in the medium) and include the propagation pdfs of Table 1, so the weights
+//! see medium vertices exactly as the path integral does.
+//!
+//! The walks and the single bidirectional sample live here, in the path layer, because the
+//! enlightened preprocessing (the adjoint image's pre-pass, the particle samplers) traces them
+//! too; `integrator::bdpt` combines the strategies of a sample into the film.
+//! Book: "Bidirectional path tracing".
+
+use glam::{Vec2, Vec3};
+
+use crate::bsdf::{Lobe, TransportMode};
+use crate::geometry::{offset_origin, Primitive, Ray};
+use crate::math::{warp, Frame, Sampler};
+use crate::path::technique::{sample_emitted_start, EmittedStart, StartDraw};
+use crate::path::vertex::to_area;
+use crate::path::LocalSampling;
+use crate::path::{Vertex, VertexKind};
+use crate::scene::{Event, Light, Scene};
+use crate::spectrum::Rgb;
+
+use super::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
+
+/// Vertices per subpath at most, whatever Russian roulette decides (a safety net only).
+pub const MAX_SUBPATH_VERTICES: usize = 256;
+
+/// Which strategies are used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategies {
+    /// All (s, t), weighted by the power heuristic.
+    All,
+    /// Light tracing: only t = 1 (light subpaths connected to the sensor), unweighted.
+    LightTracing,
+    /// One strategy alone, unweighted: an unbiased estimator of the paths it can sample (the
+    /// debugging view, and the test that each strategy is unbiased on its own).
+    Only(usize, usize),
+}
+
+/// How the first vertex after the origin was sampled.
+#[derive(Clone, Copy)]
+enum FirstPdf {
+    /// A direction with this solid-angle density.
+    SolidAngle(f32),
+    /// A position on a disk perpendicular to the direction, with this area density (infinite
+    /// lights): the next vertex's density is this times its cosine factor.
+    Perpendicular(f32),
+}
+
+/// Reusable per-thread storage, so no sample allocates.
+#[derive(Default)]
+pub struct Scratch {
+    pub light: Vec<Vertex>,
+    pub eye: Vec<Vertex>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Bdpt<'t> {
+    /// The local-sampling technique of both walks, their MIS densities and light starts.
+    pub tech: &'t dyn LocalSampling,
+    pub max_depth: u32,
+    pub strategies: Strategies,
+    /// Medium around each light (for the first edge of light subpaths).
+    light_media: Vec<Option<u32>>,
+    /// Russian roulette in the walks (on by default; samplers that fix the walk lengths
+    /// themselves, such as the bidirectional particle sampler, switch it off).
+    pub roulette: bool,
+    /// Vertices per subpath at most, below [`MAX_SUBPATH_VERTICES`] (a walk of exactly n
+    /// vertices for the bidirectional particle sampler).
+    pub vertex_cap: usize,
+}
+
+impl<'t> Bdpt<'t> {
+    /// BDPT on `scene` sampling with technique `tech`.
+    pub fn new(
+        scene: &Scene,
+        tech: &'t dyn LocalSampling,
+        max_depth: Option<u32>,
+        strategies: Strategies,
+    ) -> Self {
+        let light_media = scene
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Area { prims, .. } => {
+                    let (p, n) = scene.prims[prims[0] as usize].sample_area(Vec2::splat(0.5));
+                    scene.medium_at(offset_origin(p, n, n))
+                }
+                Light::Point { position, .. } | Light::Spot { position, .. } => {
+                    scene.medium_at(*position)
+                }
+                _ => None,
+            })
+            .collect();
+        Bdpt {
+            tech,
+            max_depth: max_depth.unwrap_or(u32::MAX),
+            strategies,
+            light_media,
+            roulette: true,
+            vertex_cap: MAX_SUBPATH_VERTICES,
+        }
+    }
+
+    /// The medium around light `l` (where its light subpaths start).
+    pub fn light_medium(&self, l: usize) -> Option<u32> {
+        self.light_media.get(l).copied().flatten()
+    }
+
+    /// The media around every light.
+    pub fn light_media(&self) -> &[Option<u32>] {
+        &self.light_media
+    }
+
+    fn max_vertices(&self, extra: u32) -> usize {
+        (self.max_depth.saturating_add(extra) as usize)
+            .min(MAX_SUBPATH_VERTICES)
+            .min(self.vertex_cap)
+    }
+
+    /// The random walk shared by both subpaths: propagate, record the vertex with its forward
+    /// density, scatter, and set the predecessor's reverse density.
+    // ANCHOR: random_walk
+    #[allow(clippy::too_many_arguments)]
+    fn random_walk(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut medium: Option<u32>,
+        mut beta: Rgb,
+        first: FirstPdf,
+        mode: TransportMode,
+        max_vertices: usize,
+        path: &mut Vec<Vertex>,
+        sampler: &mut Sampler,
+    ) {
+        let mut pdf_dir = match first {
+            FirstPdf::SolidAngle(p) => p,
+            FirstPdf::Perpendicular(_) => 0.0,
+        };
+        let mut first_edge = true;
+        let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
+        let mut origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
+        let mut lead = path
+            .last()
+            .map_or(0.0, |v| (ray.o - v.p).dot(ray.d).max(0.0));
+        while path.len() < max_vertices {
+            let prev = path.len() - 1;
+            let prop = scene.propagate_bidirectional(ray, lead, medium, origin_in_medium, sampler);
+            // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
+            // the vertex scatters below and in every connection through it
+            if prop.pdf <= 0.0 {
+                return;
+            }
+            beta *= prop.transmittance / prop.pdf;
+            if beta == Rgb::ZERO {
+                return;
+            }
+            let mut v = match prop.event {
+                Event::Escape => {
+                    if mode == TransportMode::Radiance {
+                        if let Some(env) = scene.environment {
+                            let mut v = Vertex::new(
+                                VertexKind::InfiniteLight { light: env },
+                                ray.o
+                                    + ray.d
+                                        * (4.0 * scene.radius + (ray.o - scene.center).length()),
+                                Vec3::ZERO,
+                                None,
+                                None,
+                            );
+                            v.beta = beta;
+                            v.pdf_fwd = pdf_dir * prop.pdf;
+                            v.prop_rev = prop.pdf_rev;
+                            path.push(v);
+                        }
+                    }
+                    return;
+                }
+                Event::Medium { p, medium: m, .. } => Vertex::new(
+                    VertexKind::Medium { medium: m },
+                    p,
+                    Vec3::ZERO,
+                    Some(m),
+                    Some(m),
+                ),
+                Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
+            };
+            v.beta = beta;
+            let density = match (first, first_edge) {
+                (FirstPdf::Perpendicular(p), true) => {
+                    p * crate::path::geometry_term::cosine_factor(&v, ray.d)
+                }
+                _ => to_area(pdf_dir, &path[prev], &v),
+            };
+            v.pdf_fwd = density * prop.pdf;
+            v.prop_rev = prop.pdf_rev;
+            first_edge = false;
+            path.push(v);
+            if path.len() >= max_vertices {
+                return;
+            }
+            let cur = path.len() - 1;
+            let wo = -ray.d;
+            // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
+            // 5.19 and their medium extension), with the density of the reverse walk
+            let Some(ss) = self.tech.sample_scatter(scene, &v, wo, mode, sampler) else {
+                return;
+            };
+            if ss.pdf <= 0.0 {
+                return;
+            }
+            let reverse = match mode {
+                TransportMode::Radiance => TransportMode::Importance,
+                TransportMode::Importance => TransportMode::Radiance,
+            };
+            let (pdf_fwd_dir, pdf_rev_dir) = match v.kind {
+                VertexKind::Medium { medium: m } => {
+                    beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
+                    path[cur].lobe = Lobe::Regular;
+                    medium = Some(m);
+                    origin_in_medium = true;
+                    ray = Ray::new(v.p, ss.wi);
+                    lead = 0.0;
+                    (ss.pdf, self.tech.scatter_pdf(scene, &v, ss.wi, wo, reverse))
+                }
+                VertexKind::Surface { .. } => {
+                    let bs = ss.as_bsdf_sample();
+                    beta *= bs.weight(v.n);
+                    path[cur].lobe = bs.lobe;
+                    medium = v.medium_towards(bs.wi);
+                    origin_in_medium = false;
+                    ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
+                    lead = (ray.o - v.p).dot(bs.wi);
+                    if bs.lobe.is_singular() {
+                        path[cur].delta = true;
+                        (0.0, 0.0)
+                    } else {
+                        (bs.pdf, self.tech.scatter_pdf(scene, &v, bs.wi, wo, reverse))
+                    }
+                }
+                _ => return,
+            };
+            pdf_dir = pdf_fwd_dir;
+            // the predecessor as sampled from here (the reverse walk)
+            path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
+            // Russian roulette on the scattering throughput (not on L_e / p of the origin)
+            if self.roulette && cur as u32 >= RR_START_DEPTH {
+                let ratio = beta.max_element() / beta_start;
+                let q = (self.tech)
+                    .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
+                    .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
+                if sampler.next_f32() >= q || q.is_nan() {
+                    return;
+                }
+                beta /= q;
+            }
+        }
+    }
+    // ANCHOR_END: random_walk
+
+    /// The eye subpath from the camera through raster position `raster`.
+    pub fn camera_subpath(
+        &self,
+        scene: &Scene,
+        raster: Vec2,
+        sampler: &mut Sampler,
+        path: &mut Vec<Vertex>,
+    ) {
+        path.clear();
+        let Some(cam) = scene.camera.as_ref() else {
+            return;
+        };
+        let ray = cam.generate_ray(raster);
+        let mut v0 = Vertex::new(
+            VertexKind::Camera,
+            cam.eye,
+            cam.forward,
+            scene.camera_medium,
+            scene.camera_medium,
+        );
+        v0.pdf_fwd = 1.0;
+        path.push(v0);
+        let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
+        // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
+        self.random_walk(
+            scene,
+            ray,
+            scene.camera_medium,
+            Rgb::ONE,
+            FirstPdf::SolidAngle(pdf_dir),
+            TransportMode::Radiance,
+            self.max_vertices(2),
+            path,
+            sampler,
+        );
+    }
+
+    /// The eye subpath from a uniform point of meter `m`, cosine-distributed.
+    pub fn meter_subpath(
+        &self,
+        scene: &Scene,
+        m: u32,
+        sampler: &mut Sampler,
+        path: &mut Vec<Vertex>,
+    ) {
+        path.clear();
+        let meter = &scene.sensors[m as usize];
+        let q = Primitive::Quad(meter.quad);
+        let (p, n) = q.sample_area(sampler.next_2d());
+        let mut v0 = Vertex::new(
+            VertexKind::Meter { meter: m },
+            p,
+            n,
+            meter.medium,
+            meter.medium,
+        );
+        v0.pdf_fwd = 1.0 / q.area();
+        path.push(v0);
+        if self.strategies == Strategies::LightTracing {
+            // light tracing uses z_0 alone (t = 1): the walk would be traced for nothing
+            return;
+        }
+        let local = warp::cosine_hemisphere(sampler.next_2d());
+        if local.z <= 0.0 {
+            return;
+        }
+        let wi = Frame::from_normal(n).to_world(local);
+        let pdf = local.z * std::f32::consts::FRAC_1_PI;
+        // W_e g / (p(x) p(w)) = (1/A) cos / ((1/A) cos/pi) = pi
+        self.random_walk(
+            scene,
+            Ray::new(p, wi),
+            meter.medium,
+            Rgb::splat(std::f32::consts::PI),
+            FirstPdf::SolidAngle(pdf),
+            TransportMode::Radiance,
+            self.max_vertices(2),
+            path,
+            sampler,
+        );
+    }
+
+    /// The light subpath: a light chosen by power, an emitted ray, then the random walk with the
+    /// adjoint BSDF.
+    pub fn light_subpath(&self, scene: &Scene, sampler: &mut Sampler, path: &mut Vec<Vertex>) {
+        path.clear();
+        if scene.lights.is_empty() {
+            return;
+        }
+        // the light start: by power and area, or the technique's own (the adjoint image for
+        // area lights, Kristensen 2010, sec. 5.3.1); `start_pdf` is the position density with
+        // the selection
+        let Some(EmittedStart {
+            light: l,
+            pmf,
+            mut es,
+            start_pdf,
+            prim: start_prim,
+            u_dir,
+        }) = sample_emitted_start(self.tech, scene, sampler)
+        else {
+            return;
+        };
+        let light = &scene.lights[l];
+        // eq. (5.17): the emission direction from c1 p_Le + c2 p_Wi where guiding is on
+        if self.tech.guides_emission(light) {
+            let n = es.n;
+            let Some((d, pdf)) =
+                (self.tech).sample_emission(scene, light, (es.p, n), es.d, u_dir, sampler)
+            else {
+                return;
+            };
+            es.value = crate::scene::light::emitted_by(light, n, d);
+            es.d = d;
+            es.pdf_dir = pdf;
+        }
+        if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
+            return;
+        }
+        let lm = self.light_media[l];
+        let (mut v0, origin, first) = match light {
+            Light::Area { .. } => {
+                let Some(prim) = start_prim else { return };
+                let v = Vertex::new(
+                    VertexKind::Light {
+                        light: l as u32,
+                        prim: Some(prim),
+                    },
+                    es.p,
+                    es.n,
+                    lm,
+                    lm,
+                );
+                (
+                    v,
+                    offset_origin(es.p, es.n, es.d),
+                    FirstPdf::SolidAngle(es.pdf_dir),
+                )
+            }
+            Light::Point { .. } | Light::Spot { .. } => (
+                Vertex::new(
+                    VertexKind::Light {
+                        light: l as u32,
+                        prim: None,
+                    },
+                    es.p,
+                    Vec3::ZERO,
+                    lm,
+                    lm,
+                ),
+                es.p,
+                FirstPdf::SolidAngle(es.pdf_dir),
+            ),
+            Light::Directional { .. } | Light::Environment(_) => (
+                Vertex::new(
+                    VertexKind::InfiniteLight { light: l as u32 },
+                    es.p,
+                    Vec3::ZERO,
+                    None,
+                    None,
+                ),
+                es.p,
+                FirstPdf::Perpendicular(es.pdf_pos),
+            ),
+        };
+        v0.beta = es.value;
+        v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
+        if let VertexKind::InfiniteLight { .. } = v0.kind {
+            v0.pdf_fwd = match light {
+                Light::Environment(_) => pmf * es.pdf_dir,
+                _ => 0.0,
+            };
+        }
+        let cos = if es.n == Vec3::ZERO || v0.is_infinite_light() {
+            1.0
+        } else {
+            es.n.dot(es.d).abs()
+        };
+        let beta = es.value * (cos / (start_pdf * es.pdf_dir));
+        path.push(v0);
+        self.random_walk(
+            scene,
+            Ray::new(origin, es.d),
+            lm,
+            beta,
+            first,
+            TransportMode::Importance,
+            self.max_vertices(1),
+            path,
+            sampler,
+        );
+    }
+
+    /// The largest s to try with a light subpath `light`: its length, but at least 1 when the
+    /// scene has lights, because s = 1 samples its own light vertex (next-event estimation)
+    /// whatever became of the light subpath: a walk that ended before its first vertex (a
+    /// guided emission direction behind the light) must not take that strategy with it.
+    pub fn max_light_vertices(scene: &Scene, light: &[Vertex]) -> usize {
+        if scene.lights.is_empty() {
+            0
+        } else {
+            light.len().max(1)
+        }
+    }
+
+    /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
+    fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
+        match v.kind {
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
+                scene.lights[light as usize].is_delta()
+            }
+            _ => false,
+        }
+    }
+
+    /// The power-heuristic weight of strategy (s, t) for the path joined from `light[..s]` and
+    /// `eye[..t]`, with `sampled` replacing the endpoint that was sampled for the connection
+    /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
+    // ANCHOR: mis_weight
+    #[allow(clippy::too_many_arguments)]
+    pub fn mis_weight(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        sampled: Option<Vertex>,
+        s: usize,
+        t: usize,
+        conn_pdf_qp: f32,
+        conn_pdf_pq: f32,
+    ) -> f32 {
+        use TransportMode::{Importance, Radiance};
+        let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
+        // copies of the four vertices whose reverse densities the connection changes
+        let mut qs = if s > 0 {
+            Some(if s == 1 {
+                sampled.unwrap_or_else(|| light[0])
+            } else {
+                light[s - 1]
+            })
+        } else {
+            None
+        };
+        let mut pt = if t == 1 && s != 1 {
+            sampled.unwrap_or_else(|| eye[0])
+        } else {
+            eye[t - 1]
+        };
+        let mut qs_minus = if s > 1 { Some(light[s - 2]) } else { None };
+        let mut pt_minus = if t > 1 { Some(eye[t - 2]) } else { None };
+
+        if let Some(q) = qs.as_mut() {
+            q.delta = false;
+        }
+        pt.delta = false;
+        // pt as sampled from the light side
+        pt.pdf_rev = match &qs {
+            Some(q) => {
+                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp
+            }
+            None => pt.light_origin_pdf(scene, self.tech),
+        };
+        if let Some(pm) = pt_minus.as_mut() {
+            pm.pdf_rev = match &qs {
+                Some(q) => pt.pdf_area(scene, self.tech, Some(q.p), pm, Importance),
+                None => pt.light_pdf_to(scene, self.tech, pm),
+            } * pt.prop_rev;
+        }
+        if let Some(q) = qs.as_mut() {
+            q.pdf_rev =
+                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
+        }
+        if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
+            qm.pdf_rev = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
+        }
+
+        let eye_at = |i: usize| -> Vertex {
+            if i + 1 == t {
+                pt
+            } else if i + 2 == t {
+                pt_minus.unwrap_or_else(|| eye[i])
+            } else {
+                eye[i]
+            }
+        };
+        let light_at = |i: usize| -> Vertex {
+            if i + 1 == s {
+                qs.unwrap_or_else(|| light[i])
+            } else if i + 2 == s {
+                qs_minus.unwrap_or_else(|| light[i])
+            } else {
+                light[i]
+            }
+        };
+        let mut sum = 0.0f32;
+        let mut ri = 1.0f32;
+        for i in (1..t).rev() {
+            let v = eye_at(i);
+            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
+            if !v.delta && !eye_at(i - 1).delta {
+                sum += ri * ri;
+            }
+        }
+        ri = 1.0;
+        for i in (0..s).rev() {
+            let v = light_at(i);
+            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
+            let delta_before = if i > 0 {
+                light_at(i - 1).delta
+            } else {
+                Self::is_delta_light(scene, &light_at(0))
+            };
+            if !v.delta && !delta_before {
+                sum += ri * ri;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+    // ANCHOR_END: mis_weight
+
+    /// The contribution of strategy (s, t), already MIS-weighted (unweighted for light
+    /// tracing), with the raster position when it lands elsewhere than the sample's pixel.
+    // ANCHOR: connect
+    pub fn connect(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>)> {
+        self.connect_sampled(scene, light, eye, s, t, sampler)
+            .map(|(l, raster, _)| (l, raster))
+    }
+
+    /// Every strategy (s, t) of one pair of subpaths within the depth limit, in the order
+    /// `combine` uses, connected with [`Bdpt::connect_sampled`]: `visit(s, t, contribution,
+    /// splat, sampled endpoint)` sees each non-zero one and returns false to stop. The pre-passes
+    /// of MLT and of the adjoint image walk the strategies this way.
+    pub fn for_each_strategy(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        sampler: &mut Sampler,
+        visit: &mut dyn FnMut(usize, usize, Rgb, Option<Vec2>, Option<Vertex>) -> bool,
+    ) {
+        for t in 1..=eye.len() {
+            for s in 0..=Self::max_light_vertices(scene, light) {
+                let depth = s as i64 + t as i64 - 2;
+                if depth < 0 || depth as u64 > self.max_depth as u64 {
+                    continue;
+                }
+                let Some((l, splat, sampled)) =
+                    self.connect_sampled(scene, light, eye, s, t, sampler)
+                else {
+                    continue;
+                };
+                if !visit(s, t, l, splat, sampled) {
+                    return;
+                }
+            }
+        }
+    }
+
+    /// [`Bdpt::connect`] that also returns the endpoint it sampled for s = 1 (a light vertex)
+    /// or t = 1 (the sensor vertex), so the joined path can be rebuilt (MLT's initialization).
+    pub fn connect_sampled(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
+        let pt_last = eye[t - 1];
+        if t > 1 && s != 0 && pt_last.is_infinite_light() {
+            return None;
+        }
+        let mut sampled: Option<Vertex> = None;
+        let mut raster = None;
+        let (mut l, pdf_qp, pdf_pq);
+        if s == 0 {
+            // the eye subpath found an emitter by itself
+            let pt = &eye[t - 1];
+            let towards = eye[t - 2].p;
+            l = match pt.kind {
+                VertexKind::InfiniteLight { .. } => pt.emitted(scene, towards),
+                _ => pt.surface_emission(scene, towards),
+            } * pt.beta;
+            pdf_qp = 1.0;
+            pdf_pq = 1.0;
+        } else if s == 1 {
+            // next-event estimation: sample a point on a light for the eye subpath's end
+            let pt = &eye[t - 1];
+            if !pt.is_connectible(scene) {
+                return None;
+            }
+            let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+            let u = sampler.next_2d();
+            // `sel_pdf`: the solid-angle density with the light selection included
+            let (ls, sel_pdf, start_prim) =
+                match self.tech.sample_light_start(scene, li, u, sampler) {
+                    StartDraw::Failed => return None,
+                    StartDraw::Drawn(st) => {
+                        // the light vertex from the technique, as light subpaths start
+                        li = st.point.light as usize;
+                        let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                        (ls, ls.pdf, Some(st.point.prim))
+                    }
+                    StartDraw::ByPower => {
+                        let light = &scene.lights[li];
+                        let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                        let prim = match light {
+                            Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                            _ => None,
+                        };
+                        (ls, pmf * ls.pdf, prim)
+                    }
+                };
+            if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
+                return None;
+            }
+            let light_ref = &scene.lights[li];
+            let lm = self.light_media[li];
+            let mut v = match light_ref {
+                Light::Area { .. } => Vertex::new(
+                    VertexKind::Light {
+                        light: li as u32,
+                        prim: start_prim,
+                    },
+                    ls.p,
+                    ls.n,
+                    lm,
+                    lm,
+                ),
+                Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                    VertexKind::Light {
+                        light: li as u32,
+                        prim: None,
+                    },
+                    ls.p,
+                    Vec3::ZERO,
+                    lm,
+                    lm,
+                ),
+                _ => Vertex::new(
+                    VertexKind::InfiniteLight { light: li as u32 },
+                    pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
+                    Vec3::ZERO,
+                    None,
+                    None,
+                ),
+            };
+            v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+            v.beta = ls.value / sel_pdf;
+            let f = if t == 1 {
+                // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
+                // W_e lands in another pixel, A * (1/A) for a meter)
+                match pt.kind {
+                    VertexKind::Camera => {
+                        let imp = scene.camera.as_ref()?.importance(ls.wi)?;
+                        raster = Some(imp.raster);
+                        Rgb::splat(imp.we)
+                    }
+                    VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
+                    _ => return None,
+                }
+            } else {
+                pt.f_hat(scene, v.p, eye[t - 2].p)
+            };
+            if f == Rgb::ZERO {
+                return None;
+            }
+            let target = if ls.dist.is_infinite() {
+                pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
+            } else {
+                v.p
+            };
+            let mut end_v = v;
+            end_v.p = target;
+            let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+            l = pt.beta * f * v.beta * e.transmittance * cos_pt;
+            // an infinite light's edge leaves the scene: only the passage of its segments counts
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+            sampled = Some(v);
+        } else if t == 1
+            && self.strategies == Strategies::LightTracing
+            && matches!(eye[0].kind, VertexKind::Meter { .. })
+        {
+            // light tracing to a meter: two direction samplers combined by MIS
+            if !light[s - 1].is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let (c, z0) = self.light_tracing_meter(scene, light, s, &eye[0], sampler)?;
+            l = c;
+            pdf_qp = 1.0;
+            pdf_pq = 1.0;
+            sampled = Some(z0);
+        } else if t == 1 {
+            // connect the light subpath to the sensor
+            let qs = &light[s - 1];
+            if !qs.is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let sensor = match eye[0].kind {
+                VertexKind::Camera => {
+                    let cam = scene.camera.as_ref()?;
+                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
+                    raster = Some(imp.raster);
+                    let mut v = eye[0];
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                VertexKind::Meter { meter } => {
+                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
+                    let (p, n) = q.sample_area(sampler.next_2d());
+                    let mut v =
+                        Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                    v.pdf_fwd = 1.0 / q.area();
+                    // W_e / p(x) = (1/A) / (1/A)
+                    v.beta = Rgb::ONE;
+                    v
+                }
+                _ => return None,
+            };
+            let we = sensor.importance(scene, qs.p);
+            let area_inv = match sensor.kind {
+                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
+                _ => 1.0,
+            };
+            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+            if f == Rgb::ZERO || we == Rgb::ZERO {
+                return None;
+            }
+            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
+            l = qs.beta * f * e.transmittance * g * we * area_inv;
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+            sampled = Some(sensor);
+        } else {
+            let qs = &light[s - 1];
+            let pt = &eye[t - 1];
+            if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+                return None;
+            }
+            let fq = qs.f_hat(scene, light[s - 2].p, pt.p);
+            let fp = pt.f_hat(scene, qs.p, eye[t - 2].p);
+            if fq == Rgb::ZERO || fp == Rgb::ZERO {
+                return None;
+            }
+            let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
+            if e.transmittance == Rgb::ZERO {
+                return None;
+            }
+            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
+            l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
+            pdf_qp = e.pdf_ab;
+            pdf_pq = e.pdf_ba;
+        }
+        if l == Rgb::ZERO || !l.is_finite() {
+            return if l.is_finite() {
+                None
+            } else {
+                Some((l, raster, sampled))
+            };
+        }
+        if self.strategies == Strategies::All {
+            l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
+        }
+        Some((l, raster, sampled))
+    }
+    // ANCHOR_END: connect
+
+    /// Light tracing's connection of y_{s-1} to the meter of `z0` (t = 1), unweighted across
+    /// strategies like the rest of light tracing, but with two samplers of the connection
+    /// direction w combined by the power heuristic (Veach 1997, sec. 9.2.4):
+    ///
+    /// - the meter point uniform in the solid angle Omega the meter subtends at y_{s-1}
+    ///   ([`IrradianceMeter::connection_from`]: Arvo's spherical triangles; by area when Omega is
+    ///   tiny), density p_m(w) = 1 / Omega. Area sampling's G / p = g g' A / d^2 has infinite
+    ///   variance for a meter touching a medium (int dz / z^2); by solid angle it is g Omega;
+    /// - at a medium vertex, w from the phase function (density p_f), kept when it hits the
+    ///   meter's front: the estimate sigma_s tau W_e w_f, bounded whatever the phase function's
+    ///   peak, where the first one's f g Omega is not (a photon already heading for the meter
+    ///   through a forward HG lobe).
+    ///
+    /// With w_m = p_m^2 / (p_m^2 + p_f^2) and w_f = 1 - w_m both terms stay below
+    /// beta sigma_s tau / A. Returns the contribution and z_0 of the first sampler (or of the
+    /// second when the first produced none).
+    ///
+    /// [`IrradianceMeter::connection_from`]: crate::scene::sensor::IrradianceMeter::connection_from
+    fn light_tracing_meter(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        s: usize,
+        z0: &Vertex,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Vertex)> {
+        let VertexKind::Meter { meter } = z0.kind else {
+            return None;
+        };
+        let qs = &light[s - 1];
+        let prev = light[s - 2].p;
+        let m = &scene.sensors[meter as usize];
+        // both numbers drawn up front, so the streams do not depend on what each sampler finds
+        let (u_meter, u_phase) = (sampler.next_2d(), sampler.next_2d());
+        // None: y_{s-1} is behind the meter's measuring side
+        let conn = m.connection_from(qs.p)?;
+        let w_prev = (prev - qs.p).normalize_or_zero();
+        let phase = match qs.kind {
+            VertexKind::Medium { medium } => Some(scene.media[medium as usize].phase()),
+            _ => None,
+        };
+        let vertex_at = |p: Vec3, pdf_area: f32| {
+            let mut v = Vertex::new(z0.kind, p, m.normal(), z0.medium_front, z0.medium_back);
+            v.pdf_fwd = pdf_area;
+            v.beta = Rgb::ONE;
+            v
+        };
+        // beta f tau W_e g(y_{s-1} -> z_0) / p(w), the unweighted estimate of one direction
+        let estimate = |z: &Vertex, pdf_dir: f32, sampler: &mut Sampler| -> Rgb {
+            let f = qs.f_hat(scene, prev, z.p);
+            let we = z.importance(scene, qs.p);
+            if f == Rgb::ZERO || we == Rgb::ZERO || pdf_dir.is_nan() || pdf_dir <= 0.0 {
+                return Rgb::ZERO;
+            }
+            let e = scene.edge(qs.edge_end(z.p), z.edge_end(qs.p), sampler);
+            let w = (z.p - qs.p).normalize_or_zero();
+            let cos_q = crate::path::geometry_term::cosine_factor(qs, w);
+            qs.beta * f * e.transmittance * we * (cos_q / pdf_dir)
+        };
+        let mut l = Rgb::ZERO;
+        let mut first = None;
+        if let Some(mp) = conn.sample(u_meter) {
+            let z = vertex_at(mp.p, mp.pdf_area);
+            let w = (mp.p - qs.p).normalize_or_zero();
+            let p_f = phase.map_or(0.0, |ph| ph.pdf(w_prev, w));
+            let p_m = mp.pdf_solid_angle;
+            let weight = p_m * p_m / (p_m * p_m + p_f * p_f);
+            l += estimate(&z, p_m, sampler) * weight;
+            first = Some(z);
+        }
+        if let Some(ph) = phase {
+            let w = ph.sample(w_prev, u_phase).wi;
+            if let Some(p) = conn.hit(w) {
+                let p_f = ph.pdf(w_prev, w);
+                let p_m = conn.pdf_solid_angle(p);
+                let z = vertex_at(p, conn.pdf_area(p));
+                let weight = p_f * p_f / (p_m * p_m + p_f * p_f);
+                l += estimate(&z, p_f, sampler) * weight;
+                first.get_or_insert(z);
+            }
+        }
+        first.map(|z| (l, z))
+    }
+}
+
+/// The power-heuristic weight of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
+/// with every density recomputed from the geometry ([`crate::path::pdf::densities`]): the
+/// subpaths are rebuilt as the samplers would have left them, then weighted as in `connect`.
+pub fn mis_weight_of_path(
+    bdpt: &Bdpt,
+    scene: &Scene,
+    path: &crate::path::Path,
+    s: usize,
+    d: &crate::path::pdf::Densities,
+) -> f32 {
+    let v = &path.vertices;
+    let n = v.len();
+    let t = n - s;
+    if t == 0 {
+        return 0.0; // the sensor cannot be hit by chance
+    }
+    let light: Vec<Vertex> = v[..s]
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            let mut x = *x;
+            x.pdf_fwd = d.light[i];
+            x.pdf_rev = d.eye[i];
+            x.prop_rev = if i > 0 { d.prop_down[i - 1] } else { 1.0 };
+            x
+        })
+        .collect();
+    let mut eye: Vec<Vertex> = Vec::with_capacity(t);
+    for i in (s..n).rev() {
+        let mut x = v[i];
+        x.pdf_fwd = d.eye[i];
+        x.pdf_rev = d.light[i];
+        x.prop_rev = if i + 1 < n { d.prop_up[i] } else { 1.0 };
+        eye.push(x);
+    }
+    let (qp, pq) = if s > 0 {
+        (d.prop_up[s - 1], d.prop_down[s - 1])
+    } else {
+        (1.0, 1.0)
+    };
+    bdpt.mis_weight(scene, &light, &eye, None, s, t, qp, pq)
+}
