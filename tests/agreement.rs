@@ -25,7 +25,7 @@ use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointImage, AdjointSettings, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneSource};
 
 /// Where the scenes live.
@@ -33,13 +33,13 @@ fn fixture_dir() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement")
 }
 
-fn load(name: &str, text: &str) -> Scene {
+fn load(name: &str, text: &str) -> (Scene, RenderSettings) {
     let source = SceneSource {
         name: name.to_string(),
         text: text.to_string(),
         base_dir: fixture_dir(),
     };
-    Scene::load(&source).unwrap_or_else(|e| panic!("{e}"))
+    pathspace::integrator::settings::load(&source).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn fixture(name: &str) -> String {
@@ -124,20 +124,23 @@ fn mlt_settings(bootstrap: u64) -> MltSettings {
 }
 
 /// Installs (or removes) the guide and the adjoint image a column needs.
-fn prepare(scene: &mut Scene, config: Config, max_depth: Option<u32>) -> Result<(), String> {
+fn prepare(
+    scene: &mut Scene,
+    settings: &RenderSettings,
+    config: Config,
+    max_depth: Option<u32>,
+) -> Result<(), String> {
     scene.guide = None;
     scene.adjoint = None;
     match config {
         Config::Guided(_) => {
-            let mut g = scene.render.guide;
+            let mut g = settings.guide;
             g.kind = GuideKind::Both;
             g.particles = 4000;
             g.regions.regions = 32;
             g.cols = 8;
             g.rows = 4;
-            scene.render.guide = g;
-            pathspace::enlightened::guide::install(scene, 0x6775_6964);
-            scene.render.guide.kind = GuideKind::Off;
+            pathspace::enlightened::guide::install(scene, &g, 0x6775_6964);
         }
         Config::Adjoint(_) => {
             let settings = AdjointSettings {
@@ -178,7 +181,7 @@ fn functionals(r: &Renderer, channels: usize) -> Vec<f64> {
 
 /// `k` runs of a column: each run's functionals, or the refusal.
 fn runs(
-    scene: &Scene,
+    (scene, settings): (&Scene, &RenderSettings),
     config: Config,
     k: u64,
     spp: u32,
@@ -189,7 +192,13 @@ fn runs(
     let mut out = Vec::new();
     for run in 0..k {
         let seed = 1000 + run;
-        let mut r = Renderer::try_new(scene, config.kind(), seed, max_depth)?;
+        let setup = Setup {
+            scene,
+            settings,
+            seed,
+            max_depth,
+        };
+        let mut r = Renderer::prepared(config.kind(), &setup)?;
         if let Config::Smc(variant, form) = config {
             r = r.with_smc_settings(SmcSettings {
                 variant,
@@ -198,7 +207,7 @@ fn runs(
             })?;
         }
         if config.kind() == IntegratorKind::Mlt {
-            r.mlt = Some(Mlt::new(scene, mlt_settings(bootstrap), seed, max_depth)?);
+            r.integrator = Box::new(Mlt::new(scene, mlt_settings(bootstrap), seed, max_depth)?);
         }
         if config.kind() == IntegratorKind::Smc {
             // SMC adapts between passes: the CLI's passes of 4 samples per pixel
@@ -260,11 +269,11 @@ fn expected<'a>(list: &'a [(&'static str, &'static str)], name: &str) -> Option<
 fn check_row(fam: &mut Family, row: &Row) {
     let reference = match row.reference {
         Reference::Integrator(kind) => {
-            let scene = load(row.name, &delta_tracking(&row.text));
+            let (scene, settings) = load(row.name, &delta_tracking(&row.text));
             let config = Config::Plain(kind);
             Some(
                 runs(
-                    &scene,
+                    (&scene, &settings),
                     config,
                     row.runs * REFERENCE_RUNS,
                     row.spp * REFERENCE_SPP,
@@ -277,7 +286,7 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         Reference::Exact(_) => None,
     };
-    let mut scene = load(row.name, &row.text);
+    let (mut scene, settings) = load(row.name, &row.text);
     for config in Config::all() {
         let name = config.name();
         let t0 = std::time::Instant::now();
@@ -299,9 +308,17 @@ fn check_row(fam: &mut Family, row: &Row) {
             (None, None) => {}
         }
         let spp = ((row.spp as f64 * config.spp_factor()).round() as u32).max(1);
-        let outcome = prepare(&mut scene, config, row.max_depth).and_then(|_| {
+        let outcome = prepare(&mut scene, &settings, config, row.max_depth).and_then(|_| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);
-            runs(&scene, config, k, spp, depth, ch, row.mlt_bootstrap)
+            runs(
+                (&scene, &settings),
+                config,
+                k,
+                spp,
+                depth,
+                ch,
+                row.mlt_bootstrap,
+            )
         });
         eprintln!(
             "{}: {name}: {spp} spp: {:.2} s",

@@ -28,7 +28,7 @@ fn layer(module: &str) -> Option<u32> {
 }
 
 /// (file under `src/`, module it reaches up to): the upward imports of today's house.
-const KNOWN_UPWARD: [(&str, &str, &str); 8] = [
+const KNOWN_UPWARD: [(&str, &str, &str); 5] = [
     (
         "enlightened/adjoint.rs",
         "integrator",
@@ -50,24 +50,9 @@ const KNOWN_UPWARD: [(&str, &str, &str); 8] = [
         "a vertex's direction density asks the scene's guide",
     ),
     (
-        "scene/build.rs",
-        "enlightened",
-        "the scene file's [render.guide] and [render.adjoint] tables build the enlightened settings",
-    ),
-    (
-        "scene/build.rs",
-        "integrator",
-        "the scene file's [render.mlt] and [render.smc] tables build integrator settings",
-    ),
-    (
         "scene/mod.rs",
         "enlightened",
         "the scene holds the installed guide and adjoint image",
-    ),
-    (
-        "scene/mod.rs",
-        "integrator",
-        "the scene holds every integrator's settings",
     ),
 ];
 

@@ -191,12 +191,12 @@ fn converge_guided(
     let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
     let mut rows = Vec::new();
     for run in 0..config.runs {
-        let (mut scene, _) = super::load_scene(Some(&args.scene))?;
-        let g = over.apply(args.guide.apply(scene.render.guide)?);
-        scene.render.guide = g;
+        let (mut scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
+        let g = over.apply(args.guide.apply(settings.guide)?);
+        settings.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();
-        let stats = crate::enlightened::guide::install(&mut scene, seed);
+        let stats = crate::enlightened::guide::install(&mut scene, &g, seed);
         let pre = t0.elapsed().as_secs_f64();
         if let Some(st) = &stats {
             eprint!("{}", st.table());
@@ -210,8 +210,13 @@ fn converge_guided(
             );
             continue;
         }
-        let mut part =
-            convergence::measure_run(&scene, reference, kind, seed, config.max_depth, &left, run)?;
+        let setup = crate::integrator::Setup {
+            scene: &scene,
+            settings: &settings,
+            seed,
+            max_depth: config.max_depth,
+        };
+        let mut part = convergence::measure_run(&setup, reference, kind, &left, run)?;
         for r in &mut part {
             r.integrator = guided_label(kind, &g);
             r.seconds += pre;
@@ -254,8 +259,8 @@ fn summary_line(c: &Curve) -> String {
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (mut scene, source) = super::load_scene(Some(&args.scene))?;
-    let adjoint = args.adjoint.apply(scene.render.adjoint)?;
+    let (mut scene, settings, source) = super::load_scene(Some(&args.scene))?;
+    let adjoint = args.adjoint.apply(settings.adjoint)?;
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
     let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();
@@ -311,8 +316,8 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
         budget: args.budget,
         checkpoints: args.checkpoints,
         runs: args.runs,
-        seed: args.seed.unwrap_or(scene.render.seed),
-        max_depth: scene.render.max_depth,
+        seed: args.seed.unwrap_or(settings.seed),
+        max_depth: settings.max_depth,
     };
     // fail on bad numbers before spending the budget
     convergence::checkpoint_times(config.budget, config.checkpoints)
@@ -341,6 +346,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
             rows = pool.install(|| {
                 convergence::converge_variants(
                     &mut scene,
+                    &settings,
                     &reference,
                     &variants,
                     &config,
@@ -356,7 +362,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     } else {
         for name in &args.propagation {
             let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
-            let (mut variant, _) = super::load_scene(Some(&args.scene))?;
+            let (mut variant, _, _) = super::load_scene(Some(&args.scene))?;
             if variant.set_line_integral(li) == 0 {
                 return Err(format!(
                     "--propagation: {} has no inhomogeneous medium",
@@ -364,7 +370,14 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
                 ));
             }
             let mut part = pool.install(|| {
-                convergence::converge(&variant, &reference, &kinds, &config, &mut report)
+                convergence::converge(
+                    &variant,
+                    &settings,
+                    &reference,
+                    &kinds,
+                    &config,
+                    &mut report,
+                )
             })?;
             for r in &mut part {
                 r.integrator = format!("{}/{}", r.integrator, li.name());

@@ -822,12 +822,12 @@ pub fn build_guide(scene: &Scene, settings: GuideSettings) -> Guide {
 }
 // ANCHOR_END: build_guide
 
-/// Builds the guide the scene's `render.guide` settings ask for (with `seed` for particles
-/// and clustering) and installs it in the scene; `None` when guiding is off. Any guide already
-/// installed is removed first, so the particles are traced with the unguided walks.
-pub fn install(scene: &mut Scene, seed: u64) -> Option<GuideStats> {
+/// Builds the guide `settings` ask for (with `seed` for particles and clustering) and installs
+/// it in the scene; `None` when guiding is off. Any guide already installed is removed first,
+/// so the particles are traced with the unguided walks.
+pub fn install(scene: &mut Scene, settings: &GuideSettings, seed: u64) -> Option<GuideStats> {
     scene.guide = None;
-    let mut settings = scene.render.guide;
+    let mut settings = *settings;
     if settings.kind == GuideKind::Off {
         return None;
     }

@@ -493,3 +493,66 @@ impl Mlt {
             .collect()
     }
 }
+
+/// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
+pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
+    Ok(Box::new(Mlt::new(
+        setup.scene,
+        setup.settings.mlt.clone(),
+        setup.seed,
+        setup.max_depth,
+    )?))
+}
+
+impl super::Integrator for Mlt {
+    fn label(&self) -> String {
+        "mlt".into()
+    }
+
+    /// Unused: MLT renders film-wide ([`Mlt::run`]).
+    fn camera_sample(
+        &self,
+        _scene: &Scene,
+        _cam: &crate::scene::Camera,
+        _raster: Vec2,
+        _sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
+
+    /// Unused: MLT renders the camera's image only (meters are not rendered).
+    fn meter_sample(
+        &self,
+        _scene: &Scene,
+        _meter: u32,
+        _sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
+
+    /// Film-wide: `spp` mutations per pixel over all chains.
+    fn film_pass(&mut self, scene: &Scene, film: &mut Film, spp: u32) -> Option<u64> {
+        let n = film.width as u64 * film.height as u64 * spp as u64;
+        self.run(scene, film, n);
+        film.spp += spp as u64;
+        Some(n)
+    }
+
+    /// The per-pixel variance of splats is not recorded.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
+
+    fn statistics(&self) -> super::Statistics {
+        super::Statistics {
+            mlt: Some((self.b, self.report())),
+            ..Default::default()
+        }
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}

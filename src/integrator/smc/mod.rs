@@ -419,3 +419,78 @@ impl Smc {
         self.octree.stats()
     }
 }
+
+/// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
+pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
+    Ok(Box::new(Smc::new(
+        setup.scene,
+        setup.settings.smc,
+        setup.max_depth,
+    )?))
+}
+
+impl super::Integrator for Smc {
+    fn label(&self) -> String {
+        format!(
+            "smc ({}, {})",
+            self.settings.variant.name(),
+            self.settings.form.name()
+        )
+    }
+
+    fn camera_sample(
+        &self,
+        scene: &Scene,
+        cam: &crate::scene::Camera,
+        raster: glam::Vec2,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.radiance(
+            scene,
+            cam.generate_ray(raster),
+            scene.camera_medium,
+            sampler,
+            &mut scratch.smc,
+            &mut scratch.records,
+        )
+    }
+
+    fn meter_sample(
+        &self,
+        scene: &Scene,
+        meter: u32,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.meter_irradiance(
+            scene,
+            &scene.sensors[meter as usize],
+            sampler,
+            &mut scratch.smc,
+            &mut scratch.records,
+        )
+    }
+
+    fn views_delta_lights(&self) -> bool {
+        true
+    }
+
+    /// [PWP08 Fig. 2 lines 13-14]: the pass's records refine the structure for the next pass.
+    fn end_pass(&mut self, records: &[Vec<Record>]) {
+        for r in records {
+            self.merge(r);
+        }
+    }
+
+    fn statistics(&self) -> super::Statistics {
+        super::Statistics {
+            smc: Some(self.stats()),
+            ..Default::default()
+        }
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
