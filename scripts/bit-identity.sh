@@ -61,14 +61,20 @@ record() {
   echo "recorded $(ls "$dir"/*.json | wc -l) renders and $(wc -l <"$dir/stats.tsv") comparisons in $dir"
 }
 
+# A record's JSON without its timings (every key starting with `seconds`, at any depth).
+untimed() {
+  jq -S 'walk(if type == "object" then with_entries(select(.key | startswith("seconds") | not)) else . end)' \
+    "$1" 2>/dev/null || cat "$1"
+}
+
 compare() {
   local a=$1 b=$2 bad=0 n=0
   for j in "$a"/*.json; do
     local name
     name=$(basename "$j" .json)
     n=$((n + 1))
-    if ! cmp -s "$j" "$b/$name.json"; then
-      echo "DIFFERENT: $name (json)"; diff "$j" "$b/$name.json" | head -5; bad=1
+    if ! cmp -s <(untimed "$j") <(untimed "$b/$name.json"); then
+      echo "DIFFERENT: $name (json)"; diff <(untimed "$j") <(untimed "$b/$name.json") | head -5; bad=1
     fi
     if [ -f "$a/$name.exr" ]; then
       local m
