@@ -257,15 +257,18 @@ fn summary_line(c: &Curve) -> String {
     s
 }
 
+/// The `+guide` lines: each kind with the guide parameters its name sets.
+type GuidedLines = Vec<(IntegratorKind, GuideOverride)>;
+
 /// The lines `--integrators` names: plain and `+adjoint` variants, and `+guide` lines with
 /// their overrides; checked against the other options.
 fn parse_lines(
     args: &ConvergeArgs,
     adjoint: crate::enlightened::AdjointSettings,
-) -> Result<(Vec<Variant>, Vec<(IntegratorKind, GuideOverride)>), String> {
+) -> Result<(Vec<Variant>, GuidedLines), String> {
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
-    let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();
+    let mut guided: GuidedLines = Vec::new();
     for s in &args.integrators {
         if s.contains("+guide") {
             let g = GuidedVariant::parse(s)?;
