@@ -2,7 +2,7 @@
 //! starts from, the `--smc-*` options override them key by key, and every bad value is
 //! reported at its file, line and key. Book: "SMC: experiments", section "Settings".
 
-use pathspace::cli::render::SmcArgs;
+use pathspace::cli::render::{smc_settings, SmcArgs};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneError, SceneSource};
@@ -98,27 +98,28 @@ fn options_override_the_keys() {
     let base = settings.smc;
     // no option: the scene's settings
     let none = SmcArgs::default();
-    assert_eq!(none.smc_settings(IntegratorKind::Smc, base), Ok(Some(base)));
+    assert_eq!(
+        smc_settings(&none, IntegratorKind::Smc, base),
+        Ok(Some(base))
+    );
     // one option replaces one key; the scene's march step carries over
     let args = SmcArgs {
-        smc_threshold: Some(99.0),
-        smc_estimator: Some("march".into()),
+        threshold: Some(99.0),
+        estimator: Some("march".into()),
         ..Default::default()
     };
-    let s = args
-        .smc_settings(IntegratorKind::Smc, base)
+    let s = smc_settings(&args, IntegratorKind::Smc, base)
         .unwrap()
         .unwrap();
     assert_eq!(s.threshold, 99.0);
     assert_eq!(s.variant, base.variant);
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.25 });
     let args = SmcArgs {
-        smc_variant: Some("is1_cv0".into()),
-        smc_estimator: Some("distance".into()),
+        variant: Some("is1_cv0".into()),
+        estimator: Some("distance".into()),
         ..Default::default()
     };
-    let s = args
-        .smc_settings(IntegratorKind::Smc, base)
+    let s = smc_settings(&args, IntegratorKind::Smc, base)
         .unwrap()
         .unwrap();
     assert_eq!(s.variant, Variant::parse("is1_cv0").unwrap());
@@ -127,16 +128,13 @@ fn options_override_the_keys() {
     // --smc-step on a scene whose estimator is distance
     let distance = load("estimator = \"distance\"\n").unwrap().1.smc;
     let args = SmcArgs {
-        smc_step: Some(0.5),
+        step: Some(0.5),
         ..Default::default()
     };
-    let e = args
-        .smc_settings(IntegratorKind::Smc, distance)
-        .unwrap_err();
+    let e = smc_settings(&args, IntegratorKind::Smc, distance).unwrap_err();
     assert!(e.contains("march"), "{e}");
     // and on the default (march) form it applies
-    let s = args
-        .smc_settings(IntegratorKind::Smc, SmcSettings::default())
+    let s = smc_settings(&args, IntegratorKind::Smc, SmcSettings::default())
         .unwrap()
         .unwrap();
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.5 });

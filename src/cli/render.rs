@@ -10,9 +10,9 @@ use std::path::PathBuf;
 
 use crate::enlightened::{AdjointImage, AdjointSettings};
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
+use crate::integrator::mlt::{mutation::MutationKind, MltOptions, MutationStats};
 use crate::integrator::session::{self, Job, Preprocessed};
-use crate::integrator::smc::{EstimatorForm, SmcSettings, Variant};
+use crate::integrator::smc::{SmcOptions, SmcSettings};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
 pub use crate::integrator::session::RenderResult;
@@ -30,20 +30,10 @@ pub struct RenderArgs {
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time")]
     pub mutations_per_pixel: Option<u32>,
-    /// MLT: independent chains (default: the scene's `[render.mlt] chains`).
-    #[arg(long = "mlt-chains", alias = "chains")]
-    pub chains: Option<u32>,
-    /// MLT: BDPT pre-pass samples n (default: `[render.mlt] bootstrap`).
-    #[arg(long = "mlt-bootstrap", alias = "bootstrap")]
-    pub bootstrap: Option<u64>,
-    /// MLT: BDPT samples per mutation that keep refining b during the run; 0 keeps the
-    /// pre-pass estimate (default: `[render.mlt] b_refine`, 1/32).
-    #[arg(long = "mlt-b-refine", alias = "b-refine")]
-    pub b_refine: Option<f64>,
-    /// MLT: mutation selection weights, e.g. `bidirectional=1,sensor=100,light=100`
-    /// (unnamed types get 0; default: `[render.mlt]`, all 1).
-    #[arg(long = "mlt-mutation-weights", alias = "mutation-weights")]
-    pub mutation_weights: Option<String>,
+    /// Options of the `mlt` integrator, each overriding its `[render.mlt]` key (boxed: they
+    /// are rarely given).
+    #[command(flatten)]
+    pub mlt: Box<MltOptions>,
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
@@ -75,9 +65,10 @@ pub struct RenderArgs {
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
-    /// Options of the `smc` integrator (boxed: they are rarely given).
+    /// Options of the `smc` integrator, each overriding its `[render.smc]` key (boxed: they
+    /// are rarely given).
     #[command(flatten)]
-    pub smc: Box<SmcArgs>,
+    pub smc: Box<SmcOptions>,
     /// Guided local sampling (bdpt, light, mlt).
     #[command(flatten)]
     pub guide: GuideArgs,
@@ -297,76 +288,31 @@ pub fn guides(kind: IntegratorKind) -> bool {
     )
 }
 
-/// The options of `--integrator smc`.
-#[derive(Args, Debug, Default, Clone)]
-pub struct SmcArgs {
-    /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
-    #[arg(long)]
-    pub smc_variant: Option<String>,
-    /// SMC: the refinement threshold on the average record count (default 64).
-    #[arg(long)]
-    pub smc_threshold: Option<f64>,
-    /// SMC: memory budget of the structure, bytes or with a KiB/MiB/GiB suffix (default 1GiB).
-    #[arg(long = "smc-cache-budget", alias = "cache-budget", value_parser = parse_bytes)]
-    pub cache_budget: Option<usize>,
-    /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
-    #[arg(long)]
-    pub smc_estimator: Option<String>,
-    /// SMC: the ray-marching step in mean free paths (default 1).
-    #[arg(long)]
-    pub smc_step: Option<f32>,
-}
+/// The options of `--integrator smc`: the `[render.smc]` schema.
+pub type SmcArgs = SmcOptions;
 
 /// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB` (shared with the scene key
 /// `[render.smc] cache_budget`).
 pub use crate::integrator::smc::parse_bytes;
 
-impl SmcArgs {
-    /// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an
-    /// error when they are invalid or given to another integrator.
-    pub fn smc_settings(
-        &self,
-        kind: IntegratorKind,
-        base: SmcSettings,
-    ) -> Result<Option<SmcSettings>, String> {
-        let given = self.smc_variant.is_some()
-            || self.smc_threshold.is_some()
-            || self.cache_budget.is_some()
-            || self.smc_estimator.is_some()
-            || self.smc_step.is_some();
-        if kind != IntegratorKind::Smc {
-            if given {
-                return Err(format!(
-                    "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
-                    kind.name()
-                ));
-            }
-            return Ok(None);
-        }
-        let mut s = base;
-        if let Some(v) = &self.smc_variant {
-            s.variant = Variant::parse(v)?;
-        }
-        if let Some(t) = self.smc_threshold {
-            s.threshold = t;
-        }
-        if let Some(b) = self.cache_budget {
-            s.budget = b;
-        }
-        // the step of the scene's march form carries over unless --smc-step replaces it
-        let base_step = match base.form {
-            EstimatorForm::RayMarching { step } => Some(step),
-            EstimatorForm::Distance => None,
-        };
-        let estimator = self.smc_estimator.as_deref().unwrap_or(base.form.name());
-        if self.smc_step.is_some() && estimator != "march" {
+/// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an error
+/// when they are invalid or given to another integrator.
+pub fn smc_settings(
+    options: &SmcOptions,
+    kind: IntegratorKind,
+    base: SmcSettings,
+) -> Result<Option<SmcSettings>, String> {
+    if kind != IntegratorKind::Smc {
+        if !options.is_empty() {
             return Err(format!(
-                "--smc-step applies to the march estimator, not `{estimator}`"
+                "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
+                kind.name()
             ));
         }
-        s.form = EstimatorForm::parse(estimator, self.smc_step.or(base_step))?;
-        Ok(Some(s))
+        return Ok(None);
     }
+    let flag = |k: &str| format!("--smc-{}", k.replace('_', "-"));
+    options.apply(base, &flag).map(Some).map_err(|e| e.message)
 }
 
 /// Parses `WxH`.
@@ -411,18 +357,7 @@ fn configure(
     mut settings: RenderSettings,
 ) -> Result<Plan, String> {
     let kind = IntegratorKind::parse(args.integrator.as_deref().unwrap_or(&settings.integrator))?;
-    if let Some(c) = args.chains {
-        settings.mlt.chains = c;
-    }
-    if let Some(n) = args.bootstrap {
-        settings.mlt.bootstrap = n;
-    }
-    if let Some(r) = args.b_refine {
-        settings.mlt.b_refine = r;
-    }
-    if let Some(w) = &args.mutation_weights {
-        settings.mlt.weights = crate::integrator::mlt::MltSettings::parse_weights(w)?;
-    }
+    args.mlt.apply(&mut settings.mlt);
     if kind == IntegratorKind::Mlt {
         settings.mlt.validate()?;
         crate::integrator::mlt::check_scene(scene)?;
@@ -445,7 +380,7 @@ fn configure(
             return Err(format!("--time {t} must be a positive number of seconds"));
         }
     }
-    if let Some(smc) = args.smc.smc_settings(kind, settings.smc)? {
+    if let Some(smc) = smc_settings(&args.smc, kind, settings.smc)? {
         if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, smc.variant) {
             eprintln!("warning: {w}");
         }

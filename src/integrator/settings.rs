@@ -4,11 +4,117 @@
 //! integrators' own structs) live with the integrators.
 //! Book: "Scenes" (the `[render]` table); tests: `tests/scene_errors.rs`, `tests/smc_settings.rs`.
 
+use serde::Deserialize;
+
 use crate::enlightened::{AdjointSettings, GuideSettings};
-use crate::integrator::mlt::MltSettings;
-use crate::integrator::smc::SmcSettings;
+use crate::integrator::mlt::{MltOptions, MltSettings};
+use crate::integrator::smc::{SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
 use crate::scene::{Scene, SceneError, SceneSource};
+
+/// The render settings' view of a scene file: its `[render]` table (the rest is the scene's).
+#[derive(Debug, Clone, Default, Deserialize)]
+struct RenderFile {
+    #[serde(default)]
+    render: RenderDesc,
+}
+
+/// `[render]`: the scene file's defaults for the command-line options.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDesc {
+    #[serde(default = "default_integrator")]
+    pub integrator: String,
+    #[serde(default = "default_spp")]
+    pub spp: u32,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    pub max_depth: Option<u32>,
+    /// Samples per irradiance meter per pixel-sample pass (default 4096).
+    pub meter_samples: Option<u32>,
+    /// `[render.mlt]`: Metropolis light transport settings (the `--mlt-*` options).
+    pub mlt: Option<MltOptions>,
+    /// `[render.smc]`: sequential Monte Carlo settings (the `--smc-*` options).
+    pub smc: Option<SmcOptions>,
+    /// `[render.guide]`: guided local sampling (enlightened local path sampling).
+    pub guide: Option<GuideDesc>,
+    /// Sample area-light start points from the adjoint image (bdpt, light, mlt; Kristensen
+    /// 2010, sec. 5.3.1).
+    pub adjoint_image: Option<bool>,
+    /// `[render.adjoint]`: the adjoint image's grid, pre-pass size and floor.
+    pub adjoint: Option<AdjointDesc>,
+}
+
+/// `[render.adjoint]`: the keys of the `--adjoint-*` options (defaults in
+/// `enlightened::adjoint`), which override them.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AdjointDesc {
+    /// Grid [columns, rows]; columns are rounded up to a multiple of the area lights.
+    pub resolution: Option<[u32; 2]>,
+    /// Pre-pass BDPT samples per grid cell.
+    pub samples_per_cell: Option<u32>,
+    /// Floor added to every cell, as a fraction of the mean cell value.
+    pub epsilon: Option<f32>,
+    /// `bdpt` (default) or `metropolis`: how the pre-pass estimates the cells.
+    pub estimator: Option<String>,
+}
+
+/// `[render.guide]`: the keys of the `--guide*` options (defaults in `enlightened::guide`),
+/// which override them.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GuideDesc {
+    /// `off`, `surface`, `volume` or `both`.
+    pub vertices: Option<String>,
+    /// Map resolution `COLSxROWS` (default `32x16`).
+    pub map: Option<String>,
+    /// Regions per quantity (k-means centres).
+    pub regions: Option<usize>,
+    /// Light and eye subpaths traced for the photons and importons.
+    pub particles: Option<usize>,
+    /// c2 of eqs. (5.17)-(5.19): probability of sampling the map, in (0, 1).
+    pub weight: Option<f32>,
+    /// alpha of eq. (5.16) per unit length (default 20 / scene radius).
+    pub alpha: Option<f32>,
+    /// Guided Russian roulette with this normalization (absent: the ordinary roulette).
+    pub roulette: Option<f32>,
+    /// Only particles at this depth or deeper shape the maps (1: all, 2: indirect only).
+    pub min_depth: Option<u32>,
+    /// Particle sampler: `classical`, `bidirectional` or `metropolis`.
+    pub sampler: Option<String>,
+    /// Metropolis particles: small-step deviation in primary sample space.
+    pub sigma: Option<f64>,
+    /// Metropolis particles: weight of the defensive part of the target.
+    pub defensive: Option<f64>,
+}
+
+fn default_integrator() -> String {
+    "path".into()
+}
+fn default_spp() -> u32 {
+    64
+}
+fn default_seed() -> u64 {
+    1
+}
+
+impl Default for RenderDesc {
+    fn default() -> Self {
+        RenderDesc {
+            integrator: default_integrator(),
+            spp: default_spp(),
+            seed: default_seed(),
+            max_depth: None,
+            meter_samples: None,
+            mlt: None,
+            smc: None,
+            guide: None,
+            adjoint_image: None,
+            adjoint: None,
+        }
+    }
+}
 
 /// Default number of irradiance-meter samples per pass.
 pub const DEFAULT_METER_SAMPLES: u32 = 4096;
@@ -40,7 +146,7 @@ impl RenderSettings {
     pub fn for_scene(scene: &Scene) -> Self {
         Self::from_desc(
             &SceneSource::embedded("defaults", ""),
-            &file::RenderDesc::default(),
+            &RenderDesc::default(),
             scene.radius,
         )
         .expect("the defaults are valid")
@@ -49,15 +155,11 @@ impl RenderSettings {
     /// The settings of `src`'s `[render]` table for a scene of radius `radius`, every value
     /// checked and a bad one reported at its line and key.
     pub fn from_source(src: &SceneSource, radius: f32) -> Result<Self, SceneError> {
-        let desc = file::parse(&src.text, &src.name)?;
+        let desc: RenderFile = file::parse_as(&src.text, &src.name)?;
         Self::from_desc(src, &desc.render, radius)
     }
 
-    fn from_desc(
-        src: &SceneSource,
-        desc: &file::RenderDesc,
-        radius: f32,
-    ) -> Result<Self, SceneError> {
+    fn from_desc(src: &SceneSource, desc: &RenderDesc, radius: f32) -> Result<Self, SceneError> {
         let render = RenderSettings {
             integrator: desc.integrator.clone(),
             spp: desc.spp,
@@ -87,41 +189,11 @@ pub fn load(src: &SceneSource) -> Result<(Scene, RenderSettings), SceneError> {
     Ok((scene, settings))
 }
 
-/// MLT settings from `[render.mlt]`, defaults where a key is absent.
-fn mlt_settings(desc: Option<&file::MltDesc>) -> MltSettings {
+/// MLT settings from `[render.mlt]`, defaults where a key is absent (checked by the caller).
+fn mlt_settings(desc: Option<&MltOptions>) -> MltSettings {
     let mut m = MltSettings::default();
-    let Some(d) = desc else { return m };
-    if let Some(v) = d.bootstrap {
-        m.bootstrap = v;
-    }
-    if let Some(v) = d.chains {
-        m.chains = v;
-    }
-    if let Some(v) = d.b_refine {
-        m.b_refine = v;
-    }
-    for (i, w) in [
-        d.bidirectional,
-        d.sensor,
-        d.light,
-        d.propagation,
-        d.multichain,
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        if let Some(w) = w {
-            m.weights[i] = w;
-        }
-    }
-    if let Some([a, b]) = d.sensor_offset {
-        m.sensor_offset = (a, b);
-    }
-    if let Some([a, b]) = d.light_angle {
-        m.light_angle = (a, b);
-    }
-    if let Some([a, b]) = d.propagation_distance {
-        m.propagation_distance = (a, b);
+    if let Some(d) = desc {
+        d.apply(&mut m);
     }
     m
 }
@@ -130,7 +202,7 @@ fn mlt_settings(desc: Option<&file::MltDesc>) -> MltSettings {
 /// here so that a bad one is reported at its line and key.
 fn guide_settings(
     src: &SceneSource,
-    desc: Option<&file::GuideDesc>,
+    desc: Option<&GuideDesc>,
     radius: f32,
 ) -> Result<GuideSettings, SceneError> {
     use crate::enlightened::GuideKind;
@@ -195,7 +267,7 @@ fn guide_settings(
 /// is checked here so a bad one is reported at its line and key.
 fn adjoint_settings(
     src: &SceneSource,
-    desc: Option<&file::AdjointDesc>,
+    desc: Option<&AdjointDesc>,
 ) -> Result<AdjointSettings, SceneError> {
     let mut s = AdjointSettings::default();
     let Some(d) = desc else { return Ok(s) };
@@ -236,59 +308,10 @@ fn adjoint_settings(
 
 /// SMC settings from `[render.smc]`, defaults where a key is absent; every value is checked
 /// here so that a bad one is reported at its line and key.
-fn smc_settings(
-    src: &SceneSource,
-    desc: Option<&file::SmcDesc>,
-) -> Result<SmcSettings, SceneError> {
-    use crate::integrator::smc::{parse_bytes, EstimatorForm, Variant};
-    let mut s = SmcSettings::default();
-    let Some(d) = desc else { return Ok(s) };
-    let key = |k: &str| path("render").key("smc").key(k);
-    if let Some(v) = &d.variant {
-        s.variant = Variant::parse(v).map_err(|e| src.error(&key("variant"), e))?;
-    }
-    if let Some(t) = d.threshold {
-        if !(t.is_finite() && t > 0.0) {
-            return Err(src.error(
-                &key("threshold"),
-                format!("threshold = {t} must be a positive number of records"),
-            ));
-        }
-        s.threshold = t;
-    }
-    if let Some(b) = &d.cache_budget {
-        let bytes = match b {
-            file::ByteCount::Bytes(n) => {
-                usize::try_from(*n).map_err(|_| format!("cache_budget = {n} is not a byte count"))
-            }
-            file::ByteCount::Text(t) => parse_bytes(t),
-        }
-        .map_err(|e| src.error(&key("cache_budget"), e))?;
-        let root = crate::integrator::smc::cache::RadianceCache::root().bytes();
-        if bytes < root {
-            return Err(src.error(
-                &key("cache_budget"),
-                format!(
-                    "cache_budget = {bytes} bytes cannot hold even the root cache ({root} bytes)"
-                ),
-            ));
-        }
-        s.budget = bytes;
-    }
-    let estimator = d.estimator.as_deref().unwrap_or(s.form.name());
-    if d.step.is_some() && estimator != "march" {
-        return Err(src.error(
-            &key("step"),
-            format!("step applies to the march estimator, not `{estimator}`"),
-        ));
-    }
-    s.form = EstimatorForm::parse(estimator, d.step).map_err(|e| {
-        let k = if d.estimator.is_some() && !matches!(estimator, "march" | "distance") {
-            "estimator"
-        } else {
-            "step"
-        };
-        src.error(&key(k), e)
-    })?;
-    Ok(s)
+fn smc_settings(src: &SceneSource, desc: Option<&SmcOptions>) -> Result<SmcSettings, SceneError> {
+    let Some(d) = desc else {
+        return Ok(SmcSettings::default());
+    };
+    d.apply(SmcSettings::default(), &|k| k.to_string())
+        .map_err(|e| src.error(&path("render").key("smc").key(e.key), e.message))
 }

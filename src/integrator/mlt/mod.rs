@@ -158,6 +158,111 @@ impl MltSettings {
     }
 }
 
+/// The MLT options, declared once: the `[render.mlt]` keys (serde) and the `--mlt-*` flags
+/// (clap) are the same fields, with the same docs; [`MltOptions::apply`] puts them over the
+/// settings (the file's over the defaults, the flags over the file's) and
+/// [`MltSettings::validate`] checks the result. The flags without a prefix of earlier releases
+/// (`--chains`, `--bootstrap`, `--b-refine`, `--mutation-weights`) are hidden aliases.
+#[derive(clap::Args, serde::Deserialize, Debug, Clone, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MltOptions {
+    /// MLT: BDPT pre-pass samples n that estimate b (default 16384).
+    #[arg(long = "mlt-bootstrap", alias = "bootstrap")]
+    pub bootstrap: Option<u64>,
+    /// MLT: independent chains (default 16).
+    #[arg(long = "mlt-chains", alias = "chains")]
+    pub chains: Option<u32>,
+    /// MLT: BDPT samples per mutation that keep refining b during the run; 0 keeps the
+    /// pre-pass estimate (default 1/32).
+    #[arg(long = "mlt-b-refine", alias = "b-refine")]
+    pub b_refine: Option<f64>,
+    /// MLT: selection weight of the bidirectional mutation (default 1).
+    #[arg(long = "mlt-bidirectional")]
+    pub bidirectional: Option<f64>,
+    /// MLT: selection weight of the sensor (lens) perturbation (default 1).
+    #[arg(long = "mlt-sensor")]
+    pub sensor: Option<f64>,
+    /// MLT: selection weight of the light (caustic) perturbation (default 1).
+    #[arg(long = "mlt-light")]
+    pub light: Option<f64>,
+    /// MLT: selection weight of the propagation perturbation (default 1).
+    #[arg(long = "mlt-propagation")]
+    pub propagation: Option<f64>,
+    /// MLT: selection weight of the multi-chain perturbation (default 1).
+    #[arg(long = "mlt-multichain")]
+    pub multichain: Option<f64>,
+    /// MLT: every mutation selection weight at once, e.g. `bidirectional=1,sensor=100,light=100`
+    /// (unnamed types get 0; the per-type options above override it).
+    #[arg(long = "mlt-mutation-weights", alias = "mutation-weights", value_parser = MltSettings::parse_weights)]
+    #[serde(skip)]
+    pub mutation_weights: Option<[f64; 5]>,
+    /// MLT: sensor perturbation film offset MIN,MAX in pixels (default 0.1,25).
+    #[arg(long = "mlt-sensor-offset", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub sensor_offset: Option<[f32; 2]>,
+    /// MLT: light and multi-chain perturbation angle MIN,MAX in radians (default 1e-4,0.1).
+    #[arg(long = "mlt-light-angle", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub light_angle: Option<[f32; 2]>,
+    /// MLT: propagation perturbation distance MIN,MAX as fractions of the scene radius
+    /// (default 4e-4,0.1).
+    #[arg(long = "mlt-propagation-distance", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub propagation_distance: Option<[f32; 2]>,
+}
+
+/// Parses `MIN,MAX` (a perturbation range).
+pub fn parse_range(s: &str) -> Result<[f32; 2], String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}` is not MIN,MAX"))?;
+    let num = |v: &str| {
+        v.trim()
+            .parse::<f32>()
+            .map_err(|_| format!("`{v}` in `{s}` is not a number"))
+    };
+    Ok([num(a)?, num(b)?])
+}
+
+impl MltOptions {
+    /// `base` with every given option replacing its setting (unchecked: see
+    /// [`MltSettings::validate`]).
+    pub fn apply(&self, base: &mut MltSettings) {
+        if let Some(v) = self.bootstrap {
+            base.bootstrap = v;
+        }
+        if let Some(v) = self.chains {
+            base.chains = v;
+        }
+        if let Some(v) = self.b_refine {
+            base.b_refine = v;
+        }
+        if let Some(w) = self.mutation_weights {
+            base.weights = w;
+        }
+        for (i, w) in [
+            self.bidirectional,
+            self.sensor,
+            self.light,
+            self.propagation,
+            self.multichain,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if let Some(w) = w {
+                base.weights[i] = w;
+            }
+        }
+        if let Some([a, b]) = self.sensor_offset {
+            base.sensor_offset = (a, b);
+        }
+        if let Some([a, b]) = self.light_angle {
+            base.light_angle = (a, b);
+        }
+        if let Some([a, b]) = self.propagation_distance {
+            base.propagation_distance = (a, b);
+        }
+    }
+}
+
 /// The set of mutations with their parameters.
 pub struct Mutations {
     pub bidirectional: Bidirectional,
