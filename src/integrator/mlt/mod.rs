@@ -45,7 +45,7 @@ use mutation::{
 const CHAIN_STREAM_SALT: u64 = 0x0063_6861_696e_0000;
 /// Seed draws a chain tries before giving up (a pre-pass path whose f is zero when re-evaluated
 /// with singular vertices checked, e.g. a specular relation off by more than the tolerance).
-const MAX_SEED_DRAWS: usize = 64;
+pub const DEFAULT_SEED_DRAWS: u32 = 64;
 
 /// MLT settings (the scene's `[render.mlt]` table and the CLI flags).
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +65,8 @@ pub struct MltSettings {
     /// BDPT samples per mutation that keep refining the estimate of b during the run (0: b is
     /// the pre-pass estimate b_n for the whole run, as in sec. 5.1).
     pub b_refine: f64,
+    /// Pre-pass paths a chain draws for its seed before it gives up (`DEFAULT_SEED_DRAWS`).
+    pub seed_draws: u32,
 }
 
 /// Default pre-pass size ([K] draws 65536; a quarter keeps previews quick).
@@ -95,6 +97,7 @@ impl Default for MltSettings {
             light_angle: DEFAULT_LIGHT_ANGLE,
             propagation_distance: DEFAULT_PROPAGATION_DISTANCE,
             b_refine: DEFAULT_B_REFINE,
+            seed_draws: DEFAULT_SEED_DRAWS,
         }
     }
 }
@@ -121,6 +124,9 @@ impl MltSettings {
                 "mlt b_refine = {} must be finite and >= 0 (BDPT samples per mutation)",
                 self.b_refine
             ));
+        }
+        if self.seed_draws == 0 {
+            return Err("mlt seed_draws must be at least 1".into());
         }
         if self.weights.iter().sum::<f64>() <= 0.0 {
             return Err("at least one mutation weight must be positive".into());
@@ -206,6 +212,10 @@ pub struct MltOptions {
     /// (default 4e-4,0.1).
     #[arg(long = "mlt-propagation-distance", value_name = "MIN,MAX", value_parser = parse_range)]
     pub propagation_distance: Option<[f32; 2]>,
+    /// MLT: pre-pass paths a chain draws for its seed before it gives up (default 64; more for
+    /// scenes whose pre-pass paths often fail the re-evaluation, e.g. near-specular relations).
+    #[arg(long = "mlt-seed-draws")]
+    pub seed_draws: Option<u32>,
 }
 
 /// Parses `MIN,MAX` (a perturbation range).
@@ -259,6 +269,9 @@ impl MltOptions {
         }
         if let Some([a, b]) = self.propagation_distance {
             base.propagation_distance = (a, b);
+        }
+        if let Some(n) = self.seed_draws {
+            base.seed_draws = n;
         }
     }
 }
@@ -442,7 +455,7 @@ impl Mlt {
             .into_par_iter()
             .map(|c| {
                 let mut sampler = Sampler::new(self.seed, CHAIN_STREAM_SALT ^ c, 0);
-                for _ in 0..MAX_SEED_DRAWS {
+                for _ in 0..self.settings.seed_draws {
                     let cand = boot.select(sampler.next_f64())?;
                     let Some(x) = Bootstrap::path_of(scene, &self.bdpt, self.seed, cand) else {
                         continue;
