@@ -219,7 +219,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                         last.push(((m - ref_var).max(f64::MIN_POSITIVE), seconds));
                     }
                 }
-                if let Some(smc) = &r.smc {
+                if let Some(smc) = r.smc() {
                     last_stats = smc.stats().to_string();
                 }
                 Ok(())
@@ -479,7 +479,7 @@ fn leaf(scene_path: &str, spp: &str, out: &str) -> Result<(), String> {
     for _ in 0..spp.div_ceil(FIRST_SPP) {
         r.pass(FIRST_SPP, &|| {});
     }
-    let smc = r.smc.as_ref().ok_or("no SMC state")?;
+    let smc = r.smc().ok_or("no SMC state")?;
     let cache = smc.octree.cache(scene.bounds.centroid());
     let grid = cache.grid();
     let (w, h) = (LEAF_FIGURE_WIDTH, LEAF_FIGURE_WIDTH / 2);

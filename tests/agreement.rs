@@ -25,7 +25,7 @@ use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
 use pathspace::scene::{Scene, SceneSource};
 
@@ -34,13 +34,13 @@ fn fixture_dir() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement")
 }
 
-fn load(name: &str, text: &str) -> Scene {
+fn load(name: &str, text: &str) -> (Scene, RenderSettings) {
     let source = SceneSource {
         name: name.to_string(),
         text: text.to_string(),
         base_dir: fixture_dir(),
     };
-    Scene::load(&source).unwrap_or_else(|e| panic!("{e}"))
+    pathspace::integrator::settings::load(&source).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn fixture(name: &str) -> String {
@@ -126,22 +126,21 @@ fn mlt_settings(bootstrap: u64) -> MltSettings {
 
 /// Builds the technique a column needs: the guide or the adjoint image (or neither).
 fn prepare(
-    scene: &mut Scene,
+    scene: &Scene,
+    settings: &RenderSettings,
     config: Config,
     max_depth: Option<u32>,
 ) -> Result<Enlightened, String> {
     let mut technique = Enlightened::default();
     match config {
         Config::Guided(_) => {
-            let mut g = scene.render.guide;
+            let mut g = settings.guide;
             g.kind = GuideKind::Both;
             g.particles = 4000;
             g.regions.regions = 32;
             g.cols = 8;
             g.rows = 4;
-            scene.render.guide = g;
-            technique.install_guide(scene, 0x6775_6964);
-            scene.render.guide.kind = GuideKind::Off;
+            technique.install_guide(scene, &g, 0x6775_6964);
         }
         Config::Adjoint(_) => {
             let settings = AdjointSettings {
@@ -182,7 +181,7 @@ fn functionals(r: &Renderer, channels: usize) -> Vec<f64> {
 
 /// `k` runs of a column with its technique: each run's functionals, or the refusal.
 fn runs(
-    (scene, technique): (&Scene, &dyn LocalSampling),
+    (scene, technique, settings): (&Scene, &dyn LocalSampling, &RenderSettings),
     config: Config,
     k: u64,
     spp: u32,
@@ -193,7 +192,14 @@ fn runs(
     let mut out = Vec::new();
     for run in 0..k {
         let seed = 1000 + run;
-        let mut r = Renderer::try_with(scene, technique, config.kind(), seed, max_depth)?;
+        let setup = Setup {
+            scene,
+            technique,
+            settings,
+            seed,
+            max_depth,
+        };
+        let mut r = Renderer::prepared(config.kind(), &setup)?;
         if let Config::Smc(variant, form) = config {
             r = r.with_smc_settings(SmcSettings {
                 variant,
@@ -202,7 +208,7 @@ fn runs(
             })?;
         }
         if config.kind() == IntegratorKind::Mlt {
-            r.mlt = Some(Mlt::new(
+            r.integrator = Box::new(Mlt::new(
                 scene,
                 technique,
                 mlt_settings(bootstrap),
@@ -270,11 +276,11 @@ fn expected<'a>(list: &'a [(&'static str, &'static str)], name: &str) -> Option<
 fn check_row(fam: &mut Family, row: &Row) {
     let reference = match row.reference {
         Reference::Integrator(kind) => {
-            let scene = load(row.name, &delta_tracking(&row.text));
+            let (scene, settings) = load(row.name, &delta_tracking(&row.text));
             let config = Config::Plain(kind);
             Some(
                 runs(
-                    (&scene, &PLAIN),
+                    (&scene, &PLAIN, &settings),
                     config,
                     row.runs * REFERENCE_RUNS,
                     row.spp * REFERENCE_SPP,
@@ -287,7 +293,7 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         Reference::Exact(_) => None,
     };
-    let mut scene = load(row.name, &row.text);
+    let (scene, settings) = load(row.name, &row.text);
     for config in Config::all() {
         let name = config.name();
         let t0 = std::time::Instant::now();
@@ -309,10 +315,10 @@ fn check_row(fam: &mut Family, row: &Row) {
             (None, None) => {}
         }
         let spp = ((row.spp as f64 * config.spp_factor()).round() as u32).max(1);
-        let outcome = prepare(&mut scene, config, row.max_depth).and_then(|technique| {
+        let outcome = prepare(&scene, &settings, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);
             runs(
-                (&scene, &technique),
+                (&scene, &technique, &settings),
                 config,
                 k,
                 spp,

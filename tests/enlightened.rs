@@ -754,7 +754,9 @@ fn bad_adjoint_settings_are_clear_errors() {
         ),
     ] {
         let text = format!("{base}\n{extra}");
-        let e = match Scene::load(&SceneSource::embedded("bad.toml", &text)) {
+        let e = match pathspace::integrator::settings::load(&SceneSource::embedded(
+            "bad.toml", &text,
+        )) {
             Ok(_) => panic!("loaded with {extra}"),
             Err(e) => e,
         };

@@ -643,10 +643,10 @@ fn guide_off_changes_nothing() {
 fn render_guide_table_is_parsed_and_checked() {
     let load = |extra: &str| {
         let text = format!("{}\n[render.guide]\n{extra}\n", pathspace::scene::FOG_BOX);
-        Scene::load(&SceneSource::embedded("guide.toml", &text))
+        pathspace::integrator::settings::load(&SceneSource::embedded("guide.toml", &text))
     };
     let s = load("vertices = \"both\"\nmap = \"16x8\"\nregions = 128\nparticles = 1000\nweight = 0.25\nroulette = 2.0\nsampler = \"metropolis\"\nsigma = 0.03\ndefensive = 0.25").unwrap();
-    let g = s.render.guide;
+    let g = s.1.guide;
     assert_eq!(
         g.sampler,
         pathspace::enlightened::guide::ParticleSampler::Metropolis

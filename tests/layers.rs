@@ -28,28 +28,7 @@ fn layer(module: &str) -> Option<u32> {
 }
 
 /// (file under `src/`, module it reaches up to): the upward imports of today's house.
-const KNOWN_UPWARD: [(&str, &str, &str); 4] = [
-    (
-        "scene/build.rs",
-        "enlightened",
-        "the scene file's [render.guide] and [render.adjoint] tables build the enlightened settings",
-    ),
-    (
-        "scene/build.rs",
-        "integrator",
-        "the scene file's [render.mlt] and [render.smc] tables build integrator settings",
-    ),
-    (
-        "scene/mod.rs",
-        "enlightened",
-        "the scene's render settings hold the guide's and the adjoint image's settings",
-    ),
-    (
-        "scene/mod.rs",
-        "integrator",
-        "the scene holds every integrator's settings",
-    ),
-];
+const KNOWN_UPWARD: [(&str, &str, &str); 0] = [];
 
 /// Every `crate::module` a source file names, by module.
 fn crate_paths(text: &str) -> BTreeSet<String> {

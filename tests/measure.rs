@@ -212,8 +212,10 @@ fn converge_writes_the_csv_and_charts() {
         max_depth: None,
     };
     let mut runs_heard = 0;
+    let settings = pathspace::integrator::RenderSettings::for_scene(&scene);
     let rows = convergence::converge(
         &scene,
+        &settings,
         &exact(1.0),
         &[IntegratorKind::Path],
         &config,

@@ -243,14 +243,14 @@ fn bad_mlt_settings_are_clear_errors() {
     assert!(err.contains("unknown mutation `lens`"), "{err}");
     let text =
         pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nchains = 0");
-    let err = Scene::load(&SceneSource::embedded("bad", &text))
+    let err = pathspace::integrator::settings::load(&SceneSource::embedded("bad", &text))
         .err()
         .unwrap()
         .to_string();
     assert!(err.contains("chains"), "{err}");
     let text =
         pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nsensor = -1.0");
-    assert!(Scene::load(&SceneSource::embedded("bad", &text)).is_err());
+    assert!(pathspace::integrator::settings::load(&SceneSource::embedded("bad", &text)).is_err());
 }
 
 /// The chain re-evaluates f(y) reusing the edge factors of x for the edges y shares with it

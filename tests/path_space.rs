@@ -511,11 +511,13 @@ fn meter(
     seed: u64,
     max_depth: Option<u32>,
     only: Option<(usize, usize)>,
-    spp: u32,
+    (spp, meter_samples): (u32, u64),
 ) -> (f64, f64, f64) {
     let mut r = Renderer::new(scene, kind, seed, max_depth);
+    // the scene's `[render] meter_samples` (the renderer starts from the defaults)
+    r.meter_samples = meter_samples;
     if let Some((s, t)) = only {
-        r.bdpt = Some(Bdpt::new(
+        r.integrator = Box::new(Bdpt::new(
             scene,
             &pathspace::path::PLAIN,
             max_depth,
@@ -542,8 +544,15 @@ fn every_strategy_alone_is_unbiased() {
     let scene = room();
     let mut fam = Family::new("path space: every strategy alone");
     for k in 1u32..=2 {
-        let a = meter(&scene, IntegratorKind::Path, 11, Some(k), None, 64);
-        let b = meter(&scene, IntegratorKind::Path, 12, Some(k - 1), None, 64);
+        let a = meter(&scene, IntegratorKind::Path, 11, Some(k), None, (64, 1024));
+        let b = meter(
+            &scene,
+            IntegratorKind::Path,
+            12,
+            Some(k - 1),
+            None,
+            (64, 1024),
+        );
         let truth = difference(a, b);
         for s in 0..=(k as usize + 1) {
             let t = k as usize + 2 - s;
@@ -553,7 +562,7 @@ fn every_strategy_alone_is_unbiased() {
                 13 + s as u64,
                 Some(k),
                 Some((s, t)),
-                16,
+                (16, 1024),
             );
             fam.means_agree(
                 &format!("strategy ({s}, {t}) at depth {k} vs the path tracer"),
@@ -571,9 +580,9 @@ fn every_strategy_alone_is_unbiased() {
 fn bdpt_light_and_path_agree() {
     let scene = room();
     let mut fam = Family::new("path space: bdpt, light and path agree");
-    let p = meter(&scene, IntegratorKind::Path, 1, None, None, 32);
+    let p = meter(&scene, IntegratorKind::Path, 1, None, None, (32, 1024));
     for kind in [IntegratorKind::Bdpt, IntegratorKind::Light] {
-        let x = meter(&scene, kind, 2, None, None, 32);
+        let x = meter(&scene, kind, 2, None, None, (32, 1024));
         fam.means_agree(&format!("room: {kind:?} vs path"), x, p);
     }
     let slab = Scene::load(
@@ -642,8 +651,8 @@ v = [0.1, 0.0, 0.0]
     ))
     .unwrap();
     let mut fam = Family::new("path space: refraction out of an absorbing box");
-    let p = meter(&scene, IntegratorKind::Path, 1, Some(8), None, 8);
-    let b = meter(&scene, IntegratorKind::Bdpt, 2, Some(8), None, 8);
+    let p = meter(&scene, IntegratorKind::Path, 1, Some(8), None, (8, 4096));
+    let b = meter(&scene, IntegratorKind::Bdpt, 2, Some(8), None, (8, 4096));
     assert!(p.0 > 0.0, "no light reaches the meter: {p:?}");
     fam.means_agree("bdpt vs path", b, p);
     fam.finish();

@@ -37,7 +37,8 @@ fn fixtures() -> PathBuf {
 fn load(name: &str, text: &str) -> Result<Scene, SceneError> {
     let mut src = SceneSource::embedded(name, text);
     src.base_dir = fixtures();
-    Scene::load(&src)
+    // the scene and its `[render]` settings, each checked
+    pathspace::integrator::settings::load(&src).map(|(scene, _)| scene)
 }
 
 /// Loads `BASE + extra`, expects an error at line `BASE_LINES + line` (of `extra`, 1-based)

@@ -548,7 +548,7 @@ fn mlt_refuses_a_scene_without_a_camera() {
         .err()
         .expect("MLT must refuse a scene without a camera");
     assert!(
-        err.contains("camera"),
+        err.to_string().contains("camera"),
         "the refusal names the camera: {err}"
     );
 }

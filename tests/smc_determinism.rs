@@ -28,7 +28,7 @@ fn render(threads: usize, seed: u64, form: EstimatorForm) -> (Vec<[f64; 3]>, Oct
         for _ in 0..4 {
             r.pass(2, &|| {});
         }
-        let stats = r.smc.as_ref().unwrap().stats();
+        let stats = r.smc().unwrap().stats();
         (r.film.unwrap().sum, stats)
     })
 }

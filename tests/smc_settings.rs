@@ -2,9 +2,9 @@
 //! starts from, the `--smc-*` options override them key by key, and every bad value is
 //! reported at its file, line and key. Book: "SMC: experiments", section "Settings".
 
-use pathspace::cli::render::SmcArgs;
+use pathspace::cli::render::{smc_settings, SmcArgs};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneError, SceneSource};
 
 /// A valid scene of 17 lines ending in `[render.smc]`: a key appended is line 18.
@@ -28,8 +28,8 @@ integrator = "smc"
 "#;
 const BASE_LINES: usize = 17;
 
-fn load(extra: &str) -> Result<Scene, SceneError> {
-    Scene::load(&SceneSource::embedded(
+fn load(extra: &str) -> Result<(Scene, RenderSettings), SceneError> {
+    pathspace::integrator::settings::load(&SceneSource::embedded(
         "smc.toml",
         &format!("{BASE}{extra}"),
     ))
@@ -58,12 +58,12 @@ fn expect_error(extra: &str, line: usize, key: &str, words: &[&str]) {
 #[test]
 fn base_has_the_stated_length_and_default_settings() {
     assert_eq!(BASE.lines().count(), BASE_LINES);
-    assert_eq!(load("").unwrap().render.smc, SmcSettings::default());
+    assert_eq!(load("").unwrap().1.smc, SmcSettings::default());
 }
 
 #[test]
 fn keys_become_the_settings() {
-    let scene = load(
+    let (_, settings) = load(
         "variant = \"is0_cv1\"\nthreshold = 12.5\ncache_budget = \"3MiB\"\nestimator = \"march\"\nstep = 0.25\n",
     )
     .unwrap();
@@ -73,64 +73,69 @@ fn keys_become_the_settings() {
         budget: 3 << 20,
         form: EstimatorForm::RayMarching { step: 0.25 },
     };
-    assert_eq!(scene.render.smc, want);
+    assert_eq!(settings.smc, want);
     // an integer budget, and the distance form
-    let scene = load("cache_budget = 5000000\nestimator = \"distance\"\n").unwrap();
-    assert_eq!(scene.render.smc.budget, 5_000_000);
-    assert_eq!(scene.render.smc.form, EstimatorForm::Distance);
+    let (_, settings) = load("cache_budget = 5000000\nestimator = \"distance\"\n").unwrap();
+    assert_eq!(settings.smc.budget, 5_000_000);
+    assert_eq!(settings.smc.form, EstimatorForm::Distance);
     // the renderer starts from the scene's settings
-    let scene = load("variant = \"is0_cv2\"\nthreshold = 7\n").unwrap();
-    let r = Renderer::new(&scene, IntegratorKind::Smc, 1, None);
-    let smc = r.smc.as_ref().expect("an smc renderer");
+    let (scene, settings) = load("variant = \"is0_cv2\"\nthreshold = 7\n").unwrap();
+    let setup = Setup {
+        scene: &scene,
+        technique: &pathspace::path::PLAIN,
+        settings: &settings,
+        seed: 1,
+        max_depth: None,
+    };
+    let r = Renderer::prepared(IntegratorKind::Smc, &setup).unwrap();
+    let smc = r.smc().expect("an smc renderer");
     assert_eq!(smc.settings.variant, Variant::parse("is0_cv2").unwrap());
     assert_eq!(smc.settings.threshold, 7.0);
 }
 
 #[test]
 fn options_override_the_keys() {
-    let scene = load("variant = \"is0_cv1\"\nthreshold = 12.5\nstep = 0.25\n").unwrap();
-    let base = scene.render.smc;
+    let (_, settings) = load("variant = \"is0_cv1\"\nthreshold = 12.5\nstep = 0.25\n").unwrap();
+    let base = settings.smc;
     // no option: the scene's settings
     let none = SmcArgs::default();
-    assert_eq!(none.smc_settings(IntegratorKind::Smc, base), Ok(Some(base)));
+    assert_eq!(
+        smc_settings(&none, IntegratorKind::Smc, base),
+        Ok(Some(base))
+    );
     // one option replaces one key; the scene's march step carries over
     let args = SmcArgs {
-        smc_threshold: Some(99.0),
-        smc_estimator: Some("march".into()),
+        threshold: Some(99.0),
+        estimator: Some("march".into()),
         ..Default::default()
     };
-    let s = args
-        .smc_settings(IntegratorKind::Smc, base)
+    let s = smc_settings(&args, IntegratorKind::Smc, base)
         .unwrap()
         .unwrap();
     assert_eq!(s.threshold, 99.0);
     assert_eq!(s.variant, base.variant);
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.25 });
     let args = SmcArgs {
-        smc_variant: Some("is1_cv0".into()),
-        smc_estimator: Some("distance".into()),
+        variant: Some("is1_cv0".into()),
+        estimator: Some("distance".into()),
         ..Default::default()
     };
-    let s = args
-        .smc_settings(IntegratorKind::Smc, base)
+    let s = smc_settings(&args, IntegratorKind::Smc, base)
         .unwrap()
         .unwrap();
     assert_eq!(s.variant, Variant::parse("is1_cv0").unwrap());
     assert_eq!(s.form, EstimatorForm::Distance);
     assert_eq!(s.threshold, 12.5);
     // --smc-step on a scene whose estimator is distance
-    let distance = load("estimator = \"distance\"\n").unwrap().render.smc;
+    let distance = load("estimator = \"distance\"\n").unwrap().1.smc;
     let args = SmcArgs {
-        smc_step: Some(0.5),
+        step: Some(0.5),
         ..Default::default()
     };
-    let e = args
-        .smc_settings(IntegratorKind::Smc, distance)
-        .unwrap_err();
+    let e = smc_settings(&args, IntegratorKind::Smc, distance).unwrap_err();
     assert!(e.contains("march"), "{e}");
     // and on the default (march) form it applies
-    let s = args
-        .smc_settings(IntegratorKind::Smc, SmcSettings::default())
+    let s = smc_settings(&args, IntegratorKind::Smc, SmcSettings::default())
         .unwrap()
         .unwrap();
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.5 });

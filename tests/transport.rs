@@ -8,15 +8,33 @@ mod common;
 
 use common::stats::Family;
 use common::{film_mean, meter_mean};
-use pathspace::integrator::{IntegratorKind, MeterEstimate, Renderer};
+use pathspace::integrator::{IntegratorKind, MeterEstimate, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneSource};
 
 fn load(text: &str) -> Scene {
     Scene::load(&SceneSource::embedded("test.toml", text)).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn meters(scene: &Scene, spp: u32, seed: u64, max_depth: Option<u32>) -> Vec<MeterEstimate> {
-    let mut r = Renderer::new(scene, IntegratorKind::Path, seed, max_depth);
+/// The scene with its `[render]` settings (the meters' sample counts).
+fn load_with(text: &str) -> (Scene, RenderSettings) {
+    pathspace::integrator::settings::load(&SceneSource::embedded("test.toml", text))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn meters(
+    (scene, settings): &(Scene, RenderSettings),
+    spp: u32,
+    seed: u64,
+    max_depth: Option<u32>,
+) -> Vec<MeterEstimate> {
+    let setup = Setup {
+        scene,
+        technique: &pathspace::path::PLAIN,
+        settings,
+        seed,
+        max_depth,
+    };
+    let mut r = Renderer::prepared(IntegratorKind::Path, &setup).unwrap();
     r.pass(spp, &|| {});
     r.meter_estimates()
 }
@@ -43,7 +61,7 @@ fn slab(tau: f32, albedo: f32) -> String {
 #[test]
 fn slab_unscattered_transmittance_is_exp_minus_tau() {
     for tau in [0.5f32, 1.0, 2.0] {
-        let scene = load(&slab(tau, 0.0));
+        let scene = load_with(&slab(tau, 0.0));
         let m = meters(&scene, 8, 11, None);
         let truth = (-(tau as f64)).exp();
         for c in 0..3 {
@@ -101,7 +119,7 @@ fn anisotropic_slab_single_scattering_matches_closed_form() {
             &format!("phase = {{ type = \"hg\", g = {g} }}\n\n[[shapes]]"),
         );
         assert!(text.contains("type = \"hg\""), "the slab template changed");
-        let m = meters(&load(&text), 32, 40 + i as u64, Some(1));
+        let m = meters(&load_with(&text), 32, 40 + i as u64, Some(1));
         // 2 pi f_HG(mu) = (1 - g^2) / (2 (1 + g^2 - 2 g mu)^(3/2))
         let hg = |mu: f64| (1.0 - g * g) / (2.0 * (1.0 + g * g - 2.0 * g * mu).powf(1.5));
         let (t1, r1) = single_scattering_with_phase(tau, a, hg);
@@ -116,7 +134,7 @@ fn anisotropic_slab_single_scattering_matches_closed_form() {
 fn slab_single_scattering_matches_closed_form() {
     let mut fam = Family::new("transport: slab single scattering");
     for (tau, a) in [(0.1f32, 0.9f32), (1.0, 0.9), (1.0, 0.5)] {
-        let scene = load(&slab(tau, a));
+        let scene = load_with(&slab(tau, a));
         let m = meters(&scene, 32, 5, Some(1));
         let (t1, r1) = single_scattering_closed_form(tau as f64, a as f64);
         let direct = (-(tau as f64)).exp();
@@ -136,7 +154,7 @@ fn slab_single_scattering_matches_closed_form() {
 /// T + R = 1 (all orders of scattering, Russian roulette included).
 #[test]
 fn conservative_slab_conserves_energy() {
-    let scene = load(&slab(1.0, 1.0));
+    let scene = load_with(&slab(1.0, 1.0));
     let m = meters(&scene, 32, 3, None);
     let (t, st, dt) = meter_mean(&m[0], 0);
     let (r, sr, dr) = meter_mean(&m[1], 0);
@@ -172,7 +190,7 @@ v = [0.0, 1.0, 0.0]
             dx = th.sin(),
             dz = -th.cos()
         );
-        let m = meters(&load(&text), 1, 1, None);
+        let m = meters(&load_with(&text), 1, 1, None);
         let truth = 2.5 * (th as f64).cos();
         let v = m[0].value.x as f64;
         assert!(
@@ -199,7 +217,7 @@ origin = [-0.001, -0.001, 0.0]
 u = [0.002, 0.0, 0.0]
 v = [0.0, 0.002, 0.0]
 "#;
-    let m = meters(&load(text), 1, 1, None);
+    let m = meters(&load_with(text), 1, 1, None);
     let v = m[0].value.x as f64;
     // the meter's extent (1e-3 at distance 2) changes E by less than 1e-6 relative
     assert!((v - 2.0).abs() <= 2e-5, "E = {v}, expected 8 / 2^2 = 2");
@@ -235,7 +253,7 @@ origin = [-0.1, -0.5, -0.1]
 u = [0.0, 0.0, 0.2]
 v = [0.2, 0.0, 0.0]
 "#;
-    let m = meters(&load(&text), 1, 5, None);
+    let m = meters(&load_with(&text), 1, 5, None);
     let mut fam = Family::new("transport: meter inside an emitting box");
     check(&mut fam, "E = pi L", &m[0], 0, std::f64::consts::PI * 0.5);
     fam.finish();
@@ -357,7 +375,7 @@ fn chromatic_slab_matches_closed_form_per_channel() {
         text.contains("sigma_a = ["),
         "the slab template changed; update this test"
     );
-    let scene = load(&text);
+    let scene = load_with(&text);
     let m = meters(&scene, 32, 17, Some(1));
     let mut fam = Family::new("transport: chromatic slab");
     for c in 0..3 {
@@ -416,7 +434,7 @@ origin = [-0.5, -0.5, -3.5]
 u = [1.0, 0.0, 0.0]
 v = [0.0, 1.0, 0.0]
 "#;
-    let m = meters(&load(text), 1, 1, None);
+    let m = meters(&load_with(text), 1, 1, None);
     for (c, inner) in [1.5f64, 2.0, 2.5].into_iter().enumerate() {
         // outer: 3 units minus the 0.5 the inner box replaces; inner: 0.5 units
         let truth = (-(0.4 * 2.5 + inner * 0.5)).exp();

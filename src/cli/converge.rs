@@ -179,7 +179,6 @@ fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> 
 /// Equal-time runs of a guided variant: each run loads the scene, builds its guide (timed,
 /// seeded by the run) and renders until the same checkpoint times as the other lines, the
 /// preprocessing counted in them (checkpoints it overruns are not reached).
-#[allow(clippy::too_many_arguments)]
 fn converge_guided(
     args: &ConvergeArgs,
     reference: &crate::image_io::Image,
@@ -191,13 +190,13 @@ fn converge_guided(
     let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
     let mut rows = Vec::new();
     for run in 0..config.runs {
-        let (mut scene, _) = super::load_scene(Some(&args.scene))?;
-        let g = over.apply(args.guide.apply(scene.render.guide)?);
-        scene.render.guide = g;
+        let (scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
+        let g = over.apply(args.guide.apply(settings.guide)?);
+        settings.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();
         let mut technique = crate::enlightened::Enlightened::default();
-        let stats = technique.install_guide(&scene, seed);
+        let stats = technique.install_guide(&scene, &g, seed);
         let pre = t0.elapsed().as_secs_f64();
         if let Some(st) = &stats {
             eprint!("{}", st.table());
@@ -211,18 +210,14 @@ fn converge_guided(
             );
             continue;
         }
-        let mut part = convergence::measure_run_from(
-            &scene,
-            &technique,
-            reference,
-            kind,
+        let setup = crate::integrator::Setup {
+            scene: &scene,
+            technique: &technique,
+            settings: &settings,
             seed,
-            config.max_depth,
-            &left,
-            run,
-            kind.name(),
-            0.0,
-        )?;
+            max_depth: config.max_depth,
+        };
+        let mut part = convergence::measure_run(&setup, reference, kind, &left, run)?;
         for r in &mut part {
             r.integrator = guided_label(kind, &g);
             r.seconds += pre;
@@ -264,12 +259,18 @@ fn summary_line(c: &Curve) -> String {
     s
 }
 
-pub fn run(args: ConvergeArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
-    let adjoint = args.adjoint.apply(scene.render.adjoint)?;
+/// The `+guide` lines: each kind with the guide parameters its name sets.
+type GuidedLines = Vec<(IntegratorKind, GuideOverride)>;
+
+/// The lines `--integrators` names: plain and `+adjoint` variants, and `+guide` lines with
+/// their overrides; checked against the other options.
+fn parse_lines(
+    args: &ConvergeArgs,
+    adjoint: crate::enlightened::AdjointSettings,
+) -> Result<(Vec<Variant>, GuidedLines), String> {
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
-    let mut guided: Vec<(IntegratorKind, GuideOverride)> = Vec::new();
+    let mut guided: GuidedLines = Vec::new();
     for s in &args.integrators {
         if s.contains("+guide") {
             let g = GuidedVariant::parse(s)?;
@@ -280,7 +281,6 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
             variants.push(Variant::parse(s.trim(), adjoint)?);
         }
     }
-    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
         return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
     }
@@ -290,8 +290,12 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     if !guided.is_empty() && !args.propagation.is_empty() {
         return Err("`+guide` integrators cannot be combined with --propagation".into());
     }
-    let externals = args
-        .external
+    Ok((variants, guided))
+}
+
+/// `--external NAME=DIR`, parsed.
+fn parse_externals(args: &ConvergeArgs) -> Result<Vec<(String, PathBuf)>, String> {
+    args.external
         .iter()
         .map(|e| {
             e.split_once('=')
@@ -299,44 +303,47 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
                 .map(|(n, d)| (n.to_string(), PathBuf::from(d)))
                 .ok_or_else(|| format!("--external {e}: expected NAME=DIR"))
         })
-        .collect::<Result<Vec<_>, _>>()?;
-    let (reference, meta) = image_io::read_exr(&args.reference).map_err(|e| e.to_string())?;
+        .collect()
+}
+
+/// Refuses a reference of another scene (by its `scene_hash` attribute).
+fn check_reference_hash(
+    args: &ConvergeArgs,
+    meta: &image_io::ImageMeta,
+    source: &crate::scene::SceneSource,
+) -> Result<(), String> {
     let hash = super::reference::hash_hex(source.hash());
     match meta.get("scene_hash") {
-        Some(h) if h != hash => {
-            return Err(format!(
-                "{} is a reference of another scene ({}, scene_hash {h}), not of {} (scene_hash {hash})",
-                args.reference.display(),
-                meta.get("scene").unwrap_or("unnamed"),
-                source.name
-            ))
-        }
-        Some(_) => {}
-        None => eprintln!(
-            "warning: {} has no scene_hash attribute; trusting that it shows {}",
+        Some(h) if h != hash => Err(format!(
+            "{} is a reference of another scene ({}, scene_hash {h}), not of {} (scene_hash {hash})",
             args.reference.display(),
+            meta.get("scene").unwrap_or("unnamed"),
             source.name
-        ),
+        )),
+        Some(_) => Ok(()),
+        None => {
+            eprintln!(
+                "warning: {} has no scene_hash attribute; trusting that it shows {}",
+                args.reference.display(),
+                source.name
+            );
+            Ok(())
+        }
     }
-    let config = ConvergeConfig {
-        budget: args.budget,
-        checkpoints: args.checkpoints,
-        runs: args.runs,
-        seed: args.seed.unwrap_or(scene.render.seed),
-        max_depth: scene.render.max_depth,
-    };
-    // fail on bad numbers before spending the budget
-    convergence::checkpoint_times(config.budget, config.checkpoints)
-        .map_err(|e| format!("--budget/--checkpoints: {e}"))?;
-    if config.runs == 0 {
-        return Err("--runs must be at least 1".into());
-    }
-    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
-    let mut external_rows = Vec::new();
-    for (name, dir) in &externals {
-        external_rows.extend(convergence::external_rows(name, dir, &reference)?);
-    }
+}
 
+/// Runs every line (per propagation strategy with `--propagation`); the rows.
+fn run_lines(
+    args: &ConvergeArgs,
+    (scene, settings, source): (
+        &mut crate::scene::Scene,
+        &crate::integrator::RenderSettings,
+        &crate::scene::SceneSource,
+    ),
+    reference: &image_io::Image,
+    (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
+    config: &ConvergeConfig,
+) -> Result<Vec<convergence::CheckpointRow>, String> {
     let pool = super::reference::thread_pool(args.threads)?;
     let mut report = |rows: &[convergence::CheckpointRow]| {
         if let Some(last) = rows.last() {
@@ -350,33 +357,76 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     if args.propagation.is_empty() {
         if !variants.is_empty() {
             rows = pool.install(|| {
-                convergence::converge_variants(&scene, &reference, &variants, &config, &mut report)
+                convergence::converge_variants(
+                    scene,
+                    settings,
+                    reference,
+                    variants,
+                    config,
+                    &mut report,
+                )
             })?;
         }
-        for (k, over) in &guided {
-            let part = pool
-                .install(|| converge_guided(&args, &reference, *k, over, &config, &mut report))?;
+        for (k, over) in guided {
+            let part =
+                pool.install(|| converge_guided(args, reference, *k, over, config, &mut report))?;
             rows.extend(part);
         }
-    } else {
-        for name in &args.propagation {
-            let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
-            let (mut variant, _) = super::load_scene(Some(&args.scene))?;
-            if variant.set_line_integral(li) == 0 {
-                return Err(format!(
-                    "--propagation: {} has no inhomogeneous medium",
-                    source.name
-                ));
-            }
-            let mut part = pool.install(|| {
-                convergence::converge(&variant, &reference, &kinds, &config, &mut report)
-            })?;
-            for r in &mut part {
-                r.integrator = format!("{}/{}", r.integrator, li.name());
-            }
-            rows.extend(part);
-        }
+        return Ok(rows);
     }
+    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
+    for name in &args.propagation {
+        let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
+        let (mut variant, _, _) = super::load_scene(Some(&args.scene))?;
+        if variant.set_line_integral(li) == 0 {
+            return Err(format!(
+                "--propagation: {} has no inhomogeneous medium",
+                source.name
+            ));
+        }
+        let mut part = pool.install(|| {
+            convergence::converge(&variant, settings, reference, &kinds, config, &mut report)
+        })?;
+        for r in &mut part {
+            r.integrator = format!("{}/{}", r.integrator, li.name());
+        }
+        rows.extend(part);
+    }
+    Ok(rows)
+}
+
+pub fn run(args: ConvergeArgs) -> Result<(), String> {
+    let (mut scene, settings, source) = super::load_scene(Some(&args.scene))?;
+    let adjoint = args.adjoint.apply(settings.adjoint)?;
+    let (variants, guided) = parse_lines(&args, adjoint)?;
+    let externals = parse_externals(&args)?;
+    let (reference, meta) = image_io::read_exr(&args.reference).map_err(|e| e.to_string())?;
+    check_reference_hash(&args, &meta, &source)?;
+    let config = ConvergeConfig {
+        budget: args.budget,
+        checkpoints: args.checkpoints,
+        runs: args.runs,
+        seed: args.seed.unwrap_or(settings.seed),
+        max_depth: settings.max_depth,
+    };
+    // fail on bad numbers before spending the budget
+    convergence::checkpoint_times(config.budget, config.checkpoints)
+        .map_err(|e| format!("--budget/--checkpoints: {e}"))?;
+    if config.runs == 0 {
+        return Err("--runs must be at least 1".into());
+    }
+    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    let mut external_rows = Vec::new();
+    for (name, dir) in &externals {
+        external_rows.extend(convergence::external_rows(name, dir, &reference)?);
+    }
+    let mut rows = run_lines(
+        &args,
+        (&mut scene, &settings, &source),
+        &reference,
+        (&variants, &guided),
+        &config,
+    )?;
     rows.extend(external_rows);
 
     let csv = args.output.join("convergence.csv");

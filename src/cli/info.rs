@@ -155,9 +155,8 @@ fn medium_name(scene: &Scene, m: Option<u32>) -> String {
 }
 
 pub fn run(args: InfoArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
+    let (scene, r, source) = super::load_scene(Some(&args.scene))?;
     println!("{}: valid (hash {:016x})", source.name, source.hash());
-    let r = &scene.render;
     println!(
         "  render: integrator {}, {} spp, seed {}, max_depth {}, {} meter samples per pass",
         r.integrator,

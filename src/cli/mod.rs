@@ -62,16 +62,25 @@ pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), St
     }
 }
 
-/// Loads the named scene, or the embedded fog box when `None`.
+/// Loads the named scene, or the embedded fog box when `None`: the scene, its `[render]`
+/// settings and its source.
 pub fn load_scene(
     path: Option<&std::path::Path>,
-) -> Result<(crate::scene::Scene, crate::scene::SceneSource), String> {
+) -> Result<
+    (
+        crate::scene::Scene,
+        crate::integrator::RenderSettings,
+        crate::scene::SceneSource,
+    ),
+    String,
+> {
     let source = match path {
         Some(p) => crate::scene::SceneSource::read(p).map_err(|e| e.to_string())?,
         None => {
             crate::scene::SceneSource::embedded("fog-box.toml (embedded)", crate::scene::FOG_BOX)
         }
     };
-    let scene = crate::scene::Scene::load(&source).map_err(|e| e.to_string())?;
-    Ok((scene, source))
+    let (scene, settings) =
+        crate::integrator::settings::load(&source).map_err(|e| e.to_string())?;
+    Ok((scene, settings, source))
 }

@@ -90,7 +90,7 @@ pub fn check_overwrite(output: &Path, scene_name: &str, scene_hash: &str) -> Res
 // ANCHOR_END: refuse_overwrite
 
 pub fn run(args: ReferenceArgs) -> Result<(), String> {
-    let (scene, source) = super::load_scene(Some(&args.scene))?;
+    let (scene, settings, source) = super::load_scene(Some(&args.scene))?;
     if scene.camera.is_none() {
         return Err(format!(
             "{}: the scene has no camera, so there is no image to render",
@@ -122,13 +122,23 @@ pub fn run(args: ReferenceArgs) -> Result<(), String> {
         Some(name) => crate::integrator::IntegratorKind::parse(name)?,
         None => measure::reference_integrator(&scene),
     };
-    let seed = args.seed.unwrap_or(scene.render.seed);
-    let max_depth = scene.render.max_depth;
+    let seed = args.seed.unwrap_or(settings.seed);
+    let job = crate::integrator::session::Job {
+        kind,
+        setup: crate::integrator::Setup {
+            scene: &scene,
+            technique: &crate::path::PLAIN,
+            settings: &settings,
+            seed,
+            max_depth: settings.max_depth,
+        },
+        spp,
+        time: args.time,
+        progress: true,
+    };
     let pool = thread_pool(args.threads)?;
-    let result = pool.install(|| {
-        super::render::render_scene(&scene, kind, spp, args.time, seed, max_depth, true)
-    });
-    let estimated = result.estimated_relmse;
+    let result = pool.install(|| crate::integrator::session::render(&job))?;
+    let estimated = super::render::estimated_relmse(&result);
     let image = result
         .image
         .as_ref()

@@ -1,18 +1,21 @@
 //! `pathspace render [SCENE] [--integrator I] [--spp N | --time S] [--seed S] [--threads N]
 //! [--max-depth D] [-o OUT.exr] [--png OUT.png] [--json]`, and for `--integrator smc`
-//! `[--smc-variant is1_cv2] [--smc-threshold T] [--cache-budget BYTES] [--smc-estimator
-//! distance|march] [--smc-step MFP]`.
+//! `[--smc-variant is1_cv2] [--smc-threshold T] [--smc-cache-budget BYTES] [--smc-estimator
+//! distance|march] [--smc-step MFP]`. Every option overrides its key of the scene file's
+//! `[render]` table; the passes and the preprocessing run in an
+//! [`crate::integrator::session`].
 
 use clap::Args;
 use std::path::PathBuf;
-use std::time::Instant;
 
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
-use crate::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings, Variant};
-use crate::integrator::{IntegratorKind, MeterEstimate, Renderer};
-use crate::scene::Scene;
+use crate::integrator::mlt::{mutation::MutationKind, MltOptions, MutationStats};
+use crate::integrator::session::{self, Job, Preprocessed};
+use crate::integrator::smc::{SmcOptions, SmcSettings};
+use crate::integrator::{IntegratorKind, RenderSettings, Setup};
+
+pub use crate::integrator::session::RenderResult;
 
 #[derive(Args, Debug, Default, Clone)]
 pub struct RenderArgs {
@@ -27,20 +30,10 @@ pub struct RenderArgs {
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time")]
     pub mutations_per_pixel: Option<u32>,
-    /// MLT: independent chains (default: the scene's `[render.mlt] chains`).
-    #[arg(long)]
-    pub chains: Option<u32>,
-    /// MLT: BDPT pre-pass samples n (default: `[render.mlt] bootstrap`).
-    #[arg(long)]
-    pub bootstrap: Option<u64>,
-    /// MLT: BDPT samples per mutation that keep refining b during the run; 0 keeps the
-    /// pre-pass estimate (default: `[render.mlt] b_refine`, 1/32).
-    #[arg(long)]
-    pub b_refine: Option<f64>,
-    /// MLT: mutation selection weights, e.g. `bidirectional=1,sensor=100,light=100`
-    /// (unnamed types get 0; default: `[render.mlt]`, all 1).
-    #[arg(long)]
-    pub mutation_weights: Option<String>,
+    /// Options of the `mlt` integrator, each overriding its `[render.mlt]` key (boxed: they
+    /// are rarely given).
+    #[command(flatten)]
+    pub mlt: Box<MltOptions>,
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
@@ -72,9 +65,10 @@ pub struct RenderArgs {
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
-    /// Options of the `smc` integrator (boxed: they are rarely given).
+    /// Options of the `smc` integrator, each overriding its `[render.smc]` key (boxed: they
+    /// are rarely given).
     #[command(flatten)]
-    pub smc: Box<SmcArgs>,
+    pub smc: Box<SmcOptions>,
     /// Guided local sampling (bdpt, light, mlt).
     #[command(flatten)]
     pub guide: GuideArgs,
@@ -145,9 +139,9 @@ impl AdjointArgs {
     pub fn settings(
         &self,
         kind: IntegratorKind,
-        scene: &Scene,
+        settings: &RenderSettings,
     ) -> Result<Option<AdjointSettings>, String> {
-        let wanted = self.adjoint_image || scene.render.adjoint_image;
+        let wanted = self.adjoint_image || settings.adjoint_image;
         let given = self.tuning.any() || self.adjoint_output.is_some();
         if !wanted {
             if given {
@@ -165,7 +159,7 @@ impl AdjointArgs {
             // the scene's key is a default for the integrators it applies to
             return Ok(None);
         }
-        self.tuning.apply(scene.render.adjoint).map(Some)
+        self.tuning.apply(settings.adjoint).map(Some)
     }
 }
 
@@ -294,76 +288,31 @@ pub fn guides(kind: IntegratorKind) -> bool {
     )
 }
 
-/// The options of `--integrator smc`.
-#[derive(Args, Debug, Default, Clone)]
-pub struct SmcArgs {
-    /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
-    #[arg(long)]
-    pub smc_variant: Option<String>,
-    /// SMC: the refinement threshold on the average record count (default 64).
-    #[arg(long)]
-    pub smc_threshold: Option<f64>,
-    /// SMC: memory budget of the structure, bytes or with a KiB/MiB/GiB suffix (default 1GiB).
-    #[arg(long, value_parser = parse_bytes)]
-    pub cache_budget: Option<usize>,
-    /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
-    #[arg(long)]
-    pub smc_estimator: Option<String>,
-    /// SMC: the ray-marching step in mean free paths (default 1).
-    #[arg(long)]
-    pub smc_step: Option<f32>,
-}
+/// The options of `--integrator smc`: the `[render.smc]` schema.
+pub type SmcArgs = SmcOptions;
 
 /// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB` (shared with the scene key
 /// `[render.smc] cache_budget`).
 pub use crate::integrator::smc::parse_bytes;
 
-impl SmcArgs {
-    /// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an
-    /// error when they are invalid or given to another integrator.
-    pub fn smc_settings(
-        &self,
-        kind: IntegratorKind,
-        base: SmcSettings,
-    ) -> Result<Option<SmcSettings>, String> {
-        let given = self.smc_variant.is_some()
-            || self.smc_threshold.is_some()
-            || self.cache_budget.is_some()
-            || self.smc_estimator.is_some()
-            || self.smc_step.is_some();
-        if kind != IntegratorKind::Smc {
-            if given {
-                return Err(format!(
-                    "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
-                    kind.name()
-                ));
-            }
-            return Ok(None);
-        }
-        let mut s = base;
-        if let Some(v) = &self.smc_variant {
-            s.variant = Variant::parse(v)?;
-        }
-        if let Some(t) = self.smc_threshold {
-            s.threshold = t;
-        }
-        if let Some(b) = self.cache_budget {
-            s.budget = b;
-        }
-        // the step of the scene's march form carries over unless --smc-step replaces it
-        let base_step = match base.form {
-            EstimatorForm::RayMarching { step } => Some(step),
-            EstimatorForm::Distance => None,
-        };
-        let estimator = self.smc_estimator.as_deref().unwrap_or(base.form.name());
-        if self.smc_step.is_some() && estimator != "march" {
+/// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an error
+/// when they are invalid or given to another integrator.
+pub fn smc_settings(
+    options: &SmcOptions,
+    kind: IntegratorKind,
+    base: SmcSettings,
+) -> Result<Option<SmcSettings>, String> {
+    if kind != IntegratorKind::Smc {
+        if !options.is_empty() {
             return Err(format!(
-                "--smc-step applies to the march estimator, not `{estimator}`"
+                "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
+                kind.name()
             ));
         }
-        s.form = EstimatorForm::parse(estimator, self.smc_step.or(base_step))?;
-        Ok(Some(s))
+        return Ok(None);
     }
+    let flag = |k: &str| format!("--smc-{}", k.replace('_', "-"));
+    options.apply(base, &flag).map(Some).map_err(|e| e.message)
 }
 
 /// Parses `WxH`.
@@ -381,168 +330,224 @@ pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
     Ok((parse(w)?, parse(h)?))
 }
 
-/// Everything a render produced.
-pub struct RenderResult {
-    pub integrator: String,
-    pub spp: u64,
-    pub seconds: f64,
-    pub paths: u64,
-    pub nan_count: u64,
-    /// Pixels whose estimate is negative in some channel: radiance never is, so each one is an
-    /// estimator excursion (SMC's control variates before they converge) or a bug; the image's
-    /// finite garbage that `nan_count` cannot see.
-    pub negative_pixels: u64,
-    pub image: Option<image_io::Image>,
-    pub meters: Vec<MeterEstimate>,
-    /// relMSE expected from the image's own per-pixel variance (no reference needed); None
-    /// without a camera. See `measure::stats::estimated_relmse`.
-    pub estimated_relmse: Option<f64>,
-    /// The SMC structure's statistics after the render (Pegoraro et al. Table 1).
-    pub smc_stats: Option<OctreeStats>,
-    /// MLT: b of the pre-pass and each mutation type's counts.
-    pub mlt: Option<(f64, Vec<(MutationKind, MutationStats)>)>,
+/// The relMSE a render expects from its own per-pixel variance (no reference needed); `None`
+/// without a camera or for MLT. See `measure::stats::estimated_relmse`.
+pub fn estimated_relmse(result: &RenderResult) -> Option<f64> {
+    let (image, variance) = (result.image.as_ref()?, result.variance_of_mean.as_ref()?);
+    crate::measure::stats::estimated_relmse(image, variance).ok()
 }
 
-impl RenderResult {
-    pub fn paths_per_second(&self) -> f64 {
-        self.paths as f64 / self.seconds.max(1e-9)
-    }
-}
-
-/// Samples per pixel in one pass of a fixed-spp render (smaller passes: finer progress).
-const PASS_SPP: u32 = 4;
-
-/// Renders `scene`; with `time` the passes go on until the time is used.
-#[allow(clippy::too_many_arguments)]
-pub fn render_scene(
-    scene: &Scene,
+/// What the options and the scene file's `[render]` table ask for, checked: the integrator,
+/// the sample count, the seed and depth limit, and the settings with every option applied.
+struct Plan {
     kind: IntegratorKind,
     spp: u32,
-    time: Option<f64>,
     seed: u64,
     max_depth: Option<u32>,
-    progress: bool,
-) -> RenderResult {
-    render_scene_with(
-        scene,
-        &crate::path::PLAIN,
+    settings: RenderSettings,
+    /// The adjoint image's settings, when the image is wanted.
+    adjoint: Option<AdjointSettings>,
+}
+
+/// Applies the options to the scene file's settings, checking them in the order the user
+/// meets them (the refusals name the option).
+fn configure(
+    args: &RenderArgs,
+    scene: &crate::scene::Scene,
+    mut settings: RenderSettings,
+) -> Result<Plan, String> {
+    let kind = IntegratorKind::parse(args.integrator.as_deref().unwrap_or(&settings.integrator))?;
+    args.mlt.apply(&mut settings.mlt);
+    if kind == IntegratorKind::Mlt {
+        settings.mlt.validate()?;
+        crate::integrator::mlt::check_scene(scene)?;
+    } else if args.mutations_per_pixel.is_some() {
+        return Err("--mutations-per-pixel needs --integrator mlt".into());
+    }
+    // light paths this integrator cannot sample: said once, before the work
+    if let Some(w) = crate::integrator::reach::unreachable_paths(scene, kind) {
+        eprintln!("warning: {w}");
+    }
+    let spp = args
+        .mutations_per_pixel
+        .or(args.spp)
+        .unwrap_or(settings.spp);
+    if spp == 0 {
+        return Err("--spp must be at least 1".into());
+    }
+    if let Some(t) = args.time {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(format!("--time {t} must be a positive number of seconds"));
+        }
+    }
+    if let Some(smc) = smc_settings(&args.smc, kind, settings.smc)? {
+        if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, smc.variant) {
+            eprintln!("warning: {w}");
+        }
+        settings.smc = smc;
+    }
+    let seed = args.seed.unwrap_or(settings.seed);
+    settings.guide = args.guide.apply(settings.guide)?;
+    if settings.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
+        return Err(format!(
+            "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
+            kind.name()
+        ));
+    }
+    let max_depth = args.max_depth.or(settings.max_depth);
+    if args.threads == Some(0) {
+        return Err("--threads must be at least 1".into());
+    }
+    let adjoint = args.adjoint.settings(kind, &settings)?;
+    Ok(Plan {
         kind,
-        None,
         spp,
-        time,
         seed,
         max_depth,
-        progress,
-    )
-    .expect("the default SMC settings are valid")
+        settings,
+        adjoint,
+    })
 }
 
-/// [`render_scene`] with SMC settings (for `smc`; `None`: the defaults) and the local-sampling
-/// technique `technique` (plain, or the enlightened one the preprocessing built).
-#[allow(clippy::too_many_arguments)]
-pub fn render_scene_with(
-    scene: &Scene,
-    technique: &dyn crate::path::LocalSampling,
-    kind: IntegratorKind,
-    smc: Option<SmcSettings>,
-    spp: u32,
-    time: Option<f64>,
-    seed: u64,
-    max_depth: Option<u32>,
-    progress: bool,
-) -> Result<RenderResult, String> {
-    let mut r = Renderer::try_with(scene, technique, kind, seed, max_depth)?;
-    if let Some(settings) = smc {
-        r = r.with_smc_settings(settings)?;
+/// The `render` subcommand's worker threads.
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        pool = pool.num_threads(t);
     }
-    let tiles = scene.camera.as_ref().map_or(1, |c| {
-        (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE))
-            as u64
-    });
-    let bar = if progress {
-        let total = match time {
-            Some(_) => 0,
-            None => spp.div_ceil(PASS_SPP) as u64 * tiles,
-        };
-        let b = if total > 0 {
-            indicatif::ProgressBar::new(total)
-        } else {
-            indicatif::ProgressBar::new_spinner()
-        };
-        b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles {msg}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    pool.build()
+        .map_err(|e| format!("cannot start worker threads: {e}"))
+}
+
+/// Reports the adjoint image (stderr unless `--json`) and writes it with `--adjoint-output`.
+fn show_adjoint(
+    args: &RenderArgs,
+    pre: &Preprocessed,
+    plan: &Plan,
+    source: &crate::scene::SceneSource,
+) -> Result<(), String> {
+    if plan.adjoint.is_none() {
+        return Ok(());
+    }
+    let image = pre
+        .technique
+        .adjoint
+        .as_ref()
+        .ok_or("the adjoint image was not installed")?;
+    if !args.json {
+        eprintln!(
+            "adjoint image: {}x{} cells over {} area lights, {} pre-pass samples in {:.2} s, {} empty cells (floor eps = {:.3e})",
+            image.cols,
+            image.rows,
+            image.map.len(),
+            image.stats.samples,
+            image.stats.seconds,
+            image.stats.zero_cells,
+            image.epsilon
         );
-        Some(b)
-    } else {
-        None
-    };
-    let tick = || {
-        if let Some(b) = &bar {
-            b.inc(1)
-        }
-    };
-    let start = Instant::now();
-    match time {
-        Some(budget) => {
-            while start.elapsed().as_secs_f64() < budget || r.passes == 0 {
-                r.pass(1, &tick);
-                if let Some(b) = &bar {
-                    b.set_message(format!("{} spp", r.spp()));
-                }
-            }
-        }
-        None => {
-            let mut done = 0;
-            while done < spp {
-                let n = PASS_SPP.min(spp - done);
-                r.pass(n, &tick);
-                done += n;
-            }
-        }
     }
-    let seconds = start.elapsed().as_secs_f64();
-    if let Some(b) = bar {
-        b.finish_and_clear();
+    if let Some(out) = &args.adjoint.adjoint_output {
+        let img = image.to_image();
+        let mut meta = ImageMeta::default();
+        meta.set(
+            "adjoint_image",
+            "cells: I* + eps, columns along u1 (light strips)",
+        )
+        .set("seed", plan.seed)
+        .set("scene_hash", format!("{:016x}", source.hash()));
+        image_io::write_exr(out, &img, &meta).map_err(|e| e.to_string())?;
+        image_io::write_png(&out.with_extension("png"), &img).map_err(|e| e.to_string())?;
     }
-    let spp_done = if scene.camera.is_some() {
-        r.spp()
-    } else {
-        r.passes
+    Ok(())
+}
+
+/// `--strategy-images DIR`: BDPT's strategies one by one, as EXR and PNG.
+fn write_strategy_images(
+    args: &RenderArgs,
+    dir: &std::path::Path,
+    setup: &Setup,
+    plan: &Plan,
+    source: &crate::scene::SceneSource,
+) -> Result<(), String> {
+    if plan.kind != IntegratorKind::Bdpt {
+        return Err("--strategy-images needs --integrator bdpt".into());
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let renderer = crate::integrator::Renderer::prepared(plan.kind, setup)?;
+    let films = renderer.strategy_images(plan.spp, args.strategy_depth);
+    for ((s, t), film) in &films {
+        let img = film.image();
+        let base = dir.join(format!("s{s}-t{t}"));
+        let mut meta = ImageMeta::default();
+        meta.set(
+            "integrator",
+            format!("bdpt strategy s={s} t={t} (MIS-weighted)"),
+        )
+        .set("spp", plan.spp)
+        .set("seed", plan.seed)
+        .set("scene_hash", format!("{:016x}", source.hash()));
+        image_io::write_exr(&base.with_extension("exr"), &img, &meta).map_err(|e| e.to_string())?;
+        image_io::write_png(&base.with_extension("png"), &img).map_err(|e| e.to_string())?;
+    }
+    if !args.json {
+        eprintln!("wrote {} strategy images to {}", films.len(), dir.display());
+    }
+    Ok(())
+}
+
+/// Writes the image as EXR (with the render's metadata) and PNG; the paths written.
+fn write_image(
+    args: &RenderArgs,
+    result: &RenderResult,
+    plan: &Plan,
+    pre: &Preprocessed,
+    source: &crate::scene::SceneSource,
+) -> Result<Vec<String>, String> {
+    let Some(image) = &result.image else {
+        return Ok(Vec::new());
     };
-    let image = r.film.as_ref().map(|f| f.image());
-    let negative_pixels = image.as_ref().map_or(0, |img| {
-        img.pixels.iter().filter(|p| p.min_element() < 0.0).count() as u64
-    });
-    Ok(RenderResult {
-        integrator: match &r.smc {
-            Some(s) => format!(
-                "smc ({}, {})",
-                s.settings.variant.name(),
-                s.settings.form.name()
+    let stem = args
+        .scene
+        .as_ref()
+        .and_then(|p| p.file_stem())
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "fog-box".into());
+    let exr = args
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
+    let png = args
+        .png
+        .clone()
+        .unwrap_or_else(|| exr.with_extension("png"));
+    let mut meta = ImageMeta::default();
+    meta.set("integrator", &result.integrator)
+        .set("spp", result.spp)
+        .set("seed", plan.seed)
+        .set("seconds", format!("{:.3}", result.seconds))
+        .set("scene", &source.name)
+        .set("scene_hash", format!("{:016x}", source.hash()))
+        .set("nan_count", result.nan_count)
+        .set("negative_pixels", result.negative_pixels);
+    if let Some(g) = &pre.guide {
+        let gs = plan.settings.guide;
+        meta.set(
+            "guide",
+            format!(
+                "{} map {}x{} regions {} particles {} weight {} preprocessing {:.3} s",
+                gs.kind.name(),
+                gs.cols,
+                gs.rows,
+                gs.regions.regions,
+                gs.particles,
+                gs.c_guide,
+                g.seconds()
             ),
-            None => kind.name().to_string(),
-        },
-        spp: if time.is_some() { spp_done } else { spp as u64 },
-        seconds,
-        paths: r.paths,
-        nan_count: r.nan_count,
-        negative_pixels,
-        image,
-        meters: r.meter_estimates(),
-        estimated_relmse: if kind == IntegratorKind::Mlt {
-            None // the per-pixel variance of splats is not recorded
-        } else {
-            r.film.as_ref().and_then(|f| {
-                crate::measure::stats::estimated_relmse(&f.image(), &f.variance_of_mean()).ok()
-            })
-        },
-        mlt: r.mlt.as_ref().map(|m| (m.b, m.report())),
-        smc_stats: r.smc.as_ref().map(|s| s.stats()),
-    })
+        );
+    }
+    image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
+    image_io::write_png(&png, image).map_err(|e| e.to_string())?;
+    Ok(vec![exr.display().to_string(), png.display().to_string()])
 }
 
 fn mlt_json(m: &(f64, Vec<(MutationKind, MutationStats)>)) -> serde_json::Value {
@@ -561,8 +566,108 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
     serde_json::json!([c.x, c.y, c.z])
 }
 
+/// The one JSON object of `--json`.
+fn result_json(
+    result: &RenderResult,
+    plan: &Plan,
+    pre: &Preprocessed,
+    written: &[String],
+) -> serde_json::Value {
+    let sensors: Vec<serde_json::Value> = result
+        .meters
+        .iter()
+        .map(|m| serde_json::json!({"name": m.name, "value": rgb_json(m.value), "stderr": rgb_json(m.stderr), "samples": m.samples}))
+        .collect();
+    let stats = &result.statistics;
+    serde_json::json!({
+        "integrator": result.integrator,
+        "spp": result.spp,
+        "seconds": result.seconds,
+        "paths_per_second": result.paths_per_second(),
+        "mean": result.image.as_ref().map(|i| rgb_json(i.mean())),
+        "nan_count": result.nan_count,
+        "negative_pixels": result.negative_pixels,
+        "estimated_relmse": estimated_relmse(result),
+        "sensors": sensors,
+        "outputs": written,
+        "smc": stats.smc.as_ref().map(|s| serde_json::json!({
+            "refinement_threshold": s.threshold,
+            "max_depth": s.max_depth,
+            "nodes": s.nodes,
+            "leaves": s.leaves,
+            "cells": s.cells,
+            "bytes": s.bytes,
+            "budget": s.budget,
+            "budget_reached": s.budget_reached,
+            "records": s.records,
+        })),
+        "mlt": stats.mlt.as_ref().map(mlt_json),
+        "guide": pre.guide.as_ref().map(|g| serde_json::json!({
+            "vertices": plan.settings.guide.kind.name(),
+            "map": [g.map.0, g.map.1],
+            "photons": g.photons,
+            "importons": g.importons,
+            "regions_radiance": [g.regions_radiance.0, g.regions_radiance.1],
+            "regions_importance": [g.regions_importance.0, g.regions_importance.1],
+            "bytes_radiance": g.bytes_radiance,
+            "bytes_importance": g.bytes_importance,
+            "seconds_particles": g.seconds_particles,
+            "seconds_build": g.seconds_build,
+        })),
+        "adjoint": pre.adjoint.map(|a| serde_json::json!({
+            "samples": a.samples,
+            "seconds": a.seconds,
+            "zero_cells": a.zero_cells,
+        })),
+    })
+}
+
+/// The summary lines printed without `--json`.
+fn print_summary(result: &RenderResult, written: &[String]) {
+    let mean = result.image.as_ref().map_or("no camera".to_string(), |i| {
+        let m = i.mean();
+        format!("mean pixel ({:.4}, {:.4}, {:.4})", m.x, m.y, m.z)
+    });
+    println!(
+        "{}: {} spp in {:.2} s, {:.3e} paths/s, {}, {} NaN/inf{}",
+        result.integrator,
+        result.spp,
+        result.seconds,
+        result.paths_per_second(),
+        mean,
+        result.nan_count,
+        if written.is_empty() {
+            String::new()
+        } else {
+            format!(" -> {}", written.join(", "))
+        }
+    );
+    if let Some((b, stats)) = &result.statistics.mlt {
+        println!("  mlt: b = {b:.5}");
+        for (k, st) in stats {
+            println!(
+                "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
+                k.name(),
+                st.attempted,
+                st.proposed,
+                st.accepted,
+                st.acceptance_rate()
+            );
+        }
+    }
+    for m in &result.meters {
+        println!(
+            "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",
+            m.name, m.value.x, m.value.y, m.value.z, m.stderr.x, m.stderr.y, m.stderr.z, m.samples
+        );
+    }
+    if let Some(s) = &result.statistics.smc {
+        println!("  {s}");
+    }
+}
+
 pub fn run(args: RenderArgs) -> Result<(), String> {
-    let (mut scene, source) = super::load_scene(args.scene.as_deref())?;
+    let (mut scene, settings, source) = super::load_scene(args.scene.as_deref())?;
     if let Some((w, h)) = args.resolution {
         let cam = scene
             .camera
@@ -570,302 +675,57 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             .ok_or("--resolution needs a scene with a camera")?;
         scene.camera = cam.with_resolution(w, h);
     }
-    let kind = IntegratorKind::parse(
-        args.integrator
-            .as_deref()
-            .unwrap_or(&scene.render.integrator),
-    )?;
-    if let Some(c) = args.chains {
-        scene.render.mlt.chains = c;
-    }
-    if let Some(n) = args.bootstrap {
-        scene.render.mlt.bootstrap = n;
-    }
-    if let Some(r) = args.b_refine {
-        scene.render.mlt.b_refine = r;
-    }
-    if let Some(w) = &args.mutation_weights {
-        scene.render.mlt.weights = crate::integrator::mlt::MltSettings::parse_weights(w)?;
-    }
-    if kind == IntegratorKind::Mlt {
-        scene.render.mlt.validate()?;
-        crate::integrator::mlt::check_scene(&scene)?;
-    } else if args.mutations_per_pixel.is_some() {
-        return Err("--mutations-per-pixel needs --integrator mlt".into());
-    }
-    // light paths this integrator cannot sample: said once, before the work
-    if let Some(w) = crate::integrator::reach::unreachable_paths(&scene, kind) {
-        eprintln!("warning: {w}");
-    }
-    let spp = args
-        .mutations_per_pixel
-        .or(args.spp)
-        .unwrap_or(scene.render.spp);
-    if spp == 0 {
-        return Err("--spp must be at least 1".into());
-    }
-    if let Some(t) = args.time {
-        if !(t > 0.0 && t.is_finite()) {
-            return Err(format!("--time {t} must be a positive number of seconds"));
-        }
-    }
-    let smc = args.smc.smc_settings(kind, scene.render.smc)?;
-    if let Some(w) = smc.and_then(|s| crate::integrator::smc::anisotropy_warning(&scene, s.variant))
-    {
-        eprintln!("warning: {w}");
-    }
-    let seed = args.seed.unwrap_or(scene.render.seed);
-    scene.render.guide = args.guide.apply(scene.render.guide)?;
-    if scene.render.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
-        return Err(format!(
-            "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
-            kind.name()
-        ));
-    }
-    let max_depth = args.max_depth.or(scene.render.max_depth);
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = args.threads {
-        if t == 0 {
-            return Err("--threads must be at least 1".into());
-        }
-        pool = pool.num_threads(t);
-    }
-    let pool = pool
-        .build()
-        .map_err(|e| format!("cannot start worker threads: {e}"))?;
-    // the enlightened technique, built as a preprocessing stage: the adjoint image first (its
-    // pre-pass samples with the plain technique), then the guide (its particles start from
-    // the adjoint image when there is one)
-    let mut technique = crate::enlightened::Enlightened::default();
-    let adjoint = match args.adjoint.settings(kind, &scene)? {
-        Some(settings) => {
-            let stats =
-                pool.install(|| technique.install_adjoint(&scene, &settings, seed, max_depth))?;
-            let image = technique
-                .adjoint
-                .as_ref()
-                .ok_or("the adjoint image was not installed")?;
-            if !args.json {
-                eprintln!(
-                    "adjoint image: {}x{} cells over {} area lights, {} pre-pass samples in {:.2} s, {} empty cells (floor eps = {:.3e})",
-                    image.cols,
-                    image.rows,
-                    image.map.len(),
-                    stats.samples,
-                    stats.seconds,
-                    stats.zero_cells,
-                    image.epsilon
-                );
-            }
-            if let Some(out) = &args.adjoint.adjoint_output {
-                let img = image.to_image();
-                let mut meta = ImageMeta::default();
-                meta.set(
-                    "adjoint_image",
-                    "cells: I* + eps, columns along u1 (light strips)",
-                )
-                .set("seed", seed)
-                .set("scene_hash", format!("{:016x}", source.hash()));
-                image_io::write_exr(out, &img, &meta).map_err(|e| e.to_string())?;
-                image_io::write_png(&out.with_extension("png"), &img).map_err(|e| e.to_string())?;
-            }
-            Some(image.stats)
-        }
-        None => None,
-    };
-    // the preprocessing pass of guided sampling (Kristensen 2010 Table 5.1's statistics)
-    let guide_stats = pool.install(|| technique.install_guide(&scene, seed));
-    if let (Some(g), false) = (&guide_stats, args.json) {
-        eprint!("{}", g.table());
-    }
-    if let Some(dir) = &args.strategy_images {
-        if kind != IntegratorKind::Bdpt {
-            return Err("--strategy-images needs --integrator bdpt".into());
-        }
-        std::fs::create_dir_all(dir)
-            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        let renderer =
-            crate::integrator::Renderer::try_with(&scene, &technique, kind, seed, max_depth)?;
-        let films = pool.install(|| renderer.strategy_images(spp, args.strategy_depth));
-        for ((s, t), film) in &films {
-            let img = film.image();
-            let base = dir.join(format!("s{s}-t{t}"));
-            let mut meta = ImageMeta::default();
-            meta.set(
-                "integrator",
-                format!("bdpt strategy s={s} t={t} (MIS-weighted)"),
-            )
-            .set("spp", spp)
-            .set("seed", seed)
-            .set("scene_hash", format!("{:016x}", source.hash()));
-            image_io::write_exr(&base.with_extension("exr"), &img, &meta)
-                .map_err(|e| e.to_string())?;
-            image_io::write_png(&base.with_extension("png"), &img).map_err(|e| e.to_string())?;
-        }
-        if !args.json {
-            eprintln!("wrote {} strategy images to {}", films.len(), dir.display());
-        }
-    }
-    let result = pool.install(|| {
-        render_scene_with(
-            &scene, &technique, kind, smc, spp, args.time, seed, max_depth, !args.json,
+    let plan = configure(&args, &scene, settings)?;
+    let pool = thread_pool(args.threads)?;
+    let pre = pool.install(|| {
+        session::preprocess(
+            &scene,
+            plan.adjoint.as_ref(),
+            &plan.settings.guide,
+            plan.seed,
+            plan.max_depth,
+            !args.json,
         )
     })?;
-
-    let stem = args
-        .scene
-        .as_ref()
-        .and_then(|p| p.file_stem())
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_else(|| "fog-box".into());
-    let mut written = Vec::new();
-    if let Some(image) = &result.image {
-        let exr = args
-            .output
-            .clone()
-            .unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
-        let png = args
-            .png
-            .clone()
-            .unwrap_or_else(|| exr.with_extension("png"));
-        let mut meta = ImageMeta::default();
-        meta.set("integrator", &result.integrator)
-            .set("spp", result.spp)
-            .set("seed", seed)
-            .set("seconds", format!("{:.3}", result.seconds))
-            .set("scene", &source.name)
-            .set("scene_hash", format!("{:016x}", source.hash()))
-            .set("nan_count", result.nan_count)
-            .set("negative_pixels", result.negative_pixels);
-        if let Some(g) = &guide_stats {
-            let gs = scene.render.guide;
-            meta.set(
-                "guide",
-                format!(
-                    "{} map {}x{} regions {} particles {} weight {} preprocessing {:.3} s",
-                    gs.kind.name(),
-                    gs.cols,
-                    gs.rows,
-                    gs.regions.regions,
-                    gs.particles,
-                    gs.c_guide,
-                    g.seconds()
-                ),
-            );
-        }
-        image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
-        image_io::write_png(&png, image).map_err(|e| e.to_string())?;
-        written.push(exr.display().to_string());
-        written.push(png.display().to_string());
+    show_adjoint(&args, &pre, &plan, &source)?;
+    if let (Some(g), false) = (&pre.guide, args.json) {
+        eprint!("{}", g.table());
     }
+    let setup = Setup {
+        scene: &scene,
+        technique: &pre.technique,
+        settings: &plan.settings,
+        seed: plan.seed,
+        max_depth: plan.max_depth,
+    };
+    if let Some(dir) = &args.strategy_images {
+        pool.install(|| write_strategy_images(&args, dir, &setup, &plan, &source))?;
+    }
+    let job = Job {
+        kind: plan.kind,
+        setup,
+        spp: plan.spp,
+        time: args.time,
+        progress: !args.json,
+    };
+    let result = pool.install(|| session::render(&job))?;
+    let written = write_image(&args, &result, &plan, &pre, &source)?;
     if result.negative_pixels > 0 {
         eprintln!(
             "warning: {} pixels have a negative estimate (radiance is never negative): the \
              estimator has not converged there{}",
             result.negative_pixels,
-            if kind == IntegratorKind::Smc {
+            if plan.kind == IntegratorKind::Smc {
                 " (SMC's control variates: more samples per pixel, or --smc-variant is1_cv0)"
             } else {
                 ""
             }
         );
     }
-    let mean = result.image.as_ref().map(|i| i.mean());
     if args.json {
-        let sensors: Vec<serde_json::Value> = result
-            .meters
-            .iter()
-            .map(|m| serde_json::json!({"name": m.name, "value": rgb_json(m.value), "stderr": rgb_json(m.stderr), "samples": m.samples}))
-            .collect();
-        let out = serde_json::json!({
-            "integrator": result.integrator,
-            "spp": result.spp,
-            "seconds": result.seconds,
-            "paths_per_second": result.paths_per_second(),
-            "mean": mean.map(rgb_json),
-            "nan_count": result.nan_count,
-            "negative_pixels": result.negative_pixels,
-            "estimated_relmse": result.estimated_relmse,
-            "sensors": sensors,
-            "outputs": written,
-            "smc": result.smc_stats.as_ref().map(|s| serde_json::json!({
-                "refinement_threshold": s.threshold,
-                "max_depth": s.max_depth,
-                "nodes": s.nodes,
-                "leaves": s.leaves,
-                "cells": s.cells,
-                "bytes": s.bytes,
-                "budget": s.budget,
-                "budget_reached": s.budget_reached,
-                "records": s.records,
-            })),
-            "mlt": result.mlt.as_ref().map(mlt_json),
-            "guide": guide_stats.as_ref().map(|g| serde_json::json!({
-                "vertices": scene.render.guide.kind.name(),
-                "map": [g.map.0, g.map.1],
-                "photons": g.photons,
-                "importons": g.importons,
-                "regions_radiance": [g.regions_radiance.0, g.regions_radiance.1],
-                "regions_importance": [g.regions_importance.0, g.regions_importance.1],
-                "bytes_radiance": g.bytes_radiance,
-                "bytes_importance": g.bytes_importance,
-                "seconds_particles": g.seconds_particles,
-                "seconds_build": g.seconds_build,
-            })),
-            "adjoint": adjoint.map(|a| serde_json::json!({
-                "samples": a.samples,
-                "seconds": a.seconds,
-                "zero_cells": a.zero_cells,
-            })),
-        });
-        println!("{out}");
+        println!("{}", result_json(&result, &plan, &pre, &written));
     } else {
-        let mean = mean.map_or("no camera".to_string(), |m| {
-            format!("mean pixel ({:.4}, {:.4}, {:.4})", m.x, m.y, m.z)
-        });
-        println!(
-            "{}: {} spp in {:.2} s, {:.3e} paths/s, {}, {} NaN/inf{}",
-            result.integrator,
-            result.spp,
-            result.seconds,
-            result.paths_per_second(),
-            mean,
-            result.nan_count,
-            if written.is_empty() {
-                String::new()
-            } else {
-                format!(" -> {}", written.join(", "))
-            }
-        );
-        if let Some((b, stats)) = &result.mlt {
-            println!("  mlt: b = {b:.5}");
-            for (k, st) in stats {
-                println!(
-                    "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
-                    k.name(),
-                    st.attempted,
-                    st.proposed,
-                    st.accepted,
-                    st.acceptance_rate()
-                );
-            }
-        }
-        for m in &result.meters {
-            println!(
-                "  sensor {}: ({:.5}, {:.5}, {:.5}) +- ({:.5}, {:.5}, {:.5}) [{} samples]",
-                m.name,
-                m.value.x,
-                m.value.y,
-                m.value.z,
-                m.stderr.x,
-                m.stderr.y,
-                m.stderr.z,
-                m.samples
-            );
-        }
-        if let Some(s) = &result.smc_stats {
-            println!("  {s}");
-        }
+        print_summary(&result, &written);
     }
     Ok(())
 }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use super::adjoint::{AdjointImage, AdjointSettings, AdjointStats};
-use super::guide::{self, Guide, GuideKind, GuideStats};
+use super::guide::{self, Guide, GuideKind, GuideSettings, GuideStats};
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
 use crate::path::technique::{LobeChoice, LocalSampling, ScatterSample, StartDraw, PLAIN};
@@ -46,13 +46,18 @@ impl Enlightened {
         Ok(stats)
     }
 
-    /// Builds the guide the scene's `render.guide` settings ask for (with `seed` for particles
+    /// Builds the guide `settings` ask for (with `seed` for particles
     /// and clustering) and keeps it; `None` when guiding is off. Any guide already held is
     /// dropped first, so the particles are traced with the unguided walks (and the adjoint
     /// image's light starts, when one is held).
-    pub fn install_guide(&mut self, scene: &Scene, seed: u64) -> Option<GuideStats> {
+    pub fn install_guide(
+        &mut self,
+        scene: &Scene,
+        settings: &GuideSettings,
+        seed: u64,
+    ) -> Option<GuideStats> {
         self.guide = None;
-        let mut settings = scene.render.guide;
+        let mut settings = *settings;
         if settings.kind == GuideKind::Off {
             return None;
         }

@@ -6,19 +6,23 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
+pub mod light;
 pub mod mlt;
 pub mod path;
 pub mod reach;
+pub mod session;
+pub mod settings;
 pub mod smc;
 
 pub use path::PathTracer;
+pub use settings::RenderSettings;
 
 use rayon::prelude::*;
 
 use crate::film::Film;
 use crate::math::Sampler;
 use crate::path::{LocalSampling, PLAIN};
-use crate::scene::Scene;
+use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
 /// The integrators a user can name.
@@ -55,20 +59,166 @@ impl IntegratorKind {
         }
     }
 
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, IntegratorError> {
         Self::ALL
             .iter()
             .copied()
             .find(|k| k.name() == s)
             .ok_or_else(|| {
                 let names: Vec<&str> = Self::ALL.iter().map(|k| k.name()).collect();
-                format!("unknown integrator `{s}` (available: {})", names.join(", "))
+                IntegratorError::Unknown(s.to_string(), names.join(", "))
             })
     }
 
     /// Whether the integrator samples light start points (and so can use the adjoint image).
     pub fn samples_light_starts(self) -> bool {
         matches!(self, Self::Bdpt | Self::Light | Self::Mlt)
+    }
+
+    /// The one registration point of the integrators: each one's module builds it from the
+    /// setup, or says why it refuses the scene or its settings (adding an integrator: its
+    /// module, a variant above and one line here).
+    pub fn prepare<'t>(
+        self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+        match self {
+            IntegratorKind::Path => path::prepare(setup),
+            IntegratorKind::Light => light::prepare(setup, bdpt::Strategies::LightTracing),
+            IntegratorKind::Bdpt => light::prepare(setup, bdpt::Strategies::All),
+            IntegratorKind::Smc => smc::prepare(setup),
+            IntegratorKind::Mlt => mlt::prepare(setup),
+        }
+    }
+}
+
+/// Why an integrator cannot render: the errors of the integrator layer, with the messages the
+/// command line prints.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum IntegratorError {
+    /// A name that is no integrator (the name, the available ones).
+    #[error("unknown integrator `{0}` (available: {1})")]
+    Unknown(String, String),
+    /// The integrator refuses the scene or its settings, and says why.
+    #[error("{0}")]
+    Refused(String),
+    /// SMC settings given to another integrator.
+    #[error("SMC options apply to the `smc` integrator, not `{0}`")]
+    NotSmc(&'static str),
+}
+
+impl From<String> for IntegratorError {
+    fn from(reason: String) -> Self {
+        IntegratorError::Refused(reason)
+    }
+}
+
+impl From<IntegratorError> for String {
+    fn from(e: IntegratorError) -> Self {
+        e.to_string()
+    }
+}
+
+/// What an integrator is prepared from: the scene, the local-sampling technique (plain, or the
+/// enlightened one the preprocessing stages built), its render settings, the seed and the depth
+/// limit (one struct, so that a new setting reaches every integrator without a new argument).
+/// The technique may outlive the settings: the integrator keeps it, not them.
+#[derive(Clone, Copy)]
+pub struct Setup<'s, 't> {
+    pub scene: &'s Scene,
+    pub technique: &'t dyn LocalSampling,
+    pub settings: &'s RenderSettings,
+    pub seed: u64,
+    pub max_depth: Option<u32>,
+}
+
+/// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no
+/// sample allocates: the walks of the bidirectional methods, SMC's path links, and what the
+/// samples deposit besides their value (splats on the film, SMC records for the next pass).
+#[derive(Default)]
+pub struct Scratch {
+    pub bdpt: bdpt::Scratch,
+    pub smc: smc::Scratch,
+    pub splats: Vec<bdpt::Splat>,
+    pub records: Vec<smc::Record>,
+}
+
+/// What an integrator reports after its passes, for `--json`, the EXR and the summary line.
+#[derive(Clone, Debug, Default)]
+pub struct Statistics {
+    /// The SMC structure's statistics (Pegoraro et al. Table 1).
+    pub smc: Option<smc::OctreeStats>,
+    /// MLT: b of the pre-pass and each mutation type's counts.
+    pub mlt: Option<(f64, Vec<(mlt::mutation::MutationKind, mlt::MutationStats)>)>,
+}
+
+/// An integrator as the render loop sees it: one sample of the camera's film or of a meter,
+/// drawn from the sampler it is handed (streams `Sampler::new(seed, pixel, pass)`, so images
+/// do not depend on threads), and the hooks of a pass. The tile and meter loops are written
+/// once, in [`Renderer::pass`]; every method is read-only during a pass (SMC's records are
+/// merged in [`Integrator::end_pass`], Pegoraro et al.'s fixed predicates).
+pub trait Integrator: Send + Sync {
+    /// Its name in `--json`, the EXR metadata and the summary (`smc (is1_cv2, march)`).
+    fn label(&self) -> String;
+
+    /// One camera sample through film point `raster`: the pixel's value (splats go to
+    /// `scratch.splats`, SMC records to `scratch.records`).
+    fn camera_sample(
+        &self,
+        scene: &Scene,
+        cam: &Camera,
+        raster: glam::Vec2,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+    ) -> Rgb;
+
+    /// One sample of meter `meter`'s mean irradiance.
+    fn meter_sample(
+        &self,
+        scene: &Scene,
+        meter: u32,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+    ) -> Rgb;
+
+    /// Whether the pass adds the camera's direct view of delta lights (the path tracer and
+    /// SMC; BDPT's (1, 1) strategy does it per sample).
+    fn views_delta_lights(&self) -> bool {
+        false
+    }
+
+    /// A film-wide pass instead of tiles and meters (MLT: `spp` mutations per pixel over all
+    /// chains); returns the paths traced, `None` for the tile loop.
+    fn film_pass(&mut self, _scene: &Scene, _film: &mut Film, _spp: u32) -> Option<u64> {
+        None
+    }
+
+    /// After a pass: the records of its tiles, then of its meter chunks, in order.
+    fn end_pass(&mut self, _records: &[Vec<smc::Record>]) {}
+
+    /// Whether the film's per-pixel variance estimates the image's (not for splats-only MLT).
+    fn pixel_variance(&self) -> bool {
+        true
+    }
+
+    /// The statistics the integrator reports.
+    fn statistics(&self) -> Statistics {
+        Statistics::default()
+    }
+
+    /// The bidirectional engine, for `light` and `bdpt` (strategy images, tests).
+    fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {
+        None
+    }
+
+    /// The Metropolis engine, for `mlt` (tests).
+    fn mlt(&self) -> Option<&mlt::Mlt<'_>> {
+        None
+    }
+
+    /// The SMC state, for `smc` (tests).
+    fn smc(&self) -> Option<&smc::Smc> {
+        None
     }
 }
 
@@ -80,15 +230,6 @@ pub const METER_CHUNK: u64 = 1024;
 const DELTA_VIEW_STREAM: u64 = u64::MAX - 1;
 /// Salt that keeps meter streams apart from pixel streams of the same index.
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
-
-/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
-/// its SMC records.
-type TileResult = (
-    Vec<(usize, [f64; 3], [f64; 3])>,
-    Vec<bdpt::Splat>,
-    u64,
-    Vec<smc::Record>,
-);
 
 /// A meter's running statistics.
 #[derive(Clone, Debug, Default)]
@@ -134,13 +275,12 @@ impl MeterAccum {
 /// Accumulates passes of an integrator over the camera film and the meters.
 pub struct Renderer<'a> {
     pub scene: &'a Scene,
-    /// The local-sampling technique of every walk and density (plain or enlightened).
-    pub technique: &'a dyn LocalSampling,
     pub kind: IntegratorKind,
     pub seed: u64,
-    pub tracer: PathTracer,
-    /// The bidirectional engine for `light` and `bdpt`.
-    pub bdpt: Option<bdpt::Bdpt<'a>>,
+    /// The depth limit the integrator was prepared with.
+    pub max_depth: Option<u32>,
+    /// The integrator (replaceable before the first pass, e.g. by a BDPT of one strategy).
+    pub integrator: Box<dyn Integrator + 'a>,
     pub film: Option<Film>,
     pub meters: Vec<MeterAccum>,
     /// Passes done so far (each pass has its own random streams).
@@ -151,31 +291,35 @@ pub struct Renderer<'a> {
     pub paths: u64,
     /// Meter samples per pixel sample.
     pub meter_samples: u64,
-    /// The SMC state for `smc`: the structure is read-only during a pass, its records are
-    /// merged after it.
-    pub smc: Option<smc::Smc>,
-    /// The Metropolis engine for `mlt`.
-    pub mlt: Option<mlt::Mlt<'a>>,
 }
 
+/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
+/// its SMC records.
+type TileResult = (
+    Vec<(usize, [f64; 3], [f64; 3])>,
+    Vec<bdpt::Splat>,
+    u64,
+    Vec<smc::Record>,
+);
+
 impl<'a> Renderer<'a> {
-    /// A renderer of `scene` with integrator `kind`.
+    /// A renderer of `scene` with integrator `kind` and the default render settings.
     ///
     /// # Panics
-    /// If the integrator refuses the scene or its settings ([`Renderer::try_new`] returns the
-    /// reason instead: use it for scenes a user wrote).
+    /// If the integrator refuses the scene ([`Renderer::try_new`] returns the reason instead:
+    /// use it for scenes a user wrote).
     pub fn new(scene: &'a Scene, kind: IntegratorKind, seed: u64, max_depth: Option<u32>) -> Self {
         Self::try_new(scene, kind, seed, max_depth).unwrap_or_else(|e| panic!("{e}"))
     }
 
-    /// A renderer of `scene` with integrator `kind`, or the reason the integrator refuses the
-    /// scene (e.g. MLT without a camera) or the scene's `[render.mlt]` / `[render.smc]`.
+    /// A renderer of `scene` with integrator `kind` and the default render settings, or the
+    /// reason the integrator refuses the scene (e.g. MLT without a camera).
     pub fn try_new(
         scene: &'a Scene,
         kind: IntegratorKind,
         seed: u64,
         max_depth: Option<u32>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, IntegratorError> {
         Self::try_with(scene, &PLAIN, kind, seed, max_depth)
     }
 
@@ -187,66 +331,72 @@ impl<'a> Renderer<'a> {
         kind: IntegratorKind,
         seed: u64,
         max_depth: Option<u32>,
-    ) -> Result<Self, String> {
-        let mlt = match kind {
-            IntegratorKind::Mlt => Some(mlt::Mlt::new(
-                scene,
-                technique,
-                scene.render.mlt.clone(),
-                seed,
-                max_depth,
-            )?),
-            _ => None,
-        };
-        let smc = match kind {
-            IntegratorKind::Smc => Some(smc::Smc::new(scene, scene.render.smc, max_depth)?),
-            _ => None,
-        };
-        let bdpt = match kind {
-            IntegratorKind::Path | IntegratorKind::Smc | IntegratorKind::Mlt => None,
-            IntegratorKind::Light => Some(bdpt::Bdpt::new(
-                scene,
-                technique,
-                max_depth,
-                bdpt::Strategies::LightTracing,
-            )),
-            IntegratorKind::Bdpt => Some(bdpt::Bdpt::new(
-                scene,
-                technique,
-                max_depth,
-                bdpt::Strategies::All,
-            )),
-        };
-        Ok(Renderer {
+    ) -> Result<Self, IntegratorError> {
+        let settings = RenderSettings::for_scene(scene);
+        let setup = Setup {
             scene,
             technique,
-            kind,
+            settings: &settings,
             seed,
-            tracer: PathTracer::new(max_depth),
-            mlt,
-            bdpt,
+            max_depth,
+        };
+        Self::assemble(scene, kind, &setup)
+    }
+
+    /// A renderer with integrator `kind` prepared from `setup` (the scene file's settings),
+    /// or the reason the integrator refuses the scene or the settings.
+    pub fn prepared(kind: IntegratorKind, setup: &Setup<'a, 'a>) -> Result<Self, IntegratorError> {
+        Self::assemble(setup.scene, kind, setup)
+    }
+
+    /// The renderer of `scene` (which is `setup.scene`, borrowed for the renderer's life).
+    fn assemble(
+        scene: &'a Scene,
+        kind: IntegratorKind,
+        setup: &Setup<'_, 'a>,
+    ) -> Result<Self, IntegratorError> {
+        Ok(Renderer {
+            scene,
+            kind,
+            seed: setup.seed,
+            max_depth: setup.max_depth,
+            integrator: kind.prepare(setup)?,
             film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
             passes: 0,
             nan_count: 0,
             paths: 0,
-            meter_samples: scene.render.meter_samples as u64,
-            smc,
+            meter_samples: setup.settings.meter_samples as u64,
         })
     }
 
     /// Replaces the SMC settings (before the first pass); an error for invalid settings or
     /// another integrator.
-    pub fn with_smc_settings(mut self, settings: smc::SmcSettings) -> Result<Self, String> {
+    pub fn with_smc_settings(
+        mut self,
+        settings: smc::SmcSettings,
+    ) -> Result<Self, IntegratorError> {
         if self.kind != IntegratorKind::Smc {
-            return Err(format!(
-                "SMC options apply to the `smc` integrator, not `{}`",
-                self.kind.name()
-            ));
+            return Err(IntegratorError::NotSmc(self.kind.name()));
         }
-        let max_depth = Some(self.tracer.max_depth);
-        self.smc = Some(smc::Smc::new(self.scene, settings, max_depth)?);
+        let max_depth = Some(self.max_depth.unwrap_or(u32::MAX));
+        self.integrator = Box::new(smc::Smc::new(self.scene, settings, max_depth)?);
         Ok(self)
+    }
+
+    /// The SMC state, for `smc`.
+    pub fn smc(&self) -> Option<&smc::Smc> {
+        self.integrator.smc()
+    }
+
+    /// The Metropolis engine, for `mlt`.
+    pub fn mlt(&self) -> Option<&mlt::Mlt<'_>> {
+        self.integrator.mlt()
+    }
+
+    /// The bidirectional engine, for `light` and `bdpt`.
+    pub fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {
+        self.integrator.bdpt()
     }
 
     /// Samples per pixel so far.
@@ -259,257 +409,173 @@ impl<'a> Renderer<'a> {
     pub fn pass(&mut self, spp: u32, on_tile: &(dyn Fn() + Sync)) {
         let pass = self.passes;
         self.passes += 1;
-        if self.kind == IntegratorKind::Mlt {
-            // film-wide: spp mutations per pixel over all chains (meters are not rendered)
-            if let (Some(film), Some(engine)) = (self.film.as_mut(), self.mlt.as_mut()) {
-                let n = film.width as u64 * film.height as u64 * spp as u64;
-                engine.run(self.scene, film, n);
-                film.spp += spp as u64;
-                self.paths += n;
+        if let Some(film) = self.film.as_mut() {
+            if let Some(paths) = self.integrator.film_pass(self.scene, film, spp) {
+                self.paths += paths;
+                on_tile();
+                return;
             }
-            on_tile();
-            return;
         }
-        let scene = self.scene;
-        let tracer = self.tracer;
-        let bidir = self.bdpt.as_ref();
-        let smc_state = self.smc.as_ref();
-        let seed = self.seed;
-        let mut smc_records: Vec<Vec<smc::Record>> = Vec::new();
-        if let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) {
-            let (w, h) = (cam.width, cam.height);
-            let tiles_x = w.div_ceil(TILE);
-            let tiles_y = h.div_ceil(TILE);
-            let results: Vec<TileResult> = (0..tiles_x * tiles_y)
-                .into_par_iter()
-                .map(|t| {
-                    let (tx, ty) = (t % tiles_x, t / tiles_x);
-                    let mut out = Vec::with_capacity((TILE * TILE) as usize);
-                    let mut splats = Vec::new();
-                    let mut scratch = bdpt::Scratch::default();
-                    let mut smc_scratch = smc::Scratch::default();
-                    let mut records = Vec::new();
-                    let mut nans = 0u64;
-                    for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                        for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                            let index = (y * w + x) as usize;
-                            let mut sampler = Sampler::new(seed, index as u64, pass);
-                            let mut sum = [0.0f64; 3];
-                            let mut sum_sq = [0.0f64; 3];
-                            for _ in 0..spp {
-                                let raster =
-                                    glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                                let first_splat = splats.len();
-                                let l = match (bidir, smc_state) {
-                                    (None, Some(s)) => s.radiance(
-                                        scene,
-                                        cam.generate_ray(raster),
-                                        scene.camera_medium,
-                                        &mut sampler,
-                                        &mut smc_scratch,
-                                        &mut records,
-                                    ),
-                                    (None, None) => tracer.radiance(
-                                        scene,
-                                        cam.generate_ray(raster),
-                                        scene.camera_medium,
-                                        &mut sampler,
-                                    ),
-                                    (Some(b), _) => {
-                                        b.camera_subpath(
-                                            scene,
-                                            raster,
-                                            &mut sampler,
-                                            &mut scratch.eye,
-                                        );
-                                        b.light_subpath(scene, &mut sampler, &mut scratch.light);
-                                        b.combine(scene, &scratch, &mut sampler, &mut splats)
-                                    }
-                                };
-                                if !l.is_finite()
-                                    || splats[first_splat..].iter().any(|s| !s.1.is_finite())
-                                {
-                                    nans += 1;
-                                    splats.truncate(first_splat);
-                                    continue;
-                                }
-                                for c in 0..3 {
-                                    let v = l[c] as f64;
-                                    sum[c] += v;
-                                    sum_sq[c] += v * v;
-                                }
-                            }
-                            out.push((index, sum, sum_sq));
-                        }
-                    }
-                    on_tile();
-                    (out, splats, nans, records)
-                })
-                .collect();
-            for (pixels, splats, nans, records) in results {
-                smc_records.push(records);
-                self.nan_count += nans;
-                for (i, s, q) in pixels {
-                    film.add_pixel(i, s, q);
-                }
-                for (r, l) in splats {
-                    film.add_splat(r, l);
-                }
-            }
-            let samples = (w * h) as u64 * spp as u64;
-            if bidir.is_some() {
-                film.splat_count += samples;
-            } else {
-                // the path tracer and SMC: the direct image of delta lights, one splat per light
-                // standing for the pass's camera samples (BDPT's (1, 1) strategy does this per
-                // sample)
-                let mut sampler = Sampler::new(seed, DELTA_VIEW_STREAM, pass);
-                for (raster, l) in path::delta_light_view(scene, &mut sampler) {
-                    film.add_splat(raster, l * samples as f32);
-                }
-                film.splat_count += samples;
-            }
-            film.spp += spp as u64;
-            self.paths += (w * h) as u64 * spp as u64;
-        }
-        let per_meter = spp as u64 * self.meter_samples;
-        for (mi, meter) in scene.sensors.iter().enumerate() {
-            let chunks = per_meter.div_ceil(METER_CHUNK);
-            let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)
-                .into_par_iter()
-                .map(|c| {
-                    let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
-                    let stream = METER_STREAM_SALT ^ ((mi as u64) << 40) ^ c;
-                    let mut sampler = Sampler::new(seed, stream, pass);
-                    let mut acc = MeterAccum::default();
-                    let mut nans = 0;
-                    let mut scratch = bdpt::Scratch::default();
-                    let mut splats = Vec::new();
-                    let mut smc_scratch = smc::Scratch::default();
-                    let mut records = Vec::new();
-                    for _ in 0..n {
-                        let e = match (bidir, smc_state) {
-                            (None, Some(s)) => s.meter_irradiance(
-                                scene,
-                                meter,
-                                &mut sampler,
-                                &mut smc_scratch,
-                                &mut records,
-                            ),
-                            (None, None) => tracer.meter_irradiance(scene, meter, &mut sampler),
-                            (Some(b), _) => {
-                                b.meter_subpath(scene, mi as u32, &mut sampler, &mut scratch.eye);
-                                b.light_subpath(scene, &mut sampler, &mut scratch.light);
-                                b.combine(scene, &scratch, &mut sampler, &mut splats)
-                            }
-                        };
-                        acc.samples += 1;
-                        if !e.is_finite() {
-                            nans += 1;
-                            continue;
-                        }
-                        for ch in 0..3 {
-                            let v = e[ch] as f64;
-                            acc.sum[ch] += v;
-                            acc.sum_sq[ch] += v * v;
-                        }
-                    }
-                    (acc, nans, records)
-                })
-                .collect();
-            for (acc, nans, records) in results {
-                smc_records.push(records);
-                let m = &mut self.meters[mi];
-                for ch in 0..3 {
-                    m.sum[ch] += acc.sum[ch];
-                    m.sum_sq[ch] += acc.sum_sq[ch];
-                }
-                m.samples += acc.samples;
-                self.nan_count += nans;
-            }
-            self.paths += per_meter;
+        let mut records = self.film_tiles(spp, pass, on_tile);
+        for mi in 0..self.scene.sensors.len() {
+            records.extend(self.meter_chunks(mi, spp, pass));
         }
         // SMC: the pass's records, in tile then meter-chunk order, refine the structure for
         // the next pass [PWP08 Fig. 2 lines 13-14]
-        if let Some(s) = self.smc.as_mut() {
-            for records in &smc_records {
-                s.merge(records);
+        self.integrator.end_pass(&records);
+    }
+
+    /// The camera's part of a pass: tiles in parallel, every pixel's stream
+    /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' records.
+    fn film_tiles(
+        &mut self,
+        spp: u32,
+        pass: u64,
+        on_tile: &(dyn Fn() + Sync),
+    ) -> Vec<Vec<smc::Record>> {
+        let scene = self.scene;
+        let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) else {
+            return Vec::new();
+        };
+        let integrator = self.integrator.as_ref();
+        let seed = self.seed;
+        let (w, h) = (cam.width, cam.height);
+        let tiles_x = w.div_ceil(TILE);
+        let tiles_y = h.div_ceil(TILE);
+        let results: Vec<TileResult> = (0..tiles_x * tiles_y)
+            .into_par_iter()
+            .map(|t| {
+                let (tx, ty) = (t % tiles_x, t / tiles_x);
+                let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                let mut scratch = Scratch::default();
+                let mut nans = 0u64;
+                for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                        let index = (y * w + x) as usize;
+                        let mut sampler = Sampler::new(seed, index as u64, pass);
+                        let mut sum = [0.0f64; 3];
+                        let mut sum_sq = [0.0f64; 3];
+                        for _ in 0..spp {
+                            let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                            let first_splat = scratch.splats.len();
+                            let l = integrator.camera_sample(
+                                scene,
+                                cam,
+                                raster,
+                                &mut sampler,
+                                &mut scratch,
+                            );
+                            if !l.is_finite()
+                                || scratch.splats[first_splat..]
+                                    .iter()
+                                    .any(|s| !s.1.is_finite())
+                            {
+                                nans += 1;
+                                scratch.splats.truncate(first_splat);
+                                continue;
+                            }
+                            for c in 0..3 {
+                                let v = l[c] as f64;
+                                sum[c] += v;
+                                sum_sq[c] += v * v;
+                            }
+                        }
+                        out.push((index, sum, sum_sq));
+                    }
+                }
+                on_tile();
+                (out, scratch.splats, nans, scratch.records)
+            })
+            .collect();
+        let mut records = Vec::with_capacity(results.len());
+        for (pixels, splats, nans, tile_records) in results {
+            records.push(tile_records);
+            self.nan_count += nans;
+            for (i, s, q) in pixels {
+                film.add_pixel(i, s, q);
+            }
+            for (r, l) in splats {
+                film.add_splat(r, l);
             }
         }
+        let samples = (w * h) as u64 * spp as u64;
+        if integrator.views_delta_lights() {
+            // the direct image of delta lights, one splat per light standing for the pass's
+            // camera samples (BDPT's (1, 1) strategy does this per sample)
+            let mut sampler = Sampler::new(seed, DELTA_VIEW_STREAM, pass);
+            for (raster, l) in path::delta_light_view(scene, &mut sampler) {
+                film.add_splat(raster, l * samples as f32);
+            }
+        }
+        film.splat_count += samples;
+        film.spp += spp as u64;
+        self.paths += (w * h) as u64 * spp as u64;
+        records
+    }
+
+    /// Meter `mi`'s part of a pass: chunks of [`METER_CHUNK`] samples in parallel, each with
+    /// its own stream, added in chunk order; the chunks' records.
+    fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Vec<smc::Record>> {
+        let scene = self.scene;
+        let integrator = self.integrator.as_ref();
+        let seed = self.seed;
+        let per_meter = spp as u64 * self.meter_samples;
+        let chunks = per_meter.div_ceil(METER_CHUNK);
+        let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)
+            .into_par_iter()
+            .map(|c| {
+                let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
+                let stream = METER_STREAM_SALT ^ ((mi as u64) << 40) ^ c;
+                let mut sampler = Sampler::new(seed, stream, pass);
+                let mut acc = MeterAccum::default();
+                let mut nans = 0;
+                let mut scratch = Scratch::default();
+                for _ in 0..n {
+                    let e = integrator.meter_sample(scene, mi as u32, &mut sampler, &mut scratch);
+                    acc.samples += 1;
+                    if !e.is_finite() {
+                        nans += 1;
+                        continue;
+                    }
+                    for ch in 0..3 {
+                        let v = e[ch] as f64;
+                        acc.sum[ch] += v;
+                        acc.sum_sq[ch] += v * v;
+                    }
+                }
+                (acc, nans, scratch.records)
+            })
+            .collect();
+        let mut records = Vec::with_capacity(results.len());
+        for (acc, nans, chunk_records) in results {
+            records.push(chunk_records);
+            let m = &mut self.meters[mi];
+            for ch in 0..3 {
+                m.sum[ch] += acc.sum[ch];
+                m.sum_sq[ch] += acc.sum_sq[ch];
+            }
+            m.samples += acc.samples;
+            self.nan_count += nans;
+        }
+        self.paths += per_meter;
+        records
     }
 
     /// BDPT's strategies one by one (MIS-weighted, so they sum to the BDPT image): one image per
     /// (s, t) with s + t - 2 <= `max_depth_shown` scattering vertices, a user's favourite
-    /// debugging view. One pass of `spp` samples per pixel, deterministic like `pass`.
+    /// debugging view. One pass of `spp` samples per pixel, deterministic like `pass`; empty
+    /// for integrators other than `light` and `bdpt`.
     pub fn strategy_images(
         &self,
         spp: u32,
         max_depth_shown: u32,
     ) -> std::collections::BTreeMap<(usize, usize), Film> {
-        let mut films = std::collections::BTreeMap::new();
-        let (Some(b), Some(cam)) = (self.bdpt.as_ref(), self.scene.camera.as_ref()) else {
-            return films;
-        };
-        let scene = self.scene;
-        let seed = self.seed;
-        let pass = self.passes;
-        let (w, h) = (cam.width, cam.height);
-        type Row = Vec<(usize, usize, Option<glam::Vec2>, usize, Rgb)>;
-        let rows: Vec<Row> = (0..h)
-            .into_par_iter()
-            .map(|y| {
-                let mut out = Vec::new();
-                let mut scratch = bdpt::Scratch::default();
-                for x in 0..w {
-                    let index = (y * w + x) as usize;
-                    let mut sampler = Sampler::new(seed, index as u64, pass);
-                    for _ in 0..spp {
-                        let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                        b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
-                        b.light_subpath(scene, &mut sampler, &mut scratch.light);
-                        for t in 1..=scratch.eye.len() {
-                            for s in 0..=bdpt::Bdpt::max_light_vertices(scene, &scratch.light) {
-                                let depth = s + t;
-                                if depth < 2
-                                    || depth - 2 > max_depth_shown as usize
-                                    || depth - 2 > b.max_depth as usize
-                                {
-                                    continue;
-                                }
-                                if let Some((l, r)) = b.connect(
-                                    scene,
-                                    &scratch.light,
-                                    &scratch.eye,
-                                    s,
-                                    t,
-                                    &mut sampler,
-                                ) {
-                                    if l.is_finite() {
-                                        out.push((s, t, r, index, l));
-                                    }
-                                }
-                            }
-                        }
-                    }
-                }
-                out
-            })
-            .collect();
-        for row in rows {
-            for (s, t, r, index, l) in row {
-                let film = films.entry((s, t)).or_insert_with(|| {
-                    let mut f = Film::new(w, h);
-                    f.spp = spp as u64;
-                    f.splat_count = (w * h) as u64 * spp as u64;
-                    f
-                });
-                match r {
-                    Some(r) => film.add_splat(r, l),
-                    None => film.add_pixel(index, [l.x as f64, l.y as f64, l.z as f64], [0.0; 3]),
-                }
+        match self.bdpt() {
+            Some(b) => {
+                light::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)
             }
+            None => std::collections::BTreeMap::new(),
         }
-        films
     }
 
     /// Every meter's estimate.

@@ -356,3 +356,44 @@ pub fn next_event(
     // END ASSIGNMENT
 }
 // ANCHOR_END: next_event
+
+/// The path tracer for the render loop (it takes no settings but the depth limit).
+pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
+    Ok(Box::new(PathTracer::new(setup.max_depth)))
+}
+
+impl super::Integrator for PathTracer {
+    fn label(&self) -> String {
+        "path".into()
+    }
+
+    fn camera_sample(
+        &self,
+        scene: &Scene,
+        cam: &crate::scene::Camera,
+        raster: glam::Vec2,
+        sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.radiance(
+            scene,
+            cam.generate_ray(raster),
+            scene.camera_medium,
+            sampler,
+        )
+    }
+
+    fn meter_sample(
+        &self,
+        scene: &Scene,
+        meter: u32,
+        sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.meter_irradiance(scene, &scene.sensors[meter as usize], sampler)
+    }
+
+    fn views_delta_lights(&self) -> bool {
+        true
+    }
+}

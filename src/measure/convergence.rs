@@ -14,7 +14,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::image_io::{self, Image};
-use crate::integrator::{IntegratorKind, Renderer};
+use crate::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use crate::math::sampler::mix64;
 use crate::measure::metrics;
 use crate::measure::stats::{self, MeanStderr, PowerLawFit};
@@ -107,46 +107,29 @@ pub fn run_seed(seed: u64, run: usize) -> u64 {
 /// time passes a checkpoint, the film is snapshotted and compared with the reference. Only the
 /// passes are timed, so the cost of the metrics is not charged to the integrator.
 pub fn measure_run(
-    scene: &Scene,
+    setup: &Setup,
     reference: &Image,
     kind: IntegratorKind,
-    seed: u64,
-    max_depth: Option<u32>,
     times: &[f64],
     run: usize,
 ) -> Result<Vec<CheckpointRow>, String> {
-    measure_run_from(
-        scene,
-        &crate::path::PLAIN,
-        reference,
-        kind,
-        seed,
-        max_depth,
-        times,
-        run,
-        kind.name(),
-        0.0,
-    )
+    measure_run_from(setup, reference, kind, times, run, kind.name(), 0.0)
 }
 // ANCHOR_END: measure_run
 
 /// [`measure_run`] with a label for the rows and `seconds0` already spent (a pre-pass charged
-/// to the integrator, such as the adjoint image's), sampling with `technique`.
-#[allow(clippy::too_many_arguments)]
+/// to the integrator, such as the adjoint image's).
 pub fn measure_run_from(
-    scene: &Scene,
-    technique: &dyn crate::path::LocalSampling,
+    setup: &Setup,
     reference: &Image,
     kind: IntegratorKind,
-    seed: u64,
-    max_depth: Option<u32>,
     times: &[f64],
     run: usize,
     label: &str,
     seconds0: f64,
 ) -> Result<Vec<CheckpointRow>, String> {
-    check_reference(scene, reference)?;
-    let mut renderer = Renderer::try_with(scene, technique, kind, seed, max_depth)?;
+    check_reference(setup.scene, reference)?;
+    let mut renderer = Renderer::prepared(kind, setup)?;
     let mut seconds = seconds0;
     let mut next = 0;
     let mut rows = Vec::with_capacity(times.len());
@@ -216,6 +199,7 @@ fn study_checkpoints(
 /// row, integrator by integrator, run by run. `on_run` hears of each finished run (progress).
 pub fn converge(
     scene: &Scene,
+    settings: &RenderSettings,
     reference: &Image,
     kinds: &[IntegratorKind],
     config: &ConvergeConfig,
@@ -226,8 +210,14 @@ pub fn converge(
     for &kind in kinds {
         for run in 0..config.runs {
             let seed = run_seed(config.seed, run);
-            let run_rows =
-                measure_run(scene, reference, kind, seed, config.max_depth, &times, run)?;
+            let setup = Setup {
+                scene,
+                technique: &crate::path::PLAIN,
+                settings,
+                seed,
+                max_depth: config.max_depth,
+            };
+            let run_rows = measure_run(&setup, reference, kind, &times, run)?;
             on_run(&run_rows);
             rows.extend(run_rows);
         }
@@ -283,6 +273,7 @@ impl Variant {
 /// reported at the first pass); the image lives in that run's technique only.
 pub fn converge_variants(
     scene: &Scene,
+    settings: &RenderSettings,
     reference: &Image,
     variants: &[Variant],
     config: &ConvergeConfig,
@@ -302,18 +293,15 @@ pub fn converge_variants(
                 }
                 None => 0.0,
             };
-            let result = measure_run_from(
+            let setup = Setup {
                 scene,
-                &technique,
-                reference,
-                v.kind,
+                technique: &technique,
+                settings,
                 seed,
-                config.max_depth,
-                &times,
-                run,
-                &v.name(),
-                seconds0,
-            );
+                max_depth: config.max_depth,
+            };
+            let result =
+                measure_run_from(&setup, reference, v.kind, &times, run, &v.name(), seconds0);
             let run_rows = result?;
             on_run(&run_rows);
             rows.extend(run_rows);

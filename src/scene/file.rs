@@ -68,150 +68,6 @@ impl RgbValue {
     }
 }
 
-/// `[render]`: defaults for the command-line flags.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct RenderDesc {
-    #[serde(default = "default_integrator")]
-    pub integrator: String,
-    #[serde(default = "default_spp")]
-    pub spp: u32,
-    #[serde(default = "default_seed")]
-    pub seed: u64,
-    pub max_depth: Option<u32>,
-    /// Samples per irradiance meter per pixel-sample pass (default 4096).
-    pub meter_samples: Option<u32>,
-    /// `[render.mlt]`: Metropolis light transport settings.
-    pub mlt: Option<MltDesc>,
-    /// `[render.smc]`: sequential Monte Carlo settings.
-    pub smc: Option<SmcDesc>,
-    /// `[render.guide]`: guided local sampling (enlightened local path sampling).
-    pub guide: Option<GuideDesc>,
-    /// Sample area-light start points from the adjoint image (bdpt, light, mlt; Kristensen
-    /// 2010, sec. 5.3.1).
-    pub adjoint_image: Option<bool>,
-    /// `[render.adjoint]`: the adjoint image's grid, pre-pass size and floor.
-    pub adjoint: Option<AdjointDesc>,
-}
-
-/// `[render.adjoint]`: the keys of the `--adjoint-*` options (defaults in
-/// `enlightened::adjoint`), which override them.
-#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct AdjointDesc {
-    /// Grid [columns, rows]; columns are rounded up to a multiple of the area lights.
-    pub resolution: Option<[u32; 2]>,
-    /// Pre-pass BDPT samples per grid cell.
-    pub samples_per_cell: Option<u32>,
-    /// Floor added to every cell, as a fraction of the mean cell value.
-    pub epsilon: Option<f32>,
-    /// `bdpt` (default) or `metropolis`: how the pre-pass estimates the cells.
-    pub estimator: Option<String>,
-}
-
-/// `[render.guide]`: the keys of the `--guide*` options (defaults in `enlightened::guide`),
-/// which override them.
-#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct GuideDesc {
-    /// `off`, `surface`, `volume` or `both`.
-    pub vertices: Option<String>,
-    /// Map resolution `COLSxROWS` (default `32x16`).
-    pub map: Option<String>,
-    /// Regions per quantity (k-means centres).
-    pub regions: Option<usize>,
-    /// Light and eye subpaths traced for the photons and importons.
-    pub particles: Option<usize>,
-    /// c2 of eqs. (5.17)-(5.19): probability of sampling the map, in (0, 1).
-    pub weight: Option<f32>,
-    /// alpha of eq. (5.16) per unit length (default 20 / scene radius).
-    pub alpha: Option<f32>,
-    /// Guided Russian roulette with this normalization (absent: the ordinary roulette).
-    pub roulette: Option<f32>,
-    /// Only particles at this depth or deeper shape the maps (1: all, 2: indirect only).
-    pub min_depth: Option<u32>,
-    /// Particle sampler: `classical`, `bidirectional` or `metropolis`.
-    pub sampler: Option<String>,
-    /// Metropolis particles: small-step deviation in primary sample space.
-    pub sigma: Option<f64>,
-    /// Metropolis particles: weight of the defensive part of the target.
-    pub defensive: Option<f64>,
-}
-
-/// `[render.smc]`: the keys of the `--smc-*` options (defaults in `integrator::smc`), which
-/// override them.
-#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct SmcDesc {
-    /// `is0|is1` x `cv0|cv1|cv2` (default `is1_cv2`).
-    pub variant: Option<String>,
-    /// Refinement threshold on the average record count of a cache.
-    pub threshold: Option<f64>,
-    /// Memory budget of the structure: bytes, or a string with a unit (`"512MiB"`).
-    pub cache_budget: Option<ByteCount>,
-    /// `march` (eq. 8-9) or `distance` (eq. 7).
-    pub estimator: Option<String>,
-    /// Ray-marching step in mean free paths (march only).
-    pub step: Option<f32>,
-}
-
-/// A byte count written as an integer or as a string with a unit.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(untagged)]
-pub enum ByteCount {
-    Bytes(i64),
-    Text(String),
-}
-
-/// `[render.mlt]`: pre-pass size, chains, mutation selection weights and perturbation ranges
-/// (defaults in `integrator::mlt`).
-#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct MltDesc {
-    pub bootstrap: Option<u64>,
-    pub chains: Option<u32>,
-    pub bidirectional: Option<f64>,
-    pub sensor: Option<f64>,
-    pub light: Option<f64>,
-    pub propagation: Option<f64>,
-    pub multichain: Option<f64>,
-    /// Sensor perturbation film offset [min, max] in pixels.
-    pub sensor_offset: Option<[f32; 2]>,
-    /// Light and multi-chain perturbation angle [min, max] in radians.
-    pub light_angle: Option<[f32; 2]>,
-    /// Propagation perturbation distance [min, max] as fractions of the scene radius.
-    pub propagation_distance: Option<[f32; 2]>,
-    /// BDPT samples per mutation that keep refining b during the run (0: pre-pass only).
-    pub b_refine: Option<f64>,
-}
-
-fn default_integrator() -> String {
-    "path".into()
-}
-fn default_spp() -> u32 {
-    64
-}
-fn default_seed() -> u64 {
-    1
-}
-
-impl Default for RenderDesc {
-    fn default() -> Self {
-        RenderDesc {
-            integrator: default_integrator(),
-            spp: default_spp(),
-            seed: default_seed(),
-            max_depth: None,
-            meter_samples: None,
-            mlt: None,
-            smc: None,
-            guide: None,
-            adjoint_image: None,
-            adjoint: None,
-        }
-    }
-}
-
 /// `[camera]`.
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -505,8 +361,9 @@ pub enum SensorDesc {
 #[derive(Debug, Clone, Deserialize, PartialEq, Default)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
-    #[serde(default)]
-    pub render: RenderDesc,
+    /// `[render]`: the render settings, read apart from the scene (their schema is
+    /// `integrator::settings`, a layer above the scene), so any table is accepted here.
+    pub render: Option<toml::Table>,
     pub camera: Option<CameraDesc>,
     #[serde(default)]
     pub materials: BTreeMap<String, MaterialDesc>,
@@ -572,11 +429,17 @@ pub fn path(k: &str) -> KeyPath {
 ///   found by name (`unknown field`), appended (`missing field`), or by deleting the table's
 ///   keys one at a time until the error changes (wrong types).
 pub fn parse(text: &str, name: &str) -> Result<SceneFile, SceneError> {
+    parse_as(text, name)
+}
+
+/// [`parse`] into any schema of the file (the scene's, or the render settings' of
+/// `integrator::settings`), with the same errors.
+pub fn parse_as<T: serde::de::DeserializeOwned>(text: &str, name: &str) -> Result<T, SceneError> {
     let doc = match toml::de::DeTable::parse(text) {
         Ok(doc) => doc,
         Err(e) => return Err(syntax_error(text, name, &e)),
     };
-    match toml::from_str::<SceneFile>(text) {
+    match toml::from_str::<T>(text) {
         Ok(f) => Ok(f),
         Err(e) => Err(schema_error(text, name, doc.get_ref(), &e)),
     }

@@ -64,27 +64,6 @@ impl ShapeInfo {
     }
 }
 
-/// Rendering defaults from the scene's `[render]` table.
-#[derive(Clone, Debug)]
-pub struct RenderSettings {
-    pub integrator: String,
-    pub spp: u32,
-    pub seed: u64,
-    pub max_depth: Option<u32>,
-    pub meter_samples: u32,
-    /// Metropolis light transport settings (`[render.mlt]`).
-    pub mlt: crate::integrator::mlt::MltSettings,
-    /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
-    /// `--smc-*` and `--cache-budget` options override them.
-    pub smc: crate::integrator::smc::SmcSettings,
-    /// Guided local sampling (`[render.guide]`; `--guide*` options override it).
-    pub guide: crate::enlightened::GuideSettings,
-    /// `[render] adjoint_image`: sample area-light starts from the adjoint image.
-    pub adjoint_image: bool,
-    /// `[render.adjoint]` (defaults where a key is absent); `--adjoint-*` override them.
-    pub adjoint: crate::enlightened::AdjointSettings,
-}
-
 /// Where a ray's propagation ended.
 #[derive(Clone, Copy, Debug)]
 pub enum Event {
@@ -162,7 +141,6 @@ pub struct Scene {
     pub camera: Option<Camera>,
     pub camera_medium: Option<u32>,
     pub sensors: Vec<IrradianceMeter>,
-    pub render: RenderSettings,
     pub bounds: Aabb,
     pub center: Vec3,
     pub radius: f32,

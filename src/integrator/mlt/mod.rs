@@ -45,7 +45,7 @@ use mutation::{
 const CHAIN_STREAM_SALT: u64 = 0x0063_6861_696e_0000;
 /// Seed draws a chain tries before giving up (a pre-pass path whose f is zero when re-evaluated
 /// with singular vertices checked, e.g. a specular relation off by more than the tolerance).
-const MAX_SEED_DRAWS: usize = 64;
+pub const DEFAULT_SEED_DRAWS: u32 = 64;
 
 /// MLT settings (the scene's `[render.mlt]` table and the CLI flags).
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +65,8 @@ pub struct MltSettings {
     /// BDPT samples per mutation that keep refining the estimate of b during the run (0: b is
     /// the pre-pass estimate b_n for the whole run, as in sec. 5.1).
     pub b_refine: f64,
+    /// Pre-pass paths a chain draws for its seed before it gives up (`DEFAULT_SEED_DRAWS`).
+    pub seed_draws: u32,
 }
 
 /// Default pre-pass size ([K] draws 65536; a quarter keeps previews quick).
@@ -95,6 +97,7 @@ impl Default for MltSettings {
             light_angle: DEFAULT_LIGHT_ANGLE,
             propagation_distance: DEFAULT_PROPAGATION_DISTANCE,
             b_refine: DEFAULT_B_REFINE,
+            seed_draws: DEFAULT_SEED_DRAWS,
         }
     }
 }
@@ -121,6 +124,9 @@ impl MltSettings {
                 "mlt b_refine = {} must be finite and >= 0 (BDPT samples per mutation)",
                 self.b_refine
             ));
+        }
+        if self.seed_draws == 0 {
+            return Err("mlt seed_draws must be at least 1".into());
         }
         if self.weights.iter().sum::<f64>() <= 0.0 {
             return Err("at least one mutation weight must be positive".into());
@@ -155,6 +161,118 @@ impl MltSettings {
                 .map_err(|_| format!("`{value}` is not a number"))?;
         }
         Ok(w)
+    }
+}
+
+/// The MLT options, declared once: the `[render.mlt]` keys (serde) and the `--mlt-*` flags
+/// (clap) are the same fields, with the same docs; [`MltOptions::apply`] puts them over the
+/// settings (the file's over the defaults, the flags over the file's) and
+/// [`MltSettings::validate`] checks the result. The flags without a prefix of earlier releases
+/// (`--chains`, `--bootstrap`, `--b-refine`, `--mutation-weights`) are hidden aliases.
+#[derive(clap::Args, serde::Deserialize, Debug, Clone, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MltOptions {
+    /// MLT: BDPT pre-pass samples n that estimate b (default 16384).
+    #[arg(long = "mlt-bootstrap", alias = "bootstrap")]
+    pub bootstrap: Option<u64>,
+    /// MLT: independent chains (default 16).
+    #[arg(long = "mlt-chains", alias = "chains")]
+    pub chains: Option<u32>,
+    /// MLT: BDPT samples per mutation that keep refining b during the run; 0 keeps the
+    /// pre-pass estimate (default 1/32).
+    #[arg(long = "mlt-b-refine", alias = "b-refine")]
+    pub b_refine: Option<f64>,
+    /// MLT: selection weight of the bidirectional mutation (default 1).
+    #[arg(long = "mlt-bidirectional")]
+    pub bidirectional: Option<f64>,
+    /// MLT: selection weight of the sensor (lens) perturbation (default 1).
+    #[arg(long = "mlt-sensor")]
+    pub sensor: Option<f64>,
+    /// MLT: selection weight of the light (caustic) perturbation (default 1).
+    #[arg(long = "mlt-light")]
+    pub light: Option<f64>,
+    /// MLT: selection weight of the propagation perturbation (default 1).
+    #[arg(long = "mlt-propagation")]
+    pub propagation: Option<f64>,
+    /// MLT: selection weight of the multi-chain perturbation (default 1).
+    #[arg(long = "mlt-multichain")]
+    pub multichain: Option<f64>,
+    /// MLT: every mutation selection weight at once, e.g. `bidirectional=1,sensor=100,light=100`
+    /// (unnamed types get 0; the per-type options above override it).
+    #[arg(long = "mlt-mutation-weights", alias = "mutation-weights", value_parser = MltSettings::parse_weights)]
+    #[serde(skip)]
+    pub mutation_weights: Option<[f64; 5]>,
+    /// MLT: sensor perturbation film offset MIN,MAX in pixels (default 0.1,25).
+    #[arg(long = "mlt-sensor-offset", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub sensor_offset: Option<[f32; 2]>,
+    /// MLT: light and multi-chain perturbation angle MIN,MAX in radians (default 1e-4,0.1).
+    #[arg(long = "mlt-light-angle", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub light_angle: Option<[f32; 2]>,
+    /// MLT: propagation perturbation distance MIN,MAX as fractions of the scene radius
+    /// (default 4e-4,0.1).
+    #[arg(long = "mlt-propagation-distance", value_name = "MIN,MAX", value_parser = parse_range)]
+    pub propagation_distance: Option<[f32; 2]>,
+    /// MLT: pre-pass paths a chain draws for its seed before it gives up (default 64; more for
+    /// scenes whose pre-pass paths often fail the re-evaluation, e.g. near-specular relations).
+    #[arg(long = "mlt-seed-draws")]
+    pub seed_draws: Option<u32>,
+}
+
+/// Parses `MIN,MAX` (a perturbation range).
+pub fn parse_range(s: &str) -> Result<[f32; 2], String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}` is not MIN,MAX"))?;
+    let num = |v: &str| {
+        v.trim()
+            .parse::<f32>()
+            .map_err(|_| format!("`{v}` in `{s}` is not a number"))
+    };
+    Ok([num(a)?, num(b)?])
+}
+
+impl MltOptions {
+    /// `base` with every given option replacing its setting (unchecked: see
+    /// [`MltSettings::validate`]).
+    pub fn apply(&self, base: &mut MltSettings) {
+        if let Some(v) = self.bootstrap {
+            base.bootstrap = v;
+        }
+        if let Some(v) = self.chains {
+            base.chains = v;
+        }
+        if let Some(v) = self.b_refine {
+            base.b_refine = v;
+        }
+        if let Some(w) = self.mutation_weights {
+            base.weights = w;
+        }
+        for (i, w) in [
+            self.bidirectional,
+            self.sensor,
+            self.light,
+            self.propagation,
+            self.multichain,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if let Some(w) = w {
+                base.weights[i] = w;
+            }
+        }
+        if let Some([a, b]) = self.sensor_offset {
+            base.sensor_offset = (a, b);
+        }
+        if let Some([a, b]) = self.light_angle {
+            base.light_angle = (a, b);
+        }
+        if let Some([a, b]) = self.propagation_distance {
+            base.propagation_distance = (a, b);
+        }
+        if let Some(n) = self.seed_draws {
+            base.seed_draws = n;
+        }
     }
 }
 
@@ -341,7 +459,7 @@ impl<'t> Mlt<'t> {
             .into_par_iter()
             .map(|c| {
                 let mut sampler = Sampler::new(self.seed, CHAIN_STREAM_SALT ^ c, 0);
-                for _ in 0..MAX_SEED_DRAWS {
+                for _ in 0..self.settings.seed_draws {
                     let cand = boot.select(sampler.next_f64())?;
                     let Some(x) = Bootstrap::path_of(scene, &self.bdpt, self.seed, cand) else {
                         continue;
@@ -496,5 +614,71 @@ impl<'t> Mlt<'t> {
             .iter()
             .map(|&k| (k, self.stats[k.index()]))
             .collect()
+    }
+}
+
+/// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
+pub fn prepare<'t>(
+    setup: &super::Setup<'_, 't>,
+) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+    Ok(Box::new(Mlt::new(
+        setup.scene,
+        setup.technique,
+        setup.settings.mlt.clone(),
+        setup.seed,
+        setup.max_depth,
+    )?))
+}
+
+impl super::Integrator for Mlt<'_> {
+    fn label(&self) -> String {
+        "mlt".into()
+    }
+
+    /// Unused: MLT renders film-wide ([`Mlt::run`]).
+    fn camera_sample(
+        &self,
+        _scene: &Scene,
+        _cam: &crate::scene::Camera,
+        _raster: Vec2,
+        _sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
+
+    /// Unused: MLT renders the camera's image only (meters are not rendered).
+    fn meter_sample(
+        &self,
+        _scene: &Scene,
+        _meter: u32,
+        _sampler: &mut Sampler,
+        _scratch: &mut super::Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
+
+    /// Film-wide: `spp` mutations per pixel over all chains.
+    fn film_pass(&mut self, scene: &Scene, film: &mut Film, spp: u32) -> Option<u64> {
+        let n = film.width as u64 * film.height as u64 * spp as u64;
+        self.run(scene, film, n);
+        film.spp += spp as u64;
+        Some(n)
+    }
+
+    /// The per-pixel variance of splats is not recorded.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
+
+    fn statistics(&self) -> super::Statistics {
+        super::Statistics {
+            mlt: Some((self.b, self.report())),
+            ..Default::default()
+        }
+    }
+
+    fn mlt(&self) -> Option<&Mlt<'_>> {
+        Some(self)
     }
 }

@@ -233,6 +233,127 @@ impl Default for SmcSettings {
     }
 }
 
+/// A byte count written as an integer or as a string with a unit (`"512MiB"`).
+#[derive(Debug, Clone, serde::Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum ByteCount {
+    Bytes(i64),
+    Text(String),
+}
+
+impl ByteCount {
+    /// The command line's form: a string with an optional unit.
+    pub fn parse_arg(s: &str) -> Result<ByteCount, String> {
+        Ok(ByteCount::Text(s.to_string()))
+    }
+}
+
+/// An invalid option: its key (as in `[render.smc]`) and what is wrong, the message naming
+/// the option as the caller spells it (a file key or a flag).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct OptionError {
+    pub key: &'static str,
+    pub message: String,
+}
+
+/// The SMC options, declared once: the `[render.smc]` keys (serde) and the `--smc-*` flags
+/// (clap) are the same fields with the same docs; [`SmcOptions::apply`] puts them over the
+/// settings and checks every value (the file's over the defaults at load, the flags over the
+/// file's on the command line). `--cache-budget` of earlier releases is a hidden alias.
+#[derive(clap::Args, serde::Deserialize, Debug, Clone, Default, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SmcOptions {
+    /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
+    #[arg(long = "smc-variant")]
+    pub variant: Option<String>,
+    /// SMC: the refinement threshold on the average record count of a cache (default 64).
+    #[arg(long = "smc-threshold")]
+    pub threshold: Option<f64>,
+    /// SMC: memory budget of the structure, bytes or with a KiB/MiB/GiB suffix (default 1GiB).
+    #[arg(long = "smc-cache-budget", alias = "cache-budget", value_parser = ByteCount::parse_arg)]
+    pub cache_budget: Option<ByteCount>,
+    /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
+    #[arg(long = "smc-estimator")]
+    pub estimator: Option<String>,
+    /// SMC: the ray-marching step in mean free paths (default 1; march only).
+    #[arg(long = "smc-step")]
+    pub step: Option<f32>,
+}
+
+impl SmcOptions {
+    /// True when no option is given.
+    pub fn is_empty(&self) -> bool {
+        *self == SmcOptions::default()
+    }
+
+    /// `base` with every given option replacing its setting, each checked; `name` spells a
+    /// key for the messages (`step` in a file, `--smc-step` on the command line). The step of
+    /// `base`'s march form carries over unless `step` replaces it.
+    pub fn apply(
+        &self,
+        base: SmcSettings,
+        name: &dyn Fn(&str) -> String,
+    ) -> Result<SmcSettings, OptionError> {
+        let err = |key: &'static str, message: String| OptionError { key, message };
+        let mut s = base;
+        if let Some(v) = &self.variant {
+            s.variant = Variant::parse(v).map_err(|e| err("variant", e))?;
+        }
+        if let Some(t) = self.threshold {
+            if !(t.is_finite() && t > 0.0) {
+                let m = format!(
+                    "{} = {t} must be a positive number of records",
+                    name("threshold")
+                );
+                return Err(err("threshold", m));
+            }
+            s.threshold = t;
+        }
+        if let Some(b) = &self.cache_budget {
+            s.budget = self.budget(b, name).map_err(|e| err("cache_budget", e))?;
+        }
+        let base_step = match base.form {
+            EstimatorForm::RayMarching { step } => Some(step),
+            EstimatorForm::Distance => None,
+        };
+        let estimator = self.estimator.as_deref().unwrap_or(base.form.name());
+        if self.step.is_some() && estimator != "march" {
+            let m = format!(
+                "{} applies to the march estimator, not `{estimator}`",
+                name("step")
+            );
+            return Err(err("step", m));
+        }
+        s.form = EstimatorForm::parse(estimator, self.step.or(base_step)).map_err(|e| {
+            let k = if self.estimator.is_some() && !matches!(estimator, "march" | "distance") {
+                "estimator"
+            } else {
+                "step"
+            };
+            err(k, e)
+        })?;
+        Ok(s)
+    }
+
+    /// The budget in bytes, at least the root cache's.
+    fn budget(&self, b: &ByteCount, name: &dyn Fn(&str) -> String) -> Result<usize, String> {
+        let bytes = match b {
+            ByteCount::Bytes(n) => usize::try_from(*n)
+                .map_err(|_| format!("{} = {n} is not a byte count", name("cache_budget")))?,
+            ByteCount::Text(t) => parse_bytes(t)?,
+        };
+        let root = RadianceCache::root().bytes();
+        if bytes < root {
+            return Err(format!(
+                "{} = {bytes} bytes cannot hold even the root cache ({root} bytes)",
+                name("cache_budget")
+            ));
+        }
+        Ok(bytes)
+    }
+}
+
 /// The SMC integrator: settings, the structure (read-only during a pass) and path limits.
 #[derive(Clone, Debug)]
 pub struct Smc {
@@ -417,5 +538,80 @@ impl Smc {
 
     pub fn stats(&self) -> OctreeStats {
         self.octree.stats()
+    }
+}
+
+/// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
+pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
+    Ok(Box::new(Smc::new(
+        setup.scene,
+        setup.settings.smc,
+        setup.max_depth,
+    )?))
+}
+
+impl super::Integrator for Smc {
+    fn label(&self) -> String {
+        format!(
+            "smc ({}, {})",
+            self.settings.variant.name(),
+            self.settings.form.name()
+        )
+    }
+
+    fn camera_sample(
+        &self,
+        scene: &Scene,
+        cam: &crate::scene::Camera,
+        raster: glam::Vec2,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.radiance(
+            scene,
+            cam.generate_ray(raster),
+            scene.camera_medium,
+            sampler,
+            &mut scratch.smc,
+            &mut scratch.records,
+        )
+    }
+
+    fn meter_sample(
+        &self,
+        scene: &Scene,
+        meter: u32,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.meter_irradiance(
+            scene,
+            &scene.sensors[meter as usize],
+            sampler,
+            &mut scratch.smc,
+            &mut scratch.records,
+        )
+    }
+
+    fn views_delta_lights(&self) -> bool {
+        true
+    }
+
+    /// [PWP08 Fig. 2 lines 13-14]: the pass's records refine the structure for the next pass.
+    fn end_pass(&mut self, records: &[Vec<Record>]) {
+        for r in records {
+            self.merge(r);
+        }
+    }
+
+    fn statistics(&self) -> super::Statistics {
+        super::Statistics {
+            smc: Some(self.stats()),
+            ..Default::default()
+        }
+    }
+
+    fn smc(&self) -> Option<&Smc> {
+        Some(self)
     }
 }
