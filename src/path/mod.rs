@@ -13,6 +13,7 @@ pub mod characteristic;
 pub mod contribution;
 pub mod geometry_term;
 pub mod pdf;
+pub mod verify;
 pub mod vertex;
 
 pub use characteristic::characteristic;

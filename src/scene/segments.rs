@@ -4,7 +4,8 @@
 //! free flights per segment), `Scene::transmittance` (tau of eq. 3 times V), `Scene::edge`,
 //! MLT's retracing and SMC's ray marching all iterate it, so the crossing rule (the ray is
 //! continued past each boundary with a `t_min`, never re-spawned) exists once.
-//! Book: "Transport equations", section "Propagation through null boundaries".
+//! Book: "The transport equations", section "Why the ray is continued, not re-spawned, at a null
+//! boundary".
 
 use crate::geometry::{Hit, Ray};
 
@@ -104,6 +105,7 @@ impl<'a> Segments<'a> {
     }
 }
 
+// ANCHOR: segments
 impl Iterator for Segments<'_> {
     type Item = Segment;
 
@@ -154,6 +156,7 @@ impl Iterator for Segments<'_> {
         })
     }
 }
+// ANCHOR_END: segments
 
 impl Segment {
     /// The hit that ends the segment, null or not (`None` for an open one).
