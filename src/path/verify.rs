@@ -20,16 +20,17 @@ use crate::medium::Medium;
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
-/// Relative tolerance of every comparison. The caches and their recomputation evaluate the
-/// same formulas in f32 on slightly different inputs: the sampler uses the direction it drew
-/// and the distance along its lifted ray, the check the direction and distance between the
-/// stored (rounded, reprojected) positions. Positions carry a relative error of about
-/// 2^-24 |p| and the lifts a few ulps, so a direction between vertices at distance d is off by
-/// about 1e-7 |p| / d; cosines amplify that by tan(theta) (about 60 at 89 degrees), and a
-/// density or throughput multiplies up to three such cosines and an exponential of the
-/// segment length (relative error sigma_t times the length error). 1e-3 covers vertices down
-/// to a hundredth of the scene's size apart at grazing angles, while a dropped or doubled
-/// factor (a cosine, a pdf, sigma_s, a transmittance) is wrong by far more on almost any path.
+/// Relative tolerance of every comparison, before the geometry's own slack. The caches and
+/// their recomputation evaluate the same formulas in f32 on slightly different inputs: the
+/// sampler uses the direction it drew and the distance along its lifted ray, the check the
+/// direction and distance between the stored (rounded, reprojected) positions. Rounding alone
+/// (2^-24 relative per operation, a few dozen operations per density or throughput, and an
+/// exponential of a segment length) stays far below 1e-3. The lift of ray origins off
+/// surfaces (`geometry::RAY_EPSILON`) is not small at grazing angles or on short edges, so
+/// each comparison adds the bound `lift_slack` computes from the edges the factor depends on
+/// (lift / (d |cos|) per surface end), and `emission_slack` for a spot light's falloff band.
+/// A dropped or doubled factor (a cosine, a pdf, sigma_s, a transmittance) is wrong by far
+/// more on almost any path (`tests/path_verify.rs` breaks three and sees each turn it red).
 pub const REL_TOLERANCE: f64 = 1e-3;
 
 /// The first cached factor that its recomputation does not reproduce.
