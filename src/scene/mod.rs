@@ -8,11 +8,13 @@ pub mod build;
 pub mod camera;
 pub mod file;
 pub mod light;
+pub mod segments;
 pub mod sensor;
 
 pub use camera::Camera;
 pub use file::{SceneError, SceneFile, SceneSource};
 pub use light::{Environment, Light};
+pub use segments::{Segment, SegmentEnd, Segments};
 pub use sensor::IrradianceMeter;
 
 use glam::Vec3;
@@ -151,19 +153,6 @@ pub struct Scene {
     pub source_name: String,
 }
 
-/// Relative step past a crossed null boundary before the next intersection query, so the same
-/// face is not found again (its t carries a few ulps of error). Coplanar opaque faces are not
-/// skipped: the BVH's tie-break returns them instead of the null face.
-const NULL_CROSSING_EPSILON: f32 = 1e-6;
-
-#[inline]
-fn past(t: f32, ray: &Ray) -> f32 {
-    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
-}
-
-/// Crossing more null boundaries than this along one ray means the geometry traps the ray.
-const MAX_NULL_CROSSINGS: usize = 256;
-
 impl Scene {
     /// Closest hit along the ray, null boundaries included.
     #[inline]
@@ -208,44 +197,32 @@ impl Scene {
         &self,
         ray: Ray,
         lead: f32,
-        mut medium: Option<u32>,
+        medium: Option<u32>,
         origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
         let mut pdf_rev = 1.0f32;
-        // the ray is continued (not re-spawned) past null boundaries: segments stay contiguous;
         // the first segment starts `lead` before the lifted origin, at the vertex itself
-        let mut t_start = -lead;
-        let mut t_min = 0.0f32;
-        let mut first = true;
-        for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self.bvh.intersect_range(
-                &self.prims,
-                &self.prim_opaque,
-                &ray,
-                t_min,
-                f32::INFINITY,
-            );
-            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
-            if let Some(m) = medium {
+        for seg in Segments::new(self, ray, medium, f32::INFINITY).lead(lead) {
+            if let Some(m) = seg.medium {
                 // Table 1 on this segment; memorylessness makes the segments independent
-                let seg = Ray::new(ray.at(t_start), ray.d);
+                let sr = Ray::new(ray.at(seg.t0), ray.d);
                 let med = &self.media[m as usize];
-                let ff = med.sample_free_flight(&seg, t_hit - t_start, sampler);
+                let ff = med.sample_free_flight(&sr, seg.t1 - seg.t0, sampler);
                 transmittance *= ff.transmittance;
                 pdf *= ff.pdf;
                 if REV {
                     // the reverse walk passes this segment, or collides at its far end (the
                     // origin) when the origin is a medium vertex
-                    let back = Ray::new(seg.at(ff.t), -ray.d);
-                    pdf_rev *= med.free_flight_pdf(&back, ff.t, first && origin_in_medium);
+                    let back = Ray::new(sr.at(ff.t), -ray.d);
+                    pdf_rev *= med.free_flight_pdf(&back, ff.t, seg.first && origin_in_medium);
                 }
                 if ff.scattered {
                     return Propagation {
                         event: Event::Medium {
-                            p: seg.at(ff.t),
+                            p: sr.at(ff.t),
                             medium: m,
                             sigma_s: ff.sigma_s,
                         },
@@ -255,27 +232,20 @@ impl Scene {
                     };
                 }
             }
-            first = false;
-            let Some(hit) = hit else {
-                return Propagation {
-                    event: Event::Escape,
-                    transmittance,
-                    pdf,
-                    pdf_rev,
-                };
+            let event = match seg.end {
+                SegmentEnd::Null(_) => continue,
+                SegmentEnd::Open => Event::Escape,
+                SegmentEnd::Surface(hit) => Event::Surface {
+                    hit,
+                    medium: seg.medium,
+                },
             };
-            let shape = self.shape_of(&hit);
-            if !shape.is_null() {
-                return Propagation {
-                    event: Event::Surface { hit, medium },
-                    transmittance,
-                    pdf,
-                    pdf_rev,
-                };
-            }
-            medium = shape.medium_after(ray.d, hit.ng, medium);
-            t_start = hit.t;
-            t_min = past(hit.t, &ray);
+            return Propagation {
+                event,
+                transmittance,
+                pdf,
+                pdf_rev,
+            };
         }
         Propagation {
             event: Event::Escape,
@@ -295,7 +265,7 @@ impl Scene {
         o: Vec3,
         d: Vec3,
         dist: f32,
-        mut medium: Option<u32>,
+        medium: Option<u32>,
         sampler: &mut Sampler,
     ) -> Rgb {
         let ray = Ray::new(o, d);
@@ -314,27 +284,19 @@ impl Scene {
         }
         // with null boundaries the walk below meets any opaque occluder itself
         let mut tr = Rgb::ONE;
-        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
-        for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self
-                .bvh
-                .intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
-            let t_end = hit.map_or(dist, |h| h.t);
-            if let Some(m) = medium {
-                let seg = Ray::new(ray.at(t_start), d);
-                tr *= self.media[m as usize].transmittance(&seg, t_end - t_start, sampler);
+        for seg in Segments::new(self, ray, medium, dist) {
+            if let Some(m) = seg.medium {
+                let sr = Ray::new(ray.at(seg.t0), d);
+                tr *= self.media[m as usize].transmittance(&sr, seg.t1 - seg.t0, sampler);
                 if tr == Rgb::ZERO {
                     return tr;
                 }
             }
-            let Some(hit) = hit else { return tr };
-            let shape = self.shape_of(&hit);
-            if !shape.is_null() {
-                return Rgb::ZERO;
+            match seg.end {
+                SegmentEnd::Null(_) => {}
+                SegmentEnd::Open => return tr,
+                SegmentEnd::Surface(_) => return Rgb::ZERO,
             }
-            medium = shape.medium_after(d, hit.ng, medium);
-            t_start = hit.t;
-            t_min = past(hit.t, &ray);
         }
         Rgb::ZERO
     }
@@ -381,40 +343,32 @@ impl Scene {
         // the intersection queries (so f_j and the samplers' pdfs see the same lengths)
         let lead_a = (o - a.p).dot(d);
         let lead_b = (b.p - target).dot(d);
-        let (a, medium_a, a_in_medium, b_in_medium) = (o, a.medium, a.in_medium, b.in_medium);
-        let ray = Ray::new(a, d);
-        let mut medium = medium_a;
+        let (a_in_medium, b_in_medium) = (a.in_medium, b.in_medium);
+        let ray = Ray::new(o, d);
         let mut out = EdgeEval {
             transmittance: Rgb::ONE,
             pdf_ab: 1.0,
             pdf_ba: 1.0,
         };
-        let (mut t_start, mut t_min) = (-lead_a, 0.0f32);
-        let mut first = true;
-        for _ in 0..MAX_NULL_CROSSINGS {
-            let hit = self
-                .bvh
-                .intersect_range(&self.prims, &self.prim_opaque, &ray, t_min, dist);
-            let t_end = hit.map_or(dist + lead_b, |h| h.t);
-            let last = hit.is_none();
-            if let Some(m) = medium {
+        let segments = Segments::new(self, ray, a.medium, dist)
+            .lead(lead_a)
+            .open_end(dist + lead_b);
+        for seg in segments {
+            let last = matches!(seg.end, SegmentEnd::Open);
+            if let Some(m) = seg.medium {
                 let med = &self.media[m as usize];
-                let len = t_end - t_start;
-                let seg = Ray::new(ray.at(t_start), d);
-                out.transmittance *= med.transmittance(&seg, len, sampler);
-                out.pdf_ab *= med.free_flight_pdf(&seg, len, last && b_in_medium);
-                let back = Ray::new(ray.at(t_end), -d);
-                out.pdf_ba *= med.free_flight_pdf(&back, len, first && a_in_medium);
+                let len = seg.t1 - seg.t0;
+                let sr = Ray::new(ray.at(seg.t0), d);
+                out.transmittance *= med.transmittance(&sr, len, sampler);
+                out.pdf_ab *= med.free_flight_pdf(&sr, len, last && b_in_medium);
+                let back = Ray::new(ray.at(seg.t1), -d);
+                out.pdf_ba *= med.free_flight_pdf(&back, len, seg.first && a_in_medium);
             }
-            first = false;
-            let Some(hit) = hit else { return out };
-            let shape = self.shape_of(&hit);
-            if !shape.is_null() {
-                return zero;
+            match seg.end {
+                SegmentEnd::Null(_) => {}
+                SegmentEnd::Open => return out,
+                SegmentEnd::Surface(_) => return zero,
             }
-            medium = shape.medium_after(d, hit.ng, medium);
-            t_start = hit.t;
-            t_min = past(hit.t, &ray);
         }
         zero
     }

@@ -11,15 +11,9 @@ use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::{LocalSampling, Vertex, VertexKind};
-use crate::scene::{Event, Light, Scene};
+use crate::scene::{Event, Light, Scene, SegmentEnd, Segments};
 
 use super::contribution::{singular_bsdf, specular_sample};
-
-/// Relative step past a crossed null boundary (the value `Scene::propagate` uses), so the same
-/// face is not found again.
-const NULL_CROSSING_EPSILON: f32 = 1e-6;
-/// Null boundaries crossed along one ray before the geometry counts as a trap.
-const MAX_NULL_CROSSINGS: usize = 256;
 
 /// The ray leaving vertex `v` along unit `d`: its origin (lifted off surfaces), the distance
 /// between the vertex and that origin, and the medium it starts in.
@@ -140,30 +134,16 @@ pub fn sample_light_vertex(
     ))
 }
 
-#[inline]
-fn past(t: f32, ray: &Ray) -> f32 {
-    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
-}
-
 /// The first non-null surface along `d` from `v`, no collisions sampled (the ray passes
 /// through media; their transmittance enters f, not the proposal).
 pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
-    let (ray, _, mut medium) = ray_from(scene, v, d);
-    let mut t_min = 0.0f32;
-    for _ in 0..MAX_NULL_CROSSINGS {
-        let hit = scene.bvh.intersect_range(
-            &scene.prims,
-            &scene.prim_opaque,
-            &ray,
-            t_min,
-            f32::INFINITY,
-        )?;
-        let shape = scene.shape_of(&hit);
-        if !shape.is_null() {
-            return Some(Vertex::on_surface(scene, &hit, medium));
+    let (ray, _, medium) = ray_from(scene, v, d);
+    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+        match seg.end {
+            SegmentEnd::Null(_) => {}
+            SegmentEnd::Open => return None,
+            SegmentEnd::Surface(hit) => return Some(Vertex::on_surface(scene, &hit, seg.medium)),
         }
-        medium = shape.medium_after(ray.d, hit.ng, medium);
-        t_min = past(hit.t, &ray);
     }
     None
 }
@@ -174,24 +154,13 @@ pub fn point_along(scene: &Scene, v: &Vertex, d: Vec3, dist: f32) -> Option<Vert
     if !(dist > 0.0 && dist.is_finite()) {
         return None;
     }
-    let (ray, lead, mut medium) = ray_from(scene, v, d);
-    let mut t_min = 0.0f32;
-    for _ in 0..MAX_NULL_CROSSINGS {
-        let hit =
-            scene
-                .bvh
-                .intersect_range(&scene.prims, &scene.prim_opaque, &ray, t_min, f32::INFINITY);
-        match hit {
-            Some(h) if h.t + lead < dist => {
-                let shape = scene.shape_of(&h);
-                if !shape.is_null() {
-                    return None;
-                }
-                medium = shape.medium_after(ray.d, h.ng, medium);
-                t_min = past(h.t, &ray);
-            }
+    let (ray, lead, medium) = ray_from(scene, v, d);
+    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+        match seg.end {
+            SegmentEnd::Null(h) if h.t + lead < dist => {}
+            SegmentEnd::Surface(h) if h.t + lead < dist => return None,
             _ => {
-                let m = medium?;
+                let m = seg.medium?;
                 return Some(Vertex::new(
                     VertexKind::Medium { medium: m },
                     v.p + d * dist,

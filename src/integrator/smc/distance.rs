@@ -23,32 +23,21 @@
 //!
 //! Book: "SMC: the estimators", section "Distance sampling (eq. 7, Fig. 2)".
 
-use super::walk::{self, Link, Previous, Scratch};
+use super::walk::{self, Link, Previous, Scratch, State};
 use super::Smc;
 use crate::geometry::Ray;
 use crate::math::Sampler;
 use crate::scene::{Event, Scene};
 use crate::spectrum::Rgb;
 
-/// The walk from `ray` (in `medium`) with throughput `beta`, appending links to `scratch`.
+/// The walk of `s` (its ray, medium, throughput), appending links to `scratch`.
 // ANCHOR: fig2
-#[allow(clippy::too_many_arguments)]
-pub fn walk(
-    smc: &Smc,
-    scene: &Scene,
-    mut ray: Ray,
-    mut medium: Option<u32>,
-    mut prev: Previous,
-    mut beta: Rgb,
-    sampler: &mut Sampler,
-    scratch: &mut Scratch,
-) {
-    let mut depth = 0;
+pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scratch: &mut Scratch) {
     loop {
         // line 2: a distance by the free-flight pdf of the ray (eq. 7)
         // medium segments are measured from the vertex itself, not the lifted origin
-        let lead = (ray.o - prev.p).dot(ray.d).max(0.0);
-        let prop = scene.propagate(ray, lead, medium, sampler);
+        let lead = (s.ray.o - s.prev.p).dot(s.ray.d).max(0.0);
+        let prop = scene.propagate(s.ray, lead, s.medium, sampler);
         let weight = prop.weight();
         if weight == Rgb::ZERO {
             return;
@@ -56,72 +45,63 @@ pub fn walk(
         match prop.event {
             // lines 3-14: a medium vertex
             Event::Medium { p, medium: m, .. } => {
-                if depth >= smc.max_depth {
+                if s.depth >= smc.max_depth {
                     return;
                 }
-                depth += 1;
+                s.depth += 1;
                 let phase = scene.media[m as usize].phase();
-                let wo = -ray.d;
+                let wo = -s.ray.d;
                 // line 4: the snapshot's cache at the position
                 let cache = smc.octree.cache(p);
                 // lines 5-8: (direction, p), G, g
-                let s = smc.in_scatter(cache, phase, wo, depth, sampler);
+                let is = smc.in_scatter(cache, phase, wo, s.depth, sampler);
                 let delta = walk::delta_lights(scene, p, Some(m), sampler, |wi| phase.eval(wo, wi));
-                if s.pdf.is_nan() || s.pdf <= 0.0 {
+                if is.pdf.is_nan() || is.pdf <= 0.0 {
                     scratch.links.push(Link::plain(weight * delta, Rgb::ZERO));
                     return;
                 }
                 // line 11: G + (f - g) / p with f = f_p * TraceRay (lines 9-10)
-                let b = weight * (s.phase_value / s.pdf);
+                let b = weight * (is.phase_value / is.pdf);
                 let mut link = Link {
-                    a: weight * (delta + s.G - s.g / s.pdf),
+                    a: weight * (delta + is.G - is.g / is.pdf),
                     b,
                     // line 13: the record (direction, radiance), merged after the pass
-                    record: Some((p, s.wi, s.phase_value)),
+                    record: Some((p, is.wi, is.phase_value)),
                     roulette: None,
                 };
-                beta *= b;
-                let c = cache.radiance(s.wi, smc.settings.variant.cv);
-                let alive = walk::roulette(depth, &mut beta, c, &mut link, sampler);
+                s.beta *= b;
+                let c = cache.radiance(is.wi, smc.settings.variant.cv);
+                let alive = walk::roulette(s.depth, &mut s.beta, c, &mut link, sampler);
                 scratch.links.push(link);
                 if !alive {
                     return;
                 }
-                ray = Ray::new(p, s.wi);
-                medium = Some(m);
-                prev = Previous::singular(p);
+                s.ray = Ray::new(p, is.wi);
+                s.medium = Some(m);
+                s.prev = Previous::singular(p);
             }
             // line 16: the background
             Event::Escape => {
-                let a = weight * walk::escaped(scene, ray.d, &prev);
+                let a = weight * walk::escaped(scene, s.ray.d, &s.prev);
                 scratch.links.push(Link::plain(a, Rgb::ZERO));
                 return;
             }
             Event::Surface { hit, medium: m } => {
-                let st = walk::surface(
-                    scene,
-                    &ray,
-                    &hit,
-                    m,
-                    &prev,
-                    &mut depth,
-                    smc.max_depth,
-                    sampler,
-                );
+                let st = walk::surface(scene, &hit, m, &mut s, smc.max_depth, sampler);
                 let Some((w, next_ray, next_medium, next_prev)) = st.next else {
                     scratch.links.push(Link::plain(weight * st.a, Rgb::ZERO));
                     return;
                 };
                 let mut link = Link::plain(weight * st.a, weight * w);
-                beta *= weight * w;
-                let alive = walk::roulette(depth, &mut beta, Rgb::ZERO, &mut link, sampler);
+                s.beta *= weight * w;
+                let alive = walk::roulette(s.depth, &mut s.beta, Rgb::ZERO, &mut link, sampler);
                 scratch.links.push(link);
                 if !alive {
                     return;
                 }
-                ray = next_ray;
-                medium = next_medium;
-                prev = next_prev;
+                s.ray = next_ray;
+                s.medium = next_medium;
+                s.prev = next_prev;
             }
         }
     }

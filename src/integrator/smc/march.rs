@@ -39,26 +39,18 @@
 //! depth, so the medium is read along the whole step, not where the ray entered it.
 //! Book: "SMC: the estimators", section "Ray marching on Omega_t U Omega_s (eq. 8, 9)".
 
-use super::walk::{self, Link, Previous, Scratch};
+use super::cache::RadianceCache;
+use super::walk::{self, Link, Previous, Scratch, State};
 use super::Smc;
-use crate::geometry::Ray;
+use crate::geometry::{Hit, Ray};
 use crate::math::{warp, Sampler};
-use crate::scene::Scene;
+use crate::medium::Medium;
+use crate::scene::{Scene, SegmentEnd, Segments};
 use crate::spectrum::{self, Rgb};
 
-/// Relative step past a crossed null boundary, the same rule as `Scene::propagate` (the ray
-/// is continued, never re-spawned).
-const NULL_CROSSING_EPSILON: f32 = 1e-6;
-/// More null crossings than this along one ray means the geometry traps the ray.
-const MAX_NULL_CROSSINGS: usize = 256;
 /// Marching steps along one ray after which the ray is abandoned (its remaining transmittance
 /// is below e^-MAX_MARCH_STEPS * step in a medium of any thickness that reaches this count).
 const MAX_MARCH_STEPS: usize = 1 << 20;
-
-#[inline]
-fn past(t: f32, ray: &Ray) -> f32 {
-    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
-}
 
 /// The probability of Omega_t for masses `m_t` (transmission) and `m_s` (scattering).
 #[inline]
@@ -77,7 +69,7 @@ fn transmit_probability(m_t: f64, m_s: f64) -> f64 {
 /// integral of sigma_s e^-tau L_i over the step.
 #[inline]
 fn jittered_point(
-    med: &crate::medium::Medium,
+    med: &Medium,
     here: &Ray,
     dx: f32,
     tau: f32,
@@ -100,180 +92,236 @@ fn jittered_point(
     (s, med.sigma_s(p) * (-tau_s).exp() / q)
 }
 
-/// The marching walk from `ray` (in `medium`) with throughput `beta`; `step_mfp` is the step
-/// in mean free paths.
+/// The marching walk of `state` (its ray, medium, throughput); `step_mfp` is the step in mean
+/// free paths.
 // ANCHOR: march
-#[allow(clippy::too_many_arguments)]
 pub fn walk(
     smc: &Smc,
     scene: &Scene,
-    mut ray: Ray,
-    mut medium: Option<u32>,
-    mut prev: Previous,
-    mut beta: Rgb,
+    mut state: State,
     step_mfp: f32,
     sampler: &mut Sampler,
     scratch: &mut Scratch,
 ) {
-    let variant = smc.settings.variant;
-    let cv = variant.cv;
-    let mut depth = 0;
-    'rays: loop {
-        let (mut t_start, mut t_min) = (0.0f32, 0.0f32);
-        let mut crossings = 0;
-        loop {
-            crossings += 1;
-            if crossings > MAX_NULL_CROSSINGS {
-                return;
-            }
-            let hit = scene.bvh.intersect_range(
-                &scene.prims,
-                &scene.prim_opaque,
-                &ray,
-                t_min,
-                f32::INFINITY,
-            );
-            let t_hit = hit.map_or(f32::INFINITY, |h| h.t);
-            if let Some(m) = medium {
-                let med = &scene.media[m as usize];
-                // steps of `step_mfp` mean free paths: equal optical depth, so that an
-                // inhomogeneous medium gets as many decisions per mean free path as a
-                // homogeneous one (see DEVIATION above)
-                if spectrum::average(med.sigma_t_max()) > 0.0 {
-                    let albedo = med.albedo();
-                    let d = ray.d;
-                    let mut t = t_start;
-                    let mut steps = 0;
-                    while t < t_hit {
-                        steps += 1;
-                        if steps > MAX_MARCH_STEPS {
-                            return;
-                        }
-                        let here = Ray::new(ray.at(t), d);
-                        let dx = med.advance(&here, step_mfp, t_hit - t).unwrap_or(t_hit - t);
-                        // the step's exact optical depth (eq. 8's kappas for the medium as it is
-                        // along the step)
-                        let tau = med.optical_depth(&here, dx);
-                        let kappa_t = (-tau).exp();
-                        let kappa_s = if depth < smc.max_depth {
-                            (Rgb::ONE - kappa_t) * albedo
-                        } else {
-                            Rgb::ZERO
-                        };
-                        // the scattering point, jittered in the step (see DEVIATION above);
-                        // drawn before the branch so that both branches share G
-                        let (s, kappa_s_jit) =
-                            jittered_point(med, &here, dx, spectrum::average(tau), sampler);
-                        let xs = ray.at(t + s);
-                        let x_end = ray.at(t + dx);
-                        // the snapshot's caches: where the transmitted radiance L(x + dx, d)
-                        // arrives, and where the in-scattered radiance is estimated
-                        let cache_t = smc.octree.cache(x_end);
-                        let cache_s = smc.octree.cache(xs);
-                        // the vertex this step would scatter at: the (depth + 1)-th
-                        let use_cache = smc.adaptive(cache_s, depth + 1);
-                        // the choice between Omega_t and Omega_s by the analog masses
-                        // kappa_t and kappa_s (see DEVIATION above)
-                        let p_t = transmit_probability(
-                            spectrum::average(kappa_t) as f64,
-                            spectrum::average(kappa_s) as f64,
-                        ) as f32;
-                        // g on Omega_t and G on the joint domain
-                        let g_t = kappa_t * cache_t.radiance(d, cv);
-                        let big_g = kappa_s * cache_s.integral(cv) + g_t;
-                        if sampler.next_f32() < p_t {
-                            // Omega_t: the transmitted radiance, by continuing the ray
-                            let b = kappa_t / p_t;
-                            scratch.links.push(Link {
-                                a: big_g - g_t / p_t,
-                                b,
-                                record: Some((x_end, d, warp::INV_FOUR_PI)),
-                                roulette: None,
-                            });
-                            beta *= b;
-                            t += dx;
-                            continue;
-                        }
-                        // Omega_s: the in-scattered radiance at the jittered point; p is the
-                        // joint density of (Omega_s, wi)
-                        let p_s = 1.0 - p_t;
-                        let phase = med.phase();
-                        let wo = -d;
-                        let (wi, p) = if use_cache {
-                            let (wi, p_dir) =
-                                super::defensive_direction(cache_s, phase, wo, sampler);
-                            (wi, p_s * p_dir)
-                        } else {
-                            let ps = phase.sample(wo, sampler.next_2d());
-                            (ps.wi, p_s * ps.pdf)
-                        };
-                        if p.is_nan() || p <= 0.0 {
-                            return;
-                        }
-                        let phase_value = phase.eval(wo, wi);
-                        let g = kappa_s * cache_s.g(wi, cv);
-                        let delta =
-                            walk::delta_lights(scene, xs, Some(m), sampler, |w| phase.eval(wo, w));
-                        let b = kappa_s_jit * (phase_value / p);
-                        let mut link = Link {
-                            a: big_g - g / p + kappa_s_jit * delta / p_s,
-                            b,
-                            record: Some((xs, wi, phase_value)),
-                            roulette: None,
-                        };
-                        depth += 1;
-                        beta *= b;
-                        let c = cache_s.radiance(wi, cv);
-                        let alive = walk::roulette(depth, &mut beta, c, &mut link, sampler);
-                        scratch.links.push(link);
-                        if !alive {
-                            return;
-                        }
-                        ray = Ray::new(xs, wi);
-                        prev = Previous::singular(xs);
-                        continue 'rays;
-                    }
+    let mut march = March {
+        smc,
+        scene,
+        step_mfp,
+        sampler,
+        scratch,
+    };
+    while march.ray(&mut state) {}
+}
+
+/// What the march reads (the estimator, the scene, the step) and writes (the sampler, the
+/// path's links), bundled for its parts.
+struct March<'a> {
+    smc: &'a Smc,
+    scene: &'a Scene,
+    step_mfp: f32,
+    sampler: &'a mut Sampler,
+    scratch: &'a mut Scratch,
+}
+
+/// How a medium segment or one of its steps ends.
+enum Flow {
+    /// The ray goes on (through the step, or past the segment).
+    Through,
+    /// The path scattered: `State` holds the new ray.
+    Scattered,
+    /// The path ended.
+    End,
+}
+
+/// One step's quantities that the scattering branch (Omega_s) needs.
+struct Step<'c> {
+    d: glam::Vec3,
+    kappa_s: Rgb,
+    kappa_s_jit: Rgb,
+    xs: glam::Vec3,
+    cache_s: &'c RadianceCache,
+    use_cache: bool,
+    p_t: f32,
+    big_g: Rgb,
+}
+
+impl March<'_> {
+    /// Follows the state's ray through media and null boundaries to its next scattering
+    /// vertex (the state then holds the new ray); false when the path ends.
+    fn ray(&mut self, s: &mut State) -> bool {
+        for seg in Segments::new(self.scene, s.ray, s.medium, f32::INFINITY) {
+            if let Some(m) = seg.medium {
+                match self.segment(s, m, seg.t0, seg.t1) {
+                    Flow::Through => {}
+                    Flow::Scattered => return true,
+                    Flow::End => return false,
                 }
             }
             // the end of the segment: background, null boundary or surface
-            let Some(hit) = hit else {
-                let a = walk::escaped(scene, ray.d, &prev);
-                scratch.links.push(Link::plain(a, Rgb::ZERO));
-                return;
-            };
-            let shape = scene.shape_of(&hit);
-            if shape.is_null() {
-                medium = shape.medium_after(ray.d, hit.ng, medium);
-                t_start = hit.t;
-                t_min = past(hit.t, &ray);
-                continue;
+            match seg.end {
+                SegmentEnd::Null(_) => {}
+                SegmentEnd::Open => {
+                    let a = walk::escaped(self.scene, s.ray.d, &s.prev);
+                    self.scratch.links.push(Link::plain(a, Rgb::ZERO));
+                    return false;
+                }
+                SegmentEnd::Surface(hit) => return self.surface(s, &hit, seg.medium),
             }
-            let st = walk::surface(
-                scene,
-                &ray,
-                &hit,
-                medium,
-                &prev,
-                &mut depth,
-                smc.max_depth,
-                sampler,
-            );
-            let Some((w, next_ray, next_medium, next_prev)) = st.next else {
-                scratch.links.push(Link::plain(st.a, Rgb::ZERO));
-                return;
-            };
-            let mut link = Link::plain(st.a, w);
-            beta *= w;
-            let alive = walk::roulette(depth, &mut beta, Rgb::ZERO, &mut link, sampler);
-            scratch.links.push(link);
-            if !alive {
-                return;
-            }
-            ray = next_ray;
-            medium = next_medium;
-            prev = next_prev;
-            continue 'rays;
         }
+        false
+    }
+
+    /// The steps of `step_mfp` mean free paths through the medium `m` from `t_start` to
+    /// `t_hit`: equal optical depth, so that an inhomogeneous medium gets as many decisions per
+    /// mean free path as a homogeneous one (see DEVIATION above).
+    fn segment(&mut self, s: &mut State, m: u32, t_start: f32, t_hit: f32) -> Flow {
+        let med = &self.scene.media[m as usize];
+        let sigma_max = spectrum::average(med.sigma_t_max());
+        // (a NaN majorant marches nothing, as a zero one)
+        if sigma_max.is_nan() || sigma_max <= 0.0 {
+            return Flow::Through;
+        }
+        let albedo = med.albedo();
+        let mut t = t_start;
+        let mut steps = 0;
+        while t < t_hit {
+            steps += 1;
+            if steps > MAX_MARCH_STEPS {
+                return Flow::End;
+            }
+            let here = Ray::new(s.ray.at(t), s.ray.d);
+            let dx = med
+                .advance(&here, self.step_mfp, t_hit - t)
+                .unwrap_or(t_hit - t);
+            match self.step(s, m, albedo, t, &here, dx) {
+                Flow::Through => t += dx,
+                flow => return flow,
+            }
+        }
+        Flow::Through
+    }
+
+    /// One step of length `dx` from `t` (`here` the ray from there): eq. (8)'s kappas, the
+    /// jittered scattering point, G, and the choice between Omega_t and Omega_s.
+    fn step(&mut self, s: &mut State, m: u32, albedo: Rgb, t: f32, here: &Ray, dx: f32) -> Flow {
+        let (smc, med) = (self.smc, &self.scene.media[m as usize]);
+        let cv = smc.settings.variant.cv;
+        let d = s.ray.d;
+        // the step's exact optical depth (eq. 8's kappas for the medium as it is along the
+        // step)
+        let tau = med.optical_depth(here, dx);
+        let kappa_t = (-tau).exp();
+        let kappa_s = if s.depth < smc.max_depth {
+            (Rgb::ONE - kappa_t) * albedo
+        } else {
+            Rgb::ZERO
+        };
+        // the scattering point, jittered in the step (see DEVIATION above); drawn before the
+        // branch so that both branches share G
+        let (sj, kappa_s_jit) = jittered_point(med, here, dx, spectrum::average(tau), self.sampler);
+        let xs = s.ray.at(t + sj);
+        let x_end = s.ray.at(t + dx);
+        // the snapshot's caches: where the transmitted radiance L(x + dx, d) arrives, and
+        // where the in-scattered radiance is estimated
+        let cache_t = smc.octree.cache(x_end);
+        let cache_s = smc.octree.cache(xs);
+        // the vertex this step would scatter at: the (depth + 1)-th
+        let use_cache = smc.adaptive(cache_s, s.depth + 1);
+        // the choice between Omega_t and Omega_s by the analog masses kappa_t and kappa_s
+        // (see DEVIATION above)
+        let p_t = transmit_probability(
+            spectrum::average(kappa_t) as f64,
+            spectrum::average(kappa_s) as f64,
+        ) as f32;
+        // g on Omega_t and G on the joint domain
+        let g_t = kappa_t * cache_t.radiance(d, cv);
+        let big_g = kappa_s * cache_s.integral(cv) + g_t;
+        if self.sampler.next_f32() < p_t {
+            // Omega_t: the transmitted radiance, by continuing the ray
+            let b = kappa_t / p_t;
+            self.scratch.links.push(Link {
+                a: big_g - g_t / p_t,
+                b,
+                record: Some((x_end, d, warp::INV_FOUR_PI)),
+                roulette: None,
+            });
+            s.beta *= b;
+            return Flow::Through;
+        }
+        let step = Step {
+            d,
+            kappa_s,
+            kappa_s_jit,
+            xs,
+            cache_s,
+            use_cache,
+            p_t,
+            big_g,
+        };
+        self.scatter(s, m, med, &step)
+    }
+
+    /// Omega_s: the in-scattered radiance at the jittered point; p is the joint density of
+    /// (Omega_s, wi).
+    fn scatter(&mut self, s: &mut State, m: u32, med: &Medium, st: &Step) -> Flow {
+        let cv = self.smc.settings.variant.cv;
+        let sampler = &mut *self.sampler;
+        let p_s = 1.0 - st.p_t;
+        let phase = med.phase();
+        let wo = -st.d;
+        let (wi, p) = if st.use_cache {
+            let (wi, p_dir) = super::defensive_direction(st.cache_s, phase, wo, sampler);
+            (wi, p_s * p_dir)
+        } else {
+            let ps = phase.sample(wo, sampler.next_2d());
+            (ps.wi, p_s * ps.pdf)
+        };
+        if p.is_nan() || p <= 0.0 {
+            return Flow::End;
+        }
+        let phase_value = phase.eval(wo, wi);
+        let g = st.kappa_s * st.cache_s.g(wi, cv);
+        let xs = st.xs;
+        let delta = walk::delta_lights(self.scene, xs, Some(m), sampler, |w| phase.eval(wo, w));
+        let b = st.kappa_s_jit * (phase_value / p);
+        let mut link = Link {
+            a: st.big_g - g / p + st.kappa_s_jit * delta / p_s,
+            b,
+            record: Some((xs, wi, phase_value)),
+            roulette: None,
+        };
+        s.depth += 1;
+        s.beta *= b;
+        let c = st.cache_s.radiance(wi, cv);
+        let alive = walk::roulette(s.depth, &mut s.beta, c, &mut link, sampler);
+        self.scratch.links.push(link);
+        if !alive {
+            return Flow::End;
+        }
+        s.ray = Ray::new(xs, wi);
+        s.medium = Some(m);
+        s.prev = Previous::singular(xs);
+        Flow::Scattered
+    }
+
+    /// A surface vertex (`walk::surface`); true when the path goes on from it.
+    fn surface(&mut self, s: &mut State, hit: &Hit, medium: Option<u32>) -> bool {
+        let st = walk::surface(self.scene, hit, medium, s, self.smc.max_depth, self.sampler);
+        let Some((w, next_ray, next_medium, next_prev)) = st.next else {
+            self.scratch.links.push(Link::plain(st.a, Rgb::ZERO));
+            return false;
+        };
+        let mut link = Link::plain(st.a, w);
+        s.beta *= w;
+        let alive = walk::roulette(s.depth, &mut s.beta, Rgb::ZERO, &mut link, self.sampler);
+        self.scratch.links.push(link);
+        if !alive {
+            return false;
+        }
+        s.ray = next_ray;
+        s.medium = next_medium;
+        s.prev = next_prev;
+        true
     }
 }
 // ANCHOR_END: march

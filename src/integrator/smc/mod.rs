@@ -468,8 +468,8 @@ impl Smc {
         records: &mut Vec<Record>,
     ) -> Rgb {
         scratch.links.clear();
-        let prev = walk::Previous::singular(ray.o);
-        self.walk(scene, ray, medium, prev, Rgb::ONE, sampler, scratch);
+        let state = walk::State::start(ray, medium, Rgb::ONE);
+        self.walk(scene, state, sampler, scratch);
         walk::resolve(&scratch.links, records)
     }
 
@@ -495,36 +495,27 @@ impl Smc {
         scratch
             .links
             .push(walk::Link::plain(direct, Rgb::splat(std::f32::consts::PI)));
-        let prev = walk::Previous::singular(p);
-        self.walk(
-            scene,
+        let state = walk::State::start(
             Ray::new(p, wi),
             meter.medium,
-            prev,
             Rgb::splat(std::f32::consts::PI),
-            sampler,
-            scratch,
         );
+        self.walk(scene, state, sampler, scratch);
         walk::resolve(&scratch.links, records)
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// The walk of `state` by the estimator the settings choose.
     fn walk(
         &self,
         scene: &Scene,
-        ray: Ray,
-        medium: Option<u32>,
-        prev: walk::Previous,
-        beta: Rgb,
+        state: walk::State,
         sampler: &mut Sampler,
         scratch: &mut Scratch,
     ) {
         match self.settings.form {
-            EstimatorForm::Distance => {
-                distance::walk(self, scene, ray, medium, prev, beta, sampler, scratch)
-            }
+            EstimatorForm::Distance => distance::walk(self, scene, state, sampler, scratch),
             EstimatorForm::RayMarching { step } => {
-                march::walk(self, scene, ray, medium, prev, beta, step, sampler, scratch)
+                march::walk(self, scene, state, step, sampler, scratch)
             }
         }
     }

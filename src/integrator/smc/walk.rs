@@ -151,6 +151,33 @@ pub fn delta_lights(
     l
 }
 
+/// A camera path between two vertices: the ray it follows, the medium that ray starts in, the
+/// last scattering vertex (for the MIS weight of emission found by chance), the throughput and
+/// the number of scattering vertices so far. What both estimators' walks carry from vertex to
+/// vertex, bundled so that they and [`surface`] take one argument for it.
+#[derive(Clone, Copy, Debug)]
+pub struct State {
+    pub ray: Ray,
+    pub medium: Option<u32>,
+    pub prev: Previous,
+    pub beta: Rgb,
+    pub depth: u32,
+}
+
+impl State {
+    /// A path starting along `ray` in `medium` with throughput `beta`, its origin a singular
+    /// vertex (a primary ray or a meter point).
+    pub fn start(ray: Ray, medium: Option<u32>, beta: Rgb) -> Self {
+        State {
+            ray,
+            medium,
+            prev: Previous::singular(ray.o),
+            beta,
+            depth: 0,
+        }
+    }
+}
+
 /// What a surface vertex contributes: emitted (MIS-weighted) plus next-event radiance `a`, and
 /// the continuation (BSDF weight, next ray, its medium, the new previous vertex) if any.
 pub struct SurfaceStep {
@@ -158,20 +185,19 @@ pub struct SurfaceStep {
     pub next: Option<(Rgb, Ray, Option<u32>, Previous)>,
 }
 
-/// A surface vertex: emission found by chance, NEE with MIS, BSDF sampling. `depth` counts
-/// scattering vertices and is incremented here when the surface scatters.
+/// A surface vertex `hit` reached by `state`'s ray in `medium`: emission found by chance, NEE
+/// with MIS, BSDF sampling. `state.depth` counts scattering vertices and is incremented here
+/// when the surface scatters; the rest of `state` is read only (the caller moves it on).
 // ANCHOR: surface
-#[allow(clippy::too_many_arguments)]
 pub fn surface(
     scene: &Scene,
-    ray: &Ray,
     hit: &Hit,
     medium: Option<u32>,
-    prev: &Previous,
-    depth: &mut u32,
+    state: &mut State,
     max_depth: u32,
     sampler: &mut Sampler,
 ) -> SurfaceStep {
+    let (ray, prev, depth) = (&state.ray, &state.prev, &mut state.depth);
     let shape = scene.shape_of(hit);
     let n = hit.ng;
     let mut a = Rgb::ZERO;

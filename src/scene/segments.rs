@@ -1,0 +1,170 @@
+//! The one transport kernel every method shares: a ray followed through media and index-matched
+//! null boundaries (`Bsdf::Null`), cut into the medium segments between crossings and ended by
+//! the first non-null surface, escape, or the end of the query range. Propagation (Table 1's
+//! free flights per segment), `Scene::transmittance` (tau of eq. 3 times V), `Scene::edge`,
+//! MLT's retracing and SMC's ray marching all iterate it, so the crossing rule (the ray is
+//! continued past each boundary with a `t_min`, never re-spawned) exists once.
+//! Book: "The transport equations", section "Why the ray is continued, not re-spawned, at a null
+//! boundary".
+
+use crate::geometry::{Hit, Ray};
+
+use super::Scene;
+
+/// Relative step past a crossed null boundary before the next intersection query, so the same
+/// face is not found again (its t carries a few ulps of error). Coplanar opaque faces are not
+/// skipped: the BVH's tie-break returns them instead of the null face.
+const NULL_CROSSING_EPSILON: f32 = 1e-6;
+
+#[inline]
+fn past(t: f32, ray: &Ray) -> f32 {
+    t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
+}
+
+/// Crossing more null boundaries than this along one ray means the geometry traps the ray.
+pub const MAX_NULL_CROSSINGS: usize = 256;
+
+/// What ends a medium segment.
+#[derive(Clone, Copy, Debug)]
+pub enum SegmentEnd {
+    /// Nothing within the query range: the ray escapes (or reaches the end of the range).
+    Open,
+    /// A null boundary, crossed: the next segment starts here, in the medium behind it.
+    Null(Hit),
+    /// A non-null surface: the ray ends here.
+    Surface(Hit),
+}
+
+/// One stretch of the ray in one medium, from `t0` to `t1` (ray parameters; `t0` of the first
+/// segment is `-lead`, the vertex itself, and `t1` of an open segment is the range's end).
+#[derive(Clone, Copy, Debug)]
+pub struct Segment {
+    pub t0: f32,
+    pub t1: f32,
+    /// The medium of the stretch (`None`: vacuum).
+    pub medium: Option<u32>,
+    /// True for the segment that starts at the ray's origin.
+    pub first: bool,
+    pub end: SegmentEnd,
+}
+
+/// The medium segments of a ray through null boundaries, in order along the ray. The iteration
+/// ends after a segment ending `Open` or at a `Surface`; it also ends (without such a segment)
+/// after [`MAX_NULL_CROSSINGS`] crossings, which every caller treats as a trapped ray.
+pub struct Segments<'a> {
+    scene: &'a Scene,
+    ray: Ray,
+    medium: Option<u32>,
+    t_start: f32,
+    t_min: f32,
+    /// The intersection queries' range end.
+    t_max: f32,
+    /// Where an open segment ends (`t_max`, or beyond it for an edge measured to its true end).
+    t_open: f32,
+    queries: usize,
+    done: bool,
+}
+
+impl<'a> Segments<'a> {
+    /// The segments of `ray` starting in `medium`, intersection queries up to `t_max`.
+    #[inline]
+    pub fn new(scene: &'a Scene, ray: Ray, medium: Option<u32>, t_max: f32) -> Self {
+        Segments {
+            scene,
+            ray,
+            medium,
+            t_start: 0.0,
+            t_min: 0.0,
+            t_max,
+            t_open: t_max,
+            queries: 0,
+            done: false,
+        }
+    }
+
+    /// The first segment starts `lead` before the (lifted) origin, at the vertex itself, so
+    /// medium segments are measured between true end points.
+    #[inline]
+    pub fn lead(mut self, lead: f32) -> Self {
+        self.t_start = -lead;
+        self
+    }
+
+    /// An open last segment ends at `t_open` instead of `t_max` (the edge's true end point
+    /// behind its lifted one).
+    #[inline]
+    pub fn open_end(mut self, t_open: f32) -> Self {
+        self.t_open = t_open;
+        self
+    }
+
+    /// The ray the queries run along.
+    #[inline]
+    pub fn ray(&self) -> &Ray {
+        &self.ray
+    }
+}
+
+// ANCHOR: segments
+impl Iterator for Segments<'_> {
+    type Item = Segment;
+
+    #[inline]
+    fn next(&mut self) -> Option<Segment> {
+        if self.done || self.queries >= MAX_NULL_CROSSINGS {
+            return None;
+        }
+        let scene = self.scene;
+        let first = self.queries == 0;
+        self.queries += 1;
+        let hit = scene.bvh.intersect_range(
+            &scene.prims,
+            &scene.prim_opaque,
+            &self.ray,
+            self.t_min,
+            self.t_max,
+        );
+        let medium = self.medium;
+        let t0 = self.t_start;
+        let Some(hit) = hit else {
+            self.done = true;
+            return Some(Segment {
+                t0,
+                t1: self.t_open,
+                medium,
+                first,
+                end: SegmentEnd::Open,
+            });
+        };
+        let shape = scene.shape_of(&hit);
+        let end = if shape.is_null() {
+            // the ray is continued (not re-spawned) past the boundary: segments stay contiguous
+            self.medium = shape.medium_after(self.ray.d, hit.ng, medium);
+            self.t_start = hit.t;
+            self.t_min = past(hit.t, &self.ray);
+            SegmentEnd::Null(hit)
+        } else {
+            self.done = true;
+            SegmentEnd::Surface(hit)
+        };
+        Some(Segment {
+            t0,
+            t1: hit.t,
+            medium,
+            first,
+            end,
+        })
+    }
+}
+// ANCHOR_END: segments
+
+impl Segment {
+    /// The hit that ends the segment, null or not (`None` for an open one).
+    #[inline]
+    pub fn hit(&self) -> Option<Hit> {
+        match self.end {
+            SegmentEnd::Open => None,
+            SegmentEnd::Null(h) | SegmentEnd::Surface(h) => Some(h),
+        }
+    }
+}
