@@ -53,6 +53,16 @@ enum FirstPdf {
     Perpendicular(f32),
 }
 
+/// One strategy's unweighted contribution, the propagation pdfs of its connection edge (both
+/// directions), the endpoint it sampled and the raster position it lands on.
+struct Connection {
+    l: Rgb,
+    pdf_qp: f32,
+    pdf_pq: f32,
+    sampled: Option<Vertex>,
+    raster: Option<Vec2>,
+}
+
 /// Reusable per-thread storage, so no sample allocates.
 #[derive(Default)]
 pub struct Scratch {
@@ -662,103 +672,8 @@ impl<'t> Bdpt<'t> {
             pdf_pq = 1.0;
         } else if s == 1 {
             // next-event estimation: sample a point on a light for the eye subpath's end
-            let pt = &eye[t - 1];
-            if !pt.is_connectible(scene) {
-                return None;
-            }
-            let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-            let u = sampler.next_2d();
-            // `sel_pdf`: the solid-angle density with the light selection included
-            let (ls, sel_pdf, start_prim) =
-                match self.tech.sample_light_start(scene, li, u, sampler) {
-                    StartDraw::Failed => return None,
-                    StartDraw::Drawn(st) => {
-                        // the light vertex from the technique, as light subpaths start
-                        li = st.point.light as usize;
-                        let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
-                        (ls, ls.pdf, Some(st.point.prim))
-                    }
-                    StartDraw::ByPower => {
-                        let light = &scene.lights[li];
-                        let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
-                        let prim = match light {
-                            Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-                            _ => None,
-                        };
-                        (ls, pmf * ls.pdf, prim)
-                    }
-                };
-            if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
-                return None;
-            }
-            let light_ref = &scene.lights[li];
-            let lm = self.light_media[li];
-            let mut v = match light_ref {
-                Light::Area { .. } => Vertex::new(
-                    VertexKind::Light {
-                        light: li as u32,
-                        prim: start_prim,
-                    },
-                    ls.p,
-                    ls.n,
-                    lm,
-                    lm,
-                ),
-                Light::Point { .. } | Light::Spot { .. } => Vertex::new(
-                    VertexKind::Light {
-                        light: li as u32,
-                        prim: None,
-                    },
-                    ls.p,
-                    Vec3::ZERO,
-                    lm,
-                    lm,
-                ),
-                _ => Vertex::new(
-                    VertexKind::InfiniteLight { light: li as u32 },
-                    pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
-                    Vec3::ZERO,
-                    None,
-                    None,
-                ),
-            };
-            v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
-            v.beta = ls.value / sel_pdf;
-            let f = if t == 1 {
-                // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
-                // W_e lands in another pixel, A * (1/A) for a meter)
-                match pt.kind {
-                    VertexKind::Camera => {
-                        let imp = scene.camera.as_ref()?.importance(ls.wi)?;
-                        raster = Some(imp.raster);
-                        Rgb::splat(imp.we)
-                    }
-                    VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
-                    _ => return None,
-                }
-            } else {
-                pt.f_hat(scene, v.p, eye[t - 2].p)
-            };
-            if f == Rgb::ZERO {
-                return None;
-            }
-            let target = if ls.dist.is_infinite() {
-                pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
-            } else {
-                v.p
-            };
-            let mut end_v = v;
-            end_v.p = target;
-            let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
-            l = pt.beta * f * v.beta * e.transmittance * cos_pt;
-            // an infinite light's edge leaves the scene: only the passage of its segments counts
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
-            sampled = Some(v);
+            let c = self.connect_light_sample(scene, eye, t, sampler)?;
+            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
         } else if t == 1
             && self.strategies == Strategies::LightTracing
             && matches!(eye[0].kind, VertexKind::Meter { .. })
@@ -774,49 +689,8 @@ impl<'t> Bdpt<'t> {
             sampled = Some(z0);
         } else if t == 1 {
             // connect the light subpath to the sensor
-            let qs = &light[s - 1];
-            if !qs.is_connectible(scene) || s < 2 {
-                return None;
-            }
-            let sensor = match eye[0].kind {
-                VertexKind::Camera => {
-                    let cam = scene.camera.as_ref()?;
-                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
-                    raster = Some(imp.raster);
-                    let mut v = eye[0];
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                VertexKind::Meter { meter } => {
-                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
-                    let (p, n) = q.sample_area(sampler.next_2d());
-                    let mut v =
-                        Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
-                    v.pdf_fwd = 1.0 / q.area();
-                    // W_e / p(x) = (1/A) / (1/A)
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                _ => return None,
-            };
-            let we = sensor.importance(scene, qs.p);
-            let area_inv = match sensor.kind {
-                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
-                _ => 1.0,
-            };
-            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
-            if f == Rgb::ZERO || we == Rgb::ZERO {
-                return None;
-            }
-            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
-            l = qs.beta * f * e.transmittance * g * we * area_inv;
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
-            sampled = Some(sensor);
+            let c = self.connect_to_sensor(scene, light, eye, s, sampler)?;
+            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
         } else {
             let qs = &light[s - 1];
             let pt = &eye[t - 1];
@@ -850,6 +724,181 @@ impl<'t> Bdpt<'t> {
         Some((l, raster, sampled))
     }
     // ANCHOR_END: connect
+
+    /// Strategy s = 1 (next-event estimation): a light vertex sampled for the eye subpath's
+    /// end `eye[t - 1]`, by the technique's light start or by power, and its connection.
+    fn connect_light_sample(
+        &self,
+        scene: &Scene,
+        eye: &[Vertex],
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let mut raster = None;
+        let pt = &eye[t - 1];
+        if !pt.is_connectible(scene) {
+            return None;
+        }
+        let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let u = sampler.next_2d();
+        // `sel_pdf`: the solid-angle density with the light selection included
+        let (ls, sel_pdf, start_prim) = match self.tech.sample_light_start(scene, li, u, sampler) {
+            StartDraw::Failed => return None,
+            StartDraw::Drawn(st) => {
+                // the light vertex from the technique, as light subpaths start
+                li = st.point.light as usize;
+                let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                (ls, ls.pdf, Some(st.point.prim))
+            }
+            StartDraw::ByPower => {
+                let light = &scene.lights[li];
+                let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                let prim = match light {
+                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                    _ => None,
+                };
+                (ls, pmf * ls.pdf, prim)
+            }
+        };
+        if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
+            return None;
+        }
+        let light_ref = &scene.lights[li];
+        let lm = self.light_media[li];
+        let mut v = match light_ref {
+            Light::Area { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: start_prim,
+                },
+                ls.p,
+                ls.n,
+                lm,
+                lm,
+            ),
+            Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: None,
+                },
+                ls.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            _ => Vertex::new(
+                VertexKind::InfiniteLight { light: li as u32 },
+                pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+        };
+        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        v.beta = ls.value / sel_pdf;
+        let f = if t == 1 {
+            // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
+            // W_e lands in another pixel, A * (1/A) for a meter)
+            match pt.kind {
+                VertexKind::Camera => {
+                    let imp = scene.camera.as_ref()?.importance(ls.wi)?;
+                    raster = Some(imp.raster);
+                    Rgb::splat(imp.we)
+                }
+                VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
+                _ => return None,
+            }
+        } else {
+            pt.f_hat(scene, v.p, eye[t - 2].p)
+        };
+        if f == Rgb::ZERO {
+            return None;
+        }
+        let target = if ls.dist.is_infinite() {
+            pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
+        } else {
+            v.p
+        };
+        let mut end_v = v;
+        end_v.p = target;
+        let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+        let l = pt.beta * f * v.beta * e.transmittance * cos_pt;
+        // an infinite light's edge leaves the scene: only the passage of its segments counts
+        let pdf_qp = e.pdf_ab;
+        let pdf_pq = e.pdf_ba;
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(v),
+            raster,
+        })
+    }
+
+    /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
+    /// joined to the camera or to a point sampled on the meter of `eye[0]`.
+    fn connect_to_sensor(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let mut raster = None;
+        let qs = &light[s - 1];
+        if !qs.is_connectible(scene) || s < 2 {
+            return None;
+        }
+        let sensor = match eye[0].kind {
+            VertexKind::Camera => {
+                let cam = scene.camera.as_ref()?;
+                let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
+                raster = Some(imp.raster);
+                let mut v = eye[0];
+                v.beta = Rgb::ONE;
+                v
+            }
+            VertexKind::Meter { meter } => {
+                let q = Primitive::Quad(scene.sensors[meter as usize].quad);
+                let (p, n) = q.sample_area(sampler.next_2d());
+                let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                v.pdf_fwd = 1.0 / q.area();
+                // W_e / p(x) = (1/A) / (1/A)
+                v.beta = Rgb::ONE;
+                v
+            }
+            _ => return None,
+        };
+        let we = sensor.importance(scene, qs.p);
+        let area_inv = match sensor.kind {
+            VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
+            _ => 1.0,
+        };
+        let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+        if f == Rgb::ZERO || we == Rgb::ZERO {
+            return None;
+        }
+        let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
+        let l = qs.beta * f * e.transmittance * g * we * area_inv;
+        let pdf_qp = e.pdf_ab;
+        let pdf_pq = e.pdf_ba;
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(sensor),
+            raster,
+        })
+    }
 
     /// Light tracing's connection of y_{s-1} to the meter of `z0` (t = 1), unweighted across
     /// strategies like the rest of light tracing, but with two samplers of the connection
