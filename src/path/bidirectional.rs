@@ -63,6 +63,17 @@ struct Connection {
     raster: Option<Vec2>,
 }
 
+/// Where a random walk starts: its first ray and medium, the throughput so far, how its first
+/// vertex's density is measured, the quantity it carries and how many vertices it may hold.
+struct WalkStart {
+    ray: Ray,
+    medium: Option<u32>,
+    beta: Rgb,
+    first: FirstPdf,
+    mode: TransportMode,
+    max_vertices: usize,
+}
+
 /// Reusable per-thread storage, so no sample allocates.
 #[derive(Default)]
 pub struct Scratch {
@@ -137,19 +148,21 @@ impl<'t> Bdpt<'t> {
     /// The random walk shared by both subpaths: propagate, record the vertex with its forward
     /// density, scatter, and set the predecessor's reverse density.
     // ANCHOR: random_walk
-    #[allow(clippy::too_many_arguments)]
     fn random_walk(
         &self,
         scene: &Scene,
-        mut ray: Ray,
-        mut medium: Option<u32>,
-        mut beta: Rgb,
-        first: FirstPdf,
-        mode: TransportMode,
-        max_vertices: usize,
+        start: WalkStart,
         path: &mut Vec<Vertex>,
         sampler: &mut Sampler,
     ) {
+        let WalkStart {
+            mut ray,
+            mut medium,
+            mut beta,
+            first,
+            mode,
+            max_vertices,
+        } = start;
         let mut pdf_dir = match first {
             FirstPdf::SolidAngle(p) => p,
             FirstPdf::Perpendicular(_) => 0.0,
@@ -300,17 +313,15 @@ impl<'t> Bdpt<'t> {
         path.push(v0);
         let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
         // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
-        self.random_walk(
-            scene,
+        let start = WalkStart {
             ray,
-            scene.camera_medium,
-            Rgb::ONE,
-            FirstPdf::SolidAngle(pdf_dir),
-            TransportMode::Radiance,
-            self.max_vertices(2),
-            path,
-            sampler,
-        );
+            medium: scene.camera_medium,
+            beta: Rgb::ONE,
+            first: FirstPdf::SolidAngle(pdf_dir),
+            mode: TransportMode::Radiance,
+            max_vertices: self.max_vertices(2),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The eye subpath from a uniform point of meter `m`, cosine-distributed.
@@ -345,17 +356,15 @@ impl<'t> Bdpt<'t> {
         let wi = Frame::from_normal(n).to_world(local);
         let pdf = local.z * std::f32::consts::FRAC_1_PI;
         // W_e g / (p(x) p(w)) = (1/A) cos / ((1/A) cos/pi) = pi
-        self.random_walk(
-            scene,
-            Ray::new(p, wi),
-            meter.medium,
-            Rgb::splat(std::f32::consts::PI),
-            FirstPdf::SolidAngle(pdf),
-            TransportMode::Radiance,
-            self.max_vertices(2),
-            path,
-            sampler,
-        );
+        let start = WalkStart {
+            ray: Ray::new(p, wi),
+            medium: meter.medium,
+            beta: Rgb::splat(std::f32::consts::PI),
+            first: FirstPdf::SolidAngle(pdf),
+            mode: TransportMode::Radiance,
+            max_vertices: self.max_vertices(2),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The light subpath: a light chosen by power, an emitted ray, then the random walk with the
@@ -456,17 +465,15 @@ impl<'t> Bdpt<'t> {
         };
         let beta = es.value * (cos / (start_pdf * es.pdf_dir));
         path.push(v0);
-        self.random_walk(
-            scene,
-            Ray::new(origin, es.d),
-            lm,
+        let start = WalkStart {
+            ray: Ray::new(origin, es.d),
+            medium: lm,
             beta,
             first,
-            TransportMode::Importance,
-            self.max_vertices(1),
-            path,
-            sampler,
-        );
+            mode: TransportMode::Importance,
+            max_vertices: self.max_vertices(1),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The largest s to try with a light subpath `light`: its length, but at least 1 when the
