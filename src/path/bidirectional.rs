@@ -23,6 +23,7 @@ use crate::path::technique::{sample_emitted_start, EmittedStart, StartDraw};
 use crate::path::vertex::to_area;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
+use crate::scene::light::EmissionSample;
 use crate::scene::{Event, Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -405,50 +406,10 @@ impl<'t> Bdpt<'t> {
             return;
         }
         let lm = self.light_media[l];
-        let (mut v0, origin, first) = match light {
-            Light::Area { .. } => {
-                let Some(prim) = start_prim else { return };
-                let v = Vertex::new(
-                    VertexKind::Light {
-                        light: l as u32,
-                        prim: Some(prim),
-                    },
-                    es.p,
-                    es.n,
-                    lm,
-                    lm,
-                );
-                (
-                    v,
-                    offset_origin(es.p, es.n, es.d),
-                    FirstPdf::SolidAngle(es.pdf_dir),
-                )
-            }
-            Light::Point { .. } | Light::Spot { .. } => (
-                Vertex::new(
-                    VertexKind::Light {
-                        light: l as u32,
-                        prim: None,
-                    },
-                    es.p,
-                    Vec3::ZERO,
-                    lm,
-                    lm,
-                ),
-                es.p,
-                FirstPdf::SolidAngle(es.pdf_dir),
-            ),
-            Light::Directional { .. } | Light::Environment(_) => (
-                Vertex::new(
-                    VertexKind::InfiniteLight { light: l as u32 },
-                    es.p,
-                    Vec3::ZERO,
-                    None,
-                    None,
-                ),
-                es.p,
-                FirstPdf::Perpendicular(es.pdf_pos),
-            ),
+        let Some((mut v0, origin, first)) =
+            light_start_vertex(light, l as u32, start_prim, &es, lm)
+        else {
+            return;
         };
         v0.beta = es.value;
         v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
@@ -990,6 +951,63 @@ impl<'t> Bdpt<'t> {
         }
         first.map(|z| (l, z))
     }
+}
+
+/// The light subpath's first vertex for emitted ray `es` of light `l` (`prim`: the area
+/// light's primitive, `lm`: the medium around the light), the origin of its first ray and how
+/// its first edge's density is measured; `None` for an area light start without a primitive.
+fn light_start_vertex(
+    light: &Light,
+    l: u32,
+    start_prim: Option<u32>,
+    es: &EmissionSample,
+    lm: Option<u32>,
+) -> Option<(Vertex, Vec3, FirstPdf)> {
+    Some(match light {
+        Light::Area { .. } => {
+            let prim = start_prim?;
+            let v = Vertex::new(
+                VertexKind::Light {
+                    light: l,
+                    prim: Some(prim),
+                },
+                es.p,
+                es.n,
+                lm,
+                lm,
+            );
+            (
+                v,
+                offset_origin(es.p, es.n, es.d),
+                FirstPdf::SolidAngle(es.pdf_dir),
+            )
+        }
+        Light::Point { .. } | Light::Spot { .. } => (
+            Vertex::new(
+                VertexKind::Light {
+                    light: l,
+                    prim: None,
+                },
+                es.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            es.p,
+            FirstPdf::SolidAngle(es.pdf_dir),
+        ),
+        Light::Directional { .. } | Light::Environment(_) => (
+            Vertex::new(
+                VertexKind::InfiniteLight { light: l },
+                es.p,
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+            es.p,
+            FirstPdf::Perpendicular(es.pdf_pos),
+        ),
+    })
 }
 
 /// The power-heuristic weight of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
