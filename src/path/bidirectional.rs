@@ -19,7 +19,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
-use crate::path::technique::{sample_emitted_start, EmittedStart, StartDraw};
+use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::vertex::to_area;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
@@ -73,6 +73,32 @@ struct WalkStart {
     first: FirstPdf,
     mode: TransportMode,
     max_vertices: usize,
+}
+
+/// A walk's state between vertices: the ray to propagate, the medium it starts in, the
+/// throughput, whether its origin is a medium vertex and the lift of its origin.
+struct Walk {
+    ray: Ray,
+    medium: Option<u32>,
+    beta: Rgb,
+    origin_in_medium: bool,
+    lead: f32,
+}
+
+/// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
+/// only; `None` without an environment).
+fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<Vertex> {
+    if mode != TransportMode::Radiance {
+        return None;
+    }
+    let env = scene.environment?;
+    Some(Vertex::new(
+        VertexKind::InfiniteLight { light: env },
+        ray.o + ray.d * (4.0 * scene.radius + (ray.o - scene.center).length()),
+        Vec3::ZERO,
+        None,
+        None,
+    ))
 }
 
 /// Reusable per-thread storage, so no sample allocates.
@@ -157,9 +183,9 @@ impl<'t> Bdpt<'t> {
         sampler: &mut Sampler,
     ) {
         let WalkStart {
-            mut ray,
-            mut medium,
-            mut beta,
+            ray,
+            medium,
+            beta,
             first,
             mode,
             max_vertices,
@@ -170,41 +196,38 @@ impl<'t> Bdpt<'t> {
         };
         let mut first_edge = true;
         let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
-        let mut origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        let origin_in_medium = path.last().is_some_and(Vertex::is_medium);
         // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
-        let mut lead = path
+        let lead = path
             .last()
             .map_or(0.0, |v| (ray.o - v.p).dot(ray.d).max(0.0));
+        let mut w = Walk {
+            ray,
+            medium,
+            beta,
+            origin_in_medium,
+            lead,
+        };
         while path.len() < max_vertices {
             let prev = path.len() - 1;
-            let prop = scene.propagate_bidirectional(ray, lead, medium, origin_in_medium, sampler);
+            let prop =
+                scene.propagate_bidirectional(w.ray, w.lead, w.medium, w.origin_in_medium, sampler);
             // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
             // the vertex scatters below and in every connection through it
             if prop.pdf <= 0.0 {
                 return;
             }
-            beta *= prop.transmittance / prop.pdf;
-            if beta == Rgb::ZERO {
+            w.beta *= prop.transmittance / prop.pdf;
+            if w.beta == Rgb::ZERO {
                 return;
             }
             let mut v = match prop.event {
                 Event::Escape => {
-                    if mode == TransportMode::Radiance {
-                        if let Some(env) = scene.environment {
-                            let mut v = Vertex::new(
-                                VertexKind::InfiniteLight { light: env },
-                                ray.o
-                                    + ray.d
-                                        * (4.0 * scene.radius + (ray.o - scene.center).length()),
-                                Vec3::ZERO,
-                                None,
-                                None,
-                            );
-                            v.beta = beta;
-                            v.pdf_fwd = pdf_dir * prop.pdf;
-                            v.prop_rev = prop.pdf_rev;
-                            path.push(v);
-                        }
+                    if let Some(mut v) = environment_vertex(scene, &w.ray, mode) {
+                        v.beta = w.beta;
+                        v.pdf_fwd = pdf_dir * prop.pdf;
+                        v.prop_rev = prop.pdf_rev;
+                        path.push(v);
                     }
                     return;
                 }
@@ -217,10 +240,10 @@ impl<'t> Bdpt<'t> {
                 ),
                 Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
             };
-            v.beta = beta;
+            v.beta = w.beta;
             let density = match (first, first_edge) {
                 (FirstPdf::Perpendicular(p), true) => {
-                    p * crate::path::geometry_term::cosine_factor(&v, ray.d)
+                    p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
                 }
                 _ => to_area(pdf_dir, &path[prev], &v),
             };
@@ -232,7 +255,7 @@ impl<'t> Bdpt<'t> {
                 return;
             }
             let cur = path.len() - 1;
-            let wo = -ray.d;
+            let wo = -w.ray.d;
             // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
             // 5.19 and their medium extension), with the density of the reverse walk
             let Some(ss) = self.tech.sample_scatter(scene, &v, wo, mode, sampler) else {
@@ -245,50 +268,72 @@ impl<'t> Bdpt<'t> {
                 TransportMode::Radiance => TransportMode::Importance,
                 TransportMode::Importance => TransportMode::Radiance,
             };
-            let (pdf_fwd_dir, pdf_rev_dir) = match v.kind {
-                VertexKind::Medium { medium: m } => {
-                    beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
-                    path[cur].lobe = Lobe::Regular;
-                    medium = Some(m);
-                    origin_in_medium = true;
-                    ray = Ray::new(v.p, ss.wi);
-                    lead = 0.0;
-                    (ss.pdf, self.tech.scatter_pdf(scene, &v, ss.wi, wo, reverse))
-                }
-                VertexKind::Surface { .. } => {
-                    let bs = ss.as_bsdf_sample();
-                    beta *= bs.weight(v.n);
-                    path[cur].lobe = bs.lobe;
-                    medium = v.medium_towards(bs.wi);
-                    origin_in_medium = false;
-                    ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
-                    lead = (ray.o - v.p).dot(bs.wi);
-                    if bs.lobe.is_singular() {
-                        path[cur].delta = true;
-                        (0.0, 0.0)
-                    } else {
-                        (bs.pdf, self.tech.scatter_pdf(scene, &v, bs.wi, wo, reverse))
-                    }
-                }
-                _ => return,
+            let Some((pdf_fwd_dir, pdf_rev_dir, lobe, delta)) =
+                self.scatter(scene, &v, &ss, wo, reverse, &mut w)
+            else {
+                return;
             };
+            path[cur].lobe = lobe;
+            if delta {
+                path[cur].delta = true;
+            }
             pdf_dir = pdf_fwd_dir;
             // the predecessor as sampled from here (the reverse walk)
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
             if self.roulette && cur as u32 >= RR_START_DEPTH {
-                let ratio = beta.max_element() / beta_start;
+                let ratio = w.beta.max_element() / beta_start;
                 let q = (self.tech)
                     .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
                     .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
                 if sampler.next_f32() >= q || q.is_nan() {
                     return;
                 }
-                beta /= q;
+                w.beta /= q;
             }
         }
     }
     // ANCHOR_END: random_walk
+
+    /// One scattering step of a walk at vertex `v` with sample `ss`: the throughput, the next
+    /// ray and its medium, and the direction densities forward and (for `reverse`) backward,
+    /// with the lobe the vertex took and whether it is a Dirac one; `None` ends the walk.
+    fn scatter(
+        &self,
+        scene: &Scene,
+        v: &Vertex,
+        ss: &ScatterSample,
+        wo: Vec3,
+        reverse: TransportMode,
+        w: &mut Walk,
+    ) -> Option<(f32, f32, Lobe, bool)> {
+        Some(match v.kind {
+            VertexKind::Medium { medium: m } => {
+                w.beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
+                w.medium = Some(m);
+                w.origin_in_medium = true;
+                w.ray = Ray::new(v.p, ss.wi);
+                w.lead = 0.0;
+                let rev = self.tech.scatter_pdf(scene, v, ss.wi, wo, reverse);
+                (ss.pdf, rev, Lobe::Regular, false)
+            }
+            VertexKind::Surface { .. } => {
+                let bs = ss.as_bsdf_sample();
+                w.beta *= bs.weight(v.n);
+                w.medium = v.medium_towards(bs.wi);
+                w.origin_in_medium = false;
+                w.ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
+                w.lead = (w.ray.o - v.p).dot(bs.wi);
+                if bs.lobe.is_singular() {
+                    (0.0, 0.0, bs.lobe, true)
+                } else {
+                    let rev = self.tech.scatter_pdf(scene, v, bs.wi, wo, reverse);
+                    (bs.pdf, rev, bs.lobe, false)
+                }
+            }
+            _ => return None,
+        })
+    }
 
     /// The eye subpath from the camera through raster position `raster`.
     pub fn camera_subpath(
