@@ -19,10 +19,11 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
-use crate::path::technique::{sample_emitted_start, EmittedStart, StartDraw};
+use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::vertex::to_area;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
+use crate::scene::light::EmissionSample;
 use crate::scene::{Event, Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -51,6 +52,53 @@ enum FirstPdf {
     /// A position on a disk perpendicular to the direction, with this area density (infinite
     /// lights): the next vertex's density is this times its cosine factor.
     Perpendicular(f32),
+}
+
+/// One strategy's unweighted contribution, the propagation pdfs of its connection edge (both
+/// directions), the endpoint it sampled and the raster position it lands on.
+struct Connection {
+    l: Rgb,
+    pdf_qp: f32,
+    pdf_pq: f32,
+    sampled: Option<Vertex>,
+    raster: Option<Vec2>,
+}
+
+/// Where a random walk starts: its first ray and medium, the throughput so far, how its first
+/// vertex's density is measured, the quantity it carries and how many vertices it may hold.
+struct WalkStart {
+    ray: Ray,
+    medium: Option<u32>,
+    beta: Rgb,
+    first: FirstPdf,
+    mode: TransportMode,
+    max_vertices: usize,
+}
+
+/// A walk's state between vertices: the ray to propagate, the medium it starts in, the
+/// throughput, whether its origin is a medium vertex and the lift of its origin.
+struct Walk {
+    ray: Ray,
+    medium: Option<u32>,
+    beta: Rgb,
+    origin_in_medium: bool,
+    lead: f32,
+}
+
+/// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
+/// only; `None` without an environment).
+fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<Vertex> {
+    if mode != TransportMode::Radiance {
+        return None;
+    }
+    let env = scene.environment?;
+    Some(Vertex::new(
+        VertexKind::InfiniteLight { light: env },
+        ray.o + ray.d * (4.0 * scene.radius + (ray.o - scene.center).length()),
+        Vec3::ZERO,
+        None,
+        None,
+    ))
 }
 
 /// Reusable per-thread storage, so no sample allocates.
@@ -127,60 +175,59 @@ impl<'t> Bdpt<'t> {
     /// The random walk shared by both subpaths: propagate, record the vertex with its forward
     /// density, scatter, and set the predecessor's reverse density.
     // ANCHOR: random_walk
-    #[allow(clippy::too_many_arguments)]
     fn random_walk(
         &self,
         scene: &Scene,
-        mut ray: Ray,
-        mut medium: Option<u32>,
-        mut beta: Rgb,
-        first: FirstPdf,
-        mode: TransportMode,
-        max_vertices: usize,
+        start: WalkStart,
         path: &mut Vec<Vertex>,
         sampler: &mut Sampler,
     ) {
+        let WalkStart {
+            ray,
+            medium,
+            beta,
+            first,
+            mode,
+            max_vertices,
+        } = start;
         let mut pdf_dir = match first {
             FirstPdf::SolidAngle(p) => p,
             FirstPdf::Perpendicular(_) => 0.0,
         };
         let mut first_edge = true;
         let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
-        let mut origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        let origin_in_medium = path.last().is_some_and(Vertex::is_medium);
         // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
-        let mut lead = path
+        let lead = path
             .last()
             .map_or(0.0, |v| (ray.o - v.p).dot(ray.d).max(0.0));
+        let mut w = Walk {
+            ray,
+            medium,
+            beta,
+            origin_in_medium,
+            lead,
+        };
         while path.len() < max_vertices {
             let prev = path.len() - 1;
-            let prop = scene.propagate_bidirectional(ray, lead, medium, origin_in_medium, sampler);
+            let prop =
+                scene.propagate_bidirectional(w.ray, w.lead, w.medium, w.origin_in_medium, sampler);
             // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
             // the vertex scatters below and in every connection through it
             if prop.pdf <= 0.0 {
                 return;
             }
-            beta *= prop.transmittance / prop.pdf;
-            if beta == Rgb::ZERO {
+            w.beta *= prop.transmittance / prop.pdf;
+            if w.beta == Rgb::ZERO {
                 return;
             }
             let mut v = match prop.event {
                 Event::Escape => {
-                    if mode == TransportMode::Radiance {
-                        if let Some(env) = scene.environment {
-                            let mut v = Vertex::new(
-                                VertexKind::InfiniteLight { light: env },
-                                ray.o
-                                    + ray.d
-                                        * (4.0 * scene.radius + (ray.o - scene.center).length()),
-                                Vec3::ZERO,
-                                None,
-                                None,
-                            );
-                            v.beta = beta;
-                            v.pdf_fwd = pdf_dir * prop.pdf;
-                            v.prop_rev = prop.pdf_rev;
-                            path.push(v);
-                        }
+                    if let Some(mut v) = environment_vertex(scene, &w.ray, mode) {
+                        v.beta = w.beta;
+                        v.pdf_fwd = pdf_dir * prop.pdf;
+                        v.prop_rev = prop.pdf_rev;
+                        path.push(v);
                     }
                     return;
                 }
@@ -193,10 +240,10 @@ impl<'t> Bdpt<'t> {
                 ),
                 Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
             };
-            v.beta = beta;
+            v.beta = w.beta;
             let density = match (first, first_edge) {
                 (FirstPdf::Perpendicular(p), true) => {
-                    p * crate::path::geometry_term::cosine_factor(&v, ray.d)
+                    p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
                 }
                 _ => to_area(pdf_dir, &path[prev], &v),
             };
@@ -208,7 +255,7 @@ impl<'t> Bdpt<'t> {
                 return;
             }
             let cur = path.len() - 1;
-            let wo = -ray.d;
+            let wo = -w.ray.d;
             // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
             // 5.19 and their medium extension), with the density of the reverse walk
             let Some(ss) = self.tech.sample_scatter(scene, &v, wo, mode, sampler) else {
@@ -221,50 +268,72 @@ impl<'t> Bdpt<'t> {
                 TransportMode::Radiance => TransportMode::Importance,
                 TransportMode::Importance => TransportMode::Radiance,
             };
-            let (pdf_fwd_dir, pdf_rev_dir) = match v.kind {
-                VertexKind::Medium { medium: m } => {
-                    beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
-                    path[cur].lobe = Lobe::Regular;
-                    medium = Some(m);
-                    origin_in_medium = true;
-                    ray = Ray::new(v.p, ss.wi);
-                    lead = 0.0;
-                    (ss.pdf, self.tech.scatter_pdf(scene, &v, ss.wi, wo, reverse))
-                }
-                VertexKind::Surface { .. } => {
-                    let bs = ss.as_bsdf_sample();
-                    beta *= bs.weight(v.n);
-                    path[cur].lobe = bs.lobe;
-                    medium = v.medium_towards(bs.wi);
-                    origin_in_medium = false;
-                    ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
-                    lead = (ray.o - v.p).dot(bs.wi);
-                    if bs.lobe.is_singular() {
-                        path[cur].delta = true;
-                        (0.0, 0.0)
-                    } else {
-                        (bs.pdf, self.tech.scatter_pdf(scene, &v, bs.wi, wo, reverse))
-                    }
-                }
-                _ => return,
+            let Some((pdf_fwd_dir, pdf_rev_dir, lobe, delta)) =
+                self.scatter(scene, &v, &ss, wo, reverse, &mut w)
+            else {
+                return;
             };
+            path[cur].lobe = lobe;
+            if delta {
+                path[cur].delta = true;
+            }
             pdf_dir = pdf_fwd_dir;
             // the predecessor as sampled from here (the reverse walk)
             path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
             // Russian roulette on the scattering throughput (not on L_e / p of the origin)
             if self.roulette && cur as u32 >= RR_START_DEPTH {
-                let ratio = beta.max_element() / beta_start;
+                let ratio = w.beta.max_element() / beta_start;
                 let q = (self.tech)
                     .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
                     .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
                 if sampler.next_f32() >= q || q.is_nan() {
                     return;
                 }
-                beta /= q;
+                w.beta /= q;
             }
         }
     }
     // ANCHOR_END: random_walk
+
+    /// One scattering step of a walk at vertex `v` with sample `ss`: the throughput, the next
+    /// ray and its medium, and the direction densities forward and (for `reverse`) backward,
+    /// with the lobe the vertex took and whether it is a Dirac one; `None` ends the walk.
+    fn scatter(
+        &self,
+        scene: &Scene,
+        v: &Vertex,
+        ss: &ScatterSample,
+        wo: Vec3,
+        reverse: TransportMode,
+        w: &mut Walk,
+    ) -> Option<(f32, f32, Lobe, bool)> {
+        Some(match v.kind {
+            VertexKind::Medium { medium: m } => {
+                w.beta *= scene.media[m as usize].sigma_s(v.p) * (ss.value / ss.pdf);
+                w.medium = Some(m);
+                w.origin_in_medium = true;
+                w.ray = Ray::new(v.p, ss.wi);
+                w.lead = 0.0;
+                let rev = self.tech.scatter_pdf(scene, v, ss.wi, wo, reverse);
+                (ss.pdf, rev, Lobe::Regular, false)
+            }
+            VertexKind::Surface { .. } => {
+                let bs = ss.as_bsdf_sample();
+                w.beta *= bs.weight(v.n);
+                w.medium = v.medium_towards(bs.wi);
+                w.origin_in_medium = false;
+                w.ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);
+                w.lead = (w.ray.o - v.p).dot(bs.wi);
+                if bs.lobe.is_singular() {
+                    (0.0, 0.0, bs.lobe, true)
+                } else {
+                    let rev = self.tech.scatter_pdf(scene, v, bs.wi, wo, reverse);
+                    (bs.pdf, rev, bs.lobe, false)
+                }
+            }
+            _ => return None,
+        })
+    }
 
     /// The eye subpath from the camera through raster position `raster`.
     pub fn camera_subpath(
@@ -290,17 +359,15 @@ impl<'t> Bdpt<'t> {
         path.push(v0);
         let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
         // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
-        self.random_walk(
-            scene,
+        let start = WalkStart {
             ray,
-            scene.camera_medium,
-            Rgb::ONE,
-            FirstPdf::SolidAngle(pdf_dir),
-            TransportMode::Radiance,
-            self.max_vertices(2),
-            path,
-            sampler,
-        );
+            medium: scene.camera_medium,
+            beta: Rgb::ONE,
+            first: FirstPdf::SolidAngle(pdf_dir),
+            mode: TransportMode::Radiance,
+            max_vertices: self.max_vertices(2),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The eye subpath from a uniform point of meter `m`, cosine-distributed.
@@ -335,17 +402,15 @@ impl<'t> Bdpt<'t> {
         let wi = Frame::from_normal(n).to_world(local);
         let pdf = local.z * std::f32::consts::FRAC_1_PI;
         // W_e g / (p(x) p(w)) = (1/A) cos / ((1/A) cos/pi) = pi
-        self.random_walk(
-            scene,
-            Ray::new(p, wi),
-            meter.medium,
-            Rgb::splat(std::f32::consts::PI),
-            FirstPdf::SolidAngle(pdf),
-            TransportMode::Radiance,
-            self.max_vertices(2),
-            path,
-            sampler,
-        );
+        let start = WalkStart {
+            ray: Ray::new(p, wi),
+            medium: meter.medium,
+            beta: Rgb::splat(std::f32::consts::PI),
+            first: FirstPdf::SolidAngle(pdf),
+            mode: TransportMode::Radiance,
+            max_vertices: self.max_vertices(2),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The light subpath: a light chosen by power, an emitted ray, then the random walk with the
@@ -386,50 +451,10 @@ impl<'t> Bdpt<'t> {
             return;
         }
         let lm = self.light_media[l];
-        let (mut v0, origin, first) = match light {
-            Light::Area { .. } => {
-                let Some(prim) = start_prim else { return };
-                let v = Vertex::new(
-                    VertexKind::Light {
-                        light: l as u32,
-                        prim: Some(prim),
-                    },
-                    es.p,
-                    es.n,
-                    lm,
-                    lm,
-                );
-                (
-                    v,
-                    offset_origin(es.p, es.n, es.d),
-                    FirstPdf::SolidAngle(es.pdf_dir),
-                )
-            }
-            Light::Point { .. } | Light::Spot { .. } => (
-                Vertex::new(
-                    VertexKind::Light {
-                        light: l as u32,
-                        prim: None,
-                    },
-                    es.p,
-                    Vec3::ZERO,
-                    lm,
-                    lm,
-                ),
-                es.p,
-                FirstPdf::SolidAngle(es.pdf_dir),
-            ),
-            Light::Directional { .. } | Light::Environment(_) => (
-                Vertex::new(
-                    VertexKind::InfiniteLight { light: l as u32 },
-                    es.p,
-                    Vec3::ZERO,
-                    None,
-                    None,
-                ),
-                es.p,
-                FirstPdf::Perpendicular(es.pdf_pos),
-            ),
+        let Some((mut v0, origin, first)) =
+            light_start_vertex(light, l as u32, start_prim, &es, lm)
+        else {
+            return;
         };
         v0.beta = es.value;
         v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
@@ -446,17 +471,15 @@ impl<'t> Bdpt<'t> {
         };
         let beta = es.value * (cos / (start_pdf * es.pdf_dir));
         path.push(v0);
-        self.random_walk(
-            scene,
-            Ray::new(origin, es.d),
-            lm,
+        let start = WalkStart {
+            ray: Ray::new(origin, es.d),
+            medium: lm,
             beta,
             first,
-            TransportMode::Importance,
-            self.max_vertices(1),
-            path,
-            sampler,
-        );
+            mode: TransportMode::Importance,
+            max_vertices: self.max_vertices(1),
+        };
+        self.random_walk(scene, start, path, sampler);
     }
 
     /// The largest s to try with a light subpath `light`: its length, but at least 1 when the
@@ -662,103 +685,8 @@ impl<'t> Bdpt<'t> {
             pdf_pq = 1.0;
         } else if s == 1 {
             // next-event estimation: sample a point on a light for the eye subpath's end
-            let pt = &eye[t - 1];
-            if !pt.is_connectible(scene) {
-                return None;
-            }
-            let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
-            let u = sampler.next_2d();
-            // `sel_pdf`: the solid-angle density with the light selection included
-            let (ls, sel_pdf, start_prim) =
-                match self.tech.sample_light_start(scene, li, u, sampler) {
-                    StartDraw::Failed => return None,
-                    StartDraw::Drawn(st) => {
-                        // the light vertex from the technique, as light subpaths start
-                        li = st.point.light as usize;
-                        let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
-                        (ls, ls.pdf, Some(st.point.prim))
-                    }
-                    StartDraw::ByPower => {
-                        let light = &scene.lights[li];
-                        let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
-                        let prim = match light {
-                            Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
-                            _ => None,
-                        };
-                        (ls, pmf * ls.pdf, prim)
-                    }
-                };
-            if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
-                return None;
-            }
-            let light_ref = &scene.lights[li];
-            let lm = self.light_media[li];
-            let mut v = match light_ref {
-                Light::Area { .. } => Vertex::new(
-                    VertexKind::Light {
-                        light: li as u32,
-                        prim: start_prim,
-                    },
-                    ls.p,
-                    ls.n,
-                    lm,
-                    lm,
-                ),
-                Light::Point { .. } | Light::Spot { .. } => Vertex::new(
-                    VertexKind::Light {
-                        light: li as u32,
-                        prim: None,
-                    },
-                    ls.p,
-                    Vec3::ZERO,
-                    lm,
-                    lm,
-                ),
-                _ => Vertex::new(
-                    VertexKind::InfiniteLight { light: li as u32 },
-                    pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
-                    Vec3::ZERO,
-                    None,
-                    None,
-                ),
-            };
-            v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
-            v.beta = ls.value / sel_pdf;
-            let f = if t == 1 {
-                // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
-                // W_e lands in another pixel, A * (1/A) for a meter)
-                match pt.kind {
-                    VertexKind::Camera => {
-                        let imp = scene.camera.as_ref()?.importance(ls.wi)?;
-                        raster = Some(imp.raster);
-                        Rgb::splat(imp.we)
-                    }
-                    VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
-                    _ => return None,
-                }
-            } else {
-                pt.f_hat(scene, v.p, eye[t - 2].p)
-            };
-            if f == Rgb::ZERO {
-                return None;
-            }
-            let target = if ls.dist.is_infinite() {
-                pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
-            } else {
-                v.p
-            };
-            let mut end_v = v;
-            end_v.p = target;
-            let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
-            l = pt.beta * f * v.beta * e.transmittance * cos_pt;
-            // an infinite light's edge leaves the scene: only the passage of its segments counts
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
-            sampled = Some(v);
+            let c = self.connect_light_sample(scene, eye, t, sampler)?;
+            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
         } else if t == 1
             && self.strategies == Strategies::LightTracing
             && matches!(eye[0].kind, VertexKind::Meter { .. })
@@ -774,49 +702,8 @@ impl<'t> Bdpt<'t> {
             sampled = Some(z0);
         } else if t == 1 {
             // connect the light subpath to the sensor
-            let qs = &light[s - 1];
-            if !qs.is_connectible(scene) || s < 2 {
-                return None;
-            }
-            let sensor = match eye[0].kind {
-                VertexKind::Camera => {
-                    let cam = scene.camera.as_ref()?;
-                    let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
-                    raster = Some(imp.raster);
-                    let mut v = eye[0];
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                VertexKind::Meter { meter } => {
-                    let q = Primitive::Quad(scene.sensors[meter as usize].quad);
-                    let (p, n) = q.sample_area(sampler.next_2d());
-                    let mut v =
-                        Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
-                    v.pdf_fwd = 1.0 / q.area();
-                    // W_e / p(x) = (1/A) / (1/A)
-                    v.beta = Rgb::ONE;
-                    v
-                }
-                _ => return None,
-            };
-            let we = sensor.importance(scene, qs.p);
-            let area_inv = match sensor.kind {
-                VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
-                _ => 1.0,
-            };
-            let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
-            if f == Rgb::ZERO || we == Rgb::ZERO {
-                return None;
-            }
-            let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
-            l = qs.beta * f * e.transmittance * g * we * area_inv;
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
-            sampled = Some(sensor);
+            let c = self.connect_to_sensor(scene, light, eye, s, sampler)?;
+            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
         } else {
             let qs = &light[s - 1];
             let pt = &eye[t - 1];
@@ -850,6 +737,181 @@ impl<'t> Bdpt<'t> {
         Some((l, raster, sampled))
     }
     // ANCHOR_END: connect
+
+    /// Strategy s = 1 (next-event estimation): a light vertex sampled for the eye subpath's
+    /// end `eye[t - 1]`, by the technique's light start or by power, and its connection.
+    fn connect_light_sample(
+        &self,
+        scene: &Scene,
+        eye: &[Vertex],
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let mut raster = None;
+        let pt = &eye[t - 1];
+        if !pt.is_connectible(scene) {
+            return None;
+        }
+        let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let u = sampler.next_2d();
+        // `sel_pdf`: the solid-angle density with the light selection included
+        let (ls, sel_pdf, start_prim) = match self.tech.sample_light_start(scene, li, u, sampler) {
+            StartDraw::Failed => return None,
+            StartDraw::Drawn(st) => {
+                // the light vertex from the technique, as light subpaths start
+                li = st.point.light as usize;
+                let ls = scene.lights[li].li_from(pt.p, st.point.p, st.point.n, st.pdf)?;
+                (ls, ls.pdf, Some(st.point.prim))
+            }
+            StartDraw::ByPower => {
+                let light = &scene.lights[li];
+                let ls = light.sample_li(&scene.prims, pt.p, u, u_prim)?;
+                let prim = match light {
+                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                    _ => None,
+                };
+                (ls, pmf * ls.pdf, prim)
+            }
+        };
+        if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
+            return None;
+        }
+        let light_ref = &scene.lights[li];
+        let lm = self.light_media[li];
+        let mut v = match light_ref {
+            Light::Area { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: start_prim,
+                },
+                ls.p,
+                ls.n,
+                lm,
+                lm,
+            ),
+            Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: None,
+                },
+                ls.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            _ => Vertex::new(
+                VertexKind::InfiniteLight { light: li as u32 },
+                pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+        };
+        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        v.beta = ls.value / sel_pdf;
+        let f = if t == 1 {
+            // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
+            // W_e lands in another pixel, A * (1/A) for a meter)
+            match pt.kind {
+                VertexKind::Camera => {
+                    let imp = scene.camera.as_ref()?.importance(ls.wi)?;
+                    raster = Some(imp.raster);
+                    Rgb::splat(imp.we)
+                }
+                VertexKind::Meter { .. } => pt.importance(scene, pt.p + ls.wi) / pt.pdf_fwd,
+                _ => return None,
+            }
+        } else {
+            pt.f_hat(scene, v.p, eye[t - 2].p)
+        };
+        if f == Rgb::ZERO {
+            return None;
+        }
+        let target = if ls.dist.is_infinite() {
+            pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
+        } else {
+            v.p
+        };
+        let mut end_v = v;
+        end_v.p = target;
+        let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+        let l = pt.beta * f * v.beta * e.transmittance * cos_pt;
+        // an infinite light's edge leaves the scene: only the passage of its segments counts
+        let pdf_qp = e.pdf_ab;
+        let pdf_pq = e.pdf_ba;
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(v),
+            raster,
+        })
+    }
+
+    /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
+    /// joined to the camera or to a point sampled on the meter of `eye[0]`.
+    fn connect_to_sensor(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        s: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let mut raster = None;
+        let qs = &light[s - 1];
+        if !qs.is_connectible(scene) || s < 2 {
+            return None;
+        }
+        let sensor = match eye[0].kind {
+            VertexKind::Camera => {
+                let cam = scene.camera.as_ref()?;
+                let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
+                raster = Some(imp.raster);
+                let mut v = eye[0];
+                v.beta = Rgb::ONE;
+                v
+            }
+            VertexKind::Meter { meter } => {
+                let q = Primitive::Quad(scene.sensors[meter as usize].quad);
+                let (p, n) = q.sample_area(sampler.next_2d());
+                let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
+                v.pdf_fwd = 1.0 / q.area();
+                // W_e / p(x) = (1/A) / (1/A)
+                v.beta = Rgb::ONE;
+                v
+            }
+            _ => return None,
+        };
+        let we = sensor.importance(scene, qs.p);
+        let area_inv = match sensor.kind {
+            VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
+            _ => 1.0,
+        };
+        let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+        if f == Rgb::ZERO || we == Rgb::ZERO {
+            return None;
+        }
+        let e = scene.edge(qs.edge_end(sensor.p), sensor.edge_end(qs.p), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let g = crate::path::geometry_term::geometry_term_unoccluded(qs, &sensor);
+        let l = qs.beta * f * e.transmittance * g * we * area_inv;
+        let pdf_qp = e.pdf_ab;
+        let pdf_pq = e.pdf_ba;
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(sensor),
+            raster,
+        })
+    }
 
     /// Light tracing's connection of y_{s-1} to the meter of `z0` (t = 1), unweighted across
     /// strategies like the rest of light tracing, but with two samplers of the connection
@@ -934,6 +996,63 @@ impl<'t> Bdpt<'t> {
         }
         first.map(|z| (l, z))
     }
+}
+
+/// The light subpath's first vertex for emitted ray `es` of light `l` (`prim`: the area
+/// light's primitive, `lm`: the medium around the light), the origin of its first ray and how
+/// its first edge's density is measured; `None` for an area light start without a primitive.
+fn light_start_vertex(
+    light: &Light,
+    l: u32,
+    start_prim: Option<u32>,
+    es: &EmissionSample,
+    lm: Option<u32>,
+) -> Option<(Vertex, Vec3, FirstPdf)> {
+    Some(match light {
+        Light::Area { .. } => {
+            let prim = start_prim?;
+            let v = Vertex::new(
+                VertexKind::Light {
+                    light: l,
+                    prim: Some(prim),
+                },
+                es.p,
+                es.n,
+                lm,
+                lm,
+            );
+            (
+                v,
+                offset_origin(es.p, es.n, es.d),
+                FirstPdf::SolidAngle(es.pdf_dir),
+            )
+        }
+        Light::Point { .. } | Light::Spot { .. } => (
+            Vertex::new(
+                VertexKind::Light {
+                    light: l,
+                    prim: None,
+                },
+                es.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            es.p,
+            FirstPdf::SolidAngle(es.pdf_dir),
+        ),
+        Light::Directional { .. } | Light::Environment(_) => (
+            Vertex::new(
+                VertexKind::InfiniteLight { light: l },
+                es.p,
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+            es.p,
+            FirstPdf::Perpendicular(es.pdf_pos),
+        ),
+    })
 }
 
 /// The power-heuristic weight of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
