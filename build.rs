@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-include!("src/course_tree.rs");
+include!("src/course/tree.rs");
 
 /// Generated or pending files that are not part of the source.
 fn skipped(rel: &str) -> bool {
@@ -50,7 +50,7 @@ fn main() {
                   pub static SOURCE_TREE: &[(&str, &[u8])] = &[\n";
     if std::env::var_os("CARGO_FEATURE_EMBED_SOURCE").is_none() {
         println!("cargo:rerun-if-changed=build.rs");
-        println!("cargo:rerun-if-changed=src/course_tree.rs");
+        println!("cargo:rerun-if-changed=src/course/tree.rs");
         std::fs::write(out, format!("{header}];\n")).unwrap();
         return;
     }

@@ -1,5 +1,5 @@
 //! The book as a course (book: "Course use: assignments"): the `// ASSIGNMENT:` markers and the
-//! registry in `src/course.rs` agree, every graded test exists, every chapter names its
+//! registry in `src/course/mod.rs` agree, every graded test exists, every chapter names its
 //! assignments, and a student copy with every assignment blanked
 //!
 //! - contains no line of any removed region, in any file (sources, tests, the book, examples);

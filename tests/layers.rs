@@ -22,7 +22,7 @@ fn layer(module: &str) -> Option<u32> {
         "enlightened" => 4,
         "integrator" => 5,
         "measure" => 6,
-        "cli" | "course" | "course_tree" => 7,
+        "cli" | "course" => 7,
         _ => return None,
     })
 }

@@ -1,6 +1,5 @@
 //! The command line: one file per subcommand. Progress goes to stderr, results to stdout.
 
-pub mod assignment;
 pub mod converge;
 pub mod diff;
 pub mod info;
@@ -8,6 +7,9 @@ pub mod merge;
 pub mod reference;
 pub mod render;
 pub mod rooms;
+
+/// `pathspace assignment` lives with the course it serves.
+pub use crate::course::assignment;
 
 use clap::{Parser, Subcommand};
 

@@ -1,5 +1,6 @@
 //! `pathspace assignment list | make | check`: the book as a course (book: "Course use:
-//! assignments"). The registry and the blanking live in [`crate::course`].
+//! assignments"). The registry and the blanking live in the
+//! parent module, [`crate::course`].
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

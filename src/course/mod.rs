@@ -10,6 +10,8 @@
 //! graded tests fail there on its own `todo!()`, and that no line of a removed region survives
 //! anywhere in the copy (the book includes code by anchor, so it shows the `todo!()` too).
 
+pub mod assignment;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -395,7 +397,7 @@ pub fn excluded_from_copy(path: &str) -> bool {
     path == "tests/assignments.rs"
 }
 
-include!("course_tree.rs");
+include!("tree.rs");
 
 /// Reads a crate's source tree from a directory (the same selection as `build.rs` embeds).
 pub fn read_tree(root: &Path) -> Result<Tree, String> {
@@ -468,7 +470,7 @@ pub fn check_registry(tree: &Tree) -> Result<(), String> {
     for (file, r) in &marks {
         match find(&r.name) {
             None => problems.push(format!(
-                "{file}:{}: assignment `{}` is not in the registry (src/course.rs)",
+                "{file}:{}: assignment `{}` is not in the registry (src/course/mod.rs)",
                 r.begin, r.name
             )),
             Some(a) if !a.files.contains(&file.as_str()) => problems.push(format!(
