@@ -1,0 +1,102 @@
+//! `[camera]` and `[[sensors]]`: the pinhole camera and the irradiance meters, the
+//! instruments of the measurement equation (eq. 5), each placed in the medium around it.
+
+use super::values::finite3;
+use crate::geometry::shape::Quad;
+use crate::scene::file::{self, path, SceneFile, SensorDesc};
+use crate::scene::{Camera, IrradianceMeter, Scene, SceneError, SceneSource};
+
+/// Installs the `[camera]`, if the file has one, with the medium its eye is in.
+pub(super) fn camera(
+    src: &SceneSource,
+    desc: &SceneFile,
+    scene: &mut Scene,
+) -> Result<(), SceneError> {
+    if let Some(file::CameraDesc::Pinhole {
+        eye,
+        look_at,
+        up,
+        fov_deg,
+        resolution,
+    }) = &desc.camera
+    {
+        let key = path("camera");
+        let eye = finite3(src, &key.clone().key("eye"), *eye)?;
+        let look_at = finite3(src, &key.clone().key("look_at"), *look_at)?;
+        let up = finite3(src, &key.clone().key("up"), *up)?;
+        if !(*fov_deg > 0.0 && *fov_deg < 180.0) {
+            return Err(src.error(
+                &key.clone().key("fov_deg"),
+                format!("fov_deg = {fov_deg} must be in (0, 180)"),
+            ));
+        }
+        if resolution[0] == 0
+            || resolution[1] == 0
+            || resolution[0] > 16384
+            || resolution[1] > 16384
+        {
+            return Err(src.error(
+                &key.clone().key("resolution"),
+                format!("resolution {resolution:?} must be in 1..=16384"),
+            ));
+        }
+        if (look_at - eye).length_squared() == 0.0 {
+            return Err(src.error(
+                &key.clone().key("look_at"),
+                "look_at equals eye: the camera looks nowhere",
+            ));
+        }
+        let cam = Camera::new(eye, look_at, up, *fov_deg, resolution[0], resolution[1])
+            .ok_or_else(|| {
+                src.error(
+                    &key.clone().key("up"),
+                    "up is zero or parallel to the viewing direction look_at - eye",
+                )
+            })?;
+        scene.camera_medium = scene.medium_at(eye);
+        scene.camera = Some(cam);
+    }
+    Ok(())
+}
+
+/// Installs every `[[sensors]]` entry, each with the medium at its centre; names are unique.
+pub(super) fn meters(
+    src: &SceneSource,
+    desc: &SceneFile,
+    scene: &mut Scene,
+) -> Result<(), SceneError> {
+    for (i, s) in desc.sensors.iter().enumerate() {
+        let key = path("sensors").index(i);
+        match s {
+            SensorDesc::IrradianceMeter { name, origin, u, v } => {
+                let o = finite3(src, &key.clone().key("origin"), *origin)?;
+                let u = finite3(src, &key.clone().key("u"), *u)?;
+                let v = finite3(src, &key.clone().key("v"), *v)?;
+                let quad = Quad::new(o, u, v).ok_or_else(|| {
+                    src.error(
+                        &key.clone().key("u"),
+                        "u and v are parallel: the meter has no area",
+                    )
+                })?;
+                if scene
+                    .sensors
+                    .iter()
+                    .any(|m: &IrradianceMeter| &m.name == name)
+                {
+                    return Err(src.error(
+                        &key.clone().key("name"),
+                        format!("two sensors are called `{name}`"),
+                    ));
+                }
+                let centre = o + 0.5 * (u + v);
+                let medium = scene.medium_at(centre);
+                scene.sensors.push(IrradianceMeter {
+                    name: name.clone(),
+                    quad,
+                    medium,
+                });
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,332 @@
+//! `[[shapes]]`: quads, boxes, spheres and OBJ meshes with their material, emission and media;
+//! emitting shapes become area lights. A shape that holds a medium must be closed.
+
+use glam::Vec3;
+use std::collections::{BTreeMap, HashMap};
+
+use super::media::Media;
+use super::values::{finite3, non_negative};
+use crate::bsdf::Bsdf;
+use crate::geometry::shape::{Quad, Sphere, Triangle};
+use crate::geometry::Primitive;
+use crate::math::Distribution1D;
+use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
+use crate::scene::{Light, SceneError, SceneSource, ShapeInfo};
+
+/// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
+/// triangles that traverse it in opposite directions. Vertices are welded by position first, so
+/// an OBJ that splits vertices along seams (for normals or texture coordinates) still counts.
+fn mesh_is_closed(positions: &[Vec3], indices: &[u32]) -> bool {
+    let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
+    let ids: Vec<u32> = positions
+        .iter()
+        .map(|p| {
+            let n = weld.len() as u32;
+            *weld.entry(p.to_array().map(f32::to_bits)).or_insert(n)
+        })
+        .collect();
+    let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
+    for t in indices.chunks_exact(3) {
+        let t = [ids[t[0] as usize], ids[t[1] as usize], ids[t[2] as usize]];
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *edges.entry((a, b)).or_insert(0) += 1;
+        }
+    }
+    !edges.is_empty()
+        && edges
+            .iter()
+            .all(|(&(a, b), &c)| c == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards.
+fn signed_volume(tris: &[Triangle]) -> f32 {
+    tris.iter().map(|t| t.p0.dot(t.e1.cross(t.e2)) / 6.0).sum()
+}
+
+/// Checks every face index of an OBJ file before tobj sees it, so the error names the OBJ line.
+fn check_obj_indices(text: &str) -> Result<(), String> {
+    let mut vertices = 0i64;
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => vertices += 1,
+            Some("f") | Some("l") => {
+                for w in words {
+                    let Some(Ok(k)) = w.split('/').next().map(str::parse::<i64>) else {
+                        return Err(format!("line {}: `{w}` is not a vertex index", n + 1));
+                    };
+                    // OBJ indices are 1-based; negative ones count back from the last vertex
+                    let ok = if k > 0 {
+                        k <= vertices
+                    } else {
+                        k < 0 && -k <= vertices
+                    };
+                    if !ok {
+                        return Err(format!(
+                            "line {}: face index {k} is out of range (the file has {vertices} vertices so far)",
+                            n + 1
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+fn box_quads(min: Vec3, max: Vec3) -> Vec<Quad> {
+    let d = max - min;
+    let (dx, dy, dz) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+    // each face's u x v points out of the box
+    [
+        (min, dz, dy),
+        (Vec3::new(max.x, min.y, min.z), dy, dz),
+        (min, dx, dz),
+        (Vec3::new(min.x, max.y, min.z), dz, dx),
+        (min, dy, dx),
+        (Vec3::new(min.x, min.y, max.z), dx, dy),
+    ]
+    .into_iter()
+    .filter_map(|(o, u, v)| Quad::new(o, u, v))
+    .collect()
+}
+
+/// What the shapes of a file become: primitives with the shape each belongs to, the shapes,
+/// and the area lights (the first lights of the scene, in the order of the shapes).
+pub(super) struct Surfaces {
+    /// Every primitive, shape by shape.
+    pub(super) prims: Vec<Primitive>,
+    /// The shape of each primitive.
+    pub(super) prim_shape: Vec<u32>,
+    /// The shapes.
+    pub(super) shapes: Vec<ShapeInfo>,
+    /// The area lights, one per emitting shape.
+    pub(super) lights: Vec<Light>,
+}
+
+/// Builds every `[[shapes]]` entry in order.
+pub(super) fn shapes(
+    src: &SceneSource,
+    desc: &SceneFile,
+    materials: &BTreeMap<String, Bsdf>,
+    media: &Media,
+) -> Result<Surfaces, SceneError> {
+    let mut prims = Vec::new();
+    let mut prim_shape = Vec::new();
+    let mut shapes = Vec::new();
+    let mut lights = Vec::new();
+    for (i, s) in desc.shapes.iter().enumerate() {
+        let key = path("shapes").index(i);
+        let common = s.common();
+        let (emission, bsdf) = surface(src, &key, &common, materials)?;
+        let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
+        let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
+        let interface = common.interior.is_some() || common.exterior.is_some();
+        let (new, closed) = primitives(src, &key, s, &common)?;
+        if common.interior.is_some() && !closed {
+            return Err(src.error(
+                &key.clone().key("interior"),
+                format!(
+                    "a {} is not a closed shape (a mesh is closed when every edge joins exactly two consistently wound triangles), so it has no inside to hold a medium",
+                    s.kind()
+                ),
+            ));
+        }
+        let shape_id = shapes.len() as u32;
+        let light = emission.map(|radiance| {
+            let first = prims.len() as u32;
+            let ids: Vec<u32> = (first..first + new.len() as u32).collect();
+            let areas: Vec<f32> = new.iter().map(Primitive::area).collect();
+            lights.push(Light::Area {
+                shape: shape_id,
+                prims: ids,
+                distr: Distribution1D::new(&areas),
+                area: areas.iter().sum(),
+                radiance,
+            });
+            (lights.len() - 1) as u32
+        });
+        for p in new {
+            prims.push(p);
+            prim_shape.push(shape_id);
+        }
+        shapes.push(ShapeInfo {
+            bsdf,
+            light,
+            interior,
+            exterior,
+            interface,
+            label: format!("shapes[{i}] ({})", s.kind()),
+        });
+    }
+    Ok(Surfaces {
+        prims,
+        prim_shape,
+        shapes,
+        lights,
+    })
+}
+
+/// A shape's emission (black counts as none) and material: one of them is required, and a null
+/// boundary cannot emit.
+fn surface(
+    src: &SceneSource,
+    key: &KeyPath,
+    common: &ShapeCommon,
+    materials: &BTreeMap<String, Bsdf>,
+) -> Result<(Option<Vec3>, Option<Bsdf>), SceneError> {
+    let emission = match common.emission {
+        Some(e) => Some(non_negative(
+            src,
+            &key.clone().key("emission"),
+            e,
+            "emission",
+        )?),
+        None => None,
+    }
+    .filter(|e| e.max_element() > 0.0);
+    let bsdf = match &common.material {
+        Some(m) => Some(materials.get(m).cloned().ok_or_else(|| {
+            let known: Vec<&str> = materials.keys().map(String::as_str).collect();
+            src.error(
+                &key.clone().key("material"),
+                format!("unknown material `{m}` (defined: {known:?})"),
+            )
+        })?),
+        None if emission.is_some() => None,
+        None => {
+            return Err(src.error(
+                key,
+                "a shape needs a `material` (or `emission`, for a black emitter)",
+            ))
+        }
+    };
+    if emission.is_some() && matches!(bsdf, Some(Bsdf::Null)) {
+        return Err(src.error(&key.clone().key("emission"), "a null boundary cannot emit"));
+    }
+    Ok((emission, bsdf))
+}
+
+/// A shape's primitives, and whether they enclose a volume (a quad does not; a mesh does when
+/// it is closed).
+fn primitives(
+    src: &SceneSource,
+    key: &KeyPath,
+    s: &ShapeDesc,
+    common: &ShapeCommon,
+) -> Result<(Vec<Primitive>, bool), SceneError> {
+    let mut new: Vec<Primitive> = Vec::new();
+    let mut closed = true;
+    match s {
+        ShapeDesc::Quad { origin, u, v, .. } => {
+            let o = finite3(src, &key.clone().key("origin"), *origin)?;
+            let u = finite3(src, &key.clone().key("u"), *u)?;
+            let v = finite3(src, &key.clone().key("v"), *v)?;
+            let q = Quad::new(o, u, v).ok_or_else(|| {
+                src.error(
+                    &key.clone().key("u"),
+                    "u and v are parallel: the quad has no area",
+                )
+            })?;
+            new.push(Primitive::Quad(q));
+            closed = false;
+        }
+        ShapeDesc::Box { min, max, .. } => {
+            let lo = finite3(src, &key.clone().key("min"), *min)?;
+            let hi = finite3(src, &key.clone().key("max"), *max)?;
+            if !(hi.cmpgt(lo).all()) {
+                return Err(src.error(
+                    &key.clone().key("max"),
+                    format!("max {max:?} must exceed min {min:?} on every axis"),
+                ));
+            }
+            new.extend(box_quads(lo, hi).into_iter().map(Primitive::Quad));
+        }
+        ShapeDesc::Sphere { center, radius, .. } => {
+            let c = finite3(src, &key.clone().key("center"), *center)?;
+            if !(radius.is_finite() && *radius > 0.0) {
+                return Err(src.error(
+                    &key.clone().key("radius"),
+                    format!("radius = {radius} must be positive"),
+                ));
+            }
+            new.push(Primitive::Sphere(Sphere {
+                center: c,
+                radius: *radius,
+            }));
+        }
+        ShapeDesc::Mesh { obj, .. } => {
+            let (tris, all_closed) = mesh(src, key, obj, common)?;
+            closed = all_closed;
+            new.extend(tris.into_iter().map(Primitive::Triangle));
+        }
+    }
+    Ok((new, closed))
+}
+
+/// The triangles of an OBJ file, every index and vertex checked, and whether the mesh is
+/// closed; a closed mesh holding a medium must be wound outwards.
+fn mesh(
+    src: &SceneSource,
+    key: &KeyPath,
+    obj: &str,
+    common: &ShapeCommon,
+) -> Result<(Vec<Triangle>, bool), SceneError> {
+    let file = src.base_dir.join(obj);
+    let obj_key = key.clone().key("obj");
+    let text = std::fs::read_to_string(&file)
+        .map_err(|e| src.error(&obj_key, format!("cannot read `{}`: {e}", file.display())))?;
+    check_obj_indices(&text)
+        .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed) // materials are not used
+    })
+    .map_err(|e| src.error(&obj_key, format!("cannot load `{}`: {e}", file.display())))?;
+    let mut all_closed = true;
+    let mut tris = Vec::new();
+    for m in &models {
+        let pos: Vec<Vec3> = m
+            .mesh
+            .positions
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
+        let idx = &m.mesh.indices;
+        if idx.iter().any(|&k| k as usize >= pos.len()) {
+            return Err(src.error(
+                &obj_key,
+                format!("`{}`: a face index is out of range", file.display()),
+            ));
+        }
+        if pos.iter().any(|p| !p.is_finite()) {
+            return Err(src.error(
+                &obj_key,
+                format!("`{}`: a vertex is not finite", file.display()),
+            ));
+        }
+        all_closed &= mesh_is_closed(&pos, idx);
+        tris.extend(idx.chunks_exact(3).filter_map(|t| {
+            Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+        }));
+    }
+    if tris.is_empty() {
+        return Err(src.error(&obj_key, format!("`{}` has no triangles", file.display())));
+    }
+    let closed = all_closed;
+    if closed && common.interior.is_some() && signed_volume(&tris) < 0.0 {
+        return Err(src.error(
+            &obj_key,
+            format!(
+                "`{}` is wound inside out (its normals point inwards), so `interior` would be outside; reverse the faces' vertex order",
+                file.display()
+            ),
+        ));
+    }
+    Ok((tris, closed))
+}
