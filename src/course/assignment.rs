@@ -253,26 +253,7 @@ fn check(args: CheckArgs) -> Result<(), String> {
         Some(n) => vec![course::find(n).ok_or_else(|| format!("no assignment `{n}`"))?],
         None => course::ASSIGNMENTS.iter().collect(),
     };
-    // build every graded test binary in one cargo call (in parallel, and once)
-    let mut files: Vec<&str> = chosen
-        .iter()
-        .flat_map(|a| a.tests.iter().map(|t| t.file))
-        .collect();
-    files.sort();
-    files.dedup();
-    eprintln!("building the graded tests ({})", files.join(", "));
-    let mut build = cargo(&args.dir, &args);
-    build.arg("--no-run");
-    for f in &files {
-        build.arg("--test").arg(f);
-    }
-    let built = build
-        .output()
-        .map_err(|e| format!("cannot run cargo: {e}"))?;
-    let build_ok = built.status.success();
-    if !build_ok {
-        eprintln!("{}", String::from_utf8_lossy(&built.stderr));
-    }
+    let build_ok = build_graded(&args, &chosen)?;
     println!(
         "{:<26} {:<15} {:>8}  graded tests",
         "assignment", "result", "time"
@@ -280,48 +261,11 @@ fn check(args: CheckArgs) -> Result<(), String> {
     let mut passed = 0;
     for a in &chosen {
         let start = Instant::now();
-        let mut outcome = if build_ok {
-            Outcome::Passed
+        let outcome = if build_ok {
+            grade(&args, a)?
         } else {
             Outcome::BuildError
         };
-        for file in a
-            .tests
-            .iter()
-            .map(|t| t.file)
-            .collect::<std::collections::BTreeSet<_>>()
-        {
-            if outcome != Outcome::Passed {
-                break;
-            }
-            let names: Vec<&str> = a
-                .tests
-                .iter()
-                .filter(|t| t.file == file)
-                .map(|t| t.name)
-                .collect();
-            let mut c = cargo(&args.dir, &args);
-            c.arg("--test").arg(file).arg("--").arg("--exact");
-            c.args(&names);
-            let o = c.output().map_err(|e| format!("cannot run cargo: {e}"))?;
-            let text = format!(
-                "{}{}",
-                String::from_utf8_lossy(&o.stdout),
-                String::from_utf8_lossy(&o.stderr)
-            );
-            outcome = if o.status.success() && passed_count(&text) == names.len() {
-                Outcome::Passed
-            } else if text.contains(&format!("assignment {}:", a.name)) {
-                Outcome::NotImplemented
-            } else if o.status.success() {
-                // a graded test that no longer exists must not count as passed
-                Outcome::Failed
-            } else if text.contains("could not compile") {
-                Outcome::BuildError
-            } else {
-                Outcome::Failed
-            };
-        }
         if outcome == Outcome::Passed {
             passed += 1;
         }
@@ -349,4 +293,80 @@ fn check(args: CheckArgs) -> Result<(), String> {
             chosen.len()
         ))
     }
+}
+
+/// Builds every graded test binary of `chosen` in one cargo call (in parallel, and once);
+/// false when the copy does not compile.
+fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, String> {
+    let mut files: Vec<&str> = chosen
+        .iter()
+        .flat_map(|a| a.tests.iter().map(|t| t.file))
+        .collect();
+    files.sort();
+    files.dedup();
+    eprintln!("building the graded tests ({})", files.join(", "));
+    let mut build = cargo(&args.dir, args);
+    build.arg("--no-run");
+    for f in &files {
+        build.arg("--test").arg(f);
+    }
+    let built = build
+        .output()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    let build_ok = built.status.success();
+    if !build_ok {
+        eprintln!("{}", String::from_utf8_lossy(&built.stderr));
+    }
+    Ok(build_ok)
+}
+
+/// Runs an assignment's graded tests file by file, stopping at the first file that does not
+/// pass.
+fn grade(args: &CheckArgs, a: &Assignment) -> Result<Outcome, String> {
+    let mut outcome = Outcome::Passed;
+    for file in a
+        .tests
+        .iter()
+        .map(|t| t.file)
+        .collect::<std::collections::BTreeSet<_>>()
+    {
+        if outcome != Outcome::Passed {
+            break;
+        }
+        outcome = grade_file(args, a, file)?;
+    }
+    Ok(outcome)
+}
+
+/// The outcome of an assignment's graded tests in one test file.
+fn grade_file(args: &CheckArgs, a: &Assignment, file: &str) -> Result<Outcome, String> {
+    let names: Vec<&str> = a
+        .tests
+        .iter()
+        .filter(|t| t.file == file)
+        .map(|t| t.name)
+        .collect();
+    let mut c = cargo(&args.dir, args);
+    c.arg("--test").arg(file).arg("--").arg("--exact");
+    c.args(&names);
+    let o = c.output().map_err(|e| format!("cannot run cargo: {e}"))?;
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    Ok(
+        if o.status.success() && passed_count(&text) == names.len() {
+            Outcome::Passed
+        } else if text.contains(&format!("assignment {}:", a.name)) {
+            Outcome::NotImplemented
+        } else if o.status.success() {
+            // a graded test that no longer exists must not count as passed
+            Outcome::Failed
+        } else if text.contains("could not compile") {
+            Outcome::BuildError
+        } else {
+            Outcome::Failed
+        },
+    )
 }

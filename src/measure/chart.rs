@@ -189,46 +189,7 @@ fn draw<DB: DrawingBackend>(
         .draw()
         .map_err(e)?;
     for (i, c) in curves.iter().enumerate() {
-        let colour = PALETTE[i % PALETTE.len()];
-        let style = ShapeStyle::from(&colour).stroke_width(3);
-        let pts: Vec<(f64, f64)> = c
-            .points
-            .iter()
-            .map(|p| (p.seconds.mean, kind.value(p).0))
-            .filter(|(x, y)| *x > 0.0 && *y > 0.0 && y.is_finite())
-            .collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), style))
-            .map_err(e)?
-            .label(legend(kind, c))
-            .legend(move |(x, y)| PathElement::new(vec![(x - 4, y), (x + 16, y)], style));
-        chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 5, colour.filled())))
-            .map_err(e)?;
-        // +- one standard error over runs
-        let bars = c.points.iter().filter_map(|p| {
-            let (m, s) = kind.value(p);
-            (s > 0.0 && m - s > 0.0).then(|| {
-                PathElement::new(
-                    vec![(p.seconds.mean, m - s), (p.seconds.mean, m + s)],
-                    ShapeStyle::from(&colour).stroke_width(2),
-                )
-            })
-        });
-        chart.draw_series(bars).map_err(e)?;
-        if let (ChartKind::ErrorVsTime, Some(fit), Some(first), Some(last)) =
-            (kind, c.relmse_vs_time, c.points.first(), c.points.last())
-        {
-            let ends = [first.seconds.mean, last.seconds.mean].map(|t| (t, fit.predict(t)));
-            chart
-                .draw_series(DashedLineSeries::new(
-                    ends,
-                    10,
-                    8,
-                    ShapeStyle::from(&colour.mix(0.6)).stroke_width(2),
-                ))
-                .map_err(e)?;
-        }
+        draw_curve(&mut chart, kind, PALETTE[i % PALETTE.len()], c)?;
     }
     if let Some(f) = floor {
         let grey = RGBColor(110, 110, 110);
@@ -253,6 +214,58 @@ fn draw<DB: DrawingBackend>(
         .draw()
         .map_err(e)?;
     root.present().map_err(e)
+}
+
+/// Draws one curve of a chart: its line (with its legend entry), its points, +- one standard
+/// error over runs and, on the error chart, its fitted power law.
+fn draw_curve<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
+    kind: ChartKind,
+    colour: RGBColor,
+    c: &Curve,
+) -> Result<(), String> {
+    let e =
+        |e: DrawingAreaErrorKind<DB::ErrorType>| format!("drawing the {} chart: {e}", kind.stem());
+    let style = ShapeStyle::from(&colour).stroke_width(3);
+    let pts: Vec<(f64, f64)> = c
+        .points
+        .iter()
+        .map(|p| (p.seconds.mean, kind.value(p).0))
+        .filter(|(x, y)| *x > 0.0 && *y > 0.0 && y.is_finite())
+        .collect();
+    chart
+        .draw_series(LineSeries::new(pts.clone(), style))
+        .map_err(e)?
+        .label(legend(kind, c))
+        .legend(move |(x, y)| PathElement::new(vec![(x - 4, y), (x + 16, y)], style));
+    chart
+        .draw_series(pts.iter().map(|&p| Circle::new(p, 5, colour.filled())))
+        .map_err(e)?;
+    // +- one standard error over runs
+    let bars = c.points.iter().filter_map(|p| {
+        let (m, s) = kind.value(p);
+        (s > 0.0 && m - s > 0.0).then(|| {
+            PathElement::new(
+                vec![(p.seconds.mean, m - s), (p.seconds.mean, m + s)],
+                ShapeStyle::from(&colour).stroke_width(2),
+            )
+        })
+    });
+    chart.draw_series(bars).map_err(e)?;
+    if let (ChartKind::ErrorVsTime, Some(fit), Some(first), Some(last)) =
+        (kind, c.relmse_vs_time, c.points.first(), c.points.last())
+    {
+        let ends = [first.seconds.mean, last.seconds.mean].map(|t| (t, fit.predict(t)));
+        chart
+            .draw_series(DashedLineSeries::new(
+                ends,
+                10,
+                8,
+                ShapeStyle::from(&colour.mix(0.6)).stroke_width(2),
+            ))
+            .map_err(e)?;
+    }
+    Ok(())
 }
 // ANCHOR_END: draw_chart
 
