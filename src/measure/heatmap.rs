@@ -13,6 +13,7 @@ use std::path::Path;
 
 use crate::image_io::{self, Image};
 use crate::measure::metrics::RELMSE_EPSILON;
+use crate::measure::MeasureError;
 
 /// The darkest colour stands for this relative error (0.1 %) and anything below.
 pub const LOG10_MIN: f64 = -3.0;
@@ -34,11 +35,10 @@ pub const VIRIDIS: [[u8; 3]; 9] = [
 
 // ANCHOR: relative_error
 /// The per-pixel relative error of `a` against the reference `b` (row-major).
-pub fn relative_error(a: &Image, b: &Image) -> Result<Vec<f64>, String> {
+pub fn relative_error(a: &Image, b: &Image) -> Result<Vec<f64>, MeasureError> {
     if (a.width, a.height) != (b.width, b.height) {
-        return Err(format!(
-            "the images differ in size: {}x{} against {}x{}",
-            a.width, a.height, b.width, b.height
+        return Err(MeasureError::SizeMismatch(
+            a.width, a.height, b.width, b.height,
         ));
     }
     Ok(a.pixels
@@ -96,8 +96,8 @@ pub fn legend_lines() -> Vec<(String, f64)> {
 
 /// Writes the heatmap of `a` against the reference `b` as a PNG of the images' size (pixel for
 /// pixel, so it can be laid over them).
-pub fn write_heatmap(path: &Path, a: &Image, b: &Image) -> Result<(), String> {
+pub fn write_heatmap(path: &Path, a: &Image, b: &Image) -> Result<(), MeasureError> {
     let errors = relative_error(a, b)?;
     let data: Vec<u8> = errors.iter().flat_map(|&e| error_colour(e)).collect();
-    image_io::write_png_rgb8(path, a.width, a.height, &data).map_err(|e| e.to_string())
+    Ok(image_io::write_png_rgb8(path, a.width, a.height, &data)?)
 }

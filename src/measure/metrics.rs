@@ -3,6 +3,7 @@
 //! Book: "Measuring a renderer".
 
 use crate::image_io::Image;
+use crate::measure::MeasureError;
 
 /// The offset in relMSE's denominator, (a - b)^2 / (b^2 + RELMSE_EPSILON): keeps black
 /// reference pixels from dominating.
@@ -21,11 +22,10 @@ pub struct Metrics {
 
 // ANCHOR: compare
 /// Compares `a` against the reference `b`.
-pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
+pub fn compare(a: &Image, b: &Image) -> Result<Metrics, MeasureError> {
     if a.width != b.width || a.height != b.height {
-        return Err(format!(
-            "the images differ in size: {}x{} against {}x{}",
-            a.width, a.height, b.width, b.height
+        return Err(MeasureError::SizeMismatch(
+            a.width, a.height, b.width, b.height,
         ));
     }
     let (mut se, mut rel, mut max_abs) = (0.0f64, 0.0f64, 0.0f64);
@@ -53,13 +53,13 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
 /// so this separates an estimator's noise from a noisy (or biased) reference; relMSE against the
 /// reference minus this is the estimator's squared bias plus the reference's error.
 // ANCHOR: twin_variance
-pub fn twin_variance(a1: &Image, a2: &Image, r: &Image) -> Result<f64, String> {
+pub fn twin_variance(a1: &Image, a2: &Image, r: &Image) -> Result<f64, MeasureError> {
     if a1.width != a2.width
         || a1.height != a2.height
         || a1.width != r.width
         || a1.height != r.height
     {
-        return Err("the twin renders and the reference differ in size".into());
+        return Err(MeasureError::TwinSizeMismatch);
     }
     let mut sum = 0.0f64;
     for ((p, q), w) in a1.pixels.iter().zip(&a2.pixels).zip(&r.pixels) {

@@ -37,3 +37,43 @@ pub fn cpu_seconds() -> f64 {
     let t = |tv: libc::timeval| tv.tv_sec as f64 + tv.tv_usec as f64 * 1e-6;
     t(usage.ru_utime) + t(usage.ru_stime)
 }
+
+/// Why a measurement cannot be taken: images that do not match, or data no power law fits.
+/// The messages are the command line's (`pathspace diff`, `converge`).
+#[derive(Debug, thiserror::Error)]
+pub enum MeasureError {
+    /// An image and its reference differ in size.
+    #[error("the images differ in size: {0}x{1} against {2}x{3}")]
+    SizeMismatch(u32, u32, u32, u32),
+    /// The twin renders of `diff --twin` and the reference differ in size.
+    #[error("the twin renders and the reference differ in size")]
+    TwinSizeMismatch,
+    /// An estimate and its variance image differ in size.
+    #[error("the estimate is {0}x{1} but its variance image is {2}x{3}")]
+    VarianceSizeMismatch(u32, u32, u32, u32),
+    /// Unequal numbers of x and y values.
+    #[error("cannot fit: {0} x values against {1} y values")]
+    FitLengths(usize, usize),
+    /// A point a log-log fit cannot take.
+    #[error("cannot fit a power law through ({0}, {1}): both must be positive and finite")]
+    FitNotPositive(f64, f64),
+    /// Fewer than two points.
+    #[error("cannot fit a slope through {0} point(s): at least 2 are needed")]
+    FitTooFew(usize),
+    /// Every x is the same: the slope is undefined.
+    #[error("cannot fit a slope: every x is the same")]
+    FitSameX,
+    /// Fewer than two runs give no spread of slopes.
+    #[error("combining fits needs at least 2 independent runs, not {0}")]
+    CombineTooFew(usize),
+    /// Writing an image failed.
+    #[error(transparent)]
+    Image(#[from] crate::image_io::ImageError),
+}
+
+/// The command line reports errors as text.
+impl From<MeasureError> for String {
+    fn from(e: MeasureError) -> String {
+        e.to_string()
+    }
+}

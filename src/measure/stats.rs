@@ -12,6 +12,7 @@
 
 use crate::image_io::Image;
 use crate::measure::metrics::RELMSE_EPSILON;
+use crate::measure::MeasureError;
 
 /// A straight line fitted to (log x, log y): y = exp(intercept) x^slope.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,28 +43,20 @@ impl PowerLawFit {
 /// se(s) = sqrt(SSR / (n - 2) / S_xx). It assumes independent residuals: checkpoints of one run
 /// share their early samples, so for a convergence curve it is optimistic; with several runs
 /// `combine_fits` gives an honest one.
-pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, String> {
+pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, MeasureError> {
     if x.len() != y.len() {
-        return Err(format!(
-            "cannot fit: {} x values against {} y values",
-            x.len(),
-            y.len()
-        ));
+        return Err(MeasureError::FitLengths(x.len(), y.len()));
     }
     if let Some((xi, yi)) = x
         .iter()
         .zip(y)
         .find(|(a, b)| !(**a > 0.0 && **b > 0.0 && a.is_finite() && b.is_finite()))
     {
-        return Err(format!(
-            "cannot fit a power law through ({xi}, {yi}): both must be positive and finite"
-        ));
+        return Err(MeasureError::FitNotPositive(*xi, *yi));
     }
     let n = x.len();
     if n < 2 {
-        return Err(format!(
-            "cannot fit a slope through {n} point(s): at least 2 are needed"
-        ));
+        return Err(MeasureError::FitTooFew(n));
     }
     // ASSIGNMENT: fit_power_law
     let lx: Vec<f64> = x.iter().map(|v| v.ln()).collect();
@@ -77,7 +70,7 @@ pub fn fit_power_law(x: &[f64], y: &[f64]) -> Result<PowerLawFit, String> {
         .map(|(a, b)| (a - mean_x) * (b - mean_y))
         .sum();
     if s_xx <= 0.0 {
-        return Err("cannot fit a slope: every x is the same".into());
+        return Err(MeasureError::FitSameX);
     }
     let slope = s_xy / s_xx;
     let intercept = mean_y - slope * mean_x;
@@ -114,12 +107,9 @@ pub struct MeanStderr {
 /// s.d. / sqrt(R). Unlike the regression error of one run, this one is honest: the checkpoints of a
 /// run share their early samples, so its residuals are correlated and understate the uncertainty,
 /// while separate runs are independent by construction. Needs R >= 2.
-pub fn combine_fits(fits: &[PowerLawFit]) -> Result<PowerLawFit, String> {
+pub fn combine_fits(fits: &[PowerLawFit]) -> Result<PowerLawFit, MeasureError> {
     if fits.len() < 2 {
-        return Err(format!(
-            "combining fits needs at least 2 independent runs, not {}",
-            fits.len()
-        ));
+        return Err(MeasureError::CombineTooFew(fits.len()));
     }
     let slopes: Vec<f64> = fits.iter().map(|f| f.slope).collect();
     let intercepts: Vec<f64> = fits.iter().map(|f| f.intercept).collect();
@@ -164,11 +154,13 @@ pub fn mean_stderr(values: &[f64]) -> MeanStderr {
 /// estimate standing in for the reference in the denominator. It sees only variance: bias and
 /// rare high-energy paths that were never sampled stay invisible, which is why a reference is
 /// still the real test.
-pub fn estimated_relmse(mean: &Image, variance_of_mean: &Image) -> Result<f64, String> {
+pub fn estimated_relmse(mean: &Image, variance_of_mean: &Image) -> Result<f64, MeasureError> {
     if mean.width != variance_of_mean.width || mean.height != variance_of_mean.height {
-        return Err(format!(
-            "the estimate is {}x{} but its variance image is {}x{}",
-            mean.width, mean.height, variance_of_mean.width, variance_of_mean.height
+        return Err(MeasureError::VarianceSizeMismatch(
+            mean.width,
+            mean.height,
+            variance_of_mean.width,
+            variance_of_mean.height,
         ));
     }
     let mut sum = 0.0f64;

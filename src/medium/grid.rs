@@ -54,6 +54,24 @@ pub struct GridError {
     pub message: String,
 }
 
+/// Why [`Grid::new`] rejected a lattice.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LatticeError {
+    /// A side outside 2..=MAX_GRID_SIDE.
+    #[error("grid resolution {0:?}: every side must be in 2..={max}", max = MAX_GRID_SIDE)]
+    Resolution([usize; 3]),
+    /// The number of values is not the product of the sides.
+    #[error("grid {res:?} needs {n} values, got {got}")]
+    Count {
+        res: [usize; 3],
+        n: usize,
+        got: usize,
+    },
+    /// A density that is negative or not finite.
+    #[error("value #{0} = {1} is not a finite density >= 0")]
+    Value(usize, f32),
+}
+
 /// A grid file's content: the lattice and, for `.vol`, the bounding box it declares.
 pub struct GridFile {
     pub grid: Grid,
@@ -62,25 +80,24 @@ pub struct GridFile {
 
 impl Grid {
     /// Validated constructor: every side >= 2, the right number of values, each finite and >= 0.
-    pub fn new(res: [usize; 3], values: Vec<f32>) -> Result<Self, String> {
+    pub fn new(res: [usize; 3], values: Vec<f32>) -> Result<Self, LatticeError> {
         if res.iter().any(|&n| !(2..=MAX_GRID_SIDE).contains(&n)) {
-            return Err(format!(
-                "grid resolution {res:?}: every side must be in 2..={MAX_GRID_SIDE}"
-            ));
+            return Err(LatticeError::Resolution(res));
         }
         let n = res[0] * res[1] * res[2];
         if values.len() != n {
-            return Err(format!(
-                "grid {res:?} needs {n} values, got {}",
-                values.len()
-            ));
+            return Err(LatticeError::Count {
+                res,
+                n,
+                got: values.len(),
+            });
         }
         if let Some((i, v)) = values
             .iter()
             .enumerate()
             .find(|(_, v)| !v.is_finite() || **v < 0.0)
         {
-            return Err(format!("value #{i} = {v} is not a finite density >= 0"));
+            return Err(LatticeError::Value(i, *v));
         }
         Ok(Grid { res, values })
     }

@@ -55,6 +55,18 @@ pub enum LineIntegral {
     DeltaTracking,
 }
 
+/// A propagation name the scene format does not know (`LineIntegral::parse`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown propagation `{0}` (one of: {names})", names = LineIntegral::ALL.map(LineIntegral::name).join(", "))]
+pub struct UnknownPropagation(pub String);
+
+/// The command line reports errors as text.
+impl From<UnknownPropagation> for String {
+    fn from(e: UnknownPropagation) -> String {
+        e.to_string()
+    }
+}
+
 impl LineIntegral {
     /// The scene-file spelling.
     pub fn name(self) -> &'static str {
@@ -75,14 +87,11 @@ impl LineIntegral {
     ];
 
     /// From the scene-file spelling.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, UnknownPropagation> {
         Self::ALL
             .into_iter()
             .find(|l| l.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|l| l.name()).collect();
-                format!("unknown propagation `{s}` (one of: {})", names.join(", "))
-            })
+            .ok_or_else(|| UnknownPropagation(s.to_string()))
     }
 
     /// True for the ray-marching strategies, biased for any finite step.

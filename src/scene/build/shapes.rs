@@ -43,8 +43,21 @@ fn signed_volume(tris: &[Triangle]) -> f32 {
     tris.iter().map(|t| t.p0.dot(t.e1.cross(t.e2)) / 6.0).sum()
 }
 
+/// Why an OBJ file's face indices were refused, with the OBJ line.
+#[derive(Debug, thiserror::Error)]
+enum ObjIndexError {
+    /// A face word that does not start with an integer.
+    #[error("line {line}: `{word}` is not a vertex index")]
+    NotAnIndex { line: usize, word: String },
+    /// An index past the vertices read so far.
+    #[error(
+        "line {line}: face index {k} is out of range (the file has {vertices} vertices so far)"
+    )]
+    OutOfRange { line: usize, k: i64, vertices: i64 },
+}
+
 /// Checks every face index of an OBJ file before tobj sees it, so the error names the OBJ line.
-fn check_obj_indices(text: &str) -> Result<(), String> {
+fn check_obj_indices(text: &str) -> Result<(), ObjIndexError> {
     let mut vertices = 0i64;
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
@@ -53,7 +66,10 @@ fn check_obj_indices(text: &str) -> Result<(), String> {
             Some("f") | Some("l") => {
                 for w in words {
                     let Some(Ok(k)) = w.split('/').next().map(str::parse::<i64>) else {
-                        return Err(format!("line {}: `{w}` is not a vertex index", n + 1));
+                        return Err(ObjIndexError::NotAnIndex {
+                            line: n + 1,
+                            word: w.to_string(),
+                        });
                     };
                     // OBJ indices are 1-based; negative ones count back from the last vertex
                     let ok = if k > 0 {
@@ -62,10 +78,11 @@ fn check_obj_indices(text: &str) -> Result<(), String> {
                         k < 0 && -k <= vertices
                     };
                     if !ok {
-                        return Err(format!(
-                            "line {}: face index {k} is out of range (the file has {vertices} vertices so far)",
-                            n + 1
-                        ));
+                        return Err(ObjIndexError::OutOfRange {
+                            line: n + 1,
+                            k,
+                            vertices,
+                        });
                     }
                 }
             }
