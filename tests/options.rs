@@ -89,3 +89,84 @@ fn a_key_and_its_flag_give_the_same_settings() {
     args.mlt.apply(&mut flags);
     assert_eq!(format!("{:?}", file.mlt), format!("{flags:?}"));
 }
+
+#[test]
+fn guide_and_adjoint_keys_and_their_flags_give_the_same_settings() {
+    let text = pathspace::scene::FOG_BOX.replace(
+        "seed = 1",
+        "seed = 1\n\n[render.guide]\nvertices = \"both\"\nmap = \"16x8\"\nregions = 64\n\
+         particles = 1000\nweight = 0.25\nalpha = 3.0\nroulette = 0.5\nmin_depth = 2\n\
+         sampler = \"metropolis\"\nsigma = 0.03\ndefensive = 0.2\n\n[render.adjoint]\n\
+         resolution = [18, 9]\nsamples_per_cell = 3\nepsilon = 0.25\nestimator = \"metropolis\"",
+    );
+    let (scene, file) =
+        pathspace::integrator::settings::load(&SceneSource::embedded("k.toml", &text)).unwrap();
+    let args = render_args(&[
+        "--guide",
+        "both",
+        "--guide-map",
+        "16x8",
+        "--guide-regions",
+        "64",
+        "--guide-particles",
+        "1000",
+        "--guide-weight",
+        "0.25",
+        "--guide-alpha",
+        "3",
+        "--guide-roulette",
+        "0.5",
+        "--guide-min-depth",
+        "2",
+        "--guide-sampler",
+        "metropolis",
+        "--guide-sigma",
+        "0.03",
+        "--guide-defensive",
+        "0.2",
+        "--adjoint-resolution",
+        "18x9",
+        "--adjoint-samples-per-cell",
+        "3",
+        "--adjoint-epsilon",
+        "0.25",
+        "--adjoint-estimator",
+        "metropolis",
+    ]);
+    let defaults = pathspace::integrator::RenderSettings::for_scene(&scene);
+    let guide = args.guide.apply_flags(defaults.guide).unwrap();
+    assert_eq!(format!("{:?}", file.guide), format!("{guide:?}"));
+    assert_ne!(format!("{guide:?}"), format!("{:?}", defaults.guide));
+    let adjoint = args.adjoint.tuning.apply(defaults.adjoint).unwrap();
+    assert_eq!(format!("{:?}", file.adjoint), format!("{adjoint:?}"));
+    assert_ne!(format!("{adjoint:?}"), format!("{:?}", defaults.adjoint));
+    // the flag of earlier releases is a visible alias
+    let old = render_args(&["--adjoint-samples", "3"]);
+    assert_eq!(old.adjoint.tuning.samples_per_cell, Some(3));
+}
+
+#[test]
+fn help_lists_every_guide_and_adjoint_flag() {
+    let mut cmd = Cli::command();
+    let render = cmd.find_subcommand_mut("render").expect("render");
+    let help = render.render_long_help().to_string();
+    for flag in [
+        "--guide <",
+        "--guide-map",
+        "--guide-regions",
+        "--guide-particles",
+        "--guide-weight",
+        "--guide-alpha",
+        "--guide-roulette",
+        "--guide-min-depth",
+        "--guide-sampler",
+        "--guide-sigma",
+        "--guide-defensive",
+        "--adjoint-resolution",
+        "--adjoint-samples-per-cell",
+        "--adjoint-epsilon",
+        "--adjoint-estimator",
+    ] {
+        assert!(help.contains(flag), "--help lacks {flag}");
+    }
+}

@@ -12,6 +12,7 @@ use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::mlt::{mutation::MutationKind, MltOptions, MutationStats};
 use crate::integrator::session::{self, Job, Preprocessed};
+use crate::integrator::settings::{AdjointOptions, GuideOptions};
 use crate::integrator::smc::{SmcOptions, SmcSettings};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
@@ -77,46 +78,9 @@ pub struct RenderArgs {
     pub adjoint: Box<AdjointArgs>,
 }
 
-/// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines);
-/// each overrides its `[render.adjoint]` key.
-#[derive(Args, Debug, Default, Clone)]
-pub struct AdjointTuning {
-    /// Adjoint grid COLSxROWS (columns rounded up to a multiple of the area lights; default
-    /// `[render.adjoint] resolution` or 64x64).
-    #[arg(long, value_parser = parse_resolution)]
-    pub adjoint_resolution: Option<(u32, u32)>,
-    /// Pre-pass samples (BDPT) or chain steps (Metropolis) per adjoint cell (default
-    /// `[render.adjoint] samples_per_cell` or 8).
-    #[arg(long)]
-    pub adjoint_samples: Option<u32>,
-    /// Floor added to every adjoint cell, as a fraction of the mean cell (default 0.5).
-    #[arg(long)]
-    pub adjoint_epsilon: Option<f32>,
-    /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
-    /// Metropolis particle sampler).
-    #[arg(long)]
-    pub adjoint_estimator: Option<String>,
-}
-
-impl AdjointTuning {
-    /// True when any option was given.
-    pub fn any(&self) -> bool {
-        self.adjoint_resolution.is_some()
-            || self.adjoint_samples.is_some()
-            || self.adjoint_epsilon.is_some()
-            || self.adjoint_estimator.is_some()
-    }
-
-    /// `base` with these overrides, checked.
-    pub fn apply(&self, base: AdjointSettings) -> Result<AdjointSettings, String> {
-        base.overridden(
-            self.adjoint_resolution,
-            self.adjoint_samples,
-            self.adjoint_epsilon,
-            self.adjoint_estimator.as_deref(),
-        )
-    }
-}
+/// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines):
+/// the `[render.adjoint]` schema, each flag overriding its key.
+pub type AdjointTuning = AdjointOptions;
 
 /// The adjoint image's options (Kristensen 2010, sec. 5.3.1).
 #[derive(Args, Debug, Default, Clone)]
@@ -163,122 +127,9 @@ impl AdjointArgs {
     }
 }
 
-/// The options of guided local sampling (Kristensen 2010, sec. 5.3; book chapter
-/// "Enlightened local path sampling: guiding"); each overrides its `[render.guide]` key.
-#[derive(clap::Args, Debug, Clone, Default)]
-pub struct GuideArgs {
-    /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
-    #[arg(long)]
-    pub guide: Option<String>,
-    /// Direction map resolution COLSxROWS (default 32x16, the thesis's).
-    #[arg(long)]
-    pub guide_map: Option<String>,
-    /// Regions (k-means centres) per quantity (default 512).
-    #[arg(long)]
-    pub guide_regions: Option<usize>,
-    /// Light and eye subpaths traced for photons and importons (default 200000 each).
-    #[arg(long)]
-    pub guide_particles: Option<usize>,
-    /// c2 of eqs. (5.17)-(5.19), the probability of sampling the map (default 0.5).
-    #[arg(long)]
-    pub guide_weight: Option<f32>,
-    /// alpha of eq. (5.16) per unit length (default 20 / scene radius).
-    #[arg(long)]
-    pub guide_alpha: Option<f32>,
-    /// Guided Russian roulette with this normalization (default: the ordinary roulette).
-    #[arg(long)]
-    pub guide_roulette: Option<f32>,
-    /// Only particles at this depth or deeper shape the maps (default 1: all; 2: indirect
-    /// light and importance only).
-    #[arg(long)]
-    pub guide_min_depth: Option<u32>,
-    /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
-    #[arg(long)]
-    pub guide_sampler: Option<String>,
-    /// Metropolis particles: small-step deviation in primary sample space (default 1/64).
-    #[arg(long)]
-    pub guide_sigma: Option<f64>,
-    /// Metropolis particles: weight delta of the defensive part of the target (default 0.1;
-    /// 0 is the thesis's eq. (5.15) alone).
-    #[arg(long)]
-    pub guide_defensive: Option<f64>,
-}
-
-impl GuideArgs {
-    /// True when any option was given.
-    pub fn any(&self) -> bool {
-        self.guide.is_some()
-            || self.guide_map.is_some()
-            || self.guide_regions.is_some()
-            || self.guide_particles.is_some()
-            || self.guide_weight.is_some()
-            || self.guide_alpha.is_some()
-            || self.guide_roulette.is_some()
-            || self.guide_min_depth.is_some()
-            || self.guide_sampler.is_some()
-            || self.guide_sigma.is_some()
-            || self.guide_defensive.is_some()
-    }
-
-    /// The scene's settings with these options applied, each checked.
-    pub fn apply(
-        &self,
-        base: crate::enlightened::GuideSettings,
-    ) -> Result<crate::enlightened::GuideSettings, String> {
-        use crate::enlightened::{GuideKind, GuideSettings};
-        let mut s = base;
-        if let Some(k) = &self.guide {
-            s.kind = GuideKind::parse(k).map_err(|e| format!("--guide: {e}"))?;
-        }
-        if let Some(m) = &self.guide_map {
-            (s.cols, s.rows) =
-                GuideSettings::parse_map(m).map_err(|e| format!("--guide-map: {e}"))?;
-        }
-        s.check_regions(self.guide_regions)
-            .map_err(|e| format!("--guide-regions: {e}"))?;
-        if let Some(k) = self.guide_regions {
-            s.regions.regions = k;
-        }
-        s.check_particles(self.guide_particles)
-            .map_err(|e| format!("--guide-particles: {e}"))?;
-        if let Some(n) = self.guide_particles {
-            s.particles = n;
-        }
-        if let Some(w) = self.guide_weight {
-            s.c_guide =
-                GuideSettings::check_weight(w).map_err(|e| format!("--guide-weight: {e}"))?;
-        }
-        if let Some(a) = self.guide_alpha {
-            s.regions.alpha =
-                GuideSettings::check_alpha(a).map_err(|e| format!("--guide-alpha: {e}"))?;
-        }
-        if let Some(m) = &self.guide_sampler {
-            s.sampler = crate::enlightened::guide::ParticleSampler::parse(m)
-                .map_err(|e| format!("--guide-sampler: {e}"))?;
-        }
-        if let Some(x) = self.guide_sigma {
-            s.metropolis.sigma = x;
-        }
-        if let Some(x) = self.guide_defensive {
-            s.metropolis.defensive = x;
-        }
-        s.metropolis
-            .check()
-            .map_err(|e| format!("--guide-sigma / --guide-defensive: {e}"))?;
-        if let Some(d) = self.guide_min_depth {
-            if !(1..=64).contains(&d) {
-                return Err(format!("--guide-min-depth {d} must be in 1..=64"));
-            }
-            s.min_depth = d;
-        }
-        if let Some(r) = self.guide_roulette {
-            s.roulette = Some(
-                GuideSettings::check_roulette(r).map_err(|e| format!("--guide-roulette: {e}"))?,
-            );
-        }
-        Ok(s)
-    }
-}
+/// The options of guided local sampling, shared by `render` and `converge`: the
+/// `[render.guide]` schema, each flag overriding its key.
+pub type GuideArgs = GuideOptions;
 
 /// Whether integrator `kind` samples with the guide (the ones built on BDPT's walks).
 pub fn guides(kind: IntegratorKind) -> bool {
@@ -316,19 +167,7 @@ pub fn smc_settings(
 }
 
 /// Parses `WxH`.
-pub fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT, e.g. 64x64"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|n| (1..=16384).contains(n))
-            .ok_or_else(|| format!("`{v}` in `{s}` is not a size in 1..=16384"))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
+pub use crate::integrator::settings::parse_size as parse_resolution;
 
 /// The relMSE a render expects from its own per-pixel variance (no reference needed); `None`
 /// without a camera or for MLT. See `measure::stats::estimated_relmse`.
@@ -387,7 +226,7 @@ fn configure(
         settings.smc = smc;
     }
     let seed = args.seed.unwrap_or(settings.seed);
-    settings.guide = args.guide.apply(settings.guide)?;
+    settings.guide = args.guide.apply_flags(settings.guide)?;
     if settings.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
         return Err(format!(
             "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
