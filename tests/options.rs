@@ -170,3 +170,21 @@ fn help_lists_every_guide_and_adjoint_flag() {
         assert!(help.contains(flag), "--help lacks {flag}");
     }
 }
+
+#[test]
+fn converge_guide_overrides_are_the_guide_schema() {
+    use pathspace::cli::converge::GuidedVariant;
+    let long = GuidedVariant::parse("mlt+guide(vertices=volume,map=16x8,regions=64)").unwrap();
+    let short = GuidedVariant::parse("mlt+guide:volume:16x8:64").unwrap();
+    assert_eq!(long, short);
+    let g = GuidedVariant::parse("bdpt+guide(sampler=metropolis,sigma=0.03,min_depth=2)")
+        .unwrap()
+        .guide
+        .unwrap();
+    assert_eq!(g.options.sigma, Some(0.03));
+    assert_eq!(g.options.min_depth, Some(2));
+    let e = GuidedVariant::parse("mlt+guide(colour=red)").unwrap_err();
+    assert!(e.contains("colour"), "{e}");
+    let e = GuidedVariant::parse("mlt+guide(min_depth=99)").unwrap_err();
+    assert!(e.contains("min_depth"), "{e}");
+}

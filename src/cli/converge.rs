@@ -7,6 +7,7 @@ use clap::Args;
 use std::path::PathBuf;
 
 use crate::image_io;
+use crate::integrator::settings::{GuideOptions, Spelling};
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
 use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
@@ -21,7 +22,8 @@ pub struct ConvergeArgs {
     /// Integrators to compare, comma-separated; `bdpt+adjoint`, `light+adjoint`, `mlt+adjoint`
     /// use the adjoint image (its pre-pass time counts in the budget; settings from the
     /// scene's `[render.adjoint]`); `bdpt+guide`, `light+guide`, `mlt+guide` and
-    /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (the `--guide*`
+    /// `KIND+guide(key=value,...)` (any `[render.guide]` key) or the short
+    /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (over the `--guide*`
     /// options; vertices default to `surface`), the preprocessing counted in the budget.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
@@ -61,96 +63,140 @@ pub struct ConvergeArgs {
     pub guide: super::render::GuideArgs,
 }
 
-/// An integrator named on the command line: a kind and its variant modifiers: `+guide`, or
-/// `+guide:VERTICES:COLSxROWS:K` overriding `--guide`, `--guide-map` and `--guide-regions`
-/// for this line (trailing fields may be left out), so that one run sweeps the guide's
-/// parameters. A guided line's label has the full form.
+/// An integrator named on the command line: a kind and its variant modifiers: `+guide`,
+/// `+guide(key=value,...)` with any `[render.guide]` keys (the same schema as the file and the
+/// `--guide-*` flags, [`GuideOptions`]), or the short form `+guide:VERTICES:COLSxROWS:K`
+/// (vertices, map, regions; trailing fields may be left out), overriding the `--guide*`
+/// options for this line, so that one run sweeps the guide's parameters. A guided line's
+/// label has the short form.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuidedVariant {
     pub kind: IntegratorKind,
-    /// `Some` for a guided line: (vertices, map, regions) given in the name.
+    /// `Some` for a guided line: the guide options given in the name.
     pub guide: Option<GuideOverride>,
 }
 
-/// The guide parameters a `+guide:...` name sets.
+/// The guide options a `+guide(...)` or `+guide:...` name sets, over the `--guide*` flags.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct GuideOverride {
-    pub kind: Option<crate::enlightened::GuideKind>,
-    pub map: Option<(u32, u32)>,
-    pub regions: Option<usize>,
+    pub options: GuideOptions,
 }
 
 impl GuideOverride {
-    fn parse(fields: &[&str]) -> Result<Self, String> {
-        use crate::enlightened::{GuideKind, GuideSettings};
+    /// The short form's fields `VERTICES:COLSxROWS:K`.
+    fn parse_short(fields: &[&str]) -> Result<Self, String> {
         if fields.len() > 3 {
             return Err("expected +guide:VERTICES:COLSxROWS:K".into());
         }
-        let mut o = GuideOverride::default();
-        if let Some(v) = fields.first() {
-            o.kind = Some(GuideKind::parse(v)?);
-        }
-        if let Some(m) = fields.get(1) {
-            o.map = Some(GuideSettings::parse_map(m)?);
-        }
+        let mut o = GuideOptions {
+            vertices: fields.first().map(|v| v.to_string()),
+            map: fields.get(1).map(|m| m.to_string()),
+            ..Default::default()
+        };
         if let Some(k) = fields.get(2) {
             let k: usize = k
                 .parse()
-                .ok()
-                .filter(|k| (1..=1usize << 20).contains(k))
-                .ok_or_else(|| format!("regions `{k}` is not a count in 1..=1048576"))?;
+                .map_err(|_| format!("regions `{k}` is not a count in 1..=1048576"))?;
             o.regions = Some(k);
         }
-        Ok(o)
+        Self::checked(o)
     }
 
-    /// `base` with these fields replaced (vertices `surface` when neither sets them).
+    /// `key=value,...` of `+guide(...)`: each pair a `[render.guide]` key, its value read as in
+    /// the file (a bare word is a string).
+    fn parse_keys(list: &str) -> Result<Self, String> {
+        let mut table = String::new();
+        for pair in list.split(',').filter(|p| !p.trim().is_empty()) {
+            let (k, v) = pair
+                .split_once('=')
+                .ok_or_else(|| format!("`{pair}` is not key=value"))?;
+            let (k, v) = (k.trim(), v.trim());
+            let value = match toml::from_str::<toml::Table>(&format!("v = {v}")) {
+                Ok(_) => v.to_string(),
+                Err(_) => toml::Value::String(v.to_string()).to_string(),
+            };
+            table.push_str(&format!("{k} = {value}\n"));
+        }
+        let o: GuideOptions = toml::from_str(&table).map_err(|e| e.message().to_string())?;
+        Self::checked(o)
+    }
+
+    /// The options, each value checked now (every check is of the value alone), so that a bad
+    /// name fails before any run.
+    fn checked(options: GuideOptions) -> Result<Self, String> {
+        let probe = crate::enlightened::GuideSettings::for_radius(1.0);
+        options
+            .apply(probe, Spelling::Key)
+            .map_err(|e| format!("{}: {}", e.key, e.message))?;
+        Ok(GuideOverride { options })
+    }
+
+    /// `base` with these options replaced (vertices `surface` when neither sets them).
     pub fn apply(
         &self,
         base: crate::enlightened::GuideSettings,
-    ) -> crate::enlightened::GuideSettings {
-        let mut g = base;
-        if let Some(k) = self.kind {
-            g.kind = k;
-        }
+    ) -> Result<crate::enlightened::GuideSettings, String> {
+        let mut g = self
+            .options
+            .apply(base, Spelling::Key)
+            .map_err(|e| format!("{}: {}", e.key, e.message))?;
         if g.kind == crate::enlightened::GuideKind::Off {
             g.kind = crate::enlightened::GuideKind::Surface;
         }
-        if let Some((c, r)) = self.map {
-            (g.cols, g.rows) = (c, r);
-        }
-        if let Some(k) = self.regions {
-            g.regions.regions = k;
-        }
-        g
+        Ok(g)
     }
 }
 
 impl GuidedVariant {
-    /// Parses `KIND`, `KIND+guide` or `KIND+guide:VERTICES:COLSxROWS:K`.
+    /// Parses `KIND`, `KIND+guide`, `KIND+guide(key=value,...)` or
+    /// `KIND+guide:VERTICES:COLSxROWS:K`.
     pub fn parse(s: &str) -> Result<Self, String> {
-        let mut parts = s.trim().split('+');
-        let kind = IntegratorKind::parse(parts.next().unwrap_or(""))?;
+        let (kind, rest) = s.trim().split_once('+').unwrap_or((s.trim(), ""));
+        let kind = IntegratorKind::parse(kind)?;
         let mut v = GuidedVariant { kind, guide: None };
-        for m in parts {
-            let fields: Vec<&str> = m.split(':').collect();
-            match fields[0] {
-                "guide" if super::render::guides(kind) => {
-                    v.guide = Some(
-                        GuideOverride::parse(&fields[1..]).map_err(|e| format!("`{s}`: {e}"))?,
-                    )
-                }
-                "guide" => {
-                    return Err(format!(
-                        "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
-                        kind.name()
-                    ))
-                }
-                _ => return Err(format!("`{s}`: unknown variant `+{m}` (available: +guide)")),
-            }
+        if rest.is_empty() {
+            return Ok(v);
         }
+        let over = if let Some(list) = rest.strip_prefix("guide(") {
+            let list = list
+                .strip_suffix(')')
+                .ok_or_else(|| format!("`{s}`: `+guide(` without its `)`"))?;
+            GuideOverride::parse_keys(list)
+        } else if rest == "guide" || rest.starts_with("guide:") {
+            let fields: Vec<&str> = rest.split(':').skip(1).collect();
+            GuideOverride::parse_short(&fields)
+        } else {
+            return Err(format!(
+                "`{s}`: unknown variant `+{rest}` (available: +guide)"
+            ));
+        };
+        if !super::render::guides(kind) {
+            return Err(format!(
+                "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
+                kind.name()
+            ));
+        }
+        v.guide = Some(over.map_err(|e| format!("`{s}`: {e}"))?);
         Ok(v)
     }
+}
+
+/// The names of `--integrators`, its comma-split items joined again inside `+guide(...)`.
+fn integrator_names(items: &[String]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    let mut open = false;
+    for item in items {
+        match names.last_mut() {
+            Some(last) if open => {
+                last.push(',');
+                last.push_str(item);
+            }
+            _ => names.push(item.clone()),
+        }
+        let last = names.last().expect("pushed");
+        open = last.contains('(') && !last.ends_with(')');
+    }
+    names
 }
 
 /// The label of a guided line: `KIND+guide:VERTICES:COLSxROWS:K`, with `:indirect` (or
@@ -191,7 +237,7 @@ fn converge_guided(
     let mut rows = Vec::new();
     for run in 0..config.runs {
         let (scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
-        let g = over.apply(args.guide.apply_flags(settings.guide)?);
+        let g = over.apply(args.guide.apply_flags(settings.guide)?)?;
         settings.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();
@@ -271,7 +317,7 @@ fn parse_lines(
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
     let mut guided: GuidedLines = Vec::new();
-    for s in &args.integrators {
+    for s in &integrator_names(&args.integrators) {
         if s.contains("+guide") {
             let g = GuidedVariant::parse(s)?;
             if let Some(o) = g.guide {
