@@ -146,6 +146,14 @@ fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<V
     ))
 }
 
+/// Where a BDPT sample's eye subpath starts: the pinhole through a raster position, or a
+/// point on an irradiance meter (the two sensors of the path integral's measurement, eq. 5).
+#[derive(Clone, Copy, Debug)]
+pub enum SensorStart {
+    Camera(Vec2),
+    Meter(u32),
+}
+
 /// Reusable per-thread storage, so no sample allocates.
 #[derive(Default)]
 pub struct Scratch {
@@ -385,6 +393,26 @@ impl<'t> Bdpt<'t> {
             }
             _ => return None,
         })
+    }
+
+    /// One BDPT sample's two subpaths into `scratch`: the eye subpath from `start`, then a
+    /// light subpath (Veach 1997 sec. 10.2), in this order of random numbers. The integrators,
+    /// MLT's bootstrap and the adjoint image's pre-pass all draw their samples here, so their
+    /// streams agree by construction; the strategies are then combined by the caller.
+    pub fn sample(
+        &self,
+        scene: &Scene,
+        start: SensorStart,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+    ) {
+        match start {
+            SensorStart::Camera(raster) => {
+                self.camera_subpath(scene, raster, sampler, &mut scratch.eye)
+            }
+            SensorStart::Meter(m) => self.meter_subpath(scene, m, sampler, &mut scratch.eye),
+        }
+        self.light_subpath(scene, sampler, &mut scratch.light);
     }
 
     /// The eye subpath from the camera through raster position `raster`.
