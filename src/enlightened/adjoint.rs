@@ -464,17 +464,17 @@ impl AdjointImage {
             .into_par_iter()
             .map(|ci| {
                 let mut sampler = Sampler::new(seed, ci ^ ADJOINT_SALT, 0);
-                let mut light = Vec::new();
-                let mut eye = Vec::new();
+                let mut walks = crate::path::bidirectional::Scratch::default();
                 let mut out = Vec::new();
                 for _ in 0..CHUNK.min(samples - ci * CHUNK) {
                     let raster = sampler.next_2d() * film;
-                    bdpt.camera_subpath(scene, raster, &mut sampler, &mut eye);
-                    bdpt.light_subpath(scene, &mut sampler, &mut light);
+                    let start = crate::path::bidirectional::SensorStart::Camera(raster);
+                    bdpt.sample(scene, start, &mut sampler, &mut walks);
+                    let (light, eye) = (&walks.light, &walks.eye);
                     bdpt.for_each_strategy(
                         scene,
-                        &light,
-                        &eye,
+                        light,
+                        eye,
                         &mut sampler,
                         &mut |s, t, l, splat, sampled| {
                             // a splat lands on any pixel and the film divides it by the number

@@ -134,8 +134,7 @@ struct Evaluator<'a> {
     scene: &'a Scene,
     bdpt: Bdpt<'a>,
     source: ImportonSource,
-    light: Vec<crate::path::Vertex>,
-    eye: Vec<crate::path::Vertex>,
+    walks: crate::path::bidirectional::Scratch,
 }
 
 impl Evaluator<'_> {
@@ -148,8 +147,7 @@ impl Evaluator<'_> {
             self.source,
             1.0,
             sampler,
-            &mut self.light,
-            &mut self.eye,
+            &mut self.walks,
             out,
         );
         let sum = |ps: &[crate::enlightened::Particle]| {
@@ -163,7 +161,7 @@ impl Evaluator<'_> {
     /// The light vertex x_0 of the full path the last evaluation built (valid when its I > 0):
     /// the light walk's first vertex, or, for s = 0, the emitter the eye walk ended on.
     fn light_vertex(&self) -> Option<LightStart> {
-        let v = self.light.first().or(self.eye.last())?;
+        let v = self.walks.light.first().or(self.walks.eye.last())?;
         let (light, prim) = crate::enlightened::AdjointImage::light_point(self.scene, v)?;
         Some(LightStart {
             light,
@@ -250,23 +248,106 @@ pub fn trace_metropolis_with_starts(
     if steps == 0 || settings.check().is_err() || !super::particles::can_trace(scene, source) {
         return (ParticleSets::default(), stats, Vec::new());
     }
-    let base = super::particles::particle_bdpt(scene, tech);
-    let evaluator = || Evaluator {
+    let run = Run {
         scene,
-        bdpt: base.clone(),
+        base: super::particles::particle_bdpt(scene, tech),
         source,
-        light: Vec::new(),
-        eye: Vec::new(),
+        seed,
+        settings,
     };
     // 1. a pilot run fixes the target's normalization, then the bootstrap (independent of
     // it) estimates b_T and seeds the chains: with T fixed before the bootstrap, Veach's
     // start-up argument makes the weights exactly unbiased
-    let evaluate = |salt: u64, n: u64| -> Vec<[f64; 3]> {
+    let mean = |v: &[[f64; 3]], j: usize| v.iter().map(|b| b[j]).sum::<f64>() / v.len() as f64;
+    let pilot = run.evaluate(PILOT_SALT, (settings.bootstrap / 4).max(256));
+    let target = Target::new(
+        [mean(&pilot, 0), mean(&pilot, 1), mean(&pilot, 2)],
+        settings.defensive,
+    );
+    let boot = run.evaluate(BOOTSTRAP_SALT, settings.bootstrap);
+    let n_boot = boot.len() as f64;
+    let b_t = boot.iter().map(|&b| target.of(b)).sum::<f64>() / n_boot;
+    stats.mean_contribution = mean(&boot, 0);
+    stats.mean_target = b_t;
+    stats.connected = boot.iter().filter(|b| b[0] > 0.0).count() as f64 / n_boot;
+    stats.with_particles = boot.iter().filter(|b| b[1] + b[2] > 0.0).count() as f64 / n_boot;
+    if !(b_t > 0.0 && b_t.is_finite()) {
+        return (ParticleSets::default(), stats, Vec::new());
+    }
+    // 2. chain starts: bootstrap samples drawn in proportion to T
+    let cdf: Vec<f64> = boot
+        .iter()
+        .scan(0.0, |acc, &b| {
+            *acc += target.of(b);
+            Some(*acc)
+        })
+        .collect();
+    let chains = Chains {
+        total: *cdf.last().unwrap(),
+        cdf,
+        target,
+        b_t,
+        steps,
+        count: settings.chains as u64,
+        starts,
+    };
+    // 3. the chains
+    let parts: Vec<(ParticleSets, u64, Vec<LightStart>)> = (0..chains.count)
+        .into_par_iter()
+        .map(|c| run.chain(&chains, c))
+        .collect();
+    let mut all = ParticleSets::default();
+    let mut all_starts = Vec::new();
+    for (mut p, a, st) in parts {
+        all.append(&mut p);
+        stats.accepted += a;
+        all_starts.extend(st);
+    }
+    stats.steps = steps;
+    (all, stats, all_starts)
+}
+
+/// One run of the Metropolis particle sampler: the scene, the particle walks and where the
+/// importons come from, with the seed and settings every stream derives from.
+struct Run<'a> {
+    scene: &'a Scene,
+    base: Bdpt<'a>,
+    source: ImportonSource,
+    seed: u64,
+    settings: &'a MetropolisParticleSettings,
+}
+
+/// What every chain shares after the bootstrap: the cumulative target of the bootstrap samples
+/// (where chains start), the target and its mean b_T, the steps in total and per chain count,
+/// and whether light starts are kept.
+struct Chains {
+    cdf: Vec<f64>,
+    total: f64,
+    target: Target,
+    b_t: f64,
+    steps: u64,
+    count: u64,
+    starts: bool,
+}
+
+impl Run<'_> {
+    fn evaluator(&self) -> Evaluator<'_> {
+        Evaluator {
+            scene: self.scene,
+            bdpt: self.base.clone(),
+            source: self.source,
+            walks: Default::default(),
+        }
+    }
+
+    /// `n` independent samples of stream `salt` (the pilot run, the bootstrap), evaluated.
+    fn evaluate(&self, salt: u64, n: u64) -> Vec<[f64; 3]> {
+        let (seed, settings) = (self.seed, self.settings);
         let chunk = 1024u64;
         (0..n.div_ceil(chunk))
             .into_par_iter()
             .flat_map_iter(|c| {
-                let mut ev = evaluator();
+                let mut ev = self.evaluator();
                 let mut out = ParticleSets::default();
                 // one chain object per chunk, restarted for every sample (no allocation per
                 // sample once its storage has grown)
@@ -284,109 +365,83 @@ pub fn trace_metropolis_with_starts(
                     .collect::<Vec<_>>()
             })
             .collect()
-    };
-    let mean = |v: &[[f64; 3]], j: usize| v.iter().map(|b| b[j]).sum::<f64>() / v.len() as f64;
-    let pilot = evaluate(PILOT_SALT, (settings.bootstrap / 4).max(256));
-    let target = Target::new(
-        [mean(&pilot, 0), mean(&pilot, 1), mean(&pilot, 2)],
-        settings.defensive,
-    );
-    let target = |b: [f64; 3]| target.of(b);
-    let boot = evaluate(BOOTSTRAP_SALT, settings.bootstrap);
-    let n_boot = boot.len() as f64;
-    let b_t = boot.iter().map(|&b| target(b)).sum::<f64>() / n_boot;
-    stats.mean_contribution = mean(&boot, 0);
-    stats.mean_target = b_t;
-    stats.connected = boot.iter().filter(|b| b[0] > 0.0).count() as f64 / n_boot;
-    stats.with_particles = boot.iter().filter(|b| b[1] + b[2] > 0.0).count() as f64 / n_boot;
-    if !(b_t > 0.0 && b_t.is_finite()) {
-        return (ParticleSets::default(), stats, Vec::new());
     }
-    // 2. chain starts: bootstrap samples drawn in proportion to T
-    let cdf: Vec<f64> = boot
-        .iter()
-        .scan(0.0, |acc, &b| {
-            *acc += target(b);
-            Some(*acc)
-        })
-        .collect();
-    let total = *cdf.last().unwrap();
-    let chains = settings.chains as u64;
-    // 3. the chains
-    let per_chain = |c: u64| steps / chains + u64::from(c < steps % chains);
-    let parts: Vec<(ParticleSets, u64, Vec<LightStart>)> = (0..chains)
-        .into_par_iter()
-        .map(|c| {
-            let mut rng = Sampler::new(seed, c ^ CHAIN_SALT, 1);
-            let pick = rng.next_f64() * total;
-            let start = cdf.partition_point(|&x| x <= pick).min(cdf.len() - 1) as u64;
-            let mut ev = evaluator();
-            let mut out = ParticleSets::default();
-            // re-create the start state, then give the chain its own mutation stream
-            let mut sampler = Sampler::primary(PrimarySamples::new(
-                stream(seed, BOOTSTRAP_SALT, start),
-                settings.sigma,
-            ));
-            sampler.chain().unwrap().start_iteration(true);
-            let mut current = ParticleSets::default();
-            let e = ev.eval(&mut sampler, &mut current);
-            let mut t_x = target(e);
-            // the current state's light start and I(u) (for the adjoint image)
-            let mut start_x = (e[0] > 0.0).then(|| ev.light_vertex()).flatten();
-            let mut i_x = e[0];
-            let mut light_starts = Vec::new();
-            let chain = sampler.chain().unwrap();
-            chain.accept();
-            chain.reseed(stream(seed, CHAIN_SALT, c));
-            let mut held = 0u64;
-            let mut accepted = 0u64;
-            let mut deposit = ParticleSets::default();
-            // the state's particles, once per step it was held, as one particle of that weight
-            let mut flush =
-                |state: &mut ParticleSets, t: f64, held: u64, start: Option<LightStart>, i: f64| {
-                    if held > 0 && t > 0.0 {
-                        let w = held as f64 * b_t / (t * steps as f64);
-                        state.scale(w as f32);
-                        deposit.append(state);
-                        if let Some(s) = start.filter(|_| starts) {
-                            light_starts.push(LightStart { weight: w * i, ..s });
-                        }
+
+    /// Chain `c`: its start drawn from the bootstrap, its steps, and what it deposits (the
+    /// particles, the accepted count, the light starts).
+    fn chain(&self, chains: &Chains, c: u64) -> (ParticleSets, u64, Vec<LightStart>) {
+        let (seed, settings) = (self.seed, self.settings);
+        let Chains {
+            ref cdf,
+            total,
+            target,
+            b_t,
+            steps,
+            count,
+            starts,
+        } = *chains;
+        let target = |b: [f64; 3]| target.of(b);
+        let per_chain = steps / count + u64::from(c < steps % count);
+        let mut rng = Sampler::new(seed, c ^ CHAIN_SALT, 1);
+        let pick = rng.next_f64() * total;
+        let start = cdf.partition_point(|&x| x <= pick).min(cdf.len() - 1) as u64;
+        let mut ev = self.evaluator();
+        let mut out = ParticleSets::default();
+        // re-create the start state, then give the chain its own mutation stream
+        let mut sampler = Sampler::primary(PrimarySamples::new(
+            stream(seed, BOOTSTRAP_SALT, start),
+            settings.sigma,
+        ));
+        sampler.chain().unwrap().start_iteration(true);
+        let mut current = ParticleSets::default();
+        let e = ev.eval(&mut sampler, &mut current);
+        let mut t_x = target(e);
+        // the current state's light start and I(u) (for the adjoint image)
+        let mut start_x = (e[0] > 0.0).then(|| ev.light_vertex()).flatten();
+        let mut i_x = e[0];
+        let mut light_starts = Vec::new();
+        let chain = sampler.chain().unwrap();
+        chain.accept();
+        chain.reseed(stream(seed, CHAIN_SALT, c));
+        let mut held = 0u64;
+        let mut accepted = 0u64;
+        let mut deposit = ParticleSets::default();
+        // the state's particles, once per step it was held, as one particle of that weight
+        let mut flush =
+            |state: &mut ParticleSets, t: f64, held: u64, start: Option<LightStart>, i: f64| {
+                if held > 0 && t > 0.0 {
+                    let w = held as f64 * b_t / (t * steps as f64);
+                    state.scale(w as f32);
+                    deposit.append(state);
+                    if let Some(s) = start.filter(|_| starts) {
+                        light_starts.push(LightStart { weight: w * i, ..s });
                     }
-                    state.clear();
-                };
-            for _ in 0..per_chain(c) {
-                let chain = sampler.chain().unwrap();
-                let large = chain.uniform() < settings.large_step;
-                chain.start_iteration(large);
-                let e = ev.eval(&mut sampler, &mut out);
-                let t_y = target(e);
-                let chain = sampler.chain().unwrap();
-                let a = if t_x > 0.0 { (t_y / t_x).min(1.0) } else { 1.0 };
-                if chain.uniform() < a {
-                    chain.accept();
-                    flush(&mut current, t_x, held, start_x, i_x);
-                    std::mem::swap(&mut current, &mut out);
-                    t_x = t_y;
-                    i_x = e[0];
-                    start_x = (i_x > 0.0 && starts).then(|| ev.light_vertex()).flatten();
-                    held = 1;
-                    accepted += 1;
-                } else {
-                    chain.reject();
-                    held += 1;
                 }
+                state.clear();
+            };
+        for _ in 0..per_chain {
+            let chain = sampler.chain().unwrap();
+            let large = chain.uniform() < settings.large_step;
+            chain.start_iteration(large);
+            let e = ev.eval(&mut sampler, &mut out);
+            let t_y = target(e);
+            let chain = sampler.chain().unwrap();
+            let a = if t_x > 0.0 { (t_y / t_x).min(1.0) } else { 1.0 };
+            if chain.uniform() < a {
+                chain.accept();
+                flush(&mut current, t_x, held, start_x, i_x);
+                std::mem::swap(&mut current, &mut out);
+                t_x = t_y;
+                i_x = e[0];
+                start_x = (i_x > 0.0 && starts).then(|| ev.light_vertex()).flatten();
+                held = 1;
+                accepted += 1;
+            } else {
+                chain.reject();
+                held += 1;
             }
-            flush(&mut current, t_x, held, start_x, i_x);
-            (deposit, accepted, light_starts)
-        })
-        .collect();
-    let mut all = ParticleSets::default();
-    let mut all_starts = Vec::new();
-    for (mut p, a, st) in parts {
-        all.append(&mut p);
-        stats.accepted += a;
-        all_starts.extend(st);
+        }
+        flush(&mut current, t_x, held, start_x, i_x);
+        (deposit, accepted, light_starts)
     }
-    stats.steps = steps;
-    (all, stats, all_starts)
 }

@@ -26,7 +26,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::math::Sampler;
-use crate::path::bidirectional::Bdpt;
+use crate::path::bidirectional::{Bdpt, Scratch};
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
@@ -352,8 +352,7 @@ pub fn trace_bidirectional_where(
         .map(|c| {
             let mut sampler = Sampler::new(seed, c ^ BIDIRECTIONAL_SALT, 0);
             let mut bdpt = base.clone();
-            let mut light = Vec::new();
-            let mut eye = Vec::new();
+            let mut walks = Scratch::default();
             let mut out = ParticleSets::default();
             let mut one = ParticleSets::default();
             for _ in 0..PARTICLE_CHUNK.min(paths - c * PARTICLE_CHUNK) {
@@ -364,8 +363,7 @@ pub fn trace_bidirectional_where(
                     source,
                     scale,
                     &mut sampler,
-                    &mut light,
-                    &mut eye,
+                    &mut walks,
                     &mut one,
                 );
                 if keep(i) {
@@ -436,122 +434,211 @@ const STREAM_EVAL: usize = 3;
 /// (k + 2) / p_k * w_s f(x) / p_s(x), with the power heuristic over the splits s' = 0 ..= k that
 /// reach the sensor. Zero when a walk ended early or the full path carries no light.
 // ANCHOR: bidirectional_sample
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn bidirectional_sample(
     scene: &Scene,
     bdpt: &mut Bdpt,
     source: ImportonSource,
     scale: f64,
     sampler: &mut Sampler,
-    light: &mut Vec<Vertex>,
-    eye: &mut Vec<Vertex>,
+    walks: &mut Scratch,
     out: &mut ParticleSets,
 ) -> f64 {
-    use crate::path::geometry_term::geometry_term_unoccluded;
+    let Some(split) = draw_walks(scene, bdpt, source, sampler, walks) else {
+        return 0.0;
+    };
+    let Split { k, s, t, n_pix } = split;
+    sampler.set_stream(STREAM_EVAL);
+    if t == 0 {
+        return 0.0;
+    }
+    let (light, eye) = (&walks.light, &walks.eye);
+    if !(light.len() == s && eye.len() == t) {
+        early_particles(&split, scale, walks, out);
+        return 0.0;
+    }
+    let Some(path) = full_path(scene, light, eye, s, k) else {
+        return 0.0;
+    };
+    let full = FullPath::new(scene, bdpt, &path, n_pix, sampler);
+    let contribution = full.contribution(s);
+    full.photons(s, scale, out);
+    full.importons(s, scale, out);
+    contribution
+}
+// ANCHOR_END: bidirectional_sample
+
+/// The length k, the split s and t = k + 1 - s of one bidirectional particle sample, and the
+/// number of pixels its importance is shared by (1 for a meter).
+struct Split {
+    k: usize,
+    s: usize,
+    t: usize,
+    n_pix: f64,
+}
+
+/// Draws the length and split (stream [`STREAM_CHOICE`]), the light walk of s vertices
+/// ([`STREAM_LIGHT`]) and the eye walk of t ([`STREAM_EYE`]) into `walks`; `None` without the
+/// camera the importons come from.
+fn draw_walks(
+    scene: &Scene,
+    bdpt: &mut Bdpt,
+    source: ImportonSource,
+    sampler: &mut Sampler,
+    walks: &mut Scratch,
+) -> Option<Split> {
     sampler.set_stream(STREAM_CHOICE);
     let k = sample_length(sampler.next_f64());
     let s = sampler.next_index(k + 2);
     let t = k + 1 - s; // t = 0: the light walk would have to hit the sensor
-    light.clear();
+    walks.light.clear();
     if s > 0 {
         sampler.set_stream(STREAM_LIGHT);
         bdpt.vertex_cap = s;
-        bdpt.light_subpath(scene, sampler, light);
+        bdpt.light_subpath(scene, sampler, &mut walks.light);
     }
     sampler.set_stream(STREAM_EYE);
     bdpt.vertex_cap = t.max(1);
     let n_pix = match source {
         ImportonSource::Camera => {
-            let Some(cam) = scene.camera.as_ref() else {
-                return 0.0;
-            };
+            let cam = scene.camera.as_ref()?;
             let film = Vec2::new(cam.width as f32, cam.height as f32);
             let raster = sampler.next_2d() * film;
-            bdpt.camera_subpath(scene, raster, sampler, eye);
+            bdpt.camera_subpath(scene, raster, sampler, &mut walks.eye);
             (cam.width as f64) * (cam.height as f64)
         }
         ImportonSource::Meter(m) => {
-            bdpt.meter_subpath(scene, m, sampler, eye);
+            bdpt.meter_subpath(scene, m, sampler, &mut walks.eye);
             1.0
         }
     };
-    sampler.set_stream(STREAM_EVAL);
-    if t == 0 {
-        return 0.0;
-    }
-    let light_done = light.len() == s;
-    let eye_done = eye.len() == t;
-    let q_photon = |i: usize| length_at_least(i + 1);
-    if !(light_done && eye_done) {
-        // 2. a walk ended early: the last vertex of the complete light walk is a photon with
-        // weight 1 among the splits (no tail for the others); the last vertex of a complete eye
-        // walk an importon likewise
-        if light_done && s >= 2 && s - 1 < k {
-            let i = s - 1;
-            let f = (k + 2) as f64 / q_photon(i) * scale;
-            if let Some(p) = particle_at(light, i, f as f32) {
-                out.photons.push(p);
-            }
+    Some(Split { k, s, t, n_pix })
+}
+
+/// A walk ended early (precision 2.): the last vertex of the complete light walk is a photon
+/// with weight 1 among the splits (no tail for the others); the last vertex of a complete eye
+/// walk an importon likewise.
+fn early_particles(split: &Split, scale: f64, walks: &Scratch, out: &mut ParticleSets) {
+    let Split { k, s, t, .. } = *split;
+    let (light, eye) = (&walks.light, &walks.eye);
+    if light.len() == s && s >= 2 && s - 1 < k {
+        let i = s - 1;
+        let f = (k + 2) as f64 / length_at_least(i + 1) * scale;
+        if let Some(p) = particle_at(light, i, f as f32) {
+            out.photons.push(p);
         }
-        if eye_done && t >= 2 && s >= 1 {
-            // the importon at x_s, j = k - s edges from the sensor
-            let j = t - 1;
-            let f = (k + 2) as f64 / length_at_least(j + 1) * scale;
-            if let Some(p) = particle_at(eye, t - 1, f as f32) {
-                out.importons.push(p);
-            }
-        }
-        return 0.0;
     }
-    // the full path x_0 ... x_k
+    if eye.len() == t && t >= 2 && s >= 1 {
+        // the importon at x_s, j = k - s edges from the sensor
+        let j = t - 1;
+        let f = (k + 2) as f64 / length_at_least(j + 1) * scale;
+        if let Some(p) = particle_at(eye, t - 1, f as f32) {
+            out.importons.push(p);
+        }
+    }
+}
+
+/// The full path x_0 ... x_k of complete walks; for s = 0 the eye walk's emitter made the light
+/// vertex (`None` when it did not end on one).
+fn full_path(
+    scene: &Scene,
+    light: &[Vertex],
+    eye: &[Vertex],
+    s: usize,
+    k: usize,
+) -> Option<crate::path::Path> {
     let mut x: Vec<Vertex> = Vec::with_capacity(k + 1);
     x.extend_from_slice(light);
     x.extend(eye.iter().rev().copied());
     if s == 0 {
         // the eye walk must have found an emitter: make it the light vertex
         let VertexKind::Surface { prim } = x[0].kind else {
-            return 0.0;
+            return None;
         };
-        let Some(l) = scene.shapes[scene.prim_shape[prim as usize] as usize].light else {
-            return 0.0;
-        };
+        let l = scene.shapes[scene.prim_shape[prim as usize] as usize].light?;
         x[0].kind = VertexKind::Light {
             light: l,
             prim: Some(prim),
         };
     }
-    let path = crate::path::Path { vertices: x };
-    let x = &path.vertices;
-    let d = crate::path::pdf::densities(scene, bdpt.tech, &path, sampler);
-    // G T of every edge and f-hat of every inner vertex (physical light flow, x_0 -> x_k)
-    let mut gt = vec![Rgb::ZERO; k];
-    for m in 0..k {
-        let e = scene.edge(
-            x[m].edge_end(x[m + 1].p),
-            x[m + 1].edge_end(x[m].p),
-            sampler,
-        );
-        gt[m] = e.transmittance * geometry_term_unoccluded(&x[m], &x[m + 1]);
+    Some(crate::path::Path { vertices: x })
+}
+
+/// A complete sample's full path with what its particles' weights are made of: the densities of
+/// every vertex from both ends, G T of every edge, L_e and W_e (physical light flow, x_0 -> x_k).
+struct FullPath<'a> {
+    scene: &'a Scene,
+    x: &'a [Vertex],
+    k: usize,
+    d: crate::path::pdf::Densities,
+    gt: Vec<Rgb>,
+    le: Rgb,
+    we: Rgb,
+}
+
+impl<'a> FullPath<'a> {
+    fn new(
+        scene: &'a Scene,
+        bdpt: &Bdpt,
+        path: &'a crate::path::Path,
+        n_pix: f64,
+        sampler: &mut Sampler,
+    ) -> Self {
+        use crate::path::geometry_term::geometry_term_unoccluded;
+        let x = &path.vertices[..];
+        let k = x.len() - 1;
+        let d = crate::path::pdf::densities(scene, bdpt.tech, path, sampler);
+        // G T of every edge and f-hat of every inner vertex (physical light flow, x_0 -> x_k)
+        let mut gt = vec![Rgb::ZERO; k];
+        for m in 0..k {
+            let e = scene.edge(
+                x[m].edge_end(x[m + 1].p),
+                x[m + 1].edge_end(x[m].p),
+                sampler,
+            );
+            gt[m] = e.transmittance * geometry_term_unoccluded(&x[m], &x[m + 1]);
+        }
+        let le = x[0].emitted(scene, x[1].p);
+        let we = match x[k].kind {
+            VertexKind::Camera => x[k].importance(scene, x[k - 1].p) / n_pix as f32,
+            _ => x[k].importance(scene, x[k - 1].p),
+        };
+        FullPath {
+            scene,
+            x,
+            k,
+            d,
+            gt,
+            le,
+            we,
+        }
     }
-    let f_inner = |m: usize| x[m].f_hat(scene, x[m - 1].p, x[m + 1].p);
-    let le = x[0].emitted(scene, x[1].p);
-    let we = match x[k].kind {
-        VertexKind::Camera => x[k].importance(scene, x[k - 1].p) / n_pix as f32,
-        _ => x[k].importance(scene, x[k - 1].p),
-    };
-    let light_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.light[m] as f64).product() };
-    let eye_d = |a: usize, b: usize| -> f64 { (a..b).map(|m| d.eye[m] as f64).product() };
-    // I(u): the full path's contribution, power heuristic over the splits that reach the sensor
-    let contribution = {
-        let split_pdf = |sp: usize| light_d(0, sp) * eye_d(sp, k + 1);
+
+    fn f_inner(&self, m: usize) -> Rgb {
+        let x = self.x;
+        x[m].f_hat(self.scene, x[m - 1].p, x[m + 1].p)
+    }
+
+    fn light_d(&self, a: usize, b: usize) -> f64 {
+        (a..b).map(|m| self.d.light[m] as f64).product()
+    }
+
+    fn eye_d(&self, a: usize, b: usize) -> f64 {
+        (a..b).map(|m| self.d.eye[m] as f64).product()
+    }
+
+    /// I(u): the full path's contribution, power heuristic over the splits that reach the
+    /// sensor.
+    fn contribution(&self, s: usize) -> f64 {
+        let k = self.k;
+        let split_pdf = |sp: usize| self.light_d(0, sp) * self.eye_d(sp, k + 1);
         let cands: Vec<(usize, f64)> = (0..=k).map(|sp| (sp, split_pdf(sp))).collect();
         let w = power_weight(s, &cands);
         let p = split_pdf(s);
-        let mut f = le * we;
-        for (m, g) in gt.iter().enumerate() {
+        let mut f = self.le * self.we;
+        for (m, g) in self.gt.iter().enumerate() {
             f *= *g;
             if m >= 1 {
-                f *= f_inner(m);
+                f *= self.f_inner(m);
             }
         }
         let c = crate::spectrum::luminance(f) as f64 * w / p * (k + 2) as f64 / length_pmf(k);
@@ -560,61 +647,67 @@ pub(crate) fn bidirectional_sample(
         } else {
             0.0
         }
-    };
-    // photons at x_i, 1 <= i <= k - 1, from splits s <= i + 1
-    for i in s.saturating_sub(1).max(1)..k {
-        let split_pdf = |sp: usize| light_d(0, sp) * eye_d(sp, i + 1);
-        let cands: Vec<(usize, f64)> = (0..=i + 1).map(|sp| (sp, split_pdf(sp))).collect();
-        let w = power_weight(s, &cands);
-        let p = split_pdf(s);
-        if w <= 0.0 || p <= 0.0 {
-            continue;
-        }
-        // f_L(x_0 ... x_i) = L_e prod G T prod f-hat (x_i's own scattering not included)
-        let mut f = le;
-        for (m, g) in gt.iter().enumerate().take(i) {
-            f *= *g;
-            if m >= 1 {
-                f *= f_inner(m);
+    }
+
+    /// Photons at x_i, 1 <= i <= k - 1, from splits s <= i + 1.
+    fn photons(&self, s: usize, scale: f64, out: &mut ParticleSets) {
+        let (k, x) = (self.k, self.x);
+        for i in s.saturating_sub(1).max(1)..k {
+            let split_pdf = |sp: usize| self.light_d(0, sp) * self.eye_d(sp, i + 1);
+            let cands: Vec<(usize, f64)> = (0..=i + 1).map(|sp| (sp, split_pdf(sp))).collect();
+            let w = power_weight(s, &cands);
+            let p = split_pdf(s);
+            if w <= 0.0 || p <= 0.0 {
+                continue;
+            }
+            // f_L(x_0 ... x_i) = L_e prod G T prod f-hat (x_i's own scattering not included)
+            let mut f = self.le;
+            for (m, g) in self.gt.iter().enumerate().take(i) {
+                f *= *g;
+                if m >= 1 {
+                    f *= self.f_inner(m);
+                }
+            }
+            if f == Rgb::ZERO {
+                continue;
+            }
+            let a = (k + 2) as f64 / length_at_least(i + 1) * w / p * scale;
+            let towards = (x[i - 1].p - x[i].p).normalize_or_zero();
+            if let Some(ph) = particle_with(&x[i], towards, f * a as f32, i) {
+                out.photons.push(ph);
             }
         }
-        if f == Rgb::ZERO {
-            continue;
-        }
-        let a = (k + 2) as f64 / q_photon(i) * w / p * scale;
-        let towards = (x[i - 1].p - x[i].p).normalize_or_zero();
-        if let Some(ph) = particle_with(&x[i], towards, f * a as f32, i) {
-            out.photons.push(ph);
-        }
     }
-    // importons at x_i, 1 <= i <= k - 1, from splits s >= i (x_i ... x_k), j = k - i
-    for i in 1..=s.min(k - 1) {
-        let split_pdf = |sp: usize| light_d(i, sp) * eye_d(sp, k + 1);
-        let cands: Vec<(usize, f64)> = (i..=k).map(|sp| (sp, split_pdf(sp))).collect();
-        let w = power_weight(s, &cands);
-        let p = split_pdf(s);
-        if w <= 0.0 || p <= 0.0 {
-            continue;
-        }
-        // f_E(x_i ... x_k) = W_e prod G T prod f-hat (x_i's own scattering not included)
-        let mut f = we;
-        for (m, g) in gt.iter().enumerate().skip(i) {
-            f *= *g;
-            if m > i {
-                f *= f_inner(m);
+
+    /// Importons at x_i, 1 <= i <= k - 1, from splits s >= i (x_i ... x_k), j = k - i.
+    fn importons(&self, s: usize, scale: f64, out: &mut ParticleSets) {
+        let (k, x) = (self.k, self.x);
+        for i in 1..=s.min(k - 1) {
+            let split_pdf = |sp: usize| self.light_d(i, sp) * self.eye_d(sp, k + 1);
+            let cands: Vec<(usize, f64)> = (i..=k).map(|sp| (sp, split_pdf(sp))).collect();
+            let w = power_weight(s, &cands);
+            let p = split_pdf(s);
+            if w <= 0.0 || p <= 0.0 {
+                continue;
+            }
+            // f_E(x_i ... x_k) = W_e prod G T prod f-hat (x_i's own scattering not included)
+            let mut f = self.we;
+            for (m, g) in self.gt.iter().enumerate().skip(i) {
+                f *= *g;
+                if m > i {
+                    f *= self.f_inner(m);
+                }
+            }
+            if f == Rgb::ZERO {
+                continue;
+            }
+            let j = k - i;
+            let a = (k + 2) as f64 / length_at_least(j + 1) * w / p * scale;
+            // the importon's direction points towards the sensor: from x_i to x_{i+1}
+            let towards = (x[i + 1].p - x[i].p).normalize_or_zero();
+            if let Some(im) = particle_with(&x[i], towards, f * a as f32, j) {
+                out.importons.push(im);
             }
         }
-        if f == Rgb::ZERO {
-            continue;
-        }
-        let j = k - i;
-        let a = (k + 2) as f64 / length_at_least(j + 1) * w / p * scale;
-        // the importon's direction points towards the sensor: from x_i to x_{i+1}
-        let towards = (x[i + 1].p - x[i].p).normalize_or_zero();
-        if let Some(im) = particle_with(&x[i], towards, f * a as f32, j) {
-            out.importons.push(im);
-        }
     }
-    contribution
 }
-// ANCHOR_END: bidirectional_sample

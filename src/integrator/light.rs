@@ -10,6 +10,7 @@ use super::bdpt::{Bdpt, Strategies};
 use super::{Integrator, IntegratorError, Scratch, Setup};
 use crate::film::Film;
 use crate::math::Sampler;
+use crate::path::bidirectional::SensorStart;
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
@@ -43,8 +44,12 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
-        self.camera_subpath(scene, raster, sampler, &mut scratch.bdpt.eye);
-        self.light_subpath(scene, sampler, &mut scratch.bdpt.light);
+        self.sample(
+            scene,
+            SensorStart::Camera(raster),
+            sampler,
+            &mut scratch.bdpt,
+        );
         self.combine(scene, &scratch.bdpt, sampler, &mut scratch.splats)
     }
 
@@ -55,8 +60,7 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
-        self.meter_subpath(scene, meter, sampler, &mut scratch.bdpt.eye);
-        self.light_subpath(scene, sampler, &mut scratch.bdpt.light);
+        self.sample(scene, SensorStart::Meter(meter), sampler, &mut scratch.bdpt);
         self.combine(scene, &scratch.bdpt, sampler, &mut scratch.splats)
     }
 
@@ -91,8 +95,12 @@ pub fn strategy_images(
                 let mut sampler = Sampler::new(seed, index as u64, pass);
                 for _ in 0..spp {
                     let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                    b.camera_subpath(scene, raster, &mut sampler, &mut scratch.eye);
-                    b.light_subpath(scene, &mut sampler, &mut scratch.light);
+                    b.sample(
+                        scene,
+                        SensorStart::Camera(raster),
+                        &mut sampler,
+                        &mut scratch,
+                    );
                     for t in 1..=scratch.eye.len() {
                         for s in 0..=Bdpt::max_light_vertices(scene, &scratch.light) {
                             let depth = s + t;

@@ -69,7 +69,7 @@ impl PathTracer {
             pdf_dir: 1.0,
             singular: true,
         };
-        self.walk(scene, ray, medium, Rgb::ONE, 0, prev, sampler)
+        self.walk(scene, WalkState::new(ray, medium, Rgb::ONE, prev), sampler)
     }
 
     /// One sample of a meter's mean irradiance: a point uniform on the meter, then the meter
@@ -102,161 +102,219 @@ impl PathTracer {
             singular: false,
         };
         // f cos / pdf = cos / (cos / pi) = pi
-        l += self.walk(
-            scene,
+        let w = WalkState::new(
             Ray::new(p, wi),
             meter.medium,
             Rgb::splat(std::f32::consts::PI),
-            0,
             prev,
-            sampler,
         );
+        l += self.walk(scene, w, sampler);
         l
     }
 
-    /// The random walk from `ray` with throughput `beta` after `depth` scattering vertices.
+    /// The random walk from `w.ray` with throughput `w.beta` after `w.depth` scattering vertices.
     // ANCHOR: walk
-    #[allow(clippy::too_many_arguments)]
-    fn walk(
-        &self,
-        scene: &Scene,
-        mut ray: Ray,
-        mut medium: Option<u32>,
-        mut beta: Rgb,
-        mut depth: u32,
-        mut prev: Previous,
-        sampler: &mut Sampler,
-    ) -> Rgb {
+    fn walk(&self, scene: &Scene, mut w: WalkState, sampler: &mut Sampler) -> Rgb {
         let mut l = Rgb::ZERO;
-        // distance between the scattering vertex and the lifted ray origin
-        let mut lead = 0.0f32;
         loop {
             // propagation: Table 1 through media and null boundaries
-            let prop = scene.propagate(ray, lead, medium, sampler);
-            beta *= prop.weight();
-            if beta == Rgb::ZERO {
+            let prop = scene.propagate(w.ray, w.lead, w.medium, sampler);
+            w.beta *= prop.weight();
+            if w.beta == Rgb::ZERO {
                 break;
             }
-            match prop.event {
+            let go_on = match prop.event {
                 Event::Escape => {
-                    if let Some(e) = scene.environment {
-                        let crate::scene::Light::Environment(env) = &scene.lights[e as usize]
-                        else {
-                            break;
-                        };
-                        let w = if prev.singular {
-                            1.0
-                        } else {
-                            power_heuristic(prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
-                        };
-                        l += beta * env.radiance(ray.d) * w;
-                    }
-                    break;
+                    l += escaped(scene, &w);
+                    false
                 }
                 Event::Medium { p, medium: m, .. } => {
-                    if depth >= self.max_depth {
-                        break;
-                    }
-                    depth += 1;
-                    let phase = scene.media[m as usize].phase();
-                    let wo = -ray.d;
-                    // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
-                    l += beta
-                        * next_event(scene, p, None, Some(m), sampler, |wi| {
-                            let f = phase.eval(wo, wi);
-                            (Rgb::splat(f), f)
-                        });
-                    // no early stop here: a direction sampled at the last allowed vertex can still
-                    // reach an emitter, the MIS partner of the light sample above
-                    let ps = phase.sample(wo, sampler.next_2d());
-                    if ps.pdf <= 0.0 {
-                        break;
-                    }
-                    beta *= ps.value / ps.pdf;
-                    prev = Previous {
-                        p,
-                        pdf_dir: ps.pdf,
-                        singular: false,
-                    };
-                    ray = Ray::new(p, ps.wi);
-                    lead = 0.0;
-                    medium = Some(m);
+                    self.medium_vertex(scene, &mut w, p, m, sampler, &mut l)
                 }
                 Event::Surface { hit, medium: m } => {
-                    let shape = scene.shape_of(&hit);
-                    let n = hit.ng;
-                    if let Some(li) = shape.light {
-                        if ray.d.dot(n) < 0.0 {
-                            let crate::scene::Light::Area { radiance, .. } =
-                                &scene.lights[li as usize]
-                            else {
-                                break;
-                            };
-                            let w = if prev.singular {
-                                1.0
-                            } else {
-                                let pdf_light = scene.light_pmf(li)
-                                    * scene.lights[li as usize].pdf_li(
-                                        &scene.prims,
-                                        prev.p,
-                                        hit.p,
-                                        n,
-                                        hit.prim,
-                                    );
-                                power_heuristic(prev.pdf_dir, pdf_light)
-                            };
-                            l += beta * *radiance * w;
-                        }
-                    }
-                    let Some(bsdf) = &shape.bsdf else { break };
-                    if depth >= self.max_depth {
-                        break;
-                    }
-                    depth += 1;
-                    let wo = -ray.d;
-                    if !bsdf.is_singular() {
-                        l += beta
-                            * next_event(scene, hit.p, Some(n), m, sampler, |wi| {
-                                let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
-                                (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
-                            });
-                    }
-                    let u = sampler.next_2d();
-                    let uc = sampler.next_f32();
-                    let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
-                        break;
-                    };
-                    if bs.pdf <= 0.0 {
-                        break;
-                    }
-                    beta *= bs.weight(n);
-                    // crossing the surface (refraction) may change the medium
-                    if bs.wi.dot(n) * wo.dot(n) < 0.0 {
-                        medium = shape.medium_after(bs.wi, n, m);
-                    } else {
-                        medium = m;
-                    }
-                    prev = Previous {
-                        p: hit.p,
-                        pdf_dir: bs.pdf,
-                        singular: bs.lobe.is_singular(),
-                    };
-                    ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
-                    lead = (ray.o - hit.p).dot(bs.wi);
+                    self.surface_vertex(scene, &mut w, &hit, m, sampler, &mut l)
                 }
+            };
+            if !go_on {
+                break;
             }
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
-            if depth >= RR_START_DEPTH {
-                let q = beta.max_element().min(RR_MAX_SURVIVAL);
+            if w.depth >= RR_START_DEPTH {
+                let q = w.beta.max_element().min(RR_MAX_SURVIVAL);
                 if sampler.next_f32() >= q || q.is_nan() {
                     break;
                 }
-                beta /= q;
+                w.beta /= q;
             }
         }
         l
     }
     // ANCHOR_END: walk
+
+    /// A medium vertex at `p` in medium `m`: next-event estimation into `l`, then a direction
+    /// from the phase function; false ends the walk.
+    fn medium_vertex(
+        &self,
+        scene: &Scene,
+        w: &mut WalkState,
+        p: Vec3,
+        m: u32,
+        sampler: &mut Sampler,
+        l: &mut Rgb,
+    ) -> bool {
+        if w.depth >= self.max_depth {
+            return false;
+        }
+        w.depth += 1;
+        let phase = scene.media[m as usize].phase();
+        let wo = -w.ray.d;
+        // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
+        *l += w.beta
+            * next_event(scene, p, None, Some(m), sampler, |wi| {
+                let f = phase.eval(wo, wi);
+                (Rgb::splat(f), f)
+            });
+        // no early stop here: a direction sampled at the last allowed vertex can still
+        // reach an emitter, the MIS partner of the light sample above
+        let ps = phase.sample(wo, sampler.next_2d());
+        if ps.pdf <= 0.0 {
+            return false;
+        }
+        w.beta *= ps.value / ps.pdf;
+        w.prev = Previous {
+            p,
+            pdf_dir: ps.pdf,
+            singular: false,
+        };
+        w.ray = Ray::new(p, ps.wi);
+        w.lead = 0.0;
+        w.medium = Some(m);
+        true
+    }
+
+    /// A surface vertex at `hit` (medium `m` on the arriving side): emission found by chance
+    /// and next-event estimation into `l`, then a direction from the BSDF; false ends the walk.
+    fn surface_vertex(
+        &self,
+        scene: &Scene,
+        w: &mut WalkState,
+        hit: &crate::geometry::Hit,
+        m: Option<u32>,
+        sampler: &mut Sampler,
+        l: &mut Rgb,
+    ) -> bool {
+        let shape = scene.shape_of(hit);
+        let n = hit.ng;
+        if let Some(li) = shape.light {
+            if w.ray.d.dot(n) < 0.0 {
+                let Some(e) = emission_found(scene, w, hit, li) else {
+                    return false;
+                };
+                *l += e;
+            }
+        }
+        let Some(bsdf) = &shape.bsdf else {
+            return false;
+        };
+        if w.depth >= self.max_depth {
+            return false;
+        }
+        w.depth += 1;
+        let wo = -w.ray.d;
+        if !bsdf.is_singular() {
+            *l += w.beta
+                * next_event(scene, hit.p, Some(n), m, sampler, |wi| {
+                    let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
+                    (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+                });
+        }
+        let u = sampler.next_2d();
+        let uc = sampler.next_f32();
+        let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+            return false;
+        };
+        if bs.pdf <= 0.0 {
+            return false;
+        }
+        w.beta *= bs.weight(n);
+        // crossing the surface (refraction) may change the medium
+        if bs.wi.dot(n) * wo.dot(n) < 0.0 {
+            w.medium = shape.medium_after(bs.wi, n, m);
+        } else {
+            w.medium = m;
+        }
+        w.prev = Previous {
+            p: hit.p,
+            pdf_dir: bs.pdf,
+            singular: bs.lobe.is_singular(),
+        };
+        w.ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
+        w.lead = (w.ray.o - hit.p).dot(bs.wi);
+        true
+    }
+}
+
+/// The state a path-tracing walk carries from vertex to vertex.
+struct WalkState {
+    ray: Ray,
+    medium: Option<u32>,
+    beta: Rgb,
+    /// Scattering vertices so far.
+    depth: u32,
+    prev: Previous,
+    /// Distance between the scattering vertex and the lifted ray origin.
+    lead: f32,
+}
+
+impl WalkState {
+    /// A walk along `ray` in `medium` with throughput `beta`, after the scattering at `prev`.
+    fn new(ray: Ray, medium: Option<u32>, beta: Rgb, prev: Previous) -> Self {
+        WalkState {
+            ray,
+            medium,
+            beta,
+            depth: 0,
+            prev,
+            lead: 0.0,
+        }
+    }
+}
+
+/// The environment's radiance for a walk that escaped, MIS-weighted against light sampling.
+fn escaped(scene: &Scene, w: &WalkState) -> Rgb {
+    let Some(e) = scene.environment else {
+        return Rgb::ZERO;
+    };
+    let crate::scene::Light::Environment(env) = &scene.lights[e as usize] else {
+        return Rgb::ZERO;
+    };
+    let mis = if w.prev.singular {
+        1.0
+    } else {
+        power_heuristic(w.prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
+    };
+    w.beta * env.radiance(w.ray.d) * mis
+}
+
+/// The area light `li`'s radiance found by chance at `hit`, MIS-weighted against light
+/// sampling; `None` when `li` is not an area light (the walk ends).
+fn emission_found(
+    scene: &Scene,
+    w: &WalkState,
+    hit: &crate::geometry::Hit,
+    li: u32,
+) -> Option<Rgb> {
+    let crate::scene::Light::Area { radiance, .. } = &scene.lights[li as usize] else {
+        return None;
+    };
+    let mis = if w.prev.singular {
+        1.0
+    } else {
+        let pdf_light = scene.light_pmf(li)
+            * scene.lights[li as usize].pdf_li(&scene.prims, w.prev.p, hit.p, hit.ng, hit.prim);
+        power_heuristic(w.prev.pdf_dir, pdf_light)
+    };
+    Some(w.beta * *radiance * mis)
 }
 
 /// The direct image of every delta light (point, spot, directional) on the pinhole camera's

@@ -64,6 +64,19 @@ struct Connection {
     raster: Option<Vec2>,
 }
 
+/// Strategy (s, t) of one joined path, for its MIS weight: the endpoint sampled for the
+/// connection (s = 1 or t = 1), if any, and the connection edge's propagation pdfs (Table 1)
+/// from the light side (`pdf_qp`) and from the eye side (`pdf_pq`), which every other split of
+/// the path needs for its density (Veach 1997, sec. 10.2).
+#[derive(Clone, Copy, Debug)]
+pub struct Join {
+    pub s: usize,
+    pub t: usize,
+    pub sampled: Option<Vertex>,
+    pub pdf_qp: f32,
+    pub pdf_pq: f32,
+}
+
 /// Where a random walk starts: its first ray and medium, the throughput so far, how its first
 /// vertex's density is measured, the quantity it carries and how many vertices it may hold.
 struct WalkStart {
@@ -83,6 +96,38 @@ struct Walk {
     beta: Rgb,
     origin_in_medium: bool,
     lead: f32,
+    /// The solid-angle density of the direction just sampled (0 before a perpendicular start).
+    pdf_dir: f32,
+    /// True until the first vertex after the origin is recorded.
+    first_edge: bool,
+    /// The throughput at the start, against which Russian roulette compares.
+    beta_start: f32,
+}
+
+impl Walk {
+    /// The state of a walk from `start` continuing `path` (whose last vertex is its origin).
+    fn new(start: &WalkStart, path: &[Vertex]) -> Self {
+        let pdf_dir = match start.first {
+            FirstPdf::SolidAngle(p) => p,
+            FirstPdf::Perpendicular(_) => 0.0,
+        };
+        let beta_start = start.beta.max_element().max(f32::MIN_POSITIVE);
+        let origin_in_medium = path.last().is_some_and(Vertex::is_medium);
+        // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
+        let lead = path
+            .last()
+            .map_or(0.0, |v| (start.ray.o - v.p).dot(start.ray.d).max(0.0));
+        Walk {
+            ray: start.ray,
+            medium: start.medium,
+            beta: start.beta,
+            origin_in_medium,
+            lead,
+            pdf_dir,
+            first_edge: true,
+            beta_start,
+        }
+    }
 }
 
 /// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
@@ -99,6 +144,14 @@ fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<V
         None,
         None,
     ))
+}
+
+/// Where a BDPT sample's eye subpath starts: the pinhole through a raster position, or a
+/// point on an irradiance meter (the two sensors of the path integral's measurement, eq. 5).
+#[derive(Clone, Copy, Debug)]
+pub enum SensorStart {
+    Camera(Vec2),
+    Meter(u32),
 }
 
 /// Reusable per-thread storage, so no sample allocates.
@@ -182,118 +235,125 @@ impl<'t> Bdpt<'t> {
         path: &mut Vec<Vertex>,
         sampler: &mut Sampler,
     ) {
-        let WalkStart {
-            ray,
-            medium,
-            beta,
-            first,
-            mode,
-            max_vertices,
-        } = start;
-        let mut pdf_dir = match first {
-            FirstPdf::SolidAngle(p) => p,
-            FirstPdf::Perpendicular(_) => 0.0,
-        };
-        let mut first_edge = true;
-        let beta_start = beta.max_element().max(f32::MIN_POSITIVE);
-        let origin_in_medium = path.last().is_some_and(Vertex::is_medium);
-        // distance between the last vertex and the lifted ray origin (see `Scene::propagate`)
-        let lead = path
-            .last()
-            .map_or(0.0, |v| (ray.o - v.p).dot(ray.d).max(0.0));
-        let mut w = Walk {
-            ray,
-            medium,
-            beta,
-            origin_in_medium,
-            lead,
-        };
-        while path.len() < max_vertices {
-            let prev = path.len() - 1;
-            let prop =
-                scene.propagate_bidirectional(w.ray, w.lead, w.medium, w.origin_in_medium, sampler);
-            // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
-            // the vertex scatters below and in every connection through it
-            if prop.pdf <= 0.0 {
+        let mut w = Walk::new(&start, path);
+        while path.len() < start.max_vertices {
+            if Self::next_vertex(scene, &start, &mut w, path, sampler).is_none() {
                 return;
             }
-            w.beta *= prop.transmittance / prop.pdf;
-            if w.beta == Rgb::ZERO {
+            if path.len() >= start.max_vertices {
                 return;
             }
-            let mut v = match prop.event {
-                Event::Escape => {
-                    if let Some(mut v) = environment_vertex(scene, &w.ray, mode) {
-                        v.beta = w.beta;
-                        v.pdf_fwd = pdf_dir * prop.pdf;
-                        v.prop_rev = prop.pdf_rev;
-                        path.push(v);
-                    }
-                    return;
-                }
-                Event::Medium { p, medium: m, .. } => Vertex::new(
-                    VertexKind::Medium { medium: m },
-                    p,
-                    Vec3::ZERO,
-                    Some(m),
-                    Some(m),
-                ),
-                Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
-            };
-            v.beta = w.beta;
-            let density = match (first, first_edge) {
-                (FirstPdf::Perpendicular(p), true) => {
-                    p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
-                }
-                _ => to_area(pdf_dir, &path[prev], &v),
-            };
-            v.pdf_fwd = density * prop.pdf;
-            v.prop_rev = prop.pdf_rev;
-            first_edge = false;
-            path.push(v);
-            if path.len() >= max_vertices {
+            if self
+                .scatter_last(scene, start.mode, &mut w, path, sampler)
+                .is_none()
+            {
                 return;
-            }
-            let cur = path.len() - 1;
-            let wo = -w.ray.d;
-            // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
-            // 5.19 and their medium extension), with the density of the reverse walk
-            let Some(ss) = self.tech.sample_scatter(scene, &v, wo, mode, sampler) else {
-                return;
-            };
-            if ss.pdf <= 0.0 {
-                return;
-            }
-            let reverse = match mode {
-                TransportMode::Radiance => TransportMode::Importance,
-                TransportMode::Importance => TransportMode::Radiance,
-            };
-            let Some((pdf_fwd_dir, pdf_rev_dir, lobe, delta)) =
-                self.scatter(scene, &v, &ss, wo, reverse, &mut w)
-            else {
-                return;
-            };
-            path[cur].lobe = lobe;
-            if delta {
-                path[cur].delta = true;
-            }
-            pdf_dir = pdf_fwd_dir;
-            // the predecessor as sampled from here (the reverse walk)
-            path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
-            // Russian roulette on the scattering throughput (not on L_e / p of the origin)
-            if self.roulette && cur as u32 >= RR_START_DEPTH {
-                let ratio = w.beta.max_element() / beta_start;
-                let q = (self.tech)
-                    .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
-                    .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
-                if sampler.next_f32() >= q || q.is_nan() {
-                    return;
-                }
-                w.beta /= q;
             }
         }
     }
     // ANCHOR_END: random_walk
+
+    /// Propagates the walk `w` to its next vertex and records it on `path` with its throughput
+    /// and forward density (Table 1's propagation pdf included); `None` ends the walk (an
+    /// escape records the environment's vertex first).
+    fn next_vertex(
+        scene: &Scene,
+        start: &WalkStart,
+        w: &mut Walk,
+        path: &mut Vec<Vertex>,
+        sampler: &mut Sampler,
+    ) -> Option<()> {
+        let prev = path.len() - 1;
+        let prop =
+            scene.propagate_bidirectional(w.ray, w.lead, w.medium, w.origin_in_medium, sampler);
+        // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
+        // the vertex scatters below and in every connection through it
+        if prop.pdf <= 0.0 {
+            return None;
+        }
+        w.beta *= prop.transmittance / prop.pdf;
+        if w.beta == Rgb::ZERO {
+            return None;
+        }
+        let mut v = match prop.event {
+            Event::Escape => {
+                if let Some(mut v) = environment_vertex(scene, &w.ray, start.mode) {
+                    v.beta = w.beta;
+                    v.pdf_fwd = w.pdf_dir * prop.pdf;
+                    v.prop_rev = prop.pdf_rev;
+                    path.push(v);
+                }
+                return None;
+            }
+            Event::Medium { p, medium: m, .. } => Vertex::new(
+                VertexKind::Medium { medium: m },
+                p,
+                Vec3::ZERO,
+                Some(m),
+                Some(m),
+            ),
+            Event::Surface { hit, medium: m } => Vertex::on_surface(scene, &hit, m),
+        };
+        v.beta = w.beta;
+        let density = match (start.first, w.first_edge) {
+            (FirstPdf::Perpendicular(p), true) => {
+                p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
+            }
+            _ => to_area(w.pdf_dir, &path[prev], &v),
+        };
+        v.pdf_fwd = density * prop.pdf;
+        v.prop_rev = prop.pdf_rev;
+        w.first_edge = false;
+        path.push(v);
+        Some(())
+    }
+
+    /// Scatters the walk `w` at the last vertex of `path`: the technique's direction, the
+    /// vertex's lobe, the predecessor's reverse density and Russian roulette; `None` ends it.
+    fn scatter_last(
+        &self,
+        scene: &Scene,
+        mode: TransportMode,
+        w: &mut Walk,
+        path: &mut [Vertex],
+        sampler: &mut Sampler,
+    ) -> Option<()> {
+        let cur = path.len() - 1;
+        let prev = cur - 1;
+        let v = path[cur];
+        let wo = -w.ray.d;
+        // the BSDF or phase function, or the guided mixture (Kristensen 2010, eqs. 5.18,
+        // 5.19 and their medium extension), with the density of the reverse walk
+        let ss = self.tech.sample_scatter(scene, &v, wo, mode, sampler)?;
+        if ss.pdf <= 0.0 {
+            return None;
+        }
+        let reverse = match mode {
+            TransportMode::Radiance => TransportMode::Importance,
+            TransportMode::Importance => TransportMode::Radiance,
+        };
+        let (pdf_fwd_dir, pdf_rev_dir, lobe, delta) =
+            self.scatter(scene, &v, &ss, wo, reverse, w)?;
+        path[cur].lobe = lobe;
+        if delta {
+            path[cur].delta = true;
+        }
+        w.pdf_dir = pdf_fwd_dir;
+        // the predecessor as sampled from here (the reverse walk)
+        path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
+        // Russian roulette on the scattering throughput (not on L_e / p of the origin)
+        if self.roulette && cur as u32 >= RR_START_DEPTH {
+            let ratio = w.beta.max_element() / w.beta_start;
+            let q = (self.tech)
+                .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
+                .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
+            if sampler.next_f32() >= q || q.is_nan() {
+                return None;
+            }
+            w.beta /= q;
+        }
+        Some(())
+    }
 
     /// One scattering step of a walk at vertex `v` with sample `ss`: the throughput, the next
     /// ray and its medium, and the direction densities forward and (for `reverse`) backward,
@@ -333,6 +393,26 @@ impl<'t> Bdpt<'t> {
             }
             _ => return None,
         })
+    }
+
+    /// One BDPT sample's two subpaths into `scratch`: the eye subpath from `start`, then a
+    /// light subpath (Veach 1997 sec. 10.2), in this order of random numbers. The integrators,
+    /// MLT's bootstrap and the adjoint image's pre-pass all draw their samples here, so their
+    /// streams agree by construction; the strategies are then combined by the caller.
+    pub fn sample(
+        &self,
+        scene: &Scene,
+        start: SensorStart,
+        sampler: &mut Sampler,
+        scratch: &mut Scratch,
+    ) {
+        match start {
+            SensorStart::Camera(raster) => {
+                self.camera_subpath(scene, raster, sampler, &mut scratch.eye)
+            }
+            SensorStart::Meter(m) => self.meter_subpath(scene, m, sampler, &mut scratch.eye),
+        }
+        self.light_subpath(scene, sampler, &mut scratch.light);
     }
 
     /// The eye subpath from the camera through raster position `raster`.
@@ -508,19 +588,15 @@ impl<'t> Bdpt<'t> {
     /// `eye[..t]`, with `sampled` replacing the endpoint that was sampled for the connection
     /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
     // ANCHOR: mis_weight
-    #[allow(clippy::too_many_arguments)]
-    pub fn mis_weight(
-        &self,
-        scene: &Scene,
-        light: &[Vertex],
-        eye: &[Vertex],
-        sampled: Option<Vertex>,
-        s: usize,
-        t: usize,
-        conn_pdf_qp: f32,
-        conn_pdf_pq: f32,
-    ) -> f32 {
+    pub fn mis_weight(&self, scene: &Scene, light: &[Vertex], eye: &[Vertex], join: Join) -> f32 {
         use TransportMode::{Importance, Radiance};
+        let Join {
+            s,
+            t,
+            sampled,
+            pdf_qp: conn_pdf_qp,
+            pdf_pq: conn_pdf_pq,
+        } = join;
         let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
         // copies of the four vertices whose reverse densities the connection changes
         let mut qs = if s > 0 {
@@ -732,7 +808,14 @@ impl<'t> Bdpt<'t> {
             };
         }
         if self.strategies == Strategies::All {
-            l *= self.mis_weight(scene, light, eye, sampled, s, t, pdf_qp, pdf_pq);
+            let join = Join {
+                s,
+                t,
+                sampled,
+                pdf_qp,
+                pdf_pq,
+            };
+            l *= self.mis_weight(scene, light, eye, join);
         }
         Some((l, raster, sampled))
     }
@@ -776,38 +859,7 @@ impl<'t> Bdpt<'t> {
         if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
             return None;
         }
-        let light_ref = &scene.lights[li];
-        let lm = self.light_media[li];
-        let mut v = match light_ref {
-            Light::Area { .. } => Vertex::new(
-                VertexKind::Light {
-                    light: li as u32,
-                    prim: start_prim,
-                },
-                ls.p,
-                ls.n,
-                lm,
-                lm,
-            ),
-            Light::Point { .. } | Light::Spot { .. } => Vertex::new(
-                VertexKind::Light {
-                    light: li as u32,
-                    prim: None,
-                },
-                ls.p,
-                Vec3::ZERO,
-                lm,
-                lm,
-            ),
-            _ => Vertex::new(
-                VertexKind::InfiniteLight { light: li as u32 },
-                pt.p + ls.wi * (4.0 * scene.radius + (pt.p - scene.center).length()),
-                Vec3::ZERO,
-                None,
-                None,
-            ),
-        };
-        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        let mut v = self.light_sample_vertex(scene, li, &ls, start_prim, pt.p);
         v.beta = ls.value / sel_pdf;
         let f = if t == 1 {
             // the sensor itself: W_e over the density of its point (1 for the pinhole, whose
@@ -850,6 +902,52 @@ impl<'t> Bdpt<'t> {
             sampled: Some(v),
             raster,
         })
+    }
+
+    /// The light vertex of next-event estimation's sample `ls` of light `li` (seen from
+    /// `p_ref`; on primitive `start_prim` of an area light), with its origin density; an
+    /// infinite light's vertex is placed beyond the scene along the sampled direction.
+    fn light_sample_vertex(
+        &self,
+        scene: &Scene,
+        li: usize,
+        ls: &crate::scene::light::LightSample,
+        start_prim: Option<u32>,
+        p_ref: Vec3,
+    ) -> Vertex {
+        let light_ref = &scene.lights[li];
+        let lm = self.light_media[li];
+        let mut v = match light_ref {
+            Light::Area { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: start_prim,
+                },
+                ls.p,
+                ls.n,
+                lm,
+                lm,
+            ),
+            Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: None,
+                },
+                ls.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            _ => Vertex::new(
+                VertexKind::InfiniteLight { light: li as u32 },
+                p_ref + ls.wi * (4.0 * scene.radius + (p_ref - scene.center).length()),
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+        };
+        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        v
     }
 
     /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
@@ -1095,5 +1193,12 @@ pub fn mis_weight_of_path(
     } else {
         (1.0, 1.0)
     };
-    bdpt.mis_weight(scene, &light, &eye, None, s, t, qp, pq)
+    let join = Join {
+        s,
+        t,
+        sampled: None,
+        pdf_qp: qp,
+        pdf_pq: pq,
+    };
+    bdpt.mis_weight(scene, &light, &eye, join)
 }

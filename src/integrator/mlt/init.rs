@@ -56,17 +56,18 @@ fn run_sample(
     let mut sampler = Sampler::new(seed, BOOTSTRAP_STREAM_SALT ^ sample, 0);
     let u = sampler.next_2d();
     let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
-    let (mut eye, mut light) = (Vec::new(), Vec::new());
-    bdpt.camera_subpath(scene, raster, &mut sampler, &mut eye);
-    bdpt.light_subpath(scene, &mut sampler, &mut light);
+    let mut walks = crate::path::bidirectional::Scratch::default();
+    let start = crate::path::bidirectional::SensorStart::Camera(raster);
+    bdpt.sample(scene, start, &mut sampler, &mut walks);
+    let (light, eye) = (&walks.light, &walks.eye);
     bdpt.for_each_strategy(
         scene,
-        &light,
-        &eye,
+        light,
+        eye,
         &mut sampler,
         &mut |s, t, l, splat, sampled| {
-            let path = (want_path == Some((s, t)))
-                .then(|| joined_path(scene, &light, &eye, s, t, sampled));
+            let path =
+                (want_path == Some((s, t))).then(|| joined_path(scene, light, eye, s, t, sampled));
             visit(s, t, l, splat.is_some(), path)
         },
     );
