@@ -489,7 +489,9 @@ fn external_images_are_read_in_time_order() {
     );
     assert!(rows[0].relmse > rows[1].relmse);
     image_io::write_exr(&dir.join("unnamed.exr"), &exact(1.0), &ImageMeta::default()).unwrap();
-    let err = convergence::external_rows("peer", &dir, &reference).unwrap_err();
+    let err = convergence::external_rows("peer", &dir, &reference)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("seconds"), "{err}");
 }
 

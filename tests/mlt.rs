@@ -239,7 +239,9 @@ fn merge_weights_renders_by_their_sample_counts() {
 
 #[test]
 fn bad_mlt_settings_are_clear_errors() {
-    let err = MltSettings::parse_weights("bidirectional=1,lens=3").unwrap_err();
+    let err = MltSettings::parse_weights("bidirectional=1,lens=3")
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("unknown mutation `lens`"), "{err}");
     let text =
         pathspace::scene::FOG_BOX.replace("seed = 1", "seed = 1\n\n[render.mlt]\nchains = 0");

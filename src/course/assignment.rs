@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use clap::{Args, Subcommand};
 
-use crate::course::{self, Assignment, Tree};
+use crate::course::{self, Assignment, CourseError, Tree};
 
 /// Leaked lines listed by `make` before it gives up.
 const MAX_LEAKS_SHOWN: usize = 40;
@@ -69,8 +69,59 @@ pub fn run(args: AssignmentArgs, embedded: &[(&str, &[u8])]) -> Result<(), Strin
             list();
             Ok(())
         }
-        AssignmentCommand::Make(a) => make(a, embedded),
-        AssignmentCommand::Check(a) => check(a),
+        AssignmentCommand::Make(a) => Ok(make(a, embedded)?),
+        AssignmentCommand::Check(a) => Ok(check(a)?),
+    }
+}
+
+/// Why `pathspace assignment make` or `check` stops; the messages are what the command prints.
+#[derive(Debug, thiserror::Error)]
+pub enum AssignmentError {
+    /// The tree cannot be read, checked, blanked or written.
+    #[error(transparent)]
+    Course(#[from] CourseError),
+    /// No `--from` and no embedded tree, and the crate the binary was built from is gone (the
+    /// cause, that crate's directory).
+    #[error(
+        "{0}: the binary was built from {1} and carries no source tree \
+         (feature `embed-source`); pass --from CRATE_DIR"
+    )]
+    NoSourceTree(#[source] CourseError, String),
+    /// `make` without a name and without `--all`.
+    #[error("name at least one assignment (or --all); `pathspace assignment list` shows them")]
+    NoName,
+    /// `make` with a name that is no assignment.
+    #[error("no assignment `{0}`; `pathspace assignment list` shows them")]
+    Unknown(String),
+    /// `check --only` with a name that is no assignment.
+    #[error("no assignment `{0}`")]
+    UnknownOnly(String),
+    /// Solution text outside the marked regions (how many lines, the first ones shown).
+    #[error(
+        "the copy would still contain solution text ({0} lines; move it into the marked \
+         region or reword it):\n{1}"
+    )]
+    Leaks(usize, String),
+    /// A path that cannot be resolved, created or written (the path, the cause).
+    #[error("{0}: {1}")]
+    Io(String, #[source] std::io::Error),
+    /// The target directory builds another copy (the directory, its owner, this copy).
+    #[error(
+        "target directory {0} builds the copy {1}; give {2} its own (copies of the crate \
+         share artifact names, so one could be graded with the other's build)"
+    )]
+    TargetOwned(String, String, String),
+    /// cargo could not be started.
+    #[error("cannot run cargo: {0}")]
+    Cargo(#[source] std::io::Error),
+    /// Some assignments did not pass (how many failed, of how many).
+    #[error("{0} of {1} assignments failed")]
+    Failed(usize, usize),
+}
+
+impl From<AssignmentError> for String {
+    fn from(e: AssignmentError) -> Self {
+        e.to_string()
     }
 }
 
@@ -98,18 +149,13 @@ fn list() {
     }
 }
 
-fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
+fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentError> {
     let tree: Tree = match &args.from {
         Some(dir) => course::read_tree(dir)?,
         None if embedded.is_empty() => {
             let built_from = Path::new(env!("CARGO_MANIFEST_DIR"));
-            course::read_tree(built_from).map_err(|e| {
-                format!(
-                    "{e}: the binary was built from {} and carries no source tree \
-                     (feature `embed-source`); pass --from CRATE_DIR",
-                    built_from.display()
-                )
-            })?
+            course::read_tree(built_from)
+                .map_err(|e| AssignmentError::NoSourceTree(e, built_from.display().to_string()))?
         }
         None => embedded
             .iter()
@@ -120,18 +166,11 @@ fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
         course::ASSIGNMENTS.iter().collect()
     } else {
         if args.names.is_empty() {
-            return Err(
-                "name at least one assignment (or --all); `pathspace assignment list` shows them"
-                    .to_string(),
-            );
+            return Err(AssignmentError::NoName);
         }
         args.names
             .iter()
-            .map(|n| {
-                course::find(n).ok_or_else(|| {
-                    format!("no assignment `{n}`; `pathspace assignment list` shows them")
-                })
-            })
+            .map(|n| course::find(n).ok_or_else(|| AssignmentError::Unknown(n.clone())))
             .collect::<Result<_, _>>()?
     };
     let copy = course::student_copy(&tree, &chosen)?;
@@ -142,12 +181,7 @@ fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
             .take(MAX_LEAKS_SHOWN)
             .map(|(name, file, line, text)| format!("  {name}: {file}:{line}: `{text}`"))
             .collect();
-        return Err(format!(
-            "the copy would still contain solution text ({} lines; move it into the marked \
-             region or reword it):\n{}",
-            leaks.len(),
-            shown.join("\n")
-        ));
+        return Err(AssignmentError::Leaks(leaks.len(), shown.join("\n")));
     }
     course::write_copy(&copy, &args.out)?;
     for a in &chosen {
@@ -210,25 +244,26 @@ const TARGET_OWNER_FILE: &str = "pathspace-assignment-copy.txt";
 
 /// Records `dir` as the only copy built in target directory `t`, or refuses when another copy
 /// owns it.
-fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), String> {
+fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), AssignmentError> {
+    let io = |p: &Path| {
+        let p = p.display().to_string();
+        move |e| AssignmentError::Io(p, e)
+    };
     let me = std::fs::canonicalize(dir)
-        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .map_err(io(dir))?
         .to_string_lossy()
         .to_string();
     let owner_file = t.join(TARGET_OWNER_FILE);
     match std::fs::read_to_string(&owner_file) {
-        Ok(owner) if owner.trim() != me => Err(format!(
-            "target directory {} builds the copy {}; give {} its own (copies of the crate \
-             share artifact names, so one could be graded with the other's build)",
-            t.display(),
-            owner.trim(),
-            me
+        Ok(owner) if owner.trim() != me => Err(AssignmentError::TargetOwned(
+            t.display().to_string(),
+            owner.trim().to_string(),
+            me,
         )),
         Ok(_) => Ok(()),
         Err(_) => {
-            std::fs::create_dir_all(t).map_err(|e| format!("{}: {e}", t.display()))?;
-            std::fs::write(&owner_file, format!("{me}\n"))
-                .map_err(|e| format!("{}: {e}", owner_file.display()))
+            std::fs::create_dir_all(t).map_err(io(t))?;
+            std::fs::write(&owner_file, format!("{me}\n")).map_err(io(&owner_file))
         }
     }
 }
@@ -242,15 +277,15 @@ fn passed_count(out: &str) -> usize {
         .sum()
 }
 
-fn check(args: CheckArgs) -> Result<(), String> {
+fn check(args: CheckArgs) -> Result<(), AssignmentError> {
     if !args.dir.join("Cargo.toml").is_file() {
-        return Err(format!("{} holds no Cargo.toml", args.dir.display()));
+        return Err(CourseError::NoCargoToml(args.dir.display().to_string()).into());
     }
     if let Some(t) = &args.target_dir {
         claim_target_dir(t, &args.dir)?;
     }
     let chosen: Vec<&Assignment> = match &args.only {
-        Some(n) => vec![course::find(n).ok_or_else(|| format!("no assignment `{n}`"))?],
+        Some(n) => vec![course::find(n).ok_or_else(|| AssignmentError::UnknownOnly(n.clone()))?],
         None => course::ASSIGNMENTS.iter().collect(),
     };
     let build_ok = build_graded(&args, &chosen)?;
@@ -287,17 +322,13 @@ fn check(args: CheckArgs) -> Result<(), String> {
     if passed == chosen.len() {
         Ok(())
     } else {
-        Err(format!(
-            "{} of {} assignments failed",
-            chosen.len() - passed,
-            chosen.len()
-        ))
+        Err(AssignmentError::Failed(chosen.len() - passed, chosen.len()))
     }
 }
 
 /// Builds every graded test binary of `chosen` in one cargo call (in parallel, and once);
 /// false when the copy does not compile.
-fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, String> {
+fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, AssignmentError> {
     let mut files: Vec<&str> = chosen
         .iter()
         .flat_map(|a| a.tests.iter().map(|t| t.file))
@@ -310,9 +341,7 @@ fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, String
     for f in &files {
         build.arg("--test").arg(f);
     }
-    let built = build
-        .output()
-        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    let built = build.output().map_err(AssignmentError::Cargo)?;
     let build_ok = built.status.success();
     if !build_ok {
         eprintln!("{}", String::from_utf8_lossy(&built.stderr));
@@ -322,7 +351,7 @@ fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, String
 
 /// Runs an assignment's graded tests file by file, stopping at the first file that does not
 /// pass.
-fn grade(args: &CheckArgs, a: &Assignment) -> Result<Outcome, String> {
+fn grade(args: &CheckArgs, a: &Assignment) -> Result<Outcome, AssignmentError> {
     let mut outcome = Outcome::Passed;
     for file in a
         .tests
@@ -339,7 +368,7 @@ fn grade(args: &CheckArgs, a: &Assignment) -> Result<Outcome, String> {
 }
 
 /// The outcome of an assignment's graded tests in one test file.
-fn grade_file(args: &CheckArgs, a: &Assignment, file: &str) -> Result<Outcome, String> {
+fn grade_file(args: &CheckArgs, a: &Assignment, file: &str) -> Result<Outcome, AssignmentError> {
     let names: Vec<&str> = a
         .tests
         .iter()
@@ -349,7 +378,7 @@ fn grade_file(args: &CheckArgs, a: &Assignment, file: &str) -> Result<Outcome, S
     let mut c = cargo(&args.dir, args);
     c.arg("--test").arg(file).arg("--").arg("--exact");
     c.args(&names);
-    let o = c.output().map_err(|e| format!("cannot run cargo: {e}"))?;
+    let o = c.output().map_err(AssignmentError::Cargo)?;
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&o.stdout),

@@ -297,24 +297,81 @@ pub struct Region {
     pub body: Vec<String>,
 }
 
+/// A malformed assignment marker in a source text (the line numbers are 1-based).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MarkerError {
+    /// A region opened inside another (the line, the open region's name and first line).
+    #[error("line {0}: `{begin}` inside assignment `{1}` opened on line {2}", begin = BEGIN)]
+    Nested(usize, String, usize),
+    /// An opening marker without a name.
+    #[error("line {0}: `{begin}` without a name", begin = BEGIN)]
+    NoName(usize),
+    /// A closing marker without a region open.
+    #[error("line {0}: `{end}` without `{begin}`", end = END, begin = BEGIN)]
+    EndWithoutBegin(usize),
+    /// A region still open at the end of the text (its name, its first line).
+    #[error("assignment `{0}` opened on line {1} is never closed by `{end}`", end = END)]
+    Unclosed(String, usize),
+}
+
+/// Why a course tree cannot be read, checked, blanked or written; the messages are what
+/// `pathspace assignment` prints.
+#[derive(Debug, thiserror::Error)]
+pub enum CourseError {
+    /// A malformed marker in a file (its path, the marker's fault).
+    #[error("{0}: {1}")]
+    Marker(String, #[source] MarkerError),
+    /// The registry and the markers disagree: every problem, one a line.
+    #[error("{}", .0.join("\n"))]
+    Registry(Vec<String>),
+    /// A file with assignments that is not UTF-8.
+    #[error("{0} is not UTF-8")]
+    NotUtf8(String),
+    /// A directory without a crate.
+    #[error("{0} holds no Cargo.toml")]
+    NoCargoToml(String),
+    /// The copy's target holds files already.
+    #[error("{0} exists and is not empty; choose a new directory")]
+    NotEmpty(String),
+    /// A file that cannot be read (its path, the cause).
+    #[error("cannot read {0}: {1}")]
+    Read(String, #[source] std::io::Error),
+    /// A directory that cannot be created (its path, the cause).
+    #[error("cannot create {0}: {1}")]
+    Create(String, #[source] std::io::Error),
+    /// A file that cannot be written (its path, the cause).
+    #[error("cannot write {0}: {1}")]
+    Write(String, #[source] std::io::Error),
+    /// A directory that cannot be listed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+impl From<CourseError> for String {
+    fn from(e: CourseError) -> Self {
+        e.to_string()
+    }
+}
+
+impl From<MarkerError> for String {
+    fn from(e: MarkerError) -> Self {
+        e.to_string()
+    }
+}
+
 /// The marked regions of a source text, or a description of a malformed marker.
-pub fn regions(text: &str) -> Result<Vec<Region>, String> {
+pub fn regions(text: &str) -> Result<Vec<Region>, MarkerError> {
     let mut out = Vec::new();
     let mut open: Option<Region> = None;
     for (i, line) in text.lines().enumerate() {
         let trimmed = line.trim_start();
         if let Some(rest) = trimmed.strip_prefix(BEGIN) {
             if let Some(r) = &open {
-                return Err(format!(
-                    "line {}: `{BEGIN}` inside assignment `{}` opened on line {}",
-                    i + 1,
-                    r.name,
-                    r.begin
-                ));
+                return Err(MarkerError::Nested(i + 1, r.name.clone(), r.begin));
             }
             let name = rest.split_whitespace().next().unwrap_or("").to_string();
             if name.is_empty() {
-                return Err(format!("line {}: `{BEGIN}` without a name", i + 1));
+                return Err(MarkerError::NoName(i + 1));
             }
             open = Some(Region {
                 name,
@@ -324,7 +381,7 @@ pub fn regions(text: &str) -> Result<Vec<Region>, String> {
             });
         } else if trimmed.starts_with(END) {
             let Some(mut r) = open.take() else {
-                return Err(format!("line {}: `{END}` without `{BEGIN}`", i + 1));
+                return Err(MarkerError::EndWithoutBegin(i + 1));
             };
             r.end = i + 1;
             out.push(r);
@@ -333,10 +390,7 @@ pub fn regions(text: &str) -> Result<Vec<Region>, String> {
         }
     }
     if let Some(r) = open {
-        return Err(format!(
-            "assignment `{}` opened on line {} is never closed by `{END}`",
-            r.name, r.begin
-        ));
+        return Err(MarkerError::Unclosed(r.name, r.begin));
     }
     Ok(out)
 }
@@ -351,7 +405,7 @@ pub fn todo_line(a: &Assignment) -> String {
 
 /// `text` with the regions of the chosen assignments replaced by their `todo!()` (the marker
 /// lines stay, so the student sees where to write), and the removed lines.
-pub fn blank(text: &str, chosen: &[&Assignment]) -> Result<(String, Vec<String>), String> {
+pub fn blank(text: &str, chosen: &[&Assignment]) -> Result<(String, Vec<String>), MarkerError> {
     regions(text)?; // reject malformed markers first
     let mut out = String::with_capacity(text.len());
     let mut removed = Vec::new();
@@ -400,13 +454,13 @@ pub fn excluded_from_copy(path: &str) -> bool {
 include!("tree.rs");
 
 /// Reads a crate's source tree from a directory (the same selection as `build.rs` embeds).
-pub fn read_tree(root: &Path) -> Result<Tree, String> {
-    fn walk(root: &Path, dir: &Path, out: &mut Tree) -> Result<(), String> {
+pub fn read_tree(root: &Path) -> Result<Tree, CourseError> {
+    fn walk(root: &Path, dir: &Path, out: &mut Tree) -> Result<(), CourseError> {
         let Ok(entries) = std::fs::read_dir(dir) else {
             return Ok(());
         };
         for e in entries {
-            let p = e.map_err(|e| e.to_string())?.path();
+            let p = e?.path();
             let rel = p
                 .strip_prefix(root)
                 .unwrap()
@@ -424,14 +478,14 @@ pub fn read_tree(root: &Path) -> Result<Tree, String> {
                 walk(root, &p, out)?;
             } else {
                 let bytes =
-                    std::fs::read(&p).map_err(|e| format!("cannot read {}: {e}", p.display()))?;
+                    std::fs::read(&p).map_err(|e| CourseError::Read(p.display().to_string(), e))?;
                 out.insert(rel, bytes);
             }
         }
         Ok(())
     }
     if !root.join("Cargo.toml").is_file() {
-        return Err(format!("{} holds no Cargo.toml", root.display()));
+        return Err(CourseError::NoCargoToml(root.display().to_string()));
     }
     let mut tree = Tree::new();
     for f in FILES {
@@ -446,7 +500,7 @@ pub fn read_tree(root: &Path) -> Result<Tree, String> {
 }
 
 /// Every marked region under `src/` of a tree: (file, region).
-pub fn markers(tree: &Tree) -> Result<Vec<(String, Region)>, String> {
+pub fn markers(tree: &Tree) -> Result<Vec<(String, Region)>, CourseError> {
     let mut out = Vec::new();
     for (path, bytes) in tree {
         if !(path.starts_with("src/") && path.ends_with(".rs")) {
@@ -455,7 +509,7 @@ pub fn markers(tree: &Tree) -> Result<Vec<(String, Region)>, String> {
         let Ok(text) = std::str::from_utf8(bytes) else {
             continue;
         };
-        for r in regions(text).map_err(|e| format!("{path}: {e}"))? {
+        for r in regions(text).map_err(|e| CourseError::Marker(path.clone(), e))? {
             out.push((path.clone(), r));
         }
     }
@@ -464,7 +518,7 @@ pub fn markers(tree: &Tree) -> Result<Vec<(String, Region)>, String> {
 
 /// Checks that the markers of `tree` and [`ASSIGNMENTS`] agree: every marker is registered
 /// (with its file), every assignment has at least one region, and only in its listed files.
-pub fn check_registry(tree: &Tree) -> Result<(), String> {
+pub fn check_registry(tree: &Tree) -> Result<(), CourseError> {
     let marks = markers(tree)?;
     let mut problems = Vec::new();
     for (file, r) in &marks {
@@ -514,7 +568,7 @@ pub fn check_registry(tree: &Tree) -> Result<(), String> {
     if problems.is_empty() {
         Ok(())
     } else {
-        Err(problems.join("\n"))
+        Err(CourseError::Registry(problems))
     }
 }
 
@@ -554,7 +608,7 @@ fn shared_code_lines(tree: &Tree) -> std::collections::BTreeSet<String> {
 }
 
 /// Blanks the regions of `chosen` in `tree` (leaving out [`excluded_from_copy`] files).
-pub fn student_copy(tree: &Tree, chosen: &[&Assignment]) -> Result<StudentCopy, String> {
+pub fn student_copy(tree: &Tree, chosen: &[&Assignment]) -> Result<StudentCopy, CourseError> {
     check_registry(tree)?;
     let mut out = Tree::new();
     let mut removed: Vec<(String, Vec<String>)> = chosen
@@ -574,13 +628,14 @@ pub fn student_copy(tree: &Tree, chosen: &[&Assignment]) -> Result<StudentCopy, 
             out.insert(path.clone(), bytes.clone());
             continue;
         }
-        let text = std::str::from_utf8(bytes).map_err(|_| format!("{path} is not UTF-8"))?;
+        let text = std::str::from_utf8(bytes).map_err(|_| CourseError::NotUtf8(path.clone()))?;
         for a in &touched {
-            let (_, lines) = blank(text, &[a]).map_err(|e| format!("{path}: {e}"))?;
+            let (_, lines) = blank(text, &[a]).map_err(|e| CourseError::Marker(path.clone(), e))?;
             let slot = removed.iter_mut().find(|(n, _)| n == a.name).unwrap();
             slot.1.extend(lines);
         }
-        let (blanked, _) = blank(text, &touched).map_err(|e| format!("{path}: {e}"))?;
+        let (blanked, _) =
+            blank(text, &touched).map_err(|e| CourseError::Marker(path.clone(), e))?;
         out.insert(path.clone(), blanked.into_bytes());
     }
     Ok(StudentCopy {
@@ -617,25 +672,17 @@ pub fn leaks(copy: &StudentCopy) -> Vec<(String, String, usize, String)> {
 }
 
 /// Writes a student copy to `out` (which must not exist or be empty).
-pub fn write_copy(copy: &StudentCopy, out: &Path) -> Result<(), String> {
-    if out.exists()
-        && std::fs::read_dir(out)
-            .map_err(|e| e.to_string())?
-            .next()
-            .is_some()
-    {
-        return Err(format!(
-            "{} exists and is not empty; choose a new directory",
-            out.display()
-        ));
+pub fn write_copy(copy: &StudentCopy, out: &Path) -> Result<(), CourseError> {
+    if out.exists() && std::fs::read_dir(out)?.next().is_some() {
+        return Err(CourseError::NotEmpty(out.display().to_string()));
     }
     for (path, bytes) in &copy.tree {
         let p: PathBuf = out.join(path);
         if let Some(parent) = p.parent() {
             std::fs::create_dir_all(parent)
-                .map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
+                .map_err(|e| CourseError::Create(parent.display().to_string(), e))?;
         }
-        std::fs::write(&p, bytes).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+        std::fs::write(&p, bytes).map_err(|e| CourseError::Write(p.display().to_string(), e))?;
     }
     Ok(())
 }

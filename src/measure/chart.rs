@@ -27,14 +27,37 @@ const FAMILY: &str = "sans-serif";
 pub const CHART_SIZE: (u32, u32) = (1000, 700);
 
 /// Registers the embedded font with plotters once per process.
-fn register_font() -> Result<(), String> {
-    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+fn register_font() -> Result<(), ChartError> {
+    static REGISTERED: OnceLock<Result<(), ChartError>> = OnceLock::new();
     REGISTERED
         .get_or_init(|| {
             plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
-                .map_err(|_| "the embedded chart font could not be read".to_string())
+                .map_err(|_| ChartError::Font)
         })
         .clone()
+}
+
+/// Why a chart cannot be drawn or written; the messages are what `pathspace converge` prints.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ChartError {
+    /// The embedded font (DejaVu Sans) does not parse.
+    #[error("the embedded chart font could not be read")]
+    Font,
+    /// No positive finite value for a log axis.
+    #[error("nothing to chart: no positive finite values")]
+    Nothing,
+    /// plotters failed (the chart's stem, its message).
+    #[error("drawing the {0} chart: {1}")]
+    Drawing(&'static str, String),
+    /// The PNG could not be written (the image layer's message).
+    #[error("{0}")]
+    Png(String),
+}
+
+impl From<ChartError> for String {
+    fn from(e: ChartError) -> Self {
+        e.to_string()
+    }
 }
 
 /// Which chart.
@@ -89,14 +112,14 @@ fn tick(v: &f64) -> String {
 
 /// A log-axis range snapped outwards to whole decades, so every axis has at least two labelled
 /// powers of ten (plotters labels a log axis only at its decades).
-fn log_range(values: impl Iterator<Item = f64>) -> Result<std::ops::Range<f64>, String> {
+fn log_range(values: impl Iterator<Item = f64>) -> Result<std::ops::Range<f64>, ChartError> {
     let (lo, hi) = values
         .filter(|v| *v > 0.0 && v.is_finite())
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
     if !(lo.is_finite() && hi > 0.0) {
-        return Err("nothing to chart: no positive finite values".into());
+        return Err(ChartError::Nothing);
     }
     let (lo_decade, mut hi_decade) = (lo.log10().floor(), hi.log10().ceil());
     if hi_decade <= lo_decade {
@@ -147,9 +170,9 @@ fn draw<DB: DrawingBackend>(
     kind: ChartKind,
     curves: &[Curve],
     reference_relmse: Option<f64>,
-) -> Result<(), String> {
+) -> Result<(), ChartError> {
     let e =
-        |e: DrawingAreaErrorKind<DB::ErrorType>| format!("drawing the {} chart: {e}", kind.stem());
+        |e: DrawingAreaErrorKind<DB::ErrorType>| ChartError::Drawing(kind.stem(), e.to_string());
     root.fill(&WHITE).map_err(e)?;
     let all = || curves.iter().flat_map(|c| c.points.iter());
     let x_range = log_range(all().map(|p| p.seconds.mean))?;
@@ -223,9 +246,9 @@ fn draw_curve<DB: DrawingBackend>(
     kind: ChartKind,
     colour: RGBColor,
     c: &Curve,
-) -> Result<(), String> {
+) -> Result<(), ChartError> {
     let e =
-        |e: DrawingAreaErrorKind<DB::ErrorType>| format!("drawing the {} chart: {e}", kind.stem());
+        |e: DrawingAreaErrorKind<DB::ErrorType>| ChartError::Drawing(kind.stem(), e.to_string());
     let style = ShapeStyle::from(&colour).stroke_width(3);
     let pts: Vec<(f64, f64)> = c
         .points
@@ -276,7 +299,7 @@ pub fn write_charts(
     dir: &Path,
     curves: &[Curve],
     reference_relmse: Option<f64>,
-) -> Result<Vec<PathBuf>, String> {
+) -> Result<Vec<PathBuf>, ChartError> {
     let mut written = Vec::new();
     for kind in [ChartKind::ErrorVsTime, ChartKind::Efficiency] {
         let svg = dir.join(format!("{}.svg", kind.stem()));
@@ -295,7 +318,7 @@ pub fn write_svg(
     kind: ChartKind,
     curves: &[Curve],
     reference_relmse: Option<f64>,
-) -> Result<(), String> {
+) -> Result<(), ChartError> {
     register_font()?;
     let root = SVGBackend::new(path, CHART_SIZE).into_drawing_area();
     draw(&root, kind, curves, reference_relmse)
@@ -307,7 +330,7 @@ pub fn write_png(
     kind: ChartKind,
     curves: &[Curve],
     reference_relmse: Option<f64>,
-) -> Result<(), String> {
+) -> Result<(), ChartError> {
     register_font()?;
     let (w, h) = CHART_SIZE;
     let mut buf = vec![255u8; (w * h * 3) as usize];
@@ -315,5 +338,5 @@ pub fn write_png(
         let root = BitMapBackend::with_buffer(&mut buf, CHART_SIZE).into_drawing_area();
         draw(&root, kind, curves, reference_relmse)?;
     }
-    image_io::write_png_rgb8(path, w, h, &buf).map_err(|e| e.to_string())
+    image_io::write_png_rgb8(path, w, h, &buf).map_err(|e| ChartError::Png(e.to_string()))
 }

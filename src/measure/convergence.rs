@@ -70,17 +70,76 @@ pub fn efficiency(relmse: f64, seconds: f64) -> f64 {
 }
 // ANCHOR_END: efficiency
 
+/// Why a convergence study cannot start or stops (its budget and checkpoints, the reference,
+/// the integrators it measures, the files it reads and writes); the messages are what
+/// `pathspace converge` prints.
+#[derive(Debug, thiserror::Error)]
+pub enum ConvergenceError {
+    /// A budget that is no positive, finite number of seconds.
+    #[error("the budget must be a positive number of seconds, not {0}")]
+    BadBudget(f64),
+    /// No checkpoint: nothing to fit the slope on.
+    #[error("at least one checkpoint is needed")]
+    NoCheckpoint,
+    /// No camera: no image to compare with the reference.
+    #[error("the scene has no camera: there is no image to compare with the reference")]
+    NoCamera,
+    /// The scene's image size and the reference's ((width, height) of each).
+    #[error("the scene renders {}x{} images but the reference is {}x{}", .0.0, .0.1, .1.0, .1.1)]
+    SizeMismatch((u32, u32), (u32, u32)),
+    /// An empty list of integrators.
+    #[error("no integrator to measure")]
+    NoIntegrator,
+    /// Zero runs.
+    #[error("at least one run is needed")]
+    NoRun,
+    /// `NAME+adjoint` for an integrator that starts no light subpaths (the name, the kind).
+    #[error("`{0}`: the adjoint image applies to bdpt, light and mlt, not `{1}`")]
+    NoAdjoint(String, String),
+    /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
+    #[error("{0}")]
+    Adjoint(String),
+    /// An integrator that is none or refuses the scene.
+    #[error(transparent)]
+    Integrator(#[from] crate::integrator::IntegratorError),
+    /// A rendered image that cannot be compared with the reference.
+    #[error(transparent)]
+    Measure(#[from] crate::measure::MeasureError),
+    /// An external image that cannot be read.
+    #[error(transparent)]
+    Image(#[from] image_io::ImageError),
+    /// A file or directory that cannot be read or written (its path, the cause).
+    #[error("{0}: {1}")]
+    Io(String, #[source] std::io::Error),
+    /// An `--external` directory that cannot be read (the line's name, the directory, the cause).
+    #[error("--external {0}: {1}: {2}")]
+    ExternalDir(String, String, #[source] std::io::Error),
+    /// An external image with neither a `seconds` attribute nor a time as its name.
+    #[error("{0}: no render time: give it a `seconds` attribute or name it `<seconds>.exr`")]
+    NoRenderTime(String),
+    /// An external image that cannot be compared with the reference (its path, the cause).
+    #[error("{0}: {1}")]
+    ExternalImage(String, #[source] crate::measure::MeasureError),
+    /// An `--external` directory without images (the line's name, the directory).
+    #[error("--external {0}: no .exr images in {1}")]
+    NoExternalImages(String, String),
+}
+
+impl From<ConvergenceError> for String {
+    fn from(e: ConvergenceError) -> Self {
+        e.to_string()
+    }
+}
+
 // ANCHOR: checkpoint_times
 /// The K checkpoint times: geometric from `FIRST_CHECKPOINT_FRACTION x budget` to the budget, so
 /// they are evenly spaced on the log-log chart where the slope is fitted.
-pub fn checkpoint_times(budget: f64, checkpoints: usize) -> Result<Vec<f64>, String> {
+pub fn checkpoint_times(budget: f64, checkpoints: usize) -> Result<Vec<f64>, ConvergenceError> {
     if !(budget > 0.0 && budget.is_finite()) {
-        return Err(format!(
-            "the budget must be a positive number of seconds, not {budget}"
-        ));
+        return Err(ConvergenceError::BadBudget(budget));
     }
     if checkpoints == 0 {
-        return Err("at least one checkpoint is needed".into());
+        return Err(ConvergenceError::NoCheckpoint);
     }
     if checkpoints == 1 {
         return Ok(vec![budget]);
@@ -112,7 +171,7 @@ pub fn measure_run(
     kind: IntegratorKind,
     times: &[f64],
     run: usize,
-) -> Result<Vec<CheckpointRow>, String> {
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
     measure_run_from(setup, reference, kind, times, run, kind.name(), 0.0)
 }
 // ANCHOR_END: measure_run
@@ -127,7 +186,7 @@ pub fn measure_run_from(
     run: usize,
     label: &str,
     seconds0: f64,
-) -> Result<Vec<CheckpointRow>, String> {
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
     check_reference(setup.scene, reference)?;
     let mut renderer = Renderer::prepared(kind, setup)?;
     let mut seconds = seconds0;
@@ -162,16 +221,14 @@ pub fn measure_run_from(
 }
 
 /// Checks that the scene renders an image the reference can be compared with.
-fn check_reference(scene: &Scene, reference: &Image) -> Result<(), String> {
+fn check_reference(scene: &Scene, reference: &Image) -> Result<(), ConvergenceError> {
     let Some(cam) = scene.camera.as_ref() else {
-        return Err(
-            "the scene has no camera: there is no image to compare with the reference".into(),
-        );
+        return Err(ConvergenceError::NoCamera);
     };
     if (cam.width, cam.height) != (reference.width, reference.height) {
-        return Err(format!(
-            "the scene renders {}x{} images but the reference is {}x{}",
-            cam.width, cam.height, reference.width, reference.height
+        return Err(ConvergenceError::SizeMismatch(
+            (cam.width, cam.height),
+            (reference.width, reference.height),
         ));
     }
     Ok(())
@@ -184,12 +241,12 @@ fn study_checkpoints(
     reference: &Image,
     integrators: usize,
     config: &ConvergeConfig,
-) -> Result<Vec<f64>, String> {
+) -> Result<Vec<f64>, ConvergenceError> {
     if integrators == 0 {
-        return Err("no integrator to measure".into());
+        return Err(ConvergenceError::NoIntegrator);
     }
     if config.runs == 0 {
-        return Err("at least one run is needed".into());
+        return Err(ConvergenceError::NoRun);
     }
     check_reference(scene, reference)?;
     checkpoint_times(config.budget, config.checkpoints)
@@ -204,7 +261,7 @@ pub fn converge(
     kinds: &[IntegratorKind],
     config: &ConvergeConfig,
     on_run: &mut dyn FnMut(&[CheckpointRow]),
-) -> Result<Vec<CheckpointRow>, String> {
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
     let times = study_checkpoints(scene, reference, kinds.len(), config)?;
     let mut rows = Vec::new();
     for &kind in kinds {
@@ -238,14 +295,15 @@ impl Variant {
     pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
 
     /// Parses `NAME` or `NAME+adjoint`; `adjoint` holds the settings of the image.
-    pub fn parse(s: &str, adjoint: crate::enlightened::AdjointSettings) -> Result<Self, String> {
+    pub fn parse(
+        s: &str,
+        adjoint: crate::enlightened::AdjointSettings,
+    ) -> Result<Self, ConvergenceError> {
         match s.strip_suffix(Self::ADJOINT_SUFFIX) {
             Some(base) => {
                 let kind = IntegratorKind::parse(base)?;
                 if !kind.samples_light_starts() {
-                    return Err(format!(
-                        "`{s}`: the adjoint image applies to bdpt, light and mlt, not `{base}`"
-                    ));
+                    return Err(ConvergenceError::NoAdjoint(s.into(), base.into()));
                 }
                 Ok(Variant {
                     kind,
@@ -278,7 +336,7 @@ pub fn converge_variants(
     variants: &[Variant],
     config: &ConvergeConfig,
     on_run: &mut dyn FnMut(&[CheckpointRow]),
-) -> Result<Vec<CheckpointRow>, String> {
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
     let times = study_checkpoints(scene, reference, variants.len(), config)?;
     let mut rows = Vec::new();
     for v in variants {
@@ -288,7 +346,8 @@ pub fn converge_variants(
             let seconds0 = match &v.adjoint {
                 Some(settings) => {
                     technique
-                        .install_adjoint(scene, settings, seed, config.max_depth)?
+                        .install_adjoint(scene, settings, seed, config.max_depth)
+                        .map_err(ConvergenceError::Adjoint)?
                         .seconds
                 }
                 None => 0.0,
@@ -311,8 +370,8 @@ pub fn converge_variants(
 }
 
 /// Writes the rows as `convergence.csv` (header `CSV_HEADER`).
-pub fn write_csv(path: &Path, rows: &[CheckpointRow]) -> Result<(), String> {
-    let err = |e: std::io::Error| format!("{}: {e}", path.display());
+pub fn write_csv(path: &Path, rows: &[CheckpointRow]) -> Result<(), ConvergenceError> {
+    let err = |e: std::io::Error| ConvergenceError::Io(path.display().to_string(), e);
     let mut f = std::io::BufWriter::new(std::fs::File::create(path).map_err(err)?);
     writeln!(f, "{CSV_HEADER}").map_err(err)?;
     for r in rows {
@@ -333,16 +392,18 @@ pub fn external_rows(
     name: &str,
     dir: &Path,
     reference: &Image,
-) -> Result<Vec<CheckpointRow>, String> {
-    let entries =
-        std::fs::read_dir(dir).map_err(|e| format!("--external {name}: {}: {e}", dir.display()))?;
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| ConvergenceError::ExternalDir(name.into(), dir.display().to_string(), e))?;
     let mut found = Vec::new();
     for entry in entries {
-        let path = entry.map_err(|e| format!("{}: {e}", dir.display()))?.path();
+        let path = entry
+            .map_err(|e| ConvergenceError::Io(dir.display().to_string(), e))?
+            .path();
         if path.extension().and_then(|e| e.to_str()) != Some("exr") {
             continue;
         }
-        let (image, meta) = image_io::read_exr(&path).map_err(|e| e.to_string())?;
+        let (image, meta) = image_io::read_exr(&path)?;
         let seconds = match meta.get("seconds") {
             Some(s) => s.trim().parse::<f64>().ok(),
             None => path
@@ -351,24 +412,19 @@ pub fn external_rows(
                 .and_then(|s| s.parse::<f64>().ok()),
         }
         .filter(|s| *s > 0.0 && s.is_finite())
-        .ok_or_else(|| {
-            format!(
-                "{}: no render time: give it a `seconds` attribute or name it `<seconds>.exr`",
-                path.display()
-            )
-        })?;
+        .ok_or_else(|| ConvergenceError::NoRenderTime(path.display().to_string()))?;
         let samples = meta
             .get("spp")
             .and_then(|s| s.trim().parse::<u64>().ok())
             .unwrap_or(0);
-        let m =
-            metrics::compare(&image, reference).map_err(|e| format!("{}: {e}", path.display()))?;
+        let m = metrics::compare(&image, reference)
+            .map_err(|e| ConvergenceError::ExternalImage(path.display().to_string(), e))?;
         found.push((seconds, samples, m));
     }
     if found.is_empty() {
-        return Err(format!(
-            "--external {name}: no .exr images in {}",
-            dir.display()
+        return Err(ConvergenceError::NoExternalImages(
+            name.into(),
+            dir.display().to_string(),
         ));
     }
     found.sort_by(|a, b| a.0.total_cmp(&b.0));

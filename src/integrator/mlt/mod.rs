@@ -104,32 +104,26 @@ impl Default for MltSettings {
 
 impl MltSettings {
     /// Checks every value; the message names the setting.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MltError> {
         if self.bootstrap == 0 {
-            return Err("mlt bootstrap must be at least 1 sample".into());
+            return Err(MltError::NoBootstrap);
         }
         if self.chains == 0 {
-            return Err("mlt chains must be at least 1".into());
+            return Err(MltError::NoChains);
         }
         for (w, k) in self.weights.iter().zip(MutationKind::ALL) {
             if !(w.is_finite() && *w >= 0.0) {
-                return Err(format!(
-                    "mutation weight {} = {w} must be finite and >= 0",
-                    k.name()
-                ));
+                return Err(MltError::BadWeight(k.name(), *w));
             }
         }
         if !(self.b_refine.is_finite() && self.b_refine >= 0.0) {
-            return Err(format!(
-                "mlt b_refine = {} must be finite and >= 0 (BDPT samples per mutation)",
-                self.b_refine
-            ));
+            return Err(MltError::BadBRefine(self.b_refine));
         }
         if self.seed_draws == 0 {
-            return Err("mlt seed_draws must be at least 1".into());
+            return Err(MltError::NoSeedDraws);
         }
         if self.weights.iter().sum::<f64>() <= 0.0 {
-            return Err("at least one mutation weight must be positive".into());
+            return Err(MltError::NoPositiveWeight);
         }
         InverseDistance::new(self.sensor_offset.0, self.sensor_offset.1)?;
         InverseDistance::new(self.light_angle.0, self.light_angle.1)?;
@@ -138,27 +132,23 @@ impl MltSettings {
     }
 
     /// Parses `name=weight,...` (e.g. `bidirectional=1,sensor=100`); unnamed kinds get 0.
-    pub fn parse_weights(s: &str) -> Result<[f64; 5], String> {
+    pub fn parse_weights(s: &str) -> Result<[f64; 5], MltError> {
         let mut w = [0.0; 5];
         for part in s.split(',').filter(|p| !p.trim().is_empty()) {
             let (name, value) = part
                 .split_once('=')
-                .ok_or_else(|| format!("`{part}` is not NAME=WEIGHT"))?;
+                .ok_or_else(|| MltError::NotNameWeight(part.into()))?;
             let kind = MutationKind::ALL
                 .iter()
                 .find(|k| k.name() == name.trim())
                 .ok_or_else(|| {
                     let names: Vec<&str> = MutationKind::ALL.iter().map(|k| k.name()).collect();
-                    format!(
-                        "unknown mutation `{}` (available: {})",
-                        name.trim(),
-                        names.join(", ")
-                    )
+                    MltError::UnknownMutation(name.trim().into(), names.join(", "))
                 })?;
             w[kind.index()] = value
                 .trim()
                 .parse::<f64>()
-                .map_err(|_| format!("`{value}` is not a number"))?;
+                .map_err(|_| MltError::NotANumber(value.into()))?;
         }
         Ok(w)
     }
@@ -219,14 +209,14 @@ pub struct MltOptions {
 }
 
 /// Parses `MIN,MAX` (a perturbation range).
-pub fn parse_range(s: &str) -> Result<[f32; 2], String> {
+pub fn parse_range(s: &str) -> Result<[f32; 2], MltError> {
     let (a, b) = s
         .split_once(',')
-        .ok_or_else(|| format!("`{s}` is not MIN,MAX"))?;
+        .ok_or_else(|| MltError::NotMinMax(s.into()))?;
     let num = |v: &str| {
         v.trim()
             .parse::<f32>()
-            .map_err(|_| format!("`{v}` in `{s}` is not a number"))
+            .map_err(|_| MltError::RangeNotANumber(v.into(), s.into()))
     };
     Ok([num(a)?, num(b)?])
 }
@@ -373,17 +363,76 @@ pub struct Mlt<'t> {
     cdf: [f64; 5],
 }
 
+/// Why MLT refuses its settings or its scene (the messages name the setting or the missing
+/// piece: they are what the command line and the scene-file errors print).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MltError {
+    /// n = 0: the pre-pass needs a sample to estimate b (Pauly et al. 2000 sec. 5.1).
+    #[error("mlt bootstrap must be at least 1 sample")]
+    NoBootstrap,
+    /// No chain to run.
+    #[error("mlt chains must be at least 1")]
+    NoChains,
+    /// A mutation's weight is negative or not finite (the mutation's name, the weight).
+    #[error("mutation weight {0} = {1} must be finite and >= 0")]
+    BadWeight(&'static str, f64),
+    /// The BDPT samples per mutation that refine b are negative or not finite.
+    #[error("mlt b_refine = {0} must be finite and >= 0 (BDPT samples per mutation)")]
+    BadBRefine(f64),
+    /// A chain needs at least one pre-pass draw for its seed.
+    #[error("mlt seed_draws must be at least 1")]
+    NoSeedDraws,
+    /// All weights 0: no mutation to choose.
+    #[error("at least one mutation weight must be positive")]
+    NoPositiveWeight,
+    /// A perturbation range outside 0 < min < max (min, max).
+    #[error("perturbation range [{0}, {1}] must satisfy 0 < min < max")]
+    BadRange(f32, f32),
+    /// A `--mlt-mutation-weights` part without `=`.
+    #[error("`{0}` is not NAME=WEIGHT")]
+    NotNameWeight(String),
+    /// A mutation name that is none (the name, the available ones).
+    #[error("unknown mutation `{0}` (available: {1})")]
+    UnknownMutation(String, String),
+    /// A weight that does not parse.
+    #[error("`{0}` is not a number")]
+    NotANumber(String),
+    /// A range without a comma.
+    #[error("`{0}` is not MIN,MAX")]
+    NotMinMax(String),
+    /// A range bound that does not parse (the bound, the range).
+    #[error("`{0}` in `{1}` is not a number")]
+    RangeNotANumber(String, String),
+    /// MLT renders images (Pauly et al. 2000 sec. 3: the measurement is a pixel's).
+    #[error("mlt renders images: the scene needs a camera")]
+    NoCamera,
+    /// Directional or environment lights: their vertices lie outside the scene's measure.
+    #[error(
+        "mlt does not support directional or environment lights (their vertices lie outside \
+         the scene's measure)"
+    )]
+    InfiniteLight,
+}
+
+impl From<MltError> for String {
+    fn from(e: MltError) -> Self {
+        e.to_string()
+    }
+}
+
+impl From<MltError> for super::IntegratorError {
+    fn from(e: MltError) -> Self {
+        super::IntegratorError::Refused(e.to_string())
+    }
+}
+
 /// Checks that MLT can render `scene`: a pinhole camera and finite lights only.
-pub fn check_scene(scene: &Scene) -> Result<(), String> {
+pub fn check_scene(scene: &Scene) -> Result<(), MltError> {
     if scene.camera.is_none() {
-        return Err("mlt renders images: the scene needs a camera".into());
+        return Err(MltError::NoCamera);
     }
     if scene.lights.iter().any(Light::is_infinite) {
-        return Err(
-            "mlt does not support directional or environment lights (their vertices lie outside \
-             the scene's measure)"
-                .into(),
-        );
+        return Err(MltError::InfiniteLight);
     }
     Ok(())
 }
@@ -397,7 +446,7 @@ impl<'t> Mlt<'t> {
         settings: MltSettings,
         seed: u64,
         max_depth: Option<u32>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, MltError> {
         settings.validate()?;
         check_scene(scene)?;
         // without a depth limit the target is f on the whole, unbounded path space: the

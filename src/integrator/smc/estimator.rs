@@ -117,17 +117,14 @@ impl Variant {
     }
 
     /// Parses `isI_cvC`.
-    pub fn parse(s: &str) -> Result<Variant, String> {
+    pub fn parse(s: &str) -> Result<Variant, super::SmcError> {
         Variant::ALL
             .iter()
             .copied()
             .find(|v| v.name() == s)
             .ok_or_else(|| {
                 let names: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();
-                format!(
-                    "unknown SMC variant `{s}` (available: {})",
-                    names.join(", ")
-                )
+                super::SmcError::UnknownVariant(s.into(), names.join(", "))
             })
     }
 }

@@ -67,21 +67,17 @@ pub enum EstimatorForm {
 }
 
 impl EstimatorForm {
-    pub fn parse(s: &str, step: Option<f32>) -> Result<Self, String> {
+    pub fn parse(s: &str, step: Option<f32>) -> Result<Self, SmcError> {
         match s {
             "distance" => Ok(EstimatorForm::Distance),
             "march" => {
                 let step = step.unwrap_or(DEFAULT_MARCH_STEP_MFP);
                 if !(step.is_finite() && step > 0.0) {
-                    return Err(format!(
-                        "the ray-marching step {step} must be a positive number of mean free paths"
-                    ));
+                    return Err(SmcError::BadMarchStep(step));
                 }
                 Ok(EstimatorForm::RayMarching { step })
             }
-            _ => Err(format!(
-                "unknown SMC estimator `{s}` (available: distance, march)"
-            )),
+            _ => Err(SmcError::UnknownEstimator(s.into())),
         }
     }
 
@@ -95,7 +91,7 @@ impl EstimatorForm {
 
 /// Parses a byte count: `1073741824`, `512MiB`, `1GiB`, `64KiB` (the `--cache-budget` option
 /// and the `[render.smc] cache_budget` key).
-pub fn parse_bytes(s: &str) -> Result<usize, String> {
+pub fn parse_bytes(s: &str) -> Result<usize, SmcError> {
     let t = s.trim();
     let (digits, unit) = match t.find(|c: char| !c.is_ascii_digit()) {
         Some(i) => t.split_at(i),
@@ -106,17 +102,59 @@ pub fn parse_bytes(s: &str) -> Result<usize, String> {
         "KiB" => 1 << 10,
         "MiB" => 1 << 20,
         "GiB" => 1 << 30,
-        u => {
-            return Err(format!(
-                "`{s}`: unknown unit `{u}` (use B, KiB, MiB or GiB)"
-            ))
-        }
+        u => return Err(SmcError::UnknownUnit(s.into(), u.into())),
     };
     digits
         .parse::<usize>()
         .ok()
         .and_then(|n| n.checked_mul(scale))
-        .ok_or_else(|| format!("`{s}` is not a byte count such as 1073741824 or 512MiB"))
+        .ok_or_else(|| SmcError::NotBytes(s.into()))
+}
+
+/// Why SMC refuses a value or its settings (Pegoraro et al. 2008: the variant, the estimator
+/// form of eq. (7) or (8), the cache's refinement threshold and memory budget); the messages
+/// are what the command line and the scene-file errors print.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SmcError {
+    /// A name that is no variant (the name, the available ones).
+    #[error("unknown SMC variant `{0}` (available: {1})")]
+    UnknownVariant(String, String),
+    /// A name that is no estimator form.
+    #[error("unknown SMC estimator `{0}` (available: distance, march)")]
+    UnknownEstimator(String),
+    /// The ray-marching step of eq. (8) is not a positive number of mean free paths.
+    #[error("the ray-marching step {0} must be a positive number of mean free paths")]
+    BadMarchStep(f32),
+    /// A byte count with a unit that is none (the count, the unit).
+    #[error("`{0}`: unknown unit `{1}` (use B, KiB, MiB or GiB)")]
+    UnknownUnit(String, String),
+    /// A byte count that does not parse or overflows.
+    #[error("`{0}` is not a byte count such as 1073741824 or 512MiB")]
+    NotBytes(String),
+    /// A file's byte count that is negative (the key as the caller spells it, the value).
+    #[error("{0} = {1} is not a byte count")]
+    NegativeBytes(String, i64),
+    /// A budget below the root cache (the key, the budget, the root's bytes).
+    #[error("{0} = {1} bytes cannot hold even the root cache ({2} bytes)")]
+    BudgetBelowRoot(String, usize, usize),
+    /// The settings' threshold is not a positive number of records.
+    #[error("the refinement threshold {0} must be a positive number of records")]
+    BadThreshold(f64),
+    /// The settings' budget is below the root cache (the budget, the root's bytes).
+    #[error("the cache budget of {0} bytes cannot hold even the root cache ({1} bytes)")]
+    TooSmallBudget(usize, usize),
+}
+
+impl From<SmcError> for String {
+    fn from(e: SmcError) -> Self {
+        e.to_string()
+    }
+}
+
+impl From<SmcError> for super::IntegratorError {
+    fn from(e: SmcError) -> Self {
+        super::IntegratorError::Refused(e.to_string())
+    }
 }
 
 /// The weight of the phase function in SMC's adaptive direction density: a direction is drawn
@@ -243,7 +281,7 @@ pub enum ByteCount {
 
 impl ByteCount {
     /// The command line's form: a string with an optional unit.
-    pub fn parse_arg(s: &str) -> Result<ByteCount, String> {
+    pub fn parse_arg(s: &str) -> Result<ByteCount, std::convert::Infallible> {
         Ok(ByteCount::Text(s.to_string()))
     }
 }
@@ -298,7 +336,7 @@ impl SmcOptions {
         let err = |key: &'static str, message: String| OptionError { key, message };
         let mut s = base;
         if let Some(v) = &self.variant {
-            s.variant = Variant::parse(v).map_err(|e| err("variant", e))?;
+            s.variant = Variant::parse(v).map_err(|e| err("variant", e.to_string()))?;
         }
         if let Some(t) = self.threshold {
             if !(t.is_finite() && t > 0.0) {
@@ -311,7 +349,9 @@ impl SmcOptions {
             s.threshold = t;
         }
         if let Some(b) = &self.cache_budget {
-            s.budget = self.budget(b, name).map_err(|e| err("cache_budget", e))?;
+            s.budget = self
+                .budget(b, name)
+                .map_err(|e| err("cache_budget", e.to_string()))?;
         }
         let base_step = match base.form {
             EstimatorForm::RayMarching { step } => Some(step),
@@ -331,24 +371,21 @@ impl SmcOptions {
             } else {
                 "step"
             };
-            err(k, e)
+            err(k, e.to_string())
         })?;
         Ok(s)
     }
 
     /// The budget in bytes, at least the root cache's.
-    fn budget(&self, b: &ByteCount, name: &dyn Fn(&str) -> String) -> Result<usize, String> {
+    fn budget(&self, b: &ByteCount, name: &dyn Fn(&str) -> String) -> Result<usize, SmcError> {
         let bytes = match b {
             ByteCount::Bytes(n) => usize::try_from(*n)
-                .map_err(|_| format!("{} = {n} is not a byte count", name("cache_budget")))?,
+                .map_err(|_| SmcError::NegativeBytes(name("cache_budget"), *n))?,
             ByteCount::Text(t) => parse_bytes(t)?,
         };
         let root = RadianceCache::root().bytes();
         if bytes < root {
-            return Err(format!(
-                "{} = {bytes} bytes cannot hold even the root cache ({root} bytes)",
-                name("cache_budget")
-            ));
+            return Err(SmcError::BudgetBelowRoot(name("cache_budget"), bytes, root));
         }
         Ok(bytes)
     }
@@ -384,19 +421,13 @@ impl Smc {
         scene: &Scene,
         settings: SmcSettings,
         max_depth: Option<u32>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, SmcError> {
         if !(settings.threshold.is_finite() && settings.threshold > 0.0) {
-            return Err(format!(
-                "the refinement threshold {} must be a positive number of records",
-                settings.threshold
-            ));
+            return Err(SmcError::BadThreshold(settings.threshold));
         }
         let root_bytes = RadianceCache::root().bytes();
         if settings.budget < root_bytes {
-            return Err(format!(
-                "the cache budget of {} bytes cannot hold even the root cache ({root_bytes} bytes)",
-                settings.budget
-            ));
+            return Err(SmcError::TooSmallBudget(settings.budget, root_bytes));
         }
         let (min, max) = if scene.bounds.is_empty() {
             (Vec3::splat(-1.0), Vec3::splat(1.0))

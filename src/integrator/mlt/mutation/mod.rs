@@ -87,13 +87,11 @@ pub struct InverseDistance {
 
 impl InverseDistance {
     /// Requires 0 < min < max, finite.
-    pub fn new(min: f32, max: f32) -> Result<Self, String> {
+    pub fn new(min: f32, max: f32) -> Result<Self, super::MltError> {
         if min > 0.0 && max > min && max.is_finite() {
             Ok(InverseDistance { min, max })
         } else {
-            Err(format!(
-                "perturbation range [{min}, {max}] must satisfy 0 < min < max"
-            ))
+            Err(super::MltError::BadRange(min, max))
         }
     }
 
