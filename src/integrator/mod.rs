@@ -25,40 +25,58 @@ use crate::path::{LocalSampling, PLAIN};
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
-/// The integrators a user can name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum IntegratorKind {
+/// Declares the integrators: one line each (its doc, variant, name, and how its module
+/// prepares it from a [`Setup`]), from which the enum, [`IntegratorKind::ALL`],
+/// [`IntegratorKind::name`] and [`IntegratorKind::prepare`] are generated, so that adding an
+/// integrator is its module plus one registration line in the invocation below.
+macro_rules! integrators {
+    ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $prepare:expr,)*) => {
+        /// The integrators a user can name.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum IntegratorKind {
+            $($(#[doc = $doc])* $variant,)*
+        }
+
+        impl IntegratorKind {
+            /// Every integrator, in registration order.
+            pub const ALL: &'static [IntegratorKind] = &[$(IntegratorKind::$variant),*];
+
+            /// The name `--integrator` and `[render] integrator` take.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(IntegratorKind::$variant => $name,)*
+                }
+            }
+
+            /// Builds the integrator from the setup, or says why it refuses the scene or its
+            /// settings.
+            pub fn prepare<'t>(
+                self,
+                setup: &Setup<'_, 't>,
+            ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+                match self {
+                    $(IntegratorKind::$variant => ($prepare)(setup),)*
+                }
+            }
+        }
+    };
+}
+
+// The registration point: one line per integrator.
+integrators! {
     /// Volumetric path tracing with next-event estimation and MIS.
-    Path,
+    Path = "path" => path::prepare,
     /// Light tracing: light subpaths connected to the sensor (t = 1), splatted.
-    Light,
+    Light = "light" => |s| light::prepare(s, bdpt::Strategies::LightTracing),
     /// Bidirectional path tracing with MIS over all (s, t).
-    Bdpt,
+    Bdpt = "bdpt" => |s| light::prepare(s, bdpt::Strategies::All),
     /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
-    Smc,
+    Smc = "smc" => smc::prepare,
     /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
-    Mlt,
+    Mlt = "mlt" => mlt::prepare,
 }
 
 impl IntegratorKind {
-    pub const ALL: &'static [IntegratorKind] = &[
-        IntegratorKind::Path,
-        IntegratorKind::Light,
-        IntegratorKind::Bdpt,
-        IntegratorKind::Smc,
-        IntegratorKind::Mlt,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            IntegratorKind::Path => "path",
-            IntegratorKind::Light => "light",
-            IntegratorKind::Bdpt => "bdpt",
-            IntegratorKind::Smc => "smc",
-            IntegratorKind::Mlt => "mlt",
-        }
-    }
-
     pub fn parse(s: &str) -> Result<Self, IntegratorError> {
         Self::ALL
             .iter()
@@ -73,22 +91,6 @@ impl IntegratorKind {
     /// Whether the integrator samples light start points (and so can use the adjoint image).
     pub fn samples_light_starts(self) -> bool {
         matches!(self, Self::Bdpt | Self::Light | Self::Mlt)
-    }
-
-    /// The one registration point of the integrators: each one's module builds it from the
-    /// setup, or says why it refuses the scene or its settings (adding an integrator: its
-    /// module, a variant above and one line here).
-    pub fn prepare<'t>(
-        self,
-        setup: &Setup<'_, 't>,
-    ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
-        match self {
-            IntegratorKind::Path => path::prepare(setup),
-            IntegratorKind::Light => light::prepare(setup, bdpt::Strategies::LightTracing),
-            IntegratorKind::Bdpt => light::prepare(setup, bdpt::Strategies::All),
-            IntegratorKind::Smc => smc::prepare(setup),
-            IntegratorKind::Mlt => mlt::prepare(setup),
-        }
     }
 }
 
