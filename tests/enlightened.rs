@@ -270,7 +270,7 @@ fn metropolis_particles_reproduce_the_meter() {
 /// the bidirectional particles restricted to I(u) > 0 (total photon weight, total importon
 /// weight, photons on the floor patch). In this room that part is visibly short of the meter:
 /// the floor patch's photons whose connection reaches the meter through its back are lost, and
-/// so is every importon on the black light (digest F15). That is what the defensive part is for.
+/// so is every importon on the black light (Kristensen 2010 sec. 5.2.2). That is what the defensive part is for.
 #[test]
 fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths() {
     let scene = room(false);

@@ -18,7 +18,8 @@
 //!   vertex. DEVIATION: the thesis estimates it with MLT (or a Markov chain pre-pass); any
 //!   unbiased estimator of the image serves, and BDPT's is the project's simplest.
 //! - Sampling: cell j with P_j = (I*_j + eps) / sum_k (I*_k + eps), u uniform in the cell, x_0 =
-//!   F(u); its area density is p_A(x_0) = P_j N_cells p_F(x_0) (DERIVED in the digest). eps > 0
+//!   F(u); its area density is p_A(x_0) = P_j N_cells p_F(x_0) (derived from the light-sampling map: P_j
+//!   picks the cell, N_cells p_F(x_0) is the density within it). eps > 0
 //!   keeps the density positive wherever L_e > 0 (footnote 1 of ch. 5; the value is not given:
 //!   here a fraction `epsilon` of the mean cell value, DEVIATION/choice).
 //!

@@ -13,7 +13,7 @@
 //! I(u) (returned by the bidirectional sampler: (k + 2)/p_k w_s f/p_s). With T = I alone, the
 //! particles of samples whose full path carries no light (a walk that ended early, a blocked or
 //! back-facing connection) are lost: the representation is then biased, harmlessly for the
-//! image (the guided pdfs stay exact) but visibly for the maps (digest F15: the photons on a
+//! image (the guided pdfs stay exact) but visibly for the maps (Kristensen 2010 sec. 5.2.2 on what eq. (5.15) misses; measured here: the photons on a
 //! floor that only reach a meter through its back are gone, and so are all importons on a black
 //! emitter). This module therefore targets a defensive mixture (a choice of this crate;
 //! delta = 0 is eq. (5.15) exactly):

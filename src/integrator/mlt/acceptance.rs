@@ -3,7 +3,7 @@
 //!
 //! With K(x -> y) = T(x -> y) alpha(x -> y), detailed balance f(x) K(x -> y) = f(y) K(y -> x)
 //! holds because both sides equal min(f(x) T(x -> y), f(y) T(y -> x)); the chain then keeps
-//! f / b stationary (Veach 1997 sec. 11.2; digest sec. 1.8).
+//! f / b stationary (Veach 1997 sec. 11.2; Kristensen 2010 sec. 3.8).
 
 /// alpha(x -> y) from the scalar contributions and the transition densities both ways. A
 /// proposal the mutation could not take back (T(y -> x) = 0) or with f(y) = 0 is rejected.

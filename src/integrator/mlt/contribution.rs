@@ -3,8 +3,8 @@
 //! of its vertices under local sampling, both with the Dirac factors of singular scattering
 //! removed in the same way.
 //!
-//! A mirror or glass vertex has f_s = R delta(w - w_s) / |cos| (Veach 1997 eq. 5.x; the digest's
-//! eq. 2.13/2.15). Every sampler that produces such a vertex produces the same delta (the
+//! A mirror or glass vertex has f_s = R delta(w - w_s) / |cos| (Veach 1997 ch. 5, the specular
+//! BSDFs). Every sampler that produces such a vertex produces the same delta (the
 //! direction is forced), so the delta cancels in every ratio MLT forms: f(y) / T(x -> y) and
 //! f(x) / T(y -> x). Here f keeps R / |cos| (the "Dirac-free" value `BsdfSample::value`) and a
 //! density keeps the probability of the lobe (`BsdfSample::pdf`), converted to area by the same
