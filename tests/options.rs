@@ -5,7 +5,9 @@
 use clap::{CommandFactory, Parser};
 use pathspace::cli::{Cli, Command};
 use pathspace::integrator::mlt::MltSettings;
-use pathspace::scene::SceneSource;
+use pathspace::integrator::settings::{load, RenderOptions, Spelling};
+use pathspace::integrator::RenderSettings;
+use pathspace::scene::{SceneSource, FOG_BOX};
 
 fn render_args(argv: &[&str]) -> pathspace::cli::render::RenderArgs {
     let mut full = vec!["pathspace", "render"];
@@ -34,13 +36,9 @@ fn old_and_prefixed_flags_are_the_same_option() {
     ] {
         let a = render_args(&[old, value]);
         let b = render_args(&[new, value]);
-        assert_eq!(a.mlt, b.mlt, "{old} vs {new}");
-        assert_eq!(a.smc, b.smc, "{old} vs {new}");
-        assert_ne!(
-            (a.mlt.as_ref(), a.smc.as_ref()),
-            (&Default::default(), &Default::default()),
-            "{old} set nothing"
-        );
+        assert_eq!(a.options.mlt, b.options.mlt, "{old} vs {new}");
+        assert_eq!(a.options.smc, b.options.smc, "{old} vs {new}");
+        assert_ne!(*a.options, Default::default(), "{old} set nothing");
     }
 }
 
@@ -86,7 +84,7 @@ fn a_key_and_its_flag_give_the_same_settings() {
         "0.001,0.2",
     ]);
     let mut flags = MltSettings::default();
-    args.mlt.apply(&mut flags);
+    args.options.mlt.apply(&mut flags);
     assert_eq!(format!("{:?}", file.mlt), format!("{flags:?}"));
 }
 
@@ -134,15 +132,15 @@ fn guide_and_adjoint_keys_and_their_flags_give_the_same_settings() {
         "metropolis",
     ]);
     let defaults = pathspace::integrator::RenderSettings::for_scene(&scene);
-    let guide = args.guide.apply_flags(defaults.guide).unwrap();
+    let guide = args.options.guide.apply_flags(defaults.guide).unwrap();
     assert_eq!(format!("{:?}", file.guide), format!("{guide:?}"));
     assert_ne!(format!("{guide:?}"), format!("{:?}", defaults.guide));
-    let adjoint = args.adjoint.tuning.apply(defaults.adjoint).unwrap();
+    let adjoint = args.options.adjoint.apply(defaults.adjoint).unwrap();
     assert_eq!(format!("{:?}", file.adjoint), format!("{adjoint:?}"));
     assert_ne!(format!("{adjoint:?}"), format!("{:?}", defaults.adjoint));
     // the flag of earlier releases is a visible alias
     let old = render_args(&["--adjoint-samples", "3"]);
-    assert_eq!(old.adjoint.tuning.samples_per_cell, Some(3));
+    assert_eq!(old.options.adjoint.samples_per_cell, Some(3));
 }
 
 #[test]
@@ -187,4 +185,120 @@ fn converge_guide_overrides_are_the_guide_schema() {
     assert!(e.contains("colour"), "{e}");
     let e = GuidedVariant::parse("mlt+guide(min_depth=99)").unwrap_err();
     assert!(e.contains("min_depth"), "{e}");
+}
+
+/// The settings without the record of the options that made them.
+fn settings_of(s: &RenderSettings) -> String {
+    let mut s = s.clone();
+    s.given = RenderOptions::default();
+    format!("{s:?}")
+}
+
+/// The fog box without its `[render]` table.
+fn fog_box_without_render() -> String {
+    let start = FOG_BOX.find("[render]").unwrap();
+    let end = FOG_BOX.find("[camera]").unwrap();
+    format!("{}{}", &FOG_BOX[..start], &FOG_BOX[end..])
+}
+
+#[test]
+fn top_level_keys_and_their_flags_give_the_same_settings() {
+    let text = format!(
+        "[render]\nintegrator = \"bdpt\"\nspp = 3\nseed = 9\nmax_depth = 4\n\
+         meter_samples = 100\nadjoint_image = true\n\n{}",
+        fog_box_without_render()
+    );
+    let (scene, file) = load(&SceneSource::embedded("k.toml", &text)).unwrap();
+    let args = render_args(&[
+        "--integrator",
+        "bdpt",
+        "--spp",
+        "3",
+        "--seed",
+        "9",
+        "--max-depth",
+        "4",
+        "--meter-samples",
+        "100",
+        "--adjoint-image",
+    ]);
+    let mut flags = RenderSettings::for_scene(&scene);
+    flags.apply(&args.options, Spelling::Flag).unwrap();
+    assert_eq!(settings_of(&file), settings_of(&flags));
+    assert_ne!(
+        settings_of(&flags),
+        settings_of(&RenderSettings::for_scene(&scene))
+    );
+    // a flag given a value turns the file's key off again
+    let off = render_args(&["--adjoint-image=false"]);
+    flags.apply(&off.options, Spelling::Flag).unwrap();
+    assert!(!flags.adjoint_image);
+    // the bare flag takes no value: the scene after it stays the positional argument
+    let bare = render_args(&["--adjoint-image", "scene.toml"]);
+    assert_eq!(bare.options.adjoint_image, Some(true));
+    assert_eq!(
+        bare.scene.as_deref(),
+        Some(std::path::Path::new("scene.toml"))
+    );
+}
+
+/// A render records the options it was given (the flags over the scene's keys) as a
+/// `[render]` table; pasted into the scene, it gives the same settings again.
+#[test]
+fn the_recorded_options_render_the_same_settings_again() {
+    let (scene, mut settings) = load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    let args = render_args(&[
+        "--integrator",
+        "mlt",
+        "--spp",
+        "5",
+        "--mlt-chains",
+        "3",
+        "--mlt-mutation-weights",
+        "bidirectional=1,sensor=2.5",
+        "--mlt-light-angle",
+        "0.001,0.2",
+        "--smc-cache-budget",
+        "64MiB",
+        "--smc-step",
+        "0.5",
+        "--guide",
+        "volume",
+        "--guide-map",
+        "16x8",
+        "--guide-weight",
+        "0.3",
+        "--adjoint-image",
+        "--adjoint-resolution",
+        "8x4",
+    ]);
+    settings.apply(&args.options, Spelling::Flag).unwrap();
+    let record = settings.given.to_toml();
+    for key in [
+        "seed = 1",
+        "spp = 5",
+        "chains = 3",
+        "sensor=2.5",
+        "64MiB",
+        "16x8",
+    ] {
+        assert!(record.contains(key), "{key} missing from\n{record}");
+    }
+    let text = format!("{record}\n{}", fog_box_without_render());
+    let (_, again) = load(&SceneSource::embedded("again.toml", &text))
+        .unwrap_or_else(|e| panic!("{e}\n{record}"));
+    assert_eq!(settings_of(&again), settings_of(&settings));
+    assert_eq!(again.given, settings.given);
+    assert_ne!(
+        settings_of(&settings),
+        settings_of(&RenderSettings::for_scene(&scene))
+    );
+    // --json shows the same record
+    let json = settings.given.to_json();
+    assert_eq!(json["mlt"]["chains"], 3);
+    assert_eq!(json["spp"], 5);
+    assert!(
+        json.get("max_depth").is_none(),
+        "absent options are left out: {json}"
+    );
 }

@@ -2,10 +2,25 @@
 //! starts from, the `--smc-*` options override them key by key, and every bad value is
 //! reported at its file, line and key. Book: "SMC: experiments", section "Settings".
 
-use pathspace::cli::render::{smc_settings, SmcArgs};
+use pathspace::cli::render::SmcArgs;
+use pathspace::integrator::settings::{RenderOptions, Spelling};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneError, SceneSource};
+
+/// `base` with the `--smc-*` options `args` over it, as `pathspace render` applies them.
+fn smc_flags(args: &SmcArgs, base: SmcSettings) -> Result<SmcSettings, String> {
+    let (_, mut settings) = load("").unwrap();
+    settings.smc = base;
+    let flags = RenderOptions {
+        smc: args.clone(),
+        ..Default::default()
+    };
+    settings
+        .apply(&flags, Spelling::Flag)
+        .map_err(|e| e.message)?;
+    Ok(settings.smc)
+}
 
 /// A valid scene of 17 lines ending in `[render.smc]`: a key appended is line 18.
 const BASE: &str = r#"# base scene for the [render.smc] tests
@@ -99,19 +114,14 @@ fn options_override_the_keys() {
     let base = settings.smc;
     // no option: the scene's settings
     let none = SmcArgs::default();
-    assert_eq!(
-        smc_settings(&none, IntegratorKind::Smc, base),
-        Ok(Some(base))
-    );
+    assert_eq!(smc_flags(&none, base), Ok(base));
     // one option replaces one key; the scene's march step carries over
     let args = SmcArgs {
         threshold: Some(99.0),
         estimator: Some("march".into()),
         ..Default::default()
     };
-    let s = smc_settings(&args, IntegratorKind::Smc, base)
-        .unwrap()
-        .unwrap();
+    let s = smc_flags(&args, base).unwrap();
     assert_eq!(s.threshold, 99.0);
     assert_eq!(s.variant, base.variant);
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.25 });
@@ -120,9 +130,7 @@ fn options_override_the_keys() {
         estimator: Some("distance".into()),
         ..Default::default()
     };
-    let s = smc_settings(&args, IntegratorKind::Smc, base)
-        .unwrap()
-        .unwrap();
+    let s = smc_flags(&args, base).unwrap();
     assert_eq!(s.variant, Variant::parse("is1_cv0").unwrap());
     assert_eq!(s.form, EstimatorForm::Distance);
     assert_eq!(s.threshold, 12.5);
@@ -132,12 +140,10 @@ fn options_override_the_keys() {
         step: Some(0.5),
         ..Default::default()
     };
-    let e = smc_settings(&args, IntegratorKind::Smc, distance).unwrap_err();
+    let e = smc_flags(&args, distance).unwrap_err();
     assert!(e.contains("march"), "{e}");
     // and on the default (march) form it applies
-    let s = smc_settings(&args, IntegratorKind::Smc, SmcSettings::default())
-        .unwrap()
-        .unwrap();
+    let s = smc_flags(&args, SmcSettings::default()).unwrap();
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.5 });
 }
 

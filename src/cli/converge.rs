@@ -60,7 +60,7 @@ pub struct ConvergeArgs {
     pub propagation: Vec<String>,
     /// Guided local sampling of the `+guide` variants.
     #[command(flatten)]
-    pub guide: super::render::GuideArgs,
+    pub guide: Box<super::render::GuideArgs>,
 }
 
 /// An integrator named on the command line: a kind and its variant modifiers: `+guide`,

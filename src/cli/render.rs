@@ -10,43 +10,32 @@ use std::path::PathBuf;
 
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::mlt::{mutation::MutationKind, MltOptions, MutationStats};
+use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::session::{self, Job, Preprocessed};
-use crate::integrator::settings::{AdjointOptions, GuideOptions};
-use crate::integrator::smc::{SmcOptions, SmcSettings};
+use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
+use crate::integrator::smc::SmcOptions;
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
 pub use crate::integrator::session::RenderResult;
 
+/// `pathspace render`: the render options of the schema ([`RenderOptions`], each overriding
+/// its key of the scene's `[render]` table) and the options of the command itself.
 #[derive(Args, Debug, Default, Clone)]
 pub struct RenderArgs {
     /// Scene file (TOML); without it, the embedded fog box.
     pub scene: Option<PathBuf>,
-    /// Integrator (default: the scene's `[render] integrator`).
-    #[arg(long)]
-    pub integrator: Option<String>,
-    /// Samples per pixel (default: the scene's `[render] spp`); for mlt, mutations per pixel.
-    #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
-    pub spp: Option<u32>,
+    /// The render options, each overriding its `[render]` key (boxed: most are rarely given).
+    #[command(flatten)]
+    pub options: Box<RenderOptions>,
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time")]
     pub mutations_per_pixel: Option<u32>,
-    /// Options of the `mlt` integrator, each overriding its `[render.mlt]` key (boxed: they
-    /// are rarely given).
-    #[command(flatten)]
-    pub mlt: Box<MltOptions>,
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
-    /// Random seed (default: the scene's `[render] seed`).
-    #[arg(long)]
-    pub seed: Option<u64>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Maximum number of scattering vertices (default: unlimited, Russian roulette).
-    #[arg(long)]
-    pub max_depth: Option<u32>,
     /// Override the camera resolution, e.g. `64x64` (quick previews, golden images).
     #[arg(long, value_parser = parse_resolution)]
     pub resolution: Option<(u32, u32)>,
@@ -66,64 +55,52 @@ pub struct RenderArgs {
     /// Print one JSON object with the results on stdout instead of the summary line.
     #[arg(long)]
     pub json: bool,
-    /// Options of the `smc` integrator, each overriding its `[render.smc]` key (boxed: they
-    /// are rarely given).
-    #[command(flatten)]
-    pub smc: Box<SmcOptions>,
-    /// Guided local sampling (bdpt, light, mlt).
-    #[command(flatten)]
-    pub guide: GuideArgs,
-    /// Options of the adjoint image (boxed: they are rarely given).
-    #[command(flatten)]
-    pub adjoint: Box<AdjointArgs>,
+    /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
+    #[arg(long)]
+    pub adjoint_output: Option<PathBuf>,
 }
 
 /// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines):
 /// the `[render.adjoint]` schema, each flag overriding its key.
 pub type AdjointTuning = AdjointOptions;
 
-/// The adjoint image's options (Kristensen 2010, sec. 5.3.1).
-#[derive(Args, Debug, Default, Clone)]
-pub struct AdjointArgs {
-    /// bdpt, light, mlt: sample area-light start points from the adjoint image, estimated by a
-    /// BDPT pre-pass first (default: the scene's `[render] adjoint_image`).
-    #[arg(long)]
-    pub adjoint_image: bool,
-    #[command(flatten)]
-    pub tuning: AdjointTuning,
-    /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
-    #[arg(long)]
-    pub adjoint_output: Option<PathBuf>,
-}
-
-impl AdjointArgs {
-    /// The adjoint settings if the image is wanted (flag or scene key): the scene's
-    /// `[render.adjoint]` overridden by the options; an error for invalid values, for options
-    /// without the image, or for an integrator that samples no light starts.
-    pub fn settings(
+impl RenderArgs {
+    /// Refuses the flags integrator `kind` does not take (a scene file's keys, in contrast,
+    /// are defaults for the integrators they apply to), before any value is applied.
+    fn refuse_foreign(
         &self,
         kind: IntegratorKind,
         settings: &RenderSettings,
-    ) -> Result<Option<AdjointSettings>, String> {
-        let wanted = self.adjoint_image || settings.adjoint_image;
-        let given = self.tuning.any() || self.adjoint_output.is_some();
-        if !wanted {
-            if given {
-                return Err("--adjoint-* options need --adjoint-image".into());
-            }
-            return Ok(None);
+    ) -> Result<(), String> {
+        let o = &self.options;
+        if kind != IntegratorKind::Mlt && self.mutations_per_pixel.is_some() {
+            return Err("--mutations-per-pixel needs --integrator mlt".into());
         }
-        if !kind.samples_light_starts() {
-            if self.adjoint_image {
-                return Err(format!(
-                    "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
-                    kind.name()
-                ));
-            }
-            // the scene's key is a default for the integrators it applies to
-            return Ok(None);
+        if kind != IntegratorKind::Smc && !o.smc.is_empty() {
+            return Err(format!(
+                "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
+                kind.name()
+            ));
         }
-        self.tuning.apply(settings.adjoint).map(Some)
+        let wanted = o.adjoint_image.unwrap_or(settings.adjoint_image);
+        if !wanted && (o.adjoint.any() || self.adjoint_output.is_some()) {
+            return Err("--adjoint-* options need --adjoint-image".into());
+        }
+        if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
+            return Err(format!(
+                "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
+                kind.name()
+            ));
+        }
+        if self.threads == Some(0) {
+            return Err("--threads must be at least 1".into());
+        }
+        if let Some(t) = self.time {
+            if !(t > 0.0 && t.is_finite()) {
+                return Err(format!("--time {t} must be a positive number of seconds"));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -146,26 +123,6 @@ pub type SmcArgs = SmcOptions;
 /// `[render.smc] cache_budget`).
 pub use crate::integrator::smc::parse_bytes;
 
-/// The SMC settings: the scene's `[render.smc]` (`base`) overridden by the options; an error
-/// when they are invalid or given to another integrator.
-pub fn smc_settings(
-    options: &SmcOptions,
-    kind: IntegratorKind,
-    base: SmcSettings,
-) -> Result<Option<SmcSettings>, String> {
-    if kind != IntegratorKind::Smc {
-        if !options.is_empty() {
-            return Err(format!(
-                "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
-                kind.name()
-            ));
-        }
-        return Ok(None);
-    }
-    let flag = |k: &str| format!("--smc-{}", k.replace('_', "-"));
-    options.apply(base, &flag).map(Some).map_err(|e| e.message)
-}
-
 /// Parses `WxH`.
 pub use crate::integrator::settings::parse_size as parse_resolution;
 
@@ -176,13 +133,10 @@ pub fn estimated_relmse(result: &RenderResult) -> Option<f64> {
     crate::measure::stats::estimated_relmse(image, variance).ok()
 }
 
-/// What the options and the scene file's `[render]` table ask for, checked: the integrator,
-/// the sample count, the seed and depth limit, and the settings with every option applied.
+/// What the options and the scene file's `[render]` table ask for, checked: the integrator
+/// and the settings with every option applied.
 struct Plan {
     kind: IntegratorKind,
-    spp: u32,
-    seed: u64,
-    max_depth: Option<u32>,
     settings: RenderSettings,
     /// The adjoint image's settings, when the image is wanted.
     adjoint: Option<AdjointSettings>,
@@ -195,54 +149,37 @@ fn configure(
     scene: &crate::scene::Scene,
     mut settings: RenderSettings,
 ) -> Result<Plan, String> {
-    let kind = IntegratorKind::parse(args.integrator.as_deref().unwrap_or(&settings.integrator))?;
-    args.mlt.apply(&mut settings.mlt);
+    let flags = &args.options;
+    let kind = IntegratorKind::parse(flags.integrator.as_deref().unwrap_or(&settings.integrator))?;
+    args.refuse_foreign(kind, &settings)?;
+    let mut flags = RenderOptions::clone(flags);
+    flags.spp = args.mutations_per_pixel.or(flags.spp);
+    settings
+        .apply(&flags, Spelling::Flag)
+        .map_err(|e| e.message)?;
     if kind == IntegratorKind::Mlt {
-        settings.mlt.validate()?;
         crate::integrator::mlt::check_scene(scene)?;
-    } else if args.mutations_per_pixel.is_some() {
-        return Err("--mutations-per-pixel needs --integrator mlt".into());
     }
     // light paths this integrator cannot sample: said once, before the work
     if let Some(w) = crate::integrator::reach::unreachable_paths(scene, kind) {
         eprintln!("warning: {w}");
     }
-    let spp = args
-        .mutations_per_pixel
-        .or(args.spp)
-        .unwrap_or(settings.spp);
-    if spp == 0 {
-        return Err("--spp must be at least 1".into());
-    }
-    if let Some(t) = args.time {
-        if !(t > 0.0 && t.is_finite()) {
-            return Err(format!("--time {t} must be a positive number of seconds"));
-        }
-    }
-    if let Some(smc) = smc_settings(&args.smc, kind, settings.smc)? {
-        if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, smc.variant) {
+    if kind == IntegratorKind::Smc {
+        if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, settings.smc.variant) {
             eprintln!("warning: {w}");
         }
-        settings.smc = smc;
     }
-    let seed = args.seed.unwrap_or(settings.seed);
-    settings.guide = args.guide.apply_flags(settings.guide)?;
     if settings.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
         return Err(format!(
             "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
             kind.name()
         ));
     }
-    let max_depth = args.max_depth.or(settings.max_depth);
-    if args.threads == Some(0) {
-        return Err("--threads must be at least 1".into());
-    }
-    let adjoint = args.adjoint.settings(kind, &settings)?;
+    // the scene's key is a default for the integrators it applies to
+    let adjoint =
+        (settings.adjoint_image && kind.samples_light_starts()).then_some(settings.adjoint);
     Ok(Plan {
         kind,
-        spp,
-        seed,
-        max_depth,
         settings,
         adjoint,
     })
@@ -285,14 +222,14 @@ fn show_adjoint(
             image.epsilon
         );
     }
-    if let Some(out) = &args.adjoint.adjoint_output {
+    if let Some(out) = &args.adjoint_output {
         let img = image.to_image();
         let mut meta = ImageMeta::default();
         meta.set(
             "adjoint_image",
             "cells: I* + eps, columns along u1 (light strips)",
         )
-        .set("seed", plan.seed)
+        .set("seed", plan.settings.seed)
         .set("scene_hash", format!("{:016x}", source.hash()));
         image_io::write_exr(out, &img, &meta).map_err(|e| e.to_string())?;
         image_io::write_png(&out.with_extension("png"), &img).map_err(|e| e.to_string())?;
@@ -313,7 +250,7 @@ fn write_strategy_images(
     }
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let renderer = crate::integrator::Renderer::prepared(plan.kind, setup)?;
-    let films = renderer.strategy_images(plan.spp, args.strategy_depth);
+    let films = renderer.strategy_images(plan.settings.spp, args.strategy_depth);
     for ((s, t), film) in &films {
         let img = film.image();
         let base = dir.join(format!("s{s}-t{t}"));
@@ -322,8 +259,8 @@ fn write_strategy_images(
             "integrator",
             format!("bdpt strategy s={s} t={t} (MIS-weighted)"),
         )
-        .set("spp", plan.spp)
-        .set("seed", plan.seed)
+        .set("spp", plan.settings.spp)
+        .set("seed", plan.settings.seed)
         .set("scene_hash", format!("{:016x}", source.hash()));
         image_io::write_exr(&base.with_extension("exr"), &img, &meta).map_err(|e| e.to_string())?;
         image_io::write_png(&base.with_extension("png"), &img).map_err(|e| e.to_string())?;
@@ -362,12 +299,13 @@ fn write_image(
     let mut meta = ImageMeta::default();
     meta.set("integrator", &result.integrator)
         .set("spp", result.spp)
-        .set("seed", plan.seed)
+        .set("seed", plan.settings.seed)
         .set("seconds", format!("{:.3}", result.seconds))
         .set("scene", &source.name)
         .set("scene_hash", format!("{:016x}", source.hash()))
         .set("nan_count", result.nan_count)
-        .set("negative_pixels", result.negative_pixels);
+        .set("negative_pixels", result.negative_pixels)
+        .set("render_options", plan.settings.given.to_toml());
     if let Some(g) = &pre.guide {
         let gs = plan.settings.guide;
         meta.set(
@@ -453,6 +391,7 @@ fn result_json(
             "seconds_particles": g.seconds_particles,
             "seconds_build": g.seconds_build,
         })),
+        "options": plan.settings.given.to_json(),
         "adjoint": pre.adjoint.map(|a| serde_json::json!({
             "samples": a.samples,
             "seconds": a.seconds,
@@ -521,8 +460,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
             &scene,
             plan.adjoint.as_ref(),
             &plan.settings.guide,
-            plan.seed,
-            plan.max_depth,
+            plan.settings.seed,
+            plan.settings.max_depth,
             !args.json,
         )
     })?;
@@ -534,8 +473,8 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
         scene: &scene,
         technique: &pre.technique,
         settings: &plan.settings,
-        seed: plan.seed,
-        max_depth: plan.max_depth,
+        seed: plan.settings.seed,
+        max_depth: plan.settings.max_depth,
     };
     if let Some(dir) = &args.strategy_images {
         pool.install(|| write_strategy_images(&args, dir, &setup, &plan, &source))?;
@@ -543,7 +482,7 @@ pub fn run(args: RenderArgs) -> Result<(), String> {
     let job = Job {
         kind: plan.kind,
         setup,
-        spp: plan.spp,
+        spp: plan.settings.spp,
         time: args.time,
         progress: !args.json,
     };

@@ -4,7 +4,7 @@
 //! integrators' own structs) live with the integrators.
 //! Book: "Scenes" (the `[render]` table); tests: `tests/scene_errors.rs`, `tests/smc_settings.rs`.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::enlightened::{AdjointSettings, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
@@ -16,33 +16,133 @@ use crate::scene::{Scene, SceneError, SceneSource};
 #[derive(Debug, Clone, Default, Deserialize)]
 struct RenderFile {
     #[serde(default)]
-    render: RenderDesc,
+    render: RenderOptions,
 }
 
-/// `[render]`: the scene file's defaults for the command-line options.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+/// The render options, declared once: each field is a `[render]` key of the scene file (serde)
+/// and a flag of `pathspace render` (clap) with one doc, its default in [`RenderSettings`].
+/// [`RenderSettings::apply`] puts a set of them over the settings and checks every value: the
+/// file's over the defaults at load, the flags over the file's on the command line. The
+/// integrators' own options are the nested tables (`[render.mlt]`: `--mlt-*`, ...); a render
+/// records the options it was given ([`RenderOptions::over`]) in its `--json` and EXR header.
+#[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct RenderDesc {
-    #[serde(default = "default_integrator")]
-    pub integrator: String,
-    #[serde(default = "default_spp")]
-    pub spp: u32,
-    #[serde(default = "default_seed")]
-    pub seed: u64,
+pub struct RenderOptions {
+    /// Integrator: path, light, bdpt, mlt or smc (default path).
+    #[arg(long)]
+    pub integrator: Option<String>,
+    /// Samples per pixel (default 64); for mlt, mutations per pixel.
+    #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
+    pub spp: Option<u32>,
+    /// Random seed (default 1).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Maximum number of scattering vertices (default: unlimited, Russian roulette).
+    #[arg(long)]
     pub max_depth: Option<u32>,
     /// Samples per irradiance meter per pixel-sample pass (default 4096).
+    #[arg(long)]
     pub meter_samples: Option<u32>,
-    /// `[render.mlt]`: Metropolis light transport settings (the `--mlt-*` options).
-    pub mlt: Option<MltOptions>,
-    /// `[render.smc]`: sequential Monte Carlo settings (the `--smc-*` options).
-    pub smc: Option<SmcOptions>,
-    /// `[render.guide]`: guided local sampling (enlightened local path sampling).
-    pub guide: Option<GuideOptions>,
-    /// Sample area-light start points from the adjoint image (bdpt, light, mlt; Kristensen
-    /// 2010, sec. 5.3.1).
+    /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
+    /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
+    /// `--adjoint-image=false` turns off the file's).
+    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "true", value_name = "BOOL")]
     pub adjoint_image: Option<bool>,
-    /// `[render.adjoint]`: the adjoint image's grid, pre-pass size and floor.
-    pub adjoint: Option<AdjointOptions>,
+    /// `[render.mlt]`: Metropolis light transport (the `--mlt-*` options).
+    #[command(flatten)]
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub mlt: MltOptions,
+    /// `[render.smc]`: sequential Monte Carlo (the `--smc-*` options).
+    #[command(flatten)]
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub smc: SmcOptions,
+    /// `[render.guide]`: guided local sampling, enlightened local path sampling (the
+    /// `--guide*` options).
+    #[command(flatten)]
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub guide: GuideOptions,
+    /// `[render.adjoint]`: the adjoint image's grid, pre-pass size and floor (the
+    /// `--adjoint-*` options).
+    #[command(flatten)]
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub adjoint: AdjointOptions,
+}
+
+fn is_default<T: Default + PartialEq>(t: &T) -> bool {
+    *t == T::default()
+}
+
+impl RenderOptions {
+    /// These options over `base` (each given one replaces base's, at any depth): the flags
+    /// over the file's, as a render records them. Generic over the fields, so a new option
+    /// needs no edit here.
+    pub fn over(&self, base: &RenderOptions) -> RenderOptions {
+        fn merge(base: &mut serde_json::Value, top: serde_json::Value) {
+            match (base, top) {
+                (serde_json::Value::Object(b), serde_json::Value::Object(t)) => {
+                    for (k, v) in t {
+                        merge(b.entry(k).or_insert(serde_json::Value::Null), v);
+                    }
+                }
+                (_, serde_json::Value::Null) => {}
+                (b, t) => *b = t,
+            }
+        }
+        let to_value = |o: &RenderOptions| serde_json::to_value(o).expect("options serialize");
+        let mut merged = to_value(base);
+        merge(&mut merged, to_value(self));
+        serde_json::from_value(merged).expect("merged options deserialize")
+    }
+
+    /// The given options as a JSON object, the absent ones left out (`--json`'s `options`).
+    pub fn to_json(&self) -> serde_json::Value {
+        fn prune(v: serde_json::Value) -> Option<serde_json::Value> {
+            match v {
+                serde_json::Value::Null => None,
+                serde_json::Value::Object(m) => {
+                    let m: serde_json::Map<_, _> = m
+                        .into_iter()
+                        .filter_map(|(k, v)| Some((k, prune(v)?)))
+                        .collect();
+                    (!m.is_empty()).then_some(serde_json::Value::Object(m))
+                }
+                v => Some(v),
+            }
+        }
+        prune(serde_json::to_value(self).expect("options serialize"))
+            .unwrap_or_else(|| serde_json::json!({}))
+    }
+
+    /// The given options as the `[render]` table that repeats them (the EXR header's
+    /// `render_options`: paste it into the scene file to render the same image again).
+    pub fn to_toml(&self) -> String {
+        #[derive(Serialize)]
+        struct Table<'a> {
+            render: &'a RenderOptions,
+        }
+        toml::to_string(&Table { render: self }).unwrap_or_else(|e| format!("# {e}"))
+    }
+}
+
+/// A render option whose value is refused: where it is (`table` under `[render]`, empty for
+/// `[render]` itself, and the key when the message is about one) and why, the message naming
+/// it as the caller spells it (a file key or a flag).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct SettingError {
+    pub table: &'static str,
+    pub key: Option<&'static str>,
+    pub message: String,
+}
+
+impl SettingError {
+    fn at(table: &'static str, key: Option<&'static str>, message: impl ToString) -> Self {
+        SettingError {
+            table,
+            key,
+            message: message.to_string(),
+        }
+    }
 }
 
 /// The adjoint image's options (Kristensen 2010, sec. 5.3.1), declared once: the
@@ -50,7 +150,7 @@ pub struct RenderDesc {
 /// the same docs (defaults in `enlightened::adjoint`); [`AdjointOptions::apply_keys`] puts the
 /// file's over the defaults, [`AdjointOptions::apply`] the flags over the file's, both checked by
 /// [`AdjointSettings::validate`].
-#[derive(clap::Args, Debug, Clone, Default, Deserialize, PartialEq)]
+#[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct AdjointOptions {
     /// Adjoint grid COLSxROWS (`[columns, rows]` in the file; columns rounded up to a multiple
@@ -161,7 +261,7 @@ pub enum Spelling {
 /// `--guide-*` flags (clap; `vertices` is `--guide`) are the same fields with the same docs
 /// (defaults in `enlightened::guide`); [`GuideOptions::apply`] puts them over the settings
 /// and checks every value.
-#[derive(clap::Args, Debug, Clone, Default, Deserialize, PartialEq)]
+#[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
@@ -311,37 +411,11 @@ impl GuideOptions {
     }
 }
 
-fn default_integrator() -> String {
-    "path".into()
-}
-fn default_spp() -> u32 {
-    64
-}
-fn default_seed() -> u64 {
-    1
-}
-
-impl Default for RenderDesc {
-    fn default() -> Self {
-        RenderDesc {
-            integrator: default_integrator(),
-            spp: default_spp(),
-            seed: default_seed(),
-            max_depth: None,
-            meter_samples: None,
-            mlt: None,
-            smc: None,
-            guide: None,
-            adjoint_image: None,
-            adjoint: None,
-        }
-    }
-}
-
 /// Default number of irradiance-meter samples per pass.
 pub const DEFAULT_METER_SAMPLES: u32 = 4096;
 
-/// Rendering defaults from the scene's `[render]` table; the command line overrides them.
+/// The settings a render runs with: the defaults, the scene's `[render]` table over them and
+/// the command line's flags over those ([`RenderSettings::apply`]).
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
     pub integrator: String,
@@ -351,56 +425,105 @@ pub struct RenderSettings {
     pub meter_samples: u32,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
-    /// Sequential Monte Carlo settings (`[render.smc]`, defaults where a key is absent); the
-    /// `--smc-*` options override them.
+    /// Sequential Monte Carlo settings (`[render.smc]`).
     pub smc: SmcSettings,
-    /// Guided local sampling (`[render.guide]`; `--guide*` options override it).
+    /// Guided local sampling (`[render.guide]`).
     pub guide: GuideSettings,
-    /// `[render] adjoint_image`: sample area-light starts from the adjoint image.
+    /// Sample area-light starts from the adjoint image (`[render] adjoint_image`).
     pub adjoint_image: bool,
-    /// `[render.adjoint]` (defaults where a key is absent); `--adjoint-*` override them.
+    /// The adjoint image's grid, pre-pass and floor (`[render.adjoint]`).
     pub adjoint: AdjointSettings,
+    /// The options these settings were given, in the order applied (a render's record).
+    pub given: RenderOptions,
 }
 
 impl RenderSettings {
-    /// The settings of an empty `[render]` table for `scene` (the guide's alpha depends on the
-    /// scene's radius): what programs that build their own renderers start from.
+    /// The defaults of every option for a scene of radius `radius` (the guide's alpha
+    /// depends on it).
+    fn defaults(radius: f32) -> Self {
+        RenderSettings {
+            integrator: "path".into(),
+            spp: 64,
+            seed: 1,
+            max_depth: None,
+            meter_samples: DEFAULT_METER_SAMPLES,
+            mlt: MltSettings::default(),
+            smc: SmcSettings::default(),
+            guide: GuideSettings::for_radius(radius),
+            adjoint_image: false,
+            adjoint: AdjointSettings::default(),
+            given: RenderOptions::default(),
+        }
+    }
+
+    /// The settings of an empty `[render]` table for `scene`: what programs that build their
+    /// own renderers start from.
     pub fn for_scene(scene: &Scene) -> Self {
-        Self::from_desc(
-            &SceneSource::embedded("defaults", ""),
-            &RenderDesc::default(),
-            scene.radius,
-        )
-        .expect("the defaults are valid")
+        Self::defaults(scene.radius)
     }
 
     /// The settings of `src`'s `[render]` table for a scene of radius `radius`, every value
     /// checked and a bad one reported at its line and key.
     pub fn from_source(src: &SceneSource, radius: f32) -> Result<Self, SceneError> {
-        let desc: RenderFile = file::parse_as(&src.text, &src.name)?;
-        Self::from_desc(src, &desc.render, radius)
+        let file: RenderFile = file::parse_as(&src.text, &src.name)?;
+        let mut settings = Self::defaults(radius);
+        settings.apply(&file.render, Spelling::Key).map_err(|e| {
+            let mut at = path("render");
+            if !e.table.is_empty() {
+                at = at.key(e.table);
+            }
+            if let Some(k) = e.key {
+                at = at.key(k);
+            }
+            src.error(&at, e.message)
+        })?;
+        Ok(settings)
     }
 
-    fn from_desc(src: &SceneSource, desc: &RenderDesc, radius: f32) -> Result<Self, SceneError> {
-        let render = RenderSettings {
-            integrator: desc.integrator.clone(),
-            spp: desc.spp,
-            seed: desc.seed,
-            max_depth: desc.max_depth,
-            meter_samples: desc.meter_samples.unwrap_or(DEFAULT_METER_SAMPLES),
-            mlt: mlt_settings(desc.mlt.as_ref()),
-            smc: smc_settings(src, desc.smc.as_ref())?,
-            guide: guide_settings(src, desc.guide.as_ref(), radius)?,
-            adjoint_image: desc.adjoint_image.unwrap_or(false),
-            adjoint: adjoint_settings(src, desc.adjoint.as_ref())?,
+    /// Puts every given option of `o` over these settings and checks it; a message names the
+    /// option as `spelling` does (`spp` in a file, `--spp` on the command line). Which
+    /// integrator takes an option is the caller's to check (a file's keys are defaults for
+    /// the integrators they apply to).
+    pub fn apply(&mut self, o: &RenderOptions, spelling: Spelling) -> Result<(), SettingError> {
+        let flag = spelling == Spelling::Flag;
+        if let Some(i) = &o.integrator {
+            self.integrator = i.clone();
+        }
+        if let Some(n) = o.spp {
+            if n == 0 {
+                let m = format!("{}spp must be at least 1", if flag { "--" } else { "" });
+                return Err(SettingError::at("", Some("spp"), m));
+            }
+            self.spp = n;
+        }
+        self.seed = o.seed.unwrap_or(self.seed);
+        self.max_depth = o.max_depth.or(self.max_depth);
+        self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
+        self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
+        o.mlt.apply(&mut self.mlt);
+        self.mlt
+            .validate()
+            .map_err(|e| SettingError::at("mlt", None, e))?;
+        let name = |k: &str| match spelling {
+            Spelling::Key => k.to_string(),
+            Spelling::Flag => format!("--smc-{}", k.replace('_', "-")),
         };
-        if render.spp == 0 {
-            return Err(src.error(&path("render").key("spp"), "spp must be at least 1"));
+        let at = |table, e: OptionError| SettingError::at(table, Some(e.key), e.message);
+        self.smc = o.smc.apply(self.smc, &name).map_err(|e| at("smc", e))?;
+        self.guide = o
+            .guide
+            .apply(self.guide, spelling)
+            .map_err(|e| at("guide", e))?;
+        self.adjoint = match spelling {
+            Spelling::Key => o.adjoint.apply_keys(self.adjoint),
+            Spelling::Flag => o
+                .adjoint
+                .apply(self.adjoint)
+                .map_err(|message| OptionError { key: "", message }),
         }
-        if let Err(e) = render.mlt.validate() {
-            return Err(src.error(&path("render").key("mlt"), e));
-        }
-        Ok(render)
+        .map_err(|e| at("adjoint", e))?;
+        self.given = o.over(&self.given);
+        Ok(())
     }
 }
 
@@ -409,48 +532,4 @@ pub fn load(src: &SceneSource) -> Result<(Scene, RenderSettings), SceneError> {
     let scene = Scene::load(src)?;
     let settings = RenderSettings::from_source(src, scene.radius)?;
     Ok((scene, settings))
-}
-
-/// MLT settings from `[render.mlt]`, defaults where a key is absent (checked by the caller).
-fn mlt_settings(desc: Option<&MltOptions>) -> MltSettings {
-    let mut m = MltSettings::default();
-    if let Some(d) = desc {
-        d.apply(&mut m);
-    }
-    m
-}
-
-/// Guide settings from `[render.guide]`, defaults where a key is absent; every value is checked
-/// here so that a bad one is reported at its line and key.
-fn guide_settings(
-    src: &SceneSource,
-    desc: Option<&GuideOptions>,
-    radius: f32,
-) -> Result<GuideSettings, SceneError> {
-    let s = GuideSettings::for_radius(radius);
-    let Some(d) = desc else { return Ok(s) };
-    d.apply(s, Spelling::Key)
-        .map_err(|e| src.error(&path("render").key("guide").key(e.key), e.message))
-}
-
-/// Adjoint-image settings from `[render.adjoint]`, defaults where a key is absent; each value
-/// is checked here so a bad one is reported at its line and key.
-fn adjoint_settings(
-    src: &SceneSource,
-    desc: Option<&AdjointOptions>,
-) -> Result<AdjointSettings, SceneError> {
-    let s = AdjointSettings::default();
-    let Some(d) = desc else { return Ok(s) };
-    d.apply_keys(s)
-        .map_err(|e| src.error(&path("render").key("adjoint").key(e.key), e.message))
-}
-
-/// SMC settings from `[render.smc]`, defaults where a key is absent; every value is checked
-/// here so that a bad one is reported at its line and key.
-fn smc_settings(src: &SceneSource, desc: Option<&SmcOptions>) -> Result<SmcSettings, SceneError> {
-    let Some(d) = desc else {
-        return Ok(SmcSettings::default());
-    };
-    d.apply(SmcSettings::default(), &|k| k.to_string())
-        .map_err(|e| src.error(&path("render").key("smc").key(e.key), e.message))
 }

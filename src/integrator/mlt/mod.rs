@@ -159,7 +159,7 @@ impl MltSettings {
 /// settings (the file's over the defaults, the flags over the file's) and
 /// [`MltSettings::validate`] checks the result. The flags without a prefix of earlier releases
 /// (`--chains`, `--bootstrap`, `--b-refine`, `--mutation-weights`) are hidden aliases.
-#[derive(clap::Args, serde::Deserialize, Debug, Clone, Default, PartialEq)]
+#[derive(clap::Args, serde::Deserialize, serde::Serialize, Debug, Clone, Default, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MltOptions {
     /// MLT: BDPT pre-pass samples n that estimate b (default 16384).
@@ -190,7 +190,7 @@ pub struct MltOptions {
     /// MLT: every mutation selection weight at once, e.g. `bidirectional=1,sensor=100,light=100`
     /// (unnamed types get 0; the per-type options above override it).
     #[arg(long = "mlt-mutation-weights", alias = "mutation-weights", value_parser = MltSettings::parse_weights)]
-    #[serde(skip)]
+    #[serde(default, with = "weights_text")]
     pub mutation_weights: Option<[f64; 5]>,
     /// MLT: sensor perturbation film offset MIN,MAX in pixels (default 0.1,25).
     #[arg(long = "mlt-sensor-offset", value_name = "MIN,MAX", value_parser = parse_range)]
@@ -206,6 +206,31 @@ pub struct MltOptions {
     /// scenes whose pre-pass paths often fail the re-evaluation, e.g. near-specular relations).
     #[arg(long = "mlt-seed-draws")]
     pub seed_draws: Option<u32>,
+}
+
+/// `mutation_weights` in a file or a render's record: the flag's `name=weight,...` text.
+mod weights_text {
+    use super::{MltSettings, MutationKind};
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(w: &Option<[f64; 5]>, s: S) -> Result<S::Ok, S::Error> {
+        match w {
+            None => s.serialize_none(),
+            Some(w) => {
+                let parts: Vec<String> = MutationKind::ALL
+                    .iter()
+                    .map(|k| format!("{}={}", k.name(), w[k.index()]))
+                    .collect();
+                s.serialize_str(&parts.join(","))
+            }
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 5]>, D::Error> {
+        let text = Option::<String>::deserialize(d)?;
+        text.map(|t| MltSettings::parse_weights(&t).map_err(D::Error::custom))
+            .transpose()
+    }
 }
 
 /// Parses `MIN,MAX` (a perturbation range).

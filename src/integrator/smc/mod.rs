@@ -272,7 +272,7 @@ impl Default for SmcSettings {
 }
 
 /// A byte count written as an integer or as a string with a unit (`"512MiB"`).
-#[derive(Debug, Clone, serde::Deserialize, PartialEq)]
+#[derive(Debug, Clone, serde::Deserialize, serde::Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum ByteCount {
     Bytes(i64),
@@ -299,7 +299,7 @@ pub struct OptionError {
 /// (clap) are the same fields with the same docs; [`SmcOptions::apply`] puts them over the
 /// settings and checks every value (the file's over the defaults at load, the flags over the
 /// file's on the command line). `--cache-budget` of earlier releases is a hidden alias.
-#[derive(clap::Args, serde::Deserialize, Debug, Clone, Default, PartialEq)]
+#[derive(clap::Args, serde::Deserialize, serde::Serialize, Debug, Clone, Default, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SmcOptions {
     /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
