@@ -259,28 +259,44 @@ fn bad_mlt_settings_are_clear_errors() {
 /// (aligned from either end). That must change nothing: for proposals of every mutation type
 /// the reused evaluation equals the evaluation from scratch to the bit, and the edges it
 /// reports are the path's own.
+/// In a heterogeneous medium too: f's transmittance is the exact one, a function of the edge
+/// alone (ratio tracking's estimate would depend on the random numbers earlier edges drew).
 #[test]
 fn reused_edge_factors_give_the_same_contribution_to_the_bit() {
+    check_reuse(&mixed_scene(), "mixed");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cloud.toml");
+    let text = std::fs::read_to_string(path).expect("the cloud scene");
+    let mut cloud = Scene::load(&SceneSource::embedded("cloud", &text)).expect("valid cloud");
+    let tracking = pathspace::medium::heterogeneous::LineIntegral::DeltaTracking;
+    assert_eq!(cloud.set_line_integral(tracking), 1);
+    check_reuse(&cloud, "cloud");
+}
+
+fn check_reuse(scene: &Scene, name: &str) {
     use pathspace::integrator::mlt::contribution::image_contribution_reusing;
-    let scene = mixed_scene();
-    let mlt = engine(&scene, [1.0; 5], Some(6), 31);
-    let paths = test_paths(&scene, &mlt, 200, 31);
+    let mlt = engine(scene, [1.0; 5], Some(6), 31);
+    let paths = test_paths(scene, &mlt, 200, 31);
     let mut reused_any = [0usize; 5];
     for kind in MutationKind::ALL {
         let m = mlt.mutations.get(kind);
         let mut sampler = Sampler::new(32, kind.index() as u64, 0);
         for x in &paths {
             let mut ex = Vec::new();
-            image_contribution_reusing(&scene, x, None, &mut ex).unwrap();
-            let Some(y) = m.sample(&scene, &pathspace::path::PLAIN, x, &mut sampler) else {
+            image_contribution_reusing(scene, x, None, &mut ex).unwrap();
+            let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut sampler) else {
                 continue;
             };
             let (mut fresh, mut reused) = (Vec::new(), Vec::new());
-            let a = image_contribution_reusing(&scene, &y, None, &mut fresh);
-            let b = image_contribution_reusing(&scene, &y, Some((x, &ex)), &mut reused);
-            assert_eq!(a, b, "{}: f(y) differs with reuse", kind.name());
+            let a = image_contribution_reusing(scene, &y, None, &mut fresh);
+            let b = image_contribution_reusing(scene, &y, Some((x, &ex)), &mut reused);
+            assert_eq!(a, b, "{name}, {}: f(y) differs with reuse", kind.name());
             if a.is_some() {
-                assert_eq!(fresh, reused, "{}: edge factors differ", kind.name());
+                assert_eq!(
+                    fresh,
+                    reused,
+                    "{name}, {}: edge factors differ",
+                    kind.name()
+                );
                 let shared = y
                     .windows(2)
                     .zip(x.windows(2))
@@ -291,7 +307,11 @@ fn reused_edge_factors_give_the_same_contribution_to_the_bit() {
     }
     // perturbations keep the light end: reuse must actually happen for them
     for k in [MutationKind::Sensor, MutationKind::Propagation] {
-        assert!(reused_any[k.index()] > 10, "{}: {reused_any:?}", k.name());
+        assert!(
+            reused_any[k.index()] > 10,
+            "{name}, {}: {reused_any:?}",
+            k.name()
+        );
     }
 }
 

@@ -166,6 +166,17 @@ impl Medium {
         }
     }
 
+    /// The exact transmittance exp(-tau) over [0, t_max) along `ray` (eq. 3), deterministic in
+    /// every medium: for a target that must be a function of the path alone (MLT's f, whose
+    /// edges are reused across mutations and compared in the acceptance).
+    #[inline]
+    pub fn transmittance_exact(&self, ray: &Ray, t_max: f32) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.transmittance(t_max),
+            Medium::Heterogeneous(h) => h.transmittance_exact(ray, t_max),
+        }
+    }
+
     /// The density (collision) or probability (passage) of a free flight of length `t` on
     /// [0, t_max), as `sample_free_flight` would have produced it. For path pdfs in BDPT/MLT.
     pub fn free_flight_pdf(&self, ray: &Ray, t: f32, scattered: bool) -> f32 {

@@ -44,12 +44,28 @@ pub fn geometry_term_unoccluded(x: &Vertex, y: &Vertex) -> f32 {
 // ANCHOR_END: geometry_term
 
 /// G(x <-> y) V(x, y) and the transmittance tau(x <-> y): the two factors eq. (6) has per edge.
+/// In inhomogeneous media tau is an estimate drawn from `sampler` (ratio tracking).
 pub fn geometry_term(scene: &Scene, x: &Vertex, y: &Vertex, sampler: &mut Sampler) -> (f32, Rgb) {
+    edge_factors(x, y, |a, b| scene.edge(a, b, sampler))
+}
+
+/// [`geometry_term`] with the exact tau (`Scene::edge_exact`): a deterministic function of
+/// the two vertices, as MLT's target needs.
+pub fn geometry_term_exact(scene: &Scene, x: &Vertex, y: &Vertex) -> (f32, Rgb) {
+    edge_factors(x, y, |a, b| scene.edge_exact(a, b))
+}
+
+/// G V and tau of the edge x y, with `edge` evaluating its visibility and transmittance.
+fn edge_factors(
+    x: &Vertex,
+    y: &Vertex,
+    edge: impl FnOnce(crate::scene::EdgeEnd, crate::scene::EdgeEnd) -> crate::scene::EdgeEval,
+) -> (f32, Rgb) {
     let g = geometry_term_unoccluded(x, y);
     if g == 0.0 {
         return (0.0, Rgb::ZERO);
     }
-    let e = scene.edge(x.edge_end(y.p), y.edge_end(x.p), sampler);
+    let e = edge(x.edge_end(y.p), y.edge_end(x.p));
     if e.transmittance == Rgb::ZERO {
         return (0.0, Rgb::ZERO);
     }

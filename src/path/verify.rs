@@ -13,6 +13,7 @@
 //! edges' propagation pdfs, through `Scene::edge`), `Scene::edge` for transmittance and
 //! `path::contribution` (eq. 6) for the whole path.
 
+use super::geometry_term::geometry_term_exact;
 use super::pdf::{densities, strategy_pdf};
 use super::{geometry_term, measurement_contribution, LocalSampling, Path, VertexKind};
 use crate::math::Sampler;
@@ -347,21 +348,14 @@ impl Path {
 }
 
 /// Checks a path's cached edge factors (G V and tau per edge x_i x_{i+1}, what MLT's chains
-/// keep and reuse) against `geometry_term` evaluated on the vertices; tau only where it is
-/// deterministic ([`deterministic_transmittance`]).
-pub fn verify_edges(
-    scene: &Scene,
-    path: &Path,
-    edges: &[(f32, Rgb)],
-    sampler: &mut Sampler,
-) -> Verdict {
+/// keep and reuse) against `geometry_term_exact` evaluated on the vertices: MLT's f uses the
+/// exact transmittance in every medium, so both factors must match to the bit.
+pub fn verify_edges(scene: &Scene, path: &Path, edges: &[(f32, Rgb)]) -> Verdict {
     let v = &path.vertices;
     for (i, &(g, tau)) in edges.iter().enumerate().take(v.len().saturating_sub(1)) {
-        let (g2, tau2) = geometry_term(scene, &v[i], &v[i + 1], sampler);
+        let (g2, tau2) = geometry_term_exact(scene, &v[i], &v[i + 1]);
         check(i, "edge G", g as f64, g2 as f64)?;
-        if deterministic_transmittance(scene) {
-            check_rgb(i, "edge tau", tau, tau2, 0.0)?;
-        }
+        check_rgb(i, "edge tau", tau, tau2, 0.0)?;
     }
     Ok(())
 }

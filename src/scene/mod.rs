@@ -308,6 +308,25 @@ impl Scene {
     /// probabilities), `pdf_ba` the same from `b` to `a`. Transmittance includes visibility.
     // ANCHOR: edge
     pub fn edge(&self, a: EdgeEnd, b: EdgeEnd, sampler: &mut Sampler) -> EdgeEval {
+        self.edge_with(a, b, &mut |med, ray, len| {
+            med.transmittance(ray, len, sampler)
+        })
+    }
+
+    /// [`Scene::edge`] with the exact transmittance of every medium segment
+    /// (`Medium::transmittance_exact`): deterministic, for MLT's target function.
+    pub fn edge_exact(&self, a: EdgeEnd, b: EdgeEnd) -> EdgeEval {
+        self.edge_with(a, b, &mut |med, ray, len| med.transmittance_exact(ray, len))
+    }
+
+    /// [`Scene::edge`] with `tau(medium, ray, length)` giving each medium segment's
+    /// transmittance.
+    fn edge_with(
+        &self,
+        a: EdgeEnd,
+        b: EdgeEnd,
+        tau: &mut dyn FnMut(&crate::medium::Medium, &Ray, f32) -> Rgb,
+    ) -> EdgeEval {
         let zero = EdgeEval {
             transmittance: Rgb::ZERO,
             pdf_ab: 0.0,
@@ -359,7 +378,7 @@ impl Scene {
                 let med = &self.media[m as usize];
                 let len = seg.t1 - seg.t0;
                 let sr = Ray::new(ray.at(seg.t0), d);
-                out.transmittance *= med.transmittance(&sr, len, sampler);
+                out.transmittance *= tau(med, &sr, len);
                 out.pdf_ab *= med.free_flight_pdf(&sr, len, last && b_in_medium);
                 let back = Ray::new(ray.at(seg.t1), -d);
                 out.pdf_ba *= med.free_flight_pdf(&back, len, seg.first && a_in_medium);

@@ -17,7 +17,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Bsdf, Lobe, TransportMode};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
-use crate::path::geometry_term::geometry_term;
+use crate::path::geometry_term::geometry_term_exact;
 use crate::path::pdf::{densities_in, Densities};
 use crate::path::vertex::to_area;
 use crate::path::{LocalSampling, Vertex, VertexKind};
@@ -167,8 +167,8 @@ pub fn image_contribution_reusing(
     }
     let cam = scene.camera.as_ref()?;
     let imp = cam.importance((v[n - 2].p - v[n - 1].p).normalize_or_zero())?;
-    // the homogeneous media of pathspace make tau deterministic: the sampler is never drawn
-    let mut unused = Sampler::new(0, 0, 0);
+    // tau is the exact one, not ratio tracking's estimate: the target must be a function of the
+    // path alone, for the acceptance and for reusing an edge's factors across mutations
     let mut f = v[0].emitted(scene, v[1].p);
     for i in 0..n - 1 {
         if f == Rgb::ZERO {
@@ -177,8 +177,8 @@ pub fn image_contribution_reusing(
         if i > 0 {
             f *= f_hat_singular(scene, &v[i], v[i - 1].p, v[i + 1].p);
         }
-        let (g, tau) = reused_edge(v, i, old)
-            .unwrap_or_else(|| geometry_term(scene, &v[i], &v[i + 1], &mut unused));
+        let (g, tau) =
+            reused_edge(v, i, old).unwrap_or_else(|| geometry_term_exact(scene, &v[i], &v[i + 1]));
         edges.push((g, tau));
         f *= tau * g;
     }
