@@ -61,9 +61,11 @@ record() {
   echo "recorded $(ls "$dir"/*.json | wc -l) renders and $(wc -l <"$dir/stats.tsv") comparisons in $dir"
 }
 
-# A record's JSON without its timings (every key starting with `seconds`, at any depth).
+# A record's JSON without its timings (every key starting with `seconds`, at any depth) and
+# without `options`, the record of the options given (a function of the command line, added
+# after the first records were made).
 untimed() {
-  jq -S 'walk(if type == "object" then with_entries(select(.key | startswith("seconds") | not)) else . end)' \
+  jq -S 'del(.options) | walk(if type == "object" then with_entries(select(.key | startswith("seconds") | not)) else . end)' \
     "$1" 2>/dev/null || cat "$1"
 }
 
