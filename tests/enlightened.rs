@@ -766,12 +766,18 @@ fn bad_adjoint_settings_are_clear_errors() {
     }
     // the command line's overrides (render and converge share them)
     let d = AdjointSettings::default();
-    let e = d.overridden(None, None, None, Some("mlt")).unwrap_err();
+    let e = d
+        .overridden(None, None, None, Some("mlt"))
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("--adjoint-estimator") && e.contains("metropolis"),
         "{e}"
     );
-    let e = d.overridden(None, Some(0), None, None).unwrap_err();
+    let e = d
+        .overridden(None, Some(0), None, None)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("samples per cell"), "{e}");
     let ok = d
         .overridden(Some((18, 9)), Some(3), Some(0.25), Some("metropolis"))
@@ -786,10 +792,12 @@ fn bad_adjoint_settings_are_clear_errors() {
         &base[..base.find("# ceiling light").unwrap()]
     ));
     let e = AdjointImage::render(&point_only, &PLAIN, &AdjointSettings::default(), 1, None)
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("no area light"), "{e}");
     let e = AdjointImage::render(&room(false), &PLAIN, &AdjointSettings::default(), 1, None)
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("camera"), "{e}");
 }
 

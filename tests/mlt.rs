@@ -233,7 +233,9 @@ fn merge_weights_renders_by_their_sample_counts() {
     .unwrap();
     assert_eq!(total, 4);
     assert_eq!(out.pixels[0], Vec3::splat(4.0)); // (1 * 1 + 3 * 5) / 4
-    let err = merge(&[("c".into(), img(1.0), ImageMeta::default())]).unwrap_err();
+    let err = merge(&[("c".into(), img(1.0), ImageMeta::default())])
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("spp"), "{err}");
 }
 

@@ -181,9 +181,13 @@ fn converge_guide_overrides_are_the_guide_schema() {
         .unwrap();
     assert_eq!(g.options.sigma, Some(0.03));
     assert_eq!(g.options.min_depth, Some(2));
-    let e = GuidedVariant::parse("mlt+guide(colour=red)").unwrap_err();
+    let e = GuidedVariant::parse("mlt+guide(colour=red)")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("colour"), "{e}");
-    let e = GuidedVariant::parse("mlt+guide(min_depth=99)").unwrap_err();
+    let e = GuidedVariant::parse("mlt+guide(min_depth=99)")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("min_depth"), "{e}");
 }
 

@@ -6,6 +6,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
+use super::CliError;
 use crate::image_io;
 use crate::integrator::settings::{GuideOptions, Spelling};
 use crate::integrator::IntegratorKind;
@@ -84,9 +85,11 @@ pub struct GuideOverride {
 
 impl GuideOverride {
     /// The short form's fields `VERTICES:COLSxROWS:K`.
-    fn parse_short(fields: &[&str]) -> Result<Self, String> {
+    fn parse_short(fields: &[&str]) -> Result<Self, CliError> {
         if fields.len() > 3 {
-            return Err("expected +guide:VERTICES:COLSxROWS:K".into());
+            return Err(CliError::Usage(
+                "expected +guide:VERTICES:COLSxROWS:K".into(),
+            ));
         }
         let mut o = GuideOptions {
             vertices: fields.first().map(|v| v.to_string()),
@@ -94,9 +97,9 @@ impl GuideOverride {
             ..Default::default()
         };
         if let Some(k) = fields.get(2) {
-            let k: usize = k
-                .parse()
-                .map_err(|_| format!("regions `{k}` is not a count in 1..=1048576"))?;
+            let k: usize = k.parse().map_err(|_| {
+                CliError::Usage(format!("regions `{k}` is not a count in 1..=1048576"))
+            })?;
             o.regions = Some(k);
         }
         Self::checked(o)
@@ -104,12 +107,12 @@ impl GuideOverride {
 
     /// `key=value,...` of `+guide(...)`: each pair a `[render.guide]` key, its value read as in
     /// the file (a bare word is a string).
-    fn parse_keys(list: &str) -> Result<Self, String> {
+    fn parse_keys(list: &str) -> Result<Self, CliError> {
         let mut table = String::new();
         for pair in list.split(',').filter(|p| !p.trim().is_empty()) {
             let (k, v) = pair
                 .split_once('=')
-                .ok_or_else(|| format!("`{pair}` is not key=value"))?;
+                .ok_or_else(|| CliError::Usage(format!("`{pair}` is not key=value")))?;
             let (k, v) = (k.trim(), v.trim());
             let value = match toml::from_str::<toml::Table>(&format!("v = {v}")) {
                 Ok(_) => v.to_string(),
@@ -117,17 +120,17 @@ impl GuideOverride {
             };
             table.push_str(&format!("{k} = {value}\n"));
         }
-        let o: GuideOptions = toml::from_str(&table).map_err(|e| e.message().to_string())?;
+        let o: GuideOptions = toml::from_str(&table).map_err(CliError::GuideKeys)?;
         Self::checked(o)
     }
 
     /// The options, each value checked now (every check is of the value alone), so that a bad
     /// name fails before any run.
-    fn checked(options: GuideOptions) -> Result<Self, String> {
+    fn checked(options: GuideOptions) -> Result<Self, CliError> {
         let probe = crate::enlightened::GuideSettings::for_radius(1.0);
         options
             .apply(probe, Spelling::Key)
-            .map_err(|e| format!("{}: {}", e.key, e.message))?;
+            .map_err(CliError::GuideKey)?;
         Ok(GuideOverride { options })
     }
 
@@ -135,11 +138,11 @@ impl GuideOverride {
     pub fn apply(
         &self,
         base: crate::enlightened::GuideSettings,
-    ) -> Result<crate::enlightened::GuideSettings, String> {
+    ) -> Result<crate::enlightened::GuideSettings, CliError> {
         let mut g = self
             .options
             .apply(base, Spelling::Key)
-            .map_err(|e| format!("{}: {}", e.key, e.message))?;
+            .map_err(CliError::GuideKey)?;
         if g.kind == crate::enlightened::GuideKind::Off {
             g.kind = crate::enlightened::GuideKind::Surface;
         }
@@ -150,7 +153,7 @@ impl GuideOverride {
 impl GuidedVariant {
     /// Parses `KIND`, `KIND+guide`, `KIND+guide(key=value,...)` or
     /// `KIND+guide:VERTICES:COLSxROWS:K`.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, CliError> {
         let (kind, rest) = s.trim().split_once('+').unwrap_or((s.trim(), ""));
         let kind = IntegratorKind::parse(kind)?;
         let mut v = GuidedVariant { kind, guide: None };
@@ -160,23 +163,23 @@ impl GuidedVariant {
         let over = if let Some(list) = rest.strip_prefix("guide(") {
             let list = list
                 .strip_suffix(')')
-                .ok_or_else(|| format!("`{s}`: `+guide(` without its `)`"))?;
+                .ok_or_else(|| CliError::Usage(format!("`{s}`: `+guide(` without its `)`")))?;
             GuideOverride::parse_keys(list)
         } else if rest == "guide" || rest.starts_with("guide:") {
             let fields: Vec<&str> = rest.split(':').skip(1).collect();
             GuideOverride::parse_short(&fields)
         } else {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "`{s}`: unknown variant `+{rest}` (available: +guide)"
-            ));
+            )));
         };
         if !super::render::guides(kind) {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
                 kind.name()
-            ));
+            )));
         }
-        v.guide = Some(over.map_err(|e| format!("`{s}`: {e}"))?);
+        v.guide = Some(over.map_err(|e| CliError::GuideLine(s.into(), Box::new(e)))?);
         Ok(v)
     }
 }
@@ -232,7 +235,7 @@ fn converge_guided(
     over: &GuideOverride,
     config: &ConvergeConfig,
     report: &mut dyn FnMut(&[convergence::CheckpointRow]),
-) -> Result<Vec<convergence::CheckpointRow>, String> {
+) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
     let mut rows = Vec::new();
     for run in 0..config.runs {
@@ -313,7 +316,7 @@ type GuidedLines = Vec<(IntegratorKind, GuideOverride)>;
 fn parse_lines(
     args: &ConvergeArgs,
     adjoint: crate::enlightened::AdjointSettings,
-) -> Result<(Vec<Variant>, GuidedLines), String> {
+) -> Result<(Vec<Variant>, GuidedLines), CliError> {
     // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
     let mut variants = Vec::new();
     let mut guided: GuidedLines = Vec::new();
@@ -328,26 +331,32 @@ fn parse_lines(
         }
     }
     if !args.propagation.is_empty() && variants.iter().any(|v| v.adjoint.is_some()) {
-        return Err("--propagation compares plain integrators; drop the `+adjoint` ones".into());
+        return Err(CliError::Usage(
+            "--propagation compares plain integrators; drop the `+adjoint` ones".into(),
+        ));
     }
     if args.guide.any() && guided.is_empty() {
-        return Err("--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into());
+        return Err(CliError::Usage(
+            "--guide* options apply to `+guide` integrators (e.g. mlt+guide)".into(),
+        ));
     }
     if !guided.is_empty() && !args.propagation.is_empty() {
-        return Err("`+guide` integrators cannot be combined with --propagation".into());
+        return Err(CliError::Usage(
+            "`+guide` integrators cannot be combined with --propagation".into(),
+        ));
     }
     Ok((variants, guided))
 }
 
 /// `--external NAME=DIR`, parsed.
-fn parse_externals(args: &ConvergeArgs) -> Result<Vec<(String, PathBuf)>, String> {
+fn parse_externals(args: &ConvergeArgs) -> Result<Vec<(String, PathBuf)>, CliError> {
     args.external
         .iter()
         .map(|e| {
             e.split_once('=')
                 .filter(|(n, d)| !n.is_empty() && !d.is_empty())
                 .map(|(n, d)| (n.to_string(), PathBuf::from(d)))
-                .ok_or_else(|| format!("--external {e}: expected NAME=DIR"))
+                .ok_or_else(|| CliError::Usage(format!("--external {e}: expected NAME=DIR")))
         })
         .collect()
 }
@@ -357,15 +366,16 @@ fn check_reference_hash(
     args: &ConvergeArgs,
     meta: &image_io::ImageMeta,
     source: &crate::scene::SceneSource,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     let hash = super::reference::hash_hex(source.hash());
     match meta.get("scene_hash") {
-        Some(h) if h != hash => Err(format!(
-            "{} is a reference of another scene ({}, scene_hash {h}), not of {} (scene_hash {hash})",
-            args.reference.display(),
-            meta.get("scene").unwrap_or("unnamed"),
-            source.name
-        )),
+        Some(h) if h != hash => Err(CliError::OtherScene {
+            reference: args.reference.display().to_string(),
+            its_scene: meta.get("scene").unwrap_or("unnamed").to_string(),
+            its_hash: h.to_string(),
+            scene: source.name.clone(),
+            hash,
+        }),
         Some(_) => Ok(()),
         None => {
             eprintln!(
@@ -389,7 +399,7 @@ fn run_lines(
     reference: &image_io::Image,
     (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
     config: &ConvergeConfig,
-) -> Result<Vec<convergence::CheckpointRow>, String> {
+) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     let pool = super::reference::thread_pool(args.threads)?;
     let mut report = |rows: &[convergence::CheckpointRow]| {
         if let Some(last) = rows.last() {
@@ -425,10 +435,10 @@ fn run_lines(
         let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
         let (mut variant, _, _) = super::load_scene(Some(&args.scene))?;
         if variant.set_line_integral(li) == 0 {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "--propagation: {} has no inhomogeneous medium",
                 source.name
-            ));
+            )));
         }
         let mut part = pool.install(|| {
             convergence::converge(&variant, settings, reference, &kinds, config, &mut report)
@@ -441,12 +451,12 @@ fn run_lines(
     Ok(rows)
 }
 
-pub fn run(args: ConvergeArgs) -> Result<(), String> {
+pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     let (mut scene, settings, source) = super::load_scene(Some(&args.scene))?;
     let adjoint = args.adjoint.apply(settings.adjoint)?;
     let (variants, guided) = parse_lines(&args, adjoint)?;
     let externals = parse_externals(&args)?;
-    let (reference, meta) = image_io::read_exr(&args.reference).map_err(|e| e.to_string())?;
+    let (reference, meta) = image_io::read_exr(&args.reference)?;
     check_reference_hash(&args, &meta, &source)?;
     let config = ConvergeConfig {
         budget: args.budget,
@@ -457,11 +467,12 @@ pub fn run(args: ConvergeArgs) -> Result<(), String> {
     };
     // fail on bad numbers before spending the budget
     convergence::checkpoint_times(config.budget, config.checkpoints)
-        .map_err(|e| format!("--budget/--checkpoints: {e}"))?;
+        .map_err(CliError::Checkpoints)?;
     if config.runs == 0 {
-        return Err("--runs must be at least 1".into());
+        return Err(CliError::Usage("--runs must be at least 1".into()));
     }
-    std::fs::create_dir_all(&args.output).map_err(|e| format!("{}: {e}", args.output.display()))?;
+    std::fs::create_dir_all(&args.output)
+        .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
     let mut external_rows = Vec::new();
     for (name, dir) in &externals {
         external_rows.extend(convergence::external_rows(name, dir, &reference)?);

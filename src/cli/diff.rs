@@ -4,6 +4,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
+use super::CliError;
 use crate::image_io;
 use crate::measure::{heatmap, metrics};
 
@@ -27,9 +28,9 @@ pub struct DiffArgs {
     pub twin: Option<PathBuf>,
 }
 
-pub fn run(args: DiffArgs) -> Result<(), String> {
-    let (a, _) = image_io::read_exr(&args.a).map_err(|e| e.to_string())?;
-    let (b, _) = image_io::read_exr(&args.b).map_err(|e| e.to_string())?;
+pub fn run(args: DiffArgs) -> Result<(), CliError> {
+    let (a, _) = image_io::read_exr(&args.a)?;
+    let (b, _) = image_io::read_exr(&args.b)?;
     let m = metrics::compare(&a, &b)?;
     let (ma, mb) = (a.mean(), b.mean());
     if let Some(out) = &args.heatmap {
@@ -37,7 +38,7 @@ pub fn run(args: DiffArgs) -> Result<(), String> {
     }
     let twin = match &args.twin {
         Some(p) => {
-            let (a2, _) = image_io::read_exr(p).map_err(|e| e.to_string())?;
+            let (a2, _) = image_io::read_exr(p)?;
             Some(metrics::twin_variance(&a, &a2, &b)?)
         }
         None => None,

@@ -154,7 +154,7 @@ fn medium_name(scene: &Scene, m: Option<u32>) -> String {
     })
 }
 
-pub fn run(args: InfoArgs) -> Result<(), String> {
+pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     let (scene, r, source) = super::load_scene(Some(&args.scene))?;
     println!("{}: valid (hash {:016x})", source.name, source.hash());
     println!(

@@ -6,6 +6,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
+use super::CliError;
 use crate::image_io::{self, Image, ImageMeta};
 
 #[derive(Args, Debug, Clone)]
@@ -20,25 +21,28 @@ pub struct MergeArgs {
 
 /// The sample-count-weighted mean of images with their `spp` attributes; errors name the file.
 // ANCHOR: merge
-pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), String> {
+pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliError> {
     let Some((_, first, _)) = inputs.first() else {
-        return Err("nothing to merge".into());
+        return Err(CliError::NothingToMerge);
     };
     let (w, h) = (first.width, first.height);
     let mut sum = vec![[0.0f64; 3]; (w * h) as usize];
     let mut total = 0u64;
     for (name, img, meta) in inputs {
         if (img.width, img.height) != (w, h) {
-            return Err(format!(
-                "{name} is {}x{} but the first input is {w}x{h}",
-                img.width, img.height
+            return Err(CliError::MergeSize(
+                name.clone(),
+                img.width,
+                img.height,
+                w,
+                h,
             ));
         }
         let spp: u64 = meta
             .get("spp")
             .and_then(|v| v.parse().ok())
             .filter(|&n| n > 0)
-            .ok_or_else(|| format!("{name} has no positive `spp` attribute to weight it by"))?;
+            .ok_or_else(|| CliError::NoSpp(name.clone()))?;
         total += spp;
         for (acc, p) in sum.iter_mut().zip(&img.pixels) {
             for c in 0..3 {
@@ -67,10 +71,10 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), Stri
 }
 // ANCHOR_END: merge
 
-pub fn run(args: MergeArgs) -> Result<(), String> {
+pub fn run(args: MergeArgs) -> Result<(), CliError> {
     let mut inputs = Vec::with_capacity(args.inputs.len());
     for p in &args.inputs {
-        let (img, meta) = image_io::read_exr(p).map_err(|e| e.to_string())?;
+        let (img, meta) = image_io::read_exr(p)?;
         inputs.push((p.display().to_string(), img, meta));
     }
     let scenes: Vec<&str> = inputs
@@ -78,14 +82,12 @@ pub fn run(args: MergeArgs) -> Result<(), String> {
         .filter_map(|(_, _, m)| m.get("scene_hash"))
         .collect();
     if scenes.windows(2).any(|w| w[0] != w[1]) {
-        return Err(
-            "the inputs were rendered from different scene files (scene_hash differs)".into(),
-        );
+        return Err(CliError::MixedScenes);
     }
     let (image, total) = merge(&inputs)?;
     let mut meta = inputs[0].2.clone();
     meta.set("spp", total).set("merged_from", inputs.len());
-    image_io::write_exr(&args.output, &image, &meta).map_err(|e| e.to_string())?;
+    image_io::write_exr(&args.output, &image, &meta)?;
     println!(
         "merged {} renders ({} samples per pixel) -> {}",
         inputs.len(),

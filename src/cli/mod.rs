@@ -13,6 +13,16 @@ pub use crate::course::assignment;
 
 use clap::{Parser, Subcommand};
 
+use crate::course::assignment::AssignmentError;
+use crate::image_io::ImageError;
+use crate::integrator::smc::OptionError;
+use crate::integrator::IntegratorError;
+use crate::measure::chart::ChartError;
+use crate::measure::convergence::ConvergenceError;
+use crate::measure::MeasureError;
+use crate::medium::heterogeneous::UnknownPropagation;
+use crate::scene::SceneError;
+
 /// pathspace: light transport in participating media, executable.
 #[derive(Parser, Debug)]
 #[command(name = "pathspace", version, about, long_about = None)]
@@ -41,24 +51,155 @@ pub enum Command {
     Assignment(assignment::AssignmentArgs),
 }
 
+/// Why a `pathspace` command stops: the refusals of the command line itself and the errors of
+/// the layers below, wrapped; the messages are what `main` prints after `error: `.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// The command line asks for something the command refuses: a value out of its range,
+    /// options that do not go together, a name or form not understood (the reason, as
+    /// printed). Also the text errors of `render`, which reports them as `String`.
+    #[error("{0}")]
+    Usage(String),
+    /// A scene file that cannot be read or loaded (its file, line and key).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// An integrator that is none or refuses the scene or its settings.
+    #[error(transparent)]
+    Integrator(#[from] IntegratorError),
+    /// An image that cannot be read or written (its path, the cause).
+    #[error(transparent)]
+    Image(#[from] ImageError),
+    /// Images that cannot be compared (`diff`).
+    #[error(transparent)]
+    Measure(#[from] MeasureError),
+    /// A convergence study that cannot start or stops (`converge`).
+    #[error(transparent)]
+    Convergence(#[from] ConvergenceError),
+    /// A chart of `converge` that cannot be drawn or written.
+    #[error(transparent)]
+    Chart(#[from] ChartError),
+    /// A `--propagation` name that is no propagation strategy.
+    #[error(transparent)]
+    Propagation(#[from] UnknownPropagation),
+    /// `pathspace assignment make` or `check` stops.
+    #[error(transparent)]
+    Assignment(#[from] AssignmentError),
+    /// The worker threads cannot be started.
+    #[error("cannot start worker threads: {0}")]
+    Threads(#[source] rayon::ThreadPoolBuildError),
+    /// A file that cannot be written (its path, the cause).
+    #[error("cannot write {0}: {1}")]
+    Write(String, #[source] std::io::Error),
+    /// An output directory that cannot be created (its path, the cause).
+    #[error("{0}: {1}")]
+    CreateDir(String, #[source] std::io::Error),
+    /// `converge`: `--budget` and `--checkpoints` give no checkpoint times (the study's
+    /// reason).
+    #[error("--budget/--checkpoints: {0}")]
+    Checkpoints(#[source] ConvergenceError),
+    /// `converge`: a `+guide` key or its value refused (the key, the guide's reason).
+    #[error("{}: {}", .0.key, .0.message)]
+    GuideKey(#[source] OptionError),
+    /// `converge`: a `+guide(...)` list that does not read as `[render.guide]` keys (the TOML
+    /// parser's message).
+    #[error("{}", .0.message())]
+    GuideKeys(#[source] toml::de::Error),
+    /// `converge`: a `+guide` line of `--integrators` refused (its name, the reason).
+    #[error("`{0}`: {1}")]
+    GuideLine(String, #[source] Box<CliError>),
+    /// `converge`: the reference shows another scene (the reference's path, its scene and
+    /// `scene_hash`, this scene's name and hash).
+    #[error(
+        "{reference} is a reference of another scene ({its_scene}, scene_hash {its_hash}), \
+         not of {scene} (scene_hash {hash})"
+    )]
+    OtherScene {
+        reference: String,
+        its_scene: String,
+        its_hash: String,
+        scene: String,
+        hash: String,
+    },
+    /// `reference`: a scene without a camera (its name): no image to render.
+    #[error("{0}: the scene has no camera, so there is no image to render")]
+    NoCamera(String),
+    /// `reference`: the render returned no image.
+    #[error("the render produced no image")]
+    NoImage,
+    /// `reference`: the output exists and is no readable EXR (its path, the image error).
+    #[error(
+        "refusing to overwrite {0}: it exists and is not a readable EXR ({1}); remove it or \
+         choose another -o"
+    )]
+    OverwriteUnreadable(String, #[source] ImageError),
+    /// `reference`: the output is a reference of another scene (its path, its scene and
+    /// `scene_hash`, this scene's name and hash).
+    #[error(
+        "refusing to overwrite {output}: it is a reference of another scene ({its_scene}, \
+         scene_hash {its_hash}), not of {scene} (scene_hash {hash}); remove it or choose \
+         another -o"
+    )]
+    OverwriteOtherScene {
+        output: String,
+        its_scene: String,
+        its_hash: String,
+        scene: String,
+        hash: String,
+    },
+    /// `reference`: the output has no `scene_hash`, so it is no reference (its path, this
+    /// scene's name).
+    #[error(
+        "refusing to overwrite {0}: it has no scene_hash attribute, so it is not a pathspace \
+         reference of {1}; remove it or choose another -o"
+    )]
+    OverwriteNotReference(String, String),
+    /// `merge`: no input.
+    #[error("nothing to merge")]
+    NothingToMerge,
+    /// `merge`: an input of another size than the first (its name, its width and height, the
+    /// first's).
+    #[error("{0} is {1}x{2} but the first input is {3}x{4}")]
+    MergeSize(String, u32, u32, u32, u32),
+    /// `merge`: an input without a positive `spp` attribute (its name).
+    #[error("{0} has no positive `spp` attribute to weight it by")]
+    NoSpp(String),
+    /// `merge`: inputs with different `scene_hash` attributes.
+    #[error("the inputs were rendered from different scene files (scene_hash differs)")]
+    MixedScenes,
+}
+
+/// The refusals of commands that report them as text (`render`).
+impl From<String> for CliError {
+    fn from(reason: String) -> Self {
+        CliError::Usage(reason)
+    }
+}
+
+/// `render`, which reports errors as text, calls the helpers here.
+impl From<CliError> for String {
+    fn from(e: CliError) -> Self {
+        e.to_string()
+    }
+}
+
 /// Runs the command line; returns the process exit code.
-pub fn run(cli: Cli) -> Result<(), String> {
+pub fn run(cli: Cli) -> Result<(), CliError> {
     run_with_source(cli, &[])
 }
 
 /// Runs the command line with the crate's source tree embedded by `build.rs` (the binary passes
 /// it; `assignment make` writes student copies from it).
-pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), String> {
+pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), CliError> {
     match cli.command {
-        None => render::run(render::RenderArgs::default()),
-        Some(Command::Render(a)) => render::run(a),
+        None => render::run(render::RenderArgs::default()).map_err(CliError::from),
+        Some(Command::Render(a)) => render::run(a).map_err(CliError::from),
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Converge(a)) => converge::run(a),
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Rooms(a)) => rooms::run(a),
         Some(Command::Merge(a)) => merge::run(a),
-        Some(Command::Assignment(a)) => assignment::run(a, source_tree),
+        Some(Command::Assignment(a)) => Ok(assignment::run(a, source_tree)?),
     }
 }
 
@@ -72,15 +213,14 @@ pub fn load_scene(
         crate::integrator::RenderSettings,
         crate::scene::SceneSource,
     ),
-    String,
+    CliError,
 > {
     let source = match path {
-        Some(p) => crate::scene::SceneSource::read(p).map_err(|e| e.to_string())?,
+        Some(p) => crate::scene::SceneSource::read(p)?,
         None => {
             crate::scene::SceneSource::embedded("fog-box.toml (embedded)", crate::scene::FOG_BOX)
         }
     };
-    let (scene, settings) =
-        crate::integrator::settings::load(&source).map_err(|e| e.to_string())?;
+    let (scene, settings) = crate::integrator::settings::load(&source)?;
     Ok((scene, settings, source))
 }

@@ -6,6 +6,7 @@
 use clap::Args;
 use std::path::{Path, PathBuf};
 
+use super::CliError;
 use crate::image_io::{self, ImageMeta};
 use crate::measure;
 
@@ -38,16 +39,15 @@ pub struct ReferenceArgs {
 }
 
 /// A rayon pool of `threads` workers (all cores when None).
-pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
         if t == 0 {
-            return Err("--threads must be at least 1".into());
+            return Err(CliError::Usage("--threads must be at least 1".into()));
         }
         pool = pool.num_threads(t);
     }
-    pool.build()
-        .map_err(|e| format!("cannot start worker threads: {e}"))
+    pool.build().map_err(CliError::Threads)
 }
 
 /// The scene hash as written in EXR attributes: 16 hex digits.
@@ -59,51 +59,50 @@ pub fn hash_hex(hash: u64) -> String {
 /// Refuses to replace `output` unless it is a reference of the same scene file (same
 /// `scene_hash`): a reference can take hours, and overwriting one with a render of another
 /// scene would silently invalidate every study measured against it.
-pub fn check_overwrite(output: &Path, scene_name: &str, scene_hash: &str) -> Result<(), String> {
+pub fn check_overwrite(output: &Path, scene_name: &str, scene_hash: &str) -> Result<(), CliError> {
     if !output.exists() {
         return Ok(());
     }
     let meta = match image_io::read_exr(output) {
         Ok((_, meta)) => meta,
         Err(e) => {
-            return Err(format!(
-                "refusing to overwrite {}: it exists and is not a readable EXR ({e}); remove it or choose another -o",
-                output.display()
+            return Err(CliError::OverwriteUnreadable(
+                output.display().to_string(),
+                e,
             ))
         }
     };
     match meta.get("scene_hash") {
         Some(h) if h == scene_hash => Ok(()),
-        Some(h) => Err(format!(
-            "refusing to overwrite {}: it is a reference of another scene ({}, scene_hash {h}), not of {scene_name} \
-             (scene_hash {scene_hash}); remove it or choose another -o",
-            output.display(),
-            meta.get("scene").unwrap_or("unnamed"),
-        )),
-        None => Err(format!(
-            "refusing to overwrite {}: it has no scene_hash attribute, so it is not a pathspace reference of \
-             {scene_name}; remove it or choose another -o",
-            output.display()
+        Some(h) => Err(CliError::OverwriteOtherScene {
+            output: output.display().to_string(),
+            its_scene: meta.get("scene").unwrap_or("unnamed").to_string(),
+            its_hash: h.to_string(),
+            scene: scene_name.to_string(),
+            hash: scene_hash.to_string(),
+        }),
+        None => Err(CliError::OverwriteNotReference(
+            output.display().to_string(),
+            scene_name.to_string(),
         )),
     }
 }
 // ANCHOR_END: refuse_overwrite
 
-pub fn run(args: ReferenceArgs) -> Result<(), String> {
+pub fn run(args: ReferenceArgs) -> Result<(), CliError> {
     let (scene, settings, source) = super::load_scene(Some(&args.scene))?;
     if scene.camera.is_none() {
-        return Err(format!(
-            "{}: the scene has no camera, so there is no image to render",
-            source.name
-        ));
+        return Err(CliError::NoCamera(source.name));
     }
     let spp = args.spp.unwrap_or(DEFAULT_REFERENCE_SPP);
     if spp == 0 {
-        return Err("--spp must be at least 1".into());
+        return Err(CliError::Usage("--spp must be at least 1".into()));
     }
     if let Some(t) = args.time {
         if !(t > 0.0 && t.is_finite()) {
-            return Err(format!("--time {t} must be a positive number of seconds"));
+            return Err(CliError::Usage(format!(
+                "--time {t} must be a positive number of seconds"
+            )));
         }
     }
     let stem = args
@@ -139,10 +138,7 @@ pub fn run(args: ReferenceArgs) -> Result<(), String> {
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| crate::integrator::session::render(&job))?;
     let estimated = super::render::estimated_relmse(&result);
-    let image = result
-        .image
-        .as_ref()
-        .ok_or("the render produced no image")?;
+    let image = result.image.as_ref().ok_or(CliError::NoImage)?;
     let mut meta = ImageMeta::default();
     meta.set("integrator", &result.integrator)
         .set("spp", result.spp)
@@ -155,7 +151,7 @@ pub fn run(args: ReferenceArgs) -> Result<(), String> {
     if let Some(e) = estimated {
         meta.set("estimated_relmse", format!("{e:.6e}"));
     }
-    image_io::write_exr(&output, image, &meta).map_err(|e| e.to_string())?;
+    image_io::write_exr(&output, image, &meta)?;
     println!(
         "reference of {} with {}: {} spp in {:.1} s, estimated relMSE {} -> {}",
         source.name,

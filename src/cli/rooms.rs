@@ -9,6 +9,8 @@ use clap::Args;
 use std::fmt::Write;
 use std::path::PathBuf;
 
+use super::CliError;
+
 #[derive(Args, Debug)]
 pub struct RoomsArgs {
     /// Rooms along each side (the paper's experiment: 1 and 10).
@@ -189,14 +191,17 @@ pub fn rooms_scene(n: u32) -> String {
     s
 }
 
-pub fn run(args: RoomsArgs) -> Result<(), String> {
+pub fn run(args: RoomsArgs) -> Result<(), CliError> {
     if args.n == 0 || args.n > MAX_N {
-        return Err(format!("--n {} must be in 1..={MAX_N}", args.n));
+        return Err(CliError::Usage(format!(
+            "--n {} must be in 1..={MAX_N}",
+            args.n
+        )));
     }
     let text = rooms_scene(args.n);
     match args.output {
         Some(p) => {
-            std::fs::write(&p, text).map_err(|e| format!("cannot write {}: {e}", p.display()))
+            std::fs::write(&p, text).map_err(|e| CliError::Write(p.display().to_string(), e))
         }
         None => {
             print!("{text}");

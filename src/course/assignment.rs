@@ -63,14 +63,14 @@ pub struct CheckArgs {
     pub opt_level: u8,
 }
 
-pub fn run(args: AssignmentArgs, embedded: &[(&str, &[u8])]) -> Result<(), String> {
+pub fn run(args: AssignmentArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentError> {
     match args.command {
         AssignmentCommand::List => {
             list();
             Ok(())
         }
-        AssignmentCommand::Make(a) => Ok(make(a, embedded)?),
-        AssignmentCommand::Check(a) => Ok(check(a)?),
+        AssignmentCommand::Make(a) => make(a, embedded),
+        AssignmentCommand::Check(a) => check(a),
     }
 }
 

@@ -90,14 +90,57 @@ pub enum AdjointEstimator {
 }
 
 impl AdjointEstimator {
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, AdjointError> {
         match s {
             "bdpt" => Ok(AdjointEstimator::Bdpt),
             "metropolis" => Ok(AdjointEstimator::Metropolis),
-            _ => Err(format!(
-                "unknown adjoint estimator `{s}` (available: bdpt, metropolis)"
-            )),
+            _ => Err(AdjointError::UnknownEstimator(s.into())),
         }
+    }
+}
+
+/// Why the adjoint image refuses its settings or its scene (Kristensen 2010, sec. 5.3.1); the
+/// messages name the setting or the missing piece, as the command line and the scene-file
+/// errors print them.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AdjointError {
+    /// An estimator name that is none (the name given).
+    #[error("unknown adjoint estimator `{0}` (available: bdpt, metropolis)")]
+    UnknownEstimator(String),
+    /// A command-line override refused (the flag as the message spells it, the reason).
+    #[error("{0}: {1}")]
+    Flag(&'static str, #[source] Box<AdjointError>),
+    /// A grid size outside 1..=4096 (columns, rows).
+    #[error("adjoint resolution {0}x{1}: both sizes must be in 1..=4096")]
+    BadResolution(u32, u32),
+    /// No pre-pass sample per cell.
+    #[error("adjoint samples per cell must be at least 1")]
+    NoSamples,
+    /// A floor eps that is not positive and finite.
+    #[error(
+        "adjoint epsilon = {0} must be positive (a zero floor gives cells of density 0 \
+         where light is emitted, which biases the image)"
+    )]
+    BadEpsilon(f32),
+    /// Estimates for a scene without area lights: there is no light map to put them on.
+    #[error("the adjoint image needs at least one area light")]
+    NoAreaLight,
+    /// Estimates that do not fit the grid, or a column count that is no multiple of the area
+    /// lights (columns, rows, estimates, area lights).
+    #[error("adjoint grid {0}x{1} with {2} estimates for {3} area lights")]
+    GridMismatch(u32, u32, usize, usize),
+    /// `--adjoint-image` on a scene without area lights.
+    #[error("--adjoint-image: the scene has no area light to sample")]
+    NothingToSample,
+    /// `--adjoint-image` on a scene without a camera: the pre-pass traces camera samples.
+    #[error("--adjoint-image needs a scene with a camera")]
+    NoCamera,
+}
+
+/// The command line and the tests report errors as text.
+impl From<AdjointError> for String {
+    fn from(e: AdjointError) -> Self {
+        e.to_string()
     }
 }
 
@@ -121,7 +164,7 @@ impl AdjointSettings {
         samples_per_cell: Option<u32>,
         epsilon: Option<f32>,
         estimator: Option<&str>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, AdjointError> {
         if let Some(r) = resolution {
             self.resolution = r;
         }
@@ -132,30 +175,25 @@ impl AdjointSettings {
             self.epsilon = e;
         }
         if let Some(e) = estimator {
-            self.estimator =
-                AdjointEstimator::parse(e).map_err(|e| format!("--adjoint-estimator: {e}"))?;
+            self.estimator = AdjointEstimator::parse(e)
+                .map_err(|e| AdjointError::Flag("--adjoint-estimator", Box::new(e)))?;
         }
-        self.validate().map_err(|e| format!("--adjoint-*: {e}"))?;
+        self.validate()
+            .map_err(|e| AdjointError::Flag("--adjoint-*", Box::new(e)))?;
         Ok(self)
     }
 
     /// Checks the values; the message names the offending one.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), AdjointError> {
         let (c, r) = self.resolution;
         if !(1..=4096).contains(&c) || !(1..=4096).contains(&r) {
-            return Err(format!(
-                "adjoint resolution {c}x{r}: both sizes must be in 1..=4096"
-            ));
+            return Err(AdjointError::BadResolution(c, r));
         }
         if self.samples_per_cell == 0 {
-            return Err("adjoint samples per cell must be at least 1".into());
+            return Err(AdjointError::NoSamples);
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
-            return Err(format!(
-                "adjoint epsilon = {} must be positive (a zero floor gives cells of density 0 \
-                 where light is emitted, which biases the image)",
-                self.epsilon
-            ));
+            return Err(AdjointError::BadEpsilon(self.epsilon));
         }
         Ok(())
     }
@@ -300,17 +338,18 @@ impl AdjointImage {
         rows: u32,
         estimate: Vec<f64>,
         epsilon_rel: f32,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, AdjointError> {
         let map = LightMap::new(scene);
         if map.is_empty() {
-            return Err("the adjoint image needs at least one area light".into());
+            return Err(AdjointError::NoAreaLight);
         }
         let n = cols as usize * rows as usize;
         if estimate.len() != n || !cols.is_multiple_of(map.len() as u32) {
-            return Err(format!(
-                "adjoint grid {cols}x{rows} with {} estimates for {} area lights",
+            return Err(AdjointError::GridMismatch(
+                cols,
+                rows,
                 estimate.len(),
-                map.len()
+                map.len(),
             ));
         }
         let clean: Vec<f64> = estimate
@@ -433,17 +472,14 @@ impl AdjointImage {
         settings: &AdjointSettings,
         seed: u64,
         max_depth: Option<u32>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, AdjointError> {
         settings.validate()?;
         let start = Instant::now();
         let map = LightMap::new(scene);
         if map.is_empty() {
-            return Err("--adjoint-image: the scene has no area light to sample".into());
+            return Err(AdjointError::NothingToSample);
         }
-        let cam = scene
-            .camera
-            .as_ref()
-            .ok_or("--adjoint-image needs a scene with a camera")?;
+        let cam = scene.camera.as_ref().ok_or(AdjointError::NoCamera)?;
         let (cols, rows) = Self::grid_size(settings.resolution, map.len());
         let cells = cols as usize * rows as usize;
         let samples = settings.samples_per_cell as u64 * cells as u64;
@@ -532,7 +568,7 @@ impl AdjointImage {
         map: &LightMap,
         (cols, rows): (u32, u32),
         start: Instant,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, AdjointError> {
         use crate::enlightened::metropolis::{
             trace_metropolis_with_starts, MetropolisParticleSettings,
         };

@@ -53,15 +53,13 @@ pub enum GuideKind {
 }
 
 impl GuideKind {
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, GuideError> {
         match s {
             "off" => Ok(GuideKind::Off),
             "surface" => Ok(GuideKind::Surface),
             "volume" => Ok(GuideKind::Volume),
             "both" => Ok(GuideKind::Both),
-            _ => Err(format!(
-                "unknown guide `{s}` (available: off, surface, volume, both)"
-            )),
+            _ => Err(GuideError::UnknownKind(s.into())),
         }
     }
 
@@ -99,14 +97,12 @@ pub enum ParticleSampler {
 }
 
 impl ParticleSampler {
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, GuideError> {
         match s {
             "classical" => Ok(ParticleSampler::Classical),
             "bidirectional" => Ok(ParticleSampler::Bidirectional),
             "metropolis" => Ok(ParticleSampler::Metropolis),
-            _ => Err(format!(
-                "unknown particle sampler `{s}` (available: classical, bidirectional, metropolis)"
-            )),
+            _ => Err(GuideError::UnknownSampler(s.into())),
         }
     }
 
@@ -171,59 +167,51 @@ impl GuideSettings {
     }
 
     /// A region count must be in 1..=2^20.
-    pub fn check_regions(&self, k: Option<usize>) -> Result<(), String> {
+    pub fn check_regions(&self, k: Option<usize>) -> Result<(), GuideError> {
         match k {
-            Some(k) if !(1..=1 << 20).contains(&k) => {
-                Err(format!("regions = {k} must be in 1..=1048576"))
-            }
+            Some(k) if !(1..=1 << 20).contains(&k) => Err(GuideError::BadRegions(k)),
             _ => Ok(()),
         }
     }
 
     /// A particle path count must be in 1..=10^9.
-    pub fn check_particles(&self, n: Option<usize>) -> Result<(), String> {
+    pub fn check_particles(&self, n: Option<usize>) -> Result<(), GuideError> {
         match n {
-            Some(n) if !(1..=1_000_000_000).contains(&n) => {
-                Err(format!("particles = {n} must be in 1..=1000000000"))
-            }
+            Some(n) if !(1..=1_000_000_000).contains(&n) => Err(GuideError::BadParticles(n)),
             _ => Ok(()),
         }
     }
 
     /// c2 must be in (0, 1): c1 = 1 - c2 > 0 keeps the BSDF's support (unbiasedness).
-    pub fn check_weight(w: f32) -> Result<f32, String> {
+    pub fn check_weight(w: f32) -> Result<f32, GuideError> {
         if w > 0.0 && w < 1.0 {
             Ok(w)
         } else {
-            Err(format!(
-                "weight = {w} must be in (0, 1): the BSDF or phase function keeps 1 - weight > 0"
-            ))
+            Err(GuideError::BadWeight(w))
         }
     }
 
     /// alpha of eq. (5.16) must be positive and finite.
-    pub fn check_alpha(a: f32) -> Result<f32, String> {
+    pub fn check_alpha(a: f32) -> Result<f32, GuideError> {
         if a > 0.0 && a.is_finite() {
             Ok(a)
         } else {
-            Err(format!(
-                "alpha = {a} must be a positive number per unit length"
-            ))
+            Err(GuideError::BadAlpha(a))
         }
     }
 
     /// The roulette normalization must be positive and finite.
-    pub fn check_roulette(r: f32) -> Result<f32, String> {
+    pub fn check_roulette(r: f32) -> Result<f32, GuideError> {
         if r > 0.0 && r.is_finite() {
             Ok(r)
         } else {
-            Err(format!("roulette = {r} must be a positive number"))
+            Err(GuideError::BadRoulette(r))
         }
     }
 
     /// Parses `COLSxROWS`.
-    pub fn parse_map(s: &str) -> Result<(u32, u32), String> {
-        let bad = || format!("map size `{s}` is not COLSxROWS with both in 1..=1024 (e.g. 32x16)");
+    pub fn parse_map(s: &str) -> Result<(u32, u32), GuideError> {
+        let bad = || GuideError::BadMap(s.into());
         let (a, b) = s.split_once('x').ok_or_else(bad)?;
         let c: u32 = a.trim().parse().map_err(|_| bad())?;
         let r: u32 = b.trim().parse().map_err(|_| bad())?;
@@ -232,6 +220,36 @@ impl GuideSettings {
         }
         Ok((c, r))
     }
+}
+
+/// Why a guide setting is refused (the value, as given); the messages name the setting as the
+/// `[render.guide]` keys do, and the callers add the key's place or the flag.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GuideError {
+    /// A vertex kind that is none (the name given).
+    #[error("unknown guide `{0}` (available: off, surface, volume, both)")]
+    UnknownKind(String),
+    /// A particle sampler that is none (the name given).
+    #[error("unknown particle sampler `{0}` (available: classical, bidirectional, metropolis)")]
+    UnknownSampler(String),
+    /// A region count outside 1..=2^20.
+    #[error("regions = {0} must be in 1..=1048576")]
+    BadRegions(usize),
+    /// A particle path count outside 1..=10^9.
+    #[error("particles = {0} must be in 1..=1000000000")]
+    BadParticles(usize),
+    /// A map weight c2 outside (0, 1): c1 = 1 - c2 must stay positive (unbiasedness).
+    #[error("weight = {0} must be in (0, 1): the BSDF or phase function keeps 1 - weight > 0")]
+    BadWeight(f32),
+    /// An alpha of eq. (5.16) that is not positive and finite.
+    #[error("alpha = {0} must be a positive number per unit length")]
+    BadAlpha(f32),
+    /// A roulette normalization that is not positive and finite.
+    #[error("roulette = {0} must be a positive number")]
+    BadRoulette(f32),
+    /// A map size that is not `COLSxROWS` with both in 1..=1024 (the text given).
+    #[error("map size `{0}` is not COLSxROWS with both in 1..=1024 (e.g. 32x16)")]
+    BadMap(String),
 }
 
 /// One deposit: a particle's position (with normal on surfaces, medium in volumes), its

@@ -83,30 +83,45 @@ impl Default for MetropolisParticleSettings {
 
 impl MetropolisParticleSettings {
     /// Every value in its range, or the reason it is not.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), MetropolisParticleError> {
         if self.bootstrap == 0 {
-            return Err("bootstrap must be at least 1".into());
+            return Err(MetropolisParticleError::NoBootstrap);
         }
         if self.chains == 0 {
-            return Err("chains must be at least 1".into());
+            return Err(MetropolisParticleError::NoChains);
         }
         if !(0.0..=1.0).contains(&self.large_step) {
-            return Err(format!(
-                "large_step = {} must be a probability in [0, 1]",
-                self.large_step
-            ));
+            return Err(MetropolisParticleError::BadLargeStep(self.large_step));
         }
         if !(self.sigma > 0.0 && self.sigma < 1.0) {
-            return Err(format!("sigma = {} must be in (0, 1)", self.sigma));
+            return Err(MetropolisParticleError::BadSigma(self.sigma));
         }
         if !(self.defensive >= 0.0 && self.defensive.is_finite()) {
-            return Err(format!(
-                "defensive = {} must be finite and >= 0",
-                self.defensive
-            ));
+            return Err(MetropolisParticleError::BadDefensive(self.defensive));
         }
         Ok(())
     }
+}
+
+/// Why the Metropolis particle sampler refuses its settings (the value out of its range); the
+/// messages name the setting as the `[render.guide]` keys do.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MetropolisParticleError {
+    /// No bootstrap sample: nothing to estimate b_T or seed the chains with.
+    #[error("bootstrap must be at least 1")]
+    NoBootstrap,
+    /// No chain to run.
+    #[error("chains must be at least 1")]
+    NoChains,
+    /// A large-step probability outside [0, 1].
+    #[error("large_step = {0} must be a probability in [0, 1]")]
+    BadLargeStep(f64),
+    /// A small-step deviation outside (0, 1).
+    #[error("sigma = {0} must be in (0, 1)")]
+    BadSigma(f64),
+    /// A defensive weight delta that is negative or not finite.
+    #[error("defensive = {0} must be finite and >= 0")]
+    BadDefensive(f64),
 }
 
 /// What a run of the sampler did (for the preprocessing statistics and the book).

@@ -31,9 +31,9 @@ pub mod particles;
 pub mod regions;
 pub mod technique;
 
-pub use adjoint::{AdjointImage, AdjointSettings, LightMap};
+pub use adjoint::{AdjointError, AdjointImage, AdjointSettings, LightMap};
 pub use direction_map::DirectionMap;
-pub use guide::{Deposit, Guide, GuideKind, GuideSettings, GuideStats};
+pub use guide::{Deposit, Guide, GuideError, GuideKind, GuideSettings, GuideStats};
 pub use particles::{Particle, Quantity};
 pub use regions::{RegionParams, RegionPoint, Regions};
 pub use technique::Enlightened;

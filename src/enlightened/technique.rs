@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
-use super::adjoint::{AdjointImage, AdjointSettings, AdjointStats};
+use super::adjoint::{AdjointError, AdjointImage, AdjointSettings, AdjointStats};
 use super::guide::{self, Guide, GuideKind, GuideSettings, GuideStats};
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
@@ -38,7 +38,7 @@ impl Enlightened {
         settings: &AdjointSettings,
         seed: u64,
         max_depth: Option<u32>,
-    ) -> Result<AdjointStats, String> {
+    ) -> Result<AdjointStats, AdjointError> {
         self.adjoint = None;
         let image = AdjointImage::render(scene, &*self, settings, seed, max_depth)?;
         let stats = image.stats;

@@ -115,6 +115,14 @@ impl From<String> for IntegratorError {
     }
 }
 
+/// The adjoint image's pre-pass refuses the scene or its settings (a preprocessing stage of
+/// the render session).
+impl From<crate::enlightened::AdjointError> for IntegratorError {
+    fn from(e: crate::enlightened::AdjointError) -> Self {
+        IntegratorError::Refused(e.to_string())
+    }
+}
+
 impl From<IntegratorError> for String {
     fn from(e: IntegratorError) -> Self {
         e.to_string()

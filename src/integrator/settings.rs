@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::enlightened::{AdjointSettings, GuideSettings};
+use crate::enlightened::{AdjointSettings, GuideError, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
@@ -187,14 +187,16 @@ impl AdjointOptions {
             self.epsilon,
             self.estimator.as_deref(),
         )
+        .map_err(String::from)
     }
 
     /// `base` with these options as file keys over it, each value checked alone so that a bad
     /// one is reported at its key.
     pub fn apply_keys(&self, base: AdjointSettings) -> Result<AdjointSettings, OptionError> {
         let err = |key: &'static str, message: String| OptionError { key, message };
-        let alone =
-            |key: &'static str, one: AdjointSettings| one.validate().map_err(|e| err(key, e));
+        let alone = |key: &'static str, one: AdjointSettings| {
+            one.validate().map_err(|e| err(key, e.to_string()))
+        };
         let mut s = base;
         if let Some([c, r]) = self.resolution {
             s.resolution = (c, r);
@@ -222,7 +224,7 @@ impl AdjointOptions {
         }
         if let Some(e) = &self.estimator {
             s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
-                .map_err(|m| err("estimator", m))?;
+                .map_err(|m| err("estimator", m.to_string()))?;
         }
         Ok(s)
     }
@@ -328,10 +330,10 @@ impl GuideOptions {
         spelling: Spelling,
     ) -> Result<GuideSettings, OptionError> {
         use crate::enlightened::GuideKind;
-        let err = |key: &'static str, e: String| OptionError {
+        let err = |key: &'static str, e: GuideError| OptionError {
             key,
             message: match spelling {
-                Spelling::Key => e,
+                Spelling::Key => e.to_string(),
                 Spelling::Flag => format!("{}: {e}", Self::flag(key)),
             },
         };
@@ -385,7 +387,7 @@ impl GuideOptions {
                 crate::enlightened::guide::ParticleSampler::parse(m).map_err(|e| OptionError {
                     key: "sampler",
                     message: match spelling {
-                        Spelling::Key => e,
+                        Spelling::Key => e.to_string(),
                         Spelling::Flag => format!("--guide-sampler: {e}"),
                     },
                 })?;
@@ -394,7 +396,7 @@ impl GuideOptions {
             s.metropolis.check().map_err(|e| OptionError {
                 key,
                 message: match spelling {
-                    Spelling::Key => e,
+                    Spelling::Key => e.to_string(),
                     Spelling::Flag => format!("--guide-sigma / --guide-defensive: {e}"),
                 },
             })

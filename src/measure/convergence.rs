@@ -97,8 +97,8 @@ pub enum ConvergenceError {
     #[error("`{0}`: the adjoint image applies to bdpt, light and mlt, not `{1}`")]
     NoAdjoint(String, String),
     /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
-    #[error("{0}")]
-    Adjoint(String),
+    #[error(transparent)]
+    Adjoint(crate::enlightened::AdjointError),
     /// An integrator that is none or refuses the scene.
     #[error(transparent)]
     Integrator(#[from] crate::integrator::IntegratorError),
