@@ -240,7 +240,8 @@ fn converge_guided(
     let mut rows = Vec::new();
     for run in 0..config.runs {
         let (scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
-        let g = over.apply(args.guide.apply_flags(settings.guide)?)?;
+        let flags = args.guide.apply_flags(settings.guide);
+        let g = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
         settings.guide = g;
         let seed = convergence::run_seed(config.seed, run);
         let t0 = std::time::Instant::now();

@@ -57,7 +57,7 @@ pub enum Command {
 pub enum CliError {
     /// The command line asks for something the command refuses: a value out of its range,
     /// options that do not go together, a name or form not understood (the reason, as
-    /// printed). Also the text errors of `render`, which reports them as `String`.
+    /// printed).
     #[error("{0}")]
     Usage(String),
     /// A scene file that cannot be read or loaded (its file, line and key).
@@ -78,6 +78,9 @@ pub enum CliError {
     /// A chart of `converge` that cannot be drawn or written.
     #[error(transparent)]
     Chart(#[from] ChartError),
+    /// Adjoint-image options that are refused (`--adjoint-*`, `converge`'s `+adjoint` lines).
+    #[error(transparent)]
+    Adjoint(#[from] crate::enlightened::AdjointError),
     /// A `--propagation` name that is no propagation strategy.
     #[error(transparent)]
     Propagation(#[from] UnknownPropagation),
@@ -175,13 +178,6 @@ impl From<String> for CliError {
     }
 }
 
-/// `render`, which reports errors as text, calls the helpers here.
-impl From<CliError> for String {
-    fn from(e: CliError) -> Self {
-        e.to_string()
-    }
-}
-
 /// Runs the command line; returns the process exit code.
 pub fn run(cli: Cli) -> Result<(), CliError> {
     run_with_source(cli, &[])
@@ -191,8 +187,8 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
 /// it; `assignment make` writes student copies from it).
 pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), CliError> {
     match cli.command {
-        None => render::run(render::RenderArgs::default()).map_err(CliError::from),
-        Some(Command::Render(a)) => render::run(a).map_err(CliError::from),
+        None => render::run(render::RenderArgs::default()),
+        Some(Command::Render(a)) => render::run(a),
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Reference(a)) => reference::run(a),
         Some(Command::Converge(a)) => converge::run(a),

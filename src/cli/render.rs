@@ -8,6 +8,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
+use super::CliError;
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
@@ -71,33 +72,39 @@ impl RenderArgs {
         &self,
         kind: IntegratorKind,
         settings: &RenderSettings,
-    ) -> Result<(), String> {
+    ) -> Result<(), CliError> {
         let o = &self.options;
         if kind != IntegratorKind::Mlt && self.mutations_per_pixel.is_some() {
-            return Err("--mutations-per-pixel needs --integrator mlt".into());
+            return Err(CliError::Usage(
+                "--mutations-per-pixel needs --integrator mlt".into(),
+            ));
         }
         if kind != IntegratorKind::Smc && !o.smc.is_empty() {
-            return Err(format!(
+            return Err(CliError::Usage(format!(
                 "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
                 kind.name()
-            ));
+            )));
         }
         let wanted = o.adjoint_image.unwrap_or(settings.adjoint_image);
         if !wanted && (o.adjoint.any() || self.adjoint_output.is_some()) {
-            return Err("--adjoint-* options need --adjoint-image".into());
-        }
-        if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
-            return Err(format!(
-                "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
-                kind.name()
+            return Err(CliError::Usage(
+                "--adjoint-* options need --adjoint-image".into(),
             ));
         }
+        if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
+            return Err(CliError::Usage(format!(
+                "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",
+                kind.name()
+            )));
+        }
         if self.threads == Some(0) {
-            return Err("--threads must be at least 1".into());
+            return Err(CliError::Usage("--threads must be at least 1".into()));
         }
         if let Some(t) = self.time {
             if !(t > 0.0 && t.is_finite()) {
-                return Err(format!("--time {t} must be a positive number of seconds"));
+                return Err(CliError::Usage(format!(
+                    "--time {t} must be a positive number of seconds"
+                )));
             }
         }
         Ok(())
@@ -148,7 +155,7 @@ fn configure(
     args: &RenderArgs,
     scene: &crate::scene::Scene,
     mut settings: RenderSettings,
-) -> Result<Plan, String> {
+) -> Result<Plan, CliError> {
     let flags = &args.options;
     let kind = IntegratorKind::parse(flags.integrator.as_deref().unwrap_or(&settings.integrator))?;
     args.refuse_foreign(kind, &settings)?;
@@ -156,9 +163,10 @@ fn configure(
     flags.spp = args.mutations_per_pixel.or(flags.spp);
     settings
         .apply(&flags, Spelling::Flag)
-        .map_err(|e| e.message)?;
+        .map_err(|e| CliError::Usage(e.message))?;
     if kind == IntegratorKind::Mlt {
-        crate::integrator::mlt::check_scene(scene)?;
+        crate::integrator::mlt::check_scene(scene)
+            .map_err(crate::integrator::IntegratorError::from)?;
     }
     // light paths this integrator cannot sample: said once, before the work
     if let Some(w) = crate::integrator::reach::unreachable_paths(scene, kind) {
@@ -170,10 +178,10 @@ fn configure(
         }
     }
     if settings.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
-        return Err(format!(
+        return Err(CliError::Usage(format!(
             "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
             kind.name()
-        ));
+        )));
     }
     // the scene's key is a default for the integrators it applies to
     let adjoint =
@@ -186,13 +194,12 @@ fn configure(
 }
 
 /// The `render` subcommand's worker threads.
-fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = threads {
         pool = pool.num_threads(t);
     }
-    pool.build()
-        .map_err(|e| format!("cannot start worker threads: {e}"))
+    pool.build().map_err(CliError::Threads)
 }
 
 /// Reports the adjoint image (stderr unless `--json`) and writes it with `--adjoint-output`.
@@ -201,7 +208,7 @@ fn show_adjoint(
     pre: &Preprocessed,
     plan: &Plan,
     source: &crate::scene::SceneSource,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     if plan.adjoint.is_none() {
         return Ok(());
     }
@@ -209,7 +216,7 @@ fn show_adjoint(
         .technique
         .adjoint
         .as_ref()
-        .ok_or("the adjoint image was not installed")?;
+        .ok_or_else(|| CliError::Usage("the adjoint image was not installed".into()))?;
     if !args.json {
         eprintln!(
             "adjoint image: {}x{} cells over {} area lights, {} pre-pass samples in {:.2} s, {} empty cells (floor eps = {:.3e})",
@@ -244,9 +251,11 @@ fn write_strategy_images(
     setup: &Setup,
     plan: &Plan,
     source: &crate::scene::SceneSource,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     if plan.kind != IntegratorKind::Bdpt {
-        return Err("--strategy-images needs --integrator bdpt".into());
+        return Err(CliError::Usage(
+            "--strategy-images needs --integrator bdpt".into(),
+        ));
     }
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let renderer = crate::integrator::Renderer::prepared(plan.kind, setup)?;
@@ -278,7 +287,7 @@ fn write_image(
     plan: &Plan,
     pre: &Preprocessed,
     source: &crate::scene::SceneSource,
-) -> Result<Vec<String>, String> {
+) -> Result<Vec<String>, CliError> {
     let Some(image) = &result.image else {
         return Ok(Vec::new());
     };
@@ -444,13 +453,13 @@ fn print_summary(result: &RenderResult, written: &[String]) {
     }
 }
 
-pub fn run(args: RenderArgs) -> Result<(), String> {
+pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let (mut scene, settings, source) = super::load_scene(args.scene.as_deref())?;
     if let Some((w, h)) = args.resolution {
         let cam = scene
             .camera
             .as_ref()
-            .ok_or("--resolution needs a scene with a camera")?;
+            .ok_or_else(|| CliError::Usage("--resolution needs a scene with a camera".into()))?;
         scene.camera = cam.with_resolution(w, h);
     }
     let plan = configure(&args, &scene, settings)?;

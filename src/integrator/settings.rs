@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::enlightened::{AdjointSettings, GuideError, GuideSettings};
+use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
@@ -180,14 +180,13 @@ impl AdjointOptions {
     }
 
     /// `base` with these options as flags over it, checked (the messages name the flags).
-    pub fn apply(&self, base: AdjointSettings) -> Result<AdjointSettings, String> {
+    pub fn apply(&self, base: AdjointSettings) -> Result<AdjointSettings, AdjointError> {
         base.overridden(
             self.resolution.map(|[c, r]| (c, r)),
             self.samples_per_cell,
             self.epsilon,
             self.estimator.as_deref(),
         )
-        .map_err(String::from)
     }
 
     /// `base` with these options as file keys over it, each value checked alone so that a bad
@@ -231,21 +230,30 @@ impl AdjointOptions {
 }
 
 /// Parses a grid `COLSxROWS` into the `[columns, rows]` of the file's key.
-fn parse_grid(s: &str) -> Result<[u32; 2], String> {
+fn parse_grid(s: &str) -> Result<[u32; 2], SizeError> {
     parse_size(s).map(|(c, r)| [c, r])
 }
 
+/// A `WxH` that is not one: the text, and the part that is not a size.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SizeError {
+    #[error("`{0}` is not WIDTHxHEIGHT, e.g. 64x64")]
+    NotWxH(String),
+    #[error("`{0}` in `{1}` is not a size in 1..=16384")]
+    OutOfRange(String, String),
+}
+
 /// Parses `WxH` (a camera resolution or a grid), each size in 1..=16384.
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+pub fn parse_size(s: &str) -> Result<(u32, u32), SizeError> {
     let (w, h) = s
         .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT, e.g. 64x64"))?;
+        .ok_or_else(|| SizeError::NotWxH(s.into()))?;
     let parse = |v: &str| {
         v.trim()
             .parse::<u32>()
             .ok()
             .filter(|n| (1..=16384).contains(n))
-            .ok_or_else(|| format!("`{v}` in `{s}` is not a size in 1..=16384"))
+            .ok_or_else(|| SizeError::OutOfRange(v.into(), s.into()))
     };
     Ok((parse(w)?, parse(h)?))
 }
@@ -318,8 +326,8 @@ impl GuideOptions {
     }
 
     /// `base` with these options as flags over it, checked (the messages name the flags).
-    pub fn apply_flags(&self, base: GuideSettings) -> Result<GuideSettings, String> {
-        self.apply(base, Spelling::Flag).map_err(|e| e.message)
+    pub fn apply_flags(&self, base: GuideSettings) -> Result<GuideSettings, OptionError> {
+        self.apply(base, Spelling::Flag)
     }
 
     /// `base` with every given option replacing its setting, each checked; a message names
@@ -518,10 +526,10 @@ impl RenderSettings {
             .map_err(|e| at("guide", e))?;
         self.adjoint = match spelling {
             Spelling::Key => o.adjoint.apply_keys(self.adjoint),
-            Spelling::Flag => o
-                .adjoint
-                .apply(self.adjoint)
-                .map_err(|message| OptionError { key: "", message }),
+            Spelling::Flag => o.adjoint.apply(self.adjoint).map_err(|e| OptionError {
+                key: "",
+                message: e.to_string(),
+            }),
         }
         .map_err(|e| at("adjoint", e))?;
         self.given = o.over(&self.given);
