@@ -237,8 +237,10 @@ fn parse_grid(s: &str) -> Result<[u32; 2], SizeError> {
 /// A `WxH` that is not one: the text, and the part that is not a size.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SizeError {
+    /// No `x` between two sizes (the text).
     #[error("`{0}` is not WIDTHxHEIGHT, e.g. 64x64")]
     NotWxH(String),
+    /// A side that is no integer in 1..=16384 (the side, the text).
     #[error("`{0}` in `{1}` is not a size in 1..=16384")]
     OutOfRange(String, String),
 }
