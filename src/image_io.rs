@@ -94,10 +94,36 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
         Encoding::SMALL_LOSSLESS,
         channels,
     );
-    exr::image::Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|e| io_err(path, e))
+    write_replacing(path, |tmp| {
+        exr::image::Image::from_layer(layer)
+            .write()
+            .to_file(tmp)
+            .map_err(|e| io_err(path, e))
+    })
+}
+
+/// Writes `path` through `write` into a temporary file beside it, renamed over `path` only once
+/// it is complete, so that a failed write leaves an earlier file at `path` as it was. A target
+/// that exists and is no regular file (a device such as `/dev/null`) is written in place.
+fn write_replacing(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), ImageError>,
+) -> Result<(), ImageError> {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        return write(path);
+    }
+    let name = path
+        .file_name()
+        .ok_or_else(|| io_err(path, "is not a file name"))?;
+    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
+    let written =
+        write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| io_err(path, e)));
+    if written.is_err() {
+        // the write's own error is the one to report; a temporary file that cannot be removed
+        // (or was never created) changes nothing at `path`
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// Reads an RGB(A) EXR written by pathspace or any other renderer, with its text attributes.
@@ -153,12 +179,45 @@ pub fn write_png(path: &Path, image: &Image) -> Result<(), ImageError> {
     write_png_rgb8(path, image.width, image.height, &data)
 }
 
-/// Writes raw 8-bit RGB data as a PNG.
+/// Writes raw 8-bit RGB data as a PNG. The file is encoded in memory and written at once, so
+/// that every error of the write (a full disk included) is reported.
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<(), ImageError> {
-    let file = std::fs::File::create(path).map_err(|e| io_err(path, e))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut writer = enc.write_header().map_err(|e| io_err(path, e))?;
-    writer.write_image_data(data).map_err(|e| io_err(path, e))
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header().map_err(|e| io_err(path, e))?;
+        writer.write_image_data(data).map_err(|e| io_err(path, e))?;
+        writer.finish().map_err(|e| io_err(path, e))?;
+    }
+    write_replacing(path, |tmp| {
+        std::fs::write(tmp, &bytes).map_err(|e| io_err(path, e))
+    })
+}
+
+/// Checks, before any work, that an image can be written at `path`: its directory exists and
+/// its name ends in `extension` (the format written). What only the write can tell (a full
+/// disk) is still reported by the write.
+pub fn check_output(path: &Path, extension: &str) -> Result<(), ImageError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if !ext.eq_ignore_ascii_case(extension) && std::fs::metadata(path).map_or(true, |m| m.is_file())
+    {
+        let m = format!(
+            "is written as {}: name it *.{extension}",
+            extension.to_uppercase()
+        );
+        return Err(io_err(path, m));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(io_err(
+            path,
+            format!("directory {} does not exist", dir.display()),
+        ));
+    }
+    Ok(())
 }

@@ -280,17 +280,9 @@ fn write_strategy_images(
     Ok(())
 }
 
-/// Writes the image as EXR (with the render's metadata) and PNG; the paths written.
-fn write_image(
-    args: &RenderArgs,
-    result: &RenderResult,
-    plan: &Plan,
-    pre: &Preprocessed,
-    source: &crate::scene::SceneSource,
-) -> Result<Vec<String>, CliError> {
-    let Some(image) = &result.image else {
-        return Ok(Vec::new());
-    };
+/// Where the image goes: `-o` (default: the scene's name with .exr, in the current directory)
+/// and `--png` (default: next to the EXR).
+fn output_paths(args: &RenderArgs) -> (PathBuf, PathBuf) {
     let stem = args
         .scene
         .as_ref()
@@ -305,6 +297,35 @@ fn write_image(
         .png
         .clone()
         .unwrap_or_else(|| exr.with_extension("png"));
+    (exr, png)
+}
+
+/// Refuses, before any work, outputs that cannot be written (a missing directory, a name that
+/// does not say the format): a typo in `-o` must not cost a whole render.
+fn check_outputs(args: &RenderArgs, has_camera: bool) -> Result<(), CliError> {
+    if has_camera {
+        let (exr, png) = output_paths(args);
+        image_io::check_output(&exr, "exr")?;
+        image_io::check_output(&png, "png")?;
+    }
+    if let Some(out) = &args.adjoint_output {
+        image_io::check_output(out, "exr")?;
+    }
+    Ok(())
+}
+
+/// Writes the image as EXR (with the render's metadata) and PNG; the paths written.
+fn write_image(
+    args: &RenderArgs,
+    result: &RenderResult,
+    plan: &Plan,
+    pre: &Preprocessed,
+    source: &crate::scene::SceneSource,
+) -> Result<Vec<String>, CliError> {
+    let Some(image) = &result.image else {
+        return Ok(Vec::new());
+    };
+    let (exr, png) = output_paths(args);
     let mut meta = ImageMeta::default();
     meta.set("integrator", &result.integrator)
         .set("spp", result.spp)
@@ -463,6 +484,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         scene.camera = cam.with_resolution(w, h);
     }
     let plan = configure(&args, &scene, settings)?;
+    check_outputs(&args, scene.camera.is_some())?;
     let pool = thread_pool(args.threads)?;
     let pre = pool.install(|| {
         session::preprocess(

@@ -1,0 +1,125 @@
+//! Writes that cannot destroy: outputs that cannot be written are refused before the render
+//! starts, a failed write is an error with a nonzero exit, and it leaves an earlier file at the
+//! path as it was (images go to a temporary file beside the target, renamed once complete).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn pathspace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A fresh directory under the target directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("writes-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A quick render of the embedded fog box with `extra` options.
+fn render(extra: &[&str]) -> Output {
+    let mut args = vec!["render", "--resolution", "8x8", "--threads", "1"];
+    if !extra.contains(&"--spp") {
+        args.extend_from_slice(&["--spp", "1"]);
+    }
+    args.extend_from_slice(extra);
+    pathspace(&args)
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn outputs_that_cannot_be_written_are_refused_before_the_render() {
+    let dir = scratch("refused");
+    let missing = dir.join("no-such-dir").join("x.exr");
+    let out = render(&["-o", missing.to_str().unwrap(), "--spp", "100000"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("does not exist"), "{e}");
+    // refused before the work: no progress, no summary (100000 spp would take minutes)
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let wrong = dir.join("x.png");
+    let out = render(&["-o", wrong.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("name it *.exr"), "{}", stderr(&out));
+    let png = dir.join("x.jpg");
+    let exr = dir.join("x.exr");
+    let out = render(&["-o", exr.to_str().unwrap(), "--png", png.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("name it *.png"), "{}", stderr(&out));
+    assert!(
+        !exr.exists(),
+        "nothing is written when an output is refused"
+    );
+}
+
+#[test]
+fn a_failed_write_keeps_the_earlier_file_and_fails_the_command() {
+    let dir = scratch("kept");
+    let exr = dir.join("img.exr");
+    let png = dir.join("img.png");
+    let (e, p) = (exr.to_str().unwrap(), png.to_str().unwrap());
+    let first = render(&["-o", e, "--png", p, "--seed", "1"]);
+    assert!(first.status.success(), "{}", stderr(&first));
+    let (old_exr, old_png) = (std::fs::read(&exr).unwrap(), std::fs::read(&png).unwrap());
+    // the temporary files cannot be created (directories hold their names): both writes fail
+    std::fs::create_dir(dir.join(".img.exr.partial")).unwrap();
+    std::fs::create_dir(dir.join(".img.png.partial")).unwrap();
+    let second = render(&["-o", e, "--png", p, "--seed", "2"]);
+    assert!(!second.status.success(), "a failed write must not exit 0");
+    assert!(stderr(&second).contains("img.exr"), "{}", stderr(&second));
+    assert_eq!(
+        std::fs::read(&exr).unwrap(),
+        old_exr,
+        "the earlier EXR was damaged"
+    );
+    std::fs::remove_dir(dir.join(".img.exr.partial")).unwrap();
+    let third = render(&["-o", e, "--png", p, "--seed", "3"]);
+    assert!(
+        !third.status.success(),
+        "a failed PNG write must not exit 0"
+    );
+    assert!(stderr(&third).contains("img.png"), "{}", stderr(&third));
+    assert_eq!(
+        std::fs::read(&png).unwrap(),
+        old_png,
+        "the earlier PNG was damaged"
+    );
+    assert_ne!(std::fs::read(&exr).unwrap(), old_exr, "the EXR was written");
+    // a successful write leaves no temporary file behind
+    std::fs::remove_dir(dir.join(".img.png.partial")).unwrap();
+    assert!(render(&["-o", e, "--png", p]).status.success());
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|f| f.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// A full disk is reported (the PNG is encoded in memory and written at once): `/dev/full`
+/// fails every write with ENOSPC, where the system has it.
+#[test]
+fn a_full_disk_is_an_error() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let dir = scratch("full");
+    let exr = dir.join("x.exr");
+    let out = render(&["-o", exr.to_str().unwrap(), "--png", "/dev/full"]);
+    assert!(
+        !out.status.success(),
+        "a PNG written to a full disk exited 0"
+    );
+    assert!(stderr(&out).contains("/dev/full"), "{}", stderr(&out));
+}
