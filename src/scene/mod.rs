@@ -308,24 +308,22 @@ impl Scene {
     /// probabilities), `pdf_ba` the same from `b` to `a`. Transmittance includes visibility.
     // ANCHOR: edge
     pub fn edge(&self, a: EdgeEnd, b: EdgeEnd, sampler: &mut Sampler) -> EdgeEval {
-        self.edge_with(a, b, &mut |med, ray, len| {
-            med.transmittance(ray, len, sampler)
-        })
+        self.edge_with(a, b, |med, ray, len| med.transmittance(ray, len, sampler))
     }
 
     /// [`Scene::edge`] with the exact transmittance of every medium segment
     /// (`Medium::transmittance_exact`): deterministic, for MLT's target function.
     pub fn edge_exact(&self, a: EdgeEnd, b: EdgeEnd) -> EdgeEval {
-        self.edge_with(a, b, &mut |med, ray, len| med.transmittance_exact(ray, len))
+        self.edge_with(a, b, |med, ray, len| med.transmittance_exact(ray, len))
     }
 
     /// [`Scene::edge`] with `tau(medium, ray, length)` giving each medium segment's
-    /// transmittance.
+    /// transmittance (generic, not `dyn`: BDPT calls it for every connection).
     fn edge_with(
         &self,
         a: EdgeEnd,
         b: EdgeEnd,
-        tau: &mut dyn FnMut(&crate::medium::Medium, &Ray, f32) -> Rgb,
+        mut tau: impl FnMut(&crate::medium::Medium, &Ray, f32) -> Rgb,
     ) -> EdgeEval {
         let zero = EdgeEval {
             transmittance: Rgb::ZERO,
