@@ -7,7 +7,7 @@ use crate::spectrum::Rgb;
 
 /// Sums of samples and of their squares per pixel, in f64 so billions of samples add up exactly
 /// enough.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Film {
     pub width: u32,
     pub height: u32,

@@ -66,7 +66,8 @@ pub enum ImageError {
     Io { path: String, message: String },
 }
 
-fn io_err(path: &Path, e: impl std::fmt::Display) -> ImageError {
+/// The error of an image file at `path` (also used by the files written beside images).
+pub fn io_err(path: &Path, e: impl std::fmt::Display) -> ImageError {
     ImageError::Io {
         path: path.display().to_string(),
         message: e.to_string(),
@@ -105,7 +106,7 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
 /// Writes `path` through `write` into a temporary file beside it, renamed over `path` only once
 /// it is complete, so that a failed write leaves an earlier file at `path` as it was. A target
 /// that exists and is no regular file (a device such as `/dev/null`) is written in place.
-fn write_replacing(
+pub fn write_replacing(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), ImageError>,
 ) -> Result<(), ImageError> {

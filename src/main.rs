@@ -12,8 +12,16 @@ fn main() {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = pathspace::cli::Cli::parse();
-    if let Err(e) = pathspace::cli::run_with_source(cli, source_tree::SOURCE_TREE) {
-        eprintln!("error: {e}");
-        std::process::exit(1);
+    match pathspace::cli::run_with_source(cli, source_tree::SOURCE_TREE) {
+        Ok(()) => {}
+        // a render a signal stopped: what was written, and the status a shell gives the signal
+        Err(pathspace::cli::CliError::Interrupted { signal, what }) => {
+            eprintln!("{what}");
+            std::process::exit(128 + signal);
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
     }
 }

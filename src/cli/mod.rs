@@ -3,6 +3,7 @@
 pub mod converge;
 pub mod diff;
 pub mod info;
+pub mod interrupt;
 pub mod merge;
 pub mod reference;
 pub mod render;
@@ -87,6 +88,13 @@ pub enum CliError {
     /// `pathspace assignment make` or `check` stops.
     #[error(transparent)]
     Assignment(#[from] AssignmentError),
+    /// A signal stopped a render after the pass in flight; what was written is in the message
+    /// (`main` exits with 128 + the signal's number).
+    #[error("{what}")]
+    Interrupted { signal: i32, what: String },
+    /// The signal handlers cannot be installed.
+    #[error("cannot handle SIGINT/SIGTERM/SIGHUP: {0}")]
+    Signals(#[source] std::io::Error),
     /// The worker threads cannot be started.
     #[error("cannot start worker threads: {0}")]
     Threads(#[source] rayon::ThreadPoolBuildError),

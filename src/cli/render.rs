@@ -11,8 +11,9 @@ use std::path::PathBuf;
 use super::CliError;
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
+use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
-use crate::integrator::session::{self, Job, Preprocessed};
+use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
 use crate::integrator::smc::SmcOptions;
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
@@ -59,6 +60,14 @@ pub struct RenderArgs {
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
     #[arg(long)]
     pub adjoint_output: Option<PathBuf>,
+    /// Every SECONDS (after the pass that passes them), write the image so far and the render's
+    /// state beside it (`OUT.checkpoint`), so that a crash loses at most that much.
+    #[arg(long, value_name = "SECONDS")]
+    pub checkpoint: Option<f64>,
+    /// Continue the render saved in this checkpoint (`OUT.checkpoint`, or the `OUT.exr` beside
+    /// it), with the same scene, options and seed; `--spp` may ask for more samples.
+    #[arg(long, value_name = "FILE")]
+    pub resume: Option<PathBuf>,
 }
 
 /// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines):
@@ -104,6 +113,13 @@ impl RenderArgs {
             if !(t > 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
                     "--time {t} must be a positive number of seconds"
+                )));
+            }
+        }
+        if let Some(t) = self.checkpoint {
+            if !(t >= 0.0 && t.is_finite()) {
+                return Err(CliError::Usage(format!(
+                    "--checkpoint {t} must be a number of seconds (0: after every pass)"
                 )));
             }
         }
@@ -300,6 +316,23 @@ fn output_paths(args: &RenderArgs) -> (PathBuf, PathBuf) {
     (exr, png)
 }
 
+/// The checkpoint beside the EXR: `OUT.checkpoint`.
+pub fn checkpoint_path(exr: &std::path::Path) -> PathBuf {
+    exr.with_extension("checkpoint")
+}
+
+/// The checkpoint `--resume` names: the file itself, or the checkpoint beside an EXR.
+fn resume_path(file: &std::path::Path) -> PathBuf {
+    let is_exr = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        checkpoint_path(file)
+    } else {
+        file.to_path_buf()
+    }
+}
+
 /// Refuses, before any work, outputs that cannot be written (a missing directory, a name that
 /// does not say the format): a typo in `-o` must not cost a whole render.
 fn check_outputs(args: &RenderArgs, has_camera: bool) -> Result<(), CliError> {
@@ -329,6 +362,8 @@ fn write_image(
     let mut meta = ImageMeta::default();
     meta.set("integrator", &result.integrator)
         .set("spp", result.spp)
+        .set("spp_target", plan.settings.spp)
+        .set("complete", result.complete)
         .set("seed", plan.settings.seed)
         .set("seconds", format!("{:.3}", result.seconds))
         .set("scene", &source.name)
@@ -486,6 +521,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let plan = configure(&args, &scene, settings)?;
     check_outputs(&args, scene.camera.is_some())?;
     let pool = thread_pool(args.threads)?;
+    let t0 = std::time::Instant::now();
     let pre = pool.install(|| {
         session::preprocess(
             &scene,
@@ -496,6 +532,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
             !args.json,
         )
     })?;
+    // `--time` counts the preprocessing: the passes get what it left (at least one pass)
+    let preprocessing = t0.elapsed().as_secs_f64();
+    if let Some(t) = args.time.filter(|&t| preprocessing > t) {
+        eprintln!("warning: the preprocessing took {preprocessing:.2} s of the {t} s of --time: one pass follows");
+    }
     show_adjoint(&args, &pre, &plan, &source)?;
     if let (Some(g), false) = (&pre.guide, args.json) {
         eprint!("{}", g.table());
@@ -514,11 +555,19 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         kind: plan.kind,
         setup,
         spp: plan.settings.spp,
-        time: args.time,
+        time: args.time.map(|t| t - preprocessing),
         progress: !args.json,
     };
-    let result = pool.install(|| session::render(&job))?;
-    let written = write_image(&args, &result, &plan, &pre, &source)?;
+    let ended = render_job(&args, &job, &plan, &pre, &source)?;
+    let result = &ended.result;
+    let mut written = write_image(&args, result, &plan, &pre, &source)?;
+    let keep_state = ended.stopped_by.is_some() || args.checkpoint.is_some();
+    if let (true, Some(c)) = (keep_state, &ended.checkpoint) {
+        let path = checkpoint_path(&output_paths(&args).0);
+        c.write(&path)
+            .map_err(crate::integrator::IntegratorError::from)?;
+        written.push(path.display().to_string());
+    }
     if result.negative_pixels > 0 {
         eprintln!(
             "warning: {} pixels have a negative estimate (radiance is never negative): the \
@@ -532,9 +581,79 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         );
     }
     if args.json {
-        println!("{}", result_json(&result, &plan, &pre, &written));
+        println!("{}", result_json(result, &plan, &pre, &written));
     } else {
-        print_summary(&result, &written);
+        print_summary(result, &written);
     }
-    Ok(())
+    match ended.stopped_by {
+        Some(signal) => Err(CliError::Interrupted {
+            signal,
+            what: format!(
+                "stopped by {} after {} of {} spp: wrote {} (continue with --resume {})",
+                super::interrupt::name(signal),
+                result.spp,
+                plan.settings.spp,
+                written.join(", "),
+                checkpoint_path(&output_paths(&args).0).display()
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// What a checkpoint of this render must match to be resumed.
+fn identity(
+    plan: &Plan,
+    scene: &crate::scene::Scene,
+    source: &crate::scene::SceneSource,
+) -> Identity {
+    let mut options = plan.settings.given.to_json();
+    if let Some(o) = options.as_object_mut() {
+        o.remove("spp");
+    }
+    Identity {
+        scene_hash: source.hash(),
+        integrator: plan.kind.name().to_string(),
+        options: options.to_string(),
+        seed: plan.settings.seed,
+        film: scene.camera.as_ref().map(|c| (c.width, c.height)),
+        meters: scene.sensors.len(),
+    }
+}
+
+/// Renders the job under the signal handlers, from `--resume`'s checkpoint if given, writing
+/// the image and the checkpoint every `--checkpoint` seconds.
+fn render_job(
+    args: &RenderArgs,
+    job: &Job,
+    plan: &Plan,
+    pre: &Preprocessed,
+    source: &crate::scene::SceneSource,
+) -> Result<Ended, CliError> {
+    let id = identity(plan, job.setup.scene, source);
+    let resume = match &args.resume {
+        Some(file) => {
+            let path = resume_path(file);
+            let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
+            c.check_identity(&id, &path.display().to_string())
+                .map_err(crate::integrator::IntegratorError::from)?;
+            Some(c)
+        }
+        None => None,
+    };
+    let ckpt = checkpoint_path(&output_paths(args).0);
+    let mut write = |r: &RenderResult, c: &Checkpoint| {
+        let to_err = |e: CliError| CheckpointError::Write(e.to_string());
+        write_image(args, r, plan, pre, source).map_err(to_err)?;
+        c.write(&ckpt)
+    };
+    let control = Control {
+        stop: Some(super::interrupt::install().map_err(CliError::Signals)?),
+        every: args.checkpoint,
+        identity: Some(id),
+        resume,
+        on_checkpoint: Some(&mut write),
+    };
+    let pool = thread_pool(args.threads)?;
+    Ok(pool.install(|| session::render_with(job, control))?)
 }

@@ -6,6 +6,7 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
+pub mod checkpoint;
 pub mod light;
 pub mod mlt;
 pub mod path;
@@ -107,6 +108,9 @@ pub enum IntegratorError {
     /// SMC settings given to another integrator.
     #[error("SMC options apply to the `smc` integrator, not `{0}`")]
     NotSmc(&'static str),
+    /// A checkpoint cannot be read, resumed from or written.
+    #[error(transparent)]
+    Checkpoint(#[from] checkpoint::CheckpointError),
 }
 
 impl From<String> for IntegratorError {
@@ -216,6 +220,23 @@ pub trait Integrator: Send + Sync {
         Statistics::default()
     }
 
+    /// What a checkpoint keeps of the integrator besides the film and the meters (SMC's
+    /// structure, which the passes so far have refined).
+    fn checkpoint_state(&self) -> checkpoint::IntegratorState {
+        checkpoint::IntegratorState::None
+    }
+
+    /// Takes back a checkpoint's state; false when the state is not this integrator's kind.
+    fn restore_state(&mut self, state: checkpoint::IntegratorState) -> bool {
+        matches!(state, checkpoint::IntegratorState::None)
+    }
+
+    /// Whether a checkpoint continues this integrator's run exactly. MLT's chains are not
+    /// saved: a resumed MLT render is an independent run merged by sample count.
+    fn resumes_exactly(&self) -> bool {
+        true
+    }
+
     /// The bidirectional engine, for `light` and `bdpt` (strategy images, tests).
     fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {
         None
@@ -242,7 +263,7 @@ const DELTA_VIEW_STREAM: u64 = u64::MAX - 1;
 const METER_STREAM_SALT: u64 = 0x6D65_7465_7200_0000;
 
 /// A meter's running statistics.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct MeterAccum {
     pub sum: [f64; 3],
     pub sum_sq: [f64; 3],

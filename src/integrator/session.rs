@@ -4,14 +4,19 @@
 //! count or the time is used, and what the render produced.
 //! Book: "Measuring a renderer" (the passes and their statistics).
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+
+use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress};
 
 use super::{IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics};
 use crate::enlightened::adjoint::AdjointStats;
 use crate::enlightened::guide::GuideStats;
 use crate::enlightened::{AdjointSettings, Enlightened, GuideKind, GuideSettings};
+use crate::film::Film;
 use crate::image_io;
 use crate::scene::Scene;
+use crate::spectrum::Rgb;
 
 /// One timed preprocessing stage.
 #[derive(Clone, Debug)]
@@ -87,7 +92,10 @@ pub struct Job<'s> {
 /// Everything a render produced.
 pub struct RenderResult {
     pub integrator: String,
+    /// Samples per pixel done (mutations per pixel for MLT; passes' samples for meters).
     pub spp: u64,
+    /// Whether every sample asked for was done (false: stopped by a signal, or a checkpoint).
+    pub complete: bool,
     pub seconds: f64,
     pub paths: u64,
     pub nan_count: u64,
@@ -113,49 +121,192 @@ impl RenderResult {
 /// Samples per pixel in one pass of a fixed-spp render (smaller passes: finer progress).
 pub const PASS_SPP: u32 = 4;
 
+/// How a render may be stopped, saved and continued (none of it by default).
+#[derive(Default)]
+pub struct Control<'c> {
+    /// Set to a signal's number by its handler: the render ends after the pass in flight.
+    pub stop: Option<&'c AtomicUsize>,
+    /// Seconds between checkpoints (each one handed to `on_checkpoint`).
+    pub every: Option<f64>,
+    /// What a checkpoint must match to be resumed; needed to make checkpoints.
+    pub identity: Option<Identity>,
+    /// Continue from this checkpoint (its identity checked by the caller).
+    pub resume: Option<Checkpoint>,
+    /// Writes a periodic checkpoint and the image so far.
+    #[allow(clippy::type_complexity)]
+    pub on_checkpoint: Option<
+        &'c mut (dyn FnMut(&RenderResult, &Checkpoint) -> Result<(), CheckpointError> + Send),
+    >,
+}
+
+/// How a render ended.
+pub struct Ended {
+    pub result: RenderResult,
+    /// The signal that stopped it before its samples were done.
+    pub stopped_by: Option<i32>,
+    /// Its state, when a checkpoint identity was given.
+    pub checkpoint: Option<Checkpoint>,
+}
+
 /// Renders the job: passes of [`PASS_SPP`] (or of 1 spp until the time is used).
 pub fn render(job: &Job) -> Result<RenderResult, IntegratorError> {
-    let mut r = Renderer::prepared(job.kind, &job.setup)?;
-    let bar = job.progress.then(|| progress_bar(job));
+    Ok(render_with(job, Control::default())?.result)
+}
+
+/// Renders the job under `control`: resumed from a checkpoint, checkpointed every so many
+/// seconds, stopped by a signal after the pass in flight.
+pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorError> {
+    let (mut r, mut progress, earlier) = start(job, control.resume.take())?;
+    let bar = job.progress.then(|| progress_bar(job, progress.spp));
     let tick = || {
         if let Some(b) = &bar {
             b.inc(1)
         }
     };
     let start = Instant::now();
-    match job.time {
-        Some(budget) => {
-            while start.elapsed().as_secs_f64() < budget || r.passes == 0 {
-                r.pass(1, &tick);
-                if let Some(b) = &bar {
-                    b.set_message(format!("{} spp", r.spp()));
-                }
-            }
+    let prior_seconds = progress.seconds;
+    let mut last_checkpoint = Instant::now();
+    let stop = || control.stop.map_or(0, |s| s.load(Ordering::SeqCst));
+    let mut stopped_by = None;
+    loop {
+        let spp = match job.time {
+            Some(budget) if prior_seconds + start.elapsed().as_secs_f64() < budget => 1,
+            Some(_) if r.passes == 0 && progress.spp == 0 => 1,
+            Some(_) => break,
+            None if progress.spp < job.spp as u64 => PASS_SPP.min(job.spp - progress.spp as u32),
+            None => break,
+        };
+        if stop() != 0 {
+            stopped_by = Some(stop() as i32);
+            break;
         }
-        None => {
-            let mut done = 0;
-            while done < job.spp {
-                let n = PASS_SPP.min(job.spp - done);
-                r.pass(n, &tick);
-                done += n;
-            }
+        r.pass(spp, &tick);
+        progress.spp += spp as u64;
+        progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
+        if let (Some(b), Some(_)) = (&bar, job.time) {
+            b.set_message(format!("{} spp", progress.spp));
+        }
+        let due = control
+            .every
+            .is_some_and(|e| last_checkpoint.elapsed().as_secs_f64() >= e);
+        if let (true, Some(id), Some(write)) =
+            (due, &control.identity, control.on_checkpoint.as_mut())
+        {
+            let c = snapshot(&r, id, &progress, earlier.as_ref());
+            write(&result(&r, job, &progress, earlier.as_ref()), &c)?;
+            last_checkpoint = Instant::now();
         }
     }
-    let seconds = start.elapsed().as_secs_f64();
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    Ok(result(&r, job, seconds))
+    progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
+    let checkpoint = control
+        .identity
+        .as_ref()
+        .map(|id| snapshot(&r, id, &progress, earlier.as_ref()));
+    Ok(Ended {
+        result: result(&r, job, &progress, earlier.as_ref()),
+        stopped_by,
+        checkpoint,
+    })
+}
+
+/// The renderer of a job, and how far it is: new, or continued from a checkpoint. MLT's run
+/// is not continued: a new independent run starts, and the saved image joins the earlier ones.
+fn start<'s>(
+    job: &Job<'s>,
+    resume: Option<Checkpoint>,
+) -> Result<(Renderer<'s>, Progress, Option<Earlier>), IntegratorError> {
+    let Some(c) = resume else {
+        let r = Renderer::prepared(job.kind, &job.setup)?;
+        return Ok((r, Progress::default(), None));
+    };
+    if job.time.is_none() && c.progress.spp > job.spp as u64 {
+        return Err(CheckpointError::TooFar(c.progress.spp, job.spp).into());
+    }
+    let mut progress = c.progress.clone();
+    let mut r = Renderer::prepared(job.kind, &job.setup)?;
+    if r.integrator.resumes_exactly() {
+        if !r.integrator.restore_state(c.state) {
+            return Err(CheckpointError::WrongState.into());
+        }
+        r.film = c.film;
+        r.meters = c.meters;
+        r.passes = progress.passes;
+        r.nan_count = progress.nan_count;
+        r.paths = progress.paths;
+        return Ok((r, progress, None));
+    }
+    progress.resumes += 1;
+    let seed = Checkpoint::resume_seed(job.setup.seed, progress.resumes);
+    let setup = Setup { seed, ..job.setup };
+    let r = Renderer::prepared(job.kind, &setup)?;
+    progress.passes = 0;
+    if job.progress {
+        eprintln!(
+            "resuming {} as an independent run with seed {seed}, merged with the {} spp saved",
+            job.kind.name(),
+            progress.spp
+        );
+    }
+    Ok((r, progress, Some(merged(&c))))
+}
+
+/// The earlier runs of a checkpoint with its own run folded in (MLT).
+fn merged(c: &Checkpoint) -> Earlier {
+    let mut e = c.earlier.clone().unwrap_or(Earlier {
+        weighted: vec![[0.0; 3]; c.film.as_ref().map_or(0, |f| f.sum.len())],
+        spp: 0,
+    });
+    if let Some(f) = c.film.as_ref().filter(|f| f.spp > 0) {
+        fold(&mut e, f);
+    }
+    e
+}
+
+/// Adds a run's image, weighted by its sample count.
+fn fold(e: &mut Earlier, film: &Film) {
+    let image = film.image();
+    for (w, p) in e.weighted.iter_mut().zip(&image.pixels) {
+        for c in 0..3 {
+            w[c] += film.spp as f64 * p[c] as f64;
+        }
+    }
+    e.spp += film.spp;
+}
+
+/// The renderer's state as a checkpoint.
+fn snapshot(r: &Renderer, id: &Identity, p: &Progress, earlier: Option<&Earlier>) -> Checkpoint {
+    let progress = Progress {
+        passes: r.passes,
+        nan_count: r.nan_count,
+        paths: r.paths,
+        ..p.clone()
+    };
+    Checkpoint {
+        identity: id.clone(),
+        progress,
+        film: r.film.clone(),
+        meters: r.meters.clone(),
+        state: r.integrator.checkpoint_state(),
+        earlier: earlier.cloned(),
+    }
 }
 
 /// The progress bar of a job: tiles of every pass, or a spinner for a timed render.
-fn progress_bar(job: &Job) -> indicatif::ProgressBar {
+fn progress_bar(job: &Job, done: u64) -> indicatif::ProgressBar {
     let tiles = job.setup.scene.camera.as_ref().map_or(1, |c| {
         (c.width.div_ceil(super::TILE) * c.height.div_ceil(super::TILE)) as u64
     });
     let total = match job.time {
         Some(_) => 0,
-        None => job.spp.div_ceil(PASS_SPP) as u64 * tiles,
+        None => {
+            (job.spp as u64)
+                .saturating_sub(done)
+                .div_ceil(PASS_SPP as u64)
+                * tiles
+        }
     };
     let b = if total > 0 {
         indicatif::ProgressBar::new(total)
@@ -172,25 +323,34 @@ fn progress_bar(job: &Job) -> indicatif::ProgressBar {
     b
 }
 
-/// What the finished renderer holds, as a [`RenderResult`].
-fn result(r: &Renderer, job: &Job, seconds: f64) -> RenderResult {
-    let spp_done = if job.setup.scene.camera.is_some() {
-        r.spp()
-    } else {
-        r.passes
-    };
-    let image = r.film.as_ref().map(|f| f.image());
+/// What the renderer holds, as a [`RenderResult`]; with MLT's earlier runs, the image is their
+/// merge with the run in progress, weighted by sample count.
+fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier>) -> RenderResult {
+    let image = r.film.as_ref().map(|f| match earlier {
+        Some(e) => {
+            let mut all = e.clone();
+            fold(&mut all, f);
+            let inv = 1.0 / all.spp.max(1) as f64;
+            let mut img = f.image();
+            for (p, w) in img.pixels.iter_mut().zip(&all.weighted) {
+                *p = Rgb::new(
+                    (w[0] * inv) as f32,
+                    (w[1] * inv) as f32,
+                    (w[2] * inv) as f32,
+                );
+            }
+            img
+        }
+        None => f.image(),
+    });
     let negative_pixels = image.as_ref().map_or(0, |img| {
         img.pixels.iter().filter(|p| p.min_element() < 0.0).count() as u64
     });
     RenderResult {
         integrator: r.integrator.label(),
-        spp: if job.time.is_some() {
-            spp_done
-        } else {
-            job.spp as u64
-        },
-        seconds,
+        spp: progress.spp,
+        complete: job.time.is_some() || progress.spp >= job.spp as u64,
+        seconds: progress.seconds,
         paths: r.paths,
         nan_count: r.nan_count,
         negative_pixels,

@@ -32,7 +32,7 @@ use crate::spectrum::Rgb;
 
 /// RGB coefficients of a cache with the sums that make G and the polar values O(1).
 // ANCHOR: coefficients
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Coefficients {
     pub grid: Grid,
     /// c_ij, index j n_s + i.
@@ -63,6 +63,16 @@ fn to_rgb(a: [f64; 3], scale: f64) -> Rgb {
 }
 
 impl Coefficients {
+    /// The number of coefficients stored.
+    pub fn len(&self) -> usize {
+        self.c.len()
+    }
+
+    /// Whether no coefficient is stored.
+    pub fn is_empty(&self) -> bool {
+        self.c.is_empty()
+    }
+
     /// All coefficients zero.
     pub fn zero(grid: Grid) -> Self {
         Coefficients {

@@ -30,7 +30,7 @@ use crate::spectrum::{self, Rgb};
 pub const SPLIT_DIMENSIONALITY: u32 = 32;
 
 /// One leaf's radiance cache.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RadianceCache {
     /// The radiance coefficients (predicate g).
     pub coefficients: Coefficients,
@@ -56,6 +56,12 @@ impl RadianceCache {
             count_sum: 0,
             zero_pdf_cells: grid.cells(),
         }
+    }
+
+    /// Whether the arrays agree with the grid (a cache read back from a checkpoint).
+    pub fn is_consistent(&self) -> bool {
+        let cells = self.coefficients.grid.cells();
+        self.counts.len() == cells && self.pdf.len() == cells && self.coefficients.len() == cells
     }
 
     pub fn grid(&self) -> Grid {

@@ -45,7 +45,7 @@ pub enum ImportanceSampling {
 }
 
 /// The control variate of the in-scattering integral.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ControlVariate {
     /// `cv0`: g = 0, G = 0.
     None,

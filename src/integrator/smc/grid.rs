@@ -20,7 +20,7 @@ pub const ROOT_CELLS_T: u32 = 1;
 
 /// A regular n_s x n_t partition of the (s, t) unit square; cell (i, j) has index j n_s + i.
 // ANCHOR: grid
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     /// Cells along s (azimuth), periodic.
     pub n_s: u32,

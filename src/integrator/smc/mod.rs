@@ -636,4 +636,18 @@ impl super::Integrator for Smc {
     fn smc(&self) -> Option<&Smc> {
         Some(self)
     }
+
+    fn checkpoint_state(&self) -> super::checkpoint::IntegratorState {
+        super::checkpoint::IntegratorState::Smc(Box::new(self.octree.clone()))
+    }
+
+    fn restore_state(&mut self, state: super::checkpoint::IntegratorState) -> bool {
+        match state {
+            super::checkpoint::IntegratorState::Smc(octree) => {
+                self.octree = *octree;
+                true
+            }
+            super::checkpoint::IntegratorState::None => false,
+        }
+    }
 }

@@ -34,7 +34,7 @@ pub struct Record {
     pub phase_value: f32,
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 enum Node {
     Leaf { cache: u32 },
     Inner { first_child: u32 },
@@ -95,8 +95,9 @@ fn human_bytes(bytes: usize) -> String {
     }
 }
 
-/// The spatial octree of radiance caches.
-#[derive(Clone, Debug)]
+/// The spatial octree of radiance caches (serialized whole into a checkpoint: a resumed SMC
+/// render continues from the structure the interrupted one had built).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Octree {
     nodes: Vec<Node>,
     caches: Vec<RadianceCache>,
@@ -222,6 +223,21 @@ impl Octree {
         self.max_depth = self.max_depth.max(depth + 1);
     }
     // ANCHOR_END: merge
+
+    /// Whether a structure read back (from a checkpoint) can be used: every child block after
+    /// its parent and inside the node array (so a lookup ends), every cache index in range and
+    /// every cache's arrays the size of its grid.
+    pub fn is_consistent(&self) -> bool {
+        let nodes = self.nodes.len();
+        let nodes_ok = self.nodes.iter().enumerate().all(|(i, n)| match *n {
+            Node::Leaf { cache } => (cache as usize) < self.caches.len(),
+            Node::Inner { first_child } => {
+                let f = first_child as usize;
+                f > i && f + 8 <= nodes
+            }
+        });
+        nodes > 0 && nodes_ok && self.caches.iter().all(RadianceCache::is_consistent)
+    }
 
     /// Every leaf's cache.
     pub fn caches(&self) -> &[RadianceCache] {

@@ -21,7 +21,7 @@ pub enum PartialSumsError {
 
 /// A complete binary tree of partial sums in a flat array of 2N - 1 nodes.
 // ANCHOR: tree
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct PartialSums {
     /// Number of leaves (cells).
     n: usize,

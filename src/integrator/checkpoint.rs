@@ -1,0 +1,242 @@
+//! Checkpoints: what a render needs to continue where it stopped. A checkpoint is written between
+//! passes (every `--checkpoint SECONDS`, and when a signal stops the render), so it holds whole
+//! passes only: the film's sums (f64, as accumulated), the meters' sums, the counters, the pass
+//! index the next pass draws its streams from, and the integrator's own state where it has one
+//! (SMC's octree of radiance caches). Every random stream is `Sampler::new(seed, pixel, pass)`,
+//! so a render resumed from a checkpoint draws exactly the samples the uninterrupted one would
+//! have drawn next, and its image is the same bit for bit.
+//!
+//! MLT is the exception: its chains (the current path of each, its b estimate, the mutation
+//! statistics) are not saved. A resumed MLT render is an independent run with its own seed
+//! ([`Checkpoint::resume_seed`]), merged with the saved image by sample count, as `merge` does
+//! for independent runs (Pauly et al. 2000 sec. 7: independent chains average).
+//! Book: "Measuring a renderer" (interrupted renders, checkpoints).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::smc::octree::Octree;
+use super::MeterAccum;
+use crate::film::Film;
+
+/// The first bytes of a checkpoint file (and its format version).
+const MAGIC: &[u8; 24] = b"pathspace checkpoint v1\n";
+
+/// Why a checkpoint cannot be read, written or resumed from.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CheckpointError {
+    #[error("cannot read the checkpoint {0}: {1}")]
+    Read(String, String),
+    /// The checkpoint or the partial image beside it could not be written.
+    #[error("cannot write {0}")]
+    Write(String),
+    #[error("{0} is not a pathspace checkpoint (or was written by another version)")]
+    NotACheckpoint(String),
+    #[error("the checkpoint {0} is damaged (its checksum does not match): it cannot be resumed")]
+    Damaged(String),
+    #[error("the checkpoint {file} was written for another render: {what} differs (checkpoint: {saved}, now: {now})")]
+    Mismatch {
+        file: String,
+        what: &'static str,
+        saved: String,
+        now: String,
+    },
+    #[error(
+        "the checkpoint holds {0} spp, more than the {1} asked for now (give --spp {0} or more)"
+    )]
+    TooFar(u64, u32),
+    #[error("the checkpoint holds another integrator's state")]
+    WrongState,
+    #[error("the checkpoint {0} holds a state the integrator cannot take back: {1}")]
+    BadState(String, &'static str),
+}
+
+/// What a checkpoint must match to be resumed: the same scene text, camera, integrator,
+/// settings (every option but the sample count) and seed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Identity {
+    /// The FNV-1a hash of the scene file's text, as in the EXR attribute `scene_hash`.
+    pub scene_hash: u64,
+    pub integrator: String,
+    /// The render's options as JSON without `spp` (a resume may ask for more samples).
+    pub options: String,
+    pub seed: u64,
+    /// The film's size (`--resolution` changes it without changing the scene file).
+    pub film: Option<(u32, u32)>,
+    pub meters: usize,
+}
+
+/// How far the render got: whole passes.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Progress {
+    /// Passes done; the next pass draws its streams from this index.
+    pub passes: u64,
+    /// Samples per pixel (mutations per pixel for MLT) done, counting earlier runs.
+    pub spp: u64,
+    pub nan_count: u64,
+    pub paths: u64,
+    /// Seconds spent rendering (passes), counting earlier runs.
+    pub seconds: f64,
+    /// How many times the render was resumed before this checkpoint.
+    pub resumes: u32,
+}
+
+/// What an integrator keeps besides the film and the meters.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub enum IntegratorState {
+    /// Nothing: the film, the meters and the pass index are all of it (path, light, bdpt).
+    None,
+    /// SMC's structure as it stood after the last pass merged its records (Pegoraro et al. 2008
+    /// Fig. 2, lines 12-14).
+    Smc(Box<Octree>),
+}
+
+/// The image of MLT's earlier runs: the sum over runs of spp_i * I_i, and the sum of spp_i.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Earlier {
+    pub weighted: Vec<[f64; 3]>,
+    pub spp: u64,
+}
+
+/// A render's state between two passes.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Checkpoint {
+    pub identity: Identity,
+    pub progress: Progress,
+    /// The film of the run in progress (for MLT, the runs merged so far are in `earlier`).
+    pub film: Option<Film>,
+    pub meters: Vec<MeterAccum>,
+    pub state: IntegratorState,
+    /// MLT: the runs before the one in progress, merged by sample count.
+    pub earlier: Option<Earlier>,
+}
+
+/// FNV-1a over bytes: a damaged file is refused before its contents are trusted.
+fn checksum(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+impl Checkpoint {
+    /// The seed of the independent run a resumed MLT render starts (run `resumes` after the
+    /// first): the user's seed mixed with the run's number, printed when the run starts, so the
+    /// run can be repeated with `--seed`.
+    pub fn resume_seed(seed: u64, resumes: u32) -> u64 {
+        let mut z = seed ^ (resumes as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// The file's bytes: the magic line, the checksum of the payload, the payload (postcard).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let payload = postcard::to_stdvec(self).expect("a checkpoint always serializes");
+        let mut out = Vec::with_capacity(MAGIC.len() + 8 + payload.len());
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&checksum(&payload).to_le_bytes());
+        out.extend_from_slice(&payload);
+        out
+    }
+
+    /// Reads back [`Checkpoint::to_bytes`]; `name` is the file's name for the errors.
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, CheckpointError> {
+        let not_one = || CheckpointError::NotACheckpoint(name.to_string());
+        let rest = bytes.strip_prefix(MAGIC.as_slice()).ok_or_else(not_one)?;
+        let (sum, payload) = rest.split_at_checked(8).ok_or_else(not_one)?;
+        let sum = u64::from_le_bytes(sum.try_into().map_err(|_| not_one())?);
+        if checksum(payload) != sum {
+            return Err(CheckpointError::Damaged(name.to_string()));
+        }
+        let c: Checkpoint = postcard::from_bytes(payload).map_err(|_| not_one())?;
+        c.check_shape(name)?;
+        Ok(c)
+    }
+
+    /// Refuses a state whose arrays do not fit its own header (a lookup must not go out of
+    /// bounds on a file that passed its checksum but was written by a bug).
+    fn check_shape(&self, name: &str) -> Result<(), CheckpointError> {
+        let bad = |why| Err(CheckpointError::BadState(name.to_string(), why));
+        if let Some(f) = &self.film {
+            let n = f.width as usize * f.height as usize;
+            if self.identity.film != Some((f.width, f.height))
+                || f.sum.len() != n
+                || f.sum_sq.len() != n
+                || f.splat.len() != n
+            {
+                return bad("the film's arrays do not match its size");
+            }
+        }
+        if self.meters.len() != self.identity.meters {
+            return bad("the number of meters does not match");
+        }
+        if let IntegratorState::Smc(octree) = &self.state {
+            if !octree.is_consistent() {
+                return bad("SMC's octree is inconsistent");
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the checkpoint through a temporary file renamed over `path`, so a crash (or a
+    /// `kill -9`) during the write leaves the previous checkpoint whole.
+    pub fn write(&self, path: &Path) -> Result<(), CheckpointError> {
+        let bytes = self.to_bytes();
+        crate::image_io::write_replacing(path, |tmp| {
+            std::fs::write(tmp, &bytes).map_err(|e| crate::image_io::io_err(path, e))
+        })
+        .map_err(|e| CheckpointError::Write(e.to_string()))
+    }
+
+    /// Reads the checkpoint at `path`.
+    pub fn read(path: &Path) -> Result<Self, CheckpointError> {
+        let name = path.display().to_string();
+        let bytes =
+            std::fs::read(path).map_err(|e| CheckpointError::Read(name.clone(), e.to_string()))?;
+        Self::from_bytes(&bytes, &name)
+    }
+
+    /// Refuses to resume unless `now` is the render this checkpoint was written for, naming
+    /// the first thing that differs.
+    pub fn check_identity(&self, now: &Identity, name: &str) -> Result<(), CheckpointError> {
+        let saved = &self.identity;
+        let differs = |what, a: String, b: String| {
+            Err(CheckpointError::Mismatch {
+                file: name.to_string(),
+                what,
+                saved: a,
+                now: b,
+            })
+        };
+        if saved.scene_hash != now.scene_hash {
+            let hex = |h: u64| format!("{h:016x}");
+            return differs("the scene file", hex(saved.scene_hash), hex(now.scene_hash));
+        }
+        if saved.integrator != now.integrator {
+            return differs(
+                "the integrator",
+                saved.integrator.clone(),
+                now.integrator.clone(),
+            );
+        }
+        if saved.seed != now.seed {
+            return differs("the seed", saved.seed.to_string(), now.seed.to_string());
+        }
+        if saved.film != now.film {
+            let size = |f: Option<(u32, u32)>| f.map_or("none".into(), |(w, h)| format!("{w}x{h}"));
+            return differs("the resolution", size(saved.film), size(now.film));
+        }
+        if saved.options != now.options || saved.meters != now.meters {
+            return differs(
+                "the render options",
+                saved.options.clone(),
+                now.options.clone(),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,258 @@
+//! Interrupted renders keep their samples: a render stopped after some passes and resumed from
+//! its checkpoint gives the uninterrupted render's image bit for bit (path, light, bdpt, smc:
+//! every stream is `Sampler::new(seed, pixel, pass)` and SMC's structure is saved), MLT's
+//! resumed run is an independent run merged by sample count, and the command line stops on
+//! SIGINT / SIGTERM after the pass in flight, writes the image and its checkpoint and exits with
+//! 128 + the signal; a `kill -9` loses only what came after the last checkpoint.
+//! Book: "Measuring a renderer", section "Interrupted renders".
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use pathspace::integrator::checkpoint::{Checkpoint, Identity};
+use pathspace::integrator::session::{self, Control, Job};
+use pathspace::integrator::{IntegratorKind, Setup};
+use pathspace::path::PLAIN;
+use pathspace::scene::SceneSource;
+
+const SMC_TESTBED: &str = include_str!("../scenes/smc-testbed-albedo-0.8.toml");
+const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
+
+fn identity(kind: IntegratorKind, film: Option<(u32, u32)>) -> Identity {
+    Identity {
+        scene_hash: 1,
+        integrator: kind.name().into(),
+        options: String::new(),
+        seed: 5,
+        film,
+        meters: 0,
+    }
+}
+
+/// The film sums after `spp` samples per pixel, rendered at once or as `first` spp, a
+/// checkpoint (through its bytes), then the rest.
+fn render(text: &str, kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec<[f32; 3]> {
+    let text = text.replace("resolution = [32, 32]", "resolution = [12, 10]");
+    let src = SceneSource::embedded("scene.toml", &text);
+    let (mut scene, settings) = pathspace::integrator::settings::load(&src).unwrap();
+    if let Some(cam) = &scene.camera {
+        scene.camera = cam.with_resolution(12, 10);
+    }
+    let setup = Setup {
+        scene: &scene,
+        technique: &PLAIN,
+        settings: &settings,
+        seed: 5,
+        max_depth: Some(6),
+    };
+    let job = |spp| Job {
+        kind,
+        setup,
+        spp,
+        time: None,
+        progress: false,
+    };
+    let resume = first.map(|n| {
+        let control = Control {
+            identity: Some(identity(kind, Some((12, 10)))),
+            ..Default::default()
+        };
+        let ended = session::render_with(&job(n), control).unwrap();
+        let bytes = ended.checkpoint.unwrap().to_bytes();
+        Checkpoint::from_bytes(&bytes, "test").unwrap()
+    });
+    let control = Control {
+        resume,
+        ..Default::default()
+    };
+    let ended = session::render_with(&job(spp), control).unwrap();
+    assert_eq!(ended.result.spp, spp as u64);
+    let image = ended.result.image.unwrap();
+    image.pixels.iter().map(|p| p.to_array()).collect()
+}
+
+#[test]
+fn a_resumed_render_is_the_uninterrupted_one_bit_for_bit() {
+    for (kind, text) in [
+        (IntegratorKind::Path, FOG_BOX),
+        (IntegratorKind::Light, FOG_BOX),
+        (IntegratorKind::Bdpt, FOG_BOX),
+        (IntegratorKind::Smc, SMC_TESTBED),
+    ] {
+        let whole = render(text, kind, 16, None);
+        let resumed = render(text, kind, 16, Some(8));
+        assert!(
+            whole == resumed,
+            "{}: the resumed image differs from the uninterrupted one",
+            kind.name()
+        );
+        // and the comparison can fail: another split of the passes draws other streams
+        let other = render(text, kind, 16, Some(6));
+        assert!(
+            whole != other,
+            "{}: passes of other sizes cannot give the same image",
+            kind.name()
+        );
+    }
+}
+
+#[test]
+fn a_resumed_mlt_render_is_an_independent_run_merged_by_sample_count() {
+    let kind = IntegratorKind::Mlt;
+    let resumed = render(FOG_BOX, kind, 16, Some(8));
+    let first = render(FOG_BOX, kind, 8, None);
+    // the second half: a fresh run with the seed the resume announces
+    let text = FOG_BOX.replace("resolution = [32, 32]", "resolution = [12, 10]");
+    let src = SceneSource::embedded("scene.toml", &text);
+    let (mut scene, settings) = pathspace::integrator::settings::load(&src).unwrap();
+    scene.camera = scene.camera.as_ref().unwrap().with_resolution(12, 10);
+    let setup = Setup {
+        scene: &scene,
+        technique: &PLAIN,
+        settings: &settings,
+        seed: Checkpoint::resume_seed(5, 1),
+        max_depth: Some(6),
+    };
+    let job = Job {
+        kind,
+        setup,
+        spp: 8,
+        time: None,
+        progress: false,
+    };
+    let second = session::render(&job).unwrap().image.unwrap();
+    for ((r, a), b) in resumed.iter().zip(&first).zip(&second.pixels) {
+        for c in 0..3 {
+            let merged = ((8.0 * a[c] as f64 + 8.0 * b[c] as f64) / 16.0) as f32;
+            assert_eq!(r[c], merged, "the resumed MLT image is not the merge");
+        }
+    }
+}
+
+#[test]
+fn a_checkpoint_of_another_render_or_a_damaged_one_is_refused() {
+    let c = Checkpoint {
+        identity: identity(IntegratorKind::Path, None),
+        progress: Default::default(),
+        film: None,
+        meters: Vec::new(),
+        state: pathspace::integrator::checkpoint::IntegratorState::None,
+        earlier: None,
+    };
+    let mut bytes = c.to_bytes();
+    assert!(Checkpoint::from_bytes(&bytes, "f").is_ok());
+    let other = Identity {
+        seed: 6,
+        ..identity(IntegratorKind::Path, None)
+    };
+    let e = c.check_identity(&other, "f").unwrap_err().to_string();
+    assert!(e.contains("the seed differs"), "{e}");
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    let e = Checkpoint::from_bytes(&bytes, "f").unwrap_err().to_string();
+    assert!(e.contains("damaged"), "{e}");
+    let e = Checkpoint::from_bytes(b"not a checkpoint", "f")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not a pathspace checkpoint"), "{e}");
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pathspace-ckpt-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `pathspace render` of the fog box at 24x24 with seed 3, into `exr`.
+fn command(exr: &Path, extra: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_pathspace"));
+    c.args([
+        "render",
+        "--resolution",
+        "24x24",
+        "--seed",
+        "3",
+        "--threads",
+        "2",
+    ])
+    .args(["-o", exr.to_str().unwrap()])
+    .args(extra)
+    .stdout(Stdio::null())
+    .stderr(Stdio::piped());
+    c
+}
+
+/// Waits for the first checkpoint (passes are done), then sends `signal`; the output.
+fn interrupt(exr: &Path, signal: &str) -> std::process::Output {
+    let child = command(exr, &["--spp", "1000000", "--checkpoint", "0"])
+        .spawn()
+        .unwrap();
+    let ckpt = exr.with_extension("checkpoint");
+    while !ckpt.exists() {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args([signal, &pid])
+        .status()
+        .unwrap()
+        .success());
+    child.wait_with_output().unwrap()
+}
+
+fn spp_of(exr: &Path) -> u64 {
+    let (_, meta) = pathspace::image_io::read_exr(exr).unwrap();
+    assert_eq!(meta.get("complete"), Some("false"));
+    meta.get("spp").unwrap().parse().unwrap()
+}
+
+/// Resumes the render of `exr` to `spp` and compares it with an uninterrupted one.
+fn resume_matches_uninterrupted(dir: &Path, exr: &Path, spp: u64) {
+    let n = spp.to_string();
+    let ckpt = exr.with_extension("checkpoint");
+    let out = command(exr, &["--spp", &n, "--resume", ckpt.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let whole = dir.join("whole.exr");
+    assert!(command(&whole, &["--spp", &n]).status().unwrap().success());
+    let (a, _) = pathspace::image_io::read_exr(exr).unwrap();
+    let (b, _) = pathspace::image_io::read_exr(&whole).unwrap();
+    assert!(a.pixels == b.pixels, "the resumed render differs");
+}
+
+#[test]
+fn sigint_and_sigterm_stop_after_the_pass_and_the_render_resumes() {
+    for (signal, code) in [("-INT", 130), ("-TERM", 143)] {
+        let dir = scratch(&signal[1..]);
+        let exr = dir.join("part.exr");
+        let out = interrupt(&exr, signal);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{err}");
+        assert!(err.contains("stopped by SIG"), "{err}");
+        assert!(err.contains("part.checkpoint"), "{err}");
+        let spp = spp_of(&exr);
+        assert!(
+            spp > 0 && spp.is_multiple_of(4),
+            "{spp} spp: whole passes only"
+        );
+        resume_matches_uninterrupted(&dir, &exr, spp + 8);
+    }
+}
+
+#[test]
+fn kill_9_loses_only_what_followed_the_last_checkpoint() {
+    let dir = scratch("kill9");
+    let exr = dir.join("part.exr");
+    let out = interrupt(&exr, "-KILL");
+    assert_eq!(out.status.code(), None, "killed by the signal");
+    let c = Checkpoint::read(&exr.with_extension("checkpoint")).unwrap();
+    let spp = c.progress.spp;
+    assert!(spp > 0);
+    resume_matches_uninterrupted(&dir, &exr, spp + 4);
+}
