@@ -15,7 +15,7 @@ def cpu_seconds():
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--scene", default=os.path.join(os.path.dirname(__file__), "..", "..", "shared", "peers", "mitsuba-fog-box.xml"))
+    ap.add_argument("--scene", default=os.path.join(os.path.dirname(__file__), "mitsuba-fog-box.xml"))
     ap.add_argument("--spp", type=int, nargs="+", required=True)
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--coplanar", action="store_true", help="the exact cube, coplanar with the walls")
