@@ -10,7 +10,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use pathspace::image_io::{self, ImageMeta};
+use pathspace::integrator::checkpoint::{Checkpoint, Identity};
 use pathspace::integrator::provenance::{self, Conflict, Provenance, Streams};
+use pathspace::integrator::session::{self, Control, Job};
+use pathspace::integrator::{IntegratorKind, Setup};
+use pathspace::path::PLAIN;
+use pathspace::scene::SceneSource;
 
 const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
 
@@ -173,21 +178,19 @@ fn seconds(m: &ImageMeta) -> f64 {
 fn disjoint_renders_merge_with_their_samples_seconds_and_sources_summed() {
     let dir = scratch("disjoint");
     let a = render(&dir, "a.exr", &["--seed", "1"]);
-    let b = render(&dir, "b.exr", &["--seed", "2", "--spp", "8"]);
+    // b takes long enough that its time is not 0.000 s
+    let b = render(&dir, "b.exr", &["--seed", "2", "--spp", "64"]);
     let ab = dir.join("ab.exr");
     let run = merge(&[&a, &b], &ab, &[]);
     assert!(run.status.success(), "{}", stderr(&run));
     let (ma, mb, m) = (meta(&a), meta(&b), meta(&ab));
-    assert_eq!(m.get("spp"), Some("12"));
+    assert_eq!(m.get("spp"), Some("68"));
     assert_eq!(m.get("seed"), Some("1,2"));
-    assert_eq!(m.get("streams"), Some("1:0..1,2:0..2"));
-    // each input's seconds are rounded to 1 ms in its header, the sum too
+    assert_eq!(m.get("streams"), Some("1:0..1,2:0..16"));
+    assert!(seconds(&mb) > 0.0);
+    // milliseconds in every header, so the sum is exact to the print
     let sum = seconds(&ma) + seconds(&mb);
-    assert!(
-        (seconds(&m) - sum).abs() < 1.5e-3,
-        "{} vs {sum}",
-        seconds(&m)
-    );
+    assert!((seconds(&m) - sum).abs() < 1e-9, "{} vs {sum}", seconds(&m));
     let merged = Provenance::read("ab.exr", &m).unwrap();
     let files: Vec<(&str, u64, &str)> = merged
         .sources
@@ -199,7 +202,7 @@ fn disjoint_renders_merge_with_their_samples_seconds_and_sources_summed() {
         files,
         [
             (format!("ab.exr > {fa}").as_str(), 4, "1:0..1"),
-            (format!("ab.exr > {fb}").as_str(), 8, "2:0..2"),
+            (format!("ab.exr > {fb}").as_str(), 64, "2:0..16"),
         ]
     );
 
@@ -209,8 +212,8 @@ fn disjoint_renders_merge_with_their_samples_seconds_and_sources_summed() {
     let run = merge(&[&ab, &c], &abc, &[]);
     assert!(run.status.success(), "{}", stderr(&run));
     let m = meta(&abc);
-    assert_eq!(m.get("spp"), Some("16"));
-    assert_eq!(m.get("streams"), Some("1:0..1,2:0..2,3:0..1"));
+    assert_eq!(m.get("spp"), Some("72"));
+    assert_eq!(m.get("streams"), Some("1:0..1,2:0..16,3:0..1"));
     assert_eq!(Provenance::read("abc", &m).unwrap().sources.len(), 3);
     refused(
         &[&ab, &a],
@@ -266,6 +269,7 @@ fn same_bytes_across_threads(name: &str, extra: &[&str]) {
         let run = pathspace(&args);
         assert!(run.status.success(), "{}", stderr(&run));
     }
+    assert_eq!(meta(&file("1", "exr")).get("seconds"), None, "a timing");
     for ext in ["exr", "png"] {
         let (a, b) = (file("1", ext), file("2", ext));
         let same = Command::new("cmp").arg(&a).arg(&b).status().unwrap();
@@ -283,4 +287,64 @@ fn the_same_seed_gives_the_same_bytes_at_any_thread_count() {
     same_bytes_across_threads("bytes-path", &[]);
     same_bytes_across_threads("bytes-bdpt", &["--integrator", "bdpt"]);
     same_bytes_across_threads("bytes-mlt", &["--integrator", "mlt"]);
+}
+
+/// The streams a render of the fog box at 8x8 records after `spp`, resumed from a checkpoint
+/// after `first` when given.
+fn streams_of(kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec<Streams> {
+    let src = SceneSource::embedded("fog-box.toml", FOG_BOX);
+    let (mut scene, settings) = pathspace::integrator::settings::load(&src).unwrap();
+    scene.camera = scene.camera.as_ref().unwrap().with_resolution(8, 8);
+    let setup = Setup {
+        scene: &scene,
+        technique: &PLAIN,
+        settings: &settings,
+        seed: 5,
+        max_depth: Some(4),
+    };
+    let job = |spp| Job {
+        kind,
+        setup,
+        spp,
+        time: None,
+        progress: false,
+    };
+    let identity = Identity {
+        scene_hash: 1,
+        integrator: kind.name().into(),
+        options: String::new(),
+        seed: 5,
+        film: Some((8, 8)),
+        meters: 0,
+    };
+    let resume = first.map(|n| {
+        let control = Control {
+            identity: Some(identity),
+            ..Default::default()
+        };
+        let ended = session::render_with(&job(n), control).unwrap();
+        ended.checkpoint.unwrap()
+    });
+    let control = Control {
+        resume,
+        ..Default::default()
+    };
+    session::render_with(&job(spp), control)
+        .unwrap()
+        .result
+        .streams
+}
+
+#[test]
+fn a_resumed_render_records_its_runs() {
+    let s = |seed, first, end| Streams { seed, first, end };
+    // path continues its passes: the resumed render holds the uninterrupted one's streams
+    assert_eq!(streams_of(IntegratorKind::Path, 16, None), [s(5, 0, 4)]);
+    assert_eq!(streams_of(IntegratorKind::Path, 16, Some(8)), [s(5, 0, 4)]);
+    // a resumed MLT run is an independent run with a seed of its own
+    let second = Checkpoint::resume_seed(5, 1);
+    assert_eq!(
+        streams_of(IntegratorKind::Mlt, 16, Some(8)),
+        [s(5, 0, 2), s(second, 0, 2)]
+    );
 }

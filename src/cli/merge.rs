@@ -80,17 +80,20 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
 }
 // ANCHOR_END: merge
 
-/// The files given twice (the same file under two names counts).
-fn same_files(args: &MergeArgs) -> Vec<Conflict> {
+/// The files given again (the same file under two names counts), and whether each input is
+/// the first of its file.
+fn same_files(args: &MergeArgs) -> (Vec<Conflict>, Vec<bool>) {
     let key = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
     let keys: Vec<PathBuf> = args.inputs.iter().map(key).collect();
     let mut out = Vec::new();
+    let mut first = Vec::with_capacity(keys.len());
     for (i, k) in keys.iter().enumerate() {
-        if keys[..i].contains(k) {
+        first.push(!keys[..i].contains(k));
+        if !first[i] {
             out.push(Conflict::SameFile(args.inputs[i].display().to_string()));
         }
     }
-    out
+    (out, first)
 }
 
 pub fn run(args: MergeArgs) -> Result<(), CliError> {
@@ -102,8 +105,15 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
         records.push(Provenance::read(&name, &meta).map_err(ProvenanceError::from)?);
         inputs.push((name, img, meta));
     }
-    let mut conflicts = same_files(&args);
-    conflicts.extend(provenance::conflicts(&records));
+    let (mut conflicts, first) = same_files(&args);
+    // a file given again is said once, not again as samples it shares with itself
+    let once: Vec<Provenance> = records
+        .iter()
+        .zip(&first)
+        .filter(|(_, &f)| f)
+        .map(|(r, _)| r.clone())
+        .collect();
+    conflicts.extend(provenance::conflicts(&once));
     if !conflicts.is_empty() && !args.force {
         return Err(ProvenanceError::Refused(conflicts).into());
     }
