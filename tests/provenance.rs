@@ -98,23 +98,23 @@ fn every_render_records_its_provenance() {
     assert!(m.get("seconds").is_some());
 }
 
-#[test]
-fn merge_refuses_what_is_not_one_image_from_independent_samples() {
-    let dir = scratch("refuse");
+/// A fresh directory `name` with a render of the fog box with seed 1 in it (`a.exr`).
+fn first(name: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
     let a = render(&dir, "a.exr", &["--seed", "1"]);
-    let again = render(&dir, "again.exr", &["--seed", "1", "--spp", "8"]);
-    let mlt = render(&dir, "mlt.exr", &["--seed", "2", "--integrator", "mlt"]);
-    let depth = render(&dir, "depth1.exr", &["--seed", "3", "--max-depth", "1"]);
-    let scene = dir.join("fog-box-copy.toml");
-    std::fs::write(&scene, format!("{FOG_BOX}\n# another file\n")).unwrap();
-    let other = render_scene(&dir, "other.exr", Some(&scene), &["--seed", "4"]);
-    let bare = dir.join("bare.exr");
-    let (img, _) = image_io::read_exr(&a).unwrap();
-    let mut m = ImageMeta::default();
-    m.set("spp", 4);
-    image_io::write_exr(&bare, &img, &m).unwrap();
+    (dir, a)
+}
 
+#[test]
+fn merge_refuses_a_file_given_twice() {
+    let (_, a) = first("twice");
     refused(&[&a, &a], &["a.exr is given twice"]);
+}
+
+#[test]
+fn merge_refuses_renders_that_hold_the_same_samples() {
+    let (dir, a) = first("same-samples");
+    let again = render(&dir, "again.exr", &["--seed", "1", "--spp", "8"]);
     refused(
         &[&a, &again],
         &[
@@ -124,18 +124,48 @@ fn merge_refuses_what_is_not_one_image_from_independent_samples() {
             "0..1 and 0..2",
         ],
     );
+}
+
+#[test]
+fn merge_refuses_another_integrator() {
+    let (dir, a) = first("integrator");
+    let mlt = render(&dir, "mlt.exr", &["--seed", "2", "--integrator", "mlt"]);
     refused(
         &[&a, &mlt],
         &["mlt.exr were rendered by different integrators (path and mlt)"],
     );
+}
+
+#[test]
+fn merge_refuses_other_settings() {
+    let (dir, a) = first("settings");
+    let depth = render(&dir, "depth1.exr", &["--seed", "3", "--max-depth", "1"]);
     refused(
         &[&a, &depth],
         &["depth1.exr were rendered with different settings: max_depth: not given and 1"],
     );
+}
+
+#[test]
+fn merge_refuses_another_scene_file() {
+    let (dir, a) = first("scene");
+    let scene = dir.join("fog-box-copy.toml");
+    std::fs::write(&scene, format!("{FOG_BOX}\n# another file\n")).unwrap();
+    let other = render_scene(&dir, "other.exr", Some(&scene), &["--seed", "4"]);
     refused(
         &[&a, &other],
         &["other.exr are renders of different scene files"],
     );
+}
+
+#[test]
+fn merge_refuses_an_image_without_provenance() {
+    let (dir, a) = first("bare");
+    let bare = dir.join("bare.exr");
+    let (img, _) = image_io::read_exr(&a).unwrap();
+    let mut m = ImageMeta::default();
+    m.set("spp", 4);
+    image_io::write_exr(&bare, &img, &m).unwrap();
     refused(&[&a, &bare], &["bare.exr records no `streams`"]);
 }
 
