@@ -62,6 +62,9 @@ pub fn parse_streams(text: &str) -> Option<Vec<Streams>> {
         };
         (s.first <= s.end).then_some(s)
     };
+    if text.trim().is_empty() {
+        return Some(Vec::new());
+    }
     text.split(',').map(one).collect()
 }
 
