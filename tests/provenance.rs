@@ -378,3 +378,12 @@ fn a_resumed_render_records_its_runs() {
         [s(5, 0, 2), s(second, 0, 2)]
     );
 }
+
+#[test]
+fn merge_checks_its_output_before_reading_the_inputs() {
+    let dir = scratch("output");
+    let run = merge(&[&dir.join("missing.exr")], &dir.join("out.png"), &[]);
+    let err = stderr(&run);
+    assert!(!run.status.success());
+    assert!(err.contains("out.png: is written as EXR"), "{err}");
+}

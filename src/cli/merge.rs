@@ -97,6 +97,8 @@ fn same_files(args: &MergeArgs) -> (Vec<Conflict>, Vec<bool>) {
 }
 
 pub fn run(args: MergeArgs) -> Result<(), CliError> {
+    // a typo in -o must not cost reading (and checking) every input
+    image_io::check_output(&args.output, "exr")?;
     let mut inputs = Vec::with_capacity(args.inputs.len());
     let mut records = Vec::with_capacity(args.inputs.len());
     for p in &args.inputs {
