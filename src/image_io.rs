@@ -95,13 +95,55 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
         Encoding::SMALL_LOSSLESS,
         channels,
     );
+    let mut bytes = Vec::new();
+    exr::image::Image::from_layer(layer)
+        .write()
+        .to_buffered(std::io::Cursor::new(&mut bytes))
+        .map_err(|e| io_err(path, e))?;
+    sort_header(&mut bytes).ok_or_else(|| io_err(path, "the EXR header could not be ordered"))?;
     write_replacing(path, |tmp| {
-        exr::image::Image::from_layer(layer)
-            .write()
-            .to_file(tmp)
-            .map_err(|e| io_err(path, e))
+        std::fs::write(tmp, &bytes).map_err(|e| io_err(path, e))
     })
 }
+
+/// Puts the header attributes of a single-part EXR in the order of their names, as OpenEXR's
+/// own library writes them, because the exr crate writes its custom attributes in the order of
+/// a `HashMap`, which changes from run to run, and the same render must give the same bytes.
+/// The header keeps its length, so the chunk offsets after it stay right.
+// ANCHOR: sort_header
+pub fn sort_header(bytes: &mut [u8]) -> Option<()> {
+    const MULTIPART: u32 = 0x1000;
+    let version = u32::from_le_bytes(bytes.get(4..8)?.try_into().ok()?);
+    if version & MULTIPART != 0 {
+        return None;
+    }
+    let nul = |from: usize| Some(from + bytes.get(from..)?.iter().position(|&b| b == 0)?);
+    let (start, mut at) = (8, 8);
+    // (start, end of the name, end) of each attribute: name\0 type\0 size (i32) value
+    let mut attributes = Vec::new();
+    loop {
+        let name_end = nul(at)?;
+        if name_end == at {
+            break; // the empty name ends the header
+        }
+        let type_end = nul(name_end + 1)?;
+        let size = i32::from_le_bytes(bytes.get(type_end + 1..type_end + 5)?.try_into().ok()?);
+        let end = type_end + 5 + usize::try_from(size).ok()?;
+        if end > bytes.len() {
+            return None;
+        }
+        attributes.push((at, name_end, end));
+        at = end;
+    }
+    attributes.sort_by(|a, b| bytes[a.0..a.1].cmp(&bytes[b.0..b.1]));
+    let sorted: Vec<u8> = attributes
+        .iter()
+        .flat_map(|&(s, _, e)| bytes[s..e].iter().copied())
+        .collect();
+    bytes[start..at].copy_from_slice(&sorted);
+    Some(())
+}
+// ANCHOR_END: sort_header
 
 /// Writes `path` through `write` into a temporary file beside it, renamed over `path` only once
 /// it is complete, so that a failed write leaves an earlier file at `path` as it was. A target

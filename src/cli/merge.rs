@@ -1,13 +1,17 @@
-//! `pathspace merge A.exr B.exr ... -o OUT.exr`: the average of independent renders of one
-//! scene, each weighted by its sample count (the EXR attribute `spp`: samples or mutations per
-//! pixel). Independent MLT runs (other seeds, other machines) merge into one estimate this way,
-//! as Pauly et al. sec. 7 suggest for parallel rendering.
+//! `pathspace merge A.exr B.exr ... -o OUT.exr [--force]`: the average of independent renders
+//! of one scene, each weighted by its sample count (the EXR attribute `spp`: samples or
+//! mutations per pixel). Independent MLT runs (other seeds, other machines) merge into one
+//! estimate this way, as Pauly et al. sec. 7 suggest for parallel rendering. The inputs'
+//! provenance ([`crate::integrator::provenance`]) is checked first: another scene, integrator
+//! or settings, a file given twice and inputs holding the same samples are refused unless
+//! `--force`, and the merged file records its sources.
 
 use clap::Args;
 use std::path::PathBuf;
 
 use super::CliError;
 use crate::image_io::{self, Image, ImageMeta};
+use crate::integrator::provenance::{self, Conflict, Provenance, ProvenanceError};
 
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
@@ -17,6 +21,11 @@ pub struct MergeArgs {
     /// The merged EXR.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    /// Merge inputs that are not independent renders of one image (another scene, integrator or
+    /// settings, the same samples twice, no record), each named in a warning on stderr and in
+    /// the merged file's `merge_forced`.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// The sample-count-weighted mean of images with their `spp` attributes; errors name the file.
@@ -71,22 +80,50 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
 }
 // ANCHOR_END: merge
 
+/// The files given again (the same file under two names counts), and whether each input is
+/// the first of its file.
+fn same_files(args: &MergeArgs) -> (Vec<Conflict>, Vec<bool>) {
+    let key = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+    let keys: Vec<PathBuf> = args.inputs.iter().map(key).collect();
+    let mut out = Vec::new();
+    let mut first = Vec::with_capacity(keys.len());
+    for (i, k) in keys.iter().enumerate() {
+        first.push(!keys[..i].contains(k));
+        if !first[i] {
+            out.push(Conflict::SameFile(args.inputs[i].display().to_string()));
+        }
+    }
+    (out, first)
+}
+
 pub fn run(args: MergeArgs) -> Result<(), CliError> {
+    // a typo in -o must not cost reading (and checking) every input
+    image_io::check_output(&args.output, "exr")?;
     let mut inputs = Vec::with_capacity(args.inputs.len());
+    let mut records = Vec::with_capacity(args.inputs.len());
     for p in &args.inputs {
         let (img, meta) = image_io::read_exr(p)?;
-        inputs.push((p.display().to_string(), img, meta));
+        let name = p.display().to_string();
+        records.push(Provenance::read(&name, &meta).map_err(ProvenanceError::from)?);
+        inputs.push((name, img, meta));
     }
-    let scenes: Vec<&str> = inputs
+    let (mut conflicts, first) = same_files(&args);
+    // a file given again is said once, not again as samples it shares with itself
+    let once: Vec<Provenance> = records
         .iter()
-        .filter_map(|(_, _, m)| m.get("scene_hash"))
+        .zip(&first)
+        .filter(|(_, &f)| f)
+        .map(|(r, _)| r.clone())
         .collect();
-    if scenes.windows(2).any(|w| w[0] != w[1]) {
-        return Err(CliError::MixedScenes);
+    conflicts.extend(provenance::conflicts(&once));
+    if !conflicts.is_empty() && !args.force {
+        return Err(ProvenanceError::Refused(conflicts).into());
+    }
+    for c in &conflicts {
+        eprintln!("warning: merge --force: {c}");
     }
     let (image, total) = merge(&inputs)?;
-    let mut meta = inputs[0].2.clone();
-    meta.set("spp", total).set("merged_from", inputs.len());
+    let meta = provenance::merged_record(&records, &inputs[0].2, &conflicts);
     image_io::write_exr(&args.output, &image, &meta)?;
     println!(
         "merged {} renders ({} samples per pixel) -> {}",

@@ -174,9 +174,9 @@ pub enum CliError {
     /// `merge`: an input without a positive `spp` attribute (its name).
     #[error("{0} has no positive `spp` attribute to weight it by")]
     NoSpp(String),
-    /// `merge`: inputs with different `scene_hash` attributes.
-    #[error("the inputs were rendered from different scene files (scene_hash differs)")]
-    MixedScenes,
+    /// `merge`: inputs that are no independent estimates of one image, or an unreadable record.
+    #[error(transparent)]
+    Provenance(#[from] crate::integrator::provenance::ProvenanceError),
 }
 
 /// The refusals of commands that report them as text (`render`).

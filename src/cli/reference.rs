@@ -147,6 +147,10 @@ pub fn run(args: ReferenceArgs) -> Result<(), CliError> {
         .set("scene", &source.name)
         .set("scene_hash", &hash)
         .set("nan_count", result.nan_count)
+        .set(
+            "streams",
+            crate::integrator::provenance::format_streams(&result.streams),
+        )
         .set("reference", "true");
     if let Some(e) = estimated {
         meta.set("estimated_relmse", format!("{e:.6e}"));

@@ -13,6 +13,7 @@ use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
+use crate::integrator::provenance::{format_streams, TIMING_KEYS};
 use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
 use crate::integrator::smc::SmcOptions;
@@ -68,6 +69,11 @@ pub struct RenderArgs {
     /// it), with the same scene, options and seed; `--spp` may ask for more samples.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
+    /// Leave the timings (`seconds`, `guide_seconds`) out of the EXR header, so that the same
+    /// scene, seed and settings give the same bytes at any thread count (`cmp` checks it);
+    /// the timings still go to stderr and `--json`.
+    #[arg(long)]
+    pub reproducible: bool,
 }
 
 /// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines):
@@ -370,22 +376,28 @@ fn write_image(
         .set("scene_hash", format!("{:016x}", source.hash()))
         .set("nan_count", result.nan_count)
         .set("negative_pixels", result.negative_pixels)
-        .set("render_options", plan.settings.given.to_toml());
+        .set("render_options", plan.settings.given.to_toml())
+        .set("streams", format_streams(&result.streams));
     if let Some(g) = &pre.guide {
         let gs = plan.settings.guide;
         meta.set(
             "guide",
             format!(
-                "{} map {}x{} regions {} particles {} weight {} preprocessing {:.3} s",
+                "{} map {}x{} regions {} particles {} weight {}",
                 gs.kind.name(),
                 gs.cols,
                 gs.rows,
                 gs.regions.regions,
                 gs.particles,
                 gs.c_guide,
-                g.seconds()
             ),
-        );
+        )
+        .set("guide_seconds", format!("{:.3}", g.seconds()));
+    }
+    if args.reproducible {
+        for key in TIMING_KEYS {
+            meta.attributes.remove(key);
+        }
     }
     image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
     image_io::write_png(&png, image).map_err(|e| e.to_string())?;

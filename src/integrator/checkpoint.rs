@@ -16,12 +16,13 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::provenance::Streams;
 use super::smc::octree::Octree;
 use super::MeterAccum;
 use crate::film::Film;
 
 /// The first bytes of a checkpoint file (and its format version).
-const MAGIC: &[u8; 24] = b"pathspace checkpoint v1\n";
+const MAGIC: &[u8; 24] = b"pathspace checkpoint v2\n";
 
 /// Why a checkpoint cannot be read, written or resumed from.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -92,11 +93,13 @@ pub enum IntegratorState {
     Smc(Box<Octree>),
 }
 
-/// The image of MLT's earlier runs: the sum over runs of spp_i * I_i, and the sum of spp_i.
+/// The image of MLT's earlier runs: the sum over runs of spp_i * I_i, the sum of spp_i, and
+/// each run's sample streams (its seed and passes: the render's provenance).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Earlier {
     pub weighted: Vec<[f64; 3]>,
     pub spp: u64,
+    pub runs: Vec<Streams>,
 }
 
 /// A render's state between two passes.
@@ -131,6 +134,15 @@ impl Checkpoint {
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
+    }
+
+    /// The seed of run `run` of a render seeded `seed`: the seed itself, then
+    /// [`Checkpoint::resume_seed`] for each resumed MLT run.
+    pub fn run_seed(seed: u64, run: u32) -> u64 {
+        match run {
+            0 => seed,
+            k => Self::resume_seed(seed, k),
+        }
     }
 
     /// The file's bytes: the magic line, the checksum of the payload, the payload (postcard).

@@ -10,6 +10,7 @@ pub mod checkpoint;
 pub mod light;
 pub mod mlt;
 pub mod path;
+pub mod provenance;
 pub mod reach;
 pub mod session;
 pub mod settings;

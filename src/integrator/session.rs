@@ -8,6 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress};
+use super::provenance::Streams;
 
 use super::{IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics};
 use crate::enlightened::adjoint::AdjointStats;
@@ -110,6 +111,9 @@ pub struct RenderResult {
     pub variance_of_mean: Option<image_io::Image>,
     /// What the integrator reports (SMC's structure, MLT's b and mutation counts).
     pub statistics: Statistics,
+    /// The sample streams the image holds (its provenance): the seed and the passes of each
+    /// run, MLT's earlier runs first.
+    pub streams: Vec<Streams>,
 }
 
 impl RenderResult {
@@ -258,15 +262,27 @@ fn merged(c: &Checkpoint) -> Earlier {
     let mut e = c.earlier.clone().unwrap_or(Earlier {
         weighted: vec![[0.0; 3]; c.film.as_ref().map_or(0, |f| f.sum.len())],
         spp: 0,
+        runs: Vec::new(),
     });
     if let Some(f) = c.film.as_ref().filter(|f| f.spp > 0) {
-        fold(&mut e, f);
+        let seed = Checkpoint::run_seed(c.identity.seed, c.progress.resumes);
+        fold(&mut e, f, run_streams(seed, c.progress.passes));
     }
     e
 }
 
-/// Adds a run's image, weighted by its sample count.
-fn fold(e: &mut Earlier, film: &Film) {
+/// The streams of a run of `passes` passes from its start (pass 0).
+fn run_streams(seed: u64, passes: u64) -> Streams {
+    Streams {
+        seed,
+        first: 0,
+        end: passes,
+    }
+}
+
+/// Adds a run's image, weighted by its sample count, and its streams.
+fn fold(e: &mut Earlier, film: &Film, streams: Streams) {
+    e.runs.push(streams);
     let image = film.image();
     for (w, p) in e.weighted.iter_mut().zip(&image.pixels) {
         for c in 0..3 {
@@ -326,10 +342,11 @@ fn progress_bar(job: &Job, done: u64) -> indicatif::ProgressBar {
 /// What the renderer holds, as a [`RenderResult`]; with MLT's earlier runs, the image is their
 /// merge with the run in progress, weighted by sample count.
 fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier>) -> RenderResult {
+    let run = run_streams(r.seed, r.passes);
     let image = r.film.as_ref().map(|f| match earlier {
         Some(e) => {
             let mut all = e.clone();
-            fold(&mut all, f);
+            fold(&mut all, f, run);
             let inv = 1.0 / all.spp.max(1) as f64;
             let mut img = f.image();
             for (p, w) in img.pixels.iter_mut().zip(&all.weighted) {
@@ -362,5 +379,10 @@ fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier
             None
         },
         statistics: r.integrator.statistics(),
+        streams: earlier
+            .map_or(Vec::new(), |e| e.runs.clone())
+            .into_iter()
+            .chain([run])
+            .collect(),
     }
 }

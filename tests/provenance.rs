@@ -1,0 +1,389 @@
+//! Provenance and an honest merge: every EXR records its scene, integrator, settings and sample
+//! streams; `merge` refuses inputs that are not independent renders of one image (another scene,
+//! integrator or settings, a file twice, the same samples twice, no record) unless `--force`,
+//! which warns; a merged file records its sources, the sum of their samples and seconds, and a
+//! merge of merges is checked too. The same scene, seed and settings give the same bytes at any
+//! thread count (`--reproducible`).
+//! Book: "Measuring a renderer" (provenance, merging, determinism).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use pathspace::image_io::{self, ImageMeta};
+use pathspace::integrator::checkpoint::{Checkpoint, Identity};
+use pathspace::integrator::provenance::{self, Conflict, Provenance, Streams};
+use pathspace::integrator::session::{self, Control, Job};
+use pathspace::integrator::{IntegratorKind, Setup};
+use pathspace::path::PLAIN;
+use pathspace::scene::SceneSource;
+
+const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
+
+fn pathspace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A fresh directory under the target directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("provenance-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Renders the fog box (or `scene`) at 12x12 into `dir/name` with `extra` options.
+fn render_scene(dir: &Path, name: &str, scene: Option<&Path>, extra: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let mut args = vec!["render", "--resolution", "12x12", "--threads", "1"];
+    if let Some(s) = scene {
+        args.push(s.to_str().unwrap());
+    }
+    if !extra.contains(&"--spp") {
+        args.extend_from_slice(&["--spp", "4"]);
+    }
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let run = pathspace(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    out
+}
+
+fn render(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    render_scene(dir, name, None, extra)
+}
+
+fn merge(inputs: &[&Path], out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["merge"];
+    args.extend(inputs.iter().map(|p| p.to_str().unwrap()));
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    args.extend_from_slice(extra);
+    pathspace(&args)
+}
+
+fn meta(p: &Path) -> ImageMeta {
+    image_io::read_exr(p).unwrap().1
+}
+
+/// `merge` of `inputs` fails, writes nothing, and its message says each of `says`.
+fn refused(inputs: &[&Path], says: &[&str]) {
+    let out = inputs[0].with_file_name("refused.exr");
+    let run = merge(inputs, &out, &[]);
+    let err = stderr(&run);
+    assert!(!run.status.success(), "merged: {err}");
+    assert!(!out.exists(), "a refused merge wrote {}", out.display());
+    for s in says {
+        assert!(err.contains(s), "`{s}` not in: {err}");
+    }
+}
+
+#[test]
+fn every_render_records_its_provenance() {
+    let dir = scratch("record");
+    let a = render(&dir, "a.exr", &["--seed", "7"]);
+    let m = meta(&a);
+    assert_eq!(m.get("streams"), Some("7:0..1"), "one pass of 4 spp");
+    assert_eq!(m.get("seed"), Some("7"));
+    assert_eq!(m.get("spp"), Some("4"));
+    assert_eq!(m.get("complete"), Some("true"));
+    assert_eq!(m.get("integrator"), Some("path"));
+    assert_eq!(m.get("scene_hash").map(str::len), Some(16));
+    assert!(m.get("render_options").unwrap().contains("seed = 7"));
+    assert!(m.get("seconds").is_some());
+}
+
+/// A fresh directory `name` with a render of the fog box with seed 1 in it (`a.exr`).
+fn first(name: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let a = render(&dir, "a.exr", &["--seed", "1"]);
+    (dir, a)
+}
+
+#[test]
+fn merge_refuses_a_file_given_twice() {
+    let (_, a) = first("twice");
+    refused(&[&a, &a], &["a.exr is given twice"]);
+}
+
+#[test]
+fn merge_refuses_renders_that_hold_the_same_samples() {
+    let (dir, a) = first("same-samples");
+    let again = render(&dir, "again.exr", &["--seed", "1", "--spp", "8"]);
+    refused(
+        &[&a, &again],
+        &[
+            "a.exr and ",
+            "again.exr hold the same samples",
+            "seed 1",
+            "0..1 and 0..2",
+        ],
+    );
+}
+
+#[test]
+fn merge_refuses_another_integrator() {
+    let (dir, a) = first("integrator");
+    let mlt = render(&dir, "mlt.exr", &["--seed", "2", "--integrator", "mlt"]);
+    refused(
+        &[&a, &mlt],
+        &["mlt.exr were rendered by different integrators (path and mlt)"],
+    );
+}
+
+#[test]
+fn merge_refuses_other_settings() {
+    let (dir, a) = first("settings");
+    let depth = render(&dir, "depth1.exr", &["--seed", "3", "--max-depth", "1"]);
+    refused(
+        &[&a, &depth],
+        &["depth1.exr were rendered with different settings: max_depth: not given and 1"],
+    );
+}
+
+#[test]
+fn merge_refuses_another_scene_file() {
+    let (dir, a) = first("scene");
+    let scene = dir.join("fog-box-copy.toml");
+    std::fs::write(&scene, format!("{FOG_BOX}\n# another file\n")).unwrap();
+    let other = render_scene(&dir, "other.exr", Some(&scene), &["--seed", "4"]);
+    refused(
+        &[&a, &other],
+        &["other.exr are renders of different scene files"],
+    );
+}
+
+#[test]
+fn merge_refuses_an_image_without_provenance() {
+    let (dir, a) = first("bare");
+    let bare = dir.join("bare.exr");
+    let (img, _) = image_io::read_exr(&a).unwrap();
+    let mut m = ImageMeta::default();
+    m.set("spp", 4);
+    image_io::write_exr(&bare, &img, &m).unwrap();
+    refused(&[&a, &bare], &["bare.exr records no `streams`"]);
+}
+
+#[test]
+fn force_merges_and_warns_what_it_let_through() {
+    let dir = scratch("force");
+    let a = render(&dir, "a.exr", &["--seed", "1"]);
+    let mlt = render(&dir, "mlt.exr", &["--seed", "2", "--integrator", "mlt"]);
+    let out = dir.join("forced.exr");
+    let run = merge(&[&a, &mlt], &out, &["--force"]);
+    let err = stderr(&run);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("warning: merge --force:") && err.contains("different integrators"),
+        "{err}"
+    );
+    let forced = meta(&out);
+    assert!(
+        forced
+            .get("merge_forced")
+            .is_some_and(|f| f.contains("mlt.exr")),
+        "{forced:?}"
+    );
+    // what was forced stays on record through a merge of merges
+    let b = render(&dir, "b.exr", &["--seed", "5"]);
+    let twice = dir.join("twice.exr");
+    let run = merge(&[&out, &b], &twice, &["--force"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(meta(&twice)
+        .get("merge_forced")
+        .unwrap()
+        .contains("mlt.exr"));
+}
+
+fn seconds(m: &ImageMeta) -> f64 {
+    m.get("seconds").unwrap().parse().unwrap()
+}
+
+#[test]
+fn disjoint_renders_merge_with_their_samples_seconds_and_sources_summed() {
+    let dir = scratch("disjoint");
+    let a = render(&dir, "a.exr", &["--seed", "1"]);
+    // b takes long enough that its time is not 0.000 s
+    let b = render(&dir, "b.exr", &["--seed", "2", "--spp", "64"]);
+    let ab = dir.join("ab.exr");
+    let run = merge(&[&a, &b], &ab, &[]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let (ma, mb, m) = (meta(&a), meta(&b), meta(&ab));
+    assert_eq!(m.get("spp"), Some("68"));
+    assert_eq!(m.get("seed"), Some("1,2"));
+    assert_eq!(m.get("streams"), Some("1:0..1,2:0..16"));
+    assert!(seconds(&mb) > 0.0);
+    // milliseconds in every header, so the sum is exact to the print
+    let sum = seconds(&ma) + seconds(&mb);
+    assert!((seconds(&m) - sum).abs() < 1e-9, "{} vs {sum}", seconds(&m));
+    let merged = Provenance::read("ab.exr", &m).unwrap();
+    let files: Vec<(&str, u64, &str)> = merged
+        .sources
+        .iter()
+        .map(|s| (s.file.as_str(), s.spp, s.streams.as_str()))
+        .collect();
+    let (fa, fb) = (a.display().to_string(), b.display().to_string());
+    assert_eq!(
+        files,
+        [
+            (format!("ab.exr > {fa}").as_str(), 4, "1:0..1"),
+            (format!("ab.exr > {fb}").as_str(), 64, "2:0..16"),
+        ]
+    );
+
+    // a merge of merges is checked against every source, and records them all
+    let c = render(&dir, "c.exr", &["--seed", "3"]);
+    let abc = dir.join("abc.exr");
+    let run = merge(&[&ab, &c], &abc, &[]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let m = meta(&abc);
+    assert_eq!(m.get("spp"), Some("72"));
+    assert_eq!(m.get("streams"), Some("1:0..1,2:0..16,3:0..1"));
+    assert_eq!(Provenance::read("abc", &m).unwrap().sources.len(), 3);
+    refused(
+        &[&ab, &a],
+        &["ab.exr and ", "a.exr hold the same samples", "seed 1"],
+    );
+}
+
+fn record(file: &str, streams: &str) -> Provenance {
+    let mut m = ImageMeta::default();
+    m.set("scene_hash", "00000000000000aa")
+        .set("integrator", "path")
+        .set("render_options", "[render]\nspp = 8\n")
+        .set("spp", 8)
+        .set("streams", streams);
+    Provenance::read(file, &m).unwrap()
+}
+
+#[test]
+fn disjoint_parts_of_one_run_merge_and_overlapping_parts_do_not() {
+    // passes 0..4 and 4..8 of seed 9 (shards, or a run and its continuation) are one run
+    let parts = [record("p0", "9:0..4"), record("p1", "9:4..8")];
+    assert_eq!(provenance::conflicts(&parts), []);
+    let m = provenance::merged_record(&parts, &ImageMeta::default(), &[]);
+    assert_eq!(m.get("streams"), Some("9:0..8"));
+    let overlapping = [record("p0", "9:0..4"), record("p1", "9:3..8")];
+    assert!(matches!(
+        provenance::conflicts(&overlapping)[..],
+        [Conflict::Overlap { seed: 9, .. }]
+    ));
+    let s = |seed, first, end| Streams { seed, first, end };
+    assert!(!s(1, 0, 4).overlaps(&s(2, 0, 4)), "other seeds");
+    assert!(s(1, 0, 4).overlaps(&s(1, 0, 1)));
+}
+
+/// Two renders with `extra` at 1 and 2 threads give the same EXR and PNG bytes.
+fn same_bytes_across_threads(name: &str, extra: &[&str]) {
+    let dir = scratch(name);
+    let file = |t: &str, ext: &str| dir.join(format!("t{t}.{ext}"));
+    for t in ["1", "2"] {
+        let (exr, png) = (file(t, "exr"), file(t, "png"));
+        let mut args = vec![
+            "render",
+            "--resolution",
+            "16x16",
+            "--spp",
+            "8",
+            "--seed",
+            "4",
+        ];
+        args.extend_from_slice(&["--reproducible", "--threads", t]);
+        args.extend_from_slice(&["-o", exr.to_str().unwrap(), "--png", png.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let run = pathspace(&args);
+        assert!(run.status.success(), "{}", stderr(&run));
+    }
+    assert_eq!(meta(&file("1", "exr")).get("seconds"), None, "a timing");
+    for ext in ["exr", "png"] {
+        let (a, b) = (file("1", ext), file("2", ext));
+        let same = Command::new("cmp").arg(&a).arg(&b).status().unwrap();
+        assert!(
+            same.success(),
+            "{name}: {} and {} differ",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+#[test]
+fn the_same_seed_gives_the_same_bytes_at_any_thread_count() {
+    same_bytes_across_threads("bytes-path", &[]);
+    same_bytes_across_threads("bytes-bdpt", &["--integrator", "bdpt"]);
+    same_bytes_across_threads("bytes-mlt", &["--integrator", "mlt"]);
+}
+
+/// The streams a render of the fog box at 8x8 records after `spp`, resumed from a checkpoint
+/// after `first` when given.
+fn streams_of(kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec<Streams> {
+    let src = SceneSource::embedded("fog-box.toml", FOG_BOX);
+    let (mut scene, settings) = pathspace::integrator::settings::load(&src).unwrap();
+    scene.camera = scene.camera.as_ref().unwrap().with_resolution(8, 8);
+    let setup = Setup {
+        scene: &scene,
+        technique: &PLAIN,
+        settings: &settings,
+        seed: 5,
+        max_depth: Some(4),
+    };
+    let job = |spp| Job {
+        kind,
+        setup,
+        spp,
+        time: None,
+        progress: false,
+    };
+    let identity = Identity {
+        scene_hash: 1,
+        integrator: kind.name().into(),
+        options: String::new(),
+        seed: 5,
+        film: Some((8, 8)),
+        meters: 0,
+    };
+    let resume = first.map(|n| {
+        let control = Control {
+            identity: Some(identity),
+            ..Default::default()
+        };
+        let ended = session::render_with(&job(n), control).unwrap();
+        ended.checkpoint.unwrap()
+    });
+    let control = Control {
+        resume,
+        ..Default::default()
+    };
+    session::render_with(&job(spp), control)
+        .unwrap()
+        .result
+        .streams
+}
+
+#[test]
+fn a_resumed_render_records_its_runs() {
+    let s = |seed, first, end| Streams { seed, first, end };
+    // path continues its passes: the resumed render holds the uninterrupted one's streams
+    assert_eq!(streams_of(IntegratorKind::Path, 16, None), [s(5, 0, 4)]);
+    assert_eq!(streams_of(IntegratorKind::Path, 16, Some(8)), [s(5, 0, 4)]);
+    // a resumed MLT run is an independent run with a seed of its own
+    let second = Checkpoint::resume_seed(5, 1);
+    assert_eq!(
+        streams_of(IntegratorKind::Mlt, 16, Some(8)),
+        [s(5, 0, 2), s(second, 0, 2)]
+    );
+}
+
+#[test]
+fn merge_checks_its_output_before_reading_the_inputs() {
+    let dir = scratch("output");
+    let run = merge(&[&dir.join("missing.exr")], &dir.join("out.png"), &[]);
+    let err = stderr(&run);
+    assert!(!run.status.success());
+    assert!(err.contains("out.png: is written as EXR"), "{err}");
+}
