@@ -284,6 +284,18 @@ fn narrow(root: &toml::Value, at: KeyPath, error: &str, tables_only: bool) -> Ke
 }
 // ANCHOR_END: narrow
 
+/// Whether `message` refuses the `type` of the table `value` (an inline table of a tagged
+/// enum, whose error carries only the table's span): the key is then its `type`.
+fn is_unknown_tag(message: &str, value: Option<&toml::Value>) -> bool {
+    let tag = message
+        .strip_prefix("unknown variant `")
+        .and_then(|r| r.split('`').next());
+    let Some(toml::Value::Table(t)) = value else {
+        return false;
+    };
+    tag.is_some_and(|tag| t.get("type").and_then(toml::Value::as_str) == Some(tag))
+}
+
 /// A schema error (unknown key, missing key, wrong type) at the key that causes it.
 pub(super) fn schema_error(
     text: &str,
@@ -306,7 +318,12 @@ pub(super) fn schema_error(
     if let Ok(root) = toml::from_str::<toml::Value>(text) {
         if let Err(re) = root.clone().try_into::<SceneFile>() {
             key = narrow(&root, key, re.message().trim(), missing.is_some());
-            got = value_at_mut(&mut root.clone(), &key.0).map(|v| v.to_string());
+            let mut root = root;
+            let value = value_at_mut(&mut root, &key.0);
+            if is_unknown_tag(&message, value.as_deref()) {
+                key = key.key("type");
+            }
+            got = value.map(|v| v.to_string());
         }
     }
     if let Some(field) = &missing {
