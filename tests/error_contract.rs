@@ -471,3 +471,27 @@ fn scene_source_read_applies_the_same_checks() {
         )
     );
 }
+
+#[test]
+fn locating_an_error_among_many_shapes_costs_log_n_trials() {
+    let shape = |radius: &str| {
+        format!("\n[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {radius}\nmaterial = \"white\"\n")
+    };
+    let n = 2000;
+    let mut extra: String = (1..n).map(|_| shape("0.1")).collect();
+    extra.push_str(&shape("\"x\""));
+    let before = pathspace::scene::file::narrow_trials();
+    expect(
+        &extra,
+        6 * n - 1,
+        &format!("shapes[{}].radius", n - 1),
+        "invalid type: string \"x\", expected f32",
+    );
+    // deleting one shape at a time took n deserializations of the whole file (13 s for 4000
+    // shapes); halving takes about log2(n) for the array and a few for the shape's keys
+    let trials = pathspace::scene::file::narrow_trials() - before;
+    assert!(
+        trials <= 40,
+        "{trials} deserializations to locate one error among {n} shapes"
+    );
+}

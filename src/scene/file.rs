@@ -15,7 +15,7 @@ mod diagnostics;
 mod fixed;
 mod limits;
 
-pub use diagnostics::{line_of, locate, statement_at};
+pub use diagnostics::{line_of, locate, narrow_trials, statement_at};
 use diagnostics::{schema_error, syntax_error};
 pub use fixed::{exact, exact_opt};
 pub use limits::{escape_controls, MAX_ARRAY_ELEMENTS, MAX_NESTING, MAX_SCENE_BYTES};

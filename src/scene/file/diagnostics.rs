@@ -232,6 +232,17 @@ fn value_at_mut<'a>(root: &'a mut toml::Value, key: &[KeySeg]) -> Option<&'a mut
     Some(v)
 }
 
+thread_local! {
+    static TRIALS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// How many deserializations [`narrow`] has tried on this thread: the work of locating a
+/// schema error, which a test bounds.
+#[doc(hidden)]
+pub fn narrow_trials() -> usize {
+    TRIALS.with(|t| t.get())
+}
+
 // ANCHOR: narrow
 /// Narrows the error `error` of the whole file down from `at`: the element of an array of
 /// tables, or the key of a table, whose deletion changes the error is where it lies (the `type`
@@ -242,6 +253,7 @@ fn value_at_mut<'a>(root: &'a mut toml::Value, key: &[KeySeg]) -> Option<&'a mut
 fn narrow(root: &toml::Value, at: KeyPath, error: &str, tables_only: bool) -> KeyPath {
     let children = candidates(root, &at, tables_only);
     let changes = |range: &[KeySeg]| -> bool {
+        TRIALS.with(|t| t.set(t.get() + 1));
         let mut r = root.clone();
         if let Some(v) = value_at_mut(&mut r, &at.0) {
             remove(v, range);
@@ -265,7 +277,11 @@ fn narrow(root: &toml::Value, at: KeyPath, error: &str, tables_only: bool) -> Ke
     }
     // the halving assumes that the error is the first of its kind; check the one it found,
     // and in a short list try the others (a long one stays at `at`, its cost bounded)
-    let tries = if children.len() <= 32 { children.len() } else { 1 };
+    let tries = if children.len() <= 32 {
+        children.len()
+    } else {
+        1
+    };
     let found = children[lo..]
         .iter()
         .chain(&children[..lo])
@@ -291,7 +307,9 @@ fn candidates(root: &toml::Value, at: &KeyPath, tables_only: bool) -> Vec<KeySeg
             .map(|(k, _)| KeySeg::Key(k.clone()))
             .collect(),
         Some(v @ toml::Value::Array(_)) if is_table_array(v) => {
-            (0..v.as_array().map_or(0, Vec::len)).map(KeySeg::Index).collect()
+            (0..v.as_array().map_or(0, Vec::len))
+                .map(KeySeg::Index)
+                .collect()
         }
         _ => Vec::new(),
     }
