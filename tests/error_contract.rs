@@ -5,7 +5,6 @@
 //! before the parse. Each test checks the exact file, line, key and message.
 //! Book: "Scenes and geometry", section "The error contract".
 
-use std::path::PathBuf;
 use std::process::Command;
 
 use pathspace::scene::file::{MAX_ARRAY_ELEMENTS, MAX_NESTING, MAX_SCENE_BYTES};
@@ -455,8 +454,7 @@ fn a_file_over_the_size_limit_is_refused_unread() {
 
 #[test]
 fn scene_source_read_applies_the_same_checks() {
-    let dir = PathBuf::from(std::env::temp_dir())
-        .join(format!("pathspace-contract-read-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("pathspace-contract-read-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("bad.toml");
     std::fs::write(&file, b"[render]\nintegrator = \"\xc3\"\n").unwrap();
