@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use crate::bsdf::Bsdf;
 use crate::geometry::Primitive;
 use crate::medium::{Medium, Phase};
+use crate::scene::file::escape_controls as esc;
 use crate::scene::{Environment, Light, Scene};
 
 #[derive(Args, Debug)]
@@ -147,16 +148,17 @@ fn light(l: &Light) -> String {
     }
 }
 
-/// The name of a medium index (`vacuum` for none).
+/// The name of a medium index (`vacuum` for none). Names from the file are printed with
+/// their control characters escaped ([`esc`]), as in error messages.
 fn medium_name(scene: &Scene, m: Option<u32>) -> String {
     m.map_or("vacuum".to_string(), |i| {
-        scene.medium_names[i as usize].clone()
+        esc(&scene.medium_names[i as usize]).into_owned()
     })
 }
 
 pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     let (scene, r, source) = super::load_scene(Some(&args.scene))?;
-    println!("{}: valid (hash {:016x})", source.name, source.hash());
+    println!("{}: valid (hash {:016x})", esc(&source.name), source.hash());
     println!(
         "  render: integrator {}, {} spp, seed {}, max_depth {}, {} meter samples per pass",
         r.integrator,
@@ -211,7 +213,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     }
     println!("  media: {}", scene.media.len());
     for (n, m) in scene.medium_names.iter().zip(&scene.media) {
-        println!("    {n}: {}", medium(m));
+        println!("    {}: {}", esc(n), medium(m));
     }
     println!(
         "  lights: {} (selected in proportion to power)",
@@ -230,7 +232,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         let q = &s.quad;
         println!(
             "    {}: irradiance meter, centre {}, area {}, normal {}, in {}",
-            s.name,
+            esc(&s.name),
             p3(q.origin + 0.5 * (q.u + q.v)),
             round(Primitive::Quad(*q).area()),
             p3(s.normal()),

@@ -156,6 +156,7 @@ pub struct AdjointOptions {
     /// Adjoint grid COLSxROWS (`[columns, rows]` in the file; columns rounded up to a multiple
     /// of the area lights; default 64x64).
     #[arg(id = "adjoint_resolution", long = "adjoint-resolution", value_parser = parse_grid)]
+    #[serde(default, deserialize_with = "crate::scene::file::exact_opt")]
     pub resolution: Option<[u32; 2]>,
     /// Pre-pass samples (BDPT) or chain steps (Metropolis) per adjoint cell (default 8).
     #[arg(
@@ -499,7 +500,10 @@ impl RenderSettings {
     pub fn apply(&mut self, o: &RenderOptions, spelling: Spelling) -> Result<(), SettingError> {
         let flag = spelling == Spelling::Flag;
         if let Some(i) = &o.integrator {
-            self.integrator = i.clone();
+            // checked here, where the file's key is known, not first when the render starts
+            let kind = crate::integrator::IntegratorKind::parse(i)
+                .map_err(|e| SettingError::at("", Some("integrator"), e))?;
+            self.integrator = kind.name().to_string();
         }
         if let Some(n) = o.spp {
             if n == 0 {

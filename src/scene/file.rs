@@ -12,9 +12,13 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 mod diagnostics;
+mod fixed;
+mod limits;
 
-pub use diagnostics::{line_of, locate, statement_at};
+pub use diagnostics::{line_of, locate, narrow_trials, statement_at};
 use diagnostics::{schema_error, syntax_error};
+pub use fixed::{exact, exact_opt};
+pub use limits::{escape_controls, MAX_ARRAY_ELEMENTS, MAX_NESTING, MAX_SCENE_BYTES};
 
 /// A scene-file error: where, which key, what is wrong.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,15 +31,15 @@ pub struct SceneError {
     pub message: String,
 }
 
+/// The message a user reads: `file:line: key `k`: message`, control characters escaped
+/// (keys and values are quoted from the file).
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (file, key) = (escape_controls(&self.file), escape_controls(&self.key));
+        let message = escape_controls(&self.message);
         match self.line {
-            Some(l) => write!(
-                f,
-                "{}:{}: key `{}`: {}",
-                self.file, l, self.key, self.message
-            ),
-            None => write!(f, "{}: key `{}`: {}", self.file, self.key, self.message),
+            Some(l) => write!(f, "{file}:{l}: key `{key}`: {message}"),
+            None => write!(f, "{file}: key `{key}`: {message}"),
         }
     }
 }
@@ -73,12 +77,16 @@ impl RgbValue {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum CameraDesc {
     Pinhole {
+        #[serde(deserialize_with = "exact")]
         eye: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         look_at: [f32; 3],
         #[serde(default = "default_up")]
+        #[serde(deserialize_with = "exact")]
         up: [f32; 3],
         /// Vertical field of view in degrees.
         fov_deg: f32,
+        #[serde(deserialize_with = "exact")]
         resolution: [u32; 2],
     },
 }
@@ -143,7 +151,9 @@ pub enum MediumDesc {
         #[serde(default = "default_phase")]
         phase: PhaseDesc,
         file: String,
+        #[serde(default, deserialize_with = "exact_opt")]
         min: Option<[f32; 3]>,
+        #[serde(default, deserialize_with = "exact_opt")]
         max: Option<[f32; 3]>,
         #[serde(default)]
         propagation: PropagationDesc,
@@ -158,7 +168,9 @@ pub enum MediumDesc {
         #[serde(default = "default_phase")]
         phase: PhaseDesc,
         density: DensityDesc,
+        #[serde(deserialize_with = "exact")]
         min: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         max: [f32; 3],
         /// `linear`: the axis and the densities at its two ends.
         axis: Option<AxisDesc>,
@@ -226,8 +238,11 @@ pub struct ShapeCommon {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeDesc {
     Quad {
+        #[serde(deserialize_with = "exact")]
         origin: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         u: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         v: [f32; 3],
         material: Option<String>,
         emission: Option<RgbValue>,
@@ -235,7 +250,9 @@ pub enum ShapeDesc {
         exterior: Option<String>,
     },
     Box {
+        #[serde(deserialize_with = "exact")]
         min: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         max: [f32; 3],
         material: Option<String>,
         emission: Option<RgbValue>,
@@ -243,6 +260,7 @@ pub enum ShapeDesc {
         exterior: Option<String>,
     },
     Sphere {
+        #[serde(deserialize_with = "exact")]
         center: [f32; 3],
         radius: f32,
         material: Option<String>,
@@ -316,18 +334,22 @@ impl ShapeDesc {
 pub enum LightDesc {
     /// Collimated light travelling along `direction`, irradiance on a plane facing it.
     Directional {
+        #[serde(deserialize_with = "exact")]
         direction: [f32; 3],
         irradiance: RgbValue,
     },
     /// Isotropic point light of radiant intensity `intensity` (W/sr).
     Point {
+        #[serde(deserialize_with = "exact")]
         position: [f32; 3],
         intensity: RgbValue,
     },
     /// A spot light: `intensity` inside `cone_deg` (half-angle), smooth falloff over the last
     /// `falloff_deg` degrees.
     Spot {
+        #[serde(deserialize_with = "exact")]
         position: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         direction: [f32; 3],
         intensity: RgbValue,
         cone_deg: f32,
@@ -351,8 +373,11 @@ pub enum SensorDesc {
     /// Mean irradiance arriving on the normal side (normalize(u x v)) of a parallelogram.
     IrradianceMeter {
         name: String,
+        #[serde(deserialize_with = "exact")]
         origin: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         u: [f32; 3],
+        #[serde(deserialize_with = "exact")]
         v: [f32; 3],
     },
 }
@@ -435,6 +460,9 @@ pub fn parse(text: &str, name: &str) -> Result<SceneFile, SceneError> {
 /// [`parse`] into any schema of the file (the scene's, or the render settings' of
 /// `integrator::settings`), with the same errors.
 pub fn parse_as<T: serde::de::DeserializeOwned>(text: &str, name: &str) -> Result<T, SceneError> {
+    // what the parse may cost, checked before it
+    limits::check_size(name, text.len())?;
+    limits::check_arrays(text, name)?;
     let doc = match toml::de::DeTable::parse(text) {
         Ok(doc) => doc,
         Err(e) => return Err(syntax_error(text, name, &e)),
@@ -455,16 +483,24 @@ pub struct SceneSource {
 }
 
 impl SceneSource {
-    /// Reads a file.
+    /// Reads a file of at most [`MAX_SCENE_BYTES`] bytes of UTF-8.
     pub fn read(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-            file: path.display().to_string(),
-            line: None,
-            key: "(file)".into(),
-            message: format!("cannot read the scene file: {e}"),
-        })?;
+        use std::io::Read;
+        let name = path.display().to_string();
+        let mut bytes = Vec::new();
+        // one byte more than the limit tells a file at the limit from a longer one
+        std::fs::File::open(path)
+            .and_then(|f| f.take(MAX_SCENE_BYTES as u64 + 1).read_to_end(&mut bytes))
+            .map_err(|e| SceneError {
+                file: name.clone(),
+                line: None,
+                key: "(file)".into(),
+                message: format!("cannot read the scene file: {e}"),
+            })?;
+        limits::check_size(&name, bytes.len())?;
+        let text = limits::decode(bytes, &name)?;
         Ok(SceneSource {
-            name: path.display().to_string(),
+            name,
             text,
             base_dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
         })

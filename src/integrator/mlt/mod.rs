@@ -194,13 +194,16 @@ pub struct MltOptions {
     pub mutation_weights: Option<[f64; 5]>,
     /// MLT: sensor perturbation film offset MIN,MAX in pixels (default 0.1,25).
     #[arg(long = "mlt-sensor-offset", value_name = "MIN,MAX", value_parser = parse_range)]
+    #[serde(default, deserialize_with = "crate::scene::file::exact_opt")]
     pub sensor_offset: Option<[f32; 2]>,
     /// MLT: light and multi-chain perturbation angle MIN,MAX in radians (default 1e-4,0.1).
     #[arg(long = "mlt-light-angle", value_name = "MIN,MAX", value_parser = parse_range)]
+    #[serde(default, deserialize_with = "crate::scene::file::exact_opt")]
     pub light_angle: Option<[f32; 2]>,
     /// MLT: propagation perturbation distance MIN,MAX as fractions of the scene radius
     /// (default 4e-4,0.1).
     #[arg(long = "mlt-propagation-distance", value_name = "MIN,MAX", value_parser = parse_range)]
+    #[serde(default, deserialize_with = "crate::scene::file::exact_opt")]
     pub propagation_distance: Option<[f32; 2]>,
     /// MLT: pre-pass paths a chain draws for its seed before it gives up (default 64; more for
     /// scenes whose pre-pass paths often fail the re-evaluation, e.g. near-specular relations).

@@ -232,57 +232,122 @@ fn value_at_mut<'a>(root: &'a mut toml::Value, key: &[KeySeg]) -> Option<&'a mut
     Some(v)
 }
 
+thread_local! {
+    static TRIALS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// How many deserializations [`narrow`] has tried on this thread: the work of locating a
+/// schema error, which a test bounds.
+#[doc(hidden)]
+pub fn narrow_trials() -> usize {
+    TRIALS.with(|t| t.get())
+}
+
 // ANCHOR: narrow
 /// Narrows the error `error` of the whole file down from `at`: the element of an array of
 /// tables, or the key of a table, whose deletion changes the error is where it lies (the `type`
 /// tag excepted: without it nothing inside the table is looked at). With `tables_only`, only
 /// sub-tables are candidates (for a missing key, deleting any required sibling would change
-/// the error too).
+/// the error too). The candidates are halved, deleting a whole range at a time, so a file of
+/// n shapes costs log n deserializations per level, not n.
 fn narrow(root: &toml::Value, at: KeyPath, error: &str, tables_only: bool) -> KeyPath {
-    let changes = |mut r: toml::Value, remove: &dyn Fn(&mut toml::Value)| -> bool {
+    let children = candidates(root, &at, tables_only);
+    let changes = |range: &[KeySeg]| -> bool {
+        TRIALS.with(|t| t.set(t.get() + 1));
+        let mut r = root.clone();
         if let Some(v) = value_at_mut(&mut r, &at.0) {
-            remove(v);
+            remove(v, range);
         }
         match r.try_into::<SceneFile>() {
             Ok(_) => true,
             Err(e) => e.message().trim() != error,
         }
     };
+    let (mut lo, mut hi) = (0, children.len());
+    if hi == 0 || !changes(&children) {
+        return at;
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if changes(&children[lo..mid]) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    // the halving assumes that the error is the first of its kind; check the one it found,
+    // and in a short list try the others (a long one stays at `at`, its cost bounded)
+    let tries = if children.len() <= 32 {
+        children.len()
+    } else {
+        1
+    };
+    let found = children[lo..]
+        .iter()
+        .chain(&children[..lo])
+        .take(tries)
+        .find(|c| changes(std::slice::from_ref(c)));
+    match found {
+        Some(KeySeg::Key(k)) => narrow(root, at.clone().key(k), error, tables_only),
+        Some(KeySeg::Index(i)) => narrow(root, at.clone().index(*i), error, tables_only),
+        None => at,
+    }
+}
+
+/// The children of `at` that [`narrow`] may delete: the keys of a table (not `type`; only
+/// sub-tables with `tables_only`), or the indices of an array of tables.
+fn candidates(root: &toml::Value, at: &KeyPath, tables_only: bool) -> Vec<KeySeg> {
     let is_table = |v: &toml::Value| matches!(v, toml::Value::Table(_));
     let is_table_array = |v: &toml::Value| matches!(v, toml::Value::Array(a) if !a.is_empty() && a.iter().all(is_table));
     let mut scratch = root.clone();
     match value_at_mut(&mut scratch, &at.0) {
-        Some(toml::Value::Table(t)) => {
-            for (k, v) in t.iter() {
-                if k == "type" || (tables_only && !is_table(v) && !is_table_array(v)) {
-                    continue;
-                }
-                if changes(root.clone(), &|v| {
-                    if let toml::Value::Table(t) = v {
-                        t.remove(k);
-                    }
-                }) {
-                    return narrow(root, at.clone().key(k), error, tables_only);
+        Some(toml::Value::Table(t)) => t
+            .iter()
+            .filter(|(k, v)| *k != "type" && (!tables_only || is_table(v) || is_table_array(v)))
+            .map(|(k, _)| KeySeg::Key(k.clone()))
+            .collect(),
+        Some(v @ toml::Value::Array(_)) if is_table_array(v) => {
+            (0..v.as_array().map_or(0, Vec::len))
+                .map(KeySeg::Index)
+                .collect()
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Deletes `children` (keys, or indices in increasing order) from the table or array `v`.
+fn remove(v: &mut toml::Value, children: &[KeySeg]) {
+    match v {
+        toml::Value::Table(t) => {
+            for c in children {
+                if let KeySeg::Key(k) = c {
+                    t.remove(k);
                 }
             }
         }
-        Some(v @ toml::Value::Array(_)) if is_table_array(v) => {
-            let n = v.as_array().map_or(0, Vec::len);
-            for i in 0..n {
-                if changes(root.clone(), &|v| {
-                    if let toml::Value::Array(a) = v {
-                        a.remove(i);
-                    }
-                }) {
-                    return narrow(root, at.clone().index(i), error, tables_only);
-                }
+        toml::Value::Array(a) => {
+            if let (Some(KeySeg::Index(first)), Some(KeySeg::Index(last))) =
+                (children.first(), children.last())
+            {
+                a.drain(*first..=(*last).min(a.len().saturating_sub(1)));
             }
         }
         _ => {}
     }
-    at
 }
 // ANCHOR_END: narrow
+
+/// Whether `message` refuses the `type` of the table `value` (an inline table of a tagged
+/// enum, whose error carries only the table's span): the key is then its `type`.
+fn is_unknown_tag(message: &str, value: Option<&toml::Value>) -> bool {
+    let tag = message
+        .strip_prefix("unknown variant `")
+        .and_then(|r| r.split('`').next());
+    let Some(toml::Value::Table(t)) = value else {
+        return false;
+    };
+    tag.is_some_and(|tag| t.get("type").and_then(toml::Value::as_str) == Some(tag))
+}
 
 /// A schema error (unknown key, missing key, wrong type) at the key that causes it.
 pub(super) fn schema_error(
@@ -306,7 +371,12 @@ pub(super) fn schema_error(
     if let Ok(root) = toml::from_str::<toml::Value>(text) {
         if let Err(re) = root.clone().try_into::<SceneFile>() {
             key = narrow(&root, key, re.message().trim(), missing.is_some());
-            got = value_at_mut(&mut root.clone(), &key.0).map(|v| v.to_string());
+            let mut root = root;
+            let value = value_at_mut(&mut root, &key.0);
+            if is_unknown_tag(&message, value.as_deref()) {
+                key = key.key("type");
+            }
+            got = value.map(|v| v.to_string());
         }
     }
     if let Some(field) = &missing {
