@@ -250,7 +250,9 @@ fn checked_vertices(res: [usize; 3]) -> Result<usize, (String, String)> {
     vertices(res).ok_or_else(|| {
         (
             "header".to_string(),
-            format!("a {res:?} grid has more than the {MAX_GRID_VERTICES} vertices a grid may have"),
+            format!(
+                "a {res:?} grid has more than the {MAX_GRID_VERTICES} vertices a grid may have"
+            ),
         )
     })
 }

@@ -84,7 +84,11 @@ pub fn check_steps(scene: &Scene, step_mfp: f32) -> Result<(), super::SmcError> 
         let steps = max_steps(med, step_mfp, length);
         if steps.is_nan() || steps > MAX_MARCH_STEPS as f64 {
             return Err(super::SmcError::MarchSteps {
-                medium: scene.medium_names.get(i).cloned().unwrap_or(format!("#{i}")),
+                medium: scene
+                    .medium_names
+                    .get(i)
+                    .cloned()
+                    .unwrap_or(format!("#{i}")),
                 step: step_mfp,
                 steps,
                 sigma: spectrum::average(med.sigma_t_max()),
