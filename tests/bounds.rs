@@ -288,3 +288,47 @@ fn the_estimate_is_within_a_factor_of_the_peak_memory() {
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(text.contains("memory: about"), "{text}");
 }
+
+#[test]
+fn the_estimate_covers_the_records_of_a_long_smc_march() {
+    // one thick channel: about 1160 steps across the box, each leaving a record
+    let dir = scratch("smc-memory");
+    let scene = dir.join("thick.toml");
+    std::fs::write(
+        &scene,
+        fog_box_with("type = \"homogeneous\"\nsigma_a = [1e3, 0.1, 0.1]\nsigma_s = 0.4\n"),
+    )
+    .unwrap();
+    let exr = dir.join("m.exr");
+    let out = pathspace(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--integrator",
+        "smc",
+        "--resolution",
+        "32x32",
+        "--spp",
+        "4",
+        "--threads",
+        "2",
+        "--json",
+        "-o",
+        exr.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let m = &j["memory"];
+    // the octree's budget is a bound it does not reach here: without it the estimate still
+    // covers the peak
+    let budget = m["parts"]["smc cache"].as_u64().unwrap();
+    let estimate = m["estimate"].as_u64().unwrap() - budget;
+    let peak = m["peak_resident"].as_u64().unwrap();
+    assert!(
+        peak <= estimate,
+        "estimate {estimate} without the budget, peak {peak}"
+    );
+    assert!(
+        peak > 64 << 20,
+        "the march's records are the bulk: peak {peak}"
+    );
+}

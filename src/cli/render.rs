@@ -16,7 +16,7 @@ use crate::integrator::memory;
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
-use crate::integrator::smc::SmcOptions;
+use crate::integrator::smc::{EstimatorForm, SmcOptions};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
 pub use crate::integrator::session::RenderResult;
@@ -194,6 +194,11 @@ fn configure(
         .map_err(|e| CliError::Usage(e.message))?;
     if kind == IntegratorKind::Mlt {
         crate::integrator::mlt::check_scene(scene)
+            .map_err(crate::integrator::IntegratorError::from)?;
+    }
+    // a march that would exceed its step limit is refused before the memory it would need
+    if let (IntegratorKind::Smc, EstimatorForm::RayMarching { step }) = (kind, settings.smc.form) {
+        crate::integrator::smc::march::check_steps(scene, step)
             .map_err(crate::integrator::IntegratorError::from)?;
     }
     // light paths this integrator cannot sample: said once, before the work

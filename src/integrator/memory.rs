@@ -15,6 +15,7 @@ use std::mem::size_of;
 
 use super::session::PASS_SPP;
 use super::settings::RenderSettings;
+use super::smc::{march, EstimatorForm};
 use super::IntegratorKind;
 use crate::enlightened::GuideKind;
 
@@ -33,7 +34,9 @@ const SPLATS_PER_SAMPLE: u64 = 4;
 const SPLAT_BYTES: u64 = size_of::<(glam::Vec2, glam::Vec3)>() as u64;
 /// The output: the image and its variance (f32 RGB each) and the EXR and PNG encoders' copies.
 const OUTPUT_BYTES_PER_PIXEL: u64 = 48;
-/// SMC records a sample leaves for the structure (one per scattering or marching decision).
+/// SMC records a sample leaves for the structure (one per scattering or marching decision), at
+/// least; a march leaves one per step, as many as a segment across the densest medium takes
+/// (about 875 per sample measured where that is 1158 steps).
 const SMC_RECORDS_PER_SAMPLE: u64 = 4;
 /// One SMC record: position, direction, radiance, phase value.
 const SMC_RECORD_BYTES: u64 = 40;
@@ -99,20 +102,29 @@ pub fn estimate(
         ("process", PROCESS_BYTES + threads as u64 * THREAD_BYTES),
         ("scene", scene_bytes(scene)),
         ("film", pixels * FILM_BYTES_PER_PIXEL),
-        ("pass", pixels * pass_bytes_per_pixel(kind)),
+        ("pass", pixels * pass_bytes_per_pixel(scene, kind, settings)),
         ("image", pixels * OUTPUT_BYTES_PER_PIXEL),
     ];
     parts.extend(integrator_parts(kind, settings));
     MemoryEstimate { parts }
 }
 
-/// Bytes per pixel of one pass's results (tile results, splats; MLT's chains splat only).
-fn pass_bytes_per_pixel(kind: IntegratorKind) -> u64 {
+/// Bytes per pixel of one pass's results (tile results, splats, SMC's records; MLT's chains
+/// splat only).
+fn pass_bytes_per_pixel(scene: &Scene, kind: IntegratorKind, settings: &RenderSettings) -> u64 {
     let splats = PASS_SPP as u64 * SPLATS_PER_SAMPLE * SPLAT_BYTES;
     match kind {
         IntegratorKind::Path => PASS_BYTES_PER_PIXEL,
         IntegratorKind::Smc => {
-            PASS_BYTES_PER_PIXEL + PASS_SPP as u64 * SMC_RECORDS_PER_SAMPLE * SMC_RECORD_BYTES
+            let records = match settings.smc.form {
+                // a longer march is refused (`march::check_steps`)
+                EstimatorForm::RayMarching { step } => {
+                    march::scene_max_steps(scene, step).min(march::MAX_MARCH_STEPS as f64) as u64
+                }
+                EstimatorForm::Distance => 0,
+            };
+            let records = records.max(SMC_RECORDS_PER_SAMPLE);
+            PASS_BYTES_PER_PIXEL + PASS_SPP as u64 * records * SMC_RECORD_BYTES
         }
         IntegratorKind::Light | IntegratorKind::Bdpt => PASS_BYTES_PER_PIXEL + splats,
         // a mutation splats its current and its proposed path

@@ -76,6 +76,16 @@ fn longest_segment(scene: &Scene, med: &Medium) -> f32 {
     }
 }
 
+/// The most steps a march takes along one segment through any medium of `scene` (1 without
+/// media): a path's records and links grow with it.
+pub fn scene_max_steps(scene: &Scene, step_mfp: f32) -> f64 {
+    scene
+        .media
+        .iter()
+        .map(|m| max_steps(m, step_mfp, longest_segment(scene, m)))
+        .fold(1.0, f64::max)
+}
+
 /// Refuses a march whose steps along some medium's longest segment exceed
 /// [`MAX_MARCH_STEPS`].
 pub fn check_steps(scene: &Scene, step_mfp: f32) -> Result<(), super::SmcError> {
