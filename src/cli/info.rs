@@ -156,6 +156,22 @@ fn medium_name(scene: &Scene, m: Option<u32>) -> String {
     })
 }
 
+/// The estimated memory of a render with the file's `[render]` settings on all cores, and the
+/// default `--max-memory` it is checked against.
+fn memory_line(scene: &Scene, r: &crate::integrator::RenderSettings) -> String {
+    use crate::integrator::memory;
+    match crate::integrator::IntegratorKind::parse(&r.integrator) {
+        Ok(kind) => format!(
+            "{} for a {} render on {} threads (default --max-memory {})",
+            memory::estimate(scene, kind, r, rayon::current_num_threads()).describe(),
+            kind.name(),
+            rayon::current_num_threads(),
+            memory::gib(memory::default_max_memory())
+        ),
+        Err(e) => format!("not estimated: {e}"),
+    }
+}
+
 pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     let (scene, r, source) = super::load_scene(Some(&args.scene))?;
     println!("{}: valid (hash {:016x})", esc(&source.name), source.hash());
@@ -227,6 +243,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
             scene.light_pmf(i as u32)
         );
     }
+    println!("  memory: {}", memory_line(&scene, &r));
     println!("  sensors: {}", scene.sensors.len());
     for s in &scene.sensors {
         let q = &s.quad;

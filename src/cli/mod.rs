@@ -95,6 +95,14 @@ pub enum CliError {
     /// The signal handlers cannot be installed.
     #[error("cannot handle SIGINT/SIGTERM/SIGHUP: {0}")]
     Signals(#[source] std::io::Error),
+    /// A render that needs more memory than `--max-memory` allows (the estimate described,
+    /// the limit, where the limit comes from).
+    #[error("the render needs {needs}, more than --max-memory {limit} ({origin}): lower the resolution or the settings named, or raise --max-memory")]
+    Memory {
+        needs: String,
+        limit: String,
+        origin: String,
+    },
     /// The worker threads cannot be started.
     #[error("cannot start worker threads: {0}")]
     Threads(#[source] rayon::ThreadPoolBuildError),

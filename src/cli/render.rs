@@ -12,11 +12,12 @@ use super::CliError;
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
+use crate::integrator::memory;
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::provenance::{format_streams, TIMING_KEYS};
 use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
-use crate::integrator::smc::SmcOptions;
+use crate::integrator::smc::{EstimatorForm, SmcOptions};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
 pub use crate::integrator::session::RenderResult;
@@ -65,6 +66,10 @@ pub struct RenderArgs {
     /// state beside it (`OUT.checkpoint`), so that a crash loses at most that much.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint: Option<f64>,
+    /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
+    /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
+    #[arg(long, value_name = "GIB")]
+    pub max_memory: Option<f64>,
     /// Continue the render saved in this checkpoint (`OUT.checkpoint`, or the `OUT.exr` beside
     /// it), with the same scene, options and seed; `--spp` may ask for more samples.
     #[arg(long, value_name = "FILE")]
@@ -119,6 +124,13 @@ impl RenderArgs {
             if !(t > 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
                     "--time {t} must be a positive number of seconds"
+                )));
+            }
+        }
+        if let Some(m) = self.max_memory {
+            if !(m > 0.0 && m.is_finite()) {
+                return Err(CliError::Usage(format!(
+                    "--max-memory {m} must be a positive number of GiB"
                 )));
             }
         }
@@ -188,6 +200,11 @@ fn configure(
         .map_err(|e| CliError::Usage(e.message))?;
     if kind == IntegratorKind::Mlt {
         crate::integrator::mlt::check_scene(scene)
+            .map_err(crate::integrator::IntegratorError::from)?;
+    }
+    // a march that would exceed its step limit is refused before the memory it would need
+    if let (IntegratorKind::Smc, EstimatorForm::RayMarching { step }) = (kind, settings.smc.form) {
+        crate::integrator::smc::march::check_steps(scene, step)
             .map_err(crate::integrator::IntegratorError::from)?;
     }
     // light paths this integrator cannot sample: said once, before the work
@@ -533,6 +550,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let plan = configure(&args, &scene, settings)?;
     check_outputs(&args, scene.camera.is_some())?;
     let pool = thread_pool(args.threads)?;
+    let memory = check_memory(&args, &scene, &plan, pool.current_num_threads())?;
     let t0 = std::time::Instant::now();
     let pre = pool.install(|| {
         session::preprocess(
@@ -593,7 +611,13 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         );
     }
     if args.json {
-        println!("{}", result_json(result, &plan, &pre, &written));
+        let mut j = result_json(result, &plan, &pre, &written);
+        j["memory"] = serde_json::json!({
+            "estimate": memory.total(),
+            "parts": memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
+            "peak_resident": memory::peak_resident(),
+        });
+        println!("{j}");
     } else {
         print_summary(result, &written);
     }
@@ -611,6 +635,39 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         }),
         None => Ok(()),
     }
+}
+
+/// The render's estimated memory, refused above `--max-memory` (by default a share of the
+/// machine's), before any work.
+fn check_memory(
+    args: &RenderArgs,
+    scene: &crate::scene::Scene,
+    plan: &Plan,
+    threads: usize,
+) -> Result<memory::MemoryEstimate, CliError> {
+    let estimate = memory::estimate(scene, plan.kind, &plan.settings, threads);
+    let (limit, origin) = match args.max_memory {
+        Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
+        None => (
+            memory::default_max_memory(),
+            match memory::machine_memory() {
+                Some(m) => format!(
+                    "the default, {:.0}% of this machine's {}",
+                    memory::MACHINE_SHARE * 100.0,
+                    memory::gib(m)
+                ),
+                None => "the default where /proc/meminfo is missing".to_string(),
+            },
+        ),
+    };
+    if estimate.total() > limit {
+        return Err(CliError::Memory {
+            needs: estimate.describe(),
+            limit: memory::gib(limit),
+            origin,
+        });
+    }
+    Ok(estimate)
 }
 
 /// What a checkpoint of this render must match to be resumed.

@@ -8,6 +8,7 @@
 pub mod bdpt;
 pub mod checkpoint;
 pub mod light;
+pub mod memory;
 pub mod mlt;
 pub mod path;
 pub mod provenance;

@@ -16,6 +16,10 @@
 //!   then the float32 values, all little-endian. DEVIATION: Mitsuba 3 places values at cell
 //!   centres; pathspace, like Mitsuba 0.6, at the lattice vertices spanning the box.
 //!
+//! Limits: every side in 2..=[`MAX_GRID_SIDE`], at most [`MAX_GRID_VERTICES`] vertices, and a
+//! header is checked against the file's size (the values it can hold at all) before the values
+//! are reserved, so a 15-byte file cannot claim a 4 GiB grid.
+//!
 //! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
 //! `tests/media_inhomogeneous.rs`.
 
@@ -24,6 +28,9 @@ use std::path::Path;
 
 /// Largest accepted lattice side (vertices per axis): keeps a malformed header from allocating.
 pub const MAX_GRID_SIDE: usize = 1024;
+/// Largest accepted number of vertices (512^3, 512 MiB of f32): a grid's memory is bounded
+/// whatever its sides.
+pub const MAX_GRID_VERTICES: usize = 1 << 27;
 
 /// Size of the `.vol` header in bytes: 3 magic + 1 version + 5 i32 + 6 f32.
 const VOL_HEADER_BYTES: usize = 48;
@@ -57,8 +64,8 @@ pub struct GridError {
 /// Why [`Grid::new`] rejected a lattice.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LatticeError {
-    /// A side outside 2..=MAX_GRID_SIDE.
-    #[error("grid resolution {0:?}: every side must be in 2..={max}", max = MAX_GRID_SIDE)]
+    /// A side outside 2..=MAX_GRID_SIDE, or more than MAX_GRID_VERTICES vertices.
+    #[error("grid resolution {0:?}: every side must be in 2..={max} and the vertices at most {total}", max = MAX_GRID_SIDE, total = MAX_GRID_VERTICES)]
     Resolution([usize; 3]),
     /// The number of values is not the product of the sides.
     #[error("grid {res:?} needs {n} values, got {got}")]
@@ -81,7 +88,7 @@ pub struct GridFile {
 impl Grid {
     /// Validated constructor: every side >= 2, the right number of values, each finite and >= 0.
     pub fn new(res: [usize; 3], values: Vec<f32>) -> Result<Self, LatticeError> {
-        if res.iter().any(|&n| !(2..=MAX_GRID_SIDE).contains(&n)) {
+        if res.iter().any(|&n| !(2..=MAX_GRID_SIDE).contains(&n)) || vertices(res).is_none() {
             return Err(LatticeError::Resolution(res));
         }
         let n = res[0] * res[1] * res[2];
@@ -232,6 +239,24 @@ pub fn cell_segments(
 }
 // ANCHOR_END: dda
 
+/// The number of vertices of a lattice with sides `res`, if within [`MAX_GRID_VERTICES`].
+fn vertices(res: [usize; 3]) -> Option<usize> {
+    let n = res[0].checked_mul(res[1])?.checked_mul(res[2])?;
+    (n <= MAX_GRID_VERTICES).then_some(n)
+}
+
+/// [`vertices`] for a file's header; errors as (location, message).
+fn checked_vertices(res: [usize; 3]) -> Result<usize, (String, String)> {
+    vertices(res).ok_or_else(|| {
+        (
+            "header".to_string(),
+            format!(
+                "a {res:?} grid has more than the {MAX_GRID_VERTICES} vertices a grid may have"
+            ),
+        )
+    })
+}
+
 /// Reads a grid file: Mitsuba `.vol` by extension, the text format otherwise.
 pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
     let name = path.display().to_string();
@@ -281,7 +306,19 @@ pub fn parse_text(text: &str) -> Result<Grid, (String, String)> {
                 )
             })?;
     }
-    let n = res[0] * res[1] * res[2];
+    let n = checked_vertices(res)?;
+    // every value is at least one character and a separator: refuse a header the file
+    // cannot satisfy before reserving its values
+    let room = text.len().div_ceil(2);
+    if n > room {
+        return Err((
+            "header".to_string(),
+            format!(
+                "the header claims a {res:?} grid ({n} values), but the file's {} bytes hold at most {room}",
+                text.len()
+            ),
+        ));
+    }
     let mut values = Vec::with_capacity(n);
     let mut last_line = 1;
     for (line, tok) in tokens {
@@ -379,7 +416,7 @@ pub fn parse_vol(b: &[u8]) -> Result<GridFile, (String, String)> {
             format!("bounding box {lo} .. {hi} is not a finite box with min < max"),
         ));
     }
-    let n = res[0] * res[1] * res[2];
+    let n = checked_vertices(res)?;
     let want = VOL_HEADER_BYTES + 4 * n;
     if b.len() != want {
         return Err((

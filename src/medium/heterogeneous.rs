@@ -42,6 +42,14 @@ pub const MAJORANT_RES: usize = 16;
 /// depth of procedural fields (those without a closed form).
 pub const PROCEDURAL_QUADRATURE_RES: usize = 256;
 
+/// Steps a ray march may take across the medium's box (its diagonal over the step Delta): a
+/// smaller step is refused, because the march's work per ray segment is this count.
+pub const MAX_MARCH_STEPS: f32 = 1e5;
+/// Tentative collisions a tracking walk may expect across the medium's box (the majorant's
+/// optical depth along the diagonal): a denser medium is refused, because ratio tracking
+/// visits every tentative collision of a segment while any channel still transmits.
+pub const MAX_TRACKING_DEPTH: f32 = 1e5;
+
 /// How the line integral of sigma_t is computed along a ray (Pauly et al. sec. 4.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LineIntegral {
@@ -219,7 +227,7 @@ impl Heterogeneous {
                 }
             }
         }
-        Ok(Heterogeneous {
+        let h = Heterogeneous {
             density,
             bounds,
             sigma_a,
@@ -229,7 +237,49 @@ impl Heterogeneous {
             line_integral,
             delta: relative_step * bounds.extent().max_element(),
             majorant,
-        })
+        };
+        h.check_work(relative_step)?;
+        Ok(h)
+    }
+
+    /// The work per ray segment is bounded by the scene: a march takes at most
+    /// [`Heterogeneous::march_steps`] steps, tracking expects at most
+    /// [`Heterogeneous::tracking_depth`] tentative collisions; either above its limit is refused.
+    fn check_work(&self, relative_step: f32) -> Result<(), MediumError> {
+        if self.line_integral.is_marching() {
+            let steps = self.march_steps();
+            if steps.is_nan() || steps > MAX_MARCH_STEPS {
+                return Err(MediumError::MarchSteps {
+                    step: relative_step,
+                    steps,
+                    limit: MAX_MARCH_STEPS,
+                });
+            }
+        } else {
+            let depth = self.tracking_depth();
+            if depth.is_nan() || depth > MAX_TRACKING_DEPTH {
+                return Err(MediumError::TrackingDepth {
+                    depth,
+                    sigma: self.sigma_t.max_element(),
+                    density: self.max_density(),
+                    diagonal: self.bounds.extent().length(),
+                    limit: MAX_TRACKING_DEPTH,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The most steps a march takes along one ray segment: a segment is clipped to the box,
+    /// so it is at most the box's diagonal over Delta, plus the last partial step.
+    pub fn march_steps(&self) -> f32 {
+        (self.bounds.extent().length() / self.delta).ceil() + 1.0
+    }
+
+    /// The expected number of tentative collisions of a tracking walk along the longest segment
+    /// (the box's diagonal) at the largest majorant: max sigma_t x max density x diagonal.
+    pub fn tracking_depth(&self) -> f32 {
+        self.sigma_t.max_element() * self.max_density() * self.bounds.extent().length()
     }
 
     /// The density at world point `p` (zero outside the box).

@@ -29,6 +29,18 @@ pub enum MediumError {
     NegativeCoefficient { name: &'static str, value: f32 },
     #[error(transparent)]
     Phase(#[from] PhaseError),
+    /// A march would take more steps across the medium's box than the stated limit.
+    #[error("step = {step} makes a ray march take up to {steps:.3e} steps across the medium's box (its diagonal / (step x its largest side)), more than the limit {limit:e}: raise step")]
+    MarchSteps { step: f32, steps: f32, limit: f32 },
+    /// Tracking would expect more tentative collisions across the box than the stated limit.
+    #[error("the majorant's optical depth across the medium's box is {depth:.3e} (max sigma_t {sigma:e} x max density {density:e} x diagonal {diagonal:e}), more than the limit {limit:e} tentative collisions a delta or ratio tracking walk may expect per segment: lower sigma_a / sigma_s or the density")]
+    TrackingDepth {
+        depth: f32,
+        sigma: f32,
+        density: f32,
+        diagonal: f32,
+        limit: f32,
+    },
 }
 
 /// The outcome of sampling a free-flight distance inside one medium segment [0, t_max)

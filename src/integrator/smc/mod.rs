@@ -143,6 +143,17 @@ pub enum SmcError {
     /// The settings' budget is below the root cache (the budget, the root's bytes).
     #[error("the cache budget of {0} bytes cannot hold even the root cache ({1} bytes)")]
     TooSmallBudget(usize, usize),
+    /// A march across a medium would take more steps than the limit (see
+    /// [`march::max_steps`]).
+    #[error("[render.smc] step = {step} (--smc-step): a march through medium `{medium}` may take {steps:.3e} steps (mean majorant sigma_t {sigma:e} x longest segment {length:e} / step), more than the limit {limit}: raise step, or use estimator = \"distance\"")]
+    MarchSteps {
+        medium: String,
+        step: f32,
+        steps: f64,
+        sigma: f32,
+        length: f32,
+        limit: usize,
+    },
 }
 
 impl From<SmcError> for String {
@@ -428,6 +439,9 @@ impl Smc {
         let root_bytes = RadianceCache::root().bytes();
         if settings.budget < root_bytes {
             return Err(SmcError::TooSmallBudget(settings.budget, root_bytes));
+        }
+        if let EstimatorForm::RayMarching { step } = settings.form {
+            march::check_steps(scene, step)?;
         }
         let (min, max) = if scene.bounds.is_empty() {
             (Vec3::splat(-1.0), Vec3::splat(1.0))

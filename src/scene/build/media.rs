@@ -9,7 +9,7 @@ use super::values::{finite3, key_of, non_negative};
 use crate::geometry::Aabb;
 use crate::medium::grid::read_grid_file;
 use crate::medium::{Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral};
-use crate::medium::{Medium, Phase};
+use crate::medium::{Medium, MediumError, Phase};
 use crate::scene::file::{
     path, AxisDesc, DensityDesc, KeyPath, MediumDesc, PhaseDesc, PropagationDesc, SceneFile,
 };
@@ -166,8 +166,18 @@ fn heterogeneous(src: &SceneSource, key: &KeyPath, m: &MediumDesc) -> Result<Med
         MediumDesc::Procedural { .. } => procedural(src, key, m)?,
         MediumDesc::Homogeneous { .. } => unreachable!("only called for grid and procedural"),
     };
-    let h = Heterogeneous::new(density, aabb, sa, ss, ph, line_integral, step)
-        .map_err(|e| src.error(key, e.to_string()))?;
+    let h = Heterogeneous::new(density, aabb, sa, ss, ph, line_integral, step).map_err(|e| {
+        // the work bounds name the key that sets them
+        let at = match e {
+            MediumError::MarchSteps { .. } => key_of(key, "step"),
+            MediumError::TrackingDepth { .. } if sa.max_element() >= ss.max_element() => {
+                key_of(key, "sigma_a")
+            }
+            MediumError::TrackingDepth { .. } => key_of(key, "sigma_s"),
+            _ => key.clone(),
+        };
+        src.error(&at, e.to_string())
+    })?;
     Ok(Medium::Heterogeneous(Box::new(h)))
 }
 

@@ -1,0 +1,211 @@
+//! The memory a render needs, estimated before it starts, so that a resolution or a setting
+//! the machine cannot hold is refused with the figure instead of failing (or swapping) hours
+//! into the render.
+//!
+//! The film's part is exact (three `[f64; 3]` buffers per pixel, `Film::new`); the others are
+//! per-pixel, per-sample or per-particle sizes of the structures a render holds at its peak:
+//! a pass's tile results and splats (kept until the pass is merged, in tile order, for
+//! determinism), the output image and its variance with their encoders, SMC's octree (its
+//! budget bounds it), the guide's particles and maps, the adjoint image's cells, MLT's chains
+//! and bootstrap. `tests/bounds.rs` checks the estimate of a moderate render against the peak
+//! resident memory the render reports (`--json`'s `memory`).
+//! Book: "Measuring a renderer", section "Memory".
+
+use std::mem::size_of;
+
+use super::session::PASS_SPP;
+use super::settings::RenderSettings;
+use super::smc::{march, EstimatorForm};
+use super::IntegratorKind;
+use crate::enlightened::GuideKind;
+
+use crate::medium::{Density, Medium};
+use crate::path::Vertex;
+use crate::scene::Scene;
+
+/// The film: sum, sum of squares and splats per pixel (exactly `Film::new`'s buffers).
+pub const FILM_BYTES_PER_PIXEL: u64 = 3 * size_of::<[f64; 3]>() as u64;
+/// A pass's tile results: (pixel index, sum, sum of squares) per pixel, held until merged.
+const PASS_BYTES_PER_PIXEL: u64 = size_of::<(usize, [f64; 3], [f64; 3])>() as u64;
+/// Splats a light or BDPT sample deposits on average (a light subpath's vertices seen by the
+/// camera; about 3 measured on the fog box).
+const SPLATS_PER_SAMPLE: u64 = 4;
+/// One splat: film point and value.
+const SPLAT_BYTES: u64 = size_of::<(glam::Vec2, glam::Vec3)>() as u64;
+/// The output: the image and its variance (f32 RGB each) and the EXR and PNG encoders' copies.
+const OUTPUT_BYTES_PER_PIXEL: u64 = 48;
+/// SMC records a sample leaves for the structure (one per scattering or marching decision), at
+/// least; a march leaves one per step, as many as a segment across the densest medium takes
+/// (about 875 per sample measured where that is 1158 steps).
+const SMC_RECORDS_PER_SAMPLE: u64 = 4;
+/// One SMC record: position, direction, radiance, phase value.
+const SMC_RECORD_BYTES: u64 = 40;
+/// A guide's particle with its path, region assignment and kd-tree entry (about 750 bytes
+/// measured on the fog box with 200,000 particles).
+const GUIDE_BYTES_PER_PARTICLE: u64 = 1024;
+/// The process itself: code, the scene's parser, the allocator's slack.
+const PROCESS_BYTES: u64 = 16 << 20;
+/// A worker thread's stack and scratch.
+const THREAD_BYTES: u64 = 2 << 20;
+/// Vertices of an MLT chain's current and proposed paths at most (two subpaths' caps).
+const MLT_PATH_VERTICES: u64 = 2 * crate::path::bidirectional::MAX_SUBPATH_VERTICES as u64;
+
+/// The estimate, by part (name, bytes), in the order a reader meets them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MemoryEstimate {
+    pub parts: Vec<(&'static str, u64)>,
+}
+
+impl MemoryEstimate {
+    /// The whole estimate in bytes.
+    pub fn total(&self) -> u64 {
+        self.parts.iter().map(|p| p.1).sum()
+    }
+
+    /// `about 1.2 GiB (film 0.5 GiB, pass 0.4 GiB, ...)`, the parts above 1% of the total.
+    pub fn describe(&self) -> String {
+        let total = self.total();
+        let parts: Vec<String> = self
+            .parts
+            .iter()
+            .filter(|p| p.1 * 100 >= total)
+            .map(|(name, b)| format!("{name} {}", gib(*b)))
+            .collect();
+        format!("about {} ({})", gib(total), parts.join(", "))
+    }
+}
+
+/// Bytes as GiB with a precision that shows small renders too.
+pub fn gib(bytes: u64) -> String {
+    let g = bytes as f64 / (1u64 << 30) as f64;
+    if g >= 10.0 {
+        format!("{g:.0} GiB")
+    } else if g >= 0.1 {
+        format!("{g:.1} GiB")
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
+    }
+}
+
+/// The memory a render of `scene` by `kind` with `settings` on `threads` workers needs.
+pub fn estimate(
+    scene: &Scene,
+    kind: IntegratorKind,
+    settings: &RenderSettings,
+    threads: usize,
+) -> MemoryEstimate {
+    let pixels = scene
+        .camera
+        .as_ref()
+        .map_or(0, |c| c.width as u64 * c.height as u64);
+    let mut parts = vec![
+        ("process", PROCESS_BYTES + threads as u64 * THREAD_BYTES),
+        ("scene", scene_bytes(scene)),
+        ("film", pixels * FILM_BYTES_PER_PIXEL),
+        ("pass", pixels * pass_bytes_per_pixel(scene, kind, settings)),
+        ("image", pixels * OUTPUT_BYTES_PER_PIXEL),
+    ];
+    parts.extend(integrator_parts(kind, settings));
+    MemoryEstimate { parts }
+}
+
+/// Bytes per pixel of one pass's results (tile results, splats, SMC's records; MLT's chains
+/// splat only).
+fn pass_bytes_per_pixel(scene: &Scene, kind: IntegratorKind, settings: &RenderSettings) -> u64 {
+    let splats = PASS_SPP as u64 * SPLATS_PER_SAMPLE * SPLAT_BYTES;
+    match kind {
+        IntegratorKind::Path => PASS_BYTES_PER_PIXEL,
+        IntegratorKind::Smc => {
+            let records = match settings.smc.form {
+                // a longer march is refused (`march::check_steps`)
+                EstimatorForm::RayMarching { step } => {
+                    march::scene_max_steps(scene, step).min(march::MAX_MARCH_STEPS as f64) as u64
+                }
+                EstimatorForm::Distance => 0,
+            };
+            let records = records.max(SMC_RECORDS_PER_SAMPLE);
+            PASS_BYTES_PER_PIXEL + PASS_SPP as u64 * records * SMC_RECORD_BYTES
+        }
+        IntegratorKind::Light | IntegratorKind::Bdpt => PASS_BYTES_PER_PIXEL + splats,
+        // a mutation splats its current and its proposed path
+        IntegratorKind::Mlt => PASS_SPP as u64 * 2 * SPLAT_BYTES,
+    }
+}
+
+/// The preprocessing structures and integrator state of `kind` with `settings`.
+fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'static str, u64)> {
+    let mut parts = Vec::new();
+    if kind == IntegratorKind::Smc {
+        // the octree grows until its budget, which bounds it
+        parts.push(("smc cache", settings.smc.budget as u64));
+    }
+    if kind == IntegratorKind::Mlt {
+        let chains = settings.mlt.chains as u64;
+        let paths = chains * 2 * MLT_PATH_VERTICES * size_of::<Vertex>() as u64;
+        let bootstrap = settings.mlt.bootstrap * size_of::<super::mlt::init::Candidate>() as u64;
+        parts.push(("mlt chains", paths + bootstrap));
+    }
+    let g = &settings.guide;
+    if g.kind != GuideKind::Off && kind.samples_light_starts() {
+        let maps = g.regions.regions as u64 * g.cols as u64 * g.rows as u64 * 2 * 4;
+        parts.push((
+            "guide",
+            g.particles as u64 * GUIDE_BYTES_PER_PARTICLE + maps,
+        ));
+    }
+    if settings.adjoint_image && kind.samples_light_starts() {
+        let (c, r) = settings.adjoint.resolution;
+        // the estimate, the distribution and its per-pass sums (f64 each)
+        parts.push(("adjoint", c as u64 * r as u64 * 4 * 8));
+    }
+    parts
+}
+
+/// The scene's grids (their values and majorant blocks) and primitives with the BVH.
+fn scene_bytes(scene: &Scene) -> u64 {
+    /// A primitive in the BVH with its node share.
+    const PRIMITIVE_BYTES: u64 = 128;
+    let grids: u64 = scene
+        .media
+        .iter()
+        .map(|m| match m {
+            Medium::Heterogeneous(h) => match &h.density {
+                Density::Grid(g) => g.values.len() as u64 * 4,
+                Density::Field(_) => 0,
+            },
+            Medium::Homogeneous(_) => 0,
+        })
+        .sum();
+    grids + scene.prims.len() as u64 * PRIMITIVE_BYTES
+}
+
+/// The default `--max-memory`: [`MACHINE_SHARE`] of the machine's memory (MemTotal of
+/// `/proc/meminfo`), or [`FALLBACK_MAX_MEMORY`] where that file does not exist.
+pub fn default_max_memory() -> u64 {
+    match machine_memory() {
+        Some(total) => (total as f64 * MACHINE_SHARE) as u64,
+        None => FALLBACK_MAX_MEMORY,
+    }
+}
+
+/// The share of the machine's memory a render may use by default (the rest is the system's
+/// and other programs').
+pub const MACHINE_SHARE: f64 = 0.75;
+/// The limit where the machine's memory is unknown (no `/proc/meminfo`).
+pub const FALLBACK_MAX_MEMORY: u64 = 8 << 30;
+
+/// MemTotal of `/proc/meminfo` in bytes.
+pub fn machine_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// The process's peak resident memory so far in bytes (getrusage's ru_maxrss, KiB on Linux).
+pub fn peak_resident() -> Option<u64> {
+    // SAFETY: getrusage writes into the zeroed struct it is given and reads nothing else.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0;
+    (ok && usage.ru_maxrss > 0).then(|| usage.ru_maxrss as u64 * 1024)
+}
