@@ -1,4 +1,4 @@
-//! The book in a real browser, offline: every chapter is built, served from 127.0.0.1 and opened
+//! The book in a real browser, offline: the book is built, and every chapter is served from 127.0.0.1 and opened
 //! in headless Chromium, whose every request goes through this test's server (it is Chromium's
 //! proxy too, loopback included). A chapter passes when no request left the book (another host,
 //! or `CONNECT` for https), none failed (404), no raw TeX delimiter is left in its text outside
@@ -453,6 +453,10 @@ fn check_chapter(
                 "{rendered} rendered formulas (mjx-container), the markdown writes {formulas}"
             ));
         }
+        // mdBook's smart punctuation makes a prime `'` a `’`; the config gives TeX its prime back
+        if dom.contains("mjx-c2019") {
+            problems.push("a typographic apostrophe (’) in a formula instead of a prime".into());
+        }
         for part in dom.split("data-mjx-error=\"").skip(1) {
             let msg = part.split('"').next().unwrap_or("");
             problems.push(format!("TeX error: {msg}"));
@@ -460,7 +464,13 @@ fn check_chapter(
     }
     if !problems.is_empty() {
         let err = std::fs::read_to_string(&err_file).unwrap_or_default();
-        let tail: Vec<&str> = err.lines().rev().take(5).collect();
+        // without the noise of a machine with no D-Bus
+        let tail: Vec<&str> = err
+            .lines()
+            .filter(|l| !l.contains("dbus"))
+            .rev()
+            .take(5)
+            .collect();
         if !tail.is_empty() {
             problems.push(format!(
                 "chromium's stderr (last lines):\n      {}",
@@ -496,7 +506,7 @@ fn every_chapter_renders_its_math_offline_in_chromium() {
         out.clone()
     };
 
-    // every chapter (each markdown file of the book), with its formulas; print.html has them all
+    // every chapter (each markdown file of the book), with its formulas
     let mut pages: Vec<(String, usize)> = Vec::new();
     let mut total = 0;
     let mut entries: Vec<PathBuf> = std::fs::read_dir(book_dir().join("src"))
@@ -515,9 +525,8 @@ fn every_chapter_renders_its_math_offline_in_chromium() {
         pages.push((page, n));
     }
     assert!(total > 500, "only {total} formulas counted in the book");
-    pages.push(("print.html".to_string(), total));
-    // the longest page first, so that it does not finish last
-    pages.rotate_right(1);
+    // print.html (every chapter again on one page) is left out: it would double the test's time
+    // and checks nothing the chapters do not.
 
     let started = Instant::now();
     let next = AtomicUsize::new(0);
@@ -532,8 +541,7 @@ fn every_chapter_renders_its_math_offline_in_chromium() {
             s.spawn(|| loop {
                 let i = next.fetch_add(1, Ordering::SeqCst);
                 let Some((page, n)) = pages.get(i) else { break };
-                let budget = if page == "print.html" { 20_000 } else { 5_000 };
-                let (problems, took) = check_chapter(&chrome, &root, page, *n, budget);
+                let (problems, took) = check_chapter(&chrome, &root, page, *n, 5_000);
                 results
                     .lock()
                     .unwrap()
