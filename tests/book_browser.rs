@@ -1,12 +1,14 @@
-//! The book in a real browser, offline: the book is built, and every chapter is served from 127.0.0.1 and opened
-//! in headless Chromium, whose every request goes through this test's server (it is Chromium's
-//! proxy too, loopback included). A chapter passes when no request left the book (another host,
-//! or `CONNECT` for https), none failed (404), no raw TeX delimiter is left in its text outside
-//! code, MathJax reported no TeX error, and it shows at least as many rendered formulas
-//! (`mjx-container`) as its markdown writes.
+//! The book in a real browser, offline: the book is built, and every chapter is served from
+//! 127.0.0.1 and opened in headless Chromium, whose every request goes through this test's server
+//! (it is Chromium's proxy too, loopback included). A chapter passes when no request left the
+//! book (another host, or `CONNECT` for https; the few hosts Chromium calls on its own are logged
+//! and set apart, see `CHROMIUM_OWN_HOSTS`), none failed (404), no raw TeX delimiter is left in
+//! its text outside code, MathJax reported no TeX error, and it shows at least as many rendered
+//! formulas (`mjx-container`) as its markdown writes.
 //!
-//! Needs `/usr/bin/chromium` (or `chromium` on `PATH`; `.ci/run` installs it). Without it the test
-//! fails, loudly, unless `PATHSPACE_SKIP_BROWSER=1` is set.
+//! Needs `/usr/bin/chromium` (or `chromium` on `PATH`, or the binary `PATHSPACE_CHROMIUM` names;
+//! `.ci/run` installs it). Without it the test fails, loudly, unless `PATHSPACE_SKIP_BROWSER=1` is
+//! set.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
@@ -33,7 +35,13 @@ fn temp_dir(what: &str) -> PathBuf {
     dir
 }
 
+/// `PATHSPACE_CHROMIUM` if set (a Chromium or Chrome binary), else `/usr/bin/chromium`, else
+/// `chromium` on `PATH`.
 fn chromium() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("PATHSPACE_CHROMIUM") {
+        let p = PathBuf::from(p);
+        return p.exists().then_some(p);
+    }
     let fixed = PathBuf::from("/usr/bin/chromium");
     if fixed.exists() {
         return Some(fixed);
