@@ -186,7 +186,8 @@ fn every_equation_chapter_has_a_symbol_table_and_a_check_it_yourself_section() {
 }
 
 /// Markdown eats a backslash before punctuation before MathJax sees the formula: `\,` becomes a
-/// comma, `\\` (a line break in `cases`) a single backslash, `\|` a bar. Inside `$$ ... $$` and
+/// comma, `\\` (a line break in `cases`) a single backslash, `\|` a bar, `\#` a `#` (a TeX
+/// error). Inside `$$ ... $$` and
 /// `\\( ... \\)`, `\\[ ... \\]` every such TeX command must be written with its backslash doubled.
 #[test]
 fn math_keeps_its_backslashes_through_markdown() {
@@ -222,7 +223,7 @@ fn math_keeps_its_backslashes_through_markdown() {
                     }
                     let next = bytes.get(i + run).copied().unwrap_or(b' ');
                     // one backslash before punctuation, or two meaning a TeX line break
-                    let eaten = (run == 1 && b",;!{}|".contains(&next))
+                    let eaten = (run == 1 && b",;!{}|#%&_$".contains(&next))
                         || (run == 2 && !next.is_ascii_punctuation());
                     if eaten {
                         let s = i.saturating_sub(20);
@@ -243,6 +244,53 @@ fn math_keeps_its_backslashes_through_markdown() {
     assert!(
         bad.is_empty(),
         "TeX escapes markdown will eat:\n{}",
+        bad.join("\n")
+    );
+}
+
+/// A line of display math that starts like a markdown block (`+ `, `- `, `* `, `> `, `#`, `1. `)
+/// is turned into a list, a quote or a heading before MathJax sees it, and the formula is lost
+/// (the book's equation of transfer was, until `tests/book_browser.rs` showed it): put the
+/// operator at the end of the line before.
+#[test]
+fn display_math_has_no_line_that_markdown_takes_for_a_block() {
+    let mut bad = Vec::new();
+    for ch in chapters() {
+        let text = std::fs::read_to_string(&ch).unwrap();
+        for (k, prose) in text.split("```").enumerate() {
+            if k % 2 == 1 {
+                continue; // fenced code
+            }
+            for (open, close) in [("$$", "$$"), ("\\\\[", "\\\\]")] {
+                let mut rest = prose;
+                while let Some(a) = rest.find(open) {
+                    let after = &rest[a + open.len()..];
+                    let Some(b) = after.find(close) else { break };
+                    for line in after[..b].lines().skip(1) {
+                        let t = line.trim_start();
+                        let digits = t.chars().take_while(|c| c.is_ascii_digit()).count();
+                        let block = ["+ ", "- ", "* ", "> ", "#"]
+                            .iter()
+                            .any(|p| t.starts_with(p))
+                            || (digits > 0
+                                && (t[digits..].starts_with(". ")
+                                    || t[digits..].starts_with(") ")));
+                        if block {
+                            bad.push(format!(
+                                "{}: `{}`",
+                                ch.file_name().unwrap().to_string_lossy(),
+                                line.trim()
+                            ));
+                        }
+                    }
+                    rest = &after[b + close.len()..];
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "display math lines markdown reads as a list, quote or heading:\n{}",
         bad.join("\n")
     );
 }
