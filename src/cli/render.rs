@@ -80,10 +80,9 @@ pub struct SessionArgs {
     /// state beside it (`OUT.checkpoint`), so that a crash loses at most that much.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint: Option<f64>,
-    /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
-    /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
-    #[arg(long, value_name = "GIB")]
-    pub max_memory: Option<f64>,
+    /// The memory limit.
+    #[command(flatten)]
+    pub memory: MemoryArgs,
     /// Continue the render saved in this checkpoint (`OUT.checkpoint`, or the `OUT.exr` beside
     /// it), with the same scene, options and seed; `--spp` may ask for more samples.
     #[arg(long, value_name = "FILE")]
@@ -108,19 +107,61 @@ impl SessionArgs {
                 )));
             }
         }
-        if let Some(m) = self.max_memory {
-            if !(m > 0.0 && m.is_finite()) {
-                return Err(CliError::Usage(format!(
-                    "--max-memory {m} must be a positive number of GiB"
-                )));
-            }
-        }
+        self.memory.check()?;
         if let Some(t) = self.checkpoint {
             if !(t >= 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
                     "--checkpoint {t} must be a number of seconds (0: after every pass)"
                 )));
             }
+        }
+        Ok(())
+    }
+}
+
+/// `--max-memory`, declared once for `render`, `reference` and `converge`.
+#[derive(Args, Debug, Default, Clone)]
+pub struct MemoryArgs {
+    /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
+    /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
+    #[arg(long, value_name = "GIB")]
+    pub max_memory: Option<f64>,
+}
+
+impl MemoryArgs {
+    /// Refuses a limit that is no positive number.
+    pub(super) fn check(&self) -> Result<(), CliError> {
+        match self.max_memory {
+            Some(m) if !(m > 0.0 && m.is_finite()) => Err(CliError::Usage(format!(
+                "--max-memory {m} must be a positive number of GiB"
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Refuses an `estimate` above the limit (by default a share of the machine's memory),
+    /// naming both.
+    pub(super) fn refuse_above(&self, estimate: &memory::MemoryEstimate) -> Result<(), CliError> {
+        let (limit, origin) = match self.max_memory {
+            Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
+            None => (
+                memory::default_max_memory(),
+                match memory::machine_memory() {
+                    Some(m) => format!(
+                        "the default, {:.0}% of this machine's {}",
+                        memory::MACHINE_SHARE * 100.0,
+                        memory::gib(m)
+                    ),
+                    None => "the default where /proc/meminfo is missing".to_string(),
+                },
+            ),
+        };
+        if estimate.total() > limit {
+            return Err(CliError::Memory {
+                needs: estimate.describe(),
+                limit: memory::gib(limit),
+                origin,
+            });
         }
         Ok(())
     }
@@ -731,27 +772,7 @@ fn check_memory(
     threads: usize,
 ) -> Result<memory::MemoryEstimate, CliError> {
     let estimate = memory::estimate(scene, plan.kind, &plan.settings, threads);
-    let (limit, origin) = match args.session.max_memory {
-        Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
-        None => (
-            memory::default_max_memory(),
-            match memory::machine_memory() {
-                Some(m) => format!(
-                    "the default, {:.0}% of this machine's {}",
-                    memory::MACHINE_SHARE * 100.0,
-                    memory::gib(m)
-                ),
-                None => "the default where /proc/meminfo is missing".to_string(),
-            },
-        ),
-    };
-    if estimate.total() > limit {
-        return Err(CliError::Memory {
-            needs: estimate.describe(),
-            limit: memory::gib(limit),
-            origin,
-        });
-    }
+    args.session.memory.refuse_above(&estimate)?;
     Ok(estimate)
 }
 
