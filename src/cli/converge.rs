@@ -62,6 +62,9 @@ pub struct ConvergeArgs {
     /// Guided local sampling of the `+guide` variants.
     #[command(flatten)]
     pub guide: Box<super::render::GuideArgs>,
+    /// The memory limit every line's render is checked against before the runs begin.
+    #[command(flatten)]
+    pub memory: super::render::MemoryArgs,
 }
 
 /// An integrator named on the command line: a kind and its variant modifiers: `+guide`,
@@ -349,6 +352,37 @@ fn parse_lines(
     Ok((variants, guided))
 }
 
+/// Refuses, before the runs begin, lines whose render would need more memory than
+/// `--max-memory` allows (the estimate of `render`, at the scene's resolution).
+fn check_memory(
+    args: &ConvergeArgs,
+    scene: &crate::scene::Scene,
+    settings: &crate::integrator::RenderSettings,
+    (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
+) -> Result<(), CliError> {
+    args.memory.check()?;
+    let threads = super::reference::thread_pool(args.threads)?.current_num_threads();
+    let mut lines = Vec::new();
+    for v in variants {
+        let mut s = settings.clone();
+        if let Some(a) = v.adjoint {
+            (s.adjoint_image, s.adjoint) = (true, a);
+        }
+        lines.push((v.kind, s));
+    }
+    for (kind, over) in guided {
+        let mut s = settings.clone();
+        let flags = args.guide.apply_flags(settings.guide);
+        s.guide = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
+        lines.push((*kind, s));
+    }
+    for (kind, s) in &lines {
+        let estimate = crate::integrator::memory::estimate(scene, *kind, s, threads);
+        args.memory.refuse_above(&estimate)?;
+    }
+    Ok(())
+}
+
 /// `--external NAME=DIR`, parsed.
 fn parse_externals(args: &ConvergeArgs) -> Result<Vec<(String, PathBuf)>, CliError> {
     args.external
@@ -472,6 +506,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     if config.runs == 0 {
         return Err(CliError::Usage("--runs must be at least 1".into()));
     }
+    check_memory(&args, &scene, &settings, (&variants, &guided))?;
     std::fs::create_dir_all(&args.output)
         .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
     let mut external_rows = Vec::new();

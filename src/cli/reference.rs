@@ -1,13 +1,19 @@
-//! `pathspace reference SCENE [--spp N | --time SECONDS] [-o REF.exr] [--seed S] [--threads N]`:
+//! `pathspace reference SCENE [--spp N | --time SECONDS] [-o REF.exr] [--seed S] [--threads N]
+//! [--integrator I] [--checkpoint SECONDS] [--resume FILE] [--max-memory GIB] [--reproducible]`:
 //! a high-sample render with the most robust integrator, the yardstick of `converge` and `diff`.
-//! The EXR records its integrator, spp, seed, seconds and scene hash; an existing reference of a
-//! different scene is never overwritten.
+//! It is `render` with other defaults (the integrator of `measure::reference_integrator`, 4096
+//! spp, `SCENE-ref.exr`), run by `render`'s steps, so that its checks before the work, its
+//! signal handling, checkpoints and records are `render`'s. The EXR records `reference = true`
+//! and the estimated relMSE besides; an existing reference of a different scene is never
+//! overwritten.
 
 use clap::Args;
 use std::path::{Path, PathBuf};
 
+use super::render::{RenderArgs, SessionArgs};
 use super::CliError;
-use crate::image_io::{self, ImageMeta};
+use crate::image_io;
+use crate::integrator::settings::RenderOptions;
 use crate::measure;
 
 /// Samples per pixel of a reference when neither --spp nor --time is given.
@@ -20,22 +26,40 @@ pub struct ReferenceArgs {
     /// Samples per pixel (default 4096).
     #[arg(long, conflicts_with = "time")]
     pub spp: Option<u32>,
-    /// Render for this many seconds instead of a fixed spp.
-    #[arg(long)]
-    pub time: Option<f64>,
-    /// Output EXR (default: the scene's name with -ref.exr, in the current directory).
-    #[arg(short = 'o', long = "output")]
-    pub output: Option<PathBuf>,
     /// Random seed (default: the scene's `[render] seed`).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Override the integrator (default: the most robust one for the scene, see
     /// `measure::reference_integrator`), e.g. `bdpt` where light arrives through long chains.
     #[arg(long)]
     pub integrator: Option<String>,
+    /// The session's options, declared once with `render`'s.
+    #[command(flatten)]
+    pub session: SessionArgs,
+}
+
+impl ReferenceArgs {
+    /// The `render` these arguments ask for on `scene`: its integrator (by default the most
+    /// robust one for the scene), spp (default 4096), seed and session options.
+    fn render_args(&self, scene: &crate::scene::Scene) -> RenderArgs {
+        let integrator = match &self.integrator {
+            Some(name) => name.clone(),
+            None => measure::reference_integrator(scene).name().to_string(),
+        };
+        let options = RenderOptions {
+            integrator: Some(integrator),
+            spp: Some(self.spp.unwrap_or(DEFAULT_REFERENCE_SPP)),
+            seed: self.seed,
+            ..RenderOptions::default()
+        };
+        RenderArgs {
+            scene: Some(self.scene.clone()),
+            options: Box::new(options),
+            session: self.session.clone(),
+            reference: true,
+            ..RenderArgs::default()
+        }
+    }
 }
 
 /// A rayon pool of `threads` workers (all cores when None).
@@ -94,76 +118,8 @@ pub fn run(args: ReferenceArgs) -> Result<(), CliError> {
     if scene.camera.is_none() {
         return Err(CliError::NoCamera(source.name));
     }
-    let spp = args.spp.unwrap_or(DEFAULT_REFERENCE_SPP);
-    if spp == 0 {
-        return Err(CliError::Usage("--spp must be at least 1".into()));
-    }
-    if let Some(t) = args.time {
-        if !(t > 0.0 && t.is_finite()) {
-            return Err(CliError::Usage(format!(
-                "--time {t} must be a positive number of seconds"
-            )));
-        }
-    }
-    let stem = args
-        .scene
-        .file_stem()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_else(|| "scene".into());
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("{stem}-ref.exr")));
-    let hash = hash_hex(source.hash());
-    check_overwrite(&output, &source.name, &hash)?;
-
-    let kind = match &args.integrator {
-        Some(name) => crate::integrator::IntegratorKind::parse(name)?,
-        None => measure::reference_integrator(&scene),
-    };
-    let seed = args.seed.unwrap_or(settings.seed);
-    let job = crate::integrator::session::Job {
-        kind,
-        setup: crate::integrator::Setup {
-            scene: &scene,
-            technique: &crate::path::PLAIN,
-            settings: &settings,
-            seed,
-            max_depth: settings.max_depth,
-        },
-        spp,
-        time: args.time,
-        progress: true,
-    };
-    let pool = thread_pool(args.threads)?;
-    let result = pool.install(|| crate::integrator::session::render(&job))?;
-    let estimated = super::render::estimated_relmse(&result);
-    let image = result.image.as_ref().ok_or(CliError::NoImage)?;
-    let mut meta = ImageMeta::default();
-    meta.set("integrator", &result.integrator)
-        .set("spp", result.spp)
-        .set("seed", seed)
-        .set("seconds", format!("{:.3}", result.seconds))
-        .set("scene", &source.name)
-        .set("scene_hash", &hash)
-        .set("nan_count", result.nan_count)
-        .set(
-            "streams",
-            crate::integrator::provenance::format_streams(&result.streams),
-        )
-        .set("reference", "true");
-    if let Some(e) = estimated {
-        meta.set("estimated_relmse", format!("{e:.6e}"));
-    }
-    image_io::write_exr(&output, image, &meta)?;
-    println!(
-        "reference of {} with {}: {} spp in {:.1} s, estimated relMSE {} -> {}",
-        source.name,
-        result.integrator,
-        result.spp,
-        result.seconds,
-        estimated.map_or("n/a".to_string(), |e| format!("{e:.3e}")),
-        output.display()
-    );
-    Ok(())
+    let render = args.render_args(&scene);
+    let (output, _) = super::render::output_paths(&render);
+    check_overwrite(&output, &source.name, &hash_hex(source.hash()))?;
+    super::render::run_scene(&render, &scene, settings, &source)
 }

@@ -34,18 +34,9 @@ pub struct RenderArgs {
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time")]
     pub mutations_per_pixel: Option<u32>,
-    /// Render for this many seconds instead of a fixed spp.
-    #[arg(long)]
-    pub time: Option<f64>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    pub threads: Option<usize>,
     /// Override the camera resolution, e.g. `64x64` (quick previews, golden images).
     #[arg(long, value_parser = parse_resolution)]
     pub resolution: Option<(u32, u32)>,
-    /// Output EXR (default: the scene's name with .exr, in the current directory).
-    #[arg(short = 'o', long = "output")]
-    pub output: Option<PathBuf>,
     /// PNG preview (default: next to the EXR).
     #[arg(long)]
     pub png: Option<PathBuf>,
@@ -62,14 +53,36 @@ pub struct RenderArgs {
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
     #[arg(long)]
     pub adjoint_output: Option<PathBuf>,
+    /// The session's options, shared with `reference`.
+    #[command(flatten)]
+    pub session: SessionArgs,
+    /// Set by `reference`: record `reference = true` and the estimated relMSE, print the
+    /// reference's summary line.
+    #[arg(skip)]
+    pub reference: bool,
+}
+
+/// The options of a render session, declared once for `render` and `reference`: its length,
+/// threads, output, memory limit, checkpoints and resumption.
+#[derive(Args, Debug, Default, Clone)]
+pub struct SessionArgs {
+    /// Render for this many seconds instead of a fixed spp.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output EXR (default: the scene's name with .exr, `reference`: with -ref.exr, in the
+    /// current directory).
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
     /// Every SECONDS (after the pass that passes them), write the image so far and the render's
     /// state beside it (`OUT.checkpoint`), so that a crash loses at most that much.
     #[arg(long, value_name = "SECONDS")]
     pub checkpoint: Option<f64>,
-    /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
-    /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
-    #[arg(long, value_name = "GIB")]
-    pub max_memory: Option<f64>,
+    /// The memory limit.
+    #[command(flatten)]
+    pub memory: MemoryArgs,
     /// Continue the render saved in this checkpoint (`OUT.checkpoint`, or the `OUT.exr` beside
     /// it), with the same scene, options and seed; `--spp` may ask for more samples.
     #[arg(long, value_name = "FILE")]
@@ -79,6 +92,79 @@ pub struct RenderArgs {
     /// the timings still go to stderr and `--json`.
     #[arg(long)]
     pub reproducible: bool,
+}
+
+impl SessionArgs {
+    /// Refuses values no session can take (zero threads, a negative time or memory limit).
+    fn check(&self) -> Result<(), CliError> {
+        if self.threads == Some(0) {
+            return Err(CliError::Usage("--threads must be at least 1".into()));
+        }
+        if let Some(t) = self.time {
+            if !(t > 0.0 && t.is_finite()) {
+                return Err(CliError::Usage(format!(
+                    "--time {t} must be a positive number of seconds"
+                )));
+            }
+        }
+        self.memory.check()?;
+        if let Some(t) = self.checkpoint {
+            if !(t >= 0.0 && t.is_finite()) {
+                return Err(CliError::Usage(format!(
+                    "--checkpoint {t} must be a number of seconds (0: after every pass)"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `--max-memory`, declared once for `render`, `reference` and `converge`.
+#[derive(Args, Debug, Default, Clone)]
+pub struct MemoryArgs {
+    /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
+    /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
+    #[arg(long, value_name = "GIB")]
+    pub max_memory: Option<f64>,
+}
+
+impl MemoryArgs {
+    /// Refuses a limit that is no positive number.
+    pub(super) fn check(&self) -> Result<(), CliError> {
+        match self.max_memory {
+            Some(m) if !(m > 0.0 && m.is_finite()) => Err(CliError::Usage(format!(
+                "--max-memory {m} must be a positive number of GiB"
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Refuses an `estimate` above the limit (by default a share of the machine's memory),
+    /// naming both.
+    pub(super) fn refuse_above(&self, estimate: &memory::MemoryEstimate) -> Result<(), CliError> {
+        let (limit, origin) = match self.max_memory {
+            Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
+            None => (
+                memory::default_max_memory(),
+                match memory::machine_memory() {
+                    Some(m) => format!(
+                        "the default, {:.0}% of this machine's {}",
+                        memory::MACHINE_SHARE * 100.0,
+                        memory::gib(m)
+                    ),
+                    None => "the default where /proc/meminfo is missing".to_string(),
+                },
+            ),
+        };
+        if estimate.total() > limit {
+            return Err(CliError::Memory {
+                needs: estimate.describe(),
+                limit: memory::gib(limit),
+                origin,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// The adjoint image's pre-pass options, shared by `render` and `converge` (`+adjoint` lines):
@@ -117,31 +203,7 @@ impl RenderArgs {
                 kind.name()
             )));
         }
-        if self.threads == Some(0) {
-            return Err(CliError::Usage("--threads must be at least 1".into()));
-        }
-        if let Some(t) = self.time {
-            if !(t > 0.0 && t.is_finite()) {
-                return Err(CliError::Usage(format!(
-                    "--time {t} must be a positive number of seconds"
-                )));
-            }
-        }
-        if let Some(m) = self.max_memory {
-            if !(m > 0.0 && m.is_finite()) {
-                return Err(CliError::Usage(format!(
-                    "--max-memory {m} must be a positive number of GiB"
-                )));
-            }
-        }
-        if let Some(t) = self.checkpoint {
-            if !(t >= 0.0 && t.is_finite()) {
-                return Err(CliError::Usage(format!(
-                    "--checkpoint {t} must be a number of seconds (0: after every pass)"
-                )));
-            }
-        }
-        Ok(())
+        self.session.check()
     }
 }
 
@@ -319,19 +381,21 @@ fn write_strategy_images(
     Ok(())
 }
 
-/// Where the image goes: `-o` (default: the scene's name with .exr, in the current directory)
-/// and `--png` (default: next to the EXR).
-fn output_paths(args: &RenderArgs) -> (PathBuf, PathBuf) {
+/// Where the image goes: `-o` (default: the scene's name with .exr, a reference's with
+/// -ref.exr, in the current directory) and `--png` (default: next to the EXR).
+pub(super) fn output_paths(args: &RenderArgs) -> (PathBuf, PathBuf) {
     let stem = args
         .scene
         .as_ref()
         .and_then(|p| p.file_stem())
         .map(|s| s.to_string_lossy().to_string())
         .unwrap_or_else(|| "fog-box".into());
+    let suffix = if args.reference { "-ref" } else { "" };
     let exr = args
+        .session
         .output
         .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("{stem}.exr")));
+        .unwrap_or_else(|| PathBuf::from(format!("{stem}{suffix}.exr")));
     let png = args
         .png
         .clone()
@@ -411,7 +475,13 @@ fn write_image(
         )
         .set("guide_seconds", format!("{:.3}", g.seconds()));
     }
-    if args.reproducible {
+    if args.reference {
+        meta.set("reference", "true");
+        if let Some(e) = estimated_relmse(result) {
+            meta.set("estimated_relmse", format!("{e:.6e}"));
+        }
+    }
+    if args.session.reproducible {
         for key in TIMING_KEYS {
             meta.attributes.remove(key);
         }
@@ -547,14 +617,25 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
             .ok_or_else(|| CliError::Usage("--resolution needs a scene with a camera".into()))?;
         scene.camera = cam.with_resolution(w, h);
     }
-    let plan = configure(&args, &scene, settings)?;
-    check_outputs(&args, scene.camera.is_some())?;
-    let pool = thread_pool(args.threads)?;
-    let memory = check_memory(&args, &scene, &plan, pool.current_num_threads())?;
+    run_scene(&args, &scene, settings, &source)
+}
+
+/// Renders a loaded scene with every check before the work (options, outputs, memory), under
+/// the signal handlers, with checkpoints: `render`'s steps, which `reference` runs too.
+pub(super) fn run_scene(
+    args: &RenderArgs,
+    scene: &crate::scene::Scene,
+    settings: RenderSettings,
+    source: &crate::scene::SceneSource,
+) -> Result<(), CliError> {
+    let plan = configure(args, scene, settings)?;
+    check_outputs(args, scene.camera.is_some())?;
+    let pool = thread_pool(args.session.threads)?;
+    let memory = check_memory(args, scene, &plan, pool.current_num_threads())?;
     let t0 = std::time::Instant::now();
     let pre = pool.install(|| {
         session::preprocess(
-            &scene,
+            scene,
             plan.adjoint.as_ref(),
             &plan.settings.guide,
             plan.settings.seed,
@@ -564,60 +645,76 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     })?;
     // `--time` counts the preprocessing: the passes get what it left (at least one pass)
     let preprocessing = t0.elapsed().as_secs_f64();
-    if let Some(t) = args.time.filter(|&t| preprocessing > t) {
+    if let Some(t) = args.session.time.filter(|&t| preprocessing > t) {
         eprintln!("warning: the preprocessing took {preprocessing:.2} s of the {t} s of --time: one pass follows");
     }
-    show_adjoint(&args, &pre, &plan, &source)?;
+    show_adjoint(args, &pre, &plan, source)?;
     if let (Some(g), false) = (&pre.guide, args.json) {
         eprint!("{}", g.table());
     }
     let setup = Setup {
-        scene: &scene,
+        scene,
         technique: &pre.technique,
         settings: &plan.settings,
         seed: plan.settings.seed,
         max_depth: plan.settings.max_depth,
     };
     if let Some(dir) = &args.strategy_images {
-        pool.install(|| write_strategy_images(&args, dir, &setup, &plan, &source))?;
+        pool.install(|| write_strategy_images(args, dir, &setup, &plan, source))?;
     }
     let job = Job {
         kind: plan.kind,
         setup,
         spp: plan.settings.spp,
-        time: args.time.map(|t| t - preprocessing),
+        time: args.session.time.map(|t| t - preprocessing),
         progress: !args.json,
     };
-    let ended = render_job(&args, &job, &plan, &pre, &source)?;
+    let ended = render_job(args, &job, &plan, &pre, source)?;
+    let done = Done {
+        ended: &ended,
+        plan: &plan,
+        pre: &pre,
+        memory: &memory,
+    };
+    finish(args, &done, source)
+}
+
+/// What a finished (or stopped) render hands to [`finish`].
+struct Done<'a> {
+    ended: &'a Ended,
+    plan: &'a Plan,
+    pre: &'a Preprocessed,
+    memory: &'a memory::MemoryEstimate,
+}
+
+/// Writes the image (and the checkpoint when the render stopped or `--checkpoint` asked for
+/// it), reports, and turns a stop by a signal into its error (exit 128 + signal).
+fn finish(
+    args: &RenderArgs,
+    done: &Done,
+    source: &crate::scene::SceneSource,
+) -> Result<(), CliError> {
+    let (ended, plan, pre) = (done.ended, done.plan, done.pre);
     let result = &ended.result;
-    let mut written = write_image(&args, result, &plan, &pre, &source)?;
-    let keep_state = ended.stopped_by.is_some() || args.checkpoint.is_some();
+    let mut written = write_image(args, result, plan, pre, source)?;
+    let keep_state = ended.stopped_by.is_some() || args.session.checkpoint.is_some();
     if let (true, Some(c)) = (keep_state, &ended.checkpoint) {
-        let path = checkpoint_path(&output_paths(&args).0);
+        let path = checkpoint_path(&output_paths(args).0);
         c.write(&path)
             .map_err(crate::integrator::IntegratorError::from)?;
         written.push(path.display().to_string());
     }
-    if result.negative_pixels > 0 {
-        eprintln!(
-            "warning: {} pixels have a negative estimate (radiance is never negative): the \
-             estimator has not converged there{}",
-            result.negative_pixels,
-            if plan.kind == IntegratorKind::Smc {
-                " (SMC's control variates: more samples per pixel, or --smc-variant is1_cv0)"
-            } else {
-                ""
-            }
-        );
-    }
+    warn_negative(result, plan.kind);
     if args.json {
-        let mut j = result_json(result, &plan, &pre, &written);
+        let mut j = result_json(result, plan, pre, &written);
         j["memory"] = serde_json::json!({
-            "estimate": memory.total(),
-            "parts": memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
+            "estimate": done.memory.total(),
+            "parts": done.memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
             "peak_resident": memory::peak_resident(),
         });
         println!("{j}");
+    } else if args.reference {
+        print_reference(result, source, &written);
     } else {
         print_summary(result, &written);
     }
@@ -630,11 +727,40 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
                 result.spp,
                 plan.settings.spp,
                 written.join(", "),
-                checkpoint_path(&output_paths(&args).0).display()
+                checkpoint_path(&output_paths(args).0).display()
             ),
         }),
         None => Ok(()),
     }
+}
+
+/// Warns of pixels with a negative estimate (an estimator that has not converged there).
+fn warn_negative(result: &RenderResult, kind: IntegratorKind) {
+    if result.negative_pixels > 0 {
+        eprintln!(
+            "warning: {} pixels have a negative estimate (radiance is never negative): the \
+             estimator has not converged there{}",
+            result.negative_pixels,
+            if kind == IntegratorKind::Smc {
+                " (SMC's control variates: more samples per pixel, or --smc-variant is1_cv0)"
+            } else {
+                ""
+            }
+        );
+    }
+}
+
+/// The summary line of `reference`.
+fn print_reference(result: &RenderResult, source: &crate::scene::SceneSource, written: &[String]) {
+    println!(
+        "reference of {} with {}: {} spp in {:.1} s, estimated relMSE {} -> {}",
+        source.name,
+        result.integrator,
+        result.spp,
+        result.seconds,
+        estimated_relmse(result).map_or("n/a".to_string(), |e| format!("{e:.3e}")),
+        written.join(", ")
+    );
 }
 
 /// The render's estimated memory, refused above `--max-memory` (by default a share of the
@@ -646,27 +772,7 @@ fn check_memory(
     threads: usize,
 ) -> Result<memory::MemoryEstimate, CliError> {
     let estimate = memory::estimate(scene, plan.kind, &plan.settings, threads);
-    let (limit, origin) = match args.max_memory {
-        Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
-        None => (
-            memory::default_max_memory(),
-            match memory::machine_memory() {
-                Some(m) => format!(
-                    "the default, {:.0}% of this machine's {}",
-                    memory::MACHINE_SHARE * 100.0,
-                    memory::gib(m)
-                ),
-                None => "the default where /proc/meminfo is missing".to_string(),
-            },
-        ),
-    };
-    if estimate.total() > limit {
-        return Err(CliError::Memory {
-            needs: estimate.describe(),
-            limit: memory::gib(limit),
-            origin,
-        });
-    }
+    args.session.memory.refuse_above(&estimate)?;
     Ok(estimate)
 }
 
@@ -700,7 +806,7 @@ fn render_job(
     source: &crate::scene::SceneSource,
 ) -> Result<Ended, CliError> {
     let id = identity(plan, job.setup.scene, source);
-    let resume = match &args.resume {
+    let resume = match &args.session.resume {
         Some(file) => {
             let path = resume_path(file);
             let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
@@ -718,11 +824,11 @@ fn render_job(
     };
     let control = Control {
         stop: Some(super::interrupt::install().map_err(CliError::Signals)?),
-        every: args.checkpoint,
+        every: args.session.checkpoint,
         identity: Some(id),
         resume,
         on_checkpoint: Some(&mut write),
     };
-    let pool = thread_pool(args.threads)?;
+    let pool = thread_pool(args.session.threads)?;
     Ok(pool.install(|| session::render_with(job, control))?)
 }
