@@ -159,3 +159,70 @@ fn references_of_different_seeds_merge_without_force() {
     let (_, meta) = pathspace::image_io::read_exr(&merged).unwrap();
     assert_eq!(meta.get("spp"), Some("8"));
 }
+
+/// A scene's guide and adjoint image are settings for the methods a reference judges: the
+/// reference renders with plain sampling whatever the file says, and records that it did.
+#[test]
+fn a_reference_ignores_the_scenes_guide_and_adjoint_image() {
+    let dir = scratch("guided", 8);
+    let text = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
+    let guided = text.replacen(
+        "integrator = \"path\"",
+        "integrator = \"bdpt\"\nadjoint_image = true",
+        1,
+    ) + "\n[render.guide]\nvertices = \"surface\"\n";
+    assert!(
+        guided.contains("adjoint_image = true"),
+        "the fog box's integrator line moved"
+    );
+    std::fs::write(dir.join("scene.toml"), guided).unwrap();
+    let exr = dir.join("ref.exr");
+    let out = reference(&dir, &["--spp", "4", "-o", exr.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (_, meta) = pathspace::image_io::read_exr(&exr).unwrap();
+    let options = meta.get("render_options").unwrap();
+    assert!(options.contains("adjoint_image = false"), "{options}");
+    assert!(options.contains("vertices = \"off\""), "{options}");
+}
+
+/// `converge` renders at the scene's resolution: a line above `--max-memory` is refused with
+/// the figure before any run (the reference here is an 8x8 render of the same scene file, so
+/// the scene-hash check lets it through).
+#[test]
+fn converge_refuses_a_line_above_max_memory_before_its_runs() {
+    let dir = scratch("converge-memory", 16384);
+    let scene = dir.join("scene.toml");
+    let reference = dir.join("ref.exr");
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pathspace"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let (s, r) = (scene.to_str().unwrap(), reference.to_str().unwrap());
+    let out = run(&["render", s, "--resolution", "8x8", "--spp", "1", "-o", r]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let charts = dir.join("charts");
+    let out = run(&[
+        "converge",
+        s,
+        "--reference",
+        r,
+        "--integrators",
+        "path",
+        "--budget",
+        "1",
+        "--runs",
+        "1",
+        "--max-memory",
+        "1",
+        "-o",
+        charts.to_str().unwrap(),
+    ]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("needs about 44 GiB"), "{err}");
+    assert!(!charts.exists(), "converge ran before refusing");
+}

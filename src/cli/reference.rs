@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use super::render::{RenderArgs, SessionArgs};
 use super::CliError;
 use crate::image_io;
-use crate::integrator::settings::RenderOptions;
+use crate::integrator::settings::{GuideOptions, RenderOptions};
 use crate::measure;
 
 /// Samples per pixel of a reference when neither --spp nor --time is given.
@@ -40,7 +40,9 @@ pub struct ReferenceArgs {
 
 impl ReferenceArgs {
     /// The `render` these arguments ask for on `scene`: its integrator (by default the most
-    /// robust one for the scene), spp (default 4096), seed and session options.
+    /// robust one for the scene), spp (default 4096), seed and session options, always with
+    /// plain local sampling: a scene's `[render.guide]` and `adjoint_image` are for the methods
+    /// a reference judges, and the yardstick must not share their preprocessing.
     fn render_args(&self, scene: &crate::scene::Scene) -> RenderArgs {
         let integrator = match &self.integrator {
             Some(name) => name.clone(),
@@ -50,6 +52,11 @@ impl ReferenceArgs {
             integrator: Some(integrator),
             spp: Some(self.spp.unwrap_or(DEFAULT_REFERENCE_SPP)),
             seed: self.seed,
+            adjoint_image: Some(false),
+            guide: GuideOptions {
+                vertices: Some("off".into()),
+                ..GuideOptions::default()
+            },
             ..RenderOptions::default()
         };
         RenderArgs {
