@@ -56,6 +56,8 @@ ODD_VALUES = [
     "true", "[]", "{}", "[1]", "[1, 2]", "[1, 2, 3, 4]", '"1"', "[[1, 2, 3]]",
     "{ type = \"isotropic\" }", "1979-05-27", "[\"a\", 1]", "0x10",
 ]
+ODD_PATHS = ["/dev/zero", "/dev/urandom", "/dev/null", ".", "..", "/", "/etc/passwd",
+             "missing.grid", "scene.toml", "a/b/c.obj", ""]
 GRID_WORDS = ["0", "-1", "nan", "inf", "1e30", "1e-30", "1024", "100000", "3", "x", ""]
 
 
@@ -117,6 +119,7 @@ def grid_with_vol():
 NUMBER = re.compile(rb"(?<![\w.\"])-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.\"])")
 STRING = re.compile(rb'"[^"\n]*"')
 VALUE = re.compile(rb"^(\s*[\w.\"-]+\s*=\s*)(.+)$", re.M)
+FILE_VALUE = re.compile(rb'^(\s*(?:file|obj)\s*=\s*")[^"\n]*"', re.M)
 ARRAY = re.compile(rb"\[([^\[\]\n]+)\]")
 
 
@@ -183,13 +186,17 @@ def huge_array(rng, text):
 def mutate_toml(rng, text, keys, strings):
     op = rng.choices(
         ["scale", "number", "string", "value", "delete", "duplicate", "swap", "array", "insert",
-         "noise", "truncate", "table", "huge"],
-        weights=[20, 30, 14, 10, 8, 5, 4, 8, 10, 4, 2, 4, 1],
+         "noise", "truncate", "table", "huge", "path"],
+        weights=[20, 30, 14, 10, 8, 5, 4, 8, 10, 4, 2, 4, 1, 3],
     )[0]
     if op == "scale":
         factor = rng.choice([0.01, 0.1, 0.5, 0.9, 1.1, 2.0, 10.0, 100.0, -1.0])
         text, new = sub_one(rng, NUMBER, text, lambda m: repr(float(m.group(0)) * factor).encode())
         return text, f"number scaled -> {new!r}"
+    if op == "path":
+        odd = rng.choice(ODD_PATHS)
+        text, new = sub_one(rng, FILE_VALUE, text, lambda m: m.group(1) + odd.encode() + b'"')
+        return text, f"file -> {new!r}"
     if op == "number":
         text, new = sub_one(rng, NUMBER, text, lambda m: rng.choice(EXTREME_NUMBERS).encode())
         return text, f"number -> {new!r}"

@@ -11,6 +11,9 @@
 //! - **Units**: lengths in scene units, sigma in 1/length, radiance in W/(m^2 sr) per channel.
 //! - **Depth** counts scattering vertices (surface or medium) between sensor and light:
 //!   `max_depth = 0` is emission seen directly, 1 is single scattering.
+//! - **Input files** (scenes, grids, meshes) are read to a stated size at most
+//!   ([`read_at_most`]), because a path such as `/dev/zero` or a runaway file must be refused,
+//!   not read until the memory runs out.
 
 // ANCHOR: deflection
 /// The deflection cosine of a phase function for directions in pathspace's convention.
@@ -21,3 +24,31 @@ pub fn deflection_cosine(wo: glam::Vec3, wi: glam::Vec3) -> f32 {
     // END ASSIGNMENT
 }
 // ANCHOR_END: deflection
+
+/// The bytes of the file at `path` if it has at most `limit` of them; a longer file is an
+/// `InvalidData` error saying so, found from its length before reading, and so is a device or
+/// a pipe (`/dev/zero` never ends), which is not read at all.
+pub fn read_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidData, m);
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() && !meta.is_dir() {
+        return Err(invalid("is not a regular file (a device or a pipe)".into()));
+    }
+    let too_long = || {
+        invalid(format!(
+            "has more than {limit} bytes (the limit of such a file)"
+        ))
+    };
+    if meta.len() > limit {
+        return Err(too_long());
+    }
+    // the length may grow while the file is read: one byte more than the limit tells
+    let mut bytes = Vec::new();
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_long());
+    }
+    Ok(bytes)
+}

@@ -332,3 +332,43 @@ fn the_estimate_covers_the_records_of_a_long_smc_march() {
         "the march's records are the bulk: peak {peak}"
     );
 }
+
+/// A grid or a mesh that is a device (`/dev/zero` never ends) or longer than its stated limit is
+/// refused at its key without being read, and a scene file that never ends is refused after one
+/// byte more than its limit, instead of being read until memory runs out.
+#[cfg(unix)]
+#[test]
+fn an_endless_or_overlong_grid_mesh_or_scene_file_is_refused_at_its_limit() {
+    use pathspace::conventions::read_at_most;
+    let dir = scratch("endless");
+    let long = dir.join("long.txt");
+    std::fs::write(&long, [b'1'; 1001]).unwrap();
+    let e = read_at_most(&long, 1000).unwrap_err();
+    assert!(e.to_string().contains("more than 1000 bytes"), "{e}");
+    assert_eq!(read_at_most(&long, 1001).unwrap().len(), 1001);
+    let e = read_at_most(Path::new("/dev/zero"), u64::MAX).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let grid = fog_box_with(
+        "type = \"grid\"\nfile = \"/dev/zero\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\nsigma_a = 0.1\nsigma_s = 0.4\n",
+    );
+    let mesh = format!(
+        "{FOG_BOX}\n[[shapes]]\ntype = \"mesh\"\nobj = \"/dev/zero\"\nmaterial = \"white\"\n"
+    );
+    for (name, text, key) in [
+        ("grid", grid, "media.fog.file"),
+        ("mesh", mesh, "shapes[7].obj"),
+    ] {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = pathspace(&["info", path.to_str().unwrap()]);
+        let e = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{e}");
+        assert!(e.contains(key) && e.contains("not a regular file"), "{e}");
+    }
+    let out = pathspace(&["info", "/dev/zero"]);
+    let e = stderr(&out);
+    assert!(
+        e.starts_with("error: /dev/zero: the scene file has more than"),
+        "{e}"
+    );
+}

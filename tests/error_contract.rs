@@ -443,7 +443,7 @@ fn a_file_over_the_size_limit_is_refused_unread() {
     let (code, stderr) = info("big.toml", &text);
     assert_eq!(code, 1, "{stderr}");
     let want = format!(
-        "big.toml: key `(file)`: the scene file has more than {MAX_SCENE_BYTES} bytes (the limit of a scene file)"
+        "big.toml: the scene file has more than {MAX_SCENE_BYTES} bytes (the limit of a scene file)"
     );
     assert!(stderr.contains(&want), "{stderr}");
     // at the limit it is read (and valid: the rest is blank lines)
@@ -492,4 +492,33 @@ fn locating_an_error_among_many_shapes_costs_log_n_trials() {
         trials <= 40,
         "{trials} deserializations to locate one error among {n} shapes"
     );
+}
+
+// ---- other renderers' formats ----
+
+/// A Mitsuba XML or pbrt scene is named for what it is, not parsed as broken TOML; a TOML key
+/// that happens to be a pbrt directive's name is still TOML.
+#[test]
+fn a_mitsuba_or_pbrt_scene_is_named_for_what_it_is() {
+    let says = "pathspace reads its own TOML scene files";
+    let (code, e) = info(
+        "fog.xml",
+        b"<?xml version=\"1.0\"?>\n<scene version=\"3.0.0\">\n</scene>\n",
+    );
+    assert_eq!(code, 1, "{e}");
+    assert!(
+        e.starts_with("error: fog.xml: this file is XML (a Mitsuba scene?)") && e.contains(says),
+        "{e}"
+    );
+    let (code, e) = info(
+        "fog.pbrt",
+        b"# a pbrt scene\nLookAt 0 0 5  0 0 0  0 1 0\nWorldBegin\n",
+    );
+    assert_eq!(code, 1, "{e}");
+    assert!(
+        e.starts_with("error: fog.pbrt: this file is a pbrt scene") && e.contains(says),
+        "{e}"
+    );
+    let e = load("Camera = 1\n").unwrap_err().to_string();
+    assert!(!e.contains("pbrt"), "{e}");
 }

@@ -32,6 +32,10 @@ pub const MAX_GRID_SIDE: usize = 1024;
 /// whatever its sides.
 pub const MAX_GRID_VERTICES: usize = 1 << 27;
 
+/// The largest grid file read: a `.vol` at [`MAX_GRID_VERTICES`] takes 512 MiB and its header,
+/// a text grid about 8 bytes a value, so 1 GiB holds either at the vertex limit.
+pub const MAX_GRID_FILE_BYTES: u64 = 1 << 30;
+
 /// Size of the `.vol` header in bytes: 3 magic + 1 version + 5 i32 + 6 f32.
 const VOL_HEADER_BYTES: usize = 48;
 /// The `.vol` version byte pathspace reads.
@@ -53,10 +57,10 @@ pub struct Grid {
 
 /// Why a grid was rejected: the message names the file and the line or byte offset.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{file}: {location}: {message}")]
+#[error("{file}: {}{message}", if location.is_empty() { String::new() } else { format!("{location}: ") })]
 pub struct GridError {
     pub file: String,
-    /// `line N` (text) or `byte offset N` (binary), or `header`.
+    /// `line N` (text) or `byte offset N` (binary), `header`, or empty for the whole file.
     pub location: String,
     pub message: String,
 }
@@ -265,8 +269,8 @@ pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
         location,
         message,
     };
-    let bytes =
-        std::fs::read(path).map_err(|e| err("(file)".into(), format!("cannot read: {e}")))?;
+    let bytes = crate::conventions::read_at_most(path, MAX_GRID_FILE_BYTES)
+        .map_err(|e| err(String::new(), format!("cannot read: {e}")))?;
     if path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
@@ -274,7 +278,7 @@ pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
         parse_vol(&bytes).map_err(|(loc, msg)| err(loc, msg))
     } else {
         let text = String::from_utf8(bytes)
-            .map_err(|e| err("(file)".into(), format!("not UTF-8 text: {e}")))?;
+            .map_err(|e| err(String::new(), format!("not UTF-8 text: {e}")))?;
         parse_text(&text)
             .map(|grid| GridFile { grid, bounds: None })
             .map_err(|(loc, msg)| err(loc, msg))

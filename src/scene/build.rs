@@ -16,6 +16,7 @@ use glam::Vec3;
 pub use media::{
     DEFAULT_FREQUENCY, DEFAULT_OCTAVES, DEFAULT_RELATIVE_STEP, MAX_BAKE_RESOLUTION, MAX_OCTAVES,
 };
+pub use shapes::MAX_OBJ_BYTES;
 
 use super::file::{self, path};
 use super::{Scene, SceneError, SceneSource};

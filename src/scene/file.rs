@@ -31,13 +31,18 @@ pub struct SceneError {
     pub message: String,
 }
 
-/// The message a user reads: `file:line: key `k`: message`, control characters escaped
-/// (keys and values are quoted from the file).
+/// The `key` of an error about the file as a whole (it cannot be read, it is too long): such
+/// an error has no line and no key, and its message follows the file's name.
+pub const FILE_KEY: &str = "(file)";
+
+/// The message a user reads: `file:line: key `k`: message` (`file: message` for the file as a
+/// whole), control characters escaped (keys and values are quoted from the file).
 impl fmt::Display for SceneError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (file, key) = (escape_controls(&self.file), escape_controls(&self.key));
         let message = escape_controls(&self.message);
         match self.line {
+            _ if self.key == FILE_KEY => write!(f, "{file}: {message}"),
             Some(l) => write!(f, "{file}:{l}: key `{key}`: {message}"),
             None => write!(f, "{file}: key `{key}`: {message}"),
         }
@@ -462,6 +467,7 @@ pub fn parse(text: &str, name: &str) -> Result<SceneFile, SceneError> {
 pub fn parse_as<T: serde::de::DeserializeOwned>(text: &str, name: &str) -> Result<T, SceneError> {
     // what the parse may cost, checked before it
     limits::check_size(name, text.len())?;
+    limits::check_format(text, name)?;
     limits::check_arrays(text, name)?;
     let doc = match toml::de::DeTable::parse(text) {
         Ok(doc) => doc,
@@ -494,7 +500,7 @@ impl SceneSource {
             .map_err(|e| SceneError {
                 file: name.clone(),
                 line: None,
-                key: "(file)".into(),
+                key: FILE_KEY.into(),
                 message: format!("cannot read the scene file: {e}"),
             })?;
         limits::check_size(&name, bytes.len())?;

@@ -282,6 +282,9 @@ fn primitives(
     Ok((new, closed))
 }
 
+/// The largest OBJ file read (about 10 million triangles).
+pub const MAX_OBJ_BYTES: u64 = 1 << 30;
+
 /// The triangles of an OBJ file, every index and vertex checked, and whether the mesh is
 /// closed; a closed mesh holding a medium must be wound outwards.
 fn mesh(
@@ -292,8 +295,11 @@ fn mesh(
 ) -> Result<(Vec<Triangle>, bool), SceneError> {
     let file = src.base_dir.join(obj);
     let obj_key = key.clone().key("obj");
-    let text = std::fs::read_to_string(&file)
-        .map_err(|e| src.error(&obj_key, format!("cannot read `{}`: {e}", file.display())))?;
+    let cannot = |e: &dyn std::fmt::Display| {
+        src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
+    };
+    let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES).map_err(|e| cannot(&e))?;
+    let text = String::from_utf8(bytes).map_err(|e| cannot(&e))?;
     check_obj_indices(&text)
         .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
     let options = tobj::LoadOptions {

@@ -20,12 +20,12 @@ pub const MAX_ARRAY_ELEMENTS: usize = 4096;
 /// The deepest nesting of inline arrays and tables.
 pub const MAX_NESTING: usize = 32;
 
-/// An error about the file as a whole (`key` is `(file)`).
+/// An error about the file as a whole (its key is [`super::FILE_KEY`]).
 fn file_error(name: &str, message: String) -> SceneError {
     SceneError {
         file: name.to_string(),
         line: None,
-        key: "(file)".into(),
+        key: super::FILE_KEY.into(),
         message,
     }
 }
@@ -206,4 +206,49 @@ pub fn escape_controls(s: &str) -> Cow<'_, str> {
         }
     }
     Cow::Owned(out)
+}
+
+/// pbrt's scene directives: a file whose first statement is one of them is a pbrt scene.
+const PBRT_DIRECTIVES: [&str; 12] = [
+    "LookAt",
+    "Camera",
+    "Film",
+    "Sampler",
+    "Integrator",
+    "WorldBegin",
+    "Shape",
+    "Include",
+    "Import",
+    "Transform",
+    "PixelFilter",
+    "ColorSpace",
+];
+
+/// Refuses a scene in another renderer's format with what it is, instead of the TOML parser's
+/// confusing first complaint (`key with no value` at `<scene version`): a Mitsuba scene is XML
+/// and begins with `<`, a pbrt scene with a directive such as `LookAt` or `WorldBegin`.
+pub fn check_format(text: &str, name: &str) -> Result<(), SceneError> {
+    let first = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap_or("");
+    let word = first
+        .split(|c: char| !c.is_ascii_alphabetic())
+        .next()
+        .unwrap_or("");
+    let what = if first.starts_with('<') {
+        "XML (a Mitsuba scene?)"
+    } else if PBRT_DIRECTIVES.contains(&word) && !first.contains('=') {
+        "a pbrt scene"
+    } else {
+        return Ok(());
+    };
+    Err(file_error(
+        name,
+        format!(
+            "this file is {what}: pathspace reads its own TOML scene files (see \
+             scenes/fog-box.toml and the book's chapter Scenes); it has no importer for other formats yet"
+        ),
+    ))
 }
