@@ -889,3 +889,48 @@ fn twin_variance_recovers_the_noise_of_independent_renders() {
     );
     fam.finish();
 }
+
+/// A row of a hypothetical study: `run`'s last checkpoint at relMSE `relmse`.
+fn last_row(run: usize, relmse: f64) -> CheckpointRow {
+    CheckpointRow {
+        integrator: "path".into(),
+        run,
+        checkpoint: 0,
+        seconds: 1.0,
+        samples: 16,
+        rmse: relmse.sqrt(),
+        relmse,
+        efficiency: 1.0 / relmse,
+    }
+}
+
+/// One run has no spread: the summary says so instead of printing an error bar of zero; two
+/// runs get their standard error.
+#[test]
+fn a_single_runs_summary_has_no_error_bar() {
+    use pathspace::cli::converge::summary_line;
+    let one = convergence::summarize(&[last_row(0, 2e-3)]);
+    let line = summary_line(&one[0]);
+    assert!(
+        line.contains("relMSE 2.000e-3 (one run: no error bar"),
+        "{line}"
+    );
+    assert!(!line.contains('±'), "{line}");
+    let two = convergence::summarize(&[last_row(0, 2e-3), last_row(1, 4e-3)]);
+    let line = summary_line(&two[0]);
+    assert!(line.contains("relMSE 3.000e-3 ± 1.0e-3"), "{line}");
+}
+
+/// The curves flatten at the reference's own relMSE (E[(a-b)^2] = var a + var b): the study
+/// warns when that floor is more than a tenth of the least error a line reached, with the
+/// factor of samples that brings it below, and keeps quiet below.
+#[test]
+fn converge_warns_when_the_reference_is_nearly_as_noisy_as_the_runs() {
+    use pathspace::cli::converge::{noisy_reference_warning, REFERENCE_NOISE_SHARE};
+    let curves = convergence::summarize(&[last_row(0, 1e-3), last_row(1, 1e-3)]);
+    let w = noisy_reference_warning(5e-4, &curves).expect("a reference at half the error");
+    assert!(w.contains("is 50% of the error path reached"), "{w}");
+    assert!(w.contains("about 5 times its samples"), "{w}");
+    assert!(noisy_reference_warning(0.5 * REFERENCE_NOISE_SHARE * 1e-3, &curves).is_none());
+    assert!(noisy_reference_warning(2.0 * REFERENCE_NOISE_SHARE * 1e-3, &curves).is_some());
+}

@@ -284,17 +284,18 @@ fn converge_guided(
 }
 
 /// One line of the summary printed at the end.
-fn summary_line(c: &Curve) -> String {
+pub fn summary_line(c: &Curve) -> String {
     let mut s = c.integrator.to_string();
     if let Some(p) = c.last() {
+        // one run has no spread to show: "± 0" would claim an exact figure
+        let error_bar = if p.runs > 1 {
+            format!(" ± {:.1e}", p.relmse.stderr)
+        } else {
+            " (one run: no error bar, --runs 2 gives one)".to_string()
+        };
         s += &format!(
-            ": at {:.2} s {:.0} spp, relMSE {:.3e} ± {:.1e}, RMSE {:.3e}, efficiency {:.3e} /s",
-            p.seconds.mean,
-            p.samples.mean,
-            p.relmse.mean,
-            p.relmse.stderr,
-            p.rmse.mean,
-            p.efficiency.mean
+            ": at {:.2} s {:.0} spp, relMSE {:.3e}{error_bar}, RMSE {:.3e}, efficiency {:.3e} /s",
+            p.seconds.mean, p.samples.mean, p.relmse.mean, p.rmse.mean, p.efficiency.mean
         );
     }
     if let Some(f) = c.relmse_vs_time {
@@ -310,6 +311,32 @@ fn summary_line(c: &Curve) -> String {
         );
     }
     s
+}
+
+/// The share of a measured relMSE that the reference's own noise may be before the study says
+/// so: E[(a - b)^2] = var(a) + var(b), so the curves flatten at the reference's relMSE, and
+/// below a tenth of the error that floor bends them by less than 10% (book, "The reference").
+pub const REFERENCE_NOISE_SHARE: f64 = 0.1;
+
+/// A warning when the reference's estimated relMSE `reference` is more than
+/// [`REFERENCE_NOISE_SHARE`] of the smallest error a curve reached at its last checkpoint.
+pub fn noisy_reference_warning(reference: f64, curves: &[Curve]) -> Option<String> {
+    let (line, least) = curves
+        .iter()
+        .filter_map(|c| c.last().map(|p| (c.integrator.as_str(), p.relmse.mean)))
+        .filter(|(_, m)| *m > 0.0)
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let share = reference / least;
+    (share > REFERENCE_NOISE_SHARE).then(|| {
+        format!(
+            "the reference's own noise (estimated relMSE {reference:.3e}) is {:.0}% of the \
+             error {line} reached (relMSE {least:.3e}): the curves flatten at the reference's \
+             floor; a reference with about {:.0} times its samples keeps the floor below {:.0}%",
+            100.0 * share,
+            (share / REFERENCE_NOISE_SHARE).ceil(),
+            100.0 * REFERENCE_NOISE_SHARE
+        )
+    })
 }
 
 /// The `+guide` lines: each kind with the guide parameters its name sets.
@@ -536,6 +563,9 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     )?);
     for c in &curves {
         println!("{}", summary_line(c));
+    }
+    if let Some(w) = reference_relmse.and_then(|r| noisy_reference_warning(r, &curves)) {
+        eprintln!("warning: {w}");
     }
     println!(
         "wrote {}",
