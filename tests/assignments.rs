@@ -86,6 +86,18 @@ fn every_chapter_names_its_assignments_and_the_course_page_lists_all() {
     }
 }
 
+/// The README and the course page state how many assignments there are; the registry decides.
+#[test]
+fn the_readme_and_the_course_page_count_the_assignments_right() {
+    let n = ASSIGNMENTS.len();
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let course_page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
+    let said = format!("The book doubles as a course: {n} function bodies");
+    assert!(readme.contains(&said), "README.md does not say `{said}`");
+    let table = format!("`{n} of {n} assignments passed`");
+    assert!(course_page.contains(&table), "course.md does not say {table}");
+}
+
 #[test]
 fn blanking_keeps_the_markers_and_replaces_the_body() {
     let a = course::find("characteristic").unwrap();
