@@ -95,7 +95,10 @@ fn the_readme_and_the_course_page_count_the_assignments_right() {
     let said = format!("The book doubles as a course: {n} function bodies");
     assert!(readme.contains(&said), "README.md does not say `{said}`");
     let table = format!("`{n} of {n} assignments passed`");
-    assert!(course_page.contains(&table), "course.md does not say {table}");
+    assert!(
+        course_page.contains(&table),
+        "course.md does not say {table}"
+    );
 }
 
 #[test]

@@ -306,3 +306,70 @@ fn the_recorded_options_render_the_same_settings_again() {
         "absent options are left out: {json}"
     );
 }
+
+/// `render --help` groups its options under a heading per integrator (and the session's), in
+/// the order of the schema, and lists the integrators `--integrator` takes, from the registry.
+#[test]
+fn help_groups_the_options_and_lists_the_integrators() {
+    let mut cmd = Cli::command();
+    let render = cmd.find_subcommand_mut("render").expect("render");
+    let help = render.render_long_help().to_string();
+    let at = |s: &str| {
+        help.find(s)
+            .unwrap_or_else(|| panic!("--help lacks `{s}`:\n{help}"))
+    };
+    let headings = [
+        "Render (each also a [render] key",
+        "MLT: Metropolis light transport",
+        "SMC: sequential Monte Carlo",
+        "Guiding (bdpt, light, mlt",
+        "Adjoint image (bdpt, light, mlt",
+        "Session: length, threads, output",
+    ];
+    let places: Vec<usize> = headings.iter().map(|h| at(h)).collect();
+    assert!(
+        places.windows(2).all(|w| w[0] < w[1]),
+        "headings out of order: {places:?}"
+    );
+    // each flag under its heading
+    for (flag, heading) in [
+        ("--spp", 0),
+        ("--mlt-chains", 1),
+        ("--smc-variant", 2),
+        ("--guide-regions", 3),
+        ("--adjoint-resolution", 4),
+        ("--checkpoint", 5),
+    ] {
+        let f = at(&format!("{flag} "));
+        let next = places.get(heading + 1).copied().unwrap_or(usize::MAX);
+        assert!(
+            places[heading] < f && f < next,
+            "{flag} is not under `{}`",
+            headings[heading]
+        );
+    }
+    let names: Vec<&str> = pathspace::integrator::IntegratorKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .collect();
+    at(&format!("[possible values: {}]", names.join(", ")));
+}
+
+/// The progress line: spp of the target and samples per second for a fixed spp, and the
+/// seconds left for a timed render.
+#[test]
+fn the_progress_line_shows_rate_and_what_is_left() {
+    use pathspace::integrator::session::progress_message;
+    assert_eq!(
+        progress_message(8, Some(64), Some(1.5e6), None),
+        "8/64 spp, 1.500e6 samples/s"
+    );
+    assert_eq!(
+        progress_message(3, None, Some(2e5), Some(7.6)),
+        "3 spp, 2.000e5 samples/s, 8 s left"
+    );
+    assert_eq!(
+        progress_message(3, None, None, Some(-1.0)),
+        "3 spp, 0 s left"
+    );
+}

@@ -50,15 +50,15 @@ pub struct ConvergeArgs {
     /// (or EXRs with a `seconds` attribute). Repeatable.
     #[arg(long = "external", value_name = "NAME=DIR")]
     pub external: Vec<String>,
-    /// `+adjoint` variants: the adjoint image's pre-pass (default: the scene's
-    /// `[render.adjoint]`).
-    #[command(flatten)]
-    pub adjoint: super::render::AdjointTuning,
     /// Run every integrator once per propagation strategy of the scene's inhomogeneous media
     /// (comma-separated: equidistant, stratified, random-offset, delta-tracking); the lines are
     /// labelled `integrator/strategy`. The reference stays the same (same scene file).
     #[arg(long, value_delimiter = ',')]
     pub propagation: Vec<String>,
+    /// `+adjoint` variants: the adjoint image's pre-pass (default: the scene's
+    /// `[render.adjoint]`).
+    #[command(flatten)]
+    pub adjoint: super::render::AdjointTuning,
     /// Guided local sampling of the `+guide` variants.
     #[command(flatten)]
     pub guide: Box<super::render::GuideArgs>,

@@ -31,7 +31,7 @@ pub struct ReferenceArgs {
     pub seed: Option<u64>,
     /// Override the integrator (default: the most robust one for the scene, see
     /// `measure::reference_integrator`), e.g. `bdpt` where light arrives through long chains.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::integrator::settings::integrator_names())]
     pub integrator: Option<String>,
     /// The session's options, declared once with `render`'s.
     #[command(flatten)]

@@ -22,6 +22,9 @@ use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
 pub use crate::integrator::session::RenderResult;
 
+/// The help heading of `render`'s own options (the schema's are grouped by integrator).
+const OUTPUTS: &str = "Image, outputs and previews";
+
 /// `pathspace render`: the render options of the schema ([`RenderOptions`], each overriding
 /// its key of the scene's `[render]` table) and the options of the command itself.
 #[derive(Args, Debug, Default, Clone)]
@@ -32,26 +35,26 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub options: Box<RenderOptions>,
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
-    #[arg(long, conflicts_with = "time")]
+    #[arg(long, conflicts_with = "time", help_heading = OUTPUTS)]
     pub mutations_per_pixel: Option<u32>,
     /// Override the camera resolution, e.g. `64x64` (quick previews, golden images).
-    #[arg(long, value_parser = parse_resolution)]
+    #[arg(long, value_parser = parse_resolution, help_heading = OUTPUTS)]
     pub resolution: Option<(u32, u32)>,
     /// PNG preview (default: next to the EXR).
-    #[arg(long)]
+    #[arg(long, help_heading = OUTPUTS)]
     pub png: Option<PathBuf>,
     /// bdpt only: also write each (s, t) strategy's MIS-weighted image to this directory, as
     /// `s{S}-t{T}.exr` and `.png`, for paths of up to `--strategy-depth` scattering vertices.
-    #[arg(long)]
+    #[arg(long, help_heading = OUTPUTS)]
     pub strategy_images: Option<PathBuf>,
     /// Deepest strategies written by `--strategy-images` (default 3).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, help_heading = OUTPUTS)]
     pub strategy_depth: u32,
     /// Print one JSON object with the results on stdout instead of the summary line.
-    #[arg(long)]
+    #[arg(long, help_heading = OUTPUTS)]
     pub json: bool,
     /// Also write the adjoint image's cells as this EXR (and a PNG next to it).
-    #[arg(long)]
+    #[arg(long, help_heading = OUTPUTS)]
     pub adjoint_output: Option<PathBuf>,
     /// The session's options, shared with `reference`.
     #[command(flatten)]
@@ -65,6 +68,7 @@ pub struct RenderArgs {
 /// The options of a render session, declared once for `render` and `reference`: its length,
 /// threads, output, memory limit, checkpoints and resumption.
 #[derive(Args, Debug, Default, Clone)]
+#[command(next_help_heading = "Session: length, threads, output, checkpoints")]
 pub struct SessionArgs {
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
@@ -124,7 +128,7 @@ impl SessionArgs {
 pub struct MemoryArgs {
     /// Refuse a render whose estimated memory exceeds this many GiB (default: 75% of the
     /// machine's memory, 8 GiB where /proc/meminfo is missing); `info` prints the estimate.
-    #[arg(long, value_name = "GIB")]
+    #[arg(long, value_name = "GIB", help_heading = "Memory")]
     pub max_memory: Option<f64>,
 }
 

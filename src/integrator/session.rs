@@ -169,6 +169,7 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
     };
     let start = Instant::now();
     let prior_seconds = progress.seconds;
+    let first_spp = progress.spp;
     let mut last_checkpoint = Instant::now();
     let stop = || control.stop.map_or(0, |s| s.load(Ordering::SeqCst));
     let mut stopped_by = None;
@@ -187,8 +188,21 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
         r.pass(spp, &tick);
         progress.spp += spp as u64;
         progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
-        if let (Some(b), Some(_)) = (&bar, job.time) {
-            b.set_message(format!("{} spp", progress.spp));
+        if let Some(b) = &bar {
+            let pixels = job
+                .setup
+                .scene
+                .camera
+                .as_ref()
+                .map_or(0, |c| c.width * c.height);
+            let elapsed = start.elapsed().as_secs_f64();
+            let rate = ((progress.spp - first_spp) * pixels as u64) as f64 / elapsed;
+            b.set_message(progress_message(
+                progress.spp,
+                job.time.is_none().then_some(job.spp),
+                (pixels > 0 && elapsed > 0.0).then_some(rate),
+                job.time.map(|t| t - progress.seconds),
+            ));
         }
         let due = control
             .every
@@ -330,13 +344,39 @@ fn progress_bar(job: &Job, done: u64) -> indicatif::ProgressBar {
         indicatif::ProgressBar::new_spinner()
     };
     b.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+    // the ETA of a fixed spp is indicatif's, from the tiles done; a timed render shows the time left
+    let template = if total > 0 {
+        "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}%, eta {eta} {msg}"
+    } else {
+        "{spinner} [{elapsed_precise}] {msg}"
+    };
     b.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} tiles {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
+    b.enable_steady_tick(std::time::Duration::from_millis(250));
     b
+}
+
+/// The progress line after a pass: samples per pixel so far (of the `target`, for a fixed
+/// spp), camera samples per second, and for a timed render the seconds `left`.
+pub fn progress_message(
+    spp: u64,
+    target: Option<u32>,
+    samples_per_second: Option<f64>,
+    left: Option<f64>,
+) -> String {
+    let mut m = match target {
+        Some(t) => format!("{spp}/{t} spp"),
+        None => format!("{spp} spp"),
+    };
+    if let Some(rate) = samples_per_second {
+        m += &format!(", {rate:.3e} samples/s");
+    }
+    if let Some(l) = left {
+        m += &format!(", {:.0} s left", l.max(0.0));
+    }
+    m
 }
 
 /// What the renderer holds, as a [`RenderResult`]; with MLT's earlier runs, the image is their

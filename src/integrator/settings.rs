@@ -27,9 +27,10 @@ struct RenderFile {
 /// records the options it was given ([`RenderOptions::over`]) in its `--json` and EXR header.
 #[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
+#[command(next_help_heading = "Render (each also a [render] key of the scene file)")]
 pub struct RenderOptions {
-    /// Integrator: path, light, bdpt, mlt or smc (default path).
-    #[arg(long)]
+    /// Integrator (default path).
+    #[arg(long, value_parser = integrator_names())]
     pub integrator: Option<String>,
     /// Samples per pixel (default 64); for mlt, mutations per pixel.
     #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
@@ -66,6 +67,11 @@ pub struct RenderOptions {
     #[command(flatten)]
     #[serde(default, skip_serializing_if = "is_default")]
     pub adjoint: AdjointOptions,
+}
+
+/// `--integrator`'s values from the registry, so `--help` and clap's error list them.
+pub fn integrator_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(super::IntegratorKind::ALL.iter().map(|k| k.name()))
 }
 
 fn is_default<T: Default + PartialEq>(t: &T) -> bool {
@@ -152,6 +158,7 @@ impl SettingError {
 /// [`AdjointSettings::validate`].
 #[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
+#[command(next_help_heading = "Adjoint image (bdpt, light, mlt; [render.adjoint])")]
 pub struct AdjointOptions {
     /// Adjoint grid COLSxROWS (`[columns, rows]` in the file; columns rounded up to a multiple
     /// of the area lights; default 64x64).
@@ -276,6 +283,7 @@ pub enum Spelling {
 /// and checks every value.
 #[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
+#[command(next_help_heading = "Guiding (bdpt, light, mlt; [render.guide])")]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
     #[arg(id = "guide_vertices", long = "guide", alias = "guide-vertices")]

@@ -161,6 +161,7 @@ impl MltSettings {
 /// (`--chains`, `--bootstrap`, `--b-refine`, `--mutation-weights`) are hidden aliases.
 #[derive(clap::Args, serde::Deserialize, serde::Serialize, Debug, Clone, Default, PartialEq)]
 #[serde(deny_unknown_fields)]
+#[command(next_help_heading = "MLT: Metropolis light transport (--integrator mlt; [render.mlt])")]
 pub struct MltOptions {
     /// MLT: BDPT pre-pass samples n that estimate b (default 16384).
     #[arg(long = "mlt-bootstrap", alias = "bootstrap")]

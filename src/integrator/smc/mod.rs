@@ -312,6 +312,7 @@ pub struct OptionError {
 /// file's on the command line). `--cache-budget` of earlier releases is a hidden alias.
 #[derive(clap::Args, serde::Deserialize, serde::Serialize, Debug, Clone, Default, PartialEq)]
 #[serde(deny_unknown_fields)]
+#[command(next_help_heading = "SMC: sequential Monte Carlo (--integrator smc; [render.smc])")]
 pub struct SmcOptions {
     /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
     #[arg(long = "smc-variant")]
