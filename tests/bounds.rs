@@ -372,3 +372,37 @@ fn an_endless_or_overlong_grid_mesh_or_scene_file_is_refused_at_its_limit() {
         "{e}"
     );
 }
+
+/// `--time` counts the preprocessing: a guided render whose guide alone takes longer than the
+/// budget (1 ms cannot hold 5000 particle paths) says so and renders one pass, not a budget of
+/// passes after it.
+#[test]
+fn time_counts_the_preprocessing() {
+    let out = pathspace(&[
+        "render",
+        "--integrator",
+        "bdpt",
+        "--guide",
+        "both",
+        "--guide-particles",
+        "5000",
+        "--resolution",
+        "8x8",
+        "--threads",
+        "1",
+        "--time",
+        "0.001",
+        "--json",
+        "-o",
+        scratch("time").join("t.exr").to_str().unwrap(),
+    ]);
+    let e = stderr(&out);
+    assert!(out.status.success(), "{e}");
+    assert!(
+        e.contains("of the 0.001 s of --time: one pass follows"),
+        "{e}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(out.stdout.trim_ascii()).expect("one JSON object");
+    assert_eq!(json["spp"], 1, "{json}");
+}
