@@ -10,26 +10,8 @@ use std::process::Command;
 use pathspace::scene::file::{MAX_ARRAY_ELEMENTS, MAX_NESTING, MAX_SCENE_BYTES};
 use pathspace::scene::{SceneError, SceneSource};
 
-/// A valid scene the tests append to (16 lines, so line `k` of the appended text is line
-/// `16 + k` of the file).
-const BASE: &str = r#"# base scene for the error-contract tests
-[camera]
-type = "pinhole"
-eye = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-fov_deg = 40.0
-resolution = [8, 8]
-
-[materials.white]
-type = "lambert"
-albedo = 0.5
-
-[media.fog]
-type = "homogeneous"
-sigma_a = 0.1
-sigma_s = 0.4
-"#;
-const BASE_LINES: usize = 16;
+mod common;
+use common::scenes::{BASE, BASE_LINES};
 
 fn load(text: &str) -> Result<(), SceneError> {
     let src = SceneSource::embedded("bad.toml", text);

@@ -9,26 +9,8 @@ use std::process::Command;
 
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
-/// A valid scene the tests append to: 16 lines, so a line `k` of the appended text is line
-/// `BASE_LINES + k` of the file.
-const BASE: &str = r#"# base scene for the error tests
-[camera]
-type = "pinhole"
-eye = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-fov_deg = 40.0
-resolution = [8, 8]
-
-[materials.white]
-type = "lambert"
-albedo = 0.5
-
-[media.fog]
-type = "homogeneous"
-sigma_a = 0.1
-sigma_s = 0.4
-"#;
-const BASE_LINES: usize = 16;
+mod common;
+use common::scenes::{BASE, BASE_LINES};
 
 fn fixtures() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
