@@ -5,8 +5,7 @@
 //! of work, counted here (steps, vertices, bytes), never timed.
 //! Book: "Scenes" (limits of media and grids), "Measuring a renderer" (memory).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
 use pathspace::integrator::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::integrator::smc::march::{self, MAX_MARCH_STEPS};
@@ -21,24 +20,11 @@ use pathspace::path::bidirectional::{Bdpt, Strategies, MAX_SUBPATH_VERTICES};
 use pathspace::path::technique::PLAIN;
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
-fn pathspace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathspace"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
+mod common;
+use common::cli::{pathspace, scratch, stderr};
 
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// A fresh directory under the target directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bounds-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+/// The prefix of this file's scratch directories.
+const GROUP: &str = "bounds";
 
 /// The fog box with its medium's coefficients replaced.
 fn fog_box_with(medium: &str) -> String {
@@ -89,7 +75,7 @@ fn a_grid_header_larger_than_its_file_is_refused_before_its_values_are_reserved(
 
 #[test]
 fn a_grid_file_that_cannot_hold_its_header_is_refused_at_its_key() {
-    let dir = scratch("grid");
+    let dir = scratch(GROUP, "grid");
     std::fs::write(dir.join("big.txt"), "512 512 512 0 1").unwrap();
     let scene = fog_box_with(
         "type = \"grid\"\nfile = \"big.txt\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\nsigma_a = 0.1\nsigma_s = 0.4\n",
@@ -166,7 +152,7 @@ fn smc_refuses_a_march_with_more_steps_than_its_limit() {
 
 #[test]
 fn smc_refusals_name_the_step_and_the_limit_on_the_command_line() {
-    let exr = scratch("smc").join("x.exr");
+    let exr = scratch(GROUP, "smc").join("x.exr");
     let out = pathspace(&[
         "render",
         "--integrator",
@@ -232,7 +218,7 @@ fn the_estimate_holds_the_film_exactly() {
 
 #[test]
 fn a_render_larger_than_max_memory_is_refused_with_the_figure() {
-    let exr = scratch("max-memory").join("x.exr");
+    let exr = scratch(GROUP, "max-memory").join("x.exr");
     let out = pathspace(&[
         "render",
         "--resolution",
@@ -261,7 +247,7 @@ fn a_render_larger_than_max_memory_is_refused_with_the_figure() {
 
 #[test]
 fn the_estimate_is_within_a_factor_of_the_peak_memory() {
-    let dir = scratch("memory");
+    let dir = scratch(GROUP, "memory");
     let exr = dir.join("m.exr");
     let out = pathspace(&[
         "render",
@@ -292,7 +278,7 @@ fn the_estimate_is_within_a_factor_of_the_peak_memory() {
 #[test]
 fn the_estimate_covers_the_records_of_a_long_smc_march() {
     // one thick channel: about 1160 steps across the box, each leaving a record
-    let dir = scratch("smc-memory");
+    let dir = scratch(GROUP, "smc-memory");
     let scene = dir.join("thick.toml");
     std::fs::write(
         &scene,
@@ -340,7 +326,7 @@ fn the_estimate_covers_the_records_of_a_long_smc_march() {
 #[test]
 fn an_endless_or_overlong_grid_mesh_or_scene_file_is_refused_at_its_limit() {
     use pathspace::conventions::read_at_most;
-    let dir = scratch("endless");
+    let dir = scratch(GROUP, "endless");
     let long = dir.join("long.txt");
     std::fs::write(&long, [b'1'; 1001]).unwrap();
     let e = read_at_most(&long, 1000).unwrap_err();
@@ -394,7 +380,7 @@ fn time_counts_the_preprocessing() {
         "0.001",
         "--json",
         "-o",
-        scratch("time").join("t.exr").to_str().unwrap(),
+        scratch(GROUP, "time").join("t.exr").to_str().unwrap(),
     ]);
     let e = stderr(&out);
     assert!(out.status.success(), "{e}");

@@ -17,26 +17,13 @@ use pathspace::integrator::{IntegratorKind, Setup};
 use pathspace::path::PLAIN;
 use pathspace::scene::SceneSource;
 
+mod common;
+use common::cli::{pathspace, scratch, stderr};
+
+/// The prefix of this file's scratch directories.
+const GROUP: &str = "provenance";
+
 const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
-
-fn pathspace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathspace"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-/// A fresh directory under the target directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("provenance-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// Renders the fog box (or `scene`) at 12x12 into `dir/name` with `extra` options.
 fn render_scene(dir: &Path, name: &str, scene: Option<&Path>, extra: &[&str]) -> PathBuf {
@@ -85,7 +72,7 @@ fn refused(inputs: &[&Path], says: &[&str]) {
 
 #[test]
 fn every_render_records_its_provenance() {
-    let dir = scratch("record");
+    let dir = scratch(GROUP, "record");
     let a = render(&dir, "a.exr", &["--seed", "7"]);
     let m = meta(&a);
     assert_eq!(m.get("streams"), Some("7:0..1"), "one pass of 4 spp");
@@ -100,7 +87,7 @@ fn every_render_records_its_provenance() {
 
 /// A fresh directory `name` with a render of the fog box with seed 1 in it (`a.exr`).
 fn first(name: &str) -> (PathBuf, PathBuf) {
-    let dir = scratch(name);
+    let dir = scratch(GROUP, name);
     let a = render(&dir, "a.exr", &["--seed", "1"]);
     (dir, a)
 }
@@ -171,7 +158,7 @@ fn merge_refuses_an_image_without_provenance() {
 
 #[test]
 fn force_merges_and_warns_what_it_let_through() {
-    let dir = scratch("force");
+    let dir = scratch(GROUP, "force");
     let a = render(&dir, "a.exr", &["--seed", "1"]);
     let mlt = render(&dir, "mlt.exr", &["--seed", "2", "--integrator", "mlt"]);
     let out = dir.join("forced.exr");
@@ -206,7 +193,7 @@ fn seconds(m: &ImageMeta) -> f64 {
 
 #[test]
 fn disjoint_renders_merge_with_their_samples_seconds_and_sources_summed() {
-    let dir = scratch("disjoint");
+    let dir = scratch(GROUP, "disjoint");
     let a = render(&dir, "a.exr", &["--seed", "1"]);
     // b takes long enough that its time is not 0.000 s
     let b = render(&dir, "b.exr", &["--seed", "2", "--spp", "64"]);
@@ -280,7 +267,7 @@ fn disjoint_parts_of_one_run_merge_and_overlapping_parts_do_not() {
 
 /// Two renders with `extra` at 1 and 2 threads give the same EXR and PNG bytes.
 fn same_bytes_across_threads(name: &str, extra: &[&str]) {
-    let dir = scratch(name);
+    let dir = scratch(GROUP, name);
     let file = |t: &str, ext: &str| dir.join(format!("t{t}.{ext}"));
     for t in ["1", "2"] {
         let (exr, png) = (file(t, "exr"), file(t, "png"));
@@ -381,7 +368,7 @@ fn a_resumed_render_records_its_runs() {
 
 #[test]
 fn merge_checks_its_output_before_reading_the_inputs() {
-    let dir = scratch("output");
+    let dir = scratch(GROUP, "output");
     let run = merge(&[&dir.join("missing.exr")], &dir.join("out.png"), &[]);
     let err = stderr(&run);
     assert!(!run.status.success());

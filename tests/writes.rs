@@ -2,23 +2,14 @@
 //! starts, a failed write is an error with a nonzero exit, and it leaves an earlier file at the
 //! path as it was (images go to a temporary file beside the target, renamed once complete).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 
-fn pathspace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pathspace"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
+mod common;
+use common::cli::{pathspace, scratch, stderr};
 
-/// A fresh directory under the target directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("writes-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+/// The prefix of this file's scratch directories.
+const GROUP: &str = "writes";
 
 /// A quick render of the embedded fog box with `extra` options.
 fn render(extra: &[&str]) -> Output {
@@ -30,13 +21,9 @@ fn render(extra: &[&str]) -> Output {
     pathspace(&args)
 }
 
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
 #[test]
 fn outputs_that_cannot_be_written_are_refused_before_the_render() {
-    let dir = scratch("refused");
+    let dir = scratch(GROUP, "refused");
     let missing = dir.join("no-such-dir").join("x.exr");
     let out = render(&["-o", missing.to_str().unwrap(), "--spp", "100000"]);
     assert!(!out.status.success());
@@ -65,7 +52,7 @@ fn outputs_that_cannot_be_written_are_refused_before_the_render() {
 
 #[test]
 fn a_failed_write_keeps_the_earlier_file_and_fails_the_command() {
-    let dir = scratch("kept");
+    let dir = scratch(GROUP, "kept");
     let exr = dir.join("img.exr");
     let png = dir.join("img.png");
     let (e, p) = (exr.to_str().unwrap(), png.to_str().unwrap());
@@ -114,7 +101,7 @@ fn a_full_disk_is_an_error() {
     if !Path::new("/dev/full").exists() {
         return;
     }
-    let dir = scratch("full");
+    let dir = scratch(GROUP, "full");
     let exr = dir.join("x.exr");
     let out = render(&["-o", exr.to_str().unwrap(), "--png", "/dev/full"]);
     assert!(
