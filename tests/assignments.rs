@@ -21,6 +21,8 @@ use std::process::Command;
 
 use pathspace::course::{self, Assignment, ASSIGNMENTS};
 
+mod common;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -249,6 +251,8 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let toml = std::fs::read_to_string(copy.join("Cargo.toml")).unwrap();
+    assert!(course::identity::of(&toml).is_some(), "the copy has no id");
     let all: Vec<&Assignment> = ASSIGNMENTS.iter().collect();
     let in_memory = course::student_copy(&original(), &all).unwrap();
     assert!(course::leaks(&in_memory).is_empty());
@@ -352,6 +356,8 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
         "characteristic",
         "--target-dir",
         target_s,
+        "--build-dir",
+        target_s,
         "--opt-level",
         "0",
     ]);
@@ -401,4 +407,53 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
             .any(|l| l.starts_with("characteristic") && l.contains("passed")),
         "{table}"
     );
+}
+
+/// Copies share a build directory by their ids; the two ways that sharing could grade one
+/// build for another are refused before anything is built: a copy of a copy (one id in two
+/// directories), and a crate with no id at all (the original, or a copy from before ids).
+#[test]
+fn a_shared_build_directory_takes_only_copies_with_their_own_id() {
+    let dir = common::cli::scratch("assignments", "ids");
+    let (a, b, build) = (dir.join("a"), dir.join("b"), dir.join("build"));
+    for d in [&a, &b] {
+        let out = common::cli::pathspace(&[
+            "assignment",
+            "make",
+            "characteristic",
+            "--out",
+            d.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", common::cli::stderr(&out));
+    }
+    let id = |d: &Path| {
+        course::identity::of(&std::fs::read_to_string(d.join("Cargo.toml")).unwrap()).unwrap()
+    };
+    assert_ne!(id(&a), id(&b), "two copies got one id");
+    // b becomes a copy of a, after a claimed its id in the build directory
+    std::fs::copy(a.join("Cargo.toml"), b.join("Cargo.toml")).unwrap();
+    let owners = build.join("pathspace-assignment-copies");
+    std::fs::create_dir_all(&owners).unwrap();
+    let a_path = std::fs::canonicalize(&a).unwrap();
+    std::fs::write(
+        owners.join(format!("{}.txt", id(&a))),
+        format!("{}\n", a_path.display()),
+    )
+    .unwrap();
+    let check = |d: &Path| {
+        common::cli::pathspace(&[
+            "assignment",
+            "check",
+            d.to_str().unwrap(),
+            "--build-dir",
+            build.to_str().unwrap(),
+        ])
+    };
+    let err = common::cli::stderr(&check(&b));
+    assert!(
+        err.contains(&format!("the id {}", id(&a))) && err.contains("has the same id"),
+        "{err}"
+    );
+    let err = common::cli::stderr(&check(&root()));
+    assert!(err.contains("is not a copy written by"), "{err}");
 }

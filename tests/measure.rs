@@ -449,9 +449,25 @@ fn heatmap_is_a_png_of_the_image_size_with_the_documented_colours() {
     a.pixels[2] = Rgb::splat(1.0 + 1e-1 * (1.0 + metrics::RELMSE_EPSILON).sqrt() as f32); // 10 %
     let out = dir.join("heat.png");
     heatmap::write_heatmap(&out, &a, &b).unwrap();
-    assert_eq!(png_size(&out), (w, h));
-    let px = png_pixels(&out);
-    assert_eq!(px.len(), (w * h * 3) as usize);
+    let (cw, ch) = png_size(&out);
+    assert_eq!(
+        (cw, ch),
+        (w + heatmap::BAR_PANEL, heatmap::BAR_MIN_HEIGHT),
+        "the heatmap and its colour bar's panel"
+    );
+    let all = png_pixels(&out);
+    let at = |x: u32, y: u32| {
+        let i = ((y * cw + x) * 3) as usize;
+        all[i..i + 3].to_vec()
+    };
+    // the colour bar: the top colour at its top, the bottom colour at its bottom
+    let bar_x = w + heatmap::BAR_X + heatmap::BAR_W / 2;
+    assert_eq!(at(bar_x, heatmap::BAR_MARGIN), heatmap::VIRIDIS[8]);
+    assert_eq!(at(bar_x, ch - heatmap::BAR_MARGIN - 1), heatmap::VIRIDIS[0]);
+    // the heatmap itself, pixel for pixel in the top-left corner
+    let px: Vec<u8> = (0..h)
+        .flat_map(|y| (0..w).flat_map(move |x| at(x, y)))
+        .collect();
     assert_eq!(
         &px[0..3],
         &heatmap::VIRIDIS[0],
@@ -461,8 +477,7 @@ fn heatmap_is_a_png_of_the_image_size_with_the_documented_colours() {
         &px[3..6],
         &heatmap::VIRIDIS[8],
         "error past 100 %: the top colour"
-    );
-    // 10 % = 10^-1 sits at 2/3 of the log scale from 10^-3 to 10^0
+    ); // 10 % = 10^-1 sits at 2/3 of the log scale from 10^-3 to 10^0
     assert_eq!(&px[6..9], &heatmap::viridis(2.0 / 3.0));
     let errors = heatmap::relative_error(&a, &b).unwrap();
     assert_relative_eq!(errors[2], 0.1, max_relative = 1e-5);
@@ -643,7 +658,10 @@ fn diff_writes_a_heatmap_and_render_reports_its_estimated_relmse() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(png_size(&heat), (16, 16));
+    assert_eq!(
+        png_size(&heat),
+        (16 + heatmap::BAR_PANEL, heatmap::BAR_MIN_HEIGHT)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("#440154") && stdout.contains("#fde725"),

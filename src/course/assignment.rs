@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use clap::{Args, Subcommand};
 
-use crate::course::{self, Assignment, CourseError, Tree};
+use crate::course::{self, identity, Assignment, CourseError, Tree};
 
 /// Leaked lines listed by `make` before it gives up.
 const MAX_LEAKS_SHOWN: usize = 40;
@@ -57,6 +57,12 @@ pub struct CheckArgs {
     /// so a shared directory could grade one student's build for another's (refused).
     #[arg(long)]
     pub target_dir: Option<PathBuf>,
+    /// Cargo's build directory (dependencies and the copy's intermediate artifacts), shared
+    /// safely by every copy `assignment make` wrote, since each carries its own id in its
+    /// version [default: the target directory of the crate this binary was built from, when
+    /// it exists, so the dependencies it compiled are not compiled again; else Cargo's own].
+    #[arg(long)]
+    pub build_dir: Option<PathBuf>,
     /// Optimization level of the copy's own crate (dependencies keep the release profile):
     /// 0 compiles fastest, 3 runs fastest.
     #[arg(long, default_value_t = 3)]
@@ -111,6 +117,20 @@ pub enum AssignmentError {
          share artifact names, so one could be graded with the other's build)"
     )]
     TargetOwned(String, String, String),
+    /// `--build-dir` for a crate that is no copy `assignment make` wrote (the directory).
+    #[error(
+        "{0} is not a copy written by `pathspace assignment make` (its version has no \
+         `+copy.` id), so it cannot share a build directory; leave out --build-dir"
+    )]
+    NotACopy(String),
+    /// Two copies with one id in a build directory (the directory, the id, its owner, this
+    /// copy).
+    #[error(
+        "build directory {0} builds the copy {2} with the id {1}; {3} has the same id (a copy \
+         of a copy?): write it again with `pathspace assignment make`, or give it its own \
+         --build-dir"
+    )]
+    IdTaken(String, String, String, String),
     /// cargo could not be started.
     #[error("cannot run cargo: {0}")]
     Cargo(#[source] std::io::Error),
@@ -173,7 +193,9 @@ fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentErro
             .map(|n| course::find(n).ok_or_else(|| AssignmentError::Unknown(n.clone())))
             .collect::<Result<_, _>>()?
     };
-    let copy = course::student_copy(&tree, &chosen)?;
+    let mut copy = course::student_copy(&tree, &chosen)?;
+    let id = identity::fresh(&args.out);
+    identity::stamp(&mut copy.tree, &id)?;
     let leaks = course::leaks(&copy);
     if !leaks.is_empty() {
         let shown: Vec<String> = leaks
@@ -194,7 +216,7 @@ fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentErro
         );
     }
     println!(
-        "wrote {} files to {}; grade with `pathspace assignment check {}`",
+        "wrote {} files to {} (copy {id}); grade with `pathspace assignment check {}`",
         copy.tree.len(),
         args.out.display(),
         args.out.display()
@@ -236,7 +258,67 @@ fn cargo(dir: &Path, args: &CheckArgs) -> Command {
         let t = std::path::absolute(t).unwrap_or_else(|_| t.clone());
         c.arg("--target-dir").arg(t);
     }
+    if let Some(b) = &args.build_dir {
+        let b = std::path::absolute(b).unwrap_or_else(|_| b.clone());
+        c.env("CARGO_BUILD_BUILD_DIR", b);
+    }
     c
+}
+
+/// The build directory `check` gives Cargo: `--build-dir`, else the target directory of the
+/// crate this binary was built from when it holds a release build, for a copy with an id
+/// ([`identity`]); `None` leaves Cargo's default (the copy's target directory).
+fn build_dir_for(args: &CheckArgs) -> Result<Option<PathBuf>, AssignmentError> {
+    let toml = args.dir.join("Cargo.toml");
+    let text = std::fs::read_to_string(&toml).map_err(io_at(&toml))?;
+    let Some(id) = identity::of(&text) else {
+        return match &args.build_dir {
+            Some(_) => Err(AssignmentError::NotACopy(args.dir.display().to_string())),
+            None => Ok(None),
+        };
+    };
+    let built_from = Path::new(env!("CARGO_MANIFEST_DIR")).join("target");
+    let build = match &args.build_dir {
+        Some(b) => b.clone(),
+        None if built_from.join("release").is_dir() => built_from,
+        None => return Ok(None),
+    };
+    claim_id(&build, &id, &args.dir)?;
+    Ok(Some(build))
+}
+
+/// Records `dir` as the copy with id `id` in build directory `b`, or refuses when another
+/// directory holds that id there.
+fn claim_id(b: &Path, id: &str, dir: &Path) -> Result<(), AssignmentError> {
+    let owners = b.join("pathspace-assignment-copies");
+    let me = canonical(dir)?;
+    let file = owners.join(format!("{id}.txt"));
+    match std::fs::read_to_string(&file) {
+        Ok(owner) if owner.trim() != me => Err(AssignmentError::IdTaken(
+            b.display().to_string(),
+            id.to_string(),
+            owner.trim().to_string(),
+            me,
+        )),
+        Ok(_) => Ok(()),
+        Err(_) => {
+            std::fs::create_dir_all(&owners).map_err(io_at(&owners))?;
+            std::fs::write(&file, format!("{me}\n")).map_err(io_at(&file))
+        }
+    }
+}
+
+/// The error of an operation on `p`.
+fn io_at(p: &Path) -> impl FnOnce(std::io::Error) -> AssignmentError {
+    let p = p.display().to_string();
+    move |e| AssignmentError::Io(p, e)
+}
+
+fn canonical(dir: &Path) -> Result<String, AssignmentError> {
+    Ok(std::fs::canonicalize(dir)
+        .map_err(io_at(dir))?
+        .to_string_lossy()
+        .to_string())
 }
 
 /// The file in a target directory that names the copy it builds.
@@ -245,14 +327,7 @@ const TARGET_OWNER_FILE: &str = "pathspace-assignment-copy.txt";
 /// Records `dir` as the only copy built in target directory `t`, or refuses when another copy
 /// owns it.
 fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), AssignmentError> {
-    let io = |p: &Path| {
-        let p = p.display().to_string();
-        move |e| AssignmentError::Io(p, e)
-    };
-    let me = std::fs::canonicalize(dir)
-        .map_err(io(dir))?
-        .to_string_lossy()
-        .to_string();
+    let me = canonical(dir)?;
     let owner_file = t.join(TARGET_OWNER_FILE);
     match std::fs::read_to_string(&owner_file) {
         Ok(owner) if owner.trim() != me => Err(AssignmentError::TargetOwned(
@@ -262,8 +337,8 @@ fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), AssignmentError> {
         )),
         Ok(_) => Ok(()),
         Err(_) => {
-            std::fs::create_dir_all(t).map_err(io(t))?;
-            std::fs::write(&owner_file, format!("{me}\n")).map_err(io(&owner_file))
+            std::fs::create_dir_all(t).map_err(io_at(t))?;
+            std::fs::write(&owner_file, format!("{me}\n")).map_err(io_at(&owner_file))
         }
     }
 }
@@ -277,12 +352,20 @@ fn passed_count(out: &str) -> usize {
         .sum()
 }
 
-fn check(args: CheckArgs) -> Result<(), AssignmentError> {
+fn check(mut args: CheckArgs) -> Result<(), AssignmentError> {
     if !args.dir.join("Cargo.toml").is_file() {
         return Err(CourseError::NoCargoToml(args.dir.display().to_string()).into());
     }
     if let Some(t) = &args.target_dir {
         claim_target_dir(t, &args.dir)?;
+    }
+    args.build_dir = build_dir_for(&args)?;
+    match &args.build_dir {
+        Some(b) => eprintln!(
+            "building in {} (dependencies shared with other copies and with the crate built there)",
+            b.display()
+        ),
+        None => eprintln!("building in the copy's own target directory"),
     }
     let chosen: Vec<&Assignment> = match &args.only {
         Some(n) => vec![course::find(n).ok_or_else(|| AssignmentError::UnknownOnly(n.clone()))?],
@@ -294,7 +377,8 @@ fn check(args: CheckArgs) -> Result<(), AssignmentError> {
         "assignment", "result", "time"
     );
     let mut passed = 0;
-    for a in &chosen {
+    for (i, a) in chosen.iter().enumerate() {
+        eprintln!("grading {} ({} of {})", a.name, i + 1, chosen.len());
         let start = Instant::now();
         let outcome = if build_ok {
             grade(&args, a)?
@@ -341,12 +425,13 @@ fn build_graded(args: &CheckArgs, chosen: &[&Assignment]) -> Result<bool, Assign
     for f in &files {
         build.arg("--test").arg(f);
     }
-    let built = build.output().map_err(AssignmentError::Cargo)?;
-    let build_ok = built.status.success();
-    if !build_ok {
-        eprintln!("{}", String::from_utf8_lossy(&built.stderr));
-    }
-    Ok(build_ok)
+    // Cargo's own progress (the crates it compiles, its bar on a terminal) and errors go
+    // straight to the user: a cold build takes minutes
+    let built = build
+        .stdout(std::process::Stdio::null())
+        .status()
+        .map_err(AssignmentError::Cargo)?;
+    Ok(built.success())
 }
 
 /// Runs an assignment's graded tests file by file, stopping at the first file that does not

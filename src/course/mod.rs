@@ -11,6 +11,7 @@
 //! anywhere in the copy (the book includes code by anchor, so it shows the `todo!()` too).
 
 pub mod assignment;
+pub mod identity;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -342,6 +343,9 @@ pub enum CourseError {
     /// A file that cannot be written (its path, the cause).
     #[error("cannot write {0}: {1}")]
     Write(String, #[source] std::io::Error),
+    /// The copy's identity cannot be written ([`identity`]; why).
+    #[error("cannot give the copy its identity: {0}")]
+    Identity(String),
     /// A directory that cannot be listed.
     #[error(transparent)]
     Io(#[from] std::io::Error),

@@ -12,6 +12,7 @@
 use std::path::Path;
 
 use crate::image_io::{self, Image};
+use crate::measure::chart::{self, ChartError};
 use crate::measure::metrics::RELMSE_EPSILON;
 use crate::measure::MeasureError;
 
@@ -94,10 +95,65 @@ pub fn legend_lines() -> Vec<(String, f64)> {
         .collect()
 }
 
-/// Writes the heatmap of `a` against the reference `b` as a PNG of the images' size (pixel for
-/// pixel, so it can be laid over them).
+/// Width in pixels of the colour bar's panel right of the heatmap.
+pub const BAR_PANEL: u32 = 120;
+/// The canvas is at least this tall, so a small image still gets a readable bar.
+pub const BAR_MIN_HEIGHT: u32 = 200;
+/// The bar's left edge and width within its panel, and its margin to the canvas's top and
+/// bottom, in pixels.
+pub const BAR_X: u32 = 14;
+pub const BAR_W: u32 = 22;
+pub const BAR_MARGIN: u32 = 14;
+
+/// Writes the heatmap of `a` against the reference `b` as a PNG: the heatmap pixel for pixel
+/// in the top-left `width x height` pixels (so that it can be cropped and laid over the
+/// images), and right of it a colour bar labelled at each decade of the relative error.
 pub fn write_heatmap(path: &Path, a: &Image, b: &Image) -> Result<(), MeasureError> {
     let errors = relative_error(a, b)?;
-    let data: Vec<u8> = errors.iter().flat_map(|&e| error_colour(e)).collect();
-    Ok(image_io::write_png_rgb8(path, a.width, a.height, &data)?)
+    let (w, h) = (a.width + BAR_PANEL, a.height.max(BAR_MIN_HEIGHT));
+    let mut canvas = vec![255u8; (w as usize) * (h as usize) * 3];
+    for (i, &e) in errors.iter().enumerate() {
+        let (x, y) = (i as u32 % a.width, i as u32 / a.width);
+        let at = ((y * w + x) * 3) as usize;
+        canvas[at..at + 3].copy_from_slice(&error_colour(e));
+    }
+    let (top, bottom) = (BAR_MARGIN, h - BAR_MARGIN);
+    for y in top..bottom {
+        let t = (bottom - 1 - y) as f64 / (bottom - 1 - top) as f64;
+        for x in a.width + BAR_X..a.width + BAR_X + BAR_W {
+            let at = ((y * w + x) * 3) as usize;
+            canvas[at..at + 3].copy_from_slice(&viridis(t));
+        }
+    }
+    label_bar(
+        &mut canvas,
+        (w, h),
+        a.width + BAR_X + BAR_W + 6,
+        (top, bottom),
+    )?;
+    Ok(image_io::write_png_rgb8(path, w, h, &canvas)?)
+}
+
+/// Writes the decades of the scale beside the bar that spans rows `top..bottom`.
+fn label_bar(
+    canvas: &mut [u8],
+    size: (u32, u32),
+    x: u32,
+    (top, bottom): (u32, u32),
+) -> Result<(), MeasureError> {
+    use plotters::prelude::*;
+    let font_error = |e: String| MeasureError::Chart(ChartError::Drawing("heatmap", e));
+    chart::register_font().map_err(MeasureError::Chart)?;
+    let root = BitMapBackend::with_buffer(canvas, size).into_drawing_area();
+    let style = (chart::FAMILY, 15).into_font().color(&BLACK);
+    let decades = (LOG10_MAX - LOG10_MIN).round() as i32;
+    for k in 0..=decades {
+        let t = k as f64 / decades as f64;
+        let y = bottom as f64 - 1.0 - t * (bottom - 1 - top) as f64;
+        let percent = 10f64.powf(LOG10_MIN + t * (LOG10_MAX - LOG10_MIN)) * 100.0;
+        let text = format!("{}%", (percent * 1e6).round() / 1e6);
+        root.draw_text(&text, &style, (x as i32, y as i32 - 7))
+            .map_err(|e| font_error(e.to_string()))?;
+    }
+    root.present().map_err(|e| font_error(e.to_string()))
 }

@@ -69,6 +69,9 @@ pub enum MeasureError {
     /// Writing an image failed.
     #[error(transparent)]
     Image(#[from] crate::image_io::ImageError),
+    /// Drawing a chart or the heatmap's colour bar failed.
+    #[error(transparent)]
+    Chart(chart::ChartError),
 }
 
 /// The command line reports errors as text.
