@@ -59,6 +59,58 @@ impl ImageMeta {
     }
 }
 
+/// How pathspace stores a numeric attribute in an EXR header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Numeric {
+    /// OpenEXR's `int` (32-bit).
+    Int,
+    /// OpenEXR's `double`.
+    Double,
+}
+
+/// The attributes pathspace writes as numbers, so that a tool reading the header (OpenEXR's
+/// `exrheader`, Python's `OpenEXR`) gets counts and times as numbers; every other attribute is a
+/// string. A value that does not fit its type (a count beyond `i32`) stays a string, and `seed`
+/// is a string because a merged image lists its runs' seeds.
+pub const NUMERIC_ATTRIBUTES: [(&str, Numeric); 7] = [
+    ("spp", Numeric::Int),
+    ("spp_target", Numeric::Int),
+    ("nan_count", Numeric::Int),
+    ("negative_pixels", Numeric::Int),
+    ("seconds", Numeric::Double),
+    ("guide_seconds", Numeric::Double),
+    ("estimated_relmse", Numeric::Double),
+];
+
+/// The header value of attribute `key` with text `value`.
+fn attribute_value(key: &str, value: &str) -> exr::meta::attribute::AttributeValue {
+    use exr::meta::attribute::{AttributeValue, Text};
+    let kind = NUMERIC_ATTRIBUTES.iter().find(|(k, _)| *k == key);
+    match kind.map(|(_, t)| t) {
+        Some(Numeric::Int) => value.parse().ok().map(AttributeValue::I32),
+        Some(Numeric::Double) => value
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .map(AttributeValue::F64),
+        None => None,
+    }
+    .unwrap_or_else(|| AttributeValue::Text(Text::from(value)))
+}
+
+/// The text of a header value that pathspace reads: strings and numbers (other renderers may
+/// store a number as `float`).
+fn attribute_text(v: &exr::meta::attribute::AttributeValue) -> Option<String> {
+    use exr::meta::attribute::AttributeValue;
+    match v {
+        AttributeValue::Text(t) => Some(t.to_string()),
+        AttributeValue::I32(i) => Some(i.to_string()),
+        AttributeValue::F32(f) => Some(f.to_string()),
+        AttributeValue::F64(f) => Some(f.to_string()),
+        _ => None,
+    }
+}
+
 /// Failure to read or write an image.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
@@ -74,7 +126,8 @@ pub fn io_err(path: &Path, e: impl std::fmt::Display) -> ImageError {
     }
 }
 
-/// Writes a linear RGB float EXR with `meta` as string attributes.
+/// Writes a linear RGB float EXR with `meta` as attributes ([`NUMERIC_ATTRIBUTES`] as numbers,
+/// the others as strings).
 pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), ImageError> {
     use exr::prelude::*;
     let w = image.width as usize;
@@ -84,10 +137,9 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
     });
     let mut layer_attributes = LayerAttributes::named("pathspace");
     for (k, v) in &meta.attributes {
-        layer_attributes.other.insert(
-            Text::from(k.as_str()),
-            AttributeValue::Text(Text::from(v.as_str())),
-        );
+        layer_attributes
+            .other
+            .insert(Text::from(k.as_str()), attribute_value(k, v));
     }
     let layer = Layer::new(
         (image.width as usize, image.height as usize),
@@ -169,7 +221,8 @@ pub fn write_replacing(
     written
 }
 
-/// Reads an RGB(A) EXR written by pathspace or any other renderer, with its text attributes.
+/// Reads an RGB(A) EXR written by pathspace or any other renderer, with its string and number
+/// attributes as text.
 pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
     use exr::prelude::*;
     let img = read()
@@ -190,8 +243,8 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
         .map_err(|e| io_err(path, e))?;
     let mut meta = ImageMeta::default();
     for (k, v) in &img.layer_data.attributes.other {
-        if let AttributeValue::Text(t) = v {
-            meta.attributes.insert(k.to_string(), t.to_string());
+        if let Some(t) = attribute_text(v) {
+            meta.attributes.insert(k.to_string(), t);
         }
     }
     Ok((img.layer_data.channel_data.pixels, meta))

@@ -83,6 +83,35 @@ fn every_render_records_its_provenance() {
     assert_eq!(m.get("scene_hash").map(str::len), Some(16));
     assert!(m.get("render_options").unwrap().contains("seed = 7"));
     assert!(m.get("seconds").is_some());
+    // counts and times are numbers in the header itself, the rest strings
+    let header = exr::meta::MetaData::read_from_file(&a, false).unwrap();
+    let other = &header.headers[0].own_attributes.other;
+    let value = |k: &str| other.get(&exr::meta::attribute::Text::from(k)).unwrap();
+    use exr::meta::attribute::AttributeValue as V;
+    assert_eq!(value("spp"), &V::I32(4));
+    assert_eq!(value("nan_count"), &V::I32(0));
+    assert!(matches!(value("seconds"), V::F64(s) if *s >= 0.0));
+    assert!(
+        matches!(value("seed"), V::Text(_)),
+        "seed lists a merge's seeds"
+    );
+    assert!(matches!(value("scene_hash"), V::Text(_)));
+}
+
+#[test]
+fn a_number_that_does_not_fit_its_type_stays_text() {
+    let dir = scratch(GROUP, "numbers");
+    let mut m = ImageMeta::default();
+    m.set("spp", 1u64 << 40)
+        .set("seconds", "NaN")
+        .set("nan_count", 3);
+    let p = dir.join("n.exr");
+    image_io::write_exr(&p, &image_io::Image::new(1, 1), &m).unwrap();
+    assert_eq!(
+        meta(&p),
+        m,
+        "the text of every attribute reads back as written"
+    );
 }
 
 /// A fresh directory `name` with a render of the fog box with seed 1 in it (`a.exr`).
