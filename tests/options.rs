@@ -9,6 +9,8 @@ use pathspace::integrator::settings::{load, RenderOptions, Spelling};
 use pathspace::integrator::RenderSettings;
 use pathspace::scene::{SceneSource, FOG_BOX};
 
+mod common;
+
 fn render_args(argv: &[&str]) -> pathspace::cli::render::RenderArgs {
     let mut full = vec!["pathspace", "render"];
     full.extend_from_slice(argv);
@@ -372,4 +374,47 @@ fn the_progress_line_shows_rate_and_what_is_left() {
         progress_message(3, None, None, Some(-1.0)),
         "3 spp, 0 s left"
     );
+}
+
+/// Each preprocessing stage is named on stderr when it starts and timed when it ends, in the
+/// order they run (the summary follows on stdout); `--json` keeps stderr quiet.
+#[test]
+fn preprocessing_stages_are_named_as_they_run() {
+    let dir = common::cli::scratch("options", "stages");
+    let out = dir.join("mlt.exr");
+    let args = |extra: &[&str]| {
+        let mut a = vec![
+            "render",
+            "--integrator",
+            "mlt",
+            "--resolution",
+            "8x8",
+            "--spp",
+            "1",
+            "--mlt-bootstrap",
+            "512",
+            "--adjoint-image",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        common::cli::pathspace(&a)
+    };
+    let run = args(&[]);
+    let err = common::cli::stderr(&run);
+    assert!(run.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    let at = |s: &str| lines.iter().position(|l| l.starts_with(s));
+    let order = [
+        at("preprocessing: adjoint image (BDPT pre-pass) ..."),
+        at("preprocessing: adjoint image (BDPT pre-pass) done in"),
+        at("preprocessing: mlt bootstrap (512 BDPT paths"),
+        lines
+            .iter()
+            .position(|l| l.contains("bootstrap") && l.contains("done in")),
+    ];
+    assert!(order.iter().all(Option::is_some), "{order:?}\n{err}");
+    assert!(order.windows(2).all(|w| w[0] < w[1]), "{order:?}\n{err}");
+    let quiet = args(&["--json"]);
+    assert!(!common::cli::stderr(&quiet).contains("preprocessing"));
 }

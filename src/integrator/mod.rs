@@ -233,6 +233,16 @@ pub trait Integrator: Send + Sync {
         matches!(state, checkpoint::IntegratorState::None)
     }
 
+    /// The work this integrator does once before its first pass (MLT's bootstrap pre-pass and
+    /// the chains' seed paths), named for the user; `None` when there is none left.
+    fn pending_stage(&self) -> Option<String> {
+        None
+    }
+
+    /// Does the [`Integrator::pending_stage`] now, so that the session can name and time it
+    /// (otherwise the first pass does it).
+    fn run_stage(&mut self, _scene: &Scene) {}
+
     /// Whether a checkpoint continues this integrator's run exactly. MLT's chains are not
     /// saved: a resumed MLT render is an independent run merged by sample count.
     fn resumes_exactly(&self) -> bool {

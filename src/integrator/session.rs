@@ -22,7 +22,7 @@ use crate::spectrum::Rgb;
 /// One timed preprocessing stage.
 #[derive(Clone, Debug)]
 pub struct Stage {
-    pub name: &'static str,
+    pub name: String,
     pub seconds: f64,
 }
 
@@ -51,30 +51,43 @@ pub fn preprocess(
 ) -> Result<Preprocessed, IntegratorError> {
     let mut out = Preprocessed::default();
     if let Some(settings) = adjoint {
-        let t0 = Instant::now();
-        out.adjoint = Some(
-            out.technique
-                .install_adjoint(scene, settings, seed, max_depth)?,
-        );
-        out.stages.push(Stage {
-            name: "adjoint image",
-            seconds: t0.elapsed().as_secs_f64(),
+        let technique = &mut out.technique;
+        let (stats, s) = stage("adjoint image (BDPT pre-pass)", show, || {
+            technique.install_adjoint(scene, settings, seed, max_depth)
         });
+        out.adjoint = Some(stats?);
+        out.stages.push(s);
     }
     if guide.kind != GuideKind::Off {
-        let t0 = Instant::now();
-        out.guide = out.technique.install_guide(scene, guide, seed);
-        out.stages.push(Stage {
-            name: "guide",
-            seconds: t0.elapsed().as_secs_f64(),
+        let technique = &mut out.technique;
+        let (stats, s) = stage("guide (particles and regions)", show, || {
+            technique.install_guide(scene, guide, seed)
         });
-    }
-    if show {
-        for s in &out.stages {
-            eprintln!("preprocessing: {} in {:.2} s", s.name, s.seconds);
-        }
+        out.guide = stats;
+        out.stages.push(s);
     }
     Ok(out)
+}
+
+/// Runs `work` as the preprocessing stage `name`: with `show`, its name is printed when it
+/// starts and its time when it ends (a stage may take minutes, with no bar meanwhile).
+pub fn stage<T>(name: &str, show: bool, work: impl FnOnce() -> T) -> (T, Stage) {
+    if show {
+        eprintln!("preprocessing: {name} ...");
+    }
+    let t0 = Instant::now();
+    let out = work();
+    let seconds = t0.elapsed().as_secs_f64();
+    if show {
+        eprintln!("preprocessing: {name} done in {seconds:.2} s");
+    }
+    (
+        out,
+        Stage {
+            name: name.to_string(),
+            seconds,
+        },
+    )
 }
 
 /// A render's passes: the integrator, the setup, and how long to render.
@@ -168,6 +181,15 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
         }
     };
     let start = Instant::now();
+    // counted in the render's time, as when the first pass did it
+    if let Some(name) = r.integrator.pending_stage() {
+        let scene = job.setup.scene;
+        if let Some(b) = &bar {
+            b.suspend(|| stage(&name, true, || r.integrator.run_stage(scene)));
+        } else {
+            r.integrator.run_stage(scene);
+        }
+    }
     let prior_seconds = progress.seconds;
     let first_spp = progress.spp;
     let mut last_checkpoint = Instant::now();

@@ -749,6 +749,21 @@ impl super::Integrator for Mlt<'_> {
         false
     }
 
+    fn pending_stage(&self) -> Option<String> {
+        (!self.initialized).then(|| {
+            format!(
+                "mlt bootstrap ({} BDPT paths, seed paths of {} chains)",
+                self.settings.bootstrap, self.settings.chains
+            )
+        })
+    }
+
+    fn run_stage(&mut self, scene: &Scene) {
+        if !self.initialized {
+            self.initialize(scene);
+        }
+    }
+
     fn statistics(&self) -> super::Statistics {
         super::Statistics {
             mlt: Some((self.b, self.report())),
