@@ -14,7 +14,7 @@ use rand_pcg::Pcg64Mcg;
 
 use pathspace::geometry::shape::Triangle;
 use pathspace::geometry::{Bvh, Primitive, Ray};
-use pathspace::scene::Scene;
+use pathspace::scene::{Scene, SceneSource};
 
 /// Timed runs per measurement; the median is reported.
 const RUNS: usize = 7;
@@ -104,6 +104,31 @@ fn main() {
         &scene.prim_opaque,
         &scene.bvh,
         &fog_rays,
+    );
+
+    // Pauly et al.'s Fig. 8 with 100 rooms: walls with doorways, furniture, 100 lights;
+    // rays from anywhere in the 40 x 3 x 40 block of rooms
+    let source = SceneSource::embedded("rooms", &pathspace::cli::rooms::rooms_scene(10));
+    let rooms = Scene::load(&source).expect("the 100-room scene loads");
+    let b = rooms.bvh.bounds();
+    let room_rays: Vec<(Ray, f32)> = rays(&mut r, 1_000_000, 1.0)
+        .into_iter()
+        .map(|(ray, t)| {
+            let o = b.min + (ray.o * 0.5 + 0.5) * (b.max - b.min) * 0.999;
+            let t = if t.is_finite() {
+                t * (b.max - b.min).length()
+            } else {
+                t
+            };
+            (Ray::new(o, ray.d), t)
+        })
+        .collect();
+    report(
+        "100 rooms (rays inside)",
+        &rooms.prims,
+        &rooms.prim_opaque,
+        &rooms.bvh,
+        &room_rays,
     );
 
     let n = 100_000;

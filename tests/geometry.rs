@@ -476,3 +476,37 @@ fn box_faces_point_outwards() {
         );
     }
 }
+
+/// Exactly coincident primitives of one opacity hit at exactly one distance: the lowest index
+/// wins, whichever leaf the traversal enters first (the result never depends on the order of
+/// the tree, so a faster traversal keeps every image bit for bit).
+#[test]
+fn an_exact_tie_goes_to_the_lowest_index_in_any_traversal_order() {
+    let mut r = rng(5);
+    let quad = || {
+        Primitive::Quad(
+            Quad::new(
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(0.0, 2.0, 0.0),
+            )
+            .unwrap(),
+        )
+    };
+    // more copies than a leaf holds, so they land in several leaves
+    let prims: Vec<Primitive> = (0..9).map(|_| quad()).collect();
+    let opaque = vec![true; prims.len()];
+    let bvh = Bvh::build(&prims);
+    assert!(bvh.node_count() > 1, "the copies share one leaf");
+    for _ in 0..500 {
+        let o = Vec3::new(
+            r.random_range(-0.9..0.9),
+            r.random_range(-0.9..0.9),
+            if r.random() { 3.0 } else { -3.0 },
+        );
+        let to = Vec3::new(r.random_range(-0.9..0.9), r.random_range(-0.9..0.9), 0.0);
+        let ray = Ray::new(o, (to - o).normalize());
+        let hit = bvh.intersect(&prims, &opaque, &ray, f32::INFINITY).unwrap();
+        assert_eq!(hit.prim, 0, "ray {ray:?}");
+    }
+}

@@ -208,6 +208,11 @@ impl Bvh {
     }
 
     /// [`Bvh::intersect`] restricted to t in (t_min, t_max).
+    ///
+    /// Traversal tests both children's boxes at their parent, goes on into the nearer and
+    /// stacks the other with its entry distance, which is checked again when it is popped: a
+    /// subtree the best hit so far has moved out of reach is dropped without touching its
+    /// node.
     pub fn intersect_range(
         &self,
         prims: &[Primitive],
@@ -216,104 +221,117 @@ impl Bvh {
         t_min: f32,
         t_max: f32,
     ) -> Option<Hit> {
-        if self.nodes.is_empty() {
+        let inv_d = ray.d.recip();
+        // hits this far past the best one still compete in the tie-break
+        let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
+        if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
             return None;
         }
-        let inv_d = ray.d.recip();
         let mut best: Option<Hit> = None;
-        let mut t_best = t_max;
-        let mut stack = [0u32; MAX_DEPTH];
+        let mut stack = [(0u32, 0.0f32); MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
-            let slack = t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON;
-            if n.bounds.intersect(ray, inv_d, slack.min(t_max)).is_some() {
-                if n.count > 0 {
-                    for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
-                        let limit = (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
-                        if let Some((t, p, ng)) =
-                            prims[pi as usize].intersect_range(ray, t_min, limit)
-                        {
-                            let candidate = Hit { t, p, ng, prim: pi };
-                            match best {
-                                None => {
-                                    best = Some(candidate);
-                                    t_best = t;
-                                }
-                                Some(b) => {
-                                    // ANCHOR: tie_break
-                                    let tie = (t - b.t).abs() <= TIE_EPSILON * (1.0 + b.t);
-                                    let better = if tie {
-                                        opaque[pi as usize] && !opaque[b.prim as usize]
-                                            || (opaque[pi as usize] == opaque[b.prim as usize]
-                                                && t < b.t)
-                                    } else {
-                                        t < b.t
-                                    };
-                                    // ANCHOR_END: tie_break
-                                    if better {
-                                        best = Some(candidate);
-                                        t_best = t;
-                                    }
-                                }
-                            }
+            let limit = reach(best.map_or(t_max, |b| b.t));
+            if n.count > 0 {
+                for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
+                    let limit = reach(best.map_or(t_max, |b| b.t));
+                    if let Some((t, p, ng)) = prims[pi as usize].intersect_range(ray, t_min, limit)
+                    {
+                        let candidate = Hit { t, p, ng, prim: pi };
+                        if best.is_none_or(|b| closer(&candidate, &b, opaque)) {
+                            best = Some(candidate);
                         }
                     }
-                } else {
-                    // visit the nearer child first
-                    let left = node + 1;
-                    let right = n.offset as usize;
-                    let axis_dir_neg = {
-                        let c = self.nodes[right].bounds.centroid()
-                            - self.nodes[left].bounds.centroid();
-                        c.dot(ray.d) < 0.0
-                    };
-                    let (first, second) = if axis_dir_neg {
-                        (right, left)
-                    } else {
-                        (left, right)
-                    };
-                    // at most depth - 1 nodes wait on the stack: it cannot overflow
-                    stack[sp] = second as u32;
-                    sp += 1;
-                    node = first;
-                    continue;
+                }
+            } else {
+                let (left, right) = (node + 1, n.offset as usize);
+                let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, limit);
+                let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, limit);
+                match (hit_left, hit_right) {
+                    (Some((near_l, _)), Some((near_r, _))) => {
+                        let (first, second, t_second) = if near_r < near_l {
+                            (right, left, near_l)
+                        } else {
+                            (left, right, near_r)
+                        };
+                        // one entry per level of the path from the root: cannot overflow
+                        stack[sp] = (second as u32, t_second);
+                        sp += 1;
+                        node = first;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = left;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = right;
+                        continue;
+                    }
+                    (None, None) => {}
                 }
             }
-            if sp == 0 {
-                break;
+            // the next stacked subtree the ray still enters before the best hit's reach (with
+            // the slack of the box test)
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (next, t_near) = stack[sp];
+                if t_near <= reach(best.map_or(t_max, |b| b.t)) * 1.000_000_4 {
+                    node = next as usize;
+                    break;
+                }
             }
-            sp -= 1;
-            node = stack[sp] as usize;
         }
-        best
     }
 
-    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true.
+    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true. Children are
+    /// tested at their parent, as in [`Bvh::intersect_range`], the nearer entered first.
     pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
-        if self.nodes.is_empty() {
+        let inv_d = ray.d.recip();
+        if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
             return false;
         }
-        let inv_d = ray.d.recip();
         let mut stack = [0u32; MAX_DEPTH];
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
-            if n.bounds.intersect(ray, inv_d, t_max).is_some() {
-                if n.count > 0 {
-                    for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
-                        if blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some()
-                        {
-                            return true;
-                        }
+            if n.count > 0 {
+                for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
+                    if blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some() {
+                        return true;
                     }
-                } else {
-                    stack[sp] = n.offset;
-                    sp += 1;
-                    node += 1;
-                    continue;
+                }
+            } else {
+                let (left, right) = (node + 1, n.offset as usize);
+                let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, t_max);
+                let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, t_max);
+                match (hit_left, hit_right) {
+                    (Some((near_l, _)), Some((near_r, _))) => {
+                        let (first, second) = if near_r < near_l {
+                            (right, left)
+                        } else {
+                            (left, right)
+                        };
+                        stack[sp] = second as u32;
+                        sp += 1;
+                        node = first;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = left;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = right;
+                        continue;
+                    }
+                    (None, None) => {}
                 }
             }
             if sp == 0 {
@@ -324,3 +342,17 @@ impl Bvh {
         }
     }
 }
+
+// ANCHOR: tie_break
+/// Whether hit `a` is the one to keep over `b`: the nearer, except that within
+/// [`TIE_EPSILON`] (relative) an opaque primitive wins over a null one; among equals the lower
+/// primitive index, so that the result does not depend on the order the hits were found in.
+fn closer(a: &Hit, b: &Hit, opaque: &[bool]) -> bool {
+    let (oa, ob) = (opaque[a.prim as usize], opaque[b.prim as usize]);
+    let tie = (a.t - b.t).abs() <= TIE_EPSILON * (1.0 + b.t);
+    if tie && oa != ob {
+        return oa;
+    }
+    a.t < b.t || (a.t == b.t && a.prim < b.prim)
+}
+// ANCHOR_END: tie_break
