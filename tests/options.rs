@@ -418,3 +418,53 @@ fn preprocessing_stages_are_named_as_they_run() {
     let quiet = args(&["--json"]);
     assert!(!common::cli::stderr(&quiet).contains("preprocessing"));
 }
+
+/// Every option with a closed set of values lists them in `--help` and refuses another value
+/// on the command line, and each listed name is one its parser takes (the lists are the
+/// parsers' own, so a name added to one and not the other turns this red).
+#[test]
+fn enumerated_options_list_exactly_the_values_their_parsers_take() {
+    use pathspace::enlightened::adjoint::AdjointEstimator;
+    use pathspace::enlightened::guide::{GuideKind, ParticleSampler};
+    use pathspace::integrator::smc::{estimator::Variant, EstimatorForm};
+    /// A flag, the names it lists, and whether its parser takes a name.
+    type Listed = (&'static str, &'static [&'static str], fn(&str) -> bool);
+    let lists: [Listed; 5] = [
+        ("--smc-variant", &Variant::NAMES, |s| {
+            Variant::parse(s).is_ok()
+        }),
+        ("--smc-estimator", &EstimatorForm::NAMES, |s| {
+            EstimatorForm::parse(s, None).is_ok()
+        }),
+        ("--guide", &GuideKind::NAMES, |s| {
+            GuideKind::parse(s).is_ok()
+        }),
+        ("--guide-sampler", &ParticleSampler::NAMES, |s| {
+            ParticleSampler::parse(s).is_ok()
+        }),
+        ("--adjoint-estimator", &AdjointEstimator::NAMES, |s| {
+            AdjointEstimator::parse(s).is_ok()
+        }),
+    ];
+    let mut cmd = Cli::command();
+    let help = cmd
+        .find_subcommand_mut("render")
+        .unwrap()
+        .render_long_help()
+        .to_string();
+    for (flag, names, parses) in lists {
+        assert!(names.iter().all(|n| parses(n)), "{flag}: {names:?}");
+        assert!(!parses("nonsense"), "{flag}");
+        let listed = format!("[possible values: {}]", names.join(", "));
+        let at = help.find(&format!("{flag} ")).unwrap();
+        assert!(
+            help[at..].contains(&listed),
+            "{flag} does not list {listed}"
+        );
+        let refused = Cli::try_parse_from(["pathspace", "render", flag, "nonsense"]);
+        assert!(refused.is_err(), "{flag} nonsense parsed");
+    }
+    // the variants' names are the six combinations, in the registry's order
+    let built: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();
+    assert_eq!(built, Variant::NAMES);
+}

@@ -90,6 +90,9 @@ pub enum AdjointEstimator {
 }
 
 impl AdjointEstimator {
+    /// The names [`AdjointEstimator::parse`] takes.
+    pub const NAMES: [&'static str; 2] = ["bdpt", "metropolis"];
+
     pub fn parse(s: &str) -> Result<Self, AdjointError> {
         match s {
             "bdpt" => Ok(AdjointEstimator::Bdpt),

@@ -53,6 +53,9 @@ pub enum GuideKind {
 }
 
 impl GuideKind {
+    /// The names [`GuideKind::parse`] takes.
+    pub const NAMES: [&'static str; 4] = ["off", "surface", "volume", "both"];
+
     pub fn parse(s: &str) -> Result<Self, GuideError> {
         match s {
             "off" => Ok(GuideKind::Off),
@@ -97,6 +100,9 @@ pub enum ParticleSampler {
 }
 
 impl ParticleSampler {
+    /// The names [`ParticleSampler::parse`] takes.
+    pub const NAMES: [&'static str; 3] = ["classical", "bidirectional", "metropolis"];
+
     pub fn parse(s: &str) -> Result<Self, GuideError> {
         match s {
             "classical" => Ok(ParticleSampler::Classical),

@@ -6,11 +6,14 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideSettings};
+use crate::enlightened::adjoint::AdjointEstimator;
+use crate::enlightened::guide::ParticleSampler;
+use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
 use crate::scene::{Scene, SceneError, SceneSource};
+use clap::builder::PossibleValuesParser;
 
 /// The render settings' view of a scene file: its `[render]` table (the rest is the scene's).
 #[derive(Debug, Clone, Default, Deserialize)]
@@ -177,7 +180,7 @@ pub struct AdjointOptions {
     pub epsilon: Option<f32>,
     /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
     /// Metropolis particle sampler).
-    #[arg(id = "adjoint_estimator", long = "adjoint-estimator")]
+    #[arg(id = "adjoint_estimator", long = "adjoint-estimator", value_parser = PossibleValuesParser::new(AdjointEstimator::NAMES))]
     pub estimator: Option<String>,
 }
 
@@ -286,7 +289,12 @@ pub enum Spelling {
 #[command(next_help_heading = "Guiding (bdpt, light, mlt; [render.guide])")]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
-    #[arg(id = "guide_vertices", long = "guide", alias = "guide-vertices")]
+    #[arg(
+        id = "guide_vertices",
+        long = "guide",
+        alias = "guide-vertices",
+        value_parser = PossibleValuesParser::new(GuideKind::NAMES)
+    )]
     pub vertices: Option<String>,
     /// Direction map resolution COLSxROWS (default 32x16, the thesis's).
     #[arg(id = "guide_map", long = "guide-map")]
@@ -311,7 +319,7 @@ pub struct GuideOptions {
     #[arg(id = "guide_min_depth", long = "guide-min-depth")]
     pub min_depth: Option<u32>,
     /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
-    #[arg(id = "guide_sampler", long = "guide-sampler")]
+    #[arg(id = "guide_sampler", long = "guide-sampler", value_parser = PossibleValuesParser::new(ParticleSampler::NAMES))]
     pub sampler: Option<String>,
     /// Metropolis particles: small-step deviation in primary sample space (default 1/64).
     #[arg(id = "guide_sigma", long = "guide-sigma")]

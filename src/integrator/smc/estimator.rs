@@ -70,6 +70,11 @@ impl Variant {
         cv: ControlVariate::Order1,
     };
 
+    /// The names of [`Variant::ALL`], in its order (the command line lists them).
+    pub const NAMES: [&'static str; 6] = [
+        "is0_cv0", "is0_cv1", "is0_cv2", "is1_cv0", "is1_cv1", "is1_cv2",
+    ];
+
     /// All six combinations.
     pub const ALL: [Variant; 6] = {
         use ControlVariate as C;

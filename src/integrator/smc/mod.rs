@@ -67,6 +67,9 @@ pub enum EstimatorForm {
 }
 
 impl EstimatorForm {
+    /// The names [`EstimatorForm::parse`] takes.
+    pub const NAMES: [&'static str; 2] = ["march", "distance"];
+
     pub fn parse(s: &str, step: Option<f32>) -> Result<Self, SmcError> {
         match s {
             "distance" => Ok(EstimatorForm::Distance),
@@ -315,7 +318,7 @@ pub struct OptionError {
 #[command(next_help_heading = "SMC: sequential Monte Carlo (--integrator smc; [render.smc])")]
 pub struct SmcOptions {
     /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
-    #[arg(long = "smc-variant")]
+    #[arg(long = "smc-variant", value_parser = clap::builder::PossibleValuesParser::new(estimator::Variant::NAMES))]
     pub variant: Option<String>,
     /// SMC: the refinement threshold on the average record count of a cache (default 64).
     #[arg(long = "smc-threshold")]
@@ -324,7 +327,7 @@ pub struct SmcOptions {
     #[arg(long = "smc-cache-budget", alias = "cache-budget", value_parser = ByteCount::parse_arg)]
     pub cache_budget: Option<ByteCount>,
     /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
-    #[arg(long = "smc-estimator")]
+    #[arg(long = "smc-estimator", value_parser = clap::builder::PossibleValuesParser::new(EstimatorForm::NAMES))]
     pub estimator: Option<String>,
     /// SMC: the ray-marching step in mean free paths (default 1; march only).
     #[arg(long = "smc-step")]
