@@ -575,6 +575,15 @@ fn agreement_specular() {
 }
 
 #[test]
+fn agreement_glossy() {
+    // rough conductors and a rough dielectric holding a medium, with a point light behind the
+    // rough glass: a glossy vertex is non-specular, so every column must reach every path
+    let mut fam = Family::new("agreement: glossy");
+    check_row(&mut fam, &row("glossy", fixture("glossy.toml"), 3));
+    fam.finish();
+}
+
+#[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");
     check_row(
