@@ -102,7 +102,8 @@ impl RoughDielectric {
         let c_t = -l.li.dot(h.m);
         let r_par = (eta * c_o - c_t) / (eta * c_o + c_t);
         let r_perp = (c_o - eta * c_t) / (c_o + eta * c_t);
-        (0.5 * (r_par * r_par + r_perp * r_perp)).min(1.0)
+        // the mean of the two polarizations' reflectances
+        (r_par.mul_add(r_par, r_perp * r_perp) / 2.0).min(1.0)
     }
 
     /// f_s(wo, wi) in `mode` (Walter et al. 2007, eq. (20) for reflection, eq. (21) for
