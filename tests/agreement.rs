@@ -575,6 +575,23 @@ fn agreement_specular() {
 }
 
 #[test]
+fn agreement_glossy() {
+    // rough conductors and a rough dielectric holding a medium, with a point light behind the
+    // rough glass: a glossy vertex is non-specular, so every column must reach every path
+    let mut fam = Family::new("agreement: glossy");
+    // (twice the samples: the row must resolve an eta^2 error of the light subpaths' rough
+    // refraction, which changes the light of the point light by a factor 2.25)
+    check_row(
+        &mut fam,
+        &Row {
+            spp: 2 * SPP,
+            ..row("glossy", fixture("glossy.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+#[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");
     check_row(

@@ -1,4 +1,4 @@
-//! Executable specification of `src/bsdf.rs` (book: "Surface scattering").
+//! Executable specification of `src/bsdf/mod.rs` (book: "Surface scattering").
 //!
 //! f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2): Lambert's
 //! reciprocity, energy and two-sidedness; the mirror's reflection law; the dielectric's Fresnel

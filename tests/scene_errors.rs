@@ -188,6 +188,57 @@ fn albedo_above_one() {
     );
 }
 
+#[test]
+fn glossy_roughness_outside_its_range() {
+    // below the floor the smooth material is the model to use, and the message says which
+    expect_error(
+        "\n[materials.steel]\ntype = \"rough_conductor\"\nalpha = 0.0001\n",
+        4,
+        "materials.steel.alpha",
+        &["below 0.001", "type = \"mirror\""],
+    );
+    expect_error(
+        "\n[materials.frost]\ntype = \"rough_dielectric\"\nior = 1.5\nalpha = 0\n",
+        5,
+        "materials.frost.alpha",
+        &["below 0.001", "type = \"dielectric\""],
+    );
+    expect_error(
+        "\n[materials.frost]\ntype = \"rough_dielectric\"\nior = 1.5\nalpha = 1.5\n",
+        5,
+        "materials.frost.alpha",
+        &["above 1", "energy"],
+    );
+}
+
+#[test]
+fn glossy_fresnel_and_index_contradictions() {
+    expect_error(
+        "\n[materials.steel]\ntype = \"rough_conductor\"\nalpha = 0.2\nreflectance = 0.9\neta = 1.5\nk = 3.0\n",
+        6,
+        "materials.steel.eta",
+        &["either `reflectance`", "not both"],
+    );
+    expect_error(
+        "\n[materials.steel]\ntype = \"rough_conductor\"\nalpha = 0.2\neta = [0.2, 0.9, 1.1]\n",
+        5,
+        "materials.steel.eta",
+        &["both `eta` and `k`"],
+    );
+    expect_error(
+        "\n[materials.steel]\ntype = \"rough_conductor\"\nalpha = 0.2\nreflectance = 1.2\n",
+        5,
+        "materials.steel.reflectance",
+        &["above 1"],
+    );
+    expect_error(
+        "\n[materials.frost]\ntype = \"rough_dielectric\"\nior = 1.001\nalpha = 0.2\n",
+        4,
+        "materials.frost.ior",
+        &["within 1% of 1", "null"],
+    );
+}
+
 // ---- media need closed shapes ----
 
 #[test]

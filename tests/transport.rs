@@ -544,7 +544,7 @@ fn next_event_sees_a_parallel_light_at_grazing_angles() {
                 &scene,
                 p,
                 Some(-Vec3::X),
-                None,
+                |_| None,
                 &mut s,
                 |wi| (pathspace::spectrum::Rgb::splat(wi.x.abs()), 0.0),
             );

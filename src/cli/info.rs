@@ -6,7 +6,7 @@ use clap::Args;
 use glam::Vec3;
 use std::path::PathBuf;
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, ConductorFresnel};
 use crate::geometry::Primitive;
 use crate::medium::{Medium, Phase};
 use crate::scene::file::escape_controls as esc;
@@ -43,6 +43,20 @@ fn bsdf(b: &Option<Bsdf>) -> String {
         Some(Bsdf::Lambert { albedo }) => format!("lambert, albedo {}", v3(*albedo)),
         Some(Bsdf::Mirror { reflectance }) => format!("mirror, reflectance {}", v3(*reflectance)),
         Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
+        Some(Bsdf::RoughConductor(c)) => match c.fresnel {
+            ConductorFresnel::Schlick(r) => {
+                format!("rough conductor, alpha {}, reflectance {}", c.alpha, v3(r))
+            }
+            ConductorFresnel::Complex { eta, k } => format!(
+                "rough conductor, alpha {}, eta {}, k {}",
+                c.alpha,
+                v3(eta),
+                v3(k)
+            ),
+        },
+        Some(Bsdf::RoughDielectric(d)) => {
+            format!("rough dielectric, ior {}, alpha {}", d.ior, d.alpha)
+        }
         Some(Bsdf::Null) => "null (index-matched boundary)".into(),
     }
 }

@@ -101,7 +101,7 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         name: "fresnel",
         chapter: "Surface scattering (eq. 2)",
         chapter_file: "bsdf.md",
-        files: &["src/bsdf.rs"],
+        files: &["src/bsdf/mod.rs"],
         task: "the Fresnel reflectance of a dielectric interface, total internal reflection included",
         tests: &[
             t("bsdf", "fresnel_at_normal_incidence_is_the_squared_index_ratio"),

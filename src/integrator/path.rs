@@ -83,14 +83,21 @@ impl PathTracer {
     ) -> Rgb {
         let n = meter.normal();
         let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
-        let mut l = next_event(scene, p, None, meter.medium, sampler, |wi| {
-            let c = wi.dot(n);
-            if c > 0.0 {
-                (Rgb::splat(c), c * std::f32::consts::FRAC_1_PI)
-            } else {
-                (Rgb::ZERO, 0.0)
-            }
-        });
+        let mut l = next_event(
+            scene,
+            p,
+            None,
+            |_| meter.medium,
+            sampler,
+            |wi| {
+                let c = wi.dot(n);
+                if c > 0.0 {
+                    (Rgb::splat(c), c * std::f32::consts::FRAC_1_PI)
+                } else {
+                    (Rgb::ZERO, 0.0)
+                }
+            },
+        );
         let local = warp::cosine_hemisphere(sampler.next_2d());
         if local.z <= 0.0 {
             return l;
@@ -170,10 +177,17 @@ impl PathTracer {
         let wo = -w.ray.d;
         // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
         *l += w.beta
-            * next_event(scene, p, None, Some(m), sampler, |wi| {
-                let f = phase.eval(wo, wi);
-                (Rgb::splat(f), f)
-            });
+            * next_event(
+                scene,
+                p,
+                None,
+                |_| Some(m),
+                sampler,
+                |wi| {
+                    let f = phase.eval(wo, wi);
+                    (Rgb::splat(f), f)
+                },
+            );
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
         let ps = phase.sample(wo, sampler.next_2d());
@@ -222,8 +236,9 @@ impl PathTracer {
         w.depth += 1;
         let wo = -w.ray.d;
         if !bsdf.is_singular() {
+            let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
             *l += w.beta
-                * next_event(scene, hit.p, Some(n), m, sampler, |wi| {
+                * next_event(scene, hit.p, Some(n), towards, sampler, |wi| {
                     let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
                     (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
                 });
@@ -238,11 +253,7 @@ impl PathTracer {
         }
         w.beta *= bs.weight(n);
         // crossing the surface (refraction) may change the medium
-        if bs.wi.dot(n) * wo.dot(n) < 0.0 {
-            w.medium = shape.medium_after(bs.wi, n, m);
-        } else {
-            w.medium = m;
-        }
+        w.medium = shape.medium_across(wo, bs.wi, n, m);
         w.prev = Previous {
             p: hit.p,
             pdf_dir: bs.pdf,
@@ -358,15 +369,16 @@ pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2
 }
 // ANCHOR_END: delta_light_view
 
-/// Next-event estimation from `p` (surface normal `n` if on a surface) in `medium`, with MIS
-/// against the scattering sampler: `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of
-/// sampling wi there). Shared by the path tracer and SMC's surface vertices.
+/// Next-event estimation from `p` (surface normal `n` if on a surface), with MIS against the
+/// scattering sampler: `scatter(wi)` returns (f * |cos| or f_p, solid-angle pdf of sampling wi
+/// there), `medium(wi)` the medium the shadow ray starts in (a refracting surface such as rough
+/// glass sees the medium behind it). Shared by the path tracer and SMC's surface vertices.
 // ANCHOR: next_event
 pub fn next_event(
     scene: &Scene,
     p: Vec3,
     n: Option<Vec3>,
-    medium: Option<u32>,
+    medium: impl Fn(Vec3) -> Option<u32>,
     sampler: &mut Sampler,
     scatter: impl Fn(Vec3) -> (Rgb, f32),
 ) -> Rgb {
@@ -400,7 +412,7 @@ pub fn next_event(
         let dir = (ls.p - origin).normalize_or_zero();
         (dir, shadow_distance(origin, ls.p))
     };
-    let tr = scene.transmittance(origin, dir, dist, medium, sampler);
+    let tr = scene.transmittance(origin, dir, dist, medium(ls.wi), sampler);
     if tr == Rgb::ZERO {
         return Rgb::ZERO;
     }

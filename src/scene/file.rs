@@ -114,6 +114,22 @@ pub enum MaterialDesc {
     Dielectric {
         ior: f32,
     },
+    /// GGX microfacet metal: `alpha`, and `reflectance` (Schlick) or `eta` and `k` (complex
+    /// index); reflectance 1 when neither is given.
+    RoughConductor {
+        alpha: f32,
+        #[serde(default)]
+        reflectance: Option<RgbValue>,
+        #[serde(default)]
+        eta: Option<RgbValue>,
+        #[serde(default)]
+        k: Option<RgbValue>,
+    },
+    /// GGX microfacet glass: `ior` inside over outside, `alpha`.
+    RoughDielectric {
+        ior: f32,
+        alpha: f32,
+    },
     Null {},
 }
 

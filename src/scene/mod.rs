@@ -51,6 +51,18 @@ impl ShapeInfo {
         matches!(self.bsdf, Some(Bsdf::Null))
     }
 
+    /// The medium a ray leaving this shape along `wi` starts in, for a ray that arrived along
+    /// `-wo` in medium `before`: the medium behind the shape when `wi` crosses it (a
+    /// refraction), else `before`. The sampled walks and next-event estimation share it.
+    #[inline]
+    pub fn medium_across(&self, wo: Vec3, wi: Vec3, ng: Vec3, before: Option<u32>) -> Option<u32> {
+        if wi.dot(ng) * wo.dot(ng) < 0.0 {
+            self.medium_after(wi, ng, before)
+        } else {
+            before
+        }
+    }
+
     /// The medium a ray travelling along `d` is in after crossing this shape at a point with
     /// normal `ng`, given the medium it was in before.
     #[inline]

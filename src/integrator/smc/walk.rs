@@ -230,7 +230,8 @@ pub fn surface(
     *depth += 1;
     let wo = -ray.d;
     if !bsdf.is_singular() {
-        a += crate::integrator::path::next_event(scene, hit.p, Some(n), medium, sampler, |wi| {
+        let towards = |wi: Vec3| shape.medium_across(wo, wi, n, medium);
+        a += crate::integrator::path::next_event(scene, hit.p, Some(n), towards, sampler, |wi| {
             let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
             (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
         });
@@ -243,11 +244,7 @@ pub fn surface(
     if bs.pdf <= 0.0 {
         return SurfaceStep { a, next: None };
     }
-    let next_medium = if bs.wi.dot(n) * wo.dot(n) < 0.0 {
-        shape.medium_after(bs.wi, n, medium)
-    } else {
-        medium
-    };
+    let next_medium = shape.medium_across(wo, bs.wi, n, medium);
     let prev = Previous {
         p: hit.p,
         pdf_dir: bs.pdf,

@@ -2,9 +2,10 @@
 
 use std::collections::BTreeMap;
 
-use super::values::albedo;
-use crate::bsdf::Bsdf;
-use crate::scene::file::{path, MaterialDesc, SceneFile};
+use super::values::{albedo, non_negative};
+use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
+use crate::bsdf::{Bsdf, ConductorFresnel, RoughConductor, RoughDielectric};
+use crate::scene::file::{path, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
 
 /// Every material of the file by name, with the built-in `null` (the index-matched boundary of
@@ -39,9 +40,110 @@ pub(super) fn materials(
                 }
                 Bsdf::Dielectric { ior: *ior }
             }
+            MaterialDesc::RoughConductor {
+                alpha,
+                reflectance,
+                eta,
+                k,
+            } => Bsdf::RoughConductor(RoughConductor {
+                alpha: roughness(src, &key, *alpha, "mirror")?,
+                fresnel: conductor_fresnel(src, &key, *reflectance, *eta, *k)?,
+            }),
+            MaterialDesc::RoughDielectric { ior, alpha } => {
+                Bsdf::RoughDielectric(RoughDielectric {
+                    ior: rough_ior(src, &key, *ior)?,
+                    alpha: roughness(src, &key, *alpha, "dielectric")?,
+                })
+            }
             MaterialDesc::Null {} => Bsdf::Null,
         };
         materials.insert(name.clone(), bsdf);
     }
     Ok(materials)
+}
+
+/// A GGX roughness in [ALPHA_MIN, ALPHA_MAX]: a smoother surface is the smooth material
+/// (`smooth`), which samples its Dirac exactly, a rougher one leaves the range where the
+/// single-scattering model is a fair description (see `bsdf::microfacet`).
+fn roughness(
+    src: &SceneSource,
+    key: &KeyPath,
+    alpha: f32,
+    smooth: &str,
+) -> Result<f32, SceneError> {
+    let key = key.clone().key("alpha");
+    if !alpha.is_finite() || alpha < ALPHA_MIN {
+        return Err(src.error(
+            &key,
+            format!(
+                "alpha = {alpha} is below {ALPHA_MIN}: a lobe that narrow is lost in f32 \
+                 rounding; use type = \"{smooth}\" for a smooth surface"
+            ),
+        ));
+    }
+    if alpha > ALPHA_MAX {
+        return Err(src.error(
+            &key,
+            format!(
+                "alpha = {alpha} is above {ALPHA_MAX}: the GGX model without multiple \
+                 scattering loses too much energy beyond it; use lambert for a matte surface"
+            ),
+        ));
+    }
+    Ok(alpha)
+}
+
+/// A rough dielectric's index: positive and not within 1% of 1, where every refracted
+/// direction collapses onto -wo whatever the facet (an index-matched boundary is `null`).
+fn rough_ior(src: &SceneSource, key: &KeyPath, ior: f32) -> Result<f32, SceneError> {
+    let key = key.clone().key("ior");
+    if !(ior.is_finite() && ior > 0.0) {
+        return Err(src.error(&key, format!("ior = {ior} must be positive")));
+    }
+    if (ior - 1.0).abs() < 0.01 {
+        return Err(src.error(
+            &key,
+            format!(
+                "ior = {ior} is within 1% of 1: the rough refraction lobe degenerates to a \
+                 straight line; use the `null` material for an index-matched boundary"
+            ),
+        ));
+    }
+    Ok(ior)
+}
+
+/// Schlick's Fresnel about `reflectance` (default 1), or the complex index `eta` + i `k`
+/// (both needed), never both.
+fn conductor_fresnel(
+    src: &SceneSource,
+    key: &KeyPath,
+    reflectance: Option<RgbValue>,
+    eta: Option<RgbValue>,
+    k: Option<RgbValue>,
+) -> Result<ConductorFresnel, SceneError> {
+    match (reflectance, eta, k) {
+        (r, None, None) => Ok(ConductorFresnel::Schlick(albedo(
+            src,
+            &key.clone().key("reflectance"),
+            r.unwrap_or(RgbValue::Scalar(1.0)),
+        )?)),
+        (Some(_), _, _) => Err(src.error(
+            &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
+            "give either `reflectance` (Schlick's Fresnel) or `eta` and `k` (a complex index), \
+             not both",
+        )),
+        (None, Some(eta), Some(k)) => {
+            let eta_key = key.clone().key("eta");
+            let e = non_negative(src, &eta_key, eta, "eta")?;
+            if e.min_element() <= 0.0 {
+                return Err(src.error(&eta_key, format!("eta = {eta} must be positive")));
+            }
+            let k = non_negative(src, &key.clone().key("k"), k, "k")?;
+            Ok(ConductorFresnel::Complex { eta: e, k })
+        }
+        (None, eta, _) => Err(src.error(
+            &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
+            "a complex index needs both `eta` and `k`",
+        )),
+    }
 }

@@ -1,6 +1,7 @@
 //! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
-//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, and the null (index-matched)
-//! boundary that only separates media.
+//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, the rough (GGX microfacet)
+//! conductor and dielectric (`conductor`, `rough_dielectric`, over `microfacet`), and the null
+//! (index-matched) boundary that only separates media.
 //!
 //! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
@@ -14,6 +15,14 @@ use std::f32::consts::FRAC_1_PI;
 
 use crate::math::{warp, Frame};
 use crate::spectrum::Rgb;
+
+pub mod conductor;
+pub mod microfacet;
+pub mod rough_dielectric;
+
+pub use conductor::{ConductorFresnel, RoughConductor};
+pub use microfacet::Ggx;
+pub use rough_dielectric::RoughDielectric;
 
 // ANCHOR: transport_mode
 /// Which quantity a path carries: radiance (eye paths) or importance (light paths, the adjoint
@@ -70,6 +79,10 @@ pub enum Bsdf {
     Mirror { reflectance: Rgb },
     /// A smooth dielectric interface; `ior` is inside (behind the normal) over outside.
     Dielectric { ior: f32 },
+    /// A GGX microfacet conductor (glossy reflection, two-sided).
+    RoughConductor(RoughConductor),
+    /// A GGX microfacet dielectric interface (glossy reflection and refraction).
+    RoughDielectric(RoughDielectric),
     /// An index-matched boundary: light passes unchanged. Never a scattering vertex.
     Null,
 }
@@ -106,15 +119,16 @@ impl Bsdf {
 
     /// True when every lobe is singular (no light sampling at such a vertex).
     pub fn is_singular(&self) -> bool {
-        matches!(
-            self,
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null
-        )
+        // exhaustive, so that a new model has to say which kind it is
+        match self {
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null => true,
+            Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
+        }
     }
 
     /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction).
     // ANCHOR: bsdf_eval
-    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
+    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, mode: TransportMode) -> Rgb {
         match self {
             Bsdf::Lambert { albedo } => {
                 // two-sided: reflection only, whichever side wo is on
@@ -124,6 +138,8 @@ impl Bsdf {
                     Rgb::ZERO
                 }
             }
+            Bsdf::RoughConductor(c) => c.eval(wo, wi, n),
+            Bsdf::RoughDielectric(d) => d.eval(wo, wi, n, mode),
             _ => Rgb::ZERO,
         }
     }
@@ -134,6 +150,8 @@ impl Bsdf {
         match self {
             // cosine-weighted on wo's side: |cos wi| / pi, zero across the surface
             Bsdf::Lambert { .. } if wo.dot(n) * wi.dot(n) > 0.0 => wi.dot(n).abs() * FRAC_1_PI,
+            Bsdf::RoughConductor(c) => c.pdf(wo, wi, n),
+            Bsdf::RoughDielectric(d) => d.pdf(wo, wi, n),
             _ => 0.0,
         }
     }
@@ -217,6 +235,8 @@ impl Bsdf {
                 }
             }
             // ANCHOR_END: dielectric_sample
+            Bsdf::RoughConductor(c) => c.sample(wo, n, u),
+            Bsdf::RoughDielectric(d) => d.sample(wo, n, u, uc, mode),
             Bsdf::Null => None,
         }
     }

@@ -1,0 +1,181 @@
+//! The rough conductor: a GGX microsurface of metal facets, reflection only, two-sided like the
+//! mirror (it reflects on whichever side `wo` is). Walter et al. 2007, eq. (20), with the GGX
+//! D and G1 of eqs. (33), (34) and Smith's separable G of eq. (23); directions are sampled from
+//! the visible normals (Heitz 2018), which makes the weight F G1(wi).
+//!
+//! Its Fresnel term is either Schlick's approximation about a reflectance colour (the
+//! reflectance at normal incidence, the mirror's parameter) or the exact reflectance of a
+//! conductor of complex index eta + i k per channel.
+
+use glam::{Vec2, Vec3};
+
+use super::microfacet::{reflect_about, Ggx};
+use super::{BsdfSample, Lobe};
+use crate::math::Frame;
+use crate::spectrum::Rgb;
+
+/// The Fresnel reflectance of a conductor's facets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConductorFresnel {
+    /// Schlick's approximation F = R0 + (1 - R0)(1 - cos)^5 with R0 the given colour.
+    Schlick(Rgb),
+    /// The exact unpolarized reflectance of complex index `eta` + i `k` (per channel) seen
+    /// from index 1.
+    Complex { eta: Rgb, k: Rgb },
+}
+
+impl ConductorFresnel {
+    /// F at a facet seen at cosine `cos` (in [0, 1]).
+    pub fn eval(&self, cos: f32) -> Rgb {
+        let cos = cos.clamp(0.0, 1.0);
+        match self {
+            ConductorFresnel::Schlick(r0) => {
+                let m = 1.0 - cos;
+                let m5 = (m * m) * (m * m) * m;
+                *r0 + (Rgb::ONE - *r0) * m5
+            }
+            ConductorFresnel::Complex { eta, k } => Rgb::new(
+                fresnel_complex(cos, eta.x, k.x),
+                fresnel_complex(cos, eta.y, k.y),
+                fresnel_complex(cos, eta.z, k.z),
+            ),
+        }
+    }
+}
+
+/// A complex number in f64 (the conductor's Fresnel loses digits in f32 near grazing angles).
+#[derive(Clone, Copy, Debug)]
+struct C(f64, f64);
+
+impl C {
+    fn add(self, o: C) -> C {
+        C(self.0 + o.0, self.1 + o.1)
+    }
+    fn sub(self, o: C) -> C {
+        C(self.0 - o.0, self.1 - o.1)
+    }
+    fn mul(self, o: C) -> C {
+        C(self.0 * o.0 - self.1 * o.1, self.0 * o.1 + self.1 * o.0)
+    }
+    fn div(self, o: C) -> C {
+        let d = o.0 * o.0 + o.1 * o.1;
+        C(
+            (self.0 * o.0 + self.1 * o.1) / d,
+            (self.1 * o.0 - self.0 * o.1) / d,
+        )
+    }
+    fn norm2(self) -> f64 {
+        self.0 * self.0 + self.1 * self.1
+    }
+    /// The principal square root (non-negative real part).
+    fn sqrt(self) -> C {
+        let r = self.norm2().sqrt();
+        let re = (0.5 * (r + self.0)).max(0.0).sqrt();
+        let im = (0.5 * (r - self.0)).max(0.0).sqrt();
+        C(re, if self.1 < 0.0 { -im } else { im })
+    }
+}
+
+/// Unpolarized Fresnel reflectance of a conductor of complex index eta + i k, seen from index
+/// 1 at cosine `cos_i`: the dielectric's formulas (`fresnel_dielectric`) with a complex index,
+/// whose refracted "cosine" sqrt(1 - sin^2 / (eta + i k)^2) is complex (Born and Wolf, sec.
+/// 14.2); with k = 0 and eta > 1 it is the dielectric's reflectance.
+pub fn fresnel_complex(cos_i: f32, eta: f32, k: f32) -> f32 {
+    let c = cos_i.clamp(0.0, 1.0) as f64;
+    let n = C(eta as f64, k as f64);
+    let sin2 = C(1.0 - c * c, 0.0);
+    let cos_t = C(1.0, 0.0).sub(sin2.div(n.mul(n))).sqrt();
+    let ci = C(c, 0.0);
+    let r_perp = ci.sub(n.mul(cos_t)).div(ci.add(n.mul(cos_t)));
+    let r_par = n.mul(ci).sub(cos_t).div(n.mul(ci).add(cos_t));
+    (0.5 * (r_perp.norm2() + r_par.norm2())) as f32
+}
+
+/// A rough conductor: GGX roughness `alpha` and its facets' Fresnel term.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoughConductor {
+    pub alpha: f32,
+    pub fresnel: ConductorFresnel,
+}
+
+impl RoughConductor {
+    fn ggx(&self) -> Ggx {
+        Ggx { alpha: self.alpha }
+    }
+
+    /// `wo` and `wi` in the frame of the normal on `wo`'s side, or `None` when they do not lie
+    /// on one side (the conductor does not transmit) or either is grazing.
+    fn local(wo: Vec3, wi: Vec3, n: Vec3) -> Option<(Frame, Vec3, Vec3)> {
+        let nf = if wo.dot(n) >= 0.0 { n } else { -n };
+        let frame = Frame::from_normal(nf);
+        let (lo, li) = (frame.to_local(wo), frame.to_local(wi));
+        (lo.z > 0.0 && li.z > 0.0).then_some((frame, lo, li))
+    }
+
+    /// f_s = F(wo.m) D(m) G(wo, wi, m) / (4 cos_o cos_i), m the half vector (Walter et al.
+    /// 2007, eq. (20)); reciprocal.
+    // ANCHOR: conductor_eval
+    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+        let Some((_, lo, li)) = Self::local(wo, wi, n) else {
+            return Rgb::ZERO;
+        };
+        let m = (lo + li).normalize_or_zero();
+        if m == Vec3::ZERO {
+            return Rgb::ZERO;
+        }
+        let g = self.ggx();
+        let f = self.fresnel.eval(lo.dot(m));
+        let value = f * (g.d(m) * g.g(lo, li, m) / (4.0 * lo.z * li.z));
+        if value.is_finite() {
+            value
+        } else {
+            Rgb::ZERO
+        }
+    }
+    // ANCHOR_END: conductor_eval
+
+    /// The density of `wi` under [`RoughConductor::sample`]: the visible-normal density times the
+    /// reflection's Jacobian 1 / (4 wo.m) (Walter et al. 2007, eq. (14)), = G1(wo) D(m) /
+    /// (4 cos_o).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        let Some((_, lo, li)) = Self::local(wo, wi, n) else {
+            return 0.0;
+        };
+        let m = (lo + li).normalize_or_zero();
+        let c = lo.dot(m);
+        if c <= 0.0 {
+            return 0.0;
+        }
+        let pdf = self.ggx().pdf_visible(lo, m) / (4.0 * c);
+        if pdf.is_finite() {
+            pdf
+        } else {
+            0.0
+        }
+    }
+
+    /// Reflects `wo` about a visible normal; `None` when the reflection points under the
+    /// surface (the density then integrates to less than one by that mass).
+    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2) -> Option<BsdfSample> {
+        let nf = if wo.dot(n) >= 0.0 { n } else { -n };
+        let frame = Frame::from_normal(nf);
+        let lo = frame.to_local(wo);
+        if lo.z <= 0.0 {
+            return None;
+        }
+        let m = self.ggx().sample_visible(lo, u);
+        let li = reflect_about(lo, m);
+        if li.z <= 0.0 {
+            return None;
+        }
+        let wi = frame.to_world(li);
+        let pdf = self.pdf(wo, wi, n);
+        let value = self.eval(wo, wi, n);
+        (pdf > 0.0 && value != Rgb::ZERO).then_some(BsdfSample {
+            wi,
+            value,
+            pdf,
+            lobe: Lobe::Regular,
+        })
+    }
+}

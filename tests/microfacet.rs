@@ -1,0 +1,614 @@
+//! Executable specification of the microfacet BSDFs (`src/bsdf/{microfacet, conductor,
+//! rough_dielectric}.rs`; book: "Surface scattering", section "Rough surfaces").
+//!
+//! The GGX distribution's normalization and Smith's Lambda against it (Walter et al. 2007,
+//! eqs. (33), (34); the visible-normal identity of Heitz 2018, eq. 1); each sampler against
+//! its density by chi-square over several (wo, alpha); reciprocity of reflection and the
+//! generalized (eta^2) relation of refraction with its adjoint; the white furnace of the rough
+//! conductor (its single-scattering albedo by two independent quadratures against the
+//! sampler's mean weight); the limit alpha -> 0 against the mirror and the smooth dielectric;
+//! the conductor's complex Fresnel against the dielectric's.
+
+mod common;
+
+use common::stats::Family;
+use common::*;
+use glam::{Vec2, Vec3};
+use pathspace::bsdf::conductor::fresnel_complex;
+use pathspace::bsdf::{
+    fresnel_dielectric, Bsdf, ConductorFresnel, Ggx, Lobe, RoughConductor, RoughDielectric,
+    TransportMode,
+};
+use pathspace::math::distribution::ONE_MINUS_EPSILON;
+use pathspace::math::{warp, Frame};
+use std::f64::consts::{PI, TAU};
+
+const ALPHAS: [f32; 3] = [0.15, 0.4, 1.0];
+
+/// A tilted normal, so that no axis of the frame is special.
+fn normal() -> Vec3 {
+    Vec3::new(0.3, -0.4, 0.866).normalize()
+}
+
+fn conductor(alpha: f32) -> Bsdf {
+    Bsdf::RoughConductor(RoughConductor {
+        alpha,
+        fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+    })
+}
+
+fn dielectric(alpha: f32) -> Bsdf {
+    Bsdf::RoughDielectric(RoughDielectric { ior: 1.5, alpha })
+}
+
+/// The integral over the whole sphere around `n` of `f`, by Simpson's rule in (cos theta, phi)
+/// on each hemisphere.
+fn sphere_integral(n: Vec3, f: impl Fn(Vec3) -> f64, n_mu: usize, n_phi: usize) -> f64 {
+    let frame = Frame::from_normal(n);
+    let hemi = |sign: f64| {
+        simpson(
+            |mu| simpson(|phi| f(direction(&frame, sign * mu, phi)), 0.0, TAU, n_phi),
+            0.0,
+            1.0,
+            n_mu,
+        )
+    };
+    hemi(1.0) + hemi(-1.0)
+}
+
+/// The integral over the hemisphere around `n` (the conductor's side) of `f`.
+fn hemisphere_integral(n: Vec3, f: impl Fn(Vec3) -> f64, n_mu: usize, n_phi: usize) -> f64 {
+    let frame = Frame::from_normal(n);
+    simpson(
+        |mu| simpson(|phi| f(direction(&frame, mu, phi)), 0.0, TAU, n_phi),
+        0.0,
+        1.0,
+        n_mu,
+    )
+}
+
+/// The integral of `g(m)` D(m) over the hemisphere of microfacet normals in the local frame,
+/// in the variable y = x / (1 + x), x = tan(theta_m) / alpha, which spreads the lobe evenly at
+/// any alpha (written independently of the crate's slope form of D).
+fn facet_integral(alpha: f64, g: impl Fn(Vec3) -> f64, n_y: usize, n_phi: usize) -> f64 {
+    simpson(
+        |y| {
+            if y >= 1.0 {
+                return 0.0;
+            }
+            let x = y / (1.0 - y);
+            let dx_dy = 1.0 / ((1.0 - y) * (1.0 - y));
+            let theta = (alpha * x).atan();
+            let dtheta_dx = alpha / (1.0 + alpha * alpha * x * x);
+            let c = theta.cos();
+            let d = 1.0 / (PI * alpha * alpha * c.powi(4) * (1.0 + x * x).powi(2));
+            simpson(
+                |phi| {
+                    let m = Vec3::new(
+                        (theta.sin() * phi.cos()) as f32,
+                        (theta.sin() * phi.sin()) as f32,
+                        c as f32,
+                    );
+                    g(m) * d * theta.sin() * dtheta_dx * dx_dy
+                },
+                0.0,
+                TAU,
+                n_phi,
+            )
+        },
+        0.0,
+        1.0,
+        n_y,
+    )
+}
+
+#[test]
+fn ggx_is_normalized_and_smith_lambda_is_its_projected_area() {
+    // int D(m) cos(theta_m) dm = 1 (Walter et al. 2007, eq. (4)), and the visible projected
+    // area int max(0, v.m) D(m) dm = v.z (1 + Lambda(v)), the identity that defines Smith's
+    // Lambda (Heitz 2018, eq. 1 integrates to one exactly then); quadrature in f64
+    for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+        let ggx = Ggx { alpha };
+        let a = alpha as f64;
+        for x in [0.0f64, 0.3, 1.0, 3.0, 30.0] {
+            // eq. (33) at tan(theta_m) = alpha x, against the crate's slope form
+            let theta = (a * x).atan();
+            let eq33 = 1.0 / (PI * a * a * theta.cos().powi(4) * (1.0 + x * x).powi(2));
+            let m = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+            let what = format!("alpha {alpha}, x {x}: D");
+            assert_close(&what, ggx.d(m) as f64, eq33, 1e-5 * eq33);
+        }
+        let closed = facet_integral(a, |m| m.z as f64, 2000, 4);
+        assert_close(&format!("alpha {alpha}: int D cos"), closed, 1.0, 1e-6);
+        for cos_v in [0.95f64, 0.5, 0.1] {
+            let v = Vec3::new((1.0 - cos_v * cos_v).sqrt() as f32, 0.0, cos_v as f32);
+            let projected = facet_integral(alpha as f64, |m| (v.dot(m) as f64).max(0.0), 2000, 256);
+            let smith = cos_v * (1.0 + ggx.lambda(v) as f64);
+            assert_close(
+                &format!("alpha {alpha}, cos_v {cos_v}: projected area vs Lambda"),
+                projected,
+                smith,
+                2e-4,
+            );
+            assert_close(
+                &format!("alpha {alpha}, cos_v {cos_v}: G1 = 1 / (1 + Lambda)"),
+                ggx.g1(v, Vec3::Z) as f64,
+                1.0 / (1.0 + ggx.lambda(v) as f64),
+                1e-6,
+            );
+        }
+    }
+}
+
+/// One sampler against its density: chi-square over the sphere, and the fraction of draws
+/// that returned a direction against the density's total mass (binomial).
+fn check_sampler(fam: &mut Family, what: &str, bsdf: &Bsdf, wo: Vec3, seed: (u64, u64)) {
+    const N: u64 = 200_000;
+    let n = normal();
+    let mut grid = SphereGrid::new(Frame::from_normal(n), 40, 16);
+    grid.quad_phi = 64;
+    let mut s = sampler(seed.0, seed.1);
+    let mode = TransportMode::Radiance;
+    let mut hits = 0u64;
+    chi_square_sphere(
+        fam,
+        what,
+        &grid,
+        || {
+            let bs = bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)?;
+            assert_eq!(bs.lobe, Lobe::Regular, "{what}: a glossy lobe is regular");
+            assert!(bs.pdf > 0.0 && bs.value.is_finite(), "{what}: {bs:?}");
+            assert_close(
+                &format!("{what}: sample pdf = pdf"),
+                bs.pdf as f64,
+                bsdf.pdf(wo, bs.wi, n) as f64,
+                1e-5 * bs.pdf as f64,
+            );
+            hits += 1;
+            Some(bs.wi)
+        },
+        |wi| bsdf.pdf(wo, wi, n) as f64,
+        N,
+    );
+    let mass = sphere_integral(n, |wi| bsdf.pdf(wo, wi, n) as f64, 1024, 256);
+    assert!(
+        mass <= 1.0 + 2e-3,
+        "{what}: the density integrates to {mass}"
+    );
+    fam.binomial(&format!("{what}: mass"), hits, N, mass.min(1.0 - 1e-9));
+}
+
+#[test]
+fn rough_conductor_samples_its_density() {
+    let mut fam = Family::new("microfacet: rough conductor sampling vs pdf");
+    let n = normal();
+    for (i, alpha) in ALPHAS.into_iter().enumerate() {
+        for (j, cos_o) in [0.9f64, 0.5, -0.2].into_iter().enumerate() {
+            let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
+            let what = format!("conductor alpha {alpha}, cos_o {cos_o}");
+            check_sampler(
+                &mut fam,
+                &what,
+                &conductor(alpha),
+                wo,
+                (1, (3 * i + j) as u64),
+            );
+        }
+    }
+    fam.finish();
+}
+
+#[test]
+fn rough_dielectric_samples_its_density() {
+    // from outside, and from inside the denser side (beyond the critical angle at -0.6's
+    // facets some light is totally reflected)
+    let mut fam = Family::new("microfacet: rough dielectric sampling vs pdf");
+    let n = normal();
+    for (i, alpha) in ALPHAS.into_iter().enumerate() {
+        for (j, cos_o) in [0.8f64, 0.3, -0.6].into_iter().enumerate() {
+            let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
+            let what = format!("dielectric alpha {alpha}, cos_o {cos_o}");
+            check_sampler(
+                &mut fam,
+                &what,
+                &dielectric(alpha),
+                wo,
+                (2, (3 * i + j) as u64),
+            );
+        }
+    }
+    fam.finish();
+}
+
+/// Random pairs of directions not within `GRAZING` of the surface.
+fn pairs(seed: u64, n: Vec3) -> Vec<(Vec3, Vec3)> {
+    const GRAZING: f32 = 0.05;
+    let mut s = sampler(seed, 0);
+    let mut out = Vec::new();
+    while out.len() < 2000 {
+        let a = warp::uniform_sphere(s.next_2d());
+        let b = warp::uniform_sphere(s.next_2d());
+        if a.dot(n).abs() > GRAZING && b.dot(n).abs() > GRAZING {
+            out.push((a, b));
+        }
+    }
+    out
+}
+
+/// Relative tolerance of f32 BSDF values compared in two argument orders: the half vector and
+/// the Fresnel term are computed from the other side, a few hundred ulps of an order-one term.
+const REL: f64 = 2e-4;
+/// An absolute allowance: values this far below the BSDF's order-one scale come from facets
+/// seen within ~1e-6 of grazing, where the facet's cosine (a dot product of unit f32 vectors,
+/// absolute error ~6e-8) has no significant digit left and 1 - F even less.
+const ABS: f64 = 1e-7;
+
+#[test]
+fn rough_conductor_is_reciprocal() {
+    let n = normal();
+    for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+        let metal = Bsdf::RoughConductor(RoughConductor {
+            alpha,
+            fresnel: ConductorFresnel::Complex {
+                eta: Vec3::new(0.2, 0.9, 1.1),
+                k: Vec3::new(3.9, 2.4, 2.1),
+            },
+        });
+        let mut nonzero = 0;
+        for (a, b) in pairs(3, n) {
+            for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                let (fab, fba) = (metal.eval(a, b, n, mode), metal.eval(b, a, n, mode));
+                for c in 0..3 {
+                    let (x, y) = (fab[c] as f64, fba[c] as f64);
+                    assert_close(
+                        &format!("alpha {alpha}: f({a}, {b})"),
+                        x,
+                        y,
+                        REL * x.max(y) + ABS,
+                    );
+                }
+                nonzero += (fab.x > 0.0) as usize;
+            }
+            if a.dot(n) * b.dot(n) < 0.0 {
+                assert_eq!(metal.eval(a, b, n, TransportMode::Radiance), Vec3::ZERO);
+            }
+        }
+        assert!(
+            nonzero > 1000,
+            "alpha {alpha}: only {nonzero} pairs reflect"
+        );
+    }
+}
+
+/// The index of refraction on `w`'s side of a rough dielectric of index `ior` (inside).
+fn eta_of(w: Vec3, n: Vec3, ior: f32) -> f64 {
+    if w.dot(n) > 0.0 {
+        1.0
+    } else {
+        ior as f64
+    }
+}
+
+#[test]
+fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
+    // f(wo, wi) / eta_o^2 = f(wi, wo) / eta_i^2 for the radiance BSDF (reflection: eta_o =
+    // eta_i, plain reciprocity), and the importance BSDF is the radiance BSDF with its
+    // arguments swapped: f*(wo, wi) = f(wi, wo)
+    let n = normal();
+    for ior in [1.5f32, 0.75] {
+        for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+            let glass = Bsdf::RoughDielectric(RoughDielectric { ior, alpha });
+            let (mut refracting, mut reflecting) = (0, 0);
+            for (a, b) in pairs(4, n) {
+                let r_ab = glass.eval(a, b, n, TransportMode::Radiance).x as f64;
+                let r_ba = glass.eval(b, a, n, TransportMode::Radiance).x as f64;
+                let i_ab = glass.eval(a, b, n, TransportMode::Importance).x as f64;
+                let (ea, eb) = (eta_of(a, n, ior), eta_of(b, n, ior));
+                let what = format!("ior {ior}, alpha {alpha}, ({a}, {b})");
+                let (x, y) = (r_ab / (ea * ea), r_ba / (eb * eb));
+                assert_close(&format!("{what}: generalized"), x, y, REL * x.max(y) + ABS);
+                assert_close(
+                    &format!("{what}: adjoint"),
+                    i_ab,
+                    r_ba,
+                    REL * i_ab.max(r_ba) + ABS,
+                );
+                if r_ab > 0.0 {
+                    if a.dot(n) * b.dot(n) < 0.0 {
+                        refracting += 1;
+                    } else {
+                        reflecting += 1;
+                    }
+                }
+            }
+            assert!(
+                refracting > 100 && reflecting > 100,
+                "{refracting} {reflecting}"
+            );
+        }
+    }
+}
+
+/// The rough conductor's directional albedo at normal incidence with F = 1, written as a 1-D
+/// integral over the facet angle: seen from the normal, the visible normals are D(m) cos
+/// theta_m, the reflection leaves at 2 theta_m (below the horizon beyond 45 degrees) and is
+/// shadowed by G1(2 theta_m). Independent of the crate's sampler and of any 2-D quadrature.
+fn normal_incidence_albedo(alpha: f64) -> f64 {
+    let lambda = |theta: f64| {
+        let t2 = theta.tan().powi(2);
+        (-1.0 + (1.0 + alpha * alpha * t2).sqrt()) / 2.0
+    };
+    let d = |theta: f64| {
+        let t2 = theta.tan().powi(2);
+        1.0 / (PI * alpha * alpha * theta.cos().powi(4) * (1.0 + t2 / (alpha * alpha)).powi(2))
+    };
+    TAU * simpson(
+        |t| d(t) * t.cos() * t.sin() / (1.0 + lambda(2.0 * t)),
+        0.0,
+        PI / 4.0,
+        20_000,
+    )
+}
+
+#[test]
+fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
+    // with F = 1 every ray the microsurface does not shadow is reflected, so the directional
+    // albedo is the single-scattering albedo E(wo) < 1, and 1 - E(wo) is the energy of the
+    // paths that meet a second facet, which the model drops. E by quadrature of f |cos| over
+    // the sphere (from eval), by the sampler's mean weight (from sample: its own variance),
+    // and at normal incidence by the 1-D integral above.
+    const N: usize = 100_000;
+    let mut fam = Family::new("microfacet: white furnace of the rough conductor");
+    let n = normal();
+    let frame = Frame::from_normal(n);
+    let mut table = Vec::new();
+    for (i, alpha) in [0.2f32, 0.5, 1.0].into_iter().enumerate() {
+        let bsdf = conductor(alpha);
+        for (j, cos_o) in [1.0f64, 0.6, 0.3, 0.1].into_iter().enumerate() {
+            let wo = direction(&frame, cos_o, 0.5);
+            let mode = TransportMode::Radiance;
+            let f_cos = |wi: Vec3| bsdf.eval(wo, wi, n, mode).x as f64 * wi.dot(n).abs() as f64;
+            let quad = hemisphere_integral(n, f_cos, 4096, 1024);
+            let mut s = sampler(5, (4 * i + j) as u64);
+            let w: Vec<f64> = (0..N)
+                .map(|_| {
+                    bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)
+                        .map_or(0.0, |bs| bs.weight(n).x as f64)
+                })
+                .collect();
+            let (mean, se) = mean_and_stderr(&w);
+            let what = format!("alpha {alpha}, cos_o {cos_o}");
+            fam.mean_is(
+                &format!("{what}: E by sampling"),
+                mean,
+                se,
+                (N - 1) as f64,
+                quad,
+            );
+            assert!(quad <= 1.0 + 1e-4, "{what}: albedo {quad} above 1");
+            if cos_o == 1.0 {
+                let exact = normal_incidence_albedo(alpha as f64);
+                assert_close(&format!("{what}: 1-D vs 2-D"), quad, exact, 2e-3);
+            }
+            table.push(format!("alpha {alpha} cos_o {cos_o}: E = {quad:.4}"));
+        }
+    }
+    eprintln!("{}", table.join("\n"));
+    fam.finish();
+}
+
+/// The angle between two unit vectors, robust near zero.
+fn angle(a: Vec3, b: Vec3) -> f64 {
+    2.0 * ((a - b).length() as f64 / 2.0).asin()
+}
+
+/// Alpha -> 0: the limit of the rough models. The energy the rough models drop and the spread
+/// of their lobes are O(alpha^2) and O(alpha) (GGX's slope density has tails ~ alpha^2 /
+/// tan^4), so at alpha = 1e-3 the means of the weights may differ from the smooth model's by
+/// `LIMIT_BIAS` beyond their own standard error, and the median deviation from the smooth
+/// direction is a few alpha.
+const ALPHA_SMALL: f32 = 1e-3;
+const LIMIT_BIAS: f64 = 100.0 * (ALPHA_SMALL as f64) * (ALPHA_SMALL as f64);
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    v[v.len() / 2]
+}
+
+#[test]
+fn small_alpha_conductor_is_the_mirror() {
+    const N: usize = 20_000;
+    let n = normal();
+    let r0 = Vec3::new(0.9, 0.6, 0.3);
+    let rough = Bsdf::RoughConductor(RoughConductor {
+        alpha: ALPHA_SMALL,
+        fresnel: ConductorFresnel::Schlick(r0),
+    });
+    let mut fam = Family::new("microfacet: alpha -> 0 is the mirror");
+    for (k, cos_o) in [0.95f64, 0.5, -0.3].into_iter().enumerate() {
+        let wo = direction(&Frame::from_normal(n), cos_o, 2.0);
+        // the mirror with the Fresnel reflectance of this angle (Schlick's about r0)
+        let schlick = r0 + (Vec3::ONE - r0) * (1.0 - cos_o.abs() as f32).powi(5);
+        let mirror = Bsdf::Mirror {
+            reflectance: schlick,
+        };
+        let m = mirror
+            .sample(wo, n, Vec2::ZERO, 0.0, TransportMode::Radiance)
+            .unwrap();
+        let mut s = sampler(6, k as u64);
+        let (mut dev, mut w) = (Vec::new(), vec![Vec::new(); 3]);
+        for _ in 0..N {
+            let bs = rough
+                .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                .map(|bs| (bs.wi, bs.weight(n)));
+            let (wi, weight) = bs.unwrap_or((-m.wi, Vec3::ZERO));
+            dev.push(angle(wi, m.wi));
+            for (c, wc) in w.iter_mut().enumerate() {
+                wc.push(weight[c] as f64);
+            }
+        }
+        let what = format!("cos_o {cos_o}");
+        let med = median(dev);
+        assert!(
+            med < 4.0 * ALPHA_SMALL as f64,
+            "{what}: median angle to the mirror direction {med}"
+        );
+        for (c, wc) in w.iter().enumerate() {
+            let (mean, se) = mean_and_stderr(wc);
+            let truth = m.weight(n)[c] as f64;
+            fam.mean_is(
+                &format!("{what}: weight channel {c}"),
+                mean,
+                (se * se + LIMIT_BIAS * LIMIT_BIAS).sqrt(),
+                (N - 1) as f64,
+                truth,
+            );
+        }
+    }
+    fam.finish();
+}
+
+#[test]
+fn small_alpha_dielectric_is_the_smooth_dielectric() {
+    // the reflection frequency is the Fresnel reflectance, the refracted direction obeys
+    // Snell's law, and each lobe's weight is the smooth one's, (eta_o / eta_t)^2 for
+    // refracted radiance and 1 for importance: the eta^2 scaling of both modes
+    const N: u64 = 40_000;
+    let n = normal();
+    let ior = 1.5f32;
+    let rough = Bsdf::RoughDielectric(RoughDielectric {
+        ior,
+        alpha: ALPHA_SMALL,
+    });
+    let smooth = Bsdf::Dielectric { ior };
+    let mut fam = Family::new("microfacet: alpha -> 0 is the smooth dielectric");
+    for (k, cos_o) in [0.9f64, 0.4, -0.8, -0.3].into_iter().enumerate() {
+        let wo = direction(&Frame::from_normal(n), cos_o, 0.7);
+        for mode in [TransportMode::Radiance, TransportMode::Importance] {
+            let r = smooth.sample(wo, n, Vec2::ZERO, 0.0, mode).unwrap();
+            let t = smooth
+                .sample(wo, n, Vec2::ZERO, ONE_MINUS_EPSILON, mode)
+                .filter(|t| t.lobe == Lobe::SingularTransmission);
+            let f = fresnel_dielectric(
+                cos_o.abs() as f32,
+                if cos_o > 0.0 { ior } else { 1.0 / ior },
+            );
+            let mut s = sampler(7, 2 * k as u64 + (mode == TransportMode::Importance) as u64);
+            let (mut hits, mut dev_r, mut dev_t) = (0u64, Vec::new(), Vec::new());
+            let (mut w_r, mut w_t) = (Vec::new(), Vec::new());
+            for _ in 0..N {
+                let Some(bs) = rough.sample(wo, n, s.next_2d(), s.next_f32(), mode) else {
+                    continue;
+                };
+                let w = bs.weight(n).x as f64;
+                if bs.wi.dot(n) * wo.dot(n) > 0.0 {
+                    hits += 1;
+                    dev_r.push(angle(bs.wi, r.wi));
+                    w_r.push(w);
+                } else {
+                    dev_t.push(angle(bs.wi, t.unwrap().wi));
+                    w_t.push(w);
+                }
+            }
+            let what = format!("cos_o {cos_o}, {mode:?}");
+            fam.binomial(&format!("{what}: P(reflect) = F"), hits, N, f as f64);
+            assert!(
+                median(dev_r) < 4.0 * ALPHA_SMALL as f64,
+                "{what}: reflection"
+            );
+            // a rough lobe's weight is G1(wi) times the smooth lobe's (1, or (eta_o/eta_t)^2
+            // for refracted radiance): the facet's Fresnel choice cancels its Fresnel factor
+            let mut lobes = vec![(w_r, r.weight(n).x as f64)];
+            if let Some(t) = t {
+                assert!(median(dev_t) < 4.0 * ALPHA_SMALL as f64, "{what}: Snell");
+                lobes.push((w_t, t.weight(n).x as f64));
+            }
+            for (i, (w, truth)) in lobes.into_iter().enumerate() {
+                let (mean, se) = mean_and_stderr(&w);
+                fam.mean_is(
+                    &format!("{what}: lobe {i} weight"),
+                    mean,
+                    (se * se + LIMIT_BIAS * LIMIT_BIAS).sqrt(),
+                    (w.len() - 1) as f64,
+                    truth,
+                );
+            }
+        }
+    }
+    fam.finish();
+}
+
+#[test]
+fn complex_fresnel_is_the_dielectric_for_k_zero_and_exact_at_normal_incidence() {
+    for eta in [1.33f32, 1.5, 2.4] {
+        for i in 0..=20 {
+            let c = i as f32 / 20.0;
+            let (a, b) = (fresnel_complex(c, eta, 0.0), fresnel_dielectric(c, eta));
+            assert_close(&format!("eta {eta}, cos {c}"), a as f64, b as f64, 1e-5);
+        }
+    }
+    for (eta, k) in [(0.2f32, 3.9f32), (1.1, 2.1), (2.9, 3.0)] {
+        let exact = ((eta - 1.0).powi(2) + k * k) / ((eta + 1.0).powi(2) + k * k);
+        assert_close(
+            "normal incidence",
+            fresnel_complex(1.0, eta, k) as f64,
+            exact as f64,
+            1e-6,
+        );
+        assert_close("grazing", fresnel_complex(0.0, eta, k) as f64, 1.0, 1e-6);
+        let mut last = 1.0;
+        // a conductor's reflectance has its minimum near grazing and stays within [0, 1]
+        for i in 0..=100 {
+            let f = fresnel_complex(i as f32 / 100.0, eta, k);
+            assert!((0.0..=1.0).contains(&f), "{f}");
+            last = f.min(last);
+        }
+        assert!(last > 0.0);
+    }
+    // Schlick at normal incidence is its colour, at grazing 1
+    let s = ConductorFresnel::Schlick(Vec3::new(0.9, 0.6, 0.3));
+    assert_eq!(s.eval(1.0), Vec3::new(0.9, 0.6, 0.3));
+    assert_eq!(s.eval(0.0), Vec3::ONE);
+}
+
+#[test]
+fn glossy_values_stay_finite_at_grazing_and_degenerate_directions() {
+    // no NaN or infinity may reach an image: grazing wo, wi opposite to wo, wi = wo, the
+    // normal itself, tiny and full roughness
+    let n = Vec3::Z;
+    let dirs = [
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 1e-7).normalize(),
+        Vec3::new(-1.0, 0.0, 1e-7).normalize(),
+        Vec3::Z,
+        -Vec3::Z,
+        Vec3::new(0.6, 0.0, -0.8),
+        Vec3::new(-0.6, 0.0, 0.8),
+    ];
+    for alpha in [1e-3f32, 0.5, 1.0] {
+        for b in [conductor(alpha), dielectric(alpha)] {
+            for &wo in &dirs {
+                for &wi in &dirs {
+                    for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                        let f = b.eval(wo, wi, n, mode);
+                        assert!(
+                            f.is_finite() && f.min_element() >= 0.0,
+                            "{b:?} {wo} {wi}: {f}"
+                        );
+                        let p = b.pdf(wo, wi, n);
+                        assert!(p.is_finite() && p >= 0.0, "{b:?} {wo} {wi}: {p}");
+                    }
+                }
+                let mut s = sampler(8, 0);
+                for _ in 0..1000 {
+                    if let Some(bs) =
+                        b.sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
+                    {
+                        let w = bs.weight(n);
+                        assert!(w.is_finite() && bs.pdf > 0.0, "{b:?} {wo}: {bs:?}");
+                    }
+                }
+            }
+        }
+    }
+}
