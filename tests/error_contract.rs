@@ -169,7 +169,7 @@ fn every_enumerated_scene_value_is_checked_at_its_key() {
             "\n[materials.shiny]\ntype = \"plastic\"\n".into(),
             3,
             "materials.shiny.type",
-            "unknown variant `plastic`, expected one of `lambert`, `mirror`, `dielectric`, `null`",
+            "unknown variant `plastic`, expected one of `lambert`, `mirror`, `dielectric`, `rough_conductor`, `rough_dielectric`, `null`",
         ),
         (
             "\n[media.haze]\ntype = \"homogeneous\"\nsigma_a = 0.1\nsigma_s = 0.1\nphase = { type = \"rayleigh\" }\n".into(),
