@@ -21,6 +21,7 @@ pub use multichain::MultiChainPerturbation;
 pub use propagation::PropagationPerturbation;
 pub use sensor::SensorPerturbation;
 
+// ANCHOR: mutation
 /// A proposal distribution over paths (Mitsuba 0.6's `Mutator::{sampleMutation, Q}`).
 ///
 /// Both methods write into buffers the caller keeps (`y`, `work`): a chain proposes once per
@@ -58,6 +59,7 @@ pub struct Workspace {
     /// The densities of a proposal's new vertices (the bidirectional mutation's T).
     pub(crate) densities: Densities,
 }
+// ANCHOR_END: mutation
 
 /// The closed set of mutation types, in the order of the configuration keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
