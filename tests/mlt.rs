@@ -12,7 +12,7 @@ use pathspace::film::Film;
 use pathspace::integrator::mlt::acceptance::acceptance;
 use pathspace::integrator::mlt::contribution::{image_contribution, scalar_contribution};
 use pathspace::integrator::mlt::init::Bootstrap;
-use pathspace::integrator::mlt::mutation::{InverseDistance, MutationKind};
+use pathspace::integrator::mlt::mutation::{InverseDistance, MutationKind, Workspace};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::math::Sampler;
 use pathspace::path::Vertex;
@@ -90,14 +90,24 @@ fn every_proposal_has_a_density_and_perturbations_can_take_it_back() {
     for kind in MutationKind::ALL {
         let m = mlt.mutations.get(kind);
         let mut sampler = Sampler::new(12, kind.index() as u64, 0);
+        let (mut work, mut y) = (Workspace::default(), Vec::new());
         let (mut checked, mut irreversible) = (0, 0);
         for x in &paths {
             let (fx, _) = image_contribution(&scene, x).unwrap();
             let fx = scalar_contribution(fx) as f64;
             for _ in 0..4 {
-                let Some(y) = m.sample(&scene, &pathspace::path::PLAIN, x, &mut sampler) else {
+                if m.sample(
+                    &scene,
+                    &pathspace::path::PLAIN,
+                    x,
+                    &mut sampler,
+                    &mut work,
+                    &mut y,
+                )
+                .is_none()
+                {
                     continue;
-                };
+                }
                 let Some((fy, _)) = image_contribution(&scene, &y) else {
                     continue;
                 };
@@ -106,8 +116,8 @@ fn every_proposal_has_a_density_and_perturbations_can_take_it_back() {
                     continue;
                 }
                 let fy = scalar_contribution(fy) as f64;
-                let t_xy = m.transition_density(&scene, &pathspace::path::PLAIN, x, &y);
-                let t_yx = m.transition_density(&scene, &pathspace::path::PLAIN, &y, x);
+                let t_xy = m.transition_density(&scene, &pathspace::path::PLAIN, x, &y, &mut work);
+                let t_yx = m.transition_density(&scene, &pathspace::path::PLAIN, &y, x, &mut work);
                 assert!(
                     t_xy > 0.0 && t_xy.is_finite(),
                     "{}: T(x -> y) = {t_xy} for a y it proposed",
@@ -282,12 +292,22 @@ fn check_reuse(scene: &Scene, name: &str) {
     for kind in MutationKind::ALL {
         let m = mlt.mutations.get(kind);
         let mut sampler = Sampler::new(32, kind.index() as u64, 0);
+        let (mut work, mut y) = (Workspace::default(), Vec::new());
         for x in &paths {
             let mut ex = Vec::new();
             image_contribution_reusing(scene, x, None, &mut ex).unwrap();
-            let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut sampler) else {
+            if m.sample(
+                scene,
+                &pathspace::path::PLAIN,
+                x,
+                &mut sampler,
+                &mut work,
+                &mut y,
+            )
+            .is_none()
+            {
                 continue;
-            };
+            }
             let (mut fresh, mut reused) = (Vec::new(), Vec::new());
             let a = image_contribution_reusing(scene, &y, None, &mut fresh);
             let b = image_contribution_reusing(scene, &y, Some((x, &ex)), &mut reused);

@@ -17,7 +17,7 @@ use pathspace::integrator::mlt::contribution::{
     image_contribution, is_specular, scalar_contribution,
 };
 use pathspace::integrator::mlt::init::Bootstrap;
-use pathspace::integrator::mlt::mutation::MutationKind;
+use pathspace::integrator::mlt::mutation::{MutationKind, Workspace};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::math::Sampler;
 use pathspace::path::{Vertex, VertexKind};
@@ -160,6 +160,7 @@ fn mean_alpha(
     tries: usize,
 ) -> Vec<f64> {
     let mut sampler = Sampler::new(5, 0, 0);
+    let (mut work, mut y) = (Workspace::default(), Vec::new());
     let mut out = Vec::with_capacity(xs.len());
     for x in xs {
         let (mut path_sum, mut count) = (0.0, 0);
@@ -168,14 +169,23 @@ fn mean_alpha(
             let m = mlt.mutations.get(kind);
             for _ in 0..tries {
                 count += 1;
-                let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut sampler) else {
+                if m.sample(
+                    scene,
+                    &pathspace::path::PLAIN,
+                    x,
+                    &mut sampler,
+                    &mut work,
+                    &mut y,
+                )
+                .is_none()
+                {
                     continue;
-                };
+                }
                 let Some((fy, _)) = image_contribution(scene, &y) else {
                     continue;
                 };
-                let t_xy = m.transition_density(scene, &pathspace::path::PLAIN, x, &y);
-                let t_yx = m.transition_density(scene, &pathspace::path::PLAIN, &y, x);
+                let t_xy = m.transition_density(scene, &pathspace::path::PLAIN, x, &y, &mut work);
+                let t_yx = m.transition_density(scene, &pathspace::path::PLAIN, &y, x, &mut work);
                 path_sum += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
             }
         }
@@ -286,20 +296,23 @@ fn experiment_multichain_acceptance_against_light_size() {
         let xs = paths(&sc, &mlt, 20_000, 600, |x| multichain_class(&sc, x));
         let m = mlt.mutations.get(MutationKind::MultiChain);
         let mut s = Sampler::new(5, 0, 0);
+        let (mut work, mut y) = (Workspace::default(), Vec::new());
         let (mut none, mut a, mut n) = (0, 0.0, 0);
         for x in &xs {
             let fx = scalar_contribution(image_contribution(&sc, x).unwrap().0) as f64;
             for _ in 0..4 {
                 n += 1;
-                let Some(y) = m.sample(&sc, &pathspace::path::PLAIN, x, &mut s) else {
+                if m.sample(&sc, &pathspace::path::PLAIN, x, &mut s, &mut work, &mut y)
+                    .is_none()
+                {
                     none += 1;
                     continue;
-                };
+                }
                 let Some((fy, _)) = image_contribution(&sc, &y) else {
                     continue;
                 };
-                let t_xy = m.transition_density(&sc, &pathspace::path::PLAIN, x, &y);
-                let t_yx = m.transition_density(&sc, &pathspace::path::PLAIN, &y, x);
+                let t_xy = m.transition_density(&sc, &pathspace::path::PLAIN, x, &y, &mut work);
+                let t_yx = m.transition_density(&sc, &pathspace::path::PLAIN, &y, x, &mut work);
                 a += acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
             }
         }

@@ -35,7 +35,7 @@ use pathspace::integrator::mlt::contribution::{
 use pathspace::integrator::mlt::init::Bootstrap;
 use pathspace::integrator::mlt::mutation::{
     Bidirectional, InverseDistance, LightPerturbation, MultiChainPerturbation, Mutation,
-    PropagationPerturbation, SensorPerturbation,
+    PropagationPerturbation, SensorPerturbation, Workspace,
 };
 use pathspace::integrator::mlt::trace::{extend, sample_direction, sample_light_vertex};
 use pathspace::integrator::mlt::{Chain, Mlt, MltSettings};
@@ -472,9 +472,13 @@ fn proposals_follow_t(
         .into_par_iter()
         .map(|c| {
             let mut s = Sampler::new(seed, c, 0);
+            let (mut work, mut y) = (Workspace::default(), Vec::new());
             let mut counts = vec![0u64; cells];
             for _ in c * CHUNK..((c + 1) * CHUNK).min(n_prop) {
-                if let Some(y) = m.sample(scene, &pathspace::path::PLAIN, x, &mut s) {
+                let plain = &pathspace::path::PLAIN;
+                if m.sample(scene, plain, x, &mut s, &mut work, &mut y)
+                    .is_some()
+                {
                     if let Some(i) = cell_of(&y) {
                         counts[i] += 1;
                     }
@@ -491,6 +495,7 @@ fn proposals_follow_t(
         .into_par_iter()
         .map(|c| {
             let mut s = Sampler::new(seed ^ 0x5eed, c, 1);
+            let mut work = Workspace::default();
             let mut acc = vec![(0.0f64, 0.0f64); cells];
             for _ in c * CHUNK..((c + 1) * CHUNK).min(n_q) {
                 let Some((y, factor)) = draw(&mut s) else {
@@ -499,7 +504,8 @@ fn proposals_follow_t(
                 let Some(i) = cell_of(&y) else {
                     continue;
                 };
-                let w = m.transition_density(scene, &pathspace::path::PLAIN, x, &y) * factor;
+                let w =
+                    m.transition_density(scene, &pathspace::path::PLAIN, x, &y, &mut work) * factor;
                 acc[i].0 += w;
                 acc[i].1 += w * w;
             }

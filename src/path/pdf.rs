@@ -24,6 +24,20 @@ pub struct Densities {
     pub prop_down: Vec<f32>,
 }
 
+impl Densities {
+    /// Zeros for a path of `n` vertices, in the buffers already allocated.
+    fn reset(&mut self, n: usize) {
+        let zero = |b: &mut Vec<f32>, len: usize| {
+            b.clear();
+            b.resize(len, 0.0);
+        };
+        zero(&mut self.light, n);
+        zero(&mut self.eye, n);
+        zero(&mut self.prop_up, n.saturating_sub(1));
+        zero(&mut self.prop_down, n.saturating_sub(1));
+    }
+}
+
 /// The densities of every vertex from both ends (the light vertex's own density is its
 /// light-origin density; the sensor vertex's is the sensor's position density).
 // ANCHOR: densities
@@ -47,16 +61,26 @@ pub fn densities_in(
     range: std::ops::Range<usize>,
     sampler: &mut Sampler,
 ) -> Densities {
+    let mut d = Densities::default();
+    densities_into(scene, tech, v, range, sampler, &mut d);
+    d
+}
+
+/// `densities_in` written into `d`, whose buffers are reused (MLT computes a transition
+/// density per mutation, and a chain keeps one `Densities` for all of them).
+pub fn densities_into(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    v: &[Vertex],
+    range: std::ops::Range<usize>,
+    sampler: &mut Sampler,
+    d: &mut Densities,
+) {
     let n = v.len();
-    let mut d = Densities {
-        light: vec![0.0; n],
-        eye: vec![0.0; n],
-        prop_up: vec![0.0; n.saturating_sub(1)],
-        prop_down: vec![0.0; n.saturating_sub(1)],
-    };
+    d.reset(n);
     let range = range.start.min(n)..range.end.min(n);
     if n < 2 || range.is_empty() {
-        return d;
+        return;
     }
     for i in range.start.saturating_sub(1)..range.end.min(n - 1) {
         let e = scene.edge(
@@ -85,7 +109,6 @@ pub fn densities_in(
             v[i + 1].pdf_area(scene, tech, prev, &v[i], Radiance) * d.prop_down[i]
         };
     }
-    d
 }
 // ANCHOR_END: densities
 

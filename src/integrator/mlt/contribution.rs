@@ -18,7 +18,7 @@ use crate::bsdf::{Bsdf, Lobe, TransportMode};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
 use crate::path::geometry_term::geometry_term_exact;
-use crate::path::pdf::{densities_in, Densities};
+use crate::path::pdf::{densities_into, Densities};
 use crate::path::vertex::to_area;
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Light, Scene};
@@ -221,8 +221,21 @@ pub fn singular_densities_in(
     v: &[Vertex],
     range: Range<usize>,
 ) -> Densities {
+    let mut d = Densities::default();
+    singular_densities_into(scene, tech, v, range, &mut d);
+    d
+}
+
+/// `singular_densities_in` written into `d`, whose buffers are reused.
+pub fn singular_densities_into(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    v: &[Vertex],
+    range: Range<usize>,
+    d: &mut Densities,
+) {
     let mut unused = Sampler::new(0, 0, 0);
-    let mut d = densities_in(scene, tech, v, range.clone(), &mut unused);
+    densities_into(scene, tech, v, range.clone(), &mut unused, d);
     let n = v.len();
     for i in range.start.max(2)..range.end.min(n) {
         if is_specular(scene, &v[i - 1]) {
@@ -250,7 +263,6 @@ pub fn singular_densities_in(
             d.eye[i] = to_area(p, &v[i + 1], &v[i]) * d.prop_down[i];
         }
     }
-    d
 }
 // ANCHOR_END: singular_densities
 

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use crate::integrator::bdpt::Bdpt;
 use crate::math::Sampler;
+use crate::path::bidirectional::Scratch;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::{luminance, Rgb};
@@ -41,13 +42,15 @@ pub struct Bootstrap {
 }
 
 /// Runs one pre-pass sample and calls `visit(s, t, contribution, raster, joined path)` for each
-/// strategy with a non-zero contribution, in the order BDPT's `combine` uses.
+/// strategy with a non-zero contribution, in the order BDPT's `combine` uses. The subpaths are
+/// traced into `walks` (the caller's, reused from one sample to the next).
 fn run_sample(
     scene: &Scene,
     bdpt: &Bdpt,
     seed: u64,
     sample: u64,
     want_path: Option<(usize, usize)>,
+    walks: &mut Scratch,
     visit: &mut dyn FnMut(usize, usize, Rgb, bool, Option<Vec<Vertex>>) -> bool,
 ) {
     let Some(cam) = scene.camera.as_ref() else {
@@ -56,9 +59,8 @@ fn run_sample(
     let mut sampler = Sampler::new(seed, BOOTSTRAP_STREAM_SALT ^ sample, 0);
     let u = sampler.next_2d();
     let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
-    let mut walks = crate::path::bidirectional::Scratch::default();
     let start = crate::path::bidirectional::SensorStart::Camera(raster);
-    bdpt.sample(scene, start, &mut sampler, &mut walks);
+    bdpt.sample(scene, start, &mut sampler, walks);
     let (light, eye) = (&walks.light, &walks.eye);
     bdpt.for_each_strategy(
         scene,
@@ -133,19 +135,28 @@ impl Bootstrap {
             .into_par_iter()
             .map(|c| {
                 let mut out = Vec::new();
+                let mut walks = Scratch::default();
                 for sample in c * BOOTSTRAP_CHUNK..((c + 1) * BOOTSTRAP_CHUNK).min(n) {
-                    run_sample(scene, bdpt, seed, sample, None, &mut |s, t, l, splat, _| {
-                        let w = film_weight(l, splat, npix);
-                        if w > 0.0 && w.is_finite() {
-                            out.push(Candidate {
-                                sample,
-                                s,
-                                t,
-                                weight: w,
-                            });
-                        }
-                        true
-                    });
+                    run_sample(
+                        scene,
+                        bdpt,
+                        seed,
+                        sample,
+                        None,
+                        &mut walks,
+                        &mut |s, t, l, splat, _| {
+                            let w = film_weight(l, splat, npix);
+                            if w > 0.0 && w.is_finite() {
+                                out.push(Candidate {
+                                    sample,
+                                    s,
+                                    t,
+                                    weight: w,
+                                });
+                            }
+                            true
+                        },
+                    );
                 }
                 out
             })
@@ -180,14 +191,23 @@ impl Bootstrap {
                 let mut acc = 0.0;
                 let lo = (c * BOOTSTRAP_CHUNK).max(start);
                 let hi = ((c + 1) * BOOTSTRAP_CHUNK).min(end);
+                let mut walks = Scratch::default();
                 for sample in lo..hi {
-                    run_sample(scene, bdpt, seed, sample, None, &mut |_, _, l, splat, _| {
-                        let w = film_weight(l, splat, npix);
-                        if w > 0.0 && w.is_finite() {
-                            acc += w;
-                        }
-                        true
-                    });
+                    run_sample(
+                        scene,
+                        bdpt,
+                        seed,
+                        sample,
+                        None,
+                        &mut walks,
+                        &mut |_, _, l, splat, _| {
+                            let w = film_weight(l, splat, npix);
+                            if w > 0.0 && w.is_finite() {
+                                acc += w;
+                            }
+                            true
+                        },
+                    );
                 }
                 acc
             })
@@ -212,6 +232,7 @@ impl Bootstrap {
             seed,
             c.sample,
             Some((c.s, c.t)),
+            &mut Scratch::default(),
             &mut |s, t, _, _, p| {
                 if (s, t) == (c.s, c.t) {
                     found = p;

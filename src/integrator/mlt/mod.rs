@@ -38,7 +38,7 @@ use contribution::{image_contribution_reusing, scalar_contribution, EdgeFactors}
 use init::Bootstrap;
 use mutation::{
     Bidirectional, InverseDistance, LightPerturbation, MultiChainPerturbation, Mutation,
-    MutationKind, PropagationPerturbation, SensorPerturbation,
+    MutationKind, PropagationPerturbation, SensorPerturbation, Workspace,
 };
 
 /// Salt that keeps chain streams apart from pixel streams.
@@ -353,6 +353,10 @@ pub struct Chain {
     pub edges: EdgeFactors,
     /// Scratch for a proposal's edge factors (swapped with `edges` on acceptance).
     scratch: EdgeFactors,
+    /// The proposal y (swapped with `x` on acceptance) and the mutations' buffers: a chain
+    /// allocates while its paths grow, not per mutation.
+    proposal: Vec<Vertex>,
+    work: Workspace,
 }
 
 impl Chain {
@@ -367,6 +371,8 @@ impl Chain {
             raster,
             edges,
             scratch: EdgeFactors::new(),
+            proposal: Vec::new(),
+            work: Workspace::default(),
         })
     }
 }
@@ -553,6 +559,8 @@ impl<'t> Mlt<'t> {
                             raster,
                             edges,
                             scratch: EdgeFactors::new(),
+                            proposal: Vec::new(),
+                            work: Workspace::default(),
                         });
                     }
                 }
@@ -593,14 +601,18 @@ impl<'t> Mlt<'t> {
         let mut proposal = None;
         let mut a = 0.0;
         let tech = self.bdpt.tech;
-        if let Some(y) = mutation.sample(scene, tech, &chain.x, &mut chain.sampler) {
+        let (x, y, work) = (&chain.x, &mut chain.proposal, &mut chain.work);
+        if mutation
+            .sample(scene, tech, x, &mut chain.sampler, work, y)
+            .is_some()
+        {
             st.proposed += 1;
-            let old = Some((chain.x.as_slice(), chain.edges.as_slice()));
-            if let Some((fy, ry)) = image_contribution_reusing(scene, &y, old, &mut chain.scratch) {
-                let t_xy = mutation.transition_density(scene, tech, &chain.x, &y);
-                let t_yx = mutation.transition_density(scene, tech, &y, &chain.x);
+            let old = Some((x.as_slice(), chain.edges.as_slice()));
+            if let Some((fy, ry)) = image_contribution_reusing(scene, y, old, &mut chain.scratch) {
+                let t_xy = mutation.transition_density(scene, tech, x, y, work);
+                let t_yx = mutation.transition_density(scene, tech, y, x, work);
                 a = acceptance(fx, scalar_contribution(fy) as f64, t_xy, t_yx);
-                proposal = Some((y, fy, ry));
+                proposal = Some((fy, ry));
             }
         }
         // expected-value splatting: each deposit is b/N in luminance; the deposits here are in
@@ -608,14 +620,15 @@ impl<'t> Mlt<'t> {
         if a < 1.0 {
             splats.push((chain.raster, chain.f * ((1.0 - a) / fx) as f32));
         }
-        if let Some((y, fy, ry)) = proposal {
+        if let Some((fy, ry)) = proposal {
             if a > 0.0 {
                 let fy_lum = scalar_contribution(fy) as f64;
                 splats.push((ry, fy * (a / fy_lum) as f32));
             }
             if chain.sampler.next_f64() < a {
                 st.accepted += 1;
-                chain.x = y;
+                // the old path becomes the next proposal's buffer
+                std::mem::swap(&mut chain.x, &mut chain.proposal);
                 chain.f = fy;
                 chain.raster = ry;
                 std::mem::swap(&mut chain.edges, &mut chain.scratch);

@@ -201,19 +201,20 @@ pub fn chain_end_of(scene: &Scene, end: &Vertex, before: Vec3) -> ChainEnd {
 }
 
 /// Retraces a chain from `start` along `d`: one specular vertex per entry of `lobes`, each
-/// continued in that lobe, then the end vertex. The new vertices in tracing order.
+/// continued in that lobe, then the end vertex. The new vertices are appended to `out` in
+/// tracing order (a caller's buffer: the perturbations retrace once per mutation).
 // ANCHOR: retrace_chain
 pub fn retrace_chain(
     scene: &Scene,
     start: &Vertex,
     d: Vec3,
-    lobes: &[Lobe],
+    lobes: impl IntoIterator<Item = Lobe>,
     end: ChainEnd,
-) -> Option<Vec<Vertex>> {
-    let mut out = Vec::with_capacity(lobes.len() + 1);
+    out: &mut Vec<Vertex>,
+) -> Option<()> {
     let mut cur = *start;
     let mut d = d;
-    for &lobe in lobes {
+    for lobe in lobes {
         let v = trace_surface(scene, &cur, d)?;
         let bsdf = singular_bsdf(scene, &v)?;
         let s = specular_sample(bsdf, -d, v.n, lobe, TransportMode::Radiance)?;
@@ -246,7 +247,7 @@ pub fn retrace_chain(
         }
     };
     out.push(v);
-    Some(out)
+    Some(())
 }
 // ANCHOR_END: retrace_chain
 

@@ -42,10 +42,10 @@ fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
 }
 
 use super::super::contribution::{
-    is_delta_position_light, is_specular, same_vertex, singular_densities_in,
+    is_delta_position_light, is_specular, same_vertex, singular_densities_into,
 };
 use super::super::trace::{extend, sample_direction, sample_light_vertex};
-use super::Mutation;
+use super::{Mutation, Workspace};
 
 /// Veach's weight of deleting k_d edges (sec. 11.4.1: "p_d[1] = 0.25, p_d[2] = 0.5, and
 /// p_d[k] = 2^-k for k >= 3").
@@ -166,7 +166,9 @@ impl Mutation for Bidirectional {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>> {
+        work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
         let n = x.len();
         let k = n - 1;
         // 1. delete k_d edges after x_l
@@ -181,7 +183,10 @@ impl Mutation for Bidirectional {
         let ka = Self::sample_addition(sampler.next_f64(), lo, hi, kd);
         let added = ka - 1;
         let s_new = sampler.next_index(added + 1);
-        let mut light: Vec<Vertex> = x[..(l + 1) as usize].to_vec();
+        // the light side grows in y, the eye side in the workspace
+        let light = y;
+        light.clear();
+        light.extend_from_slice(&x[..(l + 1) as usize]);
         for _ in 0..s_new {
             let v = match light.len() {
                 0 => sample_light_vertex(scene, tech, &self.light_media, sampler)?,
@@ -201,7 +206,9 @@ impl Mutation for Bidirectional {
             };
             light.push(v);
         }
-        let mut eye: Vec<Vertex> = x[m..].iter().rev().copied().collect();
+        let eye = &mut work.vertices;
+        eye.clear();
+        eye.extend(x[m..].iter().rev());
         for _ in 0..added - s_new {
             let len = eye.len();
             let prev = len.checked_sub(2).map(|i| &eye[i]);
@@ -221,8 +228,8 @@ impl Mutation for Bidirectional {
             // its old direction within `SPECULAR_COS_TOLERANCE`: not a path T counts)
             return None;
         }
-        light.extend(eye.into_iter().rev());
-        Some(light)
+        light.extend(eye.iter().rev());
+        Some(())
     }
     // ANCHOR_END: bidirectional_sample
 
@@ -233,6 +240,7 @@ impl Mutation for Bidirectional {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        work: &mut Workspace,
     ) -> f64 {
         let (nx, ny) = (x.len(), y.len());
         if nx < 2 || ny < 2 || ny > self.max_vertices {
@@ -254,10 +262,10 @@ impl Mutation for Bidirectional {
             .count()
             .min(nx - common_suffix)
             .min(ny - common_suffix);
-        let mut decompositions = vec![common_prefix as i64 - 1];
-        if common_prefix == 1 && is_delta_position_light(scene, &x[0]) {
-            decompositions.push(-1);
-        }
+        // a point light resampled onto itself: the light vertex was deleted too
+        let resampled_light =
+            (common_prefix == 1 && is_delta_position_light(scene, &x[0])).then_some(-1);
+        let decompositions = std::iter::once(common_prefix as i64 - 1).chain(resampled_light);
         let k = nx - 1;
         let mut total = 0.0f64;
         for l in decompositions {
@@ -276,7 +284,8 @@ impl Mutation for Bidirectional {
             let splits = added + 1;
             let first = (l + 1) as usize; // index in y of the first new vertex
                                           // only the added vertices' densities enter (and only their edges are traced)
-            let dy = singular_densities_in(scene, tech, y, first..first + added);
+            let dy = &mut work.densities;
+            singular_densities_into(scene, tech, y, first..first + added, dy);
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {

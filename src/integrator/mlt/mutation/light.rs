@@ -18,7 +18,7 @@ use crate::scene::Scene;
 
 use super::super::contribution::{is_specular, lobe_at};
 use super::super::trace::{angle_between, chain_end_of, dir, perturb_direction, retrace_chain};
-use super::{same_distance, same_prefix, InverseDistance, Mutation};
+use super::{same_distance, same_prefix, InverseDistance, Mutation, Workspace};
 use crate::bsdf::Lobe;
 
 /// The light perturbation.
@@ -41,9 +41,10 @@ pub fn caustic_chain_start(scene: &Scene, x: &[Vertex]) -> Option<usize> {
     Some(j)
 }
 
-fn lobes(scene: &Scene, x: &[Vertex], j: usize) -> Vec<Lobe> {
+/// The lobes of the chain's specular vertices x_{j+1} ... x_{k-2}.
+fn lobes<'a>(scene: &'a Scene, x: &'a [Vertex], j: usize) -> impl Iterator<Item = Lobe> + 'a {
     let k = x.len() - 1;
-    (j + 1..k - 1).map(|i| lobe_at(scene, x, i)).collect()
+    (j + 1..k - 1).map(move |i| lobe_at(scene, x, i))
 }
 
 /// p(theta) / (2 pi sin theta): the solid-angle density of the turned direction.
@@ -63,25 +64,27 @@ impl Mutation for LightPerturbation {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>> {
+        work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
         let k = x.len() - 1;
         let j = caustic_chain_start(scene, x)?;
         let theta = self.angle.sample(sampler.next_f32());
         let phi = TAU * sampler.next_f32();
         let d = perturb_direction(dir(&x[j], &x[j + 1]), theta, phi);
         let end = chain_end_of(scene, &x[k - 1], x[k - 2].p);
-        let chain = retrace_chain(scene, &x[j], d, &lobes(scene, x, j), end)?;
-        let mut y = x[..=j].to_vec();
-        y.extend(chain);
+        y.clear();
+        y.extend_from_slice(&x[..=j]);
+        retrace_chain(scene, &x[j], d, lobes(scene, x, j), end, y)?;
         y.push(x[k]);
         // the retraced end may land on a specular surface (a mirror strip next to the old
         // diffuse one), a specular vertex may change its lobe, or the angle measured between
         // the vertices may round out of [theta_min, theta_max]: y is then outside the
         // perturbation's support (T(x -> y) = 0), so it is no proposal at all
-        if self.transition_density(scene, tech, x, &y) <= 0.0 {
+        if self.transition_density(scene, tech, x, y, work) <= 0.0 {
             return None;
         }
-        Some(y)
+        Some(())
     }
     // ANCHOR_END: light_sample
 
@@ -92,6 +95,7 @@ impl Mutation for LightPerturbation {
         _tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        _work: &mut Workspace,
     ) -> f64 {
         let k = x.len() - 1;
         let Some(j) = caustic_chain_start(scene, x) else {
@@ -100,7 +104,9 @@ impl Mutation for LightPerturbation {
         if y.len() != x.len() || caustic_chain_start(scene, y) != Some(j) {
             return 0.0;
         }
-        if !same_prefix(x, y, j + 1) || y[k].p != x[k].p || lobes(scene, x, j) != lobes(scene, y, j)
+        if !same_prefix(x, y, j + 1)
+            || y[k].p != x[k].p
+            || !lobes(scene, x, j).eq(lobes(scene, y, j))
         {
             return 0.0;
         }

@@ -11,6 +11,7 @@ pub mod propagation;
 pub mod sensor;
 
 use crate::math::Sampler;
+use crate::path::pdf::Densities;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
@@ -20,17 +21,24 @@ pub use multichain::MultiChainPerturbation;
 pub use propagation::PropagationPerturbation;
 pub use sensor::SensorPerturbation;
 
+// ANCHOR: mutation
 /// A proposal distribution over paths (Mitsuba 0.6's `Mutator::{sampleMutation, Q}`).
+///
+/// Both methods write into buffers the caller keeps (`y`, `work`): a chain proposes once per
+/// mutation, and a fresh vector per proposal made MLT allocate two to three times per step.
 pub trait Mutation: Sync {
-    /// Proposes y from x; `None` when the mutation does not apply to x or the proposal left
-    /// path space (escaped, changed the characteristic): the chain then stays at x.
+    /// Writes a proposal y from x into `y` (its old content is dropped); `None` when the
+    /// mutation does not apply to x or the proposal left path space (escaped, changed the
+    /// characteristic): the chain then stays at x, and `y` holds nothing of use.
     fn sample(
         &self,
         scene: &Scene,
         tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>>;
+        work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()>;
     /// T(x -> y); zero when `sample` cannot produce y from x.
     fn transition_density(
         &self,
@@ -38,8 +46,20 @@ pub trait Mutation: Sync {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        work: &mut Workspace,
     ) -> f64;
 }
+
+/// The intermediate buffers of the mutations, reused from one proposal to the next (each
+/// chain owns one): their content means nothing between calls.
+#[derive(Clone, Debug, Default)]
+pub struct Workspace {
+    /// The eye side the bidirectional mutation grows, or a retraced chain of vertices.
+    pub(crate) vertices: Vec<Vertex>,
+    /// The densities of a proposal's new vertices (the bidirectional mutation's T).
+    pub(crate) densities: Densities,
+}
+// ANCHOR_END: mutation
 
 /// The closed set of mutation types, in the order of the configuration keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

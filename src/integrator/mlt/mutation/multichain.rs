@@ -19,7 +19,7 @@ use super::super::contribution::{is_specular, lobe_at};
 use super::super::trace::{angle_between, chain_end_of, dir, perturb_direction, retrace_chain};
 use super::light::direction_density;
 use super::sensor::{lens_chain_density, lens_chain_end, perturb_lens_chain};
-use super::{same_distance, same_prefix, InverseDistance, Mutation};
+use super::{same_distance, same_prefix, InverseDistance, Mutation, Workspace};
 use crate::bsdf::Lobe;
 
 /// The multi-chain perturbation.
@@ -33,23 +33,35 @@ pub struct MultiChainPerturbation {
 
 /// The chains after the lens chain: (c, e) with x_c the non-specular start (towards the light)
 /// and x_e the end, e < c, every x_i with e < i < c specular. The last chain ends where the
-/// predecessor of x_e is non-specular, or at the light (e = 0).
-fn later_chains(scene: &Scene, x: &[Vertex], m: usize) -> Vec<(usize, usize)> {
-    let mut chains = Vec::new();
+/// predecessor of x_e is non-specular, or at the light (e = 0). Found as the iterator walks x.
+fn later_chains<'a>(
+    scene: &'a Scene,
+    x: &'a [Vertex],
+    m: usize,
+) -> impl Iterator<Item = (usize, usize)> + Clone + 'a {
     let mut c = m;
-    while c >= 1 && is_specular(scene, &x[c - 1]) {
+    std::iter::from_fn(move || {
+        if c < 1 || !is_specular(scene, &x[c - 1]) {
+            return None;
+        }
         let mut e = c - 1;
         while e >= 1 && is_specular(scene, &x[e]) {
             e -= 1;
         }
-        chains.push((c, e));
+        let chain = (c, e);
         c = e;
-    }
-    chains
+        Some(chain)
+    })
 }
 
-fn chain_lobes(scene: &Scene, x: &[Vertex], c: usize, e: usize) -> Vec<Lobe> {
-    (e + 1..c).rev().map(|i| lobe_at(scene, x, i)).collect()
+/// The lobes of a chain's specular vertices x_{c-1} ... x_{e+1} (tracing order).
+fn chain_lobes<'a>(
+    scene: &'a Scene,
+    x: &'a [Vertex],
+    c: usize,
+    e: usize,
+) -> impl Iterator<Item = Lobe> + 'a {
+    (e + 1..c).rev().map(move |i| lobe_at(scene, x, i))
 }
 
 impl Mutation for MultiChainPerturbation {
@@ -60,29 +72,33 @@ impl Mutation for MultiChainPerturbation {
         _tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>> {
+        work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
         let k = x.len() - 1;
         let m = lens_chain_end(scene, x)?;
-        let chains = later_chains(scene, x, m);
-        if chains.is_empty() {
-            return None; // the sensor perturbation's case
+        // no chain after the lens chain: the sensor perturbation's case
+        later_chains(scene, x, m).next()?;
+        y.clear();
+        y.extend_from_slice(x);
+        let chain = &mut work.vertices;
+        chain.clear();
+        perturb_lens_chain(scene, x, m, &self.offset, sampler, chain)?;
+        for (i, v) in (m..k).rev().zip(chain.iter()) {
+            y[i] = *v;
         }
-        let mut y = x.to_vec();
-        let lens = perturb_lens_chain(scene, x, m, &self.offset, sampler)?;
-        for (i, v) in (m..k).rev().zip(lens) {
-            y[i] = v;
-        }
-        for &(c, e) in &chains {
+        for (c, e) in later_chains(scene, x, m) {
             let theta = self.angle.sample(sampler.next_f32());
             let phi = TAU * sampler.next_f32();
             let d = perturb_direction(dir(&x[c], &x[c - 1]), theta, phi);
             let end = chain_end_of(scene, &x[e], x[e + 1].p);
-            let chain = retrace_chain(scene, &y[c], d, &chain_lobes(scene, x, c, e), end)?;
-            for (i, v) in (e..c).rev().zip(chain) {
-                y[i] = v;
+            chain.clear();
+            retrace_chain(scene, &y[c], d, chain_lobes(scene, x, c, e), end, chain)?;
+            for (i, v) in (e..c).rev().zip(chain.iter()) {
+                y[i] = *v;
             }
         }
-        Some(y)
+        Some(())
     }
     // ANCHOR_END: multichain_sample
 
@@ -93,21 +109,24 @@ impl Mutation for MultiChainPerturbation {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        _work: &mut Workspace,
     ) -> f64 {
         let Some(m) = lens_chain_end(scene, x) else {
             return 0.0;
         };
         let chains = later_chains(scene, x, m);
-        if chains.is_empty() || y.len() != x.len() || later_chains(scene, y, m) != chains {
+        let Some((_, kept)) = chains.clone().last() else {
+            return 0.0;
+        };
+        if y.len() != x.len() || !later_chains(scene, y, m).eq(chains.clone()) {
             return 0.0;
         }
         let mut t = lens_chain_density(scene, tech, x, y, m, &self.offset);
-        let kept = chains[chains.len() - 1].1;
         if t == 0.0 || !same_prefix(x, y, kept) {
             return 0.0;
         }
-        for &(c, e) in &chains {
-            if chain_lobes(scene, x, c, e) != chain_lobes(scene, y, c, e)
+        for (c, e) in chains {
+            if !chain_lobes(scene, x, c, e).eq(chain_lobes(scene, y, c, e))
                 || x[e].is_medium() != y[e].is_medium()
             {
                 return 0.0;

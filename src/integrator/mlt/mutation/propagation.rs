@@ -15,7 +15,7 @@ use crate::scene::Scene;
 
 use super::super::contribution::SPECULAR_COS_TOLERANCE;
 use super::super::trace::{dir, point_along};
-use super::{same_prefix, InverseDistance, Mutation};
+use super::{same_prefix, InverseDistance, Mutation, Workspace};
 
 /// Probability of moving towards x_{k-2} (and of moving away).
 const DIRECTION_PROBABILITY: f64 = 0.5;
@@ -35,7 +35,9 @@ impl Mutation for PropagationPerturbation {
         _tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>> {
+        _work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
         // ASSIGNMENT: propagation_perturbation
         let k = x.len() - 1;
         if k < 2 || !x[k - 1].is_medium() {
@@ -53,10 +55,11 @@ impl Mutation for PropagationPerturbation {
         if v.kind != x[k - 1].kind {
             return None; // left the medium
         }
-        let mut y = x[..k - 1].to_vec();
+        y.clear();
+        y.extend_from_slice(&x[..k - 1]);
         y.push(v);
         y.push(x[k]);
-        Some(y)
+        Some(())
         // END ASSIGNMENT
     }
     // ANCHOR_END: propagation_sample
@@ -68,6 +71,7 @@ impl Mutation for PropagationPerturbation {
         _tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        _work: &mut Workspace,
     ) -> f64 {
         // ASSIGNMENT: propagation_perturbation
         let _ = scene;

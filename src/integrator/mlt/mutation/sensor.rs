@@ -22,7 +22,7 @@ use crate::scene::Scene;
 
 use super::super::contribution::{is_specular, lobe_at};
 use super::super::trace::{chain_end_of, retrace_chain};
-use super::{same_distance, same_prefix, InverseDistance, Mutation};
+use super::{same_distance, same_prefix, InverseDistance, Mutation, Workspace};
 use crate::bsdf::Lobe;
 
 /// Index m of the first non-specular vertex seen from the pinhole (x_k S* x_m), if it is not
@@ -48,20 +48,25 @@ pub fn raster_of(scene: &Scene, x: &[Vertex]) -> Option<Vec2> {
 }
 
 /// The lobes of x_{k-1} ... x_{m+1} (tracing order from the eye).
-pub fn lens_lobes(scene: &Scene, x: &[Vertex], m: usize) -> Vec<Lobe> {
+pub fn lens_lobes<'a>(
+    scene: &'a Scene,
+    x: &'a [Vertex],
+    m: usize,
+) -> impl Iterator<Item = Lobe> + 'a {
     let k = x.len() - 1;
-    (m + 1..k).rev().map(|i| lobe_at(scene, x, i)).collect()
+    (m + 1..k).rev().map(move |i| lobe_at(scene, x, i))
 }
 
 /// Moves the film position of x by a p(D) ~ 1/D offset and retraces the lens chain to x_m:
-/// the new vertices y_{k-1} ... y_m in tracing order.
+/// the new vertices y_{k-1} ... y_m, appended to `out` in tracing order.
 pub fn perturb_lens_chain(
     scene: &Scene,
     x: &[Vertex],
     m: usize,
     offset: &InverseDistance,
     sampler: &mut Sampler,
-) -> Option<Vec<Vertex>> {
+    out: &mut Vec<Vertex>,
+) -> Option<()> {
     let k = x.len() - 1;
     let cam = scene.camera.as_ref()?;
     let u = raster_of(scene, x)?;
@@ -73,7 +78,7 @@ pub fn perturb_lens_chain(
     }
     let d = cam.generate_ray(v).d;
     let end = chain_end_of(scene, &x[m], x[m + 1].p);
-    retrace_chain(scene, &x[k], d, &lens_lobes(scene, x, m), end)
+    retrace_chain(scene, &x[k], d, lens_lobes(scene, x, m), end, out)
 }
 
 /// The density of the lens chain of y given x's film position: the film-offset density times
@@ -97,7 +102,8 @@ pub fn lens_chain_density(
     if y[k].kind != x[k].kind || y[k].p != x[k].p {
         return 0.0;
     }
-    if x[m].is_medium() != y[m].is_medium() || lens_lobes(scene, x, m) != lens_lobes(scene, y, m) {
+    if x[m].is_medium() != y[m].is_medium() || !lens_lobes(scene, x, m).eq(lens_lobes(scene, y, m))
+    {
         return 0.0;
     }
     if x[m].is_medium()
@@ -143,16 +149,21 @@ impl Mutation for SensorPerturbation {
         _tech: &dyn LocalSampling,
         x: &[Vertex],
         sampler: &mut Sampler,
-    ) -> Option<Vec<Vertex>> {
+        work: &mut Workspace,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
         let m = lens_chain_end(scene, x)?;
         if is_specular(scene, &x[m - 1]) {
             return None; // (D|L) S D S* E: the multi-chain perturbation's case
         }
-        let chain = perturb_lens_chain(scene, x, m, &self.offset, sampler)?;
-        let mut y = x[..m].to_vec();
-        y.extend(chain.into_iter().rev());
+        let chain = &mut work.vertices;
+        chain.clear();
+        perturb_lens_chain(scene, x, m, &self.offset, sampler, chain)?;
+        y.clear();
+        y.extend_from_slice(&x[..m]);
+        y.extend(chain.iter().rev());
         y.push(x[x.len() - 1]);
-        Some(y)
+        Some(())
     }
     // ANCHOR_END: sensor_sample
 
@@ -163,6 +174,7 @@ impl Mutation for SensorPerturbation {
         tech: &dyn LocalSampling,
         x: &[Vertex],
         y: &[Vertex],
+        _work: &mut Workspace,
     ) -> f64 {
         let Some(m) = lens_chain_end(scene, x) else {
             return 0.0;
