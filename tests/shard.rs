@@ -14,6 +14,7 @@ use pathspace::integrator::provenance::format_streams;
 use pathspace::integrator::session::{self, Control, Job};
 use pathspace::integrator::shard::Shard;
 use pathspace::integrator::{IntegratorKind, Setup};
+use pathspace::measure::metrics::f32_steps;
 use pathspace::path::PLAIN;
 use pathspace::scene::SceneSource;
 
@@ -50,24 +51,14 @@ fn read(exr: &Path) -> (Vec<f32>, image_io::ImageMeta) {
     (img.pixels.iter().flat_map(|p| p.to_array()).collect(), meta)
 }
 
-/// How many f32 values lie from `a` to `b` (0: equal, 1: neighbours), on the ordered line of
-/// floats (-0 and +0 are one value).
-fn steps(a: f32, b: f32) -> u64 {
-    let ordered = |x: f32| {
-        let bits = x.to_bits() as i64;
-        if bits < 0x8000_0000 {
-            bits
-        } else {
-            0x8000_0000 - bits
-        }
-    };
-    ordered(a).abs_diff(ordered(b))
-}
-
 /// The largest distance in f32 steps between two images' channels.
 fn largest_steps(a: &[f32], b: &[f32]) -> u64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| steps(*x, *y)).max().unwrap()
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| f32_steps(*x, *y))
+        .max()
+        .unwrap()
 }
 
 /// Renders `base` whole and as `n` shards, merges the shards; the merged and single images
