@@ -878,6 +878,13 @@ fn render_job(
             let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
             c.check_identity(&id, &path.display().to_string())
                 .map_err(crate::integrator::IntegratorError::from)?;
+            eprintln!(
+                "resuming {}: {} of {} spp done, next pass {}",
+                path.display(),
+                c.progress.spp,
+                job.spp,
+                c.progress.passes
+            );
             Some(c)
         }
         None => None,
