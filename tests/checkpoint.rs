@@ -50,6 +50,7 @@ fn render(text: &str, kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec
         setup,
         spp,
         time: None,
+        first_pass: 0,
         progress: false,
     };
     let resume = first.map(|n| {
@@ -118,6 +119,7 @@ fn a_resumed_mlt_render_is_an_independent_run_merged_by_sample_count() {
         setup,
         spp: 8,
         time: None,
+        first_pass: 0,
         progress: false,
     };
     let second = session::render(&job).unwrap().image.unwrap();

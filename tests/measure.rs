@@ -100,6 +100,12 @@ fn metrics_match_hand_computed_values() {
     let rel = (1.0 / (1.0 + eps) + 4.0 / (1.0 + eps) + 4.0 / (4.0 + eps)) / 6.0;
     assert_relative_eq!(m.relmse, rel, max_relative = 1e-12);
     assert_relative_eq!(m.max_abs, 2.0);
+    // from 0 to 2: every positive f32 below 2, 2^30 of them
+    assert_eq!(m.max_steps, 2.0f32.to_bits() as u64);
+    let next = f32::from_bits(1.0f32.to_bits() + 1);
+    assert_eq!(metrics::f32_steps(1.0, next), 1);
+    assert_eq!(metrics::f32_steps(-0.0, 0.0), 0);
+    assert_eq!(metrics::f32_steps(-f32::from_bits(1), f32::from_bits(1)), 2);
     assert!(metrics::compare(&a, &img(1, 1, &[[0.0; 3]]))
         .unwrap_err()
         .to_string()

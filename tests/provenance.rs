@@ -353,6 +353,7 @@ fn streams_of(kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec<Streams
         setup,
         spp,
         time: None,
+        first_pass: 0,
         progress: false,
     };
     let identity = Identity {

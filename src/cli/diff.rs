@@ -46,7 +46,7 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
     let legend = heatmap::legend_lines();
     if args.json {
         let mut obj = serde_json::json!({
-            "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs,
+            "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs, "max_f32_steps": m.max_steps,
             "mean_a": [ma.x, ma.y, ma.z], "mean_b": [mb.x, mb.y, mb.z],
         });
         if let Some(v) = twin {
@@ -68,6 +68,7 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         println!("RMSE     {:.6e}", m.rmse);
         println!("relMSE   {:.6e}", m.relmse);
         println!("max |a-b| {:.6e}", m.max_abs);
+        println!("max f32 steps {}", m.max_steps);
         println!("mean A   ({:.5}, {:.5}, {:.5})", ma.x, ma.y, ma.z);
         println!("mean B   ({:.5}, {:.5}, {:.5})", mb.x, mb.y, mb.z);
         if let Some(v) = twin {

@@ -182,6 +182,9 @@ pub enum CliError {
     /// `merge`: an input without a positive `spp` attribute (its name).
     #[error("{0} has no positive `spp` attribute to weight it by")]
     NoSpp(String),
+    /// `render`/`reference --shard`: a shard refused (the reason).
+    #[error(transparent)]
+    Shard(#[from] crate::integrator::shard::ShardError),
     /// `merge`: inputs that are no independent estimates of one image, or an unreadable record.
     #[error(transparent)]
     Provenance(#[from] crate::integrator::provenance::ProvenanceError),

@@ -17,6 +17,7 @@ use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::provenance::{format_streams, TIMING_KEYS};
 use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
+use crate::integrator::shard::{self, Shard, ShardError};
 use crate::integrator::smc::{EstimatorForm, SmcOptions};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
 
@@ -91,6 +92,11 @@ pub struct SessionArgs {
     /// it), with the same scene, options and seed; `--spp` may ask for more samples.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
+    /// Render only shard I of N (1 <= I <= N) of the samples: for path, light and bdpt a
+    /// contiguous range of the passes of --spp, for mlt 1/N of the chains and mutations as an
+    /// independent run; `merge` joins the N files and checks that none is missing.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
     /// Leave the timings (`seconds`, `guide_seconds`) out of the EXR header, so that the same
     /// scene, seed and settings give the same bytes at any thread count (`cmp` checks it);
     /// the timings still go to stderr and `--json`.
@@ -112,6 +118,9 @@ impl SessionArgs {
             }
         }
         self.memory.check()?;
+        if self.shard.is_some() && self.time.is_some() {
+            return Err(ShardError::Timed.into());
+        }
         if let Some(t) = self.checkpoint {
             if !(t >= 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
@@ -121,6 +130,11 @@ impl SessionArgs {
         }
         Ok(())
     }
+}
+
+/// `--shard I/N` as clap reads it (the refusal's own words).
+fn parse_shard(text: &str) -> Result<Shard, String> {
+    Shard::parse(text).map_err(|e| e.to_string())
 }
 
 /// `--max-memory`, declared once for `render`, `reference` and `converge`.
@@ -247,6 +261,39 @@ struct Plan {
     settings: RenderSettings,
     /// The adjoint image's settings, when the image is wanted.
     adjoint: Option<AdjointSettings>,
+    /// `--shard`: which shard, what it renders, and the whole render's spp and seed (the
+    /// settings above are the shard's).
+    shard: Option<ShardOf>,
+}
+
+/// A shard of a render: the shard, its part, and the whole render's spp and seed.
+struct ShardOf {
+    shard: Shard,
+    part: shard::ShardPlan,
+    total_spp: u32,
+    seed: u64,
+}
+
+/// Narrows the settings of a whole render to shard `s` of it (its spp, and for MLT its seed
+/// and chains); the shard's record.
+fn narrow(
+    s: Shard,
+    kind: IntegratorKind,
+    settings: &mut RenderSettings,
+) -> Result<ShardOf, CliError> {
+    let (total_spp, seed) = (settings.spp, settings.seed);
+    let part = shard::plan(s, kind, total_spp, seed, settings.mlt.chains)?;
+    settings.spp = part.spp;
+    settings.seed = part.seed;
+    if let Some(c) = part.chains {
+        settings.mlt.chains = c;
+    }
+    Ok(ShardOf {
+        shard: s,
+        part,
+        total_spp,
+        seed,
+    })
 }
 
 /// Applies the options to the scene file's settings, checking them in the order the user
@@ -264,6 +311,10 @@ fn configure(
     settings
         .apply(&flags, Spelling::Flag)
         .map_err(|e| CliError::Usage(e.message))?;
+    let shard = match args.session.shard {
+        Some(s) => Some(narrow(s, kind, &mut settings)?),
+        None => None,
+    };
     if kind == IntegratorKind::Mlt {
         crate::integrator::mlt::check_scene(scene)
             .map_err(crate::integrator::IntegratorError::from)?;
@@ -295,6 +346,7 @@ fn configure(
         kind,
         settings,
         adjoint,
+        shard,
     })
 }
 
@@ -463,6 +515,11 @@ fn write_image(
         .set("negative_pixels", result.negative_pixels)
         .set("render_options", plan.settings.given.to_toml())
         .set("streams", format_streams(&result.streams));
+    if let Some(s) = &plan.shard {
+        meta.set("shard", s.shard)
+            .set("shard_spp", s.total_spp)
+            .set("shard_seed", s.seed);
+    }
     if let Some(g) = &pre.guide {
         let gs = plan.settings.guide;
         meta.set(
@@ -671,6 +728,7 @@ pub(super) fn run_scene(
         setup,
         spp: plan.settings.spp,
         time: args.session.time.map(|t| t - preprocessing),
+        first_pass: plan.shard.as_ref().map_or(0, |s| s.part.first_pass),
         progress: !args.json,
     };
     let ended = render_job(args, &job, &plan, &pre, source)?;
@@ -789,6 +847,10 @@ fn identity(
     let mut options = plan.settings.given.to_json();
     if let Some(o) = options.as_object_mut() {
         o.remove("spp");
+        if let Some(s) = &plan.shard {
+            let whole = format!("{} of {} spp", s.shard, s.total_spp);
+            o.insert("shard".into(), whole.into());
+        }
     }
     Identity {
         scene_hash: source.hash(),
@@ -816,6 +878,13 @@ fn render_job(
             let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
             c.check_identity(&id, &path.display().to_string())
                 .map_err(crate::integrator::IntegratorError::from)?;
+            eprintln!(
+                "resuming {}: {} of {} spp done, next pass {}",
+                path.display(),
+                c.progress.spp,
+                job.spp,
+                c.progress.passes
+            );
             Some(c)
         }
         None => None,

@@ -15,6 +15,7 @@ pub mod provenance;
 pub mod reach;
 pub mod session;
 pub mod settings;
+pub mod shard;
 pub mod smc;
 
 pub use path::PathTracer;

@@ -17,6 +17,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+use super::shard::Shard;
 use crate::image_io::ImageMeta;
 
 /// The EXR attributes that hold timings: left out by `render --reproducible`, so that the same
@@ -126,6 +127,17 @@ pub struct Provenance {
     pub sources: Vec<Source>,
     /// What `merge --force` let through into it (`merge_forced`, one line each).
     pub forced: Vec<String>,
+    /// The shard of a render it is (`render --shard`), when it is one.
+    pub shard: Option<ShardRecord>,
+}
+
+/// A shard's record: which shard, and the whole render's spp and seed (`shard`, `shard_spp`,
+/// `shard_seed`), which the shards of one render share.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShardRecord {
+    pub shard: Shard,
+    pub spp: u32,
+    pub seed: u64,
 }
 
 /// Why `merge` refuses a set of inputs (each one, unless `--force`).
@@ -151,6 +163,17 @@ pub enum Conflict {
     },
     #[error("{a} and {b} were rendered with different settings: {what}")]
     Settings { a: String, b: String, what: String },
+    #[error(
+        "the shards of the {integrator} render of {spp} spp with seed {seed} are incomplete, \
+         missing: {}; render each with --shard I/N",
+        .missing.join(", ")
+    )]
+    MissingShards {
+        integrator: String,
+        spp: u32,
+        seed: u64,
+        missing: Vec<String>,
+    },
     #[error(
         "{a} and {b} hold the same samples (seed {seed}, passes {ra} and {rb}): they are not \
          independent renders (render one again with another --seed)"
@@ -195,6 +218,23 @@ fn field<T: std::str::FromStr>(
         key,
         value: text.to_string(),
     })
+}
+
+/// The shard record of an image (`None` when it is no shard); an error when `shard` is present
+/// and it or its companions are not a record.
+fn shard_record(file: &str, meta: &ImageMeta) -> Result<Option<ShardRecord>, BadRecord> {
+    let Some(text) = meta.get("shard") else {
+        return Ok(None);
+    };
+    let bad = |key, value: &str| BadRecord {
+        file: file.to_string(),
+        key,
+        value: value.to_string(),
+    };
+    let shard = Shard::parse(text).map_err(|_| bad("shard", text))?;
+    let spp = field(file, meta, "shard_spp")?.ok_or_else(|| bad("shard_spp", ""))?;
+    let seed = field(file, meta, "shard_seed")?.ok_or_else(|| bad("shard_seed", ""))?;
+    Ok(Some(ShardRecord { shard, spp, seed }))
 }
 
 /// The `[render]` table of `render_options` without what differs between independent parts
@@ -252,6 +292,7 @@ impl Provenance {
             forced: meta
                 .get("merge_forced")
                 .map_or(Vec::new(), |t| t.lines().map(str::to_string).collect()),
+            shard: shard_record(file, meta)?,
         };
         p.sources = match meta.get("sources") {
             Some(t) => {
@@ -309,9 +350,50 @@ pub fn conflicts(inputs: &[Provenance]) -> Vec<Conflict> {
             out.extend(overlap(a, b));
         }
     }
+    out.extend(missing_shards(inputs));
     out
 }
 // ANCHOR_END: conflicts
+
+/// The shards missing from the renders the inputs hold shards of: per render (integrator,
+/// shard count, spp, seed), the shard numbers not given, each with what it holds.
+// ANCHOR: missing_shards
+fn missing_shards(inputs: &[Provenance]) -> Vec<Conflict> {
+    let mut renders: Vec<(String, u32, u32, u64)> = inputs
+        .iter()
+        .filter_map(|p| {
+            let s = p.shard?;
+            let integrator = p.integrator.clone().unwrap_or_default();
+            Some((integrator, s.shard.count, s.spp, s.seed))
+        })
+        .collect();
+    renders.sort();
+    renders.dedup();
+    let mut out = Vec::new();
+    for (integrator, count, spp, seed) in renders {
+        let given = |index| {
+            inputs.iter().any(|p| {
+                p.shard.is_some_and(|s| {
+                    (s.shard, s.spp, s.seed) == (Shard { index, count }, spp, seed)
+                }) && p.integrator.as_deref() == Some(integrator.as_str())
+            })
+        };
+        let missing: Vec<String> = (1..=count)
+            .filter(|&i| !given(i))
+            .map(|index| Shard { index, count }.describe(spp, seed, integrator == "mlt"))
+            .collect();
+        if !missing.is_empty() {
+            out.push(Conflict::MissingShards {
+                integrator,
+                spp,
+                seed,
+                missing,
+            });
+        }
+    }
+    out
+}
+// ANCHOR_END: missing_shards
 
 /// What makes `b` an estimate of another image than `a`.
 fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
@@ -394,6 +476,9 @@ pub fn merged_record(inputs: &[Provenance], first: &ImageMeta, forced: &[Conflic
         "negative_pixels",
         "merged_from",
         "guide_seconds",
+        "shard",
+        "shard_spp",
+        "shard_seed",
     ] {
         meta.attributes.remove(key);
     }

@@ -99,6 +99,9 @@ pub struct Job<'s> {
     pub spp: u32,
     /// Render for this many seconds instead.
     pub time: Option<f64>,
+    /// The pass the render starts at (a shard's first pass; 0 for a whole render): pass p
+    /// draws the streams `Sampler::new(seed, pixel, p)`.
+    pub first_pass: u64,
     /// Show a progress bar on stderr.
     pub progress: bool,
 }
@@ -259,7 +262,8 @@ fn start<'s>(
     resume: Option<Checkpoint>,
 ) -> Result<(Renderer<'s>, Progress, Option<Earlier>), IntegratorError> {
     let Some(c) = resume else {
-        let r = Renderer::prepared(job.kind, &job.setup)?;
+        let mut r = Renderer::prepared(job.kind, &job.setup)?;
+        r.passes = job.first_pass;
         return Ok((r, Progress::default(), None));
     };
     if job.time.is_none() && c.progress.spp > job.spp as u64 {
@@ -281,8 +285,9 @@ fn start<'s>(
     progress.resumes += 1;
     let seed = Checkpoint::resume_seed(job.setup.seed, progress.resumes);
     let setup = Setup { seed, ..job.setup };
-    let r = Renderer::prepared(job.kind, &setup)?;
-    progress.passes = 0;
+    let mut r = Renderer::prepared(job.kind, &setup)?;
+    r.passes = job.first_pass;
+    progress.passes = job.first_pass;
     if job.progress {
         eprintln!(
             "resuming {} as an independent run with seed {seed}, merged with the {} spp saved",
@@ -290,11 +295,12 @@ fn start<'s>(
             progress.spp
         );
     }
-    Ok((r, progress, Some(merged(&c))))
+    Ok((r, progress, Some(merged(&c, job.first_pass))))
 }
 
-/// The earlier runs of a checkpoint with its own run folded in (MLT).
-fn merged(c: &Checkpoint) -> Earlier {
+/// The earlier runs of a checkpoint with its own run folded in (MLT), its run having started
+/// at pass `first`.
+fn merged(c: &Checkpoint, first: u64) -> Earlier {
     let mut e = c.earlier.clone().unwrap_or(Earlier {
         weighted: vec![[0.0; 3]; c.film.as_ref().map_or(0, |f| f.sum.len())],
         spp: 0,
@@ -302,18 +308,14 @@ fn merged(c: &Checkpoint) -> Earlier {
     });
     if let Some(f) = c.film.as_ref().filter(|f| f.spp > 0) {
         let seed = Checkpoint::run_seed(c.identity.seed, c.progress.resumes);
-        fold(&mut e, f, run_streams(seed, c.progress.passes));
+        fold(&mut e, f, run_streams(seed, first, c.progress.passes));
     }
     e
 }
 
-/// The streams of a run of `passes` passes from its start (pass 0).
-fn run_streams(seed: u64, passes: u64) -> Streams {
-    Streams {
-        seed,
-        first: 0,
-        end: passes,
-    }
+/// The streams of a run from pass `first` to pass `end` (the next pass it would draw).
+fn run_streams(seed: u64, first: u64, end: u64) -> Streams {
+    Streams { seed, first, end }
 }
 
 /// Adds a run's image, weighted by its sample count, and its streams.
@@ -404,7 +406,7 @@ pub fn progress_message(
 /// What the renderer holds, as a [`RenderResult`]; with MLT's earlier runs, the image is their
 /// merge with the run in progress, weighted by sample count.
 fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier>) -> RenderResult {
-    let run = run_streams(r.seed, r.passes);
+    let run = run_streams(r.seed, job.first_pass, r.passes);
     let image = r.film.as_ref().map(|f| match earlier {
         Some(e) => {
             let mut all = e.clone();

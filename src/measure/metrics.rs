@@ -18,6 +18,23 @@ pub struct Metrics {
     pub relmse: f64,
     /// Largest |a - b|.
     pub max_abs: f64,
+    /// Largest distance in f32 values (0: the images are equal, 1: every channel equal or a
+    /// neighbour): how a merge of shards compares with the single run.
+    pub max_steps: u64,
+}
+
+/// How many f32 values lie from `a` to `b` on the ordered line of floats (0: equal, 1:
+/// neighbours; -0 and +0 are one value).
+pub fn f32_steps(a: f32, b: f32) -> u64 {
+    let ordered = |x: f32| {
+        let bits = x.to_bits() as i64;
+        if bits < 0x8000_0000 {
+            bits
+        } else {
+            0x8000_0000 - bits
+        }
+    };
+    ordered(a).abs_diff(ordered(b))
 }
 
 // ANCHOR: compare
@@ -29,8 +46,10 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, MeasureError> {
         ));
     }
     let (mut se, mut rel, mut max_abs) = (0.0f64, 0.0f64, 0.0f64);
+    let mut max_steps = 0;
     for (pa, pb) in a.pixels.iter().zip(&b.pixels) {
         for c in 0..3 {
+            max_steps = max_steps.max(f32_steps(pa[c], pb[c]));
             let (x, y) = (pa[c] as f64, pb[c] as f64);
             let d = x - y;
             se += d * d;
@@ -43,6 +62,7 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, MeasureError> {
         rmse: (se / n).sqrt(),
         relmse: rel / n,
         max_abs,
+        max_steps,
     })
 }
 // ANCHOR_END: compare
