@@ -172,8 +172,13 @@ fn build_book(copy: &Path, out: &Path) -> PathBuf {
 }
 
 /// Hard-links the release build's dependencies into `target/assignments/release`, so that
-/// Cargo finds them fresh there (best effort: without it they are compiled once).
+/// Cargo finds them fresh there (best effort: without it they are compiled once). The
+/// directory is this test's own: the claims a copy of the whole target directory (another
+/// checkout's, a CI cache) brought along are dropped, or `check` would refuse it as another
+/// copy's.
 fn seed_target_dir(target: &Path) {
+    let _ = std::fs::remove_file(target.join("pathspace-assignment-copy.txt"));
+    let _ = std::fs::remove_dir_all(target.join("pathspace-assignment-copies"));
     let release = release_dir();
     let dest = target.join("release");
     std::fs::create_dir_all(&dest).unwrap();
