@@ -220,6 +220,7 @@ fn converge_writes_the_csv_and_charts() {
         runs: 2,
         seed: 1,
         max_depth: None,
+        shard: None,
     };
     let mut runs_heard = 0;
     let settings = pathspace::integrator::RenderSettings::for_scene(&scene);

@@ -356,3 +356,98 @@ fn a_stopped_shard_resumes_from_its_checkpoint_to_the_same_image() {
     // and the comparison can fail: the shard of passes 2..5 is another image
     assert!(shard_film(2, 12, false).0 != whole.0);
 }
+
+/// A convergence study split by run (`converge --shard I/N`) and merged (`merge DIR... -o DIR`)
+/// is the study one process writes: the same rows, run for run, each run with its seed in the
+/// whole study. With a budget below one pass every run stops after its first pass, so its row
+/// (samples, relMSE) depends only on its seed and can be compared exactly; the timings cannot.
+#[test]
+fn a_convergence_study_split_by_run_merges_into_the_whole_study() {
+    use pathspace::measure::study::read_csv;
+    let dir = scratch(GROUP, "converge");
+    let scene = dir.join("small.toml");
+    let text = include_str!("../scenes/fog-box.toml").replace("[256, 256]", "[12, 12]");
+    std::fs::write(&scene, text).unwrap();
+    let s = scene.to_str().unwrap();
+    let reference = run(&dir, "ref.exr", &["reference", s, "--spp", "16"]);
+    let study = |out: &str, extra: &[&str]| {
+        let o = dir.join(out);
+        let mut args = vec!["converge", s, "--reference", reference.to_str().unwrap()];
+        args.extend_from_slice(&["--integrators", "path,bdpt", "--budget", "0.000001"]);
+        args.extend_from_slice(&[
+            "--checkpoints",
+            "2",
+            "--runs",
+            "5",
+            "-o",
+            o.to_str().unwrap(),
+        ]);
+        args.extend_from_slice(extra);
+        let done = pathspace(&args);
+        assert!(done.status.success(), "{args:?}: {}", stderr(&done));
+        o
+    };
+    let whole = study("whole", &[]);
+    let shards: Vec<PathBuf> = (1..=3)
+        .map(|i| study(&format!("s{i}"), &["--shard", &format!("{i}/3")]))
+        .collect();
+    let merged = dir.join("merged");
+    let mut args = vec!["merge".to_string()];
+    args.extend(shards.iter().rev().map(|p| p.display().to_string()));
+    args.extend(["-o".into(), merged.display().to_string()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let done = pathspace(&args);
+    assert!(done.status.success(), "merge: {}", stderr(&done));
+    let key = |p: &Path| -> Vec<(String, usize, usize, u64, String)> {
+        read_csv(&p.join("convergence.csv"))
+            .unwrap()
+            .into_iter()
+            .map(|r| {
+                (
+                    r.integrator,
+                    r.run,
+                    r.checkpoint,
+                    r.samples,
+                    format!("{:e}", r.relmse),
+                )
+            })
+            .collect()
+    };
+    let rows = key(&whole);
+    assert_eq!(
+        rows.len(),
+        10,
+        "two lines of five runs, one row each: {rows:?}"
+    );
+    assert_eq!(key(&merged), rows);
+    // a missing shard, a shard twice, and a shard of another study are named
+    let refused = |dirs: &[&PathBuf], says: &str| {
+        let mut args = vec!["merge".to_string()];
+        args.extend(dirs.iter().map(|p| p.display().to_string()));
+        args.extend(["-o".into(), dir.join("bad").display().to_string()]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let done = pathspace(&args);
+        assert!(!done.status.success());
+        assert!(stderr(&done).contains(says), "{}", stderr(&done));
+    };
+    refused(&[&shards[0], &shards[2]], "shard 2/3 is missing");
+    refused(&[&shards[0], &shards[0], &shards[1]], "are both shard 1/3");
+    let other = study("other", &["--shard", "2/3", "--seed", "9"]);
+    refused(&[&shards[0], &other, &shards[2]], "(the seed differs)");
+    refused(&[&whole], "is no shard of a study");
+    let too_many = pathspace(&[
+        "converge",
+        s,
+        "--reference",
+        reference.to_str().unwrap(),
+        "--budget",
+        "1",
+        "--runs",
+        "2",
+        "--shard",
+        "1/3",
+        "-o",
+        dir.join("x").to_str().unwrap(),
+    ]);
+    assert!(stderr(&too_many).contains("2 runs cannot give each of 3 shards a run"));
+}

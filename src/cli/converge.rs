@@ -12,6 +12,7 @@ use crate::integrator::settings::{GuideOptions, Spelling};
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
 use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
+use crate::measure::study::Study;
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergeArgs {
@@ -43,6 +44,11 @@ pub struct ConvergeArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Render only the I-th of N parts of the runs (runs (I-1)R/N .. IR/N, each with its seed
+    /// in the whole study), for N processes or machines; `pathspace merge DIR... -o DIR` puts
+    /// the shards' directories back together. `--external` images are read by shard 1.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
     /// Output directory.
     #[arg(short = 'o', long = "output", default_value = "convergence")]
     pub output: PathBuf,
@@ -241,7 +247,7 @@ fn converge_guided(
 ) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
     let mut rows = Vec::new();
-    for run in 0..config.runs {
+    for run in config.run_indices() {
         let (scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
         let flags = args.guide.apply_flags(settings.guide);
         let g = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
@@ -526,6 +532,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
         runs: args.runs,
         seed: args.seed.unwrap_or(settings.seed),
         max_depth: settings.max_depth,
+        shard: args.shard.as_deref().map(shard_of_runs).transpose()?,
     };
     // fail on bad numbers before spending the budget
     convergence::checkpoint_times(config.budget, config.checkpoints)
@@ -533,11 +540,18 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     if config.runs == 0 {
         return Err(CliError::Usage("--runs must be at least 1".into()));
     }
+    if let Some(s) = config.shard.filter(|s| s.count as usize > config.runs) {
+        return Err(CliError::Usage(format!(
+            "--shard {}/{}: {} runs cannot give each of {} shards a run; use at most {} shards",
+            s.index, s.count, config.runs, s.count, config.runs
+        )));
+    }
     check_memory(&args, &scene, &settings, (&variants, &guided))?;
     std::fs::create_dir_all(&args.output)
         .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
     let mut external_rows = Vec::new();
-    for (name, dir) in &externals {
+    let reads_externals = config.shard.is_none_or(|s| s.index == 1);
+    for (name, dir) in externals.iter().filter(|_| reads_externals) {
         external_rows.extend(convergence::external_rows(name, dir, &reference)?);
     }
     let mut rows = run_lines(
@@ -549,18 +563,50 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     )?;
     rows.extend(external_rows);
 
-    let csv = args.output.join("convergence.csv");
-    convergence::write_csv(&csv, &rows)?;
-    let curves = convergence::summarize(&rows);
-    let mut written = vec![csv];
     let reference_relmse = meta
         .get("estimated_relmse")
         .and_then(|s| s.parse::<f64>().ok());
-    written.extend(chart::write_charts(
-        &args.output,
-        &curves,
+    let study = Study {
+        scene: source.name.clone(),
+        scene_hash: format!("{:016x}", source.hash()),
+        budget: config.budget,
+        checkpoints: config.checkpoints,
+        runs: config.runs,
+        seed: config.seed,
+        lines: study_lines(&args),
+        shard: args.shard.clone(),
         reference_relmse,
-    )?);
+    };
+    write_study(&args.output, &study, &rows)
+}
+
+/// The lines a study asked for, as its record names them.
+fn study_lines(args: &ConvergeArgs) -> Vec<String> {
+    let mut lines = args.integrators.clone();
+    lines.extend(args.propagation.iter().map(|p| format!("propagation {p}")));
+    lines.extend(args.external.iter().map(|e| format!("external {e}")));
+    lines
+}
+
+/// `--shard I/N` of a study's runs.
+fn shard_of_runs(text: &str) -> Result<crate::integrator::shard::Shard, CliError> {
+    crate::integrator::shard::Shard::parse(text).map_err(|e| CliError::Usage(e.to_string()))
+}
+
+/// Writes a study's rows (`convergence.csv`), its record (`study.toml`) and its charts into
+/// `dir`, and prints its summary: what `converge` ends with, and `merge` of its shards.
+pub fn write_study(
+    dir: &std::path::Path,
+    study: &Study,
+    rows: &[convergence::CheckpointRow],
+) -> Result<(), CliError> {
+    let csv = dir.join("convergence.csv");
+    convergence::write_csv(&csv, rows)?;
+    study.write(dir)?;
+    let curves = convergence::summarize(rows);
+    let reference_relmse = study.reference_relmse;
+    let mut written = vec![csv, dir.join(crate::measure::study::STUDY_FILE)];
+    written.extend(chart::write_charts(dir, &curves, reference_relmse)?);
     for c in &curves {
         println!("{}", summary_line(c));
     }

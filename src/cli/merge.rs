@@ -1,4 +1,5 @@
-//! `pathspace merge A.exr B.exr ... -o OUT.exr [--force]`: the average of independent renders
+//! `pathspace merge A.exr B.exr ... -o OUT.exr [--force]` (or `merge DIR... -o DIR`, the
+//! shards of a convergence study, [`crate::measure::study`]): the average of independent renders
 //! of one scene, each weighted by its sample count (the EXR attribute `spp`: samples or
 //! mutations per pixel). Independent MLT runs (other seeds, other machines) merge into one
 //! estimate this way, as Pauly et al. sec. 7 suggest for parallel rendering. The inputs'
@@ -15,10 +16,11 @@ use crate::integrator::provenance::{self, Conflict, Provenance, ProvenanceError}
 
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
-    /// The renders to average (at least one).
+    /// The renders to average (at least one), or the directories of a convergence study's
+    /// shards (`converge --shard I/N`).
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
-    /// The merged EXR.
+    /// The merged EXR (for shards of a study: the study's directory).
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
     /// Merge inputs that are not independent renders of one image (another scene, integrator or
@@ -97,6 +99,9 @@ fn same_files(args: &MergeArgs) -> (Vec<Conflict>, Vec<bool>) {
 }
 
 pub fn run(args: MergeArgs) -> Result<(), CliError> {
+    if args.inputs.iter().all(|p| p.is_dir()) {
+        return merge_studies(&args);
+    }
     // a typo in -o must not cost reading (and checking) every input
     image_io::check_output(&args.output, "exr")?;
     let mut inputs = Vec::with_capacity(args.inputs.len());
@@ -132,4 +137,14 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
         args.output.display()
     );
     Ok(())
+}
+
+/// `merge DIR... -o DIR`: the shards of one convergence study (`converge --shard I/N`) as the
+/// study one process would have written: its rows, record, charts and summary.
+fn merge_studies(args: &MergeArgs) -> Result<(), CliError> {
+    let dirs: Vec<&std::path::Path> = args.inputs.iter().map(PathBuf::as_path).collect();
+    let (study, rows) = crate::measure::study::merge_shards(&dirs)?;
+    std::fs::create_dir_all(&args.output)
+        .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
+    super::converge::write_study(&args.output, &study, &rows)
 }

@@ -185,6 +185,9 @@ pub enum CliError {
     /// `render`/`reference --shard`: a shard refused (the reason).
     #[error(transparent)]
     Shard(#[from] crate::integrator::shard::ShardError),
+    /// `merge` of `converge --shard` directories: not the shards of one study, each once.
+    #[error(transparent)]
+    Study(#[from] crate::measure::study::StudyError),
     /// `merge`: inputs that are no independent estimates of one image, or an unreadable record.
     #[error(transparent)]
     Provenance(#[from] crate::integrator::provenance::ProvenanceError),

@@ -40,6 +40,22 @@ pub struct ConvergeConfig {
     pub seed: u64,
     /// Maximum path depth (None: Russian roulette only).
     pub max_depth: Option<u32>,
+    /// The part of the runs this process renders (`converge --shard I/N`): runs
+    /// `(I-1)R/N .. IR/N`, each with the seed it has in the whole study; `None`, all of them.
+    pub shard: Option<crate::integrator::shard::Shard>,
+}
+
+impl ConvergeConfig {
+    /// The indices of the runs this process renders.
+    pub fn run_indices(&self) -> std::ops::Range<usize> {
+        match self.shard {
+            Some(s) => {
+                let (i, n) = (s.index as usize, s.count as usize);
+                (i - 1) * self.runs / n..i * self.runs / n
+            }
+            None => 0..self.runs,
+        }
+    }
 }
 
 /// One row of `convergence.csv`: one integrator, one run, one checkpoint.
@@ -265,7 +281,7 @@ pub fn converge(
     let times = study_checkpoints(scene, reference, kinds.len(), config)?;
     let mut rows = Vec::new();
     for &kind in kinds {
-        for run in 0..config.runs {
+        for run in config.run_indices() {
             let seed = run_seed(config.seed, run);
             let setup = Setup {
                 scene,
@@ -340,7 +356,7 @@ pub fn converge_variants(
     let times = study_checkpoints(scene, reference, variants.len(), config)?;
     let mut rows = Vec::new();
     for v in variants {
-        for run in 0..config.runs {
+        for run in config.run_indices() {
             let seed = run_seed(config.seed, run);
             let mut technique = crate::enlightened::Enlightened::default();
             let seconds0 = match &v.adjoint {

@@ -8,6 +8,7 @@ pub mod convergence;
 pub mod heatmap;
 pub mod metrics;
 pub mod stats;
+pub mod study;
 
 use crate::integrator::IntegratorKind;
 use crate::scene::Scene;
