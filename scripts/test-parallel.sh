@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${PATHSPACE:-$PWD/target/release/pathspace}
 [ -x "$BIN" ] || cargo build --release
-command -v parallel >/dev/null || apt-get install -y parallel
+command -v parallel >/dev/null || apt-get install -y parallel >/dev/null || (apt-get update >/dev/null && apt-get install -y parallel >/dev/null)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 args=(render scenes/fog-box.toml --resolution 32x24 --spp 64 --seed 7 --reproducible)
