@@ -29,6 +29,18 @@ struct Node {
     count: u32,
 }
 
+/// The children of an interior node a ray enters.
+enum Children {
+    /// Both: `first` the nearer, `second` entered at `t_second`.
+    Both {
+        first: usize,
+        second: usize,
+        t_second: f32,
+    },
+    One(usize),
+    None,
+}
+
 /// The hierarchy over a slice of primitives (the primitives are not owned).
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
@@ -246,31 +258,23 @@ impl Bvh {
                     }
                 }
             } else {
-                let (left, right) = (node + 1, n.offset as usize);
-                let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, limit);
-                let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, limit);
-                match (hit_left, hit_right) {
-                    (Some((near_l, _)), Some((near_r, _))) => {
-                        let (first, second, t_second) = if near_r < near_l {
-                            (right, left, near_l)
-                        } else {
-                            (left, right, near_r)
-                        };
+                match self.children(node, ray, inv_d, limit) {
+                    Children::Both {
+                        first,
+                        second,
+                        t_second,
+                    } => {
                         // one entry per level of the path from the root: cannot overflow
                         stack[sp] = (second as u32, t_second);
                         sp += 1;
                         node = first;
                         continue;
                     }
-                    (Some(_), None) => {
-                        node = left;
+                    Children::One(child) => {
+                        node = child;
                         continue;
                     }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
+                    Children::None => {}
                 }
             }
             // the next stacked subtree the ray still enters before the best hit's reach (with
@@ -286,6 +290,28 @@ impl Bvh {
                     break;
                 }
             }
+        }
+    }
+
+    /// Which children of interior node `node` the ray enters before `limit`, the nearer first.
+    fn children(&self, node: usize, ray: &Ray, inv_d: Vec3, limit: f32) -> Children {
+        let (left, right) = (node + 1, self.nodes[node].offset as usize);
+        let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, limit);
+        let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, limit);
+        match (hit_left, hit_right) {
+            (Some((near_l, _)), Some((near_r, _))) if near_r < near_l => Children::Both {
+                first: right,
+                second: left,
+                t_second: near_l,
+            },
+            (Some(_), Some((near_r, _))) => Children::Both {
+                first: left,
+                second: right,
+                t_second: near_r,
+            },
+            (Some(_), None) => Children::One(left),
+            (None, Some(_)) => Children::One(right),
+            (None, None) => Children::None,
         }
     }
 
@@ -308,30 +334,18 @@ impl Bvh {
                     }
                 }
             } else {
-                let (left, right) = (node + 1, n.offset as usize);
-                let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, t_max);
-                let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, t_max);
-                match (hit_left, hit_right) {
-                    (Some((near_l, _)), Some((near_r, _))) => {
-                        let (first, second) = if near_r < near_l {
-                            (right, left)
-                        } else {
-                            (left, right)
-                        };
+                match self.children(node, ray, inv_d, t_max) {
+                    Children::Both { first, second, .. } => {
                         stack[sp] = second as u32;
                         sp += 1;
                         node = first;
                         continue;
                     }
-                    (Some(_), None) => {
-                        node = left;
+                    Children::One(child) => {
+                        node = child;
                         continue;
                     }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
+                    Children::None => {}
                 }
             }
             if sp == 0 {
