@@ -118,6 +118,40 @@ fn film_weight(l: Rgb, splat: bool, npix: f64) -> f64 {
     luminance(l) as f64 * if splat { 1.0 } else { npix }
 }
 
+// ANCHOR: film_weights
+/// Traces pre-pass samples `samples` (reusing one pair of subpath buffers) and calls
+/// `f(sample, s, t, weight)` for every strategy whose film weight is positive and finite: what
+/// both the bootstrap and the refinement of b add up.
+fn film_weights(
+    scene: &Scene,
+    bdpt: &Bdpt,
+    seed: u64,
+    samples: std::ops::Range<u64>,
+    npix: f64,
+    mut f: impl FnMut(u64, usize, usize, f64),
+) {
+    let mut walks = Scratch::default();
+    for sample in samples {
+        run_sample(
+            scene,
+            bdpt,
+            seed,
+            sample,
+            None,
+            &mut walks,
+            &mut |s, t, l, splat, _| {
+                let w = film_weight(l, splat, npix);
+                if w > 0.0 && w.is_finite() {
+                    f(sample, s, t, w);
+                }
+                true
+            },
+        );
+    }
+}
+
+// ANCHOR_END: film_weights
+
 fn pixel_count(scene: &Scene) -> f64 {
     scene
         .camera
@@ -135,29 +169,15 @@ impl Bootstrap {
             .into_par_iter()
             .map(|c| {
                 let mut out = Vec::new();
-                let mut walks = Scratch::default();
-                for sample in c * BOOTSTRAP_CHUNK..((c + 1) * BOOTSTRAP_CHUNK).min(n) {
-                    run_sample(
-                        scene,
-                        bdpt,
-                        seed,
+                let chunk = c * BOOTSTRAP_CHUNK..((c + 1) * BOOTSTRAP_CHUNK).min(n);
+                film_weights(scene, bdpt, seed, chunk, npix, |sample, s, t, weight| {
+                    out.push(Candidate {
                         sample,
-                        None,
-                        &mut walks,
-                        &mut |s, t, l, splat, _| {
-                            let w = film_weight(l, splat, npix);
-                            if w > 0.0 && w.is_finite() {
-                                out.push(Candidate {
-                                    sample,
-                                    s,
-                                    t,
-                                    weight: w,
-                                });
-                            }
-                            true
-                        },
-                    );
-                }
+                        s,
+                        t,
+                        weight,
+                    })
+                });
                 out
             })
             .collect();
@@ -191,24 +211,7 @@ impl Bootstrap {
                 let mut acc = 0.0;
                 let lo = (c * BOOTSTRAP_CHUNK).max(start);
                 let hi = ((c + 1) * BOOTSTRAP_CHUNK).min(end);
-                let mut walks = Scratch::default();
-                for sample in lo..hi {
-                    run_sample(
-                        scene,
-                        bdpt,
-                        seed,
-                        sample,
-                        None,
-                        &mut walks,
-                        &mut |_, _, l, splat, _| {
-                            let w = film_weight(l, splat, npix);
-                            if w > 0.0 && w.is_finite() {
-                                acc += w;
-                            }
-                            true
-                        },
-                    );
-                }
+                film_weights(scene, bdpt, seed, lo..hi, npix, |_, _, _, w| acc += w);
                 acc
             })
             .collect();
