@@ -505,6 +505,16 @@ fn procedural_media_keys_are_validated() {
             "only to density = linear",
         ),
         (
+            "density = \"plume\"\naxis = \"x\"\nfrom = 0.0",
+            "media.slab.from",
+            "only to density = linear",
+        ),
+        (
+            "density = \"plume\"\naxis = \"w\"",
+            "media.slab.axis",
+            "unknown variant",
+        ),
+        (
             "density = \"constant\"\nstep = 0.0",
             "media.slab.step",
             "(0, 1]",
@@ -570,7 +580,13 @@ fn procedural_majorants_bound_their_fields() {
         lo_v >= 0.0 && hi_v < 1.0 && hi_v - lo_v > 0.3,
         "fBm over the box spans [{lo_v}, {hi_v}]: normalized to [0, 1) and not flat"
     );
-    for field in [Field::Cloud(fbm), Field::Plume(fbm)] {
+    let plume = |axis| Field::Plume { fbm, axis };
+    for field in [
+        Field::Cloud(fbm),
+        plume(Axis::X),
+        plume(Axis::Y),
+        plume(Axis::Z),
+    ] {
         let n = 8;
         let mut peak = 0.0f32;
         for b in 0..n * n * n {
@@ -589,6 +605,33 @@ fn procedural_majorants_bound_their_fields() {
             }
         }
         assert!(peak > 0.3, "{field:?}: peak density {peak}");
+    }
+    // a plume streams along its axis: the rising plume with the local coordinates permuted
+    // (noise included), densest at the centre of the face it starts from
+    let swap = |u: Vec3, axis| match axis {
+        Axis::X => Vec3::new(u.y, u.x, u.z),
+        Axis::Y => u,
+        Axis::Z => Vec3::new(u.x, u.z, u.y),
+    };
+    for axis in [Axis::X, Axis::Z] {
+        for k in 0..343 {
+            let u = Vec3::new((k % 7) as f32, (k / 7 % 7) as f32, (k / 49) as f32) / 6.0;
+            assert_eq!(
+                plume(axis).eval(u),
+                plume(Axis::Y).eval(swap(u, axis)),
+                "{axis:?} {u}"
+            );
+        }
+        let along = |h: f32, off: f32| swap(Vec3::new(0.5 + off, h, 0.5), axis);
+        let source = plume(axis).eval(along(0.05, 0.0));
+        assert!(
+            source > 2.0 * plume(axis).eval(along(0.9, 0.0)),
+            "{axis:?}: fades"
+        );
+        assert!(
+            source > 2.0 * plume(axis).eval(along(0.05, 0.3)),
+            "{axis:?}: narrow"
+        );
     }
     // the cloud is dense in the middle and thins out towards its radius (the radial falloff
     // beats the noise), and beyond the radius (0.48 around the centre) there is nothing

@@ -63,9 +63,11 @@ pub enum Field {
     /// A noise cloud: clamp(gain (fbm(u) - bias - falloff (r / R)^2), 0, 1), r the distance
     /// to the centre, zero beyond R.
     Cloud(Fbm),
-    /// A smoke plume rising along +y from the centre of the bottom face: a Gaussian of width
-    /// growing with height, fading towards the top, modulated by fBm.
-    Plume(Fbm),
+    /// A smoke plume streaming along +`axis` from the centre of the box's face at the low end
+    /// of that axis: a Gaussian of width growing with height, fading towards the far face,
+    /// modulated by fBm. `axis = Y` rises; the other axes are the same field with the local
+    /// coordinates permuted (so a plume can stream sideways, through a door).
+    Plume { fbm: Fbm, axis: Axis },
 }
 
 /// A 32-bit integer hash (lowbias32, Wellons) of a lattice point and a seed.
@@ -118,6 +120,17 @@ impl Fbm {
     // ANCHOR_END: fbm
 }
 
+/// Local coordinates with `axis` moved to y (and y moved to where `axis` was): a permutation,
+/// its own inverse, the identity for `Axis::Y`. The plume is written for +y and streams along
+/// `axis` by this change of coordinates.
+fn plume_frame(u: Vec3, axis: Axis) -> Vec3 {
+    match axis {
+        Axis::X => Vec3::new(u.y, u.x, u.z),
+        Axis::Y => u,
+        Axis::Z => Vec3::new(u.x, u.z, u.y),
+    }
+}
+
 /// Distance from `c` to the nearest point of the box [lo, hi].
 fn nearest(c: Vec3, lo: Vec3, hi: Vec3) -> f32 {
     (c.clamp(lo, hi) - c).length()
@@ -137,7 +150,8 @@ impl Field {
                 let q = r / CLOUD_RADIUS;
                 (CLOUD_GAIN * (fbm.eval(u) - CLOUD_BIAS - CLOUD_FALLOFF * q * q)).clamp(0.0, 1.0)
             }
-            Field::Plume(fbm) => {
+            Field::Plume { fbm, axis } => {
+                let u = plume_frame(u, *axis);
                 let h = u.y.clamp(0.0, 1.0);
                 let rho2 = (u.x - 0.5).powi(2) + (u.z - 0.5).powi(2);
                 let w = PLUME_WIDTH_BASE + PLUME_WIDTH_GROWTH * h;
@@ -164,9 +178,10 @@ impl Field {
                 let q = r / CLOUD_RADIUS;
                 (CLOUD_GAIN * (1.0 - CLOUD_BIAS - CLOUD_FALLOFF * q * q)).clamp(0.0, 1.0)
             }
-            Field::Plume(_) => {
+            Field::Plume { axis, .. } => {
                 // the widest Gaussian (top of the box), the nearest point to the axis, the
                 // lowest height; the noise factor is at most 1
+                let (lo, hi) = (plume_frame(lo, *axis), plume_frame(hi, *axis));
                 let h_lo = lo.y.clamp(0.0, 1.0);
                 let w = PLUME_WIDTH_BASE + PLUME_WIDTH_GROWTH * hi.y.clamp(0.0, 1.0);
                 let axis = Vec3::new(0.5, 0.0, 0.5);
@@ -192,7 +207,7 @@ impl Field {
                 let u_mid = u0[a] + du[a] * 0.5 * (ta + tb);
                 Some((tb - ta) * (from + (to - from) * u_mid))
             }
-            Field::Cloud(_) | Field::Plume(_) => None,
+            Field::Cloud(_) | Field::Plume { .. } => None,
         }
     }
     // ANCHOR_END: closed_form

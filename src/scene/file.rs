@@ -193,7 +193,8 @@ pub enum MediumDesc {
         min: [f32; 3],
         #[serde(deserialize_with = "exact")]
         max: [f32; 3],
-        /// `linear`: the axis and the densities at its two ends.
+        /// `linear`: the axis and the densities at its two ends; `plume`: the axis it
+        /// streams along (default y, rising).
         axis: Option<AxisDesc>,
         from: Option<f32>,
         to: Option<f32>,

@@ -296,8 +296,11 @@ fn procedural(
             Field::Cloud(fbm(src, key, *octaves, *frequency, *seed)?)
         }
         DensityDesc::Plume => {
-            reject(&linear_keys, "linear")?;
-            Field::Plume(fbm(src, key, *octaves, *frequency, *seed)?)
+            reject(&linear_keys[1..], "linear")?;
+            Field::Plume {
+                fbm: fbm(src, key, *octaves, *frequency, *seed)?,
+                axis: axis.map_or(Axis::Y, axis_of),
+            }
         }
     };
     let density = match resolution {
@@ -339,17 +342,22 @@ fn linear(
             Some(x) => Ok(x),
         }
     };
-    let axis = match axis {
-        Some(AxisDesc::X) => Axis::X,
-        Some(AxisDesc::Y) => Axis::Y,
-        Some(AxisDesc::Z) => Axis::Z,
-        None => return Err(src.error(key, "density = linear needs `axis` (\"x\", \"y\" or \"z\")")),
+    let Some(axis) = axis.map(axis_of) else {
+        return Err(src.error(key, "density = linear needs `axis` (\"x\", \"y\" or \"z\")"));
     };
     Ok(Field::Linear {
         axis,
         from: need("from", from)?,
         to: need("to", to)?,
     })
+}
+
+fn axis_of(axis: AxisDesc) -> Axis {
+    match axis {
+        AxisDesc::X => Axis::X,
+        AxisDesc::Y => Axis::Y,
+        AxisDesc::Z => Axis::Z,
+    }
 }
 
 /// The fBm parameters of `cloud` and `plume`, defaults where a key is absent.
