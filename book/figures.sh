@@ -39,15 +39,15 @@ if want "$sel" guiding; then
   # Guided local sampling on the door slit at equal time, the preprocessing counted: map size
   # (8x4, 16x8, 32x16) and region count (64, 512, 4096) swept for surface guiding, then volume
   # and both. The reference is a 1200 s BDPT render of the same scene file (scene_hash
-  # a33b702e61f3b65a); `pathspace reference scenes/door-slit.toml --integrator bdpt --time 1200
+  # a33b702e61f3b65a); `pathspace reference scenes/door-slit-strips.toml --integrator bdpt --time 1200
   # -o out/door-ref.exr` makes one.
   d=book/src/figures/guiding
   mkdir -p "$d"
   ref="${DOOR_REF:-out/door-ref.exr}"
-  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+  $PS converge scenes/door-slit-strips.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
       --guide-particles 100000 -o out/guide-mlt --integrators \
       mlt,mlt+guide:surface:8x4:512,mlt+guide:surface:16x8:512,mlt+guide:surface:32x16:512,mlt+guide:surface:16x8:64,mlt+guide:surface:16x8:4096,mlt+guide:volume:16x8:512,mlt+guide:both:16x8:512
-  $PS converge scenes/door-slit.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+  $PS converge scenes/door-slit-strips.toml --reference "$ref" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
       --guide-particles 100000 -o out/guide-bdpt --integrators \
       bdpt,bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512
   for x in mlt bdpt; do
@@ -61,10 +61,10 @@ if want "$sel" guiding-sweep; then
   # The door-slit sweep on the fixed code (chapter "guiding"): one core per run (taskset), 60 s,
   # 3 runs per line; then Metropolis particles; then 8 more runs of the key lines in two
   # halves, one per core. The reference is a 4096-spp BDPT render:
-  # `pathspace reference scenes/door-slit.toml --integrator bdpt --spp 4096 --seed 77 -o out/door-ref-4096.exr`.
+  # `pathspace reference scenes/door-slit-strips.toml --integrator bdpt --spp 4096 --seed 77 -o out/door-ref-4096.exr`.
   d=book/src/figures/guiding
   ref="${DOOR_REF:-out/door-ref-4096.exr}"
-  one() { taskset -c "$1" $PS converge scenes/door-slit.toml --reference "$ref" --budget 60 --checkpoints 5 \
+  one() { taskset -c "$1" $PS converge scenes/door-slit-strips.toml --reference "$ref" --budget 60 --checkpoints 5 \
       --threads 1 "${@:2}"; }
   one 1 --runs 3 --guide-particles 100000 -o out/sweep --integrators \
       mlt,mlt+guide:surface:8x4:512,mlt+guide:surface:16x8:512,mlt+guide:surface:32x16:512,mlt+guide:surface:16x8:64,mlt+guide:surface:16x8:4096,mlt+guide:surface:32x16:4096,mlt+guide:volume:8x4:512,mlt+guide:volume:16x8:512,mlt+guide:volume:32x16:512,mlt+guide:volume:16x8:64,mlt+guide:volume:16x8:4096,mlt+guide:volume:32x16:4096
@@ -110,7 +110,7 @@ if want "$sel" guiding-indirect; then
       --guide-particles 50000 --guide-min-depth 2 -o out/guide-fog-indirect --integrators \
       bdpt+guide:surface:16x8:512,bdpt+guide:volume:16x8:512,bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
   cp out/guide-fog-indirect/convergence.csv "$d/fog-indirect.csv"
-  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+  $PS converge scenes/door-slit-strips.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
       --guide-particles 100000 --guide-min-depth 2 -o out/guide-door-indirect --integrators \
       bdpt+guide:both:16x8:512,mlt+guide:both:16x8:512
   cp out/guide-door-indirect/convergence.csv "$d/door-indirect.csv"
@@ -143,7 +143,7 @@ fi
 if want "$sel" guiding-bidir; then
   # Guide maps from the bidirectional particle sampler (indirect particles only).
   d=book/src/figures/guiding
-  $PS converge scenes/door-slit.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
+  $PS converge scenes/door-slit-strips.toml --reference "${DOOR_REF:-out/door-ref.exr}" --budget 40 --runs 2 --checkpoints 5 --threads 2 \
       --guide-particles 2000000 --guide-sampler bidirectional --guide-min-depth 2 -o out/guide-door-bidir --integrators \
       mlt+guide:both:16x8:512
   cp out/guide-door-bidir/convergence.csv "$d/door-bidir.csv"

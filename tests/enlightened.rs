@@ -376,7 +376,7 @@ fn metropolis_photons_crowd_where_the_camera_looks() {
     let scene = Scene::load(
         &SceneSource::read(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/scenes/door-slit.toml"
+            "/scenes/door-slit-strips.toml"
         )))
         .unwrap(),
     )
