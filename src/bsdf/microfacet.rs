@@ -93,6 +93,7 @@ impl Ggx {
     /// projection), lift the point onto the hemisphere and unstretch the normal.
     // ANCHOR: sample_visible
     pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        // ASSIGNMENT: ggx_visible_normals
         let a = self.alpha;
         // stretched view direction (Heitz 2018, sec. 2, step 1)
         let vh = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
@@ -114,6 +115,7 @@ impl Ggx {
         // onto the hemisphere (step 4), then back to the ellipsoid's normal (step 5)
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
         Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-7)).normalize()
+        // END ASSIGNMENT
     }
     // ANCHOR_END: sample_visible
 }

@@ -109,6 +109,14 @@ pub const ASSIGNMENTS: &[Assignment] = &[
         ],
     },
     Assignment {
+        name: "ggx_visible_normals",
+        chapter: "Surface scattering (eq. 2)",
+        chapter_file: "bsdf.md",
+        files: &["src/bsdf/microfacet.rs"],
+        task: "sample GGX's visible normals (Heitz 2018): stretch, squeeze the disk, lift, unstretch",
+        tests: &[t("microfacet", "rough_conductor_samples_its_density")],
+    },
+    Assignment {
         name: "free_flight",
         chapter: "Table 1: homogeneous media",
         chapter_file: "table1-homogeneous.md",
