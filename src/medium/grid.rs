@@ -150,14 +150,20 @@ impl Grid {
     #[inline]
     pub fn eval(&self, u: Vec3) -> f32 {
         let g = (u.clamp(Vec3::ZERO, Vec3::ONE)) * self.lattice();
-        let i = g.floor().min(self.lattice() - Vec3::ONE).max(Vec3::ZERO);
-        let f = g - i;
-        let (x, y, z) = (i.x as usize, i.y as usize, i.z as usize);
+        // g >= 0, so truncation is the floor (without a libm call); g = res - 1 on the far
+        // face belongs to the last cell
+        let cell = |k: usize| (g[k] as usize).min(self.res[k] - 2);
+        let (x, y, z) = (cell(0), cell(1), cell(2));
+        let f = g - Vec3::new(x as f32, y as f32, z as f32);
+        // the cell's eight vertices from one bounds-checked slice
+        let (dy, dz) = (self.res[0], self.res[0] * self.res[1]);
+        let base = x + dy * y + dz * z;
+        let v = &self.values[base..=base + 1 + dy + dz];
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let c00 = lerp(self.at(x, y, z), self.at(x + 1, y, z), f.x);
-        let c10 = lerp(self.at(x, y + 1, z), self.at(x + 1, y + 1, z), f.x);
-        let c01 = lerp(self.at(x, y, z + 1), self.at(x + 1, y, z + 1), f.x);
-        let c11 = lerp(self.at(x, y + 1, z + 1), self.at(x + 1, y + 1, z + 1), f.x);
+        let c00 = lerp(v[0], v[1], f.x);
+        let c10 = lerp(v[dy], v[dy + 1], f.x);
+        let c01 = lerp(v[dz], v[dz + 1], f.x);
+        let c11 = lerp(v[dy + dz], v[dy + dz + 1], f.x);
         lerp(lerp(c00, c10, f.y), lerp(c01, c11, f.y), f.z)
     }
     // ANCHOR_END: trilinear
@@ -186,7 +192,7 @@ impl Grid {
     pub fn integrate(&self, u0: Vec3, du: Vec3, ta: f32, tb: f32) -> f32 {
         let l = self.lattice();
         let mut sum = 0.0f32;
-        for (a, b, _) in cell_segments(u0 * l, du * l, ta, tb, self.res.map(|n| n - 1)) {
+        for (a, b) in cell_spans(u0 * l, du * l, ta, tb) {
             let h = b - a;
             let f0 = self.eval(u0 + du * (a + GAUSS2[0] * h));
             let f1 = self.eval(u0 + du * (a + GAUSS2[1] * h));
@@ -208,6 +214,15 @@ pub fn cell_segments(
     tb: f32,
     cells: [usize; 3],
 ) -> impl Iterator<Item = (f32, f32, [usize; 3])> {
+    cell_spans(g0, gd, ta, tb).map(move |(t, end)| {
+        let mid = g0 + gd * (0.5 * (t + end));
+        let cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
+        (t, end, cell)
+    })
+}
+
+/// [`cell_segments`] without the cell index, for callers that need only the pieces.
+pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = (f32, f32)> {
     let start = g0 + gd * ta;
     let mut next = [f32::INFINITY; 3];
     let mut step = [f32::INFINITY; 3];
@@ -233,12 +248,10 @@ pub fn cell_segments(
             2
         };
         let end = next[a].min(tb);
-        let mid = g0 + gd * (0.5 * (t + end));
-        let cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
-        let seg = (t, end, cell);
+        let span = (t, end);
         t = end;
         next[a] += step[a];
-        Some(seg)
+        Some(span)
     })
 }
 // ANCHOR_END: dda

@@ -30,7 +30,7 @@ use crate::geometry::{Aabb, Ray};
 use crate::math::Sampler;
 use crate::spectrum::{average, Rgb};
 
-use super::grid::{cell_segments, Grid, GAUSS2};
+use super::grid::{cell_segments, cell_spans, Grid, GAUSS2};
 use super::procedural::Field;
 use super::{FreeFlight, MediumError, Phase};
 
@@ -144,9 +144,8 @@ impl Density {
             Density::Grid(g) => g.integrate(u0, du, ta, tb),
             Density::Field(f) => f.integrate_closed_form(u0, du, ta, tb).unwrap_or_else(|| {
                 let q = PROCEDURAL_QUADRATURE_RES as f32;
-                let res = [PROCEDURAL_QUADRATURE_RES; 3];
-                cell_segments(u0 * q, du * q, ta, tb, res)
-                    .map(|(a, b, _)| {
+                cell_spans(u0 * q, du * q, ta, tb)
+                    .map(|(a, b)| {
                         let h = b - a;
                         let f0 = f.eval(u0 + du * (a + GAUSS2[0] * h));
                         let f1 = f.eval(u0 + du * (a + GAUSS2[1] * h));
