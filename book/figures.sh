@@ -15,6 +15,11 @@ if want "$sel" measuring; then
       -o book/src/figures/measuring
 fi
 
+if want "$sel" bsdf; then
+  mkdir -p book/src/figures/bsdf
+  cargo run --release --example bsdf_lobes -- book/src/figures/bsdf/ggx-lobes.svg
+fi
+
 if want "$sel" bdpt; then
   d=book/src/figures/bdpt
   mkdir -p "$d"

@@ -20,14 +20,14 @@ use crate::measure::convergence::{Curve, CurvePoint};
 /// DejaVu Sans (Bitstream Vera licence, see assets/fonts/LICENSE-DejaVu.txt).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 /// The family name the charts ask plotters for; it resolves to the embedded font.
-pub(crate) const FAMILY: &str = "sans-serif";
+pub const FAMILY: &str = "sans-serif";
 
 /// Chart size in pixels: large enough for 18 px labels to stay readable when scaled down in
 /// the book.
 pub const CHART_SIZE: (u32, u32) = (1000, 700);
 
 /// Registers the embedded font with plotters once per process.
-pub(crate) fn register_font() -> Result<(), ChartError> {
+pub fn register_font() -> Result<(), ChartError> {
     static REGISTERED: OnceLock<Result<(), ChartError>> = OnceLock::new();
     REGISTERED
         .get_or_init(|| {
