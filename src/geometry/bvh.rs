@@ -9,6 +9,7 @@
 
 use glam::Vec3;
 
+use super::wide::{collapse, Binary, Child, Node4, Slot, WIDTH};
 use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
@@ -29,23 +30,28 @@ struct Node {
     count: u32,
 }
 
-/// The children of an interior node a ray enters.
-enum Children {
-    /// Both: `first` the nearer, `second` entered at `t_second`.
-    Both {
-        first: usize,
-        second: usize,
-        t_second: f32,
-    },
-    One(usize),
-    None,
-}
+/// Entries of the traversal stack: a visit pops one entry and pushes at most `WIDTH`, once per
+/// level of the four-wide tree, which is no deeper than the binary one.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
-/// The hierarchy over a slice of primitives (the primitives are not owned).
+/// The hierarchy over a slice of primitives (the primitives are not owned): the binary tree
+/// of the build, and the four-wide tree traversal walks (`geometry::wide`).
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
     nodes: Vec<Node>,
     indices: Vec<u32>,
+    wide: Vec<Node4>,
+}
+
+impl Binary for Bvh {
+    fn bounds(&self, node: usize) -> Aabb {
+        self.nodes[node].bounds
+    }
+
+    fn children(&self, node: usize) -> Option<(usize, usize)> {
+        let n = &self.nodes[node];
+        (n.count == 0).then_some((node + 1, n.offset as usize))
+    }
 }
 
 struct BuildItem {
@@ -75,16 +81,30 @@ impl Bvh {
         let mut bvh = Bvh {
             nodes: Vec::with_capacity(2 * prims.len().max(1)),
             indices: Vec::with_capacity(prims.len()),
+            wide: Vec::new(),
         };
         if !items.is_empty() {
             bvh.build_recursive(&mut items, 1);
+            bvh.wide = collapse(&bvh, 0);
         }
         bvh
     }
 
-    /// Number of nodes (for statistics).
+    /// Number of nodes of the binary tree (for statistics).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// The primitive indices of leaf `leaf` of the binary tree.
+    #[inline]
+    fn leaf_indices(&self, leaf: usize) -> &[u32] {
+        let n = &self.nodes[leaf];
+        &self.indices[n.offset as usize..(n.offset + n.count) as usize]
+    }
+
+    /// Number of nodes of the four-wide tree traversal walks.
+    pub fn wide_node_count(&self) -> usize {
+        self.wide.len()
     }
 
     /// Depth of the deepest leaf (the root alone has depth 1).
@@ -221,10 +241,10 @@ impl Bvh {
 
     /// [`Bvh::intersect`] restricted to t in (t_min, t_max).
     ///
-    /// Traversal tests both children's boxes at their parent, goes on into the nearer and
-    /// stacks the other with its entry distance, which is checked again when it is popped: a
-    /// subtree the best hit so far has moved out of reach is dropped without touching its
-    /// node.
+    /// Traversal tests a node's four children together, stacks those the ray enters with
+    /// their entry distances, the nearest on top, and checks each distance again when it is
+    /// popped: a subtree the best hit so far has moved out of reach is dropped without touching
+    /// its node.
     pub fn intersect_range(
         &self,
         prims: &[Primitive],
@@ -240,41 +260,26 @@ impl Bvh {
             return None;
         }
         let mut best: Option<Hit> = None;
-        let mut stack = [(0u32, 0.0f32); MAX_DEPTH];
+        let mut stack = [0u64; STACK];
         let mut sp = 0usize;
-        let mut node = 0usize;
+        let mut child = Child::Node(0);
         loop {
-            let n = &self.nodes[node];
-            let limit = reach(best.map_or(t_max, |b| b.t));
-            if n.count > 0 {
-                for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
-                    let limit = reach(best.map_or(t_max, |b| b.t));
-                    if let Some((t, p, ng)) = prims[pi as usize].intersect_range(ray, t_min, limit)
-                    {
-                        let candidate = Hit { t, p, ng, prim: pi };
-                        if best.is_none_or(|b| closer(&candidate, &b, opaque)) {
-                            best = Some(candidate);
+            match child {
+                Child::Leaf(leaf) => {
+                    for &pi in self.leaf_indices(leaf) {
+                        let limit = reach(best.map_or(t_max, |b| b.t));
+                        let prim = &prims[pi as usize];
+                        if let Some((t, p, ng)) = prim.intersect_range(ray, t_min, limit) {
+                            let candidate = Hit { t, p, ng, prim: pi };
+                            if best.is_none_or(|b| closer(&candidate, &b, opaque)) {
+                                best = Some(candidate);
+                            }
                         }
                     }
                 }
-            } else {
-                match self.children(node, ray, inv_d, limit) {
-                    Children::Both {
-                        first,
-                        second,
-                        t_second,
-                    } => {
-                        // one entry per level of the path from the root: cannot overflow
-                        stack[sp] = (second as u32, t_second);
-                        sp += 1;
-                        node = first;
-                        continue;
-                    }
-                    Children::One(child) => {
-                        node = child;
-                        continue;
-                    }
-                    Children::None => {}
+                Child::Node(i) => {
+                    let limit = reach(best.map_or(t_max, |b| b.t));
+                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], ray, inv_d, limit);
                 }
             }
             // the next stacked subtree the ray still enters before the best hit's reach (with
@@ -284,77 +289,89 @@ impl Bvh {
                     return best;
                 }
                 sp -= 1;
-                let (next, t_near) = stack[sp];
+                let (next, t_near) = unpack(stack[sp]);
                 if t_near <= reach(best.map_or(t_max, |b| b.t)) * 1.000_000_4 {
-                    node = next as usize;
+                    child = next.child();
                     break;
                 }
             }
         }
     }
 
-    /// Which children of interior node `node` the ray enters before `limit`, the nearer first.
-    fn children(&self, node: usize, ray: &Ray, inv_d: Vec3, limit: f32) -> Children {
-        let (left, right) = (node + 1, self.nodes[node].offset as usize);
-        let hit_left = self.nodes[left].bounds.intersect(ray, inv_d, limit);
-        let hit_right = self.nodes[right].bounds.intersect(ray, inv_d, limit);
-        match (hit_left, hit_right) {
-            (Some((near_l, _)), Some((near_r, _))) if near_r < near_l => Children::Both {
-                first: right,
-                second: left,
-                t_second: near_l,
-            },
-            (Some(_), Some((near_r, _))) => Children::Both {
-                first: left,
-                second: right,
-                t_second: near_r,
-            },
-            (Some(_), None) => Children::One(left),
-            (None, Some(_)) => Children::One(right),
-            (None, None) => Children::None,
-        }
-    }
-
-    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true. Children are
-    /// tested at their parent, as in [`Bvh::intersect_range`], the nearer entered first.
+    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true, the nearer
+    /// children entered first as in [`Bvh::intersect_range`].
     pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
         let inv_d = ray.d.recip();
         if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
             return false;
         }
-        let mut stack = [0u32; MAX_DEPTH];
+        let mut stack = [0u64; STACK];
         let mut sp = 0usize;
-        let mut node = 0usize;
+        let mut child = Child::Node(0);
         loop {
-            let n = &self.nodes[node];
-            if n.count > 0 {
-                for &pi in &self.indices[n.offset as usize..(n.offset + n.count) as usize] {
-                    if blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some() {
-                        return true;
+            match child {
+                Child::Leaf(leaf) => {
+                    for &pi in self.leaf_indices(leaf) {
+                        if blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some()
+                        {
+                            return true;
+                        }
                     }
                 }
-            } else {
-                match self.children(node, ray, inv_d, t_max) {
-                    Children::Both { first, second, .. } => {
-                        stack[sp] = second as u32;
-                        sp += 1;
-                        node = first;
-                        continue;
-                    }
-                    Children::One(child) => {
-                        node = child;
-                        continue;
-                    }
-                    Children::None => {}
+                Child::Node(i) => {
+                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], ray, inv_d, t_max);
                 }
             }
             if sp == 0 {
                 return false;
             }
             sp -= 1;
-            node = stack[sp] as usize;
+            child = unpack(stack[sp]).0.child();
         }
     }
+}
+
+/// Pushes the children of `node` the ray enters before `limit` onto `stack` above `sp`, the
+/// farthest first so that the nearest is popped next; returns the new
+/// stack pointer. At most `WIDTH - 1` entries more than were popped to get here: cannot
+/// overflow [`STACK`].
+#[inline]
+fn push_nearest_last(
+    stack: &mut [u64; STACK],
+    mut sp: usize,
+    node: &Node4,
+    ray: &Ray,
+    inv_d: Vec3,
+    limit: f32,
+) -> usize {
+    let (enters, near) = node.intersect(ray.o, inv_d, limit);
+    let mut entered = [(0.0f32, Slot(0)); WIDTH];
+    let mut n = 0;
+    for k in 0..WIDTH {
+        if enters & (1 << k) != 0 {
+            let t = near[k];
+            // insertion by decreasing distance; of equal ones the later child is popped first
+            let mut j = n;
+            while j > 0 && entered[j - 1].0 < t {
+                entered[j] = entered[j - 1];
+                j -= 1;
+            }
+            entered[j] = (t, node.slots[k]);
+            n += 1;
+        }
+    }
+    for &(t, slot) in &entered[..n] {
+        stack[sp] = u64::from(slot.0) | (u64::from(t.to_bits()) << 32);
+        sp += 1;
+    }
+    sp
+}
+
+/// A stack entry: the child and its entry distance, packed in one word so that the stack a
+/// query sets up is small.
+#[inline]
+fn unpack(entry: u64) -> (Slot, f32) {
+    (Slot(entry as u32), f32::from_bits((entry >> 32) as u32))
 }
 
 // ANCHOR: tie_break

@@ -4,6 +4,7 @@
 pub mod aabb;
 pub mod bvh;
 pub mod shape;
+pub mod wide;
 
 pub use aabb::Aabb;
 pub use bvh::Bvh;
