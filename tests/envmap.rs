@@ -12,6 +12,7 @@ use common::sampler;
 use common::stats::Family;
 use glam::{Mat3, Vec3};
 use pathspace::image_io::{write_exr, Image, ImageMeta};
+use pathspace::path::{Vertex, VertexKind, PLAIN};
 use pathspace::scene::envmap::EnvMap;
 use pathspace::scene::light::emission_pdf_dir;
 use pathspace::scene::{Environment, Light, Scene, SceneSource};
@@ -289,6 +290,47 @@ fn the_lights_records_agree_with_its_densities() {
             pathspace::scene::light::emitted_by(&light, es.n, es.d)
         );
     }
+}
+
+/// BDPT's environment vertices take the map's density and radiance at their own direction:
+/// the density of starting a light path there (eye paths that escape, next-event samples) is
+/// the selection probability times the map's pdf, not the uniform sphere's, and the emitted
+/// radiance is the map's.
+#[test]
+fn bdpt_environment_vertices_carry_the_maps_density() {
+    let text = format!(
+        "{CAMERA}[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.5\n\
+         material = \"white\"\n[materials.white]\ntype = \"lambert\"\nalbedo = 0.5\n\
+         [[lights]]\ntype = \"environment\"\nmap = \"envmap-sky.exr\"\n"
+    );
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let scene = load(&text, &dir).unwrap_or_else(|e| panic!("{e}"));
+    let e = scene.environment.expect("an environment");
+    let Light::Environment(env) = &scene.lights[e as usize] else {
+        panic!("not an environment")
+    };
+    let mut s = sampler(0xe4f, 0);
+    let mut peak = 0.0f32;
+    for _ in 0..1000 {
+        let (w, value, pdf) = env.sample(s.next_2d()).expect("off the poles");
+        let v = Vertex::new(
+            VertexKind::InfiniteLight { light: e, w },
+            w * 100.0,
+            Vec3::ZERO,
+            None,
+            None,
+        );
+        let origin = v.light_origin_pdf(&scene, &PLAIN);
+        let want = scene.light_pmf(e) * env.pdf(w);
+        assert_eq!(origin, want, "light-start density at {w}");
+        assert_eq!(v.emitted(&scene, Vec3::ZERO), value, "radiance at {w}");
+        peak = peak.max(pdf);
+    }
+    // the sun's texels are drawn far above the uniform density
+    assert!(
+        peak > 100.0 * pathspace::math::warp::INV_FOUR_PI,
+        "peak pdf {peak}"
+    );
 }
 
 /// Writes `image` as an EXR in a fresh directory and returns the directory.
