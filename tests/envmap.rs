@@ -4,7 +4,7 @@
 //! consistency of the light's sampling records (`sample_li`, `pdf_li`, `sample_le`,
 //! `emission_pdf_dir`), and the scene file's errors at their key. The integrators' agreement
 //! on maps (a constant map in the furnace, the sample sky over haze) is in
-//! `tests/agreement.rs`. Book: "Lights", section "Environment maps".
+//! `tests/agreement.rs`. Book: "Environment maps".
 
 mod common;
 

@@ -17,7 +17,7 @@
 //! luminance times its solid angle, so a cell is drawn with the probability of its share of the
 //! luminance, and the point uniformly in (u, v) within it. With d omega = 2 pi^2 sin theta du dv,
 //! the solid-angle density is p(u, v) / (2 pi^2 sin theta) (Pharr, Jakob and Humphreys,
-//! Physically Based Rendering, 3rd ed., eq. 14.18). Book: "Lights", section "Environment maps".
+//! Physically Based Rendering, 3rd ed., eq. 14.18). Book: "Environment maps".
 
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
