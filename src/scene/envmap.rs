@@ -70,7 +70,7 @@ impl EnvMap {
             let band = |k: usize| (PI as f64 * k as f64 / rows as f64).cos();
             let omega = band(k) - band(k + 1);
             for i in 0..width {
-                let l = texels[(k + 1) / 2 * width + i];
+                let l = texels[texel_row(k) * width + i];
                 weights.push((luminance(l) as f64 * omega) as f32);
                 mean += l.as_dvec3() * omega;
             }
@@ -114,7 +114,7 @@ impl EnvMap {
     /// The texel shown by half-row cell (i, k).
     #[inline]
     fn texel(&self, (i, k): (usize, usize)) -> Rgb {
-        self.texels[(k + 1) / 2 * self.width + i]
+        self.texels[texel_row(k) * self.width + i]
     }
 
     /// Radiance arriving from world direction `w` (pointing away from the scene).
@@ -155,6 +155,13 @@ impl EnvMap {
             p / (2.0 * PI * PI * sin_theta),
         ))
     }
+}
+
+/// The texel row half row `k` shows: (k + 1) / 2 (rows 0 and H - 1 show in one half row each,
+/// the others in two).
+#[inline]
+fn texel_row(k: usize) -> usize {
+    k.div_ceil(2)
 }
 
 /// Mitsuba 3's `uv_to_direction`: the local direction of map point `uv`, with sin theta.

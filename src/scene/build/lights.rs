@@ -271,8 +271,7 @@ fn orthogonal(src: &SceneSource, key: &KeyPath, rows: &[[f32; 3]; 3]) -> Result<
         .to_cols_array()
         .iter()
         .fold(0.0f32, |a, x| a.max(x.abs()));
-    // NaN fails the comparison too
-    if !(error <= 1e-4) {
+    if error.is_nan() || error > 1e-4 {
         return Err(src.error(
             key,
             format!("{rows:?} is not an orthogonal matrix (a rotation, possibly mirrored)"),
