@@ -12,6 +12,7 @@ use common::sampler;
 use common::stats::Family;
 use glam::{Mat3, Vec3};
 use pathspace::image_io::{write_exr, Image, ImageMeta};
+use pathspace::math::Distribution2D;
 use pathspace::path::{Vertex, VertexKind, PLAIN};
 use pathspace::scene::envmap::EnvMap;
 use pathspace::scene::light::emission_pdf_dir;
@@ -204,6 +205,28 @@ fn pdf_integrates_to_one_and_the_estimator_to_the_power() {
         );
     }
     fam.finish();
+}
+
+/// `Distribution2D` returns points inside the cells it reports, with the cells' density, also
+/// on a wide grid where (i + r) / n rounds up into the next cell in f32 (r near 1, i large).
+#[test]
+fn distribution2d_points_lie_in_their_cells() {
+    let (nu, nv) = (5000, 3);
+    let weights: Vec<f32> = (0..nu * nv).map(|i| 1.0 + (i % 7) as f32).collect();
+    let d = Distribution2D::new(&weights, nu, nv);
+    let total: f32 = weights.iter().sum();
+    let mut s = sampler(0xe50, 0);
+    for _ in 0..300_000 {
+        let (p, cell, pdf) = d.sample(s.next_2d());
+        assert_eq!(d.cell(p), cell, "point {p} outside cell {cell:?}");
+        assert_eq!(d.pdf(p), pdf);
+        let (i, j) = cell;
+        let want = weights[j * nu + i] / total * (nu * nv) as f32;
+        assert!(
+            (pdf - want).abs() <= 1e-4 * want,
+            "cell {cell:?}: {pdf} vs {want}"
+        );
+    }
 }
 
 /// A map of zeros with texel (x, y) = 1.
