@@ -106,6 +106,13 @@ impl EnvMap {
         self.uniform
     }
 
+    /// The bytes the map holds: its texels (12 each) and its distribution (a probability and a
+    /// cumulative sum per half-row cell, 8 bytes).
+    pub fn memory_bytes(&self) -> u64 {
+        let cells = self.width * 2 * (self.height - 1);
+        (self.texels.len() * 12 + cells * 8) as u64
+    }
+
     /// The mean radiance over the sphere.
     pub fn mean_radiance(&self) -> Rgb {
         self.mean
