@@ -654,6 +654,7 @@ fn agreement_furnace_map() {
             ..row("furnace-map", text, 1)
         },
     );
+    let _ = std::fs::remove_file(&map);
     fam.finish();
 }
 
@@ -685,6 +686,7 @@ fn agreement_envmap() {
             ..row("envmap", text, 3)
         },
     );
+    let _ = std::fs::remove_file(&map);
     fam.finish();
 }
 
