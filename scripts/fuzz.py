@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Mutation fuzzing of pathspace's inputs: scene files, density grids and OBJ meshes.
+"""Mutation fuzzing of pathspace's inputs: scene files, density grids, OBJ meshes and EXR environment maps.
 
-Each case copies one shipped scene (with the grid or OBJ file it reads) into a scratch
+Each case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a scratch
 directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types, deleted or
 duplicated lines, resized arrays, control bytes and bad UTF-8, truncation, huge headers and
 arrays), and runs `pathspace info` and `pathspace render` on it under a time and a memory
@@ -86,7 +86,7 @@ def load_seed(rel):
     with open(path, "rb") as f:
         text = f.read()
     files = {}
-    for m in re.finditer(rb'(?:file|obj)\s*=\s*"([^"]+)"', text):
+    for m in re.finditer(rb'(?:file|obj|map)\s*=\s*"([^"]+)"', text):
         name = m.group(1).decode()
         src = os.path.join(os.path.dirname(path), name)
         if os.path.isfile(src):
@@ -119,7 +119,7 @@ def grid_with_vol():
 NUMBER = re.compile(rb"(?<![\w.\"])-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.\"])")
 STRING = re.compile(rb'"[^"\n]*"')
 VALUE = re.compile(rb"^(\s*[\w.\"-]+\s*=\s*)(.+)$", re.M)
-FILE_VALUE = re.compile(rb'^(\s*(?:file|obj)\s*=\s*")[^"\n]*"', re.M)
+FILE_VALUE = re.compile(rb'^(\s*(?:file|obj|map)\s*=\s*")[^"\n]*"', re.M)
 ARRAY = re.compile(rb"\[([^\[\]\n]+)\]")
 
 
@@ -277,6 +277,21 @@ def mutate_vol(rng, data):
     return data[:at] + struct.pack("<f", v) + data[at + 4:], f"vol: float at {at} -> {v}"
 
 
+def mutate_exr(rng, data):
+    """An environment map's OpenEXR bytes: a truncation, a flipped byte, or a header integer
+    (the sizes and offsets live there) set to an extreme."""
+    op = rng.choice(["truncate", "byte", "byte", "int"])
+    if op == "truncate":
+        at = rng.randrange(len(data) + 1)
+        return data[:at], f"exr: truncate at {at}"
+    if op == "byte":
+        at = rng.randrange(len(data))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"exr: byte {at}"
+    at = rng.randrange(4, min(len(data), 400) - 4)
+    v = rng.choice([0, 1, -1, 2**16, 2**24, 2**31 - 1, -(2**31)])
+    return data[:at] + struct.pack("<i", v) + data[at + 4:], f"exr: int at {at} -> {v}"
+
+
 def mutate_obj(rng, data):
     words = ["0", "-100", "100000", "nan", "inf", "1e30", "1/1/1", "x", "-1", "9"]
     return mutate_words(rng, data, words, "obj")
@@ -299,7 +314,7 @@ def make_case(k, seed, seeds, keys, strings):
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
-            mut = {".obj": mutate_obj, ".vol": mutate_vol}.get(f[-4:], mutate_grid)
+            mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr}.get(f[-4:], mutate_grid)
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)

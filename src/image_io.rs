@@ -250,6 +250,42 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
     Ok((img.layer_data.channel_data.pixels, meta))
 }
 
+/// Reads the RGB channels of an EXR input image (an environment map) of at most `max_bytes`
+/// bytes and `max_pixels` pixels: the sizes in the header are checked before any pixel is
+/// decoded, so a small file declaring a huge image is refused, not allocated.
+pub fn read_exr_input(path: &Path, max_bytes: u64, max_pixels: usize) -> Result<Image, ImageError> {
+    use exr::prelude::*;
+    let bytes = crate::conventions::read_at_most(path, max_bytes).map_err(|e| io_err(path, e))?;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+        .map_err(|e| io_err(path, e))?;
+    for h in &meta.headers {
+        let (w, hgt) = (h.layer_size.width(), h.layer_size.height());
+        if w.checked_mul(hgt).is_none_or(|n| n > max_pixels) {
+            return Err(io_err(
+                path,
+                format!("the image has {w} x {hgt} pixels, more than the limit of {max_pixels}"),
+            ));
+        }
+    }
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| {
+                super::image_io::Image::new(resolution.width() as u32, resolution.height() as u32)
+            },
+            |image: &mut super::image_io::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = image.width as usize;
+                image.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| io_err(path, e))?;
+    Ok(img.layer_data.channel_data.pixels)
+}
+
 /// The sRGB transfer function of a linear value, clamped to [0, 1].
 #[inline]
 pub fn srgb_encode(v: f32) -> f32 {

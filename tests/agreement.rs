@@ -619,6 +619,77 @@ fn agreement_sky() {
     fam.finish();
 }
 
+/// Writes a `w` x `h` environment map (`texel(x, y)`) beside the other temporary files and
+/// returns its absolute path, for a row's `map = "..."`.
+fn temporary_map(tag: &str, w: u32, h: u32, texel: impl Fn(u32, u32) -> [f32; 3]) -> String {
+    let dir = std::env::temp_dir().join(format!("pathspace-agreement-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut image = pathspace::image_io::Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            image.pixels[(y * w + x) as usize] = texel(x, y).into();
+        }
+    }
+    let file = dir.join(format!("{tag}.exr"));
+    pathspace::image_io::write_exr(&file, &image, &Default::default()).unwrap();
+    file.display().to_string()
+}
+
+/// The white furnace under a constant environment map instead of the constant environment:
+/// every pixel is still exactly 1, whatever the map's sampling density.
+#[test]
+fn agreement_furnace_map() {
+    let mut fam = Family::new("agreement: furnace, constant map");
+    let map = temporary_map("constant", 6, 4, |_, _| [1.0; 3]);
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace.toml"))
+        .unwrap()
+        .replace("resolution = [32, 32]", "resolution = [8, 8]")
+        .replace("radiance = 1.0", &format!("map = {map:?}"));
+    assert!(text.contains("map = "));
+    check_row(
+        &mut fam,
+        &Row {
+            reference: Reference::Exact(1.0),
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            ..row("furnace-map", text, 1)
+        },
+    );
+    let _ = std::fs::remove_file(&map);
+    fam.finish();
+}
+
+/// The sky row under a 16 x 8 map, turned, whose one bright texel gives as much light as the
+/// rest of the sky: next-event estimation by the map's luminance, BSDF and phase sampling,
+/// and light paths leaving the map must all meet.
+#[test]
+fn agreement_envmap() {
+    let mut fam = Family::new("agreement: envmap");
+    let map = temporary_map("texel", 16, 8, |x, y| {
+        if (x, y) == (5, 2) {
+            [60.0, 50.0, 40.0]
+        } else {
+            let t = 0.3 + 0.1 * y as f32 + 0.02 * x as f32;
+            [0.5 * t, 0.7 * t, t]
+        }
+    });
+    let sky = fixture("sky.toml");
+    let at = sky.find("[[lights]]").unwrap();
+    let text = format!(
+        "{}[[lights]]\ntype = \"environment\"\nmap = {map:?}\n\
+         to_world = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]\n",
+        &sky[..at]
+    );
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            ..row("envmap", text, 3)
+        },
+    );
+    let _ = std::fs::remove_file(&map);
+    fam.finish();
+}
+
 #[test]
 fn agreement_meters() {
     let mut fam = Family::new("agreement: meters");

@@ -145,9 +145,10 @@ fn the_book_builds() {
 
 /// The chapters of the papers' equations, in paper order (Pauly et al. eqs. 1-8 and Table 1,
 /// Pegoraro et al. eqs. 1-9, BDPT's MIS, measuring).
-const EQUATION_CHAPTERS: [&str; 15] = [
+const EQUATION_CHAPTERS: [&str; 16] = [
     "conventions.md",
     "scenes.md",
+    "envmap.md",
     "transport-equations.md",
     "phase-functions.md",
     "bsdf.md",

@@ -159,6 +159,18 @@ fn light(l: &Light) -> String {
             v3(*horizon),
             v3(*nadir)
         ),
+        Light::Environment(Environment::Map(map)) => {
+            let (w, h) = map.size();
+            format!(
+                "environment, {w} x {h} map sampled {}, mean radiance {}",
+                if map.is_uniform() {
+                    "uniformly"
+                } else {
+                    "by luminance"
+                },
+                v3(map.mean_radiance())
+            )
+        }
     }
 }
 

@@ -21,7 +21,7 @@ use crate::enlightened::GuideKind;
 
 use crate::medium::{Density, Medium};
 use crate::path::Vertex;
-use crate::scene::Scene;
+use crate::scene::{Environment, Light, Scene};
 
 /// The film: sum, sum of squares and splats per pixel (exactly `Film::new`'s buffers).
 pub const FILM_BYTES_PER_PIXEL: u64 = 3 * size_of::<[f64; 3]>() as u64;
@@ -161,7 +161,8 @@ fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'s
     parts
 }
 
-/// The scene's grids (their values and majorant blocks) and primitives with the BVH.
+/// The scene's grids (their values and majorant blocks), environment map and primitives with
+/// the BVH.
 fn scene_bytes(scene: &Scene) -> u64 {
     /// A primitive in the BVH with its node share.
     const PRIMITIVE_BYTES: u64 = 128;
@@ -176,7 +177,15 @@ fn scene_bytes(scene: &Scene) -> u64 {
             Medium::Homogeneous(_) => 0,
         })
         .sum();
-    grids + scene.prims.len() as u64 * PRIMITIVE_BYTES
+    let maps: u64 = scene
+        .lights
+        .iter()
+        .map(|l| match l {
+            Light::Environment(Environment::Map(m)) => m.memory_bytes(),
+            _ => 0,
+        })
+        .sum();
+    grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES
 }
 
 /// The default `--max-memory`: [`MACHINE_SHARE`] of the machine's memory (MemTotal of

@@ -302,7 +302,7 @@ fn escaped(scene: &Scene, w: &WalkState) -> Rgb {
     let mis = if w.prev.singular {
         1.0
     } else {
-        power_heuristic(w.prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
+        power_heuristic(w.prev.pdf_dir, scene.light_pmf(e) * env.pdf(w.ray.d))
     };
     w.beta * env.radiance(w.ray.d) * mis
 }

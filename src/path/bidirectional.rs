@@ -138,7 +138,10 @@ fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<V
     }
     let env = scene.environment?;
     Some(Vertex::new(
-        VertexKind::InfiniteLight { light: env },
+        VertexKind::InfiniteLight {
+            light: env,
+            w: ray.d,
+        },
         ray.o + ray.d * (4.0 * scene.radius + (ray.o - scene.center).length()),
         Vec3::ZERO,
         None,
@@ -577,7 +580,7 @@ impl<'t> Bdpt<'t> {
     /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
     fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
         match v.kind {
-            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light, .. } => {
                 scene.lights[light as usize].is_delta()
             }
             _ => false,
@@ -939,7 +942,10 @@ impl<'t> Bdpt<'t> {
                 lm,
             ),
             _ => Vertex::new(
-                VertexKind::InfiniteLight { light: li as u32 },
+                VertexKind::InfiniteLight {
+                    light: li as u32,
+                    w: ls.wi,
+                },
                 p_ref + ls.wi * (4.0 * scene.radius + (p_ref - scene.center).length()),
                 Vec3::ZERO,
                 None,
@@ -1141,7 +1147,7 @@ fn light_start_vertex(
         ),
         Light::Directional { .. } | Light::Environment(_) => (
             Vertex::new(
-                VertexKind::InfiniteLight { light: l },
+                VertexKind::InfiniteLight { light: l, w: -es.d },
                 es.p,
                 Vec3::ZERO,
                 None,

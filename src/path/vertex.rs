@@ -13,7 +13,6 @@ use super::geometry_term::cosine_factor;
 use super::technique::LocalSampling;
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::Primitive;
-use crate::math::warp;
 use crate::scene::light::emitted_by;
 use crate::scene::{EdgeEnd, Light, Scene};
 use crate::spectrum::Rgb;
@@ -28,8 +27,10 @@ pub enum VertexKind {
     /// A point on light `light` (`prim` for area lights, `None` for point and spot lights).
     Light { light: u32, prim: Option<u32> },
     /// A directional or environment light's vertex: a point at distance 2R outside the scene in
-    /// the direction the light comes from. Its edge has no distance factor in G.
-    InfiniteLight { light: u32 },
+    /// the direction the light comes from (on the emission disk for a light path's start), and
+    /// `w`, that direction (from the scene towards the light), which its radiance and its
+    /// density depend on. Its edge has no distance factor in G.
+    InfiniteLight { light: u32, w: Vec3 },
     /// A point on a non-null surface.
     Surface { prim: u32 },
     /// A collision point in medium `medium`.
@@ -160,7 +161,7 @@ impl Vertex {
         match self.kind {
             VertexKind::Camera | VertexKind::Meter { .. } | VertexKind::Medium { .. } => true,
             VertexKind::Light { .. } => true,
-            VertexKind::InfiniteLight { light } => {
+            VertexKind::InfiniteLight { light, .. } => {
                 !matches!(scene.lights[light as usize], Light::Directional { .. })
             }
             VertexKind::Surface { .. } => self.bsdf(scene).is_some_and(|b| !b.is_singular()),
@@ -191,11 +192,13 @@ impl Vertex {
     /// L_e(self -> towards) at a light vertex (irradiance for a directional light, intensity for
     /// point and spot lights: their Dirac is consumed by the sampler).
     pub fn emitted(&self, scene: &Scene, towards: Vec3) -> Rgb {
-        let (VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light }) = self.kind
-        else {
-            return Rgb::ZERO;
+        let (light, w) = match self.kind {
+            VertexKind::Light { light, .. } => (light, (towards - self.p).normalize_or_zero()),
+            // the emission direction is the vertex's own (an environment's radiance depends on
+            // it, and the far point's difference would round it)
+            VertexKind::InfiniteLight { light, w } => (light, -w),
+            _ => return Rgb::ZERO,
         };
-        let w = (towards - self.p).normalize_or_zero();
         emitted_by(&scene.lights[light as usize], self.n, w)
     }
 
@@ -265,7 +268,7 @@ impl Vertex {
                 let c = wn.dot(scene.sensors[meter as usize].normal());
                 c.max(0.0) * FRAC_1_PI
             }
-            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => {
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light, .. } => {
                 tech.emission_pdf(scene, &scene.lights[light as usize], self.p, self.n, wn)
             }
             VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
@@ -311,8 +314,8 @@ impl Vertex {
             }
             // the density of the direction (the position is drawn on a disk per direction and
             // its density enters the next vertex, see `light_pdf_to`)
-            VertexKind::InfiniteLight { light } => match scene.lights[light as usize] {
-                Light::Environment(_) => scene.light_pmf(light) * warp::INV_FOUR_PI,
+            VertexKind::InfiniteLight { light, w } => match &scene.lights[light as usize] {
+                Light::Environment(env) => scene.light_pmf(light) * env.pdf(w),
                 _ => 0.0,
             },
             _ => self.surface_light_origin_pdf(scene, tech),
@@ -335,7 +338,7 @@ impl Vertex {
     /// g(next)). Propagation not included.
     pub fn light_pdf_to(&self, scene: &Scene, tech: &dyn LocalSampling, next: &Vertex) -> f32 {
         let light = match self.kind {
-            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light } => light,
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light, .. } => light,
             VertexKind::Surface { prim } => {
                 match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
                     Some(l) => l,

@@ -378,14 +378,30 @@ pub enum LightDesc {
         #[serde(default)]
         falloff_deg: f32,
     },
-    /// Radiance arriving from infinitely far: constant (`radiance`) or a vertical gradient
-    /// (`zenith`, `horizon`, `nadir`).
+    /// Radiance arriving from infinitely far: constant (`radiance`), a vertical gradient
+    /// (`zenith`, `horizon`, `nadir`), or a latitude-longitude EXR `map` (relative to the scene
+    /// file, Mitsuba 3's `envmap` convention) times `scale`, turned by the rotation `to_world`
+    /// (rows of a 3x3 orthogonal matrix), sampled by luminance or `sampling = "uniform"`.
     Environment {
         radiance: Option<RgbValue>,
         zenith: Option<RgbValue>,
         horizon: Option<RgbValue>,
         nadir: Option<RgbValue>,
+        map: Option<String>,
+        scale: Option<f32>,
+        to_world: Option<[[f32; 3]; 3]>,
+        sampling: Option<EnvSamplingDesc>,
     },
+}
+
+/// `sampling = "..."` of an environment map: directions by the map's luminance (the default),
+/// or uniform on the sphere (for comparisons).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum EnvSamplingDesc {
+    #[default]
+    Luminance,
+    Uniform,
 }
 
 /// `[[sensors]]`: virtual measuring instruments.

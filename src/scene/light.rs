@@ -8,11 +8,13 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
+use super::EnvMap;
 use crate::geometry::Primitive;
 use crate::math::{warp, Distribution1D, Frame};
 use crate::spectrum::Rgb;
 
-/// A vertical gradient or constant environment: radiance as a function of direction.
+/// A constant, vertical gradient or image-based environment: radiance as a function of
+/// direction.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Environment {
     Constant(Rgb),
@@ -23,6 +25,8 @@ pub enum Environment {
         horizon: Rgb,
         nadir: Rgb,
     },
+    /// A latitude-longitude map, sampled by luminance ([`EnvMap`]).
+    Map(Box<EnvMap>),
 }
 
 impl Environment {
@@ -42,6 +46,29 @@ impl Environment {
                     horizon.lerp(*nadir, -w.y)
                 }
             }
+            Environment::Map(map) => map.radiance(w),
+        }
+    }
+
+    /// A direction `w` towards the sky from `u`, its radiance and its solid-angle density:
+    /// uniform on the sphere, or by the map's luminance.
+    #[inline]
+    pub fn sample(&self, u: Vec2) -> Option<(Vec3, Rgb, f32)> {
+        match self {
+            Environment::Map(map) => map.sample(u),
+            _ => {
+                let w = warp::uniform_sphere(u);
+                Some((w, self.radiance(w), warp::INV_FOUR_PI))
+            }
+        }
+    }
+
+    /// The solid-angle density of [`Environment::sample`] drawing `w`.
+    #[inline]
+    pub fn pdf(&self, w: Vec3) -> f32 {
+        match self {
+            Environment::Map(map) => map.pdf(w),
+            _ => warp::INV_FOUR_PI,
         }
     }
 
@@ -57,6 +84,7 @@ impl Environment {
                 // the mean of a function linear in y over each hemisphere is its value at y = 1/2
                 0.5 * (horizon.lerp(*zenith, 0.5) + horizon.lerp(*nadir, 0.5))
             }
+            Environment::Map(map) => map.mean_radiance(),
         }
     }
 }
@@ -252,14 +280,14 @@ impl Light {
                 is_delta: true,
             }),
             Light::Environment(env) => {
-                let wi = warp::uniform_sphere(u);
+                let (wi, value, pdf) = env.sample(u)?;
                 Some(LightSample {
                     wi,
                     dist: f32::INFINITY,
                     p: Vec3::ZERO,
                     n: -wi,
-                    value: env.radiance(wi),
-                    pdf: warp::INV_FOUR_PI,
+                    value,
+                    pdf,
                     is_delta: false,
                 })
             }
@@ -267,7 +295,8 @@ impl Light {
     }
 
     /// Solid-angle density of [`Light::sample_li`] producing the point `p` (normal `n`) on
-    /// this area light from `p_ref`, or direction `wi` for the environment.
+    /// this area light from `p_ref`, or direction `wi = -n` for the environment (its
+    /// [`LightSample::n`]).
     pub fn pdf_li(&self, prims: &[Primitive], p_ref: Vec3, p: Vec3, n: Vec3, prim: u32) -> f32 {
         match self {
             Light::Area {
@@ -284,7 +313,7 @@ impl Light {
                 }
                 distr.pmf(k) / prims[prim as usize].area() * d2 / cos_l
             }
-            Light::Environment(_) => warp::INV_FOUR_PI,
+            Light::Environment(env) => env.pdf(-n),
             _ => 0.0,
         }
     }
@@ -416,7 +445,7 @@ impl Light {
                 })
             }
             Light::Environment(env) => {
-                let w = warp::uniform_sphere(u_dir);
+                let (w, value, pdf_dir) = env.sample(u_dir)?;
                 let d = -w;
                 let frame = Frame::from_normal(d);
                 let disk = warp::concentric_disk(u_pos) * radius;
@@ -425,9 +454,9 @@ impl Light {
                     p,
                     n: d,
                     d,
-                    value: env.radiance(w),
+                    value,
                     pdf_pos: 1.0 / (PI * radius * radius),
-                    pdf_dir: warp::INV_FOUR_PI,
+                    pdf_dir,
                 })
             }
         }
@@ -485,6 +514,6 @@ pub fn emission_pdf_dir(light: &Light, n: Vec3, w: Vec3) -> f32 {
             }
         }
         Light::Directional { .. } => 0.0,
-        Light::Environment(_) => warp::INV_FOUR_PI,
+        Light::Environment(env) => env.pdf(-w),
     }
 }

@@ -6,12 +6,14 @@
 
 pub mod build;
 pub mod camera;
+pub mod envmap;
 pub mod file;
 pub mod light;
 pub mod segments;
 pub mod sensor;
 
 pub use camera::Camera;
+pub use envmap::EnvMap;
 pub use file::{SceneError, SceneFile, SceneSource};
 pub use light::{Environment, Light};
 pub use segments::{Segment, SegmentEnd, Segments};

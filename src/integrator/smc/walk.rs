@@ -21,7 +21,7 @@ use super::octree::Record;
 use crate::bsdf::TransportMode;
 use crate::geometry::{offset_origin, shadow_distance, Hit, Ray};
 use crate::integrator::path::power_heuristic;
-use crate::math::{warp, Sampler};
+use crate::math::Sampler;
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -116,7 +116,7 @@ pub fn escaped(scene: &Scene, d: Vec3, prev: &Previous) -> Rgb {
     let w = if prev.singular {
         1.0
     } else {
-        power_heuristic(prev.pdf_dir, scene.light_pmf(e) * warp::INV_FOUR_PI)
+        power_heuristic(prev.pdf_dir, scene.light_pmf(e) * env.pdf(d))
     };
     env.radiance(d) * w
 }

@@ -3,8 +3,12 @@
 //! next-event estimation and light paths.
 
 use super::values::{finite3, non_negative};
+use glam::Mat3;
+
+use crate::image_io::read_exr_input;
 use crate::math::{Distribution1D, Frame};
-use crate::scene::file::{path, KeyPath, LightDesc, RgbValue, SceneFile};
+use crate::scene::envmap::{self, EnvMap};
+use crate::scene::file::{path, EnvSamplingDesc, KeyPath, LightDesc, SceneFile};
 use crate::scene::{Environment, Light, SceneError, SceneSource};
 
 /// Every light of the scene: the area lights first, then `[[lights]]` in order.
@@ -30,16 +34,11 @@ pub(super) fn build(
     for (i, l) in desc.lights.iter().enumerate() {
         let key = path("lights").index(i);
         let light = match l {
-            LightDesc::Environment {
-                radiance,
-                zenith,
-                horizon,
-                nadir,
-            } => {
+            LightDesc::Environment { .. } => {
                 if environment.is_some() {
                     return Err(src.error(&key, "only one environment light is allowed"));
                 }
-                let env = environment_light(src, &key, radiance, zenith, horizon, nadir)?;
+                let env = environment_light(src, &key, l)?;
                 environment = Some(lights.len() as u32);
                 Light::Environment(env)
             }
@@ -136,32 +135,147 @@ fn delta_light(src: &SceneSource, key: &KeyPath, l: &LightDesc) -> Result<Light,
     })
 }
 
-/// The environment: constant `radiance`, or the `zenith`/`horizon`/`nadir` gradient.
+/// The environment: constant `radiance`, the `zenith`/`horizon`/`nadir` gradient, or a `map`
+/// (with `scale`, `to_world` and `sampling`, which only a map takes).
 fn environment_light(
     src: &SceneSource,
     key: &KeyPath,
-    radiance: &Option<RgbValue>,
-    zenith: &Option<RgbValue>,
-    horizon: &Option<RgbValue>,
-    nadir: &Option<RgbValue>,
+    l: &LightDesc,
 ) -> Result<Environment, SceneError> {
-    Ok(match (radiance, zenith, horizon, nadir) {
-        (Some(r), None, None, None) => Environment::Constant(non_negative(
+    let LightDesc::Environment {
+        radiance,
+        zenith,
+        horizon,
+        nadir,
+        map,
+        scale,
+        to_world,
+        sampling,
+    } = l
+    else {
+        unreachable!("an environment")
+    };
+    if map.is_none() {
+        let only_map = [
+            ("scale", scale.is_some()),
+            ("to_world", to_world.is_some()),
+            ("sampling", sampling.is_some()),
+        ];
+        if let Some((k, _)) = only_map.iter().find(|(_, given)| *given) {
+            return Err(src.error(
+                &key.clone().key(k),
+                format!("`{k}` applies to an environment `map` only"),
+            ));
+        }
+    }
+    Ok(match (radiance, zenith, horizon, nadir, map) {
+        (Some(r), None, None, None, None) => Environment::Constant(non_negative(
             src,
             &key.clone().key("radiance"),
             *r,
             "radiance",
         )?),
-        (None, Some(z), Some(h), Some(n)) => Environment::Gradient {
+        (None, Some(z), Some(h), Some(n), None) => Environment::Gradient {
             zenith: non_negative(src, &key.clone().key("zenith"), *z, "zenith")?,
             horizon: non_negative(src, &key.clone().key("horizon"), *h, "horizon")?,
             nadir: non_negative(src, &key.clone().key("nadir"), *n, "nadir")?,
         },
+        (None, None, None, None, Some(file)) => {
+            let uniform = sampling.unwrap_or_default() == EnvSamplingDesc::Uniform;
+            Environment::Map(Box::new(environment_map(
+                src,
+                key,
+                file,
+                scale.unwrap_or(1.0),
+                to_world,
+                uniform,
+            )?))
+        }
         _ => {
             return Err(src.error(
                 key,
-                "an environment takes either `radiance` or all of `zenith`, `horizon`, `nadir`",
+                "an environment takes either `radiance`, or all of `zenith`, `horizon`, \
+                 `nadir`, or a `map`",
             ))
         }
     })
+}
+
+/// The largest environment map file read, in bytes.
+pub const MAX_MAP_BYTES: u64 = 1 << 30;
+
+/// The map `file` (relative to the scene file) times `scale`, turned by `to_world`: errors name
+/// the file and the key; texels must be finite and non-negative.
+fn environment_map(
+    src: &SceneSource,
+    key: &KeyPath,
+    file: &str,
+    scale: f32,
+    to_world: &Option<[[f32; 3]; 3]>,
+    uniform: bool,
+) -> Result<EnvMap, SceneError> {
+    let map_key = key.clone().key("map");
+    if !(scale.is_finite() && scale >= 0.0) {
+        return Err(src.error(
+            &key.clone().key("scale"),
+            format!("scale must be finite and >= 0, got {scale}"),
+        ));
+    }
+    let rotation = match to_world {
+        Some(rows) => orthogonal(src, &key.clone().key("to_world"), rows)?,
+        None => Mat3::IDENTITY,
+    };
+    let image = read_exr_input(&src.base_dir.join(file), MAX_MAP_BYTES, envmap::MAX_TEXELS)
+        .map_err(|e| src.error(&map_key, e.to_string()))?;
+    let (w, h) = (image.width as usize, image.height as usize);
+    if w < envmap::MIN_SIDE || h < envmap::MIN_SIDE || w.max(h) > envmap::MAX_SIDE {
+        return Err(src.error(
+            &map_key,
+            format!(
+                "{file}: a {w} x {h} map; each side must be in [{}, {}]",
+                envmap::MIN_SIDE,
+                envmap::MAX_SIDE
+            ),
+        ));
+    }
+    if let Some(k) = image
+        .pixels
+        .iter()
+        .position(|c| !c.to_array().iter().all(|x| x.is_finite() && *x >= 0.0))
+    {
+        return Err(src.error(
+            &map_key,
+            format!(
+                "{file}: texel ({}, {}) is {}: texels must be finite and >= 0",
+                k % w,
+                k / w,
+                image.pixels[k]
+            ),
+        ));
+    }
+    let texels: Vec<_> = image.pixels.iter().map(|&c| c * scale).collect();
+    if let Some(c) = texels.iter().find(|c| !c.is_finite()) {
+        return Err(src.error(
+            &key.clone().key("scale"),
+            format!("scale {scale} makes a texel overflow ({c})"),
+        ));
+    }
+    Ok(EnvMap::new(w, h, texels, rotation, uniform))
+}
+
+/// `to_world` given by rows: an orthogonal matrix (a rotation, or a rotation with a mirror),
+/// so that it keeps solid angles and the map's density.
+fn orthogonal(src: &SceneSource, key: &KeyPath, rows: &[[f32; 3]; 3]) -> Result<Mat3, SceneError> {
+    let m = Mat3::from_cols_array_2d(rows).transpose();
+    let error = (m.transpose() * m - Mat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .fold(0.0f32, |a, x| a.max(x.abs()));
+    if error.is_nan() || error > 1e-4 {
+        return Err(src.error(
+            key,
+            format!("{rows:?} is not an orthogonal matrix (a rotation, possibly mirrored)"),
+        ));
+    }
+    Ok(m)
 }
