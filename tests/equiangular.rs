@@ -307,7 +307,13 @@ fn single_scattering_is_unbiased_with_and_without_equiangular_mis() {
             let mean = sum[c] / N as f64;
             let var = (sum_sq[c] / N as f64 - mean * mean) * N as f64 / (N - 1) as f64;
             let truth = single_scattering(&scene, ray, &media, c);
-            fam.samples_are(&format!("{} channel {c}", distance.name()), mean, var, N, truth);
+            fam.samples_are(
+                &format!("{} channel {c}", distance.name()),
+                mean,
+                var,
+                N,
+                truth,
+            );
         }
     }
     fam.finish();

@@ -32,6 +32,19 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 
 pub use crate::path::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
+/// The weight of the distance strategy with density `a` against the other's `b`: the balance
+/// heuristic (Veach 1997), a / (a + b).
+#[inline]
+pub fn distance_mis(a: f32, b: f32) -> f32 {
+    if a + b > 0.0 && (a + b).is_finite() {
+        a / (a + b)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// The path tracer's parameters.
 #[derive(Clone, Copy, Debug)]
 pub struct PathTracer {
@@ -50,7 +63,7 @@ pub enum DistanceSampling {
     #[default]
     FreeFlight,
     /// Free flight and equiangular sampling toward a light point (Kulla and Fajardo 2012),
-    /// one sample of each, their next-event estimates combined by the power heuristic; the
+    /// one sample of each, their next-event estimates combined by the balance heuristic; the
     /// walk continues from the free-flight sample only.
     EquiangularMis,
 }
@@ -129,7 +142,7 @@ impl PathTracer {
     /// The equiangular strategy's estimate of the light scattered once on the camera ray
     /// `media.ray`: a light and a point y on it as next-event estimation draws them, a
     /// distance toward y (Kulla and Fajardo 2012), and that light sample's estimate there,
-    /// weighted by the power heuristic against the free-flight density of the same distance.
+    /// weighted by the balance heuristic against the free-flight density of the same distance.
     // ANCHOR: equiangular_estimate
     fn equiangular_estimate(&self, scene: &Scene, media: &RayMedia, sampler: &mut Sampler) -> Rgb {
         if scene.lights.is_empty() || self.max_depth == 0 {
@@ -149,7 +162,7 @@ impl PathTracer {
             return Rgb::ZERO;
         };
         let medium = &scene.media[m as usize];
-        let mis = power_heuristic(pdf_eq, media.free_flight_pdf(scene, i, t));
+        let mis = distance_mis(pdf_eq, media.free_flight_pdf(scene, i, t));
         // transmittance to the vertex times sigma_s there, over the equiangular density
         let beta = media.transmittance(scene, i, t) * medium.sigma_s(p) * (mis / pdf_eq);
         let (phase, wo) = (medium.phase(), -media.ray.d);
@@ -277,11 +290,11 @@ impl PathTracer {
         let phase = scene.media[m as usize].phase();
         let wo = -w.ray.d;
         let pdf_ff = camera.map_or(0.0, |(c, i, t)| c.free_flight_pdf(scene, i, t));
-        // the power heuristic against equiangular sampling toward the light point drawn
+        // the balance heuristic against equiangular sampling toward the light point drawn
         // (which never samples infinite lights: weight 1 for them)
         let mis = |light: usize, ls: &crate::scene::light::LightSample| match camera {
             Some((c, i, t)) if !scene.lights[light].is_infinite() => {
-                power_heuristic(pdf_ff, c.equiangular_pdf(ls.p, i, t))
+                distance_mis(pdf_ff, c.equiangular_pdf(ls.p, i, t))
             }
             _ => 1.0,
         };
