@@ -49,6 +49,7 @@ impl Equiangular {
 
     /// The t in [a, b] whose angle lies the fraction `u` of the way from theta(a) to
     /// theta(b): theta uniform (Kulla and Fajardo 2012, the inverse of the angle's CDF).
+    // ANCHOR: equiangular_sample
     #[inline]
     pub fn sample(&self, a: f32, b: f32, u: f32) -> f32 {
         let (ta, tb) = (self.angle(a), self.angle(b));
@@ -76,4 +77,5 @@ impl Equiangular {
         }
         self.angular_rate(t) / span
     }
+    // ANCHOR_END: equiangular_sample
 }
