@@ -24,6 +24,7 @@ mod common;
 use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
+use pathspace::integrator::path::DistanceSampling;
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
@@ -54,6 +55,8 @@ enum Config {
     Smc(Variant, EstimatorForm),
     Guided(IntegratorKind),
     Adjoint(IntegratorKind),
+    /// The path tracer with `distance = "equiangular-mis"` (Kulla and Fajardo 2012).
+    Equiangular,
 }
 
 impl Config {
@@ -63,6 +66,7 @@ impl Config {
             Config::Smc(v, f) => format!("smc:{}:{}", v.name(), f.name()),
             Config::Guided(k) => format!("{}+guide", k.name()),
             Config::Adjoint(k) => format!("{}+adjoint", k.name()),
+            Config::Equiangular => "path+equiangular".into(),
         }
     }
 
@@ -84,6 +88,7 @@ impl Config {
         match self {
             Config::Plain(k) | Config::Guided(k) | Config::Adjoint(k) => k,
             Config::Smc(..) => IntegratorKind::Smc,
+            Config::Equiangular => IntegratorKind::Path,
         }
     }
 
@@ -92,6 +97,7 @@ impl Config {
         use IntegratorKind::*;
         let mut v = vec![
             Config::Plain(Path),
+            Config::Equiangular,
             Config::Plain(Light),
             Config::Plain(Bdpt),
             Config::Plain(Mlt),
@@ -315,6 +321,10 @@ fn check_row(fam: &mut Family, row: &Row) {
             (None, None) => {}
         }
         let spp = ((row.spp as f64 * config.spp_factor()).round() as u32).max(1);
+        let mut settings = settings.clone();
+        if let Config::Equiangular = config {
+            settings.distance = DistanceSampling::EquiangularMis;
+        }
         let outcome = prepare(&scene, &settings, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);
             runs(
@@ -429,6 +439,8 @@ const SPP: u32 = 64;
 const REFERENCE_RUNS: u64 = 2;
 const REFERENCE_SPP: u32 = 3;
 const NO_AREA_LIGHT: (&str, &str) = ("*+adjoint", "no area light");
+/// Equiangular MIS needs the free-flight density in closed form.
+const EQUIANGULAR_INHOMOGENEOUS: (&str, &str) = ("path+equiangular", "inhomogeneous");
 
 fn row(name: &'static str, text: String, channels: usize) -> Row {
     Row {
@@ -492,6 +504,7 @@ fn agreement_grid() {
         &mut fam,
         &Row {
             spp: SPP / 2,
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS],
             ..row("grid", fixture("grid.toml"), 1)
         },
     );
@@ -506,6 +519,7 @@ fn agreement_grid_random_offset() {
         &mut fam,
         &Row {
             spp: SPP / 2,
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS],
             ..row("grid-random-offset", text, 1)
         },
     );
@@ -519,6 +533,7 @@ fn agreement_procedural() {
         &mut fam,
         &Row {
             spp: SPP / 2,
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS],
             ..row("procedural", fixture("procedural.toml"), 1)
         },
     );
@@ -548,6 +563,7 @@ fn agreement_procedural_marching() {
         &mut fam,
         &Row {
             spp: SPP / 2,
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS],
             ..row("procedural-marching", text, 1)
         },
     );
@@ -599,7 +615,7 @@ fn agreement_caustic() {
         &Row {
             reference: Reference::Integrator(IntegratorKind::Bdpt),
             refuse: &[NO_AREA_LIGHT],
-            warn: &[("path", "Dirac light"), ("smc*", "Dirac light")],
+            warn: &[("path*", "Dirac light"), ("smc*", "Dirac light")],
             ..row("caustic", fixture("caustic.toml"), 1)
         },
     );

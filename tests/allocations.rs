@@ -8,6 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use pathspace::enlightened::{Enlightened, GuideKind, GuideSettings};
+use pathspace::integrator::path::DistanceSampling;
 use pathspace::integrator::settings::{load, RenderSettings};
 use pathspace::integrator::{IntegratorKind, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
@@ -71,10 +72,16 @@ fn fog_box() -> (Scene, RenderSettings) {
     (scene, settings)
 }
 
+/// The label of the path tracer with `distance = "equiangular-mis"`.
+const EQUIANGULAR: &str = "equiangular";
+
 /// Checks one integrator with technique `tech`; `label` names the case. Integrators that refuse
 /// the technique are skipped.
 fn check(kind: IntegratorKind, tech: &dyn LocalSampling, label: &str) {
-    let (scene, settings) = fog_box();
+    let (scene, mut settings) = fog_box();
+    if label == EQUIANGULAR {
+        settings.distance = DistanceSampling::EquiangularMis;
+    }
     let setup = Setup {
         scene: &scene,
         technique: tech,
@@ -128,5 +135,6 @@ fn a_pass_of_more_samples_allocates_no_more_than_a_logarithmic_allowance() {
             check(kind, &PLAIN, "plain");
             check(kind, &guided, "enlightened");
         }
+        check(IntegratorKind::Path, &PLAIN, EQUIANGULAR);
     });
 }

@@ -81,3 +81,41 @@ fn mlt_is_deterministic_for_a_seed_and_chain_count() {
     assert!(run(1, 7) == run(2, 7), "MLT depends on the thread count");
     assert!(run(2, 7) != run(2, 8), "MLT ignores the seed");
 }
+
+/// The path tracer with `distance = "equiangular-mis"`: its equiangular estimate draws from the
+/// pixel's own stream, so its image is bit-identical on one and two threads too (and differs
+/// from free flight's).
+#[test]
+fn the_equiangular_path_tracer_is_deterministic() {
+    use pathspace::integrator::path::DistanceSampling;
+    use pathspace::integrator::Setup;
+    let text = FOG_BOX.replace("resolution = [256, 256]", "resolution = [40, 24]");
+    let source = SceneSource::embedded("fog-box.toml", &text);
+    let (scene, mut settings) = pathspace::integrator::settings::load(&source).unwrap();
+    let mut image = |threads: usize, distance: DistanceSampling| {
+        settings.distance = distance;
+        let setup = Setup {
+            scene: &scene,
+            technique: &pathspace::path::PLAIN,
+            settings: &settings,
+            seed: 42,
+            max_depth: None,
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut r = Renderer::prepared(IntegratorKind::Path, &setup).unwrap();
+            r.pass(3, &|| {});
+            r.film.unwrap().sum
+        })
+    };
+    let a = image(1, DistanceSampling::EquiangularMis);
+    let b = image(2, DistanceSampling::EquiangularMis);
+    assert!(a == b, "the equiangular image depends on the thread count");
+    assert!(
+        a != image(2, DistanceSampling::FreeFlight),
+        "the option has no effect"
+    );
+}

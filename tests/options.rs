@@ -211,7 +211,7 @@ fn fog_box_without_render() -> String {
 fn top_level_keys_and_their_flags_give_the_same_settings() {
     let text = format!(
         "[render]\nintegrator = \"bdpt\"\nspp = 3\nseed = 9\nmax_depth = 4\n\
-         meter_samples = 100\nadjoint_image = true\n\n{}",
+         meter_samples = 100\nadjoint_image = true\ndistance = \"equiangular-mis\"\n\n{}",
         fog_box_without_render()
     );
     let (scene, file) = load(&SceneSource::embedded("k.toml", &text)).unwrap();
@@ -227,6 +227,8 @@ fn top_level_keys_and_their_flags_give_the_same_settings() {
         "--meter-samples",
         "100",
         "--adjoint-image",
+        "--distance",
+        "equiangular-mis",
     ]);
     let mut flags = RenderSettings::for_scene(&scene);
     flags.apply(&args.options, Spelling::Flag).unwrap();
@@ -467,4 +469,64 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     // the variants' names are the six combinations, in the registry's order
     let built: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();
     assert_eq!(built, Variant::NAMES);
+}
+
+/// `distance` (the path tracer's equiangular MIS, Kulla and Fajardo 2012): a bad value is
+/// reported at its key, the flag is refused for the integrators that sample by free flight
+/// only, and the path tracer refuses a scene with an inhomogeneous medium, naming it.
+#[test]
+fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
+    let text = format!(
+        "[render]\ndistance = \"sideways\"\n\n{}",
+        fog_box_without_render()
+    );
+    let e = load(&SceneSource::embedded("d.toml", &text))
+        .err()
+        .expect("an unknown distance sampling is refused")
+        .to_string();
+    assert!(
+        e.contains("distance") && e.contains("sideways") && e.contains("d.toml:2"),
+        "{e}"
+    );
+    let dir = common::cli::scratch("options", "distance");
+    let out = dir.join("x.exr");
+    let run = common::cli::pathspace(&[
+        "render",
+        "--integrator",
+        "bdpt",
+        "--distance",
+        "equiangular-mis",
+        "--spp",
+        "1",
+        "--resolution",
+        "4x4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("--distance equiangular-mis applies to --integrator path"),
+        "{err}"
+    );
+    let grid =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement/grid.toml");
+    let run = common::cli::pathspace(&[
+        "render",
+        grid.to_str().unwrap(),
+        "--integrator",
+        "path",
+        "--distance",
+        "equiangular-mis",
+        "--spp",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("equiangular-mis") && err.contains("inhomogeneous"),
+        "{err}"
+    );
 }

@@ -26,7 +26,8 @@ pub struct ConvergeArgs {
     /// scene's `[render.adjoint]`); `bdpt+guide`, `light+guide`, `mlt+guide` and
     /// `KIND+guide(key=value,...)` (any `[render.guide]` key) or the short
     /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (over the `--guide*`
-    /// options; vertices default to `surface`), the preprocessing counted in the budget.
+    /// options; vertices default to `surface`), the preprocessing counted in the budget;
+    /// `path+equiangular` is the path tracer with `distance = "equiangular-mis"`.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.

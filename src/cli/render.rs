@@ -5,6 +5,7 @@
 //! `[render]` table; the passes and the preprocessing run in an
 //! [`crate::integrator::session`].
 
+use crate::integrator::path::DistanceSampling;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -214,6 +215,14 @@ impl RenderArgs {
             return Err(CliError::Usage(
                 "--adjoint-* options need --adjoint-image".into(),
             ));
+        }
+        if o.distance.as_deref() == Some(DistanceSampling::EquiangularMis.name())
+            && kind != IntegratorKind::Path
+        {
+            return Err(CliError::Usage(format!(
+                "--distance equiangular-mis applies to --integrator path, not `{}` (it samples distances by free flight only)",
+                kind.name()
+            )));
         }
         if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
             return Err(CliError::Usage(format!(

@@ -11,6 +11,7 @@ use glam::Vec3;
 use crate::bsdf::TransportMode;
 use crate::geometry::{offset_origin, shadow_distance, Ray};
 use crate::math::{warp, Frame, Sampler};
+use crate::path::distance::RayMedia;
 use crate::scene::{Event, IrradianceMeter, Scene};
 use crate::spectrum::Rgb;
 
@@ -31,11 +32,64 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 
 pub use crate::path::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
+/// The weight of the distance strategy with density `a` against the other's `b`: the balance
+/// heuristic (Veach 1997), a / (a + b).
+#[inline]
+pub fn distance_mis(a: f32, b: f32) -> f32 {
+    if a + b > 0.0 && (a + b).is_finite() {
+        a / (a + b)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// The path tracer's parameters.
 #[derive(Clone, Copy, Debug)]
 pub struct PathTracer {
     /// Maximum number of scattering vertices (surface or medium) between sensor and light.
     pub max_depth: u32,
+    /// How distances along camera rays are sampled for single-scattered light.
+    pub distance: DistanceSampling,
+}
+
+/// How the path tracer samples the distance to a medium vertex on a camera ray, for the
+/// light scattered there once (`[render] distance`, `--distance`; book: "Table 1: homogeneous
+/// media", section "Equiangular sampling").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DistanceSampling {
+    /// Table 1's free flight alone.
+    #[default]
+    FreeFlight,
+    /// Free flight and equiangular sampling toward a light point (Kulla and Fajardo 2012),
+    /// one sample of each, their next-event estimates combined by the balance heuristic; the
+    /// walk continues from the free-flight sample only.
+    EquiangularMis,
+}
+
+impl DistanceSampling {
+    /// The values of `distance` / `--distance`.
+    pub const NAMES: &'static [&'static str] = &["free-flight", "equiangular-mis"];
+
+    /// Its name in the file and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            DistanceSampling::FreeFlight => Self::NAMES[0],
+            DistanceSampling::EquiangularMis => Self::NAMES[1],
+        }
+    }
+
+    /// Parses one of [`DistanceSampling::NAMES`].
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "free-flight" => Ok(DistanceSampling::FreeFlight),
+            "equiangular-mis" => Ok(DistanceSampling::EquiangularMis),
+            _ => Err(format!(
+                "`{s}` is no distance sampling (free-flight, equiangular-mis)"
+            )),
+        }
+    }
 }
 
 /// Where the previous scattering happened, for the MIS weight of emission found by chance.
@@ -53,7 +107,14 @@ impl PathTracer {
     pub fn new(max_depth: Option<u32>) -> Self {
         PathTracer {
             max_depth: max_depth.unwrap_or(u32::MAX),
+            distance: DistanceSampling::FreeFlight,
         }
+    }
+
+    /// This path tracer sampling camera-ray distances by `distance`.
+    pub fn with_distance(mut self, distance: DistanceSampling) -> Self {
+        self.distance = distance;
+        self
     }
 
     /// Radiance arriving at the camera along `ray`, which starts in `medium`.
@@ -69,8 +130,49 @@ impl PathTracer {
             pdf_dir: 1.0,
             singular: true,
         };
-        self.walk(scene, WalkState::new(ray, medium, Rgb::ONE, prev), sampler)
+        let w = WalkState::new(ray, medium, Rgb::ONE, prev);
+        if self.distance == DistanceSampling::FreeFlight {
+            return self.walk(scene, w, sampler, None);
+        }
+        let media = RayMedia::collect(scene, ray, medium);
+        self.equiangular_estimate(scene, &media, sampler)
+            + self.walk(scene, w, sampler, Some(&media))
     }
+
+    /// The equiangular strategy's estimate of the light scattered once on the camera ray
+    /// `media.ray`: a light and a point y on it as next-event estimation draws them, a
+    /// distance toward y (Kulla and Fajardo 2012), and that light sample's estimate there,
+    /// weighted by the balance heuristic against the free-flight density of the same distance.
+    // ANCHOR: equiangular_estimate
+    fn equiangular_estimate(&self, scene: &Scene, media: &RayMedia, sampler: &mut Sampler) -> Rgb {
+        if scene.lights.is_empty() || self.max_depth == 0 {
+            return Rgb::ZERO;
+        }
+        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let (u, u_t) = (sampler.next_2d(), sampler.next_f32());
+        let light = &scene.lights[l];
+        let Some((y, ny, pdf_area)) = light.sample_point(&scene.prims, u, u_prim) else {
+            return Rgb::ZERO;
+        };
+        let Some((i, t, pdf_eq)) = media.sample_equiangular(y, u_t) else {
+            return Rgb::ZERO;
+        };
+        let (p, m) = (media.ray.at(t), media.spans()[i].medium);
+        let Some(ls) = light.li_towards(&scene.prims, p, y, ny, pdf_area) else {
+            return Rgb::ZERO;
+        };
+        let medium = &scene.media[m as usize];
+        let mis = distance_mis(pdf_eq, media.free_flight_pdf(scene, i, t));
+        // transmittance to the vertex times sigma_s there, over the equiangular density
+        let beta = media.transmittance(scene, i, t) * medium.sigma_s(p) * (mis / pdf_eq);
+        let (phase, wo) = (medium.phase(), -media.ray.d);
+        let scatter = |wi: Vec3| {
+            let f = phase.eval(wo, wi);
+            (Rgb::splat(f), f)
+        };
+        beta * light_sample_estimate(scene, p, None, |_| Some(m), sampler, scatter, &ls, pmf)
+    }
+    // ANCHOR_END: equiangular_estimate
 
     /// One sample of a meter's mean irradiance: a point uniform on the meter, then the meter
     /// treated as a vertex whose "BSDF" is 1 on its normal side, so that integrating it against
@@ -115,13 +217,19 @@ impl PathTracer {
             Rgb::splat(std::f32::consts::PI),
             prev,
         );
-        l += self.walk(scene, w, sampler);
+        l += self.walk(scene, w, sampler, None);
         l
     }
 
     /// The random walk from `w.ray` with throughput `w.beta` after `w.depth` scattering vertices.
     // ANCHOR: walk
-    fn walk(&self, scene: &Scene, mut w: WalkState, sampler: &mut Sampler) -> Rgb {
+    fn walk(
+        &self,
+        scene: &Scene,
+        mut w: WalkState,
+        sampler: &mut Sampler,
+        mut camera: Option<&RayMedia>,
+    ) -> Rgb {
         let mut l = Rgb::ZERO;
         loop {
             // propagation: Table 1 through media and null boundaries
@@ -135,8 +243,12 @@ impl PathTracer {
                     l += escaped(scene, &w);
                     false
                 }
-                Event::Medium { p, medium: m, .. } => {
-                    self.medium_vertex(scene, &mut w, p, m, sampler, &mut l)
+                Event::Medium {
+                    p, t, medium: m, ..
+                } => {
+                    // on the camera ray, the free-flight partner of the equiangular estimate
+                    let on_camera_ray = camera.and_then(|c| Some((c, c.locate(t, m)?, t)));
+                    self.medium_vertex(scene, &mut w, (p, m), on_camera_ray, sampler, &mut l)
                 }
                 Event::Surface { hit, medium: m } => {
                     self.surface_vertex(scene, &mut w, &hit, m, sampler, &mut l)
@@ -145,6 +257,7 @@ impl PathTracer {
             if !go_on {
                 break;
             }
+            camera = None;
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
             if w.depth >= RR_START_DEPTH {
                 let q = w.beta.max_element().min(RR_MAX_SURVIVAL);
@@ -159,13 +272,14 @@ impl PathTracer {
     // ANCHOR_END: walk
 
     /// A medium vertex at `p` in medium `m`: next-event estimation into `l`, then a direction
-    /// from the phase function; false ends the walk.
+    /// from the phase function; false ends the walk. `camera` is the camera ray's spans with
+    /// the vertex's span and ray parameter when the equiangular strategy shares its estimate.
     fn medium_vertex(
         &self,
         scene: &Scene,
         w: &mut WalkState,
-        p: Vec3,
-        m: u32,
+        (p, m): (Vec3, u32),
+        camera: Option<(&RayMedia, usize, f32)>,
         sampler: &mut Sampler,
         l: &mut Rgb,
     ) -> bool {
@@ -175,19 +289,21 @@ impl PathTracer {
         w.depth += 1;
         let phase = scene.media[m as usize].phase();
         let wo = -w.ray.d;
+        let pdf_ff = camera.map_or(0.0, |(c, i, t)| c.free_flight_pdf(scene, i, t));
+        // the balance heuristic against equiangular sampling toward the light point drawn
+        // (which never samples infinite lights: weight 1 for them)
+        let mis = |light: usize, ls: &crate::scene::light::LightSample| match camera {
+            Some((c, i, t)) if !scene.lights[light].is_infinite() => {
+                distance_mis(pdf_ff, c.equiangular_pdf(ls.p, i, t))
+            }
+            _ => 1.0,
+        };
         // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
-        *l += w.beta
-            * next_event(
-                scene,
-                p,
-                None,
-                |_| Some(m),
-                sampler,
-                |wi| {
-                    let f = phase.eval(wo, wi);
-                    (Rgb::splat(f), f)
-                },
-            );
+        let scatter = |wi: Vec3| {
+            let f = phase.eval(wo, wi);
+            (Rgb::splat(f), f)
+        };
+        *l += w.beta * next_event_weighted(scene, p, None, |_| Some(m), sampler, scatter, mis);
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
         let ps = phase.sample(wo, sampler.next_2d());
@@ -382,6 +498,22 @@ pub fn next_event(
     sampler: &mut Sampler,
     scatter: impl Fn(Vec3) -> (Rgb, f32),
 ) -> Rgb {
+    next_event_weighted(scene, p, n, medium, sampler, scatter, |_, _| 1.0)
+}
+
+/// [`next_event`] with the estimate of light `l`'s sample `ls` multiplied by `weight(l, ls)`:
+/// the distance-MIS weight of a free-flight vertex on a camera ray (`distance =
+/// "equiangular-mis"`), which depends on the light point the sample drew.
+#[allow(clippy::too_many_arguments)]
+pub fn next_event_weighted(
+    scene: &Scene,
+    p: Vec3,
+    n: Option<Vec3>,
+    medium: impl Fn(Vec3) -> Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> (Rgb, f32),
+    weight: impl Fn(usize, &crate::scene::light::LightSample) -> f32,
+) -> Rgb {
     // ASSIGNMENT: next_event
     if scene.lights.is_empty() {
         return Rgb::ZERO;
@@ -392,6 +524,29 @@ pub fn next_event(
     let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
         return Rgb::ZERO;
     };
+    let w = weight(l, &ls);
+    if w == 0.0 {
+        return Rgb::ZERO;
+    }
+    w * light_sample_estimate(scene, p, n, medium, sampler, scatter, &ls, pmf)
+    // END ASSIGNMENT
+}
+
+/// The estimate of one light sample `ls` (from a light selected with probability `pmf`) at
+/// `p`: the shadow ray's transmittance, the scattering, and the MIS weight against the
+/// scattering sampler (see [`next_event`] for the arguments).
+#[allow(clippy::too_many_arguments)]
+pub fn light_sample_estimate(
+    scene: &Scene,
+    p: Vec3,
+    n: Option<Vec3>,
+    medium: impl Fn(Vec3) -> Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> (Rgb, f32),
+    ls: &crate::scene::light::LightSample,
+    pmf: f32,
+) -> Rgb {
+    // ASSIGNMENT: next_event
     if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
         return Rgb::ZERO;
     }
@@ -429,7 +584,27 @@ pub fn next_event(
 
 /// The path tracer for the render loop (it takes no settings but the depth limit).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
-    Ok(Box::new(PathTracer::new(setup.max_depth)))
+    let distance = setup.settings.distance;
+    if distance == DistanceSampling::EquiangularMis {
+        check_equiangular(setup.scene)?;
+    }
+    Ok(Box::new(
+        PathTracer::new(setup.max_depth).with_distance(distance),
+    ))
+}
+
+/// Equiangular sampling's MIS needs the free-flight density at any point of a camera ray in
+/// closed form: refused for a scene with an inhomogeneous medium (its tracking density has
+/// none), naming the medium.
+pub fn check_equiangular(scene: &Scene) -> Result<(), super::IntegratorError> {
+    for (m, name) in scene.media.iter().zip(&scene.medium_names) {
+        if matches!(m, crate::medium::Medium::Heterogeneous(_)) {
+            return Err(super::IntegratorError::Refused(format!(
+                "distance = \"equiangular-mis\" (--distance) needs homogeneous media: medium `{name}` is inhomogeneous (use free-flight)"
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl super::Integrator for PathTracer {

@@ -10,6 +10,7 @@ use crate::enlightened::adjoint::AdjointEstimator;
 use crate::enlightened::guide::ParticleSampler;
 use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
+use crate::integrator::path::DistanceSampling;
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
 use crate::scene::{Scene, SceneError, SceneSource};
@@ -47,6 +48,11 @@ pub struct RenderOptions {
     /// Samples per irradiance meter per pixel-sample pass (default 4096).
     #[arg(long)]
     pub meter_samples: Option<u32>,
+    /// path: distance sampling on camera rays, `free-flight` (default) or `equiangular-mis`
+    /// (free flight and equiangular sampling toward a light point, Kulla and Fajardo 2012,
+    /// combined by MIS; homogeneous media only).
+    #[arg(long, value_parser = PossibleValuesParser::new(DistanceSampling::NAMES))]
+    pub distance: Option<String>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -452,6 +458,8 @@ pub struct RenderSettings {
     pub seed: u64,
     pub max_depth: Option<u32>,
     pub meter_samples: u32,
+    /// The path tracer's distance sampling on camera rays (`[render] distance`).
+    pub distance: DistanceSampling,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
     /// Sequential Monte Carlo settings (`[render.smc]`).
@@ -476,6 +484,7 @@ impl RenderSettings {
             seed: 1,
             max_depth: None,
             meter_samples: DEFAULT_METER_SAMPLES,
+            distance: DistanceSampling::FreeFlight,
             mlt: MltSettings::default(),
             smc: SmcSettings::default(),
             guide: GuideSettings::for_radius(radius),
@@ -531,6 +540,10 @@ impl RenderSettings {
         self.seed = o.seed.unwrap_or(self.seed);
         self.max_depth = o.max_depth.or(self.max_depth);
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
+        if let Some(d) = &o.distance {
+            self.distance = DistanceSampling::parse(d)
+                .map_err(|m| SettingError::at("", Some("distance"), m))?;
+        }
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);
         self.mlt

@@ -112,6 +112,9 @@ pub enum ConvergenceError {
     /// `NAME+adjoint` for an integrator that starts no light subpaths (the name, the kind).
     #[error("`{0}`: the adjoint image applies to bdpt, light and mlt, not `{1}`")]
     NoAdjoint(String, String),
+    /// `NAME+equiangular` for another integrator than the path tracer (the name, the kind).
+    #[error("`{0}`: equiangular distance sampling applies to path, not `{1}`")]
+    NoEquiangular(String, String),
     /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
     #[error(transparent)]
     Adjoint(crate::enlightened::AdjointError),
@@ -299,22 +302,39 @@ pub fn converge(
 }
 
 /// An integrator as `converge` names it: a kind, optionally with the adjoint image
-/// (`bdpt+adjoint`, `mlt+adjoint`, `light+adjoint`; Kristensen 2010, sec. 5.3.1).
+/// (`bdpt+adjoint`, `mlt+adjoint`, `light+adjoint`; Kristensen 2010, sec. 5.3.1), or the path
+/// tracer with equiangular distance sampling (`path+equiangular`; Kulla and Fajardo 2012).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Variant {
     pub kind: IntegratorKind,
     pub adjoint: Option<crate::enlightened::AdjointSettings>,
+    /// `distance = "equiangular-mis"` for this line (the path tracer only).
+    pub equiangular: bool,
 }
 
 impl Variant {
     /// Suffix that asks for the adjoint image.
     pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
+    /// Suffix that asks for equiangular MIS on camera rays.
+    pub const EQUIANGULAR_SUFFIX: &'static str = "+equiangular";
 
-    /// Parses `NAME` or `NAME+adjoint`; `adjoint` holds the settings of the image.
+    /// Parses `NAME`, `NAME+adjoint` or `path+equiangular`; `adjoint` holds the settings of
+    /// the image.
     pub fn parse(
         s: &str,
         adjoint: crate::enlightened::AdjointSettings,
     ) -> Result<Self, ConvergenceError> {
+        if let Some(base) = s.strip_suffix(Self::EQUIANGULAR_SUFFIX) {
+            let kind = IntegratorKind::parse(base)?;
+            if kind != IntegratorKind::Path {
+                return Err(ConvergenceError::NoEquiangular(s.into(), base.into()));
+            }
+            return Ok(Variant {
+                kind,
+                adjoint: None,
+                equiangular: true,
+            });
+        }
         match s.strip_suffix(Self::ADJOINT_SUFFIX) {
             Some(base) => {
                 let kind = IntegratorKind::parse(base)?;
@@ -324,20 +344,23 @@ impl Variant {
                 Ok(Variant {
                     kind,
                     adjoint: Some(adjoint),
+                    equiangular: false,
                 })
             }
             None => Ok(Variant {
                 kind: IntegratorKind::parse(s)?,
                 adjoint: None,
+                equiangular: false,
             }),
         }
     }
 
     /// The label of its rows.
     pub fn name(&self) -> String {
-        match self.adjoint {
-            Some(_) => format!("{}{}", self.kind.name(), Self::ADJOINT_SUFFIX),
-            None => self.kind.name().to_string(),
+        match (self.adjoint, self.equiangular) {
+            (Some(_), _) => format!("{}{}", self.kind.name(), Self::ADJOINT_SUFFIX),
+            (None, true) => format!("{}{}", self.kind.name(), Self::EQUIANGULAR_SUFFIX),
+            (None, false) => self.kind.name().to_string(),
         }
     }
 }
@@ -356,6 +379,11 @@ pub fn converge_variants(
     let times = study_checkpoints(scene, reference, variants.len(), config)?;
     let mut rows = Vec::new();
     for v in variants {
+        let mut line_settings = settings.clone();
+        if v.equiangular {
+            line_settings.distance = crate::integrator::path::DistanceSampling::EquiangularMis;
+        }
+        let settings = &line_settings;
         for run in config.run_indices() {
             let seed = run_seed(config.seed, run);
             let mut technique = crate::enlightened::Enlightened::default();

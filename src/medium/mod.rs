@@ -4,12 +4,14 @@
 //! tracking through grids and procedural fields: `heterogeneous`, `grid`, `procedural`).
 //! Book: "Participating media and Table 1", "Table 1: inhomogeneous media".
 
+pub mod equiangular;
 pub mod grid;
 pub mod heterogeneous;
 pub mod homogeneous;
 pub mod phase;
 pub mod procedural;
 
+pub use equiangular::Equiangular;
 pub use grid::Grid;
 pub use heterogeneous::{Density, Heterogeneous, LineIntegral};
 pub use homogeneous::Homogeneous;

@@ -12,6 +12,7 @@
 pub mod bidirectional;
 pub mod characteristic;
 pub mod contribution;
+pub mod distance;
 pub mod geometry_term;
 pub mod pdf;
 pub mod technique;

@@ -200,6 +200,51 @@ impl Light {
         }
     }
 
+    /// A point on a finite light drawn without a reference point, with its normal and density
+    /// per area: an area light's as [`Light::sample_li`] draws it (a primitive by area, then
+    /// uniform on it), a point or spot light's position (normal zero, density 1); `None` for
+    /// infinite lights. Equiangular sampling needs the light point before the point it lights.
+    pub fn sample_point(
+        &self,
+        prims: &[Primitive],
+        u: Vec2,
+        u_prim: f32,
+    ) -> Option<(Vec3, Vec3, f32)> {
+        match self {
+            Light::Area {
+                prims: ids, distr, ..
+            } => {
+                let (k, pk, _) = distr.sample(u_prim);
+                let prim = &prims[ids[k] as usize];
+                let (p, n) = prim.sample_area(u);
+                // area density pk / A_k
+                Some((p, n, pk / prim.area()))
+            }
+            Light::Point { position, .. } | Light::Spot { position, .. } => {
+                Some((*position, Vec3::ZERO, 1.0))
+            }
+            Light::Directional { .. } | Light::Environment(_) => None,
+        }
+    }
+
+    /// The light sample from `p_ref` towards the point `p` (normal `n`, density `pdf_area`)
+    /// that [`Light::sample_point`] drew: what [`Light::sample_li`] returns when it draws that
+    /// point.
+    pub fn li_towards(
+        &self,
+        prims: &[Primitive],
+        p_ref: Vec3,
+        p: Vec3,
+        n: Vec3,
+        pdf_area: f32,
+    ) -> Option<LightSample> {
+        match self {
+            Light::Area { .. } => self.li_from(p_ref, p, n, pdf_area),
+            // a delta light's sample does not depend on the random numbers
+            _ => self.sample_li(prims, p_ref, Vec2::ZERO, 0.0),
+        }
+    }
+
     /// Samples a direction towards the light from `p_ref` (next-event estimation).
     pub fn sample_li(
         &self,
@@ -209,14 +254,10 @@ impl Light {
         u_prim: f32,
     ) -> Option<LightSample> {
         match self {
-            Light::Area {
-                prims: ids, distr, ..
-            } => {
-                let (k, pk, _) = distr.sample(u_prim);
-                let prim = &prims[ids[k] as usize];
-                let (p, n) = prim.sample_area(u);
-                // area density pk / A_k; the back of an emitter is black
-                self.li_from(p_ref, p, n, pk / prim.area())
+            Light::Area { .. } => {
+                let (p, n, pdf_area) = self.sample_point(prims, u, u_prim)?;
+                // the back of an emitter is black
+                self.li_from(p_ref, p, n, pdf_area)
             }
             Light::Point {
                 position,

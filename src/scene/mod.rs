@@ -83,8 +83,14 @@ impl ShapeInfo {
 /// Where a ray's propagation ended.
 #[derive(Clone, Copy, Debug)]
 pub enum Event {
-    /// A collision inside `medium` at `p` (a medium vertex).
-    Medium { p: Vec3, medium: u32, sigma_s: Rgb },
+    /// A collision inside `medium` at `p` (a medium vertex), at ray parameter `t` of the
+    /// propagated ray (the segments' own parameter, so a caller can place it among them).
+    Medium {
+        p: Vec3,
+        t: f32,
+        medium: u32,
+        sigma_s: Rgb,
+    },
     /// A non-null surface; `medium` is the medium the ray travelled in just before.
     Surface { hit: Hit, medium: Option<u32> },
     /// The ray left the scene.
@@ -237,6 +243,7 @@ impl Scene {
                     return Propagation {
                         event: Event::Medium {
                             p: sr.at(ff.t),
+                            t: seg.t0 + ff.t,
                             medium: m,
                             sigma_s: ff.sigma_s,
                         },

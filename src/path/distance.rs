@@ -1,0 +1,181 @@
+//! Two ways of sampling a distance along one ray, with the exact density of each: free flight
+//! (Table 1, span by span through null boundaries) and equiangular sampling toward a light
+//! point (Kulla and Fajardo 2012) over the union of the ray's scattering spans.
+//!
+//! A technique that combines them by multiple importance sampling needs both densities at any
+//! point of the ray, whichever strategy drew it: [`RayMedia`] holds the ray's medium spans once
+//! (from the shared [`Segments`] iterator, so its spans are the ones propagation walks) and
+//! evaluates [`RayMedia::free_flight_pdf`] and [`RayMedia::equiangular_pdf`] there. The path
+//! tracer uses them on camera rays (`distance = "equiangular-mis"`); BDPT and MLT sample by
+//! free flight only and do not need them.
+//!
+//! Book: "Table 1: homogeneous media", section "Equiangular sampling"; tests:
+//! `tests/equiangular.rs`.
+
+use glam::Vec3;
+
+use crate::geometry::Ray;
+use crate::medium::{Equiangular, Medium};
+use crate::scene::{Scene, SegmentEnd, Segments};
+use crate::spectrum::Rgb;
+
+/// The most medium spans of one ray that equiangular sampling covers: spans beyond them are
+/// outside its domain (its density is 0 there, for the sampler and the MIS weights alike).
+pub const MAX_SPANS: usize = 16;
+
+/// One stretch of the ray inside one medium, between ray parameters `t0` and `t1`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Span {
+    pub t0: f32,
+    pub t1: f32,
+    pub medium: u32,
+    /// True for a homogeneous medium that scatters in some channel: equiangular sampling's
+    /// domain is the union of these spans.
+    pub scatters: bool,
+}
+
+/// The medium spans of a ray up to its first non-null surface (at most [`MAX_SPANS`]), held
+/// in place (no allocation per sample).
+#[derive(Clone, Copy, Debug)]
+pub struct RayMedia {
+    pub ray: Ray,
+    spans: [Span; MAX_SPANS],
+    n: usize,
+}
+
+impl RayMedia {
+    /// The spans of `ray` starting in `medium` (vacuum stretches are left out: they add
+    /// nothing to optical depth, and no collision happens in them).
+    pub fn collect(scene: &Scene, ray: Ray, medium: Option<u32>) -> Self {
+        let mut out = RayMedia {
+            ray,
+            spans: [Span::default(); MAX_SPANS],
+            n: 0,
+        };
+        for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+            if out.n == MAX_SPANS {
+                break;
+            }
+            if let Some(m) = seg.medium {
+                let scatters = match &scene.media[m as usize] {
+                    Medium::Homogeneous(h) => h.sigma_s.max_element() > 0.0,
+                    Medium::Heterogeneous(_) => false,
+                };
+                out.spans[out.n] = Span {
+                    t0: seg.t0,
+                    t1: seg.t1,
+                    medium: m,
+                    scatters,
+                };
+                out.n += 1;
+            }
+            if !matches!(seg.end, SegmentEnd::Null(_)) {
+                break;
+            }
+        }
+        out
+    }
+
+    /// The spans, in order along the ray.
+    #[inline]
+    pub fn spans(&self) -> &[Span] {
+        &self.spans[..self.n]
+    }
+
+    /// The span of medium `m` that holds ray parameter `t` (ends included), the first if two
+    /// adjacent ones share an end.
+    pub fn locate(&self, t: f32, m: u32) -> Option<usize> {
+        self.spans()
+            .iter()
+            .position(|s| s.medium == m && s.t0 <= t && t <= s.t1)
+    }
+
+    /// The total angle Theta under which `eq`'s light point sees the scattering spans.
+    fn angle_total(&self, eq: &Equiangular) -> f32 {
+        self.spans()
+            .iter()
+            .filter(|s| s.scatters)
+            .map(|s| eq.angle(s.t1) - eq.angle(s.t0))
+            .sum()
+    }
+
+    /// The density (per unit length) with which [`RayMedia::sample_equiangular`] toward `y`
+    /// draws ray parameter `t` in span `i`: h / (Theta (h^2 + (t - delta)^2)), 0 outside the
+    /// scattering spans (Kulla and Fajardo 2012, restricted to a union of intervals).
+    pub fn equiangular_pdf(&self, y: Vec3, i: usize, t: f32) -> f32 {
+        let Some(s) = self.spans().get(i) else {
+            return 0.0;
+        };
+        if !s.scatters || !(s.t0..=s.t1).contains(&t) {
+            return 0.0;
+        }
+        let Some(eq) = Equiangular::new(self.ray.o, self.ray.d, y) else {
+            return 0.0;
+        };
+        let total = self.angle_total(&eq);
+        if total > 0.0 && total.is_finite() {
+            eq.angular_rate(t) / total
+        } else {
+            0.0
+        }
+    }
+
+    /// Draws a ray parameter equiangularly toward `y` over the scattering spans: a span with
+    /// probability proportional to the angle it subtends, then the angle uniform within it.
+    /// Returns (span, t, density), or `None` when `y` lies on the ray's line or sees no span.
+    pub fn sample_equiangular(&self, y: Vec3, u: f32) -> Option<(usize, f32, f32)> {
+        let eq = Equiangular::new(self.ray.o, self.ray.d, y)?;
+        let total = self.angle_total(&eq);
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        let target = u * total;
+        let mut acc = 0.0;
+        let mut chosen = None;
+        for (i, s) in self.spans().iter().enumerate() {
+            let a = eq.angle(s.t1) - eq.angle(s.t0);
+            if !s.scatters || a <= 0.0 {
+                continue;
+            }
+            // the last span takes what rounding leaves of the sum
+            chosen = Some((i, ((target - acc) / a).clamp(0.0, 1.0)));
+            if target < acc + a {
+                break;
+            }
+            acc += a;
+        }
+        let (i, v) = chosen?;
+        let s = self.spans[i];
+        let t = eq.sample(s.t0, s.t1, v);
+        let pdf = eq.angular_rate(t) / total;
+        (pdf > 0.0 && pdf.is_finite() && t.is_finite()).then_some((i, t, pdf))
+    }
+
+    /// The density of a free-flight collision at ray parameter `t` in span `i`: the passage
+    /// probabilities of the spans before it times the collision density in it (Table 1, as
+    /// `Scene::propagate` draws it; one-sample MIS over channels included).
+    pub fn free_flight_pdf(&self, scene: &Scene, i: usize, t: f32) -> f32 {
+        let mut pdf = 1.0;
+        for (k, s) in self.spans().iter().enumerate().take(i + 1) {
+            let med = &scene.media[s.medium as usize];
+            let sr = Ray::new(self.ray.at(s.t0), self.ray.d);
+            if k == i {
+                return pdf * med.free_flight_pdf(&sr, t - s.t0, true);
+            }
+            pdf *= med.free_flight_pdf(&sr, s.t1 - s.t0, false);
+        }
+        0.0
+    }
+
+    /// The transmittance from the ray's origin to ray parameter `t` in span `i` (eq. 3).
+    pub fn transmittance(&self, scene: &Scene, i: usize, t: f32) -> Rgb {
+        let mut tr = Rgb::ONE;
+        for (k, s) in self.spans().iter().enumerate().take(i + 1) {
+            let med = &scene.media[s.medium as usize];
+            let sr = Ray::new(self.ray.at(s.t0), self.ray.d);
+            let end = if k == i { t } else { s.t1 };
+            tr *= med.transmittance_exact(&sr, end - s.t0);
+        }
+        tr
+    }
+}
