@@ -53,7 +53,10 @@ fn modes() -> [TransportMode; 2] {
 
 #[test]
 fn lambert_is_reciprocal_and_reflects_on_both_sides_only() {
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     let mut s = sampler(10, 0);
     for n in normals() {
         for _ in 0..256 {
@@ -81,7 +84,10 @@ fn lambert_directional_albedo_equals_albedo() {
     // are exact and only float rounding remains.
     const N_COS: usize = 64;
     const N_PHI: usize = 16;
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     for n in normals() {
         for cos_o in [0.9, 0.3, -0.5, -0.05] {
             let wo = at_cosine(n, cos_o, 1.0);
@@ -112,7 +118,10 @@ fn lambert_directional_albedo_equals_albedo() {
 fn lambert_sample_record_matches_eval_and_pdf_and_its_weight_is_the_albedo() {
     // the cosine-sampled weight f cos / pdf equals the albedo for every sample: a zero-variance
     // estimator of rho_hd, so its mean is checked with the float allowance only
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     let mut s = sampler(11, 0);
     for n in normals() {
         for wo in test_directions(11, 8) {
@@ -148,7 +157,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
     // leaking through the surface fails the test
     const N_SAMPLES: u64 = 200_000;
     let mut fam = Family::new("bsdf: Lambert sampling vs pdf");
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     for (i, n) in normals().into_iter().enumerate() {
         for (j, cos_o) in [0.7f64, -0.4].into_iter().enumerate() {
             let wo = at_cosine(n, cos_o, 2.0);
@@ -176,7 +188,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
 #[test]
 fn mirror_reflects_about_the_normal_with_weight_reflectance() {
     let reflectance = Vec3::new(0.9, 0.6, 0.3);
-    let bsdf = Bsdf::Mirror { reflectance };
+    let bsdf = Bsdf::Mirror {
+        reflectance,
+        one_sided: false,
+    };
     let mut s = sampler(20, 0);
     for n in normals() {
         for wo in test_directions(20, 16) {

@@ -8,6 +8,7 @@ pub mod build;
 pub mod camera;
 pub mod file;
 pub mod light;
+pub mod mitsuba;
 pub mod segments;
 pub mod sensor;
 

@@ -273,13 +273,36 @@ fn primitives(
                 radius: *radius,
             }));
         }
-        ShapeDesc::Mesh { obj, .. } => {
-            let (tris, all_closed) = mesh(src, key, obj, common)?;
+        ShapeDesc::Mesh { obj, to_world, .. } => {
+            let place = placement(src, key, to_world)?;
+            let (tris, all_closed) = mesh(src, key, obj, place, common)?;
             closed = all_closed;
             new.extend(tris.into_iter().map(Primitive::Triangle));
         }
     }
     Ok((new, closed))
+}
+
+/// A mesh's `to_world` rows as an affine map (identity without them), every entry finite and
+/// the linear part invertible.
+fn placement(
+    src: &SceneSource,
+    key: &KeyPath,
+    to_world: &Option<[[f32; 4]; 3]>,
+) -> Result<glam::Affine3A, SceneError> {
+    let Some(r) = to_world else {
+        return Ok(glam::Affine3A::IDENTITY);
+    };
+    let col = |j: usize| Vec3::new(r[0][j], r[1][j], r[2][j]);
+    let m = glam::Affine3A::from_cols(col(0).into(), col(1).into(), col(2).into(), col(3).into());
+    let det = m.matrix3.determinant();
+    if !(r.iter().flatten().all(|x| x.is_finite()) && det.is_normal()) {
+        return Err(src.error(
+            &key.clone().key("to_world"),
+            "to_world must be finite with an invertible linear part",
+        ));
+    }
+    Ok(m)
 }
 
 /// The largest OBJ file read (about 10 million triangles).
@@ -291,6 +314,7 @@ fn mesh(
     src: &SceneSource,
     key: &KeyPath,
     obj: &str,
+    place: glam::Affine3A,
     common: &ShapeCommon,
 ) -> Result<(Vec<Triangle>, bool), SceneError> {
     let file = src.base_dir.join(obj);
@@ -318,7 +342,7 @@ fn mesh(
             .mesh
             .positions
             .chunks_exact(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .map(|c| place.transform_point3(Vec3::new(c[0], c[1], c[2])))
             .collect();
         let idx = &m.mesh.indices;
         if idx.iter().any(|&k| k as usize >= pos.len()) {
