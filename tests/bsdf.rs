@@ -556,3 +556,59 @@ fn reflect_is_an_involution() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// One-sided opaque models (Mitsuba's `diffuse` and `conductor` without `twosided`)
+
+/// A one-sided model is black behind its normal (no value, no density, no sample) and is the
+/// two-sided model on the normal's side, bit for bit.
+#[test]
+fn one_sided_models_are_black_behind_and_two_sided_in_front() {
+    use pathspace::bsdf::{ConductorFresnel, RoughConductor};
+    let pair = |one_sided: bool| {
+        [
+            Bsdf::Lambert {
+                albedo: ALBEDO,
+                one_sided,
+            },
+            Bsdf::Mirror {
+                reflectance: ALBEDO,
+                one_sided,
+            },
+            Bsdf::RoughConductor(RoughConductor {
+                alpha: 0.3,
+                fresnel: ConductorFresnel::Schlick(ALBEDO),
+                one_sided,
+            }),
+        ]
+    };
+    let mut s = sampler(30, 0);
+    for (one, two) in pair(true).iter().zip(pair(false).iter()) {
+        for n in normals() {
+            for k in 0..64 {
+                let cos_o = if k % 2 == 0 { 0.7 } else { -0.7 };
+                let wo = at_cosine(n, cos_o, k as f64);
+                let wi = at_cosine(n, cos_o.signum() * 0.4, 2.0 + k as f64);
+                let (u, uc) = (Vec2::new(s.next_f32(), s.next_f32()), s.next_f32());
+                let mode = TransportMode::Radiance;
+                let (a, b) = (
+                    one.sample(wo, n, u, uc, mode),
+                    two.sample(wo, n, u, uc, mode),
+                );
+                if cos_o > 0.0 {
+                    assert_eq!(one.eval(wo, wi, n, mode), two.eval(wo, wi, n, mode));
+                    assert_eq!(one.pdf(wo, wi, n), two.pdf(wo, wi, n));
+                    assert_eq!(
+                        a.map(|x| (x.wi, x.value, x.pdf)),
+                        b.map(|x| (x.wi, x.value, x.pdf))
+                    );
+                } else {
+                    assert_eq!(one.eval(wo, wi, n, mode), Rgb::ZERO, "{one:?}");
+                    assert_eq!(one.pdf(wo, wi, n), 0.0, "{one:?}");
+                    assert!(a.is_none(), "{one:?} sampled behind its normal");
+                    assert!(b.is_some() || matches!(two, Bsdf::RoughConductor(_)));
+                }
+            }
+        }
+    }
+}

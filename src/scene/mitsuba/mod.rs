@@ -61,6 +61,12 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         let (k, v) = (doc.need(d, "name")?, doc.need(d, "value")?);
         doc.defaults.insert(k, v);
     }
+    // every `$name` resolves, wherever it is (Mitsuba substitutes while parsing)
+    for n in root.descendants().filter(|n| n.is_element()) {
+        for a in n.attributes() {
+            doc.attr(n, a.name())?;
+        }
+    }
     for n in root
         .descendants()
         .filter(|n| n.is_element() && !n.has_tag_name("ref"))

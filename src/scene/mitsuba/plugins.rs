@@ -320,12 +320,18 @@ impl<'a, 'd> Importer<'a, 'd> {
 
     /// The material a `<bsdf>` becomes (memoized by element), `two_sided` when inside a
     /// `twosided`.
-    fn material(&mut self, node: Node<'a, 'a>, two_sided: bool) -> Result<String, SceneError> {
+    fn material(
+        &mut self,
+        node: Node<'a, 'a>,
+        two_sided: Option<&str>,
+    ) -> Result<String, SceneError> {
         if let Some(name) = self.materials.get(&node.id()) {
             return Ok(name.clone());
         }
         let mut p = Props::new(self.doc, node)?;
-        let one_sided = !two_sided;
+        // the material takes the id of its `twosided` wrapper, if any
+        let id = two_sided.or(node.attribute("id"));
+        let one_sided = two_sided.is_none();
         let side = if one_sided {
             ", one-sided (black behind its normal, as Mitsuba's)"
         } else {
@@ -343,7 +349,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 if !["diffuse", "conductor", "roughconductor"].contains(&kind.as_str()) {
                     return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor are)")));
                 }
-                let name = self.material(inner, true)?;
+                let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
                 self.materials.insert(node.id(), name.clone());
                 return Ok(name);
             }
@@ -411,8 +417,10 @@ impl<'a, 'd> Importer<'a, 'd> {
                 )))
             }
         };
-        let name = match node.attribute("id") {
-            Some(id) if id != "null" && !self.out.materials.contains_key(id) => id.to_string(),
+        let name = match id {
+            Some(id) if !["", "null"].contains(&id) && !self.out.materials.contains_key(id) => {
+                id.to_string()
+            }
             _ => format!("bsdf@{}", line(node)),
         };
         let key = format!("materials.{name}");
@@ -439,8 +447,8 @@ impl<'a, 'd> Importer<'a, 'd> {
 
     /// An index of refraction given as a number or one of Mitsuba's names.
     fn ior(&self, p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
-        if let Some(v) = p.float(key)? {
-            return Ok(v);
+        if p.tag_of(key) != Some("string") {
+            return Ok(p.float(key)?.unwrap_or(dflt));
         }
         match p.string(key)? {
             None => Ok(dflt),
@@ -690,13 +698,23 @@ impl<'a, 'd> Importer<'a, 'd> {
             Some(e) => Some(self.area(e)?),
             None => None,
         };
+        let known = self.materials.len();
         let material = match bsdf {
-            Some(b) => self.material(b, false)?,
+            Some(b) => self.material(b, None)?,
             None => self.default_material(),
         };
         // a black diffuse emitter is an emitter without a material
         let black = matches!(self.out.materials.get(&material), Some(MaterialDesc::Lambert { albedo, .. }) if albedo.to_rgb() == glam::Vec3::ZERO);
-        let material = (!(emission.is_some() && black)).then_some(material);
+        let material = if emission.is_some() && black {
+            if self.materials.len() > known {
+                // made for this shape alone: not part of the scene
+                self.out.materials.remove(&material);
+                self.materials.retain(|_, m| *m != material);
+            }
+            None
+        } else {
+            Some(material)
+        };
         let i = self.out.shapes.len();
         let how = format!(
             "{how}, material {}{}{}{}",
@@ -816,9 +834,11 @@ impl<'a, 'd> Importer<'a, 'd> {
             }
             "envmap" => return Err(p.err("the emitter `envmap` is not supported yet")),
             "area" => return Err(p.err("an `area` emitter belongs inside a <shape>")),
-            k => return Err(p.err(format!(
+            k => {
+                return Err(p.err(format!(
                 "the emitter `{k}` is not supported (area, point, spot, directional, constant are)"
-            ))),
+            )))
+            }
         };
         p.finish()?;
         let i = self.out.lights.len();

@@ -200,6 +200,14 @@ impl<'a, 'd> Props<'a, 'd> {
         Some((self.entries[k].at, self.entries[k].node))
     }
 
+    /// The tag of the property `name`, if present (without consuming it).
+    pub fn tag_of(&self, name: &str) -> Option<&str> {
+        self.entries
+            .iter()
+            .find(|e| e.name.as_deref() == Some(name))
+            .map(|e| e.node.tag_name().name())
+    }
+
     /// The value element of `name` with one of `tags`, if present.
     fn value(&mut self, name: &str, tags: &[&str]) -> Result<Option<Node<'a, 'a>>, SceneError> {
         let Some((at, node)) = self.take(name) else {
