@@ -72,7 +72,7 @@ fn scene(body: &str) -> String {
 
 /// `rectangle` is [-1,1]^2 at z = 0 with normal +z (its area light emits along +z);
 /// `diffuse` is one-sided, `twosided` makes it two-sided; a shape without a BSDF is a
-/// one-sided diffuse of reflectance 0.5.
+/// one-sided diffuse of reflectance 0.5, an emitter without one is black.
 #[test]
 fn rectangle_extent_normal_and_sides_are_mitsubas() {
     same_scene(
@@ -111,7 +111,6 @@ type = "quad"
 origin = [-1.0, -1.0, 0.0]
 u = [2.0, 0.0, 0.0]
 v = [0.0, 2.0, 0.0]
-material = "default diffuse"
 emission = [2.0, 3.0, 4.0]
 [[shapes]]
 type = "quad"
@@ -218,16 +217,11 @@ look_at = [{}, {}, {}]
 up = [{}, {}, {}]
 fov_deg = {fov_deg:?}
 resolution = [24, 12]
-[materials."default diffuse"]
-type = "lambert"
-albedo = 0.5
-one_sided = true
 [[shapes]]
 type = "quad"
 origin = [-1.0, -1.0, 0.0]
 u = [2.0, 0.0, 0.0]
 v = [0.0, 2.0, 0.0]
-material = "default diffuse"
 emission = 1.0
 "#,
             t.x as f32, t.y as f32, t.z as f32, up.x as f32, up.y as f32, up.z as f32

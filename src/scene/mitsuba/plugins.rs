@@ -51,6 +51,24 @@ fn rgb(v: DVec3) -> RgbValue {
     }
 }
 
+/// A vector for `info`: six significant decimals, one number when the three agree.
+fn show(v: DVec3) -> String {
+    let n = |x: f64| {
+        let t = format!("{x:.6}");
+        let t = t.trim_end_matches('0').trim_end_matches('.');
+        if t == "-0" {
+            "0".to_string()
+        } else {
+            t.to_string()
+        }
+    };
+    if v.x == v.y && v.y == v.z {
+        n(v.x)
+    } else {
+        format!("[{}, {}, {}]", n(v.x), n(v.y), n(v.z))
+    }
+}
+
 fn f3(v: DVec3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
@@ -358,7 +376,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.finish()?;
                 (
                     MaterialDesc::Lambert { albedo: rgb(a), one_sided },
-                    format!("lambert, albedo {a}{side}"),
+                    format!("lambert, albedo {}{side}", show(a)),
                 )
             }
             "conductor" => {
@@ -366,7 +384,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.finish()?;
                 (
                     MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
-                    format!("mirror, reflectance {r}{side}"),
+                    format!("mirror, reflectance {}{side}", show(r)),
                 )
             }
             "roughconductor" => {
@@ -376,7 +394,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 let r = self.no_named_conductor(&mut p)?;
                 p.finish()?;
                 let (eta, k, how) = match (eta, k) {
-                    (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {e}, k {k}")),
+                    (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {}, k {}", show(e), show(k))),
                     (None, None) if r == DVec3::ONE => (None, None, "reflectance 1 (material none)".into()),
                     (None, None) => return Err(self.doc.err(node, "specular_reflectance other than 1 with material none: Mitsuba scales a Fresnel term of 1, pathspace's `reflectance` is Schlick's F0; give eta and k instead")),
                     (Some(_), Some(_)) => return Err(self.doc.err(node, "specular_reflectance other than 1 with eta and k is not supported")),
@@ -482,7 +500,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 let (ss, sa) = (st * albedo, st * (DVec3::ONE - albedo));
                 (
                     MediumDesc::Homogeneous { sigma_a: rgb(sa), sigma_s: rgb(ss), phase },
-                    format!("homogeneous, sigma_s = scale sigma_t albedo = {ss}, sigma_a = scale sigma_t (1 - albedo) = {sa}"),
+                    format!("homogeneous, sigma_s = scale sigma_t albedo = {}, sigma_a = scale sigma_t (1 - albedo) = {}", show(ss), show(sa)),
                 )
             }
             "heterogeneous" => {
@@ -504,7 +522,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                         propagation: PropagationDesc::DeltaTracking,
                         step: None,
                     },
-                    format!("grid `{file}` (values at cell centres: lattice {min} .. {max}), sigma_s = scale albedo = {ss}, sigma_a = {sa} per unit density"),
+                    format!("grid `{file}` (values at cell centres: lattice {} .. {}), sigma_s = scale albedo = {}, sigma_a = {} per unit density", show(min), show(max), show(ss), show(sa)),
                 )
             }
             k => {
@@ -616,7 +634,10 @@ impl<'a, 'd> Importer<'a, 'd> {
                         exterior: None,
                     },
                     format!(
-                        "quad at {o}, u {u}, v {v} ([-1,1]^2 at z = 0 mapped, normal u x v{})",
+                        "quad at {}, u {}, v {} ([-1,1]^2 at z = 0 mapped, normal u x v{})",
+                        show(o),
+                        show(u),
+                        show(v),
                         if flip { ", flipped" } else { "" }
                     ),
                 )
@@ -638,7 +659,11 @@ impl<'a, 'd> Importer<'a, 'd> {
                         interior: None,
                         exterior: None,
                     },
-                    format!("box {lo} .. {hi} ([-1,1]^3 mapped, normals outwards)"),
+                    format!(
+                        "box {} .. {} ([-1,1]^3 mapped, normals outwards)",
+                        show(lo),
+                        show(hi)
+                    ),
                 )
             }
             "sphere" => {
@@ -659,7 +684,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                         interior: None,
                         exterior: None,
                     },
-                    format!("sphere at {c}, radius {r}"),
+                    format!("sphere at {}, radius {r}", show(c)),
                 )
             }
             "obj" => {
@@ -701,6 +726,10 @@ impl<'a, 'd> Importer<'a, 'd> {
         let known = self.materials.len();
         let material = match bsdf {
             Some(b) => self.material(b, None)?,
+            // Mitsuba's emitter without a BSDF is black (a black diffuse), as pathspace's
+            None if emission.is_some() => {
+                return self.push_shape(node, geometry, how, None, emission, interior, exterior)
+            }
             None => self.default_material(),
         };
         // a black diffuse emitter is an emitter without a material
@@ -715,6 +744,21 @@ impl<'a, 'd> Importer<'a, 'd> {
         } else {
             Some(material)
         };
+        self.push_shape(node, geometry, how, material, emission, interior, exterior)
+    }
+
+    /// Adds a translated shape with the keys every shape shares.
+    #[allow(clippy::too_many_arguments)]
+    fn push_shape(
+        &mut self,
+        node: Node<'a, 'a>,
+        geometry: ShapeDesc,
+        how: String,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    ) -> Result<(), SceneError> {
         let i = self.out.shapes.len();
         let how = format!(
             "{how}, material {}{}{}{}",
@@ -734,7 +778,8 @@ impl<'a, 'd> Importer<'a, 'd> {
         Ok(())
     }
 
-    /// Mitsuba gives a shape without a BSDF a one-sided diffuse of reflectance 0.5.
+    /// Mitsuba gives a shape without a BSDF (and without an emitter) a one-sided diffuse of
+    /// reflectance 0.5.
     fn default_material(&mut self) -> String {
         let name = "default diffuse".to_string();
         self.out
@@ -782,7 +827,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                         position: f3(pos),
                         intensity: rgb(i),
                     },
-                    format!("point light at {pos}, intensity {i} W/sr"),
+                    format!("point light at {}, intensity {} W/sr", show(pos), show(i)),
                 )
             }
             "spot" => {
@@ -795,8 +840,19 @@ impl<'a, 'd> Importer<'a, 'd> {
                 }
                 let (pos, dir) = (m.w_axis.truncate(), linear(&m) * DVec3::Z);
                 (
-                    LightDesc::Spot { position: f3(pos), direction: f3(dir), intensity: rgb(i), cone_deg: cutoff as f32, falloff_deg: 0.0 },
-                    format!("spot light at {pos} along {dir}, intensity {i} W/sr, hard cone {cutoff} deg"),
+                    LightDesc::Spot {
+                        position: f3(pos),
+                        direction: f3(dir),
+                        intensity: rgb(i),
+                        cone_deg: cutoff as f32,
+                        falloff_deg: 0.0,
+                    },
+                    format!(
+                        "spot light at {} along {}, intensity {} W/sr, hard cone {cutoff} deg",
+                        show(pos),
+                        show(dir),
+                        show(i)
+                    ),
                 )
             }
             "directional" => {
@@ -814,7 +870,11 @@ impl<'a, 'd> Importer<'a, 'd> {
                         direction: f3(dir),
                         irradiance: rgb(e),
                     },
-                    format!("directional light along {dir}, irradiance {e}"),
+                    format!(
+                        "directional light along {}, irradiance {}",
+                        show(dir),
+                        show(e)
+                    ),
                 )
             }
             "constant" => {
@@ -829,7 +889,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                         horizon: None,
                         nadir: None,
                     },
-                    format!("constant environment, radiance {r}"),
+                    format!("constant environment, radiance {}", show(r)),
                 )
             }
             "envmap" => return Err(p.err("the emitter `envmap` is not supported yet")),
