@@ -14,7 +14,8 @@ render, and relMSE (pathspace's metric, mean of (a - b)^2 / (b^2 + 1e-2)) of one
 the other renderer's converged image (the mean of its runs) next to the same run against its own
 renderer's other runs (the noise level). The verdict per channel is Welch's t of the two means.
 
-`--res N` overrides the XML's `res` default (the scene must declare `<default name="res">`);
+`-D name=value` overrides a `<default>` of the XML (both renderers read a copy written beside it),
+`--res N` is `-D res=N`;
 `--variant` picks Mitsuba's variant (`llvm_ad_rgb` by default, `scalar_rgb` needs no LLVM).
 pathspace reads the XML with its own defaults ($spp is overridden by --spp in both).
 """
@@ -31,14 +32,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EPSILON = 1e-2  # measure::metrics::RELMSE_EPSILON
 
 
-def worker(variant, xml, spp, seed, out, res):
+def worker(variant, xml, spp, seed, out):
     """Renders `xml` with Mitsuba in this process (a child of the main script)."""
     import mitsuba as mi
     mi.set_variant(variant)
     import drjit as dr
     dr.set_thread_count(2)
-    params = {"res": int(res)} if int(res) > 0 else {}
-    scene = mi.load_file(xml, **params)
+    scene = mi.load_file(xml)
     img = mi.render(scene, spp=int(spp), seed=int(seed))
     mi.Bitmap(img).write(out)
 
@@ -53,11 +53,9 @@ def render(renderer, a, seed, out):
     if renderer == "pathspace":
         cmd = [a.bin, "render", a.xml, "--spp", str(a.spp), "--seed", str(seed),
                "--threads", "2", "-o", out]
-        if a.res > 0:
-            cmd += ["--resolution", f"{a.res}x{a.res}"]
     else:
         cmd = [sys.executable, __file__, "--worker", a.variant, a.xml, str(a.spp), str(seed),
-               out, str(a.res)]
+               out]
     before = child_cpu()
     r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     if r.returncode != 0:
@@ -105,13 +103,41 @@ def main():
     p.add_argument("xml")
     p.add_argument("--spp", type=int, default=256)
     p.add_argument("--runs", type=int, default=4)
-    p.add_argument("--res", type=int, default=0, help="override the XML's res default")
+    p.add_argument("--res", type=int, default=0, help="-D res=N")
+    p.add_argument("-D", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a <default> of the XML")
     p.add_argument("--variant", default="llvm_ad_rgb")
     p.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "pathspace"))
     a = p.parse_args()
     a.xml = os.path.abspath(a.xml)
-    if a.res > 0 and not re.search(r'<default\s+name="res"', open(a.xml).read()):
-        sys.exit("--res needs the scene to declare <default name=\"res\" ...>")
+    shown = a.xml
+    if a.res > 0:
+        a.D.append(f"res={a.res}")
+    if a.D:
+        a.xml = with_defaults(a.xml, a.D)
+    try:
+        compare(a, shown)
+    finally:
+        if a.xml != shown:
+            os.remove(a.xml)
+
+
+def with_defaults(xml, overrides):
+    """A copy of `xml` beside it (relative paths still resolve) with `<default>`s replaced."""
+    text = open(xml).read()
+    for o in overrides:
+        name, value = o.split("=", 1)
+        pattern = r'(<default\s+name="%s"\s+value=")[^"]*(")' % re.escape(name)
+        text, n = re.subn(pattern, lambda m: m.group(1) + value + m.group(2), text)
+        if n != 1:
+            sys.exit(f"-D {o}: the scene declares no <default name=\"{name}\" value=...>")
+    fd, path = tempfile.mkstemp(suffix=".xml", dir=os.path.dirname(xml))
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    return path
+
+
+def compare(a, shown):
     import numpy as np
     runs = {}
     with tempfile.TemporaryDirectory() as scratch:
@@ -123,7 +149,8 @@ def main():
                 imgs.append(read(out))
             runs[renderer] = (np.stack(imgs), cpu)
     names = list(runs)
-    print(f"{os.path.relpath(a.xml, ROOT)}: {a.runs} runs of {a.spp} spp each")
+    extra = f" with {', '.join(a.D)}" if a.D else ""
+    print(f"{os.path.relpath(shown, ROOT)}{extra}: {a.runs} runs of {a.spp} spp each")
     stats = {}
     for r in names:
         imgs, cpu = runs[r]

@@ -439,3 +439,55 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
         "{broken}"
     );
 }
+
+/// A `gridvolume`'s values sit at the cell centres of the unit cube mapped by `to_world`
+/// (Mitsuba 3 ignores the `.vol`'s own box): pathspace's lattice spans the outer centres; a
+/// grid that is not zero on its faces (where Mitsuba clamps) is refused.
+#[test]
+fn gridvolume_values_sit_at_cell_centres() {
+    use pathspace::medium::grid::{encode_vol, Grid};
+    use pathspace::scene::file::{MediumDesc, PhaseDesc, PropagationDesc, RgbValue};
+    let src = mitsuba::import(
+        "grid-cloud.xml",
+        &std::fs::read_to_string(dir().join("scenes/xml/grid-cloud.xml")).unwrap(),
+        dir().join("scenes/xml"),
+    )
+    .unwrap();
+    // the outer cell centres of 16 cells over [-1, 1]; sigma = scale albedo and
+    // scale (1 - albedo) in f64, rounded once
+    let h = 1.0 - 1.0 / 16.0;
+    let per =
+        |f: fn(f64) -> f64| RgbValue::Triple([0.9f64, 0.92, 0.95].map(|x| (f(x) * 8.0) as f32));
+    let expected = MediumDesc::Grid {
+        sigma_a: per(|x| 1.0 - x),
+        sigma_s: per(|x| x),
+        phase: PhaseDesc::Isotropic {},
+        file: "blob.vol".into(),
+        min: Some([-h; 3]),
+        max: Some([h; 3]),
+        propagation: PropagationDesc::DeltaTracking,
+        step: None,
+    };
+    assert_eq!(desc(&src).media["cloud"], expected);
+    // a face that is not zero
+    let tmp = std::env::temp_dir().join(format!("pathspace-xml-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let g = Grid::new([2, 2, 2], vec![1.0; 8]).unwrap();
+    std::fs::write(
+        tmp.join("ones.vol"),
+        encode_vol(&g, glam::Vec3::ZERO, glam::Vec3::ONE),
+    )
+    .unwrap();
+    let text = scene(
+        r#"<medium type="heterogeneous" id="m"><volume name="sigma_t" type="gridvolume"><string name="filename" value="ones.vol"/></volume></medium>
+    <shape type="cube"><bsdf type="null"/><ref name="interior" id="m"/></shape>"#,
+    );
+    let e = mitsuba::import("t.xml", &text, tmp.clone())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("t.xml:8:") && e.contains("not zero on its faces"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&tmp).unwrap();
+}
