@@ -426,7 +426,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
     // the volpath/path distinction: Mitsuba's `path` ignores media
     let path = scene(r#"<medium type="homogeneous" id="m"/><shape type="sphere"><bsdf type="null"/><ref name="interior" id="m"/></shape>"#)
         .replace(r#"<integrator type="volpath"/>"#, r#"<integrator type="path"/>"#);
-    let e = xml(&path).err().expect("path with media accepted");
+    let e = xml(&path).expect_err("path with media accepted");
     assert!(
         e.contains("ignores media") && e.starts_with("t.xml:2:"),
         "{e}"
