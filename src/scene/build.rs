@@ -7,6 +7,7 @@
 mod lights;
 mod materials;
 mod media;
+mod ply;
 mod sensors;
 mod shapes;
 mod values;

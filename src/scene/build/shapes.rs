@@ -305,6 +305,43 @@ fn placement(
     Ok(m)
 }
 
+/// The models of an OBJ file as (positions, triangle indices), every face index checked first
+/// so that an error names the OBJ line.
+fn obj_parts(
+    src: &SceneSource,
+    obj_key: &KeyPath,
+    file: &std::path::Path,
+    bytes: Vec<u8>,
+) -> Result<Vec<(Vec<Vec3>, Vec<u32>)>, SceneError> {
+    let cannot = |e: &dyn std::fmt::Display| {
+        src.error(obj_key, format!("cannot read `{}`: {e}", file.display()))
+    };
+    let text = String::from_utf8(bytes).map_err(|e| cannot(&e))?;
+    check_obj_indices(&text)
+        .map_err(|e| src.error(obj_key, format!("`{}` {e}", file.display())))?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed) // materials are not used
+    })
+    .map_err(|e| src.error(obj_key, format!("cannot load `{}`: {e}", file.display())))?;
+    Ok(models
+        .into_iter()
+        .map(|m| {
+            let pos = m
+                .mesh
+                .positions
+                .chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect();
+            (pos, m.mesh.indices)
+        })
+        .collect())
+}
+
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;
 
@@ -323,28 +360,19 @@ fn mesh(
         src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
     };
     let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES).map_err(|e| cannot(&e))?;
-    let text = String::from_utf8(bytes).map_err(|e| cannot(&e))?;
-    check_obj_indices(&text)
-        .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
+    let is_ply = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    let parts = if is_ply {
+        vec![super::ply::read_ply(&bytes)
+            .map_err(|e| src.error(&obj_key, format!("`{}`: {e}", file.display())))?]
+    } else {
+        obj_parts(src, &obj_key, &file, bytes)?
     };
-    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed) // materials are not used
-    })
-    .map_err(|e| src.error(&obj_key, format!("cannot load `{}`: {e}", file.display())))?;
     let mut all_closed = true;
     let mut tris = Vec::new();
-    for m in &models {
-        let pos: Vec<Vec3> = m
-            .mesh
-            .positions
-            .chunks_exact(3)
-            .map(|c| place.transform_point3(Vec3::new(c[0], c[1], c[2])))
-            .collect();
-        let idx = &m.mesh.indices;
+    for (pos, idx) in &parts {
+        let pos: Vec<Vec3> = pos.iter().map(|&p| place.transform_point3(p)).collect();
         if idx.iter().any(|&k| k as usize >= pos.len()) {
             return Err(src.error(
                 &obj_key,

@@ -687,7 +687,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                     format!("sphere at {}, radius {r}", show(c)),
                 )
             }
-            "obj" => {
+            "obj" | "ply" => {
                 let file = p
                     .string("filename")?
                     .ok_or_else(|| p.err("`filename` is missing"))?;
@@ -714,7 +714,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             }
             k => {
                 return Err(p.err(format!(
-                    "the shape `{k}` is not supported (rectangle, cube, sphere, obj are)"
+                    "the shape `{k}` is not supported (rectangle, cube, sphere, obj, ply are)"
                 )))
             }
         };
