@@ -312,7 +312,7 @@ fn obj_parts(
     obj_key: &KeyPath,
     file: &std::path::Path,
     bytes: Vec<u8>,
-) -> Result<Vec<(Vec<Vec3>, Vec<u32>)>, SceneError> {
+) -> Result<Vec<MeshPart>, SceneError> {
     let cannot = |e: &dyn std::fmt::Display| {
         src.error(obj_key, format!("cannot read `{}`: {e}", file.display()))
     };
@@ -341,6 +341,9 @@ fn obj_parts(
         })
         .collect())
 }
+
+/// One part of a mesh file: positions and triangle indices.
+type MeshPart = (Vec<Vec3>, Vec<u32>);
 
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;

@@ -8,6 +8,10 @@ use std::collections::HashMap;
 
 use crate::scene::SceneError;
 
+/// The longest attribute value after `$name` substitution (a default repeated in one attribute
+/// would otherwise multiply the file's size).
+pub const MAX_ATTRIBUTE_BYTES: usize = 1 << 20;
+
 /// What the whole document shares: its name, `<default>` values and `id`s.
 pub(super) struct Doc<'a> {
     pub name: String,
@@ -59,6 +63,14 @@ impl<'a> Doc<'a> {
                 )
             })?;
             out.push_str(value);
+            if out.len() > MAX_ATTRIBUTE_BYTES {
+                return Err(self.err(
+                    node,
+                    format!(
+                        "{a}=\"...\" grows beyond {MAX_ATTRIBUTE_BYTES} bytes with its defaults"
+                    ),
+                ));
+            }
             rest = &tail[n..];
         }
         out.push_str(rest);
