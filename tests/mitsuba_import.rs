@@ -592,3 +592,27 @@ fn ply_meshes_read_like_obj() {
     Scene::load(&src).unwrap();
     std::fs::remove_dir_all(&tmp).unwrap();
 }
+
+/// `info` on an XML lists every imported element with its line and what it became.
+#[test]
+fn info_lists_what_was_imported_and_how() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .arg("info")
+        .arg(dir().join("scenes/xml/hg-sphere.xml"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for line in [
+        "imported from Mitsuba 3 XML, element by element:",
+        "line 8: <integrator type=\"volpath\"> -> render: ",
+        "line 33: <medium type=\"homogeneous\"> -> media.haze: homogeneous, sigma_s = scale sigma_t albedo = [1.425, 2.025, 2.4]",
+        "line 51: <shape type=\"sphere\"> -> shapes[1]: sphere at [0, 0.8, 0], radius 0.8, material null, interior haze",
+    ] {
+        assert!(text.contains(line), "`{line}` missing from:\n{text}");
+    }
+}
