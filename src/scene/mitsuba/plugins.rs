@@ -380,7 +380,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 )
             }
             "conductor" => {
-                let r = self.no_named_conductor(&mut p)?;
+                let r = no_named_conductor(&mut p)?;
                 p.finish()?;
                 (
                     MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
@@ -388,40 +388,14 @@ impl<'a, 'd> Importer<'a, 'd> {
                 )
             }
             "roughconductor" => {
-                let alpha = ggx_alpha(&mut p)?;
-                let eta = p.color("eta")?;
-                let k = p.color("k")?;
-                let r = self.no_named_conductor(&mut p)?;
+                let r = rough_conductor(&mut p, one_sided, side)?;
                 p.finish()?;
-                let (eta, k, how) = match (eta, k) {
-                    (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {}, k {}", show(e), show(k))),
-                    (None, None) if r == DVec3::ONE => (None, None, "reflectance 1 (material none)".into()),
-                    (None, None) => return Err(self.doc.err(node, "specular_reflectance other than 1 with material none: Mitsuba scales a Fresnel term of 1, pathspace's `reflectance` is Schlick's F0; give eta and k instead")),
-                    (Some(_), Some(_)) => return Err(self.doc.err(node, "specular_reflectance other than 1 with eta and k is not supported")),
-                    _ => return Err(self.doc.err(node, "give both eta and k")),
-                };
-                (
-                    MaterialDesc::RoughConductor { alpha: alpha as f32, reflectance: None, eta, k, one_sided },
-                    format!("rough conductor (GGX), alpha {alpha}, {how}{side}"),
-                )
+                r
             }
             "dielectric" | "roughdielectric" => {
-                let rough = p.plugin == "roughdielectric";
-                let alpha = if rough { Some(ggx_alpha(&mut p)?) } else { None };
-                let ior = self.ior(&mut p, "int_ior", 1.5046)? / self.ior(&mut p, "ext_ior", 1.000277)?;
-                for k in ["specular_reflectance", "specular_transmittance"] {
-                    if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
-                        return Err(p.err(format!("{k} other than 1 is not supported")));
-                    }
-                }
+                let r = dielectric(&mut p)?;
                 p.finish()?;
-                match alpha {
-                    None => (MaterialDesc::Dielectric { ior: ior as f32 }, format!("dielectric, ior {ior} (int_ior / ext_ior)")),
-                    Some(a) => (
-                        MaterialDesc::RoughDielectric { ior: ior as f32, alpha: a as f32 },
-                        format!("rough dielectric (GGX), ior {ior} (int_ior / ext_ior), alpha {a}"),
-                    ),
-                }
+                r
             }
             "plastic" | "roughplastic" => {
                 return Err(p.err(format!(
@@ -446,38 +420,6 @@ impl<'a, 'd> Importer<'a, 'd> {
         self.out.materials.insert(name.clone(), desc);
         self.materials.insert(node.id(), name.clone());
         Ok(name)
-    }
-
-    /// A conductor's `material` must be `none` (no tabulated spectra); its reflectance.
-    fn no_named_conductor(&self, p: &mut Props) -> Result<DVec3, SceneError> {
-        if let Some(m) = p.string("material")? {
-            if m != "none" {
-                return Err(p.err(format!(
-                    "material = \"{m}\": tabulated conductor spectra are not imported; give eta and k as <rgb>"
-                )));
-            }
-        }
-        if p.plugin == "conductor" && (p.color("eta")?.is_some() || p.color("k")?.is_some()) {
-            return Err(p.err("a smooth conductor with eta and k is not supported: pathspace's mirror has a constant reflectance"));
-        }
-        Ok(p.color("specular_reflectance")?.unwrap_or(DVec3::ONE))
-    }
-
-    /// An index of refraction given as a number or one of Mitsuba's names.
-    fn ior(&self, p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
-        if p.tag_of(key) != Some("string") {
-            return Ok(p.float(key)?.unwrap_or(dflt));
-        }
-        match p.string(key)? {
-            None => Ok(dflt),
-            Some(s) => match NAMED_IOR.iter().find(|(n, _)| *n == s.as_str()) {
-                Some(&(_, v)) => Ok(v),
-                None => match s.parse::<f64>() {
-                    Ok(v) => Ok(v),
-                    Err(_) => Err(p.err(format!("{key} = \"{s}\" is not a known material name"))),
-                },
-            },
-        }
     }
 
     /// The medium a `<medium>` becomes (memoized by element).
@@ -608,117 +550,22 @@ impl<'a, 'd> Importer<'a, 'd> {
         let [interior, exterior] = self.shape_media(&mut p)?;
         let bsdf = p.object("bsdf", None)?;
         let emitter = p.object("emitter", None)?;
-        let l = linear(&m);
-        if l.determinant() <= 0.0 {
+        if linear(&m).determinant() <= 0.0 {
             return Err(p.err("a to_world with a mirror or a zero scale is not supported"));
         }
-        let t = m.w_axis.truncate();
-        let at = |x: f64, y: f64, z: f64| m.transform_point3(DVec3::new(x, y, z));
-        let kind = p.plugin.clone();
-        let (geometry, how): (ShapeDesc, String) = match kind.as_str() {
-            "rectangle" => {
-                let (o, u, v) = (
-                    at(-1.0, -1.0, 0.0),
-                    l * DVec3::new(2.0, 0.0, 0.0),
-                    l * DVec3::new(0.0, 2.0, 0.0),
-                );
-                let (u, v) = if flip { (v, u) } else { (u, v) };
-                (
-                    ShapeDesc::Quad {
-                        origin: f3(o),
-                        u: f3(u),
-                        v: f3(v),
-                        material: None,
-                        emission: None,
-                        interior: None,
-                        exterior: None,
-                    },
-                    format!(
-                        "quad at {}, u {}, v {} ([-1,1]^2 at z = 0 mapped, normal u x v{})",
-                        show(o),
-                        show(u),
-                        show(v),
-                        if flip { ", flipped" } else { "" }
-                    ),
-                )
-            }
-            "cube" => {
-                let diag = DVec3::new(l.x_axis.x, l.y_axis.y, l.z_axis.z);
-                if l != DMat3::from_diagonal(diag) {
-                    return Err(p.err(
-                        "a rotated cube is not supported (pathspace's boxes are axis-aligned)",
-                    ));
-                }
-                let (lo, hi) = (t - diag, t + diag);
-                (
-                    ShapeDesc::Box {
-                        min: f3(lo),
-                        max: f3(hi),
-                        material: None,
-                        emission: None,
-                        interior: None,
-                        exterior: None,
-                    },
-                    format!(
-                        "box {} .. {} ([-1,1]^3 mapped, normals outwards)",
-                        show(lo),
-                        show(hi)
-                    ),
-                )
-            }
-            "sphere" => {
-                let c = p.point("center")?.unwrap_or(DVec3::ZERO);
-                let r = p.float("radius")?.unwrap_or(1.0);
-                let s = similarity(&l).ok_or_else(|| {
-                    p.err(
-                        "a sphere's to_world must be a uniform scale, a rotation and a translation",
-                    )
-                })?;
-                let (c, r) = (m.transform_point3(c), r * s);
-                (
-                    ShapeDesc::Sphere {
-                        center: f3(c),
-                        radius: r as f32,
-                        material: None,
-                        emission: None,
-                        interior: None,
-                        exterior: None,
-                    },
-                    format!("sphere at {}, radius {r}", show(c)),
-                )
-            }
-            "obj" | "ply" => {
-                let file = p
-                    .string("filename")?
-                    .ok_or_else(|| p.err("`filename` is missing"))?;
-                if p.boolean("face_normals")? != Some(true) {
-                    return Err(p.err("Mitsuba interpolates vertex normals unless face_normals = true, pathspace has geometric normals only: add <boolean name=\"face_normals\" value=\"true\"/>"));
-                }
-                p.ignore(&["flip_tex_coords"]);
-                let rows = [0, 1, 2].map(|i| {
-                    let r = m.row(i);
-                    [r.x as f32, r.y as f32, r.z as f32, r.w as f32]
-                });
-                let to_world = (m != DMat4::IDENTITY).then_some(rows);
-                (
-                    ShapeDesc::Mesh {
-                        obj: file.clone(),
-                        to_world,
-                        material: None,
-                        emission: None,
-                        interior: None,
-                        exterior: None,
-                    },
-                    format!("mesh `{file}`, flat (face normals)"),
-                )
-            }
-            k => {
-                return Err(p.err(format!(
-                    "the shape `{k}` is not supported (rectangle, cube, sphere, obj, ply are)"
-                )))
-            }
-        };
+        let (geometry, how) = geometry(&mut p, &m, flip)?;
         p.finish()?;
+        let (material, emission) = self.surface(bsdf, emitter)?;
+        self.push_shape(node, geometry, how, material, emission, interior, exterior)
+    }
+
+    /// A shape's material and emission, as Mitsuba makes them: an emitter without a BSDF (or
+    /// with a black diffuse) is black, a shape without either a one-sided diffuse of 0.5.
+    fn surface(
+        &mut self,
+        bsdf: Option<Node<'a, 'a>>,
+        emitter: Option<Node<'a, 'a>>,
+    ) -> Result<(Option<String>, Option<RgbValue>), SceneError> {
         let emission = match emitter {
             Some(e) => Some(self.area(e)?),
             None => None,
@@ -727,9 +574,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         let material = match bsdf {
             Some(b) => self.material(b, None)?,
             // Mitsuba's emitter without a BSDF is black (a black diffuse), as pathspace's
-            None if emission.is_some() => {
-                return self.push_shape(node, geometry, how, None, emission, interior, exterior)
-            }
+            None if emission.is_some() => return Ok((None, emission)),
             None => self.default_material(),
         };
         // a black diffuse emitter is an emitter without a material
@@ -744,7 +589,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         } else {
             Some(material)
         };
-        self.push_shape(node, geometry, how, material, emission, interior, exterior)
+        Ok((material, emission))
     }
 
     /// Adds a translated shape with the keys every shape shares.
@@ -810,88 +655,23 @@ impl<'a, 'd> Importer<'a, 'd> {
     fn emitter(&mut self, node: Node<'a, 'a>) -> Result<(), SceneError> {
         let mut p = Props::new(self.doc, node)?;
         let m = p.transform("to_world")?;
-        let l = m.as_ref().map(linear);
         let (light, how) = match p.plugin.as_str() {
-            "point" => {
-                let pos = match (p.point("position")?, m) {
-                    (Some(x), None) => x,
-                    (None, Some(m)) => m.w_axis.truncate(),
-                    (None, None) => DVec3::ZERO,
-                    (Some(_), Some(_)) => {
-                        return Err(p.err("give `position` or `to_world`, not both"))
-                    }
-                };
-                let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
-                (
-                    LightDesc::Point {
-                        position: f3(pos),
-                        intensity: rgb(i),
-                    },
-                    format!("point light at {}, intensity {} W/sr", show(pos), show(i)),
-                )
-            }
-            "spot" => {
-                let m = m.unwrap_or(DMat4::IDENTITY);
-                let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
-                let cutoff = p.float("cutoff_angle")?.unwrap_or(20.0);
-                let beam = p.float("beam_width")?.unwrap_or(0.75 * cutoff);
-                if beam != cutoff {
-                    return Err(p.err(format!("beam_width {beam} differs from cutoff_angle {cutoff}: Mitsuba's falloff is linear in the angle, pathspace's a smoothstep in the cosine; set beam_width = cutoff_angle for a hard cone")));
-                }
-                let (pos, dir) = (m.w_axis.truncate(), linear(&m) * DVec3::Z);
-                (
-                    LightDesc::Spot {
-                        position: f3(pos),
-                        direction: f3(dir),
-                        intensity: rgb(i),
-                        cone_deg: cutoff as f32,
-                        falloff_deg: 0.0,
-                    },
-                    format!(
-                        "spot light at {} along {}, intensity {} W/sr, hard cone {cutoff} deg",
-                        show(pos),
-                        show(dir),
-                        show(i)
-                    ),
-                )
-            }
-            "directional" => {
-                let dir = match (p.point("direction")?, l) {
-                    (Some(d), None) => d,
-                    (None, Some(l)) => l * DVec3::Z,
-                    (None, None) => DVec3::Z,
-                    (Some(_), Some(_)) => {
-                        return Err(p.err("give `direction` or `to_world`, not both"))
-                    }
-                };
-                let e = p.color("irradiance")?.unwrap_or(DVec3::ONE);
-                (
-                    LightDesc::Directional {
-                        direction: f3(dir),
-                        irradiance: rgb(e),
-                    },
-                    format!(
-                        "directional light along {}, irradiance {}",
-                        show(dir),
-                        show(e)
-                    ),
-                )
-            }
-            "constant" => {
+            "point" => point(&mut p, m)?,
+            "spot" => spot(&mut p, m.unwrap_or(DMat4::IDENTITY))?,
+            "directional" => directional(&mut p, m)?,
+            "constant" if m.is_none() => {
                 let r = p.color("radiance")?.unwrap_or(DVec3::ONE);
-                if m.is_some() {
-                    return Err(p.err("a constant emitter takes no to_world"));
-                }
-                (
-                    LightDesc::Environment {
-                        radiance: Some(rgb(r)),
-                        zenith: None,
-                        horizon: None,
-                        nadir: None,
-                    },
-                    format!("constant environment, radiance {}", show(r)),
-                )
+                let (zenith, horizon, nadir) = (None, None, None);
+                let radiance = Some(rgb(r));
+                let env = LightDesc::Environment {
+                    radiance,
+                    zenith,
+                    horizon,
+                    nadir,
+                };
+                (env, format!("constant environment, radiance {}", show(r)))
             }
+            "constant" => return Err(p.err("a constant emitter takes no to_world")),
             "envmap" => return Err(p.err("the emitter `envmap` is not supported yet")),
             "area" => return Err(p.err("an `area` emitter belongs inside a <shape>")),
             k => {
@@ -905,6 +685,291 @@ impl<'a, 'd> Importer<'a, 'd> {
         self.out.lights.push(light);
         self.note(node, &format!("lights[{i}]"), how);
         Ok(())
+    }
+}
+
+/// A light and its note.
+type Lighting = Result<(LightDesc, String), SceneError>;
+
+/// `point`: at `position` or the origin of `to_world`, `intensity` in W/sr.
+fn point(p: &mut Props, m: Option<DMat4>) -> Lighting {
+    let pos = match (p.point("position")?, m) {
+        (Some(x), None) => x,
+        (None, Some(m)) => m.w_axis.truncate(),
+        (None, None) => DVec3::ZERO,
+        (Some(_), Some(_)) => return Err(p.err("give `position` or `to_world`, not both")),
+    };
+    let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
+    let how = format!("point light at {}, intensity {} W/sr", show(pos), show(i));
+    let (position, intensity) = (f3(pos), rgb(i));
+    Ok((
+        LightDesc::Point {
+            position,
+            intensity,
+        },
+        how,
+    ))
+}
+
+/// `spot`: along local +z of `to_world`; only the hard cone (`beam_width` = `cutoff_angle`)
+/// is the same light in both renderers.
+fn spot(p: &mut Props, m: DMat4) -> Lighting {
+    let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
+    let cutoff = p.float("cutoff_angle")?.unwrap_or(20.0);
+    let beam = p.float("beam_width")?.unwrap_or(0.75 * cutoff);
+    if beam != cutoff {
+        return Err(p.err(format!("beam_width {beam} differs from cutoff_angle {cutoff}: Mitsuba's falloff is linear in the angle, pathspace's a smoothstep in the cosine; set beam_width = cutoff_angle for a hard cone")));
+    }
+    let (pos, dir) = (m.w_axis.truncate(), linear(&m) * DVec3::Z);
+    let how = format!(
+        "spot light at {} along {}, intensity {} W/sr, hard cone {cutoff} deg",
+        show(pos),
+        show(dir),
+        show(i)
+    );
+    let (position, direction, intensity) = (f3(pos), f3(dir), rgb(i));
+    let (cone_deg, falloff_deg) = (cutoff as f32, 0.0);
+    let light = LightDesc::Spot {
+        position,
+        direction,
+        intensity,
+        cone_deg,
+        falloff_deg,
+    };
+    Ok((light, how))
+}
+
+/// `directional`: light travelling along `direction` (or local +z of `to_world`).
+fn directional(p: &mut Props, m: Option<DMat4>) -> Lighting {
+    let dir = match (p.point("direction")?, m) {
+        (Some(d), None) => d,
+        (None, Some(m)) => linear(&m) * DVec3::Z,
+        (None, None) => DVec3::Z,
+        (Some(_), Some(_)) => return Err(p.err("give `direction` or `to_world`, not both")),
+    };
+    let e = p.color("irradiance")?.unwrap_or(DVec3::ONE);
+    let how = format!(
+        "directional light along {}, irradiance {}",
+        show(dir),
+        show(e)
+    );
+    let (direction, irradiance) = (f3(dir), rgb(e));
+    Ok((
+        LightDesc::Directional {
+            direction,
+            irradiance,
+        },
+        how,
+    ))
+}
+
+/// A shape's geometry and its note.
+type Geometry = Result<(ShapeDesc, String), SceneError>;
+
+/// The geometry of a shape plugin under `m` (already checked not to mirror); the keys every
+/// shape shares are filled in later (`with_common`).
+fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
+    match p.plugin.as_str() {
+        "rectangle" => Ok(rectangle(m, flip)),
+        "cube" => cube(p, m),
+        "sphere" => sphere(p, m),
+        "obj" | "ply" => mesh(p, m),
+        k => Err(p.err(format!(
+            "the shape `{k}` is not supported (rectangle, cube, sphere, obj, ply are)"
+        ))),
+    }
+}
+
+/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+    let l = linear(m);
+    let o = m.transform_point3(DVec3::new(-1.0, -1.0, 0.0));
+    let (u, v) = (l * DVec3::new(2.0, 0.0, 0.0), l * DVec3::new(0.0, 2.0, 0.0));
+    let (u, v) = if flip { (v, u) } else { (u, v) };
+    let how = format!(
+        "quad at {}, u {}, v {} ([-1,1]^2 at z = 0 mapped, normal u x v{})",
+        show(o),
+        show(u),
+        show(v),
+        if flip { ", flipped" } else { "" }
+    );
+    let (origin, u, v) = (f3(o), f3(u), f3(v));
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    let quad = ShapeDesc::Quad {
+        origin,
+        u,
+        v,
+        material,
+        emission,
+        interior,
+        exterior,
+    };
+    (quad, how)
+}
+
+/// `cube`: [-1,1]^3 under a scale and a translation (pathspace's boxes are axis-aligned).
+fn cube(p: &mut Props, m: &DMat4) -> Geometry {
+    let l = linear(m);
+    let diag = DVec3::new(l.x_axis.x, l.y_axis.y, l.z_axis.z);
+    if l != DMat3::from_diagonal(diag) {
+        return Err(p.err("a rotated cube is not supported (pathspace's boxes are axis-aligned)"));
+    }
+    let t = m.w_axis.truncate();
+    let (lo, hi) = (t - diag, t + diag);
+    let how = format!(
+        "box {} .. {} ([-1,1]^3 mapped, normals outwards)",
+        show(lo),
+        show(hi)
+    );
+    let (min, max) = (f3(lo), f3(hi));
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Box {
+            min,
+            max,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `sphere`: `center` and `radius` under a uniform scale, a rotation and a translation.
+fn sphere(p: &mut Props, m: &DMat4) -> Geometry {
+    let c = p.point("center")?.unwrap_or(DVec3::ZERO);
+    let r = p.float("radius")?.unwrap_or(1.0);
+    let s = similarity(&linear(m)).ok_or_else(|| {
+        p.err("a sphere's to_world must be a uniform scale, a rotation and a translation")
+    })?;
+    let (c, r) = (m.transform_point3(c), r * s);
+    let how = format!("sphere at {}, radius {r}", show(c));
+    let (center, radius) = (f3(c), r as f32);
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Sphere {
+            center,
+            radius,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `obj` and `ply`: the file under `to_world`, with face normals only.
+fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
+    let obj = p
+        .string("filename")?
+        .ok_or_else(|| p.err("`filename` is missing"))?;
+    if p.boolean("face_normals")? != Some(true) {
+        return Err(p.err("Mitsuba interpolates vertex normals unless face_normals = true, pathspace has geometric normals only: add <boolean name=\"face_normals\" value=\"true\"/>"));
+    }
+    p.ignore(&["flip_tex_coords"]);
+    let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
+    let to_world = (*m != DMat4::IDENTITY).then_some(rows);
+    let how = format!("mesh `{obj}`, flat (face normals)");
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Mesh {
+            obj,
+            to_world,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `roughconductor`: GGX with a complex index (`eta`, `k`) or Mitsuba's `none` (a Fresnel term
+/// of 1, exactly pathspace's reflectance 1).
+fn rough_conductor(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    let alpha = ggx_alpha(p)?;
+    let eta = p.color("eta")?;
+    let k = p.color("k")?;
+    let r = no_named_conductor(p)?;
+    let (eta, k, how) = match (eta, k) {
+        (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {}, k {}", show(e), show(k))),
+        (None, None) if r == DVec3::ONE => (None, None, "reflectance 1 (material none)".into()),
+        (None, None) => return Err(p.err("specular_reflectance other than 1 with material none: Mitsuba scales a Fresnel term of 1, pathspace's `reflectance` is Schlick's F0; give eta and k instead")),
+        (Some(_), Some(_)) => return Err(p.err("specular_reflectance other than 1 with eta and k is not supported")),
+        _ => return Err(p.err("give both eta and k")),
+    };
+    Ok((
+        MaterialDesc::RoughConductor {
+            alpha: alpha as f32,
+            reflectance: None,
+            eta,
+            k,
+            one_sided,
+        },
+        format!("rough conductor (GGX), alpha {alpha}, {how}{side}"),
+    ))
+}
+
+/// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`.
+fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
+    let rough = p.plugin == "roughdielectric";
+    let alpha = if rough { Some(ggx_alpha(p)?) } else { None };
+    let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
+    for k in ["specular_reflectance", "specular_transmittance"] {
+        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
+            return Err(p.err(format!("{k} other than 1 is not supported")));
+        }
+    }
+    Ok(match alpha {
+        None => (
+            MaterialDesc::Dielectric { ior: ior as f32 },
+            format!("dielectric, ior {ior} (int_ior / ext_ior)"),
+        ),
+        Some(a) => (
+            MaterialDesc::RoughDielectric {
+                ior: ior as f32,
+                alpha: a as f32,
+            },
+            format!("rough dielectric (GGX), ior {ior} (int_ior / ext_ior), alpha {a}"),
+        ),
+    })
+}
+
+/// A conductor's `material` must be `none` (no tabulated spectra); its reflectance.
+fn no_named_conductor(p: &mut Props) -> Result<DVec3, SceneError> {
+    if let Some(m) = p.string("material")? {
+        if m != "none" {
+            return Err(p.err(format!(
+                "material = \"{m}\": tabulated conductor spectra are not imported; give eta and k as <rgb>"
+            )));
+        }
+    }
+    if p.plugin == "conductor" && (p.color("eta")?.is_some() || p.color("k")?.is_some()) {
+        return Err(p.err("a smooth conductor with eta and k is not supported: pathspace's mirror has a constant reflectance"));
+    }
+    Ok(p.color("specular_reflectance")?.unwrap_or(DVec3::ONE))
+}
+
+/// An index of refraction given as a number or one of Mitsuba's names.
+fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
+    if p.tag_of(key) != Some("string") {
+        return Ok(p.float(key)?.unwrap_or(dflt));
+    }
+    match p.string(key)? {
+        None => Ok(dflt),
+        Some(s) => match NAMED_IOR.iter().find(|(n, _)| *n == s.as_str()) {
+            Some(&(_, v)) => Ok(v),
+            None => match s.parse::<f64>() {
+                Ok(v) => Ok(v),
+                Err(_) => Err(p.err(format!("{key} = \"{s}\" is not a known material name"))),
+            },
+        },
     }
 }
 
