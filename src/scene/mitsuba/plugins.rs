@@ -289,12 +289,14 @@ impl<'a, 'd> Importer<'a, 'd> {
         let w = p.integer("width")?.unwrap_or(768);
         let h = p.integer("height")?.unwrap_or(576);
         let filter = p.object("rfilter", None)?;
-        p.ignore(&[
-            "pixel_format",
-            "component_format",
-            "file_format",
-            "sample_border",
-        ]);
+        if let Some(f) = p.string("pixel_format")? {
+            if f != "rgb" && f != "rgba" {
+                return Err(p.err(format!(
+                    "pixel_format = \"{f}\": only rgb (or rgba) images are the same"
+                )));
+            }
+        }
+        p.ignore(&["component_format", "file_format", "sample_border"]);
         p.finish()?;
         match filter {
             Some(f) if self.doc.plugin(f)? == "box" => Props::new(self.doc, f)?.finish()?,
