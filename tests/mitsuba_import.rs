@@ -593,9 +593,16 @@ fn ply_meshes_read_like_obj() {
     std::fs::remove_dir_all(&tmp).unwrap();
 }
 
-/// `info` on an XML lists every imported element with its line and what it became.
+/// `info` on an XML lists every imported element with its line and what it became; the scene's
+/// hash (provenance, shards) does not depend on the path it was read by.
 #[test]
 fn info_lists_what_was_imported_and_how() {
+    let text = std::fs::read_to_string(dir().join("scenes/xml/hg-sphere.xml")).unwrap();
+    let (a, b) = (
+        mitsuba::import("hg-sphere.xml", &text, dir()).unwrap(),
+        mitsuba::import("/elsewhere/hg-sphere.xml", &text, dir()).unwrap(),
+    );
+    assert_eq!(a.hash(), b.hash());
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_pathspace"))
         .arg("info")
         .arg(dir().join("scenes/xml/hg-sphere.xml"))

@@ -94,10 +94,8 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
 
 /// The scene file as TOML text (what `Scene::load` and the render settings read).
 fn generated_text(name: &str, file: &SceneFile) -> Result<String, SceneError> {
-    let header = format!(
-        "# Translated from the Mitsuba 3 scene `{}` by pathspace's importer.\n",
-        crate::scene::file::escape_controls(name)
-    );
+    // no file name here: the scene's hash (provenance, shards) must not depend on the path
+    let header = "# Translated from a Mitsuba 3 scene by pathspace's importer.\n".to_string();
     toml::to_string(file)
         .map(|t| header + &t)
         .map_err(|e| SceneError {
