@@ -157,7 +157,7 @@ def compare(a, shown):
         means = imgs.reshape(a.runs, -1, 3).mean(1)
         m, se = means.mean(0), means.std(0, ddof=1) / math.sqrt(a.runs)
         stats[r] = (m, se)
-        shown = ", ".join(f"{m[c]:.5f} +- {se[c]:.5f}" for c in range(3))
+        shown = ", ".join(f"{m[c]:.6g} +- {se[c]:.2g}" for c in range(3))
         print(f"  {r:>12}: mean RGB {shown}; CPU s per render {np.mean(cpu):.2f}")
     for r in names:
         o = names[1] if r == names[0] else names[0]
@@ -169,8 +169,8 @@ def compare(a, shown):
     (m1, s1), (m2, s2) = stats[names[0]], stats[names[1]]
     for c in range(3):
         t, pv = t_and_p(m1[c], s1[c], a.runs, m2[c], s2[c], a.runs)
-        print(f"  channel {'RGB'[c]}: difference {m1[c] - m2[c]:+.5f}, "
-              f"combined standard error {math.hypot(s1[c], s2[c]):.5f}, t = {t:+.2f}, p = {pv:.3f}")
+        print(f"  channel {'RGB'[c]}: difference {m1[c] - m2[c]:+.3g}, "
+              f"combined standard error {math.hypot(s1[c], s2[c]):.3g}, t = {t:+.2f}, p = {pv:.3f}")
 
 
 if __name__ == "__main__":
