@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Mutation fuzzing of pathspace's inputs: scene files, density grids, OBJ meshes and EXR environment maps.
+"""Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids,
+OBJ meshes and EXR environment maps.
 
 Each case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a scratch
 directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types, deleted or
@@ -62,13 +63,14 @@ GRID_WORDS = ["0", "-1", "nan", "inf", "1e30", "1e-30", "1024", "100000", "3", "
 
 
 def corpus():
-    """The seed inputs: every shipped scene, and the agreement matrix's, with their files."""
+    """The seed inputs: every shipped scene (TOML and Mitsuba XML), and the agreement matrix's,
+    with their files."""
     seeds = []
-    for d in ("scenes", os.path.join("tests", "fixtures", "agreement")):
+    for d in ("scenes", os.path.join("tests", "fixtures", "agreement"), os.path.join("scenes", "xml")):
         for name in sorted(os.listdir(os.path.join(ROOT, d))):
-            if name.endswith(".toml"):
+            if name.endswith(".toml") or name.endswith(".xml"):
                 seeds.append(os.path.join(d, name))
-    return seeds
+    return seeds + [os.path.join("benches", "mitsuba-fog-box.xml")]
 
 
 MESH_SCENE = """
@@ -86,8 +88,9 @@ def load_seed(rel):
     with open(path, "rb") as f:
         text = f.read()
     files = {}
-    for m in re.finditer(rb'(?:file|obj|map)\s*=\s*"([^"]+)"', text):
-        name = m.group(1).decode()
+    companions = rb'(?:file|obj|map)\s*=\s*"([^"]+)"|name="filename"\s+value="([^"]+)"'
+    for m in re.finditer(companions, text):
+        name = (m.group(1) or m.group(2)).decode()
         src = os.path.join(os.path.dirname(path), name)
         if os.path.isfile(src):
             with open(src, "rb") as f:
@@ -119,7 +122,7 @@ def grid_with_vol():
 NUMBER = re.compile(rb"(?<![\w.\"])-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?(?![\w.\"])")
 STRING = re.compile(rb'"[^"\n]*"')
 VALUE = re.compile(rb"^(\s*[\w.\"-]+\s*=\s*)(.+)$", re.M)
-FILE_VALUE = re.compile(rb'^(\s*(?:file|obj|map)\s*=\s*")[^"\n]*"', re.M)
+FILE_VALUE = re.compile(rb'((?:^\s*(?:file|obj|map)\s*=\s*")|(?:name="filename"\s+value="))[^"\n]*"', re.M)
 ARRAY = re.compile(rb"\[([^\[\]\n]+)\]")
 
 
@@ -394,20 +397,21 @@ def case(args, k, seeds, keys, strings):
     name, text, files, steps, flags, small = make_case(k, args.seed, seeds, keys, strings)
     work = tempfile.mkdtemp(prefix=f"fuzz-{k}-", dir=args.scratch)
     try:
-        scene = os.path.join(work, "scene.toml")
-        with open(scene, "wb") as f:
+        xml = name.endswith(".xml")
+        scene_name = "scene.xml" if xml else "scene.toml"
+        with open(os.path.join(work, scene_name), "wb") as f:
             f.write(text)
         for fname, data in files.items():
             with open(os.path.join(work, fname), "wb") as f:
                 f.write(data)
-        names = ["scene.toml"] + list(files)
-        info = [args.bin, "info", "scene.toml"]
+        names = [scene_name] + list(files)
+        info = [args.bin, "info", scene_name]
         outcome = judge(run(info, work, args.info_timeout, args.memory), names)
         cmds = [info]
         if outcome in ("ok", "refused"):
-            render = [args.bin, "render", "scene.toml", "--threads", "1", "--json",
+            render = [args.bin, "render", scene_name, "--threads", "1", "--json",
                       "-o", "out.exr", "--spp", "1"] + flags
-            if small and b"[camera]" in text:
+            if small and (b"[camera]" in text or b"<sensor" in text):
                 render += ["--resolution", "8x8"]
             cmds.append(render)
             p = run(render, work, args.render_timeout, args.memory)

@@ -40,6 +40,7 @@ fn load(name: &str, text: &str) -> (Scene, RenderSettings) {
         name: name.to_string(),
         text: text.to_string(),
         base_dir: fixture_dir(),
+        origin: None,
     };
     pathspace::integrator::settings::load(&source).unwrap_or_else(|e| panic!("{e}"))
 }

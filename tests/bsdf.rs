@@ -53,7 +53,10 @@ fn modes() -> [TransportMode; 2] {
 
 #[test]
 fn lambert_is_reciprocal_and_reflects_on_both_sides_only() {
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     let mut s = sampler(10, 0);
     for n in normals() {
         for _ in 0..256 {
@@ -81,7 +84,10 @@ fn lambert_directional_albedo_equals_albedo() {
     // are exact and only float rounding remains.
     const N_COS: usize = 64;
     const N_PHI: usize = 16;
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     for n in normals() {
         for cos_o in [0.9, 0.3, -0.5, -0.05] {
             let wo = at_cosine(n, cos_o, 1.0);
@@ -112,7 +118,10 @@ fn lambert_directional_albedo_equals_albedo() {
 fn lambert_sample_record_matches_eval_and_pdf_and_its_weight_is_the_albedo() {
     // the cosine-sampled weight f cos / pdf equals the albedo for every sample: a zero-variance
     // estimator of rho_hd, so its mean is checked with the float allowance only
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     let mut s = sampler(11, 0);
     for n in normals() {
         for wo in test_directions(11, 8) {
@@ -148,7 +157,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
     // leaking through the surface fails the test
     const N_SAMPLES: u64 = 200_000;
     let mut fam = Family::new("bsdf: Lambert sampling vs pdf");
-    let bsdf = Bsdf::Lambert { albedo: ALBEDO };
+    let bsdf = Bsdf::Lambert {
+        albedo: ALBEDO,
+        one_sided: false,
+    };
     for (i, n) in normals().into_iter().enumerate() {
         for (j, cos_o) in [0.7f64, -0.4].into_iter().enumerate() {
             let wo = at_cosine(n, cos_o, 2.0);
@@ -176,7 +188,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
 #[test]
 fn mirror_reflects_about_the_normal_with_weight_reflectance() {
     let reflectance = Vec3::new(0.9, 0.6, 0.3);
-    let bsdf = Bsdf::Mirror { reflectance };
+    let bsdf = Bsdf::Mirror {
+        reflectance,
+        one_sided: false,
+    };
     let mut s = sampler(20, 0);
     for n in normals() {
         for wo in test_directions(20, 16) {
@@ -538,6 +553,62 @@ fn reflect_is_an_involution() {
             let w = warp::uniform_sphere(s.next_2d());
             let r = reflect(reflect(w, n), n);
             assert_close("reflect twice", (r - w).length() as f64, 0.0, F32_TOL);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// One-sided opaque models (Mitsuba's `diffuse` and `conductor` without `twosided`)
+
+/// A one-sided model is black behind its normal (no value, no density, no sample) and is the
+/// two-sided model on the normal's side, bit for bit.
+#[test]
+fn one_sided_models_are_black_behind_and_two_sided_in_front() {
+    use pathspace::bsdf::{ConductorFresnel, RoughConductor};
+    let pair = |one_sided: bool| {
+        [
+            Bsdf::Lambert {
+                albedo: ALBEDO,
+                one_sided,
+            },
+            Bsdf::Mirror {
+                reflectance: ALBEDO,
+                one_sided,
+            },
+            Bsdf::RoughConductor(RoughConductor {
+                alpha: 0.3,
+                fresnel: ConductorFresnel::Schlick(ALBEDO),
+                one_sided,
+            }),
+        ]
+    };
+    let mut s = sampler(30, 0);
+    for (one, two) in pair(true).iter().zip(pair(false).iter()) {
+        for n in normals() {
+            for k in 0..64 {
+                let cos_o = if k % 2 == 0 { 0.7 } else { -0.7 };
+                let wo = at_cosine(n, cos_o, k as f64);
+                let wi = at_cosine(n, cos_o.signum() * 0.4, 2.0 + k as f64);
+                let (u, uc) = (Vec2::new(s.next_f32(), s.next_f32()), s.next_f32());
+                let mode = TransportMode::Radiance;
+                let (a, b) = (
+                    one.sample(wo, n, u, uc, mode),
+                    two.sample(wo, n, u, uc, mode),
+                );
+                if cos_o > 0.0 {
+                    assert_eq!(one.eval(wo, wi, n, mode), two.eval(wo, wi, n, mode));
+                    assert_eq!(one.pdf(wo, wi, n), two.pdf(wo, wi, n));
+                    assert_eq!(
+                        a.map(|x| (x.wi, x.value, x.pdf)),
+                        b.map(|x| (x.wi, x.value, x.pdf))
+                    );
+                } else {
+                    assert_eq!(one.eval(wo, wi, n, mode), Rgb::ZERO, "{one:?}");
+                    assert_eq!(one.pdf(wo, wi, n), 0.0, "{one:?}");
+                    assert!(a.is_none(), "{one:?} sampled behind its normal");
+                    assert!(b.is_some() || matches!(two, Bsdf::RoughConductor(_)));
+                }
+            }
         }
     }
 }

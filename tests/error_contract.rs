@@ -478,18 +478,25 @@ fn locating_an_error_among_many_shapes_costs_log_n_trials() {
 
 // ---- other renderers' formats ----
 
-/// A Mitsuba XML or pbrt scene is named for what it is, not parsed as broken TOML; a TOML key
-/// that happens to be a pbrt directive's name is still TOML.
+/// A Mitsuba XML or pbrt scene is named for what it is, not parsed as broken TOML (XML is
+/// imported from a file named `.xml`); a TOML key that happens to be a pbrt directive's name is
+/// still TOML.
 #[test]
 fn a_mitsuba_or_pbrt_scene_is_named_for_what_it_is() {
     let says = "pathspace reads its own TOML scene files";
-    let (code, e) = info(
-        "fog.xml",
-        b"<?xml version=\"1.0\"?>\n<scene version=\"3.0.0\">\n</scene>\n",
-    );
+    let xml = b"<?xml version=\"1.0\"?>\n<scene version=\"3.0.0\">\n</scene>\n";
+    let (code, e) = info("fog.toml", xml);
     assert_eq!(code, 1, "{e}");
     assert!(
-        e.starts_with("error: fog.xml: this file is XML (a Mitsuba scene?)") && e.contains(says),
+        e.starts_with("error: fog.toml: this file is XML (a Mitsuba scene?)")
+            && e.contains(says)
+            && e.contains("`.xml`"),
+        "{e}"
+    );
+    let (code, e) = info("fog.xml", xml);
+    assert_eq!(code, 1, "{e}");
+    assert!(
+        e.starts_with("error: fog.xml:2: key `<scene>`: the scene has no <sensor>"),
         "{e}"
     );
     let (code, e) = info(

@@ -362,6 +362,7 @@ fn load_in(dir: &std::path::Path, text: &str) -> Result<Scene, String> {
         name: "test.toml".into(),
         text: text.into(),
         base_dir: dir.to_path_buf(),
+        origin: None,
     };
     Scene::load(&src).map_err(|e| e.to_string())
 }

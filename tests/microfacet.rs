@@ -34,6 +34,7 @@ fn conductor(alpha: f32) -> Bsdf {
     Bsdf::RoughConductor(RoughConductor {
         alpha,
         fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+        one_sided: false,
     })
 }
 
@@ -253,6 +254,7 @@ fn rough_conductor_is_reciprocal() {
                 eta: Vec3::new(0.2, 0.9, 1.1),
                 k: Vec3::new(3.9, 2.4, 2.1),
             },
+            one_sided: false,
         });
         let mut nonzero = 0;
         for (a, b) in pairs(3, n) {
@@ -423,6 +425,7 @@ fn small_alpha_conductor_is_the_mirror() {
     let rough = Bsdf::RoughConductor(RoughConductor {
         alpha: ALPHA_SMALL,
         fresnel: ConductorFresnel::Schlick(r0),
+        one_sided: false,
     });
     let mut fam = Family::new("microfacet: alpha -> 0 is the mirror");
     for (k, cos_o) in [0.95f64, 0.5, -0.3].into_iter().enumerate() {
@@ -431,6 +434,7 @@ fn small_alpha_conductor_is_the_mirror() {
         let schlick = r0 + (Vec3::ONE - r0) * (1.0 - cos_o.abs() as f32).powi(5);
         let mirror = Bsdf::Mirror {
             reflectance: schlick,
+            one_sided: false,
         };
         let m = mirror
             .sample(wo, n, Vec2::ZERO, 0.0, TransportMode::Radiance)

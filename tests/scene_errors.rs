@@ -527,9 +527,13 @@ fn binary_reports_a_syntax_error() {
 fn binary_accepts_every_shipped_scene() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes");
     let mut n = 0;
-    for entry in std::fs::read_dir(dir).unwrap() {
+    let entries = std::fs::read_dir(&dir)
+        .unwrap()
+        .chain(std::fs::read_dir(dir.join("xml")).unwrap());
+    for entry in entries {
         let p = entry.unwrap().path();
-        if p.extension().is_some_and(|e| e == "toml") {
+        // TOML scenes, and the Mitsuba 3 XML test scenes through the importer
+        if p.extension().is_some_and(|e| e == "toml" || e == "xml") {
             let out = Command::new(env!("CARGO_BIN_EXE_pathspace"))
                 .arg("info")
                 .arg(&p)
@@ -546,7 +550,7 @@ fn binary_accepts_every_shipped_scene() {
             n += 1;
         }
     }
-    assert!(n >= 1);
+    assert!(n >= 4, "{n} scenes");
 }
 
 // ---- no input panics ----

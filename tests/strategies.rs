@@ -195,6 +195,7 @@ fn reach_warns_exactly_where_paths_are_lost() {
             name: f.into(),
             text,
             base_dir: dir.into(),
+            origin: None,
         })
         .unwrap()
     };

@@ -96,6 +96,8 @@ pub fn fresnel_complex(cos_i: f32, eta: f32, k: f32) -> f32 {
 pub struct RoughConductor {
     pub alpha: f32,
     pub fresnel: ConductorFresnel,
+    /// Black behind the normal (see `Bsdf::black_behind`).
+    pub one_sided: bool,
 }
 
 impl RoughConductor {

@@ -73,13 +73,13 @@ impl BsdfSample {
 /// The closed set of surface models.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Bsdf {
-    /// rho / pi on both sides.
-    Lambert { albedo: Rgb },
-    /// A perfect mirror with a constant reflectance.
-    Mirror { reflectance: Rgb },
+    /// rho / pi on both sides, or on the normal's side only (`one_sided`).
+    Lambert { albedo: Rgb, one_sided: bool },
+    /// A perfect mirror with a constant reflectance (black behind the normal if `one_sided`).
+    Mirror { reflectance: Rgb, one_sided: bool },
     /// A smooth dielectric interface; `ior` is inside (behind the normal) over outside.
     Dielectric { ior: f32 },
-    /// A GGX microfacet conductor (glossy reflection, two-sided).
+    /// A GGX microfacet conductor (glossy reflection, two-sided unless `one_sided`).
     RoughConductor(RoughConductor),
     /// A GGX microfacet dielectric interface (glossy reflection and refraction).
     RoughDielectric(RoughDielectric),
@@ -126,11 +126,28 @@ impl Bsdf {
         }
     }
 
+    /// True when `wo` sees the back of a one-sided opaque model, which is black there (Mitsuba
+    /// 3's convention for `diffuse` and `conductor` without `twosided`): no value, no density,
+    /// no sample. Reflection-only models keep `wo` and `wi` on one side, so `wo` decides.
+    // ANCHOR: black_behind
+    pub fn black_behind(&self, wo: Vec3, n: Vec3) -> bool {
+        let one_sided = match self {
+            Bsdf::Lambert { one_sided, .. } | Bsdf::Mirror { one_sided, .. } => *one_sided,
+            Bsdf::RoughConductor(c) => c.one_sided,
+            Bsdf::Dielectric { .. } | Bsdf::RoughDielectric(_) | Bsdf::Null => false,
+        };
+        one_sided && wo.dot(n) <= 0.0
+    }
+    // ANCHOR_END: black_behind
+
     /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction).
     // ANCHOR: bsdf_eval
     pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, mode: TransportMode) -> Rgb {
+        if self.black_behind(wo, n) {
+            return Rgb::ZERO;
+        }
         match self {
-            Bsdf::Lambert { albedo } => {
+            Bsdf::Lambert { albedo, .. } => {
                 // two-sided: reflection only, whichever side wo is on
                 if wo.dot(n) * wi.dot(n) > 0.0 {
                     *albedo * FRAC_1_PI
@@ -147,6 +164,9 @@ impl Bsdf {
 
     /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (zero for singular lobes).
     pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        if self.black_behind(wo, n) {
+            return 0.0;
+        }
         match self {
             // cosine-weighted on wo's side: |cos wi| / pi, zero across the surface
             Bsdf::Lambert { .. } if wo.dot(n) * wi.dot(n) > 0.0 => wi.dot(n).abs() * FRAC_1_PI,
@@ -166,13 +186,13 @@ impl Bsdf {
         mode: TransportMode,
     ) -> Option<BsdfSample> {
         let cos_o = wo.dot(n);
-        if cos_o == 0.0 {
+        if cos_o == 0.0 || self.black_behind(wo, n) {
             return None;
         }
         // the normal on wo's side
         let nf = if cos_o > 0.0 { n } else { -n };
         match self {
-            Bsdf::Lambert { albedo } => {
+            Bsdf::Lambert { albedo, .. } => {
                 let local = warp::cosine_hemisphere(u);
                 if local.z <= 0.0 {
                     return None;
@@ -185,7 +205,7 @@ impl Bsdf {
                     lobe: Lobe::Regular,
                 })
             }
-            Bsdf::Mirror { reflectance } => {
+            Bsdf::Mirror { reflectance, .. } => {
                 let wi = reflect(wo, nf);
                 let c = wi.dot(nf).abs();
                 Some(BsdfSample {

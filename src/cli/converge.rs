@@ -16,7 +16,7 @@ use crate::measure::study::Study;
 
 #[derive(Args, Debug, Clone)]
 pub struct ConvergeArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba 3 XML by its `.xml` extension).
     pub scene: PathBuf,
     /// The reference EXR (from `pathspace reference`).
     #[arg(long)]

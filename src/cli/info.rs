@@ -14,7 +14,7 @@ use crate::scene::{Environment, Light, Scene};
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba 3 XML by its `.xml` extension).
     pub scene: PathBuf,
 }
 
@@ -38,10 +38,16 @@ fn round(x: f32) -> f32 {
 }
 
 fn bsdf(b: &Option<Bsdf>) -> String {
-    match b {
+    let sides = match b {
+        Some(b) if b.black_behind(Vec3::NEG_Z, Vec3::Z) => ", one-sided",
+        _ => "",
+    };
+    let model = match b {
         None => "black (emission only)".into(),
-        Some(Bsdf::Lambert { albedo }) => format!("lambert, albedo {}", v3(*albedo)),
-        Some(Bsdf::Mirror { reflectance }) => format!("mirror, reflectance {}", v3(*reflectance)),
+        Some(Bsdf::Lambert { albedo, .. }) => format!("lambert, albedo {}", v3(*albedo)),
+        Some(Bsdf::Mirror { reflectance, .. }) => {
+            format!("mirror, reflectance {}", v3(*reflectance))
+        }
         Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
         Some(Bsdf::RoughConductor(c)) => match c.fresnel {
             ConductorFresnel::Schlick(r) => {
@@ -58,7 +64,8 @@ fn bsdf(b: &Option<Bsdf>) -> String {
             format!("rough dielectric, ior {}, alpha {}", d.ior, d.alpha)
         }
         Some(Bsdf::Null) => "null (index-matched boundary)".into(),
-    }
+    };
+    format!("{model}{sides}")
 }
 
 fn phase(p: &Phase) -> String {
@@ -201,6 +208,12 @@ fn memory_line(scene: &Scene, r: &crate::integrator::RenderSettings) -> String {
 pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     let (scene, r, source) = super::load_scene(Some(&args.scene))?;
     println!("{}: valid (hash {:016x})", esc(&source.name), source.hash());
+    if let Some(o) = &source.origin {
+        println!("  imported from {}, element by element:", o.format);
+        for n in &o.notes {
+            println!("    {}", esc(n));
+        }
+    }
     println!(
         "  render: integrator {}, {} spp, seed {}, max_depth {}, {} meter samples per pass",
         r.integrator,

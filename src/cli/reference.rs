@@ -21,7 +21,7 @@ pub const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 #[derive(Args, Debug, Clone)]
 pub struct ReferenceArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML, or Mitsuba 3 XML by its `.xml` extension).
     pub scene: PathBuf,
     /// Samples per pixel (default 4096).
     #[arg(long, conflicts_with = "time")]

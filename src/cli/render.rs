@@ -31,7 +31,7 @@ const OUTPUTS: &str = "Image, outputs and previews";
 /// its key of the scene's `[render]` table) and the options of the command itself.
 #[derive(Args, Debug, Default, Clone)]
 pub struct RenderArgs {
-    /// Scene file (TOML); without it, the embedded fog box.
+    /// Scene file (TOML, or Mitsuba 3 XML by its `.xml` extension); without it, the embedded fog box.
     pub scene: Option<PathBuf>,
     /// The render options, each overriding its `[render]` key (boxed: most are rarely given).
     #[command(flatten)]

@@ -503,7 +503,7 @@ impl RenderSettings {
     /// The settings of `src`'s `[render]` table for a scene of radius `radius`, every value
     /// checked and a bad one reported at its line and key.
     pub fn from_source(src: &SceneSource, radius: f32) -> Result<Self, SceneError> {
-        let file: RenderFile = file::parse_as(&src.text, &src.name)?;
+        let file: RenderFile = file::parse_as(&src.text, &src.name).map_err(|e| src.relocate(e))?;
         let mut settings = Self::defaults(radius);
         settings.apply(&file.render, Spelling::Key).map_err(|e| {
             let mut at = path("render");

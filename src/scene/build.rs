@@ -7,6 +7,7 @@
 mod lights;
 mod materials;
 mod media;
+mod ply;
 mod sensors;
 mod shapes;
 mod values;
@@ -24,7 +25,7 @@ use crate::geometry::{Aabb, Bvh};
 
 /// Builds the scene described by `src`.
 pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
-    let desc = file::parse(&src.text, &src.name)?;
+    let desc = file::parse(&src.text, &src.name).map_err(|e| src.relocate(e))?;
     let materials = materials::materials(src, &desc)?;
     let media = media::Media::build(src, &desc)?;
     let shapes::Surfaces {
@@ -86,9 +87,36 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     };
 
     sensors::camera(src, &desc, &mut scene)?;
+    camera_medium_as_declared(src, &scene)?;
     sensors::meters(src, &desc, &mut scene)?;
     if scene.camera.is_none() && scene.sensors.is_empty() {
         return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }
     Ok(scene)
+}
+
+/// A translated scene declares the camera's medium (Mitsuba's sensor names it, or is in
+/// vacuum); pathspace finds it from the eye, so the two must agree, or the images would differ.
+fn camera_medium_as_declared(src: &SceneSource, scene: &Scene) -> Result<(), SceneError> {
+    let Some(origin) = &src.origin else {
+        return Ok(());
+    };
+    if scene.camera.is_none() {
+        return Ok(());
+    }
+    let found = scene
+        .camera_medium
+        .map(|m| scene.medium_names[m as usize].as_str());
+    if found == origin.camera_medium.as_deref() {
+        return Ok(());
+    }
+    let name = |m: Option<&str>| m.map_or("vacuum".to_string(), |m| format!("medium `{m}`"));
+    Err(src.error(
+        &path("camera"),
+        format!(
+            "the file places the camera in {}, but its eye is in {}",
+            name(origin.camera_medium.as_deref()),
+            name(found)
+        ),
+    ))
 }

@@ -6,7 +6,7 @@
 //! description with a key path, which [`locate`] maps back to a line through a span-keeping parse.
 //! Book: "Scenes and geometry" (tests: `tests/scene_errors.rs`).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -52,7 +52,7 @@ impl fmt::Display for SceneError {
 impl std::error::Error for SceneError {}
 
 /// A number or an RGB triple (`0.4` or `[0.4, 0.5, 0.6]`).
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum RgbValue {
     Scalar(f32),
@@ -78,7 +78,7 @@ impl RgbValue {
 }
 
 /// `[camera]`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum CameraDesc {
     Pinhole {
@@ -101,15 +101,20 @@ fn default_up() -> [f32; 3] {
 }
 
 /// `[materials.NAME]`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MaterialDesc {
+    /// `one_sided`: black behind the normal, as Mitsuba's `diffuse` (default: two-sided).
     Lambert {
         albedo: RgbValue,
+        #[serde(default)]
+        one_sided: bool,
     },
     Mirror {
         #[serde(default = "one_rgb")]
         reflectance: RgbValue,
+        #[serde(default)]
+        one_sided: bool,
     },
     Dielectric {
         ior: f32,
@@ -124,6 +129,8 @@ pub enum MaterialDesc {
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
+        #[serde(default)]
+        one_sided: bool,
     },
     /// GGX microfacet glass: `ior` inside over outside, `alpha`.
     RoughDielectric {
@@ -138,7 +145,7 @@ fn one_rgb() -> RgbValue {
 }
 
 /// A phase function.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum PhaseDesc {
     Isotropic {},
@@ -155,7 +162,7 @@ pub enum PhaseDesc {
 }
 
 /// `[media.NAME]`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MediumDesc {
     Homogeneous {
@@ -211,7 +218,7 @@ pub enum MediumDesc {
 }
 
 /// `propagation = "..."`: how the line integral of sigma_t is computed (Pauly et al. sec. 4.1).
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum PropagationDesc {
     Equidistant,
@@ -223,7 +230,7 @@ pub enum PropagationDesc {
 }
 
 /// `density = "..."` of a procedural medium.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
 #[serde(rename_all = "kebab-case")]
 pub enum DensityDesc {
     Constant,
@@ -233,7 +240,7 @@ pub enum DensityDesc {
 }
 
 /// `axis = "x" | "y" | "z"`.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
 #[serde(rename_all = "lowercase")]
 pub enum AxisDesc {
     X,
@@ -246,7 +253,7 @@ fn default_phase() -> PhaseDesc {
 }
 
 /// Keys every shape accepts.
-#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeCommon {
     pub material: Option<String>,
@@ -256,7 +263,7 @@ pub struct ShapeCommon {
 }
 
 /// `[[shapes]]`.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeDesc {
     Quad {
@@ -292,6 +299,10 @@ pub enum ShapeDesc {
     },
     Mesh {
         obj: String,
+        /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
+        /// x' = a x + b y + c z + t (how an imported scene places a mesh).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to_world: Option<[[f32; 4]; 3]>,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,
@@ -351,7 +362,7 @@ impl ShapeDesc {
 }
 
 /// `[[lights]]`: delta and infinite lights.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum LightDesc {
     /// Collimated light travelling along `direction`, irradiance on a plane facing it.
@@ -405,7 +416,7 @@ pub enum EnvSamplingDesc {
 }
 
 /// `[[sensors]]`: virtual measuring instruments.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum SensorDesc {
     /// Mean irradiance arriving on the normal side (normalize(u x v)) of a parallelogram.
@@ -421,11 +432,12 @@ pub enum SensorDesc {
 }
 
 /// A whole scene file.
-#[derive(Debug, Clone, Deserialize, PartialEq, Default)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
     /// `[render]`: the render settings, read apart from the scene (their schema is
     /// `integrator::settings`, a layer above the scene), so any table is accepted here.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub render: Option<toml::Table>,
     pub camera: Option<CameraDesc>,
     #[serde(default)]
@@ -519,6 +531,38 @@ pub struct SceneSource {
     pub text: String,
     /// Directory for relative paths (OBJ files, density grids).
     pub base_dir: PathBuf,
+    /// For a scene translated from another format (Mitsuba XML, `scene::mitsuba`), where each
+    /// generated key came from: errors then name the original file's lines.
+    pub origin: Option<std::sync::Arc<Origin>>,
+}
+
+/// Where the keys of a translated scene came from.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Origin {
+    /// The format, e.g. `Mitsuba 3 XML`.
+    pub format: String,
+    /// (generated key path, 1-based line of the original file): an error at a key takes the
+    /// line of its longest listed prefix.
+    pub lines: Vec<(String, usize)>,
+    /// What was imported and how, one line per element (printed by `info`).
+    pub notes: Vec<String>,
+    /// The medium the original file places the camera in (`None`: no medium), checked
+    /// against the medium around the eye when the scene is built.
+    pub camera_medium: Option<String>,
+}
+
+impl Origin {
+    /// The original line of `key`: its longest listed prefix (a whole segment).
+    pub fn line_of(&self, key: &str) -> Option<usize> {
+        self.lines
+            .iter()
+            .filter(|(k, _)| {
+                key.strip_prefix(k.as_str())
+                    .is_some_and(|rest| rest.is_empty() || rest.starts_with(['.', '[']))
+            })
+            .max_by_key(|(k, _)| k.len())
+            .map(|&(_, l)| l)
+    }
 }
 
 impl SceneSource {
@@ -538,10 +582,18 @@ impl SceneSource {
             })?;
         limits::check_size(&name, bytes.len())?;
         let text = limits::decode(bytes, &name)?;
+        let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
+        {
+            return crate::scene::mitsuba::import(&name, &text, base_dir);
+        }
         Ok(SceneSource {
             name,
             text,
-            base_dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            base_dir,
+            origin: None,
         })
     }
 
@@ -551,15 +603,30 @@ impl SceneSource {
             name: name.to_string(),
             text: text.to_string(),
             base_dir: PathBuf::from("."),
+            origin: None,
         }
+    }
+
+    /// An error raised on the generated text of a translated scene, moved to the original
+    /// file's line (unchanged for a scene read as it is).
+    pub fn relocate(&self, mut e: SceneError) -> SceneError {
+        if let Some(o) = &self.origin {
+            e.line = o.line_of(&e.key).or(Some(1));
+            e.file = self.name.clone();
+        }
+        e
     }
 
     /// A semantic error at `key`. A key the file lacks altogether (a missing `[camera]`) is
     /// reported at line 1, where a new top-level table would go.
     pub fn error(&self, key: &KeyPath, message: impl Into<String>) -> SceneError {
+        let line = match &self.origin {
+            Some(o) => o.line_of(&key.to_string()),
+            None => locate(&self.text, key),
+        };
         SceneError {
             file: self.name.clone(),
-            line: Some(locate(&self.text, key).unwrap_or(1)),
+            line: Some(line.unwrap_or(1)),
             key: key.to_string(),
             message: message.into(),
         }

@@ -9,6 +9,7 @@ pub mod camera;
 pub mod envmap;
 pub mod file;
 pub mod light;
+pub mod mitsuba;
 pub mod segments;
 pub mod sensor;
 

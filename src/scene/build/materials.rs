@@ -25,11 +25,19 @@ pub(super) fn materials(
             ));
         }
         let bsdf = match m {
-            MaterialDesc::Lambert { albedo: a } => Bsdf::Lambert {
+            MaterialDesc::Lambert {
+                albedo: a,
+                one_sided,
+            } => Bsdf::Lambert {
                 albedo: albedo(src, &key.clone().key("albedo"), *a)?,
+                one_sided: *one_sided,
             },
-            MaterialDesc::Mirror { reflectance } => Bsdf::Mirror {
+            MaterialDesc::Mirror {
+                reflectance,
+                one_sided,
+            } => Bsdf::Mirror {
                 reflectance: albedo(src, &key.clone().key("reflectance"), *reflectance)?,
+                one_sided: *one_sided,
             },
             MaterialDesc::Dielectric { ior } => {
                 if !(ior.is_finite() && *ior > 0.0) {
@@ -45,9 +53,11 @@ pub(super) fn materials(
                 reflectance,
                 eta,
                 k,
+                one_sided,
             } => Bsdf::RoughConductor(RoughConductor {
                 alpha: roughness(src, &key, *alpha, "mirror")?,
                 fresnel: conductor_fresnel(src, &key, *reflectance, *eta, *k)?,
+                one_sided: *one_sided,
             }),
             MaterialDesc::RoughDielectric { ior, alpha } => {
                 Bsdf::RoughDielectric(RoughDielectric {

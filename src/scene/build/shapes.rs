@@ -273,14 +273,77 @@ fn primitives(
                 radius: *radius,
             }));
         }
-        ShapeDesc::Mesh { obj, .. } => {
-            let (tris, all_closed) = mesh(src, key, obj, common)?;
+        ShapeDesc::Mesh { obj, to_world, .. } => {
+            let place = placement(src, key, to_world)?;
+            let (tris, all_closed) = mesh(src, key, obj, place, common)?;
             closed = all_closed;
             new.extend(tris.into_iter().map(Primitive::Triangle));
         }
     }
     Ok((new, closed))
 }
+
+/// A mesh's `to_world` rows as an affine map (identity without them), every entry finite and
+/// the linear part invertible.
+fn placement(
+    src: &SceneSource,
+    key: &KeyPath,
+    to_world: &Option<[[f32; 4]; 3]>,
+) -> Result<glam::Affine3A, SceneError> {
+    let Some(r) = to_world else {
+        return Ok(glam::Affine3A::IDENTITY);
+    };
+    let col = |j: usize| Vec3::new(r[0][j], r[1][j], r[2][j]);
+    let m = glam::Affine3A::from_cols(col(0).into(), col(1).into(), col(2).into(), col(3).into());
+    let det = m.matrix3.determinant();
+    if !(r.iter().flatten().all(|x| x.is_finite()) && det.is_normal()) {
+        return Err(src.error(
+            &key.clone().key("to_world"),
+            "to_world must be finite with an invertible linear part",
+        ));
+    }
+    Ok(m)
+}
+
+/// The models of an OBJ file as (positions, triangle indices), every face index checked first
+/// so that an error names the OBJ line.
+fn obj_parts(
+    src: &SceneSource,
+    obj_key: &KeyPath,
+    file: &std::path::Path,
+    bytes: Vec<u8>,
+) -> Result<Vec<MeshPart>, SceneError> {
+    let cannot = |e: &dyn std::fmt::Display| {
+        src.error(obj_key, format!("cannot read `{}`: {e}", file.display()))
+    };
+    let text = String::from_utf8(bytes).map_err(|e| cannot(&e))?;
+    check_obj_indices(&text)
+        .map_err(|e| src.error(obj_key, format!("`{}` {e}", file.display())))?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed) // materials are not used
+    })
+    .map_err(|e| src.error(obj_key, format!("cannot load `{}`: {e}", file.display())))?;
+    Ok(models
+        .into_iter()
+        .map(|m| {
+            let pos = m
+                .mesh
+                .positions
+                .chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect();
+            (pos, m.mesh.indices)
+        })
+        .collect())
+}
+
+/// One part of a mesh file: positions and triangle indices.
+type MeshPart = (Vec<Vec3>, Vec<u32>);
 
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;
@@ -291,6 +354,7 @@ fn mesh(
     src: &SceneSource,
     key: &KeyPath,
     obj: &str,
+    place: glam::Affine3A,
     common: &ShapeCommon,
 ) -> Result<(Vec<Triangle>, bool), SceneError> {
     let file = src.base_dir.join(obj);
@@ -299,28 +363,19 @@ fn mesh(
         src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
     };
     let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES).map_err(|e| cannot(&e))?;
-    let text = String::from_utf8(bytes).map_err(|e| cannot(&e))?;
-    check_obj_indices(&text)
-        .map_err(|e| src.error(&obj_key, format!("`{}` {e}", file.display())))?;
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
+    let is_ply = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    let parts = if is_ply {
+        vec![super::ply::read_ply(&bytes)
+            .map_err(|e| src.error(&obj_key, format!("`{}`: {e}", file.display())))?]
+    } else {
+        obj_parts(src, &obj_key, &file, bytes)?
     };
-    let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed) // materials are not used
-    })
-    .map_err(|e| src.error(&obj_key, format!("cannot load `{}`: {e}", file.display())))?;
     let mut all_closed = true;
     let mut tris = Vec::new();
-    for m in &models {
-        let pos: Vec<Vec3> = m
-            .mesh
-            .positions
-            .chunks_exact(3)
-            .map(|c| Vec3::new(c[0], c[1], c[2]))
-            .collect();
-        let idx = &m.mesh.indices;
+    for (pos, idx) in &parts {
+        let pos: Vec<Vec3> = pos.iter().map(|&p| place.transform_point3(p)).collect();
         if idx.iter().any(|&k| k as usize >= pos.len()) {
             return Err(src.error(
                 &obj_key,

@@ -244,11 +244,16 @@ pub fn check_format(text: &str, name: &str) -> Result<(), SceneError> {
     } else {
         return Ok(());
     };
+    let import = if first.starts_with('<') {
+        "; it imports Mitsuba 3 XML from files named `.xml` (the book's chapter Importing scenes)"
+    } else {
+        "; it has no importer for pbrt"
+    };
     Err(file_error(
         name,
         format!(
             "this file is {what}: pathspace reads its own TOML scene files (see \
-             scenes/fog-box.toml and the book's chapter Scenes); it has no importer for other formats yet"
+             scenes/fog-box.toml and the book's chapter Scenes){import}"
         ),
     ))
 }

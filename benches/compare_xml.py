@@ -1,0 +1,177 @@
+#!/usr/bin/env python3
+"""One Mitsuba 3 scene XML rendered by Mitsuba 3 and by pathspace (its importer), side by side.
+
+    python3 -m venv venv && venv/bin/pip install mitsuba numpy openexr
+    export DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so   # llvm_ad_rgb
+    cargo build --release
+    venv/bin/python benches/compare_xml.py scenes/xml/hg-sphere.xml --spp 256 --runs 4
+
+Each renderer renders the scene `--runs` times with independent seeds at `--spp` (a process per
+render, charged its CPU seconds from RUSAGE_CHILDREN, scene loading and Mitsuba's JIT
+included). Printed per renderer: the image mean per channel with its standard error (from the
+spread of the runs' means, Student-t with runs - 1 degrees of freedom), the CPU seconds per
+render, and relMSE (pathspace's metric, mean of (a - b)^2 / (b^2 + 1e-2)) of one run against
+the other renderer's converged image (the mean of its runs) next to the same run against its own
+renderer's other runs (the noise level). The verdict per channel is Welch's t of the two means.
+
+`-D name=value` overrides a `<default>` of the XML (both renderers read a copy written beside it),
+`--res N` is `-D res=N`;
+`--variant` picks Mitsuba's variant (`llvm_ad_rgb` by default, `scalar_rgb` needs no LLVM).
+pathspace reads the XML with its own defaults ($spp is overridden by --spp in both).
+"""
+import argparse
+import math
+import os
+import resource
+import re
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EPSILON = 1e-2  # measure::metrics::RELMSE_EPSILON
+
+
+def worker(variant, xml, spp, seed, out):
+    """Renders `xml` with Mitsuba in this process (a child of the main script)."""
+    import mitsuba as mi
+    mi.set_variant(variant)
+    import drjit as dr
+    dr.set_thread_count(2)
+    scene = mi.load_file(xml)
+    img = mi.render(scene, spp=int(spp), seed=int(seed))
+    mi.Bitmap(img).write(out)
+
+
+def child_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def render(renderer, a, seed, out):
+    """Renders and returns the CPU seconds of the process."""
+    if renderer == "pathspace":
+        cmd = [a.bin, "render", a.xml, "--spp", str(a.spp), "--seed", str(seed),
+               "--threads", "2", "-o", out]
+    else:
+        cmd = [sys.executable, __file__, "--worker", a.variant, a.xml, str(a.spp), str(seed),
+               out]
+    before = child_cpu()
+    r = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{renderer} failed:\n{r.stderr}")
+    return child_cpu() - before
+
+
+def read(path):
+    import numpy as np
+    import OpenEXR
+    import Imath
+    f = OpenEXR.InputFile(path)
+    dw = f.header()["dataWindow"]
+    w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
+    ch = [np.frombuffer(f.channel(c, Imath.PixelType(Imath.PixelType.FLOAT)), dtype=np.float32)
+          for c in "RGB"]
+    return np.stack(ch, -1).reshape(h, w, 3).astype(np.float64)
+
+
+def relmse(img, ref):
+    return float((((img - ref) ** 2) / (ref ** 2 + EPSILON)).mean())
+
+
+def welch_p(m1, s1, n1, m2, s2, n2):
+    """Two-sided p-value of Welch's t for means m with standard errors s from n runs."""
+    from scipy import stats  # noqa: F401 (optional); fall back to the normal tail
+    t = (m1 - m2) / math.sqrt(s1 * s1 + s2 * s2) if s1 + s2 > 0 else 0.0
+    dof = (s1 ** 2 + s2 ** 2) ** 2 / (s1 ** 4 / (n1 - 1) + s2 ** 4 / (n2 - 1))
+    return t, float(2 * stats.t.sf(abs(t), dof))
+
+
+def t_and_p(m1, s1, n1, m2, s2, n2):
+    try:
+        return welch_p(m1, s1, n1, m2, s2, n2)
+    except ImportError:
+        t = (m1 - m2) / math.sqrt(s1 * s1 + s2 * s2) if s1 + s2 > 0 else 0.0
+        return t, math.erfc(abs(t) / math.sqrt(2))
+
+
+def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        worker(*sys.argv[2:])
+        return
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("xml")
+    p.add_argument("--spp", type=int, default=256)
+    p.add_argument("--runs", type=int, default=4)
+    p.add_argument("--res", type=int, default=0, help="-D res=N")
+    p.add_argument("-D", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a <default> of the XML")
+    p.add_argument("--variant", default="llvm_ad_rgb")
+    p.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "pathspace"))
+    a = p.parse_args()
+    a.xml = os.path.abspath(a.xml)
+    shown = a.xml
+    if a.res > 0:
+        a.D.append(f"res={a.res}")
+    if a.D:
+        a.xml = with_defaults(a.xml, a.D)
+    try:
+        compare(a, shown)
+    finally:
+        if a.xml != shown:
+            os.remove(a.xml)
+
+
+def with_defaults(xml, overrides):
+    """A copy of `xml` beside it (relative paths still resolve) with `<default>`s replaced."""
+    text = open(xml).read()
+    for o in overrides:
+        name, value = o.split("=", 1)
+        pattern = r'(<default\s+name="%s"\s+value=")[^"]*(")' % re.escape(name)
+        text, n = re.subn(pattern, lambda m: m.group(1) + value + m.group(2), text)
+        if n != 1:
+            sys.exit(f"-D {o}: the scene declares no <default name=\"{name}\" value=...>")
+    fd, path = tempfile.mkstemp(suffix=".xml", dir=os.path.dirname(xml))
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    return path
+
+
+def compare(a, shown):
+    import numpy as np
+    runs = {}
+    with tempfile.TemporaryDirectory() as scratch:
+        for renderer in ["pathspace", a.variant]:
+            imgs, cpu = [], []
+            for k in range(a.runs):
+                out = os.path.join(scratch, f"{renderer}-{k}.exr")
+                cpu.append(render(renderer, a, 1000 + k, out))
+                imgs.append(read(out))
+            runs[renderer] = (np.stack(imgs), cpu)
+    names = list(runs)
+    extra = f" with {', '.join(a.D)}" if a.D else ""
+    print(f"{os.path.relpath(shown, ROOT)}{extra}: {a.runs} runs of {a.spp} spp each")
+    stats = {}
+    for r in names:
+        imgs, cpu = runs[r]
+        means = imgs.reshape(a.runs, -1, 3).mean(1)
+        m, se = means.mean(0), means.std(0, ddof=1) / math.sqrt(a.runs)
+        stats[r] = (m, se)
+        shown = ", ".join(f"{m[c]:.6g} +- {se[c]:.2g}" for c in range(3))
+        print(f"  {r:>12}: mean RGB {shown}; CPU s per render {np.mean(cpu):.2f}")
+    for r in names:
+        o = names[1] if r == names[0] else names[0]
+        imgs = runs[r][0]
+        own = imgs[1:].mean(0)
+        other = runs[o][0].mean(0)
+        print(f"  {r:>12}: relMSE of run 0 vs {o}'s converged {relmse(imgs[0], other):.4e},"
+              f" vs its own other runs {relmse(imgs[0], own):.4e}")
+    (m1, s1), (m2, s2) = stats[names[0]], stats[names[1]]
+    for c in range(3):
+        t, pv = t_and_p(m1[c], s1[c], a.runs, m2[c], s2[c], a.runs)
+        print(f"  channel {'RGB'[c]}: difference {m1[c] - m2[c]:+.3g}, "
+              f"combined standard error {math.hypot(s1[c], s2[c]):.3g}, t = {t:+.2f}, p = {pv:.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,115 @@
+//! Mitsuba 3 scene XML, translated into pathspace's scene file (`scene::file::SceneFile` plus
+//! its `[render]` table), which the ordinary build then turns into a `Scene`.
+//!
+//! The subset research scenes use (book: "Importing scenes", with the table of every plugin and
+//! parameter): `<default>` and `$name`, `id` / `<ref>`, the `path`/`volpath` integrators,
+//! the `perspective` sensor with `hdrfilm` (box filter) and any sampler, the shapes
+//! `rectangle`, `cube`, `sphere`, `obj`, `ply`, the BSDFs `diffuse`, `conductor`, `roughconductor`,
+//! `dielectric`, `roughdielectric`, `twosided`, `null`, the media `homogeneous` and
+//! `heterogeneous` (`gridvolume`), the phases `isotropic` and `hg`, the emitters `area`,
+//! `point`, `spot`, `directional`, `constant`. Conventions are Mitsuba's (tests:
+//! `tests/mitsuba_import.rs`). Anything else (a plugin, a parameter, a texture) is an error naming
+//! it, the file and the line: a scene is imported as Mitsuba renders it or not at all. The
+//! generated keys keep their XML lines (`file::Origin`), so errors of the build name XML lines
+//! too.
+
+mod plugins;
+mod props;
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::scene::file::{Origin, SceneFile, SceneSource, FILE_KEY};
+use crate::scene::SceneError;
+use props::{line, Doc};
+
+/// The most XML nodes a scene may have (the text is already limited to `MAX_SCENE_BYTES`).
+pub const MAX_XML_NODES: u32 = 1 << 22;
+
+/// Translates the Mitsuba 3 XML `text` (read from the file `name`, relative paths from
+/// `base_dir`) into a scene source whose text is the equivalent scene file.
+pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, SceneError> {
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: false,
+        nodes_limit: MAX_XML_NODES,
+        ..roxmltree::ParsingOptions::default()
+    };
+    let xml = roxmltree::Document::parse_with_options(text, options).map_err(|e| SceneError {
+        file: name.to_string(),
+        line: Some(e.pos().row as usize),
+        key: "(xml)".into(),
+        message: format!("not well-formed XML: {e}"),
+    })?;
+    let root = xml.root_element();
+    let mut doc = Doc {
+        name: name.to_string(),
+        defaults: HashMap::new(),
+        ids: HashMap::new(),
+    };
+    if root.tag_name().name() != "scene" {
+        return Err(doc.err(root, "the root element must be <scene>"));
+    }
+    let version = doc.need(root, "version")?;
+    if !(version.starts_with("2.") || version.starts_with("3.")) {
+        return Err(doc.err(
+            root,
+            format!("version=\"{version}\": only Mitsuba 2/3 scenes are imported (0.x scenes use other parameter names)"),
+        ));
+    }
+    for d in root.children().filter(|c| c.has_tag_name("default")) {
+        let (k, v) = (doc.need(d, "name")?, doc.need(d, "value")?);
+        doc.defaults.insert(k, v);
+    }
+    // every `$name` resolves, wherever it is (Mitsuba substitutes while parsing)
+    for n in root.descendants().filter(|n| n.is_element()) {
+        for a in n.attributes() {
+            doc.attr(n, a.name())?;
+        }
+    }
+    for n in root
+        .descendants()
+        .filter(|n| n.is_element() && !n.has_tag_name("ref"))
+    {
+        if let Some(id) = n.attribute("id") {
+            if let Some(old) = doc.ids.insert(id.to_string(), n) {
+                return Err(doc.err(
+                    n,
+                    format!("id=\"{id}\" is already used at line {}", line(old)),
+                ));
+            }
+        }
+    }
+    let mut imp = plugins::Importer::new(&doc, base_dir.clone());
+    imp.scene(root)?;
+    let (file, origin) = imp.finish(root)?;
+    let text = generated_text(name, &file)?;
+    Ok(SceneSource {
+        name: name.to_string(),
+        text,
+        base_dir,
+        origin: Some(Arc::new(origin)),
+    })
+}
+
+/// The scene file as TOML text (what `Scene::load` and the render settings read).
+fn generated_text(name: &str, file: &SceneFile) -> Result<String, SceneError> {
+    // no file name here: the scene's hash (provenance, shards) must not depend on the path
+    let header = "# Translated from a Mitsuba 3 scene by pathspace's importer.\n".to_string();
+    toml::to_string(file)
+        .map(|t| header + &t)
+        .map_err(|e| SceneError {
+            file: name.to_string(),
+            line: None,
+            key: FILE_KEY.into(),
+            message: format!("the translated scene cannot be written: {e}"),
+        })
+}
+
+/// The origin of a scene built from XML: `Origin::format`.
+pub const FORMAT: &str = "Mitsuba 3 XML";
+
+/// Whether `origin` came from this importer.
+pub fn is_mitsuba(origin: &Origin) -> bool {
+    origin.format == FORMAT
+}
