@@ -48,6 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Bsdf::RoughConductor(RoughConductor {
             alpha,
             fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+            one_sided: false,
         })
     };
     let root = SVGBackend::new(&out, (900, 720)).into_drawing_area();

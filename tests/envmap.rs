@@ -86,6 +86,7 @@ fn load(text: &str, dir: &std::path::Path) -> Result<Scene, pathspace::scene::Sc
         name: "envmap.toml".into(),
         text: text.into(),
         base_dir: dir.to_path_buf(),
+        origin: None,
     };
     Scene::load(&source)
 }

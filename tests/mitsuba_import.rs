@@ -305,6 +305,48 @@ radiance = 0.25
     );
 }
 
+/// `envmap`: the file relative to the XML, `scale`, and `to_world` as the map light's
+/// rotation (the mapping itself is Mitsuba's, pinned texel by texel in `tests/envmap.rs`); a
+/// translation is refused.
+#[test]
+fn envmap_is_the_map_light_turned_by_to_world() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>
+    <emitter type="envmap">
+        <string name="filename" value="scenes/envmap-sky.exr"/><float name="scale" value="2"/>
+        <transform name="to_world"><rotate y="1" angle="90"/></transform>
+    </emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials."bsdf@8"]
+type = "lambert"
+albedo = 0.5
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "bsdf@8"
+[[lights]]
+type = "environment"
+map = "scenes/envmap-sky.exr"
+scale = 2.0
+to_world = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]
+"#
+        ),
+    );
+    let moved = scene(
+        r#"<emitter type="envmap"><string name="filename" value="scenes/envmap-sky.exr"/>
+        <transform name="to_world"><translate x="1"/></transform></emitter>"#,
+    );
+    let err = xml(&moved).err().expect("a translated envmap is refused");
+    assert!(
+        err.contains("t.xml:8:") && err.contains("rotation"),
+        "{err}"
+    );
+}
+
 /// The fog box as shipped for Mitsuba (`benches/mitsuba-fog-box.xml`, one-sided walls, its
 /// medium box grown behind them) and with the exact cube renders like `scenes/fog-box.toml`
 /// (two-sided walls whose backs no path reaches) within error.
@@ -365,7 +407,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             r#"<shape type="rectangle"><bsdf type="plastic"/></shape>"#,
             "`plastic`",
         ),
-        (r#"<emitter type="envmap"/>"#, "the emitter `envmap`"),
+        (r#"<emitter type="envmap"/>"#, "`filename` is missing"),
         (
             r#"<shape type="rectangle"><bsdf type="roughconductor"/></shape>"#,
             "beckmann",

@@ -407,7 +407,7 @@ pub enum LightDesc {
 
 /// `sampling = "..."` of an environment map: directions by the map's luminance (the default),
 /// or uniform on the sphere (for comparisons).
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum EnvSamplingDesc {
     #[default]

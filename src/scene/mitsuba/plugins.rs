@@ -670,11 +670,15 @@ impl<'a, 'd> Importer<'a, 'd> {
                     zenith,
                     horizon,
                     nadir,
+                    map: None,
+                    scale: None,
+                    to_world: None,
+                    sampling: None,
                 };
                 (env, format!("constant environment, radiance {}", show(r)))
             }
             "constant" => return Err(p.err("a constant emitter takes no to_world")),
-            "envmap" => return Err(p.err("the emitter `envmap` is not supported yet")),
+            "envmap" => envmap(&mut p, m)?,
             "area" => return Err(p.err("an `area` emitter belongs inside a <shape>")),
             k => {
                 return Err(p.err(format!(
@@ -692,6 +696,38 @@ impl<'a, 'd> Importer<'a, 'd> {
 
 /// A light and its note.
 type Lighting = Result<(LightDesc, String), SceneError>;
+
+/// `envmap`: a lat-long EXR (`filename`, relative to the XML file) times `scale`, turned by
+/// the rotation `to_world` (the mapping is Mitsuba's; pathspace looks texels up without
+/// Mitsuba's bilinear interpolation).
+fn envmap(p: &mut Props, m: Option<DMat4>) -> Lighting {
+    let map = p
+        .string("filename")?
+        .ok_or_else(|| p.err("`filename` is missing"))?;
+    let scale = p.float("scale")?.map(|x| x as f32);
+    let to_world = match m {
+        None => None,
+        Some(m) if m.w_axis.truncate() != DVec3::ZERO => return Err(p.err(
+            "an envmap's to_world must be a rotation (a translation has no meaning at infinity)",
+        )),
+        Some(m) => Some([0, 1, 2].map(|i| m.row(i).truncate().to_array().map(|x| x as f32))),
+    };
+    let how = format!(
+        "environment map `{map}`, scale {}, sampled by luminance, texels looked up without interpolation",
+        scale.unwrap_or(1.0)
+    );
+    let light = LightDesc::Environment {
+        radiance: None,
+        zenith: None,
+        horizon: None,
+        nadir: None,
+        map: Some(map),
+        scale,
+        to_world,
+        sampling: None,
+    };
+    Ok((light, how))
+}
 
 /// `point`: at `position` or the origin of `to_world`, `intensity` in W/sr.
 fn point(p: &mut Props, m: Option<DMat4>) -> Lighting {
