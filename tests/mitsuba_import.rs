@@ -340,7 +340,9 @@ to_world = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]
         r#"<emitter type="envmap"><string name="filename" value="scenes/envmap-sky.exr"/>
         <transform name="to_world"><translate x="1"/></transform></emitter>"#,
     );
-    let err = xml(&moved).err().expect("a translated envmap is refused");
+    let Err(err) = xml(&moved) else {
+        panic!("a translated envmap is refused")
+    };
     assert!(
         err.contains("t.xml:8:") && err.contains("rotation"),
         "{err}"
