@@ -224,37 +224,21 @@ pub fn write_replacing(
 /// Reads an RGB(A) EXR written by pathspace or any other renderer, with its string and number
 /// attributes as text.
 pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
-    use exr::prelude::*;
-    let img = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgba_channels(
-            |resolution, _| {
-                super::image_io::Image::new(resolution.width() as u32, resolution.height() as u32)
-            },
-            |image: &mut super::image_io::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                let w = image.width as usize;
-                image.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| io_err(path, e))?;
+    let file = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
+    let (pixels, attributes) = decode_rgb(path, std::io::BufReader::new(file))?;
     let mut meta = ImageMeta::default();
-    for (k, v) in &img.layer_data.attributes.other {
+    for (k, v) in &attributes {
         if let Some(t) = attribute_text(v) {
             meta.attributes.insert(k.to_string(), t);
         }
     }
-    Ok((img.layer_data.channel_data.pixels, meta))
+    Ok((pixels, meta))
 }
 
 /// Reads the RGB channels of an EXR input image (an environment map) of at most `max_bytes`
 /// bytes and `max_pixels` pixels: the sizes in the header are checked before any pixel is
 /// decoded, so a small file declaring a huge image is refused, not allocated.
 pub fn read_exr_input(path: &Path, max_bytes: u64, max_pixels: usize) -> Result<Image, ImageError> {
-    use exr::prelude::*;
     let bytes = crate::conventions::read_at_most(path, max_bytes).map_err(|e| io_err(path, e))?;
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
         .map_err(|e| io_err(path, e))?;
@@ -267,23 +251,40 @@ pub fn read_exr_input(path: &Path, max_bytes: u64, max_pixels: usize) -> Result<
             ));
         }
     }
+    Ok(decode_rgb(path, std::io::Cursor::new(bytes))?.0)
+}
+
+/// A layer's attributes other than the standard ones, as the exr crate keeps them.
+type ExrAttributes =
+    std::collections::HashMap<exr::meta::attribute::Text, exr::meta::attribute::AttributeValue>;
+
+/// The RGB pixels of the first valid layer of an EXR (alpha dropped) and the layer's other
+/// attributes; errors name `path`.
+fn decode_rgb(
+    path: &Path,
+    source: impl std::io::Read + std::io::Seek + Send,
+) -> Result<(Image, ExrAttributes), ImageError> {
+    use exr::prelude::*;
     let img = read()
         .no_deep_data()
         .largest_resolution_level()
         .rgba_channels(
             |resolution, _| {
-                super::image_io::Image::new(resolution.width() as u32, resolution.height() as u32)
+                crate::image_io::Image::new(resolution.width() as u32, resolution.height() as u32)
             },
-            |image: &mut super::image_io::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            |image: &mut crate::image_io::Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
                 let w = image.width as usize;
                 image.pixels[pos.y() * w + pos.x()] = Rgb::new(r, g, b);
             },
         )
         .first_valid_layer()
         .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
+        .from_buffered(source)
         .map_err(|e| io_err(path, e))?;
-    Ok(img.layer_data.channel_data.pixels)
+    Ok((
+        img.layer_data.channel_data.pixels,
+        img.layer_data.attributes.other,
+    ))
 }
 
 /// The sRGB transfer function of a linear value, clamped to [0, 1].
