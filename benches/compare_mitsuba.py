@@ -22,14 +22,13 @@ term-by-term comparison of the book's "Measuring a renderer".
 """
 import argparse
 import os
-import resource
 import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 XML = os.path.join(ROOT, "benches", "mitsuba-fog-box.xml")
 SCENE = os.path.join(ROOT, "scenes", "fog-box.toml")
-EPSILON = 1e-2  # measure::metrics::RELMSE_EPSILON
+from exr_metrics import EPSILON, child_cpu, read, relmse  # noqa: E402,F401
 
 
 def worker(variant, spp, seed, out, res, max_depth):
@@ -44,9 +43,6 @@ def worker(variant, spp, seed, out, res, max_depth):
     mi.Bitmap(img).write(out)
 
 
-def child_cpu():
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
 
 
 def render(renderer, spp, seed, out, a):
@@ -64,20 +60,8 @@ def render(renderer, spp, seed, out, a):
     return child_cpu() - before
 
 
-def read(path):
-    import numpy as np
-    import OpenEXR
-    import Imath
-    f = OpenEXR.InputFile(path)
-    dw = f.header()["dataWindow"]
-    w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
-    ch = [np.frombuffer(f.channel(c, Imath.PixelType(Imath.PixelType.FLOAT)), dtype=np.float32)
-          for c in "RGB"]
-    return np.stack(ch, -1).reshape(h, w, 3).astype(np.float64)
 
 
-def relmse(img, ref):
-    return float((((img - ref) ** 2) / (ref ** 2 + EPSILON)).mean())
 
 
 def spp_for_budget(renderer, a, scratch):

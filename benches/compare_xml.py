@@ -22,14 +22,13 @@ pathspace reads the XML with its own defaults ($spp is overridden by --spp in bo
 import argparse
 import math
 import os
-import resource
 import re
 import subprocess
 import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-EPSILON = 1e-2  # measure::metrics::RELMSE_EPSILON
+from exr_metrics import EPSILON, child_cpu, read, relmse  # noqa: E402,F401
 
 
 def worker(variant, xml, spp, seed, out):
@@ -43,9 +42,6 @@ def worker(variant, xml, spp, seed, out):
     mi.Bitmap(img).write(out)
 
 
-def child_cpu():
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
 
 
 def render(renderer, a, seed, out):
@@ -63,20 +59,8 @@ def render(renderer, a, seed, out):
     return child_cpu() - before
 
 
-def read(path):
-    import numpy as np
-    import OpenEXR
-    import Imath
-    f = OpenEXR.InputFile(path)
-    dw = f.header()["dataWindow"]
-    w, h = dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1
-    ch = [np.frombuffer(f.channel(c, Imath.PixelType(Imath.PixelType.FLOAT)), dtype=np.float32)
-          for c in "RGB"]
-    return np.stack(ch, -1).reshape(h, w, 3).astype(np.float64)
 
 
-def relmse(img, ref):
-    return float((((img - ref) ** 2) / (ref ** 2 + EPSILON)).mean())
 
 
 def welch_p(m1, s1, n1, m2, s2, n2):
