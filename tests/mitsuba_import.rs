@@ -667,3 +667,25 @@ fn info_lists_what_was_imported_and_how() {
         assert!(text.contains(line), "`{line}` missing from:\n{text}");
     }
 }
+
+/// pathspace does not clip: a near clip beyond Mitsuba's default would give another image, so
+/// it is refused at its line; the defaults themselves are accepted.
+#[test]
+fn clipping_beyond_mitsubas_defaults_is_refused() {
+    let text = scene("").replace(
+        "<float name=\"fov\" value=\"60\"/>",
+        "<float name=\"fov\" value=\"60\"/><float name=\"near_clip\" value=\"0.5\"/>",
+    );
+    let Err(err) = xml(&text) else {
+        panic!("near_clip = 0.5 must be refused")
+    };
+    assert!(
+        err.contains("t.xml:3:") && err.contains("near_clip"),
+        "{err}"
+    );
+    let defaults = scene("").replace(
+        "<float name=\"fov\" value=\"60\"/>",
+        "<float name=\"fov\" value=\"60\"/><float name=\"near_clip\" value=\"0.01\"/><float name=\"far_clip\" value=\"10000\"/>",
+    );
+    xml(&defaults).unwrap();
+}

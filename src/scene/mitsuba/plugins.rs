@@ -219,7 +219,13 @@ impl<'a, 'd> Importer<'a, 'd> {
                 return Err(p.err(format!("a nonzero {k} is not supported")));
             }
         }
-        p.ignore(&["near_clip", "far_clip"]);
+        // pathspace does not clip: only Mitsuba's defaults (or wider) give the same image
+        if p.float("near_clip")?.is_some_and(|x| x > 0.01) {
+            return Err(p.err("a near_clip above Mitsuba's default 0.01 is not supported (pathspace does not clip)"));
+        }
+        // a far clip matters only inside the scene's extent, which the sensor cannot see here:
+        // accepted, and `info` says it is not applied
+        p.ignore(&["far_clip"]);
         let medium = match p.object("medium", None)? {
             Some(m) => Some(self.medium(m)?),
             None => None,
@@ -270,7 +276,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             node,
             "camera",
             format!(
-                "pinhole, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; near/far clips not modelled",
+                "pinhole, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
                 (2.0 * tan_y.atan()).to_degrees(),
                 medium.as_deref().unwrap_or("vacuum")
             ),
