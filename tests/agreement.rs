@@ -578,6 +578,14 @@ fn agreement_nested() {
     fam.finish();
 }
 
+/// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
+#[test]
+fn agreement_disk() {
+    let mut fam = Family::new("agreement: disk");
+    check_row(&mut fam, &row("disk", fixture("disk.toml"), 3));
+    fam.finish();
+}
+
 #[test]
 fn agreement_specular() {
     let mut fam = Family::new("agreement: specular");

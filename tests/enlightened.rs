@@ -513,6 +513,14 @@ fn light_map_round_trips() {
             )
             .unwrap(),
         ),
+        Primitive::Disk(
+            pathspace::geometry::Disk::new(
+                glam::Vec3::new(0.3, -0.2, 0.1),
+                glam::Vec3::new(0.7, 0.1, 0.0),
+                glam::Vec3::new(-0.1, 0.3, 0.4),
+            )
+            .unwrap(),
+        ),
     ];
     for prim in prims {
         for _ in 0..2000 {

@@ -1,6 +1,6 @@
 //! Geometry, executable: the BVH agrees with brute force, the coplanar tie-break rule holds in
 //! either insertion order, spawned rays do not re-hit their own surface, spheres work from both
-//! sides, and a box's faces point outwards. Book: "Scenes and geometry".
+//! sides, disks are hit inside their ellipse only, and a box's faces point outwards. Book: "Scenes and geometry".
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
@@ -8,7 +8,7 @@ use rand_pcg::Pcg64Mcg;
 
 use pathspace::geometry::bvh::TIE_EPSILON;
 use pathspace::geometry::shape::{Quad, Sphere, Triangle};
-use pathspace::geometry::{offset_origin, Bvh, Primitive, Ray};
+use pathspace::geometry::{offset_origin, Bvh, Disk, Primitive, Ray};
 use pathspace::scene::{Scene, SceneSource};
 
 fn rng(seed: u64) -> Pcg64Mcg {
@@ -37,17 +37,18 @@ fn point(r: &mut Pcg64Mcg, half: f32) -> Vec3 {
     )
 }
 
-/// A soup of `n` primitives in [-10, 10]^3: small and large triangles, quads and spheres.
+/// A soup of `n` primitives in [-10, 10]^3: small and large triangles, quads, disks and spheres.
 fn soup(r: &mut Pcg64Mcg, n: usize) -> Vec<Primitive> {
     let mut prims = Vec::with_capacity(n);
     while prims.len() < n {
         let c = point(r, 10.0);
         let size = if r.random::<f32>() < 0.1 { 5.0 } else { 0.8 };
-        let p = match r.random_range(0..4) {
+        let p = match r.random_range(0..5) {
             0 | 1 => {
                 Triangle::new(c, c + size * unit(r), c + size * unit(r)).map(Primitive::Triangle)
             }
             2 => Quad::new(c, size * unit(r), size * unit(r)).map(Primitive::Quad),
+            3 => Disk::new(c, size * unit(r), size * unit(r)).map(Primitive::Disk),
             _ => Some(Primitive::Sphere(Sphere {
                 center: c,
                 radius: 0.1 + 0.5 * size * r.random::<f32>(),
@@ -257,6 +258,9 @@ fn opaque_wins_a_coplanar_tie_in_either_order() {
             Primitive::Quad(q) => {
                 Primitive::Quad(Quad::new(q.origin + 25.0 * Vec3::Z, q.u, q.v).unwrap())
             }
+            Primitive::Disk(d) => {
+                Primitive::Disk(Disk::new(d.center + 25.0 * Vec3::Z, d.u, d.v).unwrap())
+            }
         })
         .collect::<Vec<_>>();
     for wall_first in [true, false] {
@@ -435,6 +439,52 @@ fn sphere_from_outside_and_inside() {
             "leaving, the outward normal faces along the ray"
         );
         assert!((o + t * d - p).length() < 1e-4);
+    }
+}
+
+// ---- disks ----
+
+/// An elliptic disk is hit where a^2 + b^2 <= 1 in its axes' coordinates and nowhere else, at
+/// the plane's distance, with the normal u x v; its sampled points lie on it (a ray aimed at
+/// one hits it there), and its area is pi |u x v|.
+#[test]
+fn disk_is_hit_inside_its_ellipse_only() {
+    let (c, u, v) = (
+        Vec3::new(0.5, -1.0, 2.0),
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.6, 0.8),
+    );
+    let disk = Primitive::Disk(Disk::new(c, u, v).unwrap());
+    let n = u.cross(v).normalize();
+    assert!((disk.area() - std::f32::consts::PI * u.cross(v).length()).abs() < 1e-5);
+    let mut r = rng(11);
+    for _ in 0..4000 {
+        let (a, b) = (r.random_range(-1.3..1.3f32), r.random_range(-1.3..1.3f32));
+        let target = c + a * u + b * v;
+        let o = target + 3.0 * n + 0.5 * unit(&mut r);
+        let d = (target - o).normalize();
+        let hit = disk.intersect(&Ray::new(o, d), f32::INFINITY);
+        let rho2 = a * a + b * b;
+        if (rho2 - 1.0).abs() < 1e-3 {
+            continue; // the rim: either answer is within rounding
+        }
+        match hit {
+            Some((t, p, ng)) => {
+                assert!(rho2 < 1.0, "hit outside the ellipse at {a}, {b}");
+                assert!((p - target).length() < 1e-4 && (t - (target - o).length()).abs() < 1e-4);
+                assert!(ng.abs_diff_eq(n, 1e-6));
+            }
+            None => assert!(rho2 > 1.0, "missed inside the ellipse at {a}, {b}"),
+        }
+    }
+    // sampled points are on the disk: a ray from above hits each where it was sampled
+    for _ in 0..1000 {
+        let (p, ng) = disk.sample_area(glam::Vec2::new(r.random(), r.random()));
+        let o = p + 2.0 * n;
+        let (_, q, _) = disk
+            .intersect(&Ray::new(o, -n), f32::INFINITY)
+            .expect("a sampled point is on the disk");
+        assert!((q - p).length() < 1e-4 && ng.abs_diff_eq(n, 1e-6));
     }
 }
 

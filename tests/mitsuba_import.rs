@@ -135,6 +135,44 @@ material = "default diffuse"
     );
 }
 
+/// `disk` is the unit disk at z = 0 with normal +z, an ellipse under a scale, its normal
+/// reversed by `flip_normals`.
+#[test]
+fn disk_extent_and_normal_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="disk"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter>
+        <transform name="to_world"><scale x="0.5" y="0.25"/><translate y="1"/></transform>
+    </shape>
+    <shape type="disk">
+        <boolean name="flip_normals" value="true"/>
+        <transform name="to_world"><scale x="2" y="1.5"/><translate z="-1"/></transform>
+        <bsdf type="diffuse" id="diffuse"/>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.diffuse]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "disk"
+center = [0.0, 1.0, 0.0]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.25, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "disk"
+center = [0.0, 0.0, -1.0]
+u = [0.0, 1.5, 0.0]
+v = [2.0, 0.0, 0.0]
+material = "diffuse"
+"#
+        ),
+    );
+}
+
 /// `cube` is [-1,1]^3; a homogeneous medium's `sigma_t` and `albedo` (times `scale`) are
 /// sigma_s = sigma_t albedo and sigma_a = sigma_t (1 - albedo); `hg`'s g keeps its sign
 /// (forward for g > 0 in both); a black emitter is an emitter without a material.
@@ -404,7 +442,7 @@ fn the_fog_box_in_xml_renders_like_the_toml() {
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
     let cases: [(&str, &str); 14] = [
-        (r#"<shape type="disk"/>"#, "the shape `disk`"),
+        (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
         (
             r#"<shape type="rectangle"><bsdf type="plastic"/></shape>"#,
             "`plastic`",

@@ -259,6 +259,42 @@ v = [0.2, 0.0, 0.0]
     fam.finish();
 }
 
+/// A disk light of radius R and radiance L facing a meter on its axis at distance h subtends a
+/// cone of half-angle alpha with sin^2 alpha = R^2 / (h^2 + R^2): E = pi L sin^2 alpha. Both
+/// strategies are used (the disk's points sampled by area through the concentric map, and the
+/// cosine-sampled continuation hitting the disk), so a wrong area, a non-uniform sampler or a
+/// wrong intersection test each moves the estimate.
+#[test]
+fn meter_under_a_disk_light_measures_pi_l_sin2_alpha() {
+    let text = r#"
+[render]
+meter_samples = 65536
+[[shapes]]
+type = "disk"
+center = [0.0, 1.0, 0.0]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.0, 0.5]
+emission = 2.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.001, 0.0, -0.001]
+u = [0.0, 0.0, 0.002]
+v = [0.002, 0.0, 0.0]
+"#;
+    let m = meters(&load_with(text), 1, 9, None);
+    let mut fam = Family::new("transport: meter under a disk light");
+    let (r2, h2) = (0.25, 1.0);
+    check(
+        &mut fam,
+        "E = pi L sin^2 alpha",
+        &m[0],
+        0,
+        std::f64::consts::PI * 2.0 * r2 / (h2 + r2),
+    );
+    fam.finish();
+}
+
 /// The image of a point light on the pinhole's film (Pauly et al. eq. 5 with both ends
 /// Diracs: no walk from the camera can hit it, so `delta_light_view` splats it): a light of
 /// intensity I on the optical axis at distance d puts its irradiance E = I / d^2 into one

@@ -1,4 +1,5 @@
-//! Primitives: parallelograms ("quads"), triangles and spheres, with intersection and uniform
+//! Primitives: parallelograms ("quads"), triangles, spheres and (elliptic) disks, with
+//! intersection and uniform
 //! area sampling (area lights, irradiance meters and BDPT need points with an area density).
 
 use glam::{Vec2, Vec3};
@@ -69,6 +70,39 @@ impl Triangle {
     }
 }
 
+/// An elliptic disk `center + a u + b v`, a^2 + b^2 <= 1 (Mitsuba's unit `disk` under an affine
+/// map: `u`, `v` are the images of its x and y axes); geometric normal `normalize(u x v)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Disk {
+    pub center: Vec3,
+    pub u: Vec3,
+    pub v: Vec3,
+    /// Unit normal `normalize(u x v)`.
+    pub n: Vec3,
+    /// `(u x v) / |u x v|^2`, for the coordinates (a, b) of a hit, as for [`Quad`].
+    w: Vec3,
+    area: f32,
+}
+
+impl Disk {
+    /// A disk; `None` when `u` and `v` are parallel (zero area).
+    pub fn new(center: Vec3, u: Vec3, v: Vec3) -> Option<Self> {
+        let c = u.cross(v);
+        let len2 = c.length_squared();
+        if len2 <= 0.0 || !len2.is_finite() {
+            return None;
+        }
+        Some(Disk {
+            center,
+            u,
+            v,
+            n: c / len2.sqrt(),
+            w: c / len2,
+            area: std::f32::consts::PI * len2.sqrt(),
+        })
+    }
+}
+
 /// A sphere; the geometric normal points outwards.
 #[derive(Clone, Copy, Debug)]
 pub struct Sphere {
@@ -82,6 +116,7 @@ pub enum Primitive {
     Quad(Quad),
     Triangle(Triangle),
     Sphere(Sphere),
+    Disk(Disk),
 }
 
 /// A ray-primitive intersection.
@@ -111,6 +146,14 @@ impl Primitive {
                 min: s.center - Vec3::splat(s.radius),
                 max: s.center + Vec3::splat(s.radius),
             },
+            Primitive::Disk(d) => {
+                // the ellipse's extent along axis i is sqrt(u_i^2 + v_i^2)
+                let r = Vec3::from_array((d.u * d.u + d.v * d.v).to_array().map(f32::sqrt));
+                Aabb {
+                    min: d.center - r,
+                    max: d.center + r,
+                }
+            }
         }
     }
 
@@ -119,6 +162,7 @@ impl Primitive {
             Primitive::Quad(q) => q.area,
             Primitive::Triangle(t) => t.area,
             Primitive::Sphere(s) => 4.0 * std::f32::consts::PI * s.radius * s.radius,
+            Primitive::Disk(d) => d.area,
         }
     }
 
@@ -200,6 +244,23 @@ impl Primitive {
                 let n = (ray.at(t) - s.center).normalize();
                 Some((t, s.center + n * s.radius, n))
             }
+            Primitive::Disk(d) => {
+                let denom = d.n.dot(ray.d);
+                if denom == 0.0 {
+                    return None;
+                }
+                let t = d.n.dot(d.center - ray.o) / denom;
+                if !(t > t_min && t < t_max) {
+                    return None;
+                }
+                let rel = ray.at(t) - d.center;
+                let a = d.w.dot(rel.cross(d.v));
+                let b = d.w.dot(d.u.cross(rel));
+                if a * a + b * b > 1.0 {
+                    return None;
+                }
+                Some((t, d.center + a * d.u + b * d.v, d.n))
+            }
         }
     }
 
@@ -214,6 +275,11 @@ impl Primitive {
             Primitive::Sphere(s) => {
                 let n = warp::uniform_sphere(u);
                 (s.center + n * s.radius, n)
+            }
+            Primitive::Disk(d) => {
+                // an affine map keeps the unit disk's uniform density uniform
+                let p = warp::concentric_disk(u);
+                (d.center + p.x * d.u + p.y * d.v, d.n)
             }
         }
     }
@@ -235,6 +301,10 @@ impl Primitive {
             Primitive::Sphere(s) => {
                 let n = (p - s.center).normalize_or_zero();
                 clamp(warp::uniform_sphere_inverse(n))
+            }
+            Primitive::Disk(d) => {
+                let (a, b) = plane_coordinates(p - d.center, d.u, d.v);
+                clamp(warp::concentric_disk_inverse(Vec2::new(a, b)))
             }
         }
     }

@@ -52,6 +52,30 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
+/// The inverse of [`concentric_disk`]: the `u` in [0, 1]^2 that maps to the point `d` of the
+/// unit disk (the disk's point sampled on an emitter, for the adjoint image's cells).
+pub fn concentric_disk_inverse(d: Vec2) -> Vec2 {
+    let r = d.length();
+    if r == 0.0 {
+        return Vec2::splat(0.5);
+    }
+    // theta in (-pi/4, 7pi/4]: the square's four triangles, as `concentric_disk` splits them
+    let mut theta = d.y.atan2(d.x);
+    if theta < -PI / 4.0 {
+        theta += 2.0 * PI;
+    }
+    let o = if theta < PI / 4.0 {
+        Vec2::new(r, r * theta / (PI / 4.0))
+    } else if theta < 3.0 * PI / 4.0 {
+        Vec2::new(r * (PI / 2.0 - theta) / (PI / 4.0), r)
+    } else if theta < 5.0 * PI / 4.0 {
+        Vec2::new(-r, r * (PI - theta) / (PI / 4.0))
+    } else {
+        Vec2::new(-r * (3.0 * PI / 2.0 - theta) / (PI / 4.0), -r)
+    };
+    (o + Vec2::ONE) * 0.5
+}
+
 /// Uniform point on a triangle as two barycentrics (b0, b1), the third being 1 - b0 - b1
 /// (Heitz 2019, "A low-distortion map between triangle and square", listing 1); density 2 on
 /// {b0, b1 >= 0, b0 + b1 <= 1}.

@@ -297,6 +297,20 @@ pub enum ShapeDesc {
         interior: Option<String>,
         exterior: Option<String>,
     },
+    /// An elliptic disk `center + a u + b v`, a^2 + b^2 <= 1 (a circle of radius r when u and
+    /// v are orthogonal of length r); normal `normalize(u x v)`.
+    Disk {
+        #[serde(deserialize_with = "exact")]
+        center: [f32; 3],
+        #[serde(deserialize_with = "exact")]
+        u: [f32; 3],
+        #[serde(deserialize_with = "exact")]
+        v: [f32; 3],
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
     Mesh {
         obj: String,
         /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
@@ -335,6 +349,13 @@ impl ShapeDesc {
                 exterior,
                 ..
             }
+            | ShapeDesc::Disk {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
             | ShapeDesc::Mesh {
                 material,
                 emission,
@@ -356,6 +377,7 @@ impl ShapeDesc {
             ShapeDesc::Quad { .. } => "quad",
             ShapeDesc::Box { .. } => "box",
             ShapeDesc::Sphere { .. } => "sphere",
+            ShapeDesc::Disk { .. } => "disk",
             ShapeDesc::Mesh { .. } => "mesh",
         }
     }

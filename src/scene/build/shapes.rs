@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, HashMap};
 use super::media::Media;
 use super::values::{finite3, non_negative};
 use crate::bsdf::Bsdf;
-use crate::geometry::shape::{Quad, Sphere, Triangle};
+use crate::geometry::shape::{Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
 use crate::math::Distribution1D;
 use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
@@ -272,6 +272,19 @@ fn primitives(
                 center: c,
                 radius: *radius,
             }));
+        }
+        ShapeDesc::Disk { center, u, v, .. } => {
+            let c = finite3(src, &key.clone().key("center"), *center)?;
+            let u = finite3(src, &key.clone().key("u"), *u)?;
+            let v = finite3(src, &key.clone().key("v"), *v)?;
+            let d = Disk::new(c, u, v).ok_or_else(|| {
+                src.error(
+                    &key.clone().key("u"),
+                    "u and v are parallel: the disk has no area",
+                )
+            })?;
+            new.push(Primitive::Disk(d));
+            closed = false;
         }
         ShapeDesc::Mesh { obj, to_world, .. } => {
             let place = placement(src, key, to_world)?;

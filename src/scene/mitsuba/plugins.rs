@@ -552,8 +552,8 @@ impl<'a, 'd> Importer<'a, 'd> {
         let mut p = Props::new(self.doc, node)?;
         let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         let flip = p.boolean("flip_normals")? == Some(true);
-        if flip && p.plugin != "rectangle" {
-            return Err(p.err("flip_normals is supported on rectangles only"));
+        if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk") {
+            return Err(p.err("flip_normals is supported on rectangles and disks only"));
         }
         let [interior, exterior] = self.shape_media(&mut p)?;
         let bsdf = p.object("bsdf", None)?;
@@ -815,11 +815,12 @@ type Geometry = Result<(ShapeDesc, String), SceneError>;
 fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
     match p.plugin.as_str() {
         "rectangle" => Ok(rectangle(m, flip)),
+        "disk" => Ok(disk(m, flip)),
         "cube" => cube(p, m),
         "sphere" => sphere(p, m),
         "obj" | "ply" => mesh(p, m),
         k => Err(p.err(format!(
-            "the shape `{k}` is not supported (rectangle, cube, sphere, obj, ply are)"
+            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, obj, ply are)"
         ))),
     }
 }
@@ -849,6 +850,33 @@ fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
         exterior,
     };
     (quad, how)
+}
+
+/// `disk`: the unit disk at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+    let l = linear(m);
+    let c = m.transform_point3(DVec3::ZERO);
+    let (u, v) = (l * DVec3::X, l * DVec3::Y);
+    let (u, v) = if flip { (v, u) } else { (u, v) };
+    let how = format!(
+        "disk at {}, u {}, v {} (unit disk at z = 0 mapped, normal u x v{})",
+        show(c),
+        show(u),
+        show(v),
+        if flip { ", flipped" } else { "" }
+    );
+    let (center, u, v) = (f3(c), f3(u), f3(v));
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    let disk = ShapeDesc::Disk {
+        center,
+        u,
+        v,
+        material,
+        emission,
+        interior,
+        exterior,
+    };
+    (disk, how)
 }
 
 /// `cube`: [-1,1]^3 under a scale and a translation (pathspace's boxes are axis-aligned).
@@ -1092,6 +1120,13 @@ fn with_common(
             ..
         }
         | ShapeDesc::Sphere {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Disk {
             material: m,
             emission: e,
             interior: i,
