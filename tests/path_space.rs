@@ -720,7 +720,7 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
                     if shape
                         .bsdf
                         .as_ref()
-                        .is_some_and(|b| b.is_singular() && !b.is_null())
+                        .is_some_and(|b| b.has_dirac_lobe())
                     {
                         return true;
                     }
