@@ -855,9 +855,12 @@ fn plastic_albedo_is_the_closed_form_and_at_most_one_up_to_the_fits() {
                     let rho = rho[c] as f64;
                     let fdr = fresnel_diffuse_reflectance((1.0 / eta) as f32) as f64;
                     // the internal bounces: 1 / (1 - F_dr rho) or 1 / (1 - F_dr)
-                    let bounce = if nonlinear { 1.0 - fdr * rho } else { 1.0 - fdr };
-                    let expected =
-                        fo * rs[c] as f64 + (1.0 - fo) * rho * r * (1.0 - fdr) / bounce;
+                    let bounce = if nonlinear {
+                        1.0 - fdr * rho
+                    } else {
+                        1.0 - fdr
+                    };
+                    let expected = fo * rs[c] as f64 + (1.0 - fo) * rho * r * (1.0 - fdr) / bounce;
                     assert_close("plastic albedo", albedo, expected, 1e-4);
                     assert!(albedo <= r.max(1.0) + 1e-4, "albedo {albedo} at eta {eta}");
                 }
