@@ -616,6 +616,45 @@ fn agreement_glossy() {
     fam.finish();
 }
 
+/// Smooth plastic, the BSDF with a Dirac and a regular lobe: the camera sees the coat mirror
+/// the area light and the diffuse base, through haze (twice the samples: the row then resolves
+/// 2-7% of the mean). Light tracing cannot reach what the
+/// sensor sees in the coat (it warns); MLT refuses plastic by name.
+#[test]
+fn agreement_plastic() {
+    let mut fam = Family::new("agreement: plastic");
+    check_row(
+        &mut fam,
+        &Row {
+            spp: 2 * SPP,
+            refuse: &[("mlt*", "plastic")],
+            warn: &[("light*", "non-specular vertex")],
+            ..row("plastic", fixture("plastic.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+/// The plastic scene seen from where no plastic is in view: the wall lit by light the coats
+/// and bases reflected, so light tracing (its subpaths through Dirac and regular choices, its
+/// connections at plastic never) is compared too.
+#[test]
+fn agreement_plastic_hidden() {
+    let mut fam = Family::new("agreement: plastic, hidden");
+    let text = fixture("plastic.toml")
+        .replace("eye = [0.0, 0.6, 3.0]", "eye = [0.0, 1.0, 3.0]")
+        .replace("look_at = [0.0, -0.8, 0.0]", "look_at = [0.0, 1.6, 0.0]");
+    assert!(text.contains("look_at = [0.0, 1.6, 0.0]"));
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[("mlt*", "plastic")],
+            ..row("plastic-hidden", text, 3)
+        },
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");

@@ -343,6 +343,58 @@ radiance = 0.25
     );
 }
 
+/// `plastic`: Mitsuba's defaults (diffuse 0.5, specular 1, int_ior "polypropylene" over
+/// ext_ior "air", linear, one-sided), named and numeric indices, `nonlinear`, and `twosided`.
+#[test]
+fn plastic_parameters_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere"><bsdf type="plastic"/></shape>
+    <shape type="rectangle">
+        <bsdf type="twosided" id="coated"><bsdf type="plastic">
+            <rgb name="diffuse_reflectance" value="0.1, 0.4, 0.8"/><rgb name="specular_reflectance" value="1, 0.9, 0.7"/>
+            <string name="int_ior" value="water"/><float name="ext_ior" value="1.1"/><boolean name="nonlinear" value="true"/>
+        </bsdf></bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><float name="intensity" value="5"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials."bsdf@8"]
+type = "plastic"
+diffuse = 0.5
+specular = 1.0
+ior = {:?}
+one_sided = true
+[materials.coated]
+type = "plastic"
+diffuse = [0.1, 0.4, 0.8]
+specular = [1.0, 0.9, 0.7]
+ior = {:?}
+nonlinear = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "bsdf@8"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "coated"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = 5.0
+"#,
+            (1.49f64 / 1.000277) as f32,
+            (1.3330f64 / 1.1) as f32
+        ),
+    );
+}
+
 /// `envmap`: the file relative to the XML, `scale`, and `to_world` as the map light's
 /// rotation (the mapping itself is Mitsuba's, pinned texel by texel in `tests/envmap.rs`); a
 /// translation is refused.
@@ -444,8 +496,8 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
     let cases: [(&str, &str); 14] = [
         (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
         (
-            r#"<shape type="rectangle"><bsdf type="plastic"/></shape>"#,
-            "`plastic`",
+            r#"<shape type="rectangle"><bsdf type="roughplastic"/></shape>"#,
+            "`roughplastic`",
         ),
         (r#"<emitter type="envmap"/>"#, "`filename` is missing"),
         (

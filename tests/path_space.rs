@@ -717,11 +717,7 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
                     f32::INFINITY,
                 ) {
                     let shape = scene.shape_of(&hit);
-                    if shape
-                        .bsdf
-                        .as_ref()
-                        .is_some_and(|b| b.is_singular() && !b.is_null())
-                    {
+                    if shape.bsdf.as_ref().is_some_and(|b| b.has_dirac_lobe()) {
                         return true;
                     }
                     t_min = hit.t * (1.0 + 1e-5) + 1e-5;

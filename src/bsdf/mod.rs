@@ -1,12 +1,20 @@
 //! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
 //! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, the rough (GGX microfacet)
-//! conductor and dielectric (`conductor`, `rough_dielectric`, over `microfacet`), and the null
-//! (index-matched) boundary that only separates media.
+//! conductor and dielectric (`conductor`, `rough_dielectric`, over `microfacet`), smooth
+//! plastic (`plastic`: a Dirac coat over a diffuse base, the one model with a Dirac and a
+//! regular lobe), and the null (index-matched) boundary that only separates media.
 //!
 //! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
 //! without the cosine. Singular (delta) lobes return `value = weight * pdf / |cos wi|`, so that
 //! `value * |cos wi| / pdf` is the path weight, as every regular lobe.
+//!
+//! Three questions, three helpers: does the material have a regular lobe
+//! ([`Bsdf::has_regular_lobe`]: next-event estimation and connections may end there and see
+//! `eval`/`pdf`, the regular part only), a Dirac lobe ([`Bsdf::has_dirac_lobe`]: some light
+//! reaches it only by its own sampling), and did this sample take a Dirac
+//! ([`Lobe::is_singular`]: the vertex is then a Dirac vertex, with a discrete probability, no
+//! connection, and full weight for an emitter its ray hits). Plastic answers yes to all three.
 //!
 //! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/bsdf.rs`.
 
@@ -18,10 +26,12 @@ use crate::spectrum::Rgb;
 
 pub mod conductor;
 pub mod microfacet;
+pub mod plastic;
 pub mod rough_dielectric;
 
 pub use conductor::{ConductorFresnel, RoughConductor};
 pub use microfacet::Ggx;
+pub use plastic::Plastic;
 pub use rough_dielectric::RoughDielectric;
 
 // ANCHOR: transport_mode
@@ -46,6 +56,8 @@ pub enum Lobe {
 }
 
 impl Lobe {
+    /// True when this sampled lobe is a Dirac: the vertex that took it is a Dirac vertex (no
+    /// connection, a discrete probability), whatever other lobes its material has.
     pub fn is_singular(self) -> bool {
         self != Lobe::Regular
     }
@@ -83,6 +95,8 @@ pub enum Bsdf {
     RoughConductor(RoughConductor),
     /// A GGX microfacet dielectric interface (glossy reflection and refraction).
     RoughDielectric(RoughDielectric),
+    /// Smooth plastic: a Dirac coat reflection over a diffuse base (Mitsuba 3's `plastic`).
+    Plastic(Plastic),
     /// An index-matched boundary: light passes unchanged. Never a scattering vertex.
     Null,
 }
@@ -117,13 +131,33 @@ impl Bsdf {
         matches!(self, Bsdf::Null)
     }
 
-    /// True when every lobe is singular (no light sampling at such a vertex).
-    pub fn is_singular(&self) -> bool {
-        // exhaustive, so that a new model has to say which kind it is
+    /// True when the material has a regular lobe (a density over solid angle): next-event
+    /// estimation and connections may end at it, and they see that lobe only. The match is
+    /// exhaustive, so that a new model has to say which lobes it has.
+    pub fn has_regular_lobe(&self) -> bool {
         match self {
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null => true,
-            Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null => false,
+            Bsdf::Lambert { .. }
+            | Bsdf::RoughConductor(_)
+            | Bsdf::RoughDielectric(_)
+            | Bsdf::Plastic(_) => true,
         }
+    }
+
+    /// True when the material has a Dirac lobe: some of its light is scattered into one
+    /// direction, which no connection and no light sample can reach (only its own sampling).
+    pub fn has_dirac_lobe(&self) -> bool {
+        match self {
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Plastic(_) => true,
+            Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
+            Bsdf::Null => false,
+        }
+    }
+
+    /// True when every lobe is a Dirac (mirror, glass; the null boundary has none): every
+    /// vertex on it is a Dirac vertex, whatever was sampled there.
+    pub fn only_dirac_lobes(&self) -> bool {
+        !self.has_regular_lobe()
     }
 
     /// True when `wo` sees the back of a one-sided opaque model, which is black there (Mitsuba
@@ -134,13 +168,15 @@ impl Bsdf {
         let one_sided = match self {
             Bsdf::Lambert { one_sided, .. } | Bsdf::Mirror { one_sided, .. } => *one_sided,
             Bsdf::RoughConductor(c) => c.one_sided,
+            Bsdf::Plastic(p) => p.one_sided,
             Bsdf::Dielectric { .. } | Bsdf::RoughDielectric(_) | Bsdf::Null => false,
         };
         one_sided && wo.dot(n) <= 0.0
     }
     // ANCHOR_END: black_behind
 
-    /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction).
+    /// f_s(wo, wi): zero for singular lobes (a Dirac cannot be evaluated at a given direction);
+    /// the regular lobe alone for a model with both.
     // ANCHOR: bsdf_eval
     pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, mode: TransportMode) -> Rgb {
         if self.black_behind(wo, n) {
@@ -157,12 +193,14 @@ impl Bsdf {
             }
             Bsdf::RoughConductor(c) => c.eval(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.eval(wo, wi, n, mode),
+            Bsdf::Plastic(p) => p.eval(wo, wi, n),
             _ => Rgb::ZERO,
         }
     }
     // ANCHOR_END: bsdf_eval
 
-    /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (zero for singular lobes).
+    /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (zero for singular lobes;
+    /// for a model with both, the regular lobe's density times the probability of taking it).
     pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         if self.black_behind(wo, n) {
             return 0.0;
@@ -172,6 +210,7 @@ impl Bsdf {
             Bsdf::Lambert { .. } if wo.dot(n) * wi.dot(n) > 0.0 => wi.dot(n).abs() * FRAC_1_PI,
             Bsdf::RoughConductor(c) => c.pdf(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.pdf(wo, wi, n),
+            Bsdf::Plastic(p) => p.pdf(wo, wi, n),
             _ => 0.0,
         }
     }
@@ -257,6 +296,7 @@ impl Bsdf {
             // ANCHOR_END: dielectric_sample
             Bsdf::RoughConductor(c) => c.sample(wo, n, u),
             Bsdf::RoughDielectric(d) => d.sample(wo, n, u, uc, mode),
+            Bsdf::Plastic(p) => p.sample(wo, n, u, uc),
             Bsdf::Null => None,
         }
     }

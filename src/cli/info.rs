@@ -63,6 +63,13 @@ fn bsdf(b: &Option<Bsdf>) -> String {
         Some(Bsdf::RoughDielectric(d)) => {
             format!("rough dielectric, ior {}, alpha {}", d.ior, d.alpha)
         }
+        Some(Bsdf::Plastic(p)) => format!(
+            "plastic, diffuse {}, specular {}, ior {}{}",
+            v3(p.diffuse),
+            v3(p.specular),
+            p.eta,
+            if p.nonlinear { ", nonlinear" } else { "" }
+        ),
         Some(Bsdf::Null) => "null (index-matched boundary)".into(),
     };
     format!("{model}{sides}")

@@ -490,7 +490,12 @@ impl Guide {
         let field = self.field(mode);
         let medium = match v.kind {
             VertexKind::Surface { .. } if self.settings.kind.surface() => {
-                if v.bsdf(scene).is_none_or(Bsdf::is_singular) {
+                // a mixture with a Dirac lobe is not guided: the guided density is over solid
+                // angle, and the BSDF's own sampling (with its discrete lobe choice) stays exact
+                if !v
+                    .bsdf(scene)
+                    .is_some_and(|b| b.has_regular_lobe() && !b.has_dirac_lobe())
+                {
                     return None;
                 }
                 None

@@ -549,6 +549,11 @@ fn full_path(
     let mut x: Vec<Vertex> = Vec::with_capacity(k + 1);
     x.extend_from_slice(light);
     x.extend(eye.iter().rev().copied());
+    // the two walks' last vertices are joined by the connection, not by whatever lobe their
+    // own walks took there (a plastic vertex may have taken its Dirac coat)
+    for j in [s.saturating_sub(1), s.min(k)] {
+        x[j].delta = false;
+    }
     if s == 0 {
         // the eye walk must have found an emitter: make it the light vertex
         let VertexKind::Surface { prim } = x[0].kind else {
@@ -613,8 +618,13 @@ impl<'a> FullPath<'a> {
         }
     }
 
+    /// f-hat at inner vertex m: zero at a Dirac vertex (its f-hat is not evaluated, see the
+    /// limitation above; plastic's regular lobe must not stand in for its coat).
     fn f_inner(&self, m: usize) -> Rgb {
         let x = self.x;
+        if x[m].delta {
+            return Rgb::ZERO;
+        }
         x[m].f_hat(self.scene, x[m - 1].p, x[m + 1].p)
     }
 

@@ -351,7 +351,8 @@ impl PathTracer {
         }
         w.depth += 1;
         let wo = -w.ray.d;
-        if !bsdf.is_singular() {
+        // the regular lobe's light by next-event estimation; a Dirac lobe's only by sampling
+        if bsdf.has_regular_lobe() {
             let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
             *l += w.beta
                 * next_event(scene, hit.p, Some(n), towards, sampler, |wi| {

@@ -90,7 +90,7 @@ fn specular_shapes(scene: &Scene) -> Vec<(String, Aabb)> {
         .filter(|(s, _)| {
             s.bsdf
                 .as_ref()
-                .is_some_and(|b| b.is_singular() && !s.is_null())
+                .is_some_and(|b| b.has_dirac_lobe() && !s.is_null())
         })
         .filter_map(|(s, b)| b.map(|b| (s.label.clone(), b)))
         .collect()

@@ -91,10 +91,15 @@ pub fn densities_into(
         d.prop_up[i] = e.pdf_ab;
         d.prop_down[i] = e.pdf_ba;
     }
+    // a scattering vertex that took a Dirac lobe (plastic's coat; a mirror's and glass's
+    // `pdf` is zero anyway) has no density, as the walks cache it (`Bdpt::scatter`)
+    let dirac = |j: usize| j > 0 && j + 1 < n && v[j].delta;
     // from the light
     for i in range.clone() {
         d.light[i] = if i == 0 {
             v[0].light_origin_pdf(scene, tech)
+        } else if dirac(i - 1) {
+            0.0
         } else {
             let prev = if i >= 2 { Some(v[i - 2].p) } else { None };
             v[i - 1].pdf_area(scene, tech, prev, &v[i], Importance) * d.prop_up[i - 1]
@@ -104,6 +109,8 @@ pub fn densities_into(
     for i in range.rev() {
         d.eye[i] = if i == n - 1 {
             sensor_position_pdf(scene, &v[n - 1])
+        } else if dirac(i + 1) {
+            0.0
         } else {
             let prev = if i + 2 < n { Some(v[i + 2].p) } else { None };
             v[i + 1].pdf_area(scene, tech, prev, &v[i], Radiance) * d.prop_down[i]

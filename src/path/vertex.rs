@@ -164,7 +164,7 @@ impl Vertex {
             VertexKind::InfiniteLight { light, .. } => {
                 !matches!(scene.lights[light as usize], Light::Directional { .. })
             }
-            VertexKind::Surface { .. } => self.bsdf(scene).is_some_and(|b| !b.is_singular()),
+            VertexKind::Surface { .. } => self.bsdf(scene).is_some_and(|b| b.has_regular_lobe()),
         }
     }
 

@@ -137,11 +137,30 @@ pub enum MaterialDesc {
         ior: f32,
         alpha: f32,
     },
+    /// Smooth plastic (Mitsuba 3's `plastic`): `diffuse` (default 0.5) under a dielectric coat
+    /// of `ior` inside over outside (default 1.49 / 1.000277) reflecting `specular` (default
+    /// 1) times Fresnel; `nonlinear` internal bounces; `one_sided` as for `lambert`.
+    Plastic {
+        #[serde(default = "half_rgb")]
+        diffuse: RgbValue,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
+        #[serde(default)]
+        ior: Option<f32>,
+        #[serde(default)]
+        nonlinear: bool,
+        #[serde(default)]
+        one_sided: bool,
+    },
     Null {},
 }
 
 fn one_rgb() -> RgbValue {
     RgbValue::Scalar(1.0)
+}
+
+fn half_rgb() -> RgbValue {
+    RgbValue::Scalar(0.5)
 }
 
 /// A phase function.

@@ -447,6 +447,13 @@ pub enum MltError {
          the scene's measure)"
     )]
     InfiniteLight,
+    /// A material with a Dirac and a regular lobe: MLT classifies a vertex's lobe by its
+    /// neighbours (`contribution::lobe_between`) and its f and densities by whole materials.
+    #[error(
+        "mlt does not support plastic (the material of {0}): a Dirac coat over a regular \
+         lobe, where its mutations and densities classify a vertex by its whole material"
+    )]
+    MixedLobes(String),
 }
 
 impl From<MltError> for String {
@@ -468,6 +475,14 @@ pub fn check_scene(scene: &Scene) -> Result<(), MltError> {
     }
     if scene.lights.iter().any(Light::is_infinite) {
         return Err(MltError::InfiniteLight);
+    }
+    let mixed = scene.shapes.iter().find(|s| {
+        s.bsdf
+            .as_ref()
+            .is_some_and(|b| b.has_dirac_lobe() && b.has_regular_lobe())
+    });
+    if let Some(s) = mixed {
+        return Err(MltError::MixedLobes(s.label.clone()));
     }
     Ok(())
 }

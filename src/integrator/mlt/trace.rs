@@ -227,7 +227,7 @@ pub fn retrace_chain(
         ChainEnd::Surface => {
             let v = trace_surface(scene, &cur, d)?;
             let b = v.bsdf(scene)?;
-            if b.is_singular() {
+            if !b.has_regular_lobe() {
                 return None;
             }
             v

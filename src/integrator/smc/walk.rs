@@ -229,7 +229,7 @@ pub fn surface(
     }
     *depth += 1;
     let wo = -ray.d;
-    if !bsdf.is_singular() {
+    if bsdf.has_regular_lobe() {
         let towards = |wi: Vec3| shape.medium_across(wo, wi, n, medium);
         a += crate::integrator::path::next_event(scene, hit.p, Some(n), towards, sampler, |wi| {
             let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);

@@ -4,7 +4,8 @@ use std::collections::BTreeMap;
 
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
-use crate::bsdf::{Bsdf, ConductorFresnel, RoughConductor, RoughDielectric};
+use crate::bsdf::plastic::default_eta;
+use crate::bsdf::{Bsdf, ConductorFresnel, Plastic, RoughConductor, RoughDielectric};
 use crate::scene::file::{path, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
 
@@ -65,6 +66,19 @@ pub(super) fn materials(
                     alpha: roughness(src, &key, *alpha, "dielectric")?,
                 })
             }
+            MaterialDesc::Plastic {
+                diffuse,
+                specular,
+                ior,
+                nonlinear,
+                one_sided,
+            } => Bsdf::Plastic(Plastic {
+                diffuse: albedo(src, &key.clone().key("diffuse"), *diffuse)?,
+                specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                eta: plastic_ior(src, &key, *ior)?,
+                nonlinear: *nonlinear,
+                one_sided: *one_sided,
+            }),
             MaterialDesc::Null {} => Bsdf::Null,
         };
         materials.insert(name.clone(), bsdf);
@@ -118,6 +132,19 @@ fn rough_ior(src: &SceneSource, key: &KeyPath, ior: f32) -> Result<f32, SceneErr
                  straight line; use the `null` material for an index-matched boundary"
             ),
         ));
+    }
+    Ok(ior)
+}
+
+/// A plastic coat's index inside over outside (default Mitsuba's 1.49 / 1.000277): positive
+/// (Mitsuba accepts any, 1 included: a coat that reflects nothing).
+fn plastic_ior(src: &SceneSource, key: &KeyPath, ior: Option<f32>) -> Result<f32, SceneError> {
+    let Some(ior) = ior else {
+        return Ok(default_eta());
+    };
+    let key = key.clone().key("ior");
+    if !(ior.is_finite() && ior > 0.0) {
+        return Err(src.error(&key, format!("ior = {ior} must be positive")));
     }
     Ok(ior)
 }

@@ -14,19 +14,30 @@ use crate::scene::file::{
 };
 use crate::scene::SceneError;
 
-/// Mitsuba's named indices of refraction (its `ior.h` table, a subset).
-const NAMED_IOR: [(&str, f64); 12] = [
+/// Mitsuba's named indices of refraction (the whole table of its `ior.h`).
+const NAMED_IOR: [(&str, f64); 23] = [
     ("vacuum", 1.0),
-    ("helium", 1.00004),
-    ("hydrogen", 1.00013),
+    ("helium", 1.000036),
+    ("hydrogen", 1.000132),
     ("air", 1.000277),
     ("carbon dioxide", 1.00045),
     ("water", 1.3330),
     ("acetone", 1.36),
     ("ethanol", 1.361),
+    ("carbon tetrachloride", 1.461),
+    ("glycerol", 1.4729),
+    ("benzene", 1.501),
+    ("silicone oil", 1.52045),
+    ("bromine", 1.661),
+    ("water ice", 1.31),
     ("fused quartz", 1.458),
     ("pyrex", 1.470),
+    ("acrylic glass", 1.49),
+    ("polypropylene", 1.49),
     ("bk7", 1.5046),
+    ("sodium chloride", 1.544),
+    ("amber", 1.55),
+    ("pet", 1.5750),
     ("diamond", 2.419),
 ];
 
@@ -372,8 +383,8 @@ impl<'a, 'd> Importer<'a, 'd> {
                 let inner = p.object("bsdf", None)?.ok_or_else(|| p.err("a twosided needs one <bsdf>"))?;
                 p.finish()?;
                 let kind = self.doc.plugin(inner)?;
-                if !["diffuse", "conductor", "roughconductor"].contains(&kind.as_str()) {
-                    return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor are)")));
+                if !["diffuse", "conductor", "roughconductor", "plastic"].contains(&kind.as_str()) {
+                    return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic are)")));
                 }
                 let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
                 self.materials.insert(node.id(), name.clone());
@@ -405,15 +416,19 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.finish()?;
                 r
             }
-            "plastic" | "roughplastic" => {
-                return Err(p.err(format!(
-                    "`{}` is not supported: pathspace has no layered (plastic) model, and no mix of its models is the same BSDF",
-                    p.plugin
-                )))
+            "plastic" => {
+                let r = plastic(&mut p, one_sided, side)?;
+                p.finish()?;
+                r
+            }
+            "roughplastic" => {
+                return Err(p.err(
+                    "`roughplastic` is not supported: pathspace has smooth `plastic` only, and no mix of its models is the same BSDF",
+                ))
             }
             k => {
                 return Err(p.err(format!(
-                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, twosided, null are)"
+                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, twosided, null are)"
                 )))
             }
         };
@@ -1011,6 +1026,38 @@ fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
             format!("rough dielectric (GGX), ior {ior} (int_ior / ext_ior), alpha {a}"),
         ),
     })
+}
+
+/// `plastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults "polypropylene" and "air"),
+/// `diffuse_reflectance` (0.5), `specular_reflectance` (1), `nonlinear` (false).
+fn plastic(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    use crate::bsdf::plastic::{DEFAULT_EXT_IOR, DEFAULT_INT_IOR};
+    let ior = ior(p, "int_ior", DEFAULT_INT_IOR)? / ior(p, "ext_ior", DEFAULT_EXT_IOR)?;
+    if !(ior.is_finite() && ior > 0.0) {
+        return Err(p.err("int_ior and ext_ior must be positive"));
+    }
+    let d = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
+    Ok((
+        MaterialDesc::Plastic {
+            diffuse: rgb(d),
+            specular: rgb(s),
+            ior: Some(ior as f32),
+            nonlinear,
+            one_sided,
+        },
+        format!(
+            "plastic, diffuse {}, specular {}, ior {ior} (int_ior / ext_ior){}{side}",
+            show(d),
+            show(s),
+            if nonlinear { ", nonlinear" } else { "" }
+        ),
+    ))
 }
 
 /// A conductor's `material` must be `none` (no tabulated spectra); its reflectance.
