@@ -599,6 +599,20 @@ fn agreement_specular() {
     fam.finish();
 }
 
+/// Thin glass panes: light passes a Dirac transmission unbent (thin_dielectric).
+#[test]
+fn agreement_thin() {
+    let mut fam = Family::new("agreement: thin dielectric");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("thin", fixture("thin.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_glossy() {
     // rough conductors and a rough dielectric holding a medium, with a point light behind the

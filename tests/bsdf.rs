@@ -401,6 +401,48 @@ fn dielectric_refraction_obeys_snells_law() {
     }
 }
 
+/// A thin sheet (Mitsuba 3's `thindielectric`): light is reflected about the normal or goes on
+/// unbent, from either side alike; the reflected part is the sum over the passes inside the
+/// sheet, R + T^2 R + T^2 R^3 + ..., summed here term by term (not by the closed form the
+/// model uses), and the two lobes' weights, value |cos| / probability, are 1 (every photon
+/// leaves by one of the two lobes, none is absorbed), whatever the transport mode.
+#[test]
+fn thin_dielectric_reflects_the_sum_of_its_inner_passes_and_transmits_unbent() {
+    for ior in IORS {
+        for n in normals() {
+            for wo in test_directions(37, 8) {
+                let cos_o = wo.dot(n).abs();
+                if cos_o < 1e-3 {
+                    continue;
+                }
+                let r = fresnel_dielectric(cos_o, ior) as f64;
+                let t = 1.0 - r;
+                let (mut series, mut term) = (r, t * t * r);
+                for _ in 0..200 {
+                    series += term;
+                    term *= r * r;
+                }
+                for mode in modes() {
+                    let thin = Bsdf::ThinDielectric { ior };
+                    let refl = thin.sample(wo, n, Vec2::splat(0.5), 0.0, mode).unwrap();
+                    let tran = thin.sample(wo, n, Vec2::splat(0.5), ONE_MINUS_EPSILON, mode);
+                    assert_eq!(refl.lobe, Lobe::SingularReflection);
+                    assert_close("reflectance", refl.pdf as f64, series, F32_TOL);
+                    assert_close("mirror", refl.wi.dot(n) as f64, wo.dot(n) as f64, F32_TOL);
+                    assert_close("reflected weight", refl.weight(n).x as f64, 1.0, F32_TOL);
+                    if series < 1.0 - 1e-6 {
+                        let tran = tran.unwrap();
+                        assert_eq!(tran.lobe, Lobe::SingularTransmission);
+                        assert!((tran.wi + wo).length() < 1e-6, "not straight through");
+                        assert_close("transmittance", tran.pdf as f64, 1.0 - series, F32_TOL);
+                        assert_close("passed weight", tran.weight(n).x as f64, 1.0, F32_TOL);
+                    }
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn dielectric_chooses_reflection_with_the_fresnel_probability() {
     const N: u64 = 100_000;

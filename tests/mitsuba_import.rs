@@ -173,6 +173,42 @@ material = "diffuse"
     );
 }
 
+/// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
+/// unbent, two-sided.
+#[test]
+fn thin_dielectric_is_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="thindielectric" id="pane"><string name="int_ior" value="water"/><float name="ext_ior" value="1.0"/></bsdf>
+        <transform name="to_world"><scale x="0.5"/><translate z="-1"/></transform>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.pane]
+type = "thin_dielectric"
+ior = 1.333
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "quad"
+origin = [-0.5, -1.0, -1.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "pane"
+"#
+        ),
+    );
+}
+
 /// `cube` is [-1,1]^3; a homogeneous medium's `sigma_t` and `albedo` (times `scale`) are
 /// sigma_s = sigma_t albedo and sigma_a = sigma_t (1 - albedo); `hg`'s g keeps its sign
 /// (forward for g > 0 in both); a black emitter is an emitter without a material.

@@ -91,6 +91,10 @@ pub enum Bsdf {
     Mirror { reflectance: Rgb, one_sided: bool },
     /// A smooth dielectric interface; `ior` is inside (behind the normal) over outside.
     Dielectric { ior: f32 },
+    /// A thin dielectric sheet (Mitsuba 3's `thindielectric`): `ior` is the sheet's index over
+    /// the surrounding one. Light is reflected or passes straight through, with the sheet's
+    /// internal reflections summed ([`thin_dielectric_reflectance`]); no refraction, no eta^2.
+    ThinDielectric { ior: f32 },
     /// A GGX microfacet conductor (glossy reflection, two-sided unless `one_sided`).
     RoughConductor(RoughConductor),
     /// A GGX microfacet dielectric interface (glossy reflection and refraction).
@@ -119,6 +123,17 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
 }
 // ANCHOR_END: fresnel
 
+/// Reflectance of a thin dielectric sheet of relative index `eta` at incidence cosine `cos_i`:
+/// with R = F(cos_i) at each face and T = 1 - R, the light reflected after any number of
+/// passes inside sums to R + T^2 R (1 + R^2 + R^4 + ...) = R + T^2 R / (1 - R^2) = 2R / (1 + R)
+/// (the sheet's two faces are parallel, so every pass meets the same angle; Mitsuba 3's
+/// `thindielectric` uses the same sum).
+#[inline]
+pub fn thin_dielectric_reflectance(cos_i: f32, eta: f32) -> f32 {
+    let r = fresnel_dielectric(cos_i, eta);
+    2.0 * r / (1.0 + r)
+}
+
 /// Mirror `w` about `n`.
 #[inline]
 pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
@@ -136,7 +151,10 @@ impl Bsdf {
     /// exhaustive, so that a new model has to say which lobes it has.
     pub fn has_regular_lobe(&self) -> bool {
         match self {
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null => false,
+            Bsdf::Mirror { .. }
+            | Bsdf::Dielectric { .. }
+            | Bsdf::ThinDielectric { .. }
+            | Bsdf::Null => false,
             Bsdf::Lambert { .. }
             | Bsdf::RoughConductor(_)
             | Bsdf::RoughDielectric(_)
@@ -148,7 +166,10 @@ impl Bsdf {
     /// direction, which no connection and no light sample can reach (only its own sampling).
     pub fn has_dirac_lobe(&self) -> bool {
         match self {
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Plastic(_) => true,
+            Bsdf::Mirror { .. }
+            | Bsdf::Dielectric { .. }
+            | Bsdf::ThinDielectric { .. }
+            | Bsdf::Plastic(_) => true,
             Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
             Bsdf::Null => false,
         }
@@ -169,7 +190,10 @@ impl Bsdf {
             Bsdf::Lambert { one_sided, .. } | Bsdf::Mirror { one_sided, .. } => *one_sided,
             Bsdf::RoughConductor(c) => c.one_sided,
             Bsdf::Plastic(p) => p.one_sided,
-            Bsdf::Dielectric { .. } | Bsdf::RoughDielectric(_) | Bsdf::Null => false,
+            Bsdf::Dielectric { .. }
+            | Bsdf::ThinDielectric { .. }
+            | Bsdf::RoughDielectric(_)
+            | Bsdf::Null => false,
         };
         one_sided && wo.dot(n) <= 0.0
     }
@@ -294,6 +318,25 @@ impl Bsdf {
                 }
             }
             // ANCHOR_END: dielectric_sample
+            Bsdf::ThinDielectric { ior } => {
+                let cos_i = cos_o.abs();
+                let r = thin_dielectric_reflectance(cos_i, *ior);
+                let (wi, p, lobe) = if uc < r {
+                    (reflect(wo, nf), r, Lobe::SingularReflection)
+                } else {
+                    // straight through: the sheet's two refractions cancel
+                    (-wo, 1.0 - r, Lobe::SingularTransmission)
+                };
+                if p <= 0.0 {
+                    return None;
+                }
+                Some(BsdfSample {
+                    wi,
+                    value: Rgb::splat(p / cos_i),
+                    pdf: p,
+                    lobe,
+                })
+            }
             Bsdf::RoughConductor(c) => c.sample(wo, n, u),
             Bsdf::RoughDielectric(d) => d.sample(wo, n, u, uc, mode),
             Bsdf::Plastic(p) => p.sample(wo, n, u, uc),

@@ -49,6 +49,7 @@ fn bsdf(b: &Option<Bsdf>) -> String {
             format!("mirror, reflectance {}", v3(*reflectance))
         }
         Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
+        Some(Bsdf::ThinDielectric { ior }) => format!("thin dielectric, ior {ior}"),
         Some(Bsdf::RoughConductor(c)) => match c.fresnel {
             ConductorFresnel::Schlick(r) => {
                 format!("rough conductor, alpha {}, reflectance {}", c.alpha, v3(r))

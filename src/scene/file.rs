@@ -119,6 +119,11 @@ pub enum MaterialDesc {
     Dielectric {
         ior: f32,
     },
+    /// A thin dielectric sheet (Mitsuba 3's `thindielectric`): reflects or lets light through
+    /// unbent; `ior` is the sheet's index over the surrounding one.
+    ThinDielectric {
+        ior: f32,
+    },
     /// GGX microfacet metal: `alpha`, and `reflectance` (Schlick) or `eta` and `k` (complex
     /// index); reflectance 1 when neither is given.
     RoughConductor {

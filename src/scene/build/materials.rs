@@ -49,6 +49,15 @@ pub(super) fn materials(
                 }
                 Bsdf::Dielectric { ior: *ior }
             }
+            MaterialDesc::ThinDielectric { ior } => {
+                if !(ior.is_finite() && *ior > 0.0) {
+                    return Err(src.error(
+                        &key.clone().key("ior"),
+                        format!("ior = {ior} must be positive"),
+                    ));
+                }
+                Bsdf::ThinDielectric { ior: *ior }
+            }
             MaterialDesc::RoughConductor {
                 alpha,
                 reflectance,

@@ -5,7 +5,7 @@
 //! parameter): `<default>` and `$name`, `id` / `<ref>`, the `path`/`volpath` integrators,
 //! the `perspective` sensor with `hdrfilm` (box filter) and any sampler, the shapes
 //! `rectangle`, `disk`, `cube`, `sphere`, `obj`, `ply`, the BSDFs `diffuse`, `conductor`, `roughconductor`,
-//! `dielectric`, `roughdielectric`, `twosided`, `null`, the media `homogeneous` and
+//! `dielectric`, `roughdielectric`, `thindielectric`, `plastic`, `twosided`, `null`, the media `homogeneous` and
 //! `heterogeneous` (`gridvolume`), the phases `isotropic` and `hg`, the emitters `area`,
 //! `point`, `spot`, `directional`, `constant`. Conventions are Mitsuba's (tests:
 //! `tests/mitsuba_import.rs`). Anything else (a plugin, a parameter, a texture) is an error naming

@@ -416,6 +416,11 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.finish()?;
                 r
             }
+            "thindielectric" => {
+                let r = thin_dielectric(&mut p)?;
+                p.finish()?;
+                r
+            }
             "plastic" => {
                 let r = plastic(&mut p, one_sided, side)?;
                 p.finish()?;
@@ -428,7 +433,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             }
             k => {
                 return Err(p.err(format!(
-                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, plastic, twosided, null are)"
+                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, twosided, null are)"
                 )))
             }
         };
@@ -1026,6 +1031,20 @@ fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
             format!("rough dielectric (GGX), ior {ior} (int_ior / ext_ior), alpha {a}"),
         ),
     })
+}
+
+/// `thindielectric`: `ior` = int_ior / ext_ior (defaults bk7 and air), as `dielectric`.
+fn thin_dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
+    let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
+    for k in ["specular_reflectance", "specular_transmittance"] {
+        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
+            return Err(p.err(format!("{k} other than 1 is not supported")));
+        }
+    }
+    Ok((
+        MaterialDesc::ThinDielectric { ior: ior as f32 },
+        format!("thin dielectric, ior {ior} (int_ior / ext_ior)"),
+    ))
 }
 
 /// `plastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults "polypropylene" and "air"),
