@@ -609,6 +609,15 @@ fn agreement_glossy() {
 }
 
 #[test]
+fn agreement_plastic() {
+    // rough plastics (Beckmann and GGX, one-sided and two-sided, nonlinear) beside a Beckmann
+    // rough dielectric and conductor: regular lobes only, so every column must agree
+    let mut fam = Family::new("agreement: plastic");
+    check_row(&mut fam, &row("plastic", fixture("plastic.toml"), 3));
+    fam.finish();
+}
+
+#[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");
     check_row(

@@ -1,7 +1,8 @@
 //! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
-//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, the rough (GGX microfacet)
-//! conductor and dielectric (`conductor`, `rough_dielectric`, over `microfacet`), and the null
-//! (index-matched) boundary that only separates media.
+//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, the rough (GGX or Beckmann
+//! microfacet) conductor, dielectric and plastic (`conductor`, `rough_dielectric`,
+//! `rough_plastic`, over `microfacet`), and the null (index-matched) boundary that only
+//! separates media.
 //!
 //! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
@@ -19,10 +20,12 @@ use crate::spectrum::Rgb;
 pub mod conductor;
 pub mod microfacet;
 pub mod rough_dielectric;
+pub mod rough_plastic;
 
 pub use conductor::{ConductorFresnel, RoughConductor};
-pub use microfacet::Ggx;
+pub use microfacet::{Beckmann, Distribution, Ggx, Microfacet};
 pub use rough_dielectric::RoughDielectric;
+pub use rough_plastic::RoughPlastic;
 
 // ANCHOR: transport_mode
 /// Which quantity a path carries: radiance (eye paths) or importance (light paths, the adjoint
@@ -83,6 +86,8 @@ pub enum Bsdf {
     RoughConductor(RoughConductor),
     /// A GGX microfacet dielectric interface (glossy reflection and refraction).
     RoughDielectric(RoughDielectric),
+    /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`).
+    RoughPlastic(RoughPlastic),
     /// An index-matched boundary: light passes unchanged. Never a scattering vertex.
     Null,
 }
@@ -122,7 +127,10 @@ impl Bsdf {
         // exhaustive, so that a new model has to say which kind it is
         match self {
             Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Null => true,
-            Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
+            Bsdf::Lambert { .. }
+            | Bsdf::RoughConductor(_)
+            | Bsdf::RoughDielectric(_)
+            | Bsdf::RoughPlastic(_) => false,
         }
     }
 
@@ -134,6 +142,7 @@ impl Bsdf {
         let one_sided = match self {
             Bsdf::Lambert { one_sided, .. } | Bsdf::Mirror { one_sided, .. } => *one_sided,
             Bsdf::RoughConductor(c) => c.one_sided,
+            Bsdf::RoughPlastic(p) => p.one_sided,
             Bsdf::Dielectric { .. } | Bsdf::RoughDielectric(_) | Bsdf::Null => false,
         };
         one_sided && wo.dot(n) <= 0.0
@@ -157,6 +166,7 @@ impl Bsdf {
             }
             Bsdf::RoughConductor(c) => c.eval(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.eval(wo, wi, n, mode),
+            Bsdf::RoughPlastic(p) => p.eval(wo, wi, n),
             _ => Rgb::ZERO,
         }
     }
@@ -172,6 +182,7 @@ impl Bsdf {
             Bsdf::Lambert { .. } if wo.dot(n) * wi.dot(n) > 0.0 => wi.dot(n).abs() * FRAC_1_PI,
             Bsdf::RoughConductor(c) => c.pdf(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.pdf(wo, wi, n),
+            Bsdf::RoughPlastic(p) => p.pdf(wo, wi, n),
             _ => 0.0,
         }
     }
@@ -257,6 +268,7 @@ impl Bsdf {
             // ANCHOR_END: dielectric_sample
             Bsdf::RoughConductor(c) => c.sample(wo, n, u),
             Bsdf::RoughDielectric(d) => d.sample(wo, n, u, uc, mode),
+            Bsdf::RoughPlastic(p) => p.sample(wo, n, u, uc),
             Bsdf::Null => None,
         }
     }
