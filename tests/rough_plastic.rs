@@ -34,7 +34,13 @@ fn plastic(d: Distribution, alpha: f32, eta: f32, diffuse: Vec3, specular: f32) 
 
 /// The three materials of the Mitsuba fixtures (see `matches_mitsuba_3`).
 fn fixture_materials() -> [RoughPlastic; 3] {
-    let a = plastic(Distribution::Beckmann, 0.1, ETA_DEFAULT, Vec3::splat(0.5), 1.0);
+    let a = plastic(
+        Distribution::Beckmann,
+        0.1,
+        ETA_DEFAULT,
+        Vec3::splat(0.5),
+        1.0,
+    );
     let mut b = plastic(Distribution::Ggx, 0.3, 1.6, Vec3::new(0.8, 0.4, 0.1), 0.7);
     b = RoughPlastic::new(b.microfacet, b.eta, b.diffuse, b.specular, true, true);
     let c = plastic(Distribution::Beckmann, 0.5, 1.33, Vec3::splat(0.2), 1.0);
@@ -97,7 +103,10 @@ const REL_GGX: f64 = 1.5e-3;
 fn matches_mitsuba_3() {
     let mats = fixture_materials();
     for (k, p) in mats.iter().enumerate() {
-        let (ri, rel) = (p.tables().internal_reflectance as f64, [2e-5, 1e-4, 2e-5][k]);
+        let (ri, rel) = (
+            p.tables().internal_reflectance as f64,
+            [2e-5, 1e-4, 2e-5][k],
+        );
         assert_close(&format!("material {k}: R_i"), ri, MITSUBA_RI[k], rel);
     }
     for (k, t_o, t_i, phi, c0, c2) in MITSUBA {
@@ -141,7 +150,11 @@ fn simpson_albedo(g: Microfacet, mu: f64, eta: f64, share: Albedo, n: usize) -> 
                     let kept = match share {
                         Albedo::Reflection => {
                             let r = reflect_about(w, m);
-                            if r.z > 0.0 { f * g.g1(r, m) as f64 } else { 0.0 }
+                            if r.z > 0.0 {
+                                f * g.g1(r, m) as f64
+                            } else {
+                                0.0
+                            }
                         }
                         Albedo::Transmission => match refract_about(w, m, (1.0 / eta) as f32) {
                             Some(t) if t.z < 0.0 => (1.0 - f) * g.g1(t, m) as f64,
@@ -220,7 +233,10 @@ fn tables_match_the_rough_dielectric() {
                     exact / g.g1(above, Vec3::Z) as f64
                 }
             };
-            for (k, share) in [Albedo::Transmission, Albedo::Reflection].into_iter().enumerate() {
+            for (k, share) in [Albedo::Transmission, Albedo::Reflection]
+                .into_iter()
+                .enumerate()
+            {
                 let w = match share {
                     Albedo::Transmission => above,
                     Albedo::Reflection => above * Vec3::new(1.0, 1.0, -1.0),
@@ -228,10 +244,12 @@ fn tables_match_the_rough_dielectric() {
                 let mut s = sampler(40 + i as u64, (2 * j + k) as u64);
                 let mode = TransportMode::Importance;
                 let weights: Vec<f64> = (0..N)
-                    .map(|_| match glass.sample(w, Vec3::Z, s.next_2d(), s.next_f32(), mode) {
-                        Some(bs) if bs.wi.z < 0.0 => bs.weight(Vec3::Z).x as f64 * correction,
-                        _ => 0.0,
-                    })
+                    .map(
+                        |_| match glass.sample(w, Vec3::Z, s.next_2d(), s.next_f32(), mode) {
+                            Some(bs) if bs.wi.z < 0.0 => bs.weight(Vec3::Z).x as f64 * correction,
+                            _ => 0.0,
+                        },
+                    )
                     .collect();
                 let (mean, se) = mean_and_stderr(&weights);
                 let truth = match share {
@@ -265,7 +283,13 @@ fn materials() -> Vec<(String, Bsdf)> {
         false,
     );
     [
-        plastic(Distribution::Beckmann, 0.1, ETA_DEFAULT, Vec3::splat(0.5), 1.0),
+        plastic(
+            Distribution::Beckmann,
+            0.1,
+            ETA_DEFAULT,
+            Vec3::splat(0.5),
+            1.0,
+        ),
         plastic(Distribution::Ggx, 0.6, 1.33, Vec3::new(0.9, 0.5, 0.1), 1.0),
         white,
         plastic(Distribution::Ggx, 0.15, 1.5, Vec3::ZERO, 1.0),
@@ -278,7 +302,14 @@ fn materials() -> Vec<(String, Bsdf)> {
             p.microfacet.distribution, p.microfacet.alpha, p.eta, p.diffuse
         );
         // two-sided, so that the back side is exercised too
-        let p = RoughPlastic::new(p.microfacet, p.eta, p.diffuse, p.specular, p.nonlinear, false);
+        let p = RoughPlastic::new(
+            p.microfacet,
+            p.eta,
+            p.diffuse,
+            p.specular,
+            p.nonlinear,
+            false,
+        );
         (name, Bsdf::RoughPlastic(p))
     })
     .collect()
@@ -328,7 +359,10 @@ fn sampler_matches_its_density() {
                 1.0,
                 1024,
             );
-            assert!(mass <= 1.0 + 2e-3, "{what}: the density integrates to {mass}");
+            assert!(
+                mass <= 1.0 + 2e-3,
+                "{what}: the density integrates to {mass}"
+            );
             fam.binomial(&format!("{what}: mass"), hits, N, mass.min(1.0 - 1e-9));
         }
     }
@@ -342,7 +376,10 @@ fn is_reciprocal_and_reflects_on_wos_side_only() {
     for (name, bsdf) in materials() {
         let mut nonzero = 0;
         for _ in 0..2000 {
-            let (a, b) = (warp::uniform_sphere(s.next_2d()), warp::uniform_sphere(s.next_2d()));
+            let (a, b) = (
+                warp::uniform_sphere(s.next_2d()),
+                warp::uniform_sphere(s.next_2d()),
+            );
             if a.dot(n).abs() < 0.05 || b.dot(n).abs() < 0.05 {
                 continue;
             }
@@ -352,7 +389,12 @@ fn is_reciprocal_and_reflects_on_wos_side_only() {
             );
             for c in 0..3 {
                 let (x, y) = (fab[c] as f64, fba[c] as f64);
-                assert_close(&format!("{name}: f({a}, {b})"), x, y, 2e-4 * x.max(y) + 1e-7);
+                assert_close(
+                    &format!("{name}: f({a}, {b})"),
+                    x,
+                    y,
+                    2e-4 * x.max(y) + 1e-7,
+                );
             }
             if a.dot(n) * b.dot(n) < 0.0 {
                 assert_eq!(fab, Vec3::ZERO, "{name}: no transmission");
@@ -381,7 +423,12 @@ fn albedo_is_at_most_one_and_the_sampler_weights_estimate_it() {
                 let wi = direction(&frame, mu, phi);
                 bsdf.eval(wo, wi, n, mode).max_element() as f64 * mu
             };
-            let quad = simpson(|mu| simpson(|phi| f_cos(mu, phi), 0.0, TAU, 1024), 0.0, 1.0, 2048);
+            let quad = simpson(
+                |mu| simpson(|phi| f_cos(mu, phi), 0.0, TAU, 1024),
+                0.0,
+                1.0,
+                2048,
+            );
             let what = format!("{name}, cos_o {cos_o}");
             assert!(quad <= 1.0, "{what}: albedo {quad}");
             table.push(format!("{what}: {quad:.4}"));
@@ -402,18 +449,28 @@ fn albedo_is_at_most_one_and_the_sampler_weights_estimate_it() {
 
 #[test]
 fn one_sided_is_black_behind() {
-    let one = Bsdf::RoughPlastic(plastic(Distribution::Beckmann, 0.1, ETA_DEFAULT, Vec3::splat(0.5), 1.0));
+    let one = Bsdf::RoughPlastic(plastic(
+        Distribution::Beckmann,
+        0.1,
+        ETA_DEFAULT,
+        Vec3::splat(0.5),
+        1.0,
+    ));
     let (front, back) = (dir(0.4, 0.0), dir(0.4, 2.0) * Vec3::new(1.0, 1.0, -1.0));
     let mode = TransportMode::Radiance;
     assert_eq!(one.eval(back, -front, Vec3::Z, mode), Vec3::ZERO);
     assert_eq!(one.pdf(back, -front, Vec3::Z), 0.0);
-    assert!(one.sample(back, Vec3::Z, glam::Vec2::splat(0.3), 0.5, mode).is_none());
+    assert!(one
+        .sample(back, Vec3::Z, glam::Vec2::splat(0.3), 0.5, mode)
+        .is_none());
     assert!(one.eval(front, dir(0.3, 1.0), Vec3::Z, mode).x > 0.0);
     // the table: 64 cosines, T within (0, 1)
     assert_eq!(TABLE_SIZE, 64);
     if let Bsdf::RoughPlastic(p) = &one {
-        assert!(p.tables().transmittance.iter().all(|t| *t > 0.0 && *t < 1.0));
+        assert!(p
+            .tables()
+            .transmittance
+            .iter()
+            .all(|t| *t > 0.0 && *t < 1.0));
     }
 }
-
-

@@ -141,7 +141,13 @@ impl Beckmann {
         let a2 = self.alpha * self.alpha;
         let z2 = m.z * m.z;
         let tan2 = (m.x * m.x + m.y * m.y) / z2;
-        (-tan2 / a2).exp() / (PI * a2 * z2 * z2)
+        let d = (-tan2 / a2).exp() / (PI * a2 * z2 * z2);
+        // near the horizon both factors underflow (0 / 0): the Gaussian has long vanished
+        if d.is_finite() {
+            d
+        } else {
+            0.0
+        }
     }
 
     /// The argument a = 1 / (alpha tan theta) of eqs. (26), (27); infinite at the normal.

@@ -350,7 +350,8 @@ fn adaptive(f: &impl Fn(f64) -> f64, a: f64, b: f64, scale: Option<f64>, depth: 
         return k;
     }
     let m = 0.5 * (a + b);
-    adaptive(f, a, m, Some(scale / 2.0), depth - 1) + adaptive(f, m, b, Some(scale / 2.0), depth - 1)
+    adaptive(f, a, m, Some(scale / 2.0), depth - 1)
+        + adaptive(f, m, b, Some(scale / 2.0), depth - 1)
 }
 
 /// The 15-point Kronrod and embedded 7-point Gauss rules on [a, b] (nodes and weights of the

@@ -5,8 +5,7 @@ use std::collections::BTreeMap;
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::{
-    Bsdf, ConductorFresnel, Distribution, Microfacet, RoughConductor, RoughDielectric,
-    RoughPlastic,
+    Bsdf, ConductorFresnel, Distribution, Microfacet, RoughConductor, RoughDielectric, RoughPlastic,
 };
 use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};

@@ -1035,7 +1035,11 @@ fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
 /// ggx) and one isotropic `alpha` (default 0.1).
 fn microfacet(p: &mut Props) -> Result<(DistributionDesc, f64), SceneError> {
     // Mitsuba lowercases the name
-    let d = match p.string("distribution")?.map(|d| d.to_lowercase()).as_deref() {
+    let d = match p
+        .string("distribution")?
+        .map(|d| d.to_lowercase())
+        .as_deref()
+    {
         None | Some("beckmann") => DistributionDesc::Beckmann,
         Some("ggx") => DistributionDesc::Ggx,
         Some(d) => {
