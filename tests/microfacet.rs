@@ -240,6 +240,16 @@ fn beckmann_is_normalized_and_g1_is_walters_rational_approximation() {
             };
             assert_close(&format!("{what}: G1 is eq. (27)"), g1, rational, 1e-6);
         }
+        // either side of the cut at a = 1.6 (the rational form is 0.99976 at a = 1.5 and
+        // 1.0000056 at 1.55: the cut is where it crosses 1, not exactly 1 at 1.6)
+        for ar in [1.5f64, 1.55, 1.65] {
+            let theta = (1.0 / (a * ar)).atan();
+            let v = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+            let what = format!("alpha {alpha}, a {ar}: the cut");
+            let exact = (3.535 * ar + 2.181 * ar * ar) / (1.0 + 2.276 * ar + 2.577 * ar * ar);
+            let expected = if ar >= 1.6 { 1.0 } else { exact };
+            assert_close(&what, b.g1(v, Vec3::Z) as f64, expected, 1e-6);
+        }
     }
 }
 
