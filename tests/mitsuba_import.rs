@@ -431,6 +431,100 @@ intensity = 5.0
     );
 }
 
+/// `roughplastic` with Mitsuba's defaults (Beckmann alpha 0.1, polypropylene over air,
+/// diffuse 0.5, one-sided) and with every parameter inside a `twosided` (a panel turned away
+/// from the camera: its back is seen); `roughdielectric` and `roughconductor` default to
+/// Beckmann too.
+#[test]
+fn rough_plastic_and_beckmann_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="rectangle">
+        <bsdf type="roughplastic" id="plain"/>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="twosided" id="tinted">
+            <bsdf type="roughplastic">
+                <string name="distribution" value="GGX"/><float name="alpha" value="0.3"/>
+                <float name="int_ior" value="1.6"/><string name="ext_ior" value="water"/>
+                <rgb name="diffuse_reflectance" value="0.8, 0.4, 0.1"/>
+                <rgb name="specular_reflectance" value="0.7, 0.7, 0.7"/>
+                <boolean name="nonlinear" value="true"/>
+            </bsdf>
+        </bsdf>
+        <transform name="to_world"><scale value="0.5"/><rotate y="1" angle="180"/><translate x="0.5"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="-0.6" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="roughconductor" id="metal"><float name="alpha" value="0.4"/></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.plain]
+type = "rough_plastic"
+one_sided = true
+[materials.tinted]
+type = "rough_plastic"
+distribution = "ggx"
+alpha = 0.3
+ior = {:?}
+diffuse = [0.8, 0.4, 0.1]
+specular = 0.7
+nonlinear = true
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+alpha = 0.1
+ior = {:?}
+[materials.metal]
+type = "rough_conductor"
+distribution = "beckmann"
+alpha = 0.4
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "plain"
+[[shapes]]
+type = "quad"
+origin = [1.0, -0.5, 0.0]
+u = [-1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+material = "tinted"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "sphere"
+center = [0.0, -0.6, 0.0]
+radius = 0.3
+material = "metal"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.6f64 / 1.3330) as f32,
+            (1.5046f64 / 1.000277) as f32,
+        ),
+    );
+}
+
 /// `envmap`: the file relative to the XML, `scale`, and `to_world` as the map light's
 /// rotation (the mapping itself is Mitsuba's, pinned texel by texel in `tests/envmap.rs`); a
 /// translation is refused.
@@ -532,13 +626,13 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
     let cases: [(&str, &str); 14] = [
         (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
         (
-            r#"<shape type="rectangle"><bsdf type="roughplastic"/></shape>"#,
-            "`roughplastic`",
+            r#"<shape type="rectangle"><bsdf type="blendbsdf"/></shape>"#,
+            "the BSDF `blendbsdf`",
         ),
         (r#"<emitter type="envmap"/>"#, "`filename` is missing"),
         (
-            r#"<shape type="rectangle"><bsdf type="roughconductor"/></shape>"#,
-            "beckmann",
+            r#"<shape type="rectangle"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#,
+            "distribution = phong",
         ),
         (
             r#"<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></shape>"#,

@@ -683,3 +683,37 @@ fn mutated_fog_box_never_panics() {
     // the mutations are neither all harmless nor all fatal
     assert!(ok > 20 && errors > 100, "{ok} loaded, {errors} rejected");
 }
+
+#[test]
+fn rough_plastic_values_outside_their_range() {
+    expect_error(
+        "\n[materials.p]\ntype = \"rough_plastic\"\nalpha = 0\n",
+        4,
+        "materials.p.alpha",
+        &["below 0.001"],
+    );
+    expect_error(
+        "\n[materials.p]\ntype = \"rough_plastic\"\nior = 1.0\n",
+        4,
+        "materials.p.ior",
+        &["not 1"],
+    );
+    expect_error(
+        "\n[materials.p]\ntype = \"rough_plastic\"\ndiffuse = [0.5, 1.5, 0.5]\n",
+        4,
+        "materials.p.diffuse",
+        &["above 1"],
+    );
+    expect_error(
+        "\n[materials.p]\ntype = \"rough_plastic\"\nspecular = -1\n",
+        4,
+        "materials.p.specular",
+        &[">= 0"],
+    );
+    expect_error(
+        "\n[materials.p]\ntype = \"rough_plastic\"\ndistribution = \"phong\"\n",
+        4,
+        "materials.p.distribution",
+        &["phong"],
+    );
+}

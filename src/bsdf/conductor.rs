@@ -1,7 +1,8 @@
-//! The rough conductor: a GGX microsurface of metal facets, reflection only, two-sided like the
-//! mirror (it reflects on whichever side `wo` is). Walter et al. 2007, eq. (20), with the GGX
-//! D and G1 of eqs. (33), (34) and Smith's separable G of eq. (23); directions are sampled from
-//! the visible normals (Heitz 2018), which makes the weight F G1(wi).
+//! The rough conductor: a GGX or Beckmann microsurface of metal facets, reflection only,
+//! two-sided like the mirror (it reflects on whichever side `wo` is). Walter et al. 2007, eq.
+//! (20), with D and G1 of eqs. (33), (34) (GGX) or (25), (27) (Beckmann) and Smith's separable G
+//! of eq. (23); GGX directions are sampled from the visible normals (Heitz 2018), which makes
+//! the weight F G1(wi), Beckmann's from D(m) cos theta_m.
 //!
 //! Its Fresnel term is either Schlick's approximation about a reflectance colour (the
 //! reflectance at normal incidence, the mirror's parameter) or the exact reflectance of a
@@ -9,7 +10,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::microfacet::{reflect_about, Ggx};
+use super::microfacet::{reflect_about, Distribution, Microfacet};
 use super::{BsdfSample, Lobe};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
@@ -91,9 +92,10 @@ pub fn fresnel_complex(cos_i: f32, eta: f32, k: f32) -> f32 {
     (0.5 * (r_perp.norm2() + r_par.norm2())) as f32
 }
 
-/// A rough conductor: GGX roughness `alpha` and its facets' Fresnel term.
+/// A rough conductor: the distribution, its roughness `alpha` and its facets' Fresnel term.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughConductor {
+    pub distribution: Distribution,
     pub alpha: f32,
     pub fresnel: ConductorFresnel,
     /// Black behind the normal (see `Bsdf::black_behind`).
@@ -101,8 +103,8 @@ pub struct RoughConductor {
 }
 
 impl RoughConductor {
-    fn ggx(&self) -> Ggx {
-        Ggx { alpha: self.alpha }
+    fn microfacet(&self) -> Microfacet {
+        Microfacet::new(self.distribution, self.alpha)
     }
 
     /// `wo` and `wi` in the frame of the normal on `wo`'s side, or `None` when they do not lie
@@ -125,7 +127,7 @@ impl RoughConductor {
         if m == Vec3::ZERO {
             return Rgb::ZERO;
         }
-        let g = self.ggx();
+        let g = self.microfacet();
         let f = self.fresnel.eval(lo.dot(m));
         let value = f * (g.d(m) * g.g(lo, li, m) / (4.0 * lo.z * li.z));
         if value.is_finite() {
@@ -148,7 +150,7 @@ impl RoughConductor {
         if c <= 0.0 {
             return 0.0;
         }
-        let pdf = self.ggx().pdf_visible(lo, m) / (4.0 * c);
+        let pdf = self.microfacet().pdf(lo, m) / (4.0 * c);
         if pdf.is_finite() {
             pdf
         } else {
@@ -165,7 +167,7 @@ impl RoughConductor {
         if lo.z <= 0.0 {
             return None;
         }
-        let m = self.ggx().sample_visible(lo, u);
+        let m = self.microfacet().sample(lo, u);
         let li = reflect_about(lo, m);
         if li.z <= 0.0 {
             return None;

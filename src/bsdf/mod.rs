@@ -1,8 +1,9 @@
 //! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
-//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, the rough (GGX microfacet)
-//! conductor and dielectric (`conductor`, `rough_dielectric`, over `microfacet`), smooth
-//! plastic (`plastic`: a Dirac coat over a diffuse base, the one model with a Dirac and a
-//! regular lobe), and the null (index-matched) boundary that only separates media.
+//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, a thin dielectric sheet, the
+//! rough (GGX or Beckmann microfacet) conductor, dielectric and plastic (`conductor`,
+//! `rough_dielectric`, `rough_plastic`, over `microfacet`), smooth plastic (`plastic`: a Dirac
+//! coat over a diffuse base, the one model with a Dirac and a regular lobe), and the null
+//! (index-matched) boundary that only separates media.
 //!
 //! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
@@ -28,11 +29,13 @@ pub mod conductor;
 pub mod microfacet;
 pub mod plastic;
 pub mod rough_dielectric;
+pub mod rough_plastic;
 
 pub use conductor::{ConductorFresnel, RoughConductor};
-pub use microfacet::Ggx;
+pub use microfacet::{Beckmann, Distribution, Ggx, Microfacet};
 pub use plastic::Plastic;
 pub use rough_dielectric::RoughDielectric;
+pub use rough_plastic::RoughPlastic;
 
 // ANCHOR: transport_mode
 /// Which quantity a path carries: radiance (eye paths) or importance (light paths, the adjoint
@@ -101,6 +104,8 @@ pub enum Bsdf {
     RoughDielectric(RoughDielectric),
     /// Smooth plastic: a Dirac coat reflection over a diffuse base (Mitsuba 3's `plastic`).
     Plastic(Plastic),
+    /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`).
+    RoughPlastic(RoughPlastic),
     /// An index-matched boundary: light passes unchanged. Never a scattering vertex.
     Null,
 }
@@ -158,6 +163,7 @@ impl Bsdf {
             Bsdf::Lambert { .. }
             | Bsdf::RoughConductor(_)
             | Bsdf::RoughDielectric(_)
+            | Bsdf::RoughPlastic(_)
             | Bsdf::Plastic(_) => true,
         }
     }
@@ -170,7 +176,10 @@ impl Bsdf {
             | Bsdf::Dielectric { .. }
             | Bsdf::ThinDielectric { .. }
             | Bsdf::Plastic(_) => true,
-            Bsdf::Lambert { .. } | Bsdf::RoughConductor(_) | Bsdf::RoughDielectric(_) => false,
+            Bsdf::Lambert { .. }
+            | Bsdf::RoughConductor(_)
+            | Bsdf::RoughDielectric(_)
+            | Bsdf::RoughPlastic(_) => false,
             Bsdf::Null => false,
         }
     }
@@ -190,6 +199,7 @@ impl Bsdf {
             Bsdf::Lambert { one_sided, .. } | Bsdf::Mirror { one_sided, .. } => *one_sided,
             Bsdf::RoughConductor(c) => c.one_sided,
             Bsdf::Plastic(p) => p.one_sided,
+            Bsdf::RoughPlastic(p) => p.one_sided,
             Bsdf::Dielectric { .. }
             | Bsdf::ThinDielectric { .. }
             | Bsdf::RoughDielectric(_)
@@ -218,6 +228,7 @@ impl Bsdf {
             Bsdf::RoughConductor(c) => c.eval(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.eval(wo, wi, n, mode),
             Bsdf::Plastic(p) => p.eval(wo, wi, n),
+            Bsdf::RoughPlastic(p) => p.eval(wo, wi, n),
             _ => Rgb::ZERO,
         }
     }
@@ -235,6 +246,7 @@ impl Bsdf {
             Bsdf::RoughConductor(c) => c.pdf(wo, wi, n),
             Bsdf::RoughDielectric(d) => d.pdf(wo, wi, n),
             Bsdf::Plastic(p) => p.pdf(wo, wi, n),
+            Bsdf::RoughPlastic(p) => p.pdf(wo, wi, n),
             _ => 0.0,
         }
     }
@@ -340,6 +352,7 @@ impl Bsdf {
             Bsdf::RoughConductor(c) => c.sample(wo, n, u),
             Bsdf::RoughDielectric(d) => d.sample(wo, n, u, uc, mode),
             Bsdf::Plastic(p) => p.sample(wo, n, u, uc),
+            Bsdf::RoughPlastic(p) => p.sample(wo, n, u, uc),
             Bsdf::Null => None,
         }
     }

@@ -1,9 +1,10 @@
-//! The rough dielectric: a GGX microsurface of smooth dielectric facets between the outside
-//! (index 1) and the inside behind the normal (index `ior`), which reflects and refracts
-//! (Walter et al. 2007, eqs. (20), (21)). Directions come from the visible normals seen from
-//! `wo` (Heitz 2018) and the facet's Fresnel term chooses reflection or refraction, so the
-//! weight is G1(wi) for reflection and (eta_o / eta_t)^2 G1(wi) (radiance) or G1(wi)
-//! (importance) for refraction, the rough counterparts of the smooth dielectric's weights.
+//! The rough dielectric: a GGX or Beckmann microsurface of smooth dielectric facets between the
+//! outside (index 1) and the inside behind the normal (index `ior`), which reflects and
+//! refracts (Walter et al. 2007, eqs. (20), (21)). GGX directions come from the visible normals
+//! seen from `wo` (Heitz 2018) and the facet's Fresnel term chooses reflection or refraction, so
+//! the weight is G1(wi) for reflection and (eta_o / eta_t)^2 G1(wi) (radiance) or G1(wi)
+//! (importance) for refraction, the rough counterparts of the smooth dielectric's weights;
+//! Beckmann's facets come from D(m) cos theta_m (`microfacet::Microfacet::sample`).
 //!
 //! Radiance and importance: the refraction BSDF is not symmetric. Walter's eq. (21) is the
 //! radiance BSDF, with eta_o^2 of the side of `wo` (where the radiance goes) in its numerator;
@@ -14,15 +15,17 @@
 
 use glam::{Vec2, Vec3};
 
-use super::microfacet::{reflect_about, refract_about, Ggx};
+use super::microfacet::{reflect_about, refract_about, Distribution, Microfacet};
 use super::{fresnel_dielectric, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
-/// A rough dielectric interface: `ior` inside (behind the normal) over outside, GGX `alpha`.
+/// A rough dielectric interface: `ior` inside (behind the normal) over outside, the
+/// distribution and its roughness `alpha`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughDielectric {
     pub ior: f32,
+    pub distribution: Distribution,
     pub alpha: f32,
 }
 
@@ -42,8 +45,8 @@ struct Half {
 }
 
 impl RoughDielectric {
-    fn ggx(&self) -> Ggx {
-        Ggx { alpha: self.alpha }
+    fn microfacet(&self) -> Microfacet {
+        Microfacet::new(self.distribution, self.alpha)
     }
 
     /// The frame of `wo`'s side and the indices on both sides; `None` at a grazing `wo`.
@@ -117,7 +120,7 @@ impl RoughDielectric {
         let Some(h) = Self::half(&l) else {
             return Rgb::ZERO;
         };
-        let g = self.ggx();
+        let g = self.microfacet();
         let dg = g.d(h.m) * g.g(l.lo, l.li, h.m);
         let f = Self::fresnel(&l, &h);
         let value = if h.reflect {
@@ -153,7 +156,7 @@ impl RoughDielectric {
             return 0.0;
         };
         let f = Self::fresnel(&l, &h);
-        let pm = self.ggx().pdf_visible(l.lo, h.m);
+        let pm = self.microfacet().pdf(l.lo, h.m);
         let (co, ci) = (l.lo.dot(h.m), l.li.dot(h.m));
         let pdf = if h.reflect {
             f * pm / (4.0 * co)
@@ -182,7 +185,7 @@ impl RoughDielectric {
     ) -> Option<BsdfSample> {
         let (frame, eta_o, eta_t) = self.frame(wo, n)?;
         let lo = frame.to_local(wo);
-        let m = self.ggx().sample_visible(lo, u);
+        let m = self.microfacet().sample(lo, u);
         let f = fresnel_dielectric(lo.dot(m), eta_t / eta_o);
         let li = if uc < f {
             reflect_about(lo, m)

@@ -51,25 +51,43 @@ fn bsdf(b: &Option<Bsdf>) -> String {
         Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
         Some(Bsdf::ThinDielectric { ior }) => format!("thin dielectric, ior {ior}"),
         Some(Bsdf::RoughConductor(c)) => match c.fresnel {
-            ConductorFresnel::Schlick(r) => {
-                format!("rough conductor, alpha {}, reflectance {}", c.alpha, v3(r))
-            }
+            ConductorFresnel::Schlick(r) => format!(
+                "rough conductor, {} alpha {}, reflectance {}",
+                c.distribution.name(),
+                c.alpha,
+                v3(r)
+            ),
             ConductorFresnel::Complex { eta, k } => format!(
-                "rough conductor, alpha {}, eta {}, k {}",
+                "rough conductor, {} alpha {}, eta {}, k {}",
+                c.distribution.name(),
                 c.alpha,
                 v3(eta),
                 v3(k)
             ),
         },
-        Some(Bsdf::RoughDielectric(d)) => {
-            format!("rough dielectric, ior {}, alpha {}", d.ior, d.alpha)
-        }
+        Some(Bsdf::RoughDielectric(d)) => format!(
+            "rough dielectric, ior {}, {} alpha {}",
+            d.ior,
+            d.distribution.name(),
+            d.alpha
+        ),
         Some(Bsdf::Plastic(p)) => format!(
             "plastic, diffuse {}, specular {}, ior {}{}",
             v3(p.diffuse),
             v3(p.specular),
             p.eta,
             if p.nonlinear { ", nonlinear" } else { "" }
+        ),
+        Some(Bsdf::RoughPlastic(p)) => format!(
+            "rough plastic, diffuse {}, specular {}, ior {}, {} alpha {}{} (internal reflectance {:.4}, transmittance at normal incidence {:.4})",
+            v3(p.diffuse),
+            v3(p.specular),
+            p.eta,
+            p.microfacet.distribution.name(),
+            p.microfacet.alpha,
+            if p.nonlinear { ", nonlinear" } else { "" },
+            p.tables().internal_reflectance,
+            p.transmittance(1.0)
         ),
         Some(Bsdf::Null) => "null (index-matched boundary)".into(),
     };

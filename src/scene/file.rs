@@ -124,10 +124,12 @@ pub enum MaterialDesc {
     ThinDielectric {
         ior: f32,
     },
-    /// GGX microfacet metal: `alpha`, and `reflectance` (Schlick) or `eta` and `k` (complex
-    /// index); reflectance 1 when neither is given.
+    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick) or
+    /// `eta` and `k` (complex index); reflectance 1 when neither is given.
     RoughConductor {
         alpha: f32,
+        #[serde(default)]
+        distribution: DistributionDesc,
         #[serde(default)]
         reflectance: Option<RgbValue>,
         #[serde(default)]
@@ -137,10 +139,32 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// GGX microfacet glass: `ior` inside over outside, `alpha`.
+    /// Microfacet glass: `ior` inside over outside, `alpha`, `distribution` (default ggx).
     RoughDielectric {
         ior: f32,
         alpha: f32,
+        #[serde(default)]
+        distribution: DistributionDesc,
+    },
+    /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`), with
+    /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1, `alpha` 0.1, `distribution` beckmann,
+    /// `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false; two-sided unless
+    /// `one_sided`.
+    RoughPlastic {
+        #[serde(default = "half_rgb")]
+        diffuse: RgbValue,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
+        #[serde(default = "plastic_alpha")]
+        alpha: f32,
+        #[serde(default = "beckmann")]
+        distribution: DistributionDesc,
+        #[serde(default = "plastic_ior")]
+        ior: f32,
+        #[serde(default)]
+        nonlinear: bool,
+        #[serde(default)]
+        one_sided: bool,
     },
     /// Smooth plastic (Mitsuba 3's `plastic`): `diffuse` (default 0.5) under a dielectric coat
     /// of `ior` inside over outside (default 1.49 / 1.000277) reflecting `specular` (default
@@ -166,6 +190,28 @@ fn one_rgb() -> RgbValue {
 
 fn half_rgb() -> RgbValue {
     RgbValue::Scalar(0.5)
+}
+
+fn plastic_alpha() -> f32 {
+    0.1
+}
+
+fn beckmann() -> DistributionDesc {
+    DistributionDesc::Beckmann
+}
+
+/// Mitsuba's `roughplastic` default: polypropylene (1.49) over air (1.000277).
+fn plastic_ior() -> f32 {
+    (1.49f64 / 1.000277) as f32
+}
+
+/// A microfacet distribution by name.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum DistributionDesc {
+    #[default]
+    Ggx,
+    Beckmann,
 }
 
 /// A phase function.

@@ -5,8 +5,11 @@ use std::collections::BTreeMap;
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::plastic::default_eta;
-use crate::bsdf::{Bsdf, ConductorFresnel, Plastic, RoughConductor, RoughDielectric};
-use crate::scene::file::{path, KeyPath, MaterialDesc, RgbValue, SceneFile};
+use crate::bsdf::{
+    Bsdf, ConductorFresnel, Distribution, Microfacet, Plastic, RoughConductor, RoughDielectric,
+    RoughPlastic,
+};
+use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
 
 /// Every material of the file by name, with the built-in `null` (the index-matched boundary of
@@ -60,21 +63,26 @@ pub(super) fn materials(
             }
             MaterialDesc::RoughConductor {
                 alpha,
+                distribution,
                 reflectance,
                 eta,
                 k,
                 one_sided,
             } => Bsdf::RoughConductor(RoughConductor {
+                distribution: distribution_of(*distribution),
                 alpha: roughness(src, &key, *alpha, "mirror")?,
                 fresnel: conductor_fresnel(src, &key, *reflectance, *eta, *k)?,
                 one_sided: *one_sided,
             }),
-            MaterialDesc::RoughDielectric { ior, alpha } => {
-                Bsdf::RoughDielectric(RoughDielectric {
-                    ior: rough_ior(src, &key, *ior)?,
-                    alpha: roughness(src, &key, *alpha, "dielectric")?,
-                })
-            }
+            MaterialDesc::RoughDielectric {
+                ior,
+                alpha,
+                distribution,
+            } => Bsdf::RoughDielectric(RoughDielectric {
+                ior: rough_ior(src, &key, *ior)?,
+                distribution: distribution_of(*distribution),
+                alpha: roughness(src, &key, *alpha, "dielectric")?,
+            }),
             MaterialDesc::Plastic {
                 diffuse,
                 specular,
@@ -88,6 +96,25 @@ pub(super) fn materials(
                 nonlinear: *nonlinear,
                 one_sided: *one_sided,
             }),
+            MaterialDesc::RoughPlastic {
+                diffuse,
+                specular,
+                alpha,
+                distribution,
+                ior,
+                nonlinear,
+                one_sided,
+            } => Bsdf::RoughPlastic(RoughPlastic::new(
+                Microfacet::new(
+                    distribution_of(*distribution),
+                    roughness(src, &key, *alpha, "plastic")?,
+                ),
+                rough_plastic_ior(src, &key, *ior)?,
+                albedo(src, &key.clone().key("diffuse"), *diffuse)?,
+                albedo(src, &key.clone().key("specular"), *specular)?,
+                *nonlinear,
+                *one_sided,
+            )),
             MaterialDesc::Null {} => Bsdf::Null,
         };
         materials.insert(name.clone(), bsdf);
@@ -95,7 +122,29 @@ pub(super) fn materials(
     Ok(materials)
 }
 
-/// A GGX roughness in [ALPHA_MIN, ALPHA_MAX]: a smoother surface is the smooth material
+fn distribution_of(d: DistributionDesc) -> Distribution {
+    match d {
+        DistributionDesc::Ggx => Distribution::Ggx,
+        DistributionDesc::Beckmann => Distribution::Beckmann,
+    }
+}
+
+/// A rough plastic coating's index: positive and not 1 (Mitsuba's `roughplastic` refuses equal
+/// indices: there would be no coating).
+fn rough_plastic_ior(src: &SceneSource, key: &KeyPath, ior: f32) -> Result<f32, SceneError> {
+    let key = key.clone().key("ior");
+    if !(ior.is_finite() && ior > 0.0) || ior == 1.0 {
+        return Err(src.error(
+            &key,
+            format!(
+                "ior = {ior} must be positive and not 1 (the coating's index inside over outside)"
+            ),
+        ));
+    }
+    Ok(ior)
+}
+
+/// A microfacet roughness in [ALPHA_MIN, ALPHA_MAX]: a smoother surface is the smooth material
 /// (`smooth`), which samples its Dirac exactly, a rougher one leaves the range where the
 /// single-scattering model is a fair description (see `bsdf::microfacet`).
 fn roughness(
@@ -118,7 +167,7 @@ fn roughness(
         return Err(src.error(
             &key,
             format!(
-                "alpha = {alpha} is above {ALPHA_MAX}: the GGX model without multiple \
+                "alpha = {alpha} is above {ALPHA_MAX}: the microfacet model without multiple \
                  scattering loses too much energy beyond it; use lambert for a matte surface"
             ),
         ));

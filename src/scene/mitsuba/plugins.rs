@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use super::props::{line, Doc, Props};
 use super::FORMAT;
 use crate::scene::file::{
-    CameraDesc, LightDesc, MaterialDesc, MediumDesc, Origin, PhaseDesc, PropagationDesc, RgbValue,
-    SceneFile, ShapeDesc,
+    CameraDesc, DistributionDesc, LightDesc, MaterialDesc, MediumDesc, Origin, PhaseDesc,
+    PropagationDesc, RgbValue, SceneFile, ShapeDesc,
 };
 use crate::scene::SceneError;
 
@@ -383,8 +383,8 @@ impl<'a, 'd> Importer<'a, 'd> {
                 let inner = p.object("bsdf", None)?.ok_or_else(|| p.err("a twosided needs one <bsdf>"))?;
                 p.finish()?;
                 let kind = self.doc.plugin(inner)?;
-                if !["diffuse", "conductor", "roughconductor", "plastic"].contains(&kind.as_str()) {
-                    return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic are)")));
+                if !["diffuse", "conductor", "roughconductor", "plastic", "roughplastic"].contains(&kind.as_str()) {
+                    return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic, roughplastic are)")));
                 }
                 let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
                 self.materials.insert(node.id(), name.clone());
@@ -427,13 +427,13 @@ impl<'a, 'd> Importer<'a, 'd> {
                 r
             }
             "roughplastic" => {
-                return Err(p.err(
-                    "`roughplastic` is not supported: pathspace has smooth `plastic` only, and no mix of its models is the same BSDF",
-                ))
+                let r = rough_plastic(&mut p, one_sided, side)?;
+                p.finish()?;
+                r
             }
             k => {
                 return Err(p.err(format!(
-                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, twosided, null are)"
+                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
                 )))
             }
         };
@@ -985,7 +985,7 @@ fn rough_conductor(
     one_sided: bool,
     side: &str,
 ) -> Result<(MaterialDesc, String), SceneError> {
-    let alpha = ggx_alpha(p)?;
+    let (distribution, alpha) = microfacet(p)?;
     let eta = p.color("eta")?;
     let k = p.color("k")?;
     let r = no_named_conductor(p)?;
@@ -999,19 +999,23 @@ fn rough_conductor(
     Ok((
         MaterialDesc::RoughConductor {
             alpha: alpha as f32,
+            distribution,
             reflectance: None,
             eta,
             k,
             one_sided,
         },
-        format!("rough conductor (GGX), alpha {alpha}, {how}{side}"),
+        format!(
+            "rough conductor ({}), alpha {alpha}, {how}{side}",
+            dist_name(distribution)
+        ),
     ))
 }
 
 /// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`.
 fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
     let rough = p.plugin == "roughdielectric";
-    let alpha = if rough { Some(ggx_alpha(p)?) } else { None };
+    let alpha = if rough { Some(microfacet(p)?) } else { None };
     let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
     for k in ["specular_reflectance", "specular_transmittance"] {
         if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
@@ -1023,12 +1027,16 @@ fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
             MaterialDesc::Dielectric { ior: ior as f32 },
             format!("dielectric, ior {ior} (int_ior / ext_ior)"),
         ),
-        Some(a) => (
+        Some((d, a)) => (
             MaterialDesc::RoughDielectric {
                 ior: ior as f32,
                 alpha: a as f32,
+                distribution: d,
             },
-            format!("rough dielectric (GGX), ior {ior} (int_ior / ext_ior), alpha {a}"),
+            format!(
+                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), alpha {a}",
+                dist_name(d)
+            ),
         ),
     })
 }
@@ -1111,23 +1119,72 @@ fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
     }
 }
 
-/// GGX roughness of a rough model: `distribution` must be `ggx` (Mitsuba's default is
-/// beckmann), one isotropic `alpha` (default 0.1).
-fn ggx_alpha(p: &mut Props) -> Result<f64, SceneError> {
-    match p.string("distribution")?.as_deref() {
-        Some("ggx") => {}
-        d => {
+/// The microfacet model of a rough plugin: `distribution` (Mitsuba's default beckmann, or
+/// ggx) and one isotropic `alpha` (default 0.1).
+fn microfacet(p: &mut Props) -> Result<(DistributionDesc, f64), SceneError> {
+    // Mitsuba lowercases the name
+    let d = match p
+        .string("distribution")?
+        .map(|d| d.to_lowercase())
+        .as_deref()
+    {
+        None | Some("beckmann") => DistributionDesc::Beckmann,
+        Some("ggx") => DistributionDesc::Ggx,
+        Some(d) => {
             return Err(p.err(format!(
-                "distribution = {}: only ggx is supported (Mitsuba's default is beckmann)",
-                d.unwrap_or("beckmann (the default)")
+                "distribution = {d}: Mitsuba knows beckmann and ggx"
             )))
         }
-    }
+    };
     if p.float("alpha_u")?.is_some() || p.float("alpha_v")?.is_some() {
         return Err(p.err("anisotropic roughness (alpha_u, alpha_v) is not supported"));
     }
+    // only the sampler depends on it, not the BSDF
     p.ignore(&["sample_visible"]);
-    Ok(p.float("alpha")?.unwrap_or(0.1))
+    Ok((d, p.float("alpha")?.unwrap_or(0.1)))
+}
+
+fn dist_name(d: DistributionDesc) -> &'static str {
+    match d {
+        DistributionDesc::Ggx => "GGX",
+        DistributionDesc::Beckmann => "Beckmann",
+    }
+}
+
+/// `roughplastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults polypropylene and air),
+/// `diffuse_reflectance` (0.5), `specular_reflectance` (1), `nonlinear` (false).
+fn rough_plastic(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    let (distribution, alpha) = microfacet(p)?;
+    let (int_ior, ext_ior) = (ior(p, "int_ior", 1.49)?, ior(p, "ext_ior", 1.000277)?);
+    if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
+        return Err(p.err("int_ior and ext_ior must be positive and differ"));
+    }
+    let ior = int_ior / ext_ior;
+    let diffuse = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let specular = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
+    Ok((
+        MaterialDesc::RoughPlastic {
+            diffuse: rgb(diffuse),
+            specular: rgb(specular),
+            alpha: alpha as f32,
+            distribution,
+            ior: ior as f32,
+            nonlinear,
+            one_sided,
+        },
+        format!(
+            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {}, specular {}{}{side}",
+            dist_name(distribution),
+            show(diffuse),
+            show(specular),
+            if nonlinear { ", nonlinear" } else { "" }
+        ),
+    ))
 }
 
 fn phase(doc: &Doc, node: Node) -> Result<PhaseDesc, SceneError> {
