@@ -148,7 +148,11 @@ fn joined<'a>(
     } else {
         None
     };
-    copy.unwrap_or(&path[i])
+    // lazily: the light subpath may be empty when s = 1 samples its own light vertex
+    match copy {
+        Some(v) => v,
+        None => &path[i],
+    }
 }
 
 /// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
