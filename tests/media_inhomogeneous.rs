@@ -785,3 +785,76 @@ fn grid_line_integrals_are_exact_in_every_direction() {
         }
     }
 }
+
+/// An edge's two free-flight pdfs from one optical depth (`Medium::free_flight_pdfs`, which
+/// BDPT's and MLT's edges use): the forward one is `free_flight_pdf` bit for bit, the backward
+/// one the pdf of the walk from the far end back to the origin (a collision density there when
+/// asked), equal up to the f32 rounding of the two integrals (a few dozen cells, each adding
+/// 2^-24 relative); in a homogeneous medium both are bit for bit.
+#[test]
+fn both_directions_of_an_edge_share_one_optical_depth() {
+    let (ray, len) = oblique();
+    let sigma_t = Vec3::new(0.5, 1.0, 2.5);
+    let het = Medium::Heterogeneous(Box::new(medium(
+        bump_grid(),
+        sigma_t,
+        LineIntegral::DeltaTracking,
+        1.0,
+    )));
+    let hom = Medium::Homogeneous(Homogeneous::new(Rgb::ZERO, sigma_t, Phase::Isotropic).unwrap());
+    for t in [0.1f32, 0.5, len * 0.99] {
+        let back = Ray::new(ray.at(t), -ray.d);
+        for (end, start) in [(false, false), (true, false), (false, true), (true, true)] {
+            let (ab, ba) = het.free_flight_pdfs(&ray, t, end, start);
+            let forward = het.free_flight_pdf(&ray, t, end);
+            assert_eq!(ab.to_bits(), forward.to_bits(), "forward pdf at t = {t}");
+            let backward = het.free_flight_pdf(&back, t, start) as f64;
+            assert_close("backward pdf", ba as f64, backward, 1e-5);
+            let (ab, ba) = hom.free_flight_pdfs(&ray, t, end, start);
+            assert_eq!(ab.to_bits(), hom.free_flight_pdf(&ray, t, end).to_bits());
+            assert_eq!(ba.to_bits(), hom.free_flight_pdf(&back, t, start).to_bits());
+        }
+    }
+}
+
+/// `Grid::eval_pair` (the two Gauss points of a span) is two `Grid::eval` calls bit for bit,
+/// whether the points share a cell or not, inside the box and clamped outside it.
+#[test]
+fn paired_grid_lookups_equal_single_ones() {
+    let g = Grid::bake(5, |u| (7.0 * u.x).sin().abs() + u.y * u.z + 0.1);
+    let mut s = sampler(3, 0);
+    let point = |s: &mut pathspace::math::Sampler| {
+        Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 1.2 - Vec3::splat(0.1)
+    };
+    let (mut shared, mut apart) = (0, 0);
+    for i in 0..20_000 {
+        let a = point(&mut s);
+        // every other pair a short step apart, mostly in one cell
+        let b = if i % 2 == 0 {
+            a + (point(&mut s) - Vec3::splat(0.5)) * 0.05
+        } else {
+            point(&mut s)
+        };
+        let (fa, fb) = g.eval_pair(a, b);
+        assert_eq!(fa.to_bits(), g.eval(a).to_bits(), "at {a}");
+        assert_eq!(
+            fb.to_bits(),
+            g.eval(b).to_bits(),
+            "at {b} (paired with {a})"
+        );
+        let cell = |p: Vec3| {
+            (p.clamp(Vec3::ZERO, Vec3::ONE) * 4.0)
+                .floor()
+                .min(Vec3::splat(3.0))
+        };
+        if cell(a) == cell(b) {
+            shared += 1;
+        } else {
+            apart += 1;
+        }
+    }
+    assert!(
+        shared > 5000 && apart > 5000,
+        "{shared} pairs in one cell, {apart} apart"
+    );
+}

@@ -34,6 +34,11 @@ struct Node {
 /// level of the four-wide tree, which is no deeper than the binary one.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
+/// Levels of a four-wide tree that a query walks with the small stack [`SMALL_STACK`]: a stack
+/// is set up (zeroed) for every ray, and 1.5 kB of it showed in the profile of small scenes.
+const SHALLOW: usize = 8;
+const SMALL_STACK: usize = (WIDTH - 1) * SHALLOW + 1;
+
 /// The hierarchy over a slice of primitives (the primitives are not owned): the binary tree
 /// of the build, and the four-wide tree traversal walks (`geometry::wide`).
 #[derive(Clone, Debug, Default)]
@@ -41,6 +46,8 @@ pub struct Bvh {
     nodes: Vec<Node>,
     indices: Vec<u32>,
     wide: Vec<Node4>,
+    /// Levels of the four-wide tree (which stack size its queries need).
+    wide_depth: usize,
 }
 
 impl Binary for Bvh {
@@ -82,10 +89,12 @@ impl Bvh {
             nodes: Vec::with_capacity(2 * prims.len().max(1)),
             indices: Vec::with_capacity(prims.len()),
             wide: Vec::new(),
+            wide_depth: 0,
         };
         if !items.is_empty() {
             bvh.build_recursive(&mut items, 1);
             bvh.wide = collapse(&bvh, 0);
+            bvh.wide_depth = wide_depth(&bvh.wide, 0);
         }
         bvh
     }
@@ -245,7 +254,24 @@ impl Bvh {
     /// their entry distances, the nearest on top, and checks each distance again when it is
     /// popped: a subtree the best hit so far has moved out of reach is dropped without touching
     /// its node.
+    #[inline]
     pub fn intersect_range(
+        &self,
+        prims: &[Primitive],
+        opaque: &[bool],
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<Hit> {
+        if self.wide_depth <= SHALLOW {
+            self.intersect_with::<SMALL_STACK>(prims, opaque, ray, t_min, t_max)
+        } else {
+            self.intersect_with::<STACK>(prims, opaque, ray, t_min, t_max)
+        }
+    }
+
+    /// [`Bvh::intersect_range`] with a stack of `N` entries (enough for the tree's depth).
+    fn intersect_with<const N: usize>(
         &self,
         prims: &[Primitive],
         opaque: &[bool],
@@ -260,7 +286,7 @@ impl Bvh {
             return None;
         }
         let mut best: Option<Hit> = None;
-        let mut stack = [0u64; STACK];
+        let mut stack = [0u64; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
         loop {
@@ -300,12 +326,28 @@ impl Bvh {
 
     /// Any hit with t in (0, t_max) among primitives for which `blocks` is true, the nearer
     /// children entered first as in [`Bvh::intersect_range`].
+    #[inline]
     pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
+        if self.wide_depth <= SHALLOW {
+            self.occluded_with::<SMALL_STACK>(prims, blocks, ray, t_max)
+        } else {
+            self.occluded_with::<STACK>(prims, blocks, ray, t_max)
+        }
+    }
+
+    /// [`Bvh::occluded`] with a stack of `N` entries (enough for the tree's depth).
+    fn occluded_with<const N: usize>(
+        &self,
+        prims: &[Primitive],
+        blocks: &[bool],
+        ray: &Ray,
+        t_max: f32,
+    ) -> bool {
         let inv_d = ray.d.recip();
         if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
             return false;
         }
-        let mut stack = [0u64; STACK];
+        let mut stack = [0u64; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
         loop {
@@ -334,10 +376,11 @@ impl Bvh {
 /// Pushes the children of `node` the ray enters before `limit` onto `stack` above `sp`, the
 /// farthest first so that the nearest is popped next; returns the new
 /// stack pointer. At most `WIDTH - 1` entries more than were popped to get here: cannot
-/// overflow [`STACK`].
+/// overflow a stack of [`STACK`] entries, nor one of [`SMALL_STACK`] in a tree of at most
+/// [`SHALLOW`] levels.
 #[inline]
-fn push_nearest_last(
-    stack: &mut [u64; STACK],
+fn push_nearest_last<const N: usize>(
+    stack: &mut [u64; N],
     mut sp: usize,
     node: &Node4,
     ray: &Ray,
@@ -365,6 +408,22 @@ fn push_nearest_last(
         sp += 1;
     }
     sp
+}
+
+/// Levels of the four-wide tree under node `i` (a node whose children are all leaves: 1).
+fn wide_depth(wide: &[Node4], i: usize) -> usize {
+    let below = wide[i]
+        .slots
+        .iter()
+        .zip(0..WIDTH)
+        .filter(|&(_, k)| wide[i].has(k))
+        .filter_map(|(slot, _)| match slot.child() {
+            Child::Node(j) => Some(wide_depth(wide, j)),
+            Child::Leaf(_) => None,
+        })
+        .max()
+        .unwrap_or(0);
+    1 + below
 }
 
 /// A stack entry: the child and its entry distance, packed in one word so that the stack a

@@ -23,7 +23,7 @@
 //! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
 //! `tests/media_inhomogeneous.rs`.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use std::path::Path;
 
 /// Largest accepted lattice side (vertices per axis): keeps a malformed header from allocating.
@@ -149,22 +149,49 @@ impl Grid {
     /// Trilinear interpolation at local point `u` in [0,1]^3 (clamped to the box).
     #[inline]
     pub fn eval(&self, u: Vec3) -> f32 {
+        let (base, f) = self.locate(u);
+        trilinear(&self.cell(base), f)
+    }
+
+    /// The cell holding local point `u` (clamped to the box): the index of its first vertex,
+    /// and `u`'s position in it.
+    #[inline]
+    fn locate(&self, u: Vec3) -> (usize, Vec3) {
         let g = (u.clamp(Vec3::ZERO, Vec3::ONE)) * self.lattice();
         // g >= 0, so truncation is the floor (without a libm call); g = res - 1 on the far
         // face belongs to the last cell
         let cell = |k: usize| (g[k] as usize).min(self.res[k] - 2);
         let (x, y, z) = (cell(0), cell(1), cell(2));
         let f = g - Vec3::new(x as f32, y as f32, z as f32);
+        let (dy, dz) = (self.res[0], self.res[0] * self.res[1]);
+        (x + dy * y + dz * z, f)
+    }
+
+    /// The eight vertex values of the cell whose first vertex is `base`, as the corner pairs
+    /// along x: (000, 100), (010, 110), (001, 101), (011, 111), lower ends first.
+    #[inline]
+    fn cell(&self, base: usize) -> [Vec4; 2] {
         // the cell's eight vertices from one bounds-checked slice
         let (dy, dz) = (self.res[0], self.res[0] * self.res[1]);
-        let base = x + dy * y + dz * z;
         let v = &self.values[base..=base + 1 + dy + dz];
-        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let c00 = lerp(v[0], v[1], f.x);
-        let c10 = lerp(v[dy], v[dy + 1], f.x);
-        let c01 = lerp(v[dz], v[dz + 1], f.x);
-        let c11 = lerp(v[dy + dz], v[dy + dz + 1], f.x);
-        lerp(lerp(c00, c10, f.y), lerp(c01, c11, f.y), f.z)
+        [
+            Vec4::new(v[0], v[dy], v[dz], v[dy + dz]),
+            Vec4::new(v[1], v[dy + 1], v[dz + 1], v[dy + dz + 1]),
+        ]
+    }
+
+    /// [`Grid::eval`] at two points, the cell read once when both lie in it (as the two
+    /// Gauss points of a span in [`Grid::integrate`] do): the same values as two calls.
+    #[inline]
+    pub fn eval_pair(&self, a: Vec3, b: Vec3) -> (f32, f32) {
+        let ((base_a, fa), (base_b, fb)) = (self.locate(a), self.locate(b));
+        let ca = self.cell(base_a);
+        let cb = if base_b == base_a {
+            ca
+        } else {
+            self.cell(base_b)
+        };
+        (trilinear(&ca, fa), trilinear(&cb, fb))
     }
     // ANCHOR_END: trilinear
 
@@ -194,13 +221,22 @@ impl Grid {
         let mut sum = 0.0f32;
         for (a, b) in cell_spans(u0 * l, du * l, ta, tb) {
             let h = b - a;
-            let f0 = self.eval(u0 + du * (a + GAUSS2[0] * h));
-            let f1 = self.eval(u0 + du * (a + GAUSS2[1] * h));
+            let (f0, f1) =
+                self.eval_pair(u0 + du * (a + GAUSS2[0] * h), u0 + du * (a + GAUSS2[1] * h));
             sum += 0.5 * h * (f0 + f1);
         }
         sum
     }
     // ANCHOR_END: grid_integrate
+}
+
+/// Trilinear interpolation in one cell (`Grid::cell`'s corner pairs) at position `f` in it:
+/// along x in the four lanes at once (lane by lane the scalar `a + (b - a) t`), then y, then z.
+#[inline]
+fn trilinear(c: &[Vec4; 2], f: Vec3) -> f32 {
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let x = c[0] + (c[1] - c[0]) * f.x;
+    lerp(lerp(x.x, x.y, f.y), lerp(x.z, x.w, f.y), f.z)
 }
 
 // ANCHOR: dda

@@ -561,4 +561,27 @@ impl Heterogeneous {
             average(tr)
         }
     }
+
+    /// [`Heterogeneous::free_flight_pdf`] of the segment [0, t] along `ray` (collision at its
+    /// end if `scattered_end`) and of the same segment walked back from its end (collision at
+    /// `ray.o` if `scattered_start`), from one density integral: D is the same line integral
+    /// in either direction (eq. 3). The two walks' integrals computed apart differed only by
+    /// f32 rounding, and the exact integral was half of BDPT's time on the door slit.
+    pub fn free_flight_pdfs(
+        &self,
+        ray: &Ray,
+        t: f32,
+        scattered_end: bool,
+        scattered_start: bool,
+    ) -> (f32, f32) {
+        let tr = (-self.sigma_t * self.density_integral(ray, t)).exp();
+        let pdf = |scattered: bool, p: Vec3| {
+            if scattered {
+                average(self.sigma_t * self.density_at(p) * tr)
+            } else {
+                average(tr)
+            }
+        };
+        (pdf(scattered_end, ray.at(t)), pdf(scattered_start, ray.o))
+    }
 }

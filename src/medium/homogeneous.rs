@@ -63,6 +63,11 @@ impl Homogeneous {
             // a ray to infinity is extinguished in every channel with sigma_t > 0
             return Rgb::select(self.sigma_t.cmpgt(Rgb::ZERO), Rgb::ZERO, Rgb::ONE);
         }
+        let s = self.sigma_t;
+        if s.x == s.y && s.y == s.z {
+            // a grey medium: one exponential (the same value) serves the three channels
+            return Rgb::splat((-s.x * d).exp());
+        }
         (-self.sigma_t * d).exp()
         // END ASSIGNMENT
     }

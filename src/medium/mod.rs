@@ -199,4 +199,26 @@ impl Medium {
             Medium::Heterogeneous(h) => h.free_flight_pdf(ray, t, scattered),
         }
     }
+
+    /// The free-flight pdfs of the segment [0, t] along `ray` in both directions: forward
+    /// (a collision at its end if `scattered_end`) and walked back from its end (a collision at
+    /// `ray.o` if `scattered_start`), as two [`Medium::free_flight_pdf`] calls would give them
+    /// (bit for bit in a homogeneous medium; from one density integral in an inhomogeneous one,
+    /// `Heterogeneous::free_flight_pdfs`). For the edges of BDPT and MLT.
+    #[inline]
+    pub fn free_flight_pdfs(
+        &self,
+        ray: &Ray,
+        t: f32,
+        scattered_end: bool,
+        scattered_start: bool,
+    ) -> (f32, f32) {
+        match self {
+            Medium::Homogeneous(h) => (
+                h.free_flight_pdf(t, scattered_end),
+                h.free_flight_pdf(t, scattered_start),
+            ),
+            Medium::Heterogeneous(h) => h.free_flight_pdfs(ray, t, scattered_end, scattered_start),
+        }
+    }
 }

@@ -130,6 +130,31 @@ impl Walk {
     }
 }
 
+/// Vertex `i` of a subpath of which the first `n` vertices are joined: the copies `last`
+/// (vertex n - 1) and `before` (vertex n - 2) with the reverse densities of the join where
+/// given, else the subpath's own.
+#[inline]
+fn joined<'a>(
+    path: &'a [Vertex],
+    i: usize,
+    n: usize,
+    last: Option<&'a Vertex>,
+    before: Option<&'a Vertex>,
+) -> &'a Vertex {
+    let copy = if i + 1 == n {
+        last
+    } else if i + 2 == n {
+        before
+    } else {
+        None
+    };
+    // lazily: the light subpath may be empty when s = 1 samples its own light vertex
+    match copy {
+        Some(v) => v,
+        None => &path[i],
+    }
+}
+
 /// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
 /// only; `None` without an environment).
 fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<Vertex> {
@@ -644,24 +669,9 @@ impl<'t> Bdpt<'t> {
             qm.pdf_rev = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
         }
 
-        let eye_at = |i: usize| -> Vertex {
-            if i + 1 == t {
-                pt
-            } else if i + 2 == t {
-                pt_minus.unwrap_or_else(|| eye[i])
-            } else {
-                eye[i]
-            }
-        };
-        let light_at = |i: usize| -> Vertex {
-            if i + 1 == s {
-                qs.unwrap_or_else(|| light[i])
-            } else if i + 2 == s {
-                qs_minus.unwrap_or_else(|| light[i])
-            } else {
-                light[i]
-            }
-        };
+        // the subpaths as the joined path has them, by reference (a vertex is ~100 bytes)
+        let eye_at = |i: usize| joined(eye, i, t, Some(&pt), pt_minus.as_ref());
+        let light_at = |i: usize| joined(light, i, s, qs.as_ref(), qs_minus.as_ref());
         let mut sum = 0.0f32;
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
@@ -678,7 +688,7 @@ impl<'t> Bdpt<'t> {
             let delta_before = if i > 0 {
                 light_at(i - 1).delta
             } else {
-                Self::is_delta_light(scene, &light_at(0))
+                Self::is_delta_light(scene, light_at(0))
             };
             if !v.delta && !delta_before {
                 sum += ri * ri;

@@ -399,9 +399,11 @@ impl Scene {
                 let len = seg.t1 - seg.t0;
                 let sr = Ray::new(ray.at(seg.t0), d);
                 out.transmittance *= tau(med, &sr, len);
-                out.pdf_ab *= med.free_flight_pdf(&sr, len, last && b_in_medium);
-                let back = Ray::new(ray.at(seg.t1), -d);
-                out.pdf_ba *= med.free_flight_pdf(&back, len, seg.first && a_in_medium);
+                // both directions from one optical depth (`Medium::free_flight_pdfs`)
+                let (ab, ba) =
+                    med.free_flight_pdfs(&sr, len, last && b_in_medium, seg.first && a_in_medium);
+                out.pdf_ab *= ab;
+                out.pdf_ba *= ba;
             }
             match seg.end {
                 SegmentEnd::Null(_) => {}
