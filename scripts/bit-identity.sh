@@ -46,7 +46,7 @@ record() {
     # shellcheck disable=SC2086
     if $BIN render "$scene" $opts $res --spp 4 --seed 7 --threads 2 --json \
         -o "$dir/$name.exr" >"$dir/$name.json.raw" 2>"$dir/$name.err"; then
-      jq -S 'del(.seconds, .paths_per_second, .outputs)' "$dir/$name.json.raw" >"$dir/$name.json"
+      jq -S 'del(.seconds, .paths_per_second, .outputs, .memory.peak_resident)' "$dir/$name.json.raw" >"$dir/$name.json"
     else
       # a refusal: its message is part of the behaviour
       echo "refused: $(tail -1 "$dir/$name.err")" >"$dir/$name.json"
