@@ -214,7 +214,11 @@ fn single_scattering_agrees_across_selections_and_distance_sampling() {
     let medium = scene.medium_at(o);
     let tree = || LightSelection::build(LightSelectionKind::Tree, &scene);
     let configs = [
-        ("power free-flight", DistanceSampling::FreeFlight, LightSelection::Power),
+        (
+            "power free-flight",
+            DistanceSampling::FreeFlight,
+            LightSelection::Power,
+        ),
         ("tree free-flight", DistanceSampling::FreeFlight, tree()),
         ("tree equiangular", DistanceSampling::EquiangularMis, tree()),
     ];
@@ -243,6 +247,11 @@ fn single_scattering_agrees_across_selections_and_distance_sampling() {
     }
     for (name, s) in &stats[1..] {
         for c in 0..3 {
+            let (a, b) = (s[c], stats[0].1[c]);
+            eprintln!(
+                "{name} channel {c}: {:.5e} +- {:.1e} against {:.5e} +- {:.1e}",
+                a.0, a.1, b.0, b.1
+            );
             fam.means_agree(
                 &format!("{name} against {} channel {c}", stats[0].0),
                 s[c],
