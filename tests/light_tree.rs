@@ -246,17 +246,12 @@ fn single_scattering_agrees_across_selections_and_distance_sampling() {
         stats.push((name, per_channel));
     }
     for (name, s) in &stats[1..] {
-        for c in 0..3 {
-            let (a, b) = (s[c], stats[0].1[c]);
+        for (c, (&a, &b)) in s.iter().zip(&stats[0].1).enumerate() {
             eprintln!(
                 "{name} channel {c}: {:.5e} +- {:.1e} against {:.5e} +- {:.1e}",
                 a.0, a.1, b.0, b.1
             );
-            fam.means_agree(
-                &format!("{name} against {} channel {c}", stats[0].0),
-                s[c],
-                stats[0].1[c],
-            );
+            fam.means_agree(&format!("{name} against {} channel {c}", stats[0].0), a, b);
         }
     }
     fam.finish();
