@@ -530,3 +530,51 @@ fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
         "{err}"
     );
 }
+
+/// `light_selection`: a bad value is refused at its line, the flag is the path tracer's (other
+/// integrators refuse it by name), and a file's key takes effect.
+#[test]
+fn light_selection_is_checked_and_applied() {
+    let text = format!(
+        "[render]\nlight_selection = \"nearest\"\n\n{}",
+        fog_box_without_render()
+    );
+    let e = load(&SceneSource::embedded("l.toml", &text))
+        .err()
+        .expect("an unknown light selection is refused")
+        .to_string();
+    assert!(
+        e.contains("light_selection") && e.contains("nearest") && e.contains("l.toml:2"),
+        "{e}"
+    );
+    let text = format!(
+        "[render]\nlight_selection = \"power\"\n\n{}",
+        fog_box_without_render()
+    );
+    let (_, settings) = load(&SceneSource::embedded("p.toml", &text)).unwrap();
+    assert_eq!(
+        settings.light_selection,
+        pathspace::scene::LightSelectionKind::Power
+    );
+    let dir = common::cli::scratch("options", "light-selection");
+    let out = dir.join("x.exr");
+    let run = common::cli::pathspace(&[
+        "render",
+        "--integrator",
+        "bdpt",
+        "--light-selection",
+        "tree",
+        "--spp",
+        "1",
+        "--resolution",
+        "4x4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("--light-selection applies to --integrator path"),
+        "{err}"
+    );
+}

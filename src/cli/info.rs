@@ -297,7 +297,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         println!("    {}: {}", esc(n), medium(m));
     }
     println!(
-        "  lights: {} (selected in proportion to power)",
+        "  lights: {} (selected in proportion to power; the path tracer's next-event estimation picks by the light tree unless light_selection = \"power\")",
         scene.lights.len()
     );
     for (i, l) in scene.lights.iter().enumerate() {

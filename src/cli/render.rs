@@ -224,6 +224,12 @@ impl RenderArgs {
                 kind.name()
             )));
         }
+        if o.light_selection.is_some() && kind != IntegratorKind::Path {
+            return Err(CliError::Usage(format!(
+                "--light-selection applies to --integrator path, not `{}` (its light subpaths and connections pick lights by power)",
+                kind.name()
+            )));
+        }
         if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
             return Err(CliError::Usage(format!(
                 "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",

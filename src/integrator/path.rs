@@ -12,7 +12,7 @@ use crate::bsdf::TransportMode;
 use crate::geometry::{offset_origin, shadow_distance, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::distance::RayMedia;
-use crate::scene::{Event, IrradianceMeter, Scene};
+use crate::scene::{Event, IrradianceMeter, LightSelection, Scene};
 use crate::spectrum::Rgb;
 
 /// Power heuristic with beta = 2 (Veach 1997): the weight of the strategy with density `a`.
@@ -46,12 +46,14 @@ pub fn distance_mis(a: f32, b: f32) -> f32 {
 }
 
 /// The path tracer's parameters.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct PathTracer {
     /// Maximum number of scattering vertices (surface or medium) between sensor and light.
     pub max_depth: u32,
     /// How distances along camera rays are sampled for single-scattered light.
     pub distance: DistanceSampling,
+    /// How next-event estimation picks a light (`[render] light_selection`).
+    pub selection: LightSelection,
 }
 
 /// How the path tracer samples the distance to a medium vertex on a camera ray, for the
@@ -96,6 +98,9 @@ impl DistanceSampling {
 #[derive(Clone, Copy)]
 struct Previous {
     p: Vec3,
+    /// The surface normal there (`None` in a medium and at the camera): the light selection
+    /// at `p` depends on it, and its probability enters the MIS weight.
+    n: Option<Vec3>,
     /// Solid-angle density of the direction sampled there.
     pdf_dir: f32,
     /// True when that direction was a Dirac (no light sampling could have produced it) or the
@@ -108,7 +113,14 @@ impl PathTracer {
         PathTracer {
             max_depth: max_depth.unwrap_or(u32::MAX),
             distance: DistanceSampling::FreeFlight,
+            selection: LightSelection::Power,
         }
+    }
+
+    /// This path tracer picking lights for next-event estimation by `selection`.
+    pub fn with_light_selection(mut self, selection: LightSelection) -> Self {
+        self.selection = selection;
+        self
     }
 
     /// This path tracer sampling camera-ray distances by `distance`.
@@ -127,6 +139,7 @@ impl PathTracer {
     ) -> Rgb {
         let prev = Previous {
             p: ray.o,
+            n: None,
             pdf_dir: 1.0,
             singular: true,
         };
@@ -148,7 +161,13 @@ impl PathTracer {
         if scene.lights.is_empty() || self.max_depth == 0 {
             return Rgb::ZERO;
         }
-        let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        // a light chosen at the ray's origin: the vertex is not known yet
+        let Some((l, pmf, u_prim)) =
+            self.selection
+                .sample(scene, media.ray.o, None, sampler.next_f32())
+        else {
+            return Rgb::ZERO;
+        };
         let (u, u_t) = (sampler.next_2d(), sampler.next_f32());
         let light = &scene.lights[l];
         let Some((y, ny, pdf_area)) = light.sample_point(&scene.prims, u, u_prim) else {
@@ -170,7 +189,15 @@ impl PathTracer {
             let f = phase.eval(wo, wi);
             (Rgb::splat(f), f)
         };
-        beta * light_sample_estimate(scene, p, None, |_| Some(m), sampler, scatter, &ls, pmf)
+        // the MIS weight against phase sampling at p takes the selection's probability at p,
+        // as the walk's emission found from p does; the estimate divides by the one drawn
+        let pmf_here = self.selection.pmf(scene, p, None, l as u32);
+        if pmf_here <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let est =
+            light_sample_estimate(scene, p, None, |_| Some(m), sampler, scatter, &ls, pmf_here);
+        beta * est * (pmf_here / pmf)
     }
     // ANCHOR_END: equiangular_estimate
 
@@ -185,8 +212,9 @@ impl PathTracer {
     ) -> Rgb {
         let n = meter.normal();
         let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
-        let mut l = next_event(
+        let mut l = next_event_weighted(
             scene,
+            &self.selection,
             p,
             None,
             |_| meter.medium,
@@ -199,6 +227,7 @@ impl PathTracer {
                     (Rgb::ZERO, 0.0)
                 }
             },
+            |_, _| 1.0,
         );
         let local = warp::cosine_hemisphere(sampler.next_2d());
         if local.z <= 0.0 {
@@ -207,6 +236,7 @@ impl PathTracer {
         let wi = Frame::from_normal(n).to_world(local);
         let prev = Previous {
             p,
+            n: None,
             pdf_dir: local.z * std::f32::consts::FRAC_1_PI,
             singular: false,
         };
@@ -240,7 +270,7 @@ impl PathTracer {
             }
             let go_on = match prop.event {
                 Event::Escape => {
-                    l += escaped(scene, &w);
+                    l += escaped(scene, &self.selection, &w);
                     false
                 }
                 Event::Medium {
@@ -303,7 +333,17 @@ impl PathTracer {
             let f = phase.eval(wo, wi);
             (Rgb::splat(f), f)
         };
-        *l += w.beta * next_event_weighted(scene, p, None, |_| Some(m), sampler, scatter, mis);
+        *l += w.beta
+            * next_event_weighted(
+                scene,
+                &self.selection,
+                p,
+                None,
+                |_| Some(m),
+                sampler,
+                scatter,
+                mis,
+            );
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
         let ps = phase.sample(wo, sampler.next_2d());
@@ -313,6 +353,7 @@ impl PathTracer {
         w.beta *= ps.value / ps.pdf;
         w.prev = Previous {
             p,
+            n: None,
             pdf_dir: ps.pdf,
             singular: false,
         };
@@ -337,7 +378,7 @@ impl PathTracer {
         let n = hit.ng;
         if let Some(li) = shape.light {
             if w.ray.d.dot(n) < 0.0 {
-                let Some(e) = emission_found(scene, w, hit, li) else {
+                let Some(e) = emission_found(scene, &self.selection, w, hit, li) else {
                     return false;
                 };
                 *l += e;
@@ -354,11 +395,22 @@ impl PathTracer {
         // the regular lobe's light by next-event estimation; a Dirac lobe's only by sampling
         if bsdf.has_regular_lobe() {
             let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
+            let scatter = |wi: Vec3| {
+                let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
+                (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+            };
+            let (sel, no_weight) = (&self.selection, |_: usize, _: &_| 1.0);
             *l += w.beta
-                * next_event(scene, hit.p, Some(n), towards, sampler, |wi| {
-                    let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
-                    (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
-                });
+                * next_event_weighted(
+                    scene,
+                    sel,
+                    hit.p,
+                    Some(n),
+                    towards,
+                    sampler,
+                    scatter,
+                    no_weight,
+                );
         }
         let u = sampler.next_2d();
         let uc = sampler.next_f32();
@@ -373,6 +425,7 @@ impl PathTracer {
         w.medium = shape.medium_across(wo, bs.wi, n, m);
         w.prev = Previous {
             p: hit.p,
+            n: Some(n),
             pdf_dir: bs.pdf,
             singular: bs.lobe.is_singular(),
         };
@@ -409,7 +462,7 @@ impl WalkState {
 }
 
 /// The environment's radiance for a walk that escaped, MIS-weighted against light sampling.
-fn escaped(scene: &Scene, w: &WalkState) -> Rgb {
+fn escaped(scene: &Scene, selection: &LightSelection, w: &WalkState) -> Rgb {
     let Some(e) = scene.environment else {
         return Rgb::ZERO;
     };
@@ -419,7 +472,8 @@ fn escaped(scene: &Scene, w: &WalkState) -> Rgb {
     let mis = if w.prev.singular {
         1.0
     } else {
-        power_heuristic(w.prev.pdf_dir, scene.light_pmf(e) * env.pdf(w.ray.d))
+        let pmf = selection.pmf(scene, w.prev.p, w.prev.n, e);
+        power_heuristic(w.prev.pdf_dir, pmf * env.pdf(w.ray.d))
     };
     w.beta * env.radiance(w.ray.d) * mis
 }
@@ -428,6 +482,7 @@ fn escaped(scene: &Scene, w: &WalkState) -> Rgb {
 /// sampling; `None` when `li` is not an area light (the walk ends).
 fn emission_found(
     scene: &Scene,
+    selection: &LightSelection,
     w: &WalkState,
     hit: &crate::geometry::Hit,
     li: u32,
@@ -438,7 +493,7 @@ fn emission_found(
     let mis = if w.prev.singular {
         1.0
     } else {
-        let pdf_light = scene.light_pmf(li)
+        let pdf_light = selection.pmf(scene, w.prev.p, w.prev.n, li)
             * scene.lights[li as usize].pdf_li(&scene.prims, w.prev.p, hit.p, hit.ng, hit.prim);
         power_heuristic(w.prev.pdf_dir, pdf_light)
     };
@@ -499,7 +554,16 @@ pub fn next_event(
     sampler: &mut Sampler,
     scatter: impl Fn(Vec3) -> (Rgb, f32),
 ) -> Rgb {
-    next_event_weighted(scene, p, n, medium, sampler, scatter, |_, _| 1.0)
+    next_event_weighted(
+        scene,
+        &LightSelection::Power,
+        p,
+        n,
+        medium,
+        sampler,
+        scatter,
+        |_, _| 1.0,
+    )
 }
 
 /// [`next_event`] with the estimate of light `l`'s sample `ls` multiplied by `weight(l, ls)`:
@@ -508,6 +572,7 @@ pub fn next_event(
 #[allow(clippy::too_many_arguments)]
 pub fn next_event_weighted(
     scene: &Scene,
+    selection: &LightSelection,
     p: Vec3,
     n: Option<Vec3>,
     medium: impl Fn(Vec3) -> Option<u32>,
@@ -516,10 +581,9 @@ pub fn next_event_weighted(
     weight: impl Fn(usize, &crate::scene::light::LightSample) -> f32,
 ) -> Rgb {
     // ASSIGNMENT: next_event
-    if scene.lights.is_empty() {
+    let Some((l, pmf, u_prim)) = selection.sample(scene, p, n, sampler.next_f32()) else {
         return Rgb::ZERO;
-    }
-    let (l, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+    };
     let light = &scene.lights[l];
     let u = sampler.next_2d();
     let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
@@ -586,11 +650,14 @@ pub fn light_sample_estimate(
 /// The path tracer for the render loop (it takes no settings but the depth limit).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
     let distance = setup.settings.distance;
+    let selection = LightSelection::build(setup.settings.light_selection, setup.scene);
     if distance == DistanceSampling::EquiangularMis {
         check_equiangular(setup.scene)?;
     }
     Ok(Box::new(
-        PathTracer::new(setup.max_depth).with_distance(distance),
+        PathTracer::new(setup.max_depth)
+            .with_distance(distance)
+            .with_light_selection(selection),
     ))
 }
 

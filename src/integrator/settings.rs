@@ -13,6 +13,7 @@ use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::path::DistanceSampling;
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
+use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
 use clap::builder::PossibleValuesParser;
 
@@ -53,6 +54,11 @@ pub struct RenderOptions {
     /// combined by MIS; homogeneous media only).
     #[arg(long, value_parser = PossibleValuesParser::new(DistanceSampling::NAMES))]
     pub distance: Option<String>,
+    /// path: light selection for next-event estimation, `tree` (default: a light hierarchy
+    /// weighing lights by what they can deliver to the shading point, Conty Estevez and Kulla
+    /// 2018) or `power` (proportional to power everywhere).
+    #[arg(long, value_parser = PossibleValuesParser::new(LightSelectionKind::NAMES))]
+    pub light_selection: Option<String>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -460,6 +466,8 @@ pub struct RenderSettings {
     pub meter_samples: u32,
     /// The path tracer's distance sampling on camera rays (`[render] distance`).
     pub distance: DistanceSampling,
+    /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
+    pub light_selection: LightSelectionKind,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
     /// Sequential Monte Carlo settings (`[render.smc]`).
@@ -485,6 +493,7 @@ impl RenderSettings {
             max_depth: None,
             meter_samples: DEFAULT_METER_SAMPLES,
             distance: DistanceSampling::FreeFlight,
+            light_selection: LightSelectionKind::Tree,
             mlt: MltSettings::default(),
             smc: SmcSettings::default(),
             guide: GuideSettings::for_radius(radius),
@@ -543,6 +552,10 @@ impl RenderSettings {
         if let Some(d) = &o.distance {
             self.distance = DistanceSampling::parse(d)
                 .map_err(|m| SettingError::at("", Some("distance"), m))?;
+        }
+        if let Some(k) = &o.light_selection {
+            self.light_selection = LightSelectionKind::parse(k)
+                .map_err(|m| SettingError::at("", Some("light_selection"), m))?;
         }
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);

@@ -9,6 +9,7 @@ pub mod camera;
 pub mod envmap;
 pub mod file;
 pub mod light;
+pub mod light_tree;
 pub mod mitsuba;
 pub mod segments;
 pub mod sensor;
@@ -17,6 +18,7 @@ pub use camera::Camera;
 pub use envmap::EnvMap;
 pub use file::{SceneError, SceneFile, SceneSource};
 pub use light::{Environment, Light};
+pub use light_tree::{LightSelection, LightSelectionKind};
 pub use segments::{Segment, SegmentEnd, Segments};
 pub use sensor::IrradianceMeter;
 
