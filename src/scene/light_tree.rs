@@ -146,6 +146,7 @@ impl LightBounds {
                     let cone = match prim {
                         Primitive::Quad(q) => (q.n, 0.0),
                         Primitive::Triangle(t) => (t.n, 0.0),
+                        Primitive::Disk(d) => (d.n, 0.0),
                         Primitive::Sphere(_) => (Vec3::Y, PI),
                     };
                     bounds = bounds.union(prim.bounds());
