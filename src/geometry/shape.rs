@@ -24,20 +24,28 @@ pub struct Quad {
 impl Quad {
     /// A parallelogram; `None` when `u` and `v` are parallel (zero area).
     pub fn new(origin: Vec3, u: Vec3, v: Vec3) -> Option<Self> {
-        let c = u.cross(v);
-        let len2 = c.length_squared();
-        if len2 <= 0.0 || !len2.is_finite() {
-            return None;
-        }
+        let (n, w, len) = plane_of(u, v)?;
         Some(Quad {
             origin,
             u,
             v,
-            n: c / len2.sqrt(),
-            w: c / len2,
-            area: len2.sqrt(),
+            n,
+            w,
+            area: len,
         })
     }
+}
+
+/// The plane spanned by `u` and `v`: the unit normal `normalize(u x v)`, the vector
+/// `(u x v) / |u x v|^2` that gives a point's coordinates along u and v, and `|u x v|`; `None`
+/// when u and v are parallel.
+fn plane_of(u: Vec3, v: Vec3) -> Option<(Vec3, Vec3, f32)> {
+    let c = u.cross(v);
+    let len2 = c.length_squared();
+    if len2 <= 0.0 || !len2.is_finite() {
+        return None;
+    }
+    Some((c / len2.sqrt(), c / len2, len2.sqrt()))
 }
 
 /// A triangle `p0 + b1 e1 + b2 e2`; geometric normal `normalize(e1 x e2)`.
@@ -87,18 +95,14 @@ pub struct Disk {
 impl Disk {
     /// A disk; `None` when `u` and `v` are parallel (zero area).
     pub fn new(center: Vec3, u: Vec3, v: Vec3) -> Option<Self> {
-        let c = u.cross(v);
-        let len2 = c.length_squared();
-        if len2 <= 0.0 || !len2.is_finite() {
-            return None;
-        }
+        let (n, w, len) = plane_of(u, v)?;
         Some(Disk {
             center,
             u,
             v,
-            n: c / len2.sqrt(),
-            w: c / len2,
-            area: std::f32::consts::PI * len2.sqrt(),
+            n,
+            w,
+            area: std::f32::consts::PI * len,
         })
     }
 }

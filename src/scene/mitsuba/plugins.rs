@@ -845,20 +845,26 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
     }
 }
 
-/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
-fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+/// A planar shape's origin and edge vectors: the local point `o` and the local axes x and y
+/// scaled by `edge`, mapped by `m` (u and v swapped to flip the normal u x v), and the note.
+fn planar(m: &DMat4, flip: bool, o: DVec3, edge: f64, what: &str) -> ([[f32; 3]; 3], String) {
     let l = linear(m);
-    let o = m.transform_point3(DVec3::new(-1.0, -1.0, 0.0));
-    let (u, v) = (l * DVec3::new(2.0, 0.0, 0.0), l * DVec3::new(0.0, 2.0, 0.0));
+    let o = m.transform_point3(o);
+    let (u, v) = (l * (edge * DVec3::X), l * (edge * DVec3::Y));
     let (u, v) = if flip { (v, u) } else { (u, v) };
     let how = format!(
-        "quad at {}, u {}, v {} ([-1,1]^2 at z = 0 mapped, normal u x v{})",
+        "at {}, u {}, v {} ({what} at z = 0 mapped, normal u x v{})",
         show(o),
         show(u),
         show(v),
         if flip { ", flipped" } else { "" }
     );
-    let (origin, u, v) = (f3(o), f3(u), f3(v));
+    ([f3(o), f3(u), f3(v)], how)
+}
+
+/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+    let ([origin, u, v], how) = planar(m, flip, DVec3::new(-1.0, -1.0, 0.0), 2.0, "[-1,1]^2");
     let (material, emission, interior, exterior) = (None, None, None, None);
     let quad = ShapeDesc::Quad {
         origin,
@@ -869,23 +875,12 @@ fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
         interior,
         exterior,
     };
-    (quad, how)
+    (quad, format!("quad {how}"))
 }
 
 /// `disk`: the unit disk at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
 fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
-    let l = linear(m);
-    let c = m.transform_point3(DVec3::ZERO);
-    let (u, v) = (l * DVec3::X, l * DVec3::Y);
-    let (u, v) = if flip { (v, u) } else { (u, v) };
-    let how = format!(
-        "disk at {}, u {}, v {} (unit disk at z = 0 mapped, normal u x v{})",
-        show(c),
-        show(u),
-        show(v),
-        if flip { ", flipped" } else { "" }
-    );
-    let (center, u, v) = (f3(c), f3(u), f3(v));
+    let ([center, u, v], how) = planar(m, flip, DVec3::ZERO, 1.0, "unit disk");
     let (material, emission, interior, exterior) = (None, None, None, None);
     let disk = ShapeDesc::Disk {
         center,
@@ -896,7 +891,7 @@ fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
         interior,
         exterior,
     };
-    (disk, how)
+    (disk, format!("disk {how}"))
 }
 
 /// `cube`: [-1,1]^3 under a scale and a translation (pathspace's boxes are axis-aligned).
