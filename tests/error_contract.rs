@@ -166,10 +166,10 @@ fn every_enumerated_scene_value_is_checked_at_its_key() {
             "unknown variant `fluid`, expected one of `homogeneous`, `grid`, `procedural`",
         ),
         (
-            "\n[materials.shiny]\ntype = \"plastic\"\n".into(),
+            "\n[materials.shiny]\ntype = \"velvet\"\n".into(),
             3,
             "materials.shiny.type",
-            "unknown variant `plastic`, expected one of `lambert`, `mirror`, `dielectric`, `rough_conductor`, `rough_dielectric`, `null`",
+            "unknown variant `velvet`, expected one of `lambert`, `mirror`, `dielectric`, `thin_dielectric`, `rough_conductor`, `rough_dielectric`, `rough_plastic`, `plastic`, `null`",
         ),
         (
             "\n[media.haze]\ntype = \"homogeneous\"\nsigma_a = 0.1\nsigma_s = 0.1\nphase = { type = \"rayleigh\" }\n".into(),
@@ -290,7 +290,7 @@ fn messages_escape_the_control_characters_they_quote() {
         "\n[render]\n\"sp\\u001b[2Jp\\u0007\\u0000\" = 4\n",
         3,
         "render.sp\\u{1b}[2Jp\\u{7}\\u{0}",
-        "unknown field `sp\\u{1b}[2Jp\\u{7}\\u{0}`, expected one of `integrator`, `spp`, `seed`, `max_depth`, `meter_samples`, `distance`, `adjoint_image`, `mlt`, `smc`, `guide`, `adjoint`",
+        "unknown field `sp\\u{1b}[2Jp\\u{7}\\u{0}`, expected one of `integrator`, `spp`, `seed`, `max_depth`, `meter_samples`, `distance`, `light_selection`, `adjoint_image`, `mlt`, `smc`, `guide`, `adjoint`",
     );
     expect(
         "\n[render]\nintegrator = \"pa\\u001b]0;owned\\u0007th\\r\"\n",
