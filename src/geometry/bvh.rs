@@ -13,13 +13,18 @@ use super::wide::{collapse, Binary, Child, Node4, Slot, WIDTH};
 use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
-const MAX_LEAF: usize = 4;
+const MAX_LEAF: usize = 2;
 /// Deepest level the build creates: below it everything left becomes one leaf. Traversal keeps
 /// its to-do list in a fixed stack of this size, which therefore can never overflow (before
 /// this limit, a push onto a full stack was silently dropped, losing a subtree).
 pub const MAX_DEPTH: usize = 64;
+/// A primitive's box is split while its surface area exceeds this multiple of the mean box's
+/// ([`split_references`]).
+const SPLIT_AREA: f32 = 8.0;
+/// References the splitting may add, per primitive of the scene.
+const SPLIT_BUDGET: usize = 1;
 /// SAH cost of one traversal step relative to one primitive test.
-const TRAVERSAL_COST: f32 = 1.0;
+const TRAVERSAL_COST: f32 = 2.0;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -71,28 +76,18 @@ struct BuildItem {
 pub const TIE_EPSILON: f32 = 1e-5;
 
 impl Bvh {
-    /// Builds the hierarchy (O(n log n)).
+    /// Builds the hierarchy (O(n log n)) over the references of [`split_references`].
     pub fn build(prims: &[Primitive]) -> Self {
-        let mut items: Vec<BuildItem> = prims
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let b = p.bounds();
-                BuildItem {
-                    bounds: b,
-                    centroid: b.centroid(),
-                    index: i as u32,
-                }
-            })
-            .collect();
+        let mut items = split_references(prims);
         let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * prims.len().max(1)),
-            indices: Vec::with_capacity(prims.len()),
+            nodes: Vec::with_capacity(2 * items.len().max(1)),
+            indices: Vec::with_capacity(items.len()),
             wide: Vec::new(),
             wide_depth: 0,
         };
         if !items.is_empty() {
-            bvh.build_recursive(&mut items, 1);
+            let mut leaf_of = vec![u32::MAX; prims.len()];
+            bvh.build_recursive(&mut items, 1, &mut leaf_of);
             bvh.wide = collapse(&bvh, 0);
             bvh.wide_depth = wide_depth(&bvh.wide, 0);
         }
@@ -138,7 +133,14 @@ impl Bvh {
         self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
     }
 
-    fn build_recursive(&mut self, items: &mut [BuildItem], depth: usize) -> usize {
+    /// `leaf_of[i]` is the last leaf primitive `i` was put in: a leaf holding two references
+    /// of one primitive lists it once.
+    fn build_recursive(
+        &mut self,
+        items: &mut [BuildItem],
+        depth: usize,
+        leaf_of: &mut [u32],
+    ) -> usize {
         let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
         let node_index = self.nodes.len();
         self.nodes.push(Node {
@@ -146,79 +148,60 @@ impl Bvh {
             offset: 0,
             count: 0,
         });
-        let make_leaf = |bvh: &mut Bvh, items: &mut [BuildItem]| {
-            let first = bvh.indices.len() as u32;
-            bvh.indices.extend(items.iter().map(|it| it.index));
-            bvh.nodes[node_index].offset = first;
-            bvh.nodes[node_index].count = items.len() as u32;
+        let make_leaf = |bvh: &mut Bvh, items: &mut [BuildItem], leaf_of: &mut [u32]| {
+            let first = bvh.indices.len();
+            for it in items.iter() {
+                if std::mem::replace(&mut leaf_of[it.index as usize], node_index as u32)
+                    != node_index as u32
+                {
+                    bvh.indices.push(it.index);
+                }
+            }
+            bvh.nodes[node_index].offset = first as u32;
+            bvh.nodes[node_index].count = (bvh.indices.len() - first) as u32;
             node_index
         };
         if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
-            return make_leaf(self, items);
+            return make_leaf(self, items, leaf_of);
         }
         let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
         let extent = cb.extent();
-        let axis = if extent.x >= extent.y && extent.x >= extent.z {
-            0
-        } else if extent.y >= extent.z {
-            1
-        } else {
-            2
-        };
-        if extent[axis] <= 0.0 {
+        let widest = extent.max_position();
+        if extent[widest] <= 0.0 {
             // all centroids coincide: split in the middle of the list
             let mid = items.len() / 2;
-            return self.split(node_index, items, mid, depth);
+            return self.split(node_index, items, mid, depth, leaf_of);
         }
-        // ANCHOR: sah
-        // binned SAH along the widest centroid axis
-        let mut bin_bounds = [Aabb::EMPTY; BINS];
-        let mut bin_count = [0usize; BINS];
-        let scale = BINS as f32 / extent[axis];
-        let bin_of = |c: Vec3| (((c[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
-        for it in items.iter() {
-            let b = bin_of(it.centroid);
-            bin_bounds[b] = bin_bounds[b].union(it.bounds);
-            bin_count[b] += 1;
-        }
-        let mut best = (f32::INFINITY, 0usize);
-        let mut right_area = [0.0f32; BINS];
-        let mut right_count = [0usize; BINS];
-        let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
-        for i in (1..BINS).rev() {
-            acc_b = acc_b.union(bin_bounds[i]);
-            acc_n += bin_count[i];
-            right_area[i] = acc_b.surface_area();
-            right_count[i] = acc_n;
-        }
-        let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
-        for i in 1..BINS {
-            acc_b = acc_b.union(bin_bounds[i - 1]);
-            acc_n += bin_count[i - 1];
-            let cost = acc_b.surface_area() * acc_n as f32 + right_area[i] * right_count[i] as f32;
-            if acc_n > 0 && right_count[i] > 0 && cost < best.0 {
-                best = (cost, i);
+        // the cheapest binned SAH split over the axes along which the centroids spread
+        let mut best = Split {
+            cost: f32::INFINITY,
+            axis: widest,
+            bin: 0,
+        };
+        for axis in (0..3).filter(|&a| extent[a] > 0.0) {
+            let split = sah_split(items, &cb, axis);
+            if split.cost < best.cost {
+                best = split;
             }
         }
-        // ANCHOR_END: sah
         let leaf_cost = items.len() as f32;
-        let split_cost = TRAVERSAL_COST + best.0 / bounds.surface_area().max(f32::MIN_POSITIVE);
-        if best.0.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
-            if best.0.is_infinite() {
+        let split_cost = TRAVERSAL_COST + best.cost / bounds.surface_area().max(f32::MIN_POSITIVE);
+        if best.cost.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
+            if best.cost.is_infinite() {
                 let mid = items.len() / 2;
-                items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
-                return self.split(node_index, items, mid, depth);
+                items.sort_by(|a, b| a.centroid[widest].total_cmp(&b.centroid[widest]));
+                return self.split(node_index, items, mid, depth, leaf_of);
             }
-            return make_leaf(self, items);
+            return make_leaf(self, items, leaf_of);
         }
         let mut mid = 0;
         for i in 0..items.len() {
-            if bin_of(items[i].centroid) < best.1 {
+            if bin_of(&cb, best.axis, items[i].centroid) < best.bin {
                 items.swap(i, mid);
                 mid += 1;
             }
         }
-        self.split(node_index, items, mid, depth)
+        self.split(node_index, items, mid, depth, leaf_of)
     }
 
     fn split(
@@ -227,10 +210,11 @@ impl Bvh {
         items: &mut [BuildItem],
         mid: usize,
         depth: usize,
+        leaf_of: &mut [u32],
     ) -> usize {
         let (left, right) = items.split_at_mut(mid);
-        self.build_recursive(left, depth + 1);
-        let r = self.build_recursive(right, depth + 1);
+        self.build_recursive(left, depth + 1, leaf_of);
+        let r = self.build_recursive(right, depth + 1, leaf_of);
         self.nodes[node_index].offset = r as u32;
         self.nodes[node_index].count = 0;
         node_index
@@ -371,6 +355,119 @@ impl Bvh {
             child = unpack(stack[sp]).0.child();
         }
     }
+}
+
+/// A candidate split of the build: the items whose centroid falls in a bin below `bin` along
+/// `axis` go left; `cost` is the surface area heuristic's, without the constant terms.
+struct Split {
+    cost: f32,
+    axis: usize,
+    bin: usize,
+}
+
+/// The bin of centroid `c` along `axis`, the centroids' bounds `cb` cut into [`BINS`] slabs.
+#[inline]
+fn bin_of(cb: &Aabb, axis: usize, c: Vec3) -> usize {
+    let scale = BINS as f32 / (cb.max[axis] - cb.min[axis]);
+    (((c[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1)
+}
+
+// ANCHOR: sah
+/// The binned SAH's best split along `axis` (Wald 2007): the items binned by centroid, each
+/// plane between bins costed as left area x left count + right area x right count.
+fn sah_split(items: &[BuildItem], cb: &Aabb, axis: usize) -> Split {
+    let mut bin_bounds = [Aabb::EMPTY; BINS];
+    let mut bin_count = [0usize; BINS];
+    for it in items.iter() {
+        let b = bin_of(cb, axis, it.centroid);
+        bin_bounds[b] = bin_bounds[b].union(it.bounds);
+        bin_count[b] += 1;
+    }
+    let mut right_area = [0.0f32; BINS];
+    let mut right_count = [0usize; BINS];
+    let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
+    for i in (1..BINS).rev() {
+        acc_b = acc_b.union(bin_bounds[i]);
+        acc_n += bin_count[i];
+        right_area[i] = acc_b.surface_area();
+        right_count[i] = acc_n;
+    }
+    let mut best = Split {
+        cost: f32::INFINITY,
+        axis,
+        bin: 0,
+    };
+    let (mut acc_b, mut acc_n) = (Aabb::EMPTY, 0usize);
+    for i in 1..BINS {
+        acc_b = acc_b.union(bin_bounds[i - 1]);
+        acc_n += bin_count[i - 1];
+        let cost = acc_b.surface_area() * acc_n as f32 + right_area[i] * right_count[i] as f32;
+        if acc_n > 0 && right_count[i] > 0 && cost < best.cost {
+            best.cost = cost;
+            best.bin = i;
+        }
+    }
+    best
+}
+// ANCHOR_END: sah
+
+// ANCHOR: split_references
+/// The build's references to the primitives: one per primitive, except that a primitive whose
+/// box is large against the others' is referenced once per piece of its box, cut in halves
+/// across the longest side until each piece is small (early split clipping, Ernst and Greiner
+/// 2007, sec. 3). A floor spanning a hundred rooms then sits in every room's subtree with that
+/// room's piece of its box, instead of dragging one box over the whole scene high in the tree,
+/// which every ray would enter. A piece's box is the primitive's box clipped to the piece:
+/// conservative, tight for the axis-aligned quads this is for. The pieces share their cut
+/// planes exactly, so a ray that enters the whole box at a point of the primitive enters a
+/// piece holding that point, and queries find the same hits (one primitive may be tested twice,
+/// which changes no result).
+fn split_references(prims: &[Primitive]) -> Vec<BuildItem> {
+    let boxes: Vec<Aabb> = prims.iter().map(Primitive::bounds).collect();
+    let mean = boxes.iter().map(Aabb::surface_area).sum::<f32>() / boxes.len().max(1) as f32;
+    let small = SPLIT_AREA * mean;
+    // at most this many references more than primitives: bounded memory whatever the scene
+    let mut budget = SPLIT_BUDGET * prims.len();
+    let mut items = Vec::with_capacity(prims.len());
+    let mut pieces = Vec::new();
+    for (i, &b) in boxes.iter().enumerate() {
+        pieces.clear();
+        pieces.push(b);
+        let mut k = 0;
+        // piece k is halved until small, then k moves on to the halves pushed behind it
+        while k < pieces.len() {
+            let piece = pieces[k];
+            match halves(piece).filter(|_| piece.surface_area() > small && budget > 0) {
+                Some((lo, hi)) => {
+                    pieces[k] = lo;
+                    pieces.push(hi);
+                    budget -= 1;
+                }
+                None => k += 1,
+            }
+        }
+        items.extend(pieces.iter().map(|&p| BuildItem {
+            bounds: p,
+            centroid: p.centroid(),
+            index: i as u32,
+        }));
+    }
+    items
+}
+// ANCHOR_END: split_references
+
+/// `b` cut in two across its longest side, at a plane both halves share; `None` when that
+/// side is too short to cut in floating point.
+fn halves(b: Aabb) -> Option<(Aabb, Aabb)> {
+    let axis = b.extent().max_position();
+    let mid = 0.5 * (b.min[axis] + b.max[axis]);
+    if !(mid > b.min[axis] && mid < b.max[axis]) {
+        return None;
+    }
+    let (mut lo, mut hi) = (b, b);
+    lo.max[axis] = mid;
+    hi.min[axis] = mid;
+    Some((lo, hi))
 }
 
 /// Pushes the children of `node` the ray enters before `limit` onto `stack` above `sp`, the
