@@ -208,6 +208,116 @@ fn unbalanced_hierarchy_still_finds_every_hit() {
     }
 }
 
+/// A block of 8 x 8 rooms in miniature: one floor and one ceiling quad over all of them, a
+/// large tilted triangle, disk and sphere, and many small primitives, so that the build splits
+/// the large ones into several references each (early split clipping).
+fn rooms_like(r: &mut Pcg64Mcg) -> Vec<Primitive> {
+    let (x, z) = (Vec3::X * 32.0, Vec3::Z * 32.0);
+    let mut prims = vec![
+        Primitive::Quad(Quad::new(Vec3::ZERO, z, x).unwrap()),
+        Primitive::Quad(Quad::new(Vec3::Y * 3.0, x, z).unwrap()),
+        Primitive::Triangle(
+            Triangle::new(
+                Vec3::new(1.0, 0.5, 1.0),
+                Vec3::new(31.0, 2.5, 3.0),
+                Vec3::new(2.0, 1.5, 30.0),
+            )
+            .unwrap(),
+        ),
+        Primitive::Disk(
+            Disk::new(
+                Vec3::new(16.0, 1.5, 16.0),
+                Vec3::new(9.0, 1.0, 0.0),
+                Vec3::new(0.0, 0.5, 9.0),
+            )
+            .unwrap(),
+        ),
+        Primitive::Sphere(Sphere {
+            center: Vec3::new(24.0, 1.5, 8.0),
+            radius: 4.0,
+        }),
+    ];
+    while prims.len() < 600 {
+        let c = Vec3::new(
+            r.random_range(0.0..32.0),
+            r.random_range(0.0..3.0),
+            r.random_range(0.0..32.0),
+        );
+        prims.extend(
+            Triangle::new(c, c + 0.5 * unit(r), c + 0.5 * unit(r)).map(Primitive::Triangle),
+        );
+    }
+    prims
+}
+
+#[test]
+fn large_primitives_split_into_several_references_are_hit_as_by_brute_force() {
+    let mut r = rng(11);
+    let prims = rooms_like(&mut r);
+    let bvh = Bvh::build(&prims);
+    // the five large primitives are referenced in several leaves each
+    assert!(
+        bvh.reference_count() >= prims.len() + 5,
+        "{} references of {} primitives",
+        bvh.reference_count(),
+        prims.len()
+    );
+    let opaque: Vec<bool> = (0..prims.len()).map(|_| r.random()).collect();
+    let (mut hits, mut blocked) = (0, 0);
+    for i in 0..20_000 {
+        // rays aimed at the lines where halving the 32 m quads cuts them (multiples of 0.5 m),
+        // give or take a little, from inside the block and from above it
+        let line =
+            |r: &mut Pcg64Mcg| 0.5 * r.random_range(0..=64) as f32 + r.random_range(-0.02f32..0.02);
+        let target = Vec3::new(
+            line(&mut r),
+            if r.random() { 0.0 } else { 3.0 },
+            line(&mut r),
+        );
+        let o = if i % 3 == 0 {
+            Vec3::new(16.0, 40.0, 16.0) + 10.0 * unit(&mut r)
+        } else {
+            Vec3::new(
+                r.random_range(0.0..32.0),
+                r.random_range(0.1..2.9),
+                r.random_range(0.0..32.0),
+            )
+        };
+        let ray = Ray::new(o, (target - o).normalize());
+        let t_max = if i % 2 == 0 {
+            f32::INFINITY
+        } else {
+            r.random_range(0.0..60.0)
+        };
+        let got = bvh
+            .intersect(&prims, &opaque, &ray, t_max)
+            .map(|h| (h.t, h.prim));
+        let want = brute_closest(&prims, &ray, t_max);
+        match (got, want) {
+            (None, None) => {}
+            (Some((t, p)), Some((tw, pw))) => {
+                hits += 1;
+                assert!(
+                    p == pw || (t - tw).abs() <= TIE_EPSILON * (1.0 + tw),
+                    "{p} vs {pw}, {ray:?}"
+                );
+            }
+            _ => panic!("BVH {got:?}, brute force {want:?}, ray {ray:?} t_max {t_max}"),
+        }
+        let any = brute_closest(&prims, &ray, t_max).is_some();
+        assert_eq!(
+            bvh.occluded(&prims, &vec![true; prims.len()], &ray, t_max),
+            any,
+            "{ray:?}"
+        );
+        blocked += any as usize;
+    }
+    assert!(
+        hits > 10_000 && blocked > 10_000,
+        "{hits} hits, {blocked} blocked"
+    );
+}
+
 #[test]
 fn empty_bvh_hits_nothing() {
     let bvh = Bvh::build(&[]);

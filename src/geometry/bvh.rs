@@ -106,6 +106,12 @@ impl Bvh {
         &self.indices[n.offset as usize..(n.offset + n.count) as usize]
     }
 
+    /// Number of primitive references in the leaves: more than the primitives where large ones
+    /// were split ([`split_references`]).
+    pub fn reference_count(&self) -> usize {
+        self.indices.len()
+    }
+
     /// Number of nodes of the four-wide tree traversal walks.
     pub fn wide_node_count(&self) -> usize {
         self.wide.len()
