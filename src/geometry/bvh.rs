@@ -73,9 +73,16 @@ pub const TIE_EPSILON: f32 = 1e-5;
 impl Bvh {
     /// Builds the hierarchy (O(n log n)).
     pub fn build(prims: &[Primitive]) -> Self {
+        Self::build_over(prims, |_| true)
+    }
+
+    /// Builds the hierarchy over the primitives `keep` accepts; queries never see the others
+    /// (indices still refer to the whole slice).
+    pub fn build_over(prims: &[Primitive], keep: impl Fn(usize) -> bool) -> Self {
         let mut items: Vec<BuildItem> = prims
             .iter()
             .enumerate()
+            .filter(|&(i, _)| keep(i))
             .map(|(i, p)| {
                 let b = p.bounds();
                 BuildItem {
