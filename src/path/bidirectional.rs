@@ -20,6 +20,7 @@ use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
+use crate::path::subpath::{remap, Subpath, VertexCache};
 use crate::path::vertex::to_area;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
@@ -130,31 +131,6 @@ impl Walk {
     }
 }
 
-/// Vertex `i` of a subpath of which the first `n` vertices are joined: the copies `last`
-/// (vertex n - 1) and `before` (vertex n - 2) with the reverse densities of the join where
-/// given, else the subpath's own.
-#[inline]
-fn joined<'a>(
-    path: &'a [Vertex],
-    i: usize,
-    n: usize,
-    last: Option<&'a Vertex>,
-    before: Option<&'a Vertex>,
-) -> &'a Vertex {
-    let copy = if i + 1 == n {
-        last
-    } else if i + 2 == n {
-        before
-    } else {
-        None
-    };
-    // lazily: the light subpath may be empty when s = 1 samples its own light vertex
-    match copy {
-        Some(v) => v,
-        None => &path[i],
-    }
-}
-
 /// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
 /// only; `None` without an environment).
 fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<Vertex> {
@@ -187,6 +163,21 @@ pub enum SensorStart {
 pub struct Scratch {
     pub light: Vec<Vertex>,
     pub eye: Vec<Vertex>,
+    /// The per-vertex values of both subpaths that `Bdpt::combine` computes once per sample.
+    pub light_cache: Vec<VertexCache>,
+    pub eye_cache: Vec<VertexCache>,
+}
+
+/// The reverse densities (in their vertices' measures, propagation included) that a
+/// connection (s, t) gives the vertices next to it: p_{t-1}, p_{t-2} as sampled from the light
+/// side and q_{s-1}, q_{s-2} as sampled from the eye side (Veach 1997, sec. 10.2); those of
+/// vertices the path does not have are unused.
+#[derive(Clone, Copy, Debug, Default)]
+struct Changed {
+    pt: f32,
+    pt_minus: f32,
+    qs: f32,
+    qs_minus: f32,
 }
 
 #[derive(Clone, Debug)]
@@ -617,84 +608,162 @@ impl<'t> Bdpt<'t> {
     /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
     // ANCHOR: mis_weight
     pub fn mis_weight(&self, scene: &Scene, light: &[Vertex], eye: &[Vertex], join: Join) -> f32 {
-        use TransportMode::{Importance, Radiance};
-        let Join {
-            s,
-            t,
-            sampled,
-            pdf_qp: conn_pdf_qp,
-            pdf_pq: conn_pdf_pq,
-        } = join;
-        let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
-        // copies of the four vertices whose reverse densities the connection changes
-        let mut qs = if s > 0 {
-            Some(if s == 1 {
-                sampled.unwrap_or_else(|| light[0])
-            } else {
-                light[s - 1]
-            })
-        } else {
-            None
-        };
-        let mut pt = if t == 1 && s != 1 {
-            sampled.unwrap_or_else(|| eye[0])
-        } else {
-            eye[t - 1]
-        };
-        let mut qs_minus = if s > 1 { Some(light[s - 2]) } else { None };
-        let mut pt_minus = if t > 1 { Some(eye[t - 2]) } else { None };
+        let changed = self.changed_densities(scene, light, eye, &join);
+        self.weight(scene, light, eye, &join, changed)
+    }
 
-        if let Some(q) = qs.as_mut() {
-            q.delta = false;
-        }
-        pt.delta = false;
+    /// The four reverse densities the connection `join` changes, from the vertices alone.
+    fn changed_densities(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        join: &Join,
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let (s, t) = (join.s, join.t);
+        // the connection's ends as the joined path has them
+        let qs = if s == 0 {
+            None
+        } else if s == 1 {
+            Some(join.sampled.as_ref().unwrap_or(&light[0]))
+        } else {
+            Some(&light[s - 1])
+        };
+        let pt = if t == 1 && s != 1 {
+            join.sampled.as_ref().unwrap_or(&eye[0])
+        } else {
+            &eye[t - 1]
+        };
+        let qs_minus = (s > 1).then(|| &light[s - 2]);
+        let pt_minus = (t > 1).then(|| &eye[t - 2]);
+        let mut c = Changed::default();
         // pt as sampled from the light side
-        pt.pdf_rev = match &qs {
+        c.pt = match qs {
             Some(q) => {
-                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp
+                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), pt, Importance) * join.pdf_qp
             }
             None => pt.light_origin_pdf(scene, self.tech),
         };
-        if let Some(pm) = pt_minus.as_mut() {
-            pm.pdf_rev = match &qs {
+        if let Some(pm) = pt_minus {
+            c.pt_minus = match qs {
                 Some(q) => pt.pdf_area(scene, self.tech, Some(q.p), pm, Importance),
                 None => pt.light_pdf_to(scene, self.tech, pm),
             } * pt.prop_rev;
         }
-        if let Some(q) = qs.as_mut() {
-            q.pdf_rev =
-                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
+        if let Some(q) = qs {
+            c.qs =
+                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * join.pdf_pq;
+            if let Some(qm) = qs_minus {
+                c.qs_minus = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
+            }
         }
-        if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
-            qm.pdf_rev = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
-        }
+        c
+    }
 
-        // the subpaths as the joined path has them, by reference (a vertex is ~100 bytes)
-        let eye_at = |i: usize| joined(eye, i, t, Some(&pt), pt_minus.as_ref());
-        let light_at = |i: usize| joined(light, i, s, qs.as_ref(), qs_minus.as_ref());
+    /// The weight 1 / (1 + sum of r_i^2) of strategy `join` with the reverse densities
+    /// `changed` of the four vertices next to the connection; every other vertex brings its
+    /// subpath's own ratio (`Subpath::ratio`).
+    fn weight<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        eye: &E,
+        join: &Join,
+        changed: Changed,
+    ) -> f32 {
+        let (s, t) = (join.s, join.t);
+        let (lv, ev) = (light.vertices(), eye.vertices());
+        // the connection's ends are connectible: their deltas count as false
+        let pt_fwd = if t == 1 && s != 1 {
+            join.sampled.as_ref().unwrap_or(&ev[0]).pdf_fwd
+        } else {
+            ev[t - 1].pdf_fwd
+        };
         let mut sum = 0.0f32;
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
-            let v = eye_at(i);
-            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
-            if !v.delta && !eye_at(i - 1).delta {
+            ri *= if i + 1 == t {
+                remap(changed.pt) / remap(pt_fwd)
+            } else if i + 2 == t {
+                remap(changed.pt_minus) / remap(ev[i].pdf_fwd)
+            } else {
+                eye.ratio(i)
+            };
+            let delta = i + 1 != t && ev[i].delta;
+            if !delta && !ev[i - 1].delta {
                 sum += ri * ri;
             }
         }
+        if s == 0 {
+            return 1.0 / (1.0 + sum);
+        }
+        let qs = if s == 1 {
+            join.sampled.as_ref().unwrap_or(&lv[0])
+        } else {
+            &lv[s - 1]
+        };
         ri = 1.0;
         for i in (0..s).rev() {
-            let v = light_at(i);
-            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
-            let delta_before = if i > 0 {
-                light_at(i - 1).delta
+            ri *= if i + 1 == s {
+                remap(changed.qs) / remap(qs.pdf_fwd)
+            } else if i + 2 == s {
+                remap(changed.qs_minus) / remap(lv[i].pdf_fwd)
             } else {
-                Self::is_delta_light(scene, light_at(0))
+                light.ratio(i)
             };
-            if !v.delta && !delta_before {
+            let delta = i + 1 != s && lv[i].delta;
+            let delta_before = if i > 0 {
+                lv[i - 1].delta
+            } else {
+                // vertex 0 is the connection's end itself when s = 1
+                Self::is_delta_light(scene, if s == 1 { qs } else { &lv[0] })
+            };
+            if !delta && !delta_before {
                 sum += ri * ri;
             }
         }
         1.0 / (1.0 + sum)
+    }
+
+    /// [`Bdpt::changed_densities`] of a connection between two walk vertices, q = `light[s -
+    /// 1]` and p = `eye[t - 1]` (s, t >= 2), from the connection's vector `d` = p - q, its unit
+    /// direction `w` and its squared length `d2`, and the subpaths' per-vertex values: the same
+    /// operands as the vertices would give, so the same bits.
+    #[allow(clippy::too_many_arguments)]
+    fn changed_between_walks<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        eye: &E,
+        (s, t): (usize, usize),
+        (d, w, d2): (Vec3, Vec3, f32),
+        (pdf_qp, pdf_pq): (f32, f32),
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let (q, p) = (&light.vertices()[s - 1], &eye.vertices()[t - 1]);
+        let (wq, wp) = (light.to_prev(s - 1), eye.to_prev(t - 1));
+        // `to_area` between p and q in either direction: the cosine at the far end over d^2
+        let area = |far: &Vertex, pdf: f32| {
+            if d2 == 0.0 {
+                0.0
+            } else {
+                pdf * crate::path::geometry_term::cosine_factor(far, d / d2.sqrt()) / d2
+            }
+        };
+        let tech = self.tech;
+        Changed {
+            pt: area(p, tech.scatter_pdf(scene, q, wq, w, Importance)) * pdf_qp,
+            pt_minus: eye
+                .prev_area(t - 1)
+                .apply(tech.scatter_pdf(scene, p, -w, wp, Importance))
+                * p.prop_rev,
+            qs: area(q, tech.scatter_pdf(scene, p, wp, -w, Radiance)) * pdf_pq,
+            qs_minus: light
+                .prev_area(s - 1)
+                .apply(tech.scatter_pdf(scene, q, w, wq, Radiance))
+                * q.prop_rev,
+        }
     }
     // ANCHOR_END: mis_weight
 
@@ -755,12 +824,27 @@ impl<'t> Bdpt<'t> {
         t: usize,
         sampler: &mut Sampler,
     ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
-        let pt_last = eye[t - 1];
-        if t > 1 && s != 0 && pt_last.is_infinite_light() {
+        self.connect_in(scene, light, eye, s, t, sampler)
+    }
+
+    /// [`Bdpt::connect_sampled`] on subpaths whose per-vertex values are given
+    /// ([`crate::path::subpath::Cached`], `Bdpt::combine`) or computed on the fly (`[Vertex]`).
+    pub fn connect_in<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light_path: &L,
+        eye_path: &E,
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
+        let (light, eye) = (light_path.vertices(), eye_path.vertices());
+        if t > 1 && s != 0 && eye[t - 1].is_infinite_light() {
             return None;
         }
         let mut sampled: Option<Vertex> = None;
         let mut raster = None;
+        let mut changed = None;
         let (mut l, pdf_qp, pdf_pq);
         if s == 0 {
             // the eye subpath found an emitter by itself
@@ -794,24 +878,9 @@ impl<'t> Bdpt<'t> {
             let c = self.connect_to_sensor(scene, light, eye, s, sampler)?;
             (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
         } else {
-            let qs = &light[s - 1];
-            let pt = &eye[t - 1];
-            if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
-                return None;
-            }
-            let fq = qs.f_hat(scene, light[s - 2].p, pt.p);
-            let fp = pt.f_hat(scene, qs.p, eye[t - 2].p);
-            if fq == Rgb::ZERO || fp == Rgb::ZERO {
-                return None;
-            }
-            let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
-            l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
+            let c = self.connect_walks(scene, light_path, eye_path, s, t, sampler)?;
+            (l, pdf_qp, pdf_pq) = (c.0, c.1, c.2);
+            changed = c.3;
         }
         if l == Rgb::ZERO || !l.is_finite() {
             return if l.is_finite() {
@@ -828,9 +897,52 @@ impl<'t> Bdpt<'t> {
                 pdf_qp,
                 pdf_pq,
             };
-            l *= self.mis_weight(scene, light, eye, join);
+            let changed =
+                changed.unwrap_or_else(|| self.changed_densities(scene, light, eye, &join));
+            l *= self.weight(scene, light_path, eye_path, &join, changed);
         }
         Some((l, raster, sampled))
+    }
+
+    /// Strategy (s, t) with s, t >= 2: the light subpath's end q joined to the eye subpath's
+    /// end p. Returns the unweighted contribution, the edge's propagation pdfs both ways and,
+    /// when every strategy is weighted, the reverse densities the connection changes, all from
+    /// one direction q -> p (its reverse is the same vector negated, exactly).
+    #[allow(clippy::type_complexity)]
+    fn connect_walks<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        eye: &E,
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, f32, f32, Option<Changed>)> {
+        let qs = &light.vertices()[s - 1];
+        let pt = &eye.vertices()[t - 1];
+        if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+            return None;
+        }
+        let d = pt.p - qs.p;
+        let w = d.normalize_or_zero();
+        // `f_hat(q_{s-2} -> q -> p)` and `f_hat(q -> p -> p_{t-2})`; a zero `d` (w zero
+        // either way) is refused by the edge below
+        let fq = qs.f_hat_dirs(scene, light.to_prev(s - 1), w);
+        let fp = pt.f_hat_dirs(scene, -w, eye.to_prev(t - 1));
+        if fq == Rgb::ZERO || fp == Rgb::ZERO {
+            return None;
+        }
+        let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
+        let l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
+        let changed = (self.strategies == Strategies::All).then(|| {
+            let geometry = (d, w, d.length_squared());
+            self.changed_between_walks(scene, light, eye, (s, t), geometry, (e.pdf_ab, e.pdf_ba))
+        });
+        Some((l, e.pdf_ab, e.pdf_ba, changed))
     }
     // ANCHOR_END: connect
 
