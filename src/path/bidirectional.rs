@@ -22,6 +22,7 @@ use crate::math::{warp, Frame, Sampler};
 use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::subpath::{remap, Subpath, VertexCache};
 use crate::path::vertex::to_area;
+use TransportMode::Radiance;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::light::EmissionSample;
@@ -63,6 +64,8 @@ struct Connection {
     pdf_pq: f32,
     sampled: Option<Vertex>,
     raster: Option<Vec2>,
+    /// The reverse densities the connection changes, when it computed them on the way.
+    changed: Option<Changed>,
 }
 
 /// Strategy (s, t) of one joined path, for its MIS weight: the endpoint sampled for the
@@ -178,6 +181,15 @@ struct Changed {
     pt_minus: f32,
     qs: f32,
     qs_minus: f32,
+}
+
+/// The eye side's end p of a connection from a light walk's vertex q: the solid-angle
+/// density with which p samples the direction to q, and, when p has a predecessor, the one
+/// with which it samples the predecessor given q, with the conversion to its measure.
+struct End<'a> {
+    p: &'a Vertex,
+    p_to_q: f32,
+    p_minus: Option<(f32, crate::path::vertex::AreaFactor)>,
 }
 
 #[derive(Clone, Debug)]
@@ -726,24 +738,25 @@ impl<'t> Bdpt<'t> {
         1.0 / (1.0 + sum)
     }
 
-    /// [`Bdpt::changed_densities`] of a connection between two walk vertices, q = `light[s -
-    /// 1]` and p = `eye[t - 1]` (s, t >= 2), from the connection's vector `d` = p - q, its unit
-    /// direction `w` and its squared length `d2`, and the subpaths' per-vertex values: the same
-    /// operands as the vertices would give, so the same bits.
-    #[allow(clippy::too_many_arguments)]
-    fn changed_between_walks<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+    /// [`Bdpt::changed_densities`] of a connection from the light walk's vertex q =
+    /// `light[s - 1]` (s >= 2) to the end `ends.p` of the eye side, from the connection's
+    /// vector `d` = p - q and its unit direction `w`, with q's per-vertex values and p's
+    /// densities given: the same operands the vertices would give, so the same bits.
+    fn changed_at_walk<L: Subpath + ?Sized>(
         &self,
         scene: &Scene,
         light: &L,
-        eye: &E,
-        (s, t): (usize, usize),
-        (d, w, d2): (Vec3, Vec3, f32),
+        s: usize,
+        ends: End,
+        (d, w): (Vec3, Vec3),
         (pdf_qp, pdf_pq): (f32, f32),
     ) -> Changed {
         use TransportMode::{Importance, Radiance};
-        let (q, p) = (&light.vertices()[s - 1], &eye.vertices()[t - 1]);
-        let (wq, wp) = (light.to_prev(s - 1), eye.to_prev(t - 1));
+        let (q, p) = (&light.vertices()[s - 1], ends.p);
+        let wq = light.to_prev(s - 1);
+        let d2 = d.length_squared();
         // `to_area` between p and q in either direction: the cosine at the far end over d^2
+        // (the reversed vector is -d exactly, and g takes the cosine's absolute value)
         let area = |far: &Vertex, pdf: f32| {
             if d2 == 0.0 {
                 0.0
@@ -754,11 +767,8 @@ impl<'t> Bdpt<'t> {
         let tech = self.tech;
         Changed {
             pt: area(p, tech.scatter_pdf(scene, q, wq, w, Importance)) * pdf_qp,
-            pt_minus: eye
-                .prev_area(t - 1)
-                .apply(tech.scatter_pdf(scene, p, -w, wp, Importance))
-                * p.prop_rev,
-            qs: area(q, tech.scatter_pdf(scene, p, wp, -w, Radiance)) * pdf_pq,
+            pt_minus: ends.p_minus.map_or(0.0, |(pdf, a)| a.apply(pdf) * p.prop_rev),
+            qs: area(q, ends.p_to_q) * pdf_pq,
             qs_minus: light
                 .prev_area(s - 1)
                 .apply(tech.scatter_pdf(scene, q, w, wq, Radiance))
@@ -858,8 +868,9 @@ impl<'t> Bdpt<'t> {
             pdf_pq = 1.0;
         } else if s == 1 {
             // next-event estimation: sample a point on a light for the eye subpath's end
-            let c = self.connect_light_sample(scene, eye, t, sampler)?;
+            let c = self.connect_light_sample(scene, eye_path, t, sampler)?;
             (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
+            changed = c.changed;
         } else if t == 1
             && self.strategies == Strategies::LightTracing
             && matches!(eye[0].kind, VertexKind::Meter { .. })
@@ -875,8 +886,9 @@ impl<'t> Bdpt<'t> {
             sampled = Some(z0);
         } else if t == 1 {
             // connect the light subpath to the sensor
-            let c = self.connect_to_sensor(scene, light, eye, s, sampler)?;
+            let c = self.connect_to_sensor(scene, light_path, eye, s, sampler)?;
             (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
+            changed = c.changed;
         } else {
             let c = self.connect_walks(scene, light_path, eye_path, s, t, sampler)?;
             (l, pdf_qp, pdf_pq) = (c.0, c.1, c.2);
@@ -939,8 +951,17 @@ impl<'t> Bdpt<'t> {
         let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
         let l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
         let changed = (self.strategies == Strategies::All).then(|| {
-            let geometry = (d, w, d.length_squared());
-            self.changed_between_walks(scene, light, eye, (s, t), geometry, (e.pdf_ab, e.pdf_ba))
+            use TransportMode::{Importance, Radiance};
+            let wp = eye.to_prev(t - 1);
+            let ends = End {
+                p: pt,
+                p_to_q: self.tech.scatter_pdf(scene, pt, wp, -w, Radiance),
+                p_minus: Some((
+                    self.tech.scatter_pdf(scene, pt, -w, wp, Importance),
+                    eye.prev_area(t - 1),
+                )),
+            };
+            self.changed_at_walk(scene, light, s, ends, (d, w), (e.pdf_ab, e.pdf_ba))
         });
         Some((l, e.pdf_ab, e.pdf_ba, changed))
     }
@@ -948,13 +969,14 @@ impl<'t> Bdpt<'t> {
 
     /// Strategy s = 1 (next-event estimation): a light vertex sampled for the eye subpath's
     /// end `eye[t - 1]`, by the technique's light start or by power, and its connection.
-    fn connect_light_sample(
+    fn connect_light_sample<E: Subpath + ?Sized>(
         &self,
         scene: &Scene,
-        eye: &[Vertex],
+        eye_path: &E,
         t: usize,
         sampler: &mut Sampler,
     ) -> Option<Connection> {
+        let eye = eye_path.vertices();
         let mut raster = None;
         let pt = &eye[t - 1];
         if !pt.is_connectible(scene) {
@@ -999,7 +1021,8 @@ impl<'t> Bdpt<'t> {
                 _ => return None,
             }
         } else {
-            pt.f_hat(scene, v.p, eye[t - 2].p)
+            // `f_hat(v -> pt -> eye[t - 2])`
+            pt.f_hat_dirs(scene, (v.p - pt.p).normalize_or_zero(), eye_path.to_prev(t - 1))
         };
         if f == Rgb::ZERO {
             return None;
@@ -1020,13 +1043,42 @@ impl<'t> Bdpt<'t> {
         // an infinite light's edge leaves the scene: only the passage of its segments counts
         let pdf_qp = e.pdf_ab;
         let pdf_pq = e.pdf_ba;
+        let changed = (t > 1 && self.strategies == Strategies::All)
+            .then(|| self.changed_at_light(scene, &v, eye_path, t, (pdf_qp, pdf_pq)));
         Some(Connection {
             l,
             pdf_qp,
             pdf_pq,
             sampled: Some(v),
             raster,
+            changed,
         })
+    }
+
+    /// [`Bdpt::changed_densities`] of next-event estimation's connection (s = 1, t >= 2) of
+    /// light vertex `q` to p = `eye[t - 1]`, with p's per-vertex values: the operands the
+    /// vertices would give, so the same bits.
+    fn changed_at_light<E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        q: &Vertex,
+        eye: &E,
+        t: usize,
+        (pdf_qp, pdf_pq): (f32, f32),
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let p = &eye.vertices()[t - 1];
+        let (u, wp) = ((q.p - p.p).normalize_or_zero(), eye.to_prev(t - 1));
+        let tech = self.tech;
+        Changed {
+            pt: q.light_pdf_to(scene, tech, p) * pdf_qp,
+            pt_minus: eye
+                .prev_area(t - 1)
+                .apply(tech.scatter_pdf(scene, p, u, wp, Importance))
+                * p.prop_rev,
+            qs: to_area(tech.scatter_pdf(scene, p, wp, u, Radiance), p, q) * pdf_pq,
+            qs_minus: 0.0,
+        }
     }
 
     /// The light vertex of next-event estimation's sample `ls` of light `li` (seen from
@@ -1080,27 +1132,30 @@ impl<'t> Bdpt<'t> {
 
     /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
     /// joined to the camera or to a point sampled on the meter of `eye[0]`.
-    fn connect_to_sensor(
+    fn connect_to_sensor<L: Subpath + ?Sized>(
         &self,
         scene: &Scene,
-        light: &[Vertex],
+        light_path: &L,
         eye: &[Vertex],
         s: usize,
         sampler: &mut Sampler,
     ) -> Option<Connection> {
+        let light = light_path.vertices();
         let mut raster = None;
         let qs = &light[s - 1];
         if !qs.is_connectible(scene) || s < 2 {
             return None;
         }
-        let sensor = match eye[0].kind {
+        // the sensor vertex, W_e towards qs and the density of sampling qs's direction from
+        // it (the camera's from the one importance evaluation both need)
+        let (sensor, we, sensor_pdf) = match eye[0].kind {
             VertexKind::Camera => {
                 let cam = scene.camera.as_ref()?;
                 let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
                 raster = Some(imp.raster);
                 let mut v = eye[0];
                 v.beta = Rgb::ONE;
-                v
+                (v, Rgb::splat(imp.we), Some(imp.pdf_dir))
             }
             VertexKind::Meter { meter } => {
                 let q = Primitive::Quad(scene.sensors[meter as usize].quad);
@@ -1109,16 +1164,18 @@ impl<'t> Bdpt<'t> {
                 v.pdf_fwd = 1.0 / q.area();
                 // W_e / p(x) = (1/A) / (1/A)
                 v.beta = Rgb::ONE;
-                v
+                (v, v.importance(scene, qs.p), None)
             }
             _ => return None,
         };
-        let we = sensor.importance(scene, qs.p);
         let area_inv = match sensor.kind {
             VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
             _ => 1.0,
         };
-        let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+        let d = sensor.p - qs.p;
+        let w = d.normalize_or_zero();
+        // `f_hat(light[s - 2] -> qs -> sensor)`
+        let f = qs.f_hat_dirs(scene, light_path.to_prev(s - 1), w);
         if f == Rgb::ZERO || we == Rgb::ZERO {
             return None;
         }
@@ -1130,12 +1187,24 @@ impl<'t> Bdpt<'t> {
         let l = qs.beta * f * e.transmittance * g * we * area_inv;
         let pdf_qp = e.pdf_ab;
         let pdf_pq = e.pdf_ba;
+        let changed = (self.strategies == Strategies::All).then(|| {
+            // the sensor's density of -w (`Vertex::pdf_dir` of the sensor)
+            let p_to_q = sensor_pdf
+                .unwrap_or_else(|| sensor.pdf_dir(scene, self.tech, None, qs.p, Radiance));
+            let ends = End {
+                p: &sensor,
+                p_to_q,
+                p_minus: None,
+            };
+            self.changed_at_walk(scene, light_path, s, ends, (d, w), (pdf_qp, pdf_pq))
+        });
         Some(Connection {
             l,
             pdf_qp,
             pdf_pq,
             sampled: Some(sensor),
             raster,
+            changed,
         })
     }
 
