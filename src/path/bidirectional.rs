@@ -21,6 +21,7 @@ use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::subpath::{remap, Subpath, VertexCache};
+use crate::path::geometry_term::cosine_factor;
 use crate::path::vertex::to_area;
 use TransportMode::Radiance;
 use crate::path::LocalSampling;
@@ -328,7 +329,7 @@ impl<'t> Bdpt<'t> {
         v.beta = w.beta;
         let density = match (start.first, w.first_edge) {
             (FirstPdf::Perpendicular(p), true) => {
-                p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
+                p * cosine_factor(&v, w.ray.d)
             }
             _ => to_area(w.pdf_dir, &path[prev], &v),
         };
@@ -761,7 +762,7 @@ impl<'t> Bdpt<'t> {
             if d2 == 0.0 {
                 0.0
             } else {
-                pdf * crate::path::geometry_term::cosine_factor(far, d / d2.sqrt()) / d2
+                pdf * cosine_factor(far, d / d2.sqrt()) / d2
             }
         };
         let tech = self.tech;
@@ -948,7 +949,14 @@ impl<'t> Bdpt<'t> {
         if e.transmittance == Rgb::ZERO {
             return None;
         }
-        let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
+        // `geometry_term_unoccluded(qs, pt)` from the connection's vector
+        let d2 = d.length_squared();
+        let g = if d2 == 0.0 {
+            0.0
+        } else {
+            let u = d / d2.sqrt();
+            cosine_factor(qs, u) * cosine_factor(pt, u) / d2
+        };
         let l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
         let changed = (self.strategies == Strategies::All).then(|| {
             use TransportMode::{Importance, Radiance};
@@ -1038,7 +1046,7 @@ impl<'t> Bdpt<'t> {
         if e.transmittance == Rgb::ZERO {
             return None;
         }
-        let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+        let cos_pt = cosine_factor(pt, ls.wi);
         let l = pt.beta * f * v.beta * e.transmittance * cos_pt;
         // an infinite light's edge leaves the scene: only the passage of its segments counts
         let pdf_qp = e.pdf_ab;
@@ -1264,7 +1272,7 @@ impl<'t> Bdpt<'t> {
             }
             let e = scene.edge(qs.edge_end(z.p), z.edge_end(qs.p), sampler);
             let w = (z.p - qs.p).normalize_or_zero();
-            let cos_q = crate::path::geometry_term::cosine_factor(qs, w);
+            let cos_q = cosine_factor(qs, w);
             qs.beta * f * e.transmittance * we * (cos_q / pdf_dir)
         };
         let mut l = Rgb::ZERO;
