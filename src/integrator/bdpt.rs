@@ -40,7 +40,10 @@ impl Bdpt<'_> {
             cache: &scratch.eye_cache,
         };
         let mut own = Rgb::ZERO;
-        let meter = matches!(eye.path.first().map(|v| v.kind), Some(VertexKind::Meter { .. }));
+        let meter = matches!(
+            eye.path.first().map(|v| v.kind),
+            Some(VertexKind::Meter { .. })
+        );
         for t in 1..=eye.path.len() {
             for s in 0..=Bdpt::max_light_vertices(scene, light.path) {
                 let depth = s as i64 + t as i64 - 2;

@@ -19,16 +19,16 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
-use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
-use crate::path::subpath::{remap, Subpath, VertexCache};
 use crate::path::geometry_term::cosine_factor;
+use crate::path::subpath::{remap, Subpath, VertexCache};
+use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::vertex::to_area;
-use TransportMode::Radiance;
 use crate::path::LocalSampling;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::light::EmissionSample;
 use crate::scene::{Event, Light, Scene};
 use crate::spectrum::Rgb;
+use TransportMode::Radiance;
 
 use super::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
@@ -328,9 +328,7 @@ impl<'t> Bdpt<'t> {
         };
         v.beta = w.beta;
         let density = match (start.first, w.first_edge) {
-            (FirstPdf::Perpendicular(p), true) => {
-                p * cosine_factor(&v, w.ray.d)
-            }
+            (FirstPdf::Perpendicular(p), true) => p * cosine_factor(&v, w.ray.d),
             _ => to_area(w.pdf_dir, &path[prev], &v),
         };
         v.pdf_fwd = density * prop.pdf;
@@ -639,12 +637,12 @@ impl<'t> Bdpt<'t> {
         let qs = if s == 0 {
             None
         } else if s == 1 {
-            Some(join.sampled.as_ref().unwrap_or(&light[0]))
+            Some(join.sampled.as_ref().unwrap_or_else(|| &light[0]))
         } else {
             Some(&light[s - 1])
         };
         let pt = if t == 1 && s != 1 {
-            join.sampled.as_ref().unwrap_or(&eye[0])
+            join.sampled.as_ref().unwrap_or_else(|| &eye[0])
         } else {
             &eye[t - 1]
         };
@@ -665,8 +663,7 @@ impl<'t> Bdpt<'t> {
             } * pt.prop_rev;
         }
         if let Some(q) = qs {
-            c.qs =
-                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * join.pdf_pq;
+            c.qs = pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * join.pdf_pq;
             if let Some(qm) = qs_minus {
                 c.qs_minus = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
             }
@@ -689,7 +686,7 @@ impl<'t> Bdpt<'t> {
         let (lv, ev) = (light.vertices(), eye.vertices());
         // the connection's ends are connectible: their deltas count as false
         let pt_fwd = if t == 1 && s != 1 {
-            join.sampled.as_ref().unwrap_or(&ev[0]).pdf_fwd
+            join.sampled.as_ref().unwrap_or_else(|| &ev[0]).pdf_fwd
         } else {
             ev[t - 1].pdf_fwd
         };
@@ -712,7 +709,7 @@ impl<'t> Bdpt<'t> {
             return 1.0 / (1.0 + sum);
         }
         let qs = if s == 1 {
-            join.sampled.as_ref().unwrap_or(&lv[0])
+            join.sampled.as_ref().unwrap_or_else(|| &lv[0])
         } else {
             &lv[s - 1]
         };
@@ -768,7 +765,9 @@ impl<'t> Bdpt<'t> {
         let tech = self.tech;
         Changed {
             pt: area(p, tech.scatter_pdf(scene, q, wq, w, Importance)) * pdf_qp,
-            pt_minus: ends.p_minus.map_or(0.0, |(pdf, a)| a.apply(pdf) * p.prop_rev),
+            pt_minus: ends
+                .p_minus
+                .map_or(0.0, |(pdf, a)| a.apply(pdf) * p.prop_rev),
             qs: area(q, ends.p_to_q) * pdf_pq,
             qs_minus: light
                 .prev_area(s - 1)
@@ -1030,7 +1029,11 @@ impl<'t> Bdpt<'t> {
             }
         } else {
             // `f_hat(v -> pt -> eye[t - 2])`
-            pt.f_hat_dirs(scene, (v.p - pt.p).normalize_or_zero(), eye_path.to_prev(t - 1))
+            pt.f_hat_dirs(
+                scene,
+                (v.p - pt.p).normalize_or_zero(),
+                eye_path.to_prev(t - 1),
+            )
         };
         if f == Rgb::ZERO {
             return None;
