@@ -648,8 +648,13 @@ impl<'t> Bdpt<'t> {
         };
         let qs_minus = (s > 1).then(|| &light[s - 2]);
         let pt_minus = (t > 1).then(|| &eye[t - 2]);
-        let mut c = Changed::default();
         // pt as sampled from the light side
+        let mut c = Changed {
+            pt: 0.0,
+            pt_minus: 0.0,
+            qs: 0.0,
+            qs_minus: 0.0,
+        };
         c.pt = match qs {
             Some(q) => {
                 q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), pt, Importance) * join.pdf_qp
