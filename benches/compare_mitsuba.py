@@ -15,6 +15,10 @@ the reference's own noise (estimated from the two halves' difference, which also
 between the renderers) is subtracted from every relMSE. relMSE is pathspace's metric
 (`measure::metrics::compare`): the mean over pixels and channels of (a - b)^2 / (b^2 + 1e-2).
 
+pathspace renders one row per integrator of `--integrators` (default: `path`, the same estimator
+family as Mitsuba's `volpath`, and `bdpt`, which Mitsuba has no volumetric counterpart of), and
+the last lines give each row's relMSE x CPU-s over each Mitsuba variant's.
+
 `--max-depth D` counts scattering vertices as pathspace does; Mitsuba's `max_depth` is D + 1
 (its depth 1 is emission seen directly). `--per-depth` prints the variance per sample of each
 renderer at depths 1, 2, 3 and unlimited (independent runs, no reference needed): the
@@ -46,10 +50,13 @@ def worker(variant, spp, seed, out, res, max_depth):
 
 
 def render(renderer, spp, seed, out, a):
-    """Renders and returns the CPU seconds of the process."""
-    if renderer == "pathspace":
-        cmd = [a.bin, "render", SCENE, "--spp", str(spp), "--seed", str(seed), "--threads", "2",
-               "--resolution", f"{a.res}x{a.res}", "-o", out]
+    """Renders and returns the CPU seconds of the process. `renderer` is a Mitsuba variant or
+    `pathspace-INTEGRATOR`."""
+    if renderer.startswith("pathspace-"):
+        integrator = renderer.split("-", 1)[1]
+        cmd = [a.bin, "render", SCENE, "--integrator", integrator, "--spp", str(spp),
+               "--seed", str(seed), "--threads", "2", "--resolution", f"{a.res}x{a.res}",
+               "-o", out]
         if a.max_depth >= 0:
             cmd += ["--max-depth", str(a.max_depth)]
     else:
@@ -78,7 +85,7 @@ def per_depth(a, renderers, scratch):
     """Variance per sample at depths 1, 2, 3 and unlimited, from `a.runs` runs of 16 spp."""
     import numpy as np
     print(f"variance per sample (relative, eps {EPSILON}), {a.runs} runs of 16 spp at {a.res}x{a.res}")
-    print(f"{'renderer':<12}" + "".join(f"{'depth ' + d:>12}" for d in ["1", "2", "3", "all"]))
+    print(f"{'renderer':<15}" + "".join(f"{'depth ' + d:>12}" for d in ["1", "2", "3", "all"]))
     for r in renderers:
         row = []
         for d in [1, 2, 3, -1]:
@@ -91,7 +98,7 @@ def per_depth(a, renderers, scratch):
             imgs = np.stack(imgs)
             var = imgs.var(0, ddof=1)
             row.append(float((var / (imgs.mean(0) ** 2 + EPSILON)).mean()) * 16)
-        print(f"{r:<12}" + "".join(f"{v:>12.4f}" for v in row))
+        print(f"{r:<15}" + "".join(f"{v:>12.4f}" for v in row))
 
 
 def main():
@@ -106,19 +113,21 @@ def main():
     ap.add_argument("--max-depth", type=int, default=-1)
     ap.add_argument("--reference-spp", type=int, default=2048)
     ap.add_argument("--variants", nargs="+", default=["scalar_rgb", "llvm_ad_rgb"])
+    ap.add_argument("--integrators", nargs="+", default=["path", "bdpt"],
+                    help="pathspace integrators to compare (each a row)")
     ap.add_argument("--per-depth", action="store_true")
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "pathspace"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "compare-mitsuba"))
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    renderers = ["pathspace"] + a.variants
+    renderers = [f"pathspace-{i}" for i in a.integrators] + a.variants
     if a.per_depth:
         per_depth(a, renderers, a.out)
         return
     import numpy as np
     ref_a = os.path.join(a.out, "reference-pathspace.exr")
     ref_b = os.path.join(a.out, "reference-mitsuba.exr")
-    render("pathspace", a.reference_spp, 99, ref_a, a)
+    render("pathspace-path", a.reference_spp, 99, ref_a, a)
     render("scalar_rgb", a.reference_spp, 99, ref_b, a)
     ra, rb = read(ref_a), read(ref_b)
     ref = 0.5 * (ra + rb)
@@ -128,7 +137,8 @@ def main():
     print(f"reference: {a.reference_spp} spp of pathspace and of Mitsuba scalar_rgb at "
           f"{a.res}x{a.res}; relMSE between the two {halves:.3e}, the average's own noise "
           f"{ref_noise:.3e} (subtracted below)")
-    print(f"{'renderer':<12} {'spp':>6} {'CPU s':>8} {'relMSE':>10} {'+-':>9} {'relMSE x CPU-s':>15}")
+    print(f"{'renderer':<15} {'spp':>6} {'CPU s':>8} {'relMSE':>10} {'+-':>9} {'relMSE x CPU-s':>15}")
+    product = {}
     for r in renderers:
         spp, fixed, per_spp = spp_for_budget(r, a, a.out)
         errs, cpus = [], []
@@ -138,8 +148,13 @@ def main():
             errs.append(relmse(read(out), ref) - ref_noise)
         e, c = np.mean(errs), np.mean(cpus)
         se = np.std(errs, ddof=1) / np.sqrt(len(errs)) if len(errs) > 1 else float("nan")
-        print(f"{r:<12} {spp:>6} {c:>8.1f} {e:>10.3e} {se:>9.1e} {e * c:>15.4f}"
+        product[r] = e * c
+        print(f"{r:<15} {spp:>6} {c:>8.1f} {e:>10.3e} {se:>9.1e} {e * c:>15.4f}"
               f"   (fixed {fixed:.1f} s, {per_spp * 1e3:.1f} ms per spp)")
+    # the issue's target: relMSE x CPU-s of pathspace at most half of llvm_ad_rgb's
+    for v in [v for v in a.variants if v in product]:
+        for r in [r for r in renderers if r.startswith("pathspace-")]:
+            print(f"{r} / {v}: relMSE x CPU-s ratio {product[r] / product[v]:.2f}")
 
 
 if __name__ == "__main__":

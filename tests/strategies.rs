@@ -43,7 +43,12 @@ fn next_event_estimation_does_not_need_the_light_subpath() {
         all.camera_subpath(&scene, raster, &mut s, &mut scratch.eye);
         scratch.light.clear();
         let mut splats = Vec::new();
-        let empty = all.combine(&scene, &scratch, &mut Sampler::new(18, i, 0), &mut splats);
+        let empty = all.combine(
+            &scene,
+            &mut scratch,
+            &mut Sampler::new(18, i, 0),
+            &mut splats,
+        );
         // the same strategies one by one with the same random numbers
         let mut s2 = Sampler::new(18, i, 0);
         let mut expected = pathspace::spectrum::Rgb::ZERO;

@@ -184,6 +184,22 @@ impl Bsdf {
         }
     }
 
+    /// True when some light passes to the other side of the surface (the null boundary passes
+    /// all of it); reflection-only models keep every path on the side it arrived from.
+    pub fn transmits(&self) -> bool {
+        match self {
+            Bsdf::Dielectric { .. }
+            | Bsdf::ThinDielectric { .. }
+            | Bsdf::RoughDielectric(_)
+            | Bsdf::Null => true,
+            Bsdf::Lambert { .. }
+            | Bsdf::Mirror { .. }
+            | Bsdf::RoughConductor(_)
+            | Bsdf::Plastic(_)
+            | Bsdf::RoughPlastic(_) => false,
+        }
+    }
+
     /// True when every lobe is a Dirac (mirror, glass; the null boundary has none): every
     /// vertex on it is a Dirac vertex, whatever was sampled there.
     pub fn only_dirac_lobes(&self) -> bool {

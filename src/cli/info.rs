@@ -277,6 +277,12 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         scene.prims.len(),
         scene.bvh.node_count()
     );
+    if scene.hidden_faces > 0 {
+        println!(
+            "  {} null face(s) lie on walls that transmit nothing: no ray can cross them, so the BVH leaves them out",
+            scene.hidden_faces
+        );
+    }
     for s in &scene.shapes {
         let emits = s
             .light

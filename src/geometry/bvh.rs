@@ -78,7 +78,13 @@ pub const TIE_EPSILON: f32 = 1e-5;
 impl Bvh {
     /// Builds the hierarchy (O(n log n)) over the references of [`split_references`].
     pub fn build(prims: &[Primitive]) -> Self {
-        let mut items = split_references(prims);
+        Self::build_over(prims, |_| true)
+    }
+
+    /// Builds the hierarchy over the primitives `keep` accepts; queries never see the others
+    /// (indices still refer to the whole slice).
+    pub fn build_over(prims: &[Primitive], keep: impl Fn(usize) -> bool) -> Self {
+        let mut items = split_references(prims, keep);
         let mut bvh = Bvh {
             nodes: Vec::with_capacity(2 * items.len().max(1)),
             indices: Vec::with_capacity(items.len()),
@@ -428,15 +434,18 @@ fn sah_split(items: &[BuildItem], cb: &Aabb, axis: usize) -> Split {
 /// planes exactly, so a ray that enters the whole box at a point of the primitive enters a
 /// piece holding that point, and queries find the same hits (one primitive may be tested twice,
 /// which changes no result).
-fn split_references(prims: &[Primitive]) -> Vec<BuildItem> {
-    let boxes: Vec<Aabb> = prims.iter().map(Primitive::bounds).collect();
-    let mean = boxes.iter().map(Aabb::surface_area).sum::<f32>() / boxes.len().max(1) as f32;
+fn split_references(prims: &[Primitive], keep: impl Fn(usize) -> bool) -> Vec<BuildItem> {
+    let boxes: Vec<(usize, Aabb)> = (0..prims.len())
+        .filter(|&i| keep(i))
+        .map(|i| (i, prims[i].bounds()))
+        .collect();
+    let mean = boxes.iter().map(|b| b.1.surface_area()).sum::<f32>() / boxes.len().max(1) as f32;
     let small = SPLIT_AREA * mean;
     // at most this many references more than primitives: bounded memory whatever the scene
-    let mut budget = SPLIT_BUDGET * prims.len();
+    let mut budget = SPLIT_BUDGET * boxes.len();
     let mut items = Vec::with_capacity(prims.len());
     let mut pieces = Vec::new();
-    for (i, &b) in boxes.iter().enumerate() {
+    for &(i, b) in &boxes {
         pieces.clear();
         pieces.push(b);
         let mut k = 0;

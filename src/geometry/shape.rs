@@ -36,6 +36,22 @@ impl Quad {
     }
 }
 
+impl Quad {
+    /// The coordinates (a, b) of `p` along `u` and `v`: `p = origin + a u + b v` when `p` lies
+    /// in the quad's plane, and the quad is `[0, 1]^2`.
+    #[inline]
+    pub fn coordinates(&self, p: Vec3) -> (f32, f32) {
+        let rel = p - self.origin;
+        (self.w.dot(rel.cross(self.v)), self.w.dot(self.u.cross(rel)))
+    }
+
+    /// The four corners.
+    pub fn corners(&self) -> [Vec3; 4] {
+        let o = self.origin;
+        [o, o + self.u, o + self.u + self.v, o + self.v]
+    }
+}
+
 /// The plane spanned by `u` and `v`: the unit normal `normalize(u x v)`, the vector
 /// `(u x v) / |u x v|^2` that gives a point's coordinates along u and v, and `|u x v|`; `None`
 /// when u and v are parallel.
@@ -191,9 +207,7 @@ impl Primitive {
                 if !(t > t_min && t < t_max) {
                     return None;
                 }
-                let rel = ray.at(t) - q.origin;
-                let a = q.w.dot(rel.cross(q.v));
-                let b = q.w.dot(q.u.cross(rel));
+                let (a, b) = q.coordinates(ray.at(t));
                 if !(0.0..=1.0).contains(&a) || !(0.0..=1.0).contains(&b) {
                     return None;
                 }

@@ -10,6 +10,7 @@ use crate::math::Sampler;
 pub use crate::path::bidirectional::{
     mis_weight_of_path, Bdpt, Scratch, Strategies, MAX_SUBPATH_VERTICES,
 };
+use crate::path::subpath::{self, Cached};
 use crate::path::VertexKind;
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
@@ -23,15 +24,28 @@ impl Bdpt<'_> {
     pub fn combine(
         &self,
         scene: &Scene,
-        scratch: &Scratch,
+        scratch: &mut Scratch,
         sampler: &mut Sampler,
         splats: &mut Vec<Splat>,
     ) -> Rgb {
-        let (light, eye) = (&scratch.light, &scratch.eye);
+        // the values every connection through a vertex reads, once per sample
+        subpath::fill(&scratch.light, &mut scratch.light_cache);
+        subpath::fill(&scratch.eye, &mut scratch.eye_cache);
+        let light = Cached {
+            path: &scratch.light,
+            cache: &scratch.light_cache,
+        };
+        let eye = Cached {
+            path: &scratch.eye,
+            cache: &scratch.eye_cache,
+        };
         let mut own = Rgb::ZERO;
-        let meter = matches!(eye.first().map(|v| v.kind), Some(VertexKind::Meter { .. }));
-        for t in 1..=eye.len() {
-            for s in 0..=Bdpt::max_light_vertices(scene, light) {
+        let meter = matches!(
+            eye.path.first().map(|v| v.kind),
+            Some(VertexKind::Meter { .. })
+        );
+        for t in 1..=eye.path.len() {
+            for s in 0..=Bdpt::max_light_vertices(scene, light.path) {
                 let depth = s as i64 + t as i64 - 2;
                 if depth < 0 || depth as u64 > self.max_depth as u64 {
                     continue;
@@ -41,7 +55,7 @@ impl Bdpt<'_> {
                     Strategies::Only(a, b) if (a, b) != (s, t) => continue,
                     _ => {}
                 }
-                if let Some((l, raster)) = self.connect(scene, light, eye, s, t, sampler) {
+                if let Some((l, raster, _)) = self.connect_in(scene, &light, &eye, s, t, sampler) {
                     match raster {
                         Some(r) if !meter => splats.push((r, l)),
                         _ => own += l,

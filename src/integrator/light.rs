@@ -50,7 +50,7 @@ impl Integrator for Bdpt<'_> {
             sampler,
             &mut scratch.bdpt,
         );
-        self.combine(scene, &scratch.bdpt, sampler, &mut scratch.splats)
+        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
     }
 
     fn meter_sample(
@@ -61,7 +61,7 @@ impl Integrator for Bdpt<'_> {
         scratch: &mut Scratch,
     ) -> Rgb {
         self.sample(scene, SensorStart::Meter(meter), sampler, &mut scratch.bdpt);
-        self.combine(scene, &scratch.bdpt, sampler, &mut scratch.splats)
+        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
     }
 
     fn bdpt(&self) -> Option<&Bdpt<'_>> {

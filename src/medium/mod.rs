@@ -214,6 +214,11 @@ impl Medium {
         scattered_start: bool,
     ) -> (f32, f32) {
         match self {
+            // one exponential when both directions end alike (a pdf of the length alone)
+            Medium::Homogeneous(h) if scattered_end == scattered_start => {
+                let pdf = h.free_flight_pdf(t, scattered_end);
+                (pdf, pdf)
+            }
             Medium::Homogeneous(h) => (
                 h.free_flight_pdf(t, scattered_end),
                 h.free_flight_pdf(t, scattered_start),

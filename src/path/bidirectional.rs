@@ -19,6 +19,8 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
+use crate::path::geometry_term::cosine_factor;
+use crate::path::subpath::{remap, Subpath, VertexCache};
 use crate::path::technique::{sample_emitted_start, EmittedStart, ScatterSample, StartDraw};
 use crate::path::vertex::to_area;
 use crate::path::LocalSampling;
@@ -26,6 +28,7 @@ use crate::path::{Vertex, VertexKind};
 use crate::scene::light::EmissionSample;
 use crate::scene::{Event, Light, Scene};
 use crate::spectrum::Rgb;
+use TransportMode::Radiance;
 
 use super::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
@@ -62,6 +65,8 @@ struct Connection {
     pdf_pq: f32,
     sampled: Option<Vertex>,
     raster: Option<Vec2>,
+    /// The reverse densities the connection changes, when it computed them on the way.
+    changed: Option<Changed>,
 }
 
 /// Strategy (s, t) of one joined path, for its MIS weight: the endpoint sampled for the
@@ -130,31 +135,6 @@ impl Walk {
     }
 }
 
-/// Vertex `i` of a subpath of which the first `n` vertices are joined: the copies `last`
-/// (vertex n - 1) and `before` (vertex n - 2) with the reverse densities of the join where
-/// given, else the subpath's own.
-#[inline]
-fn joined<'a>(
-    path: &'a [Vertex],
-    i: usize,
-    n: usize,
-    last: Option<&'a Vertex>,
-    before: Option<&'a Vertex>,
-) -> &'a Vertex {
-    let copy = if i + 1 == n {
-        last
-    } else if i + 2 == n {
-        before
-    } else {
-        None
-    };
-    // lazily: the light subpath may be empty when s = 1 samples its own light vertex
-    match copy {
-        Some(v) => v,
-        None => &path[i],
-    }
-}
-
 /// The vertex of the environment light a `mode` walk escaping along `ray` reaches (eye walks
 /// only; `None` without an environment).
 fn environment_vertex(scene: &Scene, ray: &Ray, mode: TransportMode) -> Option<Vertex> {
@@ -187,6 +167,30 @@ pub enum SensorStart {
 pub struct Scratch {
     pub light: Vec<Vertex>,
     pub eye: Vec<Vertex>,
+    /// The per-vertex values of both subpaths that `Bdpt::combine` computes once per sample.
+    pub light_cache: Vec<VertexCache>,
+    pub eye_cache: Vec<VertexCache>,
+}
+
+/// The reverse densities (in their vertices' measures, propagation included) that a
+/// connection (s, t) gives the vertices next to it: p_{t-1}, p_{t-2} as sampled from the light
+/// side and q_{s-1}, q_{s-2} as sampled from the eye side (Veach 1997, sec. 10.2); those of
+/// vertices the path does not have are unused.
+#[derive(Clone, Copy, Debug, Default)]
+struct Changed {
+    pt: f32,
+    pt_minus: f32,
+    qs: f32,
+    qs_minus: f32,
+}
+
+/// The eye side's end p of a connection from a light walk's vertex q: the solid-angle
+/// density with which p samples the direction to q, and, when p has a predecessor, the one
+/// with which it samples the predecessor given q, with the conversion to its measure.
+struct End<'a> {
+    p: &'a Vertex,
+    p_to_q: f32,
+    p_minus: Option<(f32, crate::path::vertex::AreaFactor)>,
 }
 
 #[derive(Clone, Debug)]
@@ -324,9 +328,7 @@ impl<'t> Bdpt<'t> {
         };
         v.beta = w.beta;
         let density = match (start.first, w.first_edge) {
-            (FirstPdf::Perpendicular(p), true) => {
-                p * crate::path::geometry_term::cosine_factor(&v, w.ray.d)
-            }
+            (FirstPdf::Perpendicular(p), true) => p * cosine_factor(&v, w.ray.d),
             _ => to_area(w.pdf_dir, &path[prev], &v),
         };
         v.pdf_fwd = density * prop.pdf;
@@ -617,84 +619,166 @@ impl<'t> Bdpt<'t> {
     /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
     // ANCHOR: mis_weight
     pub fn mis_weight(&self, scene: &Scene, light: &[Vertex], eye: &[Vertex], join: Join) -> f32 {
-        use TransportMode::{Importance, Radiance};
-        let Join {
-            s,
-            t,
-            sampled,
-            pdf_qp: conn_pdf_qp,
-            pdf_pq: conn_pdf_pq,
-        } = join;
-        let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
-        // copies of the four vertices whose reverse densities the connection changes
-        let mut qs = if s > 0 {
-            Some(if s == 1 {
-                sampled.unwrap_or_else(|| light[0])
-            } else {
-                light[s - 1]
-            })
-        } else {
-            None
-        };
-        let mut pt = if t == 1 && s != 1 {
-            sampled.unwrap_or_else(|| eye[0])
-        } else {
-            eye[t - 1]
-        };
-        let mut qs_minus = if s > 1 { Some(light[s - 2]) } else { None };
-        let mut pt_minus = if t > 1 { Some(eye[t - 2]) } else { None };
+        let changed = self.changed_densities(scene, light, eye, &join);
+        self.weight(scene, light, eye, &join, changed)
+    }
 
-        if let Some(q) = qs.as_mut() {
-            q.delta = false;
-        }
-        pt.delta = false;
+    /// The four reverse densities the connection `join` changes, from the vertices alone.
+    fn changed_densities(
+        &self,
+        scene: &Scene,
+        light: &[Vertex],
+        eye: &[Vertex],
+        join: &Join,
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let (s, t) = (join.s, join.t);
+        // the connection's ends as the joined path has them
+        let qs = if s == 0 {
+            None
+        } else if s == 1 {
+            Some(join.sampled.as_ref().unwrap_or_else(|| &light[0]))
+        } else {
+            Some(&light[s - 1])
+        };
+        let pt = if t == 1 && s != 1 {
+            join.sampled.as_ref().unwrap_or_else(|| &eye[0])
+        } else {
+            &eye[t - 1]
+        };
+        let qs_minus = (s > 1).then(|| &light[s - 2]);
+        let pt_minus = (t > 1).then(|| &eye[t - 2]);
         // pt as sampled from the light side
-        pt.pdf_rev = match &qs {
+        let mut c = Changed {
+            pt: 0.0,
+            pt_minus: 0.0,
+            qs: 0.0,
+            qs_minus: 0.0,
+        };
+        c.pt = match qs {
             Some(q) => {
-                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), &pt, Importance) * conn_pdf_qp
+                q.pdf_area(scene, self.tech, qs_minus.map(|v| v.p), pt, Importance) * join.pdf_qp
             }
             None => pt.light_origin_pdf(scene, self.tech),
         };
-        if let Some(pm) = pt_minus.as_mut() {
-            pm.pdf_rev = match &qs {
+        if let Some(pm) = pt_minus {
+            c.pt_minus = match qs {
                 Some(q) => pt.pdf_area(scene, self.tech, Some(q.p), pm, Importance),
                 None => pt.light_pdf_to(scene, self.tech, pm),
             } * pt.prop_rev;
         }
-        if let Some(q) = qs.as_mut() {
-            q.pdf_rev =
-                pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * conn_pdf_pq;
+        if let Some(q) = qs {
+            c.qs = pt.pdf_area(scene, self.tech, pt_minus.map(|v| v.p), q, Radiance) * join.pdf_pq;
+            if let Some(qm) = qs_minus {
+                c.qs_minus = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
+            }
         }
-        if let (Some(qm), Some(q)) = (qs_minus.as_mut(), &qs) {
-            qm.pdf_rev = q.pdf_area(scene, self.tech, Some(pt.p), qm, Radiance) * q.prop_rev;
-        }
+        c
+    }
 
-        // the subpaths as the joined path has them, by reference (a vertex is ~100 bytes)
-        let eye_at = |i: usize| joined(eye, i, t, Some(&pt), pt_minus.as_ref());
-        let light_at = |i: usize| joined(light, i, s, qs.as_ref(), qs_minus.as_ref());
+    /// The weight 1 / (1 + sum of r_i^2) of strategy `join` with the reverse densities
+    /// `changed` of the four vertices next to the connection; every other vertex brings its
+    /// subpath's own ratio (`Subpath::ratio`).
+    fn weight<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        eye: &E,
+        join: &Join,
+        changed: Changed,
+    ) -> f32 {
+        let (s, t) = (join.s, join.t);
+        let (lv, ev) = (light.vertices(), eye.vertices());
+        // the connection's ends are connectible: their deltas count as false
+        let pt_fwd = if t == 1 && s != 1 {
+            join.sampled.as_ref().unwrap_or_else(|| &ev[0]).pdf_fwd
+        } else {
+            ev[t - 1].pdf_fwd
+        };
         let mut sum = 0.0f32;
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
-            let v = eye_at(i);
-            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
-            if !v.delta && !eye_at(i - 1).delta {
+            ri *= if i + 1 == t {
+                remap(changed.pt) / remap(pt_fwd)
+            } else if i + 2 == t {
+                remap(changed.pt_minus) / remap(ev[i].pdf_fwd)
+            } else {
+                eye.ratio(i)
+            };
+            let delta = i + 1 != t && ev[i].delta;
+            if !delta && !ev[i - 1].delta {
                 sum += ri * ri;
             }
         }
+        if s == 0 {
+            return 1.0 / (1.0 + sum);
+        }
+        let qs = if s == 1 {
+            join.sampled.as_ref().unwrap_or_else(|| &lv[0])
+        } else {
+            &lv[s - 1]
+        };
         ri = 1.0;
         for i in (0..s).rev() {
-            let v = light_at(i);
-            ri *= remap(v.pdf_rev) / remap(v.pdf_fwd);
-            let delta_before = if i > 0 {
-                light_at(i - 1).delta
+            ri *= if i + 1 == s {
+                remap(changed.qs) / remap(qs.pdf_fwd)
+            } else if i + 2 == s {
+                remap(changed.qs_minus) / remap(lv[i].pdf_fwd)
             } else {
-                Self::is_delta_light(scene, light_at(0))
+                light.ratio(i)
             };
-            if !v.delta && !delta_before {
+            let delta = i + 1 != s && lv[i].delta;
+            let delta_before = if i > 0 {
+                lv[i - 1].delta
+            } else {
+                // vertex 0 is the connection's end itself when s = 1
+                Self::is_delta_light(scene, if s == 1 { qs } else { &lv[0] })
+            };
+            if !delta && !delta_before {
                 sum += ri * ri;
             }
         }
         1.0 / (1.0 + sum)
+    }
+
+    /// [`Bdpt::changed_densities`] of a connection from the light walk's vertex q =
+    /// `light[s - 1]` (s >= 2) to the end `ends.p` of the eye side, from the connection's
+    /// vector `d` = p - q and its unit direction `w`, with q's per-vertex values and p's
+    /// densities given: the same operands the vertices would give, so the same bits.
+    fn changed_at_walk<L: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        s: usize,
+        ends: End,
+        (d, w): (Vec3, Vec3),
+        (pdf_qp, pdf_pq): (f32, f32),
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let (q, p) = (&light.vertices()[s - 1], ends.p);
+        let wq = light.to_prev(s - 1);
+        let d2 = d.length_squared();
+        // `to_area` between p and q in either direction: the cosine at the far end over d^2
+        // (the reversed vector is -d exactly, and g takes the cosine's absolute value)
+        let area = |far: &Vertex, pdf: f32| {
+            if d2 == 0.0 {
+                0.0
+            } else {
+                pdf * cosine_factor(far, d / d2.sqrt()) / d2
+            }
+        };
+        let tech = self.tech;
+        Changed {
+            pt: area(p, tech.scatter_pdf(scene, q, wq, w, Importance)) * pdf_qp,
+            pt_minus: ends
+                .p_minus
+                .map_or(0.0, |(pdf, a)| a.apply(pdf) * p.prop_rev),
+            qs: area(q, ends.p_to_q) * pdf_pq,
+            qs_minus: light
+                .prev_area(s - 1)
+                .apply(tech.scatter_pdf(scene, q, w, wq, Radiance))
+                * q.prop_rev,
+        }
     }
     // ANCHOR_END: mis_weight
 
@@ -755,12 +839,27 @@ impl<'t> Bdpt<'t> {
         t: usize,
         sampler: &mut Sampler,
     ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
-        let pt_last = eye[t - 1];
-        if t > 1 && s != 0 && pt_last.is_infinite_light() {
+        self.connect_in(scene, light, eye, s, t, sampler)
+    }
+
+    /// [`Bdpt::connect_sampled`] on subpaths whose per-vertex values are given
+    /// ([`crate::path::subpath::Cached`], `Bdpt::combine`) or computed on the fly (`[Vertex]`).
+    pub fn connect_in<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light_path: &L,
+        eye_path: &E,
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, Option<Vec2>, Option<Vertex>)> {
+        let (light, eye) = (light_path.vertices(), eye_path.vertices());
+        if t > 1 && s != 0 && eye[t - 1].is_infinite_light() {
             return None;
         }
         let mut sampled: Option<Vertex> = None;
         let mut raster = None;
+        let mut changed = None;
         let (mut l, pdf_qp, pdf_pq);
         if s == 0 {
             // the eye subpath found an emitter by itself
@@ -774,8 +873,9 @@ impl<'t> Bdpt<'t> {
             pdf_pq = 1.0;
         } else if s == 1 {
             // next-event estimation: sample a point on a light for the eye subpath's end
-            let c = self.connect_light_sample(scene, eye, t, sampler)?;
+            let c = self.connect_light_sample(scene, eye_path, t, sampler)?;
             (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
+            changed = c.changed;
         } else if t == 1
             && self.strategies == Strategies::LightTracing
             && matches!(eye[0].kind, VertexKind::Meter { .. })
@@ -791,27 +891,13 @@ impl<'t> Bdpt<'t> {
             sampled = Some(z0);
         } else if t == 1 {
             // connect the light subpath to the sensor
-            let c = self.connect_to_sensor(scene, light, eye, s, sampler)?;
+            let c = self.connect_to_sensor(scene, light_path, eye, s, sampler)?;
             (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
+            changed = c.changed;
         } else {
-            let qs = &light[s - 1];
-            let pt = &eye[t - 1];
-            if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
-                return None;
-            }
-            let fq = qs.f_hat(scene, light[s - 2].p, pt.p);
-            let fp = pt.f_hat(scene, qs.p, eye[t - 2].p);
-            if fq == Rgb::ZERO || fp == Rgb::ZERO {
-                return None;
-            }
-            let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
-            if e.transmittance == Rgb::ZERO {
-                return None;
-            }
-            let g = crate::path::geometry_term::geometry_term_unoccluded(qs, pt);
-            l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
-            pdf_qp = e.pdf_ab;
-            pdf_pq = e.pdf_ba;
+            let c = self.connect_walks(scene, light_path, eye_path, s, t, sampler)?;
+            (l, pdf_qp, pdf_pq) = (c.0, c.1, c.2);
+            changed = c.3;
         }
         if l == Rgb::ZERO || !l.is_finite() {
             return if l.is_finite() {
@@ -828,21 +914,81 @@ impl<'t> Bdpt<'t> {
                 pdf_qp,
                 pdf_pq,
             };
-            l *= self.mis_weight(scene, light, eye, join);
+            let changed =
+                changed.unwrap_or_else(|| self.changed_densities(scene, light, eye, &join));
+            l *= self.weight(scene, light_path, eye_path, &join, changed);
         }
         Some((l, raster, sampled))
+    }
+
+    /// Strategy (s, t) with s, t >= 2: the light subpath's end q joined to the eye subpath's
+    /// end p. Returns the unweighted contribution, the edge's propagation pdfs both ways and,
+    /// when every strategy is weighted, the reverse densities the connection changes, all from
+    /// one direction q -> p (its reverse is the same vector negated, exactly).
+    #[allow(clippy::type_complexity)]
+    fn connect_walks<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light: &L,
+        eye: &E,
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, f32, f32, Option<Changed>)> {
+        let qs = &light.vertices()[s - 1];
+        let pt = &eye.vertices()[t - 1];
+        if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
+            return None;
+        }
+        let d = pt.p - qs.p;
+        let w = d.normalize_or_zero();
+        // `f_hat(q_{s-2} -> q -> p)` and `f_hat(q -> p -> p_{t-2})`; a zero `d` (w zero
+        // either way) is refused by the edge below
+        let fq = qs.f_hat_dirs(scene, light.to_prev(s - 1), w);
+        let fp = pt.f_hat_dirs(scene, -w, eye.to_prev(t - 1));
+        if fq == Rgb::ZERO || fp == Rgb::ZERO {
+            return None;
+        }
+        let e = scene.edge(qs.edge_end(pt.p), pt.edge_end(qs.p), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        // `geometry_term_unoccluded(qs, pt)` from the connection's vector
+        let d2 = d.length_squared();
+        let g = if d2 == 0.0 {
+            0.0
+        } else {
+            let u = d / d2.sqrt();
+            cosine_factor(qs, u) * cosine_factor(pt, u) / d2
+        };
+        let l = qs.beta * fq * e.transmittance * g * fp * pt.beta;
+        let changed = (self.strategies == Strategies::All).then(|| {
+            use TransportMode::{Importance, Radiance};
+            let wp = eye.to_prev(t - 1);
+            let ends = End {
+                p: pt,
+                p_to_q: self.tech.scatter_pdf(scene, pt, wp, -w, Radiance),
+                p_minus: Some((
+                    self.tech.scatter_pdf(scene, pt, -w, wp, Importance),
+                    eye.prev_area(t - 1),
+                )),
+            };
+            self.changed_at_walk(scene, light, s, ends, (d, w), (e.pdf_ab, e.pdf_ba))
+        });
+        Some((l, e.pdf_ab, e.pdf_ba, changed))
     }
     // ANCHOR_END: connect
 
     /// Strategy s = 1 (next-event estimation): a light vertex sampled for the eye subpath's
     /// end `eye[t - 1]`, by the technique's light start or by power, and its connection.
-    fn connect_light_sample(
+    fn connect_light_sample<E: Subpath + ?Sized>(
         &self,
         scene: &Scene,
-        eye: &[Vertex],
+        eye_path: &E,
         t: usize,
         sampler: &mut Sampler,
     ) -> Option<Connection> {
+        let eye = eye_path.vertices();
         let mut raster = None;
         let pt = &eye[t - 1];
         if !pt.is_connectible(scene) {
@@ -887,7 +1033,12 @@ impl<'t> Bdpt<'t> {
                 _ => return None,
             }
         } else {
-            pt.f_hat(scene, v.p, eye[t - 2].p)
+            // `f_hat(v -> pt -> eye[t - 2])`
+            pt.f_hat_dirs(
+                scene,
+                (v.p - pt.p).normalize_or_zero(),
+                eye_path.to_prev(t - 1),
+            )
         };
         if f == Rgb::ZERO {
             return None;
@@ -903,18 +1054,47 @@ impl<'t> Bdpt<'t> {
         if e.transmittance == Rgb::ZERO {
             return None;
         }
-        let cos_pt = crate::path::geometry_term::cosine_factor(pt, ls.wi);
+        let cos_pt = cosine_factor(pt, ls.wi);
         let l = pt.beta * f * v.beta * e.transmittance * cos_pt;
         // an infinite light's edge leaves the scene: only the passage of its segments counts
         let pdf_qp = e.pdf_ab;
         let pdf_pq = e.pdf_ba;
+        let changed = (t > 1 && self.strategies == Strategies::All)
+            .then(|| self.changed_at_light(scene, &v, eye_path, t, (pdf_qp, pdf_pq)));
         Some(Connection {
             l,
             pdf_qp,
             pdf_pq,
             sampled: Some(v),
             raster,
+            changed,
         })
+    }
+
+    /// [`Bdpt::changed_densities`] of next-event estimation's connection (s = 1, t >= 2) of
+    /// light vertex `q` to p = `eye[t - 1]`, with p's per-vertex values: the operands the
+    /// vertices would give, so the same bits.
+    fn changed_at_light<E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        q: &Vertex,
+        eye: &E,
+        t: usize,
+        (pdf_qp, pdf_pq): (f32, f32),
+    ) -> Changed {
+        use TransportMode::{Importance, Radiance};
+        let p = &eye.vertices()[t - 1];
+        let (u, wp) = ((q.p - p.p).normalize_or_zero(), eye.to_prev(t - 1));
+        let tech = self.tech;
+        Changed {
+            pt: q.light_pdf_to(scene, tech, p) * pdf_qp,
+            pt_minus: eye
+                .prev_area(t - 1)
+                .apply(tech.scatter_pdf(scene, p, u, wp, Importance))
+                * p.prop_rev,
+            qs: to_area(tech.scatter_pdf(scene, p, wp, u, Radiance), p, q) * pdf_pq,
+            qs_minus: 0.0,
+        }
     }
 
     /// The light vertex of next-event estimation's sample `ls` of light `li` (seen from
@@ -968,27 +1148,30 @@ impl<'t> Bdpt<'t> {
 
     /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
     /// joined to the camera or to a point sampled on the meter of `eye[0]`.
-    fn connect_to_sensor(
+    fn connect_to_sensor<L: Subpath + ?Sized>(
         &self,
         scene: &Scene,
-        light: &[Vertex],
+        light_path: &L,
         eye: &[Vertex],
         s: usize,
         sampler: &mut Sampler,
     ) -> Option<Connection> {
+        let light = light_path.vertices();
         let mut raster = None;
         let qs = &light[s - 1];
         if !qs.is_connectible(scene) || s < 2 {
             return None;
         }
-        let sensor = match eye[0].kind {
+        // the sensor vertex, W_e towards qs and the density of sampling qs's direction from
+        // it (the camera's from the one importance evaluation both need)
+        let (sensor, we, sensor_pdf) = match eye[0].kind {
             VertexKind::Camera => {
                 let cam = scene.camera.as_ref()?;
                 let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
                 raster = Some(imp.raster);
                 let mut v = eye[0];
                 v.beta = Rgb::ONE;
-                v
+                (v, Rgb::splat(imp.we), Some(imp.pdf_dir))
             }
             VertexKind::Meter { meter } => {
                 let q = Primitive::Quad(scene.sensors[meter as usize].quad);
@@ -997,16 +1180,18 @@ impl<'t> Bdpt<'t> {
                 v.pdf_fwd = 1.0 / q.area();
                 // W_e / p(x) = (1/A) / (1/A)
                 v.beta = Rgb::ONE;
-                v
+                (v, v.importance(scene, qs.p), None)
             }
             _ => return None,
         };
-        let we = sensor.importance(scene, qs.p);
         let area_inv = match sensor.kind {
             VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
             _ => 1.0,
         };
-        let f = qs.f_hat(scene, light[s - 2].p, sensor.p);
+        let d = sensor.p - qs.p;
+        let w = d.normalize_or_zero();
+        // `f_hat(light[s - 2] -> qs -> sensor)`
+        let f = qs.f_hat_dirs(scene, light_path.to_prev(s - 1), w);
         if f == Rgb::ZERO || we == Rgb::ZERO {
             return None;
         }
@@ -1018,12 +1203,24 @@ impl<'t> Bdpt<'t> {
         let l = qs.beta * f * e.transmittance * g * we * area_inv;
         let pdf_qp = e.pdf_ab;
         let pdf_pq = e.pdf_ba;
+        let changed = (self.strategies == Strategies::All).then(|| {
+            // the sensor's density of -w (`Vertex::pdf_dir` of the sensor)
+            let p_to_q = sensor_pdf
+                .unwrap_or_else(|| sensor.pdf_dir(scene, self.tech, None, qs.p, Radiance));
+            let ends = End {
+                p: &sensor,
+                p_to_q,
+                p_minus: None,
+            };
+            self.changed_at_walk(scene, light_path, s, ends, (d, w), (pdf_qp, pdf_pq))
+        });
         Some(Connection {
             l,
             pdf_qp,
             pdf_pq,
             sampled: Some(sensor),
             raster,
+            changed,
         })
     }
 
@@ -1083,7 +1280,7 @@ impl<'t> Bdpt<'t> {
             }
             let e = scene.edge(qs.edge_end(z.p), z.edge_end(qs.p), sampler);
             let w = (z.p - qs.p).normalize_or_zero();
-            let cos_q = crate::path::geometry_term::cosine_factor(qs, w);
+            let cos_q = cosine_factor(qs, w);
             qs.beta * f * e.transmittance * we * (cos_q / pdf_dir)
         };
         let mut l = Rgb::ZERO;

@@ -15,6 +15,7 @@ pub mod contribution;
 pub mod distance;
 pub mod geometry_term;
 pub mod pdf;
+pub mod subpath;
 pub mod technique;
 pub mod verify;
 pub mod vertex;

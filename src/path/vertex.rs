@@ -175,6 +175,14 @@ impl Vertex {
     pub fn f_hat(&self, scene: &Scene, from: Vec3, to: Vec3) -> Rgb {
         let wi = (from - self.p).normalize_or_zero();
         let wo = (to - self.p).normalize_or_zero();
+        self.f_hat_dirs(scene, wi, wo)
+    }
+    // ANCHOR_END: f_hat
+
+    /// [`Vertex::f_hat`] for the unit directions `wi` towards `from` and `wo` towards `to`
+    /// (a connection computes them once for both of its ends).
+    #[inline]
+    pub fn f_hat_dirs(&self, scene: &Scene, wi: Vec3, wo: Vec3) -> Rgb {
         match self.kind {
             VertexKind::Surface { .. } => match self.bsdf(scene) {
                 Some(b) => b.eval(wo, wi, self.n, TransportMode::Radiance),
@@ -187,7 +195,6 @@ impl Vertex {
             _ => Rgb::ZERO,
         }
     }
-    // ANCHOR_END: f_hat
 
     /// L_e(self -> towards) at a light vertex (irradiance for a directional light, intensity for
     /// point and spot lights: their Dirac is consumed by the sampler).
@@ -360,13 +367,55 @@ impl Vertex {
 /// Solid-angle density `pdf` at `from` converted to the measure of `to`.
 #[inline]
 pub fn to_area(pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
-    if to.is_infinite_light() {
-        return pdf;
+    AreaFactor::new(from, to).apply(pdf)
+}
+
+/// The factor g(to -> from) / d^2 of [`to_area`] for one pair of vertices, kept in its two parts
+/// so that a density converted with it rounds exactly as `to_area` rounds it (BDPT keeps one per
+/// subpath edge for its weights).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AreaFactor {
+    /// g(to -> from).
+    cos: f32,
+    /// The squared distance (0 for coincident vertices: no density).
+    d2: f32,
+    /// `to` is an infinite light's vertex: no distance and no cosine.
+    infinite: bool,
+}
+
+impl AreaFactor {
+    #[inline]
+    pub fn new(from: &Vertex, to: &Vertex) -> Self {
+        if to.is_infinite_light() {
+            return AreaFactor {
+                cos: 1.0,
+                d2: 1.0,
+                infinite: true,
+            };
+        }
+        let d = to.p - from.p;
+        let d2 = d.length_squared();
+        let cos = if d2 == 0.0 {
+            0.0
+        } else {
+            cosine_factor(to, d / d2.sqrt())
+        };
+        AreaFactor {
+            cos,
+            d2,
+            infinite: false,
+        }
     }
-    let d = to.p - from.p;
-    let d2 = d.length_squared();
-    if d2 == 0.0 {
-        return 0.0;
+
+    /// The density `pdf` (per solid angle at `from`) in the measure of `to`.
+    #[inline]
+    pub fn apply(self, pdf: f32) -> f32 {
+        if self.infinite {
+            pdf
+        } else if self.d2 == 0.0 {
+            0.0
+        } else {
+            pdf * self.cos / self.d2
+        }
     }
-    pdf * cosine_factor(to, d / d2.sqrt()) / d2
 }

@@ -4,6 +4,7 @@
 //! `lights` (delta and infinite lights, selection by power), `sensors` (camera and meters);
 //! `values` checks the numbers they share. Every error names its line and key.
 
+mod hidden;
 mod lights;
 mod materials;
 mod media;
@@ -62,7 +63,9 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         .map(|&s| !shapes[s as usize].is_null())
         .collect();
     let has_null = prim_opaque.iter().any(|o| !o);
-    let bvh = Bvh::build(&prims);
+    let crossable = hidden::crossable(&prims, &prim_shape, &shapes);
+    let bvh = Bvh::build_over(&prims, |i| crossable[i]);
+    let hidden_faces = crossable.iter().filter(|&&c| !c).count();
 
     let mut scene = Scene {
         prims,
@@ -82,6 +85,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         center,
         radius,
         has_null,
+        hidden_faces,
         hash: src.hash(),
         source_name: src.name.clone(),
     };

@@ -171,6 +171,8 @@ pub struct Scene {
     pub radius: f32,
     /// True when any null boundary exists (otherwise shadow rays are plain any-hit queries).
     pub has_null: bool,
+    /// Null faces left out of the BVH because a coplanar wall covers them (`build::hidden`).
+    pub hidden_faces: usize,
     /// Hash of the scene file text.
     pub hash: u64,
     pub source_name: String,
