@@ -164,8 +164,10 @@ fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'s
 /// The scene's grids (their values and majorant blocks), environment map and primitives with
 /// the BVH.
 fn scene_bytes(scene: &Scene) -> u64 {
-    /// A primitive in the BVH with its node share.
-    const PRIMITIVE_BYTES: u64 = 128;
+    /// A primitive in the BVH with its node share: up to two references per primitive (large
+    /// ones are split, `geometry::bvh`), each with about one binary node (32 bytes), a third of
+    /// a four-wide one (128) and its index, besides the primitive itself.
+    const PRIMITIVE_BYTES: u64 = 256;
     let grids: u64 = scene
         .media
         .iter()
