@@ -32,6 +32,13 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 
 pub use crate::path::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
+/// The number of scattering vertices after which the path tracer starts Russian roulette: 5,
+/// as Mitsuba 3's `rr_depth`. On the fog box a later start trades time for variance almost
+/// exactly (the book's "Measuring a renderer": from 3, 5 and 8 the efficiencies agree within
+/// 5%), and from 5 one sample has no more error than Mitsuba's `volpath`. The bidirectional
+/// walks and SMC keep [`RR_START_DEPTH`].
+pub const PATH_RR_START_DEPTH: u32 = 5;
+
 /// The weight of the distance strategy with density `a` against the other's `b`: the balance
 /// heuristic (Veach 1997), a / (a + b).
 #[inline]
@@ -289,7 +296,7 @@ impl PathTracer {
             }
             camera = None;
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
-            if w.depth >= RR_START_DEPTH {
+            if w.depth >= PATH_RR_START_DEPTH {
                 let q = w.beta.max_element().min(RR_MAX_SURVIVAL);
                 if sampler.next_f32() >= q || q.is_nan() {
                     break;
