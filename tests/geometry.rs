@@ -82,6 +82,35 @@ fn random_ray(r: &mut Pcg64Mcg) -> Ray {
     }
 }
 
+/// The BVH's closest hit against brute force's: the same distance, and the same primitive
+/// unless another lies at an (almost) equal distance. True when there is a hit.
+fn check_closest(
+    bvh: &Bvh,
+    prims: &[Primitive],
+    opaque: &[bool],
+    ray: &Ray,
+    t_max: f32,
+    what: &str,
+) -> bool {
+    let got = bvh
+        .intersect(prims, opaque, ray, t_max)
+        .map(|h| (h.t, h.prim));
+    match (got, brute_closest(prims, ray, t_max)) {
+        (None, None) => false,
+        (Some((t, p)), Some((tw, pw))) => {
+            assert!((t - tw).abs() <= 1e-5 * (1.0 + tw), "{what}: t {t} vs {tw}");
+            assert!(
+                p == pw || (t - tw).abs() <= TIE_EPSILON * (1.0 + tw),
+                "{what}: {p} vs {pw}, {ray:?}"
+            );
+            true
+        }
+        (got, want) => {
+            panic!("{what}: BVH {got:?}, brute force {want:?}, ray {ray:?} t_max {t_max}")
+        }
+    }
+}
+
 #[test]
 fn closest_hit_equals_brute_force() {
     let mut r = rng(1);
@@ -97,28 +126,8 @@ fn closest_hit_equals_brute_force() {
             } else {
                 f32::INFINITY
             };
-            let got = bvh
-                .intersect(&prims, &opaque, &ray, t_max)
-                .map(|h| (h.t, h.prim));
-            let want = brute_closest(&prims, &ray, t_max);
-            match (got, want) {
-                (None, None) => {}
-                (Some((t, p)), Some((tw, pw))) => {
-                    hits += 1;
-                    assert!(
-                        (t - tw).abs() <= 1e-5 * (1.0 + tw),
-                        "soup {scene}: t {t} vs {tw}"
-                    );
-                    // a different primitive only at an (almost) equal distance
-                    assert!(
-                        p == pw || (t - tw).abs() <= TIE_EPSILON * (1.0 + tw),
-                        "soup {scene}: {p} vs {pw}"
-                    );
-                }
-                _ => panic!(
-                    "soup {scene}: BVH {got:?}, brute force {want:?}, ray {ray:?} t_max {t_max}"
-                ),
-            }
+            let what = format!("soup {scene}");
+            hits += check_closest(&bvh, &prims, &opaque, &ray, t_max, &what) as usize;
         }
     }
     assert!(hits > 3000, "the test rays mostly miss ({hits} hits)");
@@ -289,21 +298,7 @@ fn large_primitives_split_into_several_references_are_hit_as_by_brute_force() {
         } else {
             r.random_range(0.0..60.0)
         };
-        let got = bvh
-            .intersect(&prims, &opaque, &ray, t_max)
-            .map(|h| (h.t, h.prim));
-        let want = brute_closest(&prims, &ray, t_max);
-        match (got, want) {
-            (None, None) => {}
-            (Some((t, p)), Some((tw, pw))) => {
-                hits += 1;
-                assert!(
-                    p == pw || (t - tw).abs() <= TIE_EPSILON * (1.0 + tw),
-                    "{p} vs {pw}, {ray:?}"
-                );
-            }
-            _ => panic!("BVH {got:?}, brute force {want:?}, ray {ray:?} t_max {t_max}"),
-        }
+        hits += check_closest(&bvh, &prims, &opaque, &ray, t_max, "rooms") as usize;
         let any = brute_closest(&prims, &ray, t_max).is_some();
         assert_eq!(
             bvh.occluded(&prims, &vec![true; prims.len()], &ray, t_max),
