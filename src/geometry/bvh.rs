@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 
-use super::wide::{collapse, Binary, Child, Node4, Slot, WIDTH};
+use super::wide::{collapse, Binary, Child, Node4, RayLanes, Slot, WIDTH};
 use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
@@ -278,9 +278,12 @@ impl Bvh {
         let inv_d = ray.d.recip();
         // hits this far past the best one still compete in the tie-break
         let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
-        if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
+        // no separate test of the root's box: the top node's four-lane test of its children
+        // rejects a ray that misses the scene at the same cost
+        if self.nodes.is_empty() {
             return None;
         }
+        let lanes = RayLanes::new(ray.o, inv_d);
         let mut best: Option<Hit> = None;
         let mut stack = [0u64; N];
         let mut sp = 0usize;
@@ -301,7 +304,7 @@ impl Bvh {
                 }
                 Child::Node(i) => {
                     let limit = reach(best.map_or(t_max, |b| b.t));
-                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], ray, inv_d, limit);
+                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], &lanes, limit);
                 }
             }
             // the next stacked subtree the ray still enters before the best hit's reach (with
@@ -340,9 +343,10 @@ impl Bvh {
         t_max: f32,
     ) -> bool {
         let inv_d = ray.d.recip();
-        if self.nodes.is_empty() || self.nodes[0].bounds.intersect(ray, inv_d, t_max).is_none() {
+        if self.nodes.is_empty() {
             return false;
         }
+        let lanes = RayLanes::new(ray.o, inv_d);
         let mut stack = [0u64; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
@@ -357,7 +361,7 @@ impl Bvh {
                     }
                 }
                 Child::Node(i) => {
-                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], ray, inv_d, t_max);
+                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], &lanes, t_max);
                 }
             }
             if sp == 0 {
@@ -495,11 +499,10 @@ fn push_nearest_last<const N: usize>(
     stack: &mut [u64; N],
     mut sp: usize,
     node: &Node4,
-    ray: &Ray,
-    inv_d: Vec3,
+    ray: &RayLanes,
     limit: f32,
 ) -> usize {
-    let (enters, near) = node.intersect(ray.o, inv_d, limit);
+    let (enters, near) = node.intersect(ray, limit);
     let mut entered = [(0.0f32, Slot(0)); WIDTH];
     let mut n = 0;
     for k in 0..WIDTH {
