@@ -304,7 +304,12 @@ impl Bvh {
                 }
                 Child::Node(i) => {
                     let limit = reach(best.map_or(t_max, |b| b.t));
-                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], &lanes, limit);
+                    let nearest;
+                    (sp, nearest) = push_farther(&mut stack, sp, &self.wide[i], &lanes, limit);
+                    if let Some(slot) = nearest {
+                        child = slot.child();
+                        continue;
+                    }
                 }
             }
             // the next stacked subtree the ray still enters before the best hit's reach (with
@@ -361,7 +366,12 @@ impl Bvh {
                     }
                 }
                 Child::Node(i) => {
-                    sp = push_nearest_last(&mut stack, sp, &self.wide[i], &lanes, t_max);
+                    let nearest;
+                    (sp, nearest) = push_farther(&mut stack, sp, &self.wide[i], &lanes, t_max);
+                    if let Some(slot) = nearest {
+                        child = slot.child();
+                        continue;
+                    }
                 }
             }
             if sp == 0 {
@@ -490,18 +500,19 @@ fn halves(b: Aabb) -> Option<(Aabb, Aabb)> {
 }
 
 /// Pushes the children of `node` the ray enters before `limit` onto `stack` above `sp`, the
-/// farthest first so that the nearest is popped next; returns the new
-/// stack pointer. At most `WIDTH - 1` entries more than were popped to get here: cannot
-/// overflow a stack of [`STACK`] entries, nor one of [`SMALL_STACK`] in a tree of at most
-/// [`SHALLOW`] levels.
+/// farthest first, except the nearest, which is returned to be visited next without a trip
+/// through the stack (it would be popped next, and it passes the pop's distance test, since
+/// it was entered before `limit`); returns the new stack pointer. At most `WIDTH - 1` entries
+/// more than were popped to get here: cannot overflow a stack of [`STACK`] entries, nor one of
+/// [`SMALL_STACK`] in a tree of at most [`SHALLOW`] levels.
 #[inline]
-fn push_nearest_last<const N: usize>(
+fn push_farther<const N: usize>(
     stack: &mut [u64; N],
     mut sp: usize,
     node: &Node4,
     ray: &RayLanes,
     limit: f32,
-) -> usize {
+) -> (usize, Option<Slot>) {
     let (enters, near) = node.intersect(ray, limit);
     let mut entered = [(0.0f32, Slot(0)); WIDTH];
     let mut n = 0;
@@ -518,11 +529,14 @@ fn push_nearest_last<const N: usize>(
             n += 1;
         }
     }
-    for &(t, slot) in &entered[..n] {
+    let Some((&(_, nearest), farther)) = entered[..n].split_last() else {
+        return (sp, None);
+    };
+    for &(t, slot) in farther {
         stack[sp] = u64::from(slot.0) | (u64::from(t.to_bits()) << 32);
         sp += 1;
     }
-    sp
+    (sp, Some(nearest))
 }
 
 /// Levels of the four-wide tree under node `i` (a node whose children are all leaves: 1).
