@@ -273,8 +273,8 @@ mod tests {
     #[test]
     fn the_finite_ray_slab_test_is_the_nan_ignoring_one() {
         let c = [-2.0f32, -1.0, 0.0, 0.5, 1.0, 3.0];
-        let d = [-1.0f32, -0.3, -1e-30, 1e-30, 0.2, 0.7, 1.0];
-        let mut checked = 0;
+        let d = [-1.0f32, -0.3, -1e-38, 1e-38, 0.2, 0.7, 1.0];
+        let (mut checked, mut overflows) = (0, 0);
         for (i, &lo) in c.iter().enumerate() {
             let hi = c[(i + 2) % c.len()].max(lo);
             let node = Node4 {
@@ -296,6 +296,7 @@ mod tests {
                     let inv_d = Vec3::new(dx, dy, 0.4).recip();
                     let ray = RayLanes::new(Vec3::new(o, 0.0, o), inv_d);
                     assert!(ray.finite);
+                    overflows += (dx.abs() < 1e-37) as usize;
                     for limit in [0.5, f32::INFINITY] {
                         let (m1, n1) = node.slabs::<true>(&ray, limit);
                         let (m0, n0) = node.slabs::<false>(&ray, limit);
@@ -307,7 +308,12 @@ mod tests {
                 }
             }
         }
-        assert!(checked > 200);
+        assert!(checked > 200 && overflows > 20);
+        // an inverse of 1e38 times a slab end 5 away (box end 3, origin -2) overflows
+        assert_eq!(
+            (Vec4::splat(5.0) * Vec4::splat(1e-38f32.recip())).x,
+            f32::INFINITY
+        );
         assert!(!RayLanes::new(Vec3::ZERO, Vec3::new(0.0, 1.0, 1.0).recip()).finite);
     }
 
