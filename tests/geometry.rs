@@ -133,6 +133,37 @@ fn closest_hit_equals_brute_force() {
     assert!(hits > 3000, "the test rays mostly miss ({hits} hits)");
 }
 
+/// A scene of a few walls is split to leaves of at most two, although the SAH prefers one leaf
+/// (it counts rays entering the box from outside; the rays of a box of walls start inside it),
+/// and its hits from inside are those of brute force.
+#[test]
+fn a_box_of_walls_is_split_and_hit_as_by_brute_force() {
+    let c = Vec3::splat(-1.0);
+    let (x, y, z) = (2.0 * Vec3::X, 2.0 * Vec3::Y, 2.0 * Vec3::Z);
+    let prims: Vec<Primitive> = [
+        (c, z, x),
+        (c + y, x, z),
+        (c, x, y),
+        (c, y, z),
+        (c + x, z, y),
+    ]
+    .into_iter()
+    .filter_map(|(o, u, v)| Quad::new(o, u, v).map(Primitive::Quad))
+    .collect();
+    let bvh = Bvh::build(&prims);
+    // five leaves of one or two walls take at least five binary nodes, one leaf takes one
+    assert!(bvh.node_count() >= 5, "{} nodes", bvh.node_count());
+    let opaque = vec![true; prims.len()];
+    let mut r = rng(7);
+    let mut hits = 0;
+    for _ in 0..3000 {
+        let ray = Ray::new(point(&mut r, 0.99), unit(&mut r));
+        let t_max = r.random_range(0.0..3.0);
+        hits += check_closest(&bvh, &prims, &opaque, &ray, t_max, "box") as usize;
+    }
+    assert!(hits > 500, "the test rays mostly miss ({hits} hits)");
+}
+
 #[test]
 fn closest_hit_with_mixed_opacity_equals_brute_force() {
     // random primitives are never coplanar, so the opacity flags must not change the answer

@@ -53,6 +53,12 @@ pub struct Bvh {
     wide: Vec<Node4>,
     /// Levels of the four-wide tree (which stack size its queries need).
     wide_depth: usize,
+    /// Whether the build may end a branch of up to `4 * MAX_LEAF` items in one leaf where the
+    /// SAH prefers it: not in a scene of that few references, which is split to leaves of
+    /// [`MAX_LEAF`]. The SAH counts rays that enter a node from outside, so it finds that a
+    /// box of walls is best tested whole; but the rays of such a scene start inside it, and a
+    /// segment between two of its points enters only the flat boxes of the walls it reaches.
+    sah_leaves: bool,
 }
 
 impl Binary for Bvh {
@@ -90,6 +96,7 @@ impl Bvh {
             indices: Vec::with_capacity(items.len()),
             wide: Vec::new(),
             wide_depth: 0,
+            sah_leaves: items.len() > 4 * MAX_LEAF,
         };
         if !items.is_empty() {
             let mut leaf_of = vec![u32::MAX; prims.len()];
@@ -198,7 +205,9 @@ impl Bvh {
         }
         let leaf_cost = items.len() as f32;
         let split_cost = TRAVERSAL_COST + best.cost / bounds.surface_area().max(f32::MIN_POSITIVE);
-        if best.cost.is_infinite() || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF) {
+        if best.cost.is_infinite()
+            || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF && self.sah_leaves)
+        {
             if best.cost.is_infinite() {
                 let mid = items.len() / 2;
                 items.sort_by(|a, b| a.centroid[widest].total_cmp(&b.centroid[widest]));

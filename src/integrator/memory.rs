@@ -168,6 +168,9 @@ fn scene_bytes(scene: &Scene) -> u64 {
     /// ones are split, `geometry::bvh`), each with about one binary node (32 bytes), a third of
     /// a four-wide one (128) and its index, besides the primitive itself.
     const PRIMITIVE_BYTES: u64 = 256;
+    /// A null boundary's share of the second tree it is in (`Scene::boundary_bvh`): the node
+    /// share of `PRIMITIVE_BYTES` again, without the primitive.
+    const BOUNDARY_BYTES: u64 = 160;
     let grids: u64 = scene
         .media
         .iter()
@@ -187,7 +190,8 @@ fn scene_bytes(scene: &Scene) -> u64 {
             _ => 0,
         })
         .sum();
-    grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES
+    let boundaries = scene.prim_opaque.iter().filter(|&&o| !o).count() as u64;
+    grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES + boundaries * BOUNDARY_BYTES
 }
 
 /// The default `--max-memory`: [`MACHINE_SHARE`] of the machine's memory (MemTotal of

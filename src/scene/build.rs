@@ -23,6 +23,7 @@ pub use shapes::MAX_OBJ_BYTES;
 use super::file::{self, path};
 use super::{Scene, SceneError, SceneSource};
 use crate::geometry::{Aabb, Bvh};
+use crate::medium::Medium;
 
 /// Builds the scene described by `src`.
 pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
@@ -65,6 +66,8 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     let has_null = prim_opaque.iter().any(|o| !o);
     let crossable = hidden::crossable(&prims, &prim_shape, &shapes);
     let bvh = Bvh::build_over(&prims, |i| crossable[i]);
+    let boundary_bvh = Bvh::build_over(&prims, |i| crossable[i] && !prim_opaque[i]);
+    let closed_form_tau = media.iter().all(|m| matches!(m, Medium::Homogeneous(_)));
     let hidden_faces = crossable.iter().filter(|&&c| !c).count();
 
     let mut scene = Scene {
@@ -72,6 +75,8 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         prim_shape,
         prim_opaque,
         bvh,
+        boundary_bvh,
+        closed_form_tau,
         shapes,
         media,
         medium_names,

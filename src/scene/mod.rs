@@ -155,6 +155,12 @@ pub struct Scene {
     /// Whether a primitive is opaque (wins coplanar ties and blocks shadow rays).
     pub prim_opaque: Vec<bool>,
     pub bvh: Bvh,
+    /// The null boundaries of `bvh` alone: once an any-hit query has found no opaque surface
+    /// along an edge, only these remain to cut it into medium segments (`Scene::edge`).
+    pub boundary_bvh: Bvh,
+    /// True when every medium's transmittance is a closed form (homogeneous media): a shadow
+    /// ray draws no random numbers, so an occluded one may stop before its first segment.
+    pub closed_form_tau: bool,
     pub shapes: Vec<ShapeInfo>,
     pub media: Vec<Medium>,
     pub medium_names: Vec<String>,
@@ -282,6 +288,15 @@ impl Scene {
     }
     // ANCHOR_END: propagate
 
+    /// Whether an opaque surface lies along `ray` at t in (0, t_max): one any-hit query,
+    /// null boundaries ignored. A segment walk over the same range would end at such a surface
+    /// (a boundary at the same t loses the tie to it), so `true` means zero transmittance.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        self.bvh
+            .occluded(&self.prims, &self.prim_opaque, ray, t_max)
+    }
+
     /// Transmittance from `o` along unit `d` over distance `dist` (may be infinite), starting in
     /// `medium`, through null boundaries; zero when an opaque surface is in the way. This is
     /// the tau of eq. (3) times the visibility V.
@@ -297,10 +312,7 @@ impl Scene {
         let ray = Ray::new(o, d);
         if !self.has_null {
             // no boundary to cross: one any-hit query settles visibility
-            if self
-                .bvh
-                .occluded(&self.prims, &self.prim_opaque, &ray, dist)
-            {
+            if self.occluded(&ray, dist) {
                 return Rgb::ZERO;
             }
             return match medium {
@@ -308,9 +320,17 @@ impl Scene {
                 None => Rgb::ONE,
             };
         }
-        // with null boundaries the walk below meets any opaque occluder itself
+        let mut segments = Segments::new(self, ray, medium, dist);
+        if self.closed_form_tau {
+            if self.occluded(&ray, dist) {
+                return Rgb::ZERO;
+            }
+            segments = segments.boundaries_only();
+        }
+        // otherwise the walk below meets any opaque occluder itself, after drawing the random
+        // numbers of the segments before it, as it always has (same images)
         let mut tr = Rgb::ONE;
-        for seg in Segments::new(self, ray, medium, dist) {
+        for seg in segments {
             if let Some(m) = seg.medium {
                 let sr = Ray::new(ray.at(seg.t0), d);
                 tr *= self.media[m as usize].transmittance(&sr, seg.t1 - seg.t0, sampler);
@@ -334,21 +354,39 @@ impl Scene {
     /// probabilities), `pdf_ba` the same from `b` to `a`. Transmittance includes visibility.
     // ANCHOR: edge
     pub fn edge(&self, a: EdgeEnd, b: EdgeEnd, sampler: &mut Sampler) -> EdgeEval {
-        self.edge_with(a, b, |med, ray, len| med.transmittance(ray, len, sampler))
+        let closed_form = self.closed_form_tau;
+        self.edge_with(a, b, closed_form, |med, ray, len| {
+            med.transmittance(ray, len, sampler)
+        })
     }
 
     /// [`Scene::edge`] with the exact transmittance of every medium segment
     /// (`Medium::transmittance_exact`): deterministic, for MLT's target function.
     pub fn edge_exact(&self, a: EdgeEnd, b: EdgeEnd) -> EdgeEval {
-        self.edge_with(a, b, |med, ray, len| med.transmittance_exact(ray, len))
+        self.edge_with(a, b, true, |med, ray, len| {
+            med.transmittance_exact(ray, len)
+        })
+    }
+
+    /// [`Scene::edge_exact`] by the plain segment walk: closest-hit queries over the whole
+    /// tree, without the any-hit query first. The two give the same bits (`tests/edges.rs`);
+    /// this one is the reference the shortcut is checked against.
+    pub fn edge_exact_walked(&self, a: EdgeEnd, b: EdgeEnd) -> EdgeEval {
+        self.edge_with(a, b, false, |med, ray, len| {
+            med.transmittance_exact(ray, len)
+        })
     }
 
     /// [`Scene::edge`] with `tau(medium, ray, length)` giving each medium segment's
-    /// transmittance (generic, not `dyn`: BDPT calls it for every connection).
+    /// transmittance (generic, not `dyn`: BDPT calls it for every connection). With `shortcut`
+    /// one any-hit query settles visibility first and the walk queries only the null
+    /// boundaries; only for a `tau` that draws no random numbers, since an occluded edge then
+    /// calls it fewer times than the walk would.
     fn edge_with(
         &self,
         a: EdgeEnd,
         b: EdgeEnd,
+        shortcut: bool,
         mut tau: impl FnMut(&crate::medium::Medium, &Ray, f32) -> Rgb,
     ) -> EdgeEval {
         let zero = EdgeEval {
@@ -393,9 +431,15 @@ impl Scene {
             pdf_ab: 1.0,
             pdf_ba: 1.0,
         };
-        let segments = Segments::new(self, ray, a.medium, dist)
+        let mut segments = Segments::new(self, ray, a.medium, dist)
             .lead(lead_a)
             .open_end(dist + lead_b);
+        if shortcut {
+            if self.occluded(&ray, dist) {
+                return zero;
+            }
+            segments = segments.boundaries_only();
+        }
         for seg in segments {
             let last = matches!(seg.end, SegmentEnd::Open);
             if let Some(m) = seg.medium {

@@ -7,7 +7,7 @@
 //! Book: "The transport equations", section "Why the ray is continued, not re-spawned, at a null
 //! boundary".
 
-use crate::geometry::{Hit, Ray};
+use crate::geometry::{Bvh, Hit, Ray};
 
 use super::Scene;
 
@@ -53,6 +53,8 @@ pub struct Segment {
 /// after [`MAX_NULL_CROSSINGS`] crossings, which every caller treats as a trapped ray.
 pub struct Segments<'a> {
     scene: &'a Scene,
+    /// The tree the queries run in: the scene's, or its null boundaries alone.
+    bvh: &'a Bvh,
     ray: Ray,
     medium: Option<u32>,
     t_start: f32,
@@ -71,6 +73,7 @@ impl<'a> Segments<'a> {
     pub fn new(scene: &'a Scene, ray: Ray, medium: Option<u32>, t_max: f32) -> Self {
         Segments {
             scene,
+            bvh: &scene.bvh,
             ray,
             medium,
             t_start: 0.0,
@@ -98,6 +101,16 @@ impl<'a> Segments<'a> {
         self
     }
 
+    /// Queries only the null boundaries ([`Scene::boundary_bvh`]), for a ray an any-hit query
+    /// has shown to meet no opaque surface within `t_max`: the closest hit among boundaries is
+    /// then the closest hit of all (no opaque face is near enough to win a tie), so the
+    /// segments are the ones the whole tree gives, for a fraction of the queries' cost.
+    #[inline]
+    pub fn boundaries_only(mut self) -> Self {
+        self.bvh = &self.scene.boundary_bvh;
+        self
+    }
+
     /// The ray the queries run along.
     #[inline]
     pub fn ray(&self) -> &Ray {
@@ -117,7 +130,7 @@ impl Iterator for Segments<'_> {
         let scene = self.scene;
         let first = self.queries == 0;
         self.queries += 1;
-        let hit = scene.bvh.intersect_range(
+        let hit = self.bvh.intersect_range(
             &scene.prims,
             &scene.prim_opaque,
             &self.ray,
