@@ -175,7 +175,8 @@ pub struct Scene {
     pub bounds: Aabb,
     pub center: Vec3,
     pub radius: f32,
-    /// True when any null boundary exists (otherwise shadow rays are plain any-hit queries).
+    /// True when any null boundary exists (otherwise a shadow ray is one any-hit query, with
+    /// no segments to walk).
     pub has_null: bool,
     /// Null faces left out of the BVH because a coplanar wall covers them (`build::hidden`).
     pub hidden_faces: usize,
