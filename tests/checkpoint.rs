@@ -135,6 +135,7 @@ fn a_resumed_mlt_render_is_an_independent_run_merged_by_sample_count() {
 fn a_checkpoint_of_another_render_or_a_damaged_one_is_refused() {
     let c = Checkpoint {
         identity: identity(IntegratorKind::Path, None),
+        recipe: None,
         progress: Default::default(),
         film: None,
         meters: Vec::new(),
@@ -262,4 +263,129 @@ fn kill_9_loses_only_what_followed_the_last_checkpoint() {
     let spp = c.progress.spp;
     assert!(spp > 0);
     resume_matches_uninterrupted(&dir, &exr, spp + 4);
+}
+
+/// `pathspace render` exactly as a user types it, in `dir`; its output.
+fn pathspace_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The render the user asked for, interrupted by SIGINT after its first checkpoint: the scene
+/// given by a path relative to `dir`, a target of 512 spp (about a second on one thread, many
+/// passes after the first checkpoint).
+fn interrupted_long_render(dir: &Path) -> String {
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    std::fs::write(dir.join("scenes/fog-box.toml"), FOG_BOX).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .current_dir(dir)
+        .args([
+            "render",
+            "scenes/fog-box.toml",
+            "--spp",
+            "512",
+            "--seed",
+            "7",
+        ])
+        .args(["--resolution", "48x48", "--threads", "1", "--reproducible"])
+        .args(["--checkpoint", "0", "-o", "long.exr"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    while !dir.join("long.checkpoint").exists() {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(130), "not interrupted: {err}");
+    err
+}
+
+/// The command the interrupted render prints, `--resume long.checkpoint` and nothing else,
+/// finishes it: the same target, seed, resolution and options, taken from the checkpoint, and
+/// the same bytes as the uninterrupted render; the finished render removes its checkpoint.
+#[test]
+fn resume_alone_finishes_the_interrupted_render_bit_for_bit() {
+    let dir = scratch("alone");
+    let err = interrupted_long_render(&dir);
+    assert!(
+        err.contains("continue with --resume long.checkpoint"),
+        "{err}"
+    );
+    let out = pathspace_in(&dir, &["render", "--resume", "long.checkpoint"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("removed long.checkpoint"), "{err}");
+    assert!(!dir.join("long.checkpoint").exists());
+    let out = pathspace_in(
+        &dir,
+        &[
+            "render",
+            "scenes/fog-box.toml",
+            "--spp",
+            "512",
+            "--seed",
+            "7",
+            "--resolution",
+            "48x48",
+            "--threads",
+            "2",
+            "--reproducible",
+            "-o",
+            "whole.exr",
+        ],
+    );
+    assert!(out.status.success());
+    for ext in ["exr", "png"] {
+        let read = |name: &str| std::fs::read(dir.join(name).with_extension(ext)).unwrap();
+        assert!(read("long") == read("whole"), "the resumed {ext} differs");
+    }
+}
+
+/// A flag that contradicts the checkpoint's render is refused and named (the seed, the
+/// resolution, the integrator); `--spp` may change the target, and says so.
+#[test]
+fn resume_refuses_a_contradicting_flag_and_announces_a_new_target() {
+    let dir = scratch("contradict");
+    interrupted_long_render(&dir);
+    let resume = ["render", "--resume", "long.checkpoint"];
+    for (flag, value, named) in [
+        ("--seed", "8", "`seed` is 8 now but 7"),
+        (
+            "--resolution",
+            "32x32",
+            "--resolution is 32x32 now but 48x48",
+        ),
+        (
+            "--integrator",
+            "bdpt",
+            "`integrator` is \"bdpt\" now but not given",
+        ),
+    ] {
+        let out = pathspace_in(&dir, &[&resume[..], &[flag, value]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(named),
+            "{flag}: {err}"
+        );
+    }
+    let out = pathspace_in(
+        &dir,
+        &[&resume[..], &["--seed", "7", "--spp", "516"]].concat(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("the target is now 516 spp"), "{err}");
+    let (_, meta) = pathspace::image_io::read_exr(&dir.join("long.exr")).unwrap();
+    assert_eq!(meta.get("spp"), Some("516"));
 }

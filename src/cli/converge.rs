@@ -72,6 +72,9 @@ pub struct ConvergeArgs {
     /// The memory limit every line's render is checked against before the runs begin.
     #[command(flatten)]
     pub memory: super::render::MemoryArgs,
+    /// `--resolution WxH` (the reference must have the same).
+    #[command(flatten)]
+    pub film: super::ResolutionArg,
 }
 
 /// An integrator named on the command line: a kind and its variant modifiers: `+guide`,
@@ -249,7 +252,7 @@ fn converge_guided(
     let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
     let mut rows = Vec::new();
     for run in config.run_indices() {
-        let (scene, mut settings, _) = super::load_scene(Some(&args.scene))?;
+        let (scene, mut settings, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
         let flags = args.guide.apply_flags(settings.guide);
         let g = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
         settings.guide = g;
@@ -502,7 +505,7 @@ fn run_lines(
     let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     for name in &args.propagation {
         let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
-        let (mut variant, _, _) = super::load_scene(Some(&args.scene))?;
+        let (mut variant, _, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
         if variant.set_line_integral(li) == 0 {
             return Err(CliError::Usage(format!(
                 "--propagation: {} has no inhomogeneous medium",
@@ -521,7 +524,7 @@ fn run_lines(
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
-    let (mut scene, settings, source) = super::load_scene(Some(&args.scene))?;
+    let (mut scene, settings, source) = super::load_scene_at(Some(&args.scene), &args.film)?;
     let adjoint = args.adjoint.apply(settings.adjoint)?;
     let (variants, guided) = parse_lines(&args, adjoint)?;
     let externals = parse_externals(&args)?;

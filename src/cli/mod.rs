@@ -7,6 +7,7 @@ pub mod interrupt;
 pub mod merge;
 pub mod reference;
 pub mod render;
+pub mod resume;
 pub mod rooms;
 
 /// `pathspace assignment` lives with the course it serves.
@@ -200,6 +201,16 @@ impl From<String> for CliError {
     }
 }
 
+/// What `pathspace` alone prints: the two commands most people want first, and where the rest is.
+pub const USAGE: &str = "\
+pathspace: light transport in participating media (a renderer, its tests and a book)
+
+  pathspace render                     render the built-in fog box to fog-box.exr and .png
+  pathspace render SCENE.toml --spp 64 render a scene (TOML, or Mitsuba 3 XML)
+
+  pathspace info SCENE.toml            check a scene and list what it holds
+  pathspace --help                     every command; `pathspace render --help` every option";
+
 /// Runs the command line; returns the process exit code.
 pub fn run(cli: Cli) -> Result<(), CliError> {
     run_with_source(cli, &[])
@@ -209,7 +220,10 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
 /// it; `assignment make` writes student copies from it).
 pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), CliError> {
     match cli.command {
-        None => render::run(render::RenderArgs::default()),
+        None => {
+            println!("{USAGE}");
+            Ok(())
+        }
         Some(Command::Render(a)) => render::run(a),
         Some(Command::Diff(a)) => diff::run(a),
         Some(Command::Reference(a)) => reference::run(a),
@@ -240,5 +254,46 @@ pub fn load_scene(
         }
     };
     let (scene, settings) = crate::integrator::settings::load(&source)?;
+    Ok((scene, settings, source))
+}
+
+/// `--resolution WxH`, declared once for every command that renders a scene.
+#[derive(clap::Args, Debug, Default, Clone, PartialEq)]
+pub struct ResolutionArg {
+    /// Override the camera resolution, e.g. `64x64` (quick previews, golden images; the
+    /// vertical field of view is kept).
+    #[arg(long, value_name = "WxH", value_parser = render::parse_resolution)]
+    pub resolution: Option<(u32, u32)>,
+}
+
+impl ResolutionArg {
+    /// The scene with its camera at this resolution (unchanged without the flag).
+    pub fn apply(&self, scene: &mut crate::scene::Scene) -> Result<(), CliError> {
+        let Some((w, h)) = self.resolution else {
+            return Ok(());
+        };
+        let cam = scene
+            .camera
+            .as_ref()
+            .ok_or_else(|| CliError::Usage("--resolution needs a scene with a camera".into()))?;
+        scene.camera = cam.with_resolution(w, h);
+        Ok(())
+    }
+}
+
+/// [`load_scene`] with `--resolution` applied.
+pub fn load_scene_at(
+    path: Option<&std::path::Path>,
+    resolution: &ResolutionArg,
+) -> Result<
+    (
+        crate::scene::Scene,
+        crate::integrator::RenderSettings,
+        crate::scene::SceneSource,
+    ),
+    CliError,
+> {
+    let (mut scene, settings, source) = load_scene(path)?;
+    resolution.apply(&mut scene)?;
     Ok((scene, settings, source))
 }

@@ -50,7 +50,11 @@ impl ReferenceArgs {
         };
         let options = RenderOptions {
             integrator: Some(integrator),
-            spp: Some(self.spp.unwrap_or(DEFAULT_REFERENCE_SPP)),
+            // a resume takes the target from its checkpoint
+            spp: match self.session.resume {
+                Some(_) => self.spp,
+                None => Some(self.spp.unwrap_or(DEFAULT_REFERENCE_SPP)),
+            },
             seed: self.seed,
             adjoint_image: Some(false),
             guide: GuideOptions {
@@ -121,11 +125,15 @@ pub fn check_overwrite(output: &Path, scene_name: &str, scene_hash: &str) -> Res
 // ANCHOR_END: refuse_overwrite
 
 pub fn run(args: ReferenceArgs) -> Result<(), CliError> {
-    let (scene, settings, source) = super::load_scene(Some(&args.scene))?;
+    let (mut scene, settings, source) = super::load_scene(Some(&args.scene))?;
     if scene.camera.is_none() {
         return Err(CliError::NoCamera(source.name));
     }
-    let render = args.render_args(&scene);
+    let mut render = args.render_args(&scene);
+    if let Some(file) = render.session.resume.clone() {
+        super::resume::complete(&mut render, &super::render::resume_path(&file))?;
+    }
+    render.session.film.apply(&mut scene)?;
     let (output, _) = super::render::output_paths(&render);
     check_overwrite(&output, &source.name, &hash_hex(source.hash()))?;
     super::render::run_scene(&render, &scene, settings, &source)

@@ -39,9 +39,6 @@ pub struct RenderArgs {
     /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time", help_heading = OUTPUTS)]
     pub mutations_per_pixel: Option<u32>,
-    /// Override the camera resolution, e.g. `64x64` (quick previews, golden images).
-    #[arg(long, value_parser = parse_resolution, help_heading = OUTPUTS)]
-    pub resolution: Option<(u32, u32)>,
     /// PNG preview (default: next to the EXR).
     #[arg(long, help_heading = OUTPUTS)]
     pub png: Option<PathBuf>,
@@ -75,6 +72,9 @@ pub struct SessionArgs {
     /// Render for this many seconds instead of a fixed spp.
     #[arg(long)]
     pub time: Option<f64>,
+    /// `--resolution WxH`.
+    #[command(flatten)]
+    pub film: super::ResolutionArg,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -480,7 +480,7 @@ pub fn checkpoint_path(exr: &std::path::Path) -> PathBuf {
 }
 
 /// The checkpoint `--resume` names: the file itself, or the checkpoint beside an EXR.
-fn resume_path(file: &std::path::Path) -> PathBuf {
+pub(super) fn resume_path(file: &std::path::Path) -> PathBuf {
     let is_exr = file
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
@@ -684,15 +684,12 @@ fn print_summary(result: &RenderResult, written: &[String]) {
     }
 }
 
-pub fn run(args: RenderArgs) -> Result<(), CliError> {
-    let (mut scene, settings, source) = super::load_scene(args.scene.as_deref())?;
-    if let Some((w, h)) = args.resolution {
-        let cam = scene
-            .camera
-            .as_ref()
-            .ok_or_else(|| CliError::Usage("--resolution needs a scene with a camera".into()))?;
-        scene.camera = cam.with_resolution(w, h);
+pub fn run(mut args: RenderArgs) -> Result<(), CliError> {
+    if let Some(file) = args.session.resume.clone() {
+        super::resume::complete(&mut args, &resume_path(&file))?;
     }
+    let (scene, settings, source) =
+        super::load_scene_at(args.scene.as_deref(), &args.session.film)?;
     run_scene(&args, &scene, settings, &source)
 }
 
@@ -774,12 +771,21 @@ fn finish(
     let (ended, plan, pre) = (done.ended, done.plan, done.pre);
     let result = &ended.result;
     let mut written = write_image(args, result, plan, pre, source)?;
-    let keep_state = ended.stopped_by.is_some() || args.session.checkpoint.is_some();
+    let path = checkpoint_path(&output_paths(args).0);
+    let keep_state = ended.stopped_by.is_some() || !result.complete;
     if let (true, Some(c)) = (keep_state, &ended.checkpoint) {
-        let path = checkpoint_path(&output_paths(args).0);
         c.write(&path)
             .map_err(crate::integrator::IntegratorError::from)?;
         written.push(path.display().to_string());
+    } else if wrote_state(args) && path.is_file() {
+        // a finished render needs no state: its checkpoints (and a resumed one) go
+        match std::fs::remove_file(&path) {
+            Ok(()) if !args.json => {
+                eprintln!("removed {} (the render is complete)", path.display())
+            }
+            Ok(()) => {}
+            Err(e) => eprintln!("warning: cannot remove {}: {e}", path.display()),
+        }
     }
     warn_negative(result, plan.kind);
     if args.json {
@@ -809,6 +815,12 @@ fn finish(
         }),
         None => Ok(()),
     }
+}
+
+/// Whether this render wrote (or resumed from) the checkpoint beside its output, which it
+/// then removes when it is complete; a checkpoint of another render is left alone.
+fn wrote_state(args: &RenderArgs) -> bool {
+    args.session.checkpoint.is_some() || args.session.resume.is_some()
 }
 
 /// Warns of pixels with a negative estimate (an estimator that has not converged there).
@@ -914,6 +926,7 @@ fn render_job(
         stop: Some(super::interrupt::install().map_err(CliError::Signals)?),
         every: args.session.checkpoint,
         identity: Some(id),
+        recipe: Some(super::resume::recipe(args)),
         resume,
         on_checkpoint: Some(&mut write),
     };

@@ -22,7 +22,7 @@ use super::MeterAccum;
 use crate::film::Film;
 
 /// The first bytes of a checkpoint file (and its format version).
-const MAGIC: &[u8; 24] = b"pathspace checkpoint v2\n";
+const MAGIC: &[u8; 24] = b"pathspace checkpoint v3\n";
 
 /// Why a checkpoint cannot be read, written or resumed from.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -102,10 +102,36 @@ pub struct Earlier {
     pub runs: Vec<Streams>,
 }
 
+/// How the command that wrote a checkpoint was called: what `--resume FILE` alone needs to
+/// repeat it (the scene file, the flags, the sample target). Not part of the [`Identity`]:
+/// the identity says which render the state belongs to, the recipe how to continue it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Recipe {
+    /// The scene file as it was given (None: the embedded fog box).
+    pub scene: Option<String>,
+    /// The same file as an absolute path, for a resume started from another directory.
+    pub scene_absolute: Option<String>,
+    /// The render options given as flags (the scene's `[render]` keys are in the scene
+    /// file), as JSON; `spp` is the target of the whole render.
+    pub flags: String,
+    /// `--resolution`, `--time`, `--shard I/N` and `--png` as given.
+    pub resolution: Option<(u32, u32)>,
+    pub time: Option<f64>,
+    pub shard: Option<String>,
+    pub png: Option<String>,
+    /// `--reproducible`: no timings in the EXR header.
+    pub reproducible: bool,
+    /// `--checkpoint SECONDS`: the resumed render keeps checkpointing at the same interval.
+    pub checkpoint: Option<f64>,
+}
+
 /// A render's state between two passes.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Checkpoint {
     pub identity: Identity,
+    /// How to continue the render without repeating its command line (None: written by a
+    /// caller of the library that gave none).
+    pub recipe: Option<Recipe>,
     pub progress: Progress,
     /// The film of the run in progress (for MLT, the runs merged so far are in `earlier`).
     pub film: Option<Film>,

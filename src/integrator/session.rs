@@ -7,7 +7,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress};
+use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress, Recipe};
 use super::provenance::Streams;
 
 use super::{IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics};
@@ -150,6 +150,8 @@ pub struct Control<'c> {
     pub every: Option<f64>,
     /// What a checkpoint must match to be resumed; needed to make checkpoints.
     pub identity: Option<Identity>,
+    /// How the render was asked for, kept in every checkpoint (`--resume FILE` alone repeats it).
+    pub recipe: Option<Recipe>,
     /// Continue from this checkpoint (its identity checked by the caller).
     pub resume: Option<Checkpoint>,
     /// Writes a periodic checkpoint and the image so far.
@@ -177,7 +179,10 @@ pub fn render(job: &Job) -> Result<RenderResult, IntegratorError> {
 /// seconds, stopped by a signal after the pass in flight.
 pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorError> {
     let (mut r, mut progress, earlier) = start(job, control.resume.take())?;
-    let bar = job.progress.then(|| progress_bar(job, progress.spp));
+    // a bar on a terminal; lines in a log file or a pipe (a batch job's output)
+    let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let bar = (job.progress && terminal).then(|| progress_bar(job, progress.spp));
+    let mut log = (job.progress && !terminal).then(ProgressLog::default);
     let tick = || {
         if let Some(b) = &bar {
             b.inc(1)
@@ -213,7 +218,7 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
         r.pass(spp, &tick);
         progress.spp += spp as u64;
         progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
-        if let Some(b) = &bar {
+        if bar.is_some() || log.is_some() {
             let pixels = job
                 .setup
                 .scene
@@ -222,12 +227,20 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
                 .map_or(0, |c| c.width * c.height);
             let elapsed = start.elapsed().as_secs_f64();
             let rate = ((progress.spp - first_spp) * pixels as u64) as f64 / elapsed;
-            b.set_message(progress_message(
+            let message = progress_message(
                 progress.spp,
                 job.time.is_none().then_some(job.spp),
                 (pixels > 0 && elapsed > 0.0).then_some(rate),
                 job.time.map(|t| t - progress.seconds),
-            ));
+            );
+            match (&bar, &mut log) {
+                (Some(b), _) => b.set_message(message),
+                (None, Some(l)) => {
+                    let run = (progress.spp - first_spp, elapsed);
+                    l.pass(&message, progress.spp, run, job)
+                }
+                (None, None) => {}
+            }
         }
         let due = control
             .every
@@ -235,7 +248,12 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
         if let (true, Some(id), Some(write)) =
             (due, &control.identity, control.on_checkpoint.as_mut())
         {
-            let c = snapshot(&r, id, &progress, earlier.as_ref());
+            let c = snapshot(
+                &r,
+                (id, control.recipe.as_ref()),
+                &progress,
+                earlier.as_ref(),
+            );
             write(&result(&r, job, &progress, earlier.as_ref()), &c)?;
             last_checkpoint = Instant::now();
         }
@@ -244,10 +262,14 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
         b.finish_and_clear();
     }
     progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
-    let checkpoint = control
-        .identity
-        .as_ref()
-        .map(|id| snapshot(&r, id, &progress, earlier.as_ref()));
+    let checkpoint = control.identity.as_ref().map(|id| {
+        snapshot(
+            &r,
+            (id, control.recipe.as_ref()),
+            &progress,
+            earlier.as_ref(),
+        )
+    });
     Ok(Ended {
         result: result(&r, job, &progress, earlier.as_ref()),
         stopped_by,
@@ -331,7 +353,12 @@ fn fold(e: &mut Earlier, film: &Film, streams: Streams) {
 }
 
 /// The renderer's state as a checkpoint.
-fn snapshot(r: &Renderer, id: &Identity, p: &Progress, earlier: Option<&Earlier>) -> Checkpoint {
+fn snapshot(
+    r: &Renderer,
+    (id, recipe): (&Identity, Option<&Recipe>),
+    p: &Progress,
+    earlier: Option<&Earlier>,
+) -> Checkpoint {
     let progress = Progress {
         passes: r.passes,
         nan_count: r.nan_count,
@@ -340,11 +367,45 @@ fn snapshot(r: &Renderer, id: &Identity, p: &Progress, earlier: Option<&Earlier>
     };
     Checkpoint {
         identity: id.clone(),
+        recipe: recipe.cloned(),
         progress,
         film: r.film.clone(),
         meters: r.meters.clone(),
         state: r.integrator.checkpoint_state(),
         earlier: earlier.cloned(),
+    }
+}
+
+/// Seconds between two progress lines written to a log file or a pipe.
+pub const LOG_SECONDS: f64 = 10.0;
+
+/// Progress where no bar can be drawn (stderr is a file or a pipe: a batch job's log): a line
+/// after the first pass, then one at most every [`LOG_SECONDS`], and one after the last pass.
+#[derive(Default)]
+struct ProgressLog {
+    last: Option<Instant>,
+}
+
+impl ProgressLog {
+    /// After a pass: `message` (as the bar shows it), `spp` done in all, and the ETA of a
+    /// fixed spp from the rate of this run (`done` samples per pixel in `elapsed` seconds).
+    fn pass(&mut self, message: &str, spp: u64, (done, elapsed): (u64, f64), job: &Job) {
+        let left = (job.spp as u64).saturating_sub(spp);
+        let finished = job.time.is_none() && left == 0;
+        let due = self
+            .last
+            .is_none_or(|t| t.elapsed().as_secs_f64() >= LOG_SECONDS);
+        if !(due || finished) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let eta = match job.time {
+            None if done > 0 && !finished => {
+                format!(", eta {:.0} s", left as f64 * elapsed / done as f64)
+            }
+            _ => String::new(),
+        };
+        eprintln!("render: {message}{eta} ({elapsed:.1} s)");
     }
 }
 
