@@ -13,6 +13,10 @@ fn main() {
             "every check of the suite ran (the book was read in {})",
             path.display()
         ),
+        None if browser::required() => println!(
+            "Chromium is missing and {}=1 requires it: tests/book_browser.rs failed",
+            browser::REQUIRE
+        ),
         None => println!(
             "\n*** NOT CHECKED in this run ***\n*** {} ***\n",
             browser::NOT_CHECKED

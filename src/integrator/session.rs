@@ -192,11 +192,11 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
     // counted in the render's time, as when the first pass did it
     if let Some(name) = r.integrator.pending_stage() {
         let scene = job.setup.scene;
-        if let Some(b) = &bar {
-            b.suspend(|| stage(&name, true, || r.integrator.run_stage(scene)));
-        } else {
-            r.integrator.run_stage(scene);
-        }
+        let mut run = || stage(&name, job.progress, || r.integrator.run_stage(scene));
+        match &bar {
+            Some(b) => b.suspend(run),
+            None => run(),
+        };
     }
     let prior_seconds = progress.seconds;
     let first_spp = progress.spp;

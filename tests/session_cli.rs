@@ -1,0 +1,119 @@
+//! What a newcomer meets around a render: `pathspace` alone prints a short usage (it starts no
+//! render), a render whose stderr is a file or a pipe (a batch job's log) writes progress lines
+//! rather than a bar it cannot draw, and `--resolution` is taken by every command that renders
+//! a scene (`render`, `reference`, `converge`).
+//! Book: "Measuring a renderer", sections "The reference" and "Interrupted renders".
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
+
+/// A fresh directory holding `fog-box.toml`.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pathspace-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("fog-box.toml"), FOG_BOX).unwrap();
+    dir
+}
+
+/// `pathspace ARGS` in `dir`, stdout and stderr piped (so stderr is no terminal).
+fn run(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).to_string()
+}
+
+#[test]
+fn pathspace_alone_prints_usage_and_renders_nothing() {
+    let dir = scratch("bare");
+    let out = run(&dir, &[]);
+    let usage = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(usage.contains("pathspace render"), "{usage}");
+    assert!(usage.contains("--help"), "{usage}");
+    let written: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert_eq!(
+        written.len(),
+        1,
+        "a bare `pathspace` wrote files: {written:?}"
+    );
+}
+
+/// Progress in a pipe: one line after the first pass and one after the last (the passes
+/// between fall within the interval), each with the samples done of the target.
+#[test]
+fn a_render_into_a_pipe_writes_progress_lines() {
+    let dir = scratch("log");
+    let args = [
+        "render",
+        "fog-box.toml",
+        "--resolution",
+        "16x16",
+        "--spp",
+        "12",
+    ];
+    let out = run(&dir, &args);
+    let err = text(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("render: ")).collect();
+    assert!(
+        lines.first().is_some_and(|l| l.contains("4/12 spp")),
+        "{err}"
+    );
+    assert!(
+        lines.last().is_some_and(|l| l.contains("12/12 spp")),
+        "{err}"
+    );
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(
+        !err.contains('\r') && !err.contains('\u{1b}'),
+        "a bar's control codes: {err}"
+    );
+}
+
+/// `reference --resolution` renders at that size, and `converge --resolution` compares a
+/// render of that size with it.
+#[test]
+fn reference_and_converge_take_resolution() {
+    let dir = scratch("resolution");
+    let size = ["--resolution", "12x8"];
+    let out = run(
+        &dir,
+        &[
+            &["reference", "fog-box.toml", "--spp", "4", "-o", "ref.exr"][..],
+            &size,
+        ]
+        .concat(),
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let (img, _) = pathspace::image_io::read_exr(&dir.join("ref.exr")).unwrap();
+    assert_eq!((img.width, img.height), (12, 8));
+    let study = [
+        "converge",
+        "fog-box.toml",
+        "--reference",
+        "ref.exr",
+        "--budget",
+        "0.2",
+        "--checkpoints",
+        "2",
+        "-o",
+        "study",
+    ];
+    let out = run(&dir, &[&study[..], &size].concat());
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(dir.join("study/convergence.csv").exists());
+    let out = run(&dir, &study);
+    assert!(
+        !out.status.success(),
+        "converge at the scene's 256x256 against a 12x8 reference"
+    );
+}
