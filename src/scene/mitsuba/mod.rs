@@ -27,9 +27,80 @@ use props::{line, Doc};
 /// The most XML nodes a scene may have (the text is already limited to `MAX_SCENE_BYTES`).
 pub const MAX_XML_NODES: u32 = 1 << 22;
 
+/// The most attributes one XML element may have. Mitsuba's elements have at most four
+/// (`type`, `name`, `value`, `id`); the XML library checks each new attribute against all
+/// earlier ones of its element, so an element with 80,000 takes tens of CPU seconds: the
+/// count is checked first, in one linear pass.
+pub const MAX_XML_ATTRIBUTES: usize = 64;
+
+/// Refuses an element with more than [`MAX_XML_ATTRIBUTES`] attributes before the XML library
+/// sees the text: one pass counting the `=` outside quotes inside each tag (comments, CDATA,
+/// processing instructions and declarations skipped), naming the line where the tag starts.
+fn check_attribute_counts(name: &str, text: &str) -> Result<(), SceneError> {
+    let bytes = text.as_bytes();
+    let (mut i, mut line, mut tag_line) = (0, 1, 1);
+    let (mut in_tag, mut quote, mut count) = (false, None, 0usize);
+    while i < bytes.len() {
+        let b = bytes[i];
+        if b == b'\n' {
+            line += 1;
+        }
+        if !in_tag {
+            if b == b'<' {
+                let rest = &bytes[i..];
+                let skip_to = |end: &[u8]| {
+                    rest.windows(end.len())
+                        .position(|w| w == end)
+                        .map(|p| p + end.len())
+                };
+                let skipped = if rest.starts_with(b"<!--") {
+                    skip_to(b"-->")
+                } else if rest.starts_with(b"<![CDATA[") {
+                    skip_to(b"]]>")
+                } else if rest.starts_with(b"<?") {
+                    skip_to(b"?>")
+                } else {
+                    None
+                };
+                if let Some(n) = skipped {
+                    line += rest[..n].iter().filter(|&&c| c == b'\n').count();
+                    i += n;
+                    continue;
+                }
+                (in_tag, count, tag_line) = (true, 0, line);
+            }
+        } else if let Some(q) = quote {
+            if b == q {
+                quote = None;
+            }
+        } else {
+            match b {
+                b'"' | b'\'' => quote = Some(b),
+                b'=' => count += 1,
+                b'>' => in_tag = false,
+                _ => {}
+            }
+            if count > MAX_XML_ATTRIBUTES {
+                return Err(SceneError {
+                    file: name.to_string(),
+                    line: Some(tag_line),
+                    key: "(xml)".into(),
+                    message: format!(
+                        "an element with more than {MAX_XML_ATTRIBUTES} attributes (Mitsuba's \
+                         have at most 4)"
+                    ),
+                });
+            }
+        }
+        i += 1;
+    }
+    Ok(())
+}
+
 /// Translates the Mitsuba 3 XML `text` (read from the file `name`, relative paths from
 /// `base_dir`) into a scene source whose text is the equivalent scene file.
 pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, SceneError> {
+    check_attribute_counts(name, text)?;
     let options = roxmltree::ParsingOptions {
         allow_dtd: false,
         nodes_limit: MAX_XML_NODES,
