@@ -367,11 +367,7 @@ fn configure(
 
 /// The `render` subcommand's worker threads.
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = threads {
-        pool = pool.num_threads(t);
-    }
-    pool.build().map_err(CliError::Threads)
+    super::reference::thread_pool(threads)
 }
 
 /// Reports the adjoint image (stderr unless `--json`) and writes it with `--adjoint-output`.
