@@ -389,3 +389,31 @@ fn resume_refuses_a_contradicting_flag_and_announces_a_new_target() {
     let (_, meta) = pathspace::image_io::read_exr(&dir.join("long.exr")).unwrap();
     assert_eq!(meta.get("spp"), Some("516"));
 }
+
+/// A periodic checkpoint that cannot be written (here a directory stands where the file goes)
+/// is a warning, not the end of the render: the render goes on and its image is the
+/// uninterrupted one.
+#[test]
+fn a_failed_periodic_checkpoint_warns_and_the_render_goes_on() {
+    let dir = scratch("unwritable");
+    let exr = dir.join("part.exr");
+    std::fs::create_dir_all(exr.with_extension("checkpoint").join("occupied")).unwrap();
+    let out = command(
+        &exr,
+        &["--spp", "12", "--checkpoint", "0", "--reproducible"],
+    )
+    .output()
+    .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning: cannot write") && err.contains("goes on"),
+        "{err}"
+    );
+    let whole = dir.join("whole.exr");
+    assert!(command(&whole, &["--spp", "12", "--reproducible"])
+        .status()
+        .unwrap()
+        .success());
+    assert!(std::fs::read(&exr).unwrap() == std::fs::read(&whole).unwrap());
+}

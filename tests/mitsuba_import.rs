@@ -919,14 +919,23 @@ fn an_element_with_thousands_of_attributes_is_refused_before_parsing() {
     let attrs: String = (0..80_000).map(|i| format!(" a{i}=\"{i}\"")).collect();
     let text = format!("<scene version=\"3.0.0\">\n\n<shape type=\"sphere\"{attrs}/>\n</scene>");
     let e = xml(&text).unwrap_err();
-    assert!(e.contains("t.xml:3") && e.contains("more than 64 attributes"), "{e}");
+    assert!(
+        e.contains("t.xml:3") && e.contains("more than 64 attributes"),
+        "{e}"
+    );
     let limit: String = (0..64).map(|i| format!(" a{i}=\"{i}\"")).collect();
     let e = xml(&format!("<scene version=\"3.0.0\"><x{limit}/></scene>")).unwrap_err();
-    assert!(!e.contains("attributes"), "64 attributes are within the limit: {e}");
+    assert!(
+        !e.contains("attributes"),
+        "64 attributes are within the limit: {e}"
+    );
     let hidden = format!(
         "<scene version=\"3.0.0\"><!-- <x{attrs}/> --><x a=\"{}\"/><![CDATA[<x{attrs}>]]></scene>",
         "=".repeat(100)
     );
     let e = xml(&hidden).unwrap_err();
-    assert!(!e.contains("attributes"), "counted outside tags or inside quotes: {e}");
+    assert!(
+        !e.contains("attributes"),
+        "counted outside tags or inside quotes: {e}"
+    );
 }

@@ -122,11 +122,18 @@ fn reference_and_converge_take_resolution() {
 #[test]
 fn a_thread_count_beyond_reason_is_refused_before_any_work() {
     let dir = scratch("threads");
-    for command in [&["render", "fog-box.toml"][..], &["reference", "fog-box.toml"]] {
+    for command in [
+        &["render", "fog-box.toml"][..],
+        &["reference", "fog-box.toml"],
+    ] {
         let out = run(&dir, &[command, &["--threads", "100000"]].concat());
         let err = text(&out.stderr);
         assert!(!out.status.success(), "{err}");
         assert!(err.contains("--threads 100000: at most 1024"), "{err}");
     }
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "a refused render wrote files");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "a refused render wrote files"
+    );
 }

@@ -254,7 +254,16 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
                 &progress,
                 earlier.as_ref(),
             );
-            write(&result(&r, job, &progress, earlier.as_ref()), &c)?;
+            // a full disk now may have room at the next checkpoint: warn and render on
+            if let Err(e) = write(&result(&r, job, &progress, earlier.as_ref()), &c) {
+                let warning = format!(
+                    "warning: {e}; the render goes on and tries again at the next checkpoint"
+                );
+                match &bar {
+                    Some(b) => b.suspend(|| eprintln!("{warning}")),
+                    None => eprintln!("{warning}"),
+                }
+            }
             last_checkpoint = Instant::now();
         }
     }
