@@ -4,13 +4,17 @@
 //! directories; no `out/` unless a command creates it), with the built binary.
 //!
 //! What is run: every line of a `sh` code block (continuations joined, comments cut, `;` and
-//! `&&` split, `for VAR in WORDS; do ... done` loops unrolled, `VAR=value` definitions skipped),
-//! and the `pathspace` commands of other code blocks and of inline code (those
-//! `tests/commands.rs` parses). Synopses (`SCENE`, `...`, `[--flag]`) are forms, not commands.
-//! A `pathspace` command runs with the long values of [`REDUCED`] made small; a shell command
-//! runs through `sh` when its program is one of [`SHELL_PROGRAMS`]. Every other command is in
-//! [`NOT_RUN`] with the reason, and the test fails on a command that is neither run nor
-//! listed, and on an entry of the list that names no command any more.
+//! `&&` split, `for VAR in WORDS; do ... done` loops unrolled, `VAR=value` definitions skipped,
+//! `?` in a file name matched as the shell would), and the `pathspace` commands of other code
+//! blocks and of inline code (those `tests/commands.rs` parses). Synopses (`SCENE`, `...`,
+//! `[--flag]`, `A.exr`) are forms, not commands. A `pathspace` command runs with the long values
+//! of [`REDUCED`] made small and [`ADDED`]'s flags; a shell command runs through `sh` when its
+//! program is one of [`SHELL_PROGRAMS`]; paths under `/tmp/` go to the scratch directory's
+//! `tmp/`. Every other command is in [`NOT_RUN`] with the reason. The test fails on a command
+//! that fails (naming the document, the line, the command as printed and as run, the exit
+//! code and the start of stderr; the document's later commands are not run, as they may read
+//! what it did not write), on a command that is neither run nor listed, and on an entry of
+//! the list that names no command any more.
 
 mod common;
 
@@ -28,7 +32,7 @@ const REDUCED: &[(&str, &str)] = &[
     ("--resolution", "32x24"),
     ("--spp", "16"),
     ("--time", "1"),
-    ("--budget", "0.25"),
+    ("--budget", "0.5"),
     ("--runs", "2"),
     ("--checkpoints", "3"),
     ("--mutations-per-pixel", "4"),
@@ -52,8 +56,8 @@ const ADDED: [(&str, &[&str]); 4] = [
 
 /// The scratch copies of the scenes (and fixtures) have their camera's resolution set to
 /// `--resolution`'s reduced value and their MLT bootstrap to `--mlt-bootstrap`'s, so that
-/// `reference` and `converge`, which take neither flag, write images of the size `render`
-/// writes, as fast.
+/// `reference` and `converge` write images of the size `render` writes, as fast, whether or
+/// not they take the flags.
 const REDUCED_CAMERA: (u32, u32) = (32, 24);
 const REDUCED_BOOTSTRAP: u32 = 1024;
 
@@ -405,7 +409,7 @@ fn reduced(printed: &[String], scratch: &Path) -> Vec<String> {
         }
         let value = REDUCED.iter().find(|(f, _)| *f == flag).unwrap().1;
         let mut with = args.clone();
-        with.splice(1..1, [flag.to_string(), value.to_string()]);
+        with.extend([flag.to_string(), value.to_string()]);
         let argv = std::iter::once("pathspace".to_string()).chain(with.iter().cloned());
         if <Cli as clap::Parser>::try_parse_from(argv).is_ok() {
             args = with;
@@ -622,6 +626,9 @@ fn every_command_in_the_readme_and_the_book_runs() {
         .get_subcommands()
         .map(|c| c.get_name().to_string())
         .collect();
+    let (w, h) = REDUCED_CAMERA;
+    assert_eq!(REDUCED[0], ("--resolution", format!("{w}x{h}").as_str()));
+    assert!(REDUCED.contains(&("--mlt-bootstrap", REDUCED_BOOTSTRAP.to_string().as_str())));
     let docs = documents();
     // two documents at a time: each command uses every core only part of its time
     let next = std::sync::atomic::AtomicUsize::new(0);
