@@ -26,10 +26,10 @@ use std::process::Command;
 use std::time::Instant;
 
 /// The reductions, `(flag, value)`: a printed value larger than `value` runs as `value`, so that
-/// the whole test takes about a minute on 2 cores. `--threads`, seeds, integrators, shards and
-/// everything else run as printed.
+/// the whole test takes about a minute on 2 cores. Resolutions are divided instead (see
+/// [`RESOLUTION_DIVISOR`]). `--threads`, seeds, integrators, shards and everything else run as
+/// printed.
 const REDUCED: &[(&str, &str)] = &[
-    ("--resolution", "32x24"),
     ("--spp", "16"),
     ("--time", "1"),
     ("--budget", "0.5"),
@@ -44,22 +44,33 @@ const REDUCED: &[(&str, &str)] = &[
 
 /// The flags added, with [`REDUCED`]'s value, to a command of these subcommands that has none
 /// where its parser accepts them with its other flags: the sizes the scene would give are long
-/// too. `--resolution` is not added where the scene has no camera (irradiance meters only);
-/// `--guide-particles` only to `render`, which ignores it without guiding (`converge` refuses
-/// it without a `+guide` integrator).
-const ADDED: [(&str, &[&str]); 4] = [
-    ("--resolution", &["render", "reference", "converge"]),
+/// too. `--guide-particles` only to `render`, which ignores it without guiding (`converge`
+/// refuses it without a `+guide` integrator).
+const ADDED: [(&str, &[&str]); 3] = [
     ("--spp", &["render", "reference"]),
     ("--mlt-bootstrap", &["render", "reference", "converge"]),
     ("--guide-particles", &["render"]),
 ];
 
-/// The scratch copies of the scenes (and fixtures) have their camera's resolution set to
-/// `--resolution`'s reduced value and their MLT bootstrap to `--mlt-bootstrap`'s, so that
-/// `reference` and `converge` write images of the size `render` writes, as fast, whether or
-/// not they take the flags.
-const REDUCED_CAMERA: (u32, u32) = (32, 24);
+/// Resolutions run at 1/`RESOLUTION_DIVISOR` of the printed ones per side (at least
+/// [`MIN_SIDE`] pixels), in `--resolution` and in the scratch copies of the scenes (and
+/// fixtures) alike: `reference` and `converge` (which read the scene's) write images of the
+/// size `render` writes, images the documents compare stay of the same size and images of
+/// different sizes stay different. A `render` of no TOML scene (the embedded fog box, 256x256,
+/// or a Mitsuba XML scene) gets `--resolution` [`EMBEDDED_RESOLUTION`] reduced.
+const RESOLUTION_DIVISOR: u32 = 8;
+const MIN_SIDE: u32 = 4;
+const EMBEDDED_RESOLUTION: (u32, u32) = (256, 256);
+
+/// The MLT bootstrap of the scratch scenes (`[render.mlt] bootstrap`, added where a scene has
+/// none): `--mlt-bootstrap`'s reduced value, for `converge`, which has no such flag.
 const REDUCED_BOOTSTRAP: u32 = 1024;
+
+/// A resolution reduced by [`RESOLUTION_DIVISOR`].
+fn reduced_size((w, h): (u32, u32)) -> (u32, u32) {
+    let side = |x: u32| (x / RESOLUTION_DIVISOR).max(MIN_SIDE);
+    (side(w), side(h))
+}
 
 /// Paths under `/tmp/` run under the scratch directory's `tmp/`, so that runs share no files.
 const TMP: &str = "/tmp/";
@@ -369,20 +380,14 @@ fn key(cmd: &Cmd) -> String {
     }
 }
 
-/// A printed numeric value larger than the reduced one (a resolution by its pixels).
+/// A printed numeric value larger than the reduced one.
 fn larger(printed: &str, reduced: &str) -> bool {
-    let size = |v: &str| -> Option<f64> {
-        match v.split_once('x') {
-            Some((w, h)) => Some(w.parse::<f64>().ok()? * h.parse::<f64>().ok()?),
-            None => v.parse().ok(),
-        }
-    };
-    matches!((size(printed), size(reduced)), (Some(p), Some(r)) if p > r)
+    matches!((printed.parse::<f64>(), reduced.parse::<f64>()), (Ok(p), Ok(r)) if p > r)
 }
 
-/// The arguments run for the printed ones: [`REDUCED`]'s values, `--resolution` added where
-/// the subcommand takes it, `/tmp/` under the scratch directory. No subcommand is `render`,
-/// what the binary does without one.
+/// The arguments run for the printed ones: [`REDUCED`]'s values, resolutions reduced,
+/// [`ADDED`]'s flags, `/tmp/` under the scratch directory. No subcommand is `render`, what the
+/// binary does without one.
 fn reduced(printed: &[String], scratch: &Path) -> Vec<String> {
     let mut args: Vec<String> = printed.to_vec();
     if args.is_empty() {
@@ -394,22 +399,27 @@ fn reduced(printed: &[String], scratch: &Path) -> Vec<String> {
                 args[i] = value.to_string();
             }
         }
+        if args[i - 1] == "--resolution" {
+            if let Some((w, h)) = args[i].split_once('x') {
+                let (w, h) = reduced_size((w.parse().unwrap(), h.parse().unwrap()));
+                args[i] = format!("{w}x{h}");
+            }
+        }
     }
-    let cameraless = args.get(1).is_some_and(|scene| {
-        scene.ends_with(".toml")
-            && std::fs::read_to_string(scratch.join(in_scratch_tmp(scene, scratch)))
-                .is_ok_and(|text| !text.contains("[camera"))
-    });
-    for (flag, subcommands) in ADDED {
-        if !subcommands.contains(&args[0].as_str())
-            || args.iter().any(|a| a == flag)
-            || (flag == "--resolution" && cameraless)
-        {
+    let (w, h) = reduced_size(EMBEDDED_RESOLUTION);
+    let embedded = format!("{w}x{h}");
+    let toml_scene = args.get(1).is_some_and(|a| a.ends_with(".toml"));
+    let resolution = (!toml_scene).then_some(("--resolution", &["render"][..]));
+    for (flag, subcommands) in ADDED.into_iter().chain(resolution) {
+        if !subcommands.contains(&args[0].as_str()) || args.iter().any(|a| a == flag) {
             continue;
         }
-        let value = REDUCED.iter().find(|(f, _)| *f == flag).unwrap().1;
+        let value = match REDUCED.iter().find(|(f, _)| *f == flag) {
+            Some((_, v)) => v.to_string(),
+            None => embedded.clone(),
+        };
         let mut with = args.clone();
-        with.extend([flag.to_string(), value.to_string()]);
+        with.extend([flag.to_string(), value]);
         let argv = std::iter::once("pathspace".to_string()).chain(with.iter().cloned());
         if <Cli as clap::Parser>::try_parse_from(argv).is_ok() {
             args = with;
@@ -458,7 +468,7 @@ fn glob(word: &str, cwd: &Path) -> Vec<String> {
 const COPIED: [&str; 3] = ["scenes", "assets", "tests/fixtures"];
 const CREATED: [&str; 1] = ["book/src/figures"];
 
-/// A copy of `from` in `to`; `.toml` files with `[camera] resolution` set to [`REDUCED_CAMERA`].
+/// A copy of `from` in `to`, `.toml` files reduced ([`reduced_scene`]).
 fn copy_tree(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap() {
@@ -475,10 +485,9 @@ fn copy_tree(from: &Path, to: &Path) {
     }
 }
 
-/// A scene's text with its camera's `resolution = [W, H]` set to [`REDUCED_CAMERA`] and its
-/// MLT bootstrap to [`REDUCED_BOOTSTRAP`] (a `[render.mlt]` table added where it has none).
+/// A scene's text with its camera's `resolution = [W, H]` reduced ([`reduced_size`]) and its
+/// MLT bootstrap set to [`REDUCED_BOOTSTRAP`] (a `[render.mlt]` table added where it has none).
 fn reduced_scene(text: &str) -> String {
-    let (w, h) = REDUCED_CAMERA;
     let mut section = String::new();
     let mut out = String::new();
     let mut has_mlt = false;
@@ -494,6 +503,17 @@ fn reduced_scene(text: &str) -> String {
         }
         let key = t.split('=').next().unwrap_or_default().trim();
         if section == "camera" && key == "resolution" {
+            let value = t.split_once('=').unwrap().1;
+            let sides: Vec<u32> = value
+                .trim_matches(|c: char| c == '[' || c == ']' || c.is_whitespace())
+                .split(',')
+                .map(|x| {
+                    x.trim()
+                        .parse()
+                        .expect("a camera resolution [W, H] on one line")
+                })
+                .collect();
+            let (w, h) = reduced_size((sides[0], sides[1]));
             out.push_str(&format!("resolution = [{w}, {h}]\n"));
         } else if section == "render.mlt" && key == "bootstrap" {
             continue;
@@ -626,8 +646,6 @@ fn every_command_in_the_readme_and_the_book_runs() {
         .get_subcommands()
         .map(|c| c.get_name().to_string())
         .collect();
-    let (w, h) = REDUCED_CAMERA;
-    assert_eq!(REDUCED[0], ("--resolution", format!("{w}x{h}").as_str()));
     assert!(REDUCED.contains(&("--mlt-bootstrap", REDUCED_BOOTSTRAP.to_string().as_str())));
     let docs = documents();
     // two documents at a time: each command uses every core only part of its time
