@@ -14,6 +14,7 @@
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod docs;
 pub mod scenes;
 pub mod stats;
 
