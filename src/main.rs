@@ -16,11 +16,11 @@ fn main() {
         Ok(()) => {}
         // a render a signal stopped: what was written, and the status a shell gives the signal
         Err(pathspace::cli::CliError::Interrupted { signal, what }) => {
-            eprintln!("{what}");
+            eprintln!("{}", pathspace::cli::printable(&what));
             std::process::exit(128 + signal);
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", pathspace::cli::printable(&e.to_string()));
             std::process::exit(1);
         }
     }

@@ -137,3 +137,44 @@ fn a_thread_count_beyond_reason_is_refused_before_any_work() {
         "a refused render wrote files"
     );
 }
+
+/// What a file holds reaches the terminal escaped and cut: an escape sequence in an EXR
+/// attribute (one that would retitle the window) is printed as `\u{1b}`, and a value of
+/// 100,000 characters as its start and end.
+#[test]
+fn strings_from_files_reach_the_terminal_escaped_and_cut() {
+    use pathspace::image_io::{self, Image, ImageMeta};
+    let dir = scratch("escape");
+    let mut meta = ImageMeta::default();
+    let hostile = format!("\u{1b}]0;PWNED\u{7}{}", "x".repeat(100_000));
+    meta.set("scene", &hostile).set("scene_hash", "0000000000000000");
+    let img = Image::new(4, 4);
+    image_io::write_exr(&dir.join("ref.exr"), &img, &meta).unwrap();
+    let out = run(
+        &dir,
+        &["converge", "fog-box.toml", "--reference", "ref.exr", "--budget", "1"],
+    );
+    let err = text(&out.stderr);
+    assert!(err.contains("reference of another scene"), "{err}");
+    assert!(!err.contains('\u{1b}') && !err.contains('\u{7}'), "raw control codes: {err}");
+    assert!(err.contains("\\u{1b}]0;PWNED\\u{7}"), "{err}");
+    assert!(err.len() < 5_000 && err.contains("characters left out"), "{} bytes", err.len());
+    let kept = pathspace::cli::printable("line one\n\ttabbed line two");
+    assert_eq!(kept, "line one\n\ttabbed line two");
+}
+
+/// Numbers from the command line are echoed compactly: `--time 1e-300` is not printed as 300
+/// digits, and a refused `--checkpoint -1e-300` names its value in scientific notation.
+#[test]
+fn tiny_and_huge_numbers_are_echoed_compactly() {
+    let dir = scratch("numbers");
+    let base = ["render", "fog-box.toml", "--resolution", "4x4"];
+    let out = run(&dir, &[&base[..], &["--time", "1e-300"]].concat());
+    let err = text(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("of the 1e-300 s of --time"), "{err}");
+    let out = run(&dir, &[&base[..], &["--checkpoint=-1e-300"]].concat());
+    let err = text(&out.stderr);
+    assert!(err.contains("--checkpoint -1e-300 must be"), "{err}");
+    assert!(err.lines().all(|l| l.len() < 200), "{err}");
+}

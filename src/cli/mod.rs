@@ -211,6 +211,54 @@ pathspace: light transport in participating media (a renderer, its tests and a b
   pathspace info SCENE.toml            check a scene and list what it holds
   pathspace --help                     every command; `pathspace render --help` every option";
 
+/// A number as a message shows it: as written when that is short, else in scientific notation
+/// (`--time 1e-300` is not echoed as 300 digits).
+pub fn number(x: f64) -> String {
+    let plain = x.to_string();
+    if plain.len() <= 12 {
+        plain
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// The longest line of a message printed whole; a longer one keeps its start and end.
+pub const MAX_PRINTED_LINE: usize = 2000;
+
+/// `text` as it may reach a terminal: control characters other than newlines and tabs escaped
+/// (a scene, an EXR attribute or a checkpoint may hold escape sequences that would retitle the
+/// window or rewrite the screen), and each line longer than [`MAX_PRINTED_LINE`] characters cut
+/// in its middle, saying how much was left out (an error may quote a value of megabytes).
+pub fn printable(text: &str) -> String {
+    let mut out = String::with_capacity(text.len().min(1 << 16));
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        let escaped: String = line
+            .chars()
+            .flat_map(|c| match c {
+                '\t' => vec![c],
+                c if c.is_control() => c.escape_default().collect(),
+                c => vec![c],
+            })
+            .collect();
+        let n = escaped.chars().count();
+        if n <= MAX_PRINTED_LINE {
+            out.push_str(&escaped);
+        } else {
+            let keep = MAX_PRINTED_LINE / 2;
+            let head: String = escaped.chars().take(keep).collect();
+            let tail: String = escaped.chars().skip(n - keep / 2).collect();
+            out.push_str(&format!(
+                "{head} [... {} characters left out ...] {tail}",
+                n - keep - keep / 2
+            ));
+        }
+    }
+    out
+}
+
 /// Runs the command line; returns the process exit code.
 pub fn run(cli: Cli) -> Result<(), CliError> {
     run_with_source(cli, &[])

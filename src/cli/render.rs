@@ -114,7 +114,8 @@ impl SessionArgs {
         if let Some(t) = self.time {
             if !(t > 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
-                    "--time {t} must be a positive number of seconds"
+                    "--time {} must be a positive number of seconds",
+                    super::number(t)
                 )));
             }
         }
@@ -125,7 +126,8 @@ impl SessionArgs {
         if let Some(t) = self.checkpoint {
             if !(t >= 0.0 && t.is_finite()) {
                 return Err(CliError::Usage(format!(
-                    "--checkpoint {t} must be a number of seconds (0: after every pass)"
+                    "--checkpoint {} must be a number of seconds (0: after every pass)",
+                    super::number(t)
                 )));
             }
         }
@@ -152,7 +154,8 @@ impl MemoryArgs {
     pub(super) fn check(&self) -> Result<(), CliError> {
         match self.max_memory {
             Some(m) if !(m > 0.0 && m.is_finite()) => Err(CliError::Usage(format!(
-                "--max-memory {m} must be a positive number of GiB"
+                "--max-memory {} must be a positive number of GiB",
+                super::number(m)
             ))),
             _ => Ok(()),
         }
@@ -715,7 +718,10 @@ pub(super) fn run_scene(
     // `--time` counts the preprocessing: the passes get what it left (at least one pass)
     let preprocessing = t0.elapsed().as_secs_f64();
     if let Some(t) = args.session.time.filter(|&t| preprocessing > t) {
-        eprintln!("warning: the preprocessing took {preprocessing:.2} s of the {t} s of --time: one pass follows");
+        eprintln!(
+            "warning: the preprocessing took {preprocessing:.2} s of the {} s of --time: one pass follows",
+            super::number(t)
+        );
     }
     show_adjoint(args, &pre, &plan, source)?;
     if let (Some(g), false) = (&pre.guide, args.json) {

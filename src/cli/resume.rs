@@ -100,7 +100,8 @@ fn target_spp(
 ) -> Result<Option<u32>, CliError> {
     match (given.spp, recipe.time) {
         (Some(_), Some(t)) => Err(CliError::Usage(format!(
-            "--spp: the render of {name} is timed (--time {t}), so it has no sample target"
+            "--spp: the render of {name} is timed (--time {}), so it has no sample target",
+            super::number(t)
         ))),
         (Some(n), None) if Some(n) != saved.spp => {
             let was = saved
