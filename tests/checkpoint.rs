@@ -417,3 +417,33 @@ fn a_failed_periodic_checkpoint_warns_and_the_render_goes_on() {
         .success());
     assert!(std::fs::read(&exr).unwrap() == std::fs::read(&whole).unwrap());
 }
+
+/// A checkpoint whose checksum was recomputed over forged sums (NaN, infinity, or a mean
+/// beyond an image's range) is refused, never resumed into a NaN or infinite image; a device
+/// named as a checkpoint is refused before it is read.
+#[test]
+fn forged_sums_and_devices_are_refused() {
+    let mut c = Checkpoint {
+        identity: identity(IntegratorKind::Path, Some((2, 1))),
+        recipe: None,
+        progress: Default::default(),
+        film: Some(pathspace::film::Film::new(2, 1)),
+        meters: Vec::new(),
+        state: pathspace::integrator::checkpoint::IntegratorState::None,
+        earlier: None,
+    };
+    c.film.as_mut().unwrap().spp = 4;
+    assert!(Checkpoint::from_bytes(&c.to_bytes(), "f").is_ok());
+    for forged in [f64::NAN, f64::INFINITY, 1e300] {
+        let mut bad = c.clone();
+        bad.film.as_mut().unwrap().sum[1][2] = forged;
+        let e = Checkpoint::from_bytes(&bad.to_bytes(), "f")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not finite"), "{forged}: {e}");
+    }
+    let e = Checkpoint::read(Path::new("/dev/zero"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+}

@@ -147,18 +147,33 @@ fn strings_from_files_reach_the_terminal_escaped_and_cut() {
     let dir = scratch("escape");
     let mut meta = ImageMeta::default();
     let hostile = format!("\u{1b}]0;PWNED\u{7}{}", "x".repeat(100_000));
-    meta.set("scene", &hostile).set("scene_hash", "0000000000000000");
+    meta.set("scene", &hostile)
+        .set("scene_hash", "0000000000000000");
     let img = Image::new(4, 4);
     image_io::write_exr(&dir.join("ref.exr"), &img, &meta).unwrap();
     let out = run(
         &dir,
-        &["converge", "fog-box.toml", "--reference", "ref.exr", "--budget", "1"],
+        &[
+            "converge",
+            "fog-box.toml",
+            "--reference",
+            "ref.exr",
+            "--budget",
+            "1",
+        ],
     );
     let err = text(&out.stderr);
     assert!(err.contains("reference of another scene"), "{err}");
-    assert!(!err.contains('\u{1b}') && !err.contains('\u{7}'), "raw control codes: {err}");
+    assert!(
+        !err.contains('\u{1b}') && !err.contains('\u{7}'),
+        "raw control codes: {err}"
+    );
     assert!(err.contains("\\u{1b}]0;PWNED\\u{7}"), "{err}");
-    assert!(err.len() < 5_000 && err.contains("characters left out"), "{} bytes", err.len());
+    assert!(
+        err.len() < 5_000 && err.contains("characters left out"),
+        "{} bytes",
+        err.len()
+    );
     let kept = pathspace::cli::printable("line one\n\ttabbed line two");
     assert_eq!(kept, "line one\n\ttabbed line two");
 }

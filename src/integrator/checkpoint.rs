@@ -212,12 +212,44 @@ impl Checkpoint {
         if self.meters.len() != self.identity.meters {
             return bad("the number of meters does not match");
         }
+        if !self.sums_are_finite() {
+            return bad("a sum is not finite, or its mean is beyond an image's range");
+        }
         if let IntegratorState::Smc(octree) = &self.state {
             if !octree.is_consistent() {
                 return bad("SMC's octree is inconsistent");
             }
         }
         Ok(())
+    }
+
+    /// Whether every sum the resumed image is made of is finite and gives a mean an image can
+    /// hold (a forged or damaged file with a recomputed checksum must not become a NaN or
+    /// infinite image).
+    fn sums_are_finite(&self) -> bool {
+        // sums of squares need only be finite (their mean may exceed f32 where a sample is huge)
+        let within = |v: &[[f64; 3]], n: f64| {
+            v.iter()
+                .flatten()
+                .all(|x| x.is_finite() && (x / n).abs() <= f32::MAX as f64)
+        };
+        let film = self.film.as_ref().is_none_or(|f| {
+            let spp = f.spp.max(1) as f64;
+            let splats = f.splat_count.max(1) as f64 / f.splat_scale.abs().max(1.0);
+            within(&f.sum, spp)
+                && within(&f.sum_sq, f64::INFINITY)
+                && f.splat_scale.is_finite()
+                && within(&f.splat, splats)
+        });
+        let meters = self.meters.iter().all(|m| {
+            let n = m.samples.max(1) as f64;
+            within(&[m.sum], n) && within(&[m.sum_sq], f64::INFINITY)
+        });
+        let earlier = self
+            .earlier
+            .as_ref()
+            .is_none_or(|e| within(&e.weighted, e.spp.max(1) as f64));
+        film && meters && earlier && self.progress.seconds.is_finite()
     }
 
     /// Writes the checkpoint through a temporary file renamed over `path`, so a crash (or a
@@ -231,10 +263,21 @@ impl Checkpoint {
     }
 
     /// Reads the checkpoint at `path`.
+    /// Only a regular file is read, and no more of it than its size: `--resume /dev/zero`
+    /// is refused at once instead of reading until memory runs out.
     pub fn read(path: &Path) -> Result<Self, CheckpointError> {
+        use std::io::Read;
         let name = path.display().to_string();
-        let bytes =
-            std::fs::read(path).map_err(|e| CheckpointError::Read(name.clone(), e.to_string()))?;
+        let fail = |e: String| CheckpointError::Read(name.clone(), e);
+        let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
+        let size = file.metadata().map_err(|e| fail(e.to_string()))?;
+        if !size.is_file() {
+            return Err(fail("it is not a regular file".into()));
+        }
+        let mut bytes = Vec::with_capacity(size.len().min(1 << 30) as usize);
+        file.take(size.len())
+            .read_to_end(&mut bytes)
+            .map_err(|e| fail(e.to_string()))?;
         Self::from_bytes(&bytes, &name)
     }
 
