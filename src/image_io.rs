@@ -352,5 +352,29 @@ pub fn check_output(path: &Path, extension: &str) -> Result<(), ImageError> {
             format!("directory {} does not exist", dir.display()),
         ));
     }
-    Ok(())
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => return Err(io_err(path, "is a directory")),
+        Ok(m) if !m.is_file() && path != Path::new("/dev/null") => {
+            return Err(io_err(
+                path,
+                "is no regular file (a device such as /dev/full cannot hold an image; \
+                 /dev/null discards it)",
+            ))
+        }
+        _ => {}
+    }
+    probe_writable(dir).map_err(|e| io_err(path, format!("cannot write in {}: {e}", dir.display())))
+}
+
+/// Creates and removes a file in `dir`: a read-only file system or a directory without write
+/// permission is found before the work, not when the image is written.
+fn probe_writable(dir: &Path) -> std::io::Result<()> {
+    static PROBES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = PROBES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let probe = dir.join(format!(".pathspace-probe-{}-{n}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)?;
+    std::fs::remove_file(&probe)
 }

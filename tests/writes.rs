@@ -3,7 +3,7 @@
 //! path as it was (images go to a temporary file beside the target, renamed once complete).
 
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output};
 
 mod common;
 use common::cli::{pathspace, scratch, stderr};
@@ -109,4 +109,59 @@ fn a_full_disk_is_an_error() {
         "a PNG written to a full disk exited 0"
     );
     assert!(stderr(&out).contains("/dev/full"), "{}", stderr(&out));
+    assert!(!exr.exists(), "/dev/full was found only after the work");
+}
+
+/// Outputs that cannot hold the image are refused before the work, whatever the command:
+/// `-o` or `--png` naming a directory or a device, and a directory on a read-only file system
+/// (a tmpfs mounted read-only here, where the test may mount one).
+#[test]
+fn directories_devices_and_read_only_file_systems_are_refused_before_the_work() {
+    let dir = scratch(GROUP, "targets");
+    let exr = dir.join("x.exr");
+    let e = exr.to_str().unwrap();
+    let sub = dir.join("sub.exr");
+    std::fs::create_dir(&sub).unwrap();
+    let s = sub.to_str().unwrap();
+    for (args, says) in [
+        (vec!["-o", s], "is a directory"),
+        (
+            vec!["-o", e, "--png", dir.to_str().unwrap()],
+            "is a directory",
+        ),
+        (vec!["-o", "/dev/full"], "no regular file"),
+        (vec!["-o", e, "--png", "/dev/zero"], "no regular file"),
+    ] {
+        let out = render(&args);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr(&out).contains(says), "{args:?}: {}", stderr(&out));
+        assert!(!exr.exists(), "{args:?}: refused only after the work");
+    }
+    let ro = dir.join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let mounted = Command::new("mount")
+        .args([
+            "-t",
+            "tmpfs",
+            "-o",
+            "ro,size=1m",
+            "none",
+            ro.to_str().unwrap(),
+        ])
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("skipped the read-only case: this test cannot mount a tmpfs here");
+        return;
+    }
+    let target = ro.join("x.exr");
+    let out = render(&["-o", target.to_str().unwrap()]);
+    let _ = Command::new("umount").arg(&ro).status();
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("cannot write in") && err.contains("Read-only file system"),
+        "{err}"
+    );
 }
