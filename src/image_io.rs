@@ -210,7 +210,15 @@ pub fn write_replacing(
     let name = path
         .file_name()
         .ok_or_else(|| io_err(path, "is not a file name"))?;
-    let tmp = path.with_file_name(format!(".{}.partial", name.to_string_lossy()));
+    // unique per process and per write: two renders given the same -o never share a
+    // temporary file (the last rename wins, and each file is whole)
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = path.with_file_name(format!(
+        ".{}.{}-{n}.partial",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let written =
         write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| io_err(path, e)));
     if written.is_err() {

@@ -50,48 +50,81 @@ fn outputs_that_cannot_be_written_are_refused_before_the_render() {
     );
 }
 
+/// Mounts a tmpfs of `size` at `dir` (the test runs as root, as CI does); false where it
+/// cannot, and the caller skips its case, saying so.
+fn mount_tmpfs(dir: &Path, options: &str) -> bool {
+    std::fs::create_dir_all(dir).unwrap();
+    Command::new("mount")
+        .args(["-t", "tmpfs", "-o", options, "none", dir.to_str().unwrap()])
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// A write that fails half-way (a full file system: a 64 KiB tmpfs that holds a 16x16 image
+/// but not a 128x128 one) fails the command and leaves the earlier file as it was, with no
+/// temporary file left behind.
 #[test]
 fn a_failed_write_keeps_the_earlier_file_and_fails_the_command() {
     let dir = scratch(GROUP, "kept");
-    let exr = dir.join("img.exr");
-    let png = dir.join("img.png");
-    let (e, p) = (exr.to_str().unwrap(), png.to_str().unwrap());
-    let first = render(&["-o", e, "--png", p, "--seed", "1"]);
-    assert!(first.status.success(), "{}", stderr(&first));
-    let (old_exr, old_png) = (std::fs::read(&exr).unwrap(), std::fs::read(&png).unwrap());
-    // the temporary files cannot be created (directories hold their names): both writes fail
-    std::fs::create_dir(dir.join(".img.exr.partial")).unwrap();
-    std::fs::create_dir(dir.join(".img.png.partial")).unwrap();
-    let second = render(&["-o", e, "--png", p, "--seed", "2"]);
-    assert!(!second.status.success(), "a failed write must not exit 0");
-    assert!(stderr(&second).contains("img.exr"), "{}", stderr(&second));
-    assert_eq!(
-        std::fs::read(&exr).unwrap(),
-        old_exr,
-        "the earlier EXR was damaged"
-    );
-    std::fs::remove_dir(dir.join(".img.exr.partial")).unwrap();
-    let third = render(&["-o", e, "--png", p, "--seed", "3"]);
-    assert!(
-        !third.status.success(),
-        "a failed PNG write must not exit 0"
-    );
-    assert!(stderr(&third).contains("img.png"), "{}", stderr(&third));
-    assert_eq!(
-        std::fs::read(&png).unwrap(),
-        old_png,
-        "the earlier PNG was damaged"
-    );
-    assert_ne!(std::fs::read(&exr).unwrap(), old_exr, "the EXR was written");
-    // a successful write leaves no temporary file behind
-    std::fs::remove_dir(dir.join(".img.png.partial")).unwrap();
-    assert!(render(&["-o", e, "--png", p]).status.success());
-    let left: Vec<_> = std::fs::read_dir(&dir)
+    let small = dir.join("small");
+    if !mount_tmpfs(&small, "size=64k") {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let exr = small.join("img.exr");
+    let e = exr.to_str().unwrap();
+    let at = |size| pathspace(&["render", "--resolution", size, "--spp", "1", "-o", e]);
+    let first = at("16x16");
+    let old = std::fs::read(&exr);
+    let second = at("128x128");
+    let left: Vec<_> = std::fs::read_dir(&small)
         .unwrap()
         .map(|f| f.unwrap().file_name().to_string_lossy().into_owned())
         .filter(|n| n.ends_with(".partial"))
         .collect();
+    let now = std::fs::read(&exr);
+    let _ = Command::new("umount").arg(&small).status();
+    assert!(first.status.success(), "{}", stderr(&first));
+    assert!(!second.status.success(), "a failed write must not exit 0");
+    assert!(stderr(&second).contains("img.exr"), "{}", stderr(&second));
+    assert!(now.unwrap() == old.unwrap(), "the earlier EXR was damaged");
     assert!(left.is_empty(), "{left:?}");
+}
+
+/// Two renders given the same `-o` at the same time both succeed, and the file is one of
+/// them whole (each write has a temporary file of its own, renamed over the target).
+#[test]
+fn concurrent_renders_to_one_output_both_succeed() {
+    let dir = scratch(GROUP, "concurrent");
+    let exr = dir.join("same.exr");
+    let e = exr.to_str().unwrap();
+    for round in 0..8 {
+        let spawn = |seed: &str| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_pathspace"))
+                .args([
+                    "render",
+                    "--resolution",
+                    "8x8",
+                    "--threads",
+                    "1",
+                    "--spp",
+                    "1",
+                ])
+                .args(["--seed", seed, "-o", e])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        };
+        let (a, b) = (spawn("1"), spawn("2"));
+        for child in [a, b] {
+            let out = child.wait_with_output().unwrap();
+            assert!(out.status.success(), "round {round}: {}", stderr(&out));
+        }
+        let (_, meta) = pathspace::image_io::read_exr(&exr).unwrap();
+        assert!(["1", "2"].contains(&meta.get("seed").unwrap()));
+    }
 }
 
 /// A full disk is reported (the PNG is encoded in memory and written at once): `/dev/full`
