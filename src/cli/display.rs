@@ -182,7 +182,7 @@ pub fn strips(width: u32, height: u32) -> Vec<(u32, u32)> {
         .collect()
 }
 
-/// A connection to tev, made when the first image is shown and made again, after a growing
+/// A connection to tev, made before the render (or when the first image is shown) and made again, after a growing
 /// wait, when it fails: a missing viewer is one warning, not an error.
 pub struct Tev {
     address: TevAddress,
@@ -203,6 +203,14 @@ impl Tev {
             next_try: Instant::now(),
             wait: FIRST_RETRY,
             warned: false,
+        }
+    }
+
+    /// Connects before the first pass, so that the image (black until the first pass ends)
+    /// and a missing viewer's warning come at once.
+    pub fn start(&mut self, width: u32, height: u32) {
+        if self.stream.is_none() {
+            self.connect(width, height);
         }
     }
 
@@ -274,7 +282,7 @@ impl Tev {
         self.stream = None;
         if !self.warned {
             eprintln!(
-                "warning: --display: {message}; the render goes on (retrying at most once a minute)"
+                "warning: --display: {message}; the render goes on (and tries again now and then)"
             );
             self.warned = true;
         }

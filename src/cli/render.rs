@@ -927,7 +927,8 @@ fn render_job(
         write_image(args, r, plan, pre, source).map_err(to_err)?;
         c.write(&ckpt)
     };
-    let mut live = live_views(args, job.setup.scene.camera.is_some());
+    let size = job.setup.scene.camera.as_ref().map(|c| (c.width, c.height));
+    let mut live = live_views(args, size);
     let active = live.active();
     let mut show = |image: &dyn Fn() -> Option<image_io::Image>| live.pass(image);
     let control = Control {
@@ -942,17 +943,24 @@ fn render_job(
     Ok(pool.install(|| session::render_with(job, control))?)
 }
 
-/// The live views `--display` and `--preview` ask for (none without a camera), named in tev
-/// by the EXR's path.
-fn live_views(args: &RenderArgs, has_camera: bool) -> Live {
+/// The live views `--display` and `--preview` ask for (none without a camera), tev's
+/// connected before the first pass and named by the EXR's path.
+fn live_views(args: &RenderArgs, size: Option<(u32, u32)>) -> Live {
     let (exr, png) = output_paths(args);
     let s = &args.session;
+    let Some((w, h)) = size else {
+        return Live {
+            tev: None,
+            preview: None,
+        };
+    };
+    let tev = s.display.clone().map(|a| {
+        let mut t = Tev::new(a, &exr.display().to_string());
+        t.start(w, h);
+        t
+    });
     Live {
-        tev: (s.display.clone())
-            .filter(|_| has_camera)
-            .map(|a| Tev::new(a, &exr.display().to_string())),
-        preview: (s.preview)
-            .filter(|_| has_camera)
-            .map(|t| Preview::new(png, t)),
+        tev,
+        preview: s.preview.map(|t| Preview::new(png, t)),
     }
 }
