@@ -416,3 +416,29 @@ fn a_large_image_goes_as_strips_that_tev_puts_together() {
     assert!(canvas == expected, "the strips cover the image once");
     assert_eq!(display::strips(1 << 20, 2).len(), 2, "at least a row each");
 }
+
+#[test]
+fn a_viewer_that_stops_reading_is_dropped_and_the_render_goes_on() {
+    // a listener that never accepts: the kernel takes the connection and buffers what it can,
+    // then the client's writes block until its timeout
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = display::parse_address(&listener.local_addr().unwrap().to_string()).unwrap();
+    let (w, h) = (2048, 2048); // 48 MiB a pass, more than any socket buffer
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut tev = display::Tev::new(address, "stalled");
+        tev.start(w, h);
+        assert!(tev.wants_image(), "the connection is open");
+        tev.show(&Image::new(w, h));
+        tx.send(tev.wants_image()).unwrap();
+    });
+    // a guard against a hang, not a time budget: the client gives up after seconds
+    let wants = rx
+        .recv_timeout(Duration::from_secs(120))
+        .expect("a stalled viewer holds up the render");
+    assert!(
+        !wants,
+        "the stalled viewer is dropped until the next attempt"
+    );
+    drop(listener);
+}
