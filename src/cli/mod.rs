@@ -2,6 +2,7 @@
 
 pub mod converge;
 pub mod diff;
+pub mod display;
 pub mod info;
 pub mod interrupt;
 pub mod merge;

@@ -9,6 +9,7 @@ use crate::integrator::path::DistanceSampling;
 use clap::Args;
 use std::path::PathBuf;
 
+use super::display::{Live, Preview, Tev, TevAddress};
 use super::CliError;
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
@@ -103,6 +104,15 @@ pub struct SessionArgs {
     /// the timings still go to stderr and `--json`.
     #[arg(long)]
     pub reproducible: bool,
+    /// After every pass, send the image so far to the tev viewer listening at HOST:PORT (tev
+    /// listens on 127.0.0.1:14158 by default); a viewer that cannot be reached is a warning,
+    /// and the render goes on.
+    #[arg(long, value_name = "HOST:PORT", value_parser = super::display::parse_address)]
+    pub display: Option<TevAddress>,
+    /// Every SECONDS during the render, rewrite the PNG (`--png`, or beside the EXR) with the
+    /// image so far: a preview for machines without a screen.
+    #[arg(long, value_name = "SECONDS")]
+    pub preview: Option<f64>,
 }
 
 impl SessionArgs {
@@ -122,6 +132,13 @@ impl SessionArgs {
         self.memory.check()?;
         if self.shard.is_some() && self.time.is_some() {
             return Err(ShardError::Timed.into());
+        }
+        if let Some(t) = self.preview {
+            if !(t >= 0.0 && t.is_finite()) {
+                return Err(CliError::Usage(format!(
+                    "--preview {t} must be a number of seconds (0: after every pass)"
+                )));
+            }
         }
         if let Some(t) = self.checkpoint {
             if !(t >= 0.0 && t.is_finite()) {
@@ -924,6 +941,10 @@ fn render_job(
         write_image(args, r, plan, pre, source).map_err(to_err)?;
         c.write(&ckpt)
     };
+    let size = job.setup.scene.camera.as_ref().map(|c| (c.width, c.height));
+    let mut live = live_views(args, size);
+    let active = live.active();
+    let mut show = |image: &dyn Fn() -> Option<image_io::Image>| live.pass(image);
     let control = Control {
         stop: Some(super::interrupt::install().map_err(CliError::Signals)?),
         every: args.session.checkpoint,
@@ -931,7 +952,30 @@ fn render_job(
         recipe: Some(super::resume::recipe(args)),
         resume,
         on_checkpoint: Some(&mut write),
+        on_pass: if active { Some(&mut show) } else { None },
     };
     let pool = thread_pool(args.session.threads)?;
     Ok(pool.install(|| session::render_with(job, control))?)
+}
+
+/// The live views `--display` and `--preview` ask for (none without a camera), tev's
+/// connected before the first pass and named by the EXR's path.
+fn live_views(args: &RenderArgs, size: Option<(u32, u32)>) -> Live {
+    let (exr, png) = output_paths(args);
+    let s = &args.session;
+    let Some((w, h)) = size else {
+        return Live {
+            tev: None,
+            preview: None,
+        };
+    };
+    let tev = s.display.clone().map(|a| {
+        let mut t = Tev::new(a, &exr.display().to_string());
+        t.start(w, h);
+        t
+    });
+    Live {
+        tev,
+        preview: s.preview.map(|t| Preview::new(png, t)),
+    }
 }

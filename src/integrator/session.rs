@@ -159,6 +159,10 @@ pub struct Control<'c> {
     pub on_checkpoint: Option<
         &'c mut (dyn FnMut(&RenderResult, &Checkpoint) -> Result<(), CheckpointError> + Send),
     >,
+    /// Called after every pass with the image so far on demand (asking for it copies the
+    /// film): a live view that only reads, so the render is the same with or without it.
+    #[allow(clippy::type_complexity)]
+    pub on_pass: Option<&'c mut (dyn FnMut(&dyn Fn() -> Option<image_io::Image>) + Send)>,
 }
 
 /// How a render ended.
@@ -265,6 +269,9 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
                 }
             }
             last_checkpoint = Instant::now();
+        }
+        if let Some(show) = control.on_pass.as_mut() {
+            show(&|| image(&r, job, earlier.as_ref()));
         }
     }
     if let Some(b) = bar {
@@ -477,23 +484,7 @@ pub fn progress_message(
 /// merge with the run in progress, weighted by sample count.
 fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier>) -> RenderResult {
     let run = run_streams(r.seed, job.first_pass, r.passes);
-    let image = r.film.as_ref().map(|f| match earlier {
-        Some(e) => {
-            let mut all = e.clone();
-            fold(&mut all, f, run);
-            let inv = 1.0 / all.spp.max(1) as f64;
-            let mut img = f.image();
-            for (p, w) in img.pixels.iter_mut().zip(&all.weighted) {
-                *p = Rgb::new(
-                    (w[0] * inv) as f32,
-                    (w[1] * inv) as f32,
-                    (w[2] * inv) as f32,
-                );
-            }
-            img
-        }
-        None => f.image(),
-    });
+    let image = image(r, job, earlier);
     let negative_pixels = image.as_ref().map_or(0, |img| {
         img.pixels.iter().filter(|p| p.min_element() < 0.0).count() as u64
     });
@@ -519,4 +510,27 @@ fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier
             .chain([run])
             .collect(),
     }
+}
+
+/// The image the renderer holds: the film's, or with MLT's earlier runs their merge with the
+/// run in progress, weighted by sample count.
+fn image(r: &Renderer, job: &Job, earlier: Option<&Earlier>) -> Option<image_io::Image> {
+    let run = run_streams(r.seed, job.first_pass, r.passes);
+    r.film.as_ref().map(|f| match earlier {
+        Some(e) => {
+            let mut all = e.clone();
+            fold(&mut all, f, run);
+            let inv = 1.0 / all.spp.max(1) as f64;
+            let mut img = f.image();
+            for (p, w) in img.pixels.iter_mut().zip(&all.weighted) {
+                *p = Rgb::new(
+                    (w[0] * inv) as f32,
+                    (w[1] * inv) as f32,
+                    (w[2] * inv) as f32,
+                );
+            }
+            img
+        }
+        None => f.image(),
+    })
 }
