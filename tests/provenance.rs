@@ -404,3 +404,49 @@ fn merge_checks_its_output_before_reading_the_inputs() {
     assert!(!run.status.success());
     assert!(err.contains("out.png: is written as EXR"), "{err}");
 }
+
+/// `path` rewritten with `change` applied to its image and header (a forged or damaged file).
+fn forge(
+    path: &Path,
+    name: &str,
+    change: impl FnOnce(&mut image_io::Image, &mut ImageMeta),
+) -> PathBuf {
+    let (mut img, mut m) = image_io::read_exr(path).unwrap();
+    change(&mut img, &mut m);
+    let out = path.with_file_name(name);
+    image_io::write_exr(&out, &img, &m).unwrap();
+    out
+}
+
+/// `merge` trusts nothing it reads: a shard of a billion-shard render is refused with the
+/// missing shards as one range (not a billion entries), sample counts that overflow and a
+/// pixel that is not finite are refused naming the file.
+#[test]
+fn merge_bounds_its_work_and_refuses_forged_counts_and_pixels() {
+    let dir = scratch(GROUP, "forged");
+    let a = render(
+        &dir,
+        "a.exr",
+        &["--seed", "1", "--spp", "8", "--shard", "1/2"],
+    );
+    let huge = forge(&a, "huge.exr", |_, m| {
+        m.set("shard", "1/1000000000");
+    });
+    let out = dir.join("m.exr");
+    let run = merge(&[&huge], &out, &[]);
+    let err = stderr(&run);
+    assert!(!run.status.success() && !out.exists(), "{err}");
+    assert!(
+        err.contains("2/1000000000 to 1000000000/1000000000 (999999999 shards)"),
+        "{err}"
+    );
+    assert!(err.len() < 2_000, "{} bytes of error", err.len());
+    let b = render(&dir, "b.exr", &["--seed", "2"]);
+    let c = render(&dir, "c.exr", &["--seed", "3"]);
+    let max = forge(&c, "max.exr", |_, m| {
+        m.set("spp", u64::MAX);
+    });
+    refused(&[&b, &max], &["add up beyond 2^64"]);
+    let nan = forge(&c, "nan.exr", |img, _| img.pixels[13].y = f32::NAN);
+    refused(&[&b, &nan], &["nan.exr: the pixel (1, 1) is not finite"]);
+}

@@ -54,7 +54,17 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
             .and_then(|v| v.parse().ok())
             .filter(|&n| n > 0)
             .ok_or_else(|| CliError::NoSpp(name.clone()))?;
-        total += spp;
+        total = total.checked_add(spp).ok_or_else(|| {
+            CliError::Usage(format!(
+                "{name}: the inputs' spp add up beyond 2^64 (a forged or damaged `spp`)"
+            ))
+        })?;
+        if let Some(i) = img.pixels.iter().position(|p| !p.is_finite()) {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            return Err(CliError::Usage(format!(
+                "{name}: the pixel ({x}, {y}) is not finite: a damaged file cannot be merged"
+            )));
+        }
         for (acc, p) in sum.iter_mut().zip(&img.pixels) {
             for c in 0..3 {
                 acc[c] += spp as f64 * p[c] as f64;

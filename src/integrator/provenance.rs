@@ -356,7 +356,9 @@ pub fn conflicts(inputs: &[Provenance]) -> Vec<Conflict> {
 // ANCHOR_END: conflicts
 
 /// The shards missing from the renders the inputs hold shards of: per render (integrator,
-/// shard count, spp, seed), the shard numbers not given, each with what it holds.
+/// shard count, spp, seed), the shard numbers not given, as ranges between the given ones (a
+/// render of a billion shards costs what its inputs cost, not a billion entries), each single
+/// missing shard with what it holds, at most [`MAX_LISTED_GAPS`] ranges named.
 // ANCHOR: missing_shards
 fn missing_shards(inputs: &[Provenance]) -> Vec<Conflict> {
     let mut renders: Vec<(String, u32, u32, u64)> = inputs
@@ -371,25 +373,56 @@ fn missing_shards(inputs: &[Provenance]) -> Vec<Conflict> {
     renders.dedup();
     let mut out = Vec::new();
     for (integrator, count, spp, seed) in renders {
-        let given = |index| {
-            inputs.iter().any(|p| {
-                p.shard.is_some_and(|s| {
-                    (s.shard, s.spp, s.seed) == (Shard { index, count }, spp, seed)
-                }) && p.integrator.as_deref() == Some(integrator.as_str())
-            })
-        };
-        let missing: Vec<String> = (1..=count)
-            .filter(|&i| !given(i))
-            .map(|index| Shard { index, count }.describe(spp, seed, integrator == "mlt"))
+        let mut given: Vec<u32> = inputs
+            .iter()
+            .filter(|p| p.integrator.as_deref() == Some(integrator.as_str()))
+            .filter_map(|p| p.shard)
+            .filter(|s| (s.shard.count, s.spp, s.seed) == (count, spp, seed))
+            .map(|s| s.shard.index)
             .collect();
-        if !missing.is_empty() {
-            out.push(Conflict::MissingShards {
-                integrator,
-                spp,
-                seed,
-                missing,
-            });
+        given.sort_unstable();
+        given.dedup();
+        let gaps = gaps(&given, count);
+        if gaps.is_empty() {
+            continue;
         }
+        let mut missing: Vec<String> = gaps
+            .iter()
+            .take(MAX_LISTED_GAPS)
+            .map(|&(a, b)| match a == b {
+                true => Shard { index: a, count }.describe(spp, seed, integrator == "mlt"),
+                false => format!("{a}/{count} to {b}/{count} ({} shards)", b - a + 1),
+            })
+            .collect();
+        if gaps.len() > MAX_LISTED_GAPS {
+            missing.push(format!("and {} more ranges", gaps.len() - MAX_LISTED_GAPS));
+        }
+        out.push(Conflict::MissingShards {
+            integrator,
+            spp,
+            seed,
+            missing,
+        });
+    }
+    out
+}
+
+/// The most ranges of missing shards a refusal names.
+pub const MAX_LISTED_GAPS: usize = 8;
+
+/// The ranges of 1..=count that the sorted, distinct indices `given` leave out.
+fn gaps(given: &[u32], count: u32) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    let mut next = 1u64;
+    for &i in given
+        .iter()
+        .chain(std::iter::once(&count.saturating_add(1)))
+    {
+        let i = (i as u64).min(count as u64 + 1);
+        if i > next {
+            out.push((next as u32, (i - 1) as u32));
+        }
+        next = next.max(i + 1);
     }
     out
 }
