@@ -414,11 +414,8 @@ pub const MAX_LISTED_GAPS: usize = 8;
 fn gaps(given: &[u32], count: u32) -> Vec<(u32, u32)> {
     let mut out = Vec::new();
     let mut next = 1u64;
-    for &i in given
-        .iter()
-        .chain(std::iter::once(&count.saturating_add(1)))
-    {
-        let i = (i as u64).min(count as u64 + 1);
+    let end = count as u64 + 1;
+    for i in given.iter().map(|&i| (i as u64).min(end)).chain([end]) {
         if i > next {
             out.push((next as u32, (i - 1) as u32));
         }
