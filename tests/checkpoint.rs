@@ -21,6 +21,7 @@ const FOG_BOX: &str = include_str!("../scenes/fog-box.toml");
 fn identity(kind: IntegratorKind, film: Option<(u32, u32)>) -> Identity {
     Identity {
         scene_hash: 1,
+        inputs: Vec::new(),
         integrator: kind.name().into(),
         options: String::new(),
         seed: 5,
@@ -446,4 +447,54 @@ fn forged_sums_and_devices_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("not a regular file"), "{e}");
+}
+
+/// A render's identity covers the files its scene reads: a mesh changed between a checkpoint
+/// and `--resume` is refused, naming the file (the scene text itself is the same).
+#[test]
+fn a_file_the_scene_reads_changed_before_resume_is_refused_by_name() {
+    let dir = scratch("inputs");
+    let cube = std::fs::read_to_string("tests/fixtures/cube.obj").unwrap();
+    std::fs::write(dir.join("cube.obj"), &cube).unwrap();
+    let scene = format!(
+        "{FOG_BOX}\n[[shapes]]\ntype = \"mesh\"\nobj = \"cube.obj\"\nmaterial = \"white\"\n"
+    );
+    assert!(
+        FOG_BOX.contains("[materials.white]"),
+        "the fog box's white material moved"
+    );
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    let exr = dir.join("part.exr");
+    let child = Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .current_dir(&dir)
+        .args([
+            "render",
+            "scene.toml",
+            "--resolution",
+            "24x24",
+            "--spp",
+            "1000000",
+        ])
+        .args(["--checkpoint", "0", "-o", "part.exr"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    while !exr.with_extension("checkpoint").exists() {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert!(Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    assert_eq!(child.wait_with_output().unwrap().status.code(), Some(130));
+    std::fs::write(dir.join("cube.obj"), format!("{cube}\n# edited\n")).unwrap();
+    let out = pathspace_in(&dir, &["render", "--resume", "part.checkpoint"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("a file the scene reads differs") && err.contains("cube.obj"),
+        "{err}"
+    );
 }

@@ -358,6 +358,7 @@ fn streams_of(kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec<Streams
     };
     let identity = Identity {
         scene_hash: 1,
+        inputs: Vec::new(),
         integrator: kind.name().into(),
         options: String::new(),
         seed: 5,
@@ -449,4 +450,27 @@ fn merge_bounds_its_work_and_refuses_forged_counts_and_pixels() {
     refused(&[&b, &max], &["add up beyond 2^64"]);
     let nan = forge(&c, "nan.exr", |img, _| img.pixels[13].y = f32::NAN);
     refused(&[&b, &nan], &["nan.exr: the pixel (1, 1) is not finite"]);
+}
+
+/// `merge` refuses two renders of one scene text whose mesh file differed between them, naming
+/// the file; renders of the same files merge.
+#[test]
+fn merge_refuses_renders_whose_scene_read_another_file_content() {
+    let dir = scratch(GROUP, "inputs");
+    let cube = std::fs::read_to_string("tests/fixtures/cube.obj").unwrap();
+    std::fs::write(dir.join("cube.obj"), &cube).unwrap();
+    let fog = include_str!("../scenes/fog-box.toml");
+    let scene = dir.join("scene.toml");
+    let mesh = "[[shapes]]\ntype = \"mesh\"\nobj = \"cube.obj\"\nmaterial = \"white\"\n";
+    std::fs::write(&scene, format!("{fog}\n{mesh}")).unwrap();
+    let a = render_scene(&dir, "a.exr", Some(&scene), &["--seed", "1"]);
+    let b = render_scene(&dir, "b.exr", Some(&scene), &["--seed", "2"]);
+    assert!(meta(&a)
+        .get("scene_inputs")
+        .unwrap()
+        .starts_with("cube.obj="));
+    assert!(merge(&[&a, &b], &dir.join("ab.exr"), &[]).status.success());
+    std::fs::write(dir.join("cube.obj"), format!("{cube}\n# edited\n")).unwrap();
+    let c = render_scene(&dir, "c.exr", Some(&scene), &["--seed", "3"]);
+    refused(&[&a, &c], &["whose file cube.obj differs"]);
 }

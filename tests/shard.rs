@@ -307,6 +307,7 @@ fn shard_film(first_pass: u64, spp: u32, stop_once: bool) -> (Vec<[f32; 3]>, Str
     };
     let identity = Identity {
         scene_hash: 1,
+        inputs: Vec::new(),
         integrator: "path".into(),
         options: String::new(),
         seed: 5,

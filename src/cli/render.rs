@@ -542,6 +542,10 @@ fn write_image(
         .set("seconds", format!("{:.3}", result.seconds))
         .set("scene", &source.name)
         .set("scene_hash", format!("{:016x}", source.hash()))
+        .set(
+            "scene_inputs",
+            crate::integrator::provenance::format_inputs(&source.inputs()),
+        )
         .set("nan_count", result.nan_count)
         .set("negative_pixels", result.negative_pixels)
         .set("render_options", plan.settings.given.to_toml())
@@ -900,6 +904,7 @@ fn identity(
     }
     Identity {
         scene_hash: source.hash(),
+        inputs: source.inputs(),
         integrator: plan.kind.name().to_string(),
         options: options.to_string(),
         seed: plan.settings.seed,

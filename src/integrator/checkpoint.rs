@@ -59,6 +59,9 @@ pub enum CheckpointError {
 pub struct Identity {
     /// The FNV-1a hash of the scene file's text, as in the EXR attribute `scene_hash`.
     pub scene_hash: u64,
+    /// The files the scene read (meshes, grids, maps), each with the hash of its bytes, as in
+    /// the EXR attribute `scene_inputs` ([`crate::scene::SceneSource::inputs`]).
+    pub inputs: Vec<(String, u64)>,
     pub integrator: String,
     /// The render's options as JSON without `spp` (a resume may ask for more samples).
     pub options: String,
@@ -297,6 +300,14 @@ impl Checkpoint {
             let hex = |h: u64| format!("{h:016x}");
             return differs("the scene file", hex(saved.scene_hash), hex(now.scene_hash));
         }
+        if let Some((file, a, b)) = changed_input(&saved.inputs, &now.inputs) {
+            return Err(CheckpointError::Mismatch {
+                file: name.to_string(),
+                what: "a file the scene reads",
+                saved: format!("{file} {a}"),
+                now: format!("{file} {b}"),
+            });
+        }
         if saved.integrator != now.integrator {
             return differs(
                 "the integrator",
@@ -320,4 +331,19 @@ impl Checkpoint {
         }
         Ok(())
     }
+}
+
+/// The first file whose content differs between two lists of a scene's inputs (sorted by
+/// name), with its hash in each (`absent` where a list lacks it).
+pub fn changed_input(a: &[(String, u64)], b: &[(String, u64)]) -> Option<(String, String, String)> {
+    let hash = |l: &[(String, u64)], f: &str| {
+        l.iter()
+            .find(|(n, _)| n == f)
+            .map_or("absent".to_string(), |(_, h)| format!("{h:016x}"))
+    };
+    a.iter()
+        .chain(b)
+        .map(|(f, _)| f)
+        .find(|f| hash(a, f) != hash(b, f))
+        .map(|f| (f.clone(), hash(a, f), hash(b, f)))
 }

@@ -116,6 +116,8 @@ pub struct BadRecord {
 pub struct Provenance {
     pub file: String,
     pub scene_hash: Option<String>,
+    /// `scene_inputs`: the files the scene read, each with the hash of its bytes.
+    pub inputs: Option<Vec<(String, u64)>>,
     pub integrator: Option<String>,
     /// `render_options` without the sample count and the seed, flattened to `key = value`.
     pub settings: Option<Vec<(String, String)>>,
@@ -151,6 +153,16 @@ pub enum Conflict {
     Scene {
         a: String,
         b: String,
+        ha: String,
+        hb: String,
+    },
+    #[error(
+        "{a} and {b} are renders of a scene whose file {file} differs (its hash {ha} and {hb})"
+    )]
+    Input {
+        a: String,
+        b: String,
+        file: String,
         ha: String,
         hb: String,
     },
@@ -282,6 +294,10 @@ impl Provenance {
         let mut p = Provenance {
             file: file.to_string(),
             scene_hash: meta.get("scene_hash").map(str::to_string),
+            inputs: match meta.get("scene_inputs") {
+                Some(t) => Some(parse_inputs(t).ok_or_else(|| bad("scene_inputs", t))?),
+                None => None,
+            },
             integrator: meta.get("integrator").map(str::to_string),
             settings,
             streams,
@@ -425,6 +441,27 @@ fn gaps(given: &[u32], count: u32) -> Vec<(u32, u32)> {
 }
 // ANCHOR_END: missing_shards
 
+/// The EXR attribute `scene_inputs`: `name=hash` per file the scene read, one per line (no
+/// line when it read none).
+pub fn format_inputs(inputs: &[(String, u64)]) -> String {
+    let lines: Vec<String> = inputs
+        .iter()
+        .map(|(n, h)| format!("{n}={h:016x}"))
+        .collect();
+    lines.join("\n")
+}
+
+/// Reads [`format_inputs`] back; None where a line is not `name=hash`.
+fn parse_inputs(text: &str) -> Option<Vec<(String, u64)>> {
+    text.lines()
+        .filter(|l| !l.is_empty())
+        .map(|l| {
+            let (name, hash) = l.rsplit_once('=')?;
+            Some((name.to_string(), u64::from_str_radix(hash, 16).ok()?))
+        })
+        .collect()
+}
+
 /// What makes `b` an estimate of another image than `a`.
 fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
     let (fa, fb) = (a.file.clone(), b.file.clone());
@@ -435,6 +472,18 @@ fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
             out.push(Conflict::Scene {
                 a: fa.clone(),
                 b: fb.clone(),
+                ha,
+                hb,
+            });
+        }
+    }
+    let inputs = (a.inputs.as_deref(), b.inputs.as_deref());
+    if let (Some(ia), Some(ib)) = inputs {
+        if let Some((file, ha, hb)) = super::checkpoint::changed_input(ia, ib) {
+            out.push(Conflict::Input {
+                a: fa.clone(),
+                b: fb.clone(),
+                file,
                 ha,
                 hb,
             });

@@ -626,6 +626,10 @@ pub struct SceneSource {
     /// For a scene translated from another format (Mitsuba XML, `scene::mitsuba`), where each
     /// generated key came from: errors then name the original file's lines.
     pub origin: Option<std::sync::Arc<Origin>>,
+    /// The files the scene read while it was built (meshes, grids, maps), each as the scene
+    /// names it with the FNV-1a hash of its bytes: with [`SceneSource::hash`], what a render's
+    /// identity is made of, so a resume or a merge names the file that changed.
+    pub inputs: std::sync::Arc<std::sync::Mutex<Vec<(String, u64)>>>,
 }
 
 /// Where the keys of a translated scene came from.
@@ -657,6 +661,16 @@ impl Origin {
     }
 }
 
+/// The 64-bit FNV-1a hash of `bytes` (scene texts and the files they name).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
 impl SceneSource {
     /// Reads a file of at most [`MAX_SCENE_BYTES`] bytes of UTF-8.
     pub fn read(path: &Path) -> Result<Self, SceneError> {
@@ -686,6 +700,7 @@ impl SceneSource {
             text,
             base_dir,
             origin: None,
+            inputs: Default::default(),
         })
     }
 
@@ -696,6 +711,7 @@ impl SceneSource {
             text: text.to_string(),
             base_dir: PathBuf::from("."),
             origin: None,
+            inputs: Default::default(),
         }
     }
 
@@ -726,11 +742,35 @@ impl SceneSource {
 
     /// A 64-bit FNV-1a hash of the text: references record which scene they belong to.
     pub fn hash(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in self.text.bytes() {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0100_0000_01b3);
+        fnv1a(self.text.as_bytes())
+    }
+
+    /// Records a file the scene read, as the scene names it (`name`), by the hash of its
+    /// `bytes`.
+    pub fn record_input(&self, name: &str, bytes: &[u8]) {
+        let mut inputs = self.inputs.lock().unwrap_or_else(|e| e.into_inner());
+        inputs.push((name.to_string(), fnv1a(bytes)));
+    }
+
+    /// Records the file `file` (relative to the scene's directory) that a reader which keeps
+    /// no bytes has just read (grids, maps): read again, at most `limit` bytes as the reader
+    /// took it, for its hash; a file gone since is recorded as changed.
+    pub fn record_file(&self, file: &str, limit: u64) {
+        match crate::conventions::read_at_most(&self.base_dir.join(file), limit) {
+            Ok(bytes) => self.record_input(file, &bytes),
+            Err(_) => self.record_input(file, b"(unreadable)"),
         }
-        h
+    }
+
+    /// The files the scene read, sorted by name, each once with the hash of its bytes.
+    pub fn inputs(&self) -> Vec<(String, u64)> {
+        let mut v = self
+            .inputs
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        v.sort();
+        v.dedup();
+        v
     }
 }

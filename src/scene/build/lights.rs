@@ -227,6 +227,7 @@ fn environment_map(
     };
     let image = read_exr_input(&src.base_dir.join(file), MAX_MAP_BYTES, envmap::MAX_TEXELS)
         .map_err(|e| src.error(&map_key, e.to_string()))?;
+    src.record_file(file, MAX_MAP_BYTES);
     let (w, h) = (image.width as usize, image.height as usize);
     if w < envmap::MIN_SIDE || h < envmap::MIN_SIDE || w.max(h) > envmap::MAX_SIDE {
         return Err(src.error(

@@ -212,6 +212,7 @@ fn grid(
     let fkey = key_of(key, "file");
     let gf =
         read_grid_file(&src.base_dir.join(file)).map_err(|e| src.error(&fkey, e.to_string()))?;
+    src.record_file(file, crate::medium::grid::MAX_GRID_FILE_BYTES);
     let (lo, hi) = match (min, max, gf.bounds) {
         (Some(lo), Some(hi), _) => (
             finite3(src, &key_of(key, "min"), *lo)?,

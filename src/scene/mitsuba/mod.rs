@@ -160,6 +160,7 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         text,
         base_dir,
         origin: Some(Arc::new(origin)),
+        inputs: Default::default(),
     })
 }
 
