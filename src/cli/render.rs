@@ -16,7 +16,7 @@ use crate::image_io::{self, ImageMeta};
 use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
 use crate::integrator::memory;
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
-use crate::integrator::provenance::{format_streams, TIMING_KEYS};
+use crate::integrator::provenance::{format_inputs, format_streams, TIMING_KEYS};
 use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
 use crate::integrator::shard::{self, Shard, ShardError};
@@ -542,14 +542,14 @@ fn write_image(
         .set("seconds", format!("{:.3}", result.seconds))
         .set("scene", &source.name)
         .set("scene_hash", format!("{:016x}", source.hash()))
-        .set(
-            "scene_inputs",
-            crate::integrator::provenance::format_inputs(&source.inputs()),
-        )
         .set("nan_count", result.nan_count)
         .set("negative_pixels", result.negative_pixels)
         .set("render_options", plan.settings.given.to_toml())
         .set("streams", format_streams(&result.streams));
+    let inputs = source.inputs();
+    if !inputs.is_empty() {
+        meta.set("scene_inputs", format_inputs(&inputs));
+    }
     if let Some(s) = &plan.shard {
         meta.set("shard", s.shard)
             .set("shard_spp", s.total_spp)
