@@ -28,6 +28,19 @@ pub struct DiffArgs {
     pub twin: Option<PathBuf>,
 }
 
+/// The layers beside R, G, B in an EXR (`--aovs`' names, or the channel's own name).
+fn layer_names(path: &std::path::Path) -> Result<Vec<String>, CliError> {
+    let mut names: Vec<String> = image_io::read_exr_channels(path)?
+        .iter()
+        .map(|c| match crate::aov::Aov::of_channel(&c.name) {
+            Some(a) => a.name().to_string(),
+            None => c.name.clone(),
+        })
+        .collect();
+    names.dedup();
+    Ok(names)
+}
+
 pub fn run(args: DiffArgs) -> Result<(), CliError> {
     let (a, _) = image_io::read_exr(&args.a)?;
     let (b, _) = image_io::read_exr(&args.b)?;
@@ -44,6 +57,7 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         None => None,
     };
     let legend = heatmap::legend_lines();
+    let layers = [layer_names(&args.a)?, layer_names(&args.b)?];
     if args.json {
         let mut obj = serde_json::json!({
             "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs, "max_f32_steps": m.max_steps,
@@ -51,6 +65,10 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         });
         if let Some(v) = twin {
             obj["relmse_variance"] = serde_json::json!(v);
+        }
+        if layers.iter().any(|l| !l.is_empty()) {
+            obj["layers_a"] = serde_json::json!(layers[0]);
+            obj["layers_b"] = serde_json::json!(layers[1]);
         }
         if let Some(out) = &args.heatmap {
             let stops: Vec<serde_json::Value> = legend
@@ -73,6 +91,17 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         println!("mean B   ({:.5}, {:.5}, {:.5})", mb.x, mb.y, mb.z);
         if let Some(v) = twin {
             println!("relMSE variance part (from the twin) {v:.6e}");
+        }
+        if layers.iter().any(|l| !l.is_empty()) {
+            let list = |l: &[String]| match l.is_empty() {
+                true => "none".to_string(),
+                false => l.join(", "),
+            };
+            println!(
+                "layers A {} (the metrics compare R, G, B)",
+                list(&layers[0])
+            );
+            println!("layers B {}", list(&layers[1]));
         }
         if let Some(out) = &args.heatmap {
             println!(
