@@ -28,17 +28,26 @@ pub struct DiffArgs {
     pub twin: Option<PathBuf>,
 }
 
-/// The layers beside R, G, B in an EXR (`--aovs`' names, or the channel's own name).
+/// The layers beside R, G, B in an EXR: `--aovs`' names in their order, then any other
+/// channel by its own name.
 fn layer_names(path: &std::path::Path) -> Result<Vec<String>, CliError> {
-    let mut names: Vec<String> = image_io::read_exr_channels(path)?
+    use crate::aov::Aov;
+    let channels = image_io::read_exr_channels(path)?;
+    let mut known: Vec<Aov> = channels
         .iter()
-        .map(|c| match crate::aov::Aov::of_channel(&c.name) {
-            Some(a) => a.name().to_string(),
-            None => c.name.clone(),
-        })
+        .filter_map(|c| Aov::of_channel(&c.name))
         .collect();
-    names.dedup();
-    Ok(names)
+    known.sort();
+    known.dedup();
+    let others = channels
+        .iter()
+        .filter(|c| Aov::of_channel(&c.name).is_none())
+        .map(|c| c.name.clone());
+    Ok(known
+        .iter()
+        .map(|a| a.name().to_string())
+        .chain(others)
+        .collect())
 }
 
 pub fn run(args: DiffArgs) -> Result<(), CliError> {
