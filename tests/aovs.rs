@@ -118,7 +118,7 @@ fn scene_file(dir: &Path, name: &str, text: &str) -> PathBuf {
 }
 
 /// A diffuse wall of reflectance (0.2, 0.5, 0.8) filling the view at z = -2, seen from the
-/// origin along -z.
+/// origin along -z; its normal u x v points away from the camera (the layer faces it).
 const WALL: &str = r#"
 [camera]
 type = "pinhole"
@@ -135,8 +135,8 @@ albedo = [0.2, 0.5, 0.8]
 [[shapes]]
 type = "quad"
 origin = [-10.0, -10.0, -2.0]
-u = [20.0, 0.0, 0.0]
-v = [0.0, 20.0, 0.0]
+u = [0.0, 20.0, 0.0]
+v = [20.0, 0.0, 0.0]
 material = "wall"
 
 [[lights]]
