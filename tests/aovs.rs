@@ -24,6 +24,9 @@ const RUNS: u64 = 16;
 /// Samples per pixel of each.
 const SPP: u32 = 16;
 
+/// One render: per pixel, its means and its variance layer, each per channel.
+type Run = (Vec<[f64; 3]>, Vec<[f64; 3]>);
+
 /// The fog box at 32 x 32 pixels.
 fn fog_box_32() -> Scene {
     let text = FOG_BOX.replace("resolution = [256, 256]", "resolution = [32, 32]");
@@ -32,7 +35,7 @@ fn fog_box_32() -> Scene {
 
 /// One render of `scene` with `seed`: its image, as (pixel, channel) means, and its variance
 /// layer as `--aovs variance` writes it.
-fn render_with_variance(scene: &Scene, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+fn render_with_variance(scene: &Scene, seed: u64) -> Run {
     let mut r = Renderer::new(scene, IntegratorKind::Path, seed, None);
     r.pass(SPP, &|| {});
     let film = r.film.unwrap();
@@ -52,7 +55,7 @@ fn render_with_variance(scene: &Scene, seed: u64) -> (Vec<[f64; 3]>, Vec<[f64; 3
 }
 
 /// The mean over `runs` of the variance layers, summed over channels, per pixel.
-fn mean_layer(runs: &[(Vec<[f64; 3]>, Vec<[f64; 3]>)], p: usize) -> f64 {
+fn mean_layer(runs: &[Run], p: usize) -> f64 {
     let k = runs.len() as f64;
     (0..3)
         .map(|c| runs.iter().map(|r| r.1[p][c]).sum::<f64>() / k)
