@@ -342,81 +342,78 @@ pub fn channels(aovs: &[Aov], s: &Sources) -> Result<Vec<Channel>, String> {
     Ok(out)
 }
 
-/// One input of [`merge_channels`]: its sample count, merge weight's numerator, and its
-/// channels.
+/// One input of [`merge_channels`]: its samples per pixel and its channels.
 pub struct MergeInput<'a> {
     pub spp: u64,
     pub channels: &'a [Channel],
 }
 
-/// The layers of the sample-count-weighted mean of independent renders, with weights
-/// w_i = spp_i / sum spp: `Variance` is sum w_i^2 Var_i (the variance of a weighted sum of
-/// independent means), `RelativeVariance` is recomputed from it and the merged `image`, `spp`
-/// is the sum, and every other channel (features) is the weighted mean. Channels not held by
-/// every input are left out, and named in the second list.
-pub fn merge_channels(inputs: &[MergeInput], image: &Image) -> (Vec<Channel>, Vec<String>) {
-    let Some(first) = inputs.first() else {
-        return (Vec::new(), Vec::new());
-    };
+/// sum_k w_k^power x_k over the inputs' channel `name` (n values each), w_k = spp_k / sum spp;
+/// `None` when an input lacks it.
+fn weighted_sum(inputs: &[MergeInput], name: &str, power: i32, n: usize) -> Option<Vec<f64>> {
     let total: u64 = inputs.iter().map(|i| i.spp).sum();
+    let mut acc = vec![0.0f64; n];
+    for i in inputs {
+        let ch = i.channels.iter().find(|c| c.name == name)?;
+        if ch.values.len() != n {
+            return None;
+        }
+        let w = (i.spp as f64 / total.max(1) as f64).powi(power);
+        for (a, v) in acc.iter_mut().zip(&ch.values) {
+            *a += w * *v as f64;
+        }
+    }
+    Some(acc)
+}
+
+/// The merged channel `name` (see [`merge_channels`]), `None` when it cannot be combined.
+fn merged_channel(inputs: &[MergeInput], name: &str, image: &Image) -> Option<Vec<f32>> {
     let n = image.pixels.len();
-    let held = |name: &str| {
-        inputs.iter().all(|i| {
-            i.channels
-                .iter()
-                .any(|c| c.name == name && c.values.len() == n)
-        })
-    };
-    let mut all_names: Vec<String> = inputs
+    let f32s = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
+    match Aov::of_channel(name) {
+        Some(Aov::Spp) => {
+            weighted_sum(inputs, name, 1, n)?;
+            let total: u64 = inputs.iter().map(|i| i.spp).sum();
+            Some(vec![total as f32; n])
+        }
+        Some(Aov::Variance) => weighted_sum(inputs, name, 2, n).map(f32s),
+        Some(Aov::RelativeVariance) => {
+            weighted_sum(inputs, name, 1, n)?;
+            let rgb = name.strip_prefix("RelativeVariance.")?;
+            let c = ["R", "G", "B"].iter().position(|s| *s == rgb)?;
+            // recomputed from the merged variance, which every input must hold
+            let var = weighted_sum(inputs, &format!("Variance.{rgb}"), 2, n)?;
+            let rel = var.iter().zip(&image.pixels);
+            Some(
+                rel.map(|(v, m)| (v / ((m[c] as f64).powi(2) + RELMSE_EPSILON)) as f32)
+                    .collect(),
+            )
+        }
+        _ => weighted_sum(inputs, name, 1, n).map(f32s),
+    }
+}
+
+/// The layers of the sample-count-weighted mean `image` of independent renders, with
+/// weights w_k = spp_k / sum spp: `Variance` is sum w_k^2 Var_k (the variance of a weighted
+/// sum of independent means), `RelativeVariance` is recomputed from it and `image`, `spp` is
+/// the sum, and every other channel (the features) is the weighted mean. A channel that not
+/// every input holds is left out and named in the second list.
+pub fn merge_channels(inputs: &[MergeInput], image: &Image) -> (Vec<Channel>, Vec<String>) {
+    let mut names: Vec<&str> = inputs
         .iter()
-        .flat_map(|i| i.channels.iter().map(|c| c.name.clone()))
+        .flat_map(|i| i.channels.iter().map(|c| c.name.as_str()))
         .collect();
-    all_names.sort();
-    all_names.dedup();
-    let left_out: Vec<String> = all_names.iter().filter(|c| !held(c)).cloned().collect();
-    let weight = |i: &MergeInput| i.spp as f64 / total.max(1) as f64;
-    let combined = |name: &str, power: i32| -> Vec<f64> {
-        let mut acc = vec![0.0f64; n];
-        for i in inputs {
-            let ch = i.channels.iter().find(|c| c.name == name).expect("held");
-            let w = weight(i).powi(power);
-            for (a, v) in acc.iter_mut().zip(&ch.values) {
-                *a += w * *v as f64;
-            }
-        }
-        acc
-    };
-    let mut out = Vec::new();
-    for ch in first.channels.iter().filter(|c| held(&c.name)) {
-        let values: Vec<f32> = match Aov::of_channel(&ch.name) {
-            Some(Aov::Spp) => vec![total as f32; n],
-            Some(Aov::Variance) => combined(&ch.name, 2).iter().map(|&v| v as f32).collect(),
-            Some(Aov::RelativeVariance) => {
-                let c = ch.name.len() - 1;
-                let channel = ["R", "G", "B"].iter().position(|s| ch.name[c..] == **s);
-                let var_name = format!("Variance.{}", &ch.name[c..]);
-                match channel.filter(|_| held(&var_name)) {
-                    Some(k) => combined(&var_name, 2)
-                        .iter()
-                        .zip(&image.pixels)
-                        .map(|(v, m)| (v / ((m[k] as f64).powi(2) + RELMSE_EPSILON)) as f32)
-                        .collect(),
-                    // without the variance itself, the relative one cannot be combined
-                    None => continue,
-                }
-            }
-            _ => combined(&ch.name, 1).iter().map(|&v| v as f32).collect(),
-        };
-        out.push(Channel {
-            name: ch.name.clone(),
-            values,
-        });
-    }
-    let mut left_out = left_out;
-    for ch in first.channels.iter().filter(|c| held(&c.name)) {
-        if !out.iter().any(|o| o.name == ch.name) {
-            left_out.push(ch.name.clone());
+    names.sort();
+    names.dedup();
+    let (mut kept, mut left_out) = (Vec::new(), Vec::new());
+    for name in names {
+        match merged_channel(inputs, name, image) {
+            Some(values) => kept.push(Channel {
+                name: name.to_string(),
+                values,
+            }),
+            None => left_out.push(name.to_string()),
         }
     }
-    (out, left_out)
+    (kept, left_out)
 }
