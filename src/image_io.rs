@@ -132,7 +132,7 @@ pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), Ima
     write_exr_channels(path, image, &[], meta)
 }
 
-/// A channel of an EXR beside R, G and B (a feature or variance layer, [`crate::aov`]): its
+/// A channel of an EXR beside R, G and B (a feature or variance layer of `--aovs`): its
 /// name (`Albedo.R`, `Z`) and one value per pixel, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Channel {
