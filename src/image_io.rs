@@ -129,33 +129,106 @@ pub fn io_err(path: &Path, e: impl std::fmt::Display) -> ImageError {
 /// Writes a linear RGB float EXR with `meta` as attributes ([`NUMERIC_ATTRIBUTES`] as numbers,
 /// the others as strings).
 pub fn write_exr(path: &Path, image: &Image, meta: &ImageMeta) -> Result<(), ImageError> {
+    write_exr_channels(path, image, &[], meta)
+}
+
+/// A channel of an EXR beside R, G and B (a feature or variance layer of `--aovs`): its
+/// name (`Albedo.R`, `Z`) and one value per pixel, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    pub name: String,
+    pub values: Vec<f32>,
+}
+
+/// [`write_exr`] with `extra` channels in the same layer (all 32-bit floats, in the order of
+/// their names, as OpenEXR stores channels). Without extra channels the file is exactly
+/// [`write_exr`]'s RGB file.
+pub fn write_exr_channels(
+    path: &Path,
+    image: &Image,
+    extra: &[Channel],
+    meta: &ImageMeta,
+) -> Result<(), ImageError> {
     use exr::prelude::*;
-    let w = image.width as usize;
-    let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
-        let p = image.pixels[pos.y() * w + pos.x()];
-        (p.x, p.y, p.z)
-    });
+    let (w, h) = (image.width as usize, image.height as usize);
     let mut layer_attributes = LayerAttributes::named("pathspace");
     for (k, v) in &meta.attributes {
         layer_attributes
             .other
             .insert(Text::from(k.as_str()), attribute_value(k, v));
     }
-    let layer = Layer::new(
-        (image.width as usize, image.height as usize),
-        layer_attributes,
-        Encoding::SMALL_LOSSLESS,
-        channels,
-    );
     let mut bytes = Vec::new();
-    exr::image::Image::from_layer(layer)
-        .write()
-        .to_buffered(std::io::Cursor::new(&mut bytes))
-        .map_err(|e| io_err(path, e))?;
+    let sink = std::io::Cursor::new(&mut bytes);
+    let written = if extra.is_empty() {
+        let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+            let p = image.pixels[pos.y() * w + pos.x()];
+            (p.x, p.y, p.z)
+        });
+        let layer = Layer::new((w, h), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
+        exr::image::Image::from_layer(layer)
+            .write()
+            .to_buffered(sink)
+    } else {
+        let rgb = ["R", "G", "B"].iter().enumerate().map(|(c, name)| {
+            let values = image.pixels.iter().map(|p| p[c]).collect();
+            AnyChannel::new(*name, FlatSamples::F32(values))
+        });
+        let others = extra.iter().map(|ch| {
+            if ch.values.len() != w * h {
+                return Err(io_err(
+                    path,
+                    format!(
+                        "channel {} has {} values for {w} x {h} pixels",
+                        ch.name,
+                        ch.values.len()
+                    ),
+                ));
+            }
+            Ok(AnyChannel::new(
+                ch.name.as_str(),
+                FlatSamples::F32(ch.values.clone()),
+            ))
+        });
+        let list: Vec<_> = rgb
+            .map(Ok)
+            .chain(others)
+            .collect::<std::result::Result<_, ImageError>>()?;
+        let channels = AnyChannels::sort(SmallVec::from_vec(list));
+        let layer = Layer::new((w, h), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
+        exr::image::Image::from_layer(layer)
+            .write()
+            .to_buffered(sink)
+    };
+    written.map_err(|e| io_err(path, e))?;
     sort_header(&mut bytes).ok_or_else(|| io_err(path, "the EXR header could not be ordered"))?;
     write_replacing(path, |tmp| {
         std::fs::write(tmp, &bytes).map_err(|e| io_err(path, e))
     })
+}
+
+/// The channels of an EXR's first valid layer other than R, G, B and A (the layers
+/// [`write_exr_channels`] adds), in the order of their names, as 32-bit floats.
+pub fn read_exr_channels(path: &Path) -> Result<Vec<Channel>, ImageError> {
+    use exr::prelude::*;
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| io_err(path, e))?;
+    Ok(img
+        .layer_data
+        .channel_data
+        .list
+        .iter()
+        .map(|ch| Channel {
+            name: ch.name.to_string(),
+            values: ch.sample_data.values_as_f32().collect(),
+        })
+        .filter(|ch| !matches!(ch.name.as_str(), "R" | "G" | "B" | "A"))
+        .collect())
 }
 
 /// Puts the header attributes of a single-part EXR in the order of their names, as OpenEXR's

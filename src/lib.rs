@@ -18,9 +18,11 @@
 //! | Pegoraro, Wald, Parker 2008, eq. (1)-(9): sequential Monte Carlo | [`integrator::smc`] |
 //! | Kristensen 2010 ch. 5: adjoint image, photons and importons | [`enlightened`] |
 //! | measuring: relMSE, efficiency, convergence order | [`measure`] |
+//! | variance and feature layers (AOVs) beside the image | [`aov`] |
 //! | conventions and measures | [`conventions`] |
 //! | the book as a course: assignments, student copies | [`course`] |
 
+pub mod aov;
 pub mod bsdf;
 pub mod cli;
 pub mod conventions;

@@ -292,7 +292,14 @@ fn interrupted_long_render(dir: &Path) -> String {
             "7",
         ])
         .args(["--resolution", "48x48", "--threads", "1", "--reproducible"])
-        .args(["--checkpoint", "0", "-o", "long.exr"])
+        .args([
+            "--checkpoint",
+            "0",
+            "--aovs",
+            "variance,depth",
+            "-o",
+            "long.exr",
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -313,8 +320,9 @@ fn interrupted_long_render(dir: &Path) -> String {
 }
 
 /// The command the interrupted render prints, `--resume long.checkpoint` and nothing else,
-/// finishes it: the same target, seed, resolution and options, taken from the checkpoint, and
-/// the same bytes as the uninterrupted render; the finished render removes its checkpoint.
+/// finishes it: the same target, seed, resolution, options and layers (`--aovs`), taken from
+/// the checkpoint, and the same bytes as the uninterrupted render; the finished render removes
+/// its checkpoint.
 #[test]
 fn resume_alone_finishes_the_interrupted_render_bit_for_bit() {
     let dir = scratch("alone");
@@ -342,6 +350,8 @@ fn resume_alone_finishes_the_interrupted_render_bit_for_bit() {
             "--threads",
             "2",
             "--reproducible",
+            "--aovs",
+            "variance,depth",
             "-o",
             "whole.exr",
         ],

@@ -1,7 +1,7 @@
 //! The crate's layers: a module may use the layers below it, never one above. The order, from
 //! the bottom: `math`, `spectrum`, `conventions` <- `geometry`, `medium`, `bsdf`, `film`,
-//! `image_io` <- `scene` <- `path` <- `enlightened` <- `integrator` <- `measure` <- `cli`,
-//! `course`. A lower layer that reaches up ties the house into one import circle: a change to
+//! `image_io` <- `scene` <- `path` <- `enlightened` <- `integrator` <- `measure`, `aov` <-
+//! `cli`, `course`. A lower layer that reaches up ties the house into one import circle: a change to
 //! an integrator can then break the scene, and nobody can read the scene without the
 //! integrators.
 //!
@@ -21,7 +21,7 @@ fn layer(module: &str) -> Option<u32> {
         "path" => 3,
         "enlightened" => 4,
         "integrator" => 5,
-        "measure" => 6,
+        "measure" | "aov" => 6,
         "cli" | "course" => 7,
         _ => return None,
     })

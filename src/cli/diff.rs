@@ -28,6 +28,28 @@ pub struct DiffArgs {
     pub twin: Option<PathBuf>,
 }
 
+/// The layers beside R, G, B in an EXR: `--aovs`' names in their order, then any other
+/// channel by its own name.
+fn layer_names(path: &std::path::Path) -> Result<Vec<String>, CliError> {
+    use crate::aov::Aov;
+    let channels = image_io::read_exr_channels(path)?;
+    let mut known: Vec<Aov> = channels
+        .iter()
+        .filter_map(|c| Aov::of_channel(&c.name))
+        .collect();
+    known.sort();
+    known.dedup();
+    let others = channels
+        .iter()
+        .filter(|c| Aov::of_channel(&c.name).is_none())
+        .map(|c| c.name.clone());
+    Ok(known
+        .iter()
+        .map(|a| a.name().to_string())
+        .chain(others)
+        .collect())
+}
+
 pub fn run(args: DiffArgs) -> Result<(), CliError> {
     let (a, _) = image_io::read_exr(&args.a)?;
     let (b, _) = image_io::read_exr(&args.b)?;
@@ -44,6 +66,7 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         None => None,
     };
     let legend = heatmap::legend_lines();
+    let layers = [layer_names(&args.a)?, layer_names(&args.b)?];
     if args.json {
         let mut obj = serde_json::json!({
             "rmse": m.rmse, "relmse": m.relmse, "max_abs": m.max_abs, "max_f32_steps": m.max_steps,
@@ -51,6 +74,10 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         });
         if let Some(v) = twin {
             obj["relmse_variance"] = serde_json::json!(v);
+        }
+        if layers.iter().any(|l| !l.is_empty()) {
+            obj["layers_a"] = serde_json::json!(layers[0]);
+            obj["layers_b"] = serde_json::json!(layers[1]);
         }
         if let Some(out) = &args.heatmap {
             let stops: Vec<serde_json::Value> = legend
@@ -73,6 +100,17 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         println!("mean B   ({:.5}, {:.5}, {:.5})", mb.x, mb.y, mb.z);
         if let Some(v) = twin {
             println!("relMSE variance part (from the twin) {v:.6e}");
+        }
+        if layers.iter().any(|l| !l.is_empty()) {
+            let list = |l: &[String]| match l.is_empty() {
+                true => "none".to_string(),
+                false => l.join(", "),
+            };
+            println!(
+                "layers A {} (the metrics compare R, G, B)",
+                list(&layers[0])
+            );
+            println!("layers B {}", list(&layers[1]));
         }
         if let Some(out) = &args.heatmap {
             println!(

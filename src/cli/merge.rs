@@ -5,7 +5,8 @@
 //! estimate this way, as Pauly et al. sec. 7 suggest for parallel rendering. The inputs'
 //! provenance ([`crate::integrator::provenance`]) is checked first: another scene, integrator
 //! or settings, a file given twice and inputs holding the same samples are refused unless
-//! `--force`, and the merged file records its sources.
+//! `--force`, and the merged file records its sources. The layers of `--aovs` are merged too
+//! ([`crate::aov::merge_channels`]).
 
 use clap::Args;
 use std::path::PathBuf;
@@ -92,6 +93,45 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
 }
 // ANCHOR_END: merge
 
+/// The layers beside the images ([`crate::aov::merge_channels`]: variances by the squared
+/// weights, features by the weights, spp summed), with the merged file's `aovs` attribute; a
+/// channel that not every input holds is left out with a warning.
+fn merge_layers(
+    inputs: &[(String, Image, ImageMeta)],
+    layers: &[Vec<image_io::Channel>],
+    image: &Image,
+    meta: &mut ImageMeta,
+) -> Vec<image_io::Channel> {
+    use crate::aov::{merge_channels, Aov, MergeInput};
+    let parts: Vec<MergeInput> = inputs
+        .iter()
+        .zip(layers)
+        .map(|((_, _, m), channels)| MergeInput {
+            // `merge` has checked every input's spp
+            spp: m.get("spp").and_then(|v| v.parse().ok()).unwrap_or(0),
+            channels,
+        })
+        .collect();
+    let (channels, left_out) = merge_channels(&parts, image);
+    for c in &left_out {
+        eprintln!(
+            "warning: merge: channel {c} is not in every input (or cannot be combined): left out"
+        );
+    }
+    let mut kept: Vec<Aov> = channels
+        .iter()
+        .filter_map(|c| Aov::of_channel(&c.name))
+        .collect();
+    kept.sort();
+    kept.dedup();
+    meta.attributes.remove("aovs");
+    if !kept.is_empty() {
+        let names: Vec<&str> = kept.iter().map(|a| a.name()).collect();
+        meta.set("aovs", names.join(","));
+    }
+    channels
+}
+
 /// The files given again (the same file under two names counts), and whether each input is
 /// the first of its file.
 fn same_files(args: &MergeArgs) -> (Vec<Conflict>, Vec<bool>) {
@@ -116,10 +156,12 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
     image_io::check_output(&args.output, "exr")?;
     let mut inputs = Vec::with_capacity(args.inputs.len());
     let mut records = Vec::with_capacity(args.inputs.len());
+    let mut layers = Vec::with_capacity(args.inputs.len());
     for p in &args.inputs {
         let (img, meta) = image_io::read_exr(p)?;
         let name = p.display().to_string();
         records.push(Provenance::read(&name, &meta).map_err(ProvenanceError::from)?);
+        layers.push(image_io::read_exr_channels(p)?);
         inputs.push((name, img, meta));
     }
     let (mut conflicts, first) = same_files(&args);
@@ -138,8 +180,9 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
         eprintln!("warning: merge --force: {c}");
     }
     let (image, total) = merge(&inputs)?;
-    let meta = provenance::merged_record(&records, &inputs[0].2, &conflicts);
-    image_io::write_exr(&args.output, &image, &meta)?;
+    let mut meta = provenance::merged_record(&records, &inputs[0].2, &conflicts);
+    let channels = merge_layers(&inputs, &layers, &image, &mut meta);
+    image_io::write_exr_channels(&args.output, &image, &channels, &meta)?;
     println!(
         "merged {} renders ({} samples per pixel) -> {}",
         inputs.len(),

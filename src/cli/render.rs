@@ -113,6 +113,11 @@ pub struct SessionArgs {
     /// image so far: a preview for machines without a screen.
     #[arg(long, value_name = "SECONDS")]
     pub preview: Option<f64>,
+    /// Also write these layers as channels of the EXR, separated by commas: variance,
+    /// relative-variance, albedo, normal, depth, position, spp (or all); see the book's
+    /// "Measuring a renderer" for their definitions.
+    #[arg(long, value_name = "LIST", help_heading = OUTPUTS)]
+    pub aovs: Option<crate::aov::AovList>,
 }
 
 impl SessionArgs {
@@ -244,6 +249,9 @@ impl RenderArgs {
                 kind.name()
             )));
         }
+        if let Some(list) = &self.session.aovs {
+            crate::aov::refuse_variance(&list.0, kind).map_err(CliError::Usage)?;
+        }
         if o.light_selection.is_some() && kind != IntegratorKind::Path {
             return Err(CliError::Usage(format!(
                 "--light-selection applies to --integrator path, not `{}` (its light subpaths and connections pick lights by power)",
@@ -299,6 +307,8 @@ struct Plan {
     /// `--shard`: which shard, what it renders, and the whole render's spp and seed (the
     /// settings above are the shard's).
     shard: Option<ShardOf>,
+    /// The feature layers of `--aovs` (computed once, before the passes).
+    features: Option<crate::aov::Features>,
 }
 
 /// A shard of a render: the shard, its part, and the whole render's spp and seed.
@@ -382,6 +392,7 @@ fn configure(
         settings,
         adjoint,
         shard,
+        features: None,
     })
 }
 
@@ -582,7 +593,21 @@ fn write_image(
             meta.attributes.remove(key);
         }
     }
-    image_io::write_exr(&exr, image, &meta).map_err(|e| e.to_string())?;
+    let layers = match &args.session.aovs {
+        Some(list) => {
+            let names: Vec<&str> = list.0.iter().map(|a| a.name()).collect();
+            meta.set("aovs", names.join(","));
+            let sources = crate::aov::Sources {
+                image,
+                variance: result.variance_of_mean.as_ref(),
+                spp: result.spp,
+                features: plan.features.as_ref(),
+            };
+            crate::aov::channels(&list.0, &sources).map_err(CliError::Usage)?
+        }
+        None => Vec::new(),
+    };
+    image_io::write_exr_channels(&exr, image, &layers, &meta).map_err(|e| e.to_string())?;
     image_io::write_png(&png, image).map_err(|e| e.to_string())?;
     Ok(vec![exr.display().to_string(), png.display().to_string()])
 }
@@ -721,10 +746,14 @@ pub(super) fn run_scene(
     settings: RenderSettings,
     source: &crate::scene::SceneSource,
 ) -> Result<(), CliError> {
-    let plan = configure(args, scene, settings)?;
+    let mut plan = configure(args, scene, settings)?;
     check_outputs(args, scene.camera.is_some())?;
     let pool = thread_pool(args.session.threads)?;
     let memory = check_memory(args, scene, &plan, pool.current_num_threads())?;
+    let aovs = args.session.aovs.as_ref().map_or(&[][..], |l| &l.0[..]);
+    if aovs.iter().any(|a| a.is_feature()) {
+        plan.features = pool.install(|| crate::aov::features(scene, plan.settings.seed));
+    }
     let t0 = std::time::Instant::now();
     let pre = pool.install(|| {
         session::preprocess(

@@ -2,7 +2,7 @@
 //! [`Recipe`]: the scene file, the flags, the sample target, the resolution, the shard), and a
 //! resumed command takes all of it from there. A flag given again must say the same; only
 //! `--spp` may change (a new target, announced), with the session's own options (threads,
-//! checkpoint interval, memory limit, outputs), which do not change the image.
+//! checkpoint interval, memory limit, outputs and their layers), which do not change the image.
 
 use std::path::{Path, PathBuf};
 
@@ -30,6 +30,10 @@ pub fn recipe(args: &RenderArgs) -> Recipe {
         png: args.png.as_ref().map(|p| p.display().to_string()),
         reproducible: s.reproducible,
         checkpoint: s.checkpoint,
+        aovs: s.aovs.as_ref().map(|l| {
+            let names: Vec<&str> = l.0.iter().map(|a| a.name()).collect();
+            names.join(",")
+        }),
     }
 }
 
@@ -72,6 +76,10 @@ pub fn complete(args: &mut RenderArgs, path: &Path) -> Result<(), CliError> {
         .transpose()?;
     s.reproducible |= recipe.reproducible;
     s.checkpoint = s.checkpoint.or(recipe.checkpoint);
+    // outputs beside the image: the recipe's unless given anew
+    if s.aovs.is_none() {
+        s.aovs = recipe.aovs.as_deref().map(str::parse).transpose()?;
+    }
     if s.output.is_none() {
         s.output = Some(path.with_extension("exr"));
     }

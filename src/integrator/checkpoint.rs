@@ -126,6 +126,8 @@ pub struct Recipe {
     pub reproducible: bool,
     /// `--checkpoint SECONDS`: the resumed render keeps checkpointing at the same interval.
     pub checkpoint: Option<f64>,
+    /// `--aovs`: the layers the finished render writes beside its image.
+    pub aovs: Option<String>,
 }
 
 /// A render's state between two passes.
