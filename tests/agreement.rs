@@ -41,6 +41,7 @@ fn load(name: &str, text: &str) -> (Scene, RenderSettings) {
         text: text.to_string(),
         base_dir: fixture_dir(),
         origin: None,
+        inputs: Default::default(),
     };
     pathspace::integrator::settings::load(&source).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -87,6 +87,7 @@ fn load(text: &str, dir: &std::path::Path) -> Result<Scene, pathspace::scene::Sc
         text: text.into(),
         base_dir: dir.to_path_buf(),
         origin: None,
+        inputs: Default::default(),
     };
     Scene::load(&source)
 }

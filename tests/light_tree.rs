@@ -19,6 +19,7 @@ fn load(name: &str, text: String) -> Scene {
         text,
         base_dir: std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")),
         origin: None,
+        inputs: Default::default(),
     };
     pathspace::integrator::settings::load(&source)
         .unwrap_or_else(|e| panic!("{e}"))

@@ -363,6 +363,7 @@ fn load_in(dir: &std::path::Path, text: &str) -> Result<Scene, String> {
         text: text.into(),
         base_dir: dir.to_path_buf(),
         origin: None,
+        inputs: Default::default(),
     };
     Scene::load(&src).map_err(|e| e.to_string())
 }

@@ -835,6 +835,7 @@ fn ply_meshes_read_like_obj() {
         text: format!("{CAMERA}\n[[shapes]]\ntype = \"mesh\"\nobj = \"{file}\"\nemission = 1.0\n[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 9.0\nmaterial = \"w\"\n[materials.w]\ntype = \"lambert\"\nalbedo = 0.5\n"),
         base_dir: tmp.clone(),
         origin: None,
+        inputs: Default::default(),
     }
     };
     let want = pixels(&with_mesh("cube.obj"));

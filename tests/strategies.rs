@@ -201,6 +201,7 @@ fn reach_warns_exactly_where_paths_are_lost() {
             text,
             base_dir: dir.into(),
             origin: None,
+            inputs: Default::default(),
         })
         .unwrap()
     };
