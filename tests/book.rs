@@ -284,7 +284,11 @@ fn prose_has_no_stripped_math_delimiters_and_no_control_characters() {
             }
         }
     }
-    assert!(bad.is_empty(), "math a reader does not see:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "math a reader does not see:\n{}",
+        bad.join("\n")
+    );
 }
 
 /// A line of display math that starts like a markdown block (`+ `, `- `, `* `, `> `, `#`, `1. `)

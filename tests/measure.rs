@@ -959,3 +959,26 @@ fn converge_warns_when_the_reference_is_nearly_as_noisy_as_the_runs() {
     assert!(noisy_reference_warning(0.5 * REFERENCE_NOISE_SHARE * 1e-3, &curves).is_none());
     assert!(noisy_reference_warning(2.0 * REFERENCE_NOISE_SHARE * 1e-3, &curves).is_some());
 }
+
+/// An image with a NaN (or infinite) pixel has no error metric: `compare` refuses it naming
+/// the pixel, where the sums would give an RMSE of NaN beside a maximum difference of 0
+/// (`f64::max` passes over a NaN).
+#[test]
+fn a_non_finite_pixel_is_refused_not_averaged() {
+    let good = Image::new(3, 2);
+    for (bad_value, which) in [(f32::NAN, "the image"), (f32::INFINITY, "the reference")] {
+        let mut bad = Image::new(3, 2);
+        bad.pixels[4].y = bad_value;
+        let e = match which {
+            "the image" => metrics::compare(&bad, &good),
+            _ => metrics::compare(&good, &bad),
+        }
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains(&format!("pixel (1, 1) of {which} is not finite")),
+            "{e}"
+        );
+    }
+    assert_eq!(metrics::compare(&good, &good).unwrap().rmse, 0.0);
+}

@@ -45,6 +45,12 @@ pub fn compare(a: &Image, b: &Image) -> Result<Metrics, MeasureError> {
             a.width, a.height, b.width, b.height,
         ));
     }
+    for (img, which) in [(a, "the image"), (b, "the reference")] {
+        if let Some(i) = img.pixels.iter().position(|p| !p.is_finite()) {
+            let (x, y) = (i as u32 % img.width, i as u32 / img.width);
+            return Err(MeasureError::NotFinite(which, x, y));
+        }
+    }
     let (mut se, mut rel, mut max_abs) = (0.0f64, 0.0f64, 0.0f64);
     let mut max_steps = 0;
     for (pa, pb) in a.pixels.iter().zip(&b.pixels) {

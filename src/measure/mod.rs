@@ -46,6 +46,9 @@ pub enum MeasureError {
     /// An image and its reference differ in size.
     #[error("the images differ in size: {0}x{1} against {2}x{3}")]
     SizeMismatch(u32, u32, u32, u32),
+    /// A pixel that is NaN or infinite (which image, the pixel): no metric over it is a number.
+    #[error("the pixel ({1}, {2}) of {0} is not finite (NaN or infinity): no error metric over it is a number")]
+    NotFinite(&'static str, u32, u32),
     /// The twin renders of `diff --twin` and the reference differ in size.
     #[error("the twin renders and the reference differ in size")]
     TwinSizeMismatch,
