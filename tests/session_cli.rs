@@ -193,3 +193,25 @@ fn tiny_and_huge_numbers_are_echoed_compactly() {
     assert!(err.contains("--checkpoint -1e-300 must be"), "{err}");
     assert!(err.lines().all(|l| l.len() < 200), "{err}");
 }
+
+/// Channel names are text from a file too: `diff` lists a hostile one escaped.
+#[test]
+fn diff_lists_hostile_channel_names_escaped() {
+    use pathspace::image_io::{self, Channel, Image, ImageMeta};
+    let dir = scratch("channels");
+    let img = Image::new(2, 2);
+    let evil = Channel {
+        name: "\u{1b}]0;PWNED\u{7}.R".into(),
+        values: vec![0.0; 4],
+    };
+    let path = dir.join("a.exr");
+    image_io::write_exr_channels(&path, &img, &[evil], &ImageMeta::default()).unwrap();
+    let out = run(&dir, &["diff", "a.exr", "a.exr"]);
+    let said = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(said.contains("layers A"), "{said}");
+    assert!(
+        !said.contains('\u{1b}') && said.contains("\\u{1b}]0;PWNED"),
+        "{said}"
+    );
+}

@@ -104,7 +104,8 @@ pub fn run(args: DiffArgs) -> Result<(), CliError> {
         if layers.iter().any(|l| !l.is_empty()) {
             let list = |l: &[String]| match l.is_empty() {
                 true => "none".to_string(),
-                false => l.join(", "),
+                // channel names come from the files: escaped for the terminal
+                false => super::printable(&l.join(", ")),
             };
             println!(
                 "layers A {} (the metrics compare R, G, B)",

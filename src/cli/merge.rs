@@ -115,7 +115,8 @@ fn merge_layers(
     let (channels, left_out) = merge_channels(&parts, image);
     for c in &left_out {
         eprintln!(
-            "warning: merge: channel {c} is not in every input (or cannot be combined): left out"
+            "warning: merge: channel {} is not in every input (or cannot be combined): left out",
+            super::printable(c)
         );
     }
     let mut kept: Vec<Aov> = channels
@@ -177,7 +178,10 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
         return Err(ProvenanceError::Refused(conflicts).into());
     }
     for c in &conflicts {
-        eprintln!("warning: merge --force: {c}");
+        eprintln!(
+            "warning: merge --force: {}",
+            super::printable(&c.to_string())
+        );
     }
     let (image, total) = merge(&inputs)?;
     let mut meta = provenance::merged_record(&records, &inputs[0].2, &conflicts);
