@@ -508,3 +508,47 @@ fn a_file_the_scene_reads_changed_before_resume_is_refused_by_name() {
         "{err}"
     );
 }
+
+/// SMC's octree of radiance caches comes back from a checkpoint only with finite
+/// coefficients: a forged one (here a coefficient set beyond f32, read back as infinity,
+/// the checksum recomputed) is refused.
+#[test]
+fn a_forged_smc_cache_is_refused() {
+    let src = SceneSource::embedded("scene.toml", SMC_TESTBED);
+    let (mut scene, settings) = pathspace::integrator::settings::load(&src).unwrap();
+    scene.camera = scene.camera.as_ref().unwrap().with_resolution(6, 5);
+    let setup = Setup {
+        scene: &scene,
+        technique: &PLAIN,
+        settings: &settings,
+        seed: 5,
+        max_depth: Some(6),
+    };
+    let job = Job {
+        kind: IntegratorKind::Smc,
+        setup,
+        spp: 8,
+        time: None,
+        first_pass: 0,
+        progress: false,
+    };
+    let control = Control {
+        identity: Some(identity(IntegratorKind::Smc, Some((6, 5)))),
+        ..Default::default()
+    };
+    let c = session::render_with(&job, control)
+        .unwrap()
+        .checkpoint
+        .unwrap();
+    assert!(Checkpoint::from_bytes(&c.to_bytes(), "smc").is_ok());
+    let mut json = serde_json::to_value(&c).unwrap();
+    let coefficient = json
+        .pointer_mut("/state/Smc/caches/0/coefficients/c/0/0")
+        .expect("the layout of SMC's state moved");
+    *coefficient = serde_json::json!(1e300);
+    let forged: Checkpoint = serde_json::from_value(json).unwrap();
+    let e = Checkpoint::from_bytes(&forged.to_bytes(), "smc")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("SMC's octree is inconsistent"), "{e}");
+}

@@ -68,6 +68,16 @@ impl Coefficients {
         self.c.len()
     }
 
+    /// Whether every coefficient and sum is a finite number (a cache read back from a
+    /// checkpoint that passed its checksum may still have been forged).
+    pub fn is_finite(&self) -> bool {
+        self.c.iter().all(|c| c.is_finite())
+            && [self.sum, self.sum_row_first, self.sum_row_last]
+                .iter()
+                .flatten()
+                .all(|x| x.is_finite())
+    }
+
     /// Whether no coefficient is stored.
     pub fn is_empty(&self) -> bool {
         self.c.is_empty()

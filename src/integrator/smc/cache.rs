@@ -58,10 +58,15 @@ impl RadianceCache {
         }
     }
 
-    /// Whether the arrays agree with the grid (a cache read back from a checkpoint).
+    /// Whether the arrays agree with the grid and hold finite numbers (a cache read back from
+    /// a checkpoint).
     pub fn is_consistent(&self) -> bool {
         let cells = self.coefficients.grid.cells();
-        self.counts.len() == cells && self.pdf.len() == cells && self.coefficients.len() == cells
+        self.counts.len() == cells
+            && self.pdf.len() == cells
+            && self.coefficients.len() == cells
+            && self.coefficients.is_finite()
+            && self.pdf.is_finite()
     }
 
     pub fn grid(&self) -> Grid {

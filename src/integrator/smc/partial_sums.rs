@@ -105,6 +105,11 @@ impl PartialSums {
         self.n
     }
 
+    /// Whether every partial sum is finite and non-negative, as sums of pdf values are.
+    pub fn is_finite(&self) -> bool {
+        self.nodes.iter().all(|x| x.is_finite() && *x >= 0.0)
+    }
+
     /// Always false: a tree has at least one cell.
     pub fn is_empty(&self) -> bool {
         false
