@@ -275,6 +275,24 @@ fn pathspace_in(dir: &Path, args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// SIGINT to `child` once `checkpoint` exists (its first pass is done); its output, which must
+/// say it was interrupted (exit 130).
+fn sigint_after_first_checkpoint(child: std::process::Child, checkpoint: &Path) -> String {
+    while !checkpoint.exists() {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(130), "not interrupted: {err}");
+    err
+}
+
 /// The render the user asked for, interrupted by SIGINT after its first checkpoint: the scene
 /// given by a path relative to `dir`, a target of 512 spp (about a second on one thread, many
 /// passes after the first checkpoint).
@@ -304,19 +322,7 @@ fn interrupted_long_render(dir: &Path) -> String {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    while !dir.join("long.checkpoint").exists() {
-        std::thread::sleep(std::time::Duration::from_millis(10));
-    }
-    let pid = child.id().to_string();
-    assert!(Command::new("kill")
-        .args(["-INT", &pid])
-        .status()
-        .unwrap()
-        .success());
-    let out = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr).to_string();
-    assert_eq!(out.status.code(), Some(130), "not interrupted: {err}");
-    err
+    sigint_after_first_checkpoint(child, &dir.join("long.checkpoint"))
 }
 
 /// The command the interrupted render prints, `--resume long.checkpoint` and nothing else,
@@ -490,15 +496,7 @@ fn a_file_the_scene_reads_changed_before_resume_is_refused_by_name() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    while !exr.with_extension("checkpoint").exists() {
-        std::thread::sleep(std::time::Duration::from_millis(10));
-    }
-    assert!(Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
-    assert_eq!(child.wait_with_output().unwrap().status.code(), Some(130));
+    sigint_after_first_checkpoint(child, &exr.with_extension("checkpoint"));
     std::fs::write(dir.join("cube.obj"), format!("{cube}\n# edited\n")).unwrap();
     let out = pathspace_in(&dir, &["render", "--resume", "part.checkpoint"]);
     let err = String::from_utf8_lossy(&out.stderr);

@@ -284,18 +284,16 @@ pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), Cl
     }
 }
 
+/// A loaded scene: the scene, its `[render]` settings and its source.
+pub type Loaded = (
+    crate::scene::Scene,
+    crate::integrator::RenderSettings,
+    crate::scene::SceneSource,
+);
+
 /// Loads the named scene, or the embedded fog box when `None`: the scene, its `[render]`
 /// settings and its source.
-pub fn load_scene(
-    path: Option<&std::path::Path>,
-) -> Result<
-    (
-        crate::scene::Scene,
-        crate::integrator::RenderSettings,
-        crate::scene::SceneSource,
-    ),
-    CliError,
-> {
+pub fn load_scene(path: Option<&std::path::Path>) -> Result<Loaded, CliError> {
     let source = match path {
         Some(p) => crate::scene::SceneSource::read(p)?,
         None => {
@@ -334,14 +332,7 @@ impl ResolutionArg {
 pub fn load_scene_at(
     path: Option<&std::path::Path>,
     resolution: &ResolutionArg,
-) -> Result<
-    (
-        crate::scene::Scene,
-        crate::integrator::RenderSettings,
-        crate::scene::SceneSource,
-    ),
-    CliError,
-> {
+) -> Result<Loaded, CliError> {
     let (mut scene, settings, source) = load_scene(path)?;
     resolution.apply(&mut scene)?;
     Ok((scene, settings, source))
