@@ -571,16 +571,18 @@ def changed_case(args, rng, work, bases):
         f.write(data)
     cmd = [args.bin, "render", "--resume", "c.checkpoint", "--spp", str(done + 1)]
     p = run(cmd, work, args.render_timeout, args.memory)
-    # a cut file may no longer load at all: then the scene's error is the refusal
-    names = [fname] + (["scene.toml"] if op == "truncate" else [])
+    # a cut or changed file may no longer load at all: then the scene's error is the refusal
+    names = [fname] + (["scene.toml"] if op != "append" else [])
     outcome = "resumed-changed" if p is not None and p.returncode == 0 else judge(p, names)
     return [f"{fname}: {op}"], outcome, [cmd]
 
 
 def hostile_xml(rng, text):
-    """A Mitsuba scene given a hostile part: an attribute flood, deep nesting, a huge text node,
-    a DTD with entities, or very many elements, before the scene's closing tag."""
-    op = rng.choice(["attributes", "nesting", "text", "entities", "elements", "attribute"])
+    """A Mitsuba scene given a hostile part before its closing tag: an attribute flood, deep
+    nesting, a huge text node, a DTD with entities, very many elements, or very many valid
+    spheres (which it must import and render within the time limit)."""
+    op = rng.choice(["attributes", "nesting", "text", "entities", "elements", "attribute", "shapes",
+                     "shapes", "typed"])
     if op == "attributes":
         n = rng.choice([64, 65, 1000, 100_000])
         part = "<float " + " ".join(f'a{i}="{i}"' for i in range(n)) + ' name="x" value="1"/>'
@@ -594,6 +596,13 @@ def hostile_xml(rng, text):
         dtd = ('<!DOCTYPE scene [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">'
                '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;">]>\n')
         return dtd.encode() + text.replace(b'value="', b'value="&c;', 1), "DTD with nested entities"
+    elif op == "typed":
+        n = rng.choice([100, 10_000, 300_000])
+        part = '<shape type="sphere">' * n + "</shape>" * n
+    elif op == "shapes":
+        n = rng.choice([10, 1000, 20_000])
+        part = "".join(f'<shape type="sphere"><point name="center" x="{i % 7 * 0.1}" y="0.1" z="{i % 5 * 0.1}"/>'
+                       f'<float name="radius" value="0.01"/><bsdf type="diffuse"/></shape>' for i in range(n))
     elif op == "elements":
         n = rng.choice([1000, 100_000, 1_000_000])
         part = '<float name="x" value="1"/>' * n
