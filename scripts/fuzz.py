@@ -613,6 +613,18 @@ def hostile_xml(rng, text):
     return text[:at] + part.encode() + b"\n" + text[at:], f"{op} ({len(part)} bytes)"
 
 
+def started(p, bin_):
+    """Waits until the child runs the binary: a SIGINT that reaches the forked Python child
+    before its exec is lost (the exec resets the handler that took it)."""
+    for _ in range(2000):
+        try:
+            if os.readlink(f"/proc/{p.pid}/exe") == os.path.realpath(bin_) or p.poll() is not None:
+                return
+        except OSError:
+            return
+        time.sleep(0.001)
+
+
 def kill_case(args, rng, work, bases):
     """A render killed while it writes an output that exists: the output is then the earlier
     file or a whole new one, never a partial one."""
@@ -628,6 +640,7 @@ def kill_case(args, rng, work, bases):
     cmd += ["--checkpoint", "0"] if every_pass else []
     p = subprocess.Popen(cmd, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                          preexec_fn=limit_memory(args.memory))
+    started(p, args.bin)
     time.sleep(delay)
     p.send_signal(sig)
     try:
