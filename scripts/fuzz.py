@@ -1,12 +1,28 @@
 #!/usr/bin/env python3
 """Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids,
-OBJ meshes and EXR environment maps.
+OBJ meshes and EXR environment maps, and of the files it reads back: checkpoints and renders.
 
-Each case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a scratch
-directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types, deleted or
-duplicated lines, resized arrays, control bytes and bad UTF-8, truncation, huge headers and
-arrays), and runs `pathspace info` and `pathspace render` on it under a time and a memory
-limit. What a case may end as:
+Each scene case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a
+scratch directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types,
+deleted or duplicated lines, resized arrays, control bytes and bad UTF-8, truncation, huge
+headers and arrays), and runs `pathspace info` and `pathspace render` on it under a time and a
+memory limit. A quarter of the cases are adversarial instead, made from an 8x8 fog box (and its
+mesh and grid variants) rendered once per campaign:
+
+  checkpoint  a checkpoint flipped, cut, extended, or forged (payload bytes set to NaN, inf or
+              huge floats and the FNV-1a checksum recomputed), then `render --resume`
+  merge       one of two renders given a lying header (spp, shard, streams, scene_inputs,
+              seed) or extreme pixels, then `merge`; the merged image must read back finite
+  changed     the mesh or grid a checkpoint's scene reads edited, then `render --resume`:
+              it must be refused naming that file
+  xml         a Mitsuba scene with an attribute flood, deep nesting, a huge text node, a DTD
+              with entities or a million elements: refused or imported within the time limit
+  kill        a render writing over an existing output killed (SIGKILL, or SIGINT) at a
+              random moment: the output is the earlier file or a whole new one, a checkpoint
+              left behind has a matching checksum, and `.partial` files only after SIGKILL
+  writers     two renders with the same output at once: both succeed, the output reads back
+
+What a case may end as:
 
   ok        the render finished and its mean is finite
   refused   a nonzero exit with an error that names the file it is about
@@ -15,15 +31,20 @@ limit. What a case may end as:
   timeout   info or render exceeded its time limit
   memory    the memory limit was hit (an allocation failure or a kill)
   crash     killed by another signal
-  nonfinite a finished render whose mean is NaN or infinite
+  nonfinite a finished render or merge whose mean is NaN or infinite
   unnamed   an error that names no file, or a silent nonzero exit
   control   an error that echoes raw control bytes
+  partial   a killed write left a damaged output, or `.partial` files after a clean stop
+  resumed-changed  a resume went on although a file its scene reads had changed
+  writers   one of two concurrent renders failed, or their output does not read back
 
-Cases are reproducible: case k of `--seed S` is the same mutation on every machine.
-`--keep DIR` saves every case that is a bug, with the command lines, for replay.
+Cases are reproducible: case k of `--seed S` is the same mutation on every machine (a base
+checkpoint's pass count depends on timing, so its bytes may differ; `--keep` saves them).
+`--keep DIR` saves every case that is a bug, with the command lines, for replay; `--only KIND`
+runs only the cases of one kind among the indices.
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
-  python3 scripts/fuzz.py --cases 300                   # the short version .ci/run runs
+  python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
 """
 
 import argparse
@@ -40,9 +61,11 @@ import struct
 import subprocess
 import sys
 import tempfile
+import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BAD = ("panic", "timeout", "memory", "crash", "nonfinite", "unnamed", "control")
+BAD = ("panic", "timeout", "memory", "crash", "nonfinite", "unnamed", "control", "partial",
+       "resumed-changed", "writers")
 
 EXTREME_NUMBERS = [
     "0", "-0.0", "-1", "0.5", "3", "1e-9", "1e-30", "1e9", "1e30", "-1e30", "1e308",
@@ -99,9 +122,10 @@ def load_seed(rel):
 
 
 def fog_box_with_mesh():
-    """The fog box whose fog boundary is an OBJ cube, so that OBJ mutations reach the parser."""
+    """The fog box whose fog boundary is an OBJ cube, so that OBJ mutations reach the parser
+    (the box's lines end at the next table or comment)."""
     text, _ = load_seed(os.path.join("scenes", "fog-box.toml"))
-    text = re.sub(rb'\[\[shapes\]\]\ntype = "box"[^\[]*', b"", text) + MESH_SCENE.encode()
+    text = re.sub(rb'\[\[shapes\]\]\ntype = "box"\n(?:[^\[#\n][^\n]*\n|\n)*', b"", text) + MESH_SCENE.encode()
     with open(os.path.join(ROOT, "tests", "fixtures", "cube.obj"), "rb") as f:
         return text, {"cube.obj": f.read()}
 
@@ -300,6 +324,382 @@ def mutate_obj(rng, data):
     return mutate_words(rng, data, words, "obj")
 
 
+# ---- adversarial cases: checkpoints, merges, changed inputs, hostile XML, kills, writers -----
+
+ADVERSARIAL = ["checkpoint", "merge", "changed", "xml", "kill", "writers"]
+ADVERSARIAL_WEIGHTS = [30, 25, 10, 15, 12, 8]
+ADVERSARIAL_SHARE = 0.25
+CHECKPOINT_MAGIC = b"pathspace checkpoint v3\n"
+HEAD = len(CHECKPOINT_MAGIC) + 8  # the magic line, then the payload's FNV-1a checksum
+SPECIALS = [float("nan"), float("inf"), -float("inf"), 3.4e38, 1e300, -1.0, -1e30]
+TINY = ["--resolution", "8x8", "--threads", "1"]
+RESUME_SPP = 500  # a base checkpoint's target: its interruption comes long before, a resume is short
+
+
+def adversarial_kind(seed, k):
+    """Case k's adversarial kind, or None for a mutated scene (a separate stream, so that the
+    scene cases keep their mutations)."""
+    rng = random.Random(f"{seed}:{k}:kind")
+    if rng.random() >= ADVERSARIAL_SHARE:
+        return None
+    return rng.choices(ADVERSARIAL, ADVERSARIAL_WEIGHTS)[0]
+
+
+def fnv1a64(data):
+    h = 0xCBF29CE484222325
+    for b in data:
+        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def checkpoint_sound(data):
+    """A checkpoint file that is whole: its magic line and a checksum that matches its payload."""
+    return (data.startswith(CHECKPOINT_MAGIC) and len(data) >= HEAD
+            and struct.unpack("<Q", data[len(CHECKPOINT_MAGIC):HEAD])[0] == fnv1a64(data[HEAD:]))
+
+
+def interrupted(bin_, work, scene, out):
+    """Render `scene` at 8x8 with a checkpoint after every pass and stop it by SIGINT once the
+    checkpoint exists: the passes it finished (a finished render removes its checkpoint)."""
+    p = subprocess.Popen([bin_, "render", scene, "--spp", str(RESUME_SPP), "--checkpoint", "0", "-o", out]
+                         + TINY, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    ckpt = os.path.join(work, out[:-4] + ".checkpoint")
+    for _ in range(1000):
+        if os.path.exists(ckpt):
+            break
+        time.sleep(0.01)
+    time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    err = p.communicate(timeout=30)[1].decode(errors="replace")
+    m = re.search(r"after (\d+) of", err)
+    if not m or not os.path.exists(ckpt):
+        sys.exit(f"fuzz: could not make a checkpoint of {scene}: {err}")
+    return int(m.group(1))
+
+
+def prepare_bases(args):
+    """The inputs the adversarial cases mutate, made once per campaign (a checkpoint's passes
+    depend on timing; a case's mutation depends only on the seed and its index)."""
+    base = tempfile.mkdtemp(prefix="fuzz-base-", dir=args.scratch)
+    bases = {}
+    fog, _ = load_seed(os.path.join("scenes", "fog-box.toml"))
+    grid, grid_files = load_seed(os.path.join("tests", "fixtures", "agreement", "grid.toml"))
+    mesh, mesh_files = fog_box_with_mesh()
+    for name, text, files in (("fog", fog, {}), ("mesh", mesh, mesh_files), ("grid", grid, grid_files)):
+        d = os.path.join(base, name)
+        os.makedirs(d)
+        with open(os.path.join(d, "scene.toml"), "wb") as f:
+            f.write(text)
+        for fname, data in files.items():
+            with open(os.path.join(d, fname), "wb") as f:
+                f.write(data)
+        bases[name] = (d, interrupted(args.bin, d, "scene.toml", "c.exr"), sorted(files))
+    d = os.path.join(base, "merge")
+    os.makedirs(d)
+    with open(os.path.join(d, "scene.toml"), "wb") as f:
+        f.write(fog)
+    for s in ("1", "2"):
+        subprocess.run([args.bin, "render", "scene.toml", "--spp", "2", "--seed", s, "-o", f"m{s}.exr"]
+                       + TINY, cwd=d, check=True, capture_output=True)
+    bases["merge"] = (d, 2, [])
+    return base, bases
+
+
+def exr_header(data):
+    """An EXR's header attributes [(name, type, value)] and where the header ends."""
+    attrs, i = [], 8
+    while data[i] != 0:
+        name = data[i:data.index(b"\0", i)]
+        i += len(name) + 1
+        kind = data[i:data.index(b"\0", i)]
+        i += len(kind) + 1
+        size = struct.unpack("<i", data[i:i + 4])[0]
+        attrs.append([name, kind, data[i + 4:i + 4 + size]])
+        i += 4 + size
+    return attrs, i + 1
+
+
+def exr_with(data, name, kind, value):
+    """The EXR with one header attribute set (added if missing); the chunk offsets shifted."""
+    attrs, end = exr_header(data)
+    hit = [a for a in attrs if a[0] == name]
+    if hit:
+        hit[0][1:] = [kind, value]
+    else:
+        attrs.append([name, kind, value])
+    head = data[:8] + b"".join(n + b"\0" + t + b"\0" + struct.pack("<i", len(v)) + v
+                               for n, t, v in attrs) + b"\0"
+    chunks = struct.unpack("<i", dict((a[0], a[2]) for a in attrs)[b"chunkCount"])[0]
+    delta = len(head) - end
+    table = struct.unpack(f"<{chunks}Q", data[end:end + 8 * chunks])
+    return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
+
+
+def exr_raw_pixels(rng, data):
+    """The 8x8 RGB EXR's one chunk replaced by uncompressed floats, some of them extreme."""
+    attrs, end = exr_header(data)
+    values = [0.1] * 192
+    for _ in range(rng.randint(1, 4)):
+        values[rng.randrange(192)] = rng.choice(SPECIALS)
+    raw = struct.pack("<192f", *[max(min(v, 3.4e38), -3.4e38) if v == v and abs(v) != float("inf")
+                                 else v for v in values])
+    return data[:end + 8] + struct.pack("<ii", 0, len(raw)) + raw, f"pixels {sorted(set(map(str, values)))}"
+
+
+def image_finite(args, work, name):
+    """A written image reads back (`pathspace diff` against itself) with a finite mean."""
+    p = run([args.bin, "diff", "--json", name, name], work, args.info_timeout, args.memory)
+    if p is None or p.returncode != 0:
+        return False
+    try:
+        record = json.loads(p.stdout.decode().strip().splitlines()[-1])
+        return finite(v for k, v in record.items() if k.startswith("mean") for v in (v if isinstance(v, list) else [v]))
+    except (ValueError, IndexError, UnicodeDecodeError):
+        return False
+
+
+def copy_base(src, work):
+    for name in os.listdir(src):
+        shutil.copy(os.path.join(src, name), work)
+
+
+def forge(rng, payload):
+    """Payload bytes altered in place: special floats (f32 or f64) or random bytes."""
+    payload = bytearray(payload)
+    steps = []
+    for _ in range(rng.randint(1, 3)):
+        if rng.random() < 0.7 and len(payload) > 16:
+            wide = rng.random() < 0.6
+            v = rng.choice(SPECIALS)
+            b = struct.pack("<d", v) if wide else struct.pack("<f", max(min(v, 3.4e38), -3.4e38) if abs(v) > 3.4e38 and v == v and abs(v) != float("inf") else v)
+            at = rng.randrange(len(payload) - len(b))
+            payload[at:at + len(b)] = b
+            steps.append(f"{'f64' if wide else 'f32'} {v} at {at}")
+        else:
+            at = rng.randrange(len(payload))
+            payload[at] = rng.randrange(256)
+            steps.append(f"byte {payload[at]} at {at}")
+    return bytes(payload), steps
+
+
+def mutate_checkpoint(rng, data):
+    op = rng.choice(["forged", "forged", "forged", "flip", "truncate", "extend", "magic"])
+    if op == "forged":
+        payload, steps = forge(rng, data[HEAD:])
+        return CHECKPOINT_MAGIC + struct.pack("<Q", fnv1a64(payload)) + payload, ["forged"] + steps
+    if op == "flip":
+        at = rng.randrange(len(data))
+        return data[:at] + bytes([data[at] ^ (1 << rng.randrange(8))]) + data[at + 1:], [f"flip at {at}"]
+    if op == "truncate":
+        at = rng.randrange(len(data))
+        return data[:at], [f"truncate at {at}"]
+    if op == "extend":
+        n = rng.choice([1, 100, 1 << 16])
+        return data + bytes(rng.randrange(256) for _ in range(n)), [f"extend by {n}"]
+    return b"pathspace checkpoint v2\n" + data[len(CHECKPOINT_MAGIC):], ["old magic"]
+
+
+def checkpoint_case(args, rng, work, bases):
+    d, done, _ = bases["fog"]
+    copy_base(d, work)
+    path = os.path.join(work, "c.checkpoint")
+    with open(path, "rb") as f:
+        data, steps = mutate_checkpoint(rng, f.read())
+    with open(path, "wb") as f:
+        f.write(data)
+    cmd = [args.bin, "render", "--resume", "c.checkpoint", "--json"]
+    if rng.random() < 0.7:
+        cmd += ["--spp", str(done + rng.randint(1, 2))]
+    p = run(cmd, work, args.render_timeout, args.memory)
+    outcome = judge(p, ["c.checkpoint", "c.exr", "scene.toml"])
+    return steps, (render_outcome(p) if outcome == "ok" else outcome), [cmd]
+
+
+def merge_case(args, rng, work, bases):
+    copy_base(bases["merge"][0], work)
+    victim = rng.choice(["m1.exr", "m2.exr"])
+    path = os.path.join(work, victim)
+    with open(path, "rb") as f:
+        data = f.read()
+    op = rng.choice(["spp", "spp", "shard", "streams", "scene_inputs", "seed", "pixels", "pixels", "byte"])
+    garbage = rng.choice(["", "x", "1:0..1", "1:5..2", "1:0..18446744073709551615", "\x07\x1b[31m",
+                          "1/4294967295", "0/0", "2/1", "a" * 5000, "cube.obj=zz", "\xff"])
+    if op == "spp":
+        v = rng.choice([0, -1, 2**31 - 1, -(2**31), 2**30, None])
+        data = exr_with(data, b"spp", b"string", b"many") if v is None else \
+            exr_with(data, b"spp", b"int", struct.pack("<i", v))
+        step = f"{victim}: spp -> {v}"
+    elif op == "shard":
+        v = rng.choice(["1/4294967295", "1/1000000000", "0/0", "2/1", "1/18446744073709551616", garbage])
+        data = exr_with(data, b"shard", b"string", v.encode())
+        step = f"{victim}: shard -> {v!r}"
+    elif op in ("streams", "scene_inputs", "seed"):
+        data = exr_with(data, op.encode(), b"string", garbage.encode())
+        step = f"{victim}: {op} -> {garbage[:40]!r}"
+    elif op == "pixels":
+        data, what = exr_raw_pixels(rng, data)
+        step = f"{victim}: {what}"
+    else:
+        at = rng.randrange(len(data))
+        data = data[:at] + bytes([rng.randrange(256)]) + data[at + 1:]
+        step = f"{victim}: byte at {at}"
+    with open(path, "wb") as f:
+        f.write(data)
+    cmd = [args.bin, "merge", "m1.exr", "m2.exr", "-o", "merged.exr"] + (["--force"] if rng.random() < 0.3 else [])
+    outcome = judge(run(cmd, work, args.render_timeout, args.memory), ["m1.exr", "m2.exr"])
+    if outcome == "ok" and not image_finite(args, work, "merged.exr"):
+        outcome = "nonfinite"
+    return [step], outcome, [cmd]
+
+
+def changed_case(args, rng, work, bases):
+    d, done, files = bases[rng.choice(["mesh", "grid"])]
+    copy_base(d, work)
+    fname = rng.choice(files)
+    path = os.path.join(work, fname)
+    with open(path, "rb") as f:
+        data = f.read()
+    op = rng.choice(["append", "digit", "truncate"])
+    if op == "append":
+        data += b"\n# edited\n"
+    elif op == "digit":
+        at = rng.choice([m.start() for m in re.finditer(rb"[1-9]", data)])
+        data = data[:at] + bytes([data[at] ^ 1]) + data[at + 1:]
+    else:
+        data = data[:len(data) * 9 // 10]
+    with open(path, "wb") as f:
+        f.write(data)
+    cmd = [args.bin, "render", "--resume", "c.checkpoint", "--spp", str(done + 1)]
+    p = run(cmd, work, args.render_timeout, args.memory)
+    # a cut or changed file may no longer load at all: then the scene's error is the refusal
+    names = [fname] + (["scene.toml"] if op != "append" else [])
+    outcome = "resumed-changed" if p is not None and p.returncode == 0 else judge(p, names)
+    return [f"{fname}: {op}"], outcome, [cmd]
+
+
+def hostile_xml(rng, text):
+    """A Mitsuba scene given a hostile part before its closing tag: an attribute flood, deep
+    nesting, a huge text node, a DTD with entities, very many elements, or very many valid
+    spheres (which it must import and render within the time limit)."""
+    op = rng.choice(["attributes", "nesting", "text", "entities", "elements", "attribute", "shapes",
+                     "shapes", "typed"])
+    if op == "attributes":
+        n = rng.choice([64, 65, 1000, 100_000])
+        part = "<float " + " ".join(f'a{i}="{i}"' for i in range(n)) + ' name="x" value="1"/>'
+    elif op == "nesting":
+        n = rng.choice([100, 10_000, 200_000])
+        part = "<shape>" * n + "</shape>" * n
+    elif op == "text":
+        n = rng.choice([1 << 10, 1 << 20, 1 << 24])
+        part = "<string name=\"x\" value=\"" + "a" * n + "\"/>" if rng.random() < 0.5 else "<ref>" + "b" * n + "</ref>"
+    elif op == "entities":
+        dtd = ('<!DOCTYPE scene [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">'
+               '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;">]>\n')
+        return dtd.encode() + text.replace(b'value="', b'value="&c;', 1), "DTD with nested entities"
+    elif op == "typed":
+        n = rng.choice([100, 10_000, 300_000])
+        part = '<shape type="sphere">' * n + "</shape>" * n
+    elif op == "shapes":
+        n = rng.choice([10, 1000, 20_000])
+        part = "".join(f'<shape type="sphere"><point name="center" x="{i % 7 * 0.1}" y="0.1" z="{i % 5 * 0.1}"/>'
+                       f'<float name="radius" value="0.01"/><bsdf type="diffuse"/></shape>' for i in range(n))
+    elif op == "elements":
+        n = rng.choice([1000, 100_000, 1_000_000])
+        part = '<float name="x" value="1"/>' * n
+    else:
+        part = "<float " + 'name="x" ' * rng.choice([2, 1000]) + 'value="1"/>'
+    at = text.rfind(b"</scene>")
+    at = at if at >= 0 else len(text)
+    return text[:at] + part.encode() + b"\n" + text[at:], f"{op} ({len(part)} bytes)"
+
+
+def started(p, bin_):
+    """Waits until the child runs the binary: a SIGINT that reaches the forked Python child
+    before its exec is lost (the exec resets the handler that took it)."""
+    for _ in range(2000):
+        try:
+            if os.readlink(f"/proc/{p.pid}/exe") == os.path.realpath(bin_) or p.poll() is not None:
+                return
+        except OSError:
+            return
+        time.sleep(0.001)
+
+
+def kill_case(args, rng, work, bases):
+    """A render killed while it writes an output that exists: the output is then the earlier
+    file or a whole new one, never a partial one."""
+    copy_base(bases["merge"][0], work)
+    shutil.copy(os.path.join(work, "m1.exr"), os.path.join(work, "out.exr"))
+    with open(os.path.join(work, "out.exr"), "rb") as f:
+        earlier = f.read()
+    sig = signal.SIGKILL if rng.random() < 0.8 else signal.SIGINT
+    every_pass = rng.random() < 0.6
+    spp = "100000000" if every_pass else str(rng.randint(1, 64))
+    delay = rng.uniform(0, 0.15 if every_pass else 0.03)
+    cmd = [args.bin, "render", "scene.toml", "--spp", spp, "-o", "out.exr"] + TINY
+    cmd += ["--checkpoint", "0"] if every_pass else []
+    p = subprocess.Popen(cmd, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                         preexec_fn=limit_memory(args.memory))
+    started(p, args.bin)
+    time.sleep(delay)
+    p.send_signal(sig)
+    try:
+        err = p.communicate(timeout=args.render_timeout)[1]
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        return [f"signal {int(sig)} after {delay:.3f} s"], "timeout", [cmd]
+    steps = [f"signal {int(sig)} after {delay:.3f} s, exit {p.returncode}"]
+    outcome = "ok"
+    if p.returncode not in (0, 130, -signal.SIGKILL, -signal.SIGINT):
+        outcome = judge(subprocess.CompletedProcess(cmd, p.returncode, b"", err), [])
+    with open(os.path.join(work, "out.exr"), "rb") as f:
+        now = f.read()
+    if now != earlier and not image_finite(args, work, "out.exr"):
+        outcome = "partial"
+    ckpt = os.path.join(work, "out.checkpoint")
+    if os.path.exists(ckpt):
+        with open(ckpt, "rb") as f:
+            if not checkpoint_sound(f.read()):
+                outcome, steps = "partial", steps + ["out.checkpoint unsound"]
+    leftovers = [n for n in os.listdir(work) if n.endswith(".partial")]
+    if leftovers:
+        steps.append(f"leftovers {leftovers}")
+        if p.returncode != -signal.SIGKILL:
+            outcome = "partial"
+    return steps, outcome, [cmd]
+
+
+def writers_case(args, rng, work, bases):
+    """Two renders with the same output at once: both finish and the output reads back."""
+    copy_base(bases["merge"][0], work)
+    cmds = [[args.bin, "render", "scene.toml", "--spp", str(rng.randint(1, 8)), "--seed", str(s),
+             "-o", "out.exr"] + TINY for s in (1, 2)]
+    procs = [subprocess.Popen(c, cwd=work, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              preexec_fn=limit_memory(args.memory)) for c in cmds]
+    outcome = "ok"
+    for c, p in zip(cmds, procs):
+        try:
+            err = p.communicate(timeout=args.render_timeout)[1]
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.communicate()
+            outcome = "timeout"
+            continue
+        o = judge(subprocess.CompletedProcess(c, p.returncode, b"", err), [])
+        if o != "ok" and outcome == "ok":
+            outcome = o if o in BAD else "writers"
+    if outcome == "ok" and not image_finite(args, work, "out.exr"):
+        outcome = "writers"
+    if outcome == "ok" and any(n.endswith(".partial") for n in os.listdir(work)):
+        outcome = "partial"
+    return [cmds[0][4] + " and " + cmds[1][4] + " spp"], outcome, cmds
+
+
+ADVERSARIAL_CASES = {"checkpoint": checkpoint_case, "merge": merge_case, "changed": changed_case,
+                     "kill": kill_case, "writers": writers_case}
+
+
 # ---- one case --------------------------------------------------------------------------
 
 
@@ -372,7 +772,8 @@ def judge(p, names):
         return "control"
     if names and not any(n.encode() in err for n in names):
         return "unnamed"
-    if not err.startswith(b"error"):
+    # notes may come first (a resume says what it continues), but an error line must follow
+    if not re.search(rb"^error", err, re.M):
         return "unnamed"
     return "refused"
 
@@ -393,8 +794,37 @@ def render_outcome(p):
     return "ok" if finite(values) else "nonfinite"
 
 
-def case(args, k, seeds, keys, strings):
+def keep_case(args, k, outcome, work, name, steps, cmds):
+    keep = os.path.join(args.keep, f"{outcome}-{k}")
+    shutil.copytree(work, keep, dirs_exist_ok=True)
+    with open(os.path.join(keep, "README"), "w") as f:
+        f.write(f"seed scene {name}\nmutations {steps}\n")
+        f.write("\n".join(" ".join(c) for c in cmds) + "\n")
+
+
+def adversarial_case(args, k, kind, bases):
+    rng = random.Random(f"{args.seed}:{k}:{kind}")
+    work = tempfile.mkdtemp(prefix=f"fuzz-{k}-", dir=args.scratch)
+    try:
+        steps, outcome, cmds = ADVERSARIAL_CASES[kind](args, rng, work, bases)
+        if outcome in BAD and args.keep:
+            keep_case(args, k, outcome, work, kind, steps, cmds)
+        return k, kind, steps, outcome
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def case(args, k, seeds, keys, strings, bases):
+    kind = adversarial_kind(args.seed, k)
+    if kind in ADVERSARIAL_CASES:
+        return adversarial_case(args, k, kind, bases)
     name, text, files, steps, flags, small = make_case(k, args.seed, seeds, keys, strings)
+    if kind == "xml":
+        rng = random.Random(f"{args.seed}:{k}:xml")
+        name = rng.choice([s for s in seeds if s.endswith(".xml")])
+        text, files = load_seed(name)
+        text, what = hostile_xml(rng, text)
+        steps, flags = [what], []
     work = tempfile.mkdtemp(prefix=f"fuzz-{k}-", dir=args.scratch)
     try:
         xml = name.endswith(".xml")
@@ -419,11 +849,7 @@ def case(args, k, seeds, keys, strings):
             if outcome == "ok":
                 outcome = render_outcome(p)
         if outcome in BAD and args.keep:
-            keep = os.path.join(args.keep, f"{outcome}-{k}")
-            shutil.copytree(work, keep, dirs_exist_ok=True)
-            with open(os.path.join(keep, "README"), "w") as f:
-                f.write(f"seed scene {name}\nmutations {steps}\n")
-                f.write("\n".join(" ".join(c) for c in cmds) + "\n")
+            keep_case(args, k, outcome, work, name, steps, cmds)
         return k, name, steps, outcome
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -451,6 +877,8 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
+    ap.add_argument("--only", choices=["scene"] + ADVERSARIAL,
+                    help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
     args = ap.parse_args()
@@ -463,21 +891,34 @@ def main():
     seeds = corpus()
     keys, strings = vocabulary(seeds)
     counts = collections.Counter()
+    kinds = collections.defaultdict(collections.Counter)
     bugs = []
+    base, bases = prepare_bases(args)
+    try:
+        run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs)
+    finally:
+        shutil.rmtree(base, ignore_errors=True)
+    summary = {o: counts[o] for o in ("ok", "refused") + BAD}
+    print(json.dumps({"cases": args.cases, "seed": args.seed, "first": args.first, **summary,
+                      "kinds": {k: dict(c) for k, c in sorted(kinds.items())}}))
+    sys.exit(1 if bugs else 0)
+
+
+def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        jobs = [pool.submit(case, args, k, seeds, keys, strings)
-                for k in range(args.first, args.first + args.cases)]
+        ks = range(args.first, args.first + args.cases)
+        if args.only:
+            ks = [k for k in ks if (adversarial_kind(args.seed, k) or "scene") == args.only]
+        jobs = [pool.submit(case, args, k, seeds, keys, strings, bases) for k in ks]
         for done, fut in enumerate(concurrent.futures.as_completed(jobs), 1):
             k, name, steps, outcome = fut.result()
             counts[outcome] += 1
+            kinds[adversarial_kind(args.seed, k) or "scene"][outcome] += 1
             if outcome in BAD:
                 bugs.append((k, name, steps, outcome))
                 print(f"fuzz: case {k} ({name}, {steps}): {outcome}", file=sys.stderr)
             if done % 500 == 0:
                 print(f"fuzz: {done}/{args.cases} {dict(counts)}", file=sys.stderr)
-    summary = {o: counts[o] for o in ("ok", "refused") + BAD}
-    print(json.dumps({"cases": args.cases, "seed": args.seed, "first": args.first, **summary}))
-    sys.exit(1 if bugs else 0)
 
 
 if __name__ == "__main__":

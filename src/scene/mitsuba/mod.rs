@@ -22,7 +22,7 @@ use std::sync::Arc;
 
 use crate::scene::file::{Origin, SceneFile, SceneSource, FILE_KEY};
 use crate::scene::SceneError;
-use props::{line, Doc};
+use props::{newlines, Doc};
 
 /// The most XML nodes a scene may have (the text is already limited to `MAX_SCENE_BYTES`).
 pub const MAX_XML_NODES: u32 = 1 << 22;
@@ -117,6 +117,7 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         name: name.to_string(),
         defaults: HashMap::new(),
         ids: HashMap::new(),
+        newlines: newlines(xml.input_text()),
     };
     if root.tag_name().name() != "scene" {
         return Err(doc.err(root, "the root element must be <scene>"));
@@ -146,7 +147,7 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
             if let Some(old) = doc.ids.insert(id.to_string(), n) {
                 return Err(doc.err(
                     n,
-                    format!("id=\"{id}\" is already used at line {}", line(old)),
+                    format!("id=\"{id}\" is already used at line {}", doc.line(old)),
                 ));
             }
         }

@@ -6,7 +6,7 @@ use roxmltree::{Node, NodeId};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
-use super::props::{line, Doc, Props};
+use super::props::{Doc, Props};
 use super::FORMAT;
 use crate::scene::file::{
     CameraDesc, DistributionDesc, LightDesc, MaterialDesc, MediumDesc, Origin, PhaseDesc,
@@ -116,10 +116,12 @@ impl<'a, 'd> Importer<'a, 'd> {
     }
 
     fn note(&mut self, node: Node, key: &str, how: String) {
-        self.origin.lines.push((key.to_string(), line(node)));
+        self.origin
+            .lines
+            .push((key.to_string(), self.doc.line(node)));
         self.origin.notes.push(format!(
             "line {}: <{} type=\"{}\"> -> {key}: {how}",
-            line(node),
+            self.doc.line(node),
             node.tag_name().name(),
             node.attribute("type").unwrap_or("")
         ));
@@ -164,7 +166,9 @@ impl<'a, 'd> Importer<'a, 'd> {
             ));
         }
         self.render.insert("integrator".into(), "path".into());
-        self.origin.lines.push(("render".into(), line(node)));
+        self.origin
+            .lines
+            .push(("render".into(), self.doc.line(node)));
         self.out.render = Some(self.render);
         Ok((self.out, self.origin))
     }
@@ -441,7 +445,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             Some(id) if !["", "null"].contains(&id) && !self.out.materials.contains_key(id) => {
                 id.to_string()
             }
-            _ => format!("bsdf@{}", line(node)),
+            _ => format!("bsdf@{}", self.doc.line(node)),
         };
         let key = format!("materials.{name}");
         self.note(node, &key, how);
@@ -503,7 +507,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         };
         let name = match node.attribute("id") {
             Some(id) if !self.out.media.contains_key(id) => id.to_string(),
-            _ => format!("medium@{}", line(node)),
+            _ => format!("medium@{}", self.doc.line(node)),
         };
         let key = format!("media.{name}");
         self.note(node, &key, how);

@@ -17,21 +17,33 @@ pub(super) struct Doc<'a> {
     pub name: String,
     pub defaults: HashMap<String, String>,
     pub ids: HashMap<String, Node<'a, 'a>>,
+    /// The byte offset of every newline of the text, so that a node's line is a binary search
+    /// (roxmltree's `text_pos_at` scans from the start: quadratic over many elements).
+    pub newlines: Vec<usize>,
 }
 
-/// The 1-based line where `node` starts.
-pub(super) fn line(node: Node) -> usize {
-    node.document().text_pos_at(node.range().start).row as usize
+/// The offsets of the newlines of `text`, for `Doc::line`.
+pub(super) fn newlines(text: &str) -> Vec<usize> {
+    text.bytes()
+        .enumerate()
+        .filter(|&(_, b)| b == b'\n')
+        .map(|(i, _)| i)
+        .collect()
 }
 
 impl<'a> Doc<'a> {
+    /// The 1-based line where `node` starts.
+    pub fn line(&self, node: Node) -> usize {
+        self.newlines.partition_point(|&i| i < node.range().start) + 1
+    }
+
     /// An error at `node`: file, line, the element as key.
     pub fn err(&self, node: Node, message: impl Into<String>) -> SceneError {
         let ty = node.attribute("type").map(|t| format!(" type=\"{t}\""));
         let id = node.attribute("name").map(|t| format!(" name=\"{t}\""));
         SceneError {
             file: self.name.clone(),
-            line: Some(line(node)),
+            line: Some(self.line(node)),
             key: format!(
                 "<{}{}{}>",
                 node.tag_name().name(),
