@@ -170,6 +170,7 @@ fn list() {
 }
 
 fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentError> {
+    course::check_copy_target(&args.out)?;
     let tree: Tree = match &args.from {
         Some(dir) => course::read_tree(dir)?,
         None if embedded.is_empty() => {
