@@ -405,9 +405,7 @@ pub fn write_png_rgb8(path: &Path, width: u32, height: u32, data: &[u8]) -> Resu
         writer.write_image_data(data).map_err(|e| io_err(path, e))?;
         writer.finish().map_err(|e| io_err(path, e))?;
     }
-    write_replacing(path, |tmp| {
-        std::fs::write(tmp, &bytes).map_err(|e| io_err(path, e))
-    })
+    write_file_replacing(path, &bytes)
 }
 
 /// Checks, before any work, that an image can be written at `path`: its directory exists and
@@ -423,6 +421,14 @@ pub fn check_output(path: &Path, extension: &str) -> Result<(), ImageError> {
         );
         return Err(io_err(path, m));
     }
+    check_output_file(path)
+}
+
+/// Checks, before any work, that a file of any kind can be written at `path`: its directory
+/// exists and can be written (a probe file: a read-only file system is found here), and `path`
+/// is no directory and no device but `/dev/null`. [`check_output`] adds the extension rule of
+/// images; the other outputs (scene files, CSV, charts, heatmaps) are checked here.
+pub fn check_output_file(path: &Path) -> Result<(), ImageError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -438,13 +444,32 @@ pub fn check_output(path: &Path, extension: &str) -> Result<(), ImageError> {
         Ok(m) if !m.is_file() && path != Path::new("/dev/null") => {
             return Err(io_err(
                 path,
-                "is no regular file (a device such as /dev/full cannot hold an image; \
+                "is no regular file (a device such as /dev/full cannot hold an output; \
                  /dev/null discards it)",
             ))
         }
         _ => {}
     }
     probe_writable(dir).map_err(|e| io_err(path, format!("cannot write in {}: {e}", dir.display())))
+}
+
+/// Checks, before any work, that files can be written into the directory `dir`, creating it
+/// (and its parents) when missing: a file of that name, or a directory that cannot be written,
+/// is refused. The files the command writes there are checked by [`check_output_file`].
+pub fn check_output_dir(dir: &Path) -> Result<(), ImageError> {
+    if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
+        return Err(io_err(dir, "is not a directory"));
+    }
+    std::fs::create_dir_all(dir).map_err(|e| io_err(dir, format!("cannot create it: {e}")))?;
+    probe_writable(dir).map_err(|e| io_err(dir, format!("cannot write in it: {e}")))
+}
+
+/// Writes `bytes` to `path` through [`write_replacing`]: a failed write (a full disk) leaves an
+/// earlier file at `path` as it was.
+pub fn write_file_replacing(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    write_replacing(path, |tmp| {
+        std::fs::write(tmp, bytes).map_err(|e| io_err(path, e))
+    })
 }
 
 /// Creates and removes a file in `dir`: a read-only file system or a directory without write

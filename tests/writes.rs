@@ -198,3 +198,279 @@ fn directories_devices_and_read_only_file_systems_are_refused_before_the_work() 
         "{err}"
     );
 }
+
+/// The fog box of the repository, the scene of the `converge` cases.
+fn fog_box() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fog-box.toml").to_string()
+}
+
+/// What the command said, stdout and stderr together.
+fn said(out: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&out.stdout), stderr(out))
+}
+
+/// A 64 KiB tmpfs at `dir` holding `earlier` as `name`, then filled to the last byte, so that
+/// the next write of `name` fails half-way; false where the test cannot mount one.
+fn full_tmpfs_with(dir: &Path, name: &str, earlier: &[u8]) -> bool {
+    if !mount_tmpfs(dir, "size=64k") {
+        return false;
+    }
+    std::fs::write(dir.join(name), earlier).unwrap();
+    use std::io::Write;
+    let mut filler = std::fs::File::create(dir.join("filler")).unwrap();
+    while filler.write_all(&[0u8; 1024]).is_ok() {}
+    true
+}
+
+/// The names of the temporary files a failed write left in `dir`.
+fn partial_files(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|f| f.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect()
+}
+
+/// `rooms -o` on a full disk fails and leaves the earlier scene file whole.
+#[test]
+fn rooms_on_a_full_disk_keeps_the_earlier_scene_file() {
+    let dir = scratch(GROUP, "rooms-full").join("fs");
+    let earlier = b"# the earlier scene\n";
+    if !full_tmpfs_with(&dir, "rooms.toml", earlier) {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let scene = dir.join("rooms.toml");
+    let out = pathspace(&["rooms", "--n", "10", "-o", scene.to_str().unwrap()]);
+    let now = std::fs::read(&scene);
+    let left = partial_files(&dir);
+    let _ = Command::new("umount").arg(&dir).status();
+    assert!(!out.status.success(), "a failed write must not exit 0");
+    assert!(stderr(&out).contains("rooms.toml"), "{}", stderr(&out));
+    let now = now.unwrap();
+    assert!(
+        now == earlier,
+        "the earlier scene file was damaged: {} bytes now",
+        now.len()
+    );
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// A reference of the fog box at 8x8 in `dir`, for `converge`.
+fn fog_reference(dir: &Path) -> String {
+    let r = dir.join("ref.exr");
+    let r = r.to_str().unwrap();
+    let out = pathspace(&[
+        "reference",
+        &fog_box(),
+        "--resolution",
+        "8x8",
+        "--spp",
+        "2",
+        "--threads",
+        "1",
+        "-o",
+        r,
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    r.to_string()
+}
+
+/// A short `converge` of the fog box into `out` (with `extra` options).
+fn converge(reference: &str, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "converge".to_string(),
+        fog_box(),
+        "--reference".into(),
+        reference.into(),
+        "--resolution".into(),
+        "8x8".into(),
+        "--budget".into(),
+        "0.1".into(),
+        "--checkpoints".into(),
+        "2".into(),
+        "--threads".into(),
+        "1".into(),
+        "-o".into(),
+        out.to_str().unwrap().into(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    pathspace(&args)
+}
+
+/// `converge` on a full disk fails and leaves the earlier study's `convergence.csv` whole.
+#[test]
+fn converge_on_a_full_disk_keeps_the_earlier_csv() {
+    let base = scratch(GROUP, "converge-full");
+    let reference = fog_reference(&base);
+    let dir = base.join("fs");
+    let earlier = b"integrator,run\nearlier,0\n";
+    if !full_tmpfs_with(&dir, "convergence.csv", earlier) {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let out = converge(&reference, &dir, &[]);
+    let now = std::fs::read(dir.join("convergence.csv"));
+    let left = partial_files(&dir);
+    let _ = Command::new("umount").arg(&dir).status();
+    assert!(!out.status.success(), "a failed write must not exit 0");
+    assert!(stderr(&out).contains("convergence.csv"), "{}", stderr(&out));
+    let now = now.unwrap();
+    assert!(
+        now == earlier,
+        "the earlier CSV was damaged: {}",
+        String::from_utf8_lossy(&now)
+    );
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// A study whose files cannot be written is refused before the runs (no run is reported, no
+/// budget spent): here `convergence.csv` is a directory.
+#[test]
+fn converge_refuses_unwritable_study_files_before_the_runs() {
+    let base = scratch(GROUP, "converge-targets");
+    let reference = fog_reference(&base);
+    let out_dir = base.join("study");
+    std::fs::create_dir_all(out_dir.join("convergence.csv")).unwrap();
+    let out = converge(&reference, &out_dir, &[]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("is a directory"), "{}", stderr(&out));
+    assert!(!said(&out).contains("run 0"), "{}", said(&out));
+    assert!(
+        !out_dir.join("study.toml").exists(),
+        "refused only after the runs"
+    );
+}
+
+/// `merge` of a study's shards refuses, before reading them, an output whose files cannot be
+/// written (`study.toml` is a directory): no half of a study is written.
+#[test]
+fn merge_refuses_unwritable_study_files_before_the_work() {
+    let base = scratch(GROUP, "merge-targets");
+    let reference = fog_reference(&base);
+    let shards: Vec<_> = (1..=2).map(|i| base.join(format!("shard{i}"))).collect();
+    for (i, s) in shards.iter().enumerate() {
+        let shard = format!("{}/2", i + 1);
+        let out = converge(&reference, s, &["--runs", "2", "--shard", &shard]);
+        assert!(out.status.success(), "{}", stderr(&out));
+    }
+    let merged = base.join("merged");
+    std::fs::create_dir_all(merged.join("study.toml")).unwrap();
+    let out = pathspace(&[
+        "merge",
+        shards[0].to_str().unwrap(),
+        shards[1].to_str().unwrap(),
+        "-o",
+        merged.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("is a directory"), "{}", stderr(&out));
+    assert!(
+        !merged.join("convergence.csv").exists(),
+        "half a study was written before the refusal"
+    );
+}
+
+/// `diff --heatmap` naming a directory or a device is refused before the images are read
+/// (the images here do not even exist).
+#[test]
+fn diff_refuses_a_heatmap_it_cannot_write_before_reading_the_images() {
+    let dir = scratch(GROUP, "diff");
+    let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
+    for (target, says) in [
+        (dir.to_str().unwrap(), "is a directory"),
+        ("/dev/zero", "no regular file"),
+    ] {
+        let out = pathspace(&[
+            "diff",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--heatmap",
+            target,
+        ]);
+        assert!(!out.status.success());
+        assert!(stderr(&out).contains(says), "{target}: {}", stderr(&out));
+    }
+}
+
+/// A directory on a read-only file system is refused before the work by every command that
+/// writes there: `converge -o`, `render --strategy-images`, `rooms -o`, `diff --heatmap` and `assignment make --out`.
+#[test]
+fn every_command_refuses_a_read_only_file_system_before_the_work() {
+    let base = scratch(GROUP, "read-only");
+    let reference = fog_reference(&base);
+    let ro = base.join("ro");
+    if !mount_tmpfs(&ro, "ro,size=1m") {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let at = |name: &str| ro.join(name).to_str().unwrap().to_string();
+    let exr = base.join("x.exr");
+    let e = exr.to_str().unwrap();
+    let outs = [
+        ("converge", converge(&reference, &ro, &[])),
+        (
+            "strategy images",
+            render(&[
+                "--integrator",
+                "bdpt",
+                "-o",
+                e,
+                "--strategy-images",
+                &at(""),
+            ]),
+        ),
+        (
+            "rooms",
+            pathspace(&["rooms", "--n", "2", "-o", &at("r.toml")]),
+        ),
+        (
+            "diff",
+            pathspace(&["diff", &reference, &reference, "--heatmap", &at("h.png")]),
+        ),
+        (
+            "assignment",
+            pathspace(&["assignment", "make", "uniform_triangle", "--out", &at("")]),
+        ),
+    ];
+    let _ = Command::new("umount").arg(&ro).status();
+    // every command's verdict, so that a failure names all the commands that fail
+    let wrong: Vec<String> = outs
+        .iter()
+        .filter(|(_, out)| {
+            let err = stderr(out);
+            out.status.success()
+                || !err.contains("cannot write in")
+                || !err.contains("Read-only file system")
+                || said(out).contains("run 0")
+        })
+        .map(|(what, out)| format!("{what}: {}", said(out)))
+        .collect();
+    assert!(wrong.is_empty(), "{wrong:#?}");
+    assert!(!exr.exists(), "a render ran before its output was refused");
+}
+
+/// `--adjoint-output A.exr` writes `A.png` beside it: a directory of that name is refused
+/// before the render, as the EXR is.
+#[test]
+fn the_adjoint_images_png_is_checked_before_the_render() {
+    let dir = scratch(GROUP, "adjoint");
+    let (exr, adj) = (dir.join("x.exr"), dir.join("adj.exr"));
+    std::fs::create_dir(dir.join("adj.png")).unwrap();
+    let out = render(&[
+        "--integrator",
+        "bdpt",
+        "--adjoint-image",
+        "-o",
+        exr.to_str().unwrap(),
+        "--adjoint-output",
+        adj.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("is a directory"), "{}", stderr(&out));
+    assert!(
+        !exr.exists() && !adj.exists(),
+        "refused only after the render"
+    );
+}

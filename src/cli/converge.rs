@@ -551,8 +551,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
         )));
     }
     check_memory(&args, &scene, &settings, (&variants, &guided))?;
-    std::fs::create_dir_all(&args.output)
-        .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
+    check_study_outputs(&args.output)?;
     let mut external_rows = Vec::new();
     let reads_externals = config.shard.is_none_or(|s| s.index == 1);
     for (name, dir) in externals.iter().filter(|_| reads_externals) {
@@ -597,6 +596,24 @@ fn shard_of_runs(text: &str) -> Result<crate::integrator::shard::Shard, CliError
     crate::integrator::shard::Shard::parse(text).map_err(|e| CliError::Usage(e.to_string()))
 }
 
+/// Checks, before the runs, that a study can be written into `dir` (created when missing): its
+/// rows, record and charts, so that a directory that cannot be written costs no budget.
+pub fn check_study_outputs(dir: &std::path::Path) -> Result<(), CliError> {
+    image_io::check_output_dir(dir)?;
+    let mut files = vec![
+        dir.join(CSV_FILE),
+        dir.join(crate::measure::study::STUDY_FILE),
+    ];
+    files.extend(chart::chart_paths(dir));
+    for f in &files {
+        image_io::check_output_file(f)?;
+    }
+    Ok(())
+}
+
+/// The file of a study's rows.
+const CSV_FILE: &str = "convergence.csv";
+
 /// Writes a study's rows (`convergence.csv`), its record (`study.toml`) and its charts into
 /// `dir`, and prints its summary: what `converge` ends with, and `merge` of its shards.
 pub fn write_study(
@@ -604,7 +621,7 @@ pub fn write_study(
     study: &Study,
     rows: &[convergence::CheckpointRow],
 ) -> Result<(), CliError> {
-    let csv = dir.join("convergence.csv");
+    let csv = dir.join(CSV_FILE);
     convergence::write_csv(&csv, rows)?;
     study.write(dir)?;
     let curves = convergence::summarize(rows);

@@ -51,6 +51,10 @@ fn layer_names(path: &std::path::Path) -> Result<Vec<String>, CliError> {
 }
 
 pub fn run(args: DiffArgs) -> Result<(), CliError> {
+    // a heatmap that cannot be written must not cost reading (and comparing) the images
+    if let Some(out) = &args.heatmap {
+        image_io::check_output_file(out)?;
+    }
     let (a, _) = image_io::read_exr(&args.a)?;
     let (b, _) = image_io::read_exr(&args.b)?;
     let m = metrics::compare(&a, &b)?;

@@ -199,9 +199,8 @@ pub fn run(args: MergeArgs) -> Result<(), CliError> {
 /// `merge DIR... -o DIR`: the shards of one convergence study (`converge --shard I/N`) as the
 /// study one process would have written: its rows, record, charts and summary.
 fn merge_studies(args: &MergeArgs) -> Result<(), CliError> {
+    super::converge::check_study_outputs(&args.output)?;
     let dirs: Vec<&std::path::Path> = args.inputs.iter().map(PathBuf::as_path).collect();
     let (study, rows) = crate::measure::study::merge_shards(&dirs)?;
-    std::fs::create_dir_all(&args.output)
-        .map_err(|e| CliError::CreateDir(args.output.display().to_string(), e))?;
     super::converge::write_study(&args.output, &study, &rows)
 }

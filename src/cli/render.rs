@@ -456,7 +456,6 @@ fn write_strategy_images(
             "--strategy-images needs --integrator bdpt".into(),
         ));
     }
-    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let renderer = crate::integrator::Renderer::prepared(plan.kind, setup)?;
     let films = renderer.strategy_images(plan.settings.spp, args.strategy_depth);
     for ((s, t), film) in &films {
@@ -528,6 +527,10 @@ fn check_outputs(args: &RenderArgs, has_camera: bool) -> Result<(), CliError> {
     }
     if let Some(out) = &args.adjoint_output {
         image_io::check_output(out, "exr")?;
+        image_io::check_output(&out.with_extension("png"), "png")?;
+    }
+    if let Some(dir) = &args.strategy_images {
+        image_io::check_output_dir(dir)?;
     }
     Ok(())
 }

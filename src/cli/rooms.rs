@@ -198,11 +198,13 @@ pub fn run(args: RoomsArgs) -> Result<(), CliError> {
             args.n
         )));
     }
+    if let Some(p) = &args.output {
+        crate::image_io::check_output_file(p)?;
+    }
     let text = rooms_scene(args.n);
     match args.output {
-        Some(p) => {
-            std::fs::write(&p, text).map_err(|e| CliError::Write(p.display().to_string(), e))
-        }
+        // through a temporary file: a full disk leaves an earlier scene file whole
+        Some(p) => Ok(crate::image_io::write_file_replacing(&p, text.as_bytes())?),
         None => {
             print!("{text}");
             Ok(())

@@ -170,6 +170,7 @@ fn list() {
 }
 
 fn make(args: MakeArgs, embedded: &[(&str, &[u8])]) -> Result<(), AssignmentError> {
+    course::check_copy_target(&args.out)?;
     let tree: Tree = match &args.from {
         Some(dir) => course::read_tree(dir)?,
         None if embedded.is_empty() => {
@@ -303,7 +304,7 @@ fn claim_id(b: &Path, id: &str, dir: &Path) -> Result<(), AssignmentError> {
         Ok(_) => Ok(()),
         Err(_) => {
             std::fs::create_dir_all(&owners).map_err(io_at(&owners))?;
-            std::fs::write(&file, format!("{me}\n")).map_err(io_at(&file))
+            write_claim(&file, &me)
         }
     }
 }
@@ -338,9 +339,16 @@ fn claim_target_dir(t: &Path, dir: &Path) -> Result<(), AssignmentError> {
         Ok(_) => Ok(()),
         Err(_) => {
             std::fs::create_dir_all(t).map_err(io_at(t))?;
-            std::fs::write(&owner_file, format!("{me}\n")).map_err(io_at(&owner_file))
+            write_claim(&owner_file, &me)
         }
     }
+}
+
+/// Writes the claim file `file` naming copy `me` through a temporary file: a full disk leaves no
+/// empty claim that would later name no copy.
+fn write_claim(file: &Path, me: &str) -> Result<(), AssignmentError> {
+    crate::image_io::write_file_replacing(file, format!("{me}\n").as_bytes())
+        .map_err(|e| CourseError::from(e).into())
 }
 
 /// Number of tests a libtest summary reports as passed, summed over the output.

@@ -357,6 +357,9 @@ pub enum CourseError {
     /// A directory that cannot be listed.
     #[error(transparent)]
     Io(#[from] std::io::Error),
+    /// The copy's target is no directory or cannot be written (its path, why).
+    #[error(transparent)]
+    Output(#[from] crate::image_io::ImageError),
 }
 
 impl From<CourseError> for String {
@@ -681,6 +684,15 @@ pub fn leaks(copy: &StudentCopy) -> Vec<(String, String, usize, String)> {
         }
     }
     out
+}
+
+/// Checks, before the copy is made, that `out` can take it: a new or empty directory (created
+/// here) that can be written, not a file.
+pub fn check_copy_target(out: &Path) -> Result<(), CourseError> {
+    if out.is_dir() && std::fs::read_dir(out)?.next().is_some() {
+        return Err(CourseError::NotEmpty(out.display().to_string()));
+    }
+    Ok(crate::image_io::check_output_dir(out)?)
 }
 
 /// Writes a student copy to `out` (which must not exist or be empty).

@@ -49,7 +49,7 @@ pub enum ChartError {
     /// plotters failed (the chart's stem, its message).
     #[error("drawing the {0} chart: {1}")]
     Drawing(&'static str, String),
-    /// The PNG could not be written (the image layer's message).
+    /// The SVG or PNG could not be written (the image layer's message).
     #[error("{0}")]
     Png(String),
 }
@@ -302,14 +302,26 @@ pub fn write_charts(
 ) -> Result<Vec<PathBuf>, ChartError> {
     let mut written = Vec::new();
     for kind in [ChartKind::ErrorVsTime, ChartKind::Efficiency] {
-        let svg = dir.join(format!("{}.svg", kind.stem()));
-        let png = dir.join(format!("{}.png", kind.stem()));
+        let [svg, png] = chart_files(dir, kind);
         write_svg(&svg, kind, curves, reference_relmse)?;
         write_png(&png, kind, curves, reference_relmse)?;
         written.push(svg);
         written.push(png);
     }
     Ok(written)
+}
+
+/// The SVG and PNG of a chart in `dir`.
+fn chart_files(dir: &Path, kind: ChartKind) -> [PathBuf; 2] {
+    ["svg", "png"].map(|ext| dir.join(format!("{}.{ext}", kind.stem())))
+}
+
+/// Every file [`write_charts`] writes into `dir`, to be checked before the study runs.
+pub fn chart_paths(dir: &Path) -> Vec<PathBuf> {
+    [ChartKind::ErrorVsTime, ChartKind::Efficiency]
+        .into_iter()
+        .flat_map(|kind| chart_files(dir, kind))
+        .collect()
 }
 
 /// Draws a chart as SVG.
@@ -320,8 +332,15 @@ pub fn write_svg(
     reference_relmse: Option<f64>,
 ) -> Result<(), ChartError> {
     register_font()?;
-    let root = SVGBackend::new(path, CHART_SIZE).into_drawing_area();
-    draw(&root, kind, curves, reference_relmse)
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, CHART_SIZE).into_drawing_area();
+        draw(&root, kind, curves, reference_relmse)?;
+    }
+    // drawn in memory, then written through a temporary file: a full disk is reported, and
+    // leaves an earlier chart whole
+    image_io::write_file_replacing(path, text.as_bytes())
+        .map_err(|e| ChartError::Png(e.to_string()))
 }
 
 /// Draws a chart as PNG.

@@ -9,7 +9,7 @@
 //!
 //! Book: "Measuring a renderer".
 
-use std::io::Write;
+use std::fmt::Write;
 use std::path::Path;
 use std::time::Instant;
 
@@ -415,18 +415,16 @@ pub fn converge_variants(
 
 /// Writes the rows as `convergence.csv` (header `CSV_HEADER`).
 pub fn write_csv(path: &Path, rows: &[CheckpointRow]) -> Result<(), ConvergenceError> {
-    let err = |e: std::io::Error| ConvergenceError::Io(path.display().to_string(), e);
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path).map_err(err)?);
-    writeln!(f, "{CSV_HEADER}").map_err(err)?;
+    let mut text = format!("{CSV_HEADER}\n");
     for r in rows {
-        writeln!(
-            f,
+        let _ = writeln!(
+            text,
             "{},{},{},{:.9},{},{:.9e},{:.9e},{:.9e}",
             r.integrator, r.run, r.checkpoint, r.seconds, r.samples, r.rmse, r.relmse, r.efficiency
-        )
-        .map_err(err)?;
+        );
     }
-    f.flush().map_err(err)
+    // through a temporary file: a full disk leaves an earlier study's rows whole
+    Ok(image_io::write_file_replacing(path, text.as_bytes())?)
 }
 
 /// Images of another renderer as one more line: every `*.exr` in `dir`, its time from a

@@ -55,6 +55,9 @@ pub enum StudyError {
     Twice(String, String, String),
     #[error("the study has {0} shards, but shard {1} is missing")]
     Missing(u32, String),
+    /// The record cannot be written (its path, the cause).
+    #[error(transparent)]
+    Write(#[from] crate::image_io::ImageError),
 }
 
 impl Study {
@@ -62,7 +65,11 @@ impl Study {
     pub fn write(&self, dir: &Path) -> Result<(), StudyError> {
         let path = dir.join(STUDY_FILE);
         let text = toml::to_string(self).map_err(|e| parse_err(&path, e))?;
-        std::fs::write(&path, text).map_err(|e| io_err(&path, e))
+        // through a temporary file: a full disk leaves an earlier record whole
+        Ok(crate::image_io::write_file_replacing(
+            &path,
+            text.as_bytes(),
+        )?)
     }
 
     /// Reads the record of the study in `dir`.
