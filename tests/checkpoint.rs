@@ -275,10 +275,17 @@ fn pathspace_in(dir: &Path, args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-/// SIGINT to `child` once `checkpoint` exists (its first pass is done); its output, which must
-/// say it was interrupted (exit 130).
-fn sigint_after_first_checkpoint(child: std::process::Child, checkpoint: &Path) -> String {
-    while !checkpoint.exists() {
+/// `pathspace ARGS` in `dir`, stopped by SIGINT once `dir/checkpoint` exists (its first pass
+/// is done); its stderr, after checking it was interrupted (exit 130).
+fn interrupted_in(dir: &Path, args: &[&str], checkpoint: &str) -> String {
+    let child = Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .current_dir(dir)
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    while !dir.join(checkpoint).exists() {
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
     let pid = child.id().to_string();
@@ -299,30 +306,26 @@ fn sigint_after_first_checkpoint(child: std::process::Child, checkpoint: &Path) 
 fn interrupted_long_render(dir: &Path) -> String {
     std::fs::create_dir_all(dir.join("scenes")).unwrap();
     std::fs::write(dir.join("scenes/fog-box.toml"), FOG_BOX).unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_pathspace"))
-        .current_dir(dir)
-        .args([
-            "render",
-            "scenes/fog-box.toml",
-            "--spp",
-            "512",
-            "--seed",
-            "7",
-        ])
-        .args(["--resolution", "48x48", "--threads", "1", "--reproducible"])
-        .args([
-            "--checkpoint",
-            "0",
-            "--aovs",
-            "variance,depth",
-            "-o",
-            "long.exr",
-        ])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    sigint_after_first_checkpoint(child, &dir.join("long.checkpoint"))
+    let args = [
+        "render",
+        "scenes/fog-box.toml",
+        "--spp",
+        "512",
+        "--seed",
+        "7",
+        "--resolution",
+        "48x48",
+        "--threads",
+        "1",
+        "--reproducible",
+        "--checkpoint",
+        "0",
+        "--aovs",
+        "variance,depth",
+        "-o",
+        "long.exr",
+    ];
+    interrupted_in(dir, &args, "long.checkpoint")
 }
 
 /// The command the interrupted render prints, `--resume long.checkpoint` and nothing else,
@@ -480,23 +483,19 @@ fn a_file_the_scene_reads_changed_before_resume_is_refused_by_name() {
         "the fog box's white material moved"
     );
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
-    let exr = dir.join("part.exr");
-    let child = Command::new(env!("CARGO_BIN_EXE_pathspace"))
-        .current_dir(&dir)
-        .args([
-            "render",
-            "scene.toml",
-            "--resolution",
-            "24x24",
-            "--spp",
-            "1000000",
-        ])
-        .args(["--checkpoint", "0", "-o", "part.exr"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    sigint_after_first_checkpoint(child, &exr.with_extension("checkpoint"));
+    let args = [
+        "render",
+        "scene.toml",
+        "--resolution",
+        "24x24",
+        "--spp",
+        "1000000",
+        "--checkpoint",
+        "0",
+        "-o",
+        "part.exr",
+    ];
+    interrupted_in(&dir, &args, "part.checkpoint");
     std::fs::write(dir.join("cube.obj"), format!("{cube}\n# edited\n")).unwrap();
     let out = pathspace_in(&dir, &["render", "--resume", "part.checkpoint"]);
     let err = String::from_utf8_lossy(&out.stderr);
