@@ -25,6 +25,17 @@ pub fn deflection_cosine(wo: glam::Vec3, wi: glam::Vec3) -> f32 {
 }
 // ANCHOR_END: deflection
 
+/// The 64-bit FNV-1a hash of `bytes`: scene texts and the files they read are identified by
+/// it (a render's identity, `scene_hash`, `scene_inputs`).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
 /// The bytes of the file at `path` if it has at most `limit` of them; a longer file is an
 /// `InvalidData` error saying so, found from its length before reading, and so is a device or
 /// a pipe (`/dev/zero` never ends), which is not read at all.

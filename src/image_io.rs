@@ -319,7 +319,12 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
 /// Reads the RGB channels of an EXR input image (an environment map) of at most `max_bytes`
 /// bytes and `max_pixels` pixels: the sizes in the header are checked before any pixel is
 /// decoded, so a small file declaring a huge image is refused, not allocated.
-pub fn read_exr_input(path: &Path, max_bytes: u64, max_pixels: usize) -> Result<Image, ImageError> {
+/// With the image, the FNV-1a hash of the bytes it decoded (a render's identity).
+pub fn read_exr_input_hashed(
+    path: &Path,
+    max_bytes: u64,
+    max_pixels: usize,
+) -> Result<(Image, u64), ImageError> {
     let bytes = crate::conventions::read_at_most(path, max_bytes).map_err(|e| io_err(path, e))?;
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
         .map_err(|e| io_err(path, e))?;
@@ -332,7 +337,8 @@ pub fn read_exr_input(path: &Path, max_bytes: u64, max_pixels: usize) -> Result<
             ));
         }
     }
-    Ok(decode_rgb(path, std::io::Cursor::new(bytes))?.0)
+    let hash = crate::conventions::fnv1a(&bytes);
+    Ok((decode_rgb(path, std::io::Cursor::new(bytes))?.0, hash))
 }
 
 /// A layer's attributes other than the standard ones, as the exr crate keeps them.

@@ -474,3 +474,25 @@ fn merge_refuses_renders_whose_scene_read_another_file_content() {
     let c = render_scene(&dir, "c.exr", Some(&scene), &["--seed", "3"]);
     refused(&[&a, &c], &["whose file cube.obj differs"]);
 }
+
+/// The same for an environment map: its EXR is hashed as the scene reads it, and `merge`
+/// names it when it changed between two renders.
+#[test]
+fn merge_refuses_renders_whose_environment_map_changed() {
+    let dir = scratch(GROUP, "map");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let scene = dir.join("envmap.toml");
+    std::fs::copy(root.join("envmap.toml"), &scene).unwrap();
+    let map = dir.join("envmap-sky.exr");
+    std::fs::copy(root.join("envmap-sky.exr"), &map).unwrap();
+    let a = render_scene(&dir, "a.exr", Some(&scene), &["--seed", "1"]);
+    assert!(meta(&a)
+        .get("scene_inputs")
+        .unwrap()
+        .starts_with("envmap-sky.exr="));
+    let (mut sky, m) = image_io::read_exr(&map).unwrap();
+    sky.pixels[0].x += 1.0;
+    image_io::write_exr(&map, &sky, &m).unwrap();
+    let b = render_scene(&dir, "b.exr", Some(&scene), &["--seed", "2"]);
+    refused(&[&a, &b], &["whose file envmap-sky.exr differs"]);
+}

@@ -17,8 +17,10 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::provenance::Streams;
+// FNV-1a over the payload: a damaged file is refused before its contents are trusted.
 use super::smc::octree::Octree;
 use super::MeterAccum;
+use crate::conventions::fnv1a as checksum;
 use crate::film::Film;
 
 /// The first bytes of a checkpoint file (and its format version).
@@ -144,16 +146,6 @@ pub struct Checkpoint {
     pub state: IntegratorState,
     /// MLT: the runs before the one in progress, merged by sample count.
     pub earlier: Option<Earlier>,
-}
-
-/// FNV-1a over bytes: a damaged file is refused before its contents are trusted.
-fn checksum(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
 }
 
 impl Checkpoint {

@@ -312,6 +312,11 @@ fn checked_vertices(res: [usize; 3]) -> Result<usize, (String, String)> {
 
 /// Reads a grid file: Mitsuba `.vol` by extension, the text format otherwise.
 pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
+    read_grid_file_hashed(path).map(|(g, _)| g)
+}
+
+/// [`read_grid_file`] with the FNV-1a hash of the bytes it parsed (a render's identity).
+pub fn read_grid_file_hashed(path: &Path) -> Result<(GridFile, u64), GridError> {
     let name = path.display().to_string();
     let err = |location: String, message: String| GridError {
         file: name.clone(),
@@ -320,7 +325,8 @@ pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
     };
     let bytes = crate::conventions::read_at_most(path, MAX_GRID_FILE_BYTES)
         .map_err(|e| err(String::new(), format!("cannot read: {e}")))?;
-    if path
+    let hash = crate::conventions::fnv1a(&bytes);
+    let grid = if path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
     {
@@ -331,7 +337,8 @@ pub fn read_grid_file(path: &Path) -> Result<GridFile, GridError> {
         parse_text(&text)
             .map(|grid| GridFile { grid, bounds: None })
             .map_err(|(loc, msg)| err(loc, msg))
-    }
+    };
+    grid.map(|g| (g, hash))
 }
 
 /// The text format: `nx ny nz` then the values; errors as (location, message).

@@ -661,16 +661,6 @@ impl Origin {
     }
 }
 
-/// The 64-bit FNV-1a hash of `bytes` (scene texts and the files they name).
-pub fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
-}
-
 impl SceneSource {
     /// Reads a file of at most [`MAX_SCENE_BYTES`] bytes of UTF-8.
     pub fn read(path: &Path) -> Result<Self, SceneError> {
@@ -742,24 +732,15 @@ impl SceneSource {
 
     /// A 64-bit FNV-1a hash of the text: references record which scene they belong to.
     pub fn hash(&self) -> u64 {
-        fnv1a(self.text.as_bytes())
+        crate::conventions::fnv1a(self.text.as_bytes())
     }
 
-    /// Records a file the scene read, as the scene names it (`name`), by the hash of its
-    /// `bytes`.
-    pub fn record_input(&self, name: &str, bytes: &[u8]) {
+    /// Records a file the scene read, as the scene names it (`name`), by the FNV-1a hash of
+    /// its bytes ([`crate::conventions::fnv1a`], computed by the reader from the bytes it
+    /// parsed).
+    pub fn record_input(&self, name: &str, hash: u64) {
         let mut inputs = self.inputs.lock().unwrap_or_else(|e| e.into_inner());
-        inputs.push((name.to_string(), fnv1a(bytes)));
-    }
-
-    /// Records the file `file` (relative to the scene's directory) that a reader which keeps
-    /// no bytes has just read (grids, maps): read again, at most `limit` bytes as the reader
-    /// took it, for its hash; a file gone since is recorded as changed.
-    pub fn record_file(&self, file: &str, limit: u64) {
-        match crate::conventions::read_at_most(&self.base_dir.join(file), limit) {
-            Ok(bytes) => self.record_input(file, &bytes),
-            Err(_) => self.record_input(file, b"(unreadable)"),
-        }
+        inputs.push((name.to_string(), hash));
     }
 
     /// The files the scene read, sorted by name, each once with the hash of its bytes.

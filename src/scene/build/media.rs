@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use super::values::{finite3, key_of, non_negative};
 use crate::geometry::Aabb;
-use crate::medium::grid::read_grid_file;
+use crate::medium::grid::read_grid_file_hashed;
 use crate::medium::{Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral};
 use crate::medium::{Medium, MediumError, Phase};
 use crate::scene::file::{
@@ -210,9 +210,9 @@ fn grid(
     max: &Option<[f32; 3]>,
 ) -> Result<(Density, Aabb), SceneError> {
     let fkey = key_of(key, "file");
-    let gf =
-        read_grid_file(&src.base_dir.join(file)).map_err(|e| src.error(&fkey, e.to_string()))?;
-    src.record_file(file, crate::medium::grid::MAX_GRID_FILE_BYTES);
+    let (gf, hash) = read_grid_file_hashed(&src.base_dir.join(file))
+        .map_err(|e| src.error(&fkey, e.to_string()))?;
+    src.record_input(file, hash);
     let (lo, hi) = match (min, max, gf.bounds) {
         (Some(lo), Some(hi), _) => (
             finite3(src, &key_of(key, "min"), *lo)?,

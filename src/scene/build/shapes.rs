@@ -376,7 +376,7 @@ fn mesh(
         src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
     };
     let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES).map_err(|e| cannot(&e))?;
-    src.record_input(obj, &bytes);
+    src.record_input(obj, crate::conventions::fnv1a(&bytes));
     let is_ply = file
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
