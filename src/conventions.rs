@@ -28,7 +28,14 @@ pub fn deflection_cosine(wo: glam::Vec3, wi: glam::Vec3) -> f32 {
 /// The 64-bit FNV-1a hash of `bytes`: scene texts and the files they read are identified by
 /// it (a render's identity, `scene_hash`, `scene_inputs`).
 pub fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    fnv1a_continue(FNV1A_START, bytes)
+}
+
+/// The FNV-1a state before any byte.
+pub const FNV1A_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a of `bytes` continued from the state `h` (the hash of data given in parts).
+pub fn fnv1a_continue(mut h: u64, bytes: &[u8]) -> u64 {
     for &b in bytes {
         h ^= b as u64;
         h = h.wrapping_mul(0x0100_0000_01b3);

@@ -152,10 +152,21 @@ pub fn write_exr_channels(
     use exr::prelude::*;
     let (w, h) = (image.width as usize, image.height as usize);
     let mut layer_attributes = LayerAttributes::named("pathspace");
-    for (k, v) in &meta.attributes {
+    let mut texts = BTreeMap::new();
+    for (k, v) in meta.attributes.iter().filter(|(k, _)| !is_checksum(k)) {
+        let value = attribute_value(k, v);
+        // the record as a reader will see it (a number read back prints as it was parsed)
+        texts.insert(k.clone(), attribute_text(&value).unwrap_or_default());
+        layer_attributes.other.insert(Text::from(k.as_str()), value);
+    }
+    let mut sums = vec![(CHECKSUM, rgb_checksum(&texts, image))];
+    if !extra.is_empty() {
+        sums.push((CHECKSUM_LAYERS, layers_checksum(extra)));
+    }
+    for (k, v) in sums {
         layer_attributes
             .other
-            .insert(Text::from(k.as_str()), attribute_value(k, v));
+            .insert(Text::from(k), AttributeValue::Text(Text::from(v.as_str())));
     }
     let mut bytes = Vec::new();
     let sink = std::io::Cursor::new(&mut bytes);
@@ -206,8 +217,74 @@ pub fn write_exr_channels(
     })
 }
 
+/// The attribute holding the FNV-1a hash of an image's record (its other attributes, as text)
+/// and its RGB pixels, written with every EXR and checked by every read: a byte of the file
+/// changed since (a damaged disk or copy) is found even where it gives a finite, plausible value.
+pub const CHECKSUM: &str = "checksum";
+
+/// The attribute holding the FNV-1a hash of the layers beside R, G and B (`--aovs`).
+pub const CHECKSUM_LAYERS: &str = "checksum_layers";
+
+fn is_checksum(key: &str) -> bool {
+    key == CHECKSUM || key == CHECKSUM_LAYERS
+}
+
+/// [`CHECKSUM`]'s value: every attribute but the checksums (key and text, in key order), then
+/// the pixels' R, G, B as little-endian `f32`, row by row.
+fn rgb_checksum(texts: &BTreeMap<String, String>, image: &Image) -> String {
+    use crate::conventions::{fnv1a_continue, FNV1A_START};
+    let mut h = FNV1A_START;
+    for (k, v) in texts.iter().filter(|(k, _)| !is_checksum(k)) {
+        for part in [k.as_bytes(), &[0], v.as_bytes(), &[0]] {
+            h = fnv1a_continue(h, part);
+        }
+    }
+    for p in &image.pixels {
+        for c in 0..3 {
+            h = fnv1a_continue(h, &p[c].to_le_bytes());
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// [`CHECKSUM_LAYERS`]'s value: each layer's name and values, in the order of the names.
+fn layers_checksum(channels: &[Channel]) -> String {
+    use crate::conventions::{fnv1a_continue, FNV1A_START};
+    let mut sorted: Vec<&Channel> = channels.iter().collect();
+    sorted.sort_by(|a, b| a.name.cmp(&b.name));
+    let mut h = FNV1A_START;
+    for ch in sorted {
+        h = fnv1a_continue(fnv1a_continue(h, ch.name.as_bytes()), &[0]);
+        for v in &ch.values {
+            h = fnv1a_continue(h, &v.to_le_bytes());
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// Checks a checksum attribute against what was read: a file without it (written by another
+/// program, or by an older pathspace) passes.
+fn verify(path: &Path, key: &str, recorded: Option<&str>, found: &str) -> Result<(), ImageError> {
+    match recorded {
+        Some(r) if r != found => Err(io_err(
+            path,
+            format!(
+                "the file is damaged: its {} do not match the `{key}` written with them \
+                 (if it was changed on purpose, remove that attribute)",
+                if key == CHECKSUM {
+                    "pixels or record"
+                } else {
+                    "layers"
+                }
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// The channels of an EXR's first valid layer other than R, G, B and A (the layers
-/// [`write_exr_channels`] adds), in the order of their names, as 32-bit floats.
+/// [`write_exr_channels`] adds), in the order of their names, as 32-bit floats; checked
+/// against [`CHECKSUM_LAYERS`] where the file has it.
 pub fn read_exr_channels(path: &Path) -> Result<Vec<Channel>, ImageError> {
     use exr::prelude::*;
     let img = read()
@@ -218,7 +295,7 @@ pub fn read_exr_channels(path: &Path) -> Result<Vec<Channel>, ImageError> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| io_err(path, e))?;
-    Ok(img
+    let channels: Vec<Channel> = img
         .layer_data
         .channel_data
         .list
@@ -228,7 +305,20 @@ pub fn read_exr_channels(path: &Path) -> Result<Vec<Channel>, ImageError> {
             values: ch.sample_data.values_as_f32().collect(),
         })
         .filter(|ch| !matches!(ch.name.as_str(), "R" | "G" | "B" | "A"))
-        .collect())
+        .collect();
+    let recorded = img
+        .layer_data
+        .attributes
+        .other
+        .get(&Text::from(CHECKSUM_LAYERS))
+        .and_then(attribute_text);
+    verify(
+        path,
+        CHECKSUM_LAYERS,
+        recorded.as_deref(),
+        &layers_checksum(&channels),
+    )?;
+    Ok(channels)
 }
 
 /// Puts the header attributes of a single-part EXR in the order of their names, as OpenEXR's
@@ -303,7 +393,8 @@ pub fn write_replacing(
 }
 
 /// Reads an RGB(A) EXR written by pathspace or any other renderer, with its string and number
-/// attributes as text.
+/// attributes as text; a file whose [`CHECKSUM`] does not match is refused as damaged (and the
+/// checksums are not among the attributes returned).
 pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
     let file = std::fs::File::open(path).map_err(|e| io_err(path, e))?;
     let (pixels, attributes) = decode_rgb(path, std::io::BufReader::new(file))?;
@@ -313,6 +404,10 @@ pub fn read_exr(path: &Path) -> Result<(Image, ImageMeta), ImageError> {
             meta.attributes.insert(k.to_string(), t);
         }
     }
+    let found = rgb_checksum(&meta.attributes, &pixels);
+    verify(path, CHECKSUM, meta.get(CHECKSUM), &found)?;
+    // checked, they have said what they had to: the record is what the render wrote
+    meta.attributes.retain(|k, _| !is_checksum(k));
     Ok((pixels, meta))
 }
 

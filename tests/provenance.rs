@@ -444,12 +444,122 @@ fn merge_bounds_its_work_and_refuses_forged_counts_and_pixels() {
     assert!(err.len() < 2_000, "{} bytes of error", err.len());
     let b = render(&dir, "b.exr", &["--seed", "2"]);
     let c = render(&dir, "c.exr", &["--seed", "3"]);
+    // the passes of the forged record could hold that many samples: only the sum overflows
     let max = forge(&c, "max.exr", |_, m| {
         m.set("spp", u64::MAX);
+        m.set("streams", format!("3:0..{}", u64::MAX));
     });
     refused(&[&b, &max], &["add up beyond 2^64"]);
     let nan = forge(&c, "nan.exr", |img, _| img.pixels[13].y = f32::NAN);
     refused(&[&b, &nan], &["nan.exr: the pixel (1, 1) is not finite"]);
+}
+
+/// A sample count its passes cannot hold (`spp` against `streams`: 1 to 4 samples a pass) is
+/// refused, whether forged high or low; a file whose record and pixels agree merges.
+#[test]
+fn merge_refuses_a_sample_count_its_streams_cannot_hold() {
+    let dir = scratch(GROUP, "spp-streams");
+    let b = render(&dir, "b.exr", &["--seed", "2", "--spp", "6"]);
+    let c = render(&dir, "c.exr", &["--seed", "3", "--spp", "6"]);
+    for (name, spp) in [("high.exr", 1u64 << 30), ("nine.exr", 9), ("one.exr", 1)] {
+        let forged = forge(&c, name, |_, m| {
+            m.set("spp", spp);
+        });
+        let says = format!("{name}: `spp` = {spp} cannot come from the 2 passes");
+        refused(&[&b, &forged], &[&says]);
+    }
+    for spp in [2u64, 8] {
+        let edge = forge(&c, "edge.exr", |_, m| {
+            m.set("spp", spp);
+        });
+        let run = merge(&[&b, &edge], &dir.join("m.exr"), &[]);
+        assert!(run.status.success(), "spp {spp}: {}", stderr(&run));
+    }
+}
+
+/// Every byte of a render's file after its header is covered by the checksums pathspace writes
+/// (`checksum`: the record and R, G, B; `checksum_layers`: the layers of `--aovs`): changing
+/// the lowest bit of any one of them, which gives a finite value a little off where it lands in
+/// a pixel, makes `merge` refuse the file as damaged, naming it, where before it merged it
+/// (or changes no value read).
+#[test]
+fn a_changed_byte_anywhere_in_the_data_is_refused_as_damage() {
+    let dir = scratch(GROUP, "flipped");
+    let b = render(&dir, "b.exr", &["--seed", "2"]);
+    // a noisy image does not compress: its chunks are stored raw, where a changed bit is a
+    // changed value that no decompressor can notice
+    let c = render(&dir, "c.exr", &["--seed", "3"]);
+    let d = render(&dir, "d.exr", &["--seed", "4", "--aovs", "albedo,depth"]);
+    let flipped = dir.join("flipped.exr");
+    for file in [&c, &d] {
+        let refused_at = changed_bytes_are_found(file, &flipped);
+        if file == &c {
+            let bytes = std::fs::read(file).unwrap();
+            let mut damaged = bytes.clone();
+            damaged[refused_at.expect("no byte of the raw chunks was found by a checksum")] ^= 1;
+            std::fs::write(&flipped, &damaged).unwrap();
+            refused(&[&b, &flipped], &["flipped.exr: the file is damaged"]);
+            // a changed record is damage too, even one that still parses (4 samples read as 5)
+            let mut damaged = bytes.clone();
+            let spp = find(&damaged, b"spp\0int\0").unwrap() + 8 + 4;
+            damaged[spp] ^= 1;
+            std::fs::write(&flipped, &damaged).unwrap();
+            refused(&[&b, &flipped], &["flipped.exr: the file is damaged"]);
+        }
+    }
+}
+
+/// Flips the lowest bit of each byte of `file` after its header in turn (into `flipped`): none
+/// may read as other values; returns the first byte a checksum found.
+fn changed_bytes_are_found(file: &Path, flipped: &Path) -> Option<usize> {
+    let bytes = std::fs::read(file).unwrap();
+    let read_all = |p: &Path| (image_io::read_exr(p), image_io::read_exr_channels(p));
+    let (Ok(expected), Ok(layers)) = read_all(file) else {
+        panic!("{} cannot be read", file.display())
+    };
+    let (mut wrong, mut refused_at) = (Vec::new(), None);
+    for at in header_length(&bytes)..bytes.len() {
+        let mut damaged = bytes.clone();
+        damaged[at] ^= 1;
+        std::fs::write(flipped, &damaged).unwrap();
+        match read_all(flipped) {
+            // a byte no value depends on (the deflate stream's unused bits) changes nothing
+            (Ok(m), Ok(l)) if m.0.pixels == expected.0.pixels && l == layers => {}
+            (Ok(_), Ok(_)) => wrong.push(at),
+            // a value changed (not the file's structure, which the reader finds itself)
+            (Err(e), _) | (_, Err(e)) if e.to_string().contains("damaged") => {
+                refused_at = refused_at.or(Some(at))
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{}: read wrong values with {} byte(s) changed, the first {:?}",
+        file.display(),
+        wrong.len(),
+        &wrong[..wrong.len().min(8)]
+    );
+    refused_at
+}
+
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+/// The length of a single-part EXR's header and offset table (where its chunks start): the
+/// attributes, each `name\0type\0size value`, end with an empty name, and the offsets of
+/// the chunks follow, 8 bytes each.
+fn header_length(bytes: &[u8]) -> usize {
+    let mut at = 8;
+    let nul = |from: usize| from + bytes[from..].iter().position(|&b| b == 0).unwrap();
+    while bytes[at] != 0 {
+        let type_end = nul(nul(at) + 1);
+        let size = i32::from_le_bytes(bytes[type_end + 1..type_end + 5].try_into().unwrap());
+        at = type_end + 5 + size as usize;
+    }
+    let first_chunk = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap());
+    first_chunk as usize
 }
 
 /// `merge` refuses two renders of one scene text whose mesh file differed between them, naming

@@ -55,6 +55,7 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
             .and_then(|v| v.parse().ok())
             .filter(|&n| n > 0)
             .ok_or_else(|| CliError::NoSpp(name.clone()))?;
+        check_spp(name, spp, meta)?;
         total = total.checked_add(spp).ok_or_else(|| {
             CliError::Usage(format!(
                 "{name}: the inputs' spp add up beyond 2^64 (a forged or damaged `spp`)"
@@ -92,6 +93,22 @@ pub fn merge(inputs: &[(String, Image, ImageMeta)]) -> Result<(Image, u64), CliE
     ))
 }
 // ANCHOR_END: merge
+
+/// Refuses a sample count that the input's passes (its `streams`) cannot have drawn.
+fn check_spp(name: &str, spp: u64, meta: &ImageMeta) -> Result<(), CliError> {
+    let Some(runs) = meta.get("streams").and_then(provenance::parse_streams) else {
+        return Ok(()); // no record to check it against: `merge` refuses that unless --force
+    };
+    if provenance::spp_fits_streams(spp, &runs) {
+        return Ok(());
+    }
+    let passes = provenance::pass_count(&runs);
+    Err(CliError::Usage(format!(
+        "{name}: `spp` = {spp} cannot come from the {passes} passes its `streams` record \
+         (each adds 1 to {} samples): a forged or damaged count",
+        crate::integrator::session::PASS_SPP
+    )))
+}
 
 /// The layers beside the images ([`crate::aov::merge_channels`]: variances by the squared
 /// weights, features by the weights, spp summed), with the merged file's `aovs` attribute; a

@@ -69,6 +69,23 @@ pub fn parse_streams(text: &str) -> Option<Vec<Streams>> {
     text.split(',').map(one).collect()
 }
 
+/// Whether `spp` samples per pixel can come from the passes `runs` drew: every pass adds
+/// between 1 (a pass of a timed render, or the last of a target) and
+/// [`super::session::PASS_SPP`] samples, so a damaged or forged count outside that range
+/// would weight an image wrongly in a merge.
+pub fn spp_fits_streams(spp: u64, runs: &[Streams]) -> bool {
+    let passes = pass_count(runs);
+    let most = passes.saturating_mul(super::session::PASS_SPP as u64);
+    (passes..=most).contains(&spp)
+}
+
+/// The number of passes `runs` drew (saturating: the ranges of a forged record may add up
+/// beyond `u64`).
+pub fn pass_count(runs: &[Streams]) -> u64 {
+    runs.iter()
+        .fold(0u64, |n, r| n.saturating_add(r.end - r.first))
+}
+
 /// Sorted runs, the adjacent ranges of one seed joined (the parts of a run make the run).
 pub fn joined(mut runs: Vec<Streams>) -> Vec<Streams> {
     runs.sort();
