@@ -257,7 +257,7 @@ fn open_mesh_carrying_a_medium() {
         "\n[[shapes]]\ntype = \"mesh\"\nobj = \"open-cube.obj\"\nmaterial = \"null\"\ninterior = \"fog\"\n",
         6,
         "shapes[0].interior",
-        &["mesh is not a closed shape"],
+        &["the mesh `open-cube.obj` is not a closed shape"],
     );
 }
 

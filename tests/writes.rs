@@ -474,3 +474,89 @@ fn the_adjoint_images_png_is_checked_before_the_render() {
         "refused only after the render"
     );
 }
+
+/// `--strategy-images` on a full disk fails the command and leaves an earlier strategy image
+/// whole, with no temporary file left behind (each image is written beside its target and
+/// renamed).
+#[test]
+fn strategy_images_on_a_full_disk_keep_the_earlier_files() {
+    let base = scratch(GROUP, "strategies-full");
+    let dir = base.join("fs");
+    let earlier = b"an earlier strategy image";
+    // the first image written (strategies go in the order of (s, t))
+    if !full_tmpfs_with(&dir, "s0-t4.exr", earlier) {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let exr = base.join("x.exr");
+    let out = render(&[
+        "--integrator",
+        "bdpt",
+        "-o",
+        exr.to_str().unwrap(),
+        "--strategy-images",
+        dir.to_str().unwrap(),
+    ]);
+    let now = std::fs::read(dir.join("s0-t4.exr"));
+    let left = partial_files(&dir);
+    let _ = Command::new("umount").arg(&dir).status();
+    assert!(!out.status.success(), "a failed write must not exit 0");
+    assert!(
+        stderr(&out).contains(dir.to_str().unwrap()),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        now.unwrap(),
+        earlier,
+        "the earlier strategy image was damaged"
+    );
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// `assignment check` on a full disk: the claims that bind a student's copy to its target and
+/// build directories fail with the file named, and no empty claim is left that would later
+/// name no copy (a claim is written through a temporary file).
+#[test]
+fn assignment_claims_on_a_full_disk_leave_no_empty_claim() {
+    let base = scratch(GROUP, "claims-full");
+    let copy = base.join("copy");
+    std::fs::create_dir_all(&copy).unwrap();
+    std::fs::write(
+        copy.join("Cargo.toml"),
+        "[package]\nname = \"copy\"\nversion = \"0.1.0+copy.0123abcd\"\n",
+    )
+    .unwrap();
+    let fs = base.join("fs");
+    if !full_tmpfs_with(&fs, "earlier.txt", b"earlier") {
+        eprintln!("skipped: this test cannot mount a tmpfs here");
+        return;
+    }
+    let dir = |name: &str| fs.join(name).to_str().unwrap().to_string();
+    let copy = copy.to_str().unwrap();
+    let target = pathspace(&["assignment", "check", copy, "--target-dir", &dir("")]);
+    let build = pathspace(&["assignment", "check", copy, "--build-dir", &dir("")]);
+    let claims: Vec<String> = [
+        fs.join("pathspace-assignment-copy.txt"),
+        fs.join("pathspace-assignment-copies"),
+    ]
+    .iter()
+    .filter(|p| p.is_file() || p.read_dir().is_ok_and(|mut d| d.next().is_some()))
+    .map(|p| p.display().to_string())
+    .collect();
+    let left = partial_files(&fs);
+    let _ = Command::new("umount").arg(&fs).status();
+    for (what, out) in [("target", &target), ("build", &build)] {
+        assert!(
+            !out.status.success(),
+            "{what}: a failed claim must not exit 0"
+        );
+        assert!(
+            stderr(out).contains("pathspace-assignment-cop"),
+            "{what}: {}",
+            stderr(out)
+        );
+    }
+    assert!(claims.is_empty(), "claims left: {claims:?}");
+    assert!(left.is_empty(), "{left:?}");
+}

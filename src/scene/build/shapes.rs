@@ -145,8 +145,11 @@ pub(super) fn shapes(
             return Err(src.error(
                 &key.clone().key("interior"),
                 format!(
-                    "a {} is not a closed shape (a mesh is closed when every edge joins exactly two consistently wound triangles), so it has no inside to hold a medium",
-                    s.kind()
+                    "{} is not a closed shape (a mesh is closed when every edge joins exactly two consistently wound triangles), so it has no inside to hold a medium",
+                    match s {
+                        ShapeDesc::Mesh { obj, .. } => format!("the mesh `{obj}`"),
+                        _ => format!("a {}", s.kind()),
+                    }
                 ),
             ));
         }
