@@ -13,6 +13,7 @@ pub mod light_tree;
 pub mod mitsuba;
 pub mod segments;
 pub mod sensor;
+pub mod source;
 
 pub use camera::Camera;
 pub use envmap::EnvMap;
