@@ -56,69 +56,56 @@ impl<'a, 'd> Importer<'a, 'd> {
         } else {
             ""
         };
-        let (desc, how) = match p.plugin.as_str() {
+        match p.plugin.as_str() {
             "null" => {
                 p.finish()?;
                 return Ok("null".into());
             }
-            "twosided" => {
-                let inner = p.object("bsdf", None)?.ok_or_else(|| p.err("a twosided needs one <bsdf>"))?;
-                p.finish()?;
-                let kind = self.doc.plugin(inner)?;
-                if !["diffuse", "conductor", "roughconductor", "plastic", "roughplastic"].contains(&kind.as_str()) {
-                    return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic, roughplastic are)")));
-                }
-                let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
-                self.materials.insert(node.id(), name.clone());
-                return Ok(name);
-            }
-            "diffuse" => {
-                let a = p.color("reflectance")?.unwrap_or(DVec3::splat(0.5));
-                p.finish()?;
-                (
-                    MaterialDesc::Lambert { albedo: rgb(a), one_sided },
-                    format!("lambert, albedo {}{side}", show(a)),
-                )
-            }
-            "conductor" => {
-                let r = no_named_conductor(&mut p)?;
-                p.finish()?;
-                (
-                    MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
-                    format!("mirror, reflectance {}{side}", show(r)),
-                )
-            }
-            "roughconductor" => {
-                let r = rough_conductor(&mut p, one_sided, side)?;
-                p.finish()?;
-                r
-            }
-            "dielectric" | "roughdielectric" => {
-                let r = dielectric(&mut p)?;
-                p.finish()?;
-                r
-            }
-            "thindielectric" => {
-                let r = thin_dielectric(&mut p)?;
-                p.finish()?;
-                r
-            }
-            "plastic" => {
-                let r = plastic(&mut p, one_sided, side)?;
-                p.finish()?;
-                r
-            }
-            "roughplastic" => {
-                let r = rough_plastic(&mut p, one_sided, side)?;
-                p.finish()?;
-                r
-            }
-            k => {
-                return Err(p.err(format!(
-                    "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
-                )))
-            }
-        };
+            "twosided" => return self.two_sided(node, p),
+            _ => {}
+        }
+        let (desc, how) = bsdf(&mut p, one_sided, side)?;
+        p.finish()?;
+        Ok(self.add_material(node, id, desc, how))
+    }
+
+    /// A `twosided` around one of the BSDFs that have a back side: its inner BSDF made
+    /// two-sided, under the wrapper's id.
+    fn two_sided(
+        &mut self,
+        node: Node<'a, 'a>,
+        mut p: Props<'a, 'd>,
+    ) -> Result<String, SceneError> {
+        let inner = p
+            .object("bsdf", None)?
+            .ok_or_else(|| p.err("a twosided needs one <bsdf>"))?;
+        p.finish()?;
+        let kind = self.doc.plugin(inner)?;
+        if ![
+            "diffuse",
+            "conductor",
+            "roughconductor",
+            "plastic",
+            "roughplastic",
+        ]
+        .contains(&kind.as_str())
+        {
+            return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic, roughplastic are)")));
+        }
+        let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
+        self.materials.insert(node.id(), name.clone());
+        Ok(name)
+    }
+
+    /// Adds the material of `node` under its `id` (or `bsdf@LINE` when it has none, or one
+    /// already taken) and returns its name.
+    fn add_material(
+        &mut self,
+        node: Node<'a, 'a>,
+        id: Option<&str>,
+        desc: MaterialDesc,
+        how: String,
+    ) -> String {
         let name = match id {
             Some(id) if !["", "null"].contains(&id) && !self.out.materials.contains_key(id) => {
                 id.to_string()
@@ -129,7 +116,36 @@ impl<'a, 'd> Importer<'a, 'd> {
         self.note(node, &key, how);
         self.out.materials.insert(name.clone(), desc);
         self.materials.insert(node.id(), name.clone());
-        Ok(name)
+        name
+    }
+}
+
+/// The material of a BSDF plugin other than `twosided` and `null`, and its note; `side` is what
+/// the note says of a one-sided material.
+fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, String), SceneError> {
+    match p.plugin.as_str() {
+        "diffuse" => {
+            let a = p.color("reflectance")?.unwrap_or(DVec3::splat(0.5));
+            Ok((
+                MaterialDesc::Lambert { albedo: rgb(a), one_sided },
+                format!("lambert, albedo {}{side}", show(a)),
+            ))
+        }
+        "conductor" => {
+            let r = no_named_conductor(p)?;
+            Ok((
+                MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
+                format!("mirror, reflectance {}{side}", show(r)),
+            ))
+        }
+        "roughconductor" => rough_conductor(p, one_sided, side),
+        "dielectric" | "roughdielectric" => dielectric(p),
+        "thindielectric" => thin_dielectric(p),
+        "plastic" => plastic(p, one_sided, side),
+        "roughplastic" => rough_plastic(p, one_sided, side),
+        k => Err(p.err(format!(
+            "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
+        ))),
     }
 }
 

@@ -21,39 +21,10 @@ impl<'a, 'd> Importer<'a, 'd> {
             None => PhaseDesc::Isotropic {},
         };
         p.ignore(&["sample_emitters", "has_spectral_extinction"]);
-        let (desc, how) = match p.plugin.as_str() {
-            "homogeneous" => {
-                let st = p.color("sigma_t")?.unwrap_or(DVec3::ONE) * scale;
-                let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
-                p.finish()?;
-                let (ss, sa) = (st * albedo, st * (DVec3::ONE - albedo));
-                (
-                    MediumDesc::Homogeneous { sigma_a: rgb(sa), sigma_s: rgb(ss), phase },
-                    format!("homogeneous, sigma_s = scale sigma_t albedo = {}, sigma_a = scale sigma_t (1 - albedo) = {}", show(ss), show(sa)),
-                )
-            }
-            "heterogeneous" => {
-                let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
-                let grid = p
-                    .object("volume", Some("sigma_t"))?
-                    .ok_or_else(|| p.err("`sigma_t` must be a <volume type=\"gridvolume\">"))?;
-                p.finish()?;
-                let (file, min, max) = self.gridvolume(grid)?;
-                let (ss, sa) = (albedo * scale, (DVec3::ONE - albedo) * scale);
-                (
-                    MediumDesc::Grid {
-                        sigma_a: rgb(sa),
-                        sigma_s: rgb(ss),
-                        phase,
-                        file: file.clone(),
-                        min: Some(f3(min)),
-                        max: Some(f3(max)),
-                        propagation: PropagationDesc::DeltaTracking,
-                        step: None,
-                    },
-                    format!("grid `{file}` (values at cell centres: lattice {} .. {}), sigma_s = scale albedo = {}, sigma_a = {} per unit density", show(min), show(max), show(ss), show(sa)),
-                )
-            }
+        let plugin = p.plugin.clone();
+        let (desc, how) = match plugin.as_str() {
+            "homogeneous" => homogeneous(p, scale, phase)?,
+            "heterogeneous" => self.heterogeneous(p, scale, phase)?,
             k => {
                 return Err(p.err(format!(
                     "the medium `{k}` is not supported (homogeneous, heterogeneous are)"
@@ -69,6 +40,36 @@ impl<'a, 'd> Importer<'a, 'd> {
         self.out.media.insert(name.clone(), desc);
         self.media.insert(node.id(), name.clone());
         Ok(name)
+    }
+
+    /// `heterogeneous`: a `gridvolume` of sigma_t (`scale` times its values) and a constant
+    /// `albedo`, as pathspace's grid medium scaling sigma_s and sigma_a per unit density.
+    fn heterogeneous(
+        &mut self,
+        mut p: Props<'a, 'd>,
+        scale: f64,
+        phase: PhaseDesc,
+    ) -> Result<(MediumDesc, String), SceneError> {
+        let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
+        let grid = p
+            .object("volume", Some("sigma_t"))?
+            .ok_or_else(|| p.err("`sigma_t` must be a <volume type=\"gridvolume\">"))?;
+        p.finish()?;
+        let (file, min, max) = self.gridvolume(grid)?;
+        let (ss, sa) = (albedo * scale, (DVec3::ONE - albedo) * scale);
+        Ok((
+            MediumDesc::Grid {
+                sigma_a: rgb(sa),
+                sigma_s: rgb(ss),
+                phase,
+                file: file.clone(),
+                min: Some(f3(min)),
+                max: Some(f3(max)),
+                propagation: PropagationDesc::DeltaTracking,
+                step: None,
+            },
+            format!("grid `{file}` (values at cell centres: lattice {} .. {}), sigma_s = scale albedo = {}, sigma_a = {} per unit density", show(min), show(max), show(ss), show(sa)),
+        ))
     }
 
     /// A `gridvolume`: its file and the lattice box of pathspace's grid. Mitsuba 3 puts the
@@ -120,6 +121,23 @@ impl<'a, 'd> Importer<'a, 'd> {
     }
 }
 
+/// `homogeneous`: `scale` times `sigma_t`, split by `albedo` into sigma_s and sigma_a.
+fn homogeneous(
+    mut p: Props,
+    scale: f64,
+    phase: PhaseDesc,
+) -> Result<(MediumDesc, String), SceneError> {
+    let st = p.color("sigma_t")?.unwrap_or(DVec3::ONE) * scale;
+    let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
+    p.finish()?;
+    let (ss, sa) = (st * albedo, st * (DVec3::ONE - albedo));
+    Ok((
+        MediumDesc::Homogeneous { sigma_a: rgb(sa), sigma_s: rgb(ss), phase },
+        format!("homogeneous, sigma_s = scale sigma_t albedo = {}, sigma_a = scale sigma_t (1 - albedo) = {}", show(ss), show(sa)),
+    ))
+}
+
+/// A phase function: `isotropic`, or `hg` with Mitsuba's default g = 0.8.
 fn phase(doc: &Doc, node: Node) -> Result<PhaseDesc, SceneError> {
     let mut p = Props::new(doc, node)?;
     let ph = match p.plugin.as_str() {

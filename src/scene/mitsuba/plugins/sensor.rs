@@ -8,60 +8,41 @@ use super::{f3, linear, similarity, Importer, Props};
 use crate::scene::file::CameraDesc;
 use crate::scene::SceneError;
 
+/// A `perspective` sensor's own properties, read and checked, with its film and sampler.
+struct Perspective<'a> {
+    /// Degrees along `axis`.
+    fov: f64,
+    axis: String,
+    to_world: DMat4,
+    medium: Option<String>,
+    film: Node<'a, 'a>,
+    sampler: Option<Node<'a, 'a>>,
+}
+
 impl<'a, 'd> Importer<'a, 'd> {
+    /// The scene's one sensor: the camera, and the resolution, samples and seed of `[render]`.
     pub(super) fn sensor(&mut self, node: Node<'a, 'a>) -> Result<(), SceneError> {
         if self.sensor_seen {
             return Err(self.doc.err(node, "only one <sensor> is supported"));
         }
         self.sensor_seen = true;
-        let mut p = Props::new(self.doc, node)?;
-        if p.plugin != "perspective" {
-            return Err(p.err(format!(
-                "the sensor `{}` is not supported (perspective is)",
-                p.plugin
-            )));
-        }
-        let fov = p.float("fov")?.ok_or_else(|| p.err("`fov` is missing"))?;
-        let axis = p.string("fov_axis")?.unwrap_or_else(|| "x".into());
-        let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
-        for k in ["principal_point_offset_x", "principal_point_offset_y"] {
-            if p.float(k)?.is_some_and(|x| x != 0.0) {
-                return Err(p.err(format!("a nonzero {k} is not supported")));
-            }
-        }
-        // pathspace does not clip: only Mitsuba's defaults (or wider) give the same image
-        if p.float("near_clip")?.is_some_and(|x| x > 0.01) {
-            return Err(p.err("a near_clip above Mitsuba's default 0.01 is not supported (pathspace does not clip)"));
-        }
-        // a far clip matters only inside the scene's extent, which the sensor cannot see here:
-        // accepted, and `info` says it is not applied
-        p.ignore(&["far_clip"]);
-        let medium = match p.object("medium", None)? {
-            Some(m) => Some(self.medium(m)?),
-            None => None,
-        };
-        let film = p
-            .object("film", None)?
-            .ok_or_else(|| p.err("<film> is missing"))?;
-        let sampler = p.object("sampler", None)?;
-        p.finish()?;
+        let Perspective {
+            fov,
+            axis,
+            to_world: m,
+            medium,
+            film,
+            sampler,
+        } = self.perspective(node)?;
         let (w, h) = self.film(film)?;
         let (spp, seed) = match sampler {
             Some(s) => self.sampler(s)?,
             None => (4, 0),
         };
-        let tan = (0.5 * fov.to_radians()).tan();
-        let (w64, h64) = (w as f64, h as f64);
-        let tan_y = match axis.as_str() {
-            "x" => tan * h64 / w64,
-            "y" => tan,
-            "diagonal" => tan * h64 / (w64 * w64 + h64 * h64).sqrt(),
-            "smaller" if w <= h => tan * h64 / w64,
-            "smaller" => tan,
-            "larger" if w >= h => tan * h64 / w64,
-            "larger" => tan,
-            a => return Err(self.doc.err(node, format!("fov_axis = \"{a}\" is unknown"))),
-        };
+        let tan_y = vertical_tan(fov, &axis, w, h).ok_or_else(|| {
+            self.doc
+                .err(node, format!("fov_axis = \"{axis}\" is unknown"))
+        })?;
         let l = linear(&m);
         if similarity(&l).is_none_or(|s| (s - 1.0).abs() > 1e-6) {
             return Err(self.doc.err(
@@ -92,6 +73,49 @@ impl<'a, 'd> Importer<'a, 'd> {
             ),
         );
         Ok(())
+    }
+
+    /// The properties of a `perspective` sensor, each consumed or refused.
+    fn perspective(&mut self, node: Node<'a, 'a>) -> Result<Perspective<'a>, SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        if p.plugin != "perspective" {
+            return Err(p.err(format!(
+                "the sensor `{}` is not supported (perspective is)",
+                p.plugin
+            )));
+        }
+        let fov = p.float("fov")?.ok_or_else(|| p.err("`fov` is missing"))?;
+        let axis = p.string("fov_axis")?.unwrap_or_else(|| "x".into());
+        let to_world = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
+        for k in ["principal_point_offset_x", "principal_point_offset_y"] {
+            if p.float(k)?.is_some_and(|x| x != 0.0) {
+                return Err(p.err(format!("a nonzero {k} is not supported")));
+            }
+        }
+        // pathspace does not clip: only Mitsuba's defaults (or wider) give the same image
+        if p.float("near_clip")?.is_some_and(|x| x > 0.01) {
+            return Err(p.err("a near_clip above Mitsuba's default 0.01 is not supported (pathspace does not clip)"));
+        }
+        // a far clip matters only inside the scene's extent, which the sensor cannot see here:
+        // accepted, and `info` says it is not applied
+        p.ignore(&["far_clip"]);
+        let medium = match p.object("medium", None)? {
+            Some(m) => Some(self.medium(m)?),
+            None => None,
+        };
+        let film = p
+            .object("film", None)?
+            .ok_or_else(|| p.err("<film> is missing"))?;
+        let sampler = p.object("sampler", None)?;
+        p.finish()?;
+        Ok(Perspective {
+            fov,
+            axis,
+            to_world,
+            medium,
+            film,
+            sampler,
+        })
     }
 
     pub(super) fn film(&mut self, node: Node<'a, 'a>) -> Result<(u32, u32), SceneError> {
@@ -153,4 +177,21 @@ impl<'a, 'd> Importer<'a, 'd> {
         }
         Ok((spp, seed))
     }
+}
+
+/// The tangent of half the vertical field of view of `fov` degrees along Mitsuba's `fov_axis`
+/// on a film of `w` x `h` pixels; `None` for an axis Mitsuba does not know.
+fn vertical_tan(fov: f64, axis: &str, w: u32, h: u32) -> Option<f64> {
+    let tan = (0.5 * fov.to_radians()).tan();
+    let (w64, h64) = (w as f64, h as f64);
+    Some(match axis {
+        "x" => tan * h64 / w64,
+        "y" => tan,
+        "diagonal" => tan * h64 / (w64 * w64 + h64 * h64).sqrt(),
+        "smaller" if w <= h => tan * h64 / w64,
+        "smaller" => tan,
+        "larger" if w >= h => tan * h64 / w64,
+        "larger" => tan,
+        _ => return None,
+    })
 }
