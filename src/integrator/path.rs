@@ -673,7 +673,7 @@ pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super
 /// none), naming the medium.
 pub fn check_equiangular(scene: &Scene) -> Result<(), super::IntegratorError> {
     for (m, name) in scene.media.iter().zip(&scene.medium_names) {
-        if matches!(m, crate::medium::Medium::Heterogeneous(_)) {
+        if !m.closed_form() {
             return Err(super::IntegratorError::Refused(format!(
                 "distance = \"equiangular-mis\" (--distance) needs homogeneous media: medium `{name}` is inhomogeneous (use free-flight)"
             )));

@@ -149,6 +149,30 @@ impl Medium {
         }
     }
 
+    /// True when the optical depth along a segment is a closed form of its length (a
+    /// homogeneous medium): its transmittance draws no random numbers and the free-flight
+    /// density at any point needs no walk. A shadow ray may then stop at its first occluder
+    /// (`Scene::closed_form_tau`), a path's throughput can be recomputed (`path::verify`), and
+    /// equiangular sampling can weigh its distances against free flight.
+    pub fn closed_form(&self) -> bool {
+        match self {
+            Medium::Homogeneous(_) => true,
+            Medium::Heterogeneous(_) => false,
+        }
+    }
+
+    /// Sets how an inhomogeneous medium integrates sigma_t along a ray; false for a medium
+    /// without a line integral to choose (homogeneous: the closed form).
+    pub fn set_line_integral(&mut self, li: LineIntegral) -> bool {
+        match self {
+            Medium::Homogeneous(_) => false,
+            Medium::Heterogeneous(h) => {
+                h.line_integral = li;
+                true
+            }
+        }
+    }
+
     /// sigma_s / sigma_t per channel (0 where sigma_t is 0): the same everywhere in a medium,
     /// because an inhomogeneous medium scales both by one density.
     pub fn albedo(&self) -> Rgb {

@@ -168,10 +168,7 @@ pub type Verdict = Result<(), Mismatch>;
 /// only (heterogeneous ones estimate it by ratio tracking, an unbiased random number, so the
 /// throughput cannot be recomputed; their densities can, `free_flight_pdf` being exact).
 pub fn deterministic_transmittance(scene: &Scene) -> bool {
-    scene
-        .media
-        .iter()
-        .all(|m| matches!(m, Medium::Homogeneous(_)))
+    scene.media.iter().all(Medium::closed_form)
 }
 
 /// The part of the sensor an eye subpath samples its first direction in: one pixel of the

@@ -67,7 +67,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     let crossable = hidden::crossable(&prims, &prim_shape, &shapes);
     let bvh = Bvh::build_over(&prims, |i| crossable[i]);
     let boundary_bvh = Bvh::build_over(&prims, |i| crossable[i] && !prim_opaque[i]);
-    let closed_form_tau = media.iter().all(|m| matches!(m, Medium::Homogeneous(_)));
+    let closed_form_tau = media.iter().all(Medium::closed_form);
     let hidden_faces = crossable.iter().filter(|&&c| !c).count();
 
     let mut scene = Scene {

@@ -4,12 +4,15 @@
 //! errors come from the TOML deserializer with their span; semantic errors (negative sigma,
 //! |g| >= 1, an unknown material, an open shape carrying a medium, ...) are raised on the parsed
 //! description with a key path, which [`locate`] maps back to a line through a span-keeping parse.
+//! The scene description here ([`SceneFile`]) and [`SceneSource`] are what both readers of a
+//! scene produce (`scene::source` reads a file and dispatches by format, `scene::mitsuba`
+//! translates XML into this format), so they live below both.
 //! Book: "Scenes and geometry" (tests: `tests/scene_errors.rs`).
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 mod diagnostics;
 mod fixed;
@@ -18,6 +21,7 @@ mod limits;
 pub use diagnostics::{line_of, locate, narrow_trials, statement_at};
 use diagnostics::{schema_error, syntax_error};
 pub use fixed::{exact, exact_opt};
+pub(crate) use limits::{check_size, decode};
 pub use limits::{escape_controls, MAX_ARRAY_ELEMENTS, MAX_NESTING, MAX_SCENE_BYTES};
 
 /// A scene-file error: where, which key, what is wrong.
@@ -616,7 +620,8 @@ pub fn parse_as<T: serde::de::DeserializeOwned>(text: &str, name: &str) -> Resul
     }
 }
 
-/// A scene file read from disk with its text (kept for error locations and hashing).
+/// A scene file with its text (kept for error locations and hashing): what either reader of
+/// [`SceneSource::read`] produces (a TOML file as it is, a Mitsuba scene translated).
 #[derive(Debug, Clone)]
 pub struct SceneSource {
     pub name: String,
@@ -662,38 +667,6 @@ impl Origin {
 }
 
 impl SceneSource {
-    /// Reads a file of at most [`MAX_SCENE_BYTES`] bytes of UTF-8.
-    pub fn read(path: &Path) -> Result<Self, SceneError> {
-        use std::io::Read;
-        let name = path.display().to_string();
-        let mut bytes = Vec::new();
-        // one byte more than the limit tells a file at the limit from a longer one
-        std::fs::File::open(path)
-            .and_then(|f| f.take(MAX_SCENE_BYTES as u64 + 1).read_to_end(&mut bytes))
-            .map_err(|e| SceneError {
-                file: name.clone(),
-                line: None,
-                key: FILE_KEY.into(),
-                message: format!("cannot read the scene file: {e}"),
-            })?;
-        limits::check_size(&name, bytes.len())?;
-        let text = limits::decode(bytes, &name)?;
-        let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("xml"))
-        {
-            return crate::scene::mitsuba::import(&name, &text, base_dir);
-        }
-        Ok(SceneSource {
-            name,
-            text,
-            base_dir,
-            origin: None,
-            inputs: Default::default(),
-        })
-    }
-
     /// An in-memory scene (the embedded default).
     pub fn embedded(name: &str, text: &str) -> Self {
         SceneSource {

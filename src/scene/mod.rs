@@ -13,6 +13,7 @@ pub mod light_tree;
 pub mod mitsuba;
 pub mod segments;
 pub mod sensor;
+pub mod source;
 
 pub use camera::Camera;
 pub use envmap::EnvMap;
@@ -519,14 +520,11 @@ impl Scene {
     /// Sets the propagation strategy of every inhomogeneous medium (for comparing strategies
     /// on one scene, `pathspace converge --propagation`); returns how many media changed.
     pub fn set_line_integral(&mut self, li: crate::medium::heterogeneous::LineIntegral) -> usize {
-        let mut n = 0;
-        for m in &mut self.media {
-            if let Medium::Heterogeneous(h) = m {
-                h.line_integral = li;
-                n += 1;
-            }
-        }
-        n
+        self.media
+            .iter_mut()
+            .map(|m| m.set_line_integral(li))
+            .filter(|&set| set)
+            .count()
     }
 
     /// The embedded fog box.

@@ -11,7 +11,8 @@ use crate::medium::grid::read_grid_file_hashed;
 use crate::medium::{Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral};
 use crate::medium::{Medium, MediumError, Phase};
 use crate::scene::file::{
-    path, AxisDesc, DensityDesc, KeyPath, MediumDesc, PhaseDesc, PropagationDesc, SceneFile,
+    path, AxisDesc, DensityDesc, KeyPath, MediumDesc, PhaseDesc, PropagationDesc, RgbValue,
+    SceneFile,
 };
 use crate::scene::{SceneError, SceneSource};
 
@@ -84,8 +85,29 @@ impl Media {
                         Homogeneous::new(sa, ss, ph).map_err(|e| src.error(&key, e.to_string()))?,
                     )
                 }
-                MediumDesc::Grid { .. } | MediumDesc::Procedural { .. } => {
-                    heterogeneous(src, &key, m)?
+                MediumDesc::Grid {
+                    sigma_a,
+                    sigma_s,
+                    phase,
+                    propagation,
+                    step,
+                    file,
+                    min,
+                    max,
+                } => {
+                    let coefficients = (sigma_a, sigma_s, phase, propagation, step);
+                    heterogeneous(src, &key, coefficients, || grid(src, &key, file, min, max))?
+                }
+                MediumDesc::Procedural {
+                    sigma_a,
+                    sigma_s,
+                    phase,
+                    propagation,
+                    step,
+                    ..
+                } => {
+                    let coefficients = (sigma_a, sigma_s, phase, propagation, step);
+                    heterogeneous(src, &key, coefficients, || procedural(src, &key, m))?
                 }
             };
             index.insert(name.clone(), media.len() as u32);
@@ -122,27 +144,23 @@ impl Media {
     }
 }
 
-/// A `grid` or `procedural` medium.
-fn heterogeneous(src: &SceneSource, key: &KeyPath, m: &MediumDesc) -> Result<Medium, SceneError> {
-    let (sigma_a, sigma_s, ph, propagation, step) = match m {
-        MediumDesc::Grid {
-            sigma_a,
-            sigma_s,
-            phase,
-            propagation,
-            step,
-            ..
-        }
-        | MediumDesc::Procedural {
-            sigma_a,
-            sigma_s,
-            phase,
-            propagation,
-            step,
-            ..
-        } => (sigma_a, sigma_s, phase, propagation, step),
-        MediumDesc::Homogeneous { .. } => unreachable!("only called for grid and procedural"),
-    };
+/// The keys an inhomogeneous medium shares: `sigma_a`, `sigma_s`, `phase`, `propagation` and
+/// `step`.
+type Coefficients<'a> = (
+    &'a RgbValue,
+    &'a RgbValue,
+    &'a PhaseDesc,
+    &'a PropagationDesc,
+    &'a Option<f32>,
+);
+
+/// A `grid` or `procedural` medium: its shared keys checked, then its density and box.
+fn heterogeneous(
+    src: &SceneSource,
+    key: &KeyPath,
+    (sigma_a, sigma_s, ph, propagation, step): Coefficients,
+    density: impl FnOnce() -> Result<(Density, Aabb), SceneError>,
+) -> Result<Medium, SceneError> {
     let sa = non_negative(src, &key_of(key, "sigma_a"), *sigma_a, "sigma_a")?;
     let ss = non_negative(src, &key_of(key, "sigma_s"), *sigma_s, "sigma_s")?;
     let ph = phase(src, &key_of(key, "phase"), ph)?;
@@ -161,11 +179,7 @@ fn heterogeneous(src: &SceneSource, key: &KeyPath, m: &MediumDesc) -> Result<Med
             ),
         ));
     }
-    let (density, aabb) = match m {
-        MediumDesc::Grid { file, min, max, .. } => grid(src, key, file, min, max)?,
-        MediumDesc::Procedural { .. } => procedural(src, key, m)?,
-        MediumDesc::Homogeneous { .. } => unreachable!("only called for grid and procedural"),
-    };
+    let (density, aabb) = density()?;
     let h = Heterogeneous::new(density, aabb, sa, ss, ph, line_integral, step).map_err(|e| {
         // the work bounds name the key that sets them
         let at = match e {

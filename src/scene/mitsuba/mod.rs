@@ -119,6 +119,24 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         ids: HashMap::new(),
         newlines: newlines(xml.input_text()),
     };
+    resolve(&mut doc, root)?;
+    let mut imp = plugins::Importer::new(&doc, base_dir.clone());
+    imp.scene(root)?;
+    let (file, origin) = imp.finish(root)?;
+    let text = generated_text(name, &file)?;
+    Ok(SceneSource {
+        name: name.to_string(),
+        text,
+        base_dir,
+        origin: Some(Arc::new(origin)),
+        inputs: Default::default(),
+    })
+}
+
+/// Checks the root and the version, and resolves what every element may refer to: the
+/// `<default>` values, every `$name` (wherever it is: Mitsuba substitutes while parsing) and
+/// the `id`s.
+fn resolve<'a>(doc: &mut Doc<'a>, root: roxmltree::Node<'a, 'a>) -> Result<(), SceneError> {
     if root.tag_name().name() != "scene" {
         return Err(doc.err(root, "the root element must be <scene>"));
     }
@@ -152,17 +170,7 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
             }
         }
     }
-    let mut imp = plugins::Importer::new(&doc, base_dir.clone());
-    imp.scene(root)?;
-    let (file, origin) = imp.finish(root)?;
-    let text = generated_text(name, &file)?;
-    Ok(SceneSource {
-        name: name.to_string(),
-        text,
-        base_dir,
-        origin: Some(Arc::new(origin)),
-        inputs: Default::default(),
-    })
+    Ok(())
 }
 
 /// The scene file as TOML text (what `Scene::load` and the render settings read).

@@ -1,0 +1,359 @@
+//! The BSDFs: `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
+//! `thindielectric`, `plastic`, `roughplastic`, `twosided` and `null`, with Mitsuba's named
+//! indices of refraction.
+
+use glam::DVec3;
+use roxmltree::Node;
+
+use super::{rgb, show, Importer, Props};
+use crate::scene::file::{DistributionDesc, MaterialDesc};
+use crate::scene::SceneError;
+
+/// Mitsuba's named indices of refraction (the whole table of its `ior.h`).
+const NAMED_IOR: [(&str, f64); 23] = [
+    ("vacuum", 1.0),
+    ("helium", 1.000036),
+    ("hydrogen", 1.000132),
+    ("air", 1.000277),
+    ("carbon dioxide", 1.00045),
+    ("water", 1.3330),
+    ("acetone", 1.36),
+    ("ethanol", 1.361),
+    ("carbon tetrachloride", 1.461),
+    ("glycerol", 1.4729),
+    ("benzene", 1.501),
+    ("silicone oil", 1.52045),
+    ("bromine", 1.661),
+    ("water ice", 1.31),
+    ("fused quartz", 1.458),
+    ("pyrex", 1.470),
+    ("acrylic glass", 1.49),
+    ("polypropylene", 1.49),
+    ("bk7", 1.5046),
+    ("sodium chloride", 1.544),
+    ("amber", 1.55),
+    ("pet", 1.5750),
+    ("diamond", 2.419),
+];
+
+impl<'a, 'd> Importer<'a, 'd> {
+    /// The material a `<bsdf>` becomes (memoized by element), `two_sided` when inside a
+    /// `twosided`.
+    pub(super) fn material(
+        &mut self,
+        node: Node<'a, 'a>,
+        two_sided: Option<&str>,
+    ) -> Result<String, SceneError> {
+        if let Some(name) = self.materials.get(&node.id()) {
+            return Ok(name.clone());
+        }
+        let mut p = Props::new(self.doc, node)?;
+        // the material takes the id of its `twosided` wrapper, if any
+        let id = two_sided.or(node.attribute("id"));
+        let one_sided = two_sided.is_none();
+        let side = if one_sided {
+            ", one-sided (black behind its normal, as Mitsuba's)"
+        } else {
+            ""
+        };
+        match p.plugin.as_str() {
+            "null" => {
+                p.finish()?;
+                return Ok("null".into());
+            }
+            "twosided" => return self.two_sided(node, p),
+            _ => {}
+        }
+        let (desc, how) = bsdf(&mut p, one_sided, side)?;
+        p.finish()?;
+        Ok(self.add_material(node, id, desc, how))
+    }
+
+    /// A `twosided` around one of the BSDFs that have a back side: its inner BSDF made
+    /// two-sided, under the wrapper's id.
+    fn two_sided(
+        &mut self,
+        node: Node<'a, 'a>,
+        mut p: Props<'a, 'd>,
+    ) -> Result<String, SceneError> {
+        let inner = p
+            .object("bsdf", None)?
+            .ok_or_else(|| p.err("a twosided needs one <bsdf>"))?;
+        p.finish()?;
+        let kind = self.doc.plugin(inner)?;
+        if ![
+            "diffuse",
+            "conductor",
+            "roughconductor",
+            "plastic",
+            "roughplastic",
+        ]
+        .contains(&kind.as_str())
+        {
+            return Err(self.doc.err(inner, format!("twosided `{kind}` is not supported (diffuse, conductor, roughconductor, plastic, roughplastic are)")));
+        }
+        let name = self.material(inner, Some(node.attribute("id").unwrap_or("")))?;
+        self.materials.insert(node.id(), name.clone());
+        Ok(name)
+    }
+
+    /// Adds the material of `node` under its `id` (or `bsdf@LINE` when it has none, or one
+    /// already taken) and returns its name.
+    fn add_material(
+        &mut self,
+        node: Node<'a, 'a>,
+        id: Option<&str>,
+        desc: MaterialDesc,
+        how: String,
+    ) -> String {
+        let name = match id {
+            Some(id) if !["", "null"].contains(&id) && !self.out.materials.contains_key(id) => {
+                id.to_string()
+            }
+            _ => format!("bsdf@{}", self.doc.line(node)),
+        };
+        let key = format!("materials.{name}");
+        self.note(node, &key, how);
+        self.out.materials.insert(name.clone(), desc);
+        self.materials.insert(node.id(), name.clone());
+        name
+    }
+}
+
+/// The material of a BSDF plugin other than `twosided` and `null`, and its note; `side` is what
+/// the note says of a one-sided material.
+fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, String), SceneError> {
+    match p.plugin.as_str() {
+        "diffuse" => {
+            let a = p.color("reflectance")?.unwrap_or(DVec3::splat(0.5));
+            Ok((
+                MaterialDesc::Lambert { albedo: rgb(a), one_sided },
+                format!("lambert, albedo {}{side}", show(a)),
+            ))
+        }
+        "conductor" => {
+            let r = no_named_conductor(p)?;
+            Ok((
+                MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
+                format!("mirror, reflectance {}{side}", show(r)),
+            ))
+        }
+        "roughconductor" => rough_conductor(p, one_sided, side),
+        "dielectric" | "roughdielectric" => dielectric(p),
+        "thindielectric" => thin_dielectric(p),
+        "plastic" => plastic(p, one_sided, side),
+        "roughplastic" => rough_plastic(p, one_sided, side),
+        k => Err(p.err(format!(
+            "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
+        ))),
+    }
+}
+
+/// `roughconductor`: GGX with a complex index (`eta`, `k`) or Mitsuba's `none` (a Fresnel term
+/// of 1, exactly pathspace's reflectance 1).
+fn rough_conductor(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    let (distribution, alpha) = microfacet(p)?;
+    let eta = p.color("eta")?;
+    let k = p.color("k")?;
+    let r = no_named_conductor(p)?;
+    let (eta, k, how) = match (eta, k) {
+        (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {}, k {}", show(e), show(k))),
+        (None, None) if r == DVec3::ONE => (None, None, "reflectance 1 (material none)".into()),
+        (None, None) => return Err(p.err("specular_reflectance other than 1 with material none: Mitsuba scales a Fresnel term of 1, pathspace's `reflectance` is Schlick's F0; give eta and k instead")),
+        (Some(_), Some(_)) => return Err(p.err("specular_reflectance other than 1 with eta and k is not supported")),
+        _ => return Err(p.err("give both eta and k")),
+    };
+    Ok((
+        MaterialDesc::RoughConductor {
+            alpha: alpha as f32,
+            distribution,
+            reflectance: None,
+            eta,
+            k,
+            one_sided,
+        },
+        format!(
+            "rough conductor ({}), alpha {alpha}, {how}{side}",
+            dist_name(distribution)
+        ),
+    ))
+}
+
+/// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`.
+fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
+    let rough = p.plugin == "roughdielectric";
+    let alpha = if rough { Some(microfacet(p)?) } else { None };
+    let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
+    for k in ["specular_reflectance", "specular_transmittance"] {
+        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
+            return Err(p.err(format!("{k} other than 1 is not supported")));
+        }
+    }
+    Ok(match alpha {
+        None => (
+            MaterialDesc::Dielectric { ior: ior as f32 },
+            format!("dielectric, ior {ior} (int_ior / ext_ior)"),
+        ),
+        Some((d, a)) => (
+            MaterialDesc::RoughDielectric {
+                ior: ior as f32,
+                alpha: a as f32,
+                distribution: d,
+            },
+            format!(
+                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), alpha {a}",
+                dist_name(d)
+            ),
+        ),
+    })
+}
+
+/// `thindielectric`: `ior` = int_ior / ext_ior (defaults bk7 and air), as `dielectric`.
+fn thin_dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
+    let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
+    for k in ["specular_reflectance", "specular_transmittance"] {
+        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
+            return Err(p.err(format!("{k} other than 1 is not supported")));
+        }
+    }
+    Ok((
+        MaterialDesc::ThinDielectric { ior: ior as f32 },
+        format!("thin dielectric, ior {ior} (int_ior / ext_ior)"),
+    ))
+}
+
+/// `plastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults "polypropylene" and "air"),
+/// `diffuse_reflectance` (0.5), `specular_reflectance` (1), `nonlinear` (false).
+fn plastic(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    use crate::bsdf::plastic::{DEFAULT_EXT_IOR, DEFAULT_INT_IOR};
+    let ior = ior(p, "int_ior", DEFAULT_INT_IOR)? / ior(p, "ext_ior", DEFAULT_EXT_IOR)?;
+    if !(ior.is_finite() && ior > 0.0) {
+        return Err(p.err("int_ior and ext_ior must be positive"));
+    }
+    let d = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
+    Ok((
+        MaterialDesc::Plastic {
+            diffuse: rgb(d),
+            specular: rgb(s),
+            ior: Some(ior as f32),
+            nonlinear,
+            one_sided,
+        },
+        format!(
+            "plastic, diffuse {}, specular {}, ior {ior} (int_ior / ext_ior){}{side}",
+            show(d),
+            show(s),
+            if nonlinear { ", nonlinear" } else { "" }
+        ),
+    ))
+}
+
+/// A conductor's `material` must be `none` (no tabulated spectra); its reflectance.
+fn no_named_conductor(p: &mut Props) -> Result<DVec3, SceneError> {
+    if let Some(m) = p.string("material")? {
+        if m != "none" {
+            return Err(p.err(format!(
+                "material = \"{m}\": tabulated conductor spectra are not imported; give eta and k as <rgb>"
+            )));
+        }
+    }
+    if p.plugin == "conductor" && (p.color("eta")?.is_some() || p.color("k")?.is_some()) {
+        return Err(p.err("a smooth conductor with eta and k is not supported: pathspace's mirror has a constant reflectance"));
+    }
+    Ok(p.color("specular_reflectance")?.unwrap_or(DVec3::ONE))
+}
+
+/// An index of refraction given as a number or one of Mitsuba's names.
+fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
+    if p.tag_of(key) != Some("string") {
+        return Ok(p.float(key)?.unwrap_or(dflt));
+    }
+    match p.string(key)? {
+        None => Ok(dflt),
+        Some(s) => match NAMED_IOR.iter().find(|(n, _)| *n == s.as_str()) {
+            Some(&(_, v)) => Ok(v),
+            None => match s.parse::<f64>() {
+                Ok(v) => Ok(v),
+                Err(_) => Err(p.err(format!("{key} = \"{s}\" is not a known material name"))),
+            },
+        },
+    }
+}
+
+/// The microfacet model of a rough plugin: `distribution` (Mitsuba's default beckmann, or
+/// ggx) and one isotropic `alpha` (default 0.1).
+fn microfacet(p: &mut Props) -> Result<(DistributionDesc, f64), SceneError> {
+    // Mitsuba lowercases the name
+    let d = match p
+        .string("distribution")?
+        .map(|d| d.to_lowercase())
+        .as_deref()
+    {
+        None | Some("beckmann") => DistributionDesc::Beckmann,
+        Some("ggx") => DistributionDesc::Ggx,
+        Some(d) => {
+            return Err(p.err(format!(
+                "distribution = {d}: Mitsuba knows beckmann and ggx"
+            )))
+        }
+    };
+    if p.float("alpha_u")?.is_some() || p.float("alpha_v")?.is_some() {
+        return Err(p.err("anisotropic roughness (alpha_u, alpha_v) is not supported"));
+    }
+    // only the sampler depends on it, not the BSDF
+    p.ignore(&["sample_visible"]);
+    Ok((d, p.float("alpha")?.unwrap_or(0.1)))
+}
+
+fn dist_name(d: DistributionDesc) -> &'static str {
+    match d {
+        DistributionDesc::Ggx => "GGX",
+        DistributionDesc::Beckmann => "Beckmann",
+    }
+}
+
+/// `roughplastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults polypropylene and air),
+/// `diffuse_reflectance` (0.5), `specular_reflectance` (1), `nonlinear` (false).
+fn rough_plastic(
+    p: &mut Props,
+    one_sided: bool,
+    side: &str,
+) -> Result<(MaterialDesc, String), SceneError> {
+    let (distribution, alpha) = microfacet(p)?;
+    let (int_ior, ext_ior) = (ior(p, "int_ior", 1.49)?, ior(p, "ext_ior", 1.000277)?);
+    if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
+        return Err(p.err("int_ior and ext_ior must be positive and differ"));
+    }
+    let ior = int_ior / ext_ior;
+    let diffuse = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let specular = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
+    Ok((
+        MaterialDesc::RoughPlastic {
+            diffuse: rgb(diffuse),
+            specular: rgb(specular),
+            alpha: alpha as f32,
+            distribution,
+            ior: ior as f32,
+            nonlinear,
+            one_sided,
+        },
+        format!(
+            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {}, specular {}{}{side}",
+            dist_name(distribution),
+            show(diffuse),
+            show(specular),
+            if nonlinear { ", nonlinear" } else { "" }
+        ),
+    ))
+}

@@ -1,0 +1,197 @@
+//! The `perspective` sensor with its `hdrfilm` and sampler: the camera and the `[render]`
+//! table's resolution, samples and seed.
+
+use glam::{DMat4, DVec3};
+use roxmltree::Node;
+
+use super::{f3, linear, similarity, Importer, Props};
+use crate::scene::file::CameraDesc;
+use crate::scene::SceneError;
+
+/// A `perspective` sensor's own properties, read and checked, with its film and sampler.
+struct Perspective<'a> {
+    /// Degrees along `axis`.
+    fov: f64,
+    axis: String,
+    to_world: DMat4,
+    medium: Option<String>,
+    film: Node<'a, 'a>,
+    sampler: Option<Node<'a, 'a>>,
+}
+
+impl<'a, 'd> Importer<'a, 'd> {
+    /// The scene's one sensor: the camera, and the resolution, samples and seed of `[render]`.
+    pub(super) fn sensor(&mut self, node: Node<'a, 'a>) -> Result<(), SceneError> {
+        if self.sensor_seen {
+            return Err(self.doc.err(node, "only one <sensor> is supported"));
+        }
+        self.sensor_seen = true;
+        let Perspective {
+            fov,
+            axis,
+            to_world: m,
+            medium,
+            film,
+            sampler,
+        } = self.perspective(node)?;
+        let (w, h) = self.film(film)?;
+        let (spp, seed) = match sampler {
+            Some(s) => self.sampler(s)?,
+            None => (4, 0),
+        };
+        let tan_y = vertical_tan(fov, &axis, w, h).ok_or_else(|| {
+            self.doc
+                .err(node, format!("fov_axis = \"{axis}\" is unknown"))
+        })?;
+        let l = linear(&m);
+        if similarity(&l).is_none_or(|s| (s - 1.0).abs() > 1e-6) {
+            return Err(self.doc.err(
+                node,
+                "the sensor's to_world must be a rotation and a translation (no scale, no mirror)",
+            ));
+        }
+        let eye = m.w_axis.truncate();
+        let forward = l * DVec3::Z;
+        self.out.camera = Some(CameraDesc::Pinhole {
+            eye: f3(eye),
+            look_at: f3(eye + forward),
+            up: f3(l * DVec3::Y),
+            fov_deg: (2.0 * tan_y.atan()).to_degrees() as f32,
+            resolution: [w, h],
+        });
+        self.render.insert("spp".into(), toml::Value::Integer(spp));
+        self.render
+            .insert("seed".into(), toml::Value::Integer(seed));
+        self.origin.camera_medium = medium.clone();
+        self.note(
+            node,
+            "camera",
+            format!(
+                "pinhole, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
+                (2.0 * tan_y.atan()).to_degrees(),
+                medium.as_deref().unwrap_or("vacuum")
+            ),
+        );
+        Ok(())
+    }
+
+    /// The properties of a `perspective` sensor, each consumed or refused.
+    fn perspective(&mut self, node: Node<'a, 'a>) -> Result<Perspective<'a>, SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        if p.plugin != "perspective" {
+            return Err(p.err(format!(
+                "the sensor `{}` is not supported (perspective is)",
+                p.plugin
+            )));
+        }
+        let fov = p.float("fov")?.ok_or_else(|| p.err("`fov` is missing"))?;
+        let axis = p.string("fov_axis")?.unwrap_or_else(|| "x".into());
+        let to_world = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
+        for k in ["principal_point_offset_x", "principal_point_offset_y"] {
+            if p.float(k)?.is_some_and(|x| x != 0.0) {
+                return Err(p.err(format!("a nonzero {k} is not supported")));
+            }
+        }
+        // pathspace does not clip: only Mitsuba's defaults (or wider) give the same image
+        if p.float("near_clip")?.is_some_and(|x| x > 0.01) {
+            return Err(p.err("a near_clip above Mitsuba's default 0.01 is not supported (pathspace does not clip)"));
+        }
+        // a far clip matters only inside the scene's extent, which the sensor cannot see here:
+        // accepted, and `info` says it is not applied
+        p.ignore(&["far_clip"]);
+        let medium = match p.object("medium", None)? {
+            Some(m) => Some(self.medium(m)?),
+            None => None,
+        };
+        let film = p
+            .object("film", None)?
+            .ok_or_else(|| p.err("<film> is missing"))?;
+        let sampler = p.object("sampler", None)?;
+        p.finish()?;
+        Ok(Perspective {
+            fov,
+            axis,
+            to_world,
+            medium,
+            film,
+            sampler,
+        })
+    }
+
+    pub(super) fn film(&mut self, node: Node<'a, 'a>) -> Result<(u32, u32), SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        if p.plugin != "hdrfilm" {
+            return Err(p.err(format!(
+                "the film `{}` is not supported (hdrfilm is)",
+                p.plugin
+            )));
+        }
+        let w = p.integer("width")?.unwrap_or(768);
+        let h = p.integer("height")?.unwrap_or(576);
+        let filter = p.object("rfilter", None)?;
+        if let Some(f) = p.string("pixel_format")? {
+            if f != "rgb" && f != "rgba" {
+                return Err(p.err(format!(
+                    "pixel_format = \"{f}\": only rgb (or rgba) images are the same"
+                )));
+            }
+        }
+        p.ignore(&["component_format", "file_format", "sample_border"]);
+        p.finish()?;
+        match filter {
+            Some(f) if self.doc.plugin(f)? == "box" => Props::new(self.doc, f)?.finish()?,
+            Some(f) => {
+                return Err(self.doc.err(
+                    f,
+                    "only the box filter is supported (pathspace's pixels are boxes)",
+                ))
+            }
+            None => {
+                return Err(self.doc.err(
+                    node,
+                    "no <rfilter>: Mitsuba's default is gaussian, pathspace's pixels are boxes; add <rfilter type=\"box\"/>",
+                ))
+            }
+        }
+        let ok = |v: i64| (1..=16384).contains(&v);
+        if !(ok(w) && ok(h)) {
+            return Err(self.doc.err(
+                node,
+                format!("{w}x{h} pixels: each side must be in 1..=16384"),
+            ));
+        }
+        Ok((w as u32, h as u32))
+    }
+
+    pub(super) fn sampler(&mut self, node: Node<'a, 'a>) -> Result<(i64, i64), SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        let spp = p.integer("sample_count")?.unwrap_or(4);
+        let seed = p.integer("seed")?.unwrap_or(0);
+        // the pattern changes the noise, not the expectation
+        p.ignore(&["jitter", "scramble_seed", "dimension"]);
+        p.finish()?;
+        if !(1..=1 << 30).contains(&spp) || seed < 0 {
+            return Err(self
+                .doc
+                .err(node, "sample_count must be positive and seed non-negative"));
+        }
+        Ok((spp, seed))
+    }
+}
+
+/// The tangent of half the vertical field of view of `fov` degrees along Mitsuba's `fov_axis`
+/// on a film of `w` x `h` pixels; `None` for an axis Mitsuba does not know.
+fn vertical_tan(fov: f64, axis: &str, w: u32, h: u32) -> Option<f64> {
+    let tan = (0.5 * fov.to_radians()).tan();
+    let (w64, h64) = (w as f64, h as f64);
+    Some(match axis {
+        "x" => tan * h64 / w64,
+        "y" => tan,
+        "diagonal" => tan * h64 / (w64 * w64 + h64 * h64).sqrt(),
+        "smaller" if w <= h => tan * h64 / w64,
+        "smaller" => tan,
+        "larger" if w >= h => tan * h64 / w64,
+        "larger" => tan,
+        _ => return None,
+    })
+}

@@ -1,0 +1,319 @@
+//! The shapes `rectangle`, `disk`, `cube`, `sphere`, `obj` and `ply`, with their media, BSDF
+//! and area emitter, and the default material of a shape without either.
+
+use glam::{DMat3, DMat4, DVec3};
+use roxmltree::Node;
+
+use super::{f3, linear, show, similarity, Importer, Props};
+use crate::scene::file::{MaterialDesc, RgbValue, ShapeDesc};
+use crate::scene::SceneError;
+
+impl<'a, 'd> Importer<'a, 'd> {
+    /// The media of a shape (`interior`, `exterior`).
+    pub(super) fn shape_media(
+        &mut self,
+        p: &mut Props<'a, 'd>,
+    ) -> Result<[Option<String>; 2], SceneError> {
+        let mut out = [None, None];
+        for (k, side) in ["interior", "exterior"].into_iter().enumerate() {
+            if let Some(m) = p.object("medium", Some(side))? {
+                out[k] = Some(self.medium(m)?);
+            }
+        }
+        Ok(out)
+    }
+
+    pub(super) fn shape(&mut self, node: Node<'a, 'a>) -> Result<(), SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
+        let flip = p.boolean("flip_normals")? == Some(true);
+        if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk") {
+            return Err(p.err("flip_normals is supported on rectangles and disks only"));
+        }
+        let [interior, exterior] = self.shape_media(&mut p)?;
+        let bsdf = p.object("bsdf", None)?;
+        let emitter = p.object("emitter", None)?;
+        if linear(&m).determinant() <= 0.0 {
+            return Err(p.err("a to_world with a mirror or a zero scale is not supported"));
+        }
+        let (geometry, how) = geometry(&mut p, &m, flip)?;
+        p.finish()?;
+        let (material, emission) = self.surface(bsdf, emitter)?;
+        self.push_shape(node, geometry, how, material, emission, interior, exterior)
+    }
+
+    /// A shape's material and emission, as Mitsuba makes them: an emitter without a BSDF (or
+    /// with a black diffuse) is black, a shape without either a one-sided diffuse of 0.5.
+    pub(super) fn surface(
+        &mut self,
+        bsdf: Option<Node<'a, 'a>>,
+        emitter: Option<Node<'a, 'a>>,
+    ) -> Result<(Option<String>, Option<RgbValue>), SceneError> {
+        let emission = match emitter {
+            Some(e) => Some(self.area(e)?),
+            None => None,
+        };
+        let known = self.materials.len();
+        let material = match bsdf {
+            Some(b) => self.material(b, None)?,
+            // Mitsuba's emitter without a BSDF is black (a black diffuse), as pathspace's
+            None if emission.is_some() => return Ok((None, emission)),
+            None => self.default_material(),
+        };
+        // a black diffuse emitter is an emitter without a material
+        let black = matches!(self.out.materials.get(&material), Some(MaterialDesc::Lambert { albedo, .. }) if albedo.to_rgb() == glam::Vec3::ZERO);
+        let material = if emission.is_some() && black {
+            if self.materials.len() > known {
+                // made for this shape alone: not part of the scene
+                self.out.materials.remove(&material);
+                self.materials.retain(|_, m| *m != material);
+            }
+            None
+        } else {
+            Some(material)
+        };
+        Ok((material, emission))
+    }
+
+    /// Adds a translated shape with the keys every shape shares.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn push_shape(
+        &mut self,
+        node: Node<'a, 'a>,
+        geometry: ShapeDesc,
+        how: String,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    ) -> Result<(), SceneError> {
+        let i = self.out.shapes.len();
+        let how = format!(
+            "{how}, material {}{}{}{}",
+            material.as_deref().unwrap_or("none (black emitter)"),
+            emission.map_or(String::new(), |e| format!(", emission {e}")),
+            interior
+                .as_ref()
+                .map_or(String::new(), |m| format!(", interior {m}")),
+            exterior
+                .as_ref()
+                .map_or(String::new(), |m| format!(", exterior {m}")),
+        );
+        self.out.shapes.push(with_common(
+            geometry, material, emission, interior, exterior,
+        ));
+        self.note(node, &format!("shapes[{i}]"), how);
+        Ok(())
+    }
+
+    /// Mitsuba gives a shape without a BSDF (and without an emitter) a one-sided diffuse of
+    /// reflectance 0.5.
+    pub(super) fn default_material(&mut self) -> String {
+        let name = "default diffuse".to_string();
+        self.out
+            .materials
+            .entry(name.clone())
+            .or_insert(MaterialDesc::Lambert {
+                albedo: RgbValue::Scalar(0.5),
+                one_sided: true,
+            });
+        name
+    }
+}
+
+/// A shape's geometry and its note.
+type Geometry = Result<(ShapeDesc, String), SceneError>;
+
+/// The geometry of a shape plugin under `m` (already checked not to mirror); the keys every
+/// shape shares are filled in later (`with_common`).
+fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
+    match p.plugin.as_str() {
+        "rectangle" => Ok(rectangle(m, flip)),
+        "disk" => Ok(disk(m, flip)),
+        "cube" => cube(p, m),
+        "sphere" => sphere(p, m),
+        "obj" | "ply" => mesh(p, m),
+        k => Err(p.err(format!(
+            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, obj, ply are)"
+        ))),
+    }
+}
+
+/// A planar shape's origin and edge vectors: the local point `o` and the local axes x and y
+/// scaled by `edge`, mapped by `m` (u and v swapped to flip the normal u x v), and the note.
+fn planar(m: &DMat4, flip: bool, o: DVec3, edge: f64, what: &str) -> ([[f32; 3]; 3], String) {
+    let l = linear(m);
+    let o = m.transform_point3(o);
+    let (u, v) = (l * (edge * DVec3::X), l * (edge * DVec3::Y));
+    let (u, v) = if flip { (v, u) } else { (u, v) };
+    let how = format!(
+        "at {}, u {}, v {} ({what} at z = 0 mapped, normal u x v{})",
+        show(o),
+        show(u),
+        show(v),
+        if flip { ", flipped" } else { "" }
+    );
+    ([f3(o), f3(u), f3(v)], how)
+}
+
+/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+    let ([origin, u, v], how) = planar(m, flip, DVec3::new(-1.0, -1.0, 0.0), 2.0, "[-1,1]^2");
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    let quad = ShapeDesc::Quad {
+        origin,
+        u,
+        v,
+        material,
+        emission,
+        interior,
+        exterior,
+    };
+    (quad, format!("quad {how}"))
+}
+
+/// `disk`: the unit disk at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
+    let ([center, u, v], how) = planar(m, flip, DVec3::ZERO, 1.0, "unit disk");
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    let disk = ShapeDesc::Disk {
+        center,
+        u,
+        v,
+        material,
+        emission,
+        interior,
+        exterior,
+    };
+    (disk, format!("disk {how}"))
+}
+
+/// `cube`: [-1,1]^3 under a scale and a translation (pathspace's boxes are axis-aligned).
+fn cube(p: &mut Props, m: &DMat4) -> Geometry {
+    let l = linear(m);
+    let diag = DVec3::new(l.x_axis.x, l.y_axis.y, l.z_axis.z);
+    if l != DMat3::from_diagonal(diag) {
+        return Err(p.err("a rotated cube is not supported (pathspace's boxes are axis-aligned)"));
+    }
+    let t = m.w_axis.truncate();
+    let (lo, hi) = (t - diag, t + diag);
+    let how = format!(
+        "box {} .. {} ([-1,1]^3 mapped, normals outwards)",
+        show(lo),
+        show(hi)
+    );
+    let (min, max) = (f3(lo), f3(hi));
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Box {
+            min,
+            max,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `sphere`: `center` and `radius` under a uniform scale, a rotation and a translation.
+fn sphere(p: &mut Props, m: &DMat4) -> Geometry {
+    let c = p.point("center")?.unwrap_or(DVec3::ZERO);
+    let r = p.float("radius")?.unwrap_or(1.0);
+    let s = similarity(&linear(m)).ok_or_else(|| {
+        p.err("a sphere's to_world must be a uniform scale, a rotation and a translation")
+    })?;
+    let (c, r) = (m.transform_point3(c), r * s);
+    let how = format!("sphere at {}, radius {r}", show(c));
+    let (center, radius) = (f3(c), r as f32);
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Sphere {
+            center,
+            radius,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `obj` and `ply`: the file under `to_world`, with face normals only.
+fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
+    let obj = p
+        .string("filename")?
+        .ok_or_else(|| p.err("`filename` is missing"))?;
+    if p.boolean("face_normals")? != Some(true) {
+        return Err(p.err("Mitsuba interpolates vertex normals unless face_normals = true, pathspace has geometric normals only: add <boolean name=\"face_normals\" value=\"true\"/>"));
+    }
+    p.ignore(&["flip_tex_coords"]);
+    let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
+    let to_world = (*m != DMat4::IDENTITY).then_some(rows);
+    let how = format!("mesh `{obj}`, flat (face normals)");
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Mesh {
+            obj,
+            to_world,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
+/// `geometry` with the keys every shape shares.
+fn with_common(
+    geometry: ShapeDesc,
+    material: Option<String>,
+    emission: Option<RgbValue>,
+    interior: Option<String>,
+    exterior: Option<String>,
+) -> ShapeDesc {
+    let mut s = geometry;
+    match &mut s {
+        ShapeDesc::Quad {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Box {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Sphere {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Disk {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Mesh {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        } => {
+            (*m, *e, *i, *x) = (material, emission, interior, exterior);
+        }
+    }
+    s
+}
