@@ -3,7 +3,9 @@
 //! rough (GGX or Beckmann microfacet) conductor, dielectric and plastic (`conductor`,
 //! `rough_dielectric`, `rough_plastic`, over `microfacet`), smooth plastic (`plastic`: a Dirac
 //! coat over a diffuse base, the one model with a Dirac and a regular lobe), and the null
-//! (index-matched) boundary that only separates media.
+//! (index-matched) boundary that only separates media. Each model is a struct in its own file
+//! (`lambert`, `mirror`, `dielectric`, `thin_dielectric`, `null`, and those above) implementing
+//! [`BsdfModel`]; [`Bsdf`] holds one and dispatches to it.
 //!
 //! Convention (see `conventions`): `wo` and `wi` point away from the surface point; `n` is the
 //! geometric normal as the shape defines it (either side may be lit). Values are f_s itself,
@@ -17,7 +19,8 @@
 //! ([`Lobe::is_singular`]: the vertex is then a Dirac vertex, with a discrete probability, no
 //! connection, and full weight for an emitter its ray hits). Plastic answers yes to all three.
 //!
-//! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/bsdf.rs`.
+//! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/bsdf.rs`, and
+//! `tests/bsdf_contract.rs`, the contract every model of [`Bsdf`] meets.
 
 use glam::{Vec2, Vec3};
 
@@ -196,11 +199,6 @@ pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
 }
 
 impl Bsdf {
-    /// The model inside, for code that asks it directly (tests, tools).
-    pub fn model(&self) -> &dyn BsdfModel {
-        dispatch!(self, m => m as &dyn BsdfModel)
-    }
-
     /// True for the null boundary, which is skipped by tracing rather than scattered at.
     pub fn is_null(&self) -> bool {
         matches!(self, Bsdf::Null(_))
