@@ -29,7 +29,7 @@ OUT=${OUT:-mutants.out}
 GROUPS_TABLE=(
   "phase|src/medium/phase.rs|phase transport|14|120"
   "path|src/path/*.rs|path_space transport|18|120"
-  "bsdf|src/bsdf/mod.rs|bsdf path_space|10|120"
+  "bsdf|src/bsdf/mod.rs src/bsdf/lambert.rs src/bsdf/mirror.rs src/bsdf/dielectric.rs src/bsdf/thin_dielectric.rs src/bsdf/null.rs|bsdf bsdf_contract path_space|10|120"
   "path_tracer|src/integrator/path.rs|transport path_space|8|120"
   "medium|src/medium/homogeneous.rs src/medium/heterogeneous.rs src/medium/grid.rs src/medium/procedural.rs|free_flight media_inhomogeneous|50|120"
   "bdpt|src/path/bidirectional.rs|path_space strategies|30|120"

@@ -222,15 +222,13 @@ pub fn surface_albedo(bsdf: &Bsdf, wo: Vec3, n: Vec3) -> Rgb {
         specular * f + diffuse * (1.0 - f)
     };
     let a = match bsdf {
-        Bsdf::Lambert { albedo, .. } => *albedo,
-        Bsdf::Mirror { reflectance, .. } => *reflectance,
-        Bsdf::Dielectric { .. } | Bsdf::ThinDielectric { .. } | Bsdf::RoughDielectric(_) => {
-            Rgb::ONE
-        }
+        Bsdf::Lambert(l) => l.albedo,
+        Bsdf::Mirror(m) => m.reflectance,
+        Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => Rgb::ONE,
         Bsdf::RoughConductor(c) => c.fresnel.eval(cos),
         Bsdf::Plastic(p) => coated(p.diffuse, p.specular, p.eta),
         Bsdf::RoughPlastic(p) => coated(p.diffuse, p.specular, p.eta),
-        Bsdf::Null => Rgb::ZERO,
+        Bsdf::Null(_) => Rgb::ZERO,
     };
     a.clamp(Rgb::ZERO, Rgb::ONE)
 }

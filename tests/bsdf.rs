@@ -11,7 +11,10 @@ mod common;
 use common::stats::Family;
 use common::*;
 use glam::{Vec2, Vec3};
-use pathspace::bsdf::{fresnel_dielectric, reflect, Bsdf, BsdfSample, Lobe, TransportMode};
+use pathspace::bsdf::{
+    fresnel_dielectric, reflect, Bsdf, BsdfSample, Dielectric, Lambert, Lobe, Mirror, Null,
+    ThinDielectric, TransportMode,
+};
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
 use pathspace::spectrum::Rgb;
@@ -53,10 +56,10 @@ fn modes() -> [TransportMode; 2] {
 
 #[test]
 fn lambert_is_reciprocal_and_reflects_on_both_sides_only() {
-    let bsdf = Bsdf::Lambert {
+    let bsdf = Bsdf::Lambert(Lambert {
         albedo: ALBEDO,
         one_sided: false,
-    };
+    });
     let mut s = sampler(10, 0);
     for n in normals() {
         for _ in 0..256 {
@@ -84,10 +87,10 @@ fn lambert_directional_albedo_equals_albedo() {
     // are exact and only float rounding remains.
     const N_COS: usize = 64;
     const N_PHI: usize = 16;
-    let bsdf = Bsdf::Lambert {
+    let bsdf = Bsdf::Lambert(Lambert {
         albedo: ALBEDO,
         one_sided: false,
-    };
+    });
     for n in normals() {
         for cos_o in [0.9, 0.3, -0.5, -0.05] {
             let wo = at_cosine(n, cos_o, 1.0);
@@ -118,10 +121,10 @@ fn lambert_directional_albedo_equals_albedo() {
 fn lambert_sample_record_matches_eval_and_pdf_and_its_weight_is_the_albedo() {
     // the cosine-sampled weight f cos / pdf equals the albedo for every sample: a zero-variance
     // estimator of rho_hd, so its mean is checked with the float allowance only
-    let bsdf = Bsdf::Lambert {
+    let bsdf = Bsdf::Lambert(Lambert {
         albedo: ALBEDO,
         one_sided: false,
-    };
+    });
     let mut s = sampler(11, 0);
     for n in normals() {
         for wo in test_directions(11, 8) {
@@ -157,10 +160,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
     // leaking through the surface fails the test
     const N_SAMPLES: u64 = 200_000;
     let mut fam = Family::new("bsdf: Lambert sampling vs pdf");
-    let bsdf = Bsdf::Lambert {
+    let bsdf = Bsdf::Lambert(Lambert {
         albedo: ALBEDO,
         one_sided: false,
-    };
+    });
     for (i, n) in normals().into_iter().enumerate() {
         for (j, cos_o) in [0.7f64, -0.4].into_iter().enumerate() {
             let wo = at_cosine(n, cos_o, 2.0);
@@ -188,10 +191,10 @@ fn lambert_sampling_agrees_with_pdf_by_chi_square() {
 #[test]
 fn mirror_reflects_about_the_normal_with_weight_reflectance() {
     let reflectance = Vec3::new(0.9, 0.6, 0.3);
-    let bsdf = Bsdf::Mirror {
+    let bsdf = Bsdf::Mirror(Mirror {
         reflectance,
         one_sided: false,
-    };
+    });
     let mut s = sampler(20, 0);
     for n in normals() {
         for wo in test_directions(20, 16) {
@@ -237,7 +240,7 @@ fn dielectric_lobe(
     mode: TransportMode,
 ) -> Option<BsdfSample> {
     let uc = if transmit { ONE_MINUS_EPSILON } else { 0.0 };
-    Bsdf::Dielectric { ior }.sample(wo, n, Vec2::new(0.5, 0.5), uc, mode)
+    Bsdf::Dielectric(Dielectric { ior }).sample(wo, n, Vec2::new(0.5, 0.5), uc, mode)
 }
 
 /// The indices on wo's side and on the other side of an interface whose inside (behind `n`)
@@ -351,7 +354,7 @@ fn dielectric_reflects_totally_beyond_the_critical_angle() {
                 "ior {ior}, cos {cos_o}: Fresnel"
             );
             for _ in 0..64 {
-                let bs = Bsdf::Dielectric { ior }
+                let bs = Bsdf::Dielectric(Dielectric { ior })
                     .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
                     .unwrap();
                 if total {
@@ -423,7 +426,7 @@ fn thin_dielectric_reflects_the_sum_of_its_inner_passes_and_transmits_unbent() {
                     term *= r * r;
                 }
                 for mode in modes() {
-                    let thin = Bsdf::ThinDielectric { ior };
+                    let thin = Bsdf::ThinDielectric(ThinDielectric { ior });
                     let refl = thin.sample(wo, n, Vec2::splat(0.5), 0.0, mode).unwrap();
                     let tran = thin.sample(wo, n, Vec2::splat(0.5), ONE_MINUS_EPSILON, mode);
                     assert_eq!(refl.lobe, Lobe::SingularReflection);
@@ -457,7 +460,7 @@ fn dielectric_chooses_reflection_with_the_fresnel_probability() {
                 let mut s = sampler(32, (i * 8 + j * 2) as u64 + (side > 0.0) as u64);
                 let mut reflected = 0u64;
                 for _ in 0..N {
-                    let bs = Bsdf::Dielectric { ior }
+                    let bs = Bsdf::Dielectric(Dielectric { ior })
                         .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
                         .unwrap();
                     if bs.lobe == Lobe::SingularReflection {
@@ -565,7 +568,7 @@ fn dielectric_refraction_satisfies_generalized_reciprocity_and_its_adjoint() {
 
 #[test]
 fn null_boundary_never_scatters() {
-    let bsdf = Bsdf::Null;
+    let bsdf = Bsdf::Null(Null);
     assert!(bsdf.is_null() && !bsdf.has_regular_lobe() && !bsdf.has_dirac_lobe());
     let mut s = sampler(40, 0);
     for wo in test_directions(40, 8) {
@@ -609,14 +612,14 @@ fn one_sided_models_are_black_behind_and_two_sided_in_front() {
     use pathspace::bsdf::{ConductorFresnel, RoughConductor};
     let pair = |one_sided: bool| {
         [
-            Bsdf::Lambert {
+            Bsdf::Lambert(Lambert {
                 albedo: ALBEDO,
                 one_sided,
-            },
-            Bsdf::Mirror {
+            }),
+            Bsdf::Mirror(Mirror {
                 reflectance: ALBEDO,
                 one_sided,
-            },
+            }),
             Bsdf::RoughConductor(RoughConductor {
                 distribution: pathspace::bsdf::Distribution::Ggx,
                 alpha: 0.3,

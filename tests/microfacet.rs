@@ -16,8 +16,8 @@ use common::*;
 use glam::{Vec2, Vec3};
 use pathspace::bsdf::conductor::fresnel_complex;
 use pathspace::bsdf::{
-    fresnel_dielectric, Beckmann, Bsdf, ConductorFresnel, Distribution, Ggx, Lobe, Microfacet,
-    RoughConductor, RoughDielectric, TransportMode,
+    fresnel_dielectric, Beckmann, Bsdf, ConductorFresnel, Dielectric, Distribution, Ggx, Lobe,
+    Microfacet, Mirror, RoughConductor, RoughDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
@@ -594,10 +594,10 @@ fn small_alpha_conductor_is_the_mirror() {
         let wo = direction(&Frame::from_normal(n), cos_o, 2.0);
         // the mirror with the Fresnel reflectance of this angle (Schlick's about r0)
         let schlick = r0 + (Vec3::ONE - r0) * (1.0 - cos_o.abs() as f32).powi(5);
-        let mirror = Bsdf::Mirror {
+        let mirror = Bsdf::Mirror(Mirror {
             reflectance: schlick,
             one_sided: false,
-        };
+        });
         let m = mirror
             .sample(wo, n, Vec2::ZERO, 0.0, TransportMode::Radiance)
             .unwrap();
@@ -642,7 +642,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
     const N: u64 = 40_000;
     let n = normal();
     let ior = 1.5f32;
-    let smooth = Bsdf::Dielectric { ior };
+    let smooth = Bsdf::Dielectric(Dielectric { ior });
     let mut fam = Family::new("microfacet: alpha -> 0 is the smooth dielectric");
     let configs = DISTRIBUTIONS
         .into_iter()

@@ -12,8 +12,8 @@ use glam::Vec3;
 use pathspace::bsdf::microfacet::{reflect_about, refract_about};
 use pathspace::bsdf::rough_plastic::{interface_albedo, table_cosine, Albedo, TABLE_SIZE};
 use pathspace::bsdf::{
-    fresnel_dielectric, Beckmann, Bsdf, Distribution, Microfacet, RoughDielectric, RoughPlastic,
-    TransportMode,
+    fresnel_dielectric, Beckmann, Bsdf, BsdfModel, Distribution, Microfacet, RoughDielectric,
+    RoughPlastic, TransportMode,
 };
 use pathspace::math::{warp, Frame};
 use std::f64::consts::{PI, TAU};
@@ -110,7 +110,12 @@ fn matches_mitsuba_3() {
         assert_close(&format!("material {k}: R_i"), ri, MITSUBA_RI[k], rel);
     }
     for (k, t_o, t_i, phi, c0, c2) in MITSUBA {
-        let f = mats[k].eval(dir(t_o, 0.0), dir(t_i, phi), Vec3::Z);
+        let f = mats[k].eval(
+            dir(t_o, 0.0),
+            dir(t_i, phi),
+            Vec3::Z,
+            TransportMode::Radiance,
+        );
         let rel = if k == 1 { REL_GGX } else { REL_BECKMANN };
         let what = format!("material {k}, theta_o {t_o}, theta_i {t_i}, phi {phi}");
         assert_close(&format!("{what}: ch 0"), f.x as f64, c0, rel * c0);

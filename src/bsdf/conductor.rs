@@ -11,7 +11,7 @@
 use glam::{Vec2, Vec3};
 
 use super::microfacet::{reflect_about, Distribution, Microfacet};
-use super::{BsdfSample, Lobe};
+use super::{BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
@@ -115,11 +115,26 @@ impl RoughConductor {
         let (lo, li) = (frame.to_local(wo), frame.to_local(wi));
         (lo.z > 0.0 && li.z > 0.0).then_some((frame, lo, li))
     }
+}
+
+impl BsdfModel for RoughConductor {
+    fn has_regular_lobe(&self) -> bool {
+        true
+    }
+    fn has_dirac_lobe(&self) -> bool {
+        false
+    }
+    fn transmits(&self) -> bool {
+        false
+    }
+    fn one_sided(&self) -> bool {
+        self.one_sided
+    }
 
     /// f_s = F(wo.m) D(m) G(wo, wi, m) / (4 cos_o cos_i), m the half vector (Walter et al.
     /// 2007, eq. (20)); reciprocal.
     // ANCHOR: conductor_eval
-    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+    fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
         let Some((_, lo, li)) = Self::local(wo, wi, n) else {
             return Rgb::ZERO;
         };
@@ -141,7 +156,7 @@ impl RoughConductor {
     /// The density of `wi` under [`RoughConductor::sample`]: the visible-normal density times the
     /// reflection's Jacobian 1 / (4 wo.m) (Walter et al. 2007, eq. (14)), = G1(wo) D(m) /
     /// (4 cos_o).
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+    fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         let Some((_, lo, li)) = Self::local(wo, wi, n) else {
             return 0.0;
         };
@@ -160,7 +175,14 @@ impl RoughConductor {
 
     /// Reflects `wo` about a visible normal; `None` when the reflection points under the
     /// surface (the density then integrates to less than one by that mass).
-    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2) -> Option<BsdfSample> {
+    fn sample(
+        &self,
+        wo: Vec3,
+        n: Vec3,
+        u: Vec2,
+        _uc: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
         let nf = if wo.dot(n) >= 0.0 { n } else { -n };
         let frame = Frame::from_normal(nf);
         let lo = frame.to_local(wo);
@@ -174,7 +196,7 @@ impl RoughConductor {
         }
         let wi = frame.to_world(li);
         let pdf = self.pdf(wo, wi, n);
-        let value = self.eval(wo, wi, n);
+        let value = self.eval(wo, wi, n, mode);
         (pdf > 0.0 && value != Rgb::ZERO).then_some(BsdfSample {
             wi,
             value,

@@ -28,7 +28,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
-use super::{fresnel_dielectric, reflect, BsdfSample, Lobe};
+use super::{fresnel_dielectric, reflect, BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::{warp, Frame};
 use crate::spectrum::Rgb;
 
@@ -120,10 +120,25 @@ impl Plastic {
         let (co, ci) = (wo.dot(n), wi.dot(n));
         (co * ci > 0.0).then_some((co.abs(), ci.abs()))
     }
+}
+
+impl BsdfModel for Plastic {
+    fn has_regular_lobe(&self) -> bool {
+        true
+    }
+    fn has_dirac_lobe(&self) -> bool {
+        true
+    }
+    fn transmits(&self) -> bool {
+        false
+    }
+    fn one_sided(&self) -> bool {
+        self.one_sided
+    }
 
     /// The diffuse lobe f_d(wo, wi) (module note); symmetric in the two directions.
     // ANCHOR: plastic_eval
-    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+    fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
         let Some((co, ci)) = Self::cosines(wo, wi, n) else {
             return Rgb::ZERO;
         };
@@ -137,7 +152,7 @@ impl Plastic {
 
     /// The density of `wi` under `sample` when the regular lobe is taken:
     /// (1 - P_s(wo)) cos_i / pi (zero across the surface).
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+    fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         let Some((co, ci)) = Self::cosines(wo, wi, n) else {
             return 0.0;
         };
@@ -147,7 +162,14 @@ impl Plastic {
     /// The Dirac reflection with probability P_s(wo) (value F R_s / cos, so that the weight is
     /// F R_s / P_s), else a cosine-distributed direction of the diffuse lobe.
     // ANCHOR: plastic_sample
-    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+    fn sample(
+        &self,
+        wo: Vec3,
+        n: Vec3,
+        u: Vec2,
+        uc: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
         let cos_o = wo.dot(n);
         let nf = if cos_o > 0.0 { n } else { -n };
         let co = cos_o.abs();
@@ -169,7 +191,7 @@ impl Plastic {
         let pdf = (1.0 - p_s) * local.z * FRAC_1_PI;
         (pdf > 0.0).then(|| BsdfSample {
             wi,
-            value: self.eval(wo, wi, n),
+            value: self.eval(wo, wi, n, mode),
             pdf,
             lobe: Lobe::Regular,
         })

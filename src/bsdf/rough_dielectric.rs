@@ -16,7 +16,7 @@
 use glam::{Vec2, Vec3};
 
 use super::microfacet::{reflect_about, refract_about, Distribution, Microfacet};
-use super::{fresnel_dielectric, BsdfSample, Lobe, TransportMode};
+use super::{fresnel_dielectric, BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
@@ -108,12 +108,27 @@ impl RoughDielectric {
         // the mean of the two polarizations' reflectances
         (r_par.mul_add(r_par, r_perp * r_perp) / 2.0).min(1.0)
     }
+}
+
+impl BsdfModel for RoughDielectric {
+    fn has_regular_lobe(&self) -> bool {
+        true
+    }
+    fn has_dirac_lobe(&self) -> bool {
+        false
+    }
+    fn transmits(&self) -> bool {
+        true
+    }
+    fn one_sided(&self) -> bool {
+        false
+    }
 
     /// f_s(wo, wi) in `mode` (Walter et al. 2007, eq. (20) for reflection, eq. (21) for
     /// refraction, its eta_o^2 taken on the side the transported quantity leaves towards; see
     /// the module note).
     // ANCHOR: rough_dielectric_eval
-    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, mode: TransportMode) -> Rgb {
+    fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, mode: TransportMode) -> Rgb {
         let Some(l) = self.local(wo, wi, n) else {
             return Rgb::ZERO;
         };
@@ -148,7 +163,7 @@ impl RoughDielectric {
     /// facet normals to directions, 1 / (4 wo.m) for reflection (Walter et al. 2007, eq. (14))
     /// and eta_t^2 |wi.m| / (eta_o wo.m + eta_t wi.m)^2 for refraction (eq. (17)).
     // ANCHOR: rough_dielectric_pdf
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+    fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         let Some(l) = self.local(wo, wi, n) else {
             return 0.0;
         };
@@ -175,7 +190,7 @@ impl RoughDielectric {
     /// A visible facet normal from `u`, then reflection with the facet's Fresnel probability
     /// (`uc` < F) or refraction through it; `None` when the direction leaves on the wrong side
     /// of the macro-surface (that mass is missing from the density).
-    pub fn sample(
+    fn sample(
         &self,
         wo: Vec3,
         n: Vec3,

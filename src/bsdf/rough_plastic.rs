@@ -32,7 +32,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
 use super::microfacet::{reflect_about, refract_about, Beckmann, Distribution, Ggx, Microfacet};
-use super::{fresnel_dielectric, BsdfSample, Lobe};
+use super::{fresnel_dielectric, BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::{warp, Frame};
 use crate::spectrum::Rgb;
 
@@ -109,9 +109,36 @@ impl RoughPlastic {
         (lo.z > 0.0 && li.z > 0.0).then_some((lo, li))
     }
 
+    /// The probability of the specular lobe at `cos_o` (Mitsuba's choice).
+    fn specular_probability(&self, cos_o: f32) -> f32 {
+        let t = self.transmittance(cos_o);
+        let s = (1.0 - t) * self.specular_weight;
+        let d = t * (1.0 - self.specular_weight);
+        if s + d > 0.0 {
+            s / (s + d)
+        } else {
+            0.5
+        }
+    }
+}
+
+impl BsdfModel for RoughPlastic {
+    fn has_regular_lobe(&self) -> bool {
+        true
+    }
+    fn has_dirac_lobe(&self) -> bool {
+        false
+    }
+    fn transmits(&self) -> bool {
+        false
+    }
+    fn one_sided(&self) -> bool {
+        self.one_sided
+    }
+
     /// f_s(wo, wi): the coating's reflection plus the base seen through it (module note).
     // ANCHOR: rough_plastic_eval
-    pub fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Rgb {
+    fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
         let Some((lo, li)) = Self::local(wo, wi, n) else {
             return Rgb::ZERO;
         };
@@ -136,22 +163,10 @@ impl RoughPlastic {
     }
     // ANCHOR_END: rough_plastic_eval
 
-    /// The probability of the specular lobe at `cos_o` (Mitsuba's choice).
-    fn specular_probability(&self, cos_o: f32) -> f32 {
-        let t = self.transmittance(cos_o);
-        let s = (1.0 - t) * self.specular_weight;
-        let d = t * (1.0 - self.specular_weight);
-        if s + d > 0.0 {
-            s / (s + d)
-        } else {
-            0.5
-        }
-    }
-
     /// The density of `wi` under [`RoughPlastic::sample`]: p_s times the facet density over
     /// the reflection's Jacobian 4 wo.h (Walter et al. 2007, eq. (14)), plus (1 - p_s) cos_i /
     /// pi.
-    pub fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+    fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
         let Some((lo, li)) = Self::local(wo, wi, n) else {
             return 0.0;
         };
@@ -170,7 +185,14 @@ impl RoughPlastic {
     /// The specular lobe when `uc` < p_s (a facet normal from `u`, `wo` reflected about it),
     /// else the cosine-weighted hemisphere; value and density from the pair, so that they are
     /// `eval` and `pdf` exactly. `None` when the reflection points under the surface.
-    pub fn sample(&self, wo: Vec3, n: Vec3, u: Vec2, uc: f32) -> Option<BsdfSample> {
+    fn sample(
+        &self,
+        wo: Vec3,
+        n: Vec3,
+        u: Vec2,
+        uc: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
         let nf = if wo.dot(n) >= 0.0 { n } else { -n };
         let frame = Frame::from_normal(nf);
         let lo = frame.to_local(wo);
@@ -193,7 +215,7 @@ impl RoughPlastic {
         }
         let wi = frame.to_world(li);
         let pdf = self.pdf(wo, wi, n);
-        let value = self.eval(wo, wi, n);
+        let value = self.eval(wo, wi, n, mode);
         (pdf > 0.0 && value.is_finite()).then_some(BsdfSample {
             wi,
             value,

@@ -44,12 +44,10 @@ fn bsdf(b: &Option<Bsdf>) -> String {
     };
     let model = match b {
         None => "black (emission only)".into(),
-        Some(Bsdf::Lambert { albedo, .. }) => format!("lambert, albedo {}", v3(*albedo)),
-        Some(Bsdf::Mirror { reflectance, .. }) => {
-            format!("mirror, reflectance {}", v3(*reflectance))
-        }
-        Some(Bsdf::Dielectric { ior }) => format!("dielectric, ior {ior}"),
-        Some(Bsdf::ThinDielectric { ior }) => format!("thin dielectric, ior {ior}"),
+        Some(Bsdf::Lambert(l)) => format!("lambert, albedo {}", v3(l.albedo)),
+        Some(Bsdf::Mirror(m)) => format!("mirror, reflectance {}", v3(m.reflectance)),
+        Some(Bsdf::Dielectric(d)) => format!("dielectric, ior {}", d.ior),
+        Some(Bsdf::ThinDielectric(d)) => format!("thin dielectric, ior {}", d.ior),
         Some(Bsdf::RoughConductor(c)) => match c.fresnel {
             ConductorFresnel::Schlick(r) => format!(
                 "rough conductor, {} alpha {}, reflectance {}",
@@ -89,7 +87,7 @@ fn bsdf(b: &Option<Bsdf>) -> String {
             p.tables().internal_reflectance,
             p.transmittance(1.0)
         ),
-        Some(Bsdf::Null) => "null (index-matched boundary)".into(),
+        Some(Bsdf::Null(_)) => "null (index-matched boundary)".into(),
     };
     format!("{model}{sides}")
 }

@@ -54,7 +54,7 @@ pub struct ShapeInfo {
 impl ShapeInfo {
     /// True for a null (index-matched) boundary: tracing passes through it.
     pub fn is_null(&self) -> bool {
-        matches!(self.bsdf, Some(Bsdf::Null))
+        matches!(self.bsdf, Some(Bsdf::Null(_)))
     }
 
     /// The medium a ray leaving this shape along `wi` starts in, for a ray that arrived along

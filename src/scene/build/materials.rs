@@ -6,8 +6,8 @@ use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::plastic::default_eta;
 use crate::bsdf::{
-    Bsdf, ConductorFresnel, Distribution, Microfacet, Plastic, RoughConductor, RoughDielectric,
-    RoughPlastic,
+    Bsdf, ConductorFresnel, Dielectric, Distribution, Lambert, Microfacet, Mirror, Null, Plastic,
+    RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
 };
 use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
@@ -19,7 +19,7 @@ pub(super) fn materials(
     desc: &SceneFile,
 ) -> Result<BTreeMap<String, Bsdf>, SceneError> {
     let mut materials: BTreeMap<String, Bsdf> = BTreeMap::new();
-    materials.insert("null".into(), Bsdf::Null);
+    materials.insert("null".into(), Bsdf::Null(Null));
     for (name, m) in &desc.materials {
         let key = path("materials").key(name);
         if name == "null" {
@@ -32,17 +32,17 @@ pub(super) fn materials(
             MaterialDesc::Lambert {
                 albedo: a,
                 one_sided,
-            } => Bsdf::Lambert {
+            } => Bsdf::Lambert(Lambert {
                 albedo: albedo(src, &key.clone().key("albedo"), *a)?,
                 one_sided: *one_sided,
-            },
+            }),
             MaterialDesc::Mirror {
                 reflectance,
                 one_sided,
-            } => Bsdf::Mirror {
+            } => Bsdf::Mirror(Mirror {
                 reflectance: albedo(src, &key.clone().key("reflectance"), *reflectance)?,
                 one_sided: *one_sided,
-            },
+            }),
             MaterialDesc::Dielectric { ior } => {
                 if !(ior.is_finite() && *ior > 0.0) {
                     return Err(src.error(
@@ -50,7 +50,7 @@ pub(super) fn materials(
                         format!("ior = {ior} must be positive"),
                     ));
                 }
-                Bsdf::Dielectric { ior: *ior }
+                Bsdf::Dielectric(Dielectric { ior: *ior })
             }
             MaterialDesc::ThinDielectric { ior } => {
                 if !(ior.is_finite() && *ior > 0.0) {
@@ -59,7 +59,7 @@ pub(super) fn materials(
                         format!("ior = {ior} must be positive"),
                     ));
                 }
-                Bsdf::ThinDielectric { ior: *ior }
+                Bsdf::ThinDielectric(ThinDielectric { ior: *ior })
             }
             MaterialDesc::RoughConductor {
                 alpha,
@@ -115,7 +115,7 @@ pub(super) fn materials(
                 *nonlinear,
                 *one_sided,
             )),
-            MaterialDesc::Null {} => Bsdf::Null,
+            MaterialDesc::Null {} => Bsdf::Null(Null),
         };
         materials.insert(name.clone(), bsdf);
     }

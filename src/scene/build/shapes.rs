@@ -222,7 +222,7 @@ fn surface(
             ))
         }
     };
-    if emission.is_some() && matches!(bsdf, Some(Bsdf::Null)) {
+    if emission.is_some() && matches!(bsdf, Some(Bsdf::Null(_))) {
         return Err(src.error(&key.clone().key("emission"), "a null boundary cannot emit"));
     }
     Ok((emission, bsdf))
