@@ -12,7 +12,9 @@ mesh and grid variants) rendered once per campaign:
   checkpoint  a checkpoint flipped, cut, extended, or forged (payload bytes set to NaN, inf or
               huge floats and the FNV-1a checksum recomputed), then `render --resume`
   merge       one of two renders given a lying header (spp, shard, streams, scene_inputs,
-              seed) or extreme pixels, then `merge`; the merged image must read back finite
+              seed), extreme pixels or a changed byte (half the time with its checksum
+              dropped), then `merge`; the merged image must read back finite, and a changed
+              byte that kept its checksum must be refused or change nothing
   changed     the mesh or grid a checkpoint's scene reads edited, then `render --resume`:
               it must be refused naming that file
   xml         a Mitsuba scene with an attribute flood, deep nesting, a huge text node, a DTD
@@ -34,6 +36,7 @@ What a case may end as:
   nonfinite a finished render or merge whose mean is NaN or infinite
   unnamed   an error that names no file, or a silent nonzero exit
   control   an error that echoes raw control bytes
+  merged-damage  a changed byte under a kept checksum merged into another image
   partial   a killed write left a damaged output, or `.partial` files after a clean stop
   resumed-changed  a resume went on although a file its scene reads had changed
   writers   one of two concurrent renders failed, or their output does not read back
@@ -65,7 +68,7 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BAD = ("panic", "timeout", "memory", "crash", "nonfinite", "unnamed", "control", "partial",
-       "resumed-changed", "writers")
+       "resumed-changed", "writers", "merged-damage")
 
 EXTREME_NUMBERS = [
     "0", "-0.0", "-1", "0.5", "3", "1e-9", "1e-30", "1e9", "1e30", "-1e30", "1e308",
@@ -435,6 +438,19 @@ def exr_with(data, name, kind, value):
     return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
 
 
+def exr_without(data, name):
+    """The EXR without the header attribute `name` (a forger who recomputes nothing drops the
+    checksum); the chunk offsets shifted."""
+    attrs, end = exr_header(data)
+    attrs = [a for a in attrs if a[0] != name]
+    head = data[:8] + b"".join(n + b"\0" + t + b"\0" + struct.pack("<i", len(v)) + v
+                               for n, t, v in attrs) + b"\0"
+    chunks = struct.unpack("<i", dict((a[0], a[2]) for a in attrs)[b"chunkCount"])[0]
+    delta = len(head) - end
+    table = struct.unpack(f"<{chunks}Q", data[end:end + 8 * chunks])
+    return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
+
+
 def exr_raw_pixels(rng, data):
     """The 8x8 RGB EXR's one chunk replaced by uncompressed floats, some of them extreme."""
     attrs, end = exr_header(data)
@@ -543,13 +559,37 @@ def merge_case(args, rng, work, bases):
         at = rng.randrange(len(data))
         data = data[:at] + bytes([rng.randrange(256)]) + data[at + 1:]
         step = f"{victim}: byte at {at}"
+    steps = [step]
+    # half the time a forger who drops the checksum, so that the checks behind it are reached
+    forged = b"checksum" in data and rng.random() < 0.5
+    if forged:
+        data = exr_without(data, b"checksum")
+        steps.append(f"{victim}: checksum dropped")
     with open(path, "wb") as f:
         f.write(data)
     cmd = [args.bin, "merge", "m1.exr", "m2.exr", "-o", "merged.exr"] + (["--force"] if rng.random() < 0.3 else [])
     outcome = judge(run(cmd, work, args.render_timeout, args.memory), ["m1.exr", "m2.exr"])
     if outcome == "ok" and not image_finite(args, work, "merged.exr"):
         outcome = "nonfinite"
-    return [step], outcome, [cmd]
+    if outcome == "ok" and not forged and op == "byte" and not same_as_intact(args, work, bases):
+        outcome = "merged-damage"  # a damaged file merged into another image than the intact
+    return steps, outcome, [cmd]
+
+
+def same_as_intact(args, work, bases):
+    """The merged image equals the merge of the files before the damage."""
+    intact = os.path.join(work, "intact")
+    os.makedirs(intact, exist_ok=True)
+    copy_base(bases["merge"][0], intact)
+    merged = [args.bin, "merge", "m1.exr", "m2.exr", "-o", "merged.exr", "--force"]
+    if run(merged, intact, args.render_timeout, args.memory).returncode != 0:
+        return False
+    p = run([args.bin, "diff", "--json", "merged.exr", os.path.join(intact, "merged.exr")], work,
+            args.info_timeout, args.memory)
+    try:
+        return json.loads(p.stdout.decode().strip().splitlines()[-1])["max_abs"] == 0
+    except (ValueError, IndexError, KeyError, UnicodeDecodeError, AttributeError):
+        return False
 
 
 def changed_case(args, rng, work, bases):
