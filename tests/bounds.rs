@@ -7,6 +7,7 @@
 
 use std::path::Path;
 
+use pathspace::bidir::{Bdpt, Strategies, WalkLimits, MAX_SUBPATH_VERTICES};
 use pathspace::integrator::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::integrator::smc::march::{self, MAX_MARCH_STEPS};
 use pathspace::integrator::smc::{Smc, SmcError};
@@ -16,7 +17,6 @@ use pathspace::math::Sampler;
 use pathspace::medium::grid::{parse_text, LatticeError, MAX_GRID_VERTICES};
 use pathspace::medium::heterogeneous::{MAX_MARCH_STEPS as MAX_MEDIUM_STEPS, MAX_TRACKING_DEPTH};
 use pathspace::medium::{Grid, Medium};
-use pathspace::path::bidirectional::{Bdpt, Strategies, MAX_SUBPATH_VERTICES};
 use pathspace::path::technique::PLAIN;
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
@@ -179,13 +179,16 @@ fn walks_are_bounded_by_their_cap_not_by_max_depth() {
     // the fog box closed by a front wall, without roulette: only the cap ends the walk
     let front = "\n[[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 1.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nmaterial = \"white\"\n";
     let (scene, _) = load(&format!("{FOG_BOX}{front}")).unwrap();
-    let mut bdpt = Bdpt::new(&scene, &PLAIN, Some(100_000), Strategies::All);
-    bdpt.roulette = false;
+    let bdpt = Bdpt::new(&PLAIN, Some(100_000), Strategies::All);
+    let no_cap = WalkLimits {
+        roulette: false,
+        max_vertices: usize::MAX,
+    };
     let mut path = Vec::new();
     let mut longest = 0;
     for i in 0..16 {
         let mut sampler = Sampler::new(1, i, 0);
-        bdpt.light_subpath(&scene, &mut sampler, &mut path);
+        bdpt.light_subpath(&scene, no_cap, &mut sampler, &mut path);
         longest = longest.max(path.len());
     }
     assert_eq!(longest, MAX_SUBPATH_VERTICES);
