@@ -221,6 +221,23 @@ fn contribution_over_density_equals_walk_throughput() {
     assert!(checked > 100, "only {checked} walks reached the light");
 }
 
+/// The medium around an area light is the one it emits into: two lights on the fog box's open
+/// face (z = +1, coplanar with the fog's null boundary), one facing into the box and one facing
+/// out, start their subpaths in the fog and in vacuum; the ceiling light hangs in the fog.
+#[test]
+fn an_area_light_on_a_medium_boundary_starts_in_the_medium_it_faces() {
+    let face = |u: [f32; 3], v: [f32; 3]| {
+        format!(
+            "\n[[shapes]]\ntype = \"quad\"\norigin = [-0.5, -0.5, 1.0]\nu = {u:?}\nv = {v:?}\nemission = [1.0, 1.0, 1.0]\n"
+        )
+    };
+    let inward = face([0.0, 0.5, 0.0], [0.5, 0.0, 0.0]); // u x v = -z
+    let outward = face([0.5, 0.0, 0.0], [0.0, 0.5, 0.0]); // u x v = +z
+    let text = format!("{}{inward}{outward}", pathspace::scene::FOG_BOX);
+    let scene = Scene::load(&SceneSource::embedded("faces.toml", &text)).unwrap();
+    assert_eq!(scene.light_media, [Some(0), Some(0), None]);
+}
+
 /// The light side of the same identity. x_0 is uniform on the room's only light (a 0.6 x 0.6
 /// quad): p_L(x_0) = 1 / 0.36 exactly. For a surface vertex x_1, the throughput the light walk
 /// carries there equals L_e(x_0 -> x_1) G tau / (p_L(x_0) p_L(x_1)) with the densities recomputed

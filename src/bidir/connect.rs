@@ -103,48 +103,8 @@ impl Bdpt<'_> {
         if t > 1 && s != 0 && eye[t - 1].is_infinite_light() {
             return None;
         }
-        let mut sampled: Option<Vertex> = None;
-        let mut raster = None;
-        let mut changed = None;
-        let (mut l, pdf_qp, pdf_pq);
-        if s == 0 {
-            // the eye subpath found an emitter by itself
-            let pt = &eye[t - 1];
-            let towards = eye[t - 2].p;
-            l = match pt.kind {
-                VertexKind::InfiniteLight { .. } => pt.emitted(scene, towards),
-                _ => pt.surface_emission(scene, towards),
-            } * pt.beta;
-            pdf_qp = 1.0;
-            pdf_pq = 1.0;
-        } else if s == 1 {
-            // next-event estimation: sample a point on a light for the eye subpath's end
-            let c = self.connect_light_sample(scene, eye_path, t, sampler)?;
-            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
-            changed = c.changed;
-        } else if t == 1
-            && self.strategies == Strategies::LightTracing
-            && matches!(eye[0].kind, VertexKind::Meter { .. })
-        {
-            // light tracing to a meter: two direction samplers combined by MIS
-            if !light[s - 1].is_connectible(scene) || s < 2 {
-                return None;
-            }
-            let (c, z0) = self.light_tracing_meter(scene, light, s, &eye[0], sampler)?;
-            l = c;
-            pdf_qp = 1.0;
-            pdf_pq = 1.0;
-            sampled = Some(z0);
-        } else if t == 1 {
-            // connect the light subpath to the sensor
-            let c = self.connect_to_sensor(scene, light_path, eye, s, sampler)?;
-            (l, pdf_qp, pdf_pq, sampled, raster) = (c.l, c.pdf_qp, c.pdf_pq, c.sampled, c.raster);
-            changed = c.changed;
-        } else {
-            let c = self.connect_walks(scene, light_path, eye_path, s, t, sampler)?;
-            (l, pdf_qp, pdf_pq) = (c.0, c.1, c.2);
-            changed = c.3;
-        }
+        let c = self.unweighted(scene, light_path, eye_path, s, t, sampler)?;
+        let (mut l, raster, sampled) = (c.l, c.raster, c.sampled);
         if l == Rgb::ZERO || !l.is_finite() {
             return if l.is_finite() {
                 None
@@ -157,21 +117,72 @@ impl Bdpt<'_> {
                 s,
                 t,
                 sampled,
-                pdf_qp,
-                pdf_pq,
+                pdf_qp: c.pdf_qp,
+                pdf_pq: c.pdf_pq,
             };
             let changed =
-                changed.unwrap_or_else(|| self.changed_densities(scene, light, eye, &join));
+                (c.changed).unwrap_or_else(|| self.changed_densities(scene, light, eye, &join));
             l *= self.weight(scene, light_path, eye_path, &join, changed);
         }
         Some((l, raster, sampled))
+    }
+
+    /// Strategy (s, t) unweighted, by the connection that samples it: the eye subpath's own
+    /// hit of an emitter (s = 0), next-event estimation (s = 1), light tracing's connection to
+    /// a meter with its two direction samplers, the connection to the sensor (t = 1), or the
+    /// edge between the two subpaths' ends.
+    fn unweighted<L: Subpath + ?Sized, E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        light_path: &L,
+        eye_path: &E,
+        s: usize,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let (light, eye) = (light_path.vertices(), eye_path.vertices());
+        let plain = |l: Rgb, sampled: Option<Vertex>| Connection {
+            l,
+            pdf_qp: 1.0,
+            pdf_pq: 1.0,
+            sampled,
+            raster: None,
+            changed: None,
+        };
+        if s == 0 {
+            // the eye subpath found an emitter by itself
+            let pt = &eye[t - 1];
+            let towards = eye[t - 2].p;
+            let l = match pt.kind {
+                VertexKind::InfiniteLight { .. } => pt.emitted(scene, towards),
+                _ => pt.surface_emission(scene, towards),
+            } * pt.beta;
+            Some(plain(l, None))
+        } else if s == 1 {
+            // next-event estimation: sample a point on a light for the eye subpath's end
+            self.connect_light_sample(scene, eye_path, t, sampler)
+        } else if t == 1
+            && self.strategies == Strategies::LightTracing
+            && matches!(eye[0].kind, VertexKind::Meter { .. })
+        {
+            // light tracing to a meter: two direction samplers combined by MIS
+            if !light[s - 1].is_connectible(scene) || s < 2 {
+                return None;
+            }
+            let (l, z0) = self.light_tracing_meter(scene, light, s, &eye[0], sampler)?;
+            Some(plain(l, Some(z0)))
+        } else if t == 1 {
+            // connect the light subpath to the sensor
+            self.connect_to_sensor(scene, light_path, eye, s, sampler)
+        } else {
+            self.connect_walks(scene, light_path, eye_path, s, t, sampler)
+        }
     }
 
     /// Strategy (s, t) with s, t >= 2: the light subpath's end q joined to the eye subpath's
     /// end p. Returns the unweighted contribution, the edge's propagation pdfs both ways and,
     /// when every strategy is weighted, the reverse densities the connection changes, all from
     /// one direction q -> p (its reverse is the same vector negated, exactly).
-    #[allow(clippy::type_complexity)]
     fn connect_walks<L: Subpath + ?Sized, E: Subpath + ?Sized>(
         &self,
         scene: &Scene,
@@ -180,7 +191,7 @@ impl Bdpt<'_> {
         s: usize,
         t: usize,
         sampler: &mut Sampler,
-    ) -> Option<(Rgb, f32, f32, Option<Changed>)> {
+    ) -> Option<Connection> {
         let qs = &light.vertices()[s - 1];
         let pt = &eye.vertices()[t - 1];
         if !qs.is_connectible(scene) || !pt.is_connectible(scene) {
@@ -221,7 +232,14 @@ impl Bdpt<'_> {
             };
             self.changed_at_walk(scene, light, s, ends, (d, w), (e.pdf_ab, e.pdf_ba))
         });
-        Some((l, e.pdf_ab, e.pdf_ba, changed))
+        Some(Connection {
+            l,
+            pdf_qp: e.pdf_ab,
+            pdf_pq: e.pdf_ba,
+            sampled: None,
+            raster: None,
+            changed,
+        })
     }
     // ANCHOR_END: connect
 }

@@ -131,9 +131,19 @@ impl Bdpt<'_> {
         join: &Join,
         changed: Changed,
     ) -> f32 {
+        let sum = Self::eye_sum(eye, join, &changed);
+        if join.s == 0 {
+            return 1.0 / (1.0 + sum);
+        }
+        1.0 / (1.0 + Self::light_sum(scene, light, join, &changed, sum))
+    }
+
+    /// The sum of r_i^2 over the eye subpath's side of strategy `join` (vertices that would
+    /// need to hit a Dirac left out; the connection's ends are connectible, so their deltas
+    /// count as false).
+    fn eye_sum<E: Subpath + ?Sized>(eye: &E, join: &Join, changed: &Changed) -> f32 {
         let (s, t) = (join.s, join.t);
-        let (lv, ev) = (light.vertices(), eye.vertices());
-        // the connection's ends are connectible: their deltas count as false
+        let ev = eye.vertices();
         let pt_fwd = if t == 1 && s != 1 {
             join.sampled.as_ref().unwrap_or_else(|| &ev[0]).pdf_fwd
         } else {
@@ -154,15 +164,26 @@ impl Bdpt<'_> {
                 sum += ri * ri;
             }
         }
-        if s == 0 {
-            return 1.0 / (1.0 + sum);
-        }
+        sum
+    }
+
+    /// `sum` plus the r_i^2 over the light subpath's side of strategy `join` (s >= 1), in
+    /// that order of additions.
+    fn light_sum<L: Subpath + ?Sized>(
+        scene: &Scene,
+        light: &L,
+        join: &Join,
+        changed: &Changed,
+        mut sum: f32,
+    ) -> f32 {
+        let s = join.s;
+        let lv = light.vertices();
         let qs = if s == 1 {
             join.sampled.as_ref().unwrap_or_else(|| &lv[0])
         } else {
             &lv[s - 1]
         };
-        ri = 1.0;
+        let mut ri = 1.0f32;
         for i in (0..s).rev() {
             ri *= if i + 1 == s {
                 remap(changed.qs) / remap(qs.pdf_fwd)
@@ -182,7 +203,7 @@ impl Bdpt<'_> {
                 sum += ri * ri;
             }
         }
-        1.0 / (1.0 + sum)
+        sum
     }
 
     /// [`Bdpt::changed_densities`] of a connection from the light walk's vertex q =

@@ -2,7 +2,7 @@
 //! to a point sampled on a meter, and the meter connection of the `light` integrator, whose two
 //! direction samplers are combined by MIS.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::connect::Connection;
 use super::mis::End;
@@ -16,6 +16,15 @@ use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
+/// The sensor vertex of a t = 1 connection, W_e towards the light subpath's end, the sensor's
+/// density of that direction when it comes with W_e (the camera's) and the raster position.
+struct SensorEnd {
+    sensor: Vertex,
+    we: Rgb,
+    pdf_dir: Option<f32>,
+    raster: Option<Vec2>,
+}
+
 impl Bdpt<'_> {
     /// Strategy t = 1 (light tracing's connection): the light subpath's end `light[s - 1]`
     /// joined to the camera or to a point sampled on the meter of `eye[0]`.
@@ -27,34 +36,16 @@ impl Bdpt<'_> {
         s: usize,
         sampler: &mut Sampler,
     ) -> Option<Connection> {
-        let light = light_path.vertices();
-        let mut raster = None;
-        let qs = &light[s - 1];
+        let qs = &light_path.vertices()[s - 1];
         if !qs.is_connectible(scene) || s < 2 {
             return None;
         }
-        // the sensor vertex, W_e towards qs and the density of sampling qs's direction from
-        // it (the camera's from the one importance evaluation both need)
-        let (sensor, we, sensor_pdf) = match eye[0].kind {
-            VertexKind::Camera => {
-                let cam = scene.camera.as_ref()?;
-                let imp = cam.importance((qs.p - cam.eye).normalize_or_zero())?;
-                raster = Some(imp.raster);
-                let mut v = eye[0];
-                v.beta = Rgb::ONE;
-                (v, Rgb::splat(imp.we), Some(imp.pdf_dir))
-            }
-            VertexKind::Meter { meter } => {
-                let q = Primitive::Quad(scene.sensors[meter as usize].quad);
-                let (p, n) = q.sample_area(sampler.next_2d());
-                let mut v = Vertex::new(eye[0].kind, p, n, eye[0].medium_front, eye[0].medium_back);
-                v.pdf_fwd = 1.0 / q.area();
-                // W_e / p(x) = (1/A) / (1/A)
-                v.beta = Rgb::ONE;
-                (v, v.importance(scene, qs.p), None)
-            }
-            _ => return None,
-        };
+        let SensorEnd {
+            sensor,
+            we,
+            pdf_dir: sensor_pdf,
+            raster,
+        } = Self::sensor_towards(scene, &eye[0], qs.p, sampler)?;
         let area_inv = match sensor.kind {
             VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
             _ => 1.0,
@@ -92,6 +83,46 @@ impl Bdpt<'_> {
             sampled: Some(sensor),
             raster,
             changed,
+        })
+    }
+
+    /// The sensor's end of a connection to the point `q`: the camera vertex `z0` itself, or a
+    /// point sampled uniformly on the meter of `z0` (W_e / p(x) = (1/A) / (1/A) in its
+    /// throughput), with W_e towards `q` and, for the camera, the density of sampling `q`'s
+    /// direction and the raster position, from the one importance evaluation both need.
+    fn sensor_towards(
+        scene: &Scene,
+        z0: &Vertex,
+        q: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<SensorEnd> {
+        Some(match z0.kind {
+            VertexKind::Camera => {
+                let cam = scene.camera.as_ref()?;
+                let imp = cam.importance((q - cam.eye).normalize_or_zero())?;
+                let mut v = *z0;
+                v.beta = Rgb::ONE;
+                SensorEnd {
+                    sensor: v,
+                    we: Rgb::splat(imp.we),
+                    pdf_dir: Some(imp.pdf_dir),
+                    raster: Some(imp.raster),
+                }
+            }
+            VertexKind::Meter { meter } => {
+                let quad = Primitive::Quad(scene.sensors[meter as usize].quad);
+                let (p, n) = quad.sample_area(sampler.next_2d());
+                let mut v = Vertex::new(z0.kind, p, n, z0.medium_front, z0.medium_back);
+                v.pdf_fwd = 1.0 / quad.area();
+                v.beta = Rgb::ONE;
+                SensorEnd {
+                    sensor: v,
+                    we: v.importance(scene, q),
+                    pdf_dir: None,
+                    raster: None,
+                }
+            }
+            _ => return None,
         })
     }
 
