@@ -32,7 +32,7 @@ GROUPS_TABLE=(
   "bsdf|src/bsdf/mod.rs src/bsdf/lambert.rs src/bsdf/mirror.rs src/bsdf/dielectric.rs src/bsdf/thin_dielectric.rs src/bsdf/null.rs|bsdf bsdf_contract path_space|10|120"
   "path_tracer|src/integrator/path.rs|transport path_space|8|120"
   "medium|src/medium/homogeneous.rs src/medium/heterogeneous.rs src/medium/grid.rs src/medium/procedural.rs|free_flight media_inhomogeneous|50|120"
-  "bdpt|src/path/bidirectional.rs|path_space strategies|30|120"
+  "bdpt|src/bidir/*.rs|path_space strategies|30|120"
   "smc|src/integrator/smc/march.rs src/integrator/smc/cache.rs|smc_cache smc_media smc_unbiased|17|120"
   "mlt|src/integrator/mlt/contribution.rs src/integrator/mlt/acceptance.rs src/integrator/mlt/mutation/*.rs|mlt mlt_mutations|70|300"
 )

@@ -12,7 +12,7 @@
 //! | eq. (4) Neumann series | [`integrator::path`] |
 //! | eq. (5) measurement equation, sensors | [`scene::camera`], [`scene::sensor`], [`film`] |
 //! | sec. 3-4: path space, characteristic, G, f_j, densities | [`path`] |
-//! | BDPT with MIS (Lafortune and Willems 1996, Veach ch. 10) | [`integrator::bdpt`] |
+//! | BDPT with MIS (Lafortune and Willems 1996, Veach ch. 10): walks, connections, weights; the integrators | [`bidir`], [`integrator::bdpt`] |
 //! | sec. 5, eq. (8): Metropolis light transport, mutations (and Veach ch. 11) | [`integrator::mlt`] |
 //! | Table 1, right column: inhomogeneous media, ray marching, tracking | [`medium::heterogeneous`] |
 //! | Pegoraro, Wald, Parker 2008, eq. (1)-(9): sequential Monte Carlo | [`integrator::smc`] |
@@ -23,6 +23,7 @@
 //! | the book as a course: assignments, student copies | [`course`] |
 
 pub mod aov;
+pub mod bidir;
 pub mod bsdf;
 pub mod cli;
 pub mod conventions;

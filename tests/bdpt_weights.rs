@@ -6,9 +6,9 @@
 //! time goes").
 
 use glam::Vec2;
+use pathspace::bidir::{Join, SensorStart};
 use pathspace::integrator::bdpt::{Bdpt, Scratch, Strategies};
 use pathspace::math::Sampler;
-use pathspace::path::bidirectional::{Join, SensorStart};
 use pathspace::path::{Vertex, PLAIN};
 use pathspace::scene::{Scene, SceneSource};
 use pathspace::spectrum::Rgb;
@@ -67,7 +67,7 @@ fn ends<'a>(
 /// same random numbers, `Strategies::Only`) times the directly computed weight, bit for bit.
 /// The scenes' media are homogeneous, so an edge re-evaluated here has the same pdfs.
 fn weights_match(scene: &Scene, n: u64, w: u32) -> usize {
-    let all = Bdpt::new(scene, &PLAIN, Some(6), Strategies::All);
+    let all = Bdpt::new(&PLAIN, Some(6), Strategies::All);
     let mut scratch = Scratch::default();
     let mut checked = 0;
     for i in 0..n {
@@ -87,7 +87,7 @@ fn weights_match(scene: &Scene, n: u64, w: u32) -> usize {
                 }
                 let weighted =
                     all.connect_sampled(scene, light, eye, s, t, &mut Sampler::new(6, i, 0));
-                let only = Bdpt::new(scene, &PLAIN, Some(6), Strategies::Only(s, t));
+                let only = Bdpt::new(&PLAIN, Some(6), Strategies::Only(s, t));
                 let unweighted =
                     only.connect_sampled(scene, light, eye, s, t, &mut Sampler::new(6, i, 0));
                 let (Some((lw, _, sampled)), Some((lu, _, _))) = (weighted, unweighted) else {
@@ -144,7 +144,7 @@ fn connection_weights_are_the_direct_ones_bit_for_bit() {
 fn combine_equals_the_strategies_one_by_one() {
     for (name, res) in [("fog-box.toml", Some(8)), ("slab.toml", None)] {
         let scene = scene(name, res);
-        let all = Bdpt::new(&scene, &PLAIN, Some(6), Strategies::All);
+        let all = Bdpt::new(&PLAIN, Some(6), Strategies::All);
         let mut scratch = Scratch::default();
         let mut splats = Vec::new();
         for i in 0..1000u64 {

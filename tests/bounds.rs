@@ -7,6 +7,7 @@
 
 use std::path::Path;
 
+use pathspace::bidir::{Bdpt, Strategies, WalkLimits, MAX_SUBPATH_VERTICES};
 use pathspace::integrator::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::integrator::smc::march::{self, MAX_MARCH_STEPS};
 use pathspace::integrator::smc::{Smc, SmcError};
@@ -16,7 +17,6 @@ use pathspace::math::Sampler;
 use pathspace::medium::grid::{parse_text, LatticeError, MAX_GRID_VERTICES};
 use pathspace::medium::heterogeneous::{MAX_MARCH_STEPS as MAX_MEDIUM_STEPS, MAX_TRACKING_DEPTH};
 use pathspace::medium::{Grid, Medium};
-use pathspace::path::bidirectional::{Bdpt, Strategies, MAX_SUBPATH_VERTICES};
 use pathspace::path::technique::PLAIN;
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
@@ -179,13 +179,16 @@ fn walks_are_bounded_by_their_cap_not_by_max_depth() {
     // the fog box closed by a front wall, without roulette: only the cap ends the walk
     let front = "\n[[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 1.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nmaterial = \"white\"\n";
     let (scene, _) = load(&format!("{FOG_BOX}{front}")).unwrap();
-    let mut bdpt = Bdpt::new(&scene, &PLAIN, Some(100_000), Strategies::All);
-    bdpt.roulette = false;
+    let bdpt = Bdpt::new(&PLAIN, Some(100_000), Strategies::All);
+    let no_cap = WalkLimits {
+        roulette: false,
+        max_vertices: usize::MAX,
+    };
     let mut path = Vec::new();
     let mut longest = 0;
     for i in 0..16 {
         let mut sampler = Sampler::new(1, i, 0);
-        bdpt.light_subpath(&scene, &mut sampler, &mut path);
+        bdpt.light_subpath(&scene, no_cap, &mut sampler, &mut path);
         longest = longest.max(path.len());
     }
     assert_eq!(longest, MAX_SUBPATH_VERTICES);
@@ -194,6 +197,47 @@ fn walks_are_bounded_by_their_cap_not_by_max_depth() {
         "{}",
         path.capacity()
     );
+}
+
+#[test]
+fn walk_limits_passed_by_the_caller_cap_the_walk_and_switch_roulette() {
+    // the closed fog box again; without roulette a cap of n vertices cuts the walk the same
+    // random numbers draw without it after its n-th vertex (eye and light walks alike)
+    let front = "\n[[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 1.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nmaterial = \"white\"\n";
+    let (scene, _) = load(&format!("{FOG_BOX}{front}")).unwrap();
+    let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
+    let raster = glam::Vec2::new(128.0, 128.0);
+    let walks = |limits: WalkLimits, i: u64| {
+        let (mut light, mut eye) = (Vec::new(), Vec::new());
+        let mut sampler = Sampler::new(2, i, 0);
+        bdpt.light_subpath(&scene, limits, &mut sampler, &mut light);
+        let mut sampler = Sampler::new(3, i, 0);
+        bdpt.camera_subpath(&scene, raster, limits, &mut sampler, &mut eye);
+        let points = |p: Vec<pathspace::path::Vertex>| p.iter().map(|v| v.p).collect::<Vec<_>>();
+        (points(light), points(eye))
+    };
+    let uncapped = WalkLimits::at_most(usize::MAX);
+    let mut reached = 0;
+    for i in 0..32 {
+        let (light, eye) = walks(uncapped, i);
+        for n in [2, 5, 64] {
+            let (light_n, eye_n) = walks(WalkLimits::at_most(n), i);
+            assert_eq!(
+                light_n,
+                light[..n.min(light.len())],
+                "light walk {i}, cap {n}"
+            );
+            assert_eq!(eye_n, eye[..n.min(eye.len())], "eye walk {i}, cap {n}");
+            reached += usize::from(n == 64 && light_n.len() == 64);
+        }
+    }
+    assert!(
+        reached > 0,
+        "no light walk without roulette reached 64 vertices"
+    );
+    // with BDPT's own limits Russian roulette ends the same walks earlier
+    let longest = (0..32).map(|i| walks(WalkLimits::BDPT, i).0.len()).max();
+    assert!(longest < Some(64), "{longest:?}");
 }
 
 #[test]

@@ -109,7 +109,7 @@ fn classical_particles_reproduce_the_meter() {
     let mut fam = Family::new("enlightened: classical particles reproduce the meter");
     for fog in [false, true] {
         let scene = room(fog);
-        let bdpt = Bdpt::new(&scene, &PLAIN, None, Strategies::All);
+        let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
         let mut photon = Vec::new();
         let mut importon = Vec::new();
         for b in 0..BATCHES {
@@ -341,7 +341,7 @@ fn metropolis_particles_without_the_defensive_part_represent_the_connected_paths
 #[test]
 fn particles_are_identical_with_any_thread_count() {
     let scene = room(true);
-    let bdpt = Bdpt::new(&scene, &PLAIN, None, Strategies::All);
+    let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -10,6 +10,7 @@ mod common;
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
+use pathspace::bidir::WalkLimits;
 use pathspace::bsdf::TransportMode;
 use pathspace::enlightened::guide::build_guide;
 use pathspace::enlightened::regions::{surface_distance, KdTree};
@@ -308,14 +309,14 @@ fn guided_vertices(
     count: usize,
 ) -> Vec<(Vertex, Vec3)> {
     let g = tech.guide.as_deref().unwrap();
-    let b = Bdpt::new(scene, tech, Some(4), Strategies::All);
+    let b = Bdpt::new(tech, Some(4), Strategies::All);
     let mut s = Sampler::new(21, 0, 0);
     let mut out = Vec::new();
     let mut eye = Vec::new();
     let cam = scene.camera.as_ref().unwrap();
     for _ in 0..5000 {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
-        b.camera_subpath(scene, raster, &mut s, &mut eye);
+        b.camera_subpath(scene, raster, WalkLimits::BDPT, &mut s, &mut eye);
         for i in 1..eye.len() {
             let v = eye[i];
             if v.is_medium() != want_medium {
@@ -420,7 +421,7 @@ fn guided_walk_densities_match_path_densities() {
 }
 
 fn check_walk_densities(scene: &Scene, tech: &Enlightened) {
-    let b = Bdpt::new(scene, tech, Some(5), Strategies::All);
+    let b = Bdpt::new(tech, Some(5), Strategies::All);
     let mut s = Sampler::new(41, 0, 0);
     let mut scratch = Scratch::default();
     let cam = scene.camera.as_ref().unwrap();
@@ -428,8 +429,8 @@ fn check_walk_densities(scene: &Scene, tech: &Enlightened) {
     let mut off: Vec<String> = Vec::new();
     for _ in 0..4000 {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
-        b.camera_subpath(scene, raster, &mut s, &mut scratch.eye);
-        b.light_subpath(scene, &mut s, &mut scratch.light);
+        b.camera_subpath(scene, raster, WalkLimits::BDPT, &mut s, &mut scratch.eye);
+        b.light_subpath(scene, WalkLimits::BDPT, &mut s, &mut scratch.light);
         let (light, eye) = (&scratch.light, &scratch.eye);
         if light.len() < 3 || eye.len() < 3 {
             continue;
@@ -508,15 +509,15 @@ fn check_walk_densities(scene: &Scene, tech: &Enlightened) {
 #[test]
 fn guided_mis_weights_sum_to_one() {
     let (scene, tech) = guided_fog_box(8, GuideKind::Both);
-    let b = Bdpt::new(&scene, &tech, Some(5), Strategies::All);
+    let b = Bdpt::new(&tech, Some(5), Strategies::All);
     let mut s = Sampler::new(43, 0, 0);
     let mut scratch = Scratch::default();
     let cam = scene.camera.as_ref().unwrap();
     let mut checked = 0;
     for _ in 0..3000 {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
-        b.camera_subpath(&scene, raster, &mut s, &mut scratch.eye);
-        b.light_subpath(&scene, &mut s, &mut scratch.light);
+        b.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut s, &mut scratch.eye);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut s, &mut scratch.light);
         if scratch.light.len() < 2 || scratch.eye.len() < 2 {
             continue;
         }
@@ -704,13 +705,13 @@ fn guided_emission_pdf_integrates_to_one_and_matches_its_sampler() {
     use pathspace::math::warp;
     let (scene, tech) = guided_fog_box(8, GuideKind::Surface);
     let g = tech.guide.as_deref().unwrap();
-    let b = Bdpt::new(&scene, &tech, Some(2), Strategies::All);
+    let b = Bdpt::new(&tech, Some(2), Strategies::All);
     let mut s = Sampler::new(51, 0, 0);
     let mut light = Vec::new();
     let mut points = Vec::new();
     let mut fam = Family::new("guiding: guided emission vs its sampler");
     while points.len() < 2 {
-        b.light_subpath(&scene, &mut s, &mut light);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut s, &mut light);
         if let Some(v) = light.first() {
             if points
                 .iter()
@@ -832,14 +833,14 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
     use pathspace::bsdf::{Bsdf, Lobe};
     use pathspace::integrator::mlt::contribution::lobe_probability;
     let (scene, tech) = guided_glass_fog_box(16);
-    let b = Bdpt::new(&scene, &tech, Some(6), Strategies::All);
+    let b = Bdpt::new(&tech, Some(6), Strategies::All);
     let mut s = Sampler::new(31, 0, 0);
     let cam = scene.camera.as_ref().unwrap();
     let mut eye = Vec::new();
     let mut glass = Vec::new();
     for _ in 0..20_000 {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
-        b.camera_subpath(&scene, raster, &mut s, &mut eye);
+        b.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut s, &mut eye);
         for i in 1..eye.len() {
             if matches!(eye[i].bsdf(&scene), Some(Bsdf::Dielectric(_))) {
                 glass.push((eye[i], (eye[i - 1].p - eye[i].p).normalize()));
@@ -944,7 +945,7 @@ fn mlt_densities_carry_each_subpaths_guided_lobe_choice() {
     use pathspace::integrator::mlt::contribution::{lobe_between, singular_densities_in};
     use pathspace::integrator::mlt::init::Bootstrap;
     let (scene, tech) = guided_glass_fog_box(16);
-    let bdpt = Bdpt::new(&scene, &tech, Some(8), Strategies::All);
+    let bdpt = Bdpt::new(&tech, Some(8), Strategies::All);
     let boot = Bootstrap::run(&scene, &bdpt, 20_000, 5);
     let mut s = Sampler::new(5, 99, 0);
     let (mut checked, mut modes_differ) = (0, 0);

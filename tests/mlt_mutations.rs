@@ -299,15 +299,10 @@ fn vertex_at(scene: &Scene, target: Vec3, n: Vec3) -> Vertex {
 }
 
 /// The light vertex at `p` on the fog box's light, as `sample_light_vertex` makes it.
-fn light_vertex_at(scene: &Scene, mlt: &Mlt, p: Vec3) -> Vertex {
+fn light_vertex_at(scene: &Scene, p: Vec3) -> Vertex {
     let mut s = Sampler::new(8, 0, 0);
-    let mut v = sample_light_vertex(
-        scene,
-        &pathspace::path::PLAIN,
-        &mlt.mutations.bidirectional.light_media,
-        &mut s,
-    )
-    .expect("the light samples a vertex");
+    let mut v = sample_light_vertex(scene, &pathspace::path::PLAIN, &mut s)
+        .expect("the light samples a vertex");
     v.p = p;
     v
 }
@@ -594,8 +589,8 @@ impl PlaneMove<'_> {
 // (a) the perturbations
 
 /// The fog box's path light -> floor -> back wall -> pinhole, the back wall point `wall`.
-fn floor_wall_path(scene: &Scene, mlt: &Mlt, wall: Vec3) -> Vec<Vertex> {
-    let l = light_vertex_at(scene, mlt, Vec3::new(0.05, 0.999, -0.1));
+fn floor_wall_path(scene: &Scene, wall: Vec3) -> Vec<Vertex> {
+    let l = light_vertex_at(scene, Vec3::new(0.05, 0.999, -0.1));
     let floor = vertex_at(scene, Vec3::new(0.1, -1.0, 0.0), Vec3::Y);
     let wall = vertex_at(scene, wall, Vec3::Z);
     vec![l, floor, wall, eye_vertex(scene)]
@@ -605,14 +600,13 @@ fn floor_wall_path(scene: &Scene, mlt: &Mlt, wall: Vec3) -> Vec<Vertex> {
 fn sensor_perturbation_proposals_follow_t_on_a_wall_through_a_mirror_and_in_the_fog() {
     let mut fam = Family::new("mlt_mutations: sensor perturbation proposals");
     let scene = fog_box(64);
-    let mlt = engine(&scene, [1.0; 5], None, 3);
     // 0.1 .. 4 pixels; a pixel is ~0.056 at the back wall
     let m = SensorPerturbation {
         offset: InverseDistance::new(0.1, 4.0).unwrap(),
     };
     let back = walls()[1].1;
     // on the back wall, seen directly
-    let x = floor_wall_path(&scene, &mlt, Vec3::new(-0.05, 0.1, -1.0));
+    let x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
     let wall = x[2];
     let rebuild = |p: Vec3| {
         let mut y = x.clone();
@@ -698,11 +692,10 @@ fn sensor_perturbation_proposals_follow_t_on_a_wall_through_a_mirror_and_in_the_
     );
     // through the floor mirror: light -> back wall -> mirror -> pinhole
     let ms = mirror_box(64);
-    let mm = engine(&ms, [1.0; 5], None, 3);
     let eye = eye_vertex(&ms);
     let wall_p = Vec3::new(0.1, -0.6, -1.0);
     let xs = vec![
-        light_vertex_at(&ms, &mm, Vec3::new(0.05, 0.999, -0.1)),
+        light_vertex_at(&ms, Vec3::new(0.05, 0.999, -0.1)),
         vertex_at(&ms, wall_p, Vec3::Z),
         vertex_at(&ms, mirror_point(eye.p, wall_p), Vec3::Y),
         eye,
@@ -751,13 +744,12 @@ fn sensor_perturbation_proposals_follow_t_on_a_wall_through_a_mirror_and_in_the_
 fn light_perturbation_proposals_follow_t_on_a_wall_in_the_fog_and_through_a_mirror() {
     let mut fam = Family::new("mlt_mutations: light perturbation proposals");
     let scene = fog_box(64);
-    let mlt = engine(&scene, [1.0; 5], None, 5);
     let m = LightPerturbation {
         angle: InverseDistance::new(1e-3, 0.1).unwrap(),
     };
     let back = walls()[1].1;
     // the direction floor -> back wall turned; the back wall point ~1.1 away
-    let x = floor_wall_path(&scene, &mlt, Vec3::new(-0.05, 0.1, -1.0));
+    let x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
     let rebuild = |p: Vec3| {
         let mut y = x.clone();
         y[2].p = p;
@@ -838,11 +830,10 @@ fn light_perturbation_proposals_follow_t_on_a_wall_in_the_fog_and_through_a_mirr
     // a caustic through the floor mirror: light -> mirror -> back wall -> pinhole; the
     // emission direction is turned at the light and retraced through the mirror
     let ms = mirror_box(64);
-    let mm = engine(&ms, [1.0; 5], None, 5);
     let lp = Vec3::new(0.05, 0.999, -0.1);
     let wall_p = Vec3::new(0.1, -0.6, -1.0);
     let xs = vec![
-        light_vertex_at(&ms, &mm, lp),
+        light_vertex_at(&ms, lp),
         vertex_at(&ms, mirror_point(lp, wall_p), Vec3::Y),
         vertex_at(&ms, wall_p, Vec3::Z),
         eye_vertex(&ms),
@@ -994,7 +985,6 @@ fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
     // light -> mirror -> back wall -> mirror -> pinhole: the lens chain pinhole -> mirror ->
     // back wall (film offset), then the chain back wall -> mirror -> light (turned direction)
     let ms = mirror_box(64);
-    let mm = engine(&ms, [1.0; 5], None, 9);
     let m = MultiChainPerturbation {
         offset: InverseDistance::new(0.1, 4.0).unwrap(),
         angle: InverseDistance::new(1e-3, 0.05).unwrap(),
@@ -1003,7 +993,7 @@ fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
     let lp = Vec3::new(0.05, 0.999, -0.1);
     let wall_p = Vec3::new(0.1, -0.6, -1.0);
     let x = vec![
-        light_vertex_at(&ms, &mm, lp),
+        light_vertex_at(&ms, lp),
         vertex_at(&ms, mirror_point(wall_p, lp), Vec3::Y),
         vertex_at(&ms, wall_p, Vec3::Z),
         vertex_at(&ms, mirror_point(eye.p, wall_p), Vec3::Y),
@@ -1134,7 +1124,7 @@ impl BidirCells {
             .iter()
             .map(|(_, r)| (vertex_at(scene, r.uniform(Vec2::splat(0.5)), r.n), *r))
             .collect();
-        let light = light_vertex_at(scene, mlt, light_rect.uniform(Vec2::splat(0.5)));
+        let light = light_vertex_at(scene, light_rect.uniform(Vec2::splat(0.5)));
         BidirCells {
             x,
             structures,
@@ -1391,8 +1381,6 @@ const CELLS: usize = (RES * RES) as usize * CLASSES;
 /// variance of that estimate (the normalization's own noise neglected: b is estimated to a
 /// fraction of the cells' errors).
 fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f64>) {
-    let mlt = engine(scene, [1.0; 5], Some(max_depth as u32), seed);
-    let media = mlt.mutations.bidirectional.light_media.clone();
     let eye = eye_vertex(scene);
     const CHUNK: u64 = 8192;
     let sums = (0..n.div_ceil(CHUNK))
@@ -1458,8 +1446,7 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                     if is_specular(scene, &v) {
                         continue;
                     }
-                    let Some(l) =
-                        sample_light_vertex(scene, &pathspace::path::PLAIN, &media, &mut s)
+                    let Some(l) = sample_light_vertex(scene, &pathspace::path::PLAIN, &mut s)
                     else {
                         continue;
                     };

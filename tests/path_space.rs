@@ -7,6 +7,7 @@ mod common;
 
 use common::stats::{assert_significant, p_welch, runs_mean, Family};
 use glam::Vec3;
+use pathspace::bidir::WalkLimits;
 use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::Sampler;
@@ -155,12 +156,12 @@ fn geometry_term_closed_forms() {
 fn contribution_over_density_equals_walk_throughput() {
     let scene = room();
     // max_depth 2 keeps Russian roulette out (it starts after 3 vertices)
-    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(2), Strategies::All);
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(2), Strategies::All);
     let mut sampler = Sampler::new(7, 0, 0);
     let mut eye = Vec::new();
     let mut checked = 0;
     for _ in 0..20000 {
-        b.meter_subpath(&scene, 0, &mut sampler, &mut eye);
+        b.meter_subpath(&scene, 0, WalkLimits::BDPT, &mut sampler, &mut eye);
         let last = *eye.last().unwrap();
         let VertexKind::Surface { prim } = last.kind else {
             continue;
@@ -220,6 +221,23 @@ fn contribution_over_density_equals_walk_throughput() {
     assert!(checked > 100, "only {checked} walks reached the light");
 }
 
+/// The medium around an area light is the one it emits into: two lights on the fog box's open
+/// face (z = +1, coplanar with the fog's null boundary), one facing into the box and one facing
+/// out, start their subpaths in the fog and in vacuum; the ceiling light hangs in the fog.
+#[test]
+fn an_area_light_on_a_medium_boundary_starts_in_the_medium_it_faces() {
+    let face = |u: [f32; 3], v: [f32; 3]| {
+        format!(
+            "\n[[shapes]]\ntype = \"quad\"\norigin = [-0.5, -0.5, 1.0]\nu = {u:?}\nv = {v:?}\nemission = [1.0, 1.0, 1.0]\n"
+        )
+    };
+    let inward = face([0.0, 0.5, 0.0], [0.5, 0.0, 0.0]); // u x v = -z
+    let outward = face([0.5, 0.0, 0.0], [0.0, 0.5, 0.0]); // u x v = +z
+    let text = format!("{}{inward}{outward}", pathspace::scene::FOG_BOX);
+    let scene = Scene::load(&SceneSource::embedded("faces.toml", &text)).unwrap();
+    assert_eq!(scene.light_media, [Some(0), Some(0), None]);
+}
+
 /// The light side of the same identity. x_0 is uniform on the room's only light (a 0.6 x 0.6
 /// quad): p_L(x_0) = 1 / 0.36 exactly. For a surface vertex x_1, the throughput the light walk
 /// carries there equals L_e(x_0 -> x_1) G tau / (p_L(x_0) p_L(x_1)) with the densities recomputed
@@ -228,15 +246,14 @@ fn contribution_over_density_equals_walk_throughput() {
 #[test]
 fn light_subpath_densities_reproduce_its_throughput() {
     let scene = room();
-    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(2), Strategies::All);
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(2), Strategies::All);
     // the ceiling light hangs inside the fog (medium 0): its subpaths start there
-    assert_eq!(b.light_medium(0), Some(0));
-    assert_eq!(b.light_media(), &[Some(0)]);
+    assert_eq!(scene.light_media, [Some(0)]);
     let mut sampler = Sampler::new(11, 0, 0);
     let mut light = Vec::new();
     let mut checked = 0;
     for _ in 0..4000 {
-        b.light_subpath(&scene, &mut sampler, &mut light);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut sampler, &mut light);
         if light.len() < 2 {
             continue;
         }
@@ -390,9 +407,9 @@ v = [0.2, 0.0, 0.0]
 "#,
     ))
     .unwrap();
-    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(4), Strategies::All);
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
     // this light is in vacuum
-    assert_eq!(b.light_medium(0), None);
+    assert_eq!(scene.light_media, [None]);
     let x0 = Vertex::new(
         VertexKind::Light {
             light: 0,
@@ -465,13 +482,13 @@ fn vertex_media_follow_the_side_of_the_direction() {
 #[test]
 fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
     let scene = room();
-    let b = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(4), Strategies::All);
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
     let mut sampler = Sampler::new(3, 1, 0);
     let mut scratch = Scratch::default();
     let mut checked = 0;
     for _ in 0..5000 {
-        b.meter_subpath(&scene, 0, &mut sampler, &mut scratch.eye);
-        b.light_subpath(&scene, &mut sampler, &mut scratch.light);
+        b.meter_subpath(&scene, 0, WalkLimits::BDPT, &mut sampler, &mut scratch.eye);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut sampler, &mut scratch.light);
         // join the light subpath's first two vertices to the eye subpath: a random full path
         if scratch.light.len() < 2 || scratch.eye.len() < 2 {
             continue;
@@ -518,7 +535,6 @@ fn meter(
     r.meter_samples = meter_samples;
     if let Some((s, t)) = only {
         r.integrator = Box::new(Bdpt::new(
-            scene,
             &pathspace::path::PLAIN,
             max_depth,
             Strategies::Only(s, t),

@@ -9,9 +9,9 @@
 use std::sync::Arc;
 
 use glam::Vec2;
+use pathspace::bidir::{Bdpt, Strategies, WalkLimits};
 use pathspace::enlightened::guide::{build_guide, ParticleSampler};
 use pathspace::enlightened::{Enlightened, GuideKind, GuideSettings};
-use pathspace::integrator::bdpt::{Bdpt, Strategies};
 use pathspace::integrator::mlt::contribution::image_contribution;
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::math::Sampler;
@@ -85,8 +85,11 @@ fn verify_bdpt(
     count: u32,
     seed: u64,
 ) -> usize {
-    let mut bdpt = Bdpt::new(scene, tech, Some(8), Strategies::All);
-    bdpt.roulette = false;
+    let bdpt = Bdpt::new(tech, Some(8), Strategies::All);
+    let no_roulette = WalkLimits {
+        roulette: false,
+        ..WalkLimits::BDPT
+    };
     let beta = deterministic_transmittance(scene);
     let cam = scene.camera.as_ref().expect("a camera");
     let (mut light, mut eye) = (Vec::new(), Vec::new());
@@ -94,10 +97,10 @@ fn verify_bdpt(
     let mut checked = 0;
     for i in 0..count {
         let mut sampler = Sampler::new(seed, i as u64, 0);
-        bdpt.light_subpath(scene, &mut sampler, &mut light);
+        bdpt.light_subpath(scene, no_roulette, &mut sampler, &mut light);
         let u = sampler.next_2d();
         let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
-        bdpt.camera_subpath(scene, raster, &mut sampler, &mut eye);
+        bdpt.camera_subpath(scene, raster, no_roulette, &mut sampler, &mut eye);
         let mut check = |path: Path, s: usize, what: &str| {
             if let Err(m) = path.verify(scene, tech, s, beta, &mut unused) {
                 panic!(

@@ -13,6 +13,7 @@ mod common;
 
 use common::stats::Family;
 use glam::Vec2;
+use pathspace::bidir::WalkLimits;
 use pathspace::integrator::bdpt::{Bdpt, Scratch, Strategies};
 use pathspace::integrator::mlt::mutation::Bidirectional;
 use pathspace::integrator::reach::unreachable_paths;
@@ -34,13 +35,13 @@ fn fog_box(w: u32) -> Scene {
 #[test]
 fn next_event_estimation_does_not_need_the_light_subpath() {
     let scene = fog_box(8);
-    let all = Bdpt::new(&scene, &pathspace::path::PLAIN, Some(3), Strategies::All);
+    let all = Bdpt::new(&pathspace::path::PLAIN, Some(3), Strategies::All);
     let mut scratch = Scratch::default();
     let mut nonzero = 0;
     for i in 0..2000u64 {
         let raster = Vec2::new((i % 8) as f32 + 0.5, ((i / 8) % 8) as f32 + 0.5);
         let mut s = Sampler::new(17, i, 0);
-        all.camera_subpath(&scene, raster, &mut s, &mut scratch.eye);
+        all.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut s, &mut scratch.eye);
         scratch.light.clear();
         let mut splats = Vec::new();
         let empty = all.combine(
@@ -133,12 +134,8 @@ intensity = 2.0
 fn the_unbounded_path_length_law_sums_to_one_and_is_sampled() {
     let unbounded = Bidirectional {
         max_vertices: usize::MAX,
-        light_media: Vec::new(),
     };
-    let capped = Bidirectional {
-        max_vertices: 12,
-        light_media: Vec::new(),
-    };
+    let capped = Bidirectional { max_vertices: 12 };
     for (kd, l, n) in [(1usize, 0i64, 5usize), (3, -1, 6), (6, 2, 9)] {
         let total: f64 = (1..400)
             .map(|ka| unbounded.addition_pmf(ka, kd, l, n))

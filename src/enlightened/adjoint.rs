@@ -38,9 +38,9 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use crate::bidir::{Bdpt, Strategies};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{Distribution1D, Sampler};
-use crate::path::bidirectional::{Bdpt, Strategies};
 pub use crate::path::technique::{LightStart, MapPoint};
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Light, Scene};
@@ -489,7 +489,7 @@ impl AdjointImage {
         if settings.estimator == AdjointEstimator::Metropolis {
             return Self::render_metropolis(scene, tech, settings, seed, &map, (cols, rows), start);
         }
-        let bdpt = Bdpt::new(scene, tech, max_depth, Strategies::All);
+        let bdpt = Bdpt::new(tech, max_depth, Strategies::All);
         let film = Vec2::new(cam.width as f32, cam.height as f32);
         let chunks = samples.div_ceil(CHUNK);
         let n_pix = cam.width as f64 * cam.height as f64;
@@ -504,11 +504,11 @@ impl AdjointImage {
             .into_par_iter()
             .map(|ci| {
                 let mut sampler = Sampler::new(seed, ci ^ ADJOINT_SALT, 0);
-                let mut walks = crate::path::bidirectional::Scratch::default();
+                let mut walks = crate::bidir::Scratch::default();
                 let mut out = Vec::new();
                 for _ in 0..CHUNK.min(samples - ci * CHUNK) {
                     let raster = sampler.next_2d() * film;
-                    let start = crate::path::bidirectional::SensorStart::Camera(raster);
+                    let start = crate::bidir::SensorStart::Camera(raster);
                     bdpt.sample(scene, start, &mut sampler, &mut walks);
                     let (light, eye) = (&walks.light, &walks.eye);
                     bdpt.for_each_strategy(

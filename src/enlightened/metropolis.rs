@@ -44,10 +44,10 @@
 use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
+use crate::bidir::Bdpt;
 use crate::enlightened::particles::{bidirectional_sample, ImportonSource, ParticleSets};
 use crate::math::sampler::mix64;
 use crate::math::{PrimarySamples, Sampler};
-use crate::path::bidirectional::Bdpt;
 use crate::path::LocalSampling;
 use crate::scene::Scene;
 use crate::spectrum::luminance;
@@ -147,9 +147,9 @@ const CHAIN_SALT: u64 = 0x6d70_6368_6169_6e00;
 /// The bidirectional particle sampler, evaluated at a chain's proposals.
 struct Evaluator<'a> {
     scene: &'a Scene,
-    bdpt: Bdpt<'a>,
+    bdpt: &'a Bdpt<'a>,
     source: ImportonSource,
-    walks: crate::path::bidirectional::Scratch,
+    walks: crate::bidir::Scratch,
 }
 
 impl Evaluator<'_> {
@@ -158,7 +158,7 @@ impl Evaluator<'_> {
         out.clear();
         let i = bidirectional_sample(
             self.scene,
-            &mut self.bdpt,
+            self.bdpt,
             self.source,
             1.0,
             sampler,
@@ -265,7 +265,7 @@ pub fn trace_metropolis_with_starts(
     }
     let run = Run {
         scene,
-        base: super::particles::particle_bdpt(scene, tech),
+        base: super::particles::particle_bdpt(tech),
         source,
         seed,
         settings,
@@ -349,7 +349,7 @@ impl Run<'_> {
     fn evaluator(&self) -> Evaluator<'_> {
         Evaluator {
             scene: self.scene,
-            bdpt: self.base.clone(),
+            bdpt: &self.base,
             source: self.source,
             walks: Default::default(),
         }

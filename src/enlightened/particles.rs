@@ -25,8 +25,8 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use crate::bidir::{Bdpt, Scratch, Strategies, WalkLimits};
 use crate::math::Sampler;
-use crate::path::bidirectional::{Bdpt, Scratch};
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
@@ -159,7 +159,7 @@ pub fn trace_photons(scene: &Scene, bdpt: &Bdpt, paths: u64, seed: u64) -> Vec<P
     }
     let scale = 1.0 / paths as f32;
     in_chunks(paths, seed, PHOTON_SALT, |sampler, path, out| {
-        bdpt.light_subpath(scene, sampler, path);
+        bdpt.light_subpath(scene, WalkLimits::BDPT, sampler, path);
         out.extend((1..path.len()).filter_map(|i| particle_at(path, i, scale)));
     })
 }
@@ -193,9 +193,11 @@ pub fn trace_importons(
                 };
                 let film = Vec2::new(cam.width as f32, cam.height as f32);
                 let raster = sampler.next_2d() * film;
-                bdpt.camera_subpath(scene, raster, sampler, path);
+                bdpt.camera_subpath(scene, raster, WalkLimits::BDPT, sampler, path);
             }
-            ImportonSource::Meter(m) => bdpt.meter_subpath(scene, m, sampler, path),
+            ImportonSource::Meter(m) => {
+                bdpt.meter_subpath(scene, m, WalkLimits::BDPT, sampler, path)
+            }
         }
         out.extend((1..path.len()).filter_map(|i| particle_at(path, i, scale)));
     })
@@ -211,12 +213,7 @@ pub fn trace_classical(
     paths: u64,
     seed: u64,
 ) -> Vec<Particle> {
-    let bdpt = Bdpt::new(
-        scene,
-        tech,
-        None,
-        crate::path::bidirectional::Strategies::All,
-    );
+    let bdpt = Bdpt::new(tech, None, Strategies::All);
     match quantity {
         Quantity::Radiance => trace_photons(scene, &bdpt, paths, seed),
         Quantity::Importance => match ImportonSource::default_for(scene) {
@@ -344,14 +341,13 @@ pub fn trace_bidirectional_where(
     if paths == 0 || !can_trace(scene, source) {
         return ParticleSets::default();
     }
-    let base = particle_bdpt(scene, tech);
+    let bdpt = particle_bdpt(tech);
     let scale = 1.0 / paths as f64;
     let chunks = paths.div_ceil(PARTICLE_CHUNK);
     let parts: Vec<ParticleSets> = (0..chunks)
         .into_par_iter()
         .map(|c| {
             let mut sampler = Sampler::new(seed, c ^ BIDIRECTIONAL_SALT, 0);
-            let mut bdpt = base.clone();
             let mut walks = Scratch::default();
             let mut out = ParticleSets::default();
             let mut one = ParticleSets::default();
@@ -359,7 +355,7 @@ pub fn trace_bidirectional_where(
                 one.clear();
                 let i = bidirectional_sample(
                     scene,
-                    &mut bdpt,
+                    &bdpt,
                     source,
                     scale,
                     &mut sampler,
@@ -381,17 +377,11 @@ pub fn trace_bidirectional_where(
     all
 }
 
-/// BDPT's walks as the particle samplers use them: no Russian roulette (the path length is
-/// drawn instead).
-pub(crate) fn particle_bdpt<'t>(scene: &Scene, tech: &'t dyn LocalSampling) -> Bdpt<'t> {
-    let mut b = Bdpt::new(
-        scene,
-        tech,
-        None,
-        crate::path::bidirectional::Strategies::All,
-    );
-    b.roulette = false;
-    b
+/// The engine of the bidirectional particle samplers: no depth limit (the path length is drawn,
+/// and each walk is limited to its part of it by [`WalkLimits::at_most`], without Russian
+/// roulette).
+pub(crate) fn particle_bdpt(tech: &dyn LocalSampling) -> Bdpt<'_> {
+    Bdpt::new(tech, None, Strategies::All)
 }
 
 /// Whether `source` can start importons in `scene` (and the scene's lights can be handled).
@@ -436,7 +426,7 @@ const STREAM_EVAL: usize = 3;
 // ANCHOR: bidirectional_sample
 pub(crate) fn bidirectional_sample(
     scene: &Scene,
-    bdpt: &mut Bdpt,
+    bdpt: &Bdpt,
     source: ImportonSource,
     scale: f64,
     sampler: &mut Sampler,
@@ -481,7 +471,7 @@ struct Split {
 /// camera the importons come from.
 fn draw_walks(
     scene: &Scene,
-    bdpt: &mut Bdpt,
+    bdpt: &Bdpt,
     source: ImportonSource,
     sampler: &mut Sampler,
     walks: &mut Scratch,
@@ -493,21 +483,20 @@ fn draw_walks(
     walks.light.clear();
     if s > 0 {
         sampler.set_stream(STREAM_LIGHT);
-        bdpt.vertex_cap = s;
-        bdpt.light_subpath(scene, sampler, &mut walks.light);
+        bdpt.light_subpath(scene, WalkLimits::at_most(s), sampler, &mut walks.light);
     }
     sampler.set_stream(STREAM_EYE);
-    bdpt.vertex_cap = t.max(1);
+    let eye_limits = WalkLimits::at_most(t.max(1));
     let n_pix = match source {
         ImportonSource::Camera => {
             let cam = scene.camera.as_ref()?;
             let film = Vec2::new(cam.width as f32, cam.height as f32);
             let raster = sampler.next_2d() * film;
-            bdpt.camera_subpath(scene, raster, sampler, &mut walks.eye);
+            bdpt.camera_subpath(scene, raster, eye_limits, sampler, &mut walks.eye);
             (cam.width as f64) * (cam.height as f64)
         }
         ImportonSource::Meter(m) => {
-            bdpt.meter_subpath(scene, m, sampler, &mut walks.eye);
+            bdpt.meter_subpath(scene, m, eye_limits, sampler, &mut walks.eye);
             1.0
         }
     };

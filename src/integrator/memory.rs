@@ -48,7 +48,7 @@ const PROCESS_BYTES: u64 = 16 << 20;
 /// A worker thread's stack and scratch.
 const THREAD_BYTES: u64 = 2 << 20;
 /// Vertices of an MLT chain's current and proposed paths at most (two subpaths' caps).
-const MLT_PATH_VERTICES: u64 = 2 * crate::path::bidirectional::MAX_SUBPATH_VERTICES as u64;
+const MLT_PATH_VERTICES: u64 = 2 * crate::bidir::MAX_SUBPATH_VERTICES as u64;
 
 /// The estimate, by part (name, bytes), in the order a reader meets them.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -7,7 +7,6 @@
 
 pub mod bdpt;
 pub mod checkpoint;
-pub mod light;
 pub mod memory;
 pub mod mlt;
 pub mod path;
@@ -71,9 +70,9 @@ integrators! {
     /// Volumetric path tracing with next-event estimation and MIS.
     Path = "path" => path::prepare,
     /// Light tracing: light subpaths connected to the sensor (t = 1), splatted.
-    Light = "light" => |s| light::prepare(s, bdpt::Strategies::LightTracing),
+    Light = "light" => |s| bdpt::prepare(s, bdpt::Strategies::LightTracing),
     /// Bidirectional path tracing with MIS over all (s, t).
-    Bdpt = "bdpt" => |s| light::prepare(s, bdpt::Strategies::All),
+    Bdpt = "bdpt" => |s| bdpt::prepare(s, bdpt::Strategies::All),
     /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
     Smc = "smc" => smc::prepare,
     /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
@@ -616,7 +615,7 @@ impl<'a> Renderer<'a> {
     ) -> std::collections::BTreeMap<(usize, usize), Film> {
         match self.bdpt() {
             Some(b) => {
-                light::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)
+                bdpt::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)
             }
             None => std::collections::BTreeMap::new(),
         }

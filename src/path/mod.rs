@@ -9,7 +9,6 @@
 //! estimator of the path integral (7) whichever technique sampled the path.
 //! Book: "Path space (eqs. 5-7)".
 
-pub mod bidirectional;
 pub mod characteristic;
 pub mod contribution;
 pub mod distance;

@@ -83,6 +83,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         lights,
         light_distr,
         environment,
+        light_media: Vec::new(),
         camera: None,
         camera_medium: None,
         sensors: Vec::new(),
@@ -95,6 +96,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         source_name: src.name.clone(),
     };
 
+    scene.light_media = lights::media_around(&scene);
     sensors::camera(src, &desc, &mut scene)?;
     camera_medium_as_declared(src, &scene)?;
     sensors::meters(src, &desc, &mut scene)?;

@@ -170,6 +170,10 @@ pub struct Scene {
     pub light_distr: Distribution1D,
     /// Index of the environment light, if any (at most one).
     pub environment: Option<u32>,
+    /// The medium around each light, where its light subpaths start (BDPT's walks and
+    /// next-event estimation, MLT's light vertices), found once when the scene is built;
+    /// `None` in vacuum and for the infinite lights.
+    pub light_media: Vec<Option<u32>>,
     pub camera: Option<Camera>,
     pub camera_medium: Option<u32>,
     pub sensors: Vec<IrradianceMeter>,

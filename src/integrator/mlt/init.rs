@@ -10,9 +10,8 @@
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::integrator::bdpt::Bdpt;
+use crate::bidir::{Bdpt, Scratch};
 use crate::math::Sampler;
-use crate::path::bidirectional::Scratch;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 use crate::spectrum::{luminance, Rgb};
@@ -59,7 +58,7 @@ fn run_sample(
     let mut sampler = Sampler::new(seed, BOOTSTRAP_STREAM_SALT ^ sample, 0);
     let u = sampler.next_2d();
     let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
-    let start = crate::path::bidirectional::SensorStart::Camera(raster);
+    let start = crate::bidir::SensorStart::Camera(raster);
     bdpt.sample(scene, start, &mut sampler, walks);
     let (light, eye) = (&walks.light, &walks.eye);
     bdpt.for_each_strategy(

@@ -26,8 +26,8 @@ pub mod trace;
 use glam::Vec2;
 use rayon::prelude::*;
 
+use crate::bidir::{Bdpt, Strategies};
 use crate::film::Film;
-use crate::integrator::bdpt::{Bdpt, Strategies};
 use crate::math::Sampler;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::{Light, Scene};
@@ -501,13 +501,12 @@ impl<'t> Mlt<'t> {
         check_scene(scene)?;
         // without a depth limit the target is f on the whole, unbounded path space: the
         // bidirectional mutation's length law has an infinite geometric tail
-        let bdpt = Bdpt::new(scene, tech, max_depth, Strategies::All);
+        let bdpt = Bdpt::new(tech, max_depth, Strategies::All);
         let r = scene.radius.max(f32::MIN_POSITIVE);
         let (d0, d1) = settings.propagation_distance;
         let mutations = Mutations {
             bidirectional: Bidirectional {
                 max_vertices: max_depth.map_or(usize::MAX, |d| d as usize + 2),
-                light_media: bdpt.light_media().to_vec(),
             },
             sensor: SensorPerturbation {
                 offset: InverseDistance::new(settings.sensor_offset.0, settings.sensor_offset.1)?,

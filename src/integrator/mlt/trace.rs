@@ -102,11 +102,11 @@ pub fn extend(scene: &Scene, v: &Vertex, d: Vec3, sampler: &mut Sampler) -> Opti
 /// A light vertex sampled as a light subpath starts (`path::technique::sample_emitted_start`):
 /// a light by power, a point on it by the technique (the adjoint image's start density,
 /// Kristensen 2010, sec. 5.3.1, which the bidirectional mutation's transition density evaluates
-/// through `light_origin_pdf`) or by area.
+/// through `light_origin_pdf`) or by area, in the medium around the light
+/// (`Scene::light_media`).
 pub fn sample_light_vertex(
     scene: &Scene,
     tech: &dyn LocalSampling,
-    light_media: &[Option<u32>],
     sampler: &mut Sampler,
 ) -> Option<Vertex> {
     if scene.lights.is_empty() {
@@ -120,7 +120,7 @@ pub fn sample_light_vertex(
     if es.pdf_pos <= 0.0 {
         return None;
     }
-    let lm = light_media[l];
+    let lm = scene.light_media[l];
     let n = if prim.is_some() { es.n } else { Vec3::ZERO };
     Some(Vertex::new(
         VertexKind::Light {

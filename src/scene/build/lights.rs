@@ -5,11 +5,12 @@
 use super::values::{finite3, non_negative};
 use glam::Mat3;
 
+use crate::geometry::offset_origin;
 use crate::image_io::read_exr_input_hashed;
 use crate::math::{Distribution1D, Frame};
 use crate::scene::envmap::{self, EnvMap};
 use crate::scene::file::{path, EnvSamplingDesc, KeyPath, LightDesc, SceneFile};
-use crate::scene::{Environment, Light, SceneError, SceneSource};
+use crate::scene::{Environment, Light, Scene, SceneError, SceneSource};
 
 /// Every light of the scene: the area lights first, then `[[lights]]` in order.
 pub(super) struct Lights {
@@ -20,6 +21,26 @@ pub(super) struct Lights {
     /// Light selection proportional to power (of a scene of radius `radius` for lights at
     /// infinity).
     pub(super) light_distr: Distribution1D,
+}
+
+/// The medium around each light of `scene` (`Scene::light_media`): at the centre of an area
+/// light's first primitive, lifted off its surface along the normal (the side it emits into),
+/// at a point or spot light's position; `None` for the infinite lights.
+pub(super) fn media_around(scene: &Scene) -> Vec<Option<u32>> {
+    scene
+        .lights
+        .iter()
+        .map(|l| match l {
+            Light::Area { prims, .. } => {
+                let (p, n) = scene.prims[prims[0] as usize].sample_area(glam::Vec2::splat(0.5));
+                scene.medium_at(offset_origin(p, n, n))
+            }
+            Light::Point { position, .. } | Light::Spot { position, .. } => {
+                scene.medium_at(*position)
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// Appends every `[[lights]]` entry to the area lights `lights` and builds the power

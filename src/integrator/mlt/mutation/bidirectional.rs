@@ -76,8 +76,6 @@ pub struct Bidirectional {
     /// Vertices a path may have (the length cap of the target, from `max_depth`);
     /// `usize::MAX` for the unbounded path space of an unlimited depth.
     pub max_vertices: usize,
-    /// Medium around each light (the light subpaths' first edge).
-    pub light_media: Vec<Option<u32>>,
 }
 
 impl Bidirectional {
@@ -189,7 +187,7 @@ impl Mutation for Bidirectional {
         light.extend_from_slice(&x[..(l + 1) as usize]);
         for _ in 0..s_new {
             let v = match light.len() {
-                0 => sample_light_vertex(scene, tech, &self.light_media, sampler)?,
+                0 => sample_light_vertex(scene, tech, sampler)?,
                 len => {
                     let prev = len.checked_sub(2).map(|i| &light[i]);
                     let cur = &light[len - 1];

@@ -1,15 +1,11 @@
-//! Bidirectional path tracing and light tracing as integrators: every strategy of one sample
-//! combined into the sample's own pixel (or meter) and the film's splats. The walks, the
-//! connections and their MIS weights are the path layer's ([`crate::path::bidirectional`]),
-//! shared with the enlightened preprocessing.
-//! Book: "Bidirectional path tracing".
+//! One sample's strategies combined: every (s, t) within the depth limit connected by the
+//! engine ([`crate::bidir::connect`]), MIS-weighted as the strategies ask, into the sample's
+//! own pixel (or meter) and the film's splats.
 
 use glam::Vec2;
 
+use crate::bidir::{Bdpt, Scratch, Strategies};
 use crate::math::Sampler;
-pub use crate::path::bidirectional::{
-    mis_weight_of_path, Bdpt, Scratch, Strategies, MAX_SUBPATH_VERTICES,
-};
 use crate::path::subpath::{self, Cached};
 use crate::path::VertexKind;
 use crate::scene::Scene;

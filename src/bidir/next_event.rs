@@ -1,0 +1,180 @@
+//! Strategy s = 1, next-event estimation: a light vertex sampled for the eye subpath's end (by
+//! the technique's light start or by power), in the medium around its light
+//! (`Scene::light_media`), and its connection.
+
+use glam::{Vec2, Vec3};
+
+use super::connect::Connection;
+use super::{Bdpt, Strategies};
+use crate::math::Sampler;
+use crate::path::geometry_term::cosine_factor;
+use crate::path::subpath::Subpath;
+use crate::path::technique::StartDraw;
+use crate::path::{Vertex, VertexKind};
+use crate::scene::light::LightSample;
+use crate::scene::{Light, Scene};
+use crate::spectrum::Rgb;
+
+impl Bdpt<'_> {
+    /// Strategy s = 1 (next-event estimation): a light vertex sampled for the eye subpath's
+    /// end `eye[t - 1]`, by the technique's light start or by power, and its connection.
+    pub(super) fn connect_light_sample<E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        eye_path: &E,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let pt = &eye_path.vertices()[t - 1];
+        if !pt.is_connectible(scene) {
+            return None;
+        }
+        let (li, ls, sel_pdf, start_prim) = self.sample_light_for(scene, pt.p, sampler)?;
+        let mut v = self.light_sample_vertex(scene, li, &ls, start_prim, pt.p);
+        v.beta = ls.value / sel_pdf;
+        let (f, raster) = Self::eye_end_factor(scene, eye_path, t, &v, ls.wi)?;
+        if f == Rgb::ZERO {
+            return None;
+        }
+        let target = if ls.dist.is_infinite() {
+            pt.p + ls.wi * (2.0 * scene.radius + (pt.p - scene.center).length())
+        } else {
+            v.p
+        };
+        let mut end_v = v;
+        end_v.p = target;
+        let e = scene.edge(end_v.edge_end(pt.p), pt.edge_end(target), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let cos_pt = cosine_factor(pt, ls.wi);
+        let l = pt.beta * f * v.beta * e.transmittance * cos_pt;
+        // an infinite light's edge leaves the scene: only the passage of its segments counts
+        let pdf_qp = e.pdf_ab;
+        let pdf_pq = e.pdf_ba;
+        let changed = (t > 1 && self.strategies == Strategies::All)
+            .then(|| self.changed_at_light(scene, &v, eye_path, t, (pdf_qp, pdf_pq)));
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(v),
+            raster,
+            changed,
+        })
+    }
+
+    /// A light sample for the point `p`: the light `li` and its sample, with `sel_pdf` the
+    /// solid-angle density with the light selection included, and the area light's primitive;
+    /// from the technique's light start (as light subpaths start) or by power.
+    fn sample_light_for(
+        &self,
+        scene: &Scene,
+        p: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<(usize, LightSample, f32, Option<u32>)> {
+        let (mut li, pmf, u_prim) = scene.light_distr.sample(sampler.next_f32());
+        let u = sampler.next_2d();
+        let (ls, sel_pdf, start_prim) = match self.tech.sample_light_start(scene, li, u, sampler) {
+            StartDraw::Failed => return None,
+            StartDraw::Drawn(st) => {
+                // the light vertex from the technique, as light subpaths start
+                li = st.point.light as usize;
+                let ls = scene.lights[li].li_from(p, st.point.p, st.point.n, st.pdf)?;
+                (ls, ls.pdf, Some(st.point.prim))
+            }
+            StartDraw::ByPower => {
+                let light = &scene.lights[li];
+                let ls = light.sample_li(&scene.prims, p, u, u_prim)?;
+                let prim = match light {
+                    Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
+                    _ => None,
+                };
+                (ls, pmf * ls.pdf, prim)
+            }
+        };
+        if ls.pdf <= 0.0 || ls.value == Rgb::ZERO {
+            return None;
+        }
+        Some((li, ls, sel_pdf, start_prim))
+    }
+
+    /// What the eye subpath's end pt = `eye[t - 1]` gives the light vertex `v` in direction
+    /// `wi` (from pt): for the sensor itself (t = 1), W_e over the density of its point (1 for
+    /// the pinhole, whose W_e lands in another pixel, the raster position returned; A * (1/A)
+    /// for a meter); otherwise `f_hat(v -> pt -> eye[t - 2])`.
+    fn eye_end_factor<E: Subpath + ?Sized>(
+        scene: &Scene,
+        eye_path: &E,
+        t: usize,
+        v: &Vertex,
+        wi: Vec3,
+    ) -> Option<(Rgb, Option<Vec2>)> {
+        let pt = &eye_path.vertices()[t - 1];
+        if t > 1 {
+            let f = pt.f_hat_dirs(
+                scene,
+                (v.p - pt.p).normalize_or_zero(),
+                eye_path.to_prev(t - 1),
+            );
+            return Some((f, None));
+        }
+        match pt.kind {
+            VertexKind::Camera => {
+                let imp = scene.camera.as_ref()?.importance(wi)?;
+                Some((Rgb::splat(imp.we), Some(imp.raster)))
+            }
+            VertexKind::Meter { .. } => Some((pt.importance(scene, pt.p + wi) / pt.pdf_fwd, None)),
+            _ => None,
+        }
+    }
+
+    /// The light vertex of next-event estimation's sample `ls` of light `li` (seen from
+    /// `p_ref`; on primitive `start_prim` of an area light), with its origin density; an
+    /// infinite light's vertex is placed beyond the scene along the sampled direction.
+    fn light_sample_vertex(
+        &self,
+        scene: &Scene,
+        li: usize,
+        ls: &LightSample,
+        start_prim: Option<u32>,
+        p_ref: Vec3,
+    ) -> Vertex {
+        let light_ref = &scene.lights[li];
+        let lm = scene.light_media[li];
+        let mut v = match light_ref {
+            Light::Area { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: start_prim,
+                },
+                ls.p,
+                ls.n,
+                lm,
+                lm,
+            ),
+            Light::Point { .. } | Light::Spot { .. } => Vertex::new(
+                VertexKind::Light {
+                    light: li as u32,
+                    prim: None,
+                },
+                ls.p,
+                Vec3::ZERO,
+                lm,
+                lm,
+            ),
+            _ => Vertex::new(
+                VertexKind::InfiniteLight {
+                    light: li as u32,
+                    w: ls.wi,
+                },
+                p_ref + ls.wi * (4.0 * scene.radius + (p_ref - scene.center).length()),
+                Vec3::ZERO,
+                None,
+                None,
+            ),
+        };
+        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        v
+    }
+}

@@ -1,0 +1,73 @@
+//! The `light` and `bdpt` integrators: the bidirectional engine of [`crate::bidir`] (Veach
+//! 1997 ch. 10) as the render loop sees it, light tracing being its t = 1 strategies alone. One
+//! sample traces a camera (or meter) subpath and a light subpath, and [`Bdpt::combine`] adds
+//! every strategy of it into the sample's own pixel (or meter) and the film's splats; the
+//! per-strategy images of `--strategy-images` are in [`strategy_images`].
+//! Book: "Bidirectional path tracing".
+
+mod combine;
+mod strategy_images;
+
+pub use crate::bidir::{mis_weight_of_path, Bdpt, Scratch, Strategies, MAX_SUBPATH_VERTICES};
+pub use combine::Splat;
+pub use strategy_images::strategy_images;
+
+use super::{Integrator, IntegratorError, Setup};
+use crate::bidir::SensorStart;
+use crate::math::Sampler;
+use crate::scene::{Camera, Scene};
+use crate::spectrum::Rgb;
+
+/// The bidirectional engine with `strategies` (all for `bdpt`, t = 1 for `light`).
+pub fn prepare<'t>(
+    setup: &Setup<'_, 't>,
+    strategies: Strategies,
+) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+    Ok(Box::new(Bdpt::new(
+        setup.technique,
+        setup.max_depth,
+        strategies,
+    )))
+}
+
+impl Integrator for Bdpt<'_> {
+    fn label(&self) -> String {
+        match self.strategies {
+            Strategies::LightTracing => "light",
+            _ => "bdpt",
+        }
+        .to_string()
+    }
+
+    fn camera_sample(
+        &self,
+        scene: &Scene,
+        _cam: &Camera,
+        raster: glam::Vec2,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.sample(
+            scene,
+            SensorStart::Camera(raster),
+            sampler,
+            &mut scratch.bdpt,
+        );
+        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+    }
+
+    fn meter_sample(
+        &self,
+        scene: &Scene,
+        meter: u32,
+        sampler: &mut Sampler,
+        scratch: &mut super::Scratch,
+    ) -> Rgb {
+        self.sample(scene, SensorStart::Meter(meter), sampler, &mut scratch.bdpt);
+        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+    }
+
+    fn bdpt(&self) -> Option<&Bdpt<'_>> {
+        Some(self)
+    }
+}
