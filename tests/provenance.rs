@@ -606,3 +606,56 @@ fn merge_refuses_renders_whose_environment_map_changed() {
     let b = render_scene(&dir, "b.exr", Some(&scene), &["--seed", "2"]);
     refused(&[&a, &b], &["whose file envmap-sky.exr differs"]);
 }
+
+/// Every kind of file a scene reads is in its identity, not only OBJ meshes and environment
+/// maps: a PLY mesh, a text density grid and a Mitsuba `.vol` grid changed between two renders
+/// of one scene text make `merge` refuse them, naming the file.
+#[test]
+fn merge_refuses_a_change_to_a_ply_mesh_a_text_grid_or_a_vol_grid() {
+    use pathspace::medium::grid::{encode_vol, Grid};
+    let dir = scratch(GROUP, "input-kinds");
+    let grid_scene = include_str!("fixtures/agreement/grid.toml");
+    let blob = include_str!("fixtures/agreement/blob.grid");
+    let ply = |z: f32| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+             end_header\n0 0 {z}\n1 0 {z}\n0 1 {z}\n3 0 1 2\n"
+        )
+        .into_bytes()
+    };
+    let mesh = "[[shapes]]\ntype = \"mesh\"\nobj = \"tri.ply\"\nmaterial = \"white\"\n";
+    let vol = |v: f32| {
+        encode_vol(
+            &Grid::bake(4, |_| v),
+            glam::Vec3::splat(-0.8),
+            glam::Vec3::splat(0.8),
+        )
+    };
+    let cases: [(&str, String, Vec<u8>, Vec<u8>); 3] = [
+        ("tri.ply", format!("{FOG_BOX}\n{mesh}"), ply(0.0), ply(0.5)),
+        (
+            "blob.grid",
+            grid_scene.to_string(),
+            blob.into(),
+            format!("{blob}\n# edited\n").into(),
+        ),
+        (
+            "blob.vol",
+            grid_scene.replace("blob.grid", "blob.vol"),
+            vol(0.5),
+            vol(0.6),
+        ),
+    ];
+    for (file, text, before, after) in cases {
+        let case = dir.join(file.replace('.', "-"));
+        std::fs::create_dir_all(&case).unwrap();
+        let scene = case.join("scene.toml");
+        std::fs::write(&scene, text).unwrap();
+        std::fs::write(case.join(file), before).unwrap();
+        let a = render_scene(&case, "a.exr", Some(&scene), &["--seed", "1"]);
+        std::fs::write(case.join(file), after).unwrap();
+        let b = render_scene(&case, "b.exr", Some(&scene), &["--seed", "2"]);
+        refused(&[&a, &b], &[&format!("whose file {file} differs")]);
+    }
+}
