@@ -38,7 +38,7 @@ use contribution::{image_contribution_reusing, scalar_contribution, EdgeFactors}
 use init::Bootstrap;
 use mutation::{
     Bidirectional, InverseDistance, LightPerturbation, MultiChainPerturbation, Mutation,
-    MutationKind, PropagationPerturbation, SensorPerturbation, Workspace,
+    MutationKind, PerMutation, PropagationPerturbation, SensorPerturbation, Workspace,
 };
 
 /// Salt that keeps chain streams apart from pixel streams.
@@ -55,7 +55,7 @@ pub struct MltSettings {
     /// Independent chains.
     pub chains: u32,
     /// Selection weights of the mutations, in `MutationKind::ALL` order (normalized when used).
-    pub weights: [f64; 5],
+    pub weights: PerMutation<f64>,
     /// Sensor perturbation film offset [D_min, D_max] in pixels.
     pub sensor_offset: (f32, f32),
     /// Light and multi-chain perturbation angle [theta_min, theta_max] in radians.
@@ -92,7 +92,7 @@ impl Default for MltSettings {
             bootstrap: DEFAULT_BOOTSTRAP,
             chains: DEFAULT_CHAINS,
             // Pauly et al. 2000 sec. 6: "all images ... rendered with equal weights"
-            weights: [1.0; 5],
+            weights: [1.0; MutationKind::COUNT],
             sensor_offset: DEFAULT_SENSOR_OFFSET,
             light_angle: DEFAULT_LIGHT_ANGLE,
             propagation_distance: DEFAULT_PROPAGATION_DISTANCE,
@@ -132,8 +132,8 @@ impl MltSettings {
     }
 
     /// Parses `name=weight,...` (e.g. `bidirectional=1,sensor=100`); unnamed kinds get 0.
-    pub fn parse_weights(s: &str) -> Result<[f64; 5], MltError> {
-        let mut w = [0.0; 5];
+    pub fn parse_weights(s: &str) -> Result<PerMutation<f64>, MltError> {
+        let mut w = [0.0; MutationKind::COUNT];
         for part in s.split(',').filter(|p| !p.trim().is_empty()) {
             let (name, value) = part
                 .split_once('=')
@@ -192,7 +192,7 @@ pub struct MltOptions {
     /// (unnamed types get 0; the per-type options above override it).
     #[arg(long = "mlt-mutation-weights", alias = "mutation-weights", value_parser = MltSettings::parse_weights)]
     #[serde(default, with = "weights_text")]
-    pub mutation_weights: Option<[f64; 5]>,
+    pub mutation_weights: Option<PerMutation<f64>>,
     /// MLT: sensor perturbation film offset MIN,MAX in pixels (default 0.1,25).
     #[arg(long = "mlt-sensor-offset", value_name = "MIN,MAX", value_parser = parse_range)]
     #[serde(default, deserialize_with = "crate::scene::file::exact_opt")]
@@ -214,10 +214,10 @@ pub struct MltOptions {
 
 /// `mutation_weights` in a file or a render's record: the flag's `name=weight,...` text.
 mod weights_text {
-    use super::{MltSettings, MutationKind};
+    use super::{MltSettings, MutationKind, PerMutation};
     use serde::{de::Error, Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(w: &Option<[f64; 5]>, s: S) -> Result<S::Ok, S::Error> {
+    pub fn serialize<S: Serializer>(w: &Option<PerMutation<f64>>, s: S) -> Result<S::Ok, S::Error> {
         match w {
             None => s.serialize_none(),
             Some(w) => {
@@ -230,7 +230,9 @@ mod weights_text {
         }
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 5]>, D::Error> {
+    pub fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<PerMutation<f64>>, D::Error> {
         let text = Option::<String>::deserialize(d)?;
         text.map(|t| MltSettings::parse_weights(&t).map_err(D::Error::custom))
             .transpose()
@@ -341,7 +343,7 @@ impl MutationStats {
 }
 
 /// What one chain produced in a pass: its deposits and counts.
-type ChainPass = (Vec<(Vec2, Rgb)>, [MutationStats; 5]);
+type ChainPass = (Vec<(Vec2, Rgb)>, PerMutation<MutationStats>);
 
 /// One Markov chain: its stream and its current path with f and the pixel.
 pub struct Chain {
@@ -391,11 +393,11 @@ pub struct Mlt<'t> {
     b_sum: f64,
     b_samples: u64,
     pub chains: Vec<Chain>,
-    pub stats: [MutationStats; 5],
+    pub stats: PerMutation<MutationStats>,
     pub initialized: bool,
     /// Mutations run so far (N).
     pub mutations_done: u64,
-    cdf: [f64; 5],
+    cdf: PerMutation<f64>,
 }
 
 /// Why MLT refuses its settings or its scene (the messages name the setting or the missing
@@ -523,7 +525,7 @@ impl<'t> Mlt<'t> {
             },
         };
         let total: f64 = settings.weights.iter().sum();
-        let mut cdf = [0.0; 5];
+        let mut cdf = [0.0; MutationKind::COUNT];
         let mut acc = 0.0;
         for (i, w) in settings.weights.iter().enumerate() {
             acc += w / total;
@@ -538,7 +540,7 @@ impl<'t> Mlt<'t> {
             b_sum: 0.0,
             b_samples: 0,
             chains: Vec::new(),
-            stats: [MutationStats::default(); 5],
+            stats: [MutationStats::default(); MutationKind::COUNT],
             initialized: false,
             mutations_done: 0,
             cdf,
@@ -605,7 +607,7 @@ impl<'t> Mlt<'t> {
         scene: &Scene,
         chain: &mut Chain,
         splats: &mut Vec<(Vec2, Rgb)>,
-        stats: &mut [MutationStats; 5],
+        stats: &mut PerMutation<MutationStats>,
     ) {
         let kind = self.choose(chain.sampler.next_f64());
         let st = &mut stats[kind.index()];
@@ -671,7 +673,7 @@ impl<'t> Mlt<'t> {
             .map(|(c, chain)| {
                 let quota = mutations / n + u64::from((c as u64) < mutations % n);
                 let mut splats = Vec::with_capacity(2 * quota as usize);
-                let mut stats = [MutationStats::default(); 5];
+                let mut stats = [MutationStats::default(); MutationKind::COUNT];
                 for _ in 0..quota {
                     this.step(scene, chain, &mut splats, &mut stats);
                 }

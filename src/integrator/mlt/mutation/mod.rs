@@ -71,8 +71,14 @@ pub enum MutationKind {
     MultiChain,
 }
 
+/// One value per mutation type, indexed by [`MutationKind::index`] (weights, statistics).
+pub type PerMutation<T> = [T; MutationKind::COUNT];
+
 impl MutationKind {
-    pub const ALL: [MutationKind; 5] = [
+    /// How many mutation types there are: the length of every per-mutation array.
+    pub const COUNT: usize = 5;
+
+    pub const ALL: PerMutation<MutationKind> = [
         MutationKind::Bidirectional,
         MutationKind::Sensor,
         MutationKind::Light,
