@@ -36,5 +36,6 @@ pub mod math;
 pub mod measure;
 pub mod medium;
 pub mod path;
+pub mod render;
 pub mod scene;
 pub mod spectrum;

@@ -7,7 +7,6 @@
 
 use std::path::Path;
 
-use pathspace::integrator::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::integrator::smc::march::{self, MAX_MARCH_STEPS};
 use pathspace::integrator::smc::{Smc, SmcError};
 use pathspace::integrator::IntegratorKind;
@@ -18,6 +17,7 @@ use pathspace::medium::heterogeneous::{MAX_MARCH_STEPS as MAX_MEDIUM_STEPS, MAX_
 use pathspace::medium::{Grid, Medium};
 use pathspace::path::bidirectional::{Bdpt, Strategies, MAX_SUBPATH_VERTICES};
 use pathspace::path::technique::PLAIN;
+use pathspace::render::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
 mod common;

@@ -186,13 +186,13 @@ pub enum CliError {
     NoSpp(String),
     /// `render`/`reference --shard`: a shard refused (the reason).
     #[error(transparent)]
-    Shard(#[from] crate::integrator::shard::ShardError),
+    Shard(#[from] crate::render::shard::ShardError),
     /// `merge` of `converge --shard` directories: not the shards of one study, each once.
     #[error(transparent)]
     Study(#[from] crate::measure::study::StudyError),
     /// `merge`: inputs that are no independent estimates of one image, or an unreadable record.
     #[error(transparent)]
-    Provenance(#[from] crate::integrator::provenance::ProvenanceError),
+    Provenance(#[from] crate::render::provenance::ProvenanceError),
 }
 
 /// The refusals of commands that report them as text (`render`).

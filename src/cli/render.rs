@@ -3,7 +3,7 @@
 //! `[--smc-variant is1_cv2] [--smc-threshold T] [--smc-cache-budget BYTES] [--smc-estimator
 //! distance|march] [--smc-step MFP]`. Every option overrides its key of the scene file's
 //! `[render]` table; the passes and the preprocessing run in an
-//! [`crate::integrator::session`].
+//! [`crate::render::session`].
 
 use crate::integrator::path::DistanceSampling;
 use clap::Args;
@@ -13,17 +13,17 @@ use super::display::{Live, Preview, Tev, TevAddress};
 use super::CliError;
 use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
-use crate::integrator::memory;
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
-use crate::integrator::provenance::{format_inputs, format_streams, TIMING_KEYS};
-use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
-use crate::integrator::shard::{self, Shard, ShardError};
 use crate::integrator::smc::{EstimatorForm, SmcOptions};
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
+use crate::render::checkpoint::{Checkpoint, CheckpointError, Identity};
+use crate::render::memory;
+use crate::render::provenance::{format_inputs, format_streams, TIMING_KEYS};
+use crate::render::session::{self, Control, Ended, Job, Preprocessed};
+use crate::render::shard::{self, Shard, ShardError};
 
-pub use crate::integrator::session::RenderResult;
+pub use crate::render::session::RenderResult;
 
 /// The help heading of `render`'s own options (the schema's are grouped by integrator).
 const OUTPUTS: &str = "Image, outputs and previews";

@@ -6,16 +6,11 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
-pub mod checkpoint;
 pub mod light;
-pub mod memory;
 pub mod mlt;
 pub mod path;
-pub mod provenance;
 pub mod reach;
-pub mod session;
 pub mod settings;
-pub mod shard;
 pub mod smc;
 
 pub use path::PathTracer;
@@ -113,7 +108,7 @@ pub enum IntegratorError {
     NotSmc(&'static str),
     /// A checkpoint cannot be read, resumed from or written.
     #[error(transparent)]
-    Checkpoint(#[from] checkpoint::CheckpointError),
+    Checkpoint(#[from] crate::render::checkpoint::CheckpointError),
 }
 
 impl From<String> for IntegratorError {
@@ -225,13 +220,13 @@ pub trait Integrator: Send + Sync {
 
     /// What a checkpoint keeps of the integrator besides the film and the meters (SMC's
     /// structure, which the passes so far have refined).
-    fn checkpoint_state(&self) -> checkpoint::IntegratorState {
-        checkpoint::IntegratorState::None
+    fn checkpoint_state(&self) -> crate::render::checkpoint::IntegratorState {
+        crate::render::checkpoint::IntegratorState::None
     }
 
     /// Takes back a checkpoint's state; false when the state is not this integrator's kind.
-    fn restore_state(&mut self, state: checkpoint::IntegratorState) -> bool {
-        matches!(state, checkpoint::IntegratorState::None)
+    fn restore_state(&mut self, state: crate::render::checkpoint::IntegratorState) -> bool {
+        matches!(state, crate::render::checkpoint::IntegratorState::None)
     }
 
     /// The work this integrator does once before its first pass (MLT's bootstrap pre-pass and

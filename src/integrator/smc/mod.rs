@@ -655,17 +655,17 @@ impl super::Integrator for Smc {
         Some(self)
     }
 
-    fn checkpoint_state(&self) -> super::checkpoint::IntegratorState {
-        super::checkpoint::IntegratorState::Smc(Box::new(self.octree.clone()))
+    fn checkpoint_state(&self) -> crate::render::checkpoint::IntegratorState {
+        crate::render::checkpoint::IntegratorState::Smc(Box::new(self.octree.clone()))
     }
 
-    fn restore_state(&mut self, state: super::checkpoint::IntegratorState) -> bool {
+    fn restore_state(&mut self, state: crate::render::checkpoint::IntegratorState) -> bool {
         match state {
-            super::checkpoint::IntegratorState::Smc(octree) => {
+            crate::render::checkpoint::IntegratorState::Smc(octree) => {
                 self.octree = *octree;
                 true
             }
-            super::checkpoint::IntegratorState::None => false,
+            crate::render::checkpoint::IntegratorState::None => false,
         }
     }
 }

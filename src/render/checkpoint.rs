@@ -18,10 +18,10 @@ use serde::{Deserialize, Serialize};
 
 use super::provenance::Streams;
 // FNV-1a over the payload: a damaged file is refused before its contents are trusted.
-use super::smc::octree::Octree;
-use super::MeterAccum;
 use crate::conventions::fnv1a as checksum;
 use crate::film::Film;
+use crate::integrator::smc::octree::Octree;
+use crate::integrator::MeterAccum;
 
 /// The first bytes of a checkpoint file (and its format version).
 const MAGIC: &[u8; 24] = b"pathspace checkpoint v3\n";

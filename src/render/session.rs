@@ -10,12 +10,14 @@ use std::time::Instant;
 use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress, Recipe};
 use super::provenance::Streams;
 
-use super::{IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics};
 use crate::enlightened::adjoint::AdjointStats;
 use crate::enlightened::guide::GuideStats;
 use crate::enlightened::{AdjointSettings, Enlightened, GuideKind, GuideSettings};
 use crate::film::Film;
 use crate::image_io;
+use crate::integrator::{
+    IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics,
+};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
@@ -428,7 +430,8 @@ impl ProgressLog {
 /// The progress bar of a job: tiles of every pass, or a spinner for a timed render.
 fn progress_bar(job: &Job, done: u64) -> indicatif::ProgressBar {
     let tiles = job.setup.scene.camera.as_ref().map_or(1, |c| {
-        (c.width.div_ceil(super::TILE) * c.height.div_ceil(super::TILE)) as u64
+        (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE))
+            as u64
     });
     let total = match job.time {
         Some(_) => 0,

@@ -27,7 +27,7 @@ use std::fmt;
 use std::ops::Range;
 
 use super::session::PASS_SPP;
-use super::IntegratorKind;
+use crate::integrator::IntegratorKind;
 
 /// Shard `index` (1-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

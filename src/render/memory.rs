@@ -14,10 +14,10 @@
 use std::mem::size_of;
 
 use super::session::PASS_SPP;
-use super::settings::RenderSettings;
-use super::smc::{march, EstimatorForm};
-use super::IntegratorKind;
 use crate::enlightened::GuideKind;
+use crate::integrator::settings::RenderSettings;
+use crate::integrator::smc::{march, EstimatorForm};
+use crate::integrator::IntegratorKind;
 
 use crate::medium::{Density, Medium};
 use crate::path::Vertex;
@@ -142,7 +142,8 @@ fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'s
     if kind == IntegratorKind::Mlt {
         let chains = settings.mlt.chains as u64;
         let paths = chains * 2 * MLT_PATH_VERTICES * size_of::<Vertex>() as u64;
-        let bootstrap = settings.mlt.bootstrap * size_of::<super::mlt::init::Candidate>() as u64;
+        let bootstrap =
+            settings.mlt.bootstrap * size_of::<crate::integrator::mlt::init::Candidate>() as u64;
         parts.push(("mlt chains", paths + bootstrap));
     }
     let g = &settings.guide;
