@@ -69,6 +69,10 @@ pub enum CliError {
     /// An integrator that is none or refuses the scene or its settings.
     #[error(transparent)]
     Integrator(#[from] IntegratorError),
+    /// A render that cannot run: its integrator refuses, or a checkpoint cannot be read,
+    /// resumed from or written.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
     /// An image that cannot be read or written (its path, the cause).
     #[error(transparent)]
     Image(#[from] ImageError),

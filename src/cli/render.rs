@@ -829,8 +829,7 @@ fn finish(
     let path = checkpoint_path(&output_paths(args).0);
     let keep_state = ended.stopped_by.is_some() || !result.complete;
     if let (true, Some(c)) = (keep_state, &ended.checkpoint) {
-        c.write(&path)
-            .map_err(crate::integrator::IntegratorError::from)?;
+        c.write(&path).map_err(crate::render::RenderError::from)?;
         written.push(path.display().to_string());
     } else if wrote_state(args) && path.is_file() {
         // a finished render needs no state: its checkpoints (and a resumed one) go
@@ -958,9 +957,9 @@ fn render_job(
     let resume = match &args.session.resume {
         Some(file) => {
             let path = resume_path(file);
-            let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
+            let c = Checkpoint::read(&path).map_err(crate::render::RenderError::from)?;
             c.check_identity(&id, &path.display().to_string())
-                .map_err(crate::integrator::IntegratorError::from)?;
+                .map_err(crate::render::RenderError::from)?;
             eprintln!(
                 "resuming {}: {} of {} spp done, next pass {}",
                 path.display(),

@@ -40,7 +40,7 @@ pub fn recipe(args: &RenderArgs) -> Recipe {
 /// Fills what the command line leaves out from the recipe of the checkpoint at `path`, and
 /// refuses a flag that contradicts it (naming both values).
 pub fn complete(args: &mut RenderArgs, path: &Path) -> Result<(), CliError> {
-    let c = Checkpoint::read(path).map_err(crate::integrator::IntegratorError::from)?;
+    let c = Checkpoint::read(path).map_err(crate::render::RenderError::from)?;
     let Some(recipe) = c.recipe else {
         return Ok(());
     };

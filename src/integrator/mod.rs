@@ -106,9 +106,17 @@ pub enum IntegratorError {
     /// SMC settings given to another integrator.
     #[error("SMC options apply to the `smc` integrator, not `{0}`")]
     NotSmc(&'static str),
-    /// A checkpoint cannot be read, resumed from or written.
-    #[error(transparent)]
-    Checkpoint(#[from] crate::render::checkpoint::CheckpointError),
+}
+
+/// What a checkpoint keeps of an integrator besides the film and the meters (written by the
+/// render layer's checkpoint, declared here because the trait hands it over).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub enum IntegratorState {
+    /// Nothing: the film, the meters and the pass index are all of it (path, light, bdpt).
+    None,
+    /// SMC's structure as it stood after the last pass merged its records (Pegoraro et al. 2008
+    /// Fig. 2, lines 12-14).
+    Smc(Box<smc::octree::Octree>),
 }
 
 impl From<String> for IntegratorError {
@@ -220,13 +228,13 @@ pub trait Integrator: Send + Sync {
 
     /// What a checkpoint keeps of the integrator besides the film and the meters (SMC's
     /// structure, which the passes so far have refined).
-    fn checkpoint_state(&self) -> crate::render::checkpoint::IntegratorState {
-        crate::render::checkpoint::IntegratorState::None
+    fn checkpoint_state(&self) -> IntegratorState {
+        IntegratorState::None
     }
 
     /// Takes back a checkpoint's state; false when the state is not this integrator's kind.
-    fn restore_state(&mut self, state: crate::render::checkpoint::IntegratorState) -> bool {
-        matches!(state, crate::render::checkpoint::IntegratorState::None)
+    fn restore_state(&mut self, state: IntegratorState) -> bool {
+        matches!(state, IntegratorState::None)
     }
 
     /// The work this integrator does once before its first pass (MLT's bootstrap pre-pass and

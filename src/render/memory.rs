@@ -13,7 +13,7 @@
 
 use std::mem::size_of;
 
-use super::session::PASS_SPP;
+use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
 use crate::integrator::settings::RenderSettings;
 use crate::integrator::smc::{march, EstimatorForm};

@@ -462,6 +462,21 @@ fn parse_inputs(text: &str) -> Option<Vec<(String, u64)>> {
         .collect()
 }
 
+/// The first file whose content differs between two lists of a scene's inputs (sorted by
+/// name), with its hash in each (`absent` where a list lacks it).
+pub fn changed_input(a: &[(String, u64)], b: &[(String, u64)]) -> Option<(String, String, String)> {
+    let hash = |l: &[(String, u64)], f: &str| {
+        l.iter()
+            .find(|(n, _)| n == f)
+            .map_or("absent".to_string(), |(_, h)| format!("{h:016x}"))
+    };
+    a.iter()
+        .chain(b)
+        .map(|(f, _)| f)
+        .find(|f| hash(a, f) != hash(b, f))
+        .map(|f| (f.clone(), hash(a, f), hash(b, f)))
+}
+
 /// What makes `b` an estimate of another image than `a`.
 fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
     let (fa, fb) = (a.file.clone(), b.file.clone());
@@ -479,7 +494,7 @@ fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
     }
     let inputs = (a.inputs.as_deref(), b.inputs.as_deref());
     if let (Some(ia), Some(ib)) = inputs {
-        if let Some((file, ha, hb)) = super::checkpoint::changed_input(ia, ib) {
+        if let Some((file, ha, hb)) = changed_input(ia, ib) {
             out.push(Conflict::Input {
                 a: fa.clone(),
                 b: fb.clone(),
