@@ -103,12 +103,8 @@ pub enum CliError {
     Signals(#[source] std::io::Error),
     /// A render that needs more memory than `--max-memory` allows (the estimate described,
     /// the limit, where the limit comes from).
-    #[error("the render needs {needs}, more than --max-memory {limit} ({origin}): lower the resolution or the settings named, or raise --max-memory")]
-    Memory {
-        needs: String,
-        limit: String,
-        origin: String,
-    },
+    #[error(transparent)]
+    Memory(#[from] crate::render::memory::MemoryError),
     /// The worker threads cannot be started.
     #[error("cannot start worker threads: {0}")]
     Threads(#[source] rayon::ThreadPoolBuildError),

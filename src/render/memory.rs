@@ -225,3 +225,48 @@ pub fn peak_resident() -> Option<u64> {
     let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0;
     (ok && usage.ru_maxrss > 0).then(|| usage.ru_maxrss as u64 * 1024)
 }
+
+/// A render's memory limit: `max_gib` GiB as given, or by default a share of the machine's
+/// memory ([`default_max_memory`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Limit {
+    pub max_gib: Option<f64>,
+}
+
+/// A render that needs more memory than its limit allows (the estimate described, the limit,
+/// where the limit comes from).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("the render needs {needs}, more than --max-memory {limit} ({origin}): lower the resolution or the settings named, or raise --max-memory")]
+pub struct MemoryError {
+    pub needs: String,
+    pub limit: String,
+    pub origin: String,
+}
+
+impl Limit {
+    /// Refuses an `estimate` above the limit, naming both.
+    pub fn refuse(&self, estimate: &MemoryEstimate) -> Result<(), MemoryError> {
+        let (limit, origin) = match self.max_gib {
+            Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
+            None => (
+                default_max_memory(),
+                match machine_memory() {
+                    Some(m) => format!(
+                        "the default, {:.0}% of this machine's {}",
+                        MACHINE_SHARE * 100.0,
+                        gib(m)
+                    ),
+                    None => "the default where /proc/meminfo is missing".to_string(),
+                },
+            ),
+        };
+        if estimate.total() > limit {
+            return Err(MemoryError {
+                needs: estimate.describe(),
+                limit: gib(limit),
+                origin,
+            });
+        }
+        Ok(())
+    }
+}
