@@ -408,9 +408,9 @@ impl Render<'_> {
             c.write(&out.checkpoint)
         };
         let size = self.scene.camera.as_ref().map(|c| (c.width, c.height));
-        let mut live = f.live(size).map(|mut view| {
-            move |image: &dyn Fn() -> Option<image_io::Image>| view(image)
-        });
+        let mut live = f
+            .live(size)
+            .map(|mut view| move |image: &dyn Fn() -> Option<image_io::Image>| view(image));
         let control = Control {
             stop: f.stop()?,
             every: out.every,
