@@ -17,6 +17,7 @@
 //! | Table 1, right column: inhomogeneous media, ray marching, tracking | [`medium::heterogeneous`] |
 //! | Pegoraro, Wald, Parker 2008, eq. (1)-(9): sequential Monte Carlo | [`integrator::smc`] |
 //! | Kristensen 2010 ch. 5: adjoint image, photons and importons | [`enlightened`] |
+//! | a render: its passes, checkpoints, provenance, shards, memory, as one API | [`render`] |
 //! | measuring: relMSE, efficiency, convergence order | [`measure`] |
 //! | variance and feature layers (AOVs) beside the image | [`aov`] |
 //! | conventions and measures | [`conventions`] |
@@ -37,5 +38,6 @@ pub mod math;
 pub mod measure;
 pub mod medium;
 pub mod path;
+pub mod render;
 pub mod scene;
 pub mod spectrum;

@@ -8,7 +8,6 @@
 use std::path::Path;
 
 use pathspace::bidir::{Bdpt, Strategies, WalkLimits, MAX_SUBPATH_VERTICES};
-use pathspace::integrator::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::integrator::smc::march::{self, MAX_MARCH_STEPS};
 use pathspace::integrator::smc::{Smc, SmcError};
 use pathspace::integrator::IntegratorKind;
@@ -18,6 +17,7 @@ use pathspace::medium::grid::{parse_text, LatticeError, MAX_GRID_VERTICES};
 use pathspace::medium::heterogeneous::{MAX_MARCH_STEPS as MAX_MEDIUM_STEPS, MAX_TRACKING_DEPTH};
 use pathspace::medium::{Grid, Medium};
 use pathspace::path::technique::PLAIN;
+use pathspace::render::memory::{self, FILM_BYTES_PER_PIXEL};
 use pathspace::scene::{Scene, SceneError, SceneSource, FOG_BOX};
 
 mod common;

@@ -9,10 +9,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use pathspace::integrator::checkpoint::{Checkpoint, Identity};
-use pathspace::integrator::session::{self, Control, Job};
 use pathspace::integrator::{IntegratorKind, Setup};
 use pathspace::path::PLAIN;
+use pathspace::render::checkpoint::{Checkpoint, Identity};
+use pathspace::render::session::{self, Control, Job};
 use pathspace::scene::SceneSource;
 
 const SMC_TESTBED: &str = include_str!("../scenes/smc-testbed-albedo-0.8.toml");
@@ -140,7 +140,7 @@ fn a_checkpoint_of_another_render_or_a_damaged_one_is_refused() {
         progress: Default::default(),
         film: None,
         meters: Vec::new(),
-        state: pathspace::integrator::checkpoint::IntegratorState::None,
+        state: pathspace::render::checkpoint::IntegratorState::None,
         earlier: None,
     };
     let mut bytes = c.to_bytes();
@@ -449,7 +449,7 @@ fn forged_sums_and_devices_are_refused() {
         progress: Default::default(),
         film: Some(pathspace::film::Film::new(2, 1)),
         meters: Vec::new(),
-        state: pathspace::integrator::checkpoint::IntegratorState::None,
+        state: pathspace::render::checkpoint::IntegratorState::None,
         earlier: None,
     };
     c.film.as_mut().unwrap().spp = 4;

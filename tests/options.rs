@@ -363,7 +363,7 @@ fn help_groups_the_options_and_lists_the_integrators() {
 /// seconds left for a timed render.
 #[test]
 fn the_progress_line_shows_rate_and_what_is_left() {
-    use pathspace::integrator::session::progress_message;
+    use pathspace::render::session::progress_message;
     assert_eq!(
         progress_message(8, Some(64), Some(1.5e6), None),
         "8/64 spp, 1.500e6 samples/s"

@@ -10,11 +10,11 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use pathspace::image_io::{self, ImageMeta};
-use pathspace::integrator::checkpoint::{Checkpoint, Identity};
-use pathspace::integrator::provenance::{self, Conflict, Provenance, Streams};
-use pathspace::integrator::session::{self, Control, Job};
 use pathspace::integrator::{IntegratorKind, Setup};
 use pathspace::path::PLAIN;
+use pathspace::render::checkpoint::{Checkpoint, Identity};
+use pathspace::render::provenance::{self, Conflict, Provenance, Streams};
+use pathspace::render::session::{self, Control, Job};
 use pathspace::scene::SceneSource;
 
 mod common;

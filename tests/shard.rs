@@ -9,13 +9,13 @@
 use std::path::{Path, PathBuf};
 
 use pathspace::image_io;
-use pathspace::integrator::checkpoint::{Checkpoint, Identity};
-use pathspace::integrator::provenance::format_streams;
-use pathspace::integrator::session::{self, Control, Job};
-use pathspace::integrator::shard::Shard;
 use pathspace::integrator::{IntegratorKind, Setup};
 use pathspace::measure::metrics::f32_steps;
 use pathspace::path::PLAIN;
+use pathspace::render::checkpoint::{Checkpoint, Identity};
+use pathspace::render::provenance::format_streams;
+use pathspace::render::session::{self, Control, Job};
+use pathspace::render::shard::Shard;
 use pathspace::scene::SceneSource;
 
 mod common;

@@ -414,7 +414,7 @@ fn check_memory(
         lines.push((*kind, s));
     }
     for (kind, s) in &lines {
-        let estimate = crate::integrator::memory::estimate(scene, *kind, s, threads);
+        let estimate = crate::render::memory::estimate(scene, *kind, s, threads);
         args.memory.refuse_above(&estimate)?;
     }
     Ok(())
@@ -592,8 +592,8 @@ fn study_lines(args: &ConvergeArgs) -> Vec<String> {
 }
 
 /// `--shard I/N` of a study's runs.
-fn shard_of_runs(text: &str) -> Result<crate::integrator::shard::Shard, CliError> {
-    crate::integrator::shard::Shard::parse(text).map_err(|e| CliError::Usage(e.to_string()))
+fn shard_of_runs(text: &str) -> Result<crate::render::shard::Shard, CliError> {
+    crate::render::shard::Shard::parse(text).map_err(|e| CliError::Usage(e.to_string()))
 }
 
 /// Checks, before the runs, that a study can be written into `dir` (created when missing): its

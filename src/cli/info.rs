@@ -216,7 +216,7 @@ fn medium_name(scene: &Scene, m: Option<u32>) -> String {
 /// The estimated memory of a render with the file's `[render]` settings on all cores, and the
 /// default `--max-memory` it is checked against.
 fn memory_line(scene: &Scene, r: &crate::integrator::RenderSettings) -> String {
-    use crate::integrator::memory;
+    use crate::render::memory;
     match crate::integrator::IntegratorKind::parse(&r.integrator) {
         Ok(kind) => format!(
             "{} for a {} render on {} threads (default --max-memory {})",

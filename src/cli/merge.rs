@@ -3,7 +3,7 @@
 //! of one scene, each weighted by its sample count (the EXR attribute `spp`: samples or
 //! mutations per pixel). Independent MLT runs (other seeds, other machines) merge into one
 //! estimate this way, as Pauly et al. sec. 7 suggest for parallel rendering. The inputs'
-//! provenance ([`crate::integrator::provenance`]) is checked first: another scene, integrator
+//! provenance ([`crate::render::provenance`]) is checked first: another scene, integrator
 //! or settings, a file given twice and inputs holding the same samples are refused unless
 //! `--force`, and the merged file records its sources. The layers of `--aovs` are merged too
 //! ([`crate::aov::merge_channels`]).
@@ -13,7 +13,7 @@ use std::path::PathBuf;
 
 use super::CliError;
 use crate::image_io::{self, Image, ImageMeta};
-use crate::integrator::provenance::{self, Conflict, Provenance, ProvenanceError};
+use crate::render::provenance::{self, Conflict, Provenance, ProvenanceError};
 
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
@@ -106,7 +106,7 @@ fn check_spp(name: &str, spp: u64, meta: &ImageMeta) -> Result<(), CliError> {
     Err(CliError::Usage(format!(
         "{name}: `spp` = {spp} cannot come from the {passes} passes its `streams` record \
          (each adds 1 to {} samples): a forged or damaged count",
-        crate::integrator::session::PASS_SPP
+        crate::render::plan::PASS_SPP
     )))
 }
 

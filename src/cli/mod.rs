@@ -69,6 +69,10 @@ pub enum CliError {
     /// An integrator that is none or refuses the scene or its settings.
     #[error(transparent)]
     Integrator(#[from] IntegratorError),
+    /// A render that cannot run: its integrator refuses, or a checkpoint cannot be read,
+    /// resumed from or written.
+    #[error(transparent)]
+    Render(#[from] crate::render::RenderError),
     /// An image that cannot be read or written (its path, the cause).
     #[error(transparent)]
     Image(#[from] ImageError),
@@ -99,12 +103,8 @@ pub enum CliError {
     Signals(#[source] std::io::Error),
     /// A render that needs more memory than `--max-memory` allows (the estimate described,
     /// the limit, where the limit comes from).
-    #[error("the render needs {needs}, more than --max-memory {limit} ({origin}): lower the resolution or the settings named, or raise --max-memory")]
-    Memory {
-        needs: String,
-        limit: String,
-        origin: String,
-    },
+    #[error(transparent)]
+    Memory(#[from] crate::render::memory::MemoryError),
     /// The worker threads cannot be started.
     #[error("cannot start worker threads: {0}")]
     Threads(#[source] rayon::ThreadPoolBuildError),
@@ -186,13 +186,13 @@ pub enum CliError {
     NoSpp(String),
     /// `render`/`reference --shard`: a shard refused (the reason).
     #[error(transparent)]
-    Shard(#[from] crate::integrator::shard::ShardError),
+    Shard(#[from] crate::render::shard::ShardError),
     /// `merge` of `converge --shard` directories: not the shards of one study, each once.
     #[error(transparent)]
     Study(#[from] crate::measure::study::StudyError),
     /// `merge`: inputs that are no independent estimates of one image, or an unreadable record.
     #[error(transparent)]
-    Provenance(#[from] crate::integrator::provenance::ProvenanceError),
+    Provenance(#[from] crate::render::provenance::ProvenanceError),
 }
 
 /// The refusals of commands that report them as text (`render`).

@@ -3,7 +3,7 @@
 //! `[--smc-variant is1_cv2] [--smc-threshold T] [--smc-cache-budget BYTES] [--smc-estimator
 //! distance|march] [--smc-step MFP]`. Every option overrides its key of the scene file's
 //! `[render]` table; the passes and the preprocessing run in an
-//! [`crate::integrator::session`].
+//! [`crate::render::session`].
 
 use crate::integrator::path::DistanceSampling;
 use clap::Args;
@@ -11,19 +11,21 @@ use std::path::PathBuf;
 
 use super::display::{Live, Preview, Tev, TevAddress};
 use super::CliError;
-use crate::enlightened::AdjointSettings;
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::checkpoint::{Checkpoint, CheckpointError, Identity};
-use crate::integrator::memory;
 use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
-use crate::integrator::provenance::{format_inputs, format_streams, TIMING_KEYS};
-use crate::integrator::session::{self, Control, Ended, Job, Preprocessed};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
-use crate::integrator::shard::{self, Shard, ShardError};
-use crate::integrator::smc::{EstimatorForm, SmcOptions};
+use crate::integrator::smc::SmcOptions;
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
+use crate::render::checkpoint::Recipe;
+use crate::render::memory;
+use crate::render::provenance::TIMING_KEYS;
+use crate::render::run::LiveView;
+use crate::render::session::Preprocessed;
+use crate::render::shard::{Shard, ShardError};
+use crate::render::{Frontend, Outputs, Render, Rendered};
+use std::sync::atomic::AtomicUsize;
 
-pub use crate::integrator::session::RenderResult;
+pub use crate::render::session::RenderResult;
 
 /// The help heading of `render`'s own options (the schema's are grouped by integrator).
 const OUTPUTS: &str = "Image, outputs and previews";
@@ -186,28 +188,10 @@ impl MemoryArgs {
     /// Refuses an `estimate` above the limit (by default a share of the machine's memory),
     /// naming both.
     pub(super) fn refuse_above(&self, estimate: &memory::MemoryEstimate) -> Result<(), CliError> {
-        let (limit, origin) = match self.max_memory {
-            Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
-            None => (
-                memory::default_max_memory(),
-                match memory::machine_memory() {
-                    Some(m) => format!(
-                        "the default, {:.0}% of this machine's {}",
-                        memory::MACHINE_SHARE * 100.0,
-                        memory::gib(m)
-                    ),
-                    None => "the default where /proc/meminfo is missing".to_string(),
-                },
-            ),
+        let limit = memory::Limit {
+            max_gib: self.max_memory,
         };
-        if estimate.total() > limit {
-            return Err(CliError::Memory {
-                needs: estimate.describe(),
-                limit: memory::gib(limit),
-                origin,
-            });
-        }
-        Ok(())
+        Ok(limit.refuse(estimate)?)
     }
 }
 
@@ -272,13 +256,7 @@ impl RenderArgs {
 /// `[render.guide]` schema, each flag overriding its key.
 pub type GuideArgs = GuideOptions;
 
-/// Whether integrator `kind` samples with the guide (the ones built on BDPT's walks).
-pub fn guides(kind: IntegratorKind) -> bool {
-    matches!(
-        kind,
-        IntegratorKind::Bdpt | IntegratorKind::Light | IntegratorKind::Mlt
-    )
-}
+pub use crate::render::run::guides;
 
 /// The options of `--integrator smc`: the `[render.smc]` schema.
 pub type SmcArgs = SmcOptions;
@@ -297,57 +275,13 @@ pub fn estimated_relmse(result: &RenderResult) -> Option<f64> {
     crate::measure::stats::estimated_relmse(image, variance).ok()
 }
 
-/// What the options and the scene file's `[render]` table ask for, checked: the integrator
-/// and the settings with every option applied.
-struct Plan {
-    kind: IntegratorKind,
-    settings: RenderSettings,
-    /// The adjoint image's settings, when the image is wanted.
-    adjoint: Option<AdjointSettings>,
-    /// `--shard`: which shard, what it renders, and the whole render's spp and seed (the
-    /// settings above are the shard's).
-    shard: Option<ShardOf>,
-    /// The feature layers of `--aovs` (computed once, before the passes).
-    features: Option<crate::aov::Features>,
-}
-
-/// A shard of a render: the shard, its part, and the whole render's spp and seed.
-struct ShardOf {
-    shard: Shard,
-    part: shard::ShardPlan,
-    total_spp: u32,
-    seed: u64,
-}
-
-/// Narrows the settings of a whole render to shard `s` of it (its spp, and for MLT its seed
-/// and chains); the shard's record.
-fn narrow(
-    s: Shard,
-    kind: IntegratorKind,
-    settings: &mut RenderSettings,
-) -> Result<ShardOf, CliError> {
-    let (total_spp, seed) = (settings.spp, settings.seed);
-    let part = shard::plan(s, kind, total_spp, seed, settings.mlt.chains)?;
-    settings.spp = part.spp;
-    settings.seed = part.seed;
-    if let Some(c) = part.chains {
-        settings.mlt.chains = c;
-    }
-    Ok(ShardOf {
-        shard: s,
-        part,
-        total_spp,
-        seed,
-    })
-}
-
 /// Applies the options to the scene file's settings, checking them in the order the user
-/// meets them (the refusals name the option).
+/// meets them (the refusals name the option): the integrator and the settings with every
+/// option applied, which [`Render::new`] checks against the scene.
 fn configure(
     args: &RenderArgs,
-    scene: &crate::scene::Scene,
     mut settings: RenderSettings,
-) -> Result<Plan, CliError> {
+) -> Result<(IntegratorKind, RenderSettings), CliError> {
     let flags = &args.options;
     let kind = IntegratorKind::parse(flags.integrator.as_deref().unwrap_or(&settings.integrator))?;
     args.refuse_foreign(kind, &settings)?;
@@ -356,44 +290,7 @@ fn configure(
     settings
         .apply(&flags, Spelling::Flag)
         .map_err(|e| CliError::Usage(e.message))?;
-    let shard = match args.session.shard {
-        Some(s) => Some(narrow(s, kind, &mut settings)?),
-        None => None,
-    };
-    if kind == IntegratorKind::Mlt {
-        crate::integrator::mlt::check_scene(scene)
-            .map_err(crate::integrator::IntegratorError::from)?;
-    }
-    // a march that would exceed its step limit is refused before the memory it would need
-    if let (IntegratorKind::Smc, EstimatorForm::RayMarching { step }) = (kind, settings.smc.form) {
-        crate::integrator::smc::march::check_steps(scene, step)
-            .map_err(crate::integrator::IntegratorError::from)?;
-    }
-    // light paths this integrator cannot sample: said once, before the work
-    if let Some(w) = crate::integrator::reach::unreachable_paths(scene, kind) {
-        eprintln!("warning: {w}");
-    }
-    if kind == IntegratorKind::Smc {
-        if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, settings.smc.variant) {
-            eprintln!("warning: {w}");
-        }
-    }
-    if settings.guide.kind != crate::enlightened::GuideKind::Off && !guides(kind) {
-        return Err(CliError::Usage(format!(
-            "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
-            kind.name()
-        )));
-    }
-    // the scene's key is a default for the integrators it applies to
-    let adjoint =
-        (settings.adjoint_image && kind.samples_light_starts()).then_some(settings.adjoint);
-    Ok(Plan {
-        kind,
-        settings,
-        adjoint,
-        shard,
-        features: None,
-    })
+    Ok((kind, settings))
 }
 
 /// The `render` subcommand's worker threads.
@@ -402,13 +299,8 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
 }
 
 /// Reports the adjoint image (stderr unless `--json`) and writes it with `--adjoint-output`.
-fn show_adjoint(
-    args: &RenderArgs,
-    pre: &Preprocessed,
-    plan: &Plan,
-    source: &crate::scene::SceneSource,
-) -> Result<(), CliError> {
-    if plan.adjoint.is_none() {
+fn show_adjoint(args: &RenderArgs, pre: &Preprocessed, render: &Render) -> Result<(), CliError> {
+    if render.adjoint.is_none() {
         return Ok(());
     }
     let image = pre
@@ -435,8 +327,8 @@ fn show_adjoint(
             "adjoint_image",
             "cells: I* + eps, columns along u1 (light strips)",
         )
-        .set("seed", plan.settings.seed)
-        .set("scene_hash", format!("{:016x}", source.hash()));
+        .set("seed", render.settings.seed)
+        .set("scene_hash", format!("{:016x}", render.source.hash()));
         image_io::write_exr(out, &img, &meta).map_err(|e| e.to_string())?;
         image_io::write_png(&out.with_extension("png"), &img).map_err(|e| e.to_string())?;
     }
@@ -448,16 +340,15 @@ fn write_strategy_images(
     args: &RenderArgs,
     dir: &std::path::Path,
     setup: &Setup,
-    plan: &Plan,
-    source: &crate::scene::SceneSource,
+    render: &Render,
 ) -> Result<(), CliError> {
-    if plan.kind != IntegratorKind::Bdpt {
+    if render.kind != IntegratorKind::Bdpt {
         return Err(CliError::Usage(
             "--strategy-images needs --integrator bdpt".into(),
         ));
     }
-    let renderer = crate::integrator::Renderer::prepared(plan.kind, setup)?;
-    let films = renderer.strategy_images(plan.settings.spp, args.strategy_depth);
+    let renderer = crate::integrator::Renderer::prepared(render.kind, setup)?;
+    let films = renderer.strategy_images(render.settings.spp, args.strategy_depth);
     for ((s, t), film) in &films {
         let img = film.image();
         let base = dir.join(format!("s{s}-t{t}"));
@@ -466,9 +357,9 @@ fn write_strategy_images(
             "integrator",
             format!("bdpt strategy s={s} t={t} (MIS-weighted)"),
         )
-        .set("spp", plan.settings.spp)
-        .set("seed", plan.settings.seed)
-        .set("scene_hash", format!("{:016x}", source.hash()));
+        .set("spp", render.settings.spp)
+        .set("seed", render.settings.seed)
+        .set("scene_hash", format!("{:016x}", render.source.hash()));
         image_io::write_exr(&base.with_extension("exr"), &img, &meta).map_err(|e| e.to_string())?;
         image_io::write_png(&base.with_extension("png"), &img).map_err(|e| e.to_string())?;
     }
@@ -517,74 +408,43 @@ pub(super) fn resume_path(file: &std::path::Path) -> PathBuf {
     }
 }
 
-/// Refuses, before any work, outputs that cannot be written (a missing directory, a name that
-/// does not say the format): a typo in `-o` must not cost a whole render.
-fn check_outputs(args: &RenderArgs, has_camera: bool) -> Result<(), CliError> {
+/// Where `render` writes, checked before any work: the image, the adjoint image, the strategy
+/// images, the checkpoint beside the image and the one to resume from, the memory limit.
+fn outputs(args: &RenderArgs, has_camera: bool) -> Outputs {
+    let (exr, png) = output_paths(args);
+    let mut files = Vec::new();
     if has_camera {
-        let (exr, png) = output_paths(args);
-        image_io::check_output(&exr, "exr")?;
-        image_io::check_output(&png, "png")?;
+        files.extend([(exr.clone(), "exr"), (png, "png")]);
     }
     if let Some(out) = &args.adjoint_output {
-        image_io::check_output(out, "exr")?;
-        image_io::check_output(&out.with_extension("png"), "png")?;
+        files.extend([(out.clone(), "exr"), (out.with_extension("png"), "png")]);
     }
-    if let Some(dir) = &args.strategy_images {
-        image_io::check_output_dir(dir)?;
+    Outputs {
+        files,
+        dirs: args.strategy_images.iter().cloned().collect(),
+        checkpoint: checkpoint_path(&exr),
+        every: args.session.checkpoint,
+        resume: args.session.resume.as_deref().map(resume_path),
+        max_memory: memory::Limit {
+            max_gib: args.session.memory.max_memory,
+        },
     }
-    Ok(())
 }
 
-/// Writes the image as EXR (with the render's metadata) and PNG; the paths written.
+/// Writes the image as EXR (with the render's record, a reference's marks, the `--aovs`
+/// layers) and PNG; the paths written.
 fn write_image(
     args: &RenderArgs,
     result: &RenderResult,
-    plan: &Plan,
+    render: &Render,
     pre: &Preprocessed,
-    source: &crate::scene::SceneSource,
+    features: Option<&crate::aov::Features>,
 ) -> Result<Vec<String>, CliError> {
     let Some(image) = &result.image else {
         return Ok(Vec::new());
     };
     let (exr, png) = output_paths(args);
-    let mut meta = ImageMeta::default();
-    meta.set("integrator", &result.integrator)
-        .set("spp", result.spp)
-        .set("spp_target", plan.settings.spp)
-        .set("complete", result.complete)
-        .set("seed", plan.settings.seed)
-        .set("seconds", format!("{:.3}", result.seconds))
-        .set("scene", &source.name)
-        .set("scene_hash", format!("{:016x}", source.hash()))
-        .set("nan_count", result.nan_count)
-        .set("negative_pixels", result.negative_pixels)
-        .set("render_options", plan.settings.given.to_toml())
-        .set("streams", format_streams(&result.streams));
-    let inputs = source.inputs();
-    if !inputs.is_empty() {
-        meta.set("scene_inputs", format_inputs(&inputs));
-    }
-    if let Some(s) = &plan.shard {
-        meta.set("shard", s.shard)
-            .set("shard_spp", s.total_spp)
-            .set("shard_seed", s.seed);
-    }
-    if let Some(g) = &pre.guide {
-        let gs = plan.settings.guide;
-        meta.set(
-            "guide",
-            format!(
-                "{} map {}x{} regions {} particles {} weight {}",
-                gs.kind.name(),
-                gs.cols,
-                gs.rows,
-                gs.regions.regions,
-                gs.particles,
-                gs.c_guide,
-            ),
-        )
-        .set("guide_seconds", format!("{:.3}", g.seconds()));
-    }
+    let mut meta = render.record(result, pre);
     if args.reference {
         meta.set("reference", "true");
         if let Some(e) = estimated_relmse(result) {
@@ -604,7 +464,7 @@ fn write_image(
                 image,
                 variance: result.variance_of_mean.as_ref(),
                 spp: result.spp,
-                features: plan.features.as_ref(),
+                features,
             };
             crate::aov::channels(&list.0, &sources).map_err(CliError::Usage)?
         }
@@ -634,7 +494,7 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
 /// The one JSON object of `--json`.
 fn result_json(
     result: &RenderResult,
-    plan: &Plan,
+    render: &Render,
     pre: &Preprocessed,
     written: &[String],
 ) -> serde_json::Value {
@@ -668,7 +528,7 @@ fn result_json(
         })),
         "mlt": stats.mlt.as_ref().map(mlt_json),
         "guide": pre.guide.as_ref().map(|g| serde_json::json!({
-            "vertices": plan.settings.guide.kind.name(),
+            "vertices": render.settings.guide.kind.name(),
             "map": [g.map.0, g.map.1],
             "photons": g.photons,
             "importons": g.importons,
@@ -679,7 +539,7 @@ fn result_json(
             "seconds_particles": g.seconds_particles,
             "seconds_build": g.seconds_build,
         })),
-        "options": plan.settings.given.to_json(),
+        "options": render.settings.given.to_json(),
         "adjoint": pre.adjoint.map(|a| serde_json::json!({
             "samples": a.samples,
             "seconds": a.seconds,
@@ -741,110 +601,114 @@ pub fn run(mut args: RenderArgs) -> Result<(), CliError> {
     run_scene(&args, &scene, settings, &source)
 }
 
-/// Renders a loaded scene with every check before the work (options, outputs, memory), under
-/// the signal handlers, with checkpoints: `render`'s steps, which `reference` runs too.
+/// Renders a loaded scene: the options applied and checked, then the render's steps
+/// ([`Render::run`]) with `render`'s outputs and reports; `reference` runs it too.
 pub(super) fn run_scene(
     args: &RenderArgs,
     scene: &crate::scene::Scene,
     settings: RenderSettings,
     source: &crate::scene::SceneSource,
 ) -> Result<(), CliError> {
-    let mut plan = configure(args, scene, settings)?;
-    check_outputs(args, scene.camera.is_some())?;
-    let pool = thread_pool(args.session.threads)?;
-    let memory = check_memory(args, scene, &plan, pool.current_num_threads())?;
-    let aovs = args.session.aovs.as_ref().map_or(&[][..], |l| &l.0[..]);
-    if aovs.iter().any(|a| a.is_feature()) {
-        plan.features = pool.install(|| crate::aov::features(scene, plan.settings.seed));
-    }
-    let t0 = std::time::Instant::now();
-    let pre = pool.install(|| {
-        session::preprocess(
-            scene,
-            plan.adjoint.as_ref(),
-            &plan.settings.guide,
-            plan.settings.seed,
-            plan.settings.max_depth,
-            !args.json,
-        )
-    })?;
-    // `--time` counts the preprocessing: the passes get what it left (at least one pass)
-    let preprocessing = t0.elapsed().as_secs_f64();
-    if let Some(t) = args.session.time.filter(|&t| preprocessing > t) {
-        eprintln!(
-            "warning: the preprocessing took {preprocessing:.2} s of the {} s of --time: one pass follows",
-            super::number(t)
-        );
-    }
-    show_adjoint(args, &pre, &plan, source)?;
-    if let (Some(g), false) = (&pre.guide, args.json) {
-        eprint!("{}", g.table());
-    }
-    let setup = Setup {
-        scene,
-        technique: &pre.technique,
-        settings: &plan.settings,
-        seed: plan.settings.seed,
-        max_depth: plan.settings.max_depth,
+    let (kind, settings) = configure(args, settings)?;
+    let mut render = Render::new(scene, source, kind, settings, args.session.shard)?;
+    render.time = args.session.time;
+    render.show = !args.json;
+    let mut cli = Cli {
+        args,
+        features: None,
     };
-    if let Some(dir) = &args.strategy_images {
-        pool.install(|| write_strategy_images(args, dir, &setup, &plan, source))?;
-    }
-    let job = Job {
-        kind: plan.kind,
-        setup,
-        spp: plan.settings.spp,
-        time: args.session.time.map(|t| t - preprocessing),
-        first_pass: plan.shard.as_ref().map_or(0, |s| s.part.first_pass),
-        progress: !args.json,
-    };
-    let ended = render_job(args, &job, &plan, &pre, source)?;
-    let done = Done {
-        ended: &ended,
-        plan: &plan,
-        pre: &pre,
-        memory: &memory,
-    };
-    finish(args, &done, source)
+    let rendered = render.run(&outputs(args, scene.camera.is_some()), &mut cli)?;
+    finish(args, &render, &rendered)
 }
 
-/// What a finished (or stopped) render hands to [`finish`].
-struct Done<'a> {
-    ended: &'a Ended,
-    plan: &'a Plan,
-    pre: &'a Preprocessed,
-    memory: &'a memory::MemoryEstimate,
+/// `render`'s part of a render: its threads, the feature layers, the adjoint image's and the
+/// guide's reports, the strategy images, the image, the live views, the signals, the recipe.
+struct Cli<'a> {
+    args: &'a RenderArgs,
+    /// The feature layers of `--aovs` (computed once, before the passes).
+    features: Option<crate::aov::Features>,
 }
 
-/// Writes the image (and the checkpoint when the render stopped or `--checkpoint` asked for
-/// it), reports, and turns a stop by a signal into its error (exit 128 + signal).
-fn finish(
-    args: &RenderArgs,
-    done: &Done,
-    source: &crate::scene::SceneSource,
-) -> Result<(), CliError> {
-    let (ended, plan, pre) = (done.ended, done.plan, done.pre);
-    let result = &ended.result;
-    let mut written = write_image(args, result, plan, pre, source)?;
-    let path = checkpoint_path(&output_paths(args).0);
-    let keep_state = ended.stopped_by.is_some() || !result.complete;
-    if let (true, Some(c)) = (keep_state, &ended.checkpoint) {
-        c.write(&path)
-            .map_err(crate::integrator::IntegratorError::from)?;
-        written.push(path.display().to_string());
-    } else if wrote_state(args) && path.is_file() {
-        // a finished render needs no state: its checkpoints (and a resumed one) go
-        match std::fs::remove_file(&path) {
-            Ok(()) if !args.json => {
-                eprintln!("removed {} (the render is complete)", path.display())
-            }
-            Ok(()) => {}
-            Err(e) => eprintln!("warning: cannot remove {}: {e}", path.display()),
+impl Frontend for Cli<'_> {
+    type Error = CliError;
+
+    fn pool(&mut self) -> Result<rayon::ThreadPool, CliError> {
+        thread_pool(self.args.session.threads)
+    }
+
+    fn before(&mut self, render: &Render, pool: &rayon::ThreadPool) -> Result<(), CliError> {
+        let aovs = self
+            .args
+            .session
+            .aovs
+            .as_ref()
+            .map_or(&[][..], |l| &l.0[..]);
+        if aovs.iter().any(|a| a.is_feature()) {
+            let seed = render.settings.seed;
+            self.features = pool.install(|| crate::aov::features(render.scene, seed));
         }
+        Ok(())
     }
-    warn_negative(result, plan.kind);
+
+    fn preprocessed(
+        &mut self,
+        render: &Render,
+        pre: &Preprocessed,
+        seconds: f64,
+        pool: &rayon::ThreadPool,
+    ) -> Result<(), CliError> {
+        let args = self.args;
+        if let Some(t) = args.session.time.filter(|&t| seconds > t) {
+            eprintln!(
+                "warning: the preprocessing took {seconds:.2} s of the {} s of --time: one pass follows",
+                super::number(t)
+            );
+        }
+        show_adjoint(args, pre, render)?;
+        if let (Some(g), false) = (&pre.guide, args.json) {
+            eprint!("{}", g.table());
+        }
+        if let Some(dir) = &args.strategy_images {
+            let setup = render.setup(pre);
+            pool.install(|| write_strategy_images(args, dir, &setup, render))?;
+        }
+        Ok(())
+    }
+
+    fn write(
+        &self,
+        render: &Render,
+        result: &RenderResult,
+        pre: &Preprocessed,
+    ) -> Result<Vec<String>, CliError> {
+        write_image(self.args, result, render, pre, self.features.as_ref())
+    }
+
+    fn live(&self, size: Option<(u32, u32)>) -> Option<LiveView<'_>> {
+        let mut live = live_views(self.args, size);
+        live.active().then(|| {
+            Box::new(move |image: &dyn Fn() -> Option<image_io::Image>| live.pass(image)) as _
+        })
+    }
+
+    fn stop(&self) -> Result<Option<&'static AtomicUsize>, CliError> {
+        Ok(Some(
+            super::interrupt::install().map_err(CliError::Signals)?,
+        ))
+    }
+
+    fn recipe(&self) -> Option<Recipe> {
+        Some(super::resume::recipe(self.args))
+    }
+}
+
+/// Reports a finished (or stopped) render and turns a stop by a signal into its error (exit
+/// 128 + signal).
+fn finish(args: &RenderArgs, render: &Render, done: &Rendered) -> Result<(), CliError> {
+    let (result, written) = (&done.ended.result, &done.written);
+    warn_negative(result, render.kind);
     if args.json {
-        let mut j = result_json(result, plan, pre, &written);
+        let mut j = result_json(result, render, &done.pre, written);
         j["memory"] = serde_json::json!({
             "estimate": done.memory.total(),
             "parts": done.memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
@@ -852,30 +716,24 @@ fn finish(
         });
         println!("{j}");
     } else if args.reference {
-        print_reference(result, source, &written);
+        print_reference(result, render.source, written);
     } else {
-        print_summary(result, &written);
+        print_summary(result, written);
     }
-    match ended.stopped_by {
+    match done.ended.stopped_by {
         Some(signal) => Err(CliError::Interrupted {
             signal,
             what: format!(
                 "stopped by {} after {} of {} spp: wrote {} (continue with --resume {})",
                 super::interrupt::name(signal),
                 result.spp,
-                plan.settings.spp,
+                render.settings.spp,
                 written.join(", "),
                 checkpoint_path(&output_paths(args).0).display()
             ),
         }),
         None => Ok(()),
     }
-}
-
-/// Whether this render wrote (or resumed from) the checkpoint beside its output, which it
-/// then removes when it is complete; a checkpoint of another render is left alone.
-fn wrote_state(args: &RenderArgs) -> bool {
-    args.session.checkpoint.is_some() || args.session.resume.is_some()
 }
 
 /// Warns of pixels with a negative estimate (an estimator that has not converged there).
@@ -905,94 +763,6 @@ fn print_reference(result: &RenderResult, source: &crate::scene::SceneSource, wr
         estimated_relmse(result).map_or("n/a".to_string(), |e| format!("{e:.3e}")),
         written.join(", ")
     );
-}
-
-/// The render's estimated memory, refused above `--max-memory` (by default a share of the
-/// machine's), before any work.
-fn check_memory(
-    args: &RenderArgs,
-    scene: &crate::scene::Scene,
-    plan: &Plan,
-    threads: usize,
-) -> Result<memory::MemoryEstimate, CliError> {
-    let estimate = memory::estimate(scene, plan.kind, &plan.settings, threads);
-    args.session.memory.refuse_above(&estimate)?;
-    Ok(estimate)
-}
-
-/// What a checkpoint of this render must match to be resumed.
-fn identity(
-    plan: &Plan,
-    scene: &crate::scene::Scene,
-    source: &crate::scene::SceneSource,
-) -> Identity {
-    let mut options = plan.settings.given.to_json();
-    if let Some(o) = options.as_object_mut() {
-        o.remove("spp");
-        if let Some(s) = &plan.shard {
-            let whole = format!("{} of {} spp", s.shard, s.total_spp);
-            o.insert("shard".into(), whole.into());
-        }
-    }
-    Identity {
-        scene_hash: source.hash(),
-        inputs: source.inputs(),
-        integrator: plan.kind.name().to_string(),
-        options: options.to_string(),
-        seed: plan.settings.seed,
-        film: scene.camera.as_ref().map(|c| (c.width, c.height)),
-        meters: scene.sensors.len(),
-    }
-}
-
-/// Renders the job under the signal handlers, from `--resume`'s checkpoint if given, writing
-/// the image and the checkpoint every `--checkpoint` seconds.
-fn render_job(
-    args: &RenderArgs,
-    job: &Job,
-    plan: &Plan,
-    pre: &Preprocessed,
-    source: &crate::scene::SceneSource,
-) -> Result<Ended, CliError> {
-    let id = identity(plan, job.setup.scene, source);
-    let resume = match &args.session.resume {
-        Some(file) => {
-            let path = resume_path(file);
-            let c = Checkpoint::read(&path).map_err(crate::integrator::IntegratorError::from)?;
-            c.check_identity(&id, &path.display().to_string())
-                .map_err(crate::integrator::IntegratorError::from)?;
-            eprintln!(
-                "resuming {}: {} of {} spp done, next pass {}",
-                path.display(),
-                c.progress.spp,
-                job.spp,
-                c.progress.passes
-            );
-            Some(c)
-        }
-        None => None,
-    };
-    let ckpt = checkpoint_path(&output_paths(args).0);
-    let mut write = |r: &RenderResult, c: &Checkpoint| {
-        let to_err = |e: CliError| CheckpointError::Write(e.to_string());
-        write_image(args, r, plan, pre, source).map_err(to_err)?;
-        c.write(&ckpt)
-    };
-    let size = job.setup.scene.camera.as_ref().map(|c| (c.width, c.height));
-    let mut live = live_views(args, size);
-    let active = live.active();
-    let mut show = |image: &dyn Fn() -> Option<image_io::Image>| live.pass(image);
-    let control = Control {
-        stop: Some(super::interrupt::install().map_err(CliError::Signals)?),
-        every: args.session.checkpoint,
-        identity: Some(id),
-        recipe: Some(super::resume::recipe(args)),
-        resume,
-        on_checkpoint: Some(&mut write),
-        on_pass: if active { Some(&mut show) } else { None },
-    };
-    let pool = thread_pool(args.session.threads)?;
-    Ok(pool.install(|| session::render_with(job, control))?)
 }
 
 /// The live views `--display` and `--preview` ask for (none without a camera), tev's

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use super::render::RenderArgs;
 use super::CliError;
-use crate::integrator::checkpoint::{Checkpoint, Recipe};
 use crate::integrator::settings::RenderOptions;
+use crate::render::checkpoint::{Checkpoint, Recipe};
 
 /// The recipe of the render `args` ask for, as its checkpoints keep it.
 pub fn recipe(args: &RenderArgs) -> Recipe {
@@ -40,7 +40,7 @@ pub fn recipe(args: &RenderArgs) -> Recipe {
 /// Fills what the command line leaves out from the recipe of the checkpoint at `path`, and
 /// refuses a flag that contradicts it (naming both values).
 pub fn complete(args: &mut RenderArgs, path: &Path) -> Result<(), CliError> {
-    let c = Checkpoint::read(path).map_err(crate::integrator::IntegratorError::from)?;
+    let c = Checkpoint::read(path).map_err(crate::render::RenderError::from)?;
     let Some(recipe) = c.recipe else {
         return Ok(());
     };
@@ -72,7 +72,7 @@ pub fn complete(args: &mut RenderArgs, path: &Path) -> Result<(), CliError> {
     let shard = (s.shard.map(|x| x.to_string()), recipe.shard.clone());
     let shard = same("--shard", shard, String::clone, &name)?;
     s.shard = shard
-        .map(|t| crate::integrator::shard::Shard::parse(&t))
+        .map(|t| crate::render::shard::Shard::parse(&t))
         .transpose()?;
     s.reproducible |= recipe.reproducible;
     s.checkpoint = s.checkpoint.or(recipe.checkpoint);

@@ -6,15 +6,10 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
-pub mod checkpoint;
-pub mod memory;
 pub mod mlt;
 pub mod path;
-pub mod provenance;
 pub mod reach;
-pub mod session;
 pub mod settings;
-pub mod shard;
 pub mod smc;
 
 pub use path::PathTracer;
@@ -110,9 +105,17 @@ pub enum IntegratorError {
     /// SMC settings given to another integrator.
     #[error("SMC options apply to the `smc` integrator, not `{0}`")]
     NotSmc(&'static str),
-    /// A checkpoint cannot be read, resumed from or written.
-    #[error(transparent)]
-    Checkpoint(#[from] checkpoint::CheckpointError),
+}
+
+/// What a checkpoint keeps of an integrator besides the film and the meters (written by the
+/// render layer's checkpoint, declared here because the trait hands it over).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub enum IntegratorState {
+    /// Nothing: the film, the meters and the pass index are all of it (path, light, bdpt).
+    None,
+    /// SMC's structure as it stood after the last pass merged its records (Pegoraro et al. 2008
+    /// Fig. 2, lines 12-14).
+    Smc(Box<smc::octree::Octree>),
 }
 
 impl From<String> for IntegratorError {
@@ -224,13 +227,13 @@ pub trait Integrator: Send + Sync {
 
     /// What a checkpoint keeps of the integrator besides the film and the meters (SMC's
     /// structure, which the passes so far have refined).
-    fn checkpoint_state(&self) -> checkpoint::IntegratorState {
-        checkpoint::IntegratorState::None
+    fn checkpoint_state(&self) -> IntegratorState {
+        IntegratorState::None
     }
 
     /// Takes back a checkpoint's state; false when the state is not this integrator's kind.
-    fn restore_state(&mut self, state: checkpoint::IntegratorState) -> bool {
-        matches!(state, checkpoint::IntegratorState::None)
+    fn restore_state(&mut self, state: IntegratorState) -> bool {
+        matches!(state, IntegratorState::None)
     }
 
     /// The work this integrator does once before its first pass (MLT's bootstrap pre-pass and

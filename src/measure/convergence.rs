@@ -42,7 +42,7 @@ pub struct ConvergeConfig {
     pub max_depth: Option<u32>,
     /// The part of the runs this process renders (`converge --shard I/N`): runs
     /// `(I-1)R/N .. IR/N`, each with the seed it has in the whole study; `None`, all of them.
-    pub shard: Option<crate::integrator::shard::Shard>,
+    pub shard: Option<crate::render::shard::Shard>,
 }
 
 impl ConvergeConfig {

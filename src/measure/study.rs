@@ -13,7 +13,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::convergence::{CheckpointRow, CSV_HEADER};
-use crate::integrator::shard::Shard;
+use crate::render::shard::Shard;
 
 /// The file beside `convergence.csv` that describes the study.
 pub const STUDY_FILE: &str = "study.toml";

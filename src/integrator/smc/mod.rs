@@ -655,17 +655,17 @@ impl super::Integrator for Smc {
         Some(self)
     }
 
-    fn checkpoint_state(&self) -> super::checkpoint::IntegratorState {
-        super::checkpoint::IntegratorState::Smc(Box::new(self.octree.clone()))
+    fn checkpoint_state(&self) -> super::IntegratorState {
+        super::IntegratorState::Smc(Box::new(self.octree.clone()))
     }
 
-    fn restore_state(&mut self, state: super::checkpoint::IntegratorState) -> bool {
+    fn restore_state(&mut self, state: super::IntegratorState) -> bool {
         match state {
-            super::checkpoint::IntegratorState::Smc(octree) => {
+            super::IntegratorState::Smc(octree) => {
                 self.octree = *octree;
                 true
             }
-            super::checkpoint::IntegratorState::None => false,
+            super::IntegratorState::None => false,
         }
     }
 }

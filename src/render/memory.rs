@@ -13,11 +13,11 @@
 
 use std::mem::size_of;
 
-use super::session::PASS_SPP;
-use super::settings::RenderSettings;
-use super::smc::{march, EstimatorForm};
-use super::IntegratorKind;
+use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
+use crate::integrator::settings::RenderSettings;
+use crate::integrator::smc::{march, EstimatorForm};
+use crate::integrator::IntegratorKind;
 
 use crate::medium::{Density, Medium};
 use crate::path::Vertex;
@@ -142,7 +142,8 @@ fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'s
     if kind == IntegratorKind::Mlt {
         let chains = settings.mlt.chains as u64;
         let paths = chains * 2 * MLT_PATH_VERTICES * size_of::<Vertex>() as u64;
-        let bootstrap = settings.mlt.bootstrap * size_of::<super::mlt::init::Candidate>() as u64;
+        let bootstrap =
+            settings.mlt.bootstrap * size_of::<crate::integrator::mlt::init::Candidate>() as u64;
         parts.push(("mlt chains", paths + bootstrap));
     }
     let g = &settings.guide;
@@ -223,4 +224,49 @@ pub fn peak_resident() -> Option<u64> {
     let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
     let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0;
     (ok && usage.ru_maxrss > 0).then(|| usage.ru_maxrss as u64 * 1024)
+}
+
+/// A render's memory limit: `max_gib` GiB as given, or by default a share of the machine's
+/// memory ([`default_max_memory`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Limit {
+    pub max_gib: Option<f64>,
+}
+
+/// A render that needs more memory than its limit allows (the estimate described, the limit,
+/// where the limit comes from).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("the render needs {needs}, more than --max-memory {limit} ({origin}): lower the resolution or the settings named, or raise --max-memory")]
+pub struct MemoryError {
+    pub needs: String,
+    pub limit: String,
+    pub origin: String,
+}
+
+impl Limit {
+    /// Refuses an `estimate` above the limit, naming both.
+    pub fn refuse(&self, estimate: &MemoryEstimate) -> Result<(), MemoryError> {
+        let (limit, origin) = match self.max_gib {
+            Some(g) => ((g * (1u64 << 30) as f64) as u64, "as given".to_string()),
+            None => (
+                default_max_memory(),
+                match machine_memory() {
+                    Some(m) => format!(
+                        "the default, {:.0}% of this machine's {}",
+                        MACHINE_SHARE * 100.0,
+                        gib(m)
+                    ),
+                    None => "the default where /proc/meminfo is missing".to_string(),
+                },
+            ),
+        };
+        if estimate.total() > limit {
+            return Err(MemoryError {
+                needs: estimate.describe(),
+                limit: gib(limit),
+                origin,
+            });
+        }
+        Ok(())
+    }
 }

@@ -8,14 +8,18 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use super::checkpoint::{Checkpoint, CheckpointError, Earlier, Identity, Progress, Recipe};
+use super::plan;
 use super::provenance::Streams;
+use super::RenderError;
 
-use super::{IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics};
 use crate::enlightened::adjoint::AdjointStats;
 use crate::enlightened::guide::GuideStats;
 use crate::enlightened::{AdjointSettings, Enlightened, GuideKind, GuideSettings};
 use crate::film::Film;
 use crate::image_io;
+use crate::integrator::{
+    IntegratorError, IntegratorKind, MeterEstimate, Renderer, Setup, Statistics,
+};
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
@@ -138,9 +142,6 @@ impl RenderResult {
     }
 }
 
-/// Samples per pixel in one pass of a fixed-spp render (smaller passes: finer progress).
-pub const PASS_SPP: u32 = 4;
-
 /// How a render may be stopped, saved and continued (none of it by default).
 #[derive(Default)]
 pub struct Control<'c> {
@@ -174,14 +175,14 @@ pub struct Ended {
     pub checkpoint: Option<Checkpoint>,
 }
 
-/// Renders the job: passes of [`PASS_SPP`] (or of 1 spp until the time is used).
-pub fn render(job: &Job) -> Result<RenderResult, IntegratorError> {
+/// Renders the job: passes of [`plan::PASS_SPP`] (or of 1 spp until the time is used).
+pub fn render(job: &Job) -> Result<RenderResult, RenderError> {
     Ok(render_with(job, Control::default())?.result)
 }
 
 /// Renders the job under `control`: resumed from a checkpoint, checkpointed every so many
 /// seconds, stopped by a signal after the pass in flight.
-pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorError> {
+pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError> {
     let (mut r, mut progress, earlier) = start(job, control.resume.take())?;
     // a bar on a terminal; lines in a log file or a pipe (a batch job's output)
     let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
@@ -212,8 +213,10 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
             Some(budget) if prior_seconds + start.elapsed().as_secs_f64() < budget => 1,
             Some(_) if r.passes == 0 && progress.spp == 0 => 1,
             Some(_) => break,
-            None if progress.spp < job.spp as u64 => PASS_SPP.min(job.spp - progress.spp as u32),
-            None => break,
+            None => match plan::next_pass_spp(progress.spp, job.spp) {
+                Some(spp) => spp,
+                None => break,
+            },
         };
         if stop() != 0 {
             stopped_by = Some(stop() as i32);
@@ -298,7 +301,7 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, IntegratorE
 fn start<'s>(
     job: &Job<'s>,
     resume: Option<Checkpoint>,
-) -> Result<(Renderer<'s>, Progress, Option<Earlier>), IntegratorError> {
+) -> Result<(Renderer<'s>, Progress, Option<Earlier>), RenderError> {
     let Some(c) = resume else {
         let mut r = Renderer::prepared(job.kind, &job.setup)?;
         r.passes = job.first_pass;
@@ -428,16 +431,12 @@ impl ProgressLog {
 /// The progress bar of a job: tiles of every pass, or a spinner for a timed render.
 fn progress_bar(job: &Job, done: u64) -> indicatif::ProgressBar {
     let tiles = job.setup.scene.camera.as_ref().map_or(1, |c| {
-        (c.width.div_ceil(super::TILE) * c.height.div_ceil(super::TILE)) as u64
+        (c.width.div_ceil(crate::integrator::TILE) * c.height.div_ceil(crate::integrator::TILE))
+            as u64
     });
     let total = match job.time {
         Some(_) => 0,
-        None => {
-            (job.spp as u64)
-                .saturating_sub(done)
-                .div_ceil(PASS_SPP as u64)
-                * tiles
-        }
+        None => plan::passes((job.spp as u64).saturating_sub(done)) * tiles,
     };
     let b = if total > 0 {
         indicatif::ProgressBar::new(total)

@@ -26,8 +26,8 @@
 use std::fmt;
 use std::ops::Range;
 
-use super::session::PASS_SPP;
-use super::IntegratorKind;
+use super::plan::{self, PASS_SPP};
+use crate::integrator::IntegratorKind;
 
 /// Shard `index` (1-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -93,23 +93,16 @@ impl Shard {
         }
     }
 
-    /// The passes of a render of `spp` samples per pixel.
-    pub fn total_passes(spp: u32) -> u64 {
-        (spp as u64).div_ceil(PASS_SPP as u64)
-    }
-
     /// This shard's passes of a pass-based render of `spp` samples per pixel.
     pub fn passes(self, spp: u32) -> Range<u64> {
-        let p = Self::total_passes(spp);
+        let p = plan::passes(spp as u64);
         let (i, n) = (self.index as u64, self.count as u64);
         (i - 1) * p / n..i * p / n
     }
 
     /// The samples per pixel of this shard's passes (the last pass of the render may be short).
     pub fn spp(self, spp: u32) -> u32 {
-        let r = self.passes(spp);
-        let end = (r.end * PASS_SPP as u64).min(spp as u64);
-        (end - r.start * PASS_SPP as u64) as u32
+        plan::spp_of(self.passes(spp), spp)
     }
 
     /// The seed of this shard of an MLT render seeded `seed`: a mix of the seed and the shard
@@ -186,7 +179,7 @@ pub fn plan(
             })
         }
         _ => {
-            let passes = Shard::total_passes(spp);
+            let passes = plan::passes(spp as u64);
             if passes < count as u64 {
                 return Err(ShardError::TooFewPasses {
                     index,
@@ -212,7 +205,7 @@ mod tests {
     #[test]
     fn shards_cover_the_passes_once_and_their_spp_add_up() {
         for spp in [1, 4, 7, 64, 65, 4096] {
-            let passes = Shard::total_passes(spp);
+            let passes = plan::passes(spp as u64);
             for count in (1..=7).filter(|&n| n as u64 <= passes) {
                 let mut next = 0;
                 let mut sum = 0;

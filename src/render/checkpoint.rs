@@ -16,12 +16,12 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::provenance::Streams;
+use super::provenance::{changed_input, Streams};
 // FNV-1a over the payload: a damaged file is refused before its contents are trusted.
-use super::smc::octree::Octree;
-use super::MeterAccum;
 use crate::conventions::fnv1a as checksum;
 use crate::film::Film;
+pub use crate::integrator::IntegratorState;
+use crate::integrator::MeterAccum;
 
 /// The first bytes of a checkpoint file (and its format version).
 const MAGIC: &[u8; 24] = b"pathspace checkpoint v3\n";
@@ -86,16 +86,6 @@ pub struct Progress {
     pub seconds: f64,
     /// How many times the render was resumed before this checkpoint.
     pub resumes: u32,
-}
-
-/// What an integrator keeps besides the film and the meters.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub enum IntegratorState {
-    /// Nothing: the film, the meters and the pass index are all of it (path, light, bdpt).
-    None,
-    /// SMC's structure as it stood after the last pass merged its records (Pegoraro et al. 2008
-    /// Fig. 2, lines 12-14).
-    Smc(Box<Octree>),
 }
 
 /// The image of MLT's earlier runs: the sum over runs of spp_i * I_i, the sum of spp_i, and
@@ -325,19 +315,4 @@ impl Checkpoint {
         }
         Ok(())
     }
-}
-
-/// The first file whose content differs between two lists of a scene's inputs (sorted by
-/// name), with its hash in each (`absent` where a list lacks it).
-pub fn changed_input(a: &[(String, u64)], b: &[(String, u64)]) -> Option<(String, String, String)> {
-    let hash = |l: &[(String, u64)], f: &str| {
-        l.iter()
-            .find(|(n, _)| n == f)
-            .map_or("absent".to_string(), |(_, h)| format!("{h:016x}"))
-    };
-    a.iter()
-        .chain(b)
-        .map(|(f, _)| f)
-        .find(|f| hash(a, f) != hash(b, f))
-        .map(|f| (f.clone(), hash(a, f), hash(b, f)))
 }

@@ -71,11 +71,11 @@ pub fn parse_streams(text: &str) -> Option<Vec<Streams>> {
 
 /// Whether `spp` samples per pixel can come from the passes `runs` drew: every pass adds
 /// between 1 (a pass of a timed render, or the last of a target) and
-/// [`super::session::PASS_SPP`] samples, so a damaged or forged count outside that range
+/// [`super::plan::PASS_SPP`] samples, so a damaged or forged count outside that range
 /// would weight an image wrongly in a merge.
 pub fn spp_fits_streams(spp: u64, runs: &[Streams]) -> bool {
     let passes = pass_count(runs);
-    let most = passes.saturating_mul(super::session::PASS_SPP as u64);
+    let most = passes.saturating_mul(super::plan::PASS_SPP as u64);
     (passes..=most).contains(&spp)
 }
 
@@ -479,6 +479,21 @@ fn parse_inputs(text: &str) -> Option<Vec<(String, u64)>> {
         .collect()
 }
 
+/// The first file whose content differs between two lists of a scene's inputs (sorted by
+/// name), with its hash in each (`absent` where a list lacks it).
+pub fn changed_input(a: &[(String, u64)], b: &[(String, u64)]) -> Option<(String, String, String)> {
+    let hash = |l: &[(String, u64)], f: &str| {
+        l.iter()
+            .find(|(n, _)| n == f)
+            .map_or("absent".to_string(), |(_, h)| format!("{h:016x}"))
+    };
+    a.iter()
+        .chain(b)
+        .map(|(f, _)| f)
+        .find(|f| hash(a, f) != hash(b, f))
+        .map(|f| (f.clone(), hash(a, f), hash(b, f)))
+}
+
 /// What makes `b` an estimate of another image than `a`.
 fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
     let (fa, fb) = (a.file.clone(), b.file.clone());
@@ -496,7 +511,7 @@ fn differences(a: &Provenance, b: &Provenance) -> Vec<Conflict> {
     }
     let inputs = (a.inputs.as_deref(), b.inputs.as_deref());
     if let (Some(ia), Some(ib)) = inputs {
-        if let Some((file, ha, hb)) = super::checkpoint::changed_input(ia, ib) {
+        if let Some((file, ha, hb)) = changed_input(ia, ib) {
             out.push(Conflict::Input {
                 a: fa.clone(),
                 b: fb.clone(),
