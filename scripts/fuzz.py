@@ -37,6 +37,7 @@ What a case may end as:
   unnamed   an error that names no file, or a silent nonzero exit
   control   an error that echoes raw control bytes
   merged-damage  a changed byte under a kept checksum merged into another image
+  harness   the fuzzer itself failed on the case (kept for its author, not a renderer bug)
   partial   a killed write left a damaged output, or `.partial` files after a clean stop
   resumed-changed  a resume went on although a file its scene reads had changed
   writers   one of two concurrent renders failed, or their output does not read back
@@ -563,8 +564,11 @@ def merge_case(args, rng, work, bases):
     # half the time a forger who drops the checksum, so that the checks behind it are reached
     forged = b"checksum" in data and rng.random() < 0.5
     if forged:
-        data = exr_without(data, b"checksum")
-        steps.append(f"{victim}: checksum dropped")
+        try:
+            data = exr_without(data, b"checksum")
+            steps.append(f"{victim}: checksum dropped")
+        except (IndexError, KeyError, ValueError, struct.error):
+            forged = False  # the damage left no header to take the checksum out of
     with open(path, "wb") as f:
         f.write(data)
     cmd = [args.bin, "merge", "m1.exr", "m2.exr", "-o", "merged.exr"] + (["--force"] if rng.random() < 0.3 else [])
@@ -846,8 +850,11 @@ def adversarial_case(args, k, kind, bases):
     rng = random.Random(f"{args.seed}:{k}:{kind}")
     work = tempfile.mkdtemp(prefix=f"fuzz-{k}-", dir=args.scratch)
     try:
-        steps, outcome, cmds = ADVERSARIAL_CASES[kind](args, rng, work, bases)
-        if outcome in BAD and args.keep:
+        try:
+            steps, outcome, cmds = ADVERSARIAL_CASES[kind](args, rng, work, bases)
+        except Exception as e:  # the harness's own fault: counted apart, the campaign goes on
+            steps, outcome, cmds = [f"harness: {type(e).__name__}: {e}"], "harness", []
+        if outcome in BAD + ("harness",) and args.keep:
             keep_case(args, k, outcome, work, kind, steps, cmds)
         return k, kind, steps, outcome
     finally:
@@ -938,7 +945,7 @@ def main():
         run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs)
     finally:
         shutil.rmtree(base, ignore_errors=True)
-    summary = {o: counts[o] for o in ("ok", "refused") + BAD}
+    summary = {o: counts[o] for o in ("ok", "refused") + BAD + ("harness",)}
     print(json.dumps({"cases": args.cases, "seed": args.seed, "first": args.first, **summary,
                       "kinds": {k: dict(c) for k, c in sorted(kinds.items())}}))
     sys.exit(1 if bugs else 0)
