@@ -20,6 +20,10 @@ if want "$sel" bsdf; then
   cargo run --release --example bsdf_lobes -- book/src/figures/bsdf/ggx-lobes.svg
 fi
 
+if want "$sel" diagrams; then
+  cargo run --release --example figures -- book/src/figures/diagrams
+fi
+
 if want "$sel" bdpt; then
   d=book/src/figures/bdpt
   mkdir -p "$d"

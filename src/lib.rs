@@ -22,6 +22,7 @@
 //! | variance and feature layers (AOVs) beside the image | [`aov`] |
 //! | conventions and measures | [`conventions`] |
 //! | the book as a course: assignments, student copies | [`course`] |
+//! | the book's diagrams, drawn from the code they illustrate | [`figures`] |
 
 pub mod aov;
 pub mod bidir;
@@ -30,6 +31,7 @@ pub mod cli;
 pub mod conventions;
 pub mod course;
 pub mod enlightened;
+pub mod figures;
 pub mod film;
 pub mod geometry;
 pub mod image_io;
