@@ -23,12 +23,12 @@ use crate::path::{LocalSampling, PLAIN};
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
-/// Declares the integrators: one line each (its doc, variant, name, and how its module
-/// prepares it from a [`Setup`]), from which the enum, [`IntegratorKind::ALL`],
-/// [`IntegratorKind::name`] and [`IntegratorKind::prepare`] are generated, so that adding an
-/// integrator is its module plus one registration line in the invocation below.
+/// Declares the integrators: one line each (its doc, variant, name, and the [`Facts`] its
+/// module declares), from which the enum, [`IntegratorKind::ALL`], [`IntegratorKind::name`]
+/// and [`IntegratorKind::facts`] are generated, so that adding an integrator is its module plus
+/// one registration line in the invocation below.
 macro_rules! integrators {
-    ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $prepare:expr,)*) => {
+    ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $facts:expr,)*) => {
         /// The integrators a user can name.
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]
         pub enum IntegratorKind {
@@ -46,14 +46,11 @@ macro_rules! integrators {
                 }
             }
 
-            /// Builds the integrator from the setup, or says why it refuses the scene or its
-            /// settings.
-            pub fn prepare<'t>(
-                self,
-                setup: &Setup<'_, 't>,
-            ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+            /// What the integrator's module declares it is (how it is prepared, its memory,
+            /// its shard split, what it checks before a render).
+            pub fn facts(self) -> &'static dyn Facts {
                 match self {
-                    $(IntegratorKind::$variant => ($prepare)(setup),)*
+                    $(IntegratorKind::$variant => $facts,)*
                 }
             }
         }
@@ -63,15 +60,15 @@ macro_rules! integrators {
 // The registration point: one line per integrator.
 integrators! {
     /// Volumetric path tracing with next-event estimation and MIS.
-    Path = "path" => path::prepare,
+    Path = "path" => &path::PathFacts,
     /// Light tracing: light subpaths connected to the sensor (t = 1), splatted.
-    Light = "light" => |s| bdpt::prepare(s, bdpt::Strategies::LightTracing),
+    Light = "light" => &bdpt::BdptFacts(bdpt::Strategies::LightTracing),
     /// Bidirectional path tracing with MIS over all (s, t).
-    Bdpt = "bdpt" => |s| bdpt::prepare(s, bdpt::Strategies::All),
+    Bdpt = "bdpt" => &bdpt::BdptFacts(bdpt::Strategies::All),
     /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
-    Smc = "smc" => smc::prepare,
+    Smc = "smc" => &smc::SmcFacts,
     /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
-    Mlt = "mlt" => mlt::prepare,
+    Mlt = "mlt" => &mlt::MltFacts,
 }
 
 impl IntegratorKind {
@@ -86,9 +83,18 @@ impl IntegratorKind {
             })
     }
 
-    /// Whether the integrator samples light start points (and so can use the adjoint image).
+    /// Builds the integrator from the setup, or says why it refuses the scene or its settings.
+    pub fn prepare<'t>(
+        self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+        self.facts().prepare(setup)
+    }
+
+    /// Whether the integrator samples light start points (and so can use the guide and the
+    /// adjoint image).
     pub fn samples_light_starts(self) -> bool {
-        matches!(self, Self::Bdpt | Self::Light | Self::Mlt)
+        self.facts().samples_light_starts()
     }
 }
 
@@ -149,6 +155,80 @@ pub struct Setup<'s, 't> {
     pub settings: &'s RenderSettings,
     pub seed: u64,
     pub max_depth: Option<u32>,
+}
+
+/// What an integrator is before it is prepared, declared by its module and registered with
+/// its name (`integrators!`): how it is built, what the render layer must know of it to check
+/// a render, estimate its memory and split it into shards. The render layer asks these, never
+/// the integrator's kind.
+pub trait Facts: Sync {
+    /// Builds the integrator from the setup, or says why it refuses the scene or its settings.
+    fn prepare<'t>(
+        &self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError>;
+
+    /// Whether it samples light start points (and so can use the guide and the adjoint image).
+    fn samples_light_starts(&self) -> bool {
+        false
+    }
+
+    /// Refuses, before any work or memory, a scene or settings it cannot render (MLT's
+    /// scene, SMC's march length).
+    fn check(&self, _case: &Case) -> Result<(), IntegratorError> {
+        Ok(())
+    }
+
+    /// Warnings of its own about the scene with these settings, given once before the work.
+    fn warnings(&self, _case: &Case) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// What one sample leaves in a pass until the pass is merged (for the memory estimate).
+    fn pass_footprint(&self, case: &Case) -> PassFootprint;
+
+    /// Its structures besides the film and a pass's results: (name, bytes) for the memory
+    /// estimate (SMC's cache, MLT's chains).
+    fn memory_parts(&self, _case: &Case) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
+
+    /// How a render by it is split into shards.
+    fn shard_split(&self) -> ShardSplit {
+        ShardSplit::Passes
+    }
+}
+
+/// What [`Facts`] are asked about before a render: the scene and the render's settings (the
+/// integrator reads its own table of them, as from a [`Setup`]).
+#[derive(Clone, Copy)]
+pub struct Case<'s> {
+    pub scene: &'s Scene,
+    pub settings: &'s RenderSettings,
+}
+
+/// What a pass of an integrator holds per sample until it is merged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PassFootprint {
+    /// Whether the pass keeps per-pixel tile results (false for film-wide passes).
+    pub tiles: bool,
+    /// Bytes a sample deposits besides its value (splats, SMC's records).
+    pub bytes_per_sample: u64,
+}
+
+/// One splat's bytes: film point and value.
+pub const SPLAT_BYTES: u64 = std::mem::size_of::<(glam::Vec2, glam::Vec3)>() as u64;
+
+/// How a render is split into shards (the render layer's `shard` holds the arithmetic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShardSplit {
+    /// Each shard renders contiguous passes of the same seed.
+    Passes,
+    /// Each shard is an independent run with a seed of its own, a share of the chains and of
+    /// the mutations (MLT).
+    IndependentChains,
+    /// Refused: a pass learns from every earlier pass (SMC's cache); the integrator's name.
+    Refused(&'static str),
 }
 
 /// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no

@@ -724,6 +724,49 @@ impl<'t> Mlt<'t> {
     }
 }
 
+/// Vertices of a chain's current and proposed paths at most (two subpaths' caps).
+const PATH_VERTICES: u64 = 2 * crate::bidir::MAX_SUBPATH_VERTICES as u64;
+
+/// MLT's facts: film-wide passes that splat, its chains and bootstrap, light start points,
+/// its scene checked before the work, shards as independent runs.
+pub struct MltFacts;
+
+impl super::Facts for MltFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &super::Setup<'_, 't>,
+    ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+        prepare(setup)
+    }
+
+    fn samples_light_starts(&self) -> bool {
+        true
+    }
+
+    fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
+        check_scene(case.scene).map_err(super::IntegratorError::from)
+    }
+
+    /// A mutation splats its current and its proposed path; no tile results.
+    fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
+        super::PassFootprint {
+            tiles: false,
+            bytes_per_sample: 2 * super::SPLAT_BYTES,
+        }
+    }
+
+    fn memory_parts(&self, case: &super::Case) -> Vec<(&'static str, u64)> {
+        let chains = case.settings.mlt.chains as u64;
+        let paths = chains * 2 * PATH_VERTICES * std::mem::size_of::<Vertex>() as u64;
+        let bootstrap = case.settings.mlt.bootstrap * std::mem::size_of::<init::Candidate>() as u64;
+        vec![("mlt chains", paths + bootstrap)]
+    }
+
+    fn shard_split(&self) -> super::ShardSplit {
+        super::ShardSplit::IndependentChains
+    }
+}
+
 /// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
 pub fn prepare<'t>(
     setup: &super::Setup<'_, 't>,

@@ -581,6 +581,63 @@ impl Smc {
     }
 }
 
+/// SMC records a sample leaves for the structure (one per scattering or marching decision), at
+/// least; a march leaves one per step, as many as a segment across the densest medium takes
+/// (about 875 per sample measured where that is 1158 steps).
+const RECORDS_PER_SAMPLE: u64 = 4;
+/// One SMC record: position, direction, radiance, phase value.
+const RECORD_BYTES: u64 = 40;
+
+/// SMC's facts: tile results and records, its cache (bounded by its budget), the march's
+/// step limit checked before the work, and no shards (a pass learns from every earlier one).
+pub struct SmcFacts;
+
+impl super::Facts for SmcFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &super::Setup<'_, 't>,
+    ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+        prepare(setup)
+    }
+
+    /// A march that would exceed its step limit is refused before the memory it would need.
+    fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
+        if let EstimatorForm::RayMarching { step } = case.settings.smc.form {
+            march::check_steps(case.scene, step).map_err(super::IntegratorError::from)?;
+        }
+        Ok(())
+    }
+
+    fn warnings(&self, case: &super::Case) -> Vec<String> {
+        anisotropy_warning(case.scene, case.settings.smc.variant)
+            .into_iter()
+            .collect()
+    }
+
+    fn pass_footprint(&self, case: &super::Case) -> super::PassFootprint {
+        let records = match case.settings.smc.form {
+            // a longer march is refused (`march::check_steps`)
+            EstimatorForm::RayMarching { step } => {
+                march::scene_max_steps(case.scene, step).min(march::MAX_MARCH_STEPS as f64) as u64
+            }
+            EstimatorForm::Distance => 0,
+        };
+        super::PassFootprint {
+            tiles: true,
+            bytes_per_sample: records.max(RECORDS_PER_SAMPLE) * RECORD_BYTES,
+        }
+    }
+
+    /// The octree grows until its budget, which bounds it.
+    fn memory_parts(&self, case: &super::Case) -> Vec<(&'static str, u64)> {
+        vec![("smc cache", case.settings.smc.budget as u64)]
+    }
+
+    fn shard_split(&self) -> super::ShardSplit {
+        super::ShardSplit::Refused("smc")
+    }
+}
+
 /// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
     Ok(Box::new(Smc::new(
