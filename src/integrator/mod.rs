@@ -197,6 +197,12 @@ pub trait Facts: Sync {
     fn shard_split(&self) -> ShardSplit {
         ShardSplit::Passes
     }
+
+    /// The `--json` key of its [`Statistics`] (null in the other integrators' output), if it
+    /// reports any.
+    fn statistics_key(&self) -> Option<&'static str> {
+        None
+    }
 }
 
 /// What [`Facts`] are asked about before a render: the scene and the render's settings (the
@@ -242,13 +248,16 @@ pub struct Scratch {
     pub records: Vec<smc::Record>,
 }
 
-/// What an integrator reports after its passes, for `--json`, the EXR and the summary line.
+/// What an integrator reports after its passes, serialized by the integrator itself: `--json`
+/// shows `json` under its [`Facts::statistics_key`], the summary prints the lines.
 #[derive(Clone, Debug, Default)]
 pub struct Statistics {
-    /// The SMC structure's statistics (Pegoraro et al. Table 1).
-    pub smc: Option<smc::OctreeStats>,
-    /// MLT: b of the pre-pass and each mutation type's counts.
-    pub mlt: Option<(f64, Vec<(mlt::mutation::MutationKind, mlt::MutationStats)>)>,
+    /// The value `--json` shows (SMC's structure, MLT's b and mutation counts).
+    pub json: Option<serde_json::Value>,
+    /// Summary lines printed after the integrator's line, before the meters'.
+    pub lines: Vec<String>,
+    /// Summary lines printed after the meters'.
+    pub closing: Vec<String>,
 }
 
 /// An integrator as the render loop sees it: one sample of the camera's film or of a meter,

@@ -765,6 +765,10 @@ impl super::Facts for MltFacts {
     fn shard_split(&self) -> super::ShardSplit {
         super::ShardSplit::IndependentChains
     }
+
+    fn statistics_key(&self) -> Option<&'static str> {
+        Some("mlt")
+    }
 }
 
 /// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
@@ -836,10 +840,30 @@ impl super::Integrator for Mlt<'_> {
         }
     }
 
+    /// b of the pre-pass and each mutation type's counts.
     fn statistics(&self) -> super::Statistics {
+        let report = self.report();
+        let mut muts = serde_json::Map::new();
+        let mut lines = vec![format!("  mlt: b = {:.5}", self.b)];
+        for (k, st) in &report {
+            muts.insert(
+                k.name().to_string(),
+                serde_json::json!({"attempted": st.attempted, "proposed": st.proposed,
+                    "accepted": st.accepted, "acceptance_rate": st.acceptance_rate()}),
+            );
+            lines.push(format!(
+                "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
+                k.name(),
+                st.attempted,
+                st.proposed,
+                st.accepted,
+                st.acceptance_rate()
+            ));
+        }
         super::Statistics {
-            mlt: Some((self.b, self.report())),
-            ..Default::default()
+            json: Some(serde_json::json!({"b": self.b, "mutations": muts})),
+            lines,
+            closing: Vec::new(),
         }
     }
 

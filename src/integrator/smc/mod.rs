@@ -636,6 +636,10 @@ impl super::Facts for SmcFacts {
     fn shard_split(&self) -> super::ShardSplit {
         super::ShardSplit::Refused("smc")
     }
+
+    fn statistics_key(&self) -> Option<&'static str> {
+        Some("smc")
+    }
 }
 
 /// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
@@ -701,10 +705,23 @@ impl super::Integrator for Smc {
         }
     }
 
+    /// The structure's statistics (Pegoraro et al. Table 1).
     fn statistics(&self) -> super::Statistics {
+        let s = self.stats();
         super::Statistics {
-            smc: Some(self.stats()),
-            ..Default::default()
+            json: Some(serde_json::json!({
+                "refinement_threshold": s.threshold,
+                "max_depth": s.max_depth,
+                "nodes": s.nodes,
+                "leaves": s.leaves,
+                "cells": s.cells,
+                "bytes": s.bytes,
+                "budget": s.budget,
+                "budget_reached": s.budget_reached,
+                "records": s.records,
+            })),
+            lines: Vec::new(),
+            closing: vec![format!("  {s}")],
         }
     }
 
