@@ -465,29 +465,49 @@ const INTEGRATOR_MODULES: [&str; 4] = ["bdpt", "mlt", "path", "smc"];
 /// The lines of `src/integrator/mod.rs` outside its `integrators!` registration and its `mod`
 /// declarations that still name an integrator module, each with the reason it is there: the
 /// test fails on any other, and on a listed one that is gone (the list only shrinks).
-const KNOWN_NAMED: [(&str, &str); 22] = [
-    ("pub use path::PathTracer;", "the path tracer is the crate's first example (README)"),
-    ("Smc(Box<smc::octree::Octree>),", "a checkpoint's state is an enum of the integrators'"),
-    ("pub bdpt: bdpt::Scratch,", "scratch: the interface holds each integrator's"),
-    ("pub smc: smc::Scratch,", "scratch: the interface holds each integrator's"),
-    ("pub splats: Vec<bdpt::Splat>,", "splats: the film's deposit, typed in bdpt"),
-    ("pub records: Vec<smc::Record>,", "scratch: the interface holds SMC's records"),
-    ("fn end_pass(&mut self, _records: &[Vec<smc::Record>]) {}", "a pass's state is SMC's records"),
-    ("fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {", "downcast for strategy images and tests"),
-    ("fn mlt(&self) -> Option<&mlt::Mlt<'_>> {", "downcast for tests"),
+const KNOWN_NAMED: [(&str, &str); 12] = [
+    (
+        "pub use path::PathTracer;",
+        "the path tracer is the crate's first example (README)",
+    ),
+    (
+        "Smc(Box<smc::octree::Octree>),",
+        "a checkpoint's state is an enum of the integrators'",
+    ),
+    (
+        "fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {",
+        "downcast for strategy images and tests",
+    ),
+    (
+        "fn mlt(&self) -> Option<&mlt::Mlt<'_>> {",
+        "downcast for tests",
+    ),
     ("fn smc(&self) -> Option<&smc::Smc> {", "downcast for tests"),
-    ("Vec<bdpt::Splat>,", "a tile's splats (TileResult)"),
-    ("Vec<smc::Record>,", "a tile's records (TileResult)"),
     ("settings: smc::SmcSettings,", "Renderer::with_smc_settings"),
-    ("self.integrator = Box::new(smc::Smc::new(self.scene, settings, max_depth)?);", "Renderer::with_smc_settings"),
-    ("pub fn smc(&self) -> Option<&smc::Smc> {", "Renderer's downcast for tests"),
-    ("pub fn mlt(&self) -> Option<&mlt::Mlt<'_>> {", "Renderer's downcast for tests"),
-    ("pub fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {", "Renderer's downcast for strategy images"),
-    (") -> Vec<Vec<smc::Record>> {", "a pass's tiles' records"),
-    ("fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Vec<smc::Record>> {", "a pass's chunks' records"),
-    ("let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)", "a chunk's records"),
-    ("for (raster, l) in path::delta_light_view(scene, &mut sampler) {", "the direct view of delta lights"),
-    ("bdpt::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)", "strategy images"),
+    (
+        "self.integrator = Box::new(smc::Smc::new(self.scene, settings, max_depth)?);",
+        "Renderer::with_smc_settings",
+    ),
+    (
+        "pub fn smc(&self) -> Option<&smc::Smc> {",
+        "Renderer's downcast for tests",
+    ),
+    (
+        "pub fn mlt(&self) -> Option<&mlt::Mlt<'_>> {",
+        "Renderer's downcast for tests",
+    ),
+    (
+        "pub fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {",
+        "Renderer's downcast for strategy images",
+    ),
+    (
+        "for (raster, l) in path::delta_light_view(scene, &mut sampler) {",
+        "the direct view of delta lights",
+    ),
+    (
+        "bdpt::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)",
+        "strategy images",
+    ),
 ];
 
 /// The lines of `text` (an interface module) outside the `integrators!` invocation and the

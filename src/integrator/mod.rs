@@ -238,15 +238,41 @@ pub enum ShardSplit {
 }
 
 /// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no
-/// sample allocates: the walks of the bidirectional methods, SMC's path links, and what the
-/// samples deposit besides their value (splats on the film, SMC records for the next pass).
+/// sample allocates: the integrator's own (the walks of the bidirectional methods, SMC's path
+/// links and records) and the splats the samples deposit on the film.
 #[derive(Default)]
 pub struct Scratch {
-    pub bdpt: bdpt::Scratch,
-    pub smc: smc::Scratch,
-    pub splats: Vec<bdpt::Splat>,
-    pub records: Vec<smc::Record>,
+    pub own: Own,
+    pub splats: Vec<Splat>,
 }
+
+/// A splat on the film: film point and value.
+pub type Splat = (glam::Vec2, Rgb);
+
+/// An integrator's own per-thread storage, of a type only it knows, made on first use.
+pub struct Own(Box<dyn std::any::Any + Send>);
+
+impl Default for Own {
+    fn default() -> Self {
+        Own(Box::new(()))
+    }
+}
+
+impl Own {
+    /// The storage as a `T` (a fresh one the first time a tile or chunk asks).
+    pub fn get<T: Default + Send + 'static>(&mut self) -> &mut T {
+        if !self.0.is::<T>() {
+            self.0 = Box::new(T::default());
+        }
+        self.0
+            .downcast_mut()
+            .expect("the storage was just made a T")
+    }
+}
+
+/// What a tile or meter chunk leaves for the end of the pass (SMC's records), of a type only
+/// the integrator knows.
+pub type Deposit = Box<dyn std::any::Any + Send>;
 
 /// What an integrator reports after its passes, serialized by the integrator itself: `--json`
 /// shows `json` under its [`Facts::statistics_key`], the summary prints the lines.
@@ -270,7 +296,7 @@ pub trait Integrator: Send + Sync {
     fn label(&self) -> String;
 
     /// One camera sample through film point `raster`: the pixel's value (splats go to
-    /// `scratch.splats`, SMC records to `scratch.records`).
+    /// `scratch.splats`, what the pass keeps to the integrator's `scratch.own`).
     fn camera_sample(
         &self,
         scene: &Scene,
@@ -301,8 +327,14 @@ pub trait Integrator: Send + Sync {
         None
     }
 
-    /// After a pass: the records of its tiles, then of its meter chunks, in order.
-    fn end_pass(&mut self, _records: &[Vec<smc::Record>]) {}
+    /// What a finished tile or meter chunk leaves for the end of the pass, taken from its
+    /// storage (SMC's records); `None` when the integrator keeps nothing.
+    fn deposit(&self, _own: &mut Own) -> Option<Deposit> {
+        None
+    }
+
+    /// After a pass: the deposits of its tiles, then of its meter chunks, in order.
+    fn end_pass(&mut self, _deposits: &[Deposit]) {}
 
     /// Whether the film's per-pixel variance estimates the image's (not for splats-only MLT).
     fn pixel_variance(&self) -> bool {
@@ -429,12 +461,12 @@ pub struct Renderer<'a> {
 }
 
 /// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
-/// its SMC records.
+/// its deposit.
 type TileResult = (
     Vec<(usize, [f64; 3], [f64; 3])>,
-    Vec<bdpt::Splat>,
+    Vec<Splat>,
     u64,
-    Vec<smc::Record>,
+    Option<Deposit>,
 );
 
 impl<'a> Renderer<'a> {
@@ -555,19 +587,14 @@ impl<'a> Renderer<'a> {
         for mi in 0..self.scene.sensors.len() {
             records.extend(self.meter_chunks(mi, spp, pass));
         }
-        // SMC: the pass's records, in tile then meter-chunk order, refine the structure for
-        // the next pass [PWP08 Fig. 2 lines 13-14]
+        // the pass's deposits, in tile then meter-chunk order (SMC's records refine the
+        // structure for the next pass [PWP08 Fig. 2 lines 13-14])
         self.integrator.end_pass(&records);
     }
 
     /// The camera's part of a pass: tiles in parallel, every pixel's stream
-    /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' records.
-    fn film_tiles(
-        &mut self,
-        spp: u32,
-        pass: u64,
-        on_tile: &(dyn Fn() + Sync),
-    ) -> Vec<Vec<smc::Record>> {
+    /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' deposits.
+    fn film_tiles(&mut self, spp: u32, pass: u64, on_tile: &(dyn Fn() + Sync)) -> Vec<Deposit> {
         let scene = self.scene;
         let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) else {
             return Vec::new();
@@ -619,12 +646,13 @@ impl<'a> Renderer<'a> {
                     }
                 }
                 on_tile();
-                (out, scratch.splats, nans, scratch.records)
+                let deposit = integrator.deposit(&mut scratch.own);
+                (out, scratch.splats, nans, deposit)
             })
             .collect();
         let mut records = Vec::with_capacity(results.len());
-        for (pixels, splats, nans, tile_records) in results {
-            records.push(tile_records);
+        for (pixels, splats, nans, tile_deposit) in results {
+            records.extend(tile_deposit);
             self.nan_count += nans;
             for (i, s, q) in pixels {
                 film.add_pixel(i, s, q);
@@ -649,14 +677,14 @@ impl<'a> Renderer<'a> {
     }
 
     /// Meter `mi`'s part of a pass: chunks of [`METER_CHUNK`] samples in parallel, each with
-    /// its own stream, added in chunk order; the chunks' records.
-    fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Vec<smc::Record>> {
+    /// its own stream, added in chunk order; the chunks' deposits.
+    fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Deposit> {
         let scene = self.scene;
         let integrator = self.integrator.as_ref();
         let seed = self.seed;
         let per_meter = spp as u64 * self.meter_samples;
         let chunks = per_meter.div_ceil(METER_CHUNK);
-        let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)
+        let results: Vec<(MeterAccum, u64, Option<Deposit>)> = (0..chunks)
             .into_par_iter()
             .map(|c| {
                 let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
@@ -678,12 +706,12 @@ impl<'a> Renderer<'a> {
                         acc.sum_sq[ch] += v * v;
                     }
                 }
-                (acc, nans, scratch.records)
+                (acc, nans, integrator.deposit(&mut scratch.own))
             })
             .collect();
         let mut records = Vec::with_capacity(results.len());
-        for (acc, nans, chunk_records) in results {
-            records.push(chunk_records);
+        for (acc, nans, chunk_deposit) in results {
+            records.extend(chunk_deposit);
             let m = &mut self.meters[mi];
             for ch in 0..3 {
                 m.sum[ch] += acc.sum[ch];

@@ -75,13 +75,9 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
-        self.sample(
-            scene,
-            SensorStart::Camera(raster),
-            sampler,
-            &mut scratch.bdpt,
-        );
-        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+        let walks = scratch.own.get::<Scratch>();
+        self.sample(scene, SensorStart::Camera(raster), sampler, walks);
+        self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
     fn meter_sample(
@@ -91,8 +87,9 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
-        self.sample(scene, SensorStart::Meter(meter), sampler, &mut scratch.bdpt);
-        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+        let walks = scratch.own.get::<Scratch>();
+        self.sample(scene, SensorStart::Meter(meter), sampler, walks);
+        self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
     fn bdpt(&self) -> Option<&Bdpt<'_>> {

@@ -642,6 +642,14 @@ impl super::Facts for SmcFacts {
     }
 }
 
+/// SMC's storage in a tile or meter chunk: the walk's path links and the records its samples
+/// leave for the end of the pass.
+#[derive(Default)]
+struct PassScratch {
+    links: Scratch,
+    records: Vec<Record>,
+}
+
 /// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
     Ok(Box::new(Smc::new(
@@ -668,13 +676,14 @@ impl super::Integrator for Smc {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
+        let own = scratch.own.get::<PassScratch>();
         self.radiance(
             scene,
             cam.generate_ray(raster),
             scene.camera_medium,
             sampler,
-            &mut scratch.smc,
-            &mut scratch.records,
+            &mut own.links,
+            &mut own.records,
         )
     }
 
@@ -685,12 +694,13 @@ impl super::Integrator for Smc {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
+        let own = scratch.own.get::<PassScratch>();
         self.meter_irradiance(
             scene,
             &scene.sensors[meter as usize],
             sampler,
-            &mut scratch.smc,
-            &mut scratch.records,
+            &mut own.links,
+            &mut own.records,
         )
     }
 
@@ -698,10 +708,19 @@ impl super::Integrator for Smc {
         true
     }
 
+    /// A tile's or chunk's records, kept for the end of the pass.
+    fn deposit(&self, own: &mut super::Own) -> Option<super::Deposit> {
+        Some(Box::new(std::mem::take(
+            &mut own.get::<PassScratch>().records,
+        )))
+    }
+
     /// [PWP08 Fig. 2 lines 13-14]: the pass's records refine the structure for the next pass.
-    fn end_pass(&mut self, records: &[Vec<Record>]) {
-        for r in records {
-            self.merge(r);
+    fn end_pass(&mut self, deposits: &[super::Deposit]) {
+        for d in deposits {
+            if let Some(r) = d.downcast_ref::<Vec<Record>>() {
+                self.merge(r);
+            }
         }
     }
 
