@@ -458,3 +458,114 @@ fn the_scanner_sees_a_circle() {
         BTreeSet::from(["scene::{file, mitsuba}".to_string()])
     );
 }
+
+/// The integrator modules, which the interface module must not name.
+const INTEGRATOR_MODULES: [&str; 4] = ["bdpt", "mlt", "path", "smc"];
+
+/// The lines of `src/integrator/mod.rs` outside its `integrators!` registration and its `mod`
+/// declarations that still name an integrator module, each with the reason it is there: the
+/// test fails on any other, and on a listed one that is gone (the list only shrinks).
+const KNOWN_NAMED: [(&str, &str); 12] = [
+    (
+        "pub use path::PathTracer;",
+        "the path tracer is the crate's first example (README)",
+    ),
+    (
+        "Smc(Box<smc::octree::Octree>),",
+        "a checkpoint's state is an enum of the integrators'",
+    ),
+    (
+        "fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {",
+        "downcast for strategy images and tests",
+    ),
+    (
+        "fn mlt(&self) -> Option<&mlt::Mlt<'_>> {",
+        "downcast for tests",
+    ),
+    ("fn smc(&self) -> Option<&smc::Smc> {", "downcast for tests"),
+    ("settings: smc::SmcSettings,", "Renderer::with_smc_settings"),
+    (
+        "self.integrator = Box::new(smc::Smc::new(self.scene, settings, max_depth)?);",
+        "Renderer::with_smc_settings",
+    ),
+    (
+        "pub fn smc(&self) -> Option<&smc::Smc> {",
+        "Renderer's downcast for tests",
+    ),
+    (
+        "pub fn mlt(&self) -> Option<&mlt::Mlt<'_>> {",
+        "Renderer's downcast for tests",
+    ),
+    (
+        "pub fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {",
+        "Renderer's downcast for strategy images",
+    ),
+    (
+        "for (raster, l) in path::delta_light_view(scene, &mut sampler) {",
+        "the direct view of delta lights",
+    ),
+    (
+        "bdpt::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)",
+        "strategy images",
+    ),
+];
+
+/// The lines of `text` (an interface module) outside the `integrators!` invocation and the
+/// `mod` declarations that name one of `modules` as a path (`smc::`, not `crate::path::`).
+fn naming_lines(text: &str, modules: &[&str]) -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    let mut in_registration = false;
+    for line in text.lines() {
+        let code = line.split("//").next().unwrap().trim();
+        if code.starts_with("integrators! {") {
+            in_registration = true;
+        }
+        if in_registration {
+            in_registration = code != "}";
+            continue;
+        }
+        if code.starts_with("pub mod ") || code.starts_with("mod ") {
+            continue;
+        }
+        let names = modules.iter().any(|m| {
+            code.match_indices(&format!("{m}::")).any(|(i, _)| {
+                let before = code[..i].chars().next_back();
+                !before.is_some_and(|c| c == ':' || c == '_' || c.is_ascii_alphanumeric())
+            })
+        });
+        if names {
+            out.insert(code.to_string());
+        }
+    }
+    out
+}
+
+#[test]
+fn the_integrator_interface_names_no_integrator_except_the_known_lines() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/integrator/mod.rs");
+    let found = naming_lines(&std::fs::read_to_string(path).unwrap(), &INTEGRATOR_MODULES);
+    let known: BTreeSet<String> = KNOWN_NAMED.iter().map(|(l, _)| l.to_string()).collect();
+    let new: Vec<_> = found.difference(&known).collect();
+    assert!(
+        new.is_empty(),
+        "the integrator interface names an integrator (declare it through `Facts` or the \
+         `Integrator` trait in the integrator's module instead): {new:?}"
+    );
+    let gone: Vec<_> = known.difference(&found).collect();
+    assert!(
+        gone.is_empty(),
+        "untied (well done): remove these from KNOWN_NAMED: {gone:?}"
+    );
+}
+
+#[test]
+fn the_interface_scanner_sees_a_named_integrator() {
+    // the test above can fail: a name outside the registration counts, inside it and the
+    // path layer's `crate::path::` do not
+    let text = "integrators! {\n    Smc = \"smc\" => &smc::SmcFacts,\n}\n\
+                use crate::path::PLAIN;\npub mod smc;\nfn f(r: &[smc::Record]) {}\n";
+    assert_eq!(
+        naming_lines(text, &INTEGRATOR_MODULES),
+        BTreeSet::from(["fn f(r: &[smc::Record]) {}".to_string()])
+    );
+}

@@ -12,7 +12,6 @@ use std::path::PathBuf;
 use super::display::{Live, Preview, Tev, TevAddress};
 use super::CliError;
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::mlt::{mutation::MutationKind, MutationStats};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
 use crate::integrator::smc::SmcOptions;
 use crate::integrator::{IntegratorKind, RenderSettings, Setup};
@@ -475,18 +474,6 @@ fn write_image(
     Ok(vec![exr.display().to_string(), png.display().to_string()])
 }
 
-fn mlt_json(m: &(f64, Vec<(MutationKind, MutationStats)>)) -> serde_json::Value {
-    let mut muts = serde_json::Map::new();
-    for (k, st) in &m.1 {
-        muts.insert(
-            k.name().to_string(),
-            serde_json::json!({"attempted": st.attempted, "proposed": st.proposed,
-                "accepted": st.accepted, "acceptance_rate": st.acceptance_rate()}),
-        );
-    }
-    serde_json::json!({"b": m.0, "mutations": muts})
-}
-
 fn rgb_json(c: glam::Vec3) -> serde_json::Value {
     serde_json::json!([c.x, c.y, c.z])
 }
@@ -503,8 +490,7 @@ fn result_json(
         .iter()
         .map(|m| serde_json::json!({"name": m.name, "value": rgb_json(m.value), "stderr": rgb_json(m.stderr), "samples": m.samples}))
         .collect();
-    let stats = &result.statistics;
-    serde_json::json!({
+    let mut out = serde_json::json!({
         "integrator": result.integrator,
         "spp": result.spp,
         "seconds": result.seconds,
@@ -515,18 +501,6 @@ fn result_json(
         "estimated_relmse": estimated_relmse(result),
         "sensors": sensors,
         "outputs": written,
-        "smc": stats.smc.as_ref().map(|s| serde_json::json!({
-            "refinement_threshold": s.threshold,
-            "max_depth": s.max_depth,
-            "nodes": s.nodes,
-            "leaves": s.leaves,
-            "cells": s.cells,
-            "bytes": s.bytes,
-            "budget": s.budget,
-            "budget_reached": s.budget_reached,
-            "records": s.records,
-        })),
-        "mlt": stats.mlt.as_ref().map(mlt_json),
         "guide": pre.guide.as_ref().map(|g| serde_json::json!({
             "vertices": render.settings.guide.kind.name(),
             "map": [g.map.0, g.map.1],
@@ -545,7 +519,16 @@ fn result_json(
             "seconds": a.seconds,
             "zero_cells": a.zero_cells,
         })),
-    })
+    });
+    // every integrator's statistics key, null but for this one's
+    let own = render.kind.facts().statistics_key();
+    for kind in IntegratorKind::ALL {
+        if let Some(key) = kind.facts().statistics_key() {
+            let value = result.statistics.json.clone().filter(|_| own == Some(key));
+            out[key] = value.unwrap_or(serde_json::Value::Null);
+        }
+    }
+    out
 }
 
 /// The summary lines printed without `--json`.
@@ -568,18 +551,8 @@ fn print_summary(result: &RenderResult, written: &[String]) {
             format!(" -> {}", written.join(", "))
         }
     );
-    if let Some((b, stats)) = &result.statistics.mlt {
-        println!("  mlt: b = {b:.5}");
-        for (k, st) in stats {
-            println!(
-                "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
-                k.name(),
-                st.attempted,
-                st.proposed,
-                st.accepted,
-                st.acceptance_rate()
-            );
-        }
+    for line in &result.statistics.lines {
+        println!("{line}");
     }
     for m in &result.meters {
         println!(
@@ -587,8 +560,8 @@ fn print_summary(result: &RenderResult, written: &[String]) {
             m.name, m.value.x, m.value.y, m.value.z, m.stderr.x, m.stderr.y, m.stderr.z, m.samples
         );
     }
-    if let Some(s) = &result.statistics.smc {
-        println!("  {s}");
+    for line in &result.statistics.closing {
+        println!("{line}");
     }
 }
 

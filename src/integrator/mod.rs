@@ -23,12 +23,12 @@ use crate::path::{LocalSampling, PLAIN};
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
-/// Declares the integrators: one line each (its doc, variant, name, and how its module
-/// prepares it from a [`Setup`]), from which the enum, [`IntegratorKind::ALL`],
-/// [`IntegratorKind::name`] and [`IntegratorKind::prepare`] are generated, so that adding an
-/// integrator is its module plus one registration line in the invocation below.
+/// Declares the integrators: one line each (its doc, variant, name, and the [`Facts`] its
+/// module declares), from which the enum, [`IntegratorKind::ALL`], [`IntegratorKind::name`]
+/// and [`IntegratorKind::facts`] are generated, so that adding an integrator is its module plus
+/// one registration line in the invocation below.
 macro_rules! integrators {
-    ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $prepare:expr,)*) => {
+    ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $facts:expr,)*) => {
         /// The integrators a user can name.
         #[derive(Clone, Copy, Debug, PartialEq, Eq)]
         pub enum IntegratorKind {
@@ -46,14 +46,11 @@ macro_rules! integrators {
                 }
             }
 
-            /// Builds the integrator from the setup, or says why it refuses the scene or its
-            /// settings.
-            pub fn prepare<'t>(
-                self,
-                setup: &Setup<'_, 't>,
-            ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+            /// What the integrator's module declares it is (how it is prepared, its memory,
+            /// its shard split, what it checks before a render).
+            pub fn facts(self) -> &'static dyn Facts {
                 match self {
-                    $(IntegratorKind::$variant => ($prepare)(setup),)*
+                    $(IntegratorKind::$variant => $facts,)*
                 }
             }
         }
@@ -63,15 +60,15 @@ macro_rules! integrators {
 // The registration point: one line per integrator.
 integrators! {
     /// Volumetric path tracing with next-event estimation and MIS.
-    Path = "path" => path::prepare,
+    Path = "path" => &path::PathFacts,
     /// Light tracing: light subpaths connected to the sensor (t = 1), splatted.
-    Light = "light" => |s| bdpt::prepare(s, bdpt::Strategies::LightTracing),
+    Light = "light" => &bdpt::BdptFacts(bdpt::Strategies::LightTracing),
     /// Bidirectional path tracing with MIS over all (s, t).
-    Bdpt = "bdpt" => |s| bdpt::prepare(s, bdpt::Strategies::All),
+    Bdpt = "bdpt" => &bdpt::BdptFacts(bdpt::Strategies::All),
     /// Sequential Monte Carlo adaptation with a B-spline radiance cache (Pegoraro et al. 2008).
-    Smc = "smc" => smc::prepare,
+    Smc = "smc" => &smc::SmcFacts,
     /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
-    Mlt = "mlt" => mlt::prepare,
+    Mlt = "mlt" => &mlt::MltFacts,
 }
 
 impl IntegratorKind {
@@ -86,9 +83,18 @@ impl IntegratorKind {
             })
     }
 
-    /// Whether the integrator samples light start points (and so can use the adjoint image).
+    /// Builds the integrator from the setup, or says why it refuses the scene or its settings.
+    pub fn prepare<'t>(
+        self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+        self.facts().prepare(setup)
+    }
+
+    /// Whether the integrator samples light start points (and so can use the guide and the
+    /// adjoint image).
     pub fn samples_light_starts(self) -> bool {
-        matches!(self, Self::Bdpt | Self::Light | Self::Mlt)
+        self.facts().samples_light_starts()
     }
 }
 
@@ -151,24 +157,133 @@ pub struct Setup<'s, 't> {
     pub max_depth: Option<u32>,
 }
 
-/// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no
-/// sample allocates: the walks of the bidirectional methods, SMC's path links, and what the
-/// samples deposit besides their value (splats on the film, SMC records for the next pass).
-#[derive(Default)]
-pub struct Scratch {
-    pub bdpt: bdpt::Scratch,
-    pub smc: smc::Scratch,
-    pub splats: Vec<bdpt::Splat>,
-    pub records: Vec<smc::Record>,
+/// What an integrator is before it is prepared, declared by its module and registered with
+/// its name (`integrators!`): how it is built, what the render layer must know of it to check
+/// a render, estimate its memory and split it into shards. The render layer asks these, never
+/// the integrator's kind.
+pub trait Facts: Sync {
+    /// Builds the integrator from the setup, or says why it refuses the scene or its settings.
+    fn prepare<'t>(
+        &self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError>;
+
+    /// Whether it samples light start points (and so can use the guide and the adjoint image).
+    fn samples_light_starts(&self) -> bool {
+        false
+    }
+
+    /// Refuses, before any work or memory, a scene or settings it cannot render (MLT's
+    /// scene, SMC's march length).
+    fn check(&self, _case: &Case) -> Result<(), IntegratorError> {
+        Ok(())
+    }
+
+    /// Warnings of its own about the scene with these settings, given once before the work.
+    fn warnings(&self, _case: &Case) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// What one sample leaves in a pass until the pass is merged (for the memory estimate).
+    fn pass_footprint(&self, case: &Case) -> PassFootprint;
+
+    /// Its structures besides the film and a pass's results: (name, bytes) for the memory
+    /// estimate (SMC's cache, MLT's chains).
+    fn memory_parts(&self, _case: &Case) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
+
+    /// How a render by it is split into shards.
+    fn shard_split(&self) -> ShardSplit {
+        ShardSplit::Passes
+    }
+
+    /// The `--json` key of its [`Statistics`] (null in the other integrators' output), if it
+    /// reports any.
+    fn statistics_key(&self) -> Option<&'static str> {
+        None
+    }
 }
 
-/// What an integrator reports after its passes, for `--json`, the EXR and the summary line.
+/// What [`Facts`] are asked about before a render: the scene and the render's settings (the
+/// integrator reads its own table of them, as from a [`Setup`]).
+#[derive(Clone, Copy)]
+pub struct Case<'s> {
+    pub scene: &'s Scene,
+    pub settings: &'s RenderSettings,
+}
+
+/// What a pass of an integrator holds per sample until it is merged.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PassFootprint {
+    /// Whether the pass keeps per-pixel tile results (false for film-wide passes).
+    pub tiles: bool,
+    /// Bytes a sample deposits besides its value (splats, SMC's records).
+    pub bytes_per_sample: u64,
+}
+
+/// One splat's bytes: film point and value.
+pub const SPLAT_BYTES: u64 = std::mem::size_of::<(glam::Vec2, glam::Vec3)>() as u64;
+
+/// How a render is split into shards (the render layer's `shard` holds the arithmetic).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShardSplit {
+    /// Each shard renders contiguous passes of the same seed.
+    Passes,
+    /// Each shard is an independent run with a seed of its own, a share of the chains and of
+    /// the mutations (MLT).
+    IndependentChains,
+    /// Refused: a pass learns from every earlier pass (SMC's cache); the integrator's name.
+    Refused(&'static str),
+}
+
+/// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no
+/// sample allocates: the integrator's own (the walks of the bidirectional methods, SMC's path
+/// links and records) and the splats the samples deposit on the film.
+#[derive(Default)]
+pub struct Scratch {
+    pub own: Own,
+    pub splats: Vec<Splat>,
+}
+
+/// A splat on the film: film point and value.
+pub type Splat = (glam::Vec2, Rgb);
+
+/// An integrator's own per-thread storage, of a type only it knows, made on first use.
+pub struct Own(Box<dyn std::any::Any + Send>);
+
+impl Default for Own {
+    fn default() -> Self {
+        Own(Box::new(()))
+    }
+}
+
+impl Own {
+    /// The storage as a `T` (a fresh one the first time a tile or chunk asks).
+    pub fn get<T: Default + Send + 'static>(&mut self) -> &mut T {
+        if !self.0.is::<T>() {
+            self.0 = Box::new(T::default());
+        }
+        self.0
+            .downcast_mut()
+            .expect("the storage was just made a T")
+    }
+}
+
+/// What a tile or meter chunk leaves for the end of the pass (SMC's records), of a type only
+/// the integrator knows.
+pub type Deposit = Box<dyn std::any::Any + Send>;
+
+/// What an integrator reports after its passes, serialized by the integrator itself: `--json`
+/// shows `json` under its [`Facts::statistics_key`], the summary prints the lines.
 #[derive(Clone, Debug, Default)]
 pub struct Statistics {
-    /// The SMC structure's statistics (Pegoraro et al. Table 1).
-    pub smc: Option<smc::OctreeStats>,
-    /// MLT: b of the pre-pass and each mutation type's counts.
-    pub mlt: Option<(f64, Vec<(mlt::mutation::MutationKind, mlt::MutationStats)>)>,
+    /// The value `--json` shows (SMC's structure, MLT's b and mutation counts).
+    pub json: Option<serde_json::Value>,
+    /// Summary lines printed after the integrator's line, before the meters'.
+    pub lines: Vec<String>,
+    /// Summary lines printed after the meters'.
+    pub closing: Vec<String>,
 }
 
 /// An integrator as the render loop sees it: one sample of the camera's film or of a meter,
@@ -181,7 +296,7 @@ pub trait Integrator: Send + Sync {
     fn label(&self) -> String;
 
     /// One camera sample through film point `raster`: the pixel's value (splats go to
-    /// `scratch.splats`, SMC records to `scratch.records`).
+    /// `scratch.splats`, what the pass keeps to the integrator's `scratch.own`).
     fn camera_sample(
         &self,
         scene: &Scene,
@@ -212,8 +327,14 @@ pub trait Integrator: Send + Sync {
         None
     }
 
-    /// After a pass: the records of its tiles, then of its meter chunks, in order.
-    fn end_pass(&mut self, _records: &[Vec<smc::Record>]) {}
+    /// What a finished tile or meter chunk leaves for the end of the pass, taken from its
+    /// storage (SMC's records); `None` when the integrator keeps nothing.
+    fn deposit(&self, _own: &mut Own) -> Option<Deposit> {
+        None
+    }
+
+    /// After a pass: the deposits of its tiles, then of its meter chunks, in order.
+    fn end_pass(&mut self, _deposits: &[Deposit]) {}
 
     /// Whether the film's per-pixel variance estimates the image's (not for splats-only MLT).
     fn pixel_variance(&self) -> bool {
@@ -340,12 +461,12 @@ pub struct Renderer<'a> {
 }
 
 /// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
-/// its SMC records.
+/// its deposit.
 type TileResult = (
     Vec<(usize, [f64; 3], [f64; 3])>,
-    Vec<bdpt::Splat>,
+    Vec<Splat>,
     u64,
-    Vec<smc::Record>,
+    Option<Deposit>,
 );
 
 impl<'a> Renderer<'a> {
@@ -466,19 +587,14 @@ impl<'a> Renderer<'a> {
         for mi in 0..self.scene.sensors.len() {
             records.extend(self.meter_chunks(mi, spp, pass));
         }
-        // SMC: the pass's records, in tile then meter-chunk order, refine the structure for
-        // the next pass [PWP08 Fig. 2 lines 13-14]
+        // the pass's deposits, in tile then meter-chunk order (SMC's records refine the
+        // structure for the next pass [PWP08 Fig. 2 lines 13-14])
         self.integrator.end_pass(&records);
     }
 
     /// The camera's part of a pass: tiles in parallel, every pixel's stream
-    /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' records.
-    fn film_tiles(
-        &mut self,
-        spp: u32,
-        pass: u64,
-        on_tile: &(dyn Fn() + Sync),
-    ) -> Vec<Vec<smc::Record>> {
+    /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' deposits.
+    fn film_tiles(&mut self, spp: u32, pass: u64, on_tile: &(dyn Fn() + Sync)) -> Vec<Deposit> {
         let scene = self.scene;
         let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) else {
             return Vec::new();
@@ -530,12 +646,13 @@ impl<'a> Renderer<'a> {
                     }
                 }
                 on_tile();
-                (out, scratch.splats, nans, scratch.records)
+                let deposit = integrator.deposit(&mut scratch.own);
+                (out, scratch.splats, nans, deposit)
             })
             .collect();
         let mut records = Vec::with_capacity(results.len());
-        for (pixels, splats, nans, tile_records) in results {
-            records.push(tile_records);
+        for (pixels, splats, nans, tile_deposit) in results {
+            records.extend(tile_deposit);
             self.nan_count += nans;
             for (i, s, q) in pixels {
                 film.add_pixel(i, s, q);
@@ -560,14 +677,14 @@ impl<'a> Renderer<'a> {
     }
 
     /// Meter `mi`'s part of a pass: chunks of [`METER_CHUNK`] samples in parallel, each with
-    /// its own stream, added in chunk order; the chunks' records.
-    fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Vec<smc::Record>> {
+    /// its own stream, added in chunk order; the chunks' deposits.
+    fn meter_chunks(&mut self, mi: usize, spp: u32, pass: u64) -> Vec<Deposit> {
         let scene = self.scene;
         let integrator = self.integrator.as_ref();
         let seed = self.seed;
         let per_meter = spp as u64 * self.meter_samples;
         let chunks = per_meter.div_ceil(METER_CHUNK);
-        let results: Vec<(MeterAccum, u64, Vec<smc::Record>)> = (0..chunks)
+        let results: Vec<(MeterAccum, u64, Option<Deposit>)> = (0..chunks)
             .into_par_iter()
             .map(|c| {
                 let n = METER_CHUNK.min(per_meter - c * METER_CHUNK);
@@ -589,12 +706,12 @@ impl<'a> Renderer<'a> {
                         acc.sum_sq[ch] += v * v;
                     }
                 }
-                (acc, nans, scratch.records)
+                (acc, nans, integrator.deposit(&mut scratch.own))
             })
             .collect();
         let mut records = Vec::with_capacity(results.len());
-        for (acc, nans, chunk_records) in results {
-            records.push(chunk_records);
+        for (acc, nans, chunk_deposit) in results {
+            records.extend(chunk_deposit);
             let m = &mut self.meters[mi];
             for ch in 0..3 {
                 m.sum[ch] += acc.sum[ch];

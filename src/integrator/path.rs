@@ -654,6 +654,25 @@ pub fn light_sample_estimate(
 }
 // ANCHOR_END: next_event
 
+/// The path tracer's facts: tile results only, no splats or records, split by passes.
+pub struct PathFacts;
+
+impl super::Facts for PathFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &super::Setup<'_, 't>,
+    ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+        prepare(setup)
+    }
+
+    fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
+        super::PassFootprint {
+            tiles: true,
+            bytes_per_sample: 0,
+        }
+    }
+}
+
 /// The path tracer for the render loop (it takes no settings but the depth limit).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
     let distance = setup.settings.distance;

@@ -5,9 +5,9 @@
 //! The film's part is exact (three `[f64; 3]` buffers per pixel, `Film::new`); the others are
 //! per-pixel, per-sample or per-particle sizes of the structures a render holds at its peak:
 //! a pass's tile results and splats (kept until the pass is merged, in tile order, for
-//! determinism), the output image and its variance with their encoders, SMC's octree (its
-//! budget bounds it), the guide's particles and maps, the adjoint image's cells, MLT's chains
-//! and bootstrap. `tests/bounds.rs` checks the estimate of a moderate render against the peak
+//! determinism), the output image and its variance with their encoders, the integrator's
+//! own structures (declared by its module: SMC's octree, MLT's chains), the guide's particles
+//! and maps, the adjoint image's cells. `tests/bounds.rs` checks the estimate of a moderate render against the peak
 //! resident memory the render reports (`--json`'s `memory`).
 //! Book: "Measuring a renderer", section "Memory".
 
@@ -16,30 +16,16 @@ use std::mem::size_of;
 use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
 use crate::integrator::settings::RenderSettings;
-use crate::integrator::smc::{march, EstimatorForm};
-use crate::integrator::IntegratorKind;
-
+use crate::integrator::{Case, IntegratorKind};
 use crate::medium::{Density, Medium};
-use crate::path::Vertex;
 use crate::scene::{Environment, Light, Scene};
 
 /// The film: sum, sum of squares and splats per pixel (exactly `Film::new`'s buffers).
 pub const FILM_BYTES_PER_PIXEL: u64 = 3 * size_of::<[f64; 3]>() as u64;
 /// A pass's tile results: (pixel index, sum, sum of squares) per pixel, held until merged.
 const PASS_BYTES_PER_PIXEL: u64 = size_of::<(usize, [f64; 3], [f64; 3])>() as u64;
-/// Splats a light or BDPT sample deposits on average (a light subpath's vertices seen by the
-/// camera; about 3 measured on the fog box).
-const SPLATS_PER_SAMPLE: u64 = 4;
-/// One splat: film point and value.
-const SPLAT_BYTES: u64 = size_of::<(glam::Vec2, glam::Vec3)>() as u64;
 /// The output: the image and its variance (f32 RGB each) and the EXR and PNG encoders' copies.
 const OUTPUT_BYTES_PER_PIXEL: u64 = 48;
-/// SMC records a sample leaves for the structure (one per scattering or marching decision), at
-/// least; a march leaves one per step, as many as a segment across the densest medium takes
-/// (about 875 per sample measured where that is 1158 steps).
-const SMC_RECORDS_PER_SAMPLE: u64 = 4;
-/// One SMC record: position, direction, radiance, phase value.
-const SMC_RECORD_BYTES: u64 = 40;
 /// A guide's particle with its path, region assignment and kd-tree entry (about 750 bytes
 /// measured on the fog box with 200,000 particles).
 const GUIDE_BYTES_PER_PARTICLE: u64 = 1024;
@@ -47,8 +33,6 @@ const GUIDE_BYTES_PER_PARTICLE: u64 = 1024;
 const PROCESS_BYTES: u64 = 16 << 20;
 /// A worker thread's stack and scratch.
 const THREAD_BYTES: u64 = 2 << 20;
-/// Vertices of an MLT chain's current and proposed paths at most (two subpaths' caps).
-const MLT_PATH_VERTICES: u64 = 2 * crate::bidir::MAX_SUBPATH_VERTICES as u64;
 
 /// The estimate, by part (name, bytes), in the order a reader meets them.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -105,47 +89,29 @@ pub fn estimate(
         ("pass", pixels * pass_bytes_per_pixel(scene, kind, settings)),
         ("image", pixels * OUTPUT_BYTES_PER_PIXEL),
     ];
-    parts.extend(integrator_parts(kind, settings));
+    parts.extend(integrator_parts(scene, kind, settings));
     MemoryEstimate { parts }
 }
 
-/// Bytes per pixel of one pass's results (tile results, splats, SMC's records; MLT's chains
-/// splat only).
+/// Bytes per pixel of one pass's results (tile results and what the integrator's samples
+/// deposit: splats, SMC's records).
 fn pass_bytes_per_pixel(scene: &Scene, kind: IntegratorKind, settings: &RenderSettings) -> u64 {
-    let splats = PASS_SPP as u64 * SPLATS_PER_SAMPLE * SPLAT_BYTES;
-    match kind {
-        IntegratorKind::Path => PASS_BYTES_PER_PIXEL,
-        IntegratorKind::Smc => {
-            let records = match settings.smc.form {
-                // a longer march is refused (`march::check_steps`)
-                EstimatorForm::RayMarching { step } => {
-                    march::scene_max_steps(scene, step).min(march::MAX_MARCH_STEPS as f64) as u64
-                }
-                EstimatorForm::Distance => 0,
-            };
-            let records = records.max(SMC_RECORDS_PER_SAMPLE);
-            PASS_BYTES_PER_PIXEL + PASS_SPP as u64 * records * SMC_RECORD_BYTES
-        }
-        IntegratorKind::Light | IntegratorKind::Bdpt => PASS_BYTES_PER_PIXEL + splats,
-        // a mutation splats its current and its proposed path
-        IntegratorKind::Mlt => PASS_SPP as u64 * 2 * SPLAT_BYTES,
-    }
+    let footprint = kind.facts().pass_footprint(&Case { scene, settings });
+    let tiles = if footprint.tiles {
+        PASS_BYTES_PER_PIXEL
+    } else {
+        0
+    };
+    tiles + PASS_SPP as u64 * footprint.bytes_per_sample
 }
 
 /// The preprocessing structures and integrator state of `kind` with `settings`.
-fn integrator_parts(kind: IntegratorKind, settings: &RenderSettings) -> Vec<(&'static str, u64)> {
-    let mut parts = Vec::new();
-    if kind == IntegratorKind::Smc {
-        // the octree grows until its budget, which bounds it
-        parts.push(("smc cache", settings.smc.budget as u64));
-    }
-    if kind == IntegratorKind::Mlt {
-        let chains = settings.mlt.chains as u64;
-        let paths = chains * 2 * MLT_PATH_VERTICES * size_of::<Vertex>() as u64;
-        let bootstrap =
-            settings.mlt.bootstrap * size_of::<crate::integrator::mlt::init::Candidate>() as u64;
-        parts.push(("mlt chains", paths + bootstrap));
-    }
+fn integrator_parts(
+    scene: &Scene,
+    kind: IntegratorKind,
+    settings: &RenderSettings,
+) -> Vec<(&'static str, u64)> {
+    let mut parts = kind.facts().memory_parts(&Case { scene, settings });
     let g = &settings.guide;
     if g.kind != GuideKind::Off && kind.samples_light_starts() {
         let maps = g.regions.regions as u64 * g.cols as u64 * g.rows as u64 * 2 * 4;

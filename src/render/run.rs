@@ -18,8 +18,7 @@ use super::shard::{self, Shard, ShardPlan};
 use super::RenderError;
 use crate::enlightened::{AdjointSettings, GuideKind};
 use crate::image_io::{self, ImageMeta};
-use crate::integrator::smc::EstimatorForm;
-use crate::integrator::{IntegratorError, IntegratorKind, RenderSettings, Setup};
+use crate::integrator::{Case, IntegratorError, IntegratorKind, RenderSettings, Setup};
 use crate::scene::{Scene, SceneSource};
 
 /// A shard of a render: the shard, its part, and the whole render's spp and seed.
@@ -54,12 +53,9 @@ impl ShardOf {
     }
 }
 
-/// Whether integrator `kind` samples with the guide (the ones built on BDPT's walks).
+/// Whether integrator `kind` samples with the guide (the ones that sample light start points).
 pub fn guides(kind: IntegratorKind) -> bool {
-    matches!(
-        kind,
-        IntegratorKind::Bdpt | IntegratorKind::Light | IntegratorKind::Mlt
-    )
+    kind.samples_light_starts()
 }
 
 /// A render checked before any work: the scene, the integrator and its settings (a shard's
@@ -94,16 +90,11 @@ impl<'a> Render<'a> {
             Some(s) => Some(ShardOf::narrow(s, kind, &mut settings)?),
             None => None,
         };
-        if kind == IntegratorKind::Mlt {
-            crate::integrator::mlt::check_scene(scene).map_err(IntegratorError::from)?;
-        }
-        // a march that would exceed its step limit is refused before the memory it would need
-        if let (IntegratorKind::Smc, EstimatorForm::RayMarching { step }) =
-            (kind, settings.smc.form)
-        {
-            crate::integrator::smc::march::check_steps(scene, step)
-                .map_err(IntegratorError::from)?;
-        }
+        // refused before the memory it would need (MLT's scene, SMC's march length)
+        kind.facts().check(&Case {
+            scene,
+            settings: &settings,
+        })?;
         warn_unreachable(scene, kind, &settings);
         if settings.guide.kind != GuideKind::Off && !guides(kind) {
             return Err(IntegratorError::Refused(format!(
@@ -251,15 +242,13 @@ impl<'a> Render<'a> {
 }
 
 /// Warns once, before the work, of the light paths integrator `kind` cannot sample on `scene`
-/// (and of SMC's anisotropy).
+/// (and the integrator's own warnings, e.g. SMC's anisotropy).
 fn warn_unreachable(scene: &Scene, kind: IntegratorKind, settings: &RenderSettings) {
     if let Some(w) = crate::integrator::reach::unreachable_paths(scene, kind) {
         eprintln!("warning: {w}");
     }
-    if kind == IntegratorKind::Smc {
-        if let Some(w) = crate::integrator::smc::anisotropy_warning(scene, settings.smc.variant) {
-            eprintln!("warning: {w}");
-        }
+    for w in kind.facts().warnings(&Case { scene, settings }) {
+        eprintln!("warning: {w}");
     }
 }
 

@@ -27,7 +27,7 @@ use std::fmt;
 use std::ops::Range;
 
 use super::plan::{self, PASS_SPP};
-use crate::integrator::IntegratorKind;
+use crate::integrator::{IntegratorKind, ShardSplit};
 
 /// Shard `index` (1-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -51,11 +51,11 @@ pub enum ShardError {
     )]
     Timed,
     #[error(
-        "--shard cannot split an smc render: its radiance cache at a pass is learnt from every \
+        "--shard cannot split an {0} render: its radiance cache at a pass is learnt from every \
          earlier pass, so a shard of later passes would need the earlier ones; render \
          independent runs with other --seed values and merge them"
     )]
-    Smc,
+    Learning(&'static str),
     #[error(
         "--shard {index}/{count}: {spp} spp are only {passes} passes of {PASS_SPP} spp, fewer \
          than the {count} shards (ask for at most {passes} shards or more spp)"
@@ -156,9 +156,9 @@ pub fn plan(
     chains: u32,
 ) -> Result<ShardPlan, ShardError> {
     let (index, count) = (shard.index, shard.count);
-    match kind {
-        IntegratorKind::Smc => Err(ShardError::Smc),
-        IntegratorKind::Mlt => {
+    match kind.facts().shard_split() {
+        ShardSplit::Refused(name) => Err(ShardError::Learning(name)),
+        ShardSplit::IndependentChains => {
             let uneven = |what, value: u64| ShardError::Uneven {
                 index,
                 count,
@@ -178,7 +178,7 @@ pub fn plan(
                 chains: Some(chains / count),
             })
         }
-        _ => {
+        ShardSplit::Passes => {
             let passes = plan::passes(spp as u64);
             if passes < count as u64 {
                 return Err(ShardError::TooFewPasses {

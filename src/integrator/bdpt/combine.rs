@@ -2,8 +2,6 @@
 //! engine ([`crate::bidir::connect`]), MIS-weighted as the strategies ask, into the sample's
 //! own pixel (or meter) and the film's splats.
 
-use glam::Vec2;
-
 use crate::bidir::{Bdpt, Scratch, Strategies};
 use crate::math::Sampler;
 use crate::path::subpath::{self, Cached};
@@ -12,7 +10,7 @@ use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
 /// One contribution for the film: to the sample's own pixel (`None`) or splatted.
-pub type Splat = (Vec2, Rgb);
+pub use crate::integrator::Splat;
 
 impl Bdpt<'_> {
     /// All strategies for one sensor sample whose eye subpath is `scratch.eye`: returns the

@@ -18,6 +18,34 @@ use crate::math::Sampler;
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
+/// Splats a light or BDPT sample deposits on average (a light subpath's vertices seen by the
+/// camera; about 3 measured on the fog box), for the memory estimate.
+const SPLATS_PER_SAMPLE: u64 = 4;
+
+/// The facts of `light` and `bdpt` (which differ in their strategies): tile results and
+/// splats, light start points, split by passes.
+pub struct BdptFacts(pub Strategies);
+
+impl super::Facts for BdptFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &Setup<'_, 't>,
+    ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+        prepare(setup, self.0)
+    }
+
+    fn samples_light_starts(&self) -> bool {
+        true
+    }
+
+    fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
+        super::PassFootprint {
+            tiles: true,
+            bytes_per_sample: SPLATS_PER_SAMPLE * super::SPLAT_BYTES,
+        }
+    }
+}
+
 /// The bidirectional engine with `strategies` (all for `bdpt`, t = 1 for `light`).
 pub fn prepare<'t>(
     setup: &Setup<'_, 't>,
@@ -47,13 +75,9 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
-        self.sample(
-            scene,
-            SensorStart::Camera(raster),
-            sampler,
-            &mut scratch.bdpt,
-        );
-        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+        let walks = scratch.own.get::<Scratch>();
+        self.sample(scene, SensorStart::Camera(raster), sampler, walks);
+        self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
     fn meter_sample(
@@ -63,8 +87,9 @@ impl Integrator for Bdpt<'_> {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
-        self.sample(scene, SensorStart::Meter(meter), sampler, &mut scratch.bdpt);
-        self.combine(scene, &mut scratch.bdpt, sampler, &mut scratch.splats)
+        let walks = scratch.own.get::<Scratch>();
+        self.sample(scene, SensorStart::Meter(meter), sampler, walks);
+        self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
     fn bdpt(&self) -> Option<&Bdpt<'_>> {

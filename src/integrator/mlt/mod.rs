@@ -724,6 +724,53 @@ impl<'t> Mlt<'t> {
     }
 }
 
+/// Vertices of a chain's current and proposed paths at most (two subpaths' caps).
+const PATH_VERTICES: u64 = 2 * crate::bidir::MAX_SUBPATH_VERTICES as u64;
+
+/// MLT's facts: film-wide passes that splat, its chains and bootstrap, light start points,
+/// its scene checked before the work, shards as independent runs.
+pub struct MltFacts;
+
+impl super::Facts for MltFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &super::Setup<'_, 't>,
+    ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+        prepare(setup)
+    }
+
+    fn samples_light_starts(&self) -> bool {
+        true
+    }
+
+    fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
+        check_scene(case.scene).map_err(super::IntegratorError::from)
+    }
+
+    /// A mutation splats its current and its proposed path; no tile results.
+    fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
+        super::PassFootprint {
+            tiles: false,
+            bytes_per_sample: 2 * super::SPLAT_BYTES,
+        }
+    }
+
+    fn memory_parts(&self, case: &super::Case) -> Vec<(&'static str, u64)> {
+        let chains = case.settings.mlt.chains as u64;
+        let paths = chains * 2 * PATH_VERTICES * std::mem::size_of::<Vertex>() as u64;
+        let bootstrap = case.settings.mlt.bootstrap * std::mem::size_of::<init::Candidate>() as u64;
+        vec![("mlt chains", paths + bootstrap)]
+    }
+
+    fn shard_split(&self) -> super::ShardSplit {
+        super::ShardSplit::IndependentChains
+    }
+
+    fn statistics_key(&self) -> Option<&'static str> {
+        Some("mlt")
+    }
+}
+
 /// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
 pub fn prepare<'t>(
     setup: &super::Setup<'_, 't>,
@@ -793,10 +840,30 @@ impl super::Integrator for Mlt<'_> {
         }
     }
 
+    /// b of the pre-pass and each mutation type's counts.
     fn statistics(&self) -> super::Statistics {
+        let report = self.report();
+        let mut muts = serde_json::Map::new();
+        let mut lines = vec![format!("  mlt: b = {:.5}", self.b)];
+        for (k, st) in &report {
+            muts.insert(
+                k.name().to_string(),
+                serde_json::json!({"attempted": st.attempted, "proposed": st.proposed,
+                    "accepted": st.accepted, "acceptance_rate": st.acceptance_rate()}),
+            );
+            lines.push(format!(
+                "  mutation {:<13} attempted {:>10} proposed {:>10} accepted {:>10} acceptance {:.4}",
+                k.name(),
+                st.attempted,
+                st.proposed,
+                st.accepted,
+                st.acceptance_rate()
+            ));
+        }
         super::Statistics {
-            mlt: Some((self.b, self.report())),
-            ..Default::default()
+            json: Some(serde_json::json!({"b": self.b, "mutations": muts})),
+            lines,
+            closing: Vec::new(),
         }
     }
 

@@ -581,6 +581,75 @@ impl Smc {
     }
 }
 
+/// SMC records a sample leaves for the structure (one per scattering or marching decision), at
+/// least; a march leaves one per step, as many as a segment across the densest medium takes
+/// (about 875 per sample measured where that is 1158 steps).
+const RECORDS_PER_SAMPLE: u64 = 4;
+/// One SMC record: position, direction, radiance, phase value.
+const RECORD_BYTES: u64 = 40;
+
+/// SMC's facts: tile results and records, its cache (bounded by its budget), the march's
+/// step limit checked before the work, and no shards (a pass learns from every earlier one).
+pub struct SmcFacts;
+
+impl super::Facts for SmcFacts {
+    fn prepare<'t>(
+        &self,
+        setup: &super::Setup<'_, 't>,
+    ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
+        prepare(setup)
+    }
+
+    /// A march that would exceed its step limit is refused before the memory it would need.
+    fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
+        if let EstimatorForm::RayMarching { step } = case.settings.smc.form {
+            march::check_steps(case.scene, step).map_err(super::IntegratorError::from)?;
+        }
+        Ok(())
+    }
+
+    fn warnings(&self, case: &super::Case) -> Vec<String> {
+        anisotropy_warning(case.scene, case.settings.smc.variant)
+            .into_iter()
+            .collect()
+    }
+
+    fn pass_footprint(&self, case: &super::Case) -> super::PassFootprint {
+        let records = match case.settings.smc.form {
+            // a longer march is refused (`march::check_steps`)
+            EstimatorForm::RayMarching { step } => {
+                march::scene_max_steps(case.scene, step).min(march::MAX_MARCH_STEPS as f64) as u64
+            }
+            EstimatorForm::Distance => 0,
+        };
+        super::PassFootprint {
+            tiles: true,
+            bytes_per_sample: records.max(RECORDS_PER_SAMPLE) * RECORD_BYTES,
+        }
+    }
+
+    /// The octree grows until its budget, which bounds it.
+    fn memory_parts(&self, case: &super::Case) -> Vec<(&'static str, u64)> {
+        vec![("smc cache", case.settings.smc.budget as u64)]
+    }
+
+    fn shard_split(&self) -> super::ShardSplit {
+        super::ShardSplit::Refused("smc")
+    }
+
+    fn statistics_key(&self) -> Option<&'static str> {
+        Some("smc")
+    }
+}
+
+/// SMC's storage in a tile or meter chunk: the walk's path links and the records its samples
+/// leave for the end of the pass.
+#[derive(Default)]
+struct PassScratch {
+    links: Scratch,
+    records: Vec<Record>,
+}
+
 /// SMC from the scene file's `[render.smc]` (the `--smc-*` options already applied).
 pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
     Ok(Box::new(Smc::new(
@@ -607,13 +676,14 @@ impl super::Integrator for Smc {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
+        let own = scratch.own.get::<PassScratch>();
         self.radiance(
             scene,
             cam.generate_ray(raster),
             scene.camera_medium,
             sampler,
-            &mut scratch.smc,
-            &mut scratch.records,
+            &mut own.links,
+            &mut own.records,
         )
     }
 
@@ -624,12 +694,13 @@ impl super::Integrator for Smc {
         sampler: &mut Sampler,
         scratch: &mut super::Scratch,
     ) -> Rgb {
+        let own = scratch.own.get::<PassScratch>();
         self.meter_irradiance(
             scene,
             &scene.sensors[meter as usize],
             sampler,
-            &mut scratch.smc,
-            &mut scratch.records,
+            &mut own.links,
+            &mut own.records,
         )
     }
 
@@ -637,17 +708,39 @@ impl super::Integrator for Smc {
         true
     }
 
+    /// A tile's or chunk's records, kept for the end of the pass.
+    fn deposit(&self, own: &mut super::Own) -> Option<super::Deposit> {
+        Some(Box::new(std::mem::take(
+            &mut own.get::<PassScratch>().records,
+        )))
+    }
+
     /// [PWP08 Fig. 2 lines 13-14]: the pass's records refine the structure for the next pass.
-    fn end_pass(&mut self, records: &[Vec<Record>]) {
-        for r in records {
-            self.merge(r);
+    fn end_pass(&mut self, deposits: &[super::Deposit]) {
+        for d in deposits {
+            if let Some(r) = d.downcast_ref::<Vec<Record>>() {
+                self.merge(r);
+            }
         }
     }
 
+    /// The structure's statistics (Pegoraro et al. Table 1).
     fn statistics(&self) -> super::Statistics {
+        let s = self.stats();
         super::Statistics {
-            smc: Some(self.stats()),
-            ..Default::default()
+            json: Some(serde_json::json!({
+                "refinement_threshold": s.threshold,
+                "max_depth": s.max_depth,
+                "nodes": s.nodes,
+                "leaves": s.leaves,
+                "cells": s.cells,
+                "bytes": s.bytes,
+                "budget": s.budget,
+                "budget_reached": s.budget_reached,
+                "records": s.records,
+            })),
+            lines: Vec::new(),
+            closing: vec![format!("  {s}")],
         }
     }
 
