@@ -426,27 +426,30 @@ fn preprocessing_stages_are_named_as_they_run() {
 /// parsers' own, so a name added to one and not the other turns this red).
 #[test]
 fn enumerated_options_list_exactly_the_values_their_parsers_take() {
+    use pathspace::conventions::OptionValue;
     use pathspace::enlightened::adjoint::AdjointEstimator;
     use pathspace::enlightened::guide::{GuideKind, ParticleSampler};
+    use pathspace::integrator::path::DistanceSampling;
     use pathspace::integrator::smc::{estimator::Variant, EstimatorForm};
+    use pathspace::scene::LightSelectionKind;
     /// A flag, the names it lists, and whether its parser takes a name.
-    type Listed = (&'static str, &'static [&'static str], fn(&str) -> bool);
-    let lists: [Listed; 5] = [
-        ("--smc-variant", &Variant::NAMES, |s| {
+    type Listed = (&'static str, Vec<String>, fn(&str) -> bool);
+    fn typed<T: OptionValue>(flag: &'static str) -> Listed {
+        (flag, T::names(), |s| T::parse(s).is_ok())
+    }
+    let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let lists: [Listed; 7] = [
+        ("--smc-variant", names(&Variant::NAMES), |s| {
             Variant::parse(s).is_ok()
         }),
-        ("--smc-estimator", &EstimatorForm::NAMES, |s| {
+        ("--smc-estimator", names(&EstimatorForm::NAMES), |s| {
             EstimatorForm::parse(s, None).is_ok()
         }),
-        ("--guide", &GuideKind::NAMES, |s| {
-            GuideKind::parse(s).is_ok()
-        }),
-        ("--guide-sampler", &ParticleSampler::NAMES, |s| {
-            ParticleSampler::parse(s).is_ok()
-        }),
-        ("--adjoint-estimator", &AdjointEstimator::NAMES, |s| {
-            AdjointEstimator::parse(s).is_ok()
-        }),
+        typed::<GuideKind>("--guide"),
+        typed::<ParticleSampler>("--guide-sampler"),
+        typed::<AdjointEstimator>("--adjoint-estimator"),
+        typed::<DistanceSampling>("--distance"),
+        typed::<LightSelectionKind>("--light-selection"),
     ];
     let mut cmd = Cli::command();
     let help = cmd
@@ -457,14 +460,32 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     for (flag, names, parses) in lists {
         assert!(names.iter().all(|n| parses(n)), "{flag}: {names:?}");
         assert!(!parses("nonsense"), "{flag}");
-        let listed = format!("[possible values: {}]", names.join(", "));
+        // the flag's entry: up to the next flag's line
         let at = help.find(&format!("{flag} ")).unwrap();
+        let end = ["\n      --", "\n  -"]
+            .iter()
+            .filter_map(|n| help[at..].find(n))
+            .min()
+            .map_or(help.len(), |e| at + e);
+        let entry = &help[at..end];
+        // one line `[possible values: a, b]`, or (values with docs) one `- a: ...` line each
+        let listed = format!("[possible values: {}]", names.join(", "));
+        let lines: Vec<&str> = entry
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("- "))
+            .map(|l| l.split(':').next().unwrap_or(l))
+            .collect();
         assert!(
-            help[at..].contains(&listed),
-            "{flag} does not list {listed}"
+            entry.contains(&listed) || lines == names,
+            "{flag} does not list {names:?}:\n{entry}"
         );
-        let refused = Cli::try_parse_from(["pathspace", "render", flag, "nonsense"]);
-        assert!(refused.is_err(), "{flag} nonsense parsed");
+        let refused = Cli::try_parse_from(["pathspace", "render", flag, "nonsense"])
+            .expect_err(&format!("{flag} nonsense parsed"))
+            .to_string();
+        assert!(
+            refused.contains(&format!("[possible values: {}]", names.join(", "))),
+            "{flag}: {refused}"
+        );
     }
     // the variants' names are the six combinations, in the registry's order
     let built: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();

@@ -7,6 +7,8 @@ use clap::Args;
 use std::path::PathBuf;
 
 use super::CliError;
+use crate::conventions::OptionValue as _;
+use crate::enlightened::GuideKind;
 use crate::image_io;
 use crate::integrator::settings::{GuideOptions, Spelling};
 use crate::integrator::IntegratorKind;
@@ -105,7 +107,10 @@ impl GuideOverride {
             ));
         }
         let mut o = GuideOptions {
-            vertices: fields.first().map(|v| v.to_string()),
+            vertices: match fields.first() {
+                Some(v) => Some(GuideKind::parse(v).map_err(CliError::Usage)?),
+                None => None,
+            },
             map: fields.get(1).map(|m| m.to_string()),
             ..Default::default()
         };

@@ -15,7 +15,6 @@ use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
-use clap::builder::PossibleValuesParser;
 
 /// The render settings' view of a scene file: its `[render]` table (the rest is the scene's).
 #[derive(Debug, Clone, Default, Deserialize)]
@@ -52,13 +51,13 @@ pub struct RenderOptions {
     /// path: distance sampling on camera rays, `free-flight` (default) or `equiangular-mis`
     /// (free flight and equiangular sampling toward a light point, Kulla and Fajardo 2012,
     /// combined by MIS; homogeneous media only).
-    #[arg(long, value_parser = PossibleValuesParser::new(DistanceSampling::NAMES))]
-    pub distance: Option<String>,
+    #[arg(long)]
+    pub distance: Option<DistanceSampling>,
     /// path: light selection for next-event estimation, `tree` (default: a light hierarchy
     /// weighing lights by what they can deliver to the shading point, Conty Estevez and Kulla
     /// 2018) or `power` (proportional to power everywhere).
-    #[arg(long, value_parser = PossibleValuesParser::new(LightSelectionKind::NAMES))]
-    pub light_selection: Option<String>,
+    #[arg(long)]
+    pub light_selection: Option<LightSelectionKind>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -192,8 +191,8 @@ pub struct AdjointOptions {
     pub epsilon: Option<f32>,
     /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
     /// Metropolis particle sampler).
-    #[arg(id = "adjoint_estimator", long = "adjoint-estimator", value_parser = PossibleValuesParser::new(AdjointEstimator::NAMES))]
-    pub estimator: Option<String>,
+    #[arg(id = "adjoint_estimator", long = "adjoint-estimator")]
+    pub estimator: Option<AdjointEstimator>,
 }
 
 impl AdjointOptions {
@@ -208,7 +207,7 @@ impl AdjointOptions {
             self.resolution.map(|[c, r]| (c, r)),
             self.samples_per_cell,
             self.epsilon,
-            self.estimator.as_deref(),
+            self.estimator,
         )
     }
 
@@ -244,9 +243,8 @@ impl AdjointOptions {
             };
             alone("epsilon", one)?;
         }
-        if let Some(e) = &self.estimator {
-            s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
-                .map_err(|m| err("estimator", m.to_string()))?;
+        if let Some(e) = self.estimator {
+            s.estimator = e;
         }
         Ok(s)
     }
@@ -301,13 +299,8 @@ pub enum Spelling {
 #[command(next_help_heading = "Guiding (bdpt, light, mlt; [render.guide])")]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
-    #[arg(
-        id = "guide_vertices",
-        long = "guide",
-        alias = "guide-vertices",
-        value_parser = PossibleValuesParser::new(GuideKind::NAMES)
-    )]
-    pub vertices: Option<String>,
+    #[arg(id = "guide_vertices", long = "guide", alias = "guide-vertices")]
+    pub vertices: Option<GuideKind>,
     /// Direction map resolution COLSxROWS (default 32x16, the thesis's).
     #[arg(id = "guide_map", long = "guide-map")]
     pub map: Option<String>,
@@ -331,8 +324,8 @@ pub struct GuideOptions {
     #[arg(id = "guide_min_depth", long = "guide-min-depth")]
     pub min_depth: Option<u32>,
     /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
-    #[arg(id = "guide_sampler", long = "guide-sampler", value_parser = PossibleValuesParser::new(ParticleSampler::NAMES))]
-    pub sampler: Option<String>,
+    #[arg(id = "guide_sampler", long = "guide-sampler")]
+    pub sampler: Option<ParticleSampler>,
     /// Metropolis particles: small-step deviation in primary sample space (default 1/64).
     #[arg(id = "guide_sigma", long = "guide-sigma")]
     pub sigma: Option<f64>,
@@ -368,7 +361,6 @@ impl GuideOptions {
         base: GuideSettings,
         spelling: Spelling,
     ) -> Result<GuideSettings, OptionError> {
-        use crate::enlightened::GuideKind;
         let err = |key: &'static str, e: GuideError| OptionError {
             key,
             message: match spelling {
@@ -377,8 +369,8 @@ impl GuideOptions {
             },
         };
         let mut s = base;
-        if let Some(v) = &self.vertices {
-            s.kind = GuideKind::parse(v).map_err(|e| err("vertices", e))?;
+        if let Some(v) = self.vertices {
+            s.kind = v;
         }
         if let Some(m) = &self.map {
             (s.cols, s.rows) = GuideSettings::parse_map(m).map_err(|e| err("map", e))?;
@@ -421,15 +413,8 @@ impl GuideOptions {
 
     /// The particle sampler and its Metropolis parameters (sigma, defensive), checked.
     fn apply_sampler(&self, s: &mut GuideSettings, spelling: Spelling) -> Result<(), OptionError> {
-        if let Some(m) = &self.sampler {
-            s.sampler =
-                crate::enlightened::guide::ParticleSampler::parse(m).map_err(|e| OptionError {
-                    key: "sampler",
-                    message: match spelling {
-                        Spelling::Key => e.to_string(),
-                        Spelling::Flag => format!("--guide-sampler: {e}"),
-                    },
-                })?;
+        if let Some(m) = self.sampler {
+            s.sampler = m;
         }
         let check = |s: &GuideSettings, key: &'static str| {
             s.metropolis.check().map_err(|e| OptionError {
@@ -549,14 +534,8 @@ impl RenderSettings {
         self.seed = o.seed.unwrap_or(self.seed);
         self.max_depth = o.max_depth.or(self.max_depth);
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
-        if let Some(d) = &o.distance {
-            self.distance = DistanceSampling::parse(d)
-                .map_err(|m| SettingError::at("", Some("distance"), m))?;
-        }
-        if let Some(k) = &o.light_selection {
-            self.light_selection = LightSelectionKind::parse(k)
-                .map_err(|m| SettingError::at("", Some("light_selection"), m))?;
-        }
+        self.distance = o.distance.unwrap_or(self.distance);
+        self.light_selection = o.light_selection.unwrap_or(self.light_selection);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);
         self.mlt
