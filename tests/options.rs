@@ -430,21 +430,16 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     use pathspace::enlightened::adjoint::AdjointEstimator;
     use pathspace::enlightened::guide::{GuideKind, ParticleSampler};
     use pathspace::integrator::path::DistanceSampling;
-    use pathspace::integrator::smc::{estimator::Variant, EstimatorForm};
+    use pathspace::integrator::smc::{estimator::Variant, EstimatorKind};
     use pathspace::scene::LightSelectionKind;
     /// A flag, the names it lists, and whether its parser takes a name.
     type Listed = (&'static str, Vec<String>, fn(&str) -> bool);
     fn typed<T: OptionValue>(flag: &'static str) -> Listed {
         (flag, T::names(), |s| T::parse(s).is_ok())
     }
-    let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
     let lists: [Listed; 7] = [
-        ("--smc-variant", names(&Variant::NAMES), |s| {
-            Variant::parse(s).is_ok()
-        }),
-        ("--smc-estimator", names(&EstimatorForm::NAMES), |s| {
-            EstimatorForm::parse(s, None).is_ok()
-        }),
+        typed::<Variant>("--smc-variant"),
+        typed::<EstimatorKind>("--smc-estimator"),
         typed::<GuideKind>("--guide"),
         typed::<ParticleSampler>("--guide-sampler"),
         typed::<AdjointEstimator>("--adjoint-estimator"),
