@@ -594,3 +594,58 @@ fn light_selection_is_checked_and_applied() {
         "{err}"
     );
 }
+
+/// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
+/// start from): the book's key table lists every key of the schema with that default, and the
+/// key's flag states it in `--help`.
+#[test]
+fn the_book_and_the_help_state_each_render_default_of_the_schema() {
+    use serde_json::Value;
+    let defaults = serde_json::to_value(RenderOptions::defaults()).unwrap();
+    let book = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/book/src/scenes.md"))
+        .unwrap();
+    let mut cmd = Cli::command();
+    let help = cmd
+        .find_subcommand_mut("render")
+        .unwrap()
+        .render_long_help()
+        .to_string();
+    let keys = defaults.as_object().unwrap();
+    assert!(keys.len() >= 8, "{keys:?}");
+    for (key, value) in keys {
+        // the book's cell and the help's word for the default
+        let (cell, word) = match value {
+            Value::Null => ("unlimited".to_string(), "unlimited".to_string()),
+            Value::String(s) => (format!("`\"{s}\"`"), s.clone()),
+            v => (v.to_string(), v.to_string()),
+        };
+        let row = book
+            .lines()
+            .find(|l| l.starts_with(&format!("| `{key}` |")))
+            .unwrap_or_else(|| panic!("the book's [render] table has no row for `{key}`"));
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(cells[3], cell, "the book's default of `{key}`");
+        let flag = format!("--{}", key.replace('_', "-"));
+        let at = [" ", "["]
+            .iter()
+            .find_map(|end| help.find(&format!("{flag}{end}")))
+            .unwrap_or_else(|| panic!("no flag {flag} for `{key}`"));
+        let end = help[at + 2..]
+            .find("\n      --")
+            .map_or(help.len(), |e| at + 2 + e);
+        let entry = help[at..end]
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert!(
+            [
+                format!("(default {word}"),
+                format!("(default: {word}"),
+                format!("`{word}` (default"),
+            ]
+            .iter()
+            .any(|p| entry.contains(p.as_str())),
+            "{flag}'s help does not state the default {word}: {entry}"
+        );
+    }
+}

@@ -24,7 +24,7 @@ struct RenderFile {
 }
 
 /// The render options, declared once: each field is a `[render]` key of the scene file (serde)
-/// and a flag of `pathspace render` (clap) with one doc, its default in [`RenderSettings`].
+/// and a flag of `pathspace render` (clap) with one doc, its default in [`RenderOptions::defaults`].
 /// [`RenderSettings::apply`] puts a set of them over the settings and checks every value: the
 /// file's over the defaults at load, the flags over the file's on the command line. The
 /// integrators' own options are the nested tables (`[render.mlt]`: `--mlt-*`, ...); a render
@@ -93,6 +93,23 @@ fn is_default<T: Default + PartialEq>(t: &T) -> bool {
 }
 
 impl RenderOptions {
+    /// The default of every `[render]` key, written once: [`RenderSettings`] starts from them,
+    /// and tests check the flags' help and the book's key table against them (`max_depth`'s
+    /// `None` is unlimited; the nested tables' defaults are their settings' own).
+    pub fn defaults() -> RenderOptions {
+        RenderOptions {
+            integrator: Some("path".into()),
+            spp: Some(64),
+            seed: Some(1),
+            max_depth: None,
+            meter_samples: Some(DEFAULT_METER_SAMPLES),
+            distance: Some(DistanceSampling::FreeFlight),
+            light_selection: Some(LightSelectionKind::Tree),
+            adjoint_image: Some(false),
+            ..Default::default()
+        }
+    }
+
     /// These options over `base` (each given one replaces base's, at any depth): the flags
     /// over the file's, as a render records them. Generic over the fields, so a new option
     /// needs no edit here.
@@ -471,18 +488,20 @@ impl RenderSettings {
     /// The defaults of every option for a scene of radius `radius` (the guide's alpha
     /// depends on it).
     fn defaults(radius: f32) -> Self {
+        let d = RenderOptions::defaults();
+        let given = "every top-level default is given";
         RenderSettings {
-            integrator: "path".into(),
-            spp: 64,
-            seed: 1,
-            max_depth: None,
-            meter_samples: DEFAULT_METER_SAMPLES,
-            distance: DistanceSampling::FreeFlight,
-            light_selection: LightSelectionKind::Tree,
+            integrator: d.integrator.expect(given),
+            spp: d.spp.expect(given),
+            seed: d.seed.expect(given),
+            max_depth: d.max_depth,
+            meter_samples: d.meter_samples.expect(given),
+            distance: d.distance.expect(given),
+            light_selection: d.light_selection.expect(given),
             mlt: MltSettings::default(),
             smc: SmcSettings::default(),
             guide: GuideSettings::for_radius(radius),
-            adjoint_image: false,
+            adjoint_image: d.adjoint_image.expect(given),
             adjoint: AdjointSettings::default(),
             given: RenderOptions::default(),
         }
