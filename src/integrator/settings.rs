@@ -24,7 +24,8 @@ struct RenderFile {
 }
 
 /// The render options, declared once: each field is a `[render]` key of the scene file (serde)
-/// and a flag of `pathspace render` (clap) with one doc, its default in [`RenderOptions::defaults`].
+/// and a flag of `pathspace render` (clap) with one doc, its default in
+/// [`RenderOptions::defaults`].
 /// [`RenderSettings::apply`] puts a set of them over the settings and checks every value: the
 /// file's over the defaults at load, the flags over the file's on the command line. The
 /// integrators' own options are the nested tables (`[render.mlt]`: `--mlt-*`, ...); a render
