@@ -187,6 +187,13 @@ fn converge_guide_overrides_are_the_guide_schema() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("colour"), "{e}");
+    for bad in ["mlt+guide(vertices=all)", "mlt+guide:all"] {
+        let e = GuidedVariant::parse(bad).unwrap_err().to_string();
+        assert!(
+            e.contains("vertices: unknown guide `all` (available: off, surface"),
+            "{e}"
+        );
+    }
     let e = GuidedVariant::parse("mlt+guide(min_depth=99)")
         .unwrap_err()
         .to_string();
