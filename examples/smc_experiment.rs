@@ -21,6 +21,7 @@
 use std::path::Path;
 
 use glam::Vec2;
+use pathspace::conventions::OptionValue as _;
 use pathspace::image_io::{self, Image, ImageMeta};
 use pathspace::integrator::smc::grid::Grid;
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
@@ -143,7 +144,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
             "runs" => runs = parse(v, "run count")?,
             "threads" => threads = parse(v, "thread count")?,
             "threshold" => threshold = parse(v, "threshold")?,
-            "form" => form = EstimatorForm::parse(v, None)?,
+            "form" => form = EstimatorForm::parse(v)?,
             "scene_replace" => replace = Some(v.to_string()),
             "time" => time = Some(parse(v, "number of seconds")?),
             _ => return Err(format!("unknown key `{k}`")),

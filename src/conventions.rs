@@ -70,3 +70,58 @@ pub fn read_at_most(path: &std::path::Path, limit: u64) -> std::io::Result<Vec<u
     }
     Ok(bytes)
 }
+
+/// An enumerated option value (a scene file's key and a command-line flag at once), declared
+/// once as an enum deriving `clap::ValueEnum`: its variants' names (kebab-case unless renamed)
+/// are the spellings the flag lists and the file takes; [`option_value!`](crate::option_value)
+/// adds the serde form, so a file's bad value is reported at its key as
+/// `unknown WHAT `x` (available: a, b)`.
+pub trait OptionValue: clap::ValueEnum + Copy + 'static {
+    /// What a value is, in the message that refuses one (e.g. `particle sampler`).
+    const WHAT: &'static str;
+
+    /// Its spelling in the file and on the command line.
+    fn name(self) -> String {
+        let v = self.to_possible_value().expect("every value is named");
+        v.get_name().to_string()
+    }
+
+    /// Every spelling, in declaration order.
+    fn names() -> Vec<String> {
+        Self::value_variants().iter().map(|v| v.name()).collect()
+    }
+
+    /// The value spelled `s`, or the message that lists the spellings.
+    fn parse(s: &str) -> Result<Self, String> {
+        Self::from_str(s, false).map_err(|_| {
+            let what = Self::WHAT;
+            format!(
+                "unknown {what} `{s}` (available: {})",
+                Self::names().join(", ")
+            )
+        })
+    }
+}
+
+/// Implements [`OptionValue`] for an enum deriving `clap::ValueEnum`, with serde's form: its
+/// name as a string (`option_value!(ParticleSampler, "particle sampler")`).
+#[macro_export]
+macro_rules! option_value {
+    ($t:ty, $what:literal) => {
+        impl $crate::conventions::OptionValue for $t {
+            const WHAT: &'static str = $what;
+        }
+        impl serde::Serialize for $t {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(&$crate::conventions::OptionValue::name(*self))
+            }
+        }
+        impl<'de> serde::Deserialize<'de> for $t {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                let s = <String as serde::Deserialize>::deserialize(d)?;
+                <$t as $crate::conventions::OptionValue>::parse(&s)
+                    .map_err(serde::de::Error::custom)
+            }
+        }
+    };
+}

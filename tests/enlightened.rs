@@ -408,7 +408,7 @@ fn metropolis_photons_crowd_where_the_camera_looks() {
 // ---------------------------------------------------------------------------------------------
 
 use glam::Vec2;
-use pathspace::enlightened::adjoint::{AdjointImage, AdjointSettings, LightMap};
+use pathspace::enlightened::adjoint::{AdjointEstimator, AdjointImage, AdjointSettings, LightMap};
 use pathspace::enlightened::Enlightened;
 use pathspace::geometry::Primitive;
 use pathspace::scene::Light;
@@ -774,10 +774,11 @@ fn bad_adjoint_settings_are_clear_errors() {
     }
     // the command line's overrides (render and converge share them)
     let d = AdjointSettings::default();
-    let e = d
-        .overridden(None, None, None, Some("mlt"))
-        .unwrap_err()
-        .to_string();
+    use clap::Parser;
+    let e =
+        pathspace::cli::Cli::try_parse_from(["pathspace", "render", "--adjoint-estimator", "mlt"])
+            .unwrap_err()
+            .to_string();
     assert!(
         e.contains("--adjoint-estimator") && e.contains("metropolis"),
         "{e}"
@@ -788,7 +789,12 @@ fn bad_adjoint_settings_are_clear_errors() {
         .to_string();
     assert!(e.contains("samples per cell"), "{e}");
     let ok = d
-        .overridden(Some((18, 9)), Some(3), Some(0.25), Some("metropolis"))
+        .overridden(
+            Some((18, 9)),
+            Some(3),
+            Some(0.25),
+            Some(AdjointEstimator::Metropolis),
+        )
         .unwrap();
     assert_eq!(
         (ok.resolution, ok.samples_per_cell, ok.epsilon),
@@ -821,7 +827,6 @@ const ADJOINT_SAMPLES_PER_CELL: u32 = 6000;
 /// the mean pixel's, the BDPT estimate the sum over pixels: the test scales by the pixel count.
 #[test]
 fn metropolis_adjoint_image_estimates_the_same_light_shares_as_the_bdpt_prepass() {
-    use pathspace::enlightened::adjoint::AdjointEstimator;
     let gray = |s: String| {
         s.replace("[0.63, 0.065, 0.05]", "[0.5, 0.5, 0.5]")
             .replace("[0.14, 0.45, 0.091]", "[0.3, 0.3, 0.3]")

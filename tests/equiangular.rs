@@ -15,6 +15,7 @@ mod common;
 
 use common::stats::Family;
 use glam::Vec3;
+use pathspace::conventions::OptionValue as _;
 use pathspace::geometry::Ray;
 use pathspace::integrator::path::{DistanceSampling, PathTracer};
 use pathspace::math::Sampler;

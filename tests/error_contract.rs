@@ -75,6 +75,18 @@ fn info_refuses_an_integrator_typo() {
 fn every_enumerated_render_value_is_checked_at_its_key() {
     let cases = [
         (
+            "\n[render]\ndistance = \"equiangular\"\n",
+            3,
+            "render.distance",
+            "unknown distance sampling `equiangular` (available: free-flight, equiangular-mis)",
+        ),
+        (
+            "\n[render]\nlight_selection = \"uniform\"\n",
+            3,
+            "render.light_selection",
+            "unknown light selection `uniform` (available: power, tree)",
+        ),
+        (
             "\n[render.smc]\nvariant = \"is2_cv2\"\n",
             3,
             "render.smc.variant",

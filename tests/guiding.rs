@@ -577,7 +577,12 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     for kind in [GuideKind::Surface, GuideKind::Both] {
         let (scene, tech) = guided_fog_box(RES, kind);
         let guided = bdpt_runs(&scene, &tech, 5000);
-        common::quadrants_agree(&mut fam, kind.name(), &guided, &plain);
+        common::quadrants_agree(
+            &mut fam,
+            &pathspace::conventions::OptionValue::name(kind),
+            &guided,
+            &plain,
+        );
     }
     // guided Russian roulette (sec. 5.3.4) on top: survival from the maps, still unbiased
     let scene = fog_box(RES);

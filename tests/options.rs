@@ -187,6 +187,13 @@ fn converge_guide_overrides_are_the_guide_schema() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("colour"), "{e}");
+    for bad in ["mlt+guide(vertices=all)", "mlt+guide:all"] {
+        let e = GuidedVariant::parse(bad).unwrap_err().to_string();
+        assert!(
+            e.contains("vertices: unknown guide `all` (available: off, surface"),
+            "{e}"
+        );
+    }
     let e = GuidedVariant::parse("mlt+guide(min_depth=99)")
         .unwrap_err()
         .to_string();
@@ -426,27 +433,25 @@ fn preprocessing_stages_are_named_as_they_run() {
 /// parsers' own, so a name added to one and not the other turns this red).
 #[test]
 fn enumerated_options_list_exactly_the_values_their_parsers_take() {
+    use pathspace::conventions::OptionValue;
     use pathspace::enlightened::adjoint::AdjointEstimator;
     use pathspace::enlightened::guide::{GuideKind, ParticleSampler};
-    use pathspace::integrator::smc::{estimator::Variant, EstimatorForm};
+    use pathspace::integrator::path::DistanceSampling;
+    use pathspace::integrator::smc::{estimator::Variant, EstimatorKind};
+    use pathspace::scene::LightSelectionKind;
     /// A flag, the names it lists, and whether its parser takes a name.
-    type Listed = (&'static str, &'static [&'static str], fn(&str) -> bool);
-    let lists: [Listed; 5] = [
-        ("--smc-variant", &Variant::NAMES, |s| {
-            Variant::parse(s).is_ok()
-        }),
-        ("--smc-estimator", &EstimatorForm::NAMES, |s| {
-            EstimatorForm::parse(s, None).is_ok()
-        }),
-        ("--guide", &GuideKind::NAMES, |s| {
-            GuideKind::parse(s).is_ok()
-        }),
-        ("--guide-sampler", &ParticleSampler::NAMES, |s| {
-            ParticleSampler::parse(s).is_ok()
-        }),
-        ("--adjoint-estimator", &AdjointEstimator::NAMES, |s| {
-            AdjointEstimator::parse(s).is_ok()
-        }),
+    type Listed = (&'static str, Vec<String>, fn(&str) -> bool);
+    fn typed<T: OptionValue>(flag: &'static str) -> Listed {
+        (flag, T::names(), |s| T::parse(s).is_ok())
+    }
+    let lists: [Listed; 7] = [
+        typed::<Variant>("--smc-variant"),
+        typed::<EstimatorKind>("--smc-estimator"),
+        typed::<GuideKind>("--guide"),
+        typed::<ParticleSampler>("--guide-sampler"),
+        typed::<AdjointEstimator>("--adjoint-estimator"),
+        typed::<DistanceSampling>("--distance"),
+        typed::<LightSelectionKind>("--light-selection"),
     ];
     let mut cmd = Cli::command();
     let help = cmd
@@ -457,14 +462,32 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     for (flag, names, parses) in lists {
         assert!(names.iter().all(|n| parses(n)), "{flag}: {names:?}");
         assert!(!parses("nonsense"), "{flag}");
-        let listed = format!("[possible values: {}]", names.join(", "));
+        // the flag's entry: up to the next flag's line
         let at = help.find(&format!("{flag} ")).unwrap();
+        let end = ["\n      --", "\n  -"]
+            .iter()
+            .filter_map(|n| help[at..].find(n))
+            .min()
+            .map_or(help.len(), |e| at + e);
+        let entry = &help[at..end];
+        // one line `[possible values: a, b]`, or (values with docs) one `- a: ...` line each
+        let listed = format!("[possible values: {}]", names.join(", "));
+        let lines: Vec<&str> = entry
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("- "))
+            .map(|l| l.split(':').next().unwrap_or(l))
+            .collect();
         assert!(
-            help[at..].contains(&listed),
-            "{flag} does not list {listed}"
+            entry.contains(&listed) || lines == names,
+            "{flag} does not list {names:?}:\n{entry}"
         );
-        let refused = Cli::try_parse_from(["pathspace", "render", flag, "nonsense"]);
-        assert!(refused.is_err(), "{flag} nonsense parsed");
+        let refused = Cli::try_parse_from(["pathspace", "render", flag, "nonsense"])
+            .expect_err(&format!("{flag} nonsense parsed"))
+            .to_string();
+        assert!(
+            refused.contains(&format!("[possible values: {}]", names.join(", "))),
+            "{flag}: {refused}"
+        );
     }
     // the variants' names are the six combinations, in the registry's order
     let built: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();
@@ -577,4 +600,59 @@ fn light_selection_is_checked_and_applied() {
         err.contains("--light-selection applies to --integrator path"),
         "{err}"
     );
+}
+
+/// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
+/// start from): the book's key table lists every key of the schema with that default, and the
+/// key's flag states it in `--help`.
+#[test]
+fn the_book_and_the_help_state_each_render_default_of_the_schema() {
+    use serde_json::Value;
+    let defaults = serde_json::to_value(RenderOptions::defaults()).unwrap();
+    let book = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/book/src/scenes.md"))
+        .unwrap();
+    let mut cmd = Cli::command();
+    let help = cmd
+        .find_subcommand_mut("render")
+        .unwrap()
+        .render_long_help()
+        .to_string();
+    let keys = defaults.as_object().unwrap();
+    assert!(keys.len() >= 8, "{keys:?}");
+    for (key, value) in keys {
+        // the book's cell and the help's word for the default
+        let (cell, word) = match value {
+            Value::Null => ("unlimited".to_string(), "unlimited".to_string()),
+            Value::String(s) => (format!("`\"{s}\"`"), s.clone()),
+            v => (v.to_string(), v.to_string()),
+        };
+        let row = book
+            .lines()
+            .find(|l| l.starts_with(&format!("| `{key}` |")))
+            .unwrap_or_else(|| panic!("the book's [render] table has no row for `{key}`"));
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(cells[3], cell, "the book's default of `{key}`");
+        let flag = format!("--{}", key.replace('_', "-"));
+        let at = [" ", "["]
+            .iter()
+            .find_map(|end| help.find(&format!("{flag}{end}")))
+            .unwrap_or_else(|| panic!("no flag {flag} for `{key}`"));
+        let end = help[at + 2..]
+            .find("\n      --")
+            .map_or(help.len(), |e| at + 2 + e);
+        let entry = help[at..end]
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        assert!(
+            [
+                format!("(default {word}"),
+                format!("(default: {word}"),
+                format!("`{word}` (default"),
+            ]
+            .iter()
+            .any(|p| entry.contains(p.as_str())),
+            "{flag}'s help does not state the default {word}: {entry}"
+        );
+    }
 }

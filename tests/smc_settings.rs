@@ -3,8 +3,9 @@
 //! reported at its file, line and key. Book: "SMC: experiments", section "Settings".
 
 use pathspace::cli::render::SmcArgs;
+use pathspace::conventions::OptionValue as _;
 use pathspace::integrator::settings::{RenderOptions, Spelling};
-use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
+use pathspace::integrator::smc::{EstimatorForm, EstimatorKind, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneError, SceneSource};
 
@@ -118,7 +119,7 @@ fn options_override_the_keys() {
     // one option replaces one key; the scene's march step carries over
     let args = SmcArgs {
         threshold: Some(99.0),
-        estimator: Some("march".into()),
+        estimator: Some(EstimatorKind::March),
         ..Default::default()
     };
     let s = smc_flags(&args, base).unwrap();
@@ -126,8 +127,8 @@ fn options_override_the_keys() {
     assert_eq!(s.variant, base.variant);
     assert_eq!(s.form, EstimatorForm::RayMarching { step: 0.25 });
     let args = SmcArgs {
-        variant: Some("is1_cv0".into()),
-        estimator: Some("distance".into()),
+        variant: Some(Variant::parse("is1_cv0").unwrap()),
+        estimator: Some(EstimatorKind::Distance),
         ..Default::default()
     };
     let s = smc_flags(&args, base).unwrap();

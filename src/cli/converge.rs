@@ -7,8 +7,11 @@ use clap::Args;
 use std::path::PathBuf;
 
 use super::CliError;
+use crate::conventions::OptionValue as _;
+use crate::enlightened::GuideKind;
 use crate::image_io;
 use crate::integrator::settings::{GuideOptions, Spelling};
+use crate::integrator::smc::OptionError;
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
 use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
@@ -105,7 +108,15 @@ impl GuideOverride {
             ));
         }
         let mut o = GuideOptions {
-            vertices: fields.first().map(|v| v.to_string()),
+            vertices: match fields.first() {
+                Some(v) => Some(GuideKind::parse(v).map_err(|message| {
+                    CliError::GuideKey(OptionError {
+                        key: "vertices",
+                        message,
+                    })
+                })?),
+                None => None,
+            },
             map: fields.get(1).map(|m| m.to_string()),
             ..Default::default()
         };
@@ -133,7 +144,15 @@ impl GuideOverride {
             };
             table.push_str(&format!("{k} = {value}\n"));
         }
-        let o: GuideOptions = toml::from_str(&table).map_err(CliError::GuideKeys)?;
+        let o: GuideOptions = toml::from_str(&table).map_err(|e| {
+            // a value refused by its type (an enumerated one) is named by its key, as `checked` does
+            let bad = table.lines().find_map(|line| {
+                let k = line.split('=').next().unwrap_or("").trim();
+                let e = toml::from_str::<GuideOptions>(line).err()?;
+                Some(CliError::Usage(format!("{k}: {}", e.message())))
+            });
+            bad.unwrap_or(CliError::GuideKeys(e))
+        })?;
         Self::checked(o)
     }
 

@@ -58,7 +58,7 @@ impl ReferenceArgs {
             seed: self.seed,
             adjoint_image: Some(false),
             guide: GuideOptions {
-                vertices: Some("off".into()),
+                vertices: Some(crate::enlightened::GuideKind::Off),
                 ..GuideOptions::default()
             },
             ..RenderOptions::default()

@@ -224,9 +224,7 @@ impl RenderArgs {
                 "--adjoint-* options need --adjoint-image".into(),
             ));
         }
-        if o.distance.as_deref() == Some(DistanceSampling::EquiangularMis.name())
-            && kind != IntegratorKind::Path
-        {
+        if o.distance == Some(DistanceSampling::EquiangularMis) && kind != IntegratorKind::Path {
             return Err(CliError::Usage(format!(
                 "--distance equiangular-mis applies to --integrator path, not `{}` (it samples distances by free flight only)",
                 kind.name()
@@ -502,7 +500,7 @@ fn result_json(
         "sensors": sensors,
         "outputs": written,
         "guide": pre.guide.as_ref().map(|g| serde_json::json!({
-            "vertices": render.settings.guide.kind.name(),
+            "vertices": crate::conventions::OptionValue::name(render.settings.guide.kind),
             "map": [g.map.0, g.map.1],
             "photons": g.photons,
             "importons": g.importons,

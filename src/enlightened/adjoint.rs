@@ -78,7 +78,7 @@ pub struct AdjointSettings {
 }
 
 /// The pre-pass that estimates the adjoint image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum AdjointEstimator {
     /// `samples_per_cell` BDPT camera samples per cell; every MIS-weighted contribution goes to
     /// the cell of its light vertex.
@@ -89,27 +89,13 @@ pub enum AdjointEstimator {
     Metropolis,
 }
 
-impl AdjointEstimator {
-    /// The names [`AdjointEstimator::parse`] takes.
-    pub const NAMES: [&'static str; 2] = ["bdpt", "metropolis"];
-
-    pub fn parse(s: &str) -> Result<Self, AdjointError> {
-        match s {
-            "bdpt" => Ok(AdjointEstimator::Bdpt),
-            "metropolis" => Ok(AdjointEstimator::Metropolis),
-            _ => Err(AdjointError::UnknownEstimator(s.into())),
-        }
-    }
-}
+crate::option_value!(AdjointEstimator, "adjoint estimator");
 
 /// Why the adjoint image refuses its settings or its scene (Kristensen 2010, sec. 5.3.1); the
 /// messages name the setting or the missing piece, as the command line and the scene-file
 /// errors print them.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AdjointError {
-    /// An estimator name that is none (the name given).
-    #[error("unknown adjoint estimator `{0}` (available: bdpt, metropolis)")]
-    UnknownEstimator(String),
     /// A command-line override refused (the flag as the message spells it, the reason).
     #[error("{0}: {1}")]
     Flag(&'static str, #[source] Box<AdjointError>),
@@ -166,7 +152,7 @@ impl AdjointSettings {
         resolution: Option<(u32, u32)>,
         samples_per_cell: Option<u32>,
         epsilon: Option<f32>,
-        estimator: Option<&str>,
+        estimator: Option<AdjointEstimator>,
     ) -> Result<Self, AdjointError> {
         if let Some(r) = resolution {
             self.resolution = r;
@@ -178,8 +164,7 @@ impl AdjointSettings {
             self.epsilon = e;
         }
         if let Some(e) = estimator {
-            self.estimator = AdjointEstimator::parse(e)
-                .map_err(|e| AdjointError::Flag("--adjoint-estimator", Box::new(e)))?;
+            self.estimator = e;
         }
         self.validate()
             .map_err(|e| AdjointError::Flag("--adjoint-*", Box::new(e)))?;

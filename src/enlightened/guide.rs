@@ -41,7 +41,7 @@ use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
 /// Which vertices are guided.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum GuideKind {
     Off,
     /// Surface vertices (the thesis's method).
@@ -52,29 +52,9 @@ pub enum GuideKind {
     Both,
 }
 
+crate::option_value!(GuideKind, "guide");
+
 impl GuideKind {
-    /// The names [`GuideKind::parse`] takes.
-    pub const NAMES: [&'static str; 4] = ["off", "surface", "volume", "both"];
-
-    pub fn parse(s: &str) -> Result<Self, GuideError> {
-        match s {
-            "off" => Ok(GuideKind::Off),
-            "surface" => Ok(GuideKind::Surface),
-            "volume" => Ok(GuideKind::Volume),
-            "both" => Ok(GuideKind::Both),
-            _ => Err(GuideError::UnknownKind(s.into())),
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            GuideKind::Off => "off",
-            GuideKind::Surface => "surface",
-            GuideKind::Volume => "volume",
-            GuideKind::Both => "both",
-        }
-    }
-
     pub fn surface(self) -> bool {
         matches!(self, GuideKind::Surface | GuideKind::Both)
     }
@@ -85,7 +65,7 @@ impl GuideKind {
 }
 
 /// The particle samplers of Kristensen 2010, sec. 5.2.2.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ParticleSampler {
     /// Photons from light subpaths, importons from eye subpaths (eqs. (5.11)-(5.12)): `particles`
     /// subpaths of each kind.
@@ -99,27 +79,7 @@ pub enum ParticleSampler {
     Metropolis,
 }
 
-impl ParticleSampler {
-    /// The names [`ParticleSampler::parse`] takes.
-    pub const NAMES: [&'static str; 3] = ["classical", "bidirectional", "metropolis"];
-
-    pub fn parse(s: &str) -> Result<Self, GuideError> {
-        match s {
-            "classical" => Ok(ParticleSampler::Classical),
-            "bidirectional" => Ok(ParticleSampler::Bidirectional),
-            "metropolis" => Ok(ParticleSampler::Metropolis),
-            _ => Err(GuideError::UnknownSampler(s.into())),
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            ParticleSampler::Classical => "classical",
-            ParticleSampler::Bidirectional => "bidirectional",
-            ParticleSampler::Metropolis => "metropolis",
-        }
-    }
-}
+crate::option_value!(ParticleSampler, "particle sampler");
 
 /// c2 of eqs. (5.17)-(5.19): the thesis uses c1 = c2 = 1/2.
 pub const DEFAULT_GUIDE_WEIGHT: f32 = 0.5;
@@ -232,12 +192,6 @@ impl GuideSettings {
 /// `[render.guide]` keys do, and the callers add the key's place or the flag.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GuideError {
-    /// A vertex kind that is none (the name given).
-    #[error("unknown guide `{0}` (available: off, surface, volume, both)")]
-    UnknownKind(String),
-    /// A particle sampler that is none (the name given).
-    #[error("unknown particle sampler `{0}` (available: classical, bidirectional, metropolis)")]
-    UnknownSampler(String),
     /// A region count outside 1..=2^20.
     #[error("regions = {0} must be in 1..=1048576")]
     BadRegions(usize),

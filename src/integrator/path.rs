@@ -66,7 +66,7 @@ pub struct PathTracer {
 /// How the path tracer samples the distance to a medium vertex on a camera ray, for the
 /// light scattered there once (`[render] distance`, `--distance`; book: "Table 1: homogeneous
 /// media", section "Equiangular sampling").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum DistanceSampling {
     /// Table 1's free flight alone.
     #[default]
@@ -77,29 +77,7 @@ pub enum DistanceSampling {
     EquiangularMis,
 }
 
-impl DistanceSampling {
-    /// The values of `distance` / `--distance`.
-    pub const NAMES: &'static [&'static str] = &["free-flight", "equiangular-mis"];
-
-    /// Its name in the file and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            DistanceSampling::FreeFlight => Self::NAMES[0],
-            DistanceSampling::EquiangularMis => Self::NAMES[1],
-        }
-    }
-
-    /// Parses one of [`DistanceSampling::NAMES`].
-    pub fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "free-flight" => Ok(DistanceSampling::FreeFlight),
-            "equiangular-mis" => Ok(DistanceSampling::EquiangularMis),
-            _ => Err(format!(
-                "`{s}` is no distance sampling (free-flight, equiangular-mis)"
-            )),
-        }
-    }
-}
+crate::option_value!(DistanceSampling, "distance sampling");
 
 /// Where the previous scattering happened, for the MIS weight of emission found by chance.
 #[derive(Clone, Copy)]

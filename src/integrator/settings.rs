@@ -15,7 +15,6 @@ use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
-use clap::builder::PossibleValuesParser;
 
 /// The render settings' view of a scene file: its `[render]` table (the rest is the scene's).
 #[derive(Debug, Clone, Default, Deserialize)]
@@ -25,7 +24,8 @@ struct RenderFile {
 }
 
 /// The render options, declared once: each field is a `[render]` key of the scene file (serde)
-/// and a flag of `pathspace render` (clap) with one doc, its default in [`RenderSettings`].
+/// and a flag of `pathspace render` (clap) with one doc, its default in
+/// [`RenderOptions::defaults`].
 /// [`RenderSettings::apply`] puts a set of them over the settings and checks every value: the
 /// file's over the defaults at load, the flags over the file's on the command line. The
 /// integrators' own options are the nested tables (`[render.mlt]`: `--mlt-*`, ...); a render
@@ -52,13 +52,13 @@ pub struct RenderOptions {
     /// path: distance sampling on camera rays, `free-flight` (default) or `equiangular-mis`
     /// (free flight and equiangular sampling toward a light point, Kulla and Fajardo 2012,
     /// combined by MIS; homogeneous media only).
-    #[arg(long, value_parser = PossibleValuesParser::new(DistanceSampling::NAMES))]
-    pub distance: Option<String>,
+    #[arg(long)]
+    pub distance: Option<DistanceSampling>,
     /// path: light selection for next-event estimation, `tree` (default: a light hierarchy
     /// weighing lights by what they can deliver to the shading point, Conty Estevez and Kulla
     /// 2018) or `power` (proportional to power everywhere).
-    #[arg(long, value_parser = PossibleValuesParser::new(LightSelectionKind::NAMES))]
-    pub light_selection: Option<String>,
+    #[arg(long)]
+    pub light_selection: Option<LightSelectionKind>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -94,6 +94,23 @@ fn is_default<T: Default + PartialEq>(t: &T) -> bool {
 }
 
 impl RenderOptions {
+    /// The default of every `[render]` key, written once: [`RenderSettings`] starts from them,
+    /// and tests check the flags' help and the book's key table against them (`max_depth`'s
+    /// `None` is unlimited; the nested tables' defaults are their settings' own).
+    pub fn defaults() -> RenderOptions {
+        RenderOptions {
+            integrator: Some("path".into()),
+            spp: Some(64),
+            seed: Some(1),
+            max_depth: None,
+            meter_samples: Some(DEFAULT_METER_SAMPLES),
+            distance: Some(DistanceSampling::FreeFlight),
+            light_selection: Some(LightSelectionKind::Tree),
+            adjoint_image: Some(false),
+            ..Default::default()
+        }
+    }
+
     /// These options over `base` (each given one replaces base's, at any depth): the flags
     /// over the file's, as a render records them. Generic over the fields, so a new option
     /// needs no edit here.
@@ -192,8 +209,8 @@ pub struct AdjointOptions {
     pub epsilon: Option<f32>,
     /// How the pre-pass estimates the cells: `bdpt` (default) or `metropolis` (chains of the
     /// Metropolis particle sampler).
-    #[arg(id = "adjoint_estimator", long = "adjoint-estimator", value_parser = PossibleValuesParser::new(AdjointEstimator::NAMES))]
-    pub estimator: Option<String>,
+    #[arg(id = "adjoint_estimator", long = "adjoint-estimator")]
+    pub estimator: Option<AdjointEstimator>,
 }
 
 impl AdjointOptions {
@@ -208,7 +225,7 @@ impl AdjointOptions {
             self.resolution.map(|[c, r]| (c, r)),
             self.samples_per_cell,
             self.epsilon,
-            self.estimator.as_deref(),
+            self.estimator,
         )
     }
 
@@ -244,9 +261,8 @@ impl AdjointOptions {
             };
             alone("epsilon", one)?;
         }
-        if let Some(e) = &self.estimator {
-            s.estimator = crate::enlightened::adjoint::AdjointEstimator::parse(e)
-                .map_err(|m| err("estimator", m.to_string()))?;
+        if let Some(e) = self.estimator {
+            s.estimator = e;
         }
         Ok(s)
     }
@@ -301,13 +317,8 @@ pub enum Spelling {
 #[command(next_help_heading = "Guiding (bdpt, light, mlt; [render.guide])")]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
-    #[arg(
-        id = "guide_vertices",
-        long = "guide",
-        alias = "guide-vertices",
-        value_parser = PossibleValuesParser::new(GuideKind::NAMES)
-    )]
-    pub vertices: Option<String>,
+    #[arg(id = "guide_vertices", long = "guide", alias = "guide-vertices")]
+    pub vertices: Option<GuideKind>,
     /// Direction map resolution COLSxROWS (default 32x16, the thesis's).
     #[arg(id = "guide_map", long = "guide-map")]
     pub map: Option<String>,
@@ -331,8 +342,8 @@ pub struct GuideOptions {
     #[arg(id = "guide_min_depth", long = "guide-min-depth")]
     pub min_depth: Option<u32>,
     /// Particle sampler of the guide: `classical` (default), `bidirectional` or `metropolis`.
-    #[arg(id = "guide_sampler", long = "guide-sampler", value_parser = PossibleValuesParser::new(ParticleSampler::NAMES))]
-    pub sampler: Option<String>,
+    #[arg(id = "guide_sampler", long = "guide-sampler")]
+    pub sampler: Option<ParticleSampler>,
     /// Metropolis particles: small-step deviation in primary sample space (default 1/64).
     #[arg(id = "guide_sigma", long = "guide-sigma")]
     pub sigma: Option<f64>,
@@ -368,7 +379,6 @@ impl GuideOptions {
         base: GuideSettings,
         spelling: Spelling,
     ) -> Result<GuideSettings, OptionError> {
-        use crate::enlightened::GuideKind;
         let err = |key: &'static str, e: GuideError| OptionError {
             key,
             message: match spelling {
@@ -377,8 +387,8 @@ impl GuideOptions {
             },
         };
         let mut s = base;
-        if let Some(v) = &self.vertices {
-            s.kind = GuideKind::parse(v).map_err(|e| err("vertices", e))?;
+        if let Some(v) = self.vertices {
+            s.kind = v;
         }
         if let Some(m) = &self.map {
             (s.cols, s.rows) = GuideSettings::parse_map(m).map_err(|e| err("map", e))?;
@@ -421,15 +431,8 @@ impl GuideOptions {
 
     /// The particle sampler and its Metropolis parameters (sigma, defensive), checked.
     fn apply_sampler(&self, s: &mut GuideSettings, spelling: Spelling) -> Result<(), OptionError> {
-        if let Some(m) = &self.sampler {
-            s.sampler =
-                crate::enlightened::guide::ParticleSampler::parse(m).map_err(|e| OptionError {
-                    key: "sampler",
-                    message: match spelling {
-                        Spelling::Key => e.to_string(),
-                        Spelling::Flag => format!("--guide-sampler: {e}"),
-                    },
-                })?;
+        if let Some(m) = self.sampler {
+            s.sampler = m;
         }
         let check = |s: &GuideSettings, key: &'static str| {
             s.metropolis.check().map_err(|e| OptionError {
@@ -486,18 +489,20 @@ impl RenderSettings {
     /// The defaults of every option for a scene of radius `radius` (the guide's alpha
     /// depends on it).
     fn defaults(radius: f32) -> Self {
+        let d = RenderOptions::defaults();
+        let given = "every top-level default is given";
         RenderSettings {
-            integrator: "path".into(),
-            spp: 64,
-            seed: 1,
-            max_depth: None,
-            meter_samples: DEFAULT_METER_SAMPLES,
-            distance: DistanceSampling::FreeFlight,
-            light_selection: LightSelectionKind::Tree,
+            integrator: d.integrator.expect(given),
+            spp: d.spp.expect(given),
+            seed: d.seed.expect(given),
+            max_depth: d.max_depth,
+            meter_samples: d.meter_samples.expect(given),
+            distance: d.distance.expect(given),
+            light_selection: d.light_selection.expect(given),
             mlt: MltSettings::default(),
             smc: SmcSettings::default(),
             guide: GuideSettings::for_radius(radius),
-            adjoint_image: false,
+            adjoint_image: d.adjoint_image.expect(given),
             adjoint: AdjointSettings::default(),
             given: RenderOptions::default(),
         }
@@ -549,14 +554,8 @@ impl RenderSettings {
         self.seed = o.seed.unwrap_or(self.seed);
         self.max_depth = o.max_depth.or(self.max_depth);
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
-        if let Some(d) = &o.distance {
-            self.distance = DistanceSampling::parse(d)
-                .map_err(|m| SettingError::at("", Some("distance"), m))?;
-        }
-        if let Some(k) = &o.light_selection {
-            self.light_selection = LightSelectionKind::parse(k)
-                .map_err(|m| SettingError::at("", Some("light_selection"), m))?;
-        }
+        self.distance = o.distance.unwrap_or(self.distance);
+        self.light_selection = o.light_selection.unwrap_or(self.light_selection);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);
         self.mlt

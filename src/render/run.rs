@@ -16,6 +16,7 @@ use super::provenance::{format_inputs, format_streams};
 use super::session::{self, Control, Ended, Job, Preprocessed, RenderResult};
 use super::shard::{self, Shard, ShardPlan};
 use super::RenderError;
+use crate::conventions::OptionValue as _;
 use crate::enlightened::{AdjointSettings, GuideKind};
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::{Case, IntegratorError, IntegratorKind, RenderSettings, Setup};

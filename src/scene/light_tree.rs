@@ -22,7 +22,7 @@ use crate::math::Distribution1D;
 
 /// Which light selection next-event estimation uses (`[render] light_selection`,
 /// `--light-selection`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum LightSelectionKind {
     /// Proportional to power, the same everywhere.
     Power,
@@ -30,26 +30,7 @@ pub enum LightSelectionKind {
     Tree,
 }
 
-impl LightSelectionKind {
-    /// The values of `light_selection` / `--light-selection`.
-    pub const NAMES: [&'static str; 2] = ["power", "tree"];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            LightSelectionKind::Power => Self::NAMES[0],
-            LightSelectionKind::Tree => Self::NAMES[1],
-        }
-    }
-
-    /// Parses one of [`LightSelectionKind::NAMES`].
-    pub fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "power" => Ok(LightSelectionKind::Power),
-            "tree" => Ok(LightSelectionKind::Tree),
-            _ => Err(format!("`{s}` is no light selection (power, tree)")),
-        }
-    }
-}
+crate::option_value!(LightSelectionKind, "light selection");
 
 /// A light selection ready to sample: the scene's power distribution, or a light tree.
 #[derive(Clone, Debug)]

@@ -120,16 +120,18 @@ impl Variant {
         };
         format!("is{is}_cv{cv}")
     }
+}
 
-    /// Parses `isI_cvC`.
-    pub fn parse(s: &str) -> Result<Variant, super::SmcError> {
-        Variant::ALL
-            .iter()
-            .copied()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| {
-                let names: Vec<String> = Variant::ALL.iter().map(|v| v.name()).collect();
-                super::SmcError::UnknownVariant(s.into(), names.join(", "))
-            })
+/// The six variants as `[render.smc] variant` and `--smc-variant` spell them ([`Variant::NAMES`]).
+impl clap::ValueEnum for Variant {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Variant::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let i = Variant::ALL.iter().position(|v| v == self)?;
+        Some(clap::builder::PossibleValue::new(Variant::NAMES[i]))
     }
 }
+
+crate::option_value!(Variant, "SMC variant");

@@ -41,6 +41,7 @@ pub use walk::Scratch;
 
 use glam::Vec3;
 
+use crate::conventions::OptionValue as _;
 use crate::geometry::Ray;
 use crate::math::{warp, Frame, Sampler};
 use crate::medium::Phase;
@@ -66,29 +67,47 @@ pub enum EstimatorForm {
     RayMarching { step: f32 },
 }
 
-impl EstimatorForm {
-    /// The names [`EstimatorForm::parse`] takes.
-    pub const NAMES: [&'static str; 2] = ["march", "distance"];
+/// The estimator forms as `[render.smc] estimator` and `--smc-estimator` name them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EstimatorKind {
+    /// eq. (7), [`EstimatorForm::Distance`].
+    Distance,
+    /// eq. (8)-(9), [`EstimatorForm::RayMarching`].
+    March,
+}
 
-    pub fn parse(s: &str, step: Option<f32>) -> Result<Self, SmcError> {
-        match s {
-            "distance" => Ok(EstimatorForm::Distance),
-            "march" => {
+crate::option_value!(EstimatorKind, "SMC estimator");
+
+impl EstimatorForm {
+    /// The form of `kind`, marching by `step` mean free paths (default 1), checked.
+    pub fn new(kind: EstimatorKind, step: Option<f32>) -> Result<Self, SmcError> {
+        match kind {
+            EstimatorKind::Distance => Ok(EstimatorForm::Distance),
+            EstimatorKind::March => {
                 let step = step.unwrap_or(DEFAULT_MARCH_STEP_MFP);
                 if !(step.is_finite() && step > 0.0) {
                     return Err(SmcError::BadMarchStep(step));
                 }
                 Ok(EstimatorForm::RayMarching { step })
             }
-            _ => Err(SmcError::UnknownEstimator(s.into())),
         }
     }
 
-    pub fn name(self) -> &'static str {
+    /// The form named `s` with the default step.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Ok(Self::new(EstimatorKind::parse(s)?, None)?)
+    }
+
+    /// Its kind, without the step.
+    pub fn kind(self) -> EstimatorKind {
         match self {
-            EstimatorForm::Distance => "distance",
-            EstimatorForm::RayMarching { .. } => "march",
+            EstimatorForm::Distance => EstimatorKind::Distance,
+            EstimatorForm::RayMarching { .. } => EstimatorKind::March,
         }
+    }
+
+    pub fn name(self) -> String {
+        self.kind().name()
     }
 }
 
@@ -119,12 +138,6 @@ pub fn parse_bytes(s: &str) -> Result<usize, SmcError> {
 /// are what the command line and the scene-file errors print.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SmcError {
-    /// A name that is no variant (the name, the available ones).
-    #[error("unknown SMC variant `{0}` (available: {1})")]
-    UnknownVariant(String, String),
-    /// A name that is no estimator form.
-    #[error("unknown SMC estimator `{0}` (available: distance, march)")]
-    UnknownEstimator(String),
     /// The ray-marching step of eq. (8) is not a positive number of mean free paths.
     #[error("the ray-marching step {0} must be a positive number of mean free paths")]
     BadMarchStep(f32),
@@ -318,8 +331,8 @@ pub struct OptionError {
 #[command(next_help_heading = "SMC: sequential Monte Carlo (--integrator smc; [render.smc])")]
 pub struct SmcOptions {
     /// SMC: the variant, is0|is1 x cv0|cv1|cv2 (default is1_cv2, the proposed method).
-    #[arg(long = "smc-variant", value_parser = clap::builder::PossibleValuesParser::new(estimator::Variant::NAMES))]
-    pub variant: Option<String>,
+    #[arg(long = "smc-variant")]
+    pub variant: Option<Variant>,
     /// SMC: the refinement threshold on the average record count of a cache (default 64).
     #[arg(long = "smc-threshold")]
     pub threshold: Option<f64>,
@@ -327,8 +340,8 @@ pub struct SmcOptions {
     #[arg(long = "smc-cache-budget", alias = "cache-budget", value_parser = ByteCount::parse_arg)]
     pub cache_budget: Option<ByteCount>,
     /// SMC: `march` (eq. 8-9, the default) or `distance` (eq. 7, Fig. 2).
-    #[arg(long = "smc-estimator", value_parser = clap::builder::PossibleValuesParser::new(EstimatorForm::NAMES))]
-    pub estimator: Option<String>,
+    #[arg(long = "smc-estimator")]
+    pub estimator: Option<EstimatorKind>,
     /// SMC: the ray-marching step in mean free paths (default 1; march only).
     #[arg(long = "smc-step")]
     pub step: Option<f32>,
@@ -350,8 +363,8 @@ impl SmcOptions {
     ) -> Result<SmcSettings, OptionError> {
         let err = |key: &'static str, message: String| OptionError { key, message };
         let mut s = base;
-        if let Some(v) = &self.variant {
-            s.variant = Variant::parse(v).map_err(|e| err("variant", e.to_string()))?;
+        if let Some(v) = self.variant {
+            s.variant = v;
         }
         if let Some(t) = self.threshold {
             if !(t.is_finite() && t > 0.0) {
@@ -372,22 +385,17 @@ impl SmcOptions {
             EstimatorForm::RayMarching { step } => Some(step),
             EstimatorForm::Distance => None,
         };
-        let estimator = self.estimator.as_deref().unwrap_or(base.form.name());
-        if self.step.is_some() && estimator != "march" {
+        let estimator = self.estimator.unwrap_or(base.form.kind());
+        if self.step.is_some() && estimator != EstimatorKind::March {
             let m = format!(
-                "{} applies to the march estimator, not `{estimator}`",
-                name("step")
+                "{} applies to the march estimator, not `{}`",
+                name("step"),
+                estimator.name()
             );
             return Err(err("step", m));
         }
-        s.form = EstimatorForm::parse(estimator, self.step.or(base_step)).map_err(|e| {
-            let k = if self.estimator.is_some() && !matches!(estimator, "march" | "distance") {
-                "estimator"
-            } else {
-                "step"
-            };
-            err(k, e.to_string())
-        })?;
+        s.form = EstimatorForm::new(estimator, self.step.or(base_step))
+            .map_err(|e| err("step", e.to_string()))?;
         Ok(s)
     }
 
