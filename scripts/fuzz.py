@@ -423,33 +423,33 @@ def exr_header(data):
     return attrs, i + 1
 
 
+def exr_rebuilt(data, attrs, end):
+    """The EXR `data` (header ending at `end`) with the header attributes `attrs`; the chunk
+    offsets shifted by the header's change of length."""
+    head = data[:8] + b"".join(n + b"\0" + t + b"\0" + struct.pack("<i", len(v)) + v
+                               for n, t, v in attrs) + b"\0"
+    chunks = struct.unpack("<i", dict((a[0], a[2]) for a in attrs)[b"chunkCount"])[0]
+    delta = len(head) - end
+    table = struct.unpack(f"<{chunks}Q", data[end:end + 8 * chunks])
+    return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
+
+
 def exr_with(data, name, kind, value):
-    """The EXR with one header attribute set (added if missing); the chunk offsets shifted."""
+    """The EXR with one header attribute set (added if missing)."""
     attrs, end = exr_header(data)
     hit = [a for a in attrs if a[0] == name]
     if hit:
         hit[0][1:] = [kind, value]
     else:
         attrs.append([name, kind, value])
-    head = data[:8] + b"".join(n + b"\0" + t + b"\0" + struct.pack("<i", len(v)) + v
-                               for n, t, v in attrs) + b"\0"
-    chunks = struct.unpack("<i", dict((a[0], a[2]) for a in attrs)[b"chunkCount"])[0]
-    delta = len(head) - end
-    table = struct.unpack(f"<{chunks}Q", data[end:end + 8 * chunks])
-    return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
+    return exr_rebuilt(data, attrs, end)
 
 
 def exr_without(data, name):
     """The EXR without the header attribute `name` (a forger who recomputes nothing drops the
-    checksum); the chunk offsets shifted."""
+    checksum)."""
     attrs, end = exr_header(data)
-    attrs = [a for a in attrs if a[0] != name]
-    head = data[:8] + b"".join(n + b"\0" + t + b"\0" + struct.pack("<i", len(v)) + v
-                               for n, t, v in attrs) + b"\0"
-    chunks = struct.unpack("<i", dict((a[0], a[2]) for a in attrs)[b"chunkCount"])[0]
-    delta = len(head) - end
-    table = struct.unpack(f"<{chunks}Q", data[end:end + 8 * chunks])
-    return head + struct.pack(f"<{chunks}Q", *(o + delta for o in table)) + data[end + 8 * chunks:]
+    return exr_rebuilt(data, [a for a in attrs if a[0] != name], end)
 
 
 def exr_raw_pixels(rng, data):
