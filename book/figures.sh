@@ -37,9 +37,10 @@ fi
 
 if want "$sel" cloud; then
   sed 's/propagation = "random-offset"/propagation = "delta-tracking"/' scenes/cloud.toml > out/cloud-dt.toml
-  $PS reference out/cloud-dt.toml --time 360 -o out/cloud-ref.exr
+  $PS reference out/cloud-dt.toml --time 100 --resolution 64x64 -o out/cloud-ref.exr
   $PS converge out/cloud-dt.toml --reference out/cloud-ref.exr --integrators path \
-      --propagation equidistant,stratified,random-offset,delta-tracking --budget 30 --checkpoints 6 -o out/cloud-conv
+      --propagation equidistant,stratified,random-offset,delta-tracking --budget 5 --runs 4 --checkpoints 4 \
+      --resolution 64x64 --threads 2 -o out/cloud-conv
   cp out/cloud-conv/error-vs-time.png book/src/figures/cloud/converge-error-vs-time.png
   cp out/cloud-conv/convergence.csv book/src/figures/cloud/converge.csv
 fi

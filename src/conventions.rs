@@ -1,4 +1,4 @@
-//! Conventions used everywhere in pathspace, written once (book: "Notation and conventions").
+//! Conventions used everywhere in pathspace, written once (book: "Conventions of the code").
 //!
 //! - **Directions at a vertex** both point away from it: `wo` towards where the light goes (the
 //!   previous vertex of an eye path, the next of a light path), `wi` towards where it comes from.

@@ -2,7 +2,7 @@
 //!
 //! The papers work per wavelength; pathspace carries three channels (linear sRGB primaries) in a
 //! `glam::Vec3`, the simplest representation that shows chromatic media (a per-channel `sigma_t`).
-//! Book: "Notation and conventions".
+//! Book: "Conventions of the code".
 
 use glam::Vec3;
 

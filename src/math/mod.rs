@@ -1,6 +1,6 @@
 //! Small numerical building blocks: orthonormal frames, warps from the unit square, sampling by
 //! solid angle, discrete distributions and the random number streams.
-//! Book: "Notation and conventions" (frames, measures) and "Sampling toolbox".
+//! Book: "Conventions of the code" (frames, measures) and "Sampling toolbox".
 
 pub mod distribution;
 pub mod frame;

@@ -9,7 +9,7 @@
 //!
 //! p(t) = h / ((theta(b) - theta(a)) (h^2 + (t - delta)^2)) on [a, b].
 //!
-//! Book: "Table 1: homogeneous media", section "Equiangular sampling"; executable spec:
+//! Book: "Sampling toward lights", section "Equiangular distances"; executable spec:
 //! `tests/equiangular.rs`.
 
 use glam::Vec3;

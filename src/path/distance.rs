@@ -9,7 +9,7 @@
 //! tracer uses them on camera rays (`distance = "equiangular-mis"`); BDPT and MLT sample by
 //! free flight only and do not need them.
 //!
-//! Book: "Table 1: homogeneous media", section "Equiangular sampling"; tests:
+//! Book: "Sampling toward lights", section "Equiangular distances"; tests:
 //! `tests/equiangular.rs`.
 
 use glam::Vec3;
