@@ -145,7 +145,9 @@ fn the_book_builds() {
 
 /// The chapters of the papers' equations, in paper order (Pauly et al. eqs. 1-8 and Table 1,
 /// Pegoraro et al. eqs. 1-9, BDPT's MIS, measuring).
-const EQUATION_CHAPTERS: [&str; 16] = [
+const EQUATION_CHAPTERS: [&str; 18] = [
+    "primer.md",
+    "error-analysis.md",
     "conventions.md",
     "scenes.md",
     "envmap.md",
