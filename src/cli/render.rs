@@ -476,6 +476,27 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
     serde_json::json!([c.x, c.y, c.z])
 }
 
+/// The emitting media (L_e,V0 of eq. 1): name, emission coefficient and the emitted power
+/// next-event estimation samples them by (null when no medium glows).
+fn emitting_media_json(scene: &crate::scene::Scene) -> serde_json::Value {
+    let list: Vec<serde_json::Value> = (0..scene.media.len() as u32)
+        .filter(|&m| scene.media[m as usize].emits())
+        .map(|m| {
+            let power = scene.emitters.of_medium(m).map(|e| rgb_json(e.power));
+            serde_json::json!({
+                "name": scene.medium_names[m as usize],
+                "emission": rgb_json(scene.media[m as usize].emission_coefficient()),
+                "power": power,
+            })
+        })
+        .collect();
+    if list.is_empty() {
+        serde_json::Value::Null
+    } else {
+        serde_json::Value::Array(list)
+    }
+}
+
 /// The one JSON object of `--json`.
 fn result_json(
     result: &RenderResult,
@@ -512,6 +533,7 @@ fn result_json(
             "seconds_build": g.seconds_build,
         })),
         "options": render.settings.given.to_json(),
+        "emitting_media": emitting_media_json(render.scene),
         "adjoint": pre.adjoint.map(|a| serde_json::json!({
             "samples": a.samples,
             "seconds": a.seconds,
