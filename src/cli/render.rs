@@ -477,8 +477,8 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
 }
 
 /// The emitting media (L_e,V0 of eq. 1): name, emission coefficient and the emitted power
-/// next-event estimation samples them by (null when no medium glows).
-fn emitting_media_json(scene: &crate::scene::Scene) -> serde_json::Value {
+/// next-event estimation samples them by (`None` when no medium glows).
+fn emitting_media_json(scene: &crate::scene::Scene) -> Option<serde_json::Value> {
     let list: Vec<serde_json::Value> = (0..scene.media.len() as u32)
         .filter(|&m| scene.media[m as usize].emits())
         .map(|m| {
@@ -490,11 +490,7 @@ fn emitting_media_json(scene: &crate::scene::Scene) -> serde_json::Value {
             })
         })
         .collect();
-    if list.is_empty() {
-        serde_json::Value::Null
-    } else {
-        serde_json::Value::Array(list)
-    }
+    (!list.is_empty()).then_some(serde_json::Value::Array(list))
 }
 
 /// The one JSON object of `--json`.
@@ -533,13 +529,16 @@ fn result_json(
             "seconds_build": g.seconds_build,
         })),
         "options": render.settings.given.to_json(),
-        "emitting_media": emitting_media_json(render.scene),
         "adjoint": pre.adjoint.map(|a| serde_json::json!({
             "samples": a.samples,
             "seconds": a.seconds,
             "zero_cells": a.zero_cells,
         })),
     });
+    // only a scene with an emitting medium has the key (other scenes' records are unchanged)
+    if let Some(list) = emitting_media_json(render.scene) {
+        out["emitting_media"] = list;
+    }
     // every integrator's statistics key, null but for this one's
     let own = render.kind.facts().statistics_key();
     for kind in IntegratorKind::ALL {
