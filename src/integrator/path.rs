@@ -565,7 +565,7 @@ pub fn volume_next_event(
         return Rgb::ZERO;
     };
     let r2 = (vs.p - p).length_squared();
-    if vs.emission == Rgb::ZERO || !(r2 > 0.0) {
+    if vs.emission == Rgb::ZERO || r2.is_nan() || r2 <= 0.0 {
         return Rgb::ZERO;
     }
     let wi = (vs.p - p) / r2.sqrt();
