@@ -853,3 +853,92 @@ fn agreement_deep() {
     );
     fam.finish();
 }
+
+// ---- emitting media (L_e,V0 of eq. 1): the path tracer against its delta-tracking
+// reference; every other integrator refuses the scene, naming the emitting medium ----
+
+const EMITTING_LIGHT: (&str, &str) = ("light*", "emitting medium");
+const EMITTING_BDPT: (&str, &str) = ("bdpt*", "emitting medium");
+const EMITTING_MLT: (&str, &str) = ("mlt*", "emitting medium");
+const EMITTING_SMC: (&str, &str) = ("smc*", "emitting medium");
+
+/// `text` with `emission = value` added after the line `after`.
+fn with_emission(text: &str, after: &str, value: &str) -> String {
+    assert!(text.contains(after), "`{after}` is in the scene");
+    text.replacen(after, &format!("{after}\nemission = {value}"), 1)
+}
+
+/// The chromatic row's medium glowing, chromatic, beside its point and spot lights and surfaces.
+#[test]
+fn agreement_emitting_chromatic() {
+    let mut fam = Family::new("agreement: emitting chromatic");
+    let text = with_emission(
+        &fixture("chromatic.toml"),
+        "sigma_s = [0.9, 0.5, 0.2]",
+        "[0.1, 0.3, 0.6]",
+    );
+    check_row(
+        &mut fam,
+        &Row {
+            refuse: &[
+                NO_AREA_LIGHT,
+                EMITTING_LIGHT,
+                EMITTING_BDPT,
+                EMITTING_MLT,
+                EMITTING_SMC,
+            ],
+            ..row("emitting-chromatic", text, 3)
+        },
+    );
+    fam.finish();
+}
+
+/// The grid row's blob glowing with its density, over a floor lit by an area light.
+#[test]
+fn agreement_emitting_grid() {
+    let mut fam = Family::new("agreement: emitting grid");
+    let text = with_emission(&fixture("grid.toml"), "sigma_s = 3.0", "[0.4, 0.2, 0.1]");
+    check_row(
+        &mut fam,
+        &Row {
+            spp: SPP / 2,
+            refuse: &[
+                EQUIANGULAR_INHOMOGENEOUS,
+                EMITTING_LIGHT,
+                EMITTING_BDPT,
+                EMITTING_MLT,
+                EMITTING_SMC,
+            ],
+            ..row("emitting-grid", text, 3)
+        },
+    );
+    fam.finish();
+}
+
+/// The procedural row with the plume glowing with its density and the gradient glowing too:
+/// two emitting media selected by power, beside an area light.
+#[test]
+fn agreement_emitting_procedural() {
+    let mut fam = Family::new("agreement: emitting procedural");
+    let text = with_emission(
+        &fixture("procedural.toml"),
+        "sigma_s = 4.0",
+        "[3.0, 1.5, 0.5]",
+    );
+    let text = with_emission(&text, "sigma_s = 1.5", "0.2");
+    check_row(
+        &mut fam,
+        &Row {
+            spp: SPP / 2,
+            refuse: &[
+                EQUIANGULAR_INHOMOGENEOUS,
+                EMITTING_LIGHT,
+                EMITTING_BDPT,
+                EMITTING_MLT,
+                EMITTING_SMC,
+            ],
+            ..row("emitting-procedural", text, 3)
+        },
+    );
+    fam.finish();
+}

@@ -726,6 +726,7 @@ fn gridvolume_values_sit_at_cell_centres() {
         sigma_a: per(|x| 1.0 - x),
         sigma_s: per(|x| x),
         phase: PhaseDesc::Isotropic {},
+        emission: None,
         file: "blob.vol".into(),
         min: Some([-h; 3]),
         max: Some([h; 3]),

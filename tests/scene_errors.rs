@@ -167,6 +167,36 @@ fn nan_coefficient() {
 }
 
 #[test]
+fn negative_emission() {
+    expect_error(
+        "\n[media.glow]\ntype = \"homogeneous\"\nsigma_a = 0.1\nsigma_s = 0.1\nemission = [1.0, -0.5, 1.0]\n",
+        6,
+        "media.glow.emission",
+        &["emission", ">= 0", "[1, -0.5, 1]"],
+    );
+}
+
+#[test]
+fn infinite_emission_on_a_procedural_medium() {
+    expect_error(
+        "\n[media.glow]\ntype = \"procedural\"\ndensity = \"constant\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nsigma_a = 0.1\nsigma_s = 0.1\nemission = inf\n",
+        9,
+        "media.glow.emission",
+        &["emission", "finite"],
+    );
+}
+
+#[test]
+fn emission_without_extinction() {
+    expect_error(
+        "\n[media.glow]\ntype = \"homogeneous\"\nsigma_a = 0.0\nsigma_s = 0.0\nemission = 1.0\n",
+        6,
+        "media.glow.emission",
+        &["emission", "sigma_a + sigma_s = 0"],
+    );
+}
+
+#[test]
 fn hg_with_g_of_one() {
     for g in ["1.0", "-1.0", "1.5"] {
         expect_error(

@@ -129,6 +129,35 @@ fn medium(m: &Medium) -> String {
     }
 }
 
+/// The media that glow (L_e,V0 of eq. 1) and the power next-event estimation samples them by.
+fn emitting_media(scene: &Scene) {
+    for (m, (n, med)) in scene.medium_names.iter().zip(&scene.media).enumerate() {
+        if !med.emits() {
+            continue;
+        }
+        let how = match scene.emitters.of_medium(m as u32) {
+            Some(e) => format!(
+                "power {} (4 pi L_e,V0 over its box {} .. {}), sampled as a light with probability {:.4}",
+                v3(e.power),
+                p3(e.bounds.min),
+                p3(e.bounds.max),
+                scene.emitters.pmf(m as u32)
+            ),
+            None => "no bounded box: its emission is collected along free flights only".into(),
+        };
+        let per = if med.closed_form() {
+            ""
+        } else {
+            " per unit density"
+        };
+        println!(
+            "    {} emits: L_e,V0 {}{per}, {how}",
+            esc(n),
+            v3(med.emission_coefficient())
+        );
+    }
+}
+
 fn light(l: &Light) -> String {
     match l {
         Light::Area {
@@ -300,6 +329,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     for (n, m) in scene.medium_names.iter().zip(&scene.media) {
         println!("    {}: {}", esc(n), medium(m));
     }
+    emitting_media(&scene);
     println!(
         "  lights: {} (selected in proportion to power; the path tracer's next-event estimation picks by the light tree unless light_selection = \"power\")",
         scene.lights.len()

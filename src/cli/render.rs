@@ -476,6 +476,23 @@ fn rgb_json(c: glam::Vec3) -> serde_json::Value {
     serde_json::json!([c.x, c.y, c.z])
 }
 
+/// The emitting media (L_e,V0 of eq. 1): name, emission coefficient and the emitted power
+/// next-event estimation samples them by (`None` when no medium glows).
+fn emitting_media_json(scene: &crate::scene::Scene) -> Option<serde_json::Value> {
+    let list: Vec<serde_json::Value> = (0..scene.media.len() as u32)
+        .filter(|&m| scene.media[m as usize].emits())
+        .map(|m| {
+            let power = scene.emitters.of_medium(m).map(|e| rgb_json(e.power));
+            serde_json::json!({
+                "name": scene.medium_names[m as usize],
+                "emission": rgb_json(scene.media[m as usize].emission_coefficient()),
+                "power": power,
+            })
+        })
+        .collect();
+    (!list.is_empty()).then_some(serde_json::Value::Array(list))
+}
+
 /// The one JSON object of `--json`.
 fn result_json(
     result: &RenderResult,
@@ -518,6 +535,10 @@ fn result_json(
             "zero_cells": a.zero_cells,
         })),
     });
+    // only a scene with an emitting medium has the key (other scenes' records are unchanged)
+    if let Some(list) = emitting_media_json(render.scene) {
+        out["emitting_media"] = list;
+    }
     // every integrator's statistics key, null but for this one's
     let own = render.kind.facts().statistics_key();
     for kind in IntegratorKind::ALL {

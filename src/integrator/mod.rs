@@ -88,6 +88,7 @@ impl IntegratorKind {
         self,
         setup: &Setup<'_, 't>,
     ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
+        check_emitting_media(self, setup.scene)?;
         self.facts().prepare(setup)
     }
 
@@ -95,6 +96,22 @@ impl IntegratorKind {
     /// adjoint image).
     pub fn samples_light_starts(self) -> bool {
         self.facts().samples_light_starts()
+    }
+}
+
+/// Refuses a scene with an emitting medium for an integrator that cannot collect its light,
+/// naming the medium and the reason (never a silent image without the glow).
+pub fn check_emitting_media(kind: IntegratorKind, scene: &Scene) -> Result<(), IntegratorError> {
+    let Some(why) = kind.facts().emitting_media_refusal() else {
+        return Ok(());
+    };
+    match scene.media.iter().position(crate::medium::Medium::emits) {
+        Some(i) => Err(IntegratorError::Refused(format!(
+            "`{}` cannot render the emitting medium `{}` (emission, L_e,V0 of eq. 1): {why}; render it with `path`",
+            kind.name(),
+            scene.medium_names[i]
+        ))),
+        None => Ok(()),
     }
 }
 
@@ -171,6 +188,12 @@ pub trait Facts: Sync {
     /// Whether it samples light start points (and so can use the guide and the adjoint image).
     fn samples_light_starts(&self) -> bool {
         false
+    }
+
+    /// Why it cannot render a scene with an emitting medium (L_e,V0 of eq. 1), or `None` when
+    /// it collects that emission ([`check_emitting_media`] names the medium).
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        Some("it does not collect light emitted by a medium")
     }
 
     /// Refuses, before any work or memory, a scene or settings it cannot render (MLT's

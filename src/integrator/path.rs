@@ -214,6 +214,16 @@ impl PathTracer {
             },
             |_, _| 1.0,
         );
+        l += volume_next_event(
+            scene,
+            (p, None),
+            |_| meter.medium,
+            sampler,
+            |wi| {
+                let c = wi.dot(n).max(0.0);
+                (Rgb::splat(c), c * std::f32::consts::FRAC_1_PI)
+            },
+        );
         let local = warp::cosine_hemisphere(sampler.next_2d());
         if local.z <= 0.0 {
             return l;
@@ -249,6 +259,11 @@ impl PathTracer {
         loop {
             // propagation: Table 1 through media and null boundaries
             let prop = scene.propagate(w.ray, w.lead, w.medium, sampler);
+            if let Event::Medium { p, medium: m, .. } = prop.event {
+                if scene.media[m as usize].emits() {
+                    l += volume_emission_found(scene, &w, &prop, p, m);
+                }
+            }
             w.beta *= prop.weight();
             if w.beta == Rgb::ZERO {
                 break;
@@ -329,6 +344,7 @@ impl PathTracer {
                 scatter,
                 mis,
             );
+        *l += w.beta * volume_next_event(scene, (p, None), |_| Some(m), sampler, scatter);
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
         let ps = phase.sample(wo, sampler.next_2d());
@@ -396,6 +412,8 @@ impl PathTracer {
                     scatter,
                     no_weight,
                 );
+            let to = (hit.p, Some(n));
+            *l += w.beta * volume_next_event(scene, to, towards, sampler, scatter);
         }
         let u = sampler.next_2d();
         let uc = sampler.next_f32();
@@ -484,6 +502,88 @@ fn emission_found(
     };
     Some(w.beta * *radiance * mis)
 }
+
+/// The volume emittance L_e,V0 (eqs. 1 and 3) collected at the collision `p` in medium `m` that
+/// `prop` sampled, MIS-weighted against [`volume_next_event`].
+///
+/// The collision estimator: along a free flight the in-scattered and emitted radiance of
+/// eq. (3) is the integral of T(t) L_e,V0(t) dt; a collision drawn with density p(t) (the
+/// product of the passage probabilities before it and its own collision density, Table 1, as
+/// delta tracking draws it too) estimates it by T(t) L_e,V0(t) / p(t), unbiased wherever
+/// p(t) > 0, which holds wherever sigma_t > 0 (an emitting medium must have some extinction).
+/// The same collision then scatters with weight T sigma_s / p, so each collision adds the
+/// emission once. The walk's density of `p` per unit volume is pdf_dir p(t) / r^2 (dV =
+/// r^2 dw dr, eq. 5's volume vertex), the measure [`VolumeEmitters::pdf`] is in.
+///
+/// [`VolumeEmitters::pdf`]: crate::scene::emitters::VolumeEmitters::pdf
+// ANCHOR: volume_emission_found
+fn volume_emission_found(
+    scene: &Scene,
+    w: &WalkState,
+    prop: &crate::scene::Propagation,
+    p: Vec3,
+    m: u32,
+) -> Rgb {
+    if prop.pdf <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let le = scene.media[m as usize].emission(p);
+    let mis = if w.prev.singular {
+        1.0
+    } else {
+        let r2 = (p - w.prev.p).length_squared();
+        let pdf_walk = w.prev.pdf_dir * prop.pdf / r2;
+        power_heuristic(pdf_walk, scene.emitters.pdf(m, p))
+    };
+    w.beta * prop.transmittance * le * (mis / prop.pdf)
+}
+// ANCHOR_END: volume_emission_found
+
+/// Next-event estimation toward the emitting media: a point x of them drawn by emitted power
+/// (density pdf_V per unit volume, [`VolumeEmitters::sample`]), the light it sends to the
+/// vertex `p` (normal `n` on a surface) through the transmittance T(p, x): the integrand of
+/// eq. (5) with x0 = x a volume vertex, f T L_e,V0(x) / r^2 per unit volume, over pdf_V. The
+/// power heuristic weighs it against the walk reaching x (`scatter`'s solid-angle density,
+/// times the free-flight collision density at x, over r^2), the partner of
+/// [`volume_emission_found`]. Draws no random number in a scene without emitting media.
+///
+/// [`VolumeEmitters::sample`]: crate::scene::emitters::VolumeEmitters::sample
+// ANCHOR: volume_next_event
+pub fn volume_next_event(
+    scene: &Scene,
+    (p, n): (Vec3, Option<Vec3>),
+    medium: impl Fn(Vec3) -> Option<u32>,
+    sampler: &mut Sampler,
+    scatter: impl Fn(Vec3) -> (Rgb, f32),
+) -> Rgb {
+    if scene.emitters.is_empty() {
+        return Rgb::ZERO;
+    }
+    let u_select = sampler.next_f32();
+    let u = Vec3::new(sampler.next_f32(), sampler.next_f32(), sampler.next_f32());
+    let Some(vs) = scene.emitters.sample(scene, u_select, u) else {
+        return Rgb::ZERO;
+    };
+    let r2 = (vs.p - p).length_squared();
+    if vs.emission == Rgb::ZERO || r2.is_nan() || r2 <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let wi = (vs.p - p) / r2.sqrt();
+    let (f, pdf_scatter) = scatter(wi);
+    if f == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let origin = n.map_or(p, |n| offset_origin(p, n, wi));
+    let lead = (origin - p).dot(wi);
+    let Some((tr, pdf_ff)) =
+        scene.volume_edge((origin, lead), vs.p, medium(wi), vs.medium, sampler)
+    else {
+        return Rgb::ZERO;
+    };
+    let mis = power_heuristic(vs.pdf, pdf_scatter * pdf_ff / r2);
+    f * tr * vs.emission * (mis / (vs.pdf * r2))
+}
+// ANCHOR_END: volume_next_event
 
 /// The direct image of every delta light (point, spot, directional) on the pinhole camera's
 /// film: one splat per light the camera sees, with its transmittance from `sampler`.
@@ -648,6 +748,11 @@ impl super::Facts for PathFacts {
             tiles: true,
             bytes_per_sample: 0,
         }
+    }
+
+    /// It collects emission along free flights and samples emitting media as lights.
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        None
     }
 }
 

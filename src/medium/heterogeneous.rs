@@ -171,6 +171,9 @@ pub struct Heterogeneous {
     pub line_integral: LineIntegral,
     /// The marching step Delta (world units).
     pub delta: f32,
+    /// L_e,V0 per unit density (eq. 1): emission(x) = density(x) emission, like sigma_a and
+    /// sigma_s (zero for a medium that does not glow).
+    pub emission: Rgb,
     /// Block maxima of the density on a `MAJORANT_RES`^3 grid over the box.
     majorant: Vec<f32>,
 }
@@ -235,6 +238,7 @@ impl Heterogeneous {
             phase,
             line_integral,
             delta: relative_step * bounds.extent().max_element(),
+            emission: Rgb::ZERO,
             majorant,
         };
         h.check_work(relative_step)?;

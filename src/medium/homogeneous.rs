@@ -25,6 +25,9 @@ pub struct Homogeneous {
     pub sigma_s: Rgb,
     pub sigma_t: Rgb,
     pub phase: Phase,
+    /// The volume emittance L_e,V0 of eq. (1): radiance added per unit length, isotropic
+    /// (zero for a medium that does not glow; set by [`super::Medium::with_emission`]).
+    pub emission: Rgb,
 }
 
 impl Homogeneous {
@@ -42,6 +45,7 @@ impl Homogeneous {
             sigma_s,
             sigma_t: sigma_a + sigma_s,
             phase,
+            emission: Rgb::ZERO,
         })
     }
 

@@ -43,6 +43,10 @@ pub enum MediumError {
         diagonal: f32,
         limit: f32,
     },
+    /// Emission in a medium without extinction: the free-flight estimator collects L_e,V0 at
+    /// collisions, and a medium with sigma_t = 0 in every channel has none.
+    #[error("emission = {emission} in a medium with sigma_a + sigma_s = 0 in every channel: the path tracer collects emission at free-flight collisions, and this medium has none (give it some absorption)")]
+    EmissionWithoutExtinction { emission: Rgb },
 }
 
 /// The outcome of sampling a free-flight distance inside one medium segment [0, t_max)
@@ -101,6 +105,55 @@ impl Medium {
             Medium::Homogeneous(h) => h.sigma_s,
             Medium::Heterogeneous(h) => h.sigma_s * h.density_at(p),
         }
+    }
+
+    /// The volume emittance L_e,V0(p) of eq. (1): radiance added per unit length at `p`,
+    /// isotropic, scaled by the density like sigma_a and sigma_s. pbrt-v4's `Le` is multiplied
+    /// by sigma_a instead: L_e,V0 = sigma_a Le.
+    #[inline]
+    pub fn emission(&self, p: Vec3) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.emission,
+            Medium::Heterogeneous(h) => h.emission * h.density_at(p),
+        }
+    }
+
+    /// The emission coefficient: L_e,V0 of a homogeneous medium, L_e,V0 per unit density of
+    /// an inhomogeneous one.
+    pub fn emission_coefficient(&self) -> Rgb {
+        match self {
+            Medium::Homogeneous(h) => h.emission,
+            Medium::Heterogeneous(h) => h.emission,
+        }
+    }
+
+    /// True when the medium glows (some channel of L_e,V0 is positive somewhere).
+    #[inline]
+    pub fn emits(&self) -> bool {
+        self.emission_coefficient().max_element() > 0.0
+    }
+
+    /// This medium with volume emittance `emission` (per unit density for an inhomogeneous
+    /// medium); refused when it is negative, not finite, or the medium has no extinction.
+    pub fn with_emission(mut self, emission: Rgb) -> Result<Self, MediumError> {
+        for c in emission.to_array() {
+            if !c.is_finite() || c < 0.0 {
+                let name = "emission";
+                return Err(MediumError::NegativeCoefficient { name, value: c });
+            }
+        }
+        let sigma_t = match &self {
+            Medium::Homogeneous(h) => h.sigma_t,
+            Medium::Heterogeneous(h) => h.sigma_t,
+        };
+        if emission.max_element() > 0.0 && sigma_t.max_element() <= 0.0 {
+            return Err(MediumError::EmissionWithoutExtinction { emission });
+        }
+        match &mut self {
+            Medium::Homogeneous(h) => h.emission = emission,
+            Medium::Heterogeneous(h) => h.emission = emission,
+        }
+        Ok(self)
     }
 
     pub fn sigma_t(&self, p: Vec3) -> Rgb {

@@ -92,6 +92,7 @@ impl<'a> Render<'a> {
             None => None,
         };
         // refused before the memory it would need (MLT's scene, SMC's march length)
+        crate::integrator::check_emitting_media(kind, scene)?;
         kind.facts().check(&Case {
             scene,
             settings: &settings,

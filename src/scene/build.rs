@@ -86,6 +86,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         light_media: Vec::new(),
         camera: None,
         camera_medium: None,
+        emitters: Default::default(),
         sensors: Vec::new(),
         bounds,
         center,
@@ -97,6 +98,9 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     };
 
     scene.light_media = lights::media_around(&scene);
+    if scene.media.iter().any(Medium::emits) {
+        scene.emitters = super::emitters::VolumeEmitters::build(&scene);
+    }
     sensors::camera(src, &desc, &mut scene)?;
     camera_medium_as_declared(src, &scene)?;
     sensors::meters(src, &desc, &mut scene)?;

@@ -244,6 +244,9 @@ pub enum MediumDesc {
         sigma_s: RgbValue,
         #[serde(default = "default_phase")]
         phase: PhaseDesc,
+        /// L_e,V0 of eq. (1): radiance added per unit length (pbrt-v4: sigma_a times its `Le`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        emission: Option<RgbValue>,
     },
     /// A density grid read from `file` (text, or Mitsuba `.vol`), trilinearly interpolated over
     /// the box [min, max] (a `.vol` brings its own box), scaling sigma_a and sigma_s.
@@ -252,6 +255,9 @@ pub enum MediumDesc {
         sigma_s: RgbValue,
         #[serde(default = "default_phase")]
         phase: PhaseDesc,
+        /// L_e,V0 per unit density (eq. 1), scaled by the density like sigma_a and sigma_s.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        emission: Option<RgbValue>,
         file: String,
         #[serde(default, deserialize_with = "exact_opt")]
         min: Option<[f32; 3]>,
@@ -269,6 +275,9 @@ pub enum MediumDesc {
         sigma_s: RgbValue,
         #[serde(default = "default_phase")]
         phase: PhaseDesc,
+        /// L_e,V0 per unit density (eq. 1), scaled by the density like sigma_a and sigma_s.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        emission: Option<RgbValue>,
         density: DensityDesc,
         #[serde(deserialize_with = "exact")]
         min: [f32; 3],

@@ -6,6 +6,7 @@
 
 pub mod build;
 pub mod camera;
+pub mod emitters;
 pub mod envmap;
 pub mod file;
 pub mod light;
@@ -176,6 +177,8 @@ pub struct Scene {
     pub light_media: Vec<Option<u32>>,
     pub camera: Option<Camera>,
     pub camera_medium: Option<u32>,
+    /// The emitting media as lights (L_e,V0 of eq. 1): empty unless a medium glows.
+    pub emitters: emitters::VolumeEmitters,
     pub sensors: Vec<IrradianceMeter>,
     pub bounds: Aabb,
     pub center: Vec3,
@@ -353,6 +356,40 @@ impl Scene {
         Rgb::ZERO
     }
     // ANCHOR_END: transmittance
+
+    /// The straight way from `o` (`lead` behind it the vertex itself) to the point `x` of
+    /// medium `m`, starting in `medium`: its transmittance (eq. 3, with visibility) and the
+    /// free-flight density of a walk from the vertex colliding at `x` (the passage
+    /// probabilities of the segments before it times the collision density there, Table 1, per
+    /// unit length). `None` when an opaque surface is in the way or `x` is not in `m`. For
+    /// next-event estimation toward an emitting medium (eq. 5 with x0 a volume vertex).
+    pub fn volume_edge(
+        &self,
+        (o, lead): (Vec3, f32),
+        x: Vec3,
+        medium: Option<u32>,
+        m: u32,
+        sampler: &mut Sampler,
+    ) -> Option<(Rgb, f32)> {
+        let dist = (x - o).length();
+        let ray = Ray::new(o, (x - o) / dist);
+        let (mut tr, mut pdf) = (Rgb::ONE, 1.0f32);
+        for seg in Segments::new(self, ray, medium, dist).lead(lead) {
+            let last = matches!(seg.end, SegmentEnd::Open);
+            if let Some(k) = seg.medium {
+                let (sr, len) = (Ray::new(ray.at(seg.t0), ray.d), seg.t1 - seg.t0);
+                let med = &self.media[k as usize];
+                tr *= med.transmittance(&sr, len, sampler);
+                pdf *= med.free_flight_pdf(&sr, len, last);
+            }
+            match seg.end {
+                SegmentEnd::Null(_) => {}
+                SegmentEnd::Open => return (seg.medium == Some(m)).then_some((tr, pdf)),
+                SegmentEnd::Surface(_) => return None,
+            }
+        }
+        None
+    }
 
     /// Transmittance and propagation pdfs of the straight edge from `a` to `b` (a connection in
     /// BDPT, or a re-evaluated edge in MLT): `pdf_ab` is the propagation pdf (Table 1) of

@@ -38,6 +38,10 @@ impl super::Facts for BdptFacts {
         true
     }
 
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        Some("its light subpaths start on lights only, never at a volume vertex x0 in the medium (eq. 5), and the guide and the adjoint image built on them would miss it too")
+    }
+
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
         super::PassFootprint {
             tiles: true,

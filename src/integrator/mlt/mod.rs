@@ -743,6 +743,10 @@ impl super::Facts for MltFacts {
         true
     }
 
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        Some("its chains have no state whose light vertex x0 lies in a medium (eq. 5), nor do its guide and adjoint image")
+    }
+
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
         check_scene(case.scene).map_err(super::IntegratorError::from)
     }

@@ -608,6 +608,10 @@ impl super::Facts for SmcFacts {
         prepare(setup)
     }
 
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        Some("its march and its cache's records carry no emission term (eq. 3's source term)")
+    }
+
     /// A march that would exceed its step limit is refused before the memory it would need.
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
         if let EstimatorForm::RayMarching { step } = case.settings.smc.form {

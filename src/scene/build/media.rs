@@ -77,6 +77,7 @@ impl Media {
                     sigma_a,
                     sigma_s,
                     phase: ph,
+                    ..
                 } => {
                     let sa = non_negative(src, &key.clone().key("sigma_a"), *sigma_a, "sigma_a")?;
                     let ss = non_negative(src, &key.clone().key("sigma_s"), *sigma_s, "sigma_s")?;
@@ -94,6 +95,7 @@ impl Media {
                     file,
                     min,
                     max,
+                    ..
                 } => {
                     let coefficients = (sigma_a, sigma_s, phase, propagation, step);
                     heterogeneous(src, &key, coefficients, || grid(src, &key, file, min, max))?
@@ -110,6 +112,7 @@ impl Media {
                     heterogeneous(src, &key, coefficients, || procedural(src, &key, m))?
                 }
             };
+            let medium = emitting(src, &key, medium, m)?;
             index.insert(name.clone(), media.len() as u32);
             media.push(medium);
             names.push(name.clone());
@@ -142,6 +145,27 @@ impl Media {
             }),
         }
     }
+}
+
+/// `medium` with the table's `emission` (L_e,V0 of eq. 1, per unit density in an
+/// inhomogeneous medium), checked at its key.
+fn emitting(
+    src: &SceneSource,
+    key: &KeyPath,
+    medium: Medium,
+    m: &MediumDesc,
+) -> Result<Medium, SceneError> {
+    let (MediumDesc::Homogeneous { emission, .. }
+    | MediumDesc::Grid { emission, .. }
+    | MediumDesc::Procedural { emission, .. }) = m;
+    let Some(e) = emission else {
+        return Ok(medium);
+    };
+    let at = key_of(key, "emission");
+    let e = non_negative(src, &at, *e, "emission (L_e,V0, radiance per unit length)")?;
+    medium
+        .with_emission(e)
+        .map_err(|err| src.error(&at, err.to_string()))
 }
 
 /// The keys an inhomogeneous medium shares: `sigma_a`, `sigma_s`, `phase`, `propagation` and

@@ -62,6 +62,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 sigma_a: rgb(sa),
                 sigma_s: rgb(ss),
                 phase,
+                emission: None,
                 file: file.clone(),
                 min: Some(f3(min)),
                 max: Some(f3(max)),
@@ -132,7 +133,7 @@ fn homogeneous(
     p.finish()?;
     let (ss, sa) = (st * albedo, st * (DVec3::ONE - albedo));
     Ok((
-        MediumDesc::Homogeneous { sigma_a: rgb(sa), sigma_s: rgb(ss), phase },
+        MediumDesc::Homogeneous { sigma_a: rgb(sa), sigma_s: rgb(ss), phase, emission: None },
         format!("homogeneous, sigma_s = scale sigma_t albedo = {}, sigma_a = scale sigma_t (1 - albedo) = {}", show(ss), show(sa)),
     ))
 }
