@@ -85,7 +85,10 @@ fn chapters_name_only_drawn_diagrams_and_each_core_chapter_has_one() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let named = diagrams_named(&std::fs::read_to_string(&path).unwrap());
         for d in &named {
-            assert!(drawn.contains(d), "{name} names {d}, which `{REGENERATE}` does not draw");
+            assert!(
+                drawn.contains(d),
+                "{name} names {d}, which `{REGENERATE}` does not draw"
+            );
         }
         if CORE_CHAPTERS.contains(&name.as_str()) {
             assert!(!named.is_empty(), "core chapter {name} shows no diagram");

@@ -39,7 +39,10 @@ fn outcomes(scene: &Scene) -> Option<Outcomes> {
     let density = (0..=400)
         .map(|k| {
             let t = d * k as f32 / 400.0;
-            (t, med.sigma_t(seg.at(t)).x * med.transmittance_exact(&seg, t).x)
+            (
+                t,
+                med.sigma_t(seg.at(t)).x * med.transmittance_exact(&seg, t).x,
+            )
         })
         .collect();
     let mut histogram = vec![0.0; BINS];
@@ -96,7 +99,9 @@ fn draw(root: &Area<'_>, o: &Outcomes) -> Drawn {
             let x = i as f32 * w;
             Rectangle::new([(x, 0.0), (x + w, h)], grey.filled())
         }))?
-        .label(format!("collisions of {FLIGHTS} sampled flights (histogram)"))
+        .label(format!(
+            "collisions of {FLIGHTS} sampled flights (histogram)"
+        ))
         .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 20, y + 6)], grey.filled()));
     let blue = RGBColor(33, 102, 172);
     chart
@@ -119,15 +124,28 @@ fn draw_dirac(chart: &mut Side, o: &Outcomes, top: f32) -> Drawn {
     let red = RGBColor(178, 24, 43);
     let (d, m) = (o.d, o.surface_mass);
     let head = o.d * 0.015;
-    let arrow = vec![(d, 0.0), (d, m), (d - head, m * 0.96), (d, m), (d + head, m * 0.96)];
+    let arrow = vec![
+        (d, 0.0),
+        (d, m),
+        (d - head, m * 0.96),
+        (d, m),
+        (d + head, m * 0.96),
+    ];
     chart
-        .draw_series(std::iter::once(PathElement::new(arrow, red.stroke_width(3))))?
+        .draw_series(std::iter::once(PathElement::new(
+            arrow,
+            red.stroke_width(3),
+        )))?
         .label(format!(
             "surface: T(d) = {m:.3}; flights that passed: {:.3}",
             o.passed
         ))
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(3)));
     let font = (FAMILY, 17).into_font().color(&red);
-    chart.draw_series(std::iter::once(Text::new("T(d) \u{03B4}(t \u{2212} d)", (d * 0.78, m + 0.05 * top), font)))?;
+    chart.draw_series(std::iter::once(Text::new(
+        "T(d) \u{03B4}(t \u{2212} d)",
+        (d * 0.78, m + 0.05 * top),
+        font,
+    )))?;
     Ok(())
 }

@@ -27,7 +27,7 @@ use plotters::prelude::*;
 use crate::measure::chart::{register_font, ChartError};
 use crate::scene::{Scene, SceneSource};
 
-pub use mutations::{mutation_proposal, multichain_seed};
+pub use mutations::{multichain_seed, mutation_proposal};
 pub use path::figure_2_path;
 pub use smc::smc_run;
 
@@ -77,7 +77,10 @@ pub fn all(s: &Scenes) -> Result<Vec<Figure>, ChartError> {
     let mut out = vec![
         figure("fog-box.svg", side::fog_box_figure(fog))?,
         figure("ray-fig1.svg", path::ray_figure(fog))?,
-        figure("transmittance.svg", path::transmittance_figure(fog, &s.cloud))?,
+        figure(
+            "transmittance.svg",
+            path::transmittance_figure(fog, &s.cloud),
+        )?,
         figure("free-flight-homogeneous.svg", free_flight::figure(fog))?,
         figure("free-flight-cloud.svg", free_flight::figure(&s.cloud))?,
         figure("neumann-walk.svg", walks::neumann_figure(fog))?,
@@ -91,7 +94,10 @@ pub fn all(s: &Scenes) -> Result<Vec<Figure>, ChartError> {
     out.push(figure("particles.svg", particles::figure(fog))?);
     out.push(figure("guide-map.svg", particles::guide_figure(fog))?);
     out.push(figure("smc-octree.svg", smc::octree_figure(&run))?);
-    out.push(figure("joint-domain.svg", smc::joint_domain_figure(fog, &run))?);
+    out.push(figure(
+        "joint-domain.svg",
+        smc::joint_domain_figure(fog, &run),
+    )?);
     Ok(out)
 }
 

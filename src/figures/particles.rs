@@ -24,7 +24,10 @@ const STROKE: f32 = 0.12;
 
 /// A particle's stroke: from its position towards where it came from.
 fn stroke(p: &Particle) -> Vec<(f32, f32)> {
-    vec![side::zy(p.position), side::zy(p.position + STROKE * p.direction)]
+    vec![
+        side::zy(p.position),
+        side::zy(p.position + STROKE * p.direction),
+    ]
 }
 
 /// Photons (orange) and importons (blue) of `PATHS` subpaths each.
@@ -42,14 +45,32 @@ pub(super) fn figure(scene: &Scene) -> Result<String, ChartError> {
         let mut c = side::chart(root, &title, v)?;
         side::draw_scene(&mut c, scene)?;
         for (set, colour) in [(&photons, LIGHT_PATH), (&importons, EYE_PATH)] {
-            c.draw_series(set.iter().map(|p| PathElement::new(stroke(p), colour.stroke_width(2))))?;
+            c.draw_series(
+                set.iter()
+                    .map(|p| PathElement::new(stroke(p), colour.stroke_width(2))),
+            )?;
             c.draw_series(set.iter().map(|p| {
                 EmptyElement::at(side::zy(p.position)) + Circle::new((0, 0), 3, colour.filled())
             }))?;
         }
-        side::label(&mut c, (1.3, -0.5), (0, 0), "orange: photons, samples of L\u{1D62}")?;
-        side::label(&mut c, (1.3, -0.7), (0, 0), "blue: importons, samples of W\u{1D62}")?;
-        side::label(&mut c, (1.3, -0.9), (0, 0), "strokes: the incident direction")
+        side::label(
+            &mut c,
+            (1.3, -0.5),
+            (0, 0),
+            "orange: photons, samples of L\u{1D62}",
+        )?;
+        side::label(
+            &mut c,
+            (1.3, -0.7),
+            (0, 0),
+            "blue: importons, samples of W\u{1D62}",
+        )?;
+        side::label(
+            &mut c,
+            (1.3, -0.9),
+            (0, 0),
+            "strokes: the incident direction",
+        )
     })
 }
 
@@ -71,12 +92,15 @@ pub(super) fn guide_figure(scene: &Scene) -> Result<String, ChartError> {
         .map_at(scene, &x[2], TransportMode::Radiance)
         .ok_or_else(|| fail("no map at x2"))?;
     let to_light = (Vec3::new(0.0, 1.0, 0.0) - x[2].p).normalize();
-    svg("guide", (1000, 560), |root| draw_map(root, map, map.texel_of(to_light)))
+    svg("guide", (1000, 560), |root| {
+        draw_map(root, map, map.texel_of(to_light))
+    })
 }
 
 fn draw_map(root: &Area<'_>, map: &DirectionMap, light: (u32, u32)) -> Drawn {
     let (cols, rows) = (map.cols(), map.rows());
-    let title = format!("Radiance map at x\u{2082} of Fig. 2: {cols} \u{00D7} {rows} equal-area texels");
+    let title =
+        format!("Radiance map at x\u{2082} of Fig. 2: {cols} \u{00D7} {rows} equal-area texels");
     let mut c = ChartBuilder::on(root)
         .caption(title, (FAMILY, 22))
         .margin(20)
@@ -101,10 +125,17 @@ fn draw_map(root: &Area<'_>, map: &DirectionMap, light: (u32, u32)) -> Drawn {
         let v = map.weight(k, r) / top;
         let shade = (255.0 * (1.0 - 0.9 * v)) as u8;
         let y = -1.0 + r as f32 * h;
-        Rectangle::new([(k as f32, y), (k as f32 + 1.0, y + h)], RGBColor(255, shade, shade / 2 + 127).filled())
+        Rectangle::new(
+            [(k as f32, y), (k as f32 + 1.0, y + h)],
+            RGBColor(255, shade, shade / 2 + 127).filled(),
+        )
     }))?;
     let centre = (light.0 as f32 + 0.5, -1.0 + (light.1 as f32 + 0.5) * h);
-    c.draw_series(std::iter::once(Cross::new(centre, 8, BLACK.stroke_width(3))))?;
+    c.draw_series(std::iter::once(Cross::new(
+        centre,
+        8,
+        BLACK.stroke_width(3),
+    )))?;
     let font = (FAMILY, 17).into_font();
     c.draw_series(std::iter::once(
         EmptyElement::at(centre) + Text::new("towards the light", (10, -22), font),

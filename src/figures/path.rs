@@ -275,14 +275,28 @@ pub(super) fn ray_figure(scene: &Scene) -> Result<String, ChartError> {
         let mut ch = side::chart(root, title, v)?;
         side::draw_scene(&mut ch, scene)?;
         let line = vec![side::zy(cam.eye), side::zy(wall)];
-        ch.draw_series(std::iter::once(PathElement::new(line, BLACK.stroke_width(2))))?;
+        ch.draw_series(std::iter::once(PathElement::new(
+            line,
+            BLACK.stroke_width(2),
+        )))?;
         ch.draw_series(xs.iter().map(|&p| {
             EmptyElement::at(p) + Circle::new((0, 0), 5, side::EYE_PATH.stroke_width(2))
         }))?;
         let wall_mark = Rectangle::new([(-6, -6), (6, 6)], BLACK.filled());
-        ch.draw_series(std::iter::once(EmptyElement::at(side::zy(wall)) + wall_mark))?;
-        let arrow = vec![(2.2, 0.0), (2.6, 0.0), (2.5, 0.05), (2.6, 0.0), (2.5, -0.05)];
-        ch.draw_series(std::iter::once(PathElement::new(arrow, BLACK.stroke_width(2))))?;
+        ch.draw_series(std::iter::once(
+            EmptyElement::at(side::zy(wall)) + wall_mark,
+        ))?;
+        let arrow = vec![
+            (2.2, 0.0),
+            (2.6, 0.0),
+            (2.5, 0.05),
+            (2.6, 0.0),
+            (2.5, -0.05),
+        ];
+        ch.draw_series(std::iter::once(PathElement::new(
+            arrow,
+            BLACK.stroke_width(2),
+        )))?;
         side::label(&mut ch, (2.4, 0.0), (-6, -26), "\u{03C9}")?;
         side::label(&mut ch, side::zy(cam.eye), (-10, -30), "x")?;
         side::label(&mut ch, side::zy(wall), (8, -28), "x\u{2202}V")?;

@@ -46,7 +46,10 @@ pub(super) fn view(scene: &Scene) -> (Range<f32>, Range<f32>) {
 pub(super) fn size(view: &(Range<f32>, Range<f32>), width: u32) -> (u32, u32) {
     let (z, y) = view;
     let plot = (width - 40) as f32;
-    (width, (plot * (y.end - y.start) / (z.end - z.start)) as u32 + 80)
+    (
+        width,
+        (plot * (y.end - y.start) / (z.end - z.start)) as u32 + 80,
+    )
 }
 
 /// A side-view chart of `view` with `caption`.
@@ -65,13 +68,21 @@ pub(super) fn chart<'c, 's>(
 fn outline(prim: &Primitive) -> Vec<(f32, f32)> {
     match prim {
         Primitive::Quad(q) => {
-            let c = [q.origin, q.origin + q.u, q.origin + q.u + q.v, q.origin + q.v];
+            let c = [
+                q.origin,
+                q.origin + q.u,
+                q.origin + q.u + q.v,
+                q.origin + q.v,
+            ];
             c.iter().chain(&c[..1]).map(|&p| zy(p)).collect()
         }
         Primitive::Sphere(s) => (0..=72)
             .map(|k| {
                 let a = std::f32::consts::TAU * k as f32 / 72.0;
-                (s.center.z + s.radius * a.cos(), s.center.y + s.radius * a.sin())
+                (
+                    s.center.z + s.radius * a.cos(),
+                    s.center.y + s.radius * a.sin(),
+                )
             })
             .collect(),
         _ => Vec::new(),
@@ -181,7 +192,11 @@ pub(super) fn draw_path(
 pub(super) fn fog_box_figure(scene: &Scene) -> Result<String, ChartError> {
     let v = view(scene);
     svg("fog-box", size(&v, 900), |root| {
-        let mut c = chart(root, "The fog box seen from the side (x towards the viewer)", v)?;
+        let mut c = chart(
+            root,
+            "The fog box seen from the side (x towards the viewer)",
+            v,
+        )?;
         draw_scene(&mut c, scene)?;
         let m = scene.media.first().ok_or("the fog box has no medium")?;
         let (s, t) = (m.sigma_s(Vec3::ZERO).x, m.sigma_t(Vec3::ZERO).x);

@@ -83,7 +83,10 @@ pub(super) fn octree_figure(run: &Option<Smc>) -> Result<String, ChartError> {
 fn draw_slice(area: &Area<'_>, smc: &Smc) -> Drawn {
     let view = (-1.05f32..1.05f32, -1.05f32..1.05f32);
     let s = smc.stats();
-    let title = format!("Octree slice x = {X_SLICE}: {} leaves, depth {}", s.leaves, s.max_depth);
+    let title = format!(
+        "Octree slice x = {X_SLICE}: {} leaves, depth {}",
+        s.leaves, s.max_depth
+    );
     let mut c = side::chart(area, &title, view)?;
     for (lo, hi, cache) in slice(smc) {
         let fill = LEVELS[level(cache)];
@@ -91,13 +94,25 @@ fn draw_slice(area: &Area<'_>, smc: &Smc) -> Drawn {
         let edge = RGBColor(60, 60, 60).stroke_width(1);
         c.draw_series(std::iter::once(Rectangle::new([lo, hi], edge)))?;
     }
-    let marker = Cross::new(side::zy(Vec3::new(X_SLICE, 0.6, 0.0)), 7, BLACK.stroke_width(3));
+    let marker = Cross::new(
+        side::zy(Vec3::new(X_SLICE, 0.6, 0.0)),
+        7,
+        BLACK.stroke_width(3),
+    );
     c.draw_series(std::iter::once(marker))?;
     // each leaf's directional grid n_s x n_t, where the leaf is wide enough for the text
-    for (lo, hi, cache) in slice(smc).into_iter().filter(|(lo, hi, _)| hi.0 - lo.0 > 0.2) {
+    for (lo, hi, cache) in slice(smc)
+        .into_iter()
+        .filter(|(lo, hi, _)| hi.0 - lo.0 > 0.2)
+    {
         let g = cache.grid();
         let centre = ((lo.0 + hi.0) / 2.0, (lo.1 + hi.1) / 2.0);
-        side::label(&mut c, centre, (-18, -8), &format!("{}\u{00D7}{}", g.n_s, g.n_t))?;
+        side::label(
+            &mut c,
+            centre,
+            (-18, -8),
+            &format!("{}\u{00D7}{}", g.n_s, g.n_t),
+        )?;
     }
     Ok(())
 }
@@ -127,10 +142,17 @@ fn draw_grid(area: &Area<'_>, cache: &RadianceCache, p: Vec3) -> Drawn {
     for i in 0..n {
         let (cs, ct) = ((i as u32 % g.n_s) as f32, (i as u32 / g.n_s) as f32);
         let (ws, wt) = (1.0 / g.n_s as f32, 1.0 / g.n_t as f32);
-        let v = if top > 0.0 { cache.pdf_coefficient(i) / top } else { 0.0 };
+        let v = if top > 0.0 {
+            cache.pdf_coefficient(i) / top
+        } else {
+            0.0
+        };
         let shade = (255.0 * (1.0 - 0.85 * v)) as u8;
         let cell = [(cs * ws, ct * wt), ((cs + 1.0) * ws, (ct + 1.0) * wt)];
-        c.draw_series(std::iter::once(Rectangle::new(cell, RGBColor(shade, shade, 255).filled())))?;
+        c.draw_series(std::iter::once(Rectangle::new(
+            cell,
+            RGBColor(shade, shade, 255).filled(),
+        )))?;
         c.draw_series(std::iter::once(Rectangle::new(cell, BLACK.stroke_width(1))))?;
     }
     Ok(())
@@ -168,7 +190,10 @@ pub(super) fn joint_domain_figure(scene: &Scene, run: &Option<Smc>) -> Result<St
         let mut c = side::chart(&left, "One march step of \u{0394}x = 1 mean free path", v)?;
         side::draw_scene(&mut c, scene)?;
         let step = vec![side::zy(here.o), side::zy(here.at(dx))];
-        c.draw_series(std::iter::once(PathElement::new(step, BLACK.stroke_width(4))))?;
+        c.draw_series(std::iter::once(PathElement::new(
+            step,
+            BLACK.stroke_width(4),
+        )))?;
         side::label(&mut c, side::zy(here.o), (-6, -28), "x")?;
         side::label(&mut c, side::zy(here.at(dx)), (-20, -28), "x + \u{0394}x")?;
         draw_domain(&right, cache, here.d, kt, ks)
@@ -188,7 +213,11 @@ fn draw_domain(area: &Area<'_>, cache: &RadianceCache, d: Vec3, kt: f32, ks: f32
         .map(|k| {
             let a = std::f32::consts::TAU * k as f32 / 180.0;
             let w = Vec3::new(0.0, a.sin(), a.cos());
-            let p = if cache.pdf_is_positive() { cache.pdf(w) } else { 0.25 / std::f32::consts::PI };
+            let p = if cache.pdf_is_positive() {
+                cache.pdf(w)
+            } else {
+                0.25 / std::f32::consts::PI
+            };
             let rho = ks * 4.0 * std::f32::consts::PI * p;
             (rho * a.cos(), rho * a.sin())
         })
@@ -197,14 +226,32 @@ fn draw_domain(area: &Area<'_>, cache: &RadianceCache, d: Vec3, kt: f32, ks: f32
         .map(|k| std::f32::consts::TAU * k as f32 / 90.0)
         .map(|a| (a.cos(), a.sin()))
         .collect();
-    c.draw_series(DashedLineSeries::new(unit, 5, 5, RGBColor(150, 150, 150).stroke_width(1)))?;
-    c.draw_series(std::iter::once(PathElement::new(ring, side::EYE_PATH.stroke_width(3))))?;
+    c.draw_series(DashedLineSeries::new(
+        unit,
+        5,
+        5,
+        RGBColor(150, 150, 150).stroke_width(1),
+    ))?;
+    c.draw_series(std::iter::once(PathElement::new(
+        ring,
+        side::EYE_PATH.stroke_width(3),
+    )))?;
     let tip = (d.z * kt, d.y * kt);
-    c.draw_series(std::iter::once(PathElement::new(vec![(0.0, 0.0), tip], side::NEW.stroke_width(5))))?;
-    let s_text = format!("\u{03A9}s: mass \u{03BA}s = {ks:.3}, radius \u{221D} \u{03BA}s 4\u{03C0} p(\u{03C9})");
+    c.draw_series(std::iter::once(PathElement::new(
+        vec![(0.0, 0.0), tip],
+        side::NEW.stroke_width(5),
+    )))?;
+    let s_text = format!(
+        "\u{03A9}s: mass \u{03BA}s = {ks:.3}, radius \u{221D} \u{03BA}s 4\u{03C0} p(\u{03C9})"
+    );
     let t_text = format!("\u{03A9}t: mass \u{03BA}t = e\u{207B}\u{03C3}t\u{0394}x = {kt:.3}");
     side::label(&mut c, (-1.55, -1.25), (0, 0), &s_text)?;
     side::label(&mut c, (-1.55, -1.45), (0, 0), &t_text)?;
     side::label(&mut c, tip, (-10, -26), "\u{03A9}t")?;
-    side::label(&mut c, (-1.55, 1.5), (0, 0), "directions in the plane x = 0 (dashed: radius 1)")
+    side::label(
+        &mut c,
+        (-1.55, 1.5),
+        (0, 0),
+        "directions in the plane x = 0 (dashed: radius 1)",
+    )
 }

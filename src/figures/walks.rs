@@ -44,7 +44,9 @@ const SPACING: f32 = 0.3;
 /// `SPACING` apart, none on a side wall (which the view flattens into the box).
 fn spaced(walk: &[Vertex]) -> bool {
     let on_side_wall = |v: &Vertex| !v.is_medium() && v.n.x.abs() > 0.5;
-    walk.windows(2).skip(1).all(|w| w[0].p.distance(w[1].p) >= SPACING)
+    walk.windows(2)
+        .skip(1)
+        .all(|w| w[0].p.distance(w[1].p) >= SPACING)
         && !walk.iter().any(on_side_wall)
 }
 
@@ -67,7 +69,13 @@ pub fn strategies_subpaths(scene: &Scene) -> Option<(Vec<Vertex>, Vec<Vertex>)> 
 }
 
 /// A dashed edge a-b labelled at the fraction `at` of the way from a to b.
-fn dashed(chart: &mut Side, (a, b): (&Vertex, &Vertex), at: f32, colour: RGBColor, text: &str) -> Drawn {
+fn dashed(
+    chart: &mut Side,
+    (a, b): (&Vertex, &Vertex),
+    at: f32,
+    colour: RGBColor,
+    text: &str,
+) -> Drawn {
     let (p, q) = (side::zy(a.p), side::zy(b.p));
     let style = colour.stroke_width(2);
     chart.draw_series(DashedLineSeries::new(vec![p, q], 8, 5, style))?;
@@ -110,7 +118,12 @@ pub fn neumann_walk(scene: &Scene) -> Option<(Vec<Vertex>, Vec<Vertex>)> {
             return None;
         }
         let lights: Option<Vec<Vertex>> = (1..WALK)
-            .map(|k| subpaths(scene, i * WALK as u64 + k as u64, 7)?.1.first().copied())
+            .map(|k| {
+                subpaths(scene, i * WALK as u64 + k as u64, 7)?
+                    .1
+                    .first()
+                    .copied()
+            })
             .collect();
         let lights = lights?;
         let ok = (1..WALK).all(|k| joins(scene, &eye[k], &lights[k - 1]));
@@ -130,7 +143,13 @@ pub(super) fn neumann_figure(scene: &Scene) -> Result<String, ChartError> {
         side::draw_scene(&mut c, scene)?;
         for (k, l) in lights.iter().enumerate() {
             let text = format!("j = {}", k + 1);
-            dashed(&mut c, (&eye[k + 1], l), 0.2 + 0.2 * k as f32, LIGHT_PATH, &text)?;
+            dashed(
+                &mut c,
+                (&eye[k + 1], l),
+                0.2 + 0.2 * k as f32,
+                LIGHT_PATH,
+                &text,
+            )?;
         }
         side::draw_path(&mut c, &eye, EYE_PATH, Some("z"), |_| true)
     })
