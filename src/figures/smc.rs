@@ -57,8 +57,11 @@ fn level(c: &RadianceCache) -> usize {
     (c.grid().n_t.max(1).ilog2() as usize).min(LEVELS.len() - 1)
 }
 
+/// A leaf in the slice: its (z, y) corners and its cache.
+type Cut<'a> = ((f32, f32), (f32, f32), &'a RadianceCache);
+
 /// The leaves cut by the slice, as (z, y) rectangles with their caches.
-fn slice(smc: &Smc) -> Vec<((f32, f32), (f32, f32), &RadianceCache)> {
+fn slice(smc: &Smc) -> Vec<Cut<'_>> {
     smc.octree
         .leaves()
         .into_iter()
