@@ -103,8 +103,12 @@ pub(super) fn figure(s: &Scenes, kind: MutationKind) -> (&'static str, Result<St
         let kept = |a: &[Vertex], b: &[Vertex], i: usize| {
             a.len() == b.len() && a[i].p.distance(b[i].p) < 1e-4 || a[i].is_sensor()
         };
-        side::draw_path(&mut c, &x, OLD, Some("x"), |i| !kept(&x, &y, i))?;
-        side::draw_path(&mut c, &y, NEW, Some("y"), |i| !kept(&y, &x, i))
+        side::draw_path(&mut c, &x, (OLD, side::LEFT), Some("x"), |i| {
+            !kept(&x, &y, i)
+        })?;
+        side::draw_path(&mut c, &y, (NEW, side::RIGHT), Some("y"), |i| {
+            !kept(&y, &x, i)
+        })
     });
     (name, svg)
 }

@@ -150,19 +150,30 @@ fn draw_camera(chart: &mut Side, scene: &Scene) -> Drawn {
 
 /// Text at data point `p`, shifted by `off` pixels.
 pub(super) fn label(chart: &mut Side, p: (f32, f32), off: (i32, i32), s: &str) -> Drawn {
-    let font = (FAMILY, 17).into_font().color(&BLACK);
+    label_in(chart, p, off, s, BLACK)
+}
+
+/// Text in `colour` at data point `p`, shifted by `off` pixels.
+fn label_in(chart: &mut Side, p: (f32, f32), off: (i32, i32), s: &str, colour: RGBColor) -> Drawn {
+    let font = (FAMILY, 17).into_font().color(&colour);
     chart.draw_series(std::iter::once(
         EmptyElement::at(p) + Text::new(s.to_string(), off, font),
     ))?;
     Ok(())
 }
 
+/// Where a vertex's label goes, in pixels from the vertex: right of it, or left of it (for a
+/// second path drawn over the first).
+pub(super) const RIGHT: (i32, i32) = (8, 4);
+pub(super) const LEFT: (i32, i32) = (-30, 4);
+
 /// A path as a polyline with its vertices marked (circles in a medium, squares elsewhere) and,
-/// if `name` is given, labelled name₀, name₁, ... at the vertices `labelled` allows.
+/// if `name` is given, labelled name₀, name₁, ... (at offset `off`) at the vertices `labelled`
+/// allows.
 pub(super) fn draw_path(
     chart: &mut Side,
     path: &[Vertex],
-    colour: RGBColor,
+    (colour, off): (RGBColor, (i32, i32)),
     name: Option<&str>,
     labelled: impl Fn(usize) -> bool,
 ) -> Drawn {
@@ -182,7 +193,7 @@ pub(super) fn draw_path(
             ))?;
         }
         if let Some(n) = name.filter(|_| labelled(i)) {
-            label(chart, p, (8, 4), &format!("{n}{}", subscript(i)))?;
+            label_in(chart, p, off, &format!("{n}{}", subscript(i)), colour)?;
         }
     }
     Ok(())

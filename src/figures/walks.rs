@@ -101,8 +101,10 @@ pub(super) fn strategies_figure(scene: &Scene) -> Result<String, ChartError> {
             let text = format!("(s, t) = ({s}, {t})");
             dashed(&mut c, (&light[s - 1], &eye[t - 1]), 0.5, colour, &text)?;
         }
-        side::draw_path(&mut c, &light, LIGHT_PATH, Some("y"), |_| true)?;
-        side::draw_path(&mut c, &eye, EYE_PATH, Some("z"), |_| true)
+        side::draw_path(&mut c, &light, (LIGHT_PATH, side::RIGHT), Some("y"), |_| {
+            true
+        })?;
+        side::draw_path(&mut c, &eye, (EYE_PATH, side::RIGHT), Some("z"), |_| true)
     })
 }
 
@@ -151,6 +153,6 @@ pub(super) fn neumann_figure(scene: &Scene) -> Result<String, ChartError> {
                 &text,
             )?;
         }
-        side::draw_path(&mut c, &eye, EYE_PATH, Some("z"), |_| true)
+        side::draw_path(&mut c, &eye, (EYE_PATH, side::RIGHT), Some("z"), |_| true)
     })
 }
