@@ -77,7 +77,7 @@ fn draw(root: &Area<'_>, o: &Outcomes) -> Drawn {
     let top = o.histogram.iter().copied().fold(top, f32::max) * 1.15;
     let mut chart = ChartBuilder::on(root)
         .caption(
-            "Outcomes of a free flight over [0, d]: density \u{03C3}t T(t) and the Dirac T(d) at the surface",
+            "Outcomes of a free flight over [0, d]: density \u{03C3}t \u{03C4}(t) and the Dirac \u{03C4}(d) at the surface",
             (FAMILY, 20),
         )
         .margin(20)
@@ -106,7 +106,7 @@ fn draw(root: &Area<'_>, o: &Outcomes) -> Drawn {
     let blue = RGBColor(33, 102, 172);
     chart
         .draw_series(LineSeries::new(o.density.clone(), blue.stroke_width(3)))?
-        .label("\u{03C3}t(t) T(t), from the medium's \u{03C3}t and exact T")
+        .label("\u{03C3}t(t) \u{03C4}(t), from the medium's \u{03C3}t and exact \u{03C4}")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(3)));
     draw_dirac(&mut chart, o, top)?;
     chart
@@ -137,13 +137,13 @@ fn draw_dirac(chart: &mut Side, o: &Outcomes, top: f32) -> Drawn {
             red.stroke_width(3),
         )))?
         .label(format!(
-            "surface: T(d) = {m:.3}; flights that passed: {:.3}",
+            "surface: \u{03C4}(d) = {m:.3}; flights that passed: {:.3}",
             o.passed
         ))
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(3)));
     let font = (FAMILY, 17).into_font().color(&red);
     chart.draw_series(std::iter::once(Text::new(
-        "T(d) \u{03B4}(t \u{2212} d)",
+        "\u{03C4}(d) \u{03B4}(t \u{2212} d)",
         (d * 0.78, m + 0.05 * top),
         font,
     )))?;
