@@ -70,6 +70,11 @@ pub fn stamp(tree: &mut Tree, id: &str) -> Result<(), CourseError> {
     Ok(())
 }
 
+/// The `name` of the `[package]` of a `Cargo.toml`.
+pub fn package_name(cargo_toml: &str) -> Option<String> {
+    package_field(cargo_toml, "name").map(|(_, n)| n)
+}
+
 /// The 0-based line and the string value of `key = "..."` in the `[package]` table.
 fn package_field(toml: &str, key: &str) -> Option<(usize, String)> {
     let mut in_package = false;
