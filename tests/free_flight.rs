@@ -192,14 +192,20 @@ fn free_flight_pdf_matches_the_sampled_pdf() {
                 let pdf = medium.free_flight_pdf(ff.t, ff.scattered);
                 assert_close("pdf", ff.pdf as f64, pdf as f64, F32_TOL);
                 let tr = medium.transmittance(ff.t);
-                assert_eq!(ff.transmittance, tr);
                 assert_eq!(
-                    ff.sigma_s,
-                    if ff.scattered {
-                        medium.sigma_s
-                    } else {
-                        Rgb::ZERO
-                    }
+                    ff.transmittance, tr,
+                    "transmittance to the sampled t = {}: got {}, expected {tr}",
+                    ff.t, ff.transmittance
+                );
+                let expected = if ff.scattered {
+                    medium.sigma_s
+                } else {
+                    Rgb::ZERO
+                };
+                assert_eq!(
+                    ff.sigma_s, expected,
+                    "sigma_s of a flight (scattered: {}): got {}, expected {expected}",
+                    ff.scattered, ff.sigma_s
                 );
             }
         }
@@ -236,10 +242,17 @@ fn transmittance_is_exp_minus_sigma_t_d() {
             assert_close("transmittance", tr[c] as f64, truth, F32_TOL);
         }
     }
-    assert_eq!(medium.transmittance(f32::INFINITY), Rgb::ZERO);
+    let got = medium.transmittance(f32::INFINITY);
     assert_eq!(
-        with_clear_channel().transmittance(f32::INFINITY),
-        Vec3::new(1.0, 0.0, 0.0)
+        got,
+        Rgb::ZERO,
+        "transmittance to infinity: got {got}, expected 0 in every channel"
+    );
+    let got = with_clear_channel().transmittance(f32::INFINITY);
+    assert_eq!(
+        got,
+        Vec3::new(1.0, 0.0, 0.0),
+        "transmittance to infinity with sigma_t = 0 in channel 0: got {got}, expected (1, 0, 0)"
     );
 }
 
