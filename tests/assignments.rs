@@ -118,6 +118,86 @@ fn every_chapter_names_its_assignments_and_the_course_page_lists_all() {
     }
 }
 
+/// The course page's syllabus is the registry's: its rows in the registry's order with the
+/// same hours and prerequisites, and every exercise in its table; each exercise's studies are
+/// commands the CLI parses, its chapter exists and names it.
+#[test]
+fn the_syllabus_and_the_exercises_on_the_course_page_are_the_registrys() {
+    use clap::Parser;
+    let registry = registry();
+    let page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
+    let syllabus = page
+        .split("## Syllabus")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("course.md has a Syllabus section");
+    let rows: Vec<Vec<String>> = syllabus
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains("| `"))
+        .map(|l| l.split('|').map(|c| c.trim().to_string()).collect())
+        .collect();
+    assert_eq!(
+        rows.len(),
+        registry.assignments.len(),
+        "the syllabus has {} rows, the registry {} assignments",
+        rows.len(),
+        registry.assignments.len()
+    );
+    for (i, (row, a)) in rows.iter().zip(&registry.assignments).enumerate() {
+        let prerequisites = if a.prerequisites.is_empty() {
+            "—".to_string()
+        } else {
+            a.prerequisites
+                .iter()
+                .map(|p| format!("`{p}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let expected = [
+            (i + 1).to_string(),
+            format!("`{}`", a.name),
+            a.hours.to_string(),
+            prerequisites,
+            format!("[picture]({})", a.picture),
+        ];
+        let got = [&row[1], &row[2], &row[4], &row[5], &row[6]];
+        for (g, e) in got.iter().zip(&expected) {
+            assert_eq!(*g, e, "syllabus row {}: got `{g}`, expected `{e}`", i + 1);
+        }
+    }
+    assert!(
+        registry.exercises.len() >= 4,
+        "fewer than 4 measurement exercises"
+    );
+    for e in &registry.exercises {
+        assert!(
+            page.contains(&format!("| `{}` |", e.name)),
+            "course.md does not list exercise `{}`",
+            e.name
+        );
+        let chapter = std::fs::read_to_string(root().join("book/src").join(&e.chapter_file))
+            .unwrap_or_else(|err| panic!("exercise {}: {}: {err}", e.name, e.chapter_file));
+        assert!(
+            chapter.contains(&format!("`{}`", e.name)),
+            "{} does not name exercise `{}`",
+            e.chapter_file,
+            e.name
+        );
+        assert!(!e.claims.is_empty(), "exercise {} claims nothing", e.name);
+        for c in &e.studies {
+            let words = c.split_whitespace();
+            if let Err(err) = pathspace::cli::Cli::try_parse_from(words) {
+                panic!("exercise {}: `{c}` does not parse: {err}", e.name);
+            }
+            assert!(
+                pathspace_course::exercise::output_of(c).is_some(),
+                "exercise {}: `{c}` names no output (-o)",
+                e.name
+            );
+        }
+    }
+}
+
 /// The README and the course page state how many assignments there are; the registry decides.
 #[test]
 fn the_readme_and_the_course_page_count_the_assignments_right() {
@@ -239,6 +319,8 @@ fn build_graded_tests(copy: &Path, target: &Path, files: &[&str]) -> BTreeMap<St
         .args(["test", "--release", "--no-run", "--message-format=json"])
         .args(["--package", "pathspace"])
         .args(["--config", "profile.release.package.pathspace.opt-level=0"])
+        // as `assignment check` builds, so that its check below reuses this build
+        .args(["--config", "profile.release.incremental=true"])
         .arg("--target-dir")
         .arg(target);
     for f in files {
@@ -409,6 +491,39 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
             .any(|l| l.starts_with("characteristic") && l.contains("failed (todo!)")),
         "{table}"
     );
+    // a wrong body fails with the test's own message and the command that reruns it
+    let characteristic_rs = copy.join("src/path/characteristic.rs");
+    let blank = std::fs::read_to_string(&characteristic_rs).unwrap();
+    let todo = course::todo_line(registry.find("characteristic").unwrap());
+    std::fs::write(
+        &characteristic_rs,
+        blank.replace(&todo, "{ let _ = vertices; 0b1101 }"),
+    )
+    .unwrap();
+    let out = pathspace(&[
+        "assignment",
+        "check",
+        copy.to_str().unwrap(),
+        "--only",
+        "characteristic",
+        "--target-dir",
+        target_s,
+        "--build-dir",
+        target_s,
+        "--opt-level",
+        "0",
+    ]);
+    std::fs::write(&characteristic_rs, blank).unwrap();
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success(), "{table}");
+    for expected in [
+        "characteristic             failed ",
+        "path_space::characteristic_of_figure_2_is_eleven failed:",
+        "got 0b1101, expected 0b1011",
+        "cargo test --release --test path_space -- --exact characteristic_of_figure_2_is_eleven",
+    ] {
+        assert!(table.contains(expected), "no `{expected}` in:\n{table}");
+    }
     // another copy (here the original) needs its own target directory: the two crates' artifacts
     // have the same names, and Cargo judges freshness by modification times
     let out = pathspace(&[
@@ -469,6 +584,11 @@ fn a_shared_build_directory_takes_only_copies_with_their_own_id() {
     let id = |d: &Path| {
         course::identity::of(&std::fs::read_to_string(d.join("Cargo.toml")).unwrap()).unwrap()
     };
+    // the copy names what it was made with: `check` grades that, not the whole registry
+    assert_eq!(
+        course::assignment::assigned(&a),
+        Some(vec!["characteristic".to_string()])
+    );
     assert_ne!(id(&a), id(&b), "two copies got one id");
     // b becomes a copy of a, after a claimed its id in the build directory
     std::fs::copy(a.join("Cargo.toml"), b.join("Cargo.toml")).unwrap();

@@ -375,10 +375,16 @@ fn dielectric_reflects_totally_beyond_the_critical_angle() {
             ((cos_critical + 1.0) * 0.5, false),
         ] {
             let wo = at_cosine(n, dense_sign * cos_o, 0.3);
+            let f = fresnel_dielectric(cos_o as f32, (eta_thin / eta_dense) as f32);
             assert_eq!(
-                fresnel_dielectric(cos_o as f32, (eta_thin / eta_dense) as f32) == 1.0,
+                f == 1.0,
                 total,
-                "ior {ior}, cos {cos_o}: Fresnel"
+                "ior {ior}, cos {cos_o} from the dense side: got F = {f}, expected {}",
+                if total {
+                    "1 (total internal reflection beyond the critical angle)"
+                } else {
+                    "F < 1 (refraction before the critical angle)"
+                }
             );
             for _ in 0..64 {
                 let bs = Bsdf::Dielectric(Dielectric { ior })

@@ -62,7 +62,12 @@ fn gray_collision_distances_follow_the_exponential_cdf() {
         let mut t: Vec<f64> = (0..N)
             .map(|_| {
                 let ff = flight(&medium, f32::INFINITY, &mut s);
-                assert!(ff.scattered, "an infinite gray medium always collides");
+                assert!(
+                    ff.scattered,
+                    "got a flight that passed to t = {}, expected a collision (an infinite gray \
+                     medium always collides)",
+                    ff.t
+                );
                 ff.t as f64
             })
             .collect();

@@ -75,7 +75,7 @@ fn order1_reconstruction_interpolates_the_coefficients_at_cell_centres() {
             let v = c.eval_order1(st);
             assert!(
                 (v - c.get(k)).abs().max_element() < 1e-5,
-                "{grid:?} cell {k}: {v} != {}",
+                "{grid:?}, the centre of cell {k}: got {v}, expected its coefficient {}",
                 c.get(k)
             );
         }

@@ -243,3 +243,110 @@ pub fn output_of(command: &str) -> Option<&Path> {
         .find(|w| w[0] == "-o" || w[0] == "--output")
         .map(|w| Path::new(w[1]))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A study of `runs` runs of two lines: `a` with relMSE 1/(t e_a), `b` with 1/(t e_b), each
+    /// run's efficiency scaled by a fixed spread factor, and relMSE falling as t^slope.
+    fn study(dir: &Path, runs: usize, e_a: f64, e_b: f64, slope: f64) {
+        std::fs::create_dir_all(dir).unwrap();
+        let mut csv =
+            String::from("integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency\n");
+        for (label, e) in [("a", e_a), ("b/x", e_b)] {
+            for r in 0..runs {
+                let spread = 1.0 + 0.05 * (r as f64 - (runs as f64 - 1.0) / 2.0);
+                for k in 0..5 {
+                    let t = 0.5 * 2f64.powi(k);
+                    let relmse =
+                        t.powf(slope) / (e * spread) * (1.0 + 0.01 * ((r + k as usize) % 3) as f64);
+                    let eff = 1.0 / (relmse * t);
+                    csv.push_str(&format!(
+                        "{label},{r},{k},{t},{},0.1,{relmse},{eff}\n",
+                        10 * k
+                    ));
+                }
+            }
+        }
+        std::fs::write(dir.join("convergence.csv"), csv).unwrap();
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("pathspace-course-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn efficiency_ratios_are_judged_one_sided_from_the_runs() {
+        let d = scratch("ratio");
+        study(&d, 4, 2.0, 1.0, -1.0);
+        let lines = read_studies(std::slice::from_ref(&d)).unwrap();
+        let claim = |at_least: f64| Claim::EfficiencyRatio {
+            line: "a".into(),
+            over: "b/x".into(),
+            at_least,
+        };
+        let v = judge(&claim(1.0), &lines, ALPHA).unwrap();
+        assert!(v.passed, "{}", v.report);
+        assert!(v.report.contains("got 2.0"), "{}", v.report);
+        // a ratio of 2 with a 5 % spread does not show a ratio of 2.5, nor of 2 itself
+        assert!(!judge(&claim(2.5), &lines, ALPHA).unwrap().passed);
+        assert!(!judge(&claim(2.0), &lines, ALPHA).unwrap().passed);
+        // the study's directory name qualifies a line
+        assert!(judge(
+            &Claim::EfficiencyRatio {
+                line: format!("{}:a", d.file_name().unwrap().to_string_lossy()),
+                over: "b/x".into(),
+                at_least: 1.0,
+            },
+            &lines,
+            ALPHA
+        )
+        .is_ok());
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn slopes_are_judged_by_their_confidence_interval() {
+        let d = scratch("slope");
+        study(&d, 4, 1.0, 1.0, -1.0);
+        let lines = read_studies(std::slice::from_ref(&d)).unwrap();
+        let claim = |lo: f64, hi: f64| Claim::Slope {
+            line: "a".into(),
+            within: [lo, hi],
+        };
+        let v = judge(&claim(-1.2, -0.8), &lines, ALPHA).unwrap();
+        assert!(v.passed, "{}", v.report);
+        assert!(!judge(&claim(-0.9, -0.5), &lines, ALPHA).unwrap().passed);
+        let _ = std::fs::remove_dir_all(&d);
+        // a flattened curve (a biased estimator's floor) is refused
+        let d = scratch("flat");
+        study(&d, 4, 1.0, 1.0, -0.4);
+        let lines = read_studies(std::slice::from_ref(&d)).unwrap();
+        assert!(!judge(&claim(-1.2, -0.8), &lines, ALPHA).unwrap().passed);
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn too_few_runs_and_unknown_lines_are_errors() {
+        let d = scratch("few");
+        study(&d, 2, 2.0, 1.0, -1.0);
+        let lines = read_studies(std::slice::from_ref(&d)).unwrap();
+        let slope = |line: &str| Claim::Slope {
+            line: line.into(),
+            within: [-2.0, 0.0],
+        };
+        assert!(matches!(
+            judge(&slope("a"), &lines, ALPHA),
+            Err(ExerciseError::TooFewRuns(_, 2))
+        ));
+        assert!(matches!(
+            judge(&slope("c"), &lines, ALPHA),
+            Err(ExerciseError::NoLine(..))
+        ));
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}

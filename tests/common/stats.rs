@@ -209,8 +209,22 @@ impl Family {
 
     /// The Kolmogorov-Smirnov test of samples against a continuous CDF.
     pub fn ks(&mut self, what: &str, samples: &mut [f64], cdf: impl Fn(f64) -> f64) {
-        let p = super::ks_p_value(samples, cdf);
-        self.p_value(what, p, format!("KS over {} samples", samples.len()));
+        let p = super::ks_p_value(samples, &cdf);
+        // the sample where the empirical CDF departs most from the expected one (sorted now)
+        let n = samples.len() as f64;
+        let worst = samples
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (x, (i as f64 + 0.5) / n, cdf(x)))
+            .max_by(|a, b| (a.1 - a.2).abs().total_cmp(&(b.1 - b.2).abs()));
+        let detail = match worst {
+            Some((x, got, expected)) => format!(
+                "KS over {} samples; at {x:.4e}: got empirical CDF {got:.4}, expected {expected:.4}",
+                samples.len()
+            ),
+            None => format!("KS over {} samples", samples.len()),
+        };
+        self.p_value(what, p, detail);
     }
 
     /// `hits` successes in `n` Bernoulli(p) trials: the exact two-sided binomial tail.
