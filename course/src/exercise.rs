@@ -251,12 +251,23 @@ mod tests {
     /// A study of `runs` runs of two lines: `a` with relMSE 1/(t e_a), `b` with 1/(t e_b), each
     /// run's efficiency scaled by a fixed spread factor, and relMSE falling as t^slope.
     fn study(dir: &Path, runs: usize, e_a: f64, e_b: f64, slope: f64) {
+        noisy_study(dir, runs, e_a, e_b, slope, 0.0);
+    }
+
+    /// [`study`] with the runs' slopes alternating by +-`slope_spread` around `slope`.
+    fn noisy_study(dir: &Path, runs: usize, e_a: f64, e_b: f64, slope: f64, slope_spread: f64) {
         std::fs::create_dir_all(dir).unwrap();
         let mut csv =
             String::from("integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency\n");
         for (label, e) in [("a", e_a), ("b/x", e_b)] {
             for r in 0..runs {
                 let spread = 1.0 + 0.05 * (r as f64 - (runs as f64 - 1.0) / 2.0);
+                let slope = slope
+                    + if r % 2 == 0 {
+                        slope_spread
+                    } else {
+                        -slope_spread
+                    };
                 for k in 0..5 {
                     let t = 0.5 * 2f64.powi(k);
                     let relmse =
@@ -321,6 +332,14 @@ mod tests {
         let v = judge(&claim(-1.2, -0.8), &lines, ALPHA).unwrap();
         assert!(v.passed, "{}", v.report);
         assert!(!judge(&claim(-0.9, -0.5), &lines, ALPHA).unwrap().passed);
+        let _ = std::fs::remove_dir_all(&d);
+        // runs whose slopes scatter widely around -1: the mean is inside the band, the
+        // interval is not, and the claim is not shown
+        let d = scratch("noisy");
+        noisy_study(&d, 4, 1.0, 1.0, -1.0, 0.4);
+        let lines = read_studies(std::slice::from_ref(&d)).unwrap();
+        let v = judge(&claim(-1.2, -0.8), &lines, ALPHA).unwrap();
+        assert!(!v.passed, "{}", v.report);
         let _ = std::fs::remove_dir_all(&d);
         // a flattened curve (a biased estimator's floor) is refused
         let d = scratch("flat");
