@@ -1,7 +1,7 @@
 //! The crate's layers: a module may use the layers below it, never one above. The order, from
 //! the bottom: `math`, `spectrum`, `conventions` <- `geometry`, `medium`, `bsdf`, `film`,
 //! `image_io` <- `scene` <- `path` <- `bidir` <- `enlightened` <- `integrator` <- `render` <-
-//! `measure`, `aov` <- `cli`, `course`, `figures`. A lower layer that reaches up ties the house into one import
+//! `measure`, `aov` <- `cli`, `figures` (the course is a workspace member of its own, `course/`). A lower layer that reaches up ties the house into one import
 //! circle: a change to an integrator can then break the scene, and nobody can read the scene
 //! without the integrators.
 //!
@@ -32,7 +32,7 @@ fn layer(module: &str) -> Option<u32> {
         "integrator" => 6,
         "render" => 7,
         "measure" | "aov" => 8,
-        "cli" | "course" | "figures" => 9,
+        "cli" | "figures" => 9,
         _ => return None,
     })
 }
