@@ -4,6 +4,9 @@
 //! front end, its options are the `[render]` schema of `integrator::settings`, its statistics
 //! the command line's `--json` object, its EXR the command line's.
 
+// the command line's error (`CliError`) is returned once per call, to become a Python exception
+#![allow(clippy::result_large_err)]
+
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
