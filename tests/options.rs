@@ -359,11 +359,15 @@ fn help_groups_the_options_and_lists_the_integrators() {
             headings[heading]
         );
     }
-    let names: Vec<&str> = pathspace::integrator::IntegratorKind::ALL
+    // each integrator with its registration's doc, in the registry's order
+    let listed: Vec<usize> = pathspace::integrator::IntegratorKind::ALL
         .iter()
-        .map(|k| k.name())
+        .map(|k| at(&format!("- {}:", k.name())))
         .collect();
-    at(&format!("[possible values: {}]", names.join(", ")));
+    assert!(
+        listed.windows(2).all(|w| w[0] < w[1]) && places[0] < listed[0],
+        "the integrators are not listed under --integrator in order: {listed:?}"
+    );
 }
 
 /// The progress line: spp of the target and samples per second for a fixed spp, and the

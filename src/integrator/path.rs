@@ -710,7 +710,7 @@ impl super::Integrator for PathTracer {
         self.meter_irradiance(scene, &scene.sensors[meter as usize], sampler)
     }
 
-    fn views_delta_lights(&self) -> bool {
-        true
+    fn delta_light_view(&self, scene: &Scene, sampler: &mut Sampler) -> Vec<super::Splat> {
+        delta_light_view(scene, sampler)
     }
 }

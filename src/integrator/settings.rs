@@ -12,6 +12,7 @@ use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, G
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::path::DistanceSampling;
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
+use crate::integrator::IntegratorKind;
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
@@ -35,8 +36,8 @@ struct RenderFile {
 #[command(next_help_heading = "Render (each also a [render] key of the scene file)")]
 pub struct RenderOptions {
     /// Integrator (default path).
-    #[arg(long, value_parser = integrator_names())]
-    pub integrator: Option<String>,
+    #[arg(long)]
+    pub integrator: Option<IntegratorKind>,
     /// Samples per pixel (default 64); for mlt, mutations per pixel.
     #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
     pub spp: Option<u32>,
@@ -84,11 +85,6 @@ pub struct RenderOptions {
     pub adjoint: AdjointOptions,
 }
 
-/// `--integrator`'s values from the registry, so `--help` and clap's error list them.
-pub fn integrator_names() -> clap::builder::PossibleValuesParser {
-    clap::builder::PossibleValuesParser::new(super::IntegratorKind::ALL.iter().map(|k| k.name()))
-}
-
 fn is_default<T: Default + PartialEq>(t: &T) -> bool {
     *t == T::default()
 }
@@ -99,7 +95,7 @@ impl RenderOptions {
     /// `None` is unlimited; the nested tables' defaults are their settings' own).
     pub fn defaults() -> RenderOptions {
         RenderOptions {
-            integrator: Some("path".into()),
+            integrator: Some(IntegratorKind::Path),
             spp: Some(64),
             seed: Some(1),
             max_depth: None,
@@ -462,7 +458,7 @@ pub const DEFAULT_METER_SAMPLES: u32 = 4096;
 /// the command line's flags over those ([`RenderSettings::apply`]).
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
-    pub integrator: String,
+    pub integrator: IntegratorKind,
     pub spp: u32,
     pub seed: u64,
     pub max_depth: Option<u32>,
@@ -538,12 +534,7 @@ impl RenderSettings {
     /// the integrators they apply to).
     pub fn apply(&mut self, o: &RenderOptions, spelling: Spelling) -> Result<(), SettingError> {
         let flag = spelling == Spelling::Flag;
-        if let Some(i) = &o.integrator {
-            // checked here, where the file's key is known, not first when the render starts
-            let kind = crate::integrator::IntegratorKind::parse(i)
-                .map_err(|e| SettingError::at("", Some("integrator"), e))?;
-            self.integrator = kind.name().to_string();
-        }
+        self.integrator = o.integrator.unwrap_or(self.integrator);
         if let Some(n) = o.spp {
             if n == 0 {
                 let m = format!("{}spp must be at least 1", if flag { "--" } else { "" });

@@ -92,7 +92,21 @@ impl Integrator for Bdpt<'_> {
         self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
-    fn bdpt(&self) -> Option<&Bdpt<'_>> {
-        Some(self)
+    fn technique_images(
+        &self,
+        scene: &crate::scene::Scene,
+        seed: u64,
+        pass: u64,
+        spp: u32,
+        max_depth_shown: u32,
+    ) -> Option<std::collections::BTreeMap<(usize, usize), crate::film::Film>> {
+        Some(strategy_images(
+            scene,
+            self,
+            seed,
+            pass,
+            spp,
+            max_depth_shown,
+        ))
     }
 }
