@@ -174,6 +174,12 @@ pub trait Facts: Sync {
         Ok(())
     }
 
+    /// The light paths its techniques cannot sample, of which the render warns
+    /// ([`reach::unreachable_paths`]).
+    fn unreachable(&self) -> reach::Unreachable {
+        reach::Unreachable::Nothing
+    }
+
     /// Warnings of its own about the scene with these settings, given once before the work.
     fn warnings(&self, _case: &Case) -> Vec<String> {
         Vec::new()

@@ -643,6 +643,10 @@ impl super::Facts for PathFacts {
         prepare(setup)
     }
 
+    fn unreachable(&self) -> super::reach::Unreachable {
+        super::reach::Unreachable::DiracLightsBehindSpecular
+    }
+
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
         super::PassFootprint {
             tiles: true,

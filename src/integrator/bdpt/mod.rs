@@ -38,6 +38,15 @@ impl super::Facts for BdptFacts {
         true
     }
 
+    /// Light tracing joins the sensor only from a non-specular vertex; BDPT's other
+    /// strategies reach those paths.
+    fn unreachable(&self) -> super::reach::Unreachable {
+        match self.0 {
+            Strategies::LightTracing => super::reach::Unreachable::SpecularSeenBySensor,
+            _ => super::reach::Unreachable::Nothing,
+        }
+    }
+
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
         super::PassFootprint {
             tiles: true,

@@ -616,6 +616,11 @@ impl super::Facts for SmcFacts {
         Ok(())
     }
 
+    /// SMC shares the path tracer's surface vertices and next-event estimation.
+    fn unreachable(&self) -> super::reach::Unreachable {
+        super::reach::Unreachable::DiracLightsBehindSpecular
+    }
+
     fn warnings(&self, case: &super::Case) -> Vec<String> {
         anisotropy_warning(case.scene, case.settings.smc.variant)
             .into_iter()
