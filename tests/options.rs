@@ -660,3 +660,105 @@ fn the_book_and_the_help_state_each_render_default_of_the_schema() {
         );
     }
 }
+
+/// The default a flag's help states (`(default X)`, `` `X` (default ``), as the flag takes it
+/// (a fraction such as `1/32` as its value), or `None` when the entry states none.
+fn stated_default(entry: &str) -> Option<String> {
+    // `(default X)`, or `` `X` (default) `` / `` `X` (default: what it is) ``
+    let at = entry.find("(default")?;
+    let rest = &entry[at + "(default".len()..];
+    let word = if rest.starts_with([')', ':']) && entry[..at].ends_with("` ") {
+        entry[..at - 2].rsplit('`').next()?.to_string()
+    } else {
+        rest.trim_start_matches(':')
+            .trim_start()
+            .split([' ', ')', ';', ':'])
+            .next()?
+            .trim_end_matches(',')
+            .to_string()
+    };
+    match word.split_once('/') {
+        Some((a, b)) => Some((a.parse::<f64>().ok()? / b.parse::<f64>().ok()?).to_string()),
+        None => Some(word),
+    }
+}
+
+/// The defaults of the nested tables (`[render.mlt]`, `[render.smc]`, `[render.guide]`,
+/// `[render.adjoint]`) are written once, in their settings' `Default`: the default each
+/// flag's help states is checked against it here, by giving the flag that value and finding
+/// every setting unchanged (so a help that drifts from the code fails, as does a book table
+/// for the top-level keys above).
+#[test]
+fn every_default_a_flag_states_is_the_code_s() {
+    // defaults that are no single value of the flag, with the reason
+    let not_a_value = [
+        (
+            "--guide-alpha",
+            "20 / scene radius: it depends on the scene",
+        ),
+        ("--max-depth", "unlimited: the absence of a limit"),
+        (
+            "--guide-roulette",
+            "the ordinary roulette: the absence of a normalization",
+        ),
+    ];
+    let scene = pathspace::scene::Scene::load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    let defaults = RenderSettings::for_scene(&scene);
+    let mut cmd = Cli::command();
+    let help = cmd
+        .find_subcommand_mut("render")
+        .unwrap()
+        .render_long_help()
+        .to_string();
+    // the help's entries under the schema's headings: a line that names a flag, then its text
+    let schema = ["Render (", "MLT:", "SMC:", "Guiding (", "Adjoint image ("];
+    let mut entries: Vec<(String, String)> = Vec::new();
+    let mut in_schema = false;
+    for line in help.lines() {
+        if !line.starts_with(' ') && line.ends_with(':') {
+            in_schema = schema.iter().any(|h| line.starts_with(h));
+            continue;
+        }
+        if !in_schema {
+            continue;
+        }
+        let t = line.trim_start();
+        let flag = t.split([',', ' ']).find(|w| w.starts_with("--"));
+        match (line.starts_with("  ") && t.starts_with('-'), flag) {
+            (true, Some(f)) => {
+                let f = f.split(['[', '=', '<']).next().unwrap().to_string();
+                entries.push((f, String::new()));
+            }
+            _ => {
+                if let Some(e) = entries.last_mut() {
+                    e.1.push(' ');
+                    e.1.push_str(t);
+                }
+            }
+        }
+    }
+    let mut checked = Vec::new();
+    for (flag, text) in &entries {
+        let Some(word) = stated_default(text) else {
+            continue;
+        };
+        if not_a_value.iter().any(|(f, _)| f == flag) {
+            continue;
+        }
+        let args = render_args(&[format!("{flag}={word}").as_str()]);
+        let mut s = defaults.clone();
+        s.apply(&args.options, Spelling::Flag)
+            .unwrap_or_else(|e| panic!("{flag} {word}: {e}"));
+        s.given = RenderOptions::default();
+        assert_eq!(
+            format!("{s:?}"),
+            format!("{defaults:?}"),
+            "{flag}'s help states the default {word}, the code's is another"
+        );
+        checked.push(flag.clone());
+    }
+    for table in ["--mlt-", "--smc-", "--guide-", "--adjoint-"] {
+        let n = checked.iter().filter(|f| f.starts_with(table)).count();
+        assert!(n >= 3, "only {n} defaults of {table}* checked: {checked:?}");
+    }
+}
