@@ -762,3 +762,42 @@ fn every_default_a_flag_states_is_the_code_s() {
         assert!(n >= 3, "only {n} defaults of {table}* checked: {checked:?}");
     }
 }
+
+/// `converge`'s `KIND(key=value, ...)` is the `[render]` schema: any key (a nested one
+/// dotted) sets the line's settings as the scene file's key would, a bad key or value is
+/// refused by its name, and the study's own keys are refused.
+#[test]
+fn converge_lines_take_any_option_of_the_schema() {
+    use pathspace::measure::convergence::Variant;
+    let scene = pathspace::scene::Scene::load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    let base = RenderSettings::for_scene(&scene);
+    let adjoint = base.adjoint;
+    let line = |s: &str| Variant::parse(s, adjoint).and_then(|v| v.settings(&base).map(|r| (v, r)));
+    let (v, (s, _)) = line("path(distance=equiangular-mis)").unwrap();
+    assert_eq!(v.name(), "path(distance=equiangular-mis)");
+    let (_, (old, _)) = line("path+equiangular").unwrap();
+    assert_eq!(format!("{:?}", s.distance), format!("{:?}", old.distance));
+    let (_, (s, _)) = line("smc(smc.variant=is0_cv0, smc.threshold=8)").unwrap();
+    let file = "[render.smc]\nvariant = \"is0_cv0\"\nthreshold = 8\n";
+    let (_, from_file) = load(&SceneSource::embedded(
+        "k.toml",
+        &format!("{FOG_BOX}\n{file}"),
+    ))
+    .unwrap();
+    assert_eq!(format!("{:?}", s.smc), format!("{:?}", from_file.smc));
+    let (_, (_, a)) = line("bdpt(adjoint_image=true,adjoint.epsilon=0.25)").unwrap();
+    assert_eq!(a.map(|a| a.epsilon), Some(0.25));
+    for (bad, says) in [
+        ("path(colour=red)", "colour"),
+        ("smc(smc.threshold=-1)", "smc.threshold"),
+        ("path(guide.vertices=surface)", "guiding applies"),
+        ("mlt(spp=4)", "the study's"),
+        ("path(distance=equiangular", "`)`"),
+    ] {
+        let e = line(bad).map(|_| ()).unwrap_err().to_string();
+        assert!(
+            e.contains(bad.split('(').next().unwrap()) && e.contains(says),
+            "{bad}: {e}"
+        );
+    }
+}
