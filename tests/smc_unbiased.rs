@@ -11,7 +11,7 @@ mod common;
 
 use common::stats::{runs_mean, Family};
 use pathspace::integrator::smc::{EstimatorForm, ImportanceSampling, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer};
 use pathspace::scene::{Scene, SceneSource, FOG_BOX};
 
 const FURNACE: &str = include_str!("../scenes/furnace.toml");
@@ -53,7 +53,12 @@ fn render(
 ) -> Renderer<'_> {
     let mut r = Renderer::new(scene, kind, seed, None);
     if let Some(s) = settings {
-        r = r.with_smc_settings(s).unwrap();
+        r = r
+            .with_settings(&RenderSettings {
+                smc: s,
+                ..RenderSettings::for_scene(scene)
+            })
+            .unwrap();
     }
     for _ in 0..spp / 4 {
         r.pass(4, &|| {});
@@ -221,7 +226,10 @@ fn meters_and_delta_lights_agree_with_the_path_tracer_on_the_slab() {
             ..Default::default()
         };
         let mut smc = Renderer::new(&scene, IntegratorKind::Smc, 2, None)
-            .with_smc_settings(settings)
+            .with_settings(&RenderSettings {
+                smc: settings,
+                ..RenderSettings::for_scene(&scene)
+            })
             .unwrap();
         smc.meter_samples = 4096;
         for _ in 0..4 {

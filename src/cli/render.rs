@@ -280,7 +280,7 @@ fn configure(
     mut settings: RenderSettings,
 ) -> Result<(IntegratorKind, RenderSettings), CliError> {
     let flags = &args.options;
-    let kind = IntegratorKind::parse(flags.integrator.as_deref().unwrap_or(&settings.integrator))?;
+    let kind = flags.integrator.unwrap_or(settings.integrator);
     args.refuse_foreign(kind, &settings)?;
     let mut flags = RenderOptions::clone(flags);
     flags.spp = args.mutations_per_pixel.or(flags.spp);
