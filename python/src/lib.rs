@@ -302,7 +302,7 @@ impl Scene {
                 "time {t} must be a positive number of seconds"
             )));
         }
-        let kind = IntegratorKind::parse(&settings.integrator).map_err(error)?;
+        let kind = settings.integrator;
         let mut render = Render::new(&self.scene, &self.src, kind, settings, None)
             .map_err(|e| error(CliError::from(e)))?;
         render.time = time;
@@ -527,7 +527,7 @@ impl RenderOutput {
         self.image.as_ref().map(|i| array(py, i)).transpose()
     }
 
-    /// The variance of each pixel's mean, float32 H x W x 3 (None for MLT's splats).
+    /// The variance of each pixel's mean, float32 H x W x 3 (None for light, bdpt and mlt, whose splats land in other pixels).
     #[getter]
     fn variance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.variance.as_ref().map(|i| array(py, i)).transpose()

@@ -72,6 +72,12 @@ pub fn prepare<'t>(
 }
 
 impl Integrator for Bdpt<'_> {
+    /// Light tracing's t = 1 strategies add to other pixels as splats, which a pixel's own
+    /// samples do not see: the film's per-pixel variance would leave them out.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
+
     fn label(&self) -> String {
         match self.strategies {
             Strategies::LightTracing => "light",
