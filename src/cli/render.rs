@@ -207,9 +207,9 @@ impl RenderArgs {
         settings: &RenderSettings,
     ) -> Result<(), CliError> {
         let o = &self.options;
-        if kind != IntegratorKind::Mlt && self.mutations_per_pixel.is_some() {
+        if kind.facts().chains().is_none() && self.mutations_per_pixel.is_some() {
             return Err(CliError::Usage(
-                "--mutations-per-pixel needs --integrator mlt".into(),
+                "--mutations-per-pixel needs --integrator mlt or pssmlt".into(),
             ));
         }
         if kind != IntegratorKind::Smc && !o.smc.is_empty() {

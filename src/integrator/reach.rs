@@ -71,7 +71,7 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
                 )
             })
         }
-        IntegratorKind::Bdpt | IntegratorKind::Mlt => None,
+        IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt => None,
     }
 }
 // ANCHOR_END: unreachable
