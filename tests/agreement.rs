@@ -25,6 +25,7 @@ use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::path::DistanceSampling;
+use pathspace::integrator::pssmlt::{Pssmlt, PssmltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
@@ -86,6 +87,7 @@ impl Config {
             IntegratorKind::Light => 0.5,
             IntegratorKind::Bdpt => 1.0 / 3.0,
             IntegratorKind::Mlt => 2.0,
+            IntegratorKind::Pssmlt => 0.5,
             IntegratorKind::Smc => 1.5,
         }
     }
@@ -108,6 +110,7 @@ impl Config {
             Config::Plain(Light),
             Config::Plain(Bdpt),
             Config::Plain(Mlt),
+            Config::Plain(Pssmlt),
         ];
         // every variant in the default form (the march), and the distance form for plain Monte
         // Carlo and the full method
@@ -228,6 +231,14 @@ fn runs(
                 seed,
                 max_depth,
             )?);
+        }
+        if config.kind() == IntegratorKind::Pssmlt {
+            let settings = PssmltSettings {
+                bootstrap,
+                chains: 4,
+                ..PssmltSettings::default()
+            };
+            r.integrator = Box::new(Pssmlt::new(scene, technique, settings, seed, max_depth)?);
         }
         if config.kind() == IntegratorKind::Smc {
             // SMC adapts between passes: the CLI's passes of 4 samples per pixel
@@ -813,7 +824,7 @@ fn agreement_meters() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera")],
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera"), ("pssmlt", "camera")],
             ..row("meters", fixture("meters.toml"), 1)
         },
     );
@@ -831,7 +842,7 @@ fn agreement_forward() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera")],
+            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera"), ("pssmlt", "camera")],
             spp: 8,
             ..row("forward", fixture("forward.toml"), 1)
         },

@@ -97,7 +97,7 @@ fn state_cell(chain: &mut KelemenChain) -> usize {
 
 /// The stationary distribution over the cells: f* times each cell's volume, normalized.
 fn exact_cells() -> Vec<f64> {
-    let mut p = vec![0.0; CELLS];
+    let mut p = [0.0; CELLS];
     for a in 0..4 {
         for b in 0..4 {
             if a < 2 {
