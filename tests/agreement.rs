@@ -24,8 +24,9 @@ mod common;
 use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
+use pathspace::integrator::mmlt::multiplexed_target;
 use pathspace::integrator::path::DistanceSampling;
-use pathspace::integrator::pssmlt::{Pssmlt, PssmltSettings};
+use pathspace::integrator::pssmlt::{bdpt_target, Pssmlt, PssmltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
@@ -88,6 +89,7 @@ impl Config {
             IntegratorKind::Bdpt => 1.0 / 3.0,
             IntegratorKind::Mlt => 2.0,
             IntegratorKind::Pssmlt => 0.5,
+            IntegratorKind::Mmlt => 1.0,
             IntegratorKind::Smc => 1.5,
         }
     }
@@ -111,6 +113,7 @@ impl Config {
             Config::Plain(Bdpt),
             Config::Plain(Mlt),
             Config::Plain(Pssmlt),
+            Config::Plain(Mmlt),
         ];
         // every variant in the default form (the march), and the distance form for plain Monte
         // Carlo and the full method
@@ -232,13 +235,24 @@ fn runs(
                 max_depth,
             )?);
         }
-        if config.kind() == IntegratorKind::Pssmlt {
+        if let kind @ (IntegratorKind::Pssmlt | IntegratorKind::Mmlt) = config.kind() {
             let settings = PssmltSettings {
                 bootstrap,
                 chains: 4,
                 ..PssmltSettings::default()
             };
-            r.integrator = Box::new(Pssmlt::new(scene, technique, settings, seed, max_depth)?);
+            let target = match kind {
+                IntegratorKind::Mmlt => multiplexed_target,
+                _ => bdpt_target,
+            };
+            r.integrator = Box::new(Pssmlt::with_target(
+                scene,
+                technique,
+                settings,
+                seed,
+                max_depth,
+                (kind.name(), target),
+            )?);
         }
         if config.kind() == IntegratorKind::Smc {
             // SMC adapts between passes: the CLI's passes of 4 samples per pixel
@@ -824,7 +838,12 @@ fn agreement_meters() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera"), ("pssmlt", "camera")],
+            refuse: &[
+                NO_AREA_LIGHT,
+                ("mlt*", "camera"),
+                ("pssmlt", "camera"),
+                ("mmlt", "camera"),
+            ],
             ..row("meters", fixture("meters.toml"), 1)
         },
     );
@@ -842,7 +861,12 @@ fn agreement_forward() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera"), ("pssmlt", "camera")],
+            refuse: &[
+                NO_AREA_LIGHT,
+                ("mlt*", "camera"),
+                ("pssmlt", "camera"),
+                ("mmlt", "camera"),
+            ],
             spp: 8,
             ..row("forward", fixture("forward.toml"), 1)
         },

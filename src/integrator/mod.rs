@@ -7,6 +7,7 @@
 
 pub mod bdpt;
 pub mod mlt;
+pub mod mmlt;
 pub mod path;
 pub mod pssmlt;
 pub mod reach;
@@ -72,6 +73,8 @@ integrators! {
     Mlt = "mlt" => &mlt::MltFacts,
     /// Primary-sample-space MLT over BDPT samples (Kelemen et al. 2002).
     Pssmlt = "pssmlt" => &pssmlt::PssmltFacts,
+    /// Multiplexed MLT: one BDPT strategy per chain state (Hachisuka et al. 2014).
+    Mmlt = "mmlt" => &mmlt::MmltFacts,
 }
 
 impl IntegratorKind {

@@ -71,7 +71,10 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
                 )
             })
         }
-        IntegratorKind::Bdpt | IntegratorKind::Mlt | IntegratorKind::Pssmlt => None,
+        IntegratorKind::Bdpt
+        | IntegratorKind::Mlt
+        | IntegratorKind::Pssmlt
+        | IntegratorKind::Mmlt => None,
     }
 }
 // ANCHOR_END: unreachable

@@ -24,6 +24,11 @@ pub trait Target {
     /// Reads the state's numbers from `sampler` (a primary-sample sampler), writes its deposits
     /// into `out` (cleared first) and returns f*(u).
     fn evaluate(&mut self, sampler: &mut Sampler, out: &mut Vec<Deposit>) -> f64;
+
+    /// The walks' storage, handed back to the next target of the chain (none by default).
+    fn storage(&mut self) -> crate::bidir::Scratch {
+        crate::bidir::Scratch::default()
+    }
 }
 
 /// The acceptance of Kelemen's symmetric proposals: min(1, f*(y) / f*(x)) (1 from a state
@@ -81,7 +86,7 @@ impl KelemenChain {
     pub fn step(
         &mut self,
         large_step: f64,
-        target: &mut impl Target,
+        target: &mut (impl Target + ?Sized),
         deposit: &mut impl FnMut(Vec2, Rgb),
     ) -> StepOutcome {
         let large = self.state().uniform() < large_step;
@@ -124,7 +129,7 @@ pub fn start_chain(
     rng: rand_pcg::Pcg32,
     own: rand_pcg::Pcg32,
     sigma: f64,
-    target: &mut impl Target,
+    target: &mut (impl Target + ?Sized),
 ) -> Option<KelemenChain> {
     let mut sampler = Sampler::primary(PrimarySamples::new(rng, sigma));
     let mut current = Vec::new();

@@ -17,7 +17,7 @@
 //! Determinism: bootstrap state i is stream (seed, i), chain c draws its seed and its steps from
 //! streams of (seed, c); chains run in parallel and are merged in chain order, so an image
 //! depends on the seed and the chain count, never on the thread count.
-//! Book: "Primary sample space and multiplexed MLT".
+//! Book: "Primary-sample-space and multiplexed MLT".
 
 pub mod kernel;
 pub mod sample;
@@ -26,7 +26,7 @@ use glam::Vec2;
 use rand_pcg::Pcg32;
 use rayon::prelude::*;
 
-use crate::bidir::{Bdpt, Strategies};
+use crate::bidir::{Bdpt, Scratch, Strategies};
 use crate::film::Film;
 use crate::math::sampler::mix64;
 use crate::math::{PrimarySamples, Sampler};
@@ -86,8 +86,8 @@ pub enum PssmltError {
     BadLargeStep(f64),
     #[error("pssmlt sigma = {0} must be in (0, 1)")]
     BadSigma(f64),
-    #[error("pssmlt renders images: the scene needs a camera")]
-    NoCamera,
+    #[error("{0} renders images: the scene needs a camera")]
+    NoCamera(&'static str),
 }
 
 impl From<PssmltError> for super::IntegratorError {
@@ -153,10 +153,11 @@ impl PssmltOptions {
     }
 }
 
-/// Checks that PSSMLT can render `scene`: it needs a camera (its chains render the image).
-pub fn check_scene(scene: &Scene) -> Result<(), PssmltError> {
+/// Checks that integrator `name` (PSSMLT or MMLT) can render `scene`: it needs a camera (its
+/// chains render the image).
+pub fn check_scene(scene: &Scene, name: &'static str) -> Result<(), PssmltError> {
     if scene.camera.is_none() {
-        return Err(PssmltError::NoCamera);
+        return Err(PssmltError::NoCamera(name));
     }
     Ok(())
 }
@@ -174,17 +175,45 @@ impl StepCounts {
     }
 }
 
-/// What one chain did in a pass: its deposits, its large and small steps, and the sum of its
-/// large steps' f*(y) (independent samples of b).
-struct ChainPass {
+/// A chain with the storage it keeps from pass to pass (so that a pass allocates nothing per
+/// step once the storage has grown): its walks and its deposits of the pass.
+struct Slot {
+    chain: KelemenChain,
+    walks: Scratch,
     splats: Vec<(Vec2, Rgb)>,
+}
+
+/// What one chain did in a pass: its large and small steps, and the sum of its large steps'
+/// f*(y) (independent samples of b).
+struct ChainPass {
     large: StepCounts,
     small: StepCounts,
     large_sum: f64,
 }
 
-/// The PSSMLT integrator.
+/// The target a chain follows, made for a scene and a BDPT engine: the BDPT sample
+/// ([`BdptTarget`], PSSMLT) or one strategy of it (MMLT, `integrator::mmlt`).
+/// The walks' storage is handed in and back ([`Target::storage`]) to be reused.
+pub type MakeTarget = for<'a> fn(&'a Scene, &'a Bdpt<'a>, Scratch) -> Box<dyn Target + 'a>;
+
+/// PSSMLT's target: the whole BDPT sample.
+pub fn bdpt_target<'a>(
+    scene: &'a Scene,
+    bdpt: &'a Bdpt<'a>,
+    walks: Scratch,
+) -> Box<dyn Target + 'a> {
+    Box::new(BdptTarget {
+        walks,
+        ..BdptTarget::new(scene, bdpt)
+    })
+}
+
+/// The PSSMLT integrator (and, with another target, MMLT's).
 pub struct Pssmlt<'t> {
+    /// The integrator's name (`pssmlt`, `mmlt`).
+    pub name: &'static str,
+    /// The target of the chains.
+    pub make_target: MakeTarget,
     pub settings: PssmltSettings,
     pub bdpt: Bdpt<'t>,
     pub seed: u64,
@@ -192,7 +221,7 @@ pub struct Pssmlt<'t> {
     pub b: f64,
     b_sum: f64,
     b_samples: u64,
-    chains: Vec<KelemenChain>,
+    chains: Vec<Slot>,
     initialized: bool,
     pub large: StepCounts,
     pub small: StepCounts,
@@ -211,9 +240,30 @@ impl<'t> Pssmlt<'t> {
         seed: u64,
         max_depth: Option<u32>,
     ) -> Result<Self, PssmltError> {
+        Self::with_target(
+            scene,
+            tech,
+            settings,
+            seed,
+            max_depth,
+            ("pssmlt", bdpt_target),
+        )
+    }
+
+    /// The chains of integrator `name` following the targets `make_target` makes.
+    pub fn with_target(
+        scene: &Scene,
+        tech: &'t dyn LocalSampling,
+        settings: PssmltSettings,
+        seed: u64,
+        max_depth: Option<u32>,
+        (name, make_target): (&'static str, MakeTarget),
+    ) -> Result<Self, PssmltError> {
         settings.validate()?;
-        check_scene(scene)?;
+        check_scene(scene, name)?;
         Ok(Pssmlt {
+            name,
+            make_target,
             settings,
             bdpt: Bdpt::new(tech, max_depth, Strategies::All),
             seed,
@@ -234,7 +284,7 @@ impl<'t> Pssmlt<'t> {
         (0..n.div_ceil(BOOTSTRAP_CHUNK))
             .into_par_iter()
             .flat_map_iter(|c| {
-                let mut target = BdptTarget::new(scene, &self.bdpt);
+                let mut target = (self.make_target)(scene, &self.bdpt, Scratch::default());
                 let mut out = Vec::new();
                 let first = stream(seed, BOOTSTRAP_SALT, c * BOOTSTRAP_CHUNK);
                 let mut sampler = Sampler::primary(PrimarySamples::new(first, sigma));
@@ -271,15 +321,20 @@ impl<'t> Pssmlt<'t> {
             return; // no sample reaches the camera: the image is black
         }
         let (seed, sigma) = (self.seed, self.settings.sigma);
-        let chains: Vec<Option<KelemenChain>> = (0..self.settings.chains as u64)
+        let chains: Vec<Option<Slot>> = (0..self.settings.chains as u64)
             .into_par_iter()
             .map(|c| {
                 let u = Sampler::new(seed, CHAIN_SALT ^ c, 0).next_f64() * total;
                 let i = cdf.partition_point(|&x| x <= u).min(cdf.len() - 1);
-                let mut target = BdptTarget::new(scene, &self.bdpt);
+                let mut target = (self.make_target)(scene, &self.bdpt, Scratch::default());
                 let state = stream(seed, BOOTSTRAP_SALT, i as u64);
                 let own = stream(seed, CHAIN_SALT, c);
-                kernel::start_chain(state, own, sigma, &mut target)
+                let chain = kernel::start_chain(state, own, sigma, target.as_mut())?;
+                Some(Slot {
+                    chain,
+                    walks: target.storage(),
+                    splats: Vec::new(),
+                })
             })
             .collect();
         self.chains = chains.into_iter().flatten().collect();
@@ -297,22 +352,23 @@ impl<'t> Pssmlt<'t> {
             return;
         }
         let mut chains = std::mem::take(&mut self.chains);
-        let (bdpt, large_step) = (&self.bdpt, self.settings.large_step);
+        let (bdpt, large_step, make) = (&self.bdpt, self.settings.large_step, self.make_target);
         let results: Vec<ChainPass> = chains
             .par_iter_mut()
             .enumerate()
-            .map(|(c, chain)| {
+            .map(|(c, slot)| {
                 let quota = mutations / n + u64::from((c as u64) < mutations % n);
-                let mut target = BdptTarget::new(scene, bdpt);
+                let mut target = make(scene, bdpt, std::mem::take(&mut slot.walks));
                 let mut pass = ChainPass {
-                    splats: Vec::new(),
                     large: StepCounts::default(),
                     small: StepCounts::default(),
                     large_sum: 0.0,
                 };
+                slot.splats.clear();
                 for _ in 0..quota {
-                    let splats = &mut pass.splats;
-                    let o = chain.step(large_step, &mut target, &mut |p, v| splats.push((p, v)));
+                    let splats = &mut slot.splats;
+                    let step = &mut |p, v| splats.push((p, v));
+                    let o = slot.chain.step(large_step, target.as_mut(), step);
                     let counts = if o.large {
                         pass.large_sum += o.fy;
                         &mut pass.large
@@ -322,12 +378,12 @@ impl<'t> Pssmlt<'t> {
                     counts.attempted += 1;
                     counts.accepted += u64::from(o.accepted);
                 }
+                slot.walks = target.storage();
                 pass
             })
             .collect();
-        self.chains = chains;
-        for pass in results {
-            for (r, l) in pass.splats {
+        for (slot, pass) in chains.iter().zip(results) {
+            for &(r, l) in &slot.splats {
                 if l.is_finite() {
                     film.add_splat(r, l);
                 }
@@ -339,6 +395,7 @@ impl<'t> Pssmlt<'t> {
                 total.accepted += add.accepted;
             }
         }
+        self.chains = chains;
         self.b = self.b_sum / self.b_samples.max(1) as f64;
         film.splat_scale = self.b;
     }
@@ -371,7 +428,7 @@ impl super::Facts for PssmltFacts {
     }
 
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {
-        check_scene(case.scene).map_err(super::IntegratorError::from)
+        check_scene(case.scene, "pssmlt").map_err(super::IntegratorError::from)
     }
 
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
@@ -411,7 +468,7 @@ impl super::Facts for PssmltFacts {
 
 impl super::Integrator for Pssmlt<'_> {
     fn label(&self) -> String {
-        "pssmlt".into()
+        self.name.into()
     }
 
     /// Unused: PSSMLT renders film-wide ([`Pssmlt::run`]).
@@ -452,8 +509,8 @@ impl super::Integrator for Pssmlt<'_> {
     fn pending_stage(&self) -> Option<String> {
         (!self.initialized).then(|| {
             format!(
-                "pssmlt bootstrap ({} BDPT samples, seeds of {} chains)",
-                self.settings.bootstrap, self.settings.chains
+                "{} bootstrap ({} BDPT samples, seeds of {} chains)",
+                self.name, self.settings.bootstrap, self.settings.chains
             )
         })
     }
@@ -482,7 +539,10 @@ impl super::Integrator for Pssmlt<'_> {
             json: Some(serde_json::json!({"b": self.b, "b_samples": self.b_samples,
                 "large_steps": json(&self.large), "small_steps": json(&self.small)})),
             lines: vec![
-                format!("  pssmlt: b = {:.5} ({} samples)", self.b, self.b_samples),
+                format!(
+                    "  {}: b = {:.5} ({} samples)",
+                    self.name, self.b, self.b_samples
+                ),
                 line("large steps", &self.large),
                 line("small steps", &self.small),
             ],

@@ -76,4 +76,8 @@ impl Target for BdptTarget<'_> {
         }
     }
     // ANCHOR_END: evaluate
+
+    fn storage(&mut self) -> Scratch {
+        std::mem::take(&mut self.walks)
+    }
 }
