@@ -282,3 +282,48 @@ fn an_image_is_the_same_whatever_the_thread_count() {
         three.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
     );
 }
+
+// ------------------------------------------------------------------------------------------
+// (d) the options
+
+/// Every `--pssmlt-*` flag reaches PSSMLT's settings and no other table's (flags of nested
+/// tables share field names: `chains`, `bootstrap`, `sigma`), and clap finds no clash.
+#[test]
+fn the_pssmlt_flags_are_their_own() {
+    use clap::{CommandFactory, Parser};
+    use pathspace::cli::{Cli, Command};
+    pathspace::cli::Cli::command().debug_assert();
+    let argv = [
+        "pathspace",
+        "render",
+        "--pssmlt-chains",
+        "3",
+        "--pssmlt-bootstrap",
+        "999",
+        "--pssmlt-sigma",
+        "0.02",
+        "--pssmlt-large-step",
+        "0.5",
+        "--mlt-chains",
+        "5",
+        "--mlt-bootstrap",
+        "77",
+        "--guide-sigma",
+        "0.03",
+    ];
+    let Some(Command::Render(args)) = Cli::try_parse_from(argv).unwrap().command else {
+        panic!("not a render");
+    };
+    let o = &args.options;
+    assert_eq!(
+        (
+            o.pssmlt.chains,
+            o.pssmlt.bootstrap,
+            o.pssmlt.sigma,
+            o.pssmlt.large_step
+        ),
+        (Some(3), Some(999), Some(0.02), Some(0.5))
+    );
+    assert_eq!((o.mlt.chains, o.mlt.bootstrap), (Some(5), Some(77)));
+    assert_eq!(o.guide.sigma, Some(0.03));
+}

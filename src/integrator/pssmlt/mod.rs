@@ -129,16 +129,16 @@ impl PssmltSettings {
 )]
 pub struct PssmltOptions {
     /// PSSMLT: bootstrap samples n that estimate b and seed the chains (default 16384).
-    #[arg(long = "pssmlt-bootstrap")]
+    #[arg(id = "pssmlt_bootstrap", long = "pssmlt-bootstrap")]
     pub bootstrap: Option<u64>,
     /// PSSMLT: independent chains (default 16).
-    #[arg(long = "pssmlt-chains")]
+    #[arg(id = "pssmlt_chains", long = "pssmlt-chains")]
     pub chains: Option<u32>,
     /// PSSMLT: probability of a large step, all numbers afresh (default 0.3).
-    #[arg(long = "pssmlt-large-step")]
+    #[arg(id = "pssmlt_large_step", long = "pssmlt-large-step")]
     pub large_step: Option<f64>,
     /// PSSMLT: standard deviation of the small step in primary sample space (default 0.01).
-    #[arg(long = "pssmlt-sigma")]
+    #[arg(id = "pssmlt_sigma", long = "pssmlt-sigma")]
     pub sigma: Option<f64>,
 }
 
