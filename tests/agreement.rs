@@ -24,7 +24,9 @@ mod common;
 use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
 use pathspace::integrator::mlt::{Mlt, MltSettings};
+use pathspace::integrator::mmlt::multiplexed_target;
 use pathspace::integrator::path::DistanceSampling;
+use pathspace::integrator::pssmlt::{bdpt_target, Pssmlt, PssmltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
@@ -86,6 +88,8 @@ impl Config {
             IntegratorKind::Light => 0.5,
             IntegratorKind::Bdpt => 1.0 / 3.0,
             IntegratorKind::Mlt => 2.0,
+            IntegratorKind::Pssmlt => 0.5,
+            IntegratorKind::Mmlt => 1.0,
             IntegratorKind::Smc => 1.5,
         }
     }
@@ -108,6 +112,8 @@ impl Config {
             Config::Plain(Light),
             Config::Plain(Bdpt),
             Config::Plain(Mlt),
+            Config::Plain(Pssmlt),
+            Config::Plain(Mmlt),
         ];
         // every variant in the default form (the march), and the distance form for plain Monte
         // Carlo and the full method
@@ -231,6 +237,25 @@ fn runs(
                 mlt_settings(bootstrap),
                 seed,
                 max_depth,
+            )?);
+        }
+        if let kind @ (IntegratorKind::Pssmlt | IntegratorKind::Mmlt) = config.kind() {
+            let settings = PssmltSettings {
+                bootstrap,
+                chains: 4,
+                ..PssmltSettings::default()
+            };
+            let target = match kind {
+                IntegratorKind::Mmlt => multiplexed_target,
+                _ => bdpt_target,
+            };
+            r.integrator = Box::new(Pssmlt::with_target(
+                scene,
+                technique,
+                settings,
+                seed,
+                max_depth,
+                (kind.name(), target),
             )?);
         }
         if config.kind() == IntegratorKind::Smc {
@@ -817,7 +842,12 @@ fn agreement_meters() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera")],
+            refuse: &[
+                NO_AREA_LIGHT,
+                ("mlt*", "camera"),
+                ("pssmlt", "camera"),
+                ("mmlt", "camera"),
+            ],
             ..row("meters", fixture("meters.toml"), 1)
         },
     );
@@ -835,7 +865,12 @@ fn agreement_forward() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "camera")],
+            refuse: &[
+                NO_AREA_LIGHT,
+                ("mlt*", "camera"),
+                ("pssmlt", "camera"),
+                ("mmlt", "camera"),
+            ],
             spp: 8,
             ..row("forward", fixture("forward.toml"), 1)
         },

@@ -460,7 +460,7 @@ fn the_scanner_sees_a_circle() {
 }
 
 /// The integrator modules, which the interface module must not name.
-const INTEGRATOR_MODULES: [&str; 4] = ["bdpt", "mlt", "path", "smc"];
+const INTEGRATOR_MODULES: [&str; 6] = ["bdpt", "mlt", "mmlt", "path", "pssmlt", "smc"];
 
 /// The lines of `src/integrator/mod.rs` outside its `integrators!` registration and its `mod`
 /// declarations that still name an integrator module, each with the reason it is there: the

@@ -154,7 +154,8 @@ fn the_checks_before_the_work_refuse_with_the_render_layers_errors() {
 }
 
 /// A front end reads the variance of each pixel's mean only where the film holds it: `path`
-/// and `smc` keep each sample in its pixel; `light`, `bdpt` (t = 1 splats) and `mlt` do not,
+/// and `smc` keep each sample in its pixel; `light`, `bdpt` (t = 1 splats) and the MCMC
+/// integrators do not,
 /// and a variance that left their splats out would understate the error.
 #[test]
 fn the_variance_of_the_mean_is_given_only_where_the_film_holds_it() {
@@ -170,7 +171,11 @@ fn the_variance_of_the_mean_is_given_only_where_the_film_holds_it() {
         let done = render.run(&out, &mut Quiet { stop: None }).unwrap();
         let splats = matches!(
             kind,
-            IntegratorKind::Light | IntegratorKind::Bdpt | IntegratorKind::Mlt
+            IntegratorKind::Light
+                | IntegratorKind::Bdpt
+                | IntegratorKind::Mlt
+                | IntegratorKind::Pssmlt
+                | IntegratorKind::Mmlt
         );
         assert_eq!(
             done.ended.result.variance_of_mean.is_some(),

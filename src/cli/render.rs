@@ -38,7 +38,7 @@ pub struct RenderArgs {
     /// The render options, each overriding its `[render]` key (boxed: most are rarely given).
     #[command(flatten)]
     pub options: Box<RenderOptions>,
-    /// Mutations per pixel for `--integrator mlt` (the same count as --spp).
+    /// Mutations per pixel for `--integrator mlt`, `pssmlt` or `mmlt` (the same count as --spp).
     #[arg(long, conflicts_with = "time", help_heading = OUTPUTS)]
     pub mutations_per_pixel: Option<u32>,
     /// PNG preview (default: next to the EXR).
@@ -207,9 +207,9 @@ impl RenderArgs {
         settings: &RenderSettings,
     ) -> Result<(), CliError> {
         let o = &self.options;
-        if kind != IntegratorKind::Mlt && self.mutations_per_pixel.is_some() {
+        if kind.facts().chains().is_none() && self.mutations_per_pixel.is_some() {
             return Err(CliError::Usage(
-                "--mutations-per-pixel needs --integrator mlt".into(),
+                "--mutations-per-pixel needs --integrator mlt, pssmlt or mmlt".into(),
             ));
         }
         if kind != IntegratorKind::Smc && !o.smc.is_empty() {

@@ -7,7 +7,9 @@
 
 pub mod bdpt;
 pub mod mlt;
+pub mod mmlt;
 pub mod path;
+pub mod pssmlt;
 pub mod reach;
 pub mod settings;
 pub mod smc;
@@ -70,6 +72,10 @@ integrators! {
     Smc = "smc" => &smc::SmcFacts,
     /// Metropolis light transport (film-wide; `spp` counts mutations per pixel).
     Mlt = "mlt" => &mlt::MltFacts,
+    /// Primary-sample-space MLT over BDPT samples (Kelemen et al. 2002).
+    Pssmlt = "pssmlt" => &pssmlt::PssmltFacts,
+    /// Multiplexed MLT: one BDPT strategy per chain state (Hachisuka et al. 2014).
+    Mmlt = "mmlt" => &mmlt::MmltFacts,
 }
 
 crate::option_value!(IntegratorKind, "integrator");
@@ -222,6 +228,11 @@ pub trait Facts: Sync {
         ShardSplit::Passes
     }
 
+    /// Its chain count, which a [`ShardSplit::IndependentChains`] split shares out.
+    fn chains(&self) -> Option<ChainCount> {
+        None
+    }
+
     /// The `--json` key of its [`Statistics`] (null in the other integrators' output), if it
     /// reports any.
     fn statistics_key(&self) -> Option<&'static str> {
@@ -259,6 +270,14 @@ pub enum ShardSplit {
     IndependentChains,
     /// Refused: a pass learns from every earlier pass (SMC's cache); the integrator's name.
     Refused(&'static str),
+}
+
+/// An integrator's chain count: the flag that sets it and where the settings hold it.
+#[derive(Clone, Copy)]
+pub struct ChainCount {
+    pub flag: &'static str,
+    pub get: fn(&RenderSettings) -> u32,
+    pub set: fn(&mut RenderSettings, u32),
 }
 
 /// Per-thread storage of a tile or meter chunk, reused from sample to sample so that no

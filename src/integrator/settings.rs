@@ -11,6 +11,7 @@ use crate::enlightened::guide::ParticleSampler;
 use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, GuideSettings};
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::path::DistanceSampling;
+use crate::integrator::pssmlt::{PssmltOptions, PssmltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::integrator::IntegratorKind;
 use crate::scene::file::{self, path};
@@ -69,6 +70,10 @@ pub struct RenderOptions {
     #[command(flatten)]
     #[serde(default, skip_serializing_if = "is_default")]
     pub mlt: MltOptions,
+    /// `[render.pssmlt]`: primary-sample-space MLT (the `--pssmlt-*` options).
+    #[command(flatten)]
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub pssmlt: PssmltOptions,
     /// `[render.smc]`: sequential Monte Carlo (the `--smc-*` options).
     #[command(flatten)]
     #[serde(default, skip_serializing_if = "is_default")]
@@ -470,6 +475,8 @@ pub struct RenderSettings {
     pub light_selection: LightSelectionKind,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
+    /// Primary-sample-space MLT settings (`[render.pssmlt]`).
+    pub pssmlt: PssmltSettings,
     /// Sequential Monte Carlo settings (`[render.smc]`).
     pub smc: SmcSettings,
     /// Guided local sampling (`[render.guide]`).
@@ -497,6 +504,7 @@ impl RenderSettings {
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
             mlt: MltSettings::default(),
+            pssmlt: PssmltSettings::default(),
             smc: SmcSettings::default(),
             guide: GuideSettings::for_radius(radius),
             adjoint_image: d.adjoint_image.expect(given),
@@ -552,6 +560,10 @@ impl RenderSettings {
         self.mlt
             .validate()
             .map_err(|e| SettingError::at("mlt", None, e))?;
+        o.pssmlt.apply(&mut self.pssmlt);
+        self.pssmlt
+            .validate()
+            .map_err(|e| SettingError::at("pssmlt", None, e))?;
         let name = |k: &str| spelling.name("smc", k);
         let at = |table, e: OptionError| SettingError::at(table, Some(e.key), e.message);
         self.smc = o.smc.apply(self.smc, &name).map_err(|e| at("smc", e))?;

@@ -39,11 +39,13 @@ impl ShardOf {
         settings: &mut RenderSettings,
     ) -> Result<ShardOf, RenderError> {
         let (total_spp, seed) = (settings.spp, settings.seed);
-        let part = shard::plan(s, kind, total_spp, seed, settings.mlt.chains)?;
+        let chains = kind.facts().chains();
+        let count = chains.map(|c| (c.flag, (c.get)(settings)));
+        let part = shard::plan(s, kind, total_spp, seed, count)?;
         settings.spp = part.spp;
         settings.seed = part.seed;
-        if let Some(c) = part.chains {
-            settings.mlt.chains = c;
+        if let (Some(c), Some(n)) = (chains, part.chains) {
+            (c.set)(settings, n);
         }
         Ok(ShardOf {
             shard: s,

@@ -147,13 +147,14 @@ pub struct ShardPlan {
 }
 
 /// The part `shard` of a render with integrator `kind`, `spp` samples (mutations) per pixel,
-/// seed `seed` and `chains` MLT chains; or why it cannot be sharded.
+/// seed `seed` and `chains` chains (the flag that sets them, and their count) when it has
+/// chains; or why it cannot be sharded.
 pub fn plan(
     shard: Shard,
     kind: IntegratorKind,
     spp: u32,
     seed: u64,
-    chains: u32,
+    chains: Option<(&'static str, u32)>,
 ) -> Result<ShardPlan, ShardError> {
     let (index, count) = (shard.index, shard.count);
     match kind.facts().shard_split() {
@@ -165,8 +166,9 @@ pub fn plan(
                 what,
                 value,
             };
+            let (flag, chains) = chains.unwrap_or(("--mlt-chains", count));
             if !chains.is_multiple_of(count) {
-                return Err(uneven("--mlt-chains", chains as u64));
+                return Err(uneven(flag, chains as u64));
             }
             if !spp.is_multiple_of(count) {
                 return Err(uneven("--spp (mutations per pixel)", spp as u64));

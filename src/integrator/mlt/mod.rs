@@ -770,6 +770,14 @@ impl super::Facts for MltFacts {
         super::ShardSplit::IndependentChains
     }
 
+    fn chains(&self) -> Option<super::ChainCount> {
+        Some(super::ChainCount {
+            flag: "--mlt-chains",
+            get: |s| s.mlt.chains,
+            set: |s, c| s.mlt.chains = c,
+        })
+    }
+
     fn statistics_key(&self) -> Option<&'static str> {
         Some("mlt")
     }
