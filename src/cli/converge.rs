@@ -30,7 +30,8 @@ pub struct ConvergeArgs {
     /// `KIND+guide(key=value,...)` (any `[render.guide]` key) or the short
     /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (over the `--guide*`
     /// options; vertices default to `surface`), the preprocessing counted in the budget;
-    /// `path+equiangular` is the path tracer with `distance = "equiangular-mis"`.
+    /// `path+equiangular` is the path tracer with `distance = "equiangular-mis"`,
+    /// `path+no-volume-nee` with `volume_next_event = false`.
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.

@@ -553,6 +553,7 @@ fn volume_emission_found(
     (p, m): (Vec3, u32),
     nee: bool,
 ) -> Rgb {
+    // ASSIGNMENT: volume_emission_found
     if prop.pdf <= 0.0 {
         return Rgb::ZERO;
     }
@@ -565,6 +566,7 @@ fn volume_emission_found(
         power_heuristic(pdf_walk, scene.emitters.pdf(m, p))
     };
     w.beta * prop.transmittance * le * (mis / prop.pdf)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: volume_emission_found
 

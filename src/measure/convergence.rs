@@ -115,6 +115,9 @@ pub enum ConvergenceError {
     /// `NAME+equiangular` for another integrator than the path tracer (the name, the kind).
     #[error("`{0}`: equiangular distance sampling applies to path, not `{1}`")]
     NoEquiangular(String, String),
+    /// `NAME+no-volume-nee` for another integrator than the path tracer (the name, the kind).
+    #[error("`{0}`: turning volume next-event estimation off applies to path, not `{1}`")]
+    NoVolumeNee(String, String),
     /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
     #[error(transparent)]
     Adjoint(crate::enlightened::AdjointError),
@@ -310,6 +313,9 @@ pub struct Variant {
     pub adjoint: Option<crate::enlightened::AdjointSettings>,
     /// `distance = "equiangular-mis"` for this line (the path tracer only).
     pub equiangular: bool,
+    /// `volume_next_event = false` for this line (`path+no-volume-nee`: emitting media's light
+    /// collected along free flights alone).
+    pub no_volume_nee: bool,
 }
 
 impl Variant {
@@ -317,13 +323,27 @@ impl Variant {
     pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
     /// Suffix that asks for equiangular MIS on camera rays.
     pub const EQUIANGULAR_SUFFIX: &'static str = "+equiangular";
+    /// Suffix that turns the path tracer's next-event estimation toward emitting media off.
+    pub const NO_VOLUME_NEE_SUFFIX: &'static str = "+no-volume-nee";
 
-    /// Parses `NAME`, `NAME+adjoint` or `path+equiangular`; `adjoint` holds the settings of
-    /// the image.
+    /// Parses `NAME`, `NAME+adjoint`, `path+equiangular` or `path+no-volume-nee`; `adjoint`
+    /// holds the settings of the image.
     pub fn parse(
         s: &str,
         adjoint: crate::enlightened::AdjointSettings,
     ) -> Result<Self, ConvergenceError> {
+        if let Some(base) = s.strip_suffix(Self::NO_VOLUME_NEE_SUFFIX) {
+            let kind = IntegratorKind::parse(base)?;
+            if kind != IntegratorKind::Path {
+                return Err(ConvergenceError::NoVolumeNee(s.into(), base.into()));
+            }
+            return Ok(Variant {
+                kind,
+                adjoint: None,
+                equiangular: false,
+                no_volume_nee: true,
+            });
+        }
         if let Some(base) = s.strip_suffix(Self::EQUIANGULAR_SUFFIX) {
             let kind = IntegratorKind::parse(base)?;
             if kind != IntegratorKind::Path {
@@ -333,6 +353,7 @@ impl Variant {
                 kind,
                 adjoint: None,
                 equiangular: true,
+                no_volume_nee: false,
             });
         }
         match s.strip_suffix(Self::ADJOINT_SUFFIX) {
@@ -345,18 +366,23 @@ impl Variant {
                     kind,
                     adjoint: Some(adjoint),
                     equiangular: false,
+                    no_volume_nee: false,
                 })
             }
             None => Ok(Variant {
                 kind: IntegratorKind::parse(s)?,
                 adjoint: None,
                 equiangular: false,
+                no_volume_nee: false,
             }),
         }
     }
 
     /// The label of its rows.
     pub fn name(&self) -> String {
+        if self.no_volume_nee {
+            return format!("{}{}", self.kind.name(), Self::NO_VOLUME_NEE_SUFFIX);
+        }
         match (self.adjoint, self.equiangular) {
             (Some(_), _) => format!("{}{}", self.kind.name(), Self::ADJOINT_SUFFIX),
             (None, true) => format!("{}{}", self.kind.name(), Self::EQUIANGULAR_SUFFIX),
@@ -382,6 +408,9 @@ pub fn converge_variants(
         let mut line_settings = settings.clone();
         if v.equiangular {
             line_settings.distance = crate::integrator::path::DistanceSampling::EquiangularMis;
+        }
+        if v.no_volume_nee {
+            line_settings.volume_next_event = false;
         }
         let settings = &line_settings;
         for run in config.run_indices() {
