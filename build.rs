@@ -10,11 +10,12 @@
 
 use std::path::{Path, PathBuf};
 
-include!("src/course/tree.rs");
+include!("course/src/tree.rs");
 
 /// Generated or pending files that are not part of the source.
 fn skipped(rel: &str) -> bool {
     rel.starts_with("book/book/")
+        || rel.split('/').any(|part| part == "target")
         || rel.ends_with(".snap.new")
         || rel.ends_with(".pending-snap")
         || rel.rsplit('/').next().is_some_and(|n| n.starts_with('.'))
@@ -50,7 +51,7 @@ fn main() {
                   pub static SOURCE_TREE: &[(&str, &[u8])] = &[\n";
     if std::env::var_os("CARGO_FEATURE_EMBED_SOURCE").is_none() {
         println!("cargo:rerun-if-changed=build.rs");
-        println!("cargo:rerun-if-changed=src/course/tree.rs");
+        println!("cargo:rerun-if-changed=course/src/tree.rs");
         std::fs::write(out, format!("{header}];\n")).unwrap();
         return;
     }
@@ -60,8 +61,13 @@ fn main() {
         .filter(|f| root.join(f).is_file())
         .map(|f| f.to_string())
         .collect();
-    for d in DIRS {
-        walk(&root, &root.join(d), &mut files);
+    let manifest = std::fs::read_to_string(root.join("Cargo.toml")).unwrap_or_default();
+    for d in DIRS
+        .iter()
+        .map(|d| d.to_string())
+        .chain(workspace_members(&manifest))
+    {
+        walk(&root, &root.join(&d), &mut files);
         println!("cargo:rerun-if-changed={d}");
     }
     for f in FILES {

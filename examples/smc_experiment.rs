@@ -24,8 +24,8 @@ use glam::Vec2;
 use pathspace::conventions::OptionValue as _;
 use pathspace::image_io::{self, Image, ImageMeta};
 use pathspace::integrator::smc::grid::Grid;
-use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::smc::{EstimatorForm, Smc, SmcSettings, Variant};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer};
 use pathspace::scene::{Scene, SceneSource};
 
 /// The seed of reference renders (independent of the runs' seeds 1000, 1001, ...).
@@ -200,7 +200,10 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
             pool.install(|| -> Result<(), String> {
                 let mut r = Renderer::new(&scene, kind, 1000 + run, None);
                 if let Some(st) = settings {
-                    r = r.with_smc_settings(st)?;
+                    r = r.with_settings(&RenderSettings {
+                        smc: st,
+                        ..RenderSettings::for_scene(&scene)
+                    })?;
                 }
                 // CPU seconds, not wall-clock: the machine is shared
                 let start = pathspace::measure::cpu_seconds();
@@ -220,7 +223,7 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                         last.push(((m - ref_var).max(f64::MIN_POSITIVE), seconds));
                     }
                 }
-                if let Some(smc) = r.smc() {
+                if let Some(smc) = r.engine::<Smc>() {
                     last_stats = smc.stats().to_string();
                 }
                 Ok(())
@@ -232,7 +235,10 @@ fn converge(scene_path: &str, reference: &str, out: &str, keys: &[String]) -> Re
                 pool.install(|| -> Result<(), String> {
                     let mut r = Renderer::new(&scene, kind, 2000 + run, None);
                     if let Some(st) = settings {
-                        r = r.with_smc_settings(st)?;
+                        r = r.with_settings(&RenderSettings {
+                            smc: st,
+                            ..RenderSettings::for_scene(&scene)
+                        })?;
                     }
                     let start = pathspace::measure::cpu_seconds();
                     let mut done = 0;
@@ -476,11 +482,15 @@ fn leaf(scene_path: &str, spp: &str, out: &str) -> Result<(), String> {
     let scene = load(scene_path, None)?;
     let spp: u32 = parse(spp, "spp")?;
     let settings = SmcSettings::default();
-    let mut r = Renderer::new(&scene, IntegratorKind::Smc, 1, None).with_smc_settings(settings)?;
+    let mut r =
+        Renderer::new(&scene, IntegratorKind::Smc, 1, None).with_settings(&RenderSettings {
+            smc: settings,
+            ..RenderSettings::for_scene(&scene)
+        })?;
     for _ in 0..spp.div_ceil(FIRST_SPP) {
         r.pass(FIRST_SPP, &|| {});
     }
-    let smc = r.smc().ok_or("no SMC state")?;
+    let smc = r.engine::<Smc>().ok_or("no SMC state")?;
     let cache = smc.octree.cache(scene.bounds.centroid());
     let grid = cache.grid();
     let (w, h) = (LEAF_FIGURE_WIDTH, LEAF_FIGURE_WIDTH / 2);

@@ -21,7 +21,6 @@
 //! | measuring: relMSE, efficiency, convergence order | [`measure`] |
 //! | variance and feature layers (AOVs) beside the image | [`aov`] |
 //! | conventions and measures | [`conventions`] |
-//! | the book as a course: assignments, student copies | [`course`] |
 //! | the book's diagrams, drawn from the code they illustrate | [`figures`] |
 
 pub mod aov;
@@ -29,7 +28,6 @@ pub mod bidir;
 pub mod bsdf;
 pub mod cli;
 pub mod conventions;
-pub mod course;
 pub mod enlightened;
 pub mod figures;
 pub mod film;

@@ -214,10 +214,14 @@ fn runs(
         };
         let mut r = Renderer::prepared(config.kind(), &setup)?;
         if let Config::Smc(variant, form) = config {
-            r = r.with_smc_settings(SmcSettings {
+            let smc = SmcSettings {
                 variant,
                 form,
                 ..SmcSettings::default()
+            };
+            r = r.with_settings(&RenderSettings {
+                smc,
+                ..settings.clone()
             })?;
         }
         if config.kind() == IntegratorKind::Mlt {

@@ -1,5 +1,5 @@
 //! The book as a course (book: "Course use: assignments"): the `// ASSIGNMENT:` markers and the
-//! registry in `src/course/mod.rs` agree, every graded test exists, every chapter names its
+//! registry `book/course.toml` agree, every graded test exists, every chapter names its
 //! assignments, and a student copy with every assignment blanked
 //!
 //! - contains no line of any removed region, in any file (sources, tests, the book, examples);
@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use pathspace::course::{self, Assignment, ASSIGNMENTS};
+use pathspace_course::{self as course, Assignment, Registry};
 
 mod common;
 
@@ -38,35 +38,65 @@ fn original() -> course::Tree {
     course::read_tree(&root()).unwrap()
 }
 
+fn registry() -> Registry {
+    Registry::read(&root()).unwrap()
+}
+
 #[test]
 fn every_marker_is_registered_and_every_assignment_is_marked() {
     course::check_registry(&original()).unwrap();
 }
 
+/// Every graded test's module path leads to a file that declares it as a test.
 #[test]
-fn every_graded_test_exists() {
-    for a in ASSIGNMENTS {
-        for t in a.tests {
-            let file = root().join("tests").join(format!("{}.rs", t.file));
-            let text = std::fs::read_to_string(&file)
-                .unwrap_or_else(|e| panic!("{}: {}: {e}", a.name, file.display()));
-            let decl = format!("#[test]\nfn {}()", t.name);
+fn every_graded_test_exists_at_its_module_path() {
+    for a in &registry().assignments {
+        for t in &a.tests {
+            let decl = format!("#[test]\nfn {}()", t.function());
+            let files = t.module_files();
             assert!(
-                text.contains(&decl),
-                "assignment {}: tests/{}.rs has no #[test] fn {}",
+                files.iter().any(|f| std::fs::read_to_string(root().join(f))
+                    .is_ok_and(|text| text.contains(&decl))),
+                "assignment {}: no #[test] fn {} in {}",
                 a.name,
-                t.file,
-                t.name
+                t.function(),
+                files.join(" or ")
             );
         }
+    }
+}
+
+/// A graded test is addressed by a module path; anything else is refused when the registry is
+/// read, and the address resolves to the module's files in both layouts.
+#[test]
+fn graded_tests_are_module_paths() {
+    let t = course::GradedTest::try_from("spec::path::g::closed_forms".to_string()).unwrap();
+    assert_eq!(
+        (t.target.as_str(), t.path.as_str()),
+        ("spec", "path::g::closed_forms")
+    );
+    assert_eq!(t.function(), "closed_forms");
+    assert_eq!(
+        t.command(),
+        "cargo test --release --test spec -- --exact path::g::closed_forms"
+    );
+    assert_eq!(
+        t.module_files(),
+        ["tests/spec/path/g.rs", "tests/spec/path/g/mod.rs"]
+    );
+    for bad in ["closed_forms", "a::", "a b::c", "::c"] {
+        assert!(
+            course::GradedTest::try_from(bad.to_string()).is_err(),
+            "{bad}"
+        );
     }
 }
 
 #[test]
 fn every_chapter_names_its_assignments_and_the_course_page_lists_all() {
     let course_page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
-    for a in ASSIGNMENTS {
-        let chapter = std::fs::read_to_string(root().join("book/src").join(a.chapter_file))
+    for a in &registry().assignments {
+        let chapter = std::fs::read_to_string(root().join("book/src").join(&a.chapter_file))
             .unwrap_or_else(|e| panic!("{}: {e}", a.chapter_file));
         let check = chapter
             .split("## Check it yourself")
@@ -88,10 +118,90 @@ fn every_chapter_names_its_assignments_and_the_course_page_lists_all() {
     }
 }
 
+/// The course page's syllabus is the registry's: its rows in the registry's order with the
+/// same hours and prerequisites, and every exercise in its table; each exercise's studies are
+/// commands the CLI parses, its chapter exists and names it.
+#[test]
+fn the_syllabus_and_the_exercises_on_the_course_page_are_the_registrys() {
+    use clap::Parser;
+    let registry = registry();
+    let page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
+    let syllabus = page
+        .split("## Syllabus")
+        .nth(1)
+        .and_then(|s| s.split("\n## ").next())
+        .expect("course.md has a Syllabus section");
+    let rows: Vec<Vec<String>> = syllabus
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains("| `"))
+        .map(|l| l.split('|').map(|c| c.trim().to_string()).collect())
+        .collect();
+    assert_eq!(
+        rows.len(),
+        registry.assignments.len(),
+        "the syllabus has {} rows, the registry {} assignments",
+        rows.len(),
+        registry.assignments.len()
+    );
+    for (i, (row, a)) in rows.iter().zip(&registry.assignments).enumerate() {
+        let prerequisites = if a.prerequisites.is_empty() {
+            "—".to_string()
+        } else {
+            a.prerequisites
+                .iter()
+                .map(|p| format!("`{p}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let expected = [
+            (i + 1).to_string(),
+            format!("`{}`", a.name),
+            a.hours.to_string(),
+            prerequisites,
+            format!("[picture]({})", a.picture),
+        ];
+        let got = [&row[1], &row[2], &row[4], &row[5], &row[6]];
+        for (g, e) in got.iter().zip(&expected) {
+            assert_eq!(*g, e, "syllabus row {}: got `{g}`, expected `{e}`", i + 1);
+        }
+    }
+    assert!(
+        registry.exercises.len() >= 4,
+        "fewer than 4 measurement exercises"
+    );
+    for e in &registry.exercises {
+        assert!(
+            page.contains(&format!("| `{}` |", e.name)),
+            "course.md does not list exercise `{}`",
+            e.name
+        );
+        let chapter = std::fs::read_to_string(root().join("book/src").join(&e.chapter_file))
+            .unwrap_or_else(|err| panic!("exercise {}: {}: {err}", e.name, e.chapter_file));
+        assert!(
+            chapter.contains(&format!("`{}`", e.name)),
+            "{} does not name exercise `{}`",
+            e.chapter_file,
+            e.name
+        );
+        assert!(!e.claims.is_empty(), "exercise {} claims nothing", e.name);
+        for c in &e.studies {
+            let words = c.split_whitespace();
+            if let Err(err) = pathspace::cli::Cli::try_parse_from(words) {
+                panic!("exercise {}: `{c}` does not parse: {err}", e.name);
+            }
+            assert!(
+                pathspace_course::exercise::output_of(c).is_some(),
+                "exercise {}: `{c}` names no output (-o)",
+                e.name
+            );
+        }
+    }
+}
+
 /// The README and the course page state how many assignments there are; the registry decides.
 #[test]
 fn the_readme_and_the_course_page_count_the_assignments_right() {
-    let n = ASSIGNMENTS.len();
+    let n = registry().assignments.len();
     let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
     let course_page = std::fs::read_to_string(root().join("book/src/course.md")).unwrap();
     let said = format!("The book doubles as a course: {n} function bodies");
@@ -105,7 +215,8 @@ fn the_readme_and_the_course_page_count_the_assignments_right() {
 
 #[test]
 fn blanking_keeps_the_markers_and_replaces_the_body() {
-    let a = course::find("characteristic").unwrap();
+    let registry = registry();
+    let a = registry.find("characteristic").unwrap();
     let text = "fn f() -> u64 {\n    // ASSIGNMENT: characteristic\n    let x = 1;\n    x + 1\n    // END ASSIGNMENT\n}\n";
     let (out, removed) = course::blank(text, &[a]).unwrap();
     assert_eq!(removed, vec!["    let x = 1;", "    x + 1"]);
@@ -117,7 +228,7 @@ fn blanking_keeps_the_markers_and_replaces_the_body() {
         )
     );
     // other assignments' regions are left alone
-    let b = course::find("acceptance").unwrap();
+    let b = registry.find("acceptance").unwrap();
     assert_eq!(course::blank(text, &[b]).unwrap().0, text);
     // malformed markers are errors
     assert!(course::regions("// ASSIGNMENT: a\n").is_err());
@@ -128,7 +239,8 @@ fn blanking_keeps_the_markers_and_replaces_the_body() {
 #[test]
 fn a_leaked_line_is_found_anywhere_in_the_copy() {
     let mut tree = original();
-    let a = course::find("geometry_term").unwrap();
+    let registry = registry();
+    let a = registry.find("geometry_term").unwrap();
     let copy = course::student_copy(&tree, &[a]).unwrap();
     assert!(
         course::leaks(&copy).is_empty(),
@@ -205,7 +317,10 @@ fn build_graded_tests(copy: &Path, target: &Path, files: &[&str]) -> BTreeMap<St
     let mut c = Command::new(env!("CARGO"));
     c.current_dir(copy)
         .args(["test", "--release", "--no-run", "--message-format=json"])
+        .args(["--package", "pathspace"])
         .args(["--config", "profile.release.package.pathspace.opt-level=0"])
+        // as `assignment check` builds, so that its check below reuses this build
+        .args(["--config", "profile.release.incremental=true"])
         .arg("--target-dir")
         .arg(target);
     for f in files {
@@ -258,18 +373,19 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
     );
     let toml = std::fs::read_to_string(copy.join("Cargo.toml")).unwrap();
     assert!(course::identity::of(&toml).is_some(), "the copy has no id");
-    let all: Vec<&Assignment> = ASSIGNMENTS.iter().collect();
+    let registry = registry();
+    let all: Vec<&Assignment> = registry.assignments.iter().collect();
     let in_memory = course::student_copy(&original(), &all).unwrap();
     assert!(course::leaks(&in_memory).is_empty());
     assert!(!copy.join("tests/assignments.rs").exists());
-    for a in ASSIGNMENTS {
+    for a in &registry.assignments {
         let removed = &in_memory.removed.iter().find(|r| r.0 == a.name).unwrap().1;
         assert!(
             removed.iter().any(|l| !l.trim().is_empty()),
             "{} removes nothing",
             a.name
         );
-        for f in a.files {
+        for f in &a.files {
             let text = std::fs::read_to_string(copy.join(f)).unwrap();
             assert!(
                 text.contains(&course::todo_line(a)),
@@ -304,20 +420,21 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
     let _ = std::fs::remove_dir_all(&book_out);
 
     // the copy compiles, and every graded test fails on its own assignment's todo!()
-    let mut files: Vec<&str> = ASSIGNMENTS
+    let mut files: Vec<&str> = registry
+        .assignments
         .iter()
-        .flat_map(|a| a.tests.iter().map(|t| t.file))
+        .flat_map(|a| a.tests.iter().map(|t| t.target.as_str()))
         .collect();
     files.sort();
     files.dedup();
     let exes = build_graded_tests(&copy, &target, &files);
     let mut problems = Vec::new();
-    for a in ASSIGNMENTS {
-        for t in a.tests {
-            let exe = &exes[t.file];
+    for a in &registry.assignments {
+        for t in &a.tests {
+            let exe = &exes[&t.target];
             let out = Command::new(exe)
                 .current_dir(&copy)
-                .args(["--exact", t.name, "--test-threads", "1"])
+                .args(["--exact", &t.path, "--test-threads", "1"])
                 .env("RUST_BACKTRACE", "0")
                 .output()
                 .unwrap();
@@ -328,8 +445,8 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
             );
             if out.status.success() || !text.contains("1 failed") {
                 problems.push(format!(
-                    "assignment {}: {}::{} does not fail while blank",
-                    a.name, t.file, t.name
+                    "assignment {}: {t} does not fail while blank",
+                    a.name
                 ));
             } else if !text.contains(&format!("assignment {}:", a.name)) {
                 let why = text
@@ -343,8 +460,8 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
                     })
                     .unwrap_or_default();
                 problems.push(format!(
-                    "assignment {}: {}::{} fails, but not on its todo!(): {why}",
-                    a.name, t.file, t.name
+                    "assignment {}: {t} fails, but not on its todo!(): {why}",
+                    a.name
                 ));
             }
         }
@@ -374,6 +491,39 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
             .any(|l| l.starts_with("characteristic") && l.contains("failed (todo!)")),
         "{table}"
     );
+    // a wrong body fails with the test's own message and the command that reruns it
+    let characteristic_rs = copy.join("src/path/characteristic.rs");
+    let blank = std::fs::read_to_string(&characteristic_rs).unwrap();
+    let todo = course::todo_line(registry.find("characteristic").unwrap());
+    std::fs::write(
+        &characteristic_rs,
+        blank.replace(&todo, "{ let _ = vertices; 0b1101 }"),
+    )
+    .unwrap();
+    let out = pathspace(&[
+        "assignment",
+        "check",
+        copy.to_str().unwrap(),
+        "--only",
+        "characteristic",
+        "--target-dir",
+        target_s,
+        "--build-dir",
+        target_s,
+        "--opt-level",
+        "0",
+    ]);
+    std::fs::write(&characteristic_rs, blank).unwrap();
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success(), "{table}");
+    for expected in [
+        "characteristic             failed ",
+        "path_space::characteristic_of_figure_2_is_eleven failed:",
+        "got 0b1101, expected 0b1011",
+        "cargo test --release --test path_space -- --exact characteristic_of_figure_2_is_eleven",
+    ] {
+        assert!(table.contains(expected), "no `{expected}` in:\n{table}");
+    }
     // another copy (here the original) needs its own target directory: the two crates' artifacts
     // have the same names, and Cargo judges freshness by modification times
     let out = pathspace(&[
@@ -434,6 +584,11 @@ fn a_shared_build_directory_takes_only_copies_with_their_own_id() {
     let id = |d: &Path| {
         course::identity::of(&std::fs::read_to_string(d.join("Cargo.toml")).unwrap()).unwrap()
     };
+    // the copy names what it was made with: `check` grades that, not the whole registry
+    assert_eq!(
+        course::assignment::assigned(&a),
+        Some(vec!["characteristic".to_string()])
+    );
     assert_ne!(id(&a), id(&b), "two copies got one id");
     // b becomes a copy of a, after a claimed its id in the build directory
     std::fs::copy(a.join("Cargo.toml"), b.join("Cargo.toml")).unwrap();

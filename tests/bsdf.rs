@@ -253,6 +253,33 @@ fn etas(ior: f32, wo: Vec3, n: Vec3) -> (f64, f64) {
     }
 }
 
+/// The Fresnel equations in their angle form (Born and Wolf): with Snell's law
+/// sin(theta_t) = sin(theta_i) / eta, R_s = (sin(theta_i - theta_t) / sin(theta_i + theta_t))^2
+/// and R_p = (tan(theta_i - theta_t) / tan(theta_i + theta_t))^2, unpolarized F = (R_s + R_p) / 2,
+/// in f64, at oblique angles entering and leaving glass and water. Schlick's approximation, or
+/// one polarization alone, is off by far more than the tolerance at most of them.
+#[test]
+fn fresnel_matches_the_fresnel_equations_at_oblique_incidence() {
+    for eta in [1.5f64, 1.33, 1.0 / 1.33, 1.0 / 1.5] {
+        for cos_i in [0.2f64, 0.5, 0.8, 0.95] {
+            let theta_i = cos_i.acos();
+            let sin_t = theta_i.sin() / eta;
+            if sin_t >= 1.0 {
+                continue; // beyond the critical angle: the next test's case
+            }
+            let theta_t = sin_t.asin();
+            let r_s = ((theta_i - theta_t).sin() / (theta_i + theta_t).sin()).powi(2);
+            let r_p = ((theta_i - theta_t).tan() / (theta_i + theta_t).tan()).powi(2);
+            let expected = 0.5 * (r_s + r_p);
+            let got = fresnel_dielectric(cos_i as f32, eta as f32) as f64;
+            assert!(
+                (got - expected).abs() <= 1e-5,
+                "F(cos_i = {cos_i}, eta = {eta:.4}): got {got}, expected {expected}"
+            );
+        }
+    }
+}
+
 #[test]
 fn fresnel_at_normal_incidence_is_the_squared_index_ratio() {
     for ior in IORS {
@@ -348,10 +375,16 @@ fn dielectric_reflects_totally_beyond_the_critical_angle() {
             ((cos_critical + 1.0) * 0.5, false),
         ] {
             let wo = at_cosine(n, dense_sign * cos_o, 0.3);
+            let f = fresnel_dielectric(cos_o as f32, (eta_thin / eta_dense) as f32);
             assert_eq!(
-                fresnel_dielectric(cos_o as f32, (eta_thin / eta_dense) as f32) == 1.0,
+                f == 1.0,
                 total,
-                "ior {ior}, cos {cos_o}: Fresnel"
+                "ior {ior}, cos {cos_o} from the dense side: got F = {f}, expected {}",
+                if total {
+                    "1 (total internal reflection beyond the critical angle)"
+                } else {
+                    "F < 1 (refraction before the critical angle)"
+                }
             );
             for _ in 0..64 {
                 let bs = Bsdf::Dielectric(Dielectric { ior })

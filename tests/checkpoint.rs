@@ -140,7 +140,7 @@ fn a_checkpoint_of_another_render_or_a_damaged_one_is_refused() {
         progress: Default::default(),
         film: None,
         meters: Vec::new(),
-        state: pathspace::render::checkpoint::IntegratorState::None,
+        state: None,
         earlier: None,
     };
     let mut bytes = c.to_bytes();
@@ -449,7 +449,7 @@ fn forged_sums_and_devices_are_refused() {
         progress: Default::default(),
         film: Some(pathspace::film::Film::new(2, 1)),
         meters: Vec::new(),
-        state: pathspace::render::checkpoint::IntegratorState::None,
+        state: None,
         earlier: None,
     };
     c.film.as_mut().unwrap().spp = 4;
@@ -508,7 +508,7 @@ fn a_file_the_scene_reads_changed_before_resume_is_refused_by_name() {
 
 /// SMC's octree of radiance caches comes back from a checkpoint only with finite
 /// coefficients: a forged one (here a coefficient set beyond f32, read back as infinity,
-/// the checksum recomputed) is refused.
+/// the checksum recomputed) is refused when SMC takes its state back.
 #[test]
 fn a_forged_smc_cache_is_refused() {
     let src = SceneSource::embedded("scene.toml", SMC_TESTBED);
@@ -538,14 +538,45 @@ fn a_forged_smc_cache_is_refused() {
         .checkpoint
         .unwrap();
     assert!(Checkpoint::from_bytes(&c.to_bytes(), "smc").is_ok());
-    let mut json = serde_json::to_value(&c).unwrap();
+    // the state is SMC's own bytes: forged through its octree's serialized form
+    let octree: pathspace::integrator::smc::octree::Octree =
+        postcard::from_bytes(c.state.as_deref().expect("SMC keeps its structure")).unwrap();
+    let mut json = serde_json::to_value(&octree).unwrap();
     let coefficient = json
-        .pointer_mut("/state/Smc/caches/0/coefficients/c/0/0")
+        .pointer_mut("/caches/0/coefficients/c/0/0")
         .expect("the layout of SMC's state moved");
     *coefficient = serde_json::json!(1e300);
-    let forged: Checkpoint = serde_json::from_value(json).unwrap();
-    let e = Checkpoint::from_bytes(&forged.to_bytes(), "smc")
+    let forged: pathspace::integrator::smc::octree::Octree = serde_json::from_value(json).unwrap();
+    let mut c = Checkpoint::from_bytes(&c.to_bytes(), "smc").unwrap();
+    c.state = Some(postcard::to_stdvec(&forged).unwrap());
+    let read = Checkpoint::from_bytes(&c.to_bytes(), "smc").unwrap();
+    let control = Control {
+        identity: Some(identity(IntegratorKind::Smc, Some((6, 5)))),
+        resume: Some(read),
+        ..Default::default()
+    };
+    let e = match session::render_with(&job, control) {
+        Ok(_) => panic!("a forged SMC structure was resumed"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("SMC's octree is inconsistent"), "{e}");
+}
+
+/// A checkpoint of another format version is refused with a message that names the versions,
+/// not as a file that is no checkpoint.
+#[test]
+fn a_checkpoint_of_another_version_is_refused_by_name() {
+    let mut bytes = b"pathspace checkpoint v3\n".to_vec();
+    bytes.extend_from_slice(&[0; 32]);
+    let e = Checkpoint::from_bytes(&bytes, "old.checkpoint")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("SMC's octree is inconsistent"), "{e}");
+    assert!(
+        e.contains("another version") && e.contains("v3") && e.contains("v4"),
+        "{e}"
+    );
+    let e = Checkpoint::from_bytes(b"not a checkpoint", "x")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not a pathspace checkpoint"), "{e}");
 }

@@ -145,6 +145,11 @@ const NOT_RUN: &[(&str, &str)] = &[
          tests/assignments.rs runs `make` and `check`",
     ),
     (
+        "pathspace assignment exercise",
+        "judges studies of at least 3 runs, and the reduced studies here have 2; \
+         course/src/exercise.rs grades synthetic studies",
+    ),
+    (
         "for n in 16 64 256 1024 4096; do for r in $(seq 1 32)",
         "160 renders for a figure's data; the command after the loop runs the same render",
     ),

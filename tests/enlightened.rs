@@ -489,7 +489,18 @@ fn light_map_round_trips() {
         // u_2 near 0 or 1 on the sphere (a pole) loses the angle: compare F(F^-1(x)) there
         worst_u = worst_u.max((back - u).abs().max_element());
         let again = map.forward(&scene, back).unwrap();
-        assert_eq!((again.light, again.prim), (x.light, x.prim));
+        assert_eq!(
+            (again.light, again.prim),
+            (x.light, x.prim),
+            "F(F^-1(x)) for x on light {} primitive {} (from u = {u}, F^-1 gave {back}): got \
+             light {} primitive {}, expected light {} primitive {}",
+            x.light,
+            x.prim,
+            again.light,
+            again.prim,
+            x.light,
+            x.prim
+        );
         worst_x = worst_x.max((again.p - x.p).length());
     }
     eprintln!("F round trip: |F^-1(F(u)) - u| <= {worst_u}, |F(F^-1(x)) - x| <= {worst_x}");

@@ -48,7 +48,14 @@ fn info(name: &str, bytes: &[u8]) -> (i32, String) {
 
 // ---- enumerated values, at their key ----
 
-const INTEGRATORS: &str = "path, light, bdpt, smc, mlt";
+/// The integrators the messages list: the registry's, in its order.
+fn integrators() -> String {
+    let names: Vec<&str> = pathspace::integrator::IntegratorKind::ALL
+        .iter()
+        .map(|k| k.name())
+        .collect();
+    names.join(", ")
+}
 
 #[test]
 fn integrator_typo_is_reported_at_its_key() {
@@ -56,7 +63,7 @@ fn integrator_typo_is_reported_at_its_key() {
         "\n[render]\nintegrator = \"bpdt\"\n",
         3,
         "render.integrator",
-        &format!("unknown integrator `bpdt` (available: {INTEGRATORS})"),
+        &format!("unknown integrator `bpdt` (available: {})", integrators()),
     );
 }
 
@@ -66,7 +73,8 @@ fn info_refuses_an_integrator_typo() {
     let (code, stderr) = info("typo.toml", text.as_bytes());
     assert_eq!(code, 1, "{stderr}");
     let want = format!(
-        "typo.toml:20: key `render.integrator`: unknown integrator `bpdt` (available: {INTEGRATORS})"
+        "typo.toml:20: key `render.integrator`: unknown integrator `bpdt` (available: {})",
+        integrators()
     );
     assert!(stderr.contains(&want), "{stderr}");
 }
@@ -309,7 +317,8 @@ fn messages_escape_the_control_characters_they_quote() {
         3,
         "render.integrator",
         &format!(
-            "unknown integrator `pa\\u{{1b}}]0;owned\\u{{7}}th\\r` (available: {INTEGRATORS})"
+            "unknown integrator `pa\\u{{1b}}]0;owned\\u{{7}}th\\r` (available: {})",
+            integrators()
         ),
     );
 }

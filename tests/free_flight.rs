@@ -62,7 +62,12 @@ fn gray_collision_distances_follow_the_exponential_cdf() {
         let mut t: Vec<f64> = (0..N)
             .map(|_| {
                 let ff = flight(&medium, f32::INFINITY, &mut s);
-                assert!(ff.scattered, "an infinite gray medium always collides");
+                assert!(
+                    ff.scattered,
+                    "got a flight that passed to t = {}, expected a collision (an infinite gray \
+                     medium always collides)",
+                    ff.t
+                );
                 ff.t as f64
             })
             .collect();
@@ -192,14 +197,20 @@ fn free_flight_pdf_matches_the_sampled_pdf() {
                 let pdf = medium.free_flight_pdf(ff.t, ff.scattered);
                 assert_close("pdf", ff.pdf as f64, pdf as f64, F32_TOL);
                 let tr = medium.transmittance(ff.t);
-                assert_eq!(ff.transmittance, tr);
                 assert_eq!(
-                    ff.sigma_s,
-                    if ff.scattered {
-                        medium.sigma_s
-                    } else {
-                        Rgb::ZERO
-                    }
+                    ff.transmittance, tr,
+                    "transmittance to the sampled t = {}: got {}, expected {tr}",
+                    ff.t, ff.transmittance
+                );
+                let expected = if ff.scattered {
+                    medium.sigma_s
+                } else {
+                    Rgb::ZERO
+                };
+                assert_eq!(
+                    ff.sigma_s, expected,
+                    "sigma_s of a flight (scattered: {}): got {}, expected {expected}",
+                    ff.scattered, ff.sigma_s
                 );
             }
         }
@@ -236,10 +247,17 @@ fn transmittance_is_exp_minus_sigma_t_d() {
             assert_close("transmittance", tr[c] as f64, truth, F32_TOL);
         }
     }
-    assert_eq!(medium.transmittance(f32::INFINITY), Rgb::ZERO);
+    let got = medium.transmittance(f32::INFINITY);
     assert_eq!(
-        with_clear_channel().transmittance(f32::INFINITY),
-        Vec3::new(1.0, 0.0, 0.0)
+        got,
+        Rgb::ZERO,
+        "transmittance to infinity: got {got}, expected 0 in every channel"
+    );
+    let got = with_clear_channel().transmittance(f32::INFINITY);
+    assert_eq!(
+        got,
+        Vec3::new(1.0, 0.0, 0.0),
+        "transmittance to infinity with sigma_t = 0 in channel 0: got {got}, expected (1, 0, 0)"
     );
 }
 

@@ -84,7 +84,13 @@ fn direction_map_texels_round_trip() {
                 );
                 let w = DirectionMap::direction_at(uv);
                 assert!((w.length() - 1.0).abs() < 1e-5);
-                assert_eq!(m.texel_of(w), (c, r), "{cols}x{rows} texel ({c}, {r})");
+                let got = m.texel_of(w);
+                assert_eq!(
+                    got,
+                    (c, r),
+                    "{cols}x{rows} map, the direction {w} at the centre of texel ({c}, {r}): got \
+                     texel {got:?}, expected ({c}, {r})"
+                );
             }
         }
     }

@@ -114,27 +114,46 @@ fn metrics_match_hand_computed_values() {
 
 #[test]
 fn power_law_fit_recovers_exact_power_laws() {
+    let close = |what: &str, got: f64, expected: f64| {
+        assert!(
+            (got - expected).abs() <= 1e-12 * expected.abs().max(1.0),
+            "{what}: got {got}, expected {expected}"
+        );
+    };
     for (c, s) in [(3.0, -0.5), (0.02, -1.0), (7.0, 0.25)] {
         let x: Vec<f64> = (0..8).map(|k| 2f64.powi(k)).collect();
         let y: Vec<f64> = x.iter().map(|x| c * x.powf(s)).collect();
         let fit = stats::fit_power_law(&x, &y).unwrap();
-        assert_relative_eq!(fit.slope, s, epsilon = 1e-12);
-        assert_relative_eq!(fit.intercept, f64::ln(c), epsilon = 1e-12);
+        let what = format!("y = {c} x^{s}");
+        close(&format!("{what}: slope"), fit.slope, s);
+        close(
+            &format!("{what}: intercept ln C"),
+            fit.intercept,
+            f64::ln(c),
+        );
         assert!(
             fit.slope_stderr < 1e-12,
-            "an exact power law has no residual: {}",
+            "an exact power law has no residual: got standard error {}, expected 0",
             fit.slope_stderr
         );
-        assert_relative_eq!(fit.predict(3.0), c * 3f64.powf(s), max_relative = 1e-12);
+        close(
+            &format!("{what}: predict(3)"),
+            fit.predict(3.0),
+            c * 3f64.powf(s),
+        );
     }
     // by hand: ln x = 0, 1, 2 and ln y = 0, 1, 3: S_xx = 2, S_xy = 3, slope 3/2, residuals
     // (1/6, -1/3, 1/6), SSR = 1/6, se = sqrt(SSR / (n - 2) / S_xx) = sqrt(1/12)
     let x = [1.0, 1f64.exp(), 2f64.exp()];
     let y = [1.0, 1f64.exp(), 3f64.exp()];
     let fit = stats::fit_power_law(&x, &y).unwrap();
-    assert_relative_eq!(fit.slope, 1.5, epsilon = 1e-12);
-    assert_relative_eq!(fit.intercept, -1.0 / 6.0, epsilon = 1e-12);
-    assert_relative_eq!(fit.slope_stderr, (1.0f64 / 12.0).sqrt(), epsilon = 1e-12);
+    close("by hand: slope", fit.slope, 1.5);
+    close("by hand: intercept", fit.intercept, -1.0 / 6.0);
+    close(
+        "by hand: slope's standard error sqrt(SSR / (n - 2) / S_xx)",
+        fit.slope_stderr,
+        (1.0f64 / 12.0).sqrt(),
+    );
     // independent runs: mean slope, standard error from their spread
     let fits: Vec<stats::PowerLawFit> = [-0.4, -0.5, -0.6]
         .iter()
@@ -146,9 +165,13 @@ fn power_law_fit_recovers_exact_power_laws() {
         })
         .collect();
     let combined = stats::combine_fits(&fits).unwrap();
-    assert_relative_eq!(combined.slope, -0.5, epsilon = 1e-12);
+    close("mean slope of three runs", combined.slope, -0.5);
     // sample s.d. 0.1 over 3 runs: se = 0.1 / sqrt(3)
-    assert_relative_eq!(combined.slope_stderr, 0.1 / 3f64.sqrt(), epsilon = 1e-12);
+    close(
+        "standard error of the mean slope",
+        combined.slope_stderr,
+        0.1 / 3f64.sqrt(),
+    );
     assert_eq!(combined.points, 15);
     assert!(stats::combine_fits(&fits[..1]).is_err());
     // two points: a slope but no standard error

@@ -379,17 +379,29 @@ fn refined_b_is_the_prepass_estimate_over_more_samples_and_the_image_sum() {
 #[test]
 fn acceptance_is_eq_8() {
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b.abs().max(1.0);
-    assert_eq!(acceptance(1.0, 2.0, 1.0, 1.0), 1.0);
-    assert!(close(acceptance(2.0, 1.0, 1.0, 1.0), 0.5));
-    assert!(close(acceptance(1.0, 1.0, 4.0, 1.0), 0.25));
-    assert!(close(
-        acceptance(3.0, 2.0, 0.5, 0.25),
-        (2.0 * 0.25) / (3.0 * 0.5)
-    ));
-    assert_eq!(acceptance(1.0, 0.0, 1.0, 1.0), 0.0, "f(y) = 0");
-    assert_eq!(acceptance(1.0, 1.0, 1.0, 0.0), 0.0, "T(y -> x) = 0");
-    assert_eq!(acceptance(1.0, 1.0, 0.0, 1.0), 0.0, "T(x -> y) = 0");
-    assert_eq!(acceptance(0.0, 1.0, 1.0, 1.0), 1.0, "leaving f(x) = 0");
+    let check = |fx: f64, fy: f64, txy: f64, tyx: f64, expected: f64, what: &str| {
+        let got = acceptance(fx, fy, txy, tyx);
+        assert!(
+            close(got, expected),
+            "{what}: acceptance(f(x) {fx}, f(y) {fy}, T(x->y) {txy}, T(y->x) {tyx}): got {got}, \
+             expected {expected}"
+        );
+    };
+    check(1.0, 2.0, 1.0, 1.0, 1.0, "uphill");
+    check(2.0, 1.0, 1.0, 1.0, 0.5, "downhill");
+    check(1.0, 1.0, 4.0, 1.0, 0.25, "T ratio");
+    check(
+        3.0,
+        2.0,
+        0.5,
+        0.25,
+        (2.0 * 0.25) / (3.0 * 0.5),
+        "both ratios",
+    );
+    check(1.0, 0.0, 1.0, 1.0, 0.0, "f(y) = 0");
+    check(1.0, 1.0, 1.0, 0.0, 0.0, "T(y -> x) = 0");
+    check(1.0, 1.0, 0.0, 1.0, 0.0, "T(x -> y) = 0");
+    check(0.0, 1.0, 1.0, 1.0, 1.0, "leaving f(x) = 0");
     for (fx, fy, txy, tyx) in [
         (1.0, 2.0, 0.3, 0.7),
         (5.0, 0.1, 2.0, 0.01),
@@ -397,7 +409,10 @@ fn acceptance_is_eq_8() {
     ] {
         let lhs = fx * txy * acceptance(fx, fy, txy, tyx);
         let rhs = fy * tyx * acceptance(fy, fx, tyx, txy);
-        assert!(close(lhs, rhs), "{lhs} != {rhs}");
+        assert!(
+            close(lhs, rhs),
+            "detailed balance: f(x) T(x->y) a(x->y) = {lhs}, expected f(y) T(y->x) a(y->x) = {rhs}"
+        );
     }
 }
 
@@ -411,10 +426,14 @@ fn inverse_distance_follows_one_over_d() {
     let ln_ratio = ((max / min) as f64).ln();
     for x in [0.02f32, 0.1, 0.5] {
         let expected = 1.0 / (x as f64 * ln_ratio);
-        assert!((d.pdf(x) - expected).abs() < 1e-6 * expected, "p({x})");
+        let got = d.pdf(x);
+        assert!(
+            (got - expected).abs() < 1e-6 * expected,
+            "p({x}): got {got}, expected 1 / (D ln(max/min)) = {expected}"
+        );
     }
-    assert_eq!(d.pdf(0.001), 0.0);
-    assert_eq!(d.pdf(2.0), 0.0);
+    assert_eq!(d.pdf(0.001), 0.0, "p(D) below min: expected 0");
+    assert_eq!(d.pdf(2.0), 0.0, "p(D) above max: expected 0");
     // int p(D) dD over [min, max], in s = ln D where dD = D ds
     let n = 10_000;
     let h = ln_ratio / n as f64;
@@ -424,20 +443,31 @@ fn inverse_distance_follows_one_over_d() {
             d.pdf(dd as f32) * dd * h
         })
         .sum();
-    assert!((integral - 1.0).abs() < 1e-4, "integral {integral}");
+    assert!(
+        (integral - 1.0).abs() < 1e-4,
+        "integral of p(D): got {integral}, expected 1"
+    );
     let bins = 10;
     let mut counts = vec![0usize; bins];
     let samples = 100_000;
     for i in 0..samples {
         let x = d.sample((i as f32 + 0.5) / samples as f32);
-        assert!((min * 0.999..=max * 1.001).contains(&x), "D = {x}");
+        assert!(
+            (min * 0.999..=max * 1.001).contains(&x),
+            "sample({u}): got D = {x}, expected D in [{min}, {max}]",
+            u = (i as f32 + 0.5) / samples as f32
+        );
         let b = (((x / min) as f64).ln() / ln_ratio * bins as f64) as usize;
         counts[b.min(bins - 1)] += 1;
     }
     // the u are stratified, not random: D(u) is monotone, so each bin of equal width in ln D
     // holds exactly a tenth of the u, up to the one u at each edge that f32 rounding may move
     for (b, c) in counts.iter().enumerate() {
-        assert!(c.abs_diff(samples / bins) <= 1, "bin {b}: {c}");
+        assert!(
+            c.abs_diff(samples / bins) <= 1,
+            "bin {b} of ln D: got {c} samples, expected {} (+-1)",
+            samples / bins
+        );
     }
 }
 

@@ -359,11 +359,15 @@ fn help_groups_the_options_and_lists_the_integrators() {
             headings[heading]
         );
     }
-    let names: Vec<&str> = pathspace::integrator::IntegratorKind::ALL
+    // each integrator with its registration's doc, in the registry's order
+    let listed: Vec<usize> = pathspace::integrator::IntegratorKind::ALL
         .iter()
-        .map(|k| k.name())
+        .map(|k| at(&format!("- {}:", k.name())))
         .collect();
-    at(&format!("[possible values: {}]", names.join(", ")));
+    assert!(
+        listed.windows(2).all(|w| w[0] < w[1]) && places[0] < listed[0],
+        "the integrators are not listed under --integrator in order: {listed:?}"
+    );
 }
 
 /// The progress line: spp of the target and samples per second for a fixed spp, and the
@@ -653,6 +657,147 @@ fn the_book_and_the_help_state_each_render_default_of_the_schema() {
             .iter()
             .any(|p| entry.contains(p.as_str())),
             "{flag}'s help does not state the default {word}: {entry}"
+        );
+    }
+}
+
+/// The default a flag's help states (`(default X)`, `` `X` (default ``), as the flag takes it
+/// (a fraction such as `1/32` as its value), or `None` when the entry states none.
+fn stated_default(entry: &str) -> Option<String> {
+    // `(default X)`, or `` `X` (default) `` / `` `X` (default: what it is) ``
+    let at = entry.find("(default")?;
+    let rest = &entry[at + "(default".len()..];
+    let word = if rest.starts_with([')', ':']) && entry[..at].ends_with("` ") {
+        entry[..at - 2].rsplit('`').next()?.to_string()
+    } else {
+        rest.trim_start_matches(':')
+            .trim_start()
+            .split([' ', ')', ';', ':'])
+            .next()?
+            .trim_end_matches(',')
+            .to_string()
+    };
+    match word.split_once('/') {
+        Some((a, b)) => Some((a.parse::<f64>().ok()? / b.parse::<f64>().ok()?).to_string()),
+        None => Some(word),
+    }
+}
+
+/// The defaults of the nested tables (`[render.mlt]`, `[render.smc]`, `[render.guide]`,
+/// `[render.adjoint]`) are written once, in their settings' `Default`: the default each
+/// flag's help states is checked against it here, by giving the flag that value and finding
+/// every setting unchanged (so a help that drifts from the code fails, as does a book table
+/// for the top-level keys above).
+#[test]
+fn every_default_a_flag_states_is_the_code_s() {
+    // defaults that are no single value of the flag, with the reason
+    let not_a_value = [
+        (
+            "--guide-alpha",
+            "20 / scene radius: it depends on the scene",
+        ),
+        ("--max-depth", "unlimited: the absence of a limit"),
+        (
+            "--guide-roulette",
+            "the ordinary roulette: the absence of a normalization",
+        ),
+    ];
+    let scene = pathspace::scene::Scene::load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    let defaults = RenderSettings::for_scene(&scene);
+    let mut cmd = Cli::command();
+    let help = cmd
+        .find_subcommand_mut("render")
+        .unwrap()
+        .render_long_help()
+        .to_string();
+    // the help's entries under the schema's headings: a line that names a flag, then its text
+    let schema = ["Render (", "MLT:", "SMC:", "Guiding (", "Adjoint image ("];
+    let mut entries: Vec<(String, String)> = Vec::new();
+    let mut in_schema = false;
+    for line in help.lines() {
+        if !line.starts_with(' ') && line.ends_with(':') {
+            in_schema = schema.iter().any(|h| line.starts_with(h));
+            continue;
+        }
+        if !in_schema {
+            continue;
+        }
+        let t = line.trim_start();
+        let flag = t.split([',', ' ']).find(|w| w.starts_with("--"));
+        match (line.starts_with("  ") && t.starts_with('-'), flag) {
+            (true, Some(f)) => {
+                let f = f.split(['[', '=', '<']).next().unwrap().to_string();
+                entries.push((f, String::new()));
+            }
+            _ => {
+                if let Some(e) = entries.last_mut() {
+                    e.1.push(' ');
+                    e.1.push_str(t);
+                }
+            }
+        }
+    }
+    let mut checked = Vec::new();
+    for (flag, text) in &entries {
+        let Some(word) = stated_default(text) else {
+            continue;
+        };
+        if not_a_value.iter().any(|(f, _)| f == flag) {
+            continue;
+        }
+        let args = render_args(&[format!("{flag}={word}").as_str()]);
+        let mut s = defaults.clone();
+        s.apply(&args.options, Spelling::Flag)
+            .unwrap_or_else(|e| panic!("{flag} {word}: {e}"));
+        s.given = RenderOptions::default();
+        assert_eq!(
+            format!("{s:?}"),
+            format!("{defaults:?}"),
+            "{flag}'s help states the default {word}, the code's is another"
+        );
+        checked.push(flag.clone());
+    }
+    for table in ["--mlt-", "--smc-", "--guide-", "--adjoint-"] {
+        let n = checked.iter().filter(|f| f.starts_with(table)).count();
+        assert!(n >= 3, "only {n} defaults of {table}* checked: {checked:?}");
+    }
+}
+
+/// `converge`'s `KIND(key=value, ...)` is the `[render]` schema: any key (a nested one
+/// dotted) sets the line's settings as the scene file's key would, a bad key or value is
+/// refused by its name, and the study's own keys are refused.
+#[test]
+fn converge_lines_take_any_option_of_the_schema() {
+    use pathspace::measure::convergence::Variant;
+    let scene = pathspace::scene::Scene::load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    let base = RenderSettings::for_scene(&scene);
+    let adjoint = base.adjoint;
+    let line = |s: &str| Variant::parse(s, adjoint).and_then(|v| v.settings(&base).map(|r| (v, r)));
+    let (v, (s, _)) = line("path(distance=equiangular-mis)").unwrap();
+    assert_eq!(v.name(), "path(distance=equiangular-mis)");
+    let (_, (old, _)) = line("path+equiangular").unwrap();
+    assert_eq!(format!("{:?}", s.distance), format!("{:?}", old.distance));
+    let (_, (s, _)) = line("smc(smc.variant=is0_cv0, smc.threshold=8)").unwrap();
+    let file = "[render.smc]\nvariant = \"is0_cv0\"\nthreshold = 8\n";
+    let (_, from_file) = load(&SceneSource::embedded(
+        "k.toml",
+        &format!("{FOG_BOX}\n{file}"),
+    ))
+    .unwrap();
+    assert_eq!(format!("{:?}", s.smc), format!("{:?}", from_file.smc));
+    let (_, (_, a)) = line("bdpt(adjoint_image=true,adjoint.epsilon=0.25)").unwrap();
+    assert_eq!(a.map(|a| a.epsilon), Some(0.25));
+    for (bad, says) in [
+        ("path(colour=red)", "colour"),
+        ("smc(smc.threshold=-1)", "smc.threshold"),
+        ("path(guide.vertices=surface)", "guiding applies"),
+        ("mlt(spp=4)", "the study's"),
+        ("path(distance=equiangular", "`)`"),
+    ] {
+        let e = line(bad).map(|_| ()).unwrap_err().to_string();
+        assert!(
+            e.contains(bad.split('(').next().unwrap()) && e.contains(says),
+            "{bad}: {e}"
         );
     }
 }

@@ -117,35 +117,82 @@ fn characteristic_of_figure_2_is_eleven() {
             v(VertexKind::Camera, Vec3::new(0.0, 2.0, 0.0), -Vec3::Y),
         ],
     };
-    assert_eq!(characteristic(&path.vertices), 0b1011);
+    let got = characteristic(&path.vertices);
+    assert_eq!(
+        got, 0b1011,
+        "characteristic of Fig. 2 (light, surface, medium, camera): got {got:#b}, expected 0b1011 \
+         (bit i for vertex x_i, 1 on surfaces and at the light and camera, 0 in the medium)"
+    );
     assert_eq!(path.characteristic(), 11);
+    // an all-medium interior and a longer path: the bits follow the vertex index
+    let x = &path.vertices;
+    let long = [x[0], x[2], x[2], x[1], x[2], x[3]];
+    let got = characteristic(&long);
+    assert_eq!(
+        got, 0b101001,
+        "light, medium, medium, surface, medium, camera: got {got:#b}, expected 0b101001"
+    );
     assert_eq!(pathspace::path::characteristic::measure_of(11, 2), "dV");
     assert_eq!(pathspace::path::characteristic::measure_of(11, 1), "dA");
 }
 
 /// G of two medium vertices is 1/d^2; a surface and a medium vertex, cos/d^2; two surfaces,
-/// cos cos / d^2 (sec. 3.2: a medium vertex's "normal" is the edge direction itself).
+/// cos cos / d^2 (sec. 3.2: a medium vertex's "normal" is the edge direction itself). The
+/// cosines are absolute values (a surface seen from behind converts densities as one seen from
+/// the front: which side scatters is the BSDF's business, not G's); an infinite light's end
+/// has no distance factor and no cosine of its own; two coincident points have G = 0 (no
+/// direction joins them), never a NaN or an infinity.
 #[test]
 fn geometry_term_closed_forms() {
     let m = |p: Vec3| v(VertexKind::Medium { medium: 0 }, p, Vec3::ZERO);
     let s = |p: Vec3, n: Vec3| v(VertexKind::Surface { prim: 0 }, p, n);
+    let g = |what: &str, x: &Vertex, y: &Vertex, expected: f32| {
+        let got = geometry_term_unoccluded(x, y);
+        assert!(
+            (got - expected).abs() <= 1e-7 * expected.abs().max(1.0),
+            "G({what}): got {got}, expected {expected}"
+        );
+    };
     let a = m(Vec3::ZERO);
     let b = m(Vec3::new(0.0, 0.0, 2.0));
-    assert!((geometry_term_unoccluded(&a, &b) - 0.25).abs() < 1e-7);
+    g("two medium vertices 2 apart", &a, &b, 0.25);
     let c = s(
         Vec3::new(3.0, 0.0, 0.0),
         Vec3::new(-1.0, 1.0, 0.0).normalize(),
     );
     // from a at the origin to c at distance 3: the cosine at c is cos 45 degrees
     let expect = std::f32::consts::FRAC_1_SQRT_2 / 9.0;
-    assert!((geometry_term_unoccluded(&a, &c) - expect).abs() < 1e-7);
-    assert!(
-        (geometry_term_unoccluded(&c, &a) - expect).abs() < 1e-7,
-        "G is symmetric"
-    );
+    g("medium to surface at 45 degrees", &a, &c, expect);
+    g("surface to medium (symmetry)", &c, &a, expect);
     let d = s(Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.0));
     let e = s(Vec3::ZERO, Vec3::new(0.0, 0.6, 0.8));
-    assert!((geometry_term_unoccluded(&d, &e) - 1.0 * 0.6 / 4.0).abs() < 1e-7);
+    g("two surfaces facing each other", &d, &e, 0.6 / 4.0);
+    g("two surfaces, reversed", &e, &d, 0.6 / 4.0);
+    // back-facing: the same points with either normal, or both, flipped
+    let d_back = s(d.p, -d.n);
+    let e_back = s(e.p, -e.n);
+    g("back-facing at x", &d_back, &e, 0.6 / 4.0);
+    g("back-facing at y", &d, &e_back, 0.6 / 4.0);
+    g("back-facing at both ends", &d_back, &e_back, 0.6 / 4.0);
+    g("back-facing surface to medium", &s(c.p, -c.n), &a, expect);
+    // coincident points: no direction, G = 0
+    g("coincident medium vertices", &a, &a, 0.0);
+    g("coincident surface vertices", &d, &d, 0.0);
+    // an infinite light 2R away in direction w: only the other end's cosine, no 1/d^2
+    let light_w = Vec3::new(0.0, 0.6, 0.8);
+    let inf = v(
+        VertexKind::InfiniteLight {
+            light: 0,
+            w: light_w,
+        },
+        light_w * 40.0,
+        Vec3::ZERO,
+    );
+    let floor = s(Vec3::ZERO, Vec3::Z);
+    g("infinite light to a floor point", &inf, &floor, 0.8);
+    g("floor point to an infinite light", &floor, &inf, 0.8);
+    g("infinite light to a medium vertex", &inf, &a, 1.0);
+    g("medium vertex to an infinite light", &a, &inf, 1.0);
 }
 
 /// Paths sampled by the eye random walk (BSDF / phase sampling and Table 1, the path tracer's
@@ -788,16 +835,27 @@ fn volume_caustic_bdpt_agrees_with_light_tracing() {
 #[test]
 fn power_heuristic_by_hand() {
     use pathspace::integrator::path::power_heuristic;
-    let close = |a: f32, b: f32| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
-    assert!(close(power_heuristic(1.0, 1.0), 0.5));
-    assert!(close(power_heuristic(3.0, 1.0), 0.9));
-    assert!(close(power_heuristic(1.0, 3.0), 0.1));
-    assert!(close(power_heuristic(0.2, 0.1), 0.8));
+    let check = |a: f32, b: f32, expected: f32| {
+        let got = power_heuristic(a, b);
+        assert!(
+            (got - expected).abs() <= 1e-6 * expected.abs().max(1.0),
+            "power_heuristic({a}, {b}): got {got}, expected {expected}"
+        );
+    };
+    check(1.0, 1.0, 0.5);
+    check(3.0, 1.0, 0.9);
+    check(1.0, 3.0, 0.1);
+    check(0.2, 0.1, 0.8);
     for (a, b) in [(0.3f32, 7.0f32), (2.0, 2.5), (1e-3, 1e-4)] {
-        assert!(close(power_heuristic(a, b) + power_heuristic(b, a), 1.0));
+        let sum = power_heuristic(a, b) + power_heuristic(b, a);
+        assert!(
+            (sum - 1.0).abs() <= 1e-6,
+            "w({a}, {b}) + w({b}, {a}): got {sum}, expected 1"
+        );
     }
-    assert_eq!(power_heuristic(0.0, 2.0), 0.0);
-    assert_eq!(power_heuristic(0.0, 0.0), 0.0);
-    assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
-    assert_eq!(power_heuristic(1.0, f32::INFINITY), 0.0);
+    // neither strategy can make the sample, or a Dirac density on one side
+    check(0.0, 2.0, 0.0);
+    check(0.0, 0.0, 0.0);
+    check(f32::INFINITY, 1.0, 1.0);
+    check(1.0, f32::INFINITY, 0.0);
 }

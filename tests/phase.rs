@@ -135,7 +135,7 @@ fn every_phase_function_integrates_to_one_over_the_deflection_cosine() {
         let tol = simpson_bound(&phase) + F32_EVAL_REL_ERROR;
         assert!(
             (integral - 1.0).abs() <= tol,
-            "{name}: integral {integral}, tolerance {tol:e}"
+            "{name}: got integral {integral}, expected 1 (tolerance {tol:e})"
         );
     }
 }
@@ -419,7 +419,7 @@ fn hg_matches_its_closed_form() {
             let value = phase.eval_cos(mu as f32) as f64;
             assert!(
                 (value - truth).abs() <= 1e-5 * truth,
-                "g = {g}, mu = {mu}: {value} vs {truth}"
+                "HG g = {g}, mu = {mu}: got {value}, expected {truth}"
             );
         }
     }

@@ -105,6 +105,30 @@ fn last_state(s: &mut Sampler) -> (usize, usize) {
     )
 }
 
+/// The small step by hand: n steps of deviation sigma at once are one offset sigma sqrt(n) z,
+/// wrapped into [0, 1) on both sides (a clamp would pile the chain up at 0 and 1), and a tiny
+/// negative result wraps to 0, never to 1.
+#[test]
+fn small_step_by_hand() {
+    use pathspace::math::primary_sample::small_step;
+    for (value, sigma, n, z, expected) in [
+        (0.5, 0.1, 1.0, 1.0, 0.6),
+        (0.5, 0.1, 4.0, 1.0, 0.7),
+        (0.5, 0.01, 9.0, -2.0, 0.44),
+        (0.95, 0.1, 1.0, 1.0, 0.05),
+        (0.02, 0.1, 1.0, -1.0, 0.92),
+        (0.3, 0.5, 4.0, -1.0, 0.3),
+        (0.0, 1e-20, 1.0, -1.0, 0.0),
+    ] {
+        let got = small_step(value, sigma, n, z);
+        assert!(
+            (got - expected).abs() < 1e-12 && (0.0..1.0).contains(&got),
+            "small_step(value {value}, sigma {sigma}, n {n}, z {z}): got {got}, expected \
+             {expected}"
+        );
+    }
+}
+
 #[test]
 fn small_steps_keep_the_target_invariant() {
     let n = 4000;

@@ -152,3 +152,33 @@ fn the_checks_before_the_work_refuse_with_the_render_layers_errors() {
         .unwrap();
     assert!(matches!(e, RenderError::Shard(_)), "{e}");
 }
+
+/// A front end reads the variance of each pixel's mean only where the film holds it: `path`
+/// and `smc` keep each sample in its pixel; `light`, `bdpt` (t = 1 splats) and `mlt` do not,
+/// and a variance that left their splats out would understate the error.
+#[test]
+fn the_variance_of_the_mean_is_given_only_where_the_film_holds_it() {
+    for kind in IntegratorKind::ALL {
+        let (scene, settings, src) = fog_box(4);
+        let mut render = Render::new(&scene, &src, *kind, settings, None).unwrap();
+        quiet(&mut render);
+        let name = kind.name();
+        let out = Outputs {
+            checkpoint: scratch(name).join("fog.checkpoint"),
+            ..Outputs::default()
+        };
+        let done = render.run(&out, &mut Quiet { stop: None }).unwrap();
+        let splats = matches!(
+            kind,
+            IntegratorKind::Light | IntegratorKind::Bdpt | IntegratorKind::Mlt
+        );
+        assert_eq!(
+            done.ended.result.variance_of_mean.is_some(),
+            !splats,
+            "{name}: got a variance {}, expected {}",
+            done.ended.result.variance_of_mean.is_some(),
+            !splats
+        );
+        std::fs::remove_dir_all(scratch(name)).unwrap();
+    }
+}

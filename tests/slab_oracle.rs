@@ -33,7 +33,7 @@ mod common;
 use common::stats::Family;
 use glam::Vec3;
 use pathspace::integrator::smc::{SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, MeterEstimate, Renderer};
+use pathspace::integrator::{IntegratorKind, MeterEstimate, RenderSettings, Renderer};
 use pathspace::math::spherical::SphericalParallelogram;
 use pathspace::scene::{Scene, SceneSource};
 
@@ -486,7 +486,10 @@ fn compare_smc_runs(fam: &mut Family, variant: Variant) {
             .map(|r| {
                 let seed = 1000 * (i as u64 + 1) + r;
                 let mut rd = Renderer::new(&s, IntegratorKind::Smc, seed, None)
-                    .with_smc_settings(settings)
+                    .with_settings(&RenderSettings {
+                        smc: settings,
+                        ..RenderSettings::for_scene(&s)
+                    })
                     .unwrap();
                 rd.meter_samples = per_pass;
                 for _ in 0..SMC_PASSES {

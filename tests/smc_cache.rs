@@ -75,7 +75,7 @@ fn order1_reconstruction_interpolates_the_coefficients_at_cell_centres() {
             let v = c.eval_order1(st);
             assert!(
                 (v - c.get(k)).abs().max_element() < 1e-5,
-                "{grid:?} cell {k}: {v} != {}",
+                "{grid:?}, the centre of cell {k}: got {v}, expected its coefficient {}",
                 c.get(k)
             );
         }
@@ -130,6 +130,40 @@ fn the_maintained_integral_equals_the_integral_of_either_reconstruction() {
     }
 }
 
+/// The reconstruction is bilinear between cell centres and periodic in s (the azimuth): halfway
+/// between two centres of a row it is their mean, and across the seam s = 0 = 1 it joins the
+/// last column to the first (a clamped s would hold the last column's value there).
+#[test]
+fn order1_reconstruction_is_bilinear_and_periodic_in_s() {
+    for grid in grids() {
+        let c = random_coefficients(grid, 3);
+        let (n_s, n_t) = (grid.n_s as usize, grid.n_t as usize);
+        for j in 0..n_t {
+            let t = (j as f32 + 0.5) / n_t as f32;
+            for i in 0..n_s {
+                let next = (i + 1) % n_s;
+                // the midpoint between centre i and centre i + 1 (across the seam for the last)
+                let s_mid = ((i as f32 + 1.0) / n_s as f32).rem_euclid(1.0);
+                let got = c.eval_order1(Vec2::new(s_mid, t));
+                let expected = (c.get(j * n_s + i) + c.get(j * n_s + next)) * 0.5;
+                assert!(
+                    (got - expected).abs().max_element() < 1e-5,
+                    "{grid:?} row {j}, between columns {i} and {next} (s = {s_mid}): got {got}, \
+                     expected {expected}"
+                );
+            }
+            let (a, b) = (
+                c.eval_order1(Vec2::new(0.0, t)),
+                c.eval_order1(Vec2::new(1.0 - 1e-7, t)),
+            );
+            assert!(
+                (a - b).abs().max_element() < 1e-4,
+                "{grid:?} row {j}: at s = 0 got {a}, expected the value at s = 1, {b}"
+            );
+        }
+    }
+}
+
 #[test]
 fn polar_values_remove_the_pole_discontinuity() {
     for grid in grids() {
@@ -173,20 +207,35 @@ fn partial_sums_sample_cells_in_proportion_and_keep_the_root_equal_to_the_sum() 
         values[i] = v;
         tree.set(i, v);
         let sum: f64 = values.iter().sum();
-        assert!((tree.total() - sum).abs() <= 1e-9 * sum.max(1.0));
+        assert!(
+            (tree.total() - sum).abs() <= 1e-9 * sum.max(1.0),
+            "after setting cell {i} to {v}: root got {}, expected the sum {sum}",
+            tree.total()
+        );
     }
     // every inner node is the sum of its two children
     let nodes = tree.nodes();
     for k in 0..n - 1 {
-        assert_eq!(nodes[k], nodes[2 * k + 1] + nodes[2 * k + 2]);
+        assert_eq!(
+            nodes[k],
+            nodes[2 * k + 1] + nodes[2 * k + 2],
+            "node {k}: got {}, expected the sum of its children {} + {}",
+            nodes[k],
+            nodes[2 * k + 1],
+            nodes[2 * k + 2]
+        );
     }
     let total: f64 = values.iter().sum();
     let samples = 200_000u64;
     let mut counts = vec![0u64; n];
     for _ in 0..samples {
         let (i, prob) = tree.sample(s.next_f64());
-        assert!(values[i] > 0.0, "sampled a cell of value zero");
-        assert!((prob - values[i] / total).abs() < 1e-12);
+        assert!(values[i] > 0.0, "sampled cell {i}, of value zero");
+        assert!(
+            (prob - values[i] / total).abs() < 1e-12,
+            "probability of cell {i}: got {prob}, expected {}",
+            values[i] / total
+        );
         counts[i] += 1;
     }
     let expected: Vec<f64> = values.iter().map(|v| v / total * samples as f64).collect();

@@ -3,8 +3,8 @@
 //! so a render is bit-identical for a seed whatever the thread count, structure included.
 //! Book: "Sequential Monte Carlo adaptation", section "Parallel and deterministic".
 
-use pathspace::integrator::smc::{EstimatorForm, OctreeStats, SmcSettings};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::smc::{EstimatorForm, OctreeStats, Smc, SmcSettings};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer};
 use pathspace::scene::{Scene, SceneSource};
 
 const TESTBED: &str = include_str!("../scenes/smc-testbed-albedo-0.8.toml");
@@ -23,12 +23,15 @@ fn render(threads: usize, seed: u64, form: EstimatorForm) -> (Vec<[f64; 3]>, Oct
             ..Default::default()
         };
         let mut r = Renderer::new(&scene, IntegratorKind::Smc, seed, None)
-            .with_smc_settings(settings)
+            .with_settings(&RenderSettings {
+                smc: settings,
+                ..RenderSettings::for_scene(&scene)
+            })
             .unwrap();
         for _ in 0..4 {
             r.pass(2, &|| {});
         }
-        let stats = r.smc().unwrap().stats();
+        let stats = r.engine::<Smc>().unwrap().stats();
         (r.film.unwrap().sum, stats)
     })
 }

@@ -15,7 +15,7 @@ use pathspace::integrator::smc::cache::RadianceCache;
 use pathspace::integrator::smc::{
     defensive_direction, ControlVariate, EstimatorForm, SmcSettings, Variant,
 };
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::medium::Phase;
 use pathspace::scene::{Scene, SceneSource};
@@ -77,7 +77,10 @@ fn the_march_transmits_exp_minus_the_optical_depth_of_an_inhomogeneous_absorber(
             ..SmcSettings::default()
         };
         let mut r = Renderer::new(&scene, IntegratorKind::Smc, seed, None)
-            .with_smc_settings(settings)
+            .with_settings(&RenderSettings {
+                smc: settings,
+                ..RenderSettings::for_scene(&scene)
+            })
             .unwrap();
         for _ in 0..4 {
             r.pass(4, &|| {});
@@ -134,7 +137,10 @@ fn every_variant_of_the_march_agrees_with_the_path_tracer_in_a_cloud() {
                     ..SmcSettings::default()
                 };
                 let mut r = Renderer::new(&scene, IntegratorKind::Smc, 600 + s, None)
-                    .with_smc_settings(settings)
+                    .with_settings(&RenderSettings {
+                        smc: settings,
+                        ..RenderSettings::for_scene(&scene)
+                    })
                     .unwrap();
                 for _ in 0..4 {
                     r.pass(4, &|| {});
@@ -308,7 +314,10 @@ fn is1_agrees_with_the_path_tracer_on_forward_scattering_slabs() {
                     };
                     let seed = 800 + 100 * k as u64 + s;
                     let mut r = Renderer::new(&scene, IntegratorKind::Smc, seed, None)
-                        .with_smc_settings(settings)
+                        .with_settings(&RenderSettings {
+                            smc: settings,
+                            ..RenderSettings::for_scene(&scene)
+                        })
                         .unwrap();
                     r.meter_samples = SAMPLES;
                     for _ in 0..PASSES {

@@ -104,7 +104,9 @@ fn keys_become_the_settings() {
         max_depth: None,
     };
     let r = Renderer::prepared(IntegratorKind::Smc, &setup).unwrap();
-    let smc = r.smc().expect("an smc renderer");
+    let smc = r
+        .engine::<pathspace::integrator::smc::Smc>()
+        .expect("an smc renderer");
     assert_eq!(smc.settings.variant, Variant::parse("is0_cv2").unwrap());
     assert_eq!(smc.settings.threshold, 7.0);
 }

@@ -11,7 +11,7 @@ mod common;
 
 use common::stats::{runs_mean, Family};
 use pathspace::integrator::smc::{EstimatorForm, ImportanceSampling, SmcSettings, Variant};
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer};
 use pathspace::scene::{Scene, SceneSource, FOG_BOX};
 
 const FURNACE: &str = include_str!("../scenes/furnace.toml");
@@ -53,7 +53,12 @@ fn render(
 ) -> Renderer<'_> {
     let mut r = Renderer::new(scene, kind, seed, None);
     if let Some(s) = settings {
-        r = r.with_smc_settings(s).unwrap();
+        r = r
+            .with_settings(&RenderSettings {
+                smc: s,
+                ..RenderSettings::for_scene(scene)
+            })
+            .unwrap();
     }
     for _ in 0..spp / 4 {
         r.pass(4, &|| {});
@@ -221,7 +226,10 @@ fn meters_and_delta_lights_agree_with_the_path_tracer_on_the_slab() {
             ..Default::default()
         };
         let mut smc = Renderer::new(&scene, IntegratorKind::Smc, 2, None)
-            .with_smc_settings(settings)
+            .with_settings(&RenderSettings {
+                smc: settings,
+                ..RenderSettings::for_scene(&scene)
+            })
             .unwrap();
         smc.meter_samples = 4096;
         for _ in 0..4 {
@@ -251,7 +259,11 @@ fn combined_estimator_is_eq_1() {
         Rgb::new(2.0, 1.0, 0.0),
         0.5,
     );
-    assert_eq!(one, Rgb::new(5.0, 8.0, 11.0));
+    assert_eq!(
+        one,
+        Rgb::new(5.0, 8.0, 11.0),
+        "combined(G = (1, 2, 3), f = 4, g = (2, 1, 0), p = 0.5): got {one}, expected G + (f - g) / p"
+    );
     let n = 100_000;
     let pdfs: [fn(f32) -> f32; 2] = [|_| 1.0, |x| 2.0 * x];
     for p in pdfs {
@@ -264,7 +276,10 @@ fn combined_estimator_is_eq_1() {
             })
             .sum::<f64>()
             / n as f64;
-        assert!((mean - 1.0 / 3.0).abs() < 1e-5, "mean {mean}");
+        assert!(
+            (mean - 1.0 / 3.0).abs() < 1e-5,
+            "mean of the estimator for int x^2: got {mean}, expected 1/3"
+        );
     }
 }
 
@@ -282,8 +297,15 @@ fn roulette_is_unbiased_for_any_c() {
     let mut sampler = Sampler::new(0x5011, 0, 0);
     let mut beta = Rgb::splat(0.5);
     let mut link = Link::plain(Rgb::ZERO, Rgb::ONE);
-    assert!(roulette(0, &mut beta, c, &mut link, &mut sampler));
-    assert_eq!(beta, Rgb::splat(0.5));
+    assert!(
+        roulette(0, &mut beta, c, &mut link, &mut sampler),
+        "depth 0: the path ended, expected it to go on (no roulette before RR_START_DEPTH)"
+    );
+    assert_eq!(
+        beta,
+        Rgb::splat(0.5),
+        "depth 0: beta changed, expected it kept"
+    );
     assert!(link.roulette.is_none(), "no roulette before RR_START_DEPTH");
     let mut fam = Family::new("smc: roulette with a control value");
     for beta0 in [Rgb::splat(0.5), Rgb::new(0.1, 0.3, 0.2), Rgb::splat(2.0)] {
@@ -295,13 +317,24 @@ fn roulette_is_unbiased_for_any_c() {
             let mut link = Link::plain(Rgb::ZERO, Rgb::ONE);
             let go_on = roulette(RR_START_DEPTH, &mut beta, c, &mut link, &mut sampler);
             let (c_seen, w) = link.roulette.expect("a roulette decision is recorded");
-            assert_eq!(c_seen, c);
+            assert_eq!(
+                c_seen, c,
+                "recorded control value: got {c_seen}, expected c = {c}"
+            );
             if go_on {
                 survived += 1;
-                assert!((w - 1.0 / q).abs() < 1e-6 / q);
-                assert!((beta - beta0 / q).abs().max_element() < 1e-6);
+                assert!(
+                    (w - 1.0 / q).abs() < 1e-6 / q,
+                    "survivor's weight: got {w}, expected 1/q = {}",
+                    1.0 / q
+                );
+                assert!(
+                    (beta - beta0 / q).abs().max_element() < 1e-6,
+                    "survivor's beta: got {beta}, expected beta / q = {}",
+                    beta0 / q
+                );
             } else {
-                assert_eq!(w, 0.0);
+                assert_eq!(w, 0.0, "an ended path's weight: got {w}, expected 0");
             }
             w_sum += w as f64;
             w_sq += (w as f64).powi(2);

@@ -259,6 +259,37 @@ v = [0.2, 0.0, 0.0]
     fam.finish();
 }
 
+/// Two point lights: the irradiances add, E = I_1 cos_1 / d_1^2 + I_2 cos_2 / d_2^2, whichever
+/// light each sample picks (the pick's probability divides the sample, so dropping it halves
+/// the estimate or worse).
+#[test]
+fn meter_under_two_point_lights_adds_their_irradiances() {
+    let text = r#"
+[render]
+meter_samples = 4096
+[[lights]]
+type = "point"
+position = [0.0, 0.0, 2.0]
+intensity = 8.0
+[[lights]]
+type = "point"
+position = [1.0, 0.0, 1.0]
+intensity = 4.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.001, -0.001, 0.0]
+u = [0.002, 0.0, 0.0]
+v = [0.0, 0.002, 0.0]
+"#;
+    let m = meters(&load_with(text), 1, 5, None);
+    let mut fam = Family::new("transport: meter under two point lights");
+    // 8 / 2^2 from above, 4 cos(45 deg) / 2 from the side
+    let truth = 2.0 + 4.0 * std::f64::consts::FRAC_1_SQRT_2 / 2.0;
+    check(&mut fam, "E = sum of I cos / d^2", &m[0], 0, truth);
+    fam.finish();
+}
+
 /// A disk light of radius R and radiance L facing a meter on its axis at distance h subtends a
 /// cone of half-angle alpha with sin^2 alpha = R^2 / (h^2 + R^2): E = pi L sin^2 alpha. Both
 /// strategies are used (the disk's points sampled by area through the concentric map, and the

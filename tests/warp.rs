@@ -125,7 +125,7 @@ fn uniform_triangle_is_uniform_on_the_triangle() {
         let b = warp::uniform_triangle(s.next_2d());
         assert!(
             b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6,
-            "outside the triangle: {b}"
+            "got barycentrics {b}, expected b0, b1 >= 0 and b0 + b1 <= 1 (inside the triangle)"
         );
         let i = ((b.x as f64 * N as f64) as usize).min(N - 1);
         let j = ((b.y as f64 * N as f64) as usize).min(N - 1);

@@ -30,8 +30,10 @@ pub struct ConvergeArgs {
     /// `KIND+guide(key=value,...)` (any `[render.guide]` key) or the short
     /// `KIND+guide:VERTICES:COLSxROWS:K` render with guided local sampling (over the `--guide*`
     /// options; vertices default to `surface`), the preprocessing counted in the budget;
-    /// `path+equiangular` is the path tracer with `distance = "equiangular-mis"`,
-    /// `path+no-volume-nee` with `volume_next_event = false`.
+    /// `path+equiangular` is the path tracer with `distance = "equiangular-mis"`;
+    /// `KIND(key=value,...)` sets any `[render]` options for the line (a nested table's key
+    /// dotted, e.g. `path(distance=equiangular-mis)`, `smc(smc.variant=is0_cv0)`,
+    /// `mlt(guide.vertices=volume,guide.map=16x8)`, `bdpt(adjoint_image=true)`).
     #[arg(long, value_delimiter = ',', default_value = "path")]
     pub integrators: Vec<String>,
     /// Wall-clock seconds of rendering per integrator and run.
@@ -421,8 +423,8 @@ fn check_memory(
     let threads = super::reference::thread_pool(args.threads)?.current_num_threads();
     let mut lines = Vec::new();
     for v in variants {
-        let mut s = settings.clone();
-        if let Some(a) = v.adjoint {
+        let (mut s, adjoint) = v.settings(settings)?;
+        if let Some(a) = adjoint {
             (s.adjoint_image, s.adjoint) = (true, a);
         }
         lines.push((v.kind, s));

@@ -246,16 +246,14 @@ fn medium_name(scene: &Scene, m: Option<u32>) -> String {
 /// default `--max-memory` it is checked against.
 fn memory_line(scene: &Scene, r: &crate::integrator::RenderSettings) -> String {
     use crate::render::memory;
-    match crate::integrator::IntegratorKind::parse(&r.integrator) {
-        Ok(kind) => format!(
-            "{} for a {} render on {} threads (default --max-memory {})",
-            memory::estimate(scene, kind, r, rayon::current_num_threads()).describe(),
-            kind.name(),
-            rayon::current_num_threads(),
-            memory::gib(memory::default_max_memory())
-        ),
-        Err(e) => format!("not estimated: {e}"),
-    }
+    let kind = r.integrator;
+    format!(
+        "{} for a {} render on {} threads (default --max-memory {})",
+        memory::estimate(scene, kind, r, rayon::current_num_threads()).describe(),
+        kind.name(),
+        rayon::current_num_threads(),
+        memory::gib(memory::default_max_memory())
+    )
 }
 
 pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
@@ -269,7 +267,7 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     }
     println!(
         "  render: integrator {}, {} spp, seed {}, max_depth {}, {} meter samples per pass",
-        r.integrator,
+        r.integrator.name(),
         r.spp,
         r.seed,
         r.max_depth

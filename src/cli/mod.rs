@@ -11,12 +11,11 @@ pub mod render;
 pub mod resume;
 pub mod rooms;
 
-/// `pathspace assignment` lives with the course it serves.
-pub use crate::course::assignment;
+/// `pathspace assignment` lives with the course it serves (the workspace member `course/`).
+pub use pathspace_course::assignment;
 
 use clap::{Parser, Subcommand};
 
-use crate::course::assignment::AssignmentError;
 use crate::image_io::ImageError;
 use crate::integrator::smc::OptionError;
 use crate::integrator::IntegratorError;
@@ -25,6 +24,7 @@ use crate::measure::convergence::ConvergenceError;
 use crate::measure::MeasureError;
 use crate::medium::heterogeneous::UnknownPropagation;
 use crate::scene::SceneError;
+use pathspace_course::assignment::AssignmentError;
 
 /// pathspace: light transport in participating media, executable.
 #[derive(Parser, Debug)]
@@ -280,7 +280,11 @@ pub fn run_with_source(cli: Cli, source_tree: &[(&str, &[u8])]) -> Result<(), Cl
         Some(Command::Info(a)) => info::run(a),
         Some(Command::Rooms(a)) => rooms::run(a),
         Some(Command::Merge(a)) => merge::run(a),
-        Some(Command::Assignment(a)) => Ok(assignment::run(a, source_tree)?),
+        Some(Command::Assignment(a)) => Ok(assignment::run(
+            a,
+            source_tree,
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")),
+        )?),
     }
 }
 

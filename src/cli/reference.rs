@@ -31,8 +31,8 @@ pub struct ReferenceArgs {
     pub seed: Option<u64>,
     /// Override the integrator (default: the most robust one for the scene, see
     /// `measure::reference_integrator`), e.g. `bdpt` where light arrives through long chains.
-    #[arg(long, value_parser = crate::integrator::settings::integrator_names())]
-    pub integrator: Option<String>,
+    #[arg(long)]
+    pub integrator: Option<crate::integrator::IntegratorKind>,
     /// The session's options, declared once with `render`'s.
     #[command(flatten)]
     pub session: SessionArgs,
@@ -44,10 +44,9 @@ impl ReferenceArgs {
     /// plain local sampling: a scene's `[render.guide]` and `adjoint_image` are for the methods
     /// a reference judges, and the yardstick must not share their preprocessing.
     fn render_args(&self, scene: &crate::scene::Scene) -> RenderArgs {
-        let integrator = match &self.integrator {
-            Some(name) => name.clone(),
-            None => measure::reference_integrator(scene).name().to_string(),
-        };
+        let integrator = self
+            .integrator
+            .unwrap_or_else(|| measure::reference_integrator(scene));
         let options = RenderOptions {
             integrator: Some(integrator),
             // a resume takes the target from its checkpoint

@@ -280,7 +280,7 @@ fn configure(
     mut settings: RenderSettings,
 ) -> Result<(IntegratorKind, RenderSettings), CliError> {
     let flags = &args.options;
-    let kind = IntegratorKind::parse(flags.integrator.as_deref().unwrap_or(&settings.integrator))?;
+    let kind = flags.integrator.unwrap_or(settings.integrator);
     args.refuse_foreign(kind, &settings)?;
     let mut flags = RenderOptions::clone(flags);
     flags.spp = args.mutations_per_pixel.or(flags.spp);
@@ -694,19 +694,25 @@ impl Frontend for Cli<'_> {
     }
 }
 
+/// The one JSON object of `--json` for a finished (or stopped) render, with its memory: what
+/// the command prints and a binding's statistics.
+pub fn json_report(render: &Render, done: &Rendered) -> serde_json::Value {
+    let mut j = result_json(&done.ended.result, render, &done.pre, &done.written);
+    j["memory"] = serde_json::json!({
+        "estimate": done.memory.total(),
+        "parts": done.memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
+        "peak_resident": memory::peak_resident(),
+    });
+    j
+}
+
 /// Reports a finished (or stopped) render and turns a stop by a signal into its error (exit
 /// 128 + signal).
 fn finish(args: &RenderArgs, render: &Render, done: &Rendered) -> Result<(), CliError> {
     let (result, written) = (&done.ended.result, &done.written);
     warn_negative(result, render.kind);
     if args.json {
-        let mut j = result_json(result, render, &done.pre, written);
-        j["memory"] = serde_json::json!({
-            "estimate": done.memory.total(),
-            "parts": done.memory.parts.iter().map(|(n, b)| (n.to_string(), serde_json::json!(b))).collect::<serde_json::Map<_, _>>(),
-            "peak_resident": memory::peak_resident(),
-        });
-        println!("{j}");
+        println!("{}", json_report(render, done));
     } else if args.reference {
         print_reference(result, render.source, written);
     } else {

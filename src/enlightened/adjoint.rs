@@ -99,6 +99,9 @@ pub enum AdjointError {
     /// A command-line override refused (the flag as the message spells it, the reason).
     #[error("{0}: {1}")]
     Flag(&'static str, #[source] Box<AdjointError>),
+    /// An option's value refused, the message naming the option as the caller spells it.
+    #[error("{0}")]
+    Option(String),
     /// A grid size outside 1..=4096 (columns, rows).
     #[error("adjoint resolution {0}x{1}: both sizes must be in 1..=4096")]
     BadResolution(u32, u32),

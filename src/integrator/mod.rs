@@ -24,15 +24,16 @@ use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
 
 /// Declares the integrators: one line each (its doc, variant, name, and the [`Facts`] its
-/// module declares), from which the enum, [`IntegratorKind::ALL`], [`IntegratorKind::name`]
+/// module declares), from which the enum (an option value like the others, see
+/// [`crate::conventions::OptionValue`]), [`IntegratorKind::ALL`], [`IntegratorKind::name`]
 /// and [`IntegratorKind::facts`] are generated, so that adding an integrator is its module plus
 /// one registration line in the invocation below.
 macro_rules! integrators {
     ($($(#[doc = $doc:literal])* $variant:ident = $name:literal => $facts:expr,)*) => {
-        /// The integrators a user can name.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        /// The integrators a user can name (`--integrator`, `[render] integrator`).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
         pub enum IntegratorKind {
-            $($(#[doc = $doc])* $variant,)*
+            $($(#[doc = $doc])* #[value(name = $name)] $variant,)*
         }
 
         impl IntegratorKind {
@@ -71,7 +72,10 @@ integrators! {
     Mlt = "mlt" => &mlt::MltFacts,
 }
 
+crate::option_value!(IntegratorKind, "integrator");
+
 impl IntegratorKind {
+    /// The integrator named `s`, or the error that lists the names.
     pub fn parse(s: &str) -> Result<Self, IntegratorError> {
         Self::ALL
             .iter()
@@ -125,21 +129,12 @@ pub enum IntegratorError {
     /// The integrator refuses the scene or its settings, and says why.
     #[error("{0}")]
     Refused(String),
-    /// SMC settings given to another integrator.
-    #[error("SMC options apply to the `smc` integrator, not `{0}`")]
-    NotSmc(&'static str),
 }
 
-/// What a checkpoint keeps of an integrator besides the film and the meters (written by the
-/// render layer's checkpoint, declared here because the trait hands it over).
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub enum IntegratorState {
-    /// Nothing: the film, the meters and the pass index are all of it (path, light, bdpt).
-    None,
-    /// SMC's structure as it stood after the last pass merged its records (Pegoraro et al. 2008
-    /// Fig. 2, lines 12-14).
-    Smc(Box<smc::octree::Octree>),
-}
+/// What a checkpoint keeps of an integrator besides the film and the meters: bytes only the
+/// integrator reads ([`Integrator::checkpoint_state`]), `None` when the film, the meters and the
+/// pass index are all of it. The render layer's checkpoint stores them without knowing them.
+pub type IntegratorState = Option<Vec<u8>>;
 
 impl From<String> for IntegratorError {
     fn from(reason: String) -> Self {
@@ -200,6 +195,12 @@ pub trait Facts: Sync {
     /// scene, SMC's march length).
     fn check(&self, _case: &Case) -> Result<(), IntegratorError> {
         Ok(())
+    }
+
+    /// The light paths its techniques cannot sample, of which the render warns
+    /// ([`reach::unreachable_paths`]).
+    fn unreachable(&self) -> reach::Unreachable {
+        reach::Unreachable::Nothing
     }
 
     /// Warnings of its own about the scene with these settings, given once before the work.
@@ -338,10 +339,11 @@ pub trait Integrator: Send + Sync {
         scratch: &mut Scratch,
     ) -> Rgb;
 
-    /// Whether the pass adds the camera's direct view of delta lights (the path tracer and
-    /// SMC; BDPT's (1, 1) strategy does it per sample).
-    fn views_delta_lights(&self) -> bool {
-        false
+    /// The camera's direct view of delta lights that the pass adds, one splat per light
+    /// standing for one camera sample, drawn from `sampler` (the path tracer and SMC; BDPT's
+    /// (1, 1) strategy does it per sample): empty when the samples see them.
+    fn delta_light_view(&self, _scene: &Scene, _sampler: &mut Sampler) -> Vec<Splat> {
+        Vec::new()
     }
 
     /// A film-wide pass instead of tiles and meters (MLT: `spp` mutations per pixel over all
@@ -369,15 +371,19 @@ pub trait Integrator: Send + Sync {
         Statistics::default()
     }
 
-    /// What a checkpoint keeps of the integrator besides the film and the meters (SMC's
-    /// structure, which the passes so far have refined).
+    /// What a checkpoint keeps of the integrator besides the film and the meters, serialized
+    /// by the integrator (SMC's structure, which the passes so far have refined).
     fn checkpoint_state(&self) -> IntegratorState {
-        IntegratorState::None
+        None
     }
 
-    /// Takes back a checkpoint's state; false when the state is not this integrator's kind.
-    fn restore_state(&mut self, state: IntegratorState) -> bool {
-        matches!(state, IntegratorState::None)
+    /// Takes back a checkpoint's [`Integrator::checkpoint_state`], or says why it cannot (the
+    /// state of another integrator, or one that does not hold together).
+    fn restore_state(&mut self, state: Option<&[u8]>) -> Result<(), &'static str> {
+        match state {
+            None => Ok(()),
+            Some(_) => Err("it holds another integrator's state"),
+        }
     }
 
     /// The work this integrator does once before its first pass (MLT's bootstrap pre-pass and
@@ -396,18 +402,24 @@ pub trait Integrator: Send + Sync {
         true
     }
 
-    /// The bidirectional engine, for `light` and `bdpt` (strategy images, tests).
-    fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {
+    /// Its contributions split by sampling technique, each weighted as in the image so that
+    /// they sum to it (BDPT's (s, t) strategies, a user's favourite debugging view): one pass
+    /// `pass` of `spp` samples per pixel with the render loop's streams, techniques with at
+    /// most `max_depth_shown` scattering vertices; `None` when it has no techniques to show.
+    fn technique_images(
+        &self,
+        _scene: &Scene,
+        _seed: u64,
+        _pass: u64,
+        _spp: u32,
+        _max_depth_shown: u32,
+    ) -> Option<std::collections::BTreeMap<(usize, usize), Film>> {
         None
     }
 
-    /// The Metropolis engine, for `mlt` (tests).
-    fn mlt(&self) -> Option<&mlt::Mlt<'_>> {
-        None
-    }
-
-    /// The SMC state, for `smc` (tests).
-    fn smc(&self) -> Option<&smc::Smc> {
+    /// The integrator as [`std::any::Any`], for a program that knows its type (a test reading
+    /// SMC's structure through [`Renderer::engine`]); `None` for one that borrows the scene.
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
         None
     }
 }
@@ -469,6 +481,8 @@ pub struct Renderer<'a> {
     pub seed: u64,
     /// The depth limit the integrator was prepared with.
     pub max_depth: Option<u32>,
+    /// The local-sampling technique the integrator was prepared with.
+    technique: &'a dyn LocalSampling,
     /// The integrator (replaceable before the first pass, e.g. by a BDPT of one strategy).
     pub integrator: Box<dyn Integrator + 'a>,
     pub film: Option<Film>,
@@ -550,6 +564,7 @@ impl<'a> Renderer<'a> {
             kind,
             seed: setup.seed,
             max_depth: setup.max_depth,
+            technique: setup.technique,
             integrator: kind.prepare(setup)?,
             film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
@@ -560,33 +575,24 @@ impl<'a> Renderer<'a> {
         })
     }
 
-    /// Replaces the SMC settings (before the first pass); an error for invalid settings or
-    /// another integrator.
-    pub fn with_smc_settings(
-        mut self,
-        settings: smc::SmcSettings,
-    ) -> Result<Self, IntegratorError> {
-        if self.kind != IntegratorKind::Smc {
-            return Err(IntegratorError::NotSmc(self.kind.name()));
-        }
-        let max_depth = Some(self.max_depth.unwrap_or(u32::MAX));
-        self.integrator = Box::new(smc::Smc::new(self.scene, settings, max_depth)?);
+    /// Prepares the integrator again with `settings` (before the first pass; the seed, depth
+    /// limit and technique stay): how a program that builds its own renderer changes an
+    /// integrator's options, e.g. SMC's; an error for settings the integrator refuses.
+    pub fn with_settings(mut self, settings: &RenderSettings) -> Result<Self, IntegratorError> {
+        let setup = Setup {
+            scene: self.scene,
+            technique: self.technique,
+            settings,
+            seed: self.seed,
+            max_depth: self.max_depth,
+        };
+        self.integrator = self.kind.prepare(&setup)?;
         Ok(self)
     }
 
-    /// The SMC state, for `smc`.
-    pub fn smc(&self) -> Option<&smc::Smc> {
-        self.integrator.smc()
-    }
-
-    /// The Metropolis engine, for `mlt`.
-    pub fn mlt(&self) -> Option<&mlt::Mlt<'_>> {
-        self.integrator.mlt()
-    }
-
-    /// The bidirectional engine, for `light` and `bdpt`.
-    pub fn bdpt(&self) -> Option<&bdpt::Bdpt<'_>> {
-        self.integrator.bdpt()
+    /// The integrator as its own type `T`, if it is one (a test reading SMC's structure).
+    pub fn engine<T: 'static>(&self) -> Option<&T> {
+        self.integrator.as_any()?.downcast_ref()
     }
 
     /// Samples per pixel so far.
@@ -685,13 +691,11 @@ impl<'a> Renderer<'a> {
             }
         }
         let samples = (w * h) as u64 * spp as u64;
-        if integrator.views_delta_lights() {
-            // the direct image of delta lights, one splat per light standing for the pass's
-            // camera samples (BDPT's (1, 1) strategy does this per sample)
-            let mut sampler = Sampler::new(seed, DELTA_VIEW_STREAM, pass);
-            for (raster, l) in path::delta_light_view(scene, &mut sampler) {
-                film.add_splat(raster, l * samples as f32);
-            }
+        // the direct image of delta lights, one splat per light standing for the pass's camera
+        // samples, from a stream of its own
+        let mut sampler = Sampler::new(seed, DELTA_VIEW_STREAM, pass);
+        for (raster, l) in integrator.delta_light_view(scene, &mut sampler) {
+            film.add_splat(raster, l * samples as f32);
         }
         film.splat_count += samples;
         film.spp += spp as u64;
@@ -747,21 +751,18 @@ impl<'a> Renderer<'a> {
         records
     }
 
-    /// BDPT's strategies one by one (MIS-weighted, so they sum to the BDPT image): one image per
-    /// (s, t) with s + t - 2 <= `max_depth_shown` scattering vertices, a user's favourite
-    /// debugging view. One pass of `spp` samples per pixel, deterministic like `pass`; empty
-    /// for integrators other than `light` and `bdpt`.
+    /// The integrator's techniques one by one ([`Integrator::technique_images`]: BDPT's (s, t)
+    /// strategies, MIS-weighted so that they sum to the BDPT image), each with at most
+    /// `max_depth_shown` scattering vertices: one pass of `spp` samples per pixel, deterministic
+    /// like `pass`; empty for an integrator without techniques to show.
     pub fn strategy_images(
         &self,
         spp: u32,
         max_depth_shown: u32,
     ) -> std::collections::BTreeMap<(usize, usize), Film> {
-        match self.bdpt() {
-            Some(b) => {
-                bdpt::strategy_images(self.scene, b, self.seed, self.passes, spp, max_depth_shown)
-            }
-            None => std::collections::BTreeMap::new(),
-        }
+        self.integrator
+            .technique_images(self.scene, self.seed, self.passes, spp, max_depth_shown)
+            .unwrap_or_default()
     }
 
     /// Every meter's estimate.

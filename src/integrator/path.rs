@@ -774,6 +774,10 @@ impl super::Facts for PathFacts {
         prepare(setup)
     }
 
+    fn unreachable(&self) -> super::reach::Unreachable {
+        super::reach::Unreachable::DiracLightsBehindSpecular
+    }
+
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
         super::PassFootprint {
             tiles: true,
@@ -847,7 +851,7 @@ impl super::Integrator for PathTracer {
         self.meter_irradiance(scene, &scene.sensors[meter as usize], sampler)
     }
 
-    fn views_delta_lights(&self) -> bool {
-        true
+    fn delta_light_view(&self, scene: &Scene, sampler: &mut Sampler) -> Vec<super::Splat> {
+        delta_light_view(scene, sampler)
     }
 }

@@ -26,6 +26,20 @@ use super::IntegratorKind;
 use crate::geometry::Aabb;
 use crate::scene::{Light, Scene};
 
+/// The class of light paths an integrator's techniques cannot sample, declared by its
+/// [`Facts::unreachable`](super::Facts::unreachable).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unreachable {
+    /// Every path is reachable (BDPT, MLT).
+    Nothing,
+    /// `L S+ (D|M) ... E` from a Dirac light: next-event estimation cannot pass a specular
+    /// surface (the path tracer, SMC).
+    DiracLightsBehindSpecular,
+    /// `... (D|M) S+ E`: a light subpath joins the sensor only from a non-specular vertex
+    /// (light tracing).
+    SpecularSeenBySensor,
+}
+
 // ANCHOR: unreachable
 /// The warning for `kind` on `scene`, if the integrator cannot reach some of its light paths.
 pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> {
@@ -33,8 +47,8 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
     if specular.is_empty() {
         return None;
     }
-    match kind {
-        IntegratorKind::Path | IntegratorKind::Smc => {
+    match kind.facts().unreachable() {
+        Unreachable::DiracLightsBehindSpecular => {
             let lit: Vec<&str> = specular
                 .iter()
                 .filter(|(_, b)| {
@@ -56,7 +70,7 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
                 )
             })
         }
-        IntegratorKind::Light => {
+        Unreachable::SpecularSeenBySensor => {
             let seen: Vec<&str> = specular
                 .iter()
                 .filter(|(_, b)| sensor_sees(scene, b))
@@ -64,14 +78,15 @@ pub fn unreachable_paths(scene: &Scene, kind: IntegratorKind) -> Option<String> 
                 .collect();
             (!seen.is_empty()).then(|| {
                 format!(
-                    "light: what the sensors see in or through {} (mirror or glass) cannot be \
+                    "{}: what the sensors see in or through {} (mirror or glass) cannot be \
                      sampled: a light subpath can only be connected to the sensor from a \
                      non-specular vertex; those paths are missing (bdpt, path or mlt reach them)",
+                    kind.name(),
                     seen.join(", ")
                 )
             })
         }
-        IntegratorKind::Bdpt | IntegratorKind::Mlt => None,
+        Unreachable::Nothing => None,
     }
 }
 // ANCHOR_END: unreachable

@@ -12,6 +12,7 @@ use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, G
 use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::path::DistanceSampling;
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
+use crate::integrator::IntegratorKind;
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
@@ -35,8 +36,8 @@ struct RenderFile {
 #[command(next_help_heading = "Render (each also a [render] key of the scene file)")]
 pub struct RenderOptions {
     /// Integrator (default path).
-    #[arg(long, value_parser = integrator_names())]
-    pub integrator: Option<String>,
+    #[arg(long)]
+    pub integrator: Option<IntegratorKind>,
     /// Samples per pixel (default 64); for mlt, mutations per pixel.
     #[arg(long, conflicts_with_all = ["time", "mutations_per_pixel"])]
     pub spp: Option<u32>,
@@ -89,11 +90,6 @@ pub struct RenderOptions {
     pub adjoint: AdjointOptions,
 }
 
-/// `--integrator`'s values from the registry, so `--help` and clap's error list them.
-pub fn integrator_names() -> clap::builder::PossibleValuesParser {
-    clap::builder::PossibleValuesParser::new(super::IntegratorKind::ALL.iter().map(|k| k.name()))
-}
-
 fn is_default<T: Default + PartialEq>(t: &T) -> bool {
     *t == T::default()
 }
@@ -104,7 +100,7 @@ impl RenderOptions {
     /// `None` is unlimited; the nested tables' defaults are their settings' own).
     pub fn defaults() -> RenderOptions {
         RenderOptions {
-            integrator: Some("path".into()),
+            integrator: Some(IntegratorKind::Path),
             spp: Some(64),
             seed: Some(1),
             max_depth: None,
@@ -191,7 +187,7 @@ impl SettingError {
 
 /// The adjoint image's options (Kristensen 2010, sec. 5.3.1), declared once: the
 /// `[render.adjoint]` keys (serde) and the `--adjoint-*` flags (clap) are the same fields with
-/// the same docs (defaults in `enlightened::adjoint`); [`AdjointOptions::apply_keys`] puts the
+/// the same docs (defaults in `enlightened::adjoint`); [`AdjointOptions::apply_spelled`] puts the
 /// file's over the defaults, [`AdjointOptions::apply`] the flags over the file's, both checked by
 /// [`AdjointSettings::validate`].
 #[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
@@ -227,20 +223,20 @@ impl AdjointOptions {
 
     /// `base` with these options as flags over it, checked (the messages name the flags).
     pub fn apply(&self, base: AdjointSettings) -> Result<AdjointSettings, AdjointError> {
-        base.overridden(
-            self.resolution.map(|[c, r]| (c, r)),
-            self.samples_per_cell,
-            self.epsilon,
-            self.estimator,
-        )
+        self.apply_spelled(base, Spelling::Flag)
+            .map_err(|e| AdjointError::Option(e.message))
     }
 
-    /// `base` with these options as file keys over it, each value checked alone so that a bad
-    /// one is reported at its key.
-    pub fn apply_keys(&self, base: AdjointSettings) -> Result<AdjointSettings, OptionError> {
-        let err = |key: &'static str, message: String| OptionError { key, message };
+    /// `base` with these options over it, each value checked alone so that a bad one is
+    /// reported at its key or flag, as `spelling` names it.
+    pub fn apply_spelled(
+        &self,
+        base: AdjointSettings,
+        spelling: Spelling,
+    ) -> Result<AdjointSettings, OptionError> {
         let alone = |key: &'static str, one: AdjointSettings| {
-            one.validate().map_err(|e| err(key, e.to_string()))
+            one.validate()
+                .map_err(|e| spelling.refusal("adjoint", key, e))
         };
         let mut s = base;
         if let Some([c, r]) = self.resolution {
@@ -305,12 +301,37 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), SizeError> {
     Ok((parse(w)?, parse(h)?))
 }
 
-/// How an option is spelled in the messages of [`GuideOptions::apply`]: as a file key (the
-/// caller adds the file, line and key) or as a `--guide-*` flag.
+/// How the caller spells an option in its messages: as a file key (the caller adds the file,
+/// line and key) or as a flag. The validations build each message once, about the value alone;
+/// [`Spelling::refusal`] names the option as the caller spells it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Spelling {
     Key,
     Flag,
+}
+
+impl Spelling {
+    /// Option `key` of table `table` (`""` for `[render]` itself) as this spelling names it:
+    /// the key, or its flag (the table a prefix, `--guide` for the guide's `vertices`).
+    pub fn name(self, table: &str, key: &str) -> String {
+        match (self, table, key) {
+            (Spelling::Key, _, k) => k.to_string(),
+            (Spelling::Flag, "guide", "vertices") => "--guide".into(),
+            (Spelling::Flag, "", k) => format!("--{}", k.replace('_', "-")),
+            (Spelling::Flag, t, k) => format!("--{t}-{}", k.replace('_', "-")),
+        }
+    }
+
+    /// The refusal of option `key` of `table`, `why` its value is refused: bare for a key
+    /// (its location names it), after the flag on the command line.
+    pub fn refusal(self, table: &str, key: &'static str, why: impl ToString) -> OptionError {
+        let why = why.to_string();
+        let message = match self {
+            Spelling::Key => why,
+            Spelling::Flag => format!("{}: {why}", self.name(table, key)),
+        };
+        OptionError { key, message }
+    }
 }
 
 /// The options of guided local sampling (Kristensen 2010, sec. 5.3; book chapter "Enlightened
@@ -365,14 +386,6 @@ impl GuideOptions {
         *self != GuideOptions::default()
     }
 
-    /// The flags' spelling of key `k` (`--guide` for `vertices`).
-    fn flag(k: &str) -> String {
-        match k {
-            "vertices" => "--guide".into(),
-            k => format!("--guide-{}", k.replace('_', "-")),
-        }
-    }
-
     /// `base` with these options as flags over it, checked (the messages name the flags).
     pub fn apply_flags(&self, base: GuideSettings) -> Result<GuideSettings, OptionError> {
         self.apply(base, Spelling::Flag)
@@ -385,13 +398,7 @@ impl GuideOptions {
         base: GuideSettings,
         spelling: Spelling,
     ) -> Result<GuideSettings, OptionError> {
-        let err = |key: &'static str, e: GuideError| OptionError {
-            key,
-            message: match spelling {
-                Spelling::Key => e.to_string(),
-                Spelling::Flag => format!("{}: {e}", Self::flag(key)),
-            },
-        };
+        let err = |key: &'static str, e: GuideError| spelling.refusal("guide", key, e);
         let mut s = base;
         if let Some(v) = self.vertices {
             s.kind = v;
@@ -418,14 +425,8 @@ impl GuideOptions {
         self.apply_sampler(&mut s, spelling)?;
         if let Some(m) = self.min_depth {
             if !(1..=64).contains(&m) {
-                let message = match spelling {
-                    Spelling::Key => format!("min_depth = {m} must be in 1..=64"),
-                    Spelling::Flag => format!("--guide-min-depth {m} must be in 1..=64"),
-                };
-                return Err(OptionError {
-                    key: "min_depth",
-                    message,
-                });
+                let why = format!("{m} is not a depth in 1..=64");
+                return Err(spelling.refusal("guide", "min_depth", why));
             }
             s.min_depth = m;
         }
@@ -441,13 +442,9 @@ impl GuideOptions {
             s.sampler = m;
         }
         let check = |s: &GuideSettings, key: &'static str| {
-            s.metropolis.check().map_err(|e| OptionError {
-                key,
-                message: match spelling {
-                    Spelling::Key => e.to_string(),
-                    Spelling::Flag => format!("--guide-sigma / --guide-defensive: {e}"),
-                },
-            })
+            s.metropolis
+                .check()
+                .map_err(|e| spelling.refusal("guide", key, e))
         };
         if let Some(v) = self.sigma {
             s.metropolis.sigma = v;
@@ -468,7 +465,7 @@ pub const DEFAULT_METER_SAMPLES: u32 = 4096;
 /// the command line's flags over those ([`RenderSettings::apply`]).
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
-    pub integrator: String,
+    pub integrator: IntegratorKind,
     pub spp: u32,
     pub seed: u64,
     pub max_depth: Option<u32>,
@@ -547,16 +544,10 @@ impl RenderSettings {
     /// integrator takes an option is the caller's to check (a file's keys are defaults for
     /// the integrators they apply to).
     pub fn apply(&mut self, o: &RenderOptions, spelling: Spelling) -> Result<(), SettingError> {
-        let flag = spelling == Spelling::Flag;
-        if let Some(i) = &o.integrator {
-            // checked here, where the file's key is known, not first when the render starts
-            let kind = crate::integrator::IntegratorKind::parse(i)
-                .map_err(|e| SettingError::at("", Some("integrator"), e))?;
-            self.integrator = kind.name().to_string();
-        }
+        self.integrator = o.integrator.unwrap_or(self.integrator);
         if let Some(n) = o.spp {
             if n == 0 {
-                let m = format!("{}spp must be at least 1", if flag { "--" } else { "" });
+                let m = format!("{} must be at least 1", spelling.name("", "spp"));
                 return Err(SettingError::at("", Some("spp"), m));
             }
             self.spp = n;
@@ -572,24 +563,17 @@ impl RenderSettings {
         self.mlt
             .validate()
             .map_err(|e| SettingError::at("mlt", None, e))?;
-        let name = |k: &str| match spelling {
-            Spelling::Key => k.to_string(),
-            Spelling::Flag => format!("--smc-{}", k.replace('_', "-")),
-        };
+        let name = |k: &str| spelling.name("smc", k);
         let at = |table, e: OptionError| SettingError::at(table, Some(e.key), e.message);
         self.smc = o.smc.apply(self.smc, &name).map_err(|e| at("smc", e))?;
         self.guide = o
             .guide
             .apply(self.guide, spelling)
             .map_err(|e| at("guide", e))?;
-        self.adjoint = match spelling {
-            Spelling::Key => o.adjoint.apply_keys(self.adjoint),
-            Spelling::Flag => o.adjoint.apply(self.adjoint).map_err(|e| OptionError {
-                key: "",
-                message: e.to_string(),
-            }),
-        }
-        .map_err(|e| at("adjoint", e))?;
+        self.adjoint = o
+            .adjoint
+            .apply_spelled(self.adjoint, spelling)
+            .map_err(|e| at("adjoint", e))?;
         self.given = o.over(&self.given);
         Ok(())
     }

@@ -14,6 +14,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::image_io::{self, Image};
+use crate::integrator::settings::{RenderOptions, Spelling};
 use crate::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use crate::math::sampler::mix64;
 use crate::measure::metrics;
@@ -112,12 +113,12 @@ pub enum ConvergenceError {
     /// `NAME+adjoint` for an integrator that starts no light subpaths (the name, the kind).
     #[error("`{0}`: the adjoint image applies to bdpt, light and mlt, not `{1}`")]
     NoAdjoint(String, String),
+    /// `NAME(key=value, ...)` whose options are refused (the name, why).
+    #[error("`{0}`: {1}")]
+    Options(String, String),
     /// `NAME+equiangular` for another integrator than the path tracer (the name, the kind).
     #[error("`{0}`: equiangular distance sampling applies to path, not `{1}`")]
     NoEquiangular(String, String),
-    /// `NAME+no-volume-nee` for another integrator than the path tracer (the name, the kind).
-    #[error("`{0}`: turning volume next-event estimation off applies to path, not `{1}`")]
-    NoVolumeNee(String, String),
     /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
     #[error(transparent)]
     Adjoint(crate::enlightened::AdjointError),
@@ -306,16 +307,17 @@ pub fn converge(
 
 /// An integrator as `converge` names it: a kind, optionally with the adjoint image
 /// (`bdpt+adjoint`, `mlt+adjoint`, `light+adjoint`; Kristensen 2010, sec. 5.3.1), or the path
-/// tracer with equiangular distance sampling (`path+equiangular`; Kulla and Fajardo 2012).
+/// tracer with equiangular distance sampling (`path+equiangular`; Kulla and Fajardo 2012), or
+/// `KIND(key=value, ...)` with any `[render]` options of the schema over the scene's (a nested
+/// table's key dotted: `guide.vertices`, `smc.variant`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Variant {
     pub kind: IntegratorKind,
     pub adjoint: Option<crate::enlightened::AdjointSettings>,
     /// `distance = "equiangular-mis"` for this line (the path tracer only).
     pub equiangular: bool,
-    /// `volume_next_event = false` for this line (`path+no-volume-nee`: emitting media's light
-    /// collected along free flights alone).
-    pub no_volume_nee: bool,
+    /// The options of `KIND(key=value, ...)` and the line's name as given.
+    pub options: Option<(RenderOptions, String)>,
 }
 
 impl Variant {
@@ -323,25 +325,24 @@ impl Variant {
     pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
     /// Suffix that asks for equiangular MIS on camera rays.
     pub const EQUIANGULAR_SUFFIX: &'static str = "+equiangular";
-    /// Suffix that turns the path tracer's next-event estimation toward emitting media off.
-    pub const NO_VOLUME_NEE_SUFFIX: &'static str = "+no-volume-nee";
 
-    /// Parses `NAME`, `NAME+adjoint`, `path+equiangular` or `path+no-volume-nee`; `adjoint`
-    /// holds the settings of the image.
+    /// Parses `NAME`, `NAME+adjoint`, `path+equiangular` or `NAME(key=value, ...)`;
+    /// `adjoint` holds the settings of the image.
     pub fn parse(
         s: &str,
         adjoint: crate::enlightened::AdjointSettings,
     ) -> Result<Self, ConvergenceError> {
-        if let Some(base) = s.strip_suffix(Self::NO_VOLUME_NEE_SUFFIX) {
-            let kind = IntegratorKind::parse(base)?;
-            if kind != IntegratorKind::Path {
-                return Err(ConvergenceError::NoVolumeNee(s.into(), base.into()));
-            }
+        if let Some((base, list)) = s.split_once('(') {
+            let list = list
+                .strip_suffix(')')
+                .ok_or_else(|| ConvergenceError::Options(s.into(), "no closing `)`".into()))?;
+            let options =
+                parse_options(list).map_err(|e| ConvergenceError::Options(s.into(), e))?;
             return Ok(Variant {
-                kind,
+                kind: IntegratorKind::parse(base.trim())?,
                 adjoint: None,
                 equiangular: false,
-                no_volume_nee: true,
+                options: Some((options, s.split_whitespace().collect())),
             });
         }
         if let Some(base) = s.strip_suffix(Self::EQUIANGULAR_SUFFIX) {
@@ -353,7 +354,7 @@ impl Variant {
                 kind,
                 adjoint: None,
                 equiangular: true,
-                no_volume_nee: false,
+                options: None,
             });
         }
         match s.strip_suffix(Self::ADJOINT_SUFFIX) {
@@ -366,22 +367,52 @@ impl Variant {
                     kind,
                     adjoint: Some(adjoint),
                     equiangular: false,
-                    no_volume_nee: false,
+                    options: None,
                 })
             }
             None => Ok(Variant {
                 kind: IntegratorKind::parse(s)?,
                 adjoint: None,
                 equiangular: false,
-                no_volume_nee: false,
+                options: None,
             }),
         }
     }
 
+    /// The line's settings: `base` (the scene's) with its options over them, checked (a
+    /// message names the key), and the adjoint image's settings when the line asks for it.
+    pub fn settings(
+        &self,
+        base: &RenderSettings,
+    ) -> Result<(RenderSettings, Option<crate::enlightened::AdjointSettings>), ConvergenceError>
+    {
+        let mut s = base.clone();
+        if self.equiangular {
+            s.distance = crate::integrator::path::DistanceSampling::EquiangularMis;
+        }
+        let Some((o, name)) = &self.options else {
+            return Ok((s, self.adjoint));
+        };
+        let refused = |why: String| ConvergenceError::Options(name.clone(), why);
+        s.apply(o, Spelling::Key).map_err(|e| {
+            let key = [e.table, e.key.unwrap_or("")].join(".");
+            refused(format!("{}: {}", key.trim_matches('.'), e.message))
+        })?;
+        let starts = self.kind.samples_light_starts();
+        if o.guide.any() && !starts {
+            return Err(refused(format!(
+                "guiding applies to bdpt, light and mlt, not `{}`",
+                self.kind.name()
+            )));
+        }
+        let adjoint = (s.adjoint_image && starts).then_some(s.adjoint);
+        Ok((s, adjoint))
+    }
+
     /// The label of its rows.
     pub fn name(&self) -> String {
-        if self.no_volume_nee {
-            return format!("{}{}", self.kind.name(), Self::NO_VOLUME_NEE_SUFFIX);
+        if let Some((_, name)) = &self.options {
+            return name.clone();
         }
         match (self.adjoint, self.equiangular) {
             (Some(_), _) => format!("{}{}", self.kind.name(), Self::ADJOINT_SUFFIX),
@@ -389,6 +420,30 @@ impl Variant {
             (None, false) => self.kind.name().to_string(),
         }
     }
+}
+
+/// The options of `KIND(key=value, ...)`: each pair a `[render]` key (a nested table's dotted,
+/// `guide.map`), its value read as in the scene file (a bare word is a string); the study's
+/// own (`integrator`, `spp`, `seed`) refused.
+pub fn parse_options(list: &str) -> Result<RenderOptions, String> {
+    let mut table = String::new();
+    for pair in list.split(',').filter(|p| !p.trim().is_empty()) {
+        let (k, v) = pair
+            .split_once('=')
+            .ok_or_else(|| format!("`{}` is not key=value", pair.trim()))?;
+        let (k, v) = (k.trim(), v.trim());
+        if ["integrator", "spp", "seed"].contains(&k) {
+            return Err(format!(
+                "`{k}` is the study's (the line's name, --budget, --seed)"
+            ));
+        }
+        let value = match toml::from_str::<toml::Table>(&format!("v = {v}")) {
+            Ok(_) => v.to_string(),
+            Err(_) => toml::Value::String(v.to_string()).to_string(),
+        };
+        table.push_str(&format!("{k} = {value}\n"));
+    }
+    toml::from_str::<RenderOptions>(&table).map_err(|e| e.message().to_string())
 }
 
 /// [`converge`] over variants: a `+adjoint` variant estimates the adjoint image with the run's
@@ -405,18 +460,12 @@ pub fn converge_variants(
     let times = study_checkpoints(scene, reference, variants.len(), config)?;
     let mut rows = Vec::new();
     for v in variants {
-        let mut line_settings = settings.clone();
-        if v.equiangular {
-            line_settings.distance = crate::integrator::path::DistanceSampling::EquiangularMis;
-        }
-        if v.no_volume_nee {
-            line_settings.volume_next_event = false;
-        }
+        let (line_settings, adjoint) = v.settings(settings)?;
         let settings = &line_settings;
         for run in config.run_indices() {
             let seed = run_seed(config.seed, run);
             let mut technique = crate::enlightened::Enlightened::default();
-            let seconds0 = match &v.adjoint {
+            let mut seconds0 = match &adjoint {
                 Some(settings) => {
                     technique
                         .install_adjoint(scene, settings, seed, config.max_depth)
@@ -425,6 +474,12 @@ pub fn converge_variants(
                 }
                 None => 0.0,
             };
+            // a `KIND(guide.…)` line's guide, built with the run's seed, its time charged
+            if v.options.as_ref().is_some_and(|(o, _)| o.guide.any()) {
+                let t0 = Instant::now();
+                technique.install_guide(scene, &settings.guide, seed);
+                seconds0 += t0.elapsed().as_secs_f64();
+            }
             let setup = Setup {
                 scene,
                 technique: &technique,

@@ -23,8 +23,11 @@ use crate::film::Film;
 pub use crate::integrator::IntegratorState;
 use crate::integrator::MeterAccum;
 
-/// The first bytes of a checkpoint file (and its format version).
-const MAGIC: &[u8; 24] = b"pathspace checkpoint v3\n";
+/// The first bytes of every checkpoint file, before its format version.
+const MAGIC_PREFIX: &[u8] = b"pathspace checkpoint v";
+/// The first bytes of a checkpoint file of this format (v4: the integrator's state is bytes
+/// the integrator writes and reads).
+const MAGIC: &[u8; 24] = b"pathspace checkpoint v4\n";
 
 /// Why a checkpoint cannot be read, written or resumed from.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -49,8 +52,9 @@ pub enum CheckpointError {
         "the checkpoint holds {0} spp, more than the {1} asked for now (give --spp {0} or more)"
     )]
     TooFar(u64, u32),
-    #[error("the checkpoint holds another integrator's state")]
-    WrongState,
+    /// A checkpoint of another format version (the file, its version).
+    #[error("the checkpoint {0} was written by another version of pathspace (checkpoint format {1}, this one reads {2}): render again without --resume")]
+    OtherVersion(String, String, String),
     #[error("the checkpoint {0} holds a state the integrator cannot take back: {1}")]
     BadState(String, &'static str),
 }
@@ -171,6 +175,20 @@ impl Checkpoint {
     /// Reads back [`Checkpoint::to_bytes`]; `name` is the file's name for the errors.
     pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, CheckpointError> {
         let not_one = || CheckpointError::NotACheckpoint(name.to_string());
+        if !bytes.starts_with(MAGIC) {
+            if let Some(rest) = bytes.strip_prefix(MAGIC_PREFIX) {
+                let version = |b: &[u8]| {
+                    let line = b.split(|&c| c == b'\n').next().unwrap_or_default();
+                    format!("v{}", String::from_utf8_lossy(&line[..line.len().min(16)]))
+                };
+                let ours = version(&MAGIC[MAGIC_PREFIX.len()..]);
+                return Err(CheckpointError::OtherVersion(
+                    name.to_string(),
+                    version(rest),
+                    ours,
+                ));
+            }
+        }
         let rest = bytes.strip_prefix(MAGIC.as_slice()).ok_or_else(not_one)?;
         let (sum, payload) = rest.split_at_checked(8).ok_or_else(not_one)?;
         let sum = u64::from_le_bytes(sum.try_into().map_err(|_| not_one())?);
@@ -201,11 +219,6 @@ impl Checkpoint {
         }
         if !self.sums_are_finite() {
             return bad("a sum is not finite, or its mean is beyond an image's range");
-        }
-        if let IntegratorState::Smc(octree) = &self.state {
-            if !octree.is_consistent() {
-                return bad("SMC's octree is inconsistent");
-            }
         }
         Ok(())
     }

@@ -270,7 +270,8 @@ pub struct Outputs {
     pub files: Vec<(PathBuf, &'static str)>,
     /// Directories written into, checked before any work.
     pub dirs: Vec<PathBuf>,
-    /// The checkpoint beside the image.
+    /// The checkpoint beside the image (empty: none, for a front end that keeps a stopped
+    /// render's result itself, as a binding does).
     pub checkpoint: PathBuf,
     /// Seconds between checkpoints.
     pub every: Option<f64>,
@@ -426,6 +427,9 @@ impl Render<'_> {
     /// or removes the one this render wrote or resumed from once it is complete.
     fn keep_state(&self, ended: &Ended, out: &Outputs) -> Result<Option<String>, RenderError> {
         let path = &out.checkpoint;
+        if path.as_os_str().is_empty() {
+            return Ok(None);
+        }
         let keep = ended.stopped_by.is_some() || !ended.result.complete;
         if let (true, Some(c)) = (keep, &ended.checkpoint) {
             c.write(path)?;

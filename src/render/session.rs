@@ -313,9 +313,9 @@ fn start<'s>(
     let mut progress = c.progress.clone();
     let mut r = Renderer::prepared(job.kind, &job.setup)?;
     if r.integrator.resumes_exactly() {
-        if !r.integrator.restore_state(c.state) {
-            return Err(CheckpointError::WrongState.into());
-        }
+        r.integrator
+            .restore_state(c.state.as_deref())
+            .map_err(|why| CheckpointError::BadState("being resumed".into(), why))?;
         r.film = c.film;
         r.meters = c.meters;
         r.passes = progress.passes;

@@ -28,14 +28,21 @@ use crate::medium::Medium;
 /// Builds the scene described by `src`.
 pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     let desc = file::parse(&src.text, &src.name).map_err(|e| src.relocate(e))?;
-    let materials = materials::materials(src, &desc)?;
-    let media = media::Media::build(src, &desc)?;
+    build_parsed(src, &desc)
+}
+
+/// Builds the scene `desc` already parsed from `src` (whose text names the lines of errors):
+/// a program that changes a value of the description (a binding's parameter update) builds the
+/// changed copy without parsing the file again.
+pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, SceneError> {
+    let materials = materials::materials(src, desc)?;
+    let media = media::Media::build(src, desc)?;
     let shapes::Surfaces {
         prims,
         prim_shape,
         shapes,
         lights,
-    } = shapes::shapes(src, &desc, &materials, &media)?;
+    } = shapes::shapes(src, desc, &materials, &media)?;
     let media::Media {
         media,
         names: medium_names,
@@ -57,7 +64,7 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
         lights,
         environment,
         light_distr,
-    } = lights::build(src, &desc, lights, radius)?;
+    } = lights::build(src, desc, lights, radius)?;
 
     let prim_opaque: Vec<bool> = prim_shape
         .iter()
@@ -101,9 +108,9 @@ pub fn build(src: &SceneSource) -> Result<Scene, SceneError> {
     if scene.media.iter().any(Medium::emits) {
         scene.emitters = super::emitters::VolumeEmitters::build(&scene);
     }
-    sensors::camera(src, &desc, &mut scene)?;
+    sensors::camera(src, desc, &mut scene)?;
     camera_medium_as_declared(src, &scene)?;
-    sensors::meters(src, &desc, &mut scene)?;
+    sensors::meters(src, desc, &mut scene)?;
     if scene.camera.is_none() && scene.sensors.is_empty() {
         return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }

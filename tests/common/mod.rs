@@ -250,7 +250,7 @@ pub fn mean_and_stderr(samples: &[f64]) -> (f64, f64) {
 pub fn assert_close(what: &str, a: f64, b: f64, tol: f64) {
     assert!(
         (a - b).abs() <= tol * b.abs().max(1.0),
-        "{what}: {a} vs {b} (tolerance {tol:e})"
+        "{what}: got {a}, expected {b} (tolerance {tol:e})"
     );
 }
 

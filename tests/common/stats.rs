@@ -151,7 +151,7 @@ impl Family {
         self.p_value(
             what,
             p,
-            format!("{mean:.6e} +- {se:.2e} ({dof:.0} dof) vs {truth:.6e}: {z:+.2} se"),
+            format!("got {mean:.6e} +- {se:.2e} ({dof:.0} dof), expected {truth:.6e}: {z:+.2} se"),
         );
     }
 
@@ -191,13 +191,40 @@ impl Family {
     pub fn chi_square(&mut self, what: &str, observed: &[u64], expected: &[f64]) {
         let p = super::chi_square_p_value(observed, expected);
         let n: u64 = observed.iter().sum();
-        self.p_value(what, p, format!("chi-square over {n} samples"));
+        // the bin that departs most, in standard deviations of its count
+        let worst = observed
+            .iter()
+            .zip(expected)
+            .enumerate()
+            .map(|(k, (&o, &e))| (k, o, e, (o as f64 - e) / e.max(1e-300).sqrt()))
+            .max_by(|a, b| a.3.abs().total_cmp(&b.3.abs()));
+        let detail = match worst {
+            Some((k, o, e, z)) => format!(
+                "chi-square over {n} samples; bin {k}: got {o}, expected {e:.1} ({z:+.1} sd)"
+            ),
+            None => format!("chi-square over {n} samples"),
+        };
+        self.p_value(what, p, detail);
     }
 
     /// The Kolmogorov-Smirnov test of samples against a continuous CDF.
     pub fn ks(&mut self, what: &str, samples: &mut [f64], cdf: impl Fn(f64) -> f64) {
-        let p = super::ks_p_value(samples, cdf);
-        self.p_value(what, p, format!("KS over {} samples", samples.len()));
+        let p = super::ks_p_value(samples, &cdf);
+        // the sample where the empirical CDF departs most from the expected one (sorted now)
+        let n = samples.len() as f64;
+        let worst = samples
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (x, (i as f64 + 0.5) / n, cdf(x)))
+            .max_by(|a, b| (a.1 - a.2).abs().total_cmp(&(b.1 - b.2).abs()));
+        let detail = match worst {
+            Some((x, got, expected)) => format!(
+                "KS over {} samples; at {x:.4e}: got empirical CDF {got:.4}, expected {expected:.4}",
+                samples.len()
+            ),
+            None => format!("KS over {} samples", samples.len()),
+        };
+        self.p_value(what, p, detail);
     }
 
     /// `hits` successes in `n` Bernoulli(p) trials: the exact two-sided binomial tail.

@@ -42,6 +42,15 @@ impl super::Facts for BdptFacts {
         Some("its light subpaths start on lights only, never at a volume vertex x0 in the medium (eq. 5), and the guide and the adjoint image built on them would miss it too")
     }
 
+    /// Light tracing joins the sensor only from a non-specular vertex; BDPT's other
+    /// strategies reach those paths.
+    fn unreachable(&self) -> super::reach::Unreachable {
+        match self.0 {
+            Strategies::LightTracing => super::reach::Unreachable::SpecularSeenBySensor,
+            _ => super::reach::Unreachable::Nothing,
+        }
+    }
+
     fn pass_footprint(&self, _: &super::Case) -> super::PassFootprint {
         super::PassFootprint {
             tiles: true,
@@ -63,6 +72,12 @@ pub fn prepare<'t>(
 }
 
 impl Integrator for Bdpt<'_> {
+    /// Light tracing's t = 1 strategies add to other pixels as splats, which a pixel's own
+    /// samples do not see: the film's per-pixel variance would leave them out.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
+
     fn label(&self) -> String {
         match self.strategies {
             Strategies::LightTracing => "light",
@@ -96,7 +111,21 @@ impl Integrator for Bdpt<'_> {
         self.combine(scene, walks, sampler, &mut scratch.splats)
     }
 
-    fn bdpt(&self) -> Option<&Bdpt<'_>> {
-        Some(self)
+    fn technique_images(
+        &self,
+        scene: &crate::scene::Scene,
+        seed: u64,
+        pass: u64,
+        spp: u32,
+        max_depth_shown: u32,
+    ) -> Option<std::collections::BTreeMap<(usize, usize), crate::film::Film>> {
+        Some(strategy_images(
+            scene,
+            self,
+            seed,
+            pass,
+            spp,
+            max_depth_shown,
+        ))
     }
 }

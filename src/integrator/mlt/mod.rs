@@ -871,10 +871,6 @@ impl super::Integrator for Mlt<'_> {
         }
     }
 
-    fn mlt(&self) -> Option<&Mlt<'_>> {
-        Some(self)
-    }
-
     /// The chains (current paths, b, mutation statistics) are not saved in a checkpoint.
     fn resumes_exactly(&self) -> bool {
         false

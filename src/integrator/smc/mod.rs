@@ -622,6 +622,11 @@ impl super::Facts for SmcFacts {
         Ok(())
     }
 
+    /// SMC shares the path tracer's surface vertices and next-event estimation.
+    fn unreachable(&self) -> super::reach::Unreachable {
+        super::reach::Unreachable::DiracLightsBehindSpecular
+    }
+
     fn warnings(&self, case: &super::Case) -> Vec<String> {
         anisotropy_warning(case.scene, case.settings.smc.variant)
             .into_iter()
@@ -718,8 +723,8 @@ impl super::Integrator for Smc {
         )
     }
 
-    fn views_delta_lights(&self) -> bool {
-        true
+    fn delta_light_view(&self, scene: &Scene, sampler: &mut Sampler) -> Vec<super::Splat> {
+        super::path::delta_light_view(scene, sampler)
     }
 
     /// A tile's or chunk's records, kept for the end of the pass.
@@ -758,21 +763,24 @@ impl super::Integrator for Smc {
         }
     }
 
-    fn smc(&self) -> Option<&Smc> {
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
         Some(self)
     }
 
     fn checkpoint_state(&self) -> super::IntegratorState {
-        super::IntegratorState::Smc(Box::new(self.octree.clone()))
+        Some(postcard::to_stdvec(&self.octree).expect("the octree always serializes"))
     }
 
-    fn restore_state(&mut self, state: super::IntegratorState) -> bool {
-        match state {
-            super::IntegratorState::Smc(octree) => {
-                self.octree = *octree;
-                true
-            }
-            super::IntegratorState::None => false,
+    /// The octree comes back only whole and with finite coefficients: a damaged or forged
+    /// checkpoint must not become a NaN image.
+    fn restore_state(&mut self, state: Option<&[u8]>) -> Result<(), &'static str> {
+        let bytes = state.ok_or("it holds no SMC structure")?;
+        let octree: octree::Octree =
+            postcard::from_bytes(bytes).map_err(|_| "SMC's octree cannot be read")?;
+        if !octree.is_consistent() {
+            return Err("SMC's octree is inconsistent");
         }
+        self.octree = octree;
+        Ok(())
     }
 }

@@ -244,6 +244,32 @@ impl Octree {
         &self.caches
     }
 
+    /// Every leaf's box (min, max) and cache: the spatial subdivision, for drawing it.
+    pub fn leaves(&self) -> Vec<(Vec3, Vec3, &RadianceCache)> {
+        let mut out = Vec::new();
+        let mut stack = vec![(0usize, self.min, self.max)];
+        while let Some((node, lo, hi)) = stack.pop() {
+            match self.nodes[node] {
+                Node::Leaf { cache } => out.push((lo, hi, &self.caches[cache as usize])),
+                Node::Inner { first_child } => {
+                    let mid = 0.5 * (lo + hi);
+                    for octant in 0..8 {
+                        let (mut a, mut b) = (lo, hi);
+                        for axis in 0..3 {
+                            if octant & (1 << axis) != 0 {
+                                a[axis] = mid[axis];
+                            } else {
+                                b[axis] = mid[axis];
+                            }
+                        }
+                        stack.push((first_child as usize + octant, a, b));
+                    }
+                }
+            }
+        }
+        out
+    }
+
     /// The statistics of [PWP08 Table 1].
     pub fn stats(&self) -> OctreeStats {
         OctreeStats {

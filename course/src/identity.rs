@@ -39,35 +39,59 @@ pub fn of(cargo_toml: &str) -> Option<String> {
     (!id.is_empty() && id.chars().all(|c| c.is_ascii_alphanumeric())).then(|| id.to_string())
 }
 
-/// Writes `id` into the copy's `Cargo.toml` and, for the crate's own entry, its `Cargo.lock`.
+/// Writes `id` into the copy's `Cargo.toml` and, for the crate's own entry, its `Cargo.lock`;
+/// likewise into every workspace member's, so that no crate of the copy shares its artifacts'
+/// names with the original's (a member's path within its workspace is the same in both).
 pub fn stamp(tree: &mut Tree, id: &str) -> Result<(), CourseError> {
-    let unstampable = |why: &str| CourseError::Identity(why.to_string());
     let toml = tree
         .get("Cargo.toml")
         .and_then(|b| std::str::from_utf8(b).ok())
-        .ok_or_else(|| unstampable("the copy has no UTF-8 Cargo.toml"))?
+        .ok_or_else(|| CourseError::Identity("the copy has no UTF-8 Cargo.toml".into()))?
         .to_string();
-    let (_, name) = package_field(&toml, "name")
-        .ok_or_else(|| unstampable("Cargo.toml: no `name` in [package]"))?;
-    let (line, version) = package_field(&toml, "version")
-        .ok_or_else(|| unstampable("Cargo.toml: no `version` in [package]"))?;
+    stamp_package(tree, "Cargo.toml", id)?;
+    for m in super::workspace_members(&toml) {
+        let manifest = format!("{m}/Cargo.toml");
+        if tree.contains_key(&manifest) {
+            stamp_package(tree, &manifest, id)?;
+        }
+    }
+    Ok(())
+}
+
+/// Stamps the package of the manifest `manifest` (and its entry in the copy's `Cargo.lock`).
+fn stamp_package(tree: &mut Tree, manifest: &str, id: &str) -> Result<(), CourseError> {
+    let unstampable = |why: &str| CourseError::Identity(format!("{manifest}: {why}"));
+    let toml = tree
+        .get(manifest)
+        .and_then(|b| std::str::from_utf8(b).ok())
+        .ok_or_else(|| unstampable("not UTF-8"))?
+        .to_string();
+    let (_, name) =
+        package_field(&toml, "name").ok_or_else(|| unstampable("no `name` in [package]"))?;
+    let (line, version) =
+        package_field(&toml, "version").ok_or_else(|| unstampable("no `version` in [package]"))?;
     let base = version
         .split_once(MARK)
         .map_or(version.as_str(), |(b, _)| b);
     let stamped = format!("{base}{MARK}{id}");
     let new_toml = replace_line(&toml, line, &format!("version = \"{stamped}\""));
-    tree.insert("Cargo.toml".into(), new_toml.into_bytes());
+    tree.insert(manifest.into(), new_toml.into_bytes());
     if let Some(lock) = tree.get("Cargo.lock") {
         let lock = String::from_utf8_lossy(lock).to_string();
         let lines: Vec<&str> = lock.lines().collect();
         let at = lines
             .windows(2)
             .position(|w| w[0] == format!("name = \"{name}\"") && w[1].starts_with("version = "))
-            .ok_or_else(|| unstampable("Cargo.lock has no entry for the crate itself"))?;
+            .ok_or_else(|| unstampable("Cargo.lock has no entry for the crate"))?;
         let new_lock = replace_line(&lock, at + 1, &format!("version = \"{stamped}\""));
         tree.insert("Cargo.lock".into(), new_lock.into_bytes());
     }
     Ok(())
+}
+
+/// The `name` of the `[package]` of a `Cargo.toml`.
+pub fn package_name(cargo_toml: &str) -> Option<String> {
+    package_field(cargo_toml, "name").map(|(_, n)| n)
 }
 
 /// The 0-based line and the string value of `key = "..."` in the `[package]` table.
@@ -128,6 +152,34 @@ mod tests {
         stamp(&mut t, "ff").unwrap();
         let toml = String::from_utf8(t["Cargo.toml"].clone()).unwrap();
         assert!(toml.contains("version = \"0.1.0+copy.ff\"\n"), "{toml}");
+    }
+
+    #[test]
+    fn every_workspace_member_is_stamped_too() {
+        let root = "[package]\nname = \"pathspace\"\nversion = \"0.1.0\"\n\n[workspace]\nmembers = [\"course\"]\n";
+        let member = "[package]\nname = \"pathspace-course\"\nversion = \"0.2.0\"\n";
+        let lock =
+            format!("{LOCK}\n[[package]]\nname = \"pathspace-course\"\nversion = \"0.2.0\"\n");
+        let mut t: Tree = [
+            ("Cargo.toml", root.to_string()),
+            ("course/Cargo.toml", member.to_string()),
+            ("Cargo.lock", lock),
+        ]
+        .into_iter()
+        .map(|(p, t)| (p.to_string(), t.into_bytes()))
+        .collect();
+        stamp(&mut t, "ab12").unwrap();
+        let member = String::from_utf8(t["course/Cargo.toml"].clone()).unwrap();
+        let lock = String::from_utf8(t["Cargo.lock"].clone()).unwrap();
+        assert!(member.contains("version = \"0.2.0+copy.ab12\""), "{member}");
+        assert!(
+            lock.contains("name = \"pathspace-course\"\nversion = \"0.2.0+copy.ab12\""),
+            "{lock}"
+        );
+        assert!(
+            lock.contains("name = \"pathspace\"\nversion = \"0.1.0+copy.ab12\""),
+            "{lock}"
+        );
     }
 
     #[test]

@@ -1,53 +1,19 @@
-//! The book's diagrams, drawn from the implementation itself (book: "Path space with media",
-//! "The transport equations"): each figure samples with the crate's own code (BDPT's walks,
-//! the media's free-flight sampling and exact transmittance) at a fixed seed and draws what it
-//! got as SVG with plotters, so a figure cannot disagree with the code it illustrates.
-//! `cargo run --release --example figures -- book/src/figures/diagrams` writes them;
-//! `tests/figures.rs` checks that the committed files are byte for byte what this module draws.
+//! Pauly et al.'s Figs. 1 and 2 in the fog box (the ray of eq. (3), a path with its
+//! characteristic) and the transmittance along one ray through the fog box and the cloud.
 
 use glam::Vec2;
-use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
+use super::{side, subscript, svg, Area, Drawn, SEED, TRIES};
 use crate::geometry::Ray;
 use crate::integrator::bdpt::{Bdpt, Strategies};
 use crate::math::Sampler;
-use crate::measure::chart::{register_font, ChartError, FAMILY};
+use crate::measure::chart::{ChartError, FAMILY};
 use crate::path::distance::RayMedia;
 use crate::path::geometry_term::geometry_term_exact;
 use crate::path::{characteristic, characteristic::measure_of, Vertex, VertexKind, PLAIN};
 use crate::scene::Scene;
-
-/// The seed of every figure's sampler.
-pub const SEED: u64 = 2000;
-/// The most sample indices a figure tries before it gives up looking for its path.
-const TRIES: u64 = 100_000;
-
-/// One figure: its file name and its SVG text.
-pub struct Figure {
-    pub name: &'static str,
-    pub svg: String,
-}
-
-/// Every diagram: the path of Pauly et al. Fig. 2 in the fog box (`fog_box`), and the
-/// transmittance along one ray through the fog box and through the cloud (`cloud`).
-pub fn all(fog_box: &Scene, cloud: &Scene) -> Result<Vec<Figure>, ChartError> {
-    Ok(vec![
-        Figure {
-            name: "path-fig2.svg",
-            svg: path_figure(fog_box)?,
-        },
-        Figure {
-            name: "transmittance.svg",
-            svg: transmittance_figure(fog_box, cloud)?,
-        },
-    ])
-}
-
-fn drawing(stem: &'static str) -> impl Fn(Box<dyn std::error::Error + '_>) -> ChartError {
-    move |e| ChartError::Drawing(stem, e.to_string())
-}
 
 /// A path of characteristic l = 1011_2 = 11, as in Pauly et al. Fig. 2: x_0 on the light, x_1
 /// on a wall, x_2 in the fog, x_3 the camera. It is the first BDPT sample (eye subpath
@@ -84,28 +50,17 @@ pub fn figure_2_path(scene: &Scene) -> Option<Vec<Vertex>> {
 }
 
 /// The side view (z to the right, y up) of the fog box with the path of [`figure_2_path`].
-fn path_figure(scene: &Scene) -> Result<String, ChartError> {
-    register_font()?;
+pub(super) fn path_figure(scene: &Scene) -> Result<String, ChartError> {
     let path = figure_2_path(scene).ok_or_else(|| {
         ChartError::Drawing(
             "path",
             format!("no path of characteristic 11 in {TRIES} samples"),
         )
     })?;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1100, 560)).into_drawing_area();
-        draw_path(&root, &path).map_err(drawing("path"))?;
-        root.present().map_err(|e| drawing("path")(Box::new(e)))?;
-    }
-    Ok(svg)
+    svg("path", (1100, 560), |root| draw_path(root, &path))
 }
 
-fn draw_path<'a>(
-    root: &DrawingArea<SVGBackend<'a>, Shift>,
-    path: &[Vertex],
-) -> Result<(), Box<dyn std::error::Error + 'a>> {
-    root.fill(&WHITE)?;
+fn draw_path(root: &Area<'_>, path: &[Vertex]) -> Drawn {
     let l = characteristic(path);
     let mut chart = ChartBuilder::on(root)
         .caption(
@@ -188,14 +143,6 @@ fn draw_path<'a>(
     Ok(())
 }
 
-/// The subscript digits of `i` (vertex names x₀, x₁, ...).
-fn subscript(i: usize) -> String {
-    i.to_string()
-        .chars()
-        .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
-        .collect()
-}
-
 /// The sample points of one transmittance curve and the free flights drawn along the ray.
 struct RayCurve {
     name: &'static str,
@@ -246,31 +193,18 @@ fn ray_curve(scene: &Scene, name: &'static str) -> Option<RayCurve> {
 }
 
 /// tau along the central camera ray of both scenes, with the sampled collision distances.
-fn transmittance_figure(fog_box: &Scene, cloud: &Scene) -> Result<String, ChartError> {
-    register_font()?;
+pub(super) fn transmittance_figure(fog_box: &Scene, cloud: &Scene) -> Result<String, ChartError> {
+    let none = || ChartError::Drawing("transmittance", "no medium on the central ray".into());
     let curves = [
-        ray_curve(fog_box, "fog box (homogeneous)").ok_or_else(|| {
-            ChartError::Drawing("transmittance", "no medium on the central ray".into())
-        })?,
-        ray_curve(cloud, "cloud (grid)").ok_or_else(|| {
-            ChartError::Drawing("transmittance", "no medium on the central ray".into())
-        })?,
+        ray_curve(fog_box, "fog box (homogeneous)").ok_or_else(none)?,
+        ray_curve(cloud, "cloud (grid)").ok_or_else(none)?,
     ];
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1000, 560)).into_drawing_area();
-        draw_transmittance(&root, &curves).map_err(drawing("transmittance"))?;
-        root.present()
-            .map_err(|e| drawing("transmittance")(Box::new(e)))?;
-    }
-    Ok(svg)
+    svg("transmittance", (1000, 560), |root| {
+        draw_transmittance(root, &curves)
+    })
 }
 
-fn draw_transmittance<'a>(
-    root: &DrawingArea<SVGBackend<'a>, Shift>,
-    curves: &[RayCurve],
-) -> Result<(), Box<dyn std::error::Error + 'a>> {
-    root.fill(&WHITE)?;
+fn draw_transmittance(root: &Area<'_>, curves: &[RayCurve]) -> Drawn {
     let t0 = curves.iter().flat_map(|c| c.curve.first()).map(|p| p.0);
     let t1 = curves.iter().flat_map(|c| c.curve.last()).map(|p| p.0);
     let lo = t0.fold(f32::INFINITY, f32::min) - 0.1;
@@ -320,4 +254,57 @@ fn draw_transmittance<'a>(
         .position(SeriesLabelPosition::UpperRight)
         .draw()?;
     Ok(())
+}
+
+/// Pauly et al. Fig. 1: the ray of eq. (3) from the camera x back to the surface point
+/// x_∂V = h(x, -ω), with the collision points x' of 40 free flights sampled along it (the
+/// flights that reach the wall are the surface term's).
+pub(super) fn ray_figure(scene: &Scene) -> Result<String, ChartError> {
+    let c = ray_curve(scene, "fog box")
+        .ok_or_else(|| ChartError::Drawing("ray", "no medium on the central ray".into()))?;
+    let cam = scene
+        .camera
+        .as_ref()
+        .ok_or_else(|| ChartError::Drawing("ray", "no camera".into()))?;
+    let ray = Ray::new(cam.eye, cam.forward);
+    let wall = ray.at(c.curve.last().map_or(0.0, |p| p.0));
+    let xs: Vec<_> = c.collisions.iter().map(|&t| side::zy(ray.at(t))).collect();
+    let v = side::view(scene);
+    svg("ray", side::size(&v, 900), |root| {
+        let title = "The ray of eq. (3): x, the surface point x\u{2202}V = h(x, \u{2212}\u{03C9}), sampled x\u{2032}";
+        let mut ch = side::chart(root, title, v)?;
+        side::draw_scene(&mut ch, scene)?;
+        let line = vec![side::zy(cam.eye), side::zy(wall)];
+        ch.draw_series(std::iter::once(PathElement::new(
+            line,
+            BLACK.stroke_width(2),
+        )))?;
+        ch.draw_series(xs.iter().map(|&p| {
+            EmptyElement::at(p) + Circle::new((0, 0), 5, side::EYE_PATH.stroke_width(2))
+        }))?;
+        let wall_mark = Rectangle::new([(-6, -6), (6, 6)], BLACK.filled());
+        ch.draw_series(std::iter::once(
+            EmptyElement::at(side::zy(wall)) + wall_mark,
+        ))?;
+        let arrow = vec![
+            (2.2, 0.0),
+            (2.6, 0.0),
+            (2.5, 0.05),
+            (2.6, 0.0),
+            (2.5, -0.05),
+        ];
+        ch.draw_series(std::iter::once(PathElement::new(
+            arrow,
+            BLACK.stroke_width(2),
+        )))?;
+        side::label(&mut ch, (2.4, 0.0), (-6, -26), "\u{03C9}")?;
+        side::label(&mut ch, side::zy(cam.eye), (-10, -30), "x")?;
+        side::label(&mut ch, side::zy(wall), (8, -28), "x\u{2202}V")?;
+        let n = format!(
+            "x\u{2032}: {} collisions of {} free flights",
+            xs.len(),
+            xs.len() + c.passages
+        );
+        side::label(&mut ch, (0.2, 0.0), (0, 12), &n)
+    })
 }

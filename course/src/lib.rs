@@ -4,295 +4,164 @@
 //! An assignment is a region of a function body marked in the source by a line
 //! `// ASSIGNMENT: name` and a line `// END ASSIGNMENT`; the signature and the doc comment stay,
 //! the body is what the student writes. One assignment may mark several bodies (a sampler and
-//! its pdf). [`ASSIGNMENTS`] names, for each, the chapter that derives it, the files that hold
-//! its regions and the tests that grade it; `tests/assignments.rs` checks that the markers and
+//! its pdf). The registry, data beside the book (`book/course.toml`, [`Registry`]), names for
+//! each the chapter that derives it, the files that hold its regions and the tests that grade
+//! it (by module path), with the syllabus's hours, prerequisites and expected picture; `tests/assignments.rs` checks that the markers and
 //! the registry agree, that a copy with every region blanked compiles, that each assignment's
 //! graded tests fail there on its own `todo!()`, and that no line of a removed region survives
 //! anywhere in the copy (the book includes code by anchor, so it shows the `todo!()` too).
 
 pub mod assignment;
+pub mod exercise;
+mod fsx;
 pub mod identity;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// One graded test: `cargo test --release --test FILE -- --exact NAME`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Where the registry lives in a crate's tree: data beside the book.
+pub const REGISTRY_FILE: &str = "book/course.toml";
+
+/// One graded test, addressed by its module path `TARGET::PATH::FUNCTION`: the test target
+/// under `tests/` and the function's path inside it, so that
+/// `cargo test --release --test TARGET -- --exact PATH::FUNCTION` runs exactly it.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(try_from = "String")]
 pub struct GradedTest {
-    /// The test file under `tests/`, without `.rs`.
-    pub file: &'static str,
-    /// The test function.
-    pub name: &'static str,
+    /// The test target (`tests/TARGET.rs` or `tests/TARGET/main.rs`).
+    pub target: String,
+    /// The test function's path inside its target (`module::function`, or `function`).
+    pub path: String,
+}
+
+impl TryFrom<String> for GradedTest {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        let (target, path) = s
+            .split_once("::")
+            .ok_or_else(|| format!("graded test `{s}` is not TARGET::PATH::FUNCTION"))?;
+        let ident =
+            |p: &str| !p.is_empty() && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !ident(target) || !path.split("::").all(ident) {
+            return Err(format!("graded test `{s}` is not a module path"));
+        }
+        Ok(GradedTest {
+            target: target.to_string(),
+            path: path.to_string(),
+        })
+    }
+}
+
+impl std::fmt::Display for GradedTest {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}::{}", self.target, self.path)
+    }
+}
+
+impl GradedTest {
+    /// The command that runs this test alone in a copy.
+    pub fn command(&self) -> String {
+        format!(
+            "cargo test --release --test {} -- --exact {}",
+            self.target, self.path
+        )
+    }
+
+    /// The test function's name (the last segment of its path).
+    pub fn function(&self) -> &str {
+        self.path.rsplit("::").next().unwrap_or(&self.path)
+    }
+
+    /// The files, relative to the crate, that may hold the function: its module's file in the
+    /// two layouts Cargo and rustc accept (`m.rs` or `m/mod.rs`, and a target's `main.rs`).
+    pub fn module_files(&self) -> Vec<String> {
+        let mut dirs = vec![format!("tests/{}", self.target)];
+        let mut files = vec![
+            format!("tests/{}.rs", self.target),
+            format!("tests/{}/main.rs", self.target),
+        ];
+        let segments: Vec<&str> = self.path.split("::").collect();
+        for m in &segments[..segments.len() - 1] {
+            let mut next_dirs = Vec::new();
+            files.clear();
+            for d in &dirs {
+                files.push(format!("{d}/{m}.rs"));
+                files.push(format!("{d}/{m}/mod.rs"));
+                next_dirs.push(format!("{d}/{m}"));
+            }
+            dirs = next_dirs;
+        }
+        files
+    }
 }
 
 /// An assignment: a marked region (or several) that a student copy replaces by `todo!()`.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Assignment {
     /// The name after `// ASSIGNMENT:`.
-    pub name: &'static str,
+    pub name: String,
     /// The chapter's title, as in `book/src/SUMMARY.md`.
-    pub chapter: &'static str,
+    pub chapter: String,
     /// The chapter's file under `book/src/`.
-    pub chapter_file: &'static str,
+    pub chapter_file: String,
     /// The source files holding the marked regions.
-    pub files: &'static [&'static str],
+    pub files: Vec<String>,
     /// What the student writes, in one line.
-    pub task: &'static str,
+    pub task: String,
     /// The tests that grade it: they pass on the original and fail while the region is blank.
-    pub tests: &'static [GradedTest],
+    pub tests: Vec<GradedTest>,
+    /// A student's time for it, in hours (the syllabus).
+    pub hours: u32,
+    /// Assignments to do first (each earlier in the registry).
+    #[serde(default)]
+    pub prerequisites: Vec<String>,
+    /// What the student should see once it works: an image under `book/src/`.
+    pub picture: String,
 }
 
-const fn t(file: &'static str, name: &'static str) -> GradedTest {
-    GradedTest { file, name }
+/// The course: every assignment and measurement exercise, in the order of the syllabus.
+#[derive(Clone, Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Registry {
+    #[serde(rename = "assignment")]
+    pub assignments: Vec<Assignment>,
+    #[serde(rename = "exercise", default)]
+    pub exercises: Vec<exercise::Exercise>,
 }
 
-/// Every assignment, in the order of the book.
-pub const ASSIGNMENTS: &[Assignment] = &[
-    Assignment {
-        name: "deflection_cosine",
-        chapter: "Notation and conventions",
-        chapter_file: "conventions.md",
-        files: &["src/conventions.rs"],
-        task: "the deflection cosine of a phase function when wo and wi both point away from the vertex",
-        tests: &[t("phase", "the_deflection_cosine_follows_the_convention")],
-    },
-    Assignment {
-        name: "uniform_triangle",
-        chapter: "Scenes and geometry",
-        chapter_file: "scenes.md",
-        files: &["src/math/warp.rs"],
-        task: "a uniform point on a triangle from two uniform numbers (Heitz 2019), density 2",
-        tests: &[t("warp", "uniform_triangle_is_uniform_on_the_triangle")],
-    },
-    Assignment {
-        name: "transmittance",
-        chapter: "The transport equations (eqs. 1–3)",
-        chapter_file: "transport-equations.md",
-        files: &["src/medium/homogeneous.rs"],
-        task: "tau = exp(-sigma_t d) of eq. (3) in a homogeneous medium, infinite d included",
-        tests: &[t("free_flight", "transmittance_is_exp_minus_sigma_t_d")],
-    },
-    Assignment {
-        name: "hg_eval",
-        chapter: "Phase functions",
-        chapter_file: "phase-functions.md",
-        files: &["src/medium/phase.rs"],
-        task: "the Henyey-Greenstein phase function of the deflection cosine, without cancellation",
-        tests: &[
-            t("phase", "hg_matches_its_closed_form"),
-            t(
-                "phase",
-                "every_phase_function_integrates_to_one_over_the_deflection_cosine",
-            ),
-        ],
-    },
-    Assignment {
-        name: "hg_sample",
-        chapter: "Phase functions",
-        chapter_file: "phase-functions.md",
-        files: &["src/medium/phase.rs"],
-        task: "sample the Henyey-Greenstein deflection cosine by inverting its CDF",
-        tests: &[
-            t("phase", "hg_mean_deflection_cosine_is_g"),
-            t("phase", "sampling_agrees_with_pdf_by_chi_square"),
-        ],
-    },
-    Assignment {
-        name: "fresnel",
-        chapter: "Surface scattering (eq. 2)",
-        chapter_file: "bsdf.md",
-        files: &["src/bsdf/mod.rs"],
-        task: "the Fresnel reflectance of a dielectric interface, total internal reflection included",
-        tests: &[
-            t("bsdf", "fresnel_at_normal_incidence_is_the_squared_index_ratio"),
-            t("bsdf", "dielectric_reflects_totally_beyond_the_critical_angle"),
-        ],
-    },
-    Assignment {
-        name: "ggx_visible_normals",
-        chapter: "Surface scattering (eq. 2)",
-        chapter_file: "bsdf.md",
-        files: &["src/bsdf/microfacet.rs"],
-        task: "sample GGX's visible normals (Heitz 2018): stretch, squeeze the disk, lift, unstretch",
-        tests: &[t("microfacet", "rough_conductor_samples_its_density")],
-    },
-    Assignment {
-        name: "free_flight",
-        chapter: "Table 1: homogeneous media",
-        chapter_file: "table1-homogeneous.md",
-        files: &["src/medium/homogeneous.rs"],
-        task: "Table 1: sample a free-flight distance (one-sample MIS over channels) and its pdf",
-        tests: &[
-            t("free_flight", "gray_collision_distances_follow_the_exponential_cdf"),
-            t("free_flight", "free_flight_pdf_matches_the_sampled_pdf"),
-            t(
-                "free_flight",
-                "collision_density_and_passing_probability_sum_to_one",
-            ),
-        ],
-    },
-    Assignment {
-        name: "ratio_tracking",
-        chapter: "Table 1: inhomogeneous media",
-        chapter_file: "table1-inhomogeneous.md",
-        files: &["src/medium/heterogeneous.rs"],
-        task: "ratio tracking: an unbiased transmittance estimate against a majorant grid",
-        tests: &[t(
-            "media_inhomogeneous",
-            "ratio_and_delta_tracking_transmittance_are_unbiased",
-        )],
-    },
-    Assignment {
-        name: "next_event",
-        chapter: "The Neumann series and the path tracer (eq. 4)",
-        chapter_file: "neumann-series.md",
-        files: &["src/integrator/path.rs"],
-        task: "next-event estimation: sample a light, test visibility and transmittance, weight by MIS",
-        tests: &[
-            t("transport", "meter_under_point_light_follows_inverse_square"),
-            t("transport", "meter_measures_cosine_law"),
-        ],
-    },
-    Assignment {
-        name: "geometry_term",
-        chapter: "Path space with media (eqs. 5–7)",
-        chapter_file: "path-space.md",
-        files: &["src/path/geometry_term.rs"],
-        task: "the generalized geometry term G of sec. 3.2, surface and medium vertices alike",
-        tests: &[t("path_space", "geometry_term_closed_forms")],
-    },
-    Assignment {
-        name: "characteristic",
-        chapter: "Path space with media (eqs. 5–7)",
-        chapter_file: "path-space.md",
-        files: &["src/path/characteristic.rs"],
-        task: "the characteristic l of a path (sec. 3.1): one bit per vertex, 1 on surfaces",
-        tests: &[t("path_space", "characteristic_of_figure_2_is_eleven")],
-    },
-    Assignment {
-        name: "power_heuristic",
-        chapter: "Bidirectional path tracing",
-        chapter_file: "bdpt.md",
-        files: &["src/integrator/path.rs"],
-        task: "Veach's power heuristic (beta = 2) for two strategies, infinite densities included",
-        tests: &[t("path_space", "power_heuristic_by_hand")],
-    },
-    Assignment {
-        name: "acceptance",
-        chapter: "Metropolis light transport (eq. 8)",
-        chapter_file: "mlt.md",
-        files: &["src/integrator/mlt/acceptance.rs"],
-        task: "the Metropolis-Hastings acceptance probability of eq. (8)",
-        tests: &[t("mlt", "acceptance_is_eq_8")],
-    },
-    Assignment {
-        name: "propagation_perturbation",
-        chapter: "Metropolis light transport (eq. 8)",
-        chapter_file: "mlt.md",
-        files: &["src/integrator/mlt/mutation/propagation.rs"],
-        task: "the propagation perturbation of sec. 5.2.2 and its transition density T(x -> y)",
-        tests: &[
-            t(
-                "mlt_mutations",
-                "propagation_perturbation_proposals_follow_t_along_the_line_and_out_of_the_medium",
-            ),
-        ],
-    },
-    Assignment {
-        name: "inverse_distance",
-        chapter: "MLT experiments",
-        chapter_file: "mlt-experiments.md",
-        files: &["src/integrator/mlt/mutation/mod.rs"],
-        task: "perturbation sizes with p(D) ~ 1/D: Veach's eq. (11.11) and its pdf",
-        tests: &[t("mlt", "inverse_distance_follows_one_over_d")],
-    },
-    Assignment {
-        name: "light_map_inverse",
-        chapter: "Enlightened local path sampling: the adjoint image and particles",
-        chapter_file: "enlightened-adjoint.md",
-        files: &["src/enlightened/adjoint.rs"],
-        task: "F^-1: the point of the unit square that the light-sampling map F sends to a light point",
-        tests: &[t("enlightened", "light_map_round_trips")],
-    },
-    Assignment {
-        name: "small_step",
-        chapter: "Enlightened local path sampling: the adjoint image and particles",
-        chapter_file: "enlightened-adjoint.md",
-        files: &["src/math/primary_sample.rs"],
-        task: "the small step of primary sample space: a wrapped normal offset, symmetric, n steps at once",
-        tests: &[
-            t("primary_sample", "small_steps_keep_the_target_invariant"),
-            t("primary_sample", "mixed_steps_keep_the_target_invariant"),
-        ],
-    },
-    Assignment {
-        name: "equal_area_texel",
-        chapter: "Enlightened local path sampling: guiding",
-        chapter_file: "enlightened-guiding.md",
-        files: &["src/enlightened/direction_map.rs"],
-        task: "the texel of a direction in the equal-solid-angle map (rows uniform in cos theta)",
-        tests: &[t("guiding", "direction_map_texels_round_trip")],
-    },
-    Assignment {
-        name: "combined_estimator",
-        chapter: "Sequential Monte Carlo adaptation (Pegoraro et al. 2008)",
-        chapter_file: "smc.md",
-        files: &["src/integrator/smc/estimator.rs"],
-        task: "one sample of the combined estimator of eq. (1): control variate and importance sampling",
-        tests: &[t("smc_unbiased", "combined_estimator_is_eq_1")],
-    },
-    Assignment {
-        name: "partial_sums",
-        chapter: "SMC: the radiance cache",
-        chapter_file: "smc-cache.md",
-        files: &["src/integrator/smc/partial_sums.rs"],
-        task: "the tree of partial sums: O(log N) update of a cell and O(log N) sampling",
-        tests: &[t(
-            "smc_cache",
-            "partial_sums_sample_cells_in_proportion_and_keep_the_root_equal_to_the_sum",
-        )],
-    },
-    Assignment {
-        name: "bspline_control_variate",
-        chapter: "SMC: the radiance cache",
-        chapter_file: "smc-cache.md",
-        files: &["src/integrator/smc/bspline.rs"],
-        task: "the order-1 B-spline reconstruction with polar values (the control variate g of cv2)",
-        tests: &[
-            t(
-                "smc_cache",
-                "order1_reconstruction_interpolates_the_coefficients_at_cell_centres",
-            ),
-            t("smc_cache", "polar_values_remove_the_pole_discontinuity"),
-        ],
-    },
-    Assignment {
-        name: "cv_roulette",
-        chapter: "SMC: the estimators",
-        chapter_file: "smc-estimators.md",
-        files: &["src/integrator/smc/walk.rs"],
-        task: "Russian roulette that ends a path at the cache's value c instead of at zero",
-        tests: &[t("smc_unbiased", "roulette_is_unbiased_for_any_c")],
-    },
-    Assignment {
-        name: "fit_power_law",
-        chapter: "Measuring a renderer",
-        chapter_file: "measuring.md",
-        files: &["src/measure/stats.rs"],
-        task: "least squares in log-log space: the order of convergence and its standard error",
-        tests: &[t("measure", "power_law_fit_recovers_exact_power_laws")],
-    },
-];
+impl Registry {
+    /// Reads the registry's text (`book/course.toml`).
+    pub fn parse(text: &str) -> Result<Self, CourseError> {
+        toml::from_str(text).map_err(|e| CourseError::RegistryFile(e.to_string()))
+    }
+
+    /// The registry a tree carries.
+    pub fn of_tree(tree: &Tree) -> Result<Self, CourseError> {
+        let bytes = tree
+            .get(REGISTRY_FILE)
+            .ok_or_else(|| CourseError::RegistryFile(format!("no {REGISTRY_FILE}")))?;
+        Self::parse(&String::from_utf8_lossy(bytes))
+    }
+
+    /// The registry of the crate in `root`.
+    pub fn read(root: &Path) -> Result<Self, CourseError> {
+        let p = root.join(REGISTRY_FILE);
+        let text = std::fs::read_to_string(&p)
+            .map_err(|e| CourseError::Read(p.display().to_string(), e))?;
+        Self::parse(&text)
+    }
+
+    /// The assignment called `name`.
+    pub fn find(&self, name: &str) -> Option<&Assignment> {
+        self.assignments.iter().find(|a| a.name == name)
+    }
+}
 
 /// The marker that opens a region.
 pub const BEGIN: &str = "// ASSIGNMENT:";
 /// The marker that closes a region.
 pub const END: &str = "// END ASSIGNMENT";
-
-/// The assignment called `name`.
-pub fn find(name: &str) -> Option<&'static Assignment> {
-    ASSIGNMENTS.iter().find(|a| a.name == name)
-}
 
 /// A marked region of one file.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -358,8 +227,11 @@ pub enum CourseError {
     #[error(transparent)]
     Io(#[from] std::io::Error),
     /// The copy's target is no directory or cannot be written (its path, why).
-    #[error(transparent)]
-    Output(#[from] crate::image_io::ImageError),
+    #[error("{0}: {1}")]
+    Output(String, String),
+    /// The registry file cannot be read as a registry (why).
+    #[error("{REGISTRY_FILE}: {0}")]
+    RegistryFile(String),
 }
 
 impl From<CourseError> for String {
@@ -483,6 +355,7 @@ pub fn read_tree(root: &Path) -> Result<Tree, CourseError> {
                 .replace('\\', "/");
             let name = rel.rsplit('/').next().unwrap_or("");
             if rel.starts_with("book/book/")
+                || rel.split('/').any(|part| part == "target")
                 || rel.ends_with(".snap.new")
                 || rel.ends_with(".pending-snap")
                 || name.starts_with('.')
@@ -508,7 +381,8 @@ pub fn read_tree(root: &Path) -> Result<Tree, CourseError> {
             tree.insert(f.to_string(), b);
         }
     }
-    for d in DIRS {
+    let members = workspace_members(&std::fs::read_to_string(root.join("Cargo.toml"))?);
+    for d in DIRS.iter().map(|d| d.to_string()).chain(members) {
         walk(root, &root.join(d), &mut tree)?;
     }
     Ok(tree)
@@ -531,18 +405,20 @@ pub fn markers(tree: &Tree) -> Result<Vec<(String, Region)>, CourseError> {
     Ok(out)
 }
 
-/// Checks that the markers of `tree` and [`ASSIGNMENTS`] agree: every marker is registered
-/// (with its file), every assignment has at least one region, and only in its listed files.
-pub fn check_registry(tree: &Tree) -> Result<(), CourseError> {
+/// Checks that the markers of `tree` and its registry agree: every marker is registered
+/// (with its file), every assignment has at least one region, and only in its listed files;
+/// every prerequisite comes earlier and every picture exists. Returns the registry.
+pub fn check_registry(tree: &Tree) -> Result<Registry, CourseError> {
+    let registry = Registry::of_tree(tree)?;
     let marks = markers(tree)?;
     let mut problems = Vec::new();
     for (file, r) in &marks {
-        match find(&r.name) {
+        match registry.find(&r.name) {
             None => problems.push(format!(
-                "{file}:{}: assignment `{}` is not in the registry (src/course/mod.rs)",
+                "{file}:{}: assignment `{}` is not in the registry ({REGISTRY_FILE})",
                 r.begin, r.name
             )),
-            Some(a) if !a.files.contains(&file.as_str()) => problems.push(format!(
+            Some(a) if !a.files.contains(file) => problems.push(format!(
                 "{file}:{}: assignment `{}` is marked here but the registry lists {:?}",
                 r.begin, r.name, a.files
             )),
@@ -555,8 +431,22 @@ pub fn check_registry(tree: &Tree) -> Result<(), CourseError> {
             ));
         }
     }
-    for a in ASSIGNMENTS {
-        for f in a.files {
+    for (i, a) in registry.assignments.iter().enumerate() {
+        for p in &a.prerequisites {
+            if !registry.assignments[..i].iter().any(|b| &b.name == p) {
+                problems.push(format!(
+                    "assignment `{}`: prerequisite `{p}` is no earlier assignment",
+                    a.name
+                ));
+            }
+        }
+        if !tree.contains_key(&format!("book/src/{}", a.picture)) {
+            problems.push(format!(
+                "assignment `{}`: picture book/src/{} does not exist",
+                a.name, a.picture
+            ));
+        }
+        for f in &a.files {
             if !marks.iter().any(|(file, r)| file == f && r.name == a.name) {
                 problems.push(format!(
                     "assignment `{}`: no `{BEGIN} {}` marker in {f}",
@@ -574,14 +464,18 @@ pub fn check_registry(tree: &Tree) -> Result<(), CourseError> {
             ));
         }
     }
-    let mut names: Vec<&str> = ASSIGNMENTS.iter().map(|a| a.name).collect();
+    let mut names: Vec<&str> = registry
+        .assignments
+        .iter()
+        .map(|a| a.name.as_str())
+        .collect();
     names.sort();
     names.dedup();
-    if names.len() != ASSIGNMENTS.len() {
+    if names.len() != registry.assignments.len() {
         problems.push("two assignments share a name".to_string());
     }
     if problems.is_empty() {
-        Ok(())
+        Ok(registry)
     } else {
         Err(CourseError::Registry(problems))
     }
@@ -637,7 +531,7 @@ pub fn student_copy(tree: &Tree, chosen: &[&Assignment]) -> Result<StudentCopy, 
         let touched: Vec<&Assignment> = chosen
             .iter()
             .copied()
-            .filter(|a| a.files.contains(&path.as_str()))
+            .filter(|a| a.files.contains(path))
             .collect();
         if touched.is_empty() {
             out.insert(path.clone(), bytes.clone());
@@ -646,7 +540,7 @@ pub fn student_copy(tree: &Tree, chosen: &[&Assignment]) -> Result<StudentCopy, 
         let text = std::str::from_utf8(bytes).map_err(|_| CourseError::NotUtf8(path.clone()))?;
         for a in &touched {
             let (_, lines) = blank(text, &[a]).map_err(|e| CourseError::Marker(path.clone(), e))?;
-            let slot = removed.iter_mut().find(|(n, _)| n == a.name).unwrap();
+            let slot = removed.iter_mut().find(|(n, _)| *n == a.name).unwrap();
             slot.1.extend(lines);
         }
         let (blanked, _) =
@@ -692,7 +586,7 @@ pub fn check_copy_target(out: &Path) -> Result<(), CourseError> {
     if out.is_dir() && std::fs::read_dir(out)?.next().is_some() {
         return Err(CourseError::NotEmpty(out.display().to_string()));
     }
-    Ok(crate::image_io::check_output_dir(out)?)
+    fsx::check_output_dir(out)
 }
 
 /// Writes a student copy to `out` (which must not exist or be empty).
