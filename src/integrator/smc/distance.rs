@@ -65,15 +65,16 @@ pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scrat
                 let is = smc.in_scatter(cache, phase, wo, s.depth, sampler);
                 let delta = walk::delta_lights(scene, p, Some(m), sampler, |wi| phase.eval(wo, wi));
                 if is.pdf.is_nan() || is.pdf <= 0.0 {
-                    scratch
-                        .links
-                        .push(Link::plain(emitted + weight * delta, Rgb::ZERO));
+                    scratch.links.push(Link::plain(
+                        walk::plus_emitted(weight * delta, emitted),
+                        Rgb::ZERO,
+                    ));
                     return;
                 }
                 // line 11: G + (f - g) / p with f = f_p * TraceRay (lines 9-10)
                 let b = weight * (is.phase_value / is.pdf);
                 let mut link = Link {
-                    a: emitted + weight * (delta + is.G - is.g / is.pdf),
+                    a: walk::plus_emitted(weight * (delta + is.G - is.g / is.pdf), emitted),
                     b,
                     // line 13: the record (direction, radiance), merged after the pass
                     record: Some((p, is.wi, is.phase_value)),

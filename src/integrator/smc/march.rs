@@ -310,7 +310,7 @@ impl March<'_> {
             // Omega_t: the transmitted radiance, by continuing the ray
             let b = kappa_t / p_t;
             self.scratch.links.push(Link {
-                a: emitted + big_g - g_t / p_t,
+                a: walk::plus_emitted(big_g - g_t / p_t, emitted),
                 b,
                 record: Some((x_end, d, warp::INV_FOUR_PI)),
                 roulette: None,
@@ -359,7 +359,7 @@ impl March<'_> {
         let delta = walk::delta_lights(self.scene, xs, Some(m), sampler, |w| phase.eval(wo, w));
         let b = st.kappa_s_jit * (phase_value / p);
         let mut link = Link {
-            a: st.emitted + st.big_g - g / p + st.kappa_s_jit * delta / p_s,
+            a: walk::plus_emitted(st.big_g - g / p + st.kappa_s_jit * delta / p_s, st.emitted),
             b,
             record: Some((xs, wi, phase_value)),
             roulette: None,

@@ -138,6 +138,17 @@ pub fn emitted(scene: &Scene, prop: &crate::scene::Propagation) -> Rgb {
     prop.transmittance * med.emission(p) / prop.pdf
 }
 
+/// `a` with the emission `e` added; `a` itself, bit for bit, when nothing glows (0 + -0 would
+/// be +0: the images of scenes without emission stay what they were).
+#[inline]
+pub fn plus_emitted(a: Rgb, e: Rgb) -> Rgb {
+    if e == Rgb::ZERO {
+        a
+    } else {
+        e + a
+    }
+}
+
 /// The direct light of every delta light (point, spot, directional) at `p` in `medium`, with
 /// `scatter(wi)` the phase function or cosine factor: these lights cannot be found by chance.
 pub fn delta_lights(
