@@ -893,13 +893,12 @@ fn agreement_deep() {
     fam.finish();
 }
 
-// ---- emitting media (L_e,V0 of eq. 1): the path tracer against its delta-tracking
+// ---- emitting media (L_e,V0 of eq. 1): the path tracer and SMC against the delta-tracking
 // reference; every other integrator refuses the scene, naming the emitting medium ----
 
 const EMITTING_LIGHT: (&str, &str) = ("light*", "emitting medium");
 const EMITTING_BDPT: (&str, &str) = ("bdpt*", "emitting medium");
 const EMITTING_MLT: (&str, &str) = ("mlt*", "emitting medium");
-const EMITTING_SMC: (&str, &str) = ("smc*", "emitting medium");
 
 /// `text` with `emission = value` added after the line `after`.
 fn with_emission(text: &str, after: &str, value: &str) -> String {
@@ -919,13 +918,7 @@ fn agreement_emitting_chromatic() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[
-                NO_AREA_LIGHT,
-                EMITTING_LIGHT,
-                EMITTING_BDPT,
-                EMITTING_MLT,
-                EMITTING_SMC,
-            ],
+            refuse: &[NO_AREA_LIGHT, EMITTING_LIGHT, EMITTING_BDPT, EMITTING_MLT],
             ..row("emitting-chromatic", text, 3)
         },
     );
@@ -946,7 +939,6 @@ fn agreement_emitting_grid() {
                 EMITTING_LIGHT,
                 EMITTING_BDPT,
                 EMITTING_MLT,
-                EMITTING_SMC,
             ],
             ..row("emitting-grid", text, 3)
         },
@@ -974,7 +966,6 @@ fn agreement_emitting_procedural() {
                 EMITTING_LIGHT,
                 EMITTING_BDPT,
                 EMITTING_MLT,
-                EMITTING_SMC,
             ],
             ..row("emitting-procedural", text, 3)
         },

@@ -29,6 +29,27 @@ pub struct Enlightened {
     pub adjoint: Option<AdjointImage>,
 }
 
+/// Why the guide (`guide`) or the adjoint image (`adjoint`) cannot be built for `scene`, naming
+/// its first emitting medium; `None` when neither is asked for or no medium glows. Both are
+/// built from light starts on the scene's lights (photons traced from them, a map of the unit
+/// square onto the area lights), so a light path whose x0 is a volume vertex (eq. 5) would be
+/// missing from the guided mixtures' L_i and would have no density under the adjoint image.
+pub fn emitting_media_refusal(scene: &Scene, guide: bool, adjoint: bool) -> Option<String> {
+    let i = scene.media.iter().position(crate::medium::Medium::emits)?;
+    let what = match (guide, adjoint) {
+        (false, false) => return None,
+        (true, false) => "the guide (--guide, [render.guide] vertices)",
+        (false, true) => "the adjoint image (--adjoint-image, [render] adjoint_image)",
+        (true, true) => "the guide and the adjoint image",
+    };
+    Some(format!(
+        "{what} cannot be built with the emitting medium `{}`: it is built from light starts on \
+         the scene's lights (photons, a map onto the area lights), and light paths that start in \
+         the glowing medium (x0 a volume vertex, eq. 5) would be missing; render without it",
+        scene.medium_names[i]
+    ))
+}
+
 impl Enlightened {
     /// Estimates the adjoint image with this technique's classical light starts (any image
     /// already held is dropped first) and keeps it; returns the pre-pass statistics.

@@ -61,6 +61,9 @@ pub struct PathTracer {
     pub distance: DistanceSampling,
     /// How next-event estimation picks a light (`[render] light_selection`).
     pub selection: LightSelection,
+    /// Next-event estimation toward emitting media (`[render] volume_next_event`); without
+    /// it their emission is collected along free flights alone, with MIS weight 1.
+    pub volume_next_event: bool,
 }
 
 /// How the path tracer samples the distance to a medium vertex on a camera ray, for the
@@ -99,7 +102,14 @@ impl PathTracer {
             max_depth: max_depth.unwrap_or(u32::MAX),
             distance: DistanceSampling::FreeFlight,
             selection: LightSelection::Power,
+            volume_next_event: true,
         }
+    }
+
+    /// This path tracer with or without next-event estimation toward emitting media.
+    pub fn with_volume_next_event(mut self, on: bool) -> Self {
+        self.volume_next_event = on;
+        self
     }
 
     /// This path tracer picking lights for next-event estimation by `selection`.
@@ -214,7 +224,7 @@ impl PathTracer {
             },
             |_, _| 1.0,
         );
-        l += volume_next_event(
+        l += self.volume_nee(
             scene,
             (p, None),
             |_| meter.medium,
@@ -261,7 +271,8 @@ impl PathTracer {
             let prop = scene.propagate(w.ray, w.lead, w.medium, sampler);
             if let Event::Medium { p, medium: m, .. } = prop.event {
                 if scene.media[m as usize].emits() {
-                    l += volume_emission_found(scene, &w, &prop, p, m);
+                    let nee = self.volume_next_event;
+                    l += volume_emission_found(scene, &w, &prop, (p, m), nee);
                 }
             }
             w.beta *= prop.weight();
@@ -344,7 +355,7 @@ impl PathTracer {
                 scatter,
                 mis,
             );
-        *l += w.beta * volume_next_event(scene, (p, None), |_| Some(m), sampler, scatter);
+        *l += w.beta * self.volume_nee(scene, (p, None), |_| Some(m), sampler, scatter);
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
         let ps = phase.sample(wo, sampler.next_2d());
@@ -413,7 +424,7 @@ impl PathTracer {
                     no_weight,
                 );
             let to = (hit.p, Some(n));
-            *l += w.beta * volume_next_event(scene, to, towards, sampler, scatter);
+            *l += w.beta * self.volume_nee(scene, to, towards, sampler, scatter);
         }
         let u = sampler.next_2d();
         let uc = sampler.next_f32();
@@ -435,6 +446,23 @@ impl PathTracer {
         w.ray = Ray::new(offset_origin(hit.p, n, bs.wi), bs.wi);
         w.lead = (w.ray.o - hit.p).dot(bs.wi);
         true
+    }
+}
+
+impl PathTracer {
+    /// [`volume_next_event`] when it is on, else nothing (and no random number drawn).
+    fn volume_nee(
+        &self,
+        scene: &Scene,
+        at: (Vec3, Option<Vec3>),
+        medium: impl Fn(Vec3) -> Option<u32>,
+        sampler: &mut Sampler,
+        scatter: impl Fn(Vec3) -> (Rgb, f32),
+    ) -> Rgb {
+        if !self.volume_next_event {
+            return Rgb::ZERO;
+        }
+        volume_next_event(scene, at, medium, sampler, scatter)
     }
 }
 
@@ -504,7 +532,8 @@ fn emission_found(
 }
 
 /// The volume emittance L_e,V0 (eqs. 1 and 3) collected at the collision `p` in medium `m` that
-/// `prop` sampled, MIS-weighted against [`volume_next_event`].
+/// `prop` sampled, MIS-weighted against [`volume_next_event`] when `nee` is on (weight 1 when
+/// the walk alone collects the emission).
 ///
 /// The collision estimator: along a free flight the in-scattered and emitted radiance of
 /// eq. (3) is the integral of T(t) L_e,V0(t) dt; a collision drawn with density p(t) (the
@@ -521,14 +550,15 @@ fn volume_emission_found(
     scene: &Scene,
     w: &WalkState,
     prop: &crate::scene::Propagation,
-    p: Vec3,
-    m: u32,
+    (p, m): (Vec3, u32),
+    nee: bool,
 ) -> Rgb {
+    // ASSIGNMENT: volume_emission_found
     if prop.pdf <= 0.0 {
         return Rgb::ZERO;
     }
     let le = scene.media[m as usize].emission(p);
-    let mis = if w.prev.singular {
+    let mis = if w.prev.singular || !nee {
         1.0
     } else {
         let r2 = (p - w.prev.p).length_squared();
@@ -536,6 +566,7 @@ fn volume_emission_found(
         power_heuristic(pdf_walk, scene.emitters.pdf(m, p))
     };
     w.beta * prop.transmittance * le * (mis / prop.pdf)
+    // END ASSIGNMENT
 }
 // ANCHOR_END: volume_emission_found
 
@@ -770,7 +801,8 @@ pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super
     Ok(Box::new(
         PathTracer::new(setup.max_depth)
             .with_distance(distance)
-            .with_light_selection(selection),
+            .with_light_selection(selection)
+            .with_volume_next_event(setup.settings.volume_next_event),
     ))
 }
 

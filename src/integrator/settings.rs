@@ -61,6 +61,11 @@ pub struct RenderOptions {
     /// 2018) or `power` (proportional to power everywhere).
     #[arg(long)]
     pub light_selection: Option<LightSelectionKind>,
+    /// path: next-event estimation toward emitting media, a point of the glowing media sampled
+    /// as a light and combined by MIS with the emission the walk collects (default true;
+    /// `--volume-next-event=false` collects the emission along free flights alone).
+    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "true", value_name = "BOOL")]
+    pub volume_next_event: Option<bool>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -107,6 +112,7 @@ impl RenderOptions {
             meter_samples: Some(DEFAULT_METER_SAMPLES),
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
+            volume_next_event: Some(true),
             adjoint_image: Some(false),
             ..Default::default()
         }
@@ -473,6 +479,9 @@ pub struct RenderSettings {
     pub distance: DistanceSampling,
     /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
     pub light_selection: LightSelectionKind,
+    /// The path tracer's next-event estimation toward emitting media
+    /// (`[render] volume_next_event`).
+    pub volume_next_event: bool,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
     /// Primary-sample-space MLT settings (`[render.pssmlt]`).
@@ -503,6 +512,7 @@ impl RenderSettings {
             meter_samples: d.meter_samples.expect(given),
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
+            volume_next_event: d.volume_next_event.expect(given),
             mlt: MltSettings::default(),
             pssmlt: PssmltSettings::default(),
             smc: SmcSettings::default(),
@@ -555,6 +565,7 @@ impl RenderSettings {
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
+        self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);
         self.mlt

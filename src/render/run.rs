@@ -93,6 +93,14 @@ impl<'a> Render<'a> {
             Some(s) => Some(ShardOf::narrow(s, kind, &mut settings)?),
             None => None,
         };
+        // the guide and the adjoint image do not represent light paths starting in a medium
+        let guide = settings.guide.kind != GuideKind::Off && guides(kind);
+        let adjoint = settings.adjoint_image && kind.samples_light_starts();
+        if let Some(why) =
+            crate::enlightened::technique::emitting_media_refusal(scene, guide, adjoint)
+        {
+            return Err(IntegratorError::Refused(why).into());
+        }
         // refused before the memory it would need (MLT's scene, SMC's march length)
         crate::integrator::check_emitting_media(kind, scene)?;
         kind.facts().check(&Case {

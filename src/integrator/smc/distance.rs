@@ -39,13 +39,21 @@ pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scrat
         let lead = (s.ray.o - s.prev.p).dot(s.ray.d).max(0.0);
         let prop = scene.propagate(s.ray, lead, s.medium, sampler);
         let weight = prop.weight();
+        // eq. (7)'s source term sigma_a L_e / sigma_t: the emission of the medium at a collision
+        let emitted = walk::emitted(scene, &prop);
         if weight == Rgb::ZERO {
+            if emitted != Rgb::ZERO {
+                scratch.links.push(Link::plain(emitted, Rgb::ZERO));
+            }
             return;
         }
         match prop.event {
             // lines 3-14: a medium vertex
             Event::Medium { p, medium: m, .. } => {
                 if s.depth >= smc.max_depth {
+                    if emitted != Rgb::ZERO {
+                        scratch.links.push(Link::plain(emitted, Rgb::ZERO));
+                    }
                     return;
                 }
                 s.depth += 1;
@@ -57,13 +65,16 @@ pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scrat
                 let is = smc.in_scatter(cache, phase, wo, s.depth, sampler);
                 let delta = walk::delta_lights(scene, p, Some(m), sampler, |wi| phase.eval(wo, wi));
                 if is.pdf.is_nan() || is.pdf <= 0.0 {
-                    scratch.links.push(Link::plain(weight * delta, Rgb::ZERO));
+                    scratch.links.push(Link::plain(
+                        walk::plus_emitted(weight * delta, emitted),
+                        Rgb::ZERO,
+                    ));
                     return;
                 }
                 // line 11: G + (f - g) / p with f = f_p * TraceRay (lines 9-10)
                 let b = weight * (is.phase_value / is.pdf);
                 let mut link = Link {
-                    a: weight * (delta + is.G - is.g / is.pdf),
+                    a: walk::plus_emitted(weight * (delta + is.G - is.g / is.pdf), emitted),
                     b,
                     // line 13: the record (direction, radiance), merged after the pass
                     record: Some((p, is.wi, is.phase_value)),

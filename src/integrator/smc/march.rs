@@ -124,7 +124,9 @@ fn transmit_probability(m_t: f64, m_s: f64) -> f64 {
 /// density truncated to the step, q(s) = sigma(s) e^(-tau(s)) / (1 - e^(-tau)) with the
 /// channel means (inverted in optical depth, exactly), and the weight
 /// sigma_s(s) e^(-tau(s)) / q(s) per channel that makes the in-scattered term unbiased for the
-/// integral of sigma_s e^-tau L_i over the step.
+/// integral of sigma_s e^-tau L_i over the step. The third value is e^(-tau(s)) / q(s), the
+/// weight of the emission L_e,V0 at s: unbiased for the step's source term, the integral of
+/// e^-tau L_e,V0 (eq. 3), wherever q > 0, which holds wherever the medium has extinction.
 #[inline]
 fn jittered_point(
     med: &Medium,
@@ -132,11 +134,11 @@ fn jittered_point(
     dx: f32,
     tau: f32,
     sampler: &mut Sampler,
-) -> (f32, Rgb) {
+) -> (f32, Rgb, Rgb) {
     let u = sampler.next_f32();
     if tau.is_nan() || tau <= 0.0 {
-        // no extinction in the step: nothing scatters (kappa_s is zero too)
-        return (u * dx, Rgb::ZERO);
+        // no extinction in the step: nothing scatters (kappa_s is zero too), and s is uniform
+        return (u * dx, Rgb::ZERO, Rgb::splat(dx));
     }
     let one_minus = -(-tau).exp_m1();
     let tau_s = -(1.0 - u * one_minus).ln();
@@ -145,9 +147,10 @@ fn jittered_point(
     let tau_s = med.optical_depth(here, s);
     let q = spectrum::average(med.sigma_t(p)) * (-spectrum::average(tau_s)).exp() / one_minus;
     if q.is_nan() || q <= 0.0 {
-        return (s, Rgb::ZERO);
+        return (s, Rgb::ZERO, Rgb::ZERO);
     }
-    (s, med.sigma_s(p) * (-tau_s).exp() / q)
+    let transmittance = (-tau_s).exp();
+    (s, med.sigma_s(p) * transmittance / q, transmittance / q)
 }
 
 /// The marching walk of `state` (its ray, medium, throughput); `step_mfp` is the step in mean
@@ -201,6 +204,8 @@ struct Step<'c> {
     use_cache: bool,
     p_t: f32,
     big_g: Rgb,
+    /// The step's emission, eq. (3)'s source term (zero in a medium that does not emit).
+    emitted: Rgb,
 }
 
 impl March<'_> {
@@ -276,8 +281,15 @@ impl March<'_> {
         };
         // the scattering point, jittered in the step (see DEVIATION above); drawn before the
         // branch so that both branches share G
-        let (sj, kappa_s_jit) = jittered_point(med, here, dx, spectrum::average(tau), self.sampler);
+        let (sj, kappa_s_jit, emission_jit) =
+            jittered_point(med, here, dx, spectrum::average(tau), self.sampler);
         let xs = s.ray.at(t + sj);
+        // the step's source term, estimated at the same point: added whichever branch follows
+        let emitted = if med.emits() {
+            emission_jit * med.emission(xs)
+        } else {
+            Rgb::ZERO
+        };
         let x_end = s.ray.at(t + dx);
         // the snapshot's caches: where the transmitted radiance L(x + dx, d) arrives, and
         // where the in-scattered radiance is estimated
@@ -298,7 +310,7 @@ impl March<'_> {
             // Omega_t: the transmitted radiance, by continuing the ray
             let b = kappa_t / p_t;
             self.scratch.links.push(Link {
-                a: big_g - g_t / p_t,
+                a: walk::plus_emitted(big_g - g_t / p_t, emitted),
                 b,
                 record: Some((x_end, d, warp::INV_FOUR_PI)),
                 roulette: None,
@@ -315,6 +327,7 @@ impl March<'_> {
             use_cache,
             p_t,
             big_g,
+            emitted,
         };
         self.scatter(s, m, med, &step)
     }
@@ -335,6 +348,9 @@ impl March<'_> {
             (ps.wi, p_s * ps.pdf)
         };
         if p.is_nan() || p <= 0.0 {
+            if st.emitted != Rgb::ZERO {
+                self.scratch.links.push(Link::plain(st.emitted, Rgb::ZERO));
+            }
             return Flow::End;
         }
         let phase_value = phase.eval(wo, wi);
@@ -343,7 +359,7 @@ impl March<'_> {
         let delta = walk::delta_lights(self.scene, xs, Some(m), sampler, |w| phase.eval(wo, w));
         let b = st.kappa_s_jit * (phase_value / p);
         let mut link = Link {
-            a: st.big_g - g / p + st.kappa_s_jit * delta / p_s,
+            a: walk::plus_emitted(st.big_g - g / p + st.kappa_s_jit * delta / p_s, st.emitted),
             b,
             record: Some((xs, wi, phase_value)),
             roulette: None,

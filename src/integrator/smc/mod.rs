@@ -608,8 +608,10 @@ impl super::Facts for SmcFacts {
         prepare(setup)
     }
 
+    /// Both estimators collect the emission of eq. (3)'s source term along their flights
+    /// (weight 1: no emitting medium is sampled as a light), and the records carry it.
     fn emitting_media_refusal(&self) -> Option<&'static str> {
-        Some("its march and its cache's records carry no emission term (eq. 3's source term)")
+        None
     }
 
     /// A march that would exceed its step limit is refused before the memory it would need.

@@ -121,6 +121,34 @@ pub fn escaped(scene: &Scene, d: Vec3, prev: &Previous) -> Rgb {
     env.radiance(d) * w
 }
 
+/// The emission L_e,V0 of the medium at the collision `prop` sampled, by the collision
+/// estimator T L_e,V0 / p(t) (eq. 3's source term; [PWP08 eq. 4, 7] write it sigma_a L_e, the
+/// same quantity in the paper's units): unbiased for the integral of T L_e,V0 along the flight
+/// wherever the collision density is positive, as in the path tracer. Weight 1: SMC samples
+/// no emitting medium as a light, so the walk is its only estimator. Zero (and nothing read)
+/// unless the collision is in an emitting medium.
+pub fn emitted(scene: &Scene, prop: &crate::scene::Propagation) -> Rgb {
+    let crate::scene::Event::Medium { p, medium: m, .. } = prop.event else {
+        return Rgb::ZERO;
+    };
+    let med = &scene.media[m as usize];
+    if !med.emits() || prop.pdf.is_nan() || prop.pdf <= 0.0 {
+        return Rgb::ZERO;
+    }
+    prop.transmittance * med.emission(p) / prop.pdf
+}
+
+/// `a` with the emission `e` added; `a` itself, bit for bit, when nothing glows (0 + -0 would
+/// be +0: the images of scenes without emission stay what they were).
+#[inline]
+pub fn plus_emitted(a: Rgb, e: Rgb) -> Rgb {
+    if e == Rgb::ZERO {
+        a
+    } else {
+        e + a
+    }
+}
+
 /// The direct light of every delta light (point, spot, directional) at `p` in `medium`, with
 /// `scatter(wi)` the phase function or cosine factor: these lights cannot be found by chance.
 pub fn delta_lights(
