@@ -4,7 +4,7 @@
     python3 -m venv venv && venv/bin/pip install mitsuba numpy
     venv/bin/python benches/envmap_mitsuba.py
 
-pathspace's `scene::envmap` (book: "Environment maps"; `tests/envmap.rs` pins pathspace to
+pathspace's `scene::envmap` (book: "Environment maps"; `tests/spec/scene/envmap.rs` pins pathspace to
 the same formulas) says that texel (x, y) of a W x H latitude-longitude map is centred on the
 local direction
 

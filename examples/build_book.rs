@@ -1,6 +1,6 @@
 //! Builds the book as HTML to read it locally: `cargo run --release --example build_book [DIR]`
 //! (default `out/book`), then open DIR/index.html. The same build runs inside `cargo test`
-//! (`tests/book.rs`), which also checks includes, anchors, images and links.
+//! (`tests/repository/book.rs`), which also checks includes, anchors, images and links.
 
 fn main() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));

@@ -55,7 +55,7 @@ record() {
   done
   rm -f "$dir/stats.raw"
   PATHSPACE_STATS_DUMP="$dir/stats.raw" cargo test --release --quiet \
-    --test agreement --test golden --test slab_oracle >"$dir/tests.log" 2>&1 \
+    --test oracles -- agreement:: golden:: slab:: >"$dir/tests.log" 2>&1 \
     || echo "warning: the tests failed, see $dir/tests.log"
   sort "$dir/stats.raw" >"$dir/stats.tsv" && rm -f "$dir/stats.raw"
   echo "recorded $(ls "$dir"/*.json | wc -l) renders and $(wc -l <"$dir/stats.tsv") comparisons in $dir"

@@ -25,16 +25,16 @@ JOBS=${JOBS:-1}
 SHARD_K=${SHARD_K:-0}
 OUT=${OUT:-mutants.out}
 
-# name | files (space separated globs) | guarding test binaries | N (shard count) | timeout (s)
+# name | files (space separated globs) | guarding test modules (CRATE::MODULE) | N (shard count) | timeout (s)
 GROUPS_TABLE=(
-  "phase|src/medium/phase.rs|phase transport|14|120"
-  "path|src/path/*.rs|path_space transport|18|120"
-  "bsdf|src/bsdf/mod.rs src/bsdf/lambert.rs src/bsdf/mirror.rs src/bsdf/dielectric.rs src/bsdf/thin_dielectric.rs src/bsdf/null.rs|bsdf bsdf_contract path_space|10|120"
-  "path_tracer|src/integrator/path.rs|transport path_space|8|120"
-  "medium|src/medium/homogeneous.rs src/medium/heterogeneous.rs src/medium/grid.rs src/medium/procedural.rs|free_flight media_inhomogeneous|50|120"
-  "bdpt|src/bidir/*.rs|path_space strategies|30|120"
-  "smc|src/integrator/smc/march.rs src/integrator/smc/cache.rs|smc_cache smc_media smc_unbiased|17|120"
-  "mlt|src/integrator/mlt/contribution.rs src/integrator/mlt/acceptance.rs src/integrator/mlt/mutation/*.rs|mlt mlt_mutations|70|300"
+  "phase|src/medium/phase.rs|spec::medium::phase oracles::transport|14|120"
+  "path|src/path/*.rs|spec::path oracles::transport|18|120"
+  "bsdf|src/bsdf/mod.rs src/bsdf/lambert.rs src/bsdf/mirror.rs src/bsdf/dielectric.rs src/bsdf/thin_dielectric.rs src/bsdf/null.rs|spec::bsdf spec::bsdf::contract spec::path|10|120"
+  "path_tracer|src/integrator/path.rs|oracles::transport spec::path|8|120"
+  "medium|src/medium/homogeneous.rs src/medium/heterogeneous.rs src/medium/grid.rs src/medium/procedural.rs|spec::medium::homogeneous spec::medium::heterogeneous|50|120"
+  "bdpt|src/bidir/*.rs|spec::path spec::integrator::reach|30|120"
+  "smc|src/integrator/smc/march.rs src/integrator/smc/cache.rs|spec::integrator::smc::cache spec::integrator::smc::march invariants::smc_unbiased|17|120"
+  "mlt|src/integrator/mlt/contribution.rs src/integrator/mlt/acceptance.rs src/integrator/mlt/mutation/*.rs|spec::integrator::mlt spec::integrator::mlt::mutation|70|300"
 )
 
 want=("$@")
@@ -46,7 +46,13 @@ for row in "${GROUPS_TABLE[@]}"; do
   args=(--profile mutants --timeout "$timeout" --build-timeout 600
         --baseline skip --output "$OUT/$name")
   for f in $files; do args+=(--file "$f"); done
-  for t in $tests; do args+=("--cargo-arg=--test=$t"); done
+  # each guard is a test crate's module: its crate is built and run, filtered to the module
+  filters=()
+  for t in $tests; do
+    crate=${t%%::*}
+    [[ " ${args[*]} " == *" --cargo-arg=--test=$crate "* ]] || args+=("--cargo-arg=--test=$crate")
+    [ "$crate" = "$t" ] || filters+=("${t#*::}::")
+  done
   if [ -n "${MUTANTS_RE:-}" ]; then
     args+=(--re "$MUTANTS_RE")
   else
@@ -59,5 +65,6 @@ for row in "${GROUPS_TABLE[@]}"; do
   fi
   mkdir -p "$OUT/$name"
   echo "== $name: cargo mutants ${args[*]}"
+  [ ${#filters[@]} -eq 0 ] || args+=(-- -- "${filters[@]}")
   cargo mutants "${args[@]}" || true   # exit 2 = some missed, 3 = some timed out
 done

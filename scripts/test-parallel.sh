@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Shards without a scheduler: GNU parallel renders 4 shards of a small fog box on this machine
 # (the same command runs them on other hosts with -S), `merge` joins them, and the merge must
-# equal the single run to one f32 step (`diff`'s max f32 steps; see tests/shard.rs for why one).
+# equal the single run to one f32 step (`diff`'s max f32 steps; see tests/spec/render/shard.rs for why one).
 #
 #   scripts/test-parallel.sh          # about 5 s after the release build
 set -euo pipefail

@@ -3,7 +3,7 @@
 //! - **Directions at a vertex** both point away from it: `wo` towards where the light goes (the
 //!   previous vertex of an eye path, the next of a light path), `wi` towards where it comes from.
 //!   A phase function's deflection cosine is therefore `-dot(wo, wi)`; Henyey-Greenstein with
-//!   g > 0 scatters forwards (its mean deflection cosine is g, checked by `tests/phase.rs`).
+//!   g > 0 scatters forwards (its mean deflection cosine is g, checked by `tests/spec/medium/phase.rs`).
 //! - **Paths** run x_0 (on a light) to x_k (on the sensor), as in Pauly et al. sec. 3.
 //! - **Normals** are geometric and never flipped by the geometry code: a quad's is
 //!   normalize(u x v), a box's and a sphere's point outwards. A shape with an `interior` medium

@@ -518,9 +518,9 @@ fn a_copy_with_every_assignment_blank_compiles_and_fails_each_graded_test_on_its
     assert!(!out.status.success(), "{table}");
     for expected in [
         "characteristic             failed ",
-        "path_space::characteristic_of_figure_2_is_eleven failed:",
+        "spec::path::characteristic_of_figure_2_is_eleven failed:",
         "got 0b1101, expected 0b1011",
-        "cargo test --release --test path_space -- --exact characteristic_of_figure_2_is_eleven",
+        "cargo test --release --test spec -- --exact path::characteristic_of_figure_2_is_eleven",
     ] {
         assert!(table.contains(expected), "no `{expected}` in:\n{table}");
     }

@@ -14,7 +14,7 @@ fn main() {
             path.display()
         ),
         None if browser::required() => println!(
-            "Chromium is missing and {}=1 requires it: tests/book_browser.rs failed",
+            "Chromium is missing and {}=1 requires it: tests/repository/book_browser.rs failed",
             browser::REQUIRE
         ),
         None => println!(

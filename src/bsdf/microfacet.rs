@@ -13,7 +13,7 @@
 //! the form their reflection and refraction BSDFs are written with; the height-correlated form
 //! is exact only for reflection in closed form (for refraction it needs a Beta function).
 //!
-//! Book: "Surface scattering (eq. 2)", section "Rough surfaces"; spec: `tests/microfacet.rs`.
+//! Book: "Surface scattering (eq. 2)", section "Rough surfaces"; spec: `tests/spec/bsdf/microfacet.rs`.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -25,7 +25,7 @@ use std::f64::consts::PI as PI64;
 pub const ALPHA_MIN: f32 = 1e-3;
 /// The largest roughness a scene may ask for: at alpha = 1 half of the facets are steeper than
 /// 45 degrees, and the single-scattering model already drops 69% of the light at normal
-/// incidence (the white furnace of `tests/microfacet.rs`); rougher surfaces would drop more.
+/// incidence (the white furnace of `tests/spec/bsdf/microfacet.rs`); rougher surfaces would drop more.
 pub const ALPHA_MAX: f32 = 1.0;
 
 /// The isotropic GGX distribution with roughness `alpha` (the slope scale).

@@ -19,8 +19,8 @@
 //! ([`Lobe::is_singular`]: the vertex is then a Dirac vertex, with a discrete probability, no
 //! connection, and full weight for an emitter its ray hits). Plastic answers yes to all three.
 //!
-//! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/bsdf.rs`, and
-//! `tests/bsdf_contract.rs`, the contract every model of [`Bsdf`] meets.
+//! Book: "Surface scattering (eq. 2)" (`book/src/bsdf.md`); executable spec: `tests/spec/bsdf.rs`, and
+//! `tests/spec/bsdf/contract.rs`, the contract every model of [`Bsdf`] meets.
 
 use glam::{Vec2, Vec3};
 

@@ -17,7 +17,7 @@
 //! them and computes each node's integral by adaptive Gauss-Kronrod quadrature (error well
 //! below 1e-6) where Mitsuba uses a 32 x 32 (T) or 128 x 128 (R) Gauss-Legendre rule over
 //! its visible-normal sampler. The exact cosine-weighted integral of R differs from the
-//! 64-node mean by about 1e-2 (`tests/rough_plastic.rs` prints both).
+//! 64-node mean by about 1e-2 (`tests/spec/bsdf/rough_plastic.rs` prints both).
 //!
 //! Sampling: a mixture of the coating's facet sampler (`Microfacet::sample`, reflected) and the
 //! cosine-weighted hemisphere, with Mitsuba's lobe probability (1 - T(cos_o)) s / ((1 -

@@ -686,7 +686,7 @@ pub fn roulette_survival(
 /// The least survival probability of guided roulette. Roulette is unbiased only where q > 0
 /// for every path that can still contribute; a map that saw no particle in a direction says
 /// Lhat = 0 there, which is an estimate, not a fact (DEVIATION: the thesis's formula has no
-/// floor; without one the fog box loses 5% of its light, see `tests/guiding.rs`).
+/// floor; without one the fog box loses 5% of its light, see `tests/spec/enlightened/guide.rs`).
 pub const ROULETTE_MIN_SURVIVAL: f32 = 0.05;
 
 impl From<&crate::enlightened::Particle> for Deposit {

@@ -3,7 +3,7 @@
 //! the MLT mutations, an SMC run, the particle tracers) at a fixed seed and draws what it got
 //! as SVG with plotters, so a figure cannot disagree with the code it illustrates.
 //! `cargo run --release --example figures -- book/src/figures/diagrams` writes them;
-//! `tests/figures.rs` checks that the committed files are byte for byte what this module draws
+//! `tests/repository/figures.rs` checks that the committed files are byte for byte what this module draws
 //! and that every diagram a chapter names is one of them.
 //!
 //! One file per family: `side` (the scene seen from the side, shared), `path` (Pauly et al.

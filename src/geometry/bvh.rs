@@ -4,7 +4,7 @@
 //! Closest-hit queries break ties in favour of opaque primitives: where a null (index-matched)
 //! medium boundary lies in the same plane as a wall, the wall is what the ray hits. Without that
 //! rule a ray can cross the null face, be lifted off it and pass the wall: the light leak the
-//! coplanar tests in `tests/geometry.rs` guard against.
+//! coplanar tests in `tests/spec/geometry.rs` guard against.
 //! Book: "Scenes and geometry".
 
 use glam::Vec3;

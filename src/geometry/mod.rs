@@ -1,5 +1,5 @@
 //! Rays, primitives and the bounding volume hierarchy.
-//! Book: "Scenes and geometry" (tests: `tests/geometry.rs`, bench: `benches/bvh.rs`).
+//! Book: "Scenes and geometry" (tests: `tests/spec/geometry.rs`, bench: `benches/bvh.rs`).
 
 pub mod aabb;
 pub mod bvh;
@@ -33,10 +33,10 @@ impl Ray {
 
 /// Relative size of the offset that lifts a spawned ray's origin off its surface. Intersection
 /// points are reprojected onto their primitive and carry an error of a few ulps of their
-/// coordinates; this is ~16 ulps, enough for quads, triangles and spheres (`tests/geometry.rs`).
+/// coordinates; this is ~16 ulps, enough for quads, triangles and spheres (`tests/spec/geometry.rs`).
 /// It is kept this small because the lift also moves the recorded vertex sideways from the
 /// sampled direction: densities evaluated from vertex positions then differ from the sampler's
-/// by about offset / edge length (measured by `tests/path_space.rs`; 2e-5 gave 0.2% on edges of
+/// by about offset / edge length (measured by `tests/spec/path.rs`; 2e-5 gave 0.2% on edges of
 /// a few centimetres).
 pub const RAY_EPSILON: f32 = 2e-6;
 

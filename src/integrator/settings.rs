@@ -2,7 +2,7 @@
 //! scene file yields the scene and its settings separately ([`load`]), so the scene (a lower
 //! layer) knows nothing of the integrators that render it, and the settings (which name the
 //! integrators' own structs) live with the integrators.
-//! Book: "Scenes" (the `[render]` table); tests: `tests/scene_errors.rs`, `tests/smc_settings.rs`.
+//! Book: "Scenes" (the `[render]` table); tests: `tests/inputs/scene_errors.rs`, `tests/spec/integrator/settings/smc.rs`.
 
 use serde::{Deserialize, Serialize};
 

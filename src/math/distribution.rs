@@ -1,7 +1,7 @@
 //! A discrete distribution over indices, sampled by inversion of its cumulative sum, and the
 //! piecewise-constant density on the unit square built from it (environment maps).
-//! Executable spec: `tests/warp.rs` (sample frequencies against the pmf, uniformity of the
-//! remapped number), `tests/envmap.rs` (the 2-D density against its samples).
+//! Executable spec: `tests/spec/math/warp.rs` (sample frequencies against the pmf, uniformity of the
+//! remapped number), `tests/spec/scene/envmap.rs` (the 2-D density against its samples).
 
 use glam::Vec2;
 

@@ -5,7 +5,7 @@
 //! Everything is computed in f64: Arvo's inversion subtracts angles of order one to get a
 //! sub-area of order the solid angle, so f32 loses the small triangles that a meter seen from a
 //! few metres away makes. Book: "Bidirectional path tracing", section "Light tracing and
-//! irradiance meters"; executable spec: `tests/warp.rs` (chi-square of the directions, the
+//! irradiance meters"; executable spec: `tests/spec/math/warp.rs` (chi-square of the directions, the
 //! density integrated over the parallelogram).
 
 use glam::{DVec3, Vec2, Vec3};

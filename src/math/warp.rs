@@ -1,5 +1,5 @@
 //! Warps from the unit square to directions and points, each with its density.
-//! Book: "Sampling toolbox"; executable spec: `tests/warp.rs` (a chi-square test of every warp
+//! Book: "Sampling toolbox"; executable spec: `tests/spec/math/warp.rs` (a chi-square test of every warp
 //! against the density stated here).
 
 use glam::{Vec2, Vec3};

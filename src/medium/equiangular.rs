@@ -10,7 +10,7 @@
 //! p(t) = h / ((theta(b) - theta(a)) (h^2 + (t - delta)^2)) on [a, b].
 //!
 //! Book: "Sampling toward lights", section "Equiangular distances"; executable spec:
-//! `tests/equiangular.rs`.
+//! `tests/spec/medium/equiangular.rs`.
 
 use glam::Vec3;
 

@@ -21,7 +21,7 @@
 //! are reserved, so a 15-byte file cannot claim a 4 GiB grid.
 //!
 //! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
-//! `tests/media_inhomogeneous.rs`.
+//! `tests/spec/medium/heterogeneous.rs`.
 
 use glam::{Vec3, Vec4};
 use std::path::Path;

@@ -22,7 +22,7 @@
 //! the density D(t) and tau_c = sigma_t[c] D.
 //!
 //! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
-//! `tests/media_inhomogeneous.rs`.
+//! `tests/spec/medium/heterogeneous.rs`.
 
 use glam::Vec3;
 

@@ -9,7 +9,7 @@
 //! channel's contribution is lost or biased.
 //!
 //! Book: "Table 1: homogeneous media" (`book/src/table1-homogeneous.md`); executable spec:
-//! `tests/free_flight.rs`.
+//! `tests/spec/medium/homogeneous.rs`.
 
 use crate::spectrum::{average, Rgb};
 

@@ -8,7 +8,7 @@
 //! mixtures), so `pdf == eval` and `PhaseSample::value == PhaseSample::pdf`.
 //!
 //! Book: "Phase functions" (`book/src/phase-functions.md`), with the derivations of the inverse
-//! CDFs and of Schlick's mean cosine; executable spec: `tests/phase.rs`.
+//! CDFs and of Schlick's mean cosine; executable spec: `tests/spec/medium/phase.rs`.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;

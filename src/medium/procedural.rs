@@ -4,7 +4,7 @@
 //! each with an upper bound over a box for the majorant grid of delta and ratio tracking.
 //!
 //! Book: "Table 1: inhomogeneous media" (`book/src/table1-inhomogeneous.md`); executable spec:
-//! `tests/media_inhomogeneous.rs`.
+//! `tests/spec/medium/heterogeneous.rs`.
 
 use glam::Vec3;
 

@@ -10,7 +10,7 @@
 //! free flight only and do not need them.
 //!
 //! Book: "Sampling toward lights", section "Equiangular distances"; tests:
-//! `tests/equiangular.rs`.
+//! `tests/spec/medium/equiangular.rs`.
 
 use glam::Vec3;
 

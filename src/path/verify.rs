@@ -31,7 +31,7 @@ use crate::spectrum::Rgb;
 /// each comparison adds the bound `lift_slack` computes from the edges the factor depends on
 /// (lift / (d |cos|) per surface end), and `emission_slack` for a spot light's falloff band.
 /// A dropped or doubled factor (a cosine, a pdf, sigma_s, a transmittance) is wrong by far
-/// more on almost any path (`tests/path_verify.rs` breaks three and sees each turn it red).
+/// more on almost any path (`tests/invariants/path_verify.rs` breaks three and sees each turn it red).
 pub const REL_TOLERANCE: f64 = 1e-3;
 
 /// The first cached factor that its recomputation does not reproduce.

@@ -7,7 +7,7 @@
 //! a pass's tile results and splats (kept until the pass is merged, in tile order, for
 //! determinism), the output image and its variance with their encoders, the integrator's
 //! own structures (declared by its module: SMC's octree, MLT's chains), the guide's particles
-//! and maps, the adjoint image's cells. `tests/bounds.rs` checks the estimate of a moderate render against the peak
+//! and maps, the adjoint image's cells. `tests/inputs/bounds.rs` checks the estimate of a moderate render against the peak
 //! resident memory the render reports (`--json`'s `memory`).
 //! Book: "Measuring a renderer", section "Memory".
 

@@ -7,7 +7,7 @@
 //! The scene description here ([`SceneFile`]) and [`SceneSource`] are what both readers of a
 //! scene produce (`scene::source` reads a file and dispatches by format, `scene::mitsuba`
 //! translates XML into this format), so they live below both.
-//! Book: "Scenes and geometry" (tests: `tests/scene_errors.rs`).
+//! Book: "Scenes and geometry" (tests: `tests/inputs/scene_errors.rs`).
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

@@ -342,7 +342,7 @@ impl LightTree {
     /// that leaves a side empty), ties by light index, so that the tree depends on nothing
     /// but the scene. The middle keeps a regular grid of lights in compact halves, where the
     /// median cut a row of three rooms' lights across (the light of a room then lost to its
-    /// neighbour's in `tests/light_tree.rs`).
+    /// neighbour's in `tests/spec/scene/light_tree.rs`).
     fn split(&mut self, leaves: &mut [(u32, LightBounds)], depth: u32, trail: u64) -> u32 {
         let at = self.nodes.len() as u32;
         if leaves.len() == 1 {

@@ -412,7 +412,7 @@ impl Scene {
     }
 
     /// [`Scene::edge_exact`] by the plain segment walk: closest-hit queries over the whole
-    /// tree, without the any-hit query first. The two give the same bits (`tests/edges.rs`);
+    /// tree, without the any-hit query first. The two give the same bits (`tests/spec/scene.rs`);
     /// this one is the reference the shortcut is checked against.
     pub fn edge_exact_walked(&self, a: EdgeEnd, b: EdgeEnd) -> EdgeEval {
         self.edge_with(a, b, false, |med, ray, len| {

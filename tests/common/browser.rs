@@ -1,4 +1,4 @@
-//! Where the browser of `tests/book_browser.rs` is, and whether this run must have it.
+//! Where the browser of `tests/repository/book_browser.rs` is, and whether this run must have it.
 
 use std::path::PathBuf;
 
@@ -30,7 +30,8 @@ pub fn required() -> bool {
 }
 
 /// What the skipped check did not look at, and how to turn it on.
-pub const NOT_CHECKED: &str = "tests/book_browser.rs was SKIPPED: Chromium is not installed, \
+pub const NOT_CHECKED: &str =
+    "tests/repository/book_browser.rs was SKIPPED: Chromium is not installed, \
 so the book was not opened in a browser (its math typesetting, offline loading and links were \
 NOT checked). Install it (Debian: `apt-get install -y chromium`) or name a Chromium binary in \
 PATHSPACE_CHROMIUM; PATHSPACE_REQUIRE_BROWSER=1 (set by .ci/run) makes its absence a failure.";

@@ -1,6 +1,6 @@
 //! The commands the README and the book print, as text: the documents, the spellings of the
-//! binary, shell words, continuation lines and comments. `tests/commands.rs` parses these
-//! commands with the CLI's parser; `tests/commands_run.rs` runs them.
+//! binary, shell words, continuation lines and comments. `tests/repository/commands.rs` parses these
+//! commands with the CLI's parser; `tests/repository/commands_run.rs` runs them.
 
 use std::path::{Path, PathBuf};
 

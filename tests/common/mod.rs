@@ -13,6 +13,7 @@
 //! - [`mean_and_stderr`], [`film_mean`], [`meter_mean`]: Monte Carlo means with their errors.
 #![allow(dead_code)]
 
+pub mod browser;
 pub mod cli;
 pub mod docs;
 pub mod scenes;

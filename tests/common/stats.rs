@@ -2,7 +2,7 @@
 //!
 //! The false-alarm budget. With a correct renderer and a random seed, one CI run of the whole
 //! suite fails by chance with probability below [`SUITE_FALSE_ALARM`]: the suite holds at most
-//! [`STATISTICAL_TESTS`] statistical test functions (`tests/statistics.rs` counts them), each
+//! [`STATISTICAL_TESTS`] statistical test functions (`tests/invariants/statistics.rs` counts them), each
 //! gets [`TEST_ALPHA`] = budget / count (Bonferroni over tests), and within one test the
 //! comparisons share that level by Holm's step-down procedure (sorted p-values p_(1) <= ... <=
 //! p_(m); the test fails when p_(1) <= alpha / m, or p_(2) <= alpha / (m - 1) after it, ...),
@@ -23,7 +23,7 @@ use statrs::distribution::{Binomial, ContinuousCDF, DiscreteCDF, StudentsT};
 /// The probability that one CI run of the whole suite fails by chance on a correct renderer.
 pub const SUITE_FALSE_ALARM: f64 = 1e-3;
 /// The most statistical test functions the suite may hold (each with one [`Family`]); checked
-/// by `tests/statistics.rs`, so adding tests beyond it means lowering every test's level.
+/// by `tests/invariants/statistics.rs`, so adding tests beyond it means lowering every test's level.
 pub const STATISTICAL_TESTS: usize = 250;
 /// The significance level of one statistical test function.
 pub const TEST_ALPHA: f64 = SUITE_FALSE_ALARM / STATISTICAL_TESTS as f64;
@@ -123,7 +123,7 @@ impl Family {
     }
 
     /// A family at another level `alpha`: only for testing the procedure itself
-    /// (`tests/statistics.rs` simulates its false-alarm rate at a level where a rate can be
+    /// (`tests/invariants/statistics.rs` simulates its false-alarm rate at a level where a rate can be
     /// measured in a few thousand repetitions). Renderer tests use [`Family::new`].
     pub fn with_alpha(name: &str, alpha: f64) -> Self {
         Family {

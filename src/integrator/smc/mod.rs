@@ -212,7 +212,7 @@ pub const DEFENSIVE: f64 = 0.25;
 /// thing for isotropic media; for a forward phase function they made weights up to
 /// (1 + g) / (1 - g)^2).
 ///
-/// The slab oracle (`tests/slab_oracle.rs`) shows the same on forward-scattering slabs
+/// The slab oracle (`tests/oracles/slab.rs`) shows the same on forward-scattering slabs
 /// (Henyey-Greenstein g = 0.8, a beam at 60 degrees, paths of tens of vertices): with the pdf at
 /// every vertex, uniform directions before it was complete and the adaptive march choice,
 /// is1_cv2 transmitted 0.0020 +- 0.0007 of a tau 10, albedo 0.9 slab against the oracle's

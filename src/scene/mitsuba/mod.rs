@@ -8,7 +8,7 @@
 //! `dielectric`, `roughdielectric`, `thindielectric`, `plastic`, `twosided`, `null`, the media `homogeneous` and
 //! `heterogeneous` (`gridvolume`), the phases `isotropic` and `hg`, the emitters `area`,
 //! `point`, `spot`, `directional`, `constant`. Conventions are Mitsuba's (tests:
-//! `tests/mitsuba_import.rs`). Anything else (a plugin, a parameter, a texture) is an error naming
+//! `tests/inputs/mitsuba_import.rs`). Anything else (a plugin, a parameter, a texture) is an error naming
 //! it, the file and the line: a scene is imported as Mitsuba renders it or not at all. The
 //! generated keys keep their XML lines (`file::Origin`), so errors of the build name XML lines
 //! too.

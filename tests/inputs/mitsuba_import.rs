@@ -1,0 +1,943 @@
+//! The Mitsuba 3 importer (`scene::mitsuba`): each convention of Mitsuba's on a small scene
+//! whose XML and hand-written TOML twin (written from Mitsuba's documented convention) must be
+//! the same scene file and render the same image bit for bit; the shipped fog box in XML
+//! against `scenes/fog-box.toml` within error; and every refusal names the plugin, the file and
+//! the line.
+
+use crate::common;
+
+use common::stats::Family;
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::scene::file::{self, SceneFile};
+use pathspace::scene::{mitsuba, Scene, SceneSource};
+use std::path::PathBuf;
+
+fn dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn xml(text: &str) -> Result<SceneSource, String> {
+    mitsuba::import("t.xml", text, dir()).map_err(|e| e.to_string())
+}
+
+fn toml(text: &str) -> SceneSource {
+    SceneSource::embedded("t.toml", text)
+}
+
+fn desc(src: &SceneSource) -> SceneFile {
+    file::parse(&src.text, &src.name).unwrap_or_else(|e| panic!("{e}\n{}", src.text))
+}
+
+/// Every pixel of a 4-spp path-traced image.
+fn pixels(src: &SceneSource) -> Vec<[f32; 3]> {
+    let scene = Scene::load(src).unwrap_or_else(|e| panic!("{e}"));
+    let mut r = Renderer::new(&scene, IntegratorKind::Path, 7, None);
+    r.pass(4, &|| {});
+    let img = r.film.as_ref().unwrap().image();
+    img.pixels.iter().map(|p| p.to_array()).collect()
+}
+
+/// The XML and the TOML are one scene file, and render one image bit for bit.
+fn same_scene(xml_text: &str, toml_text: &str) {
+    let (a, b) = (xml(xml_text).unwrap(), toml(toml_text));
+    assert_eq!(desc(&a), desc(&b), "generated:\n{}", a.text);
+    assert_eq!(pixels(&a), pixels(&b));
+}
+
+/// A sensor at the origin looking down -z through a 16x16 box-filtered film.
+const SENSOR: &str = r#"<integrator type="volpath"/>
+    <sensor type="perspective">
+        <float name="fov" value="60"/>
+        <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/><rfilter type="box"/></film>
+    </sensor>"#;
+
+/// The TOML twin of `SENSOR` (Mitsuba's default sampler: 4 spp, seed 0).
+const CAMERA: &str = r#"[render]
+integrator = "path"
+spp = 4
+seed = 0
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 3.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = 60.0
+resolution = [16, 16]
+"#;
+
+fn scene(body: &str) -> String {
+    format!("<scene version=\"3.0.0\">\n{SENSOR}\n{body}\n</scene>")
+}
+
+/// `rectangle` is [-1,1]^2 at z = 0 with normal +z (its area light emits along +z);
+/// `diffuse` is one-sided, `twosided` makes it two-sided; a shape without a BSDF is a
+/// one-sided diffuse of reflectance 0.5, an emitter without one is black.
+#[test]
+fn rectangle_extent_normal_and_sides_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<bsdf type="twosided" id="grey"><bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.3, 0.4"/></bsdf></bsdf>
+    <bsdf type="diffuse" id="front"/>
+    <shape type="rectangle"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter></shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale x="2" y="3"/><translate z="-1"/></transform>
+        <ref id="grey"/>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><translate z="-2"/></transform>
+        <ref id="front"/>
+    </shape>
+    <shape type="rectangle">
+        <boolean name="flip_normals" value="true"/>
+        <transform name="to_world"><translate z="-3"/></transform>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.grey]
+type = "lambert"
+albedo = [0.2, 0.3, 0.4]
+[materials.front]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[materials."default diffuse"]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "quad"
+origin = [-2.0, -3.0, -1.0]
+u = [4.0, 0.0, 0.0]
+v = [0.0, 6.0, 0.0]
+material = "grey"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "front"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -3.0]
+u = [0.0, 2.0, 0.0]
+v = [2.0, 0.0, 0.0]
+material = "default diffuse"
+"#
+        ),
+    );
+}
+
+/// `disk` is the unit disk at z = 0 with normal +z, an ellipse under a scale, its normal
+/// reversed by `flip_normals`.
+#[test]
+fn disk_extent_and_normal_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="disk"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter>
+        <transform name="to_world"><scale x="0.5" y="0.25"/><translate y="1"/></transform>
+    </shape>
+    <shape type="disk">
+        <boolean name="flip_normals" value="true"/>
+        <transform name="to_world"><scale x="2" y="1.5"/><translate z="-1"/></transform>
+        <bsdf type="diffuse" id="diffuse"/>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.diffuse]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "disk"
+center = [0.0, 1.0, 0.0]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.25, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "disk"
+center = [0.0, 0.0, -1.0]
+u = [0.0, 1.5, 0.0]
+v = [2.0, 0.0, 0.0]
+material = "diffuse"
+"#
+        ),
+    );
+}
+
+/// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
+/// unbent, two-sided.
+#[test]
+fn thin_dielectric_is_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="thindielectric" id="pane"><string name="int_ior" value="water"/><float name="ext_ior" value="1.0"/></bsdf>
+        <transform name="to_world"><scale x="0.5"/><translate z="-1"/></transform>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.pane]
+type = "thin_dielectric"
+ior = 1.333
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "quad"
+origin = [-0.5, -1.0, -1.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "pane"
+"#
+        ),
+    );
+}
+
+/// `cube` is [-1,1]^3; a homogeneous medium's `sigma_t` and `albedo` (times `scale`) are
+/// sigma_s = sigma_t albedo and sigma_a = sigma_t (1 - albedo); `hg`'s g keeps its sign
+/// (forward for g > 0 in both); a black emitter is an emitter without a material.
+#[test]
+fn cube_extent_and_medium_coefficients_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<medium type="homogeneous" id="fog">
+        <rgb name="sigma_t" value="1, 2, 4"/><float name="albedo" value="0.75"/><float name="scale" value="0.5"/>
+        <phase type="hg"><float name="g" value="0.3"/></phase>
+    </medium>
+    <shape type="cube">
+        <transform name="to_world"><scale x="0.5" y="1" z="2"/><translate x="1"/></transform>
+        <bsdf type="null"/>
+        <ref name="interior" id="fog"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="1" z="0"/><float name="radius" value="0.5"/>
+        <transform name="to_world"><scale value="2"/><translate x="-2"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0, 0, 0"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="5, 5, 5"/></emitter>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[media.fog]
+type = "homogeneous"
+sigma_a = [0.125, 0.25, 0.5]
+sigma_s = [0.375, 0.75, 1.5]
+phase = {{ type = "hg", g = 0.3 }}
+[[shapes]]
+type = "box"
+min = [0.5, -1.0, -2.0]
+max = [1.5, 1.0, 2.0]
+material = "null"
+interior = "fog"
+[[shapes]]
+type = "sphere"
+center = [-2.0, 2.0, 0.0]
+radius = 1.0
+emission = 5.0
+"#
+        ),
+    );
+}
+
+/// `lookat` builds Mitsuba's frame (image right = direction x up), `fov` spans the width by
+/// default (`fov_axis` x), `max_depth` counts segments (pathspace counts scattering vertices),
+/// the sampler's count and seed are the render's.
+#[test]
+fn sensor_fov_axis_lookat_and_depth_are_mitsubas() {
+    let body = |axis: &str| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="volpath"><integer name="max_depth" value="5"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="50"/>{axis}
+        <transform name="to_world"><lookat origin="1, 2, 3" target="0, 0.5, 0" up="0, 0, 1"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="8"/><integer name="seed" value="3"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="24"/><integer name="height" value="12"/><rfilter type="box"/></film>
+    </sensor>
+    <shape type="rectangle"><emitter type="area"/></shape>
+</scene>"#
+        )
+    };
+    let camera = |fov_deg: f32| {
+        let d = glam::DVec3::new(-1.0, -1.5, -3.0).normalize();
+        let t = glam::DVec3::new(1.0, 2.0, 3.0) + d;
+        let up = d.cross(glam::DVec3::Z.cross(d).normalize());
+        format!(
+            r#"[render]
+integrator = "path"
+spp = 8
+seed = 3
+max_depth = 4
+[camera]
+type = "pinhole"
+eye = [1.0, 2.0, 3.0]
+look_at = [{}, {}, {}]
+up = [{}, {}, {}]
+fov_deg = {fov_deg:?}
+resolution = [24, 12]
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = 1.0
+"#,
+            t.x as f32, t.y as f32, t.z as f32, up.x as f32, up.y as f32, up.z as f32
+        )
+    };
+    let half = 25f64.to_radians().tan();
+    let across_x = (2.0 * (half * 12.0 / 24.0).atan()).to_degrees() as f32;
+    same_scene(&body(""), &camera(across_x));
+    let axis_y = r#"<string name="fov_axis" value="y"/>"#;
+    same_scene(&body(axis_y), &camera(50.0));
+}
+
+/// Mitsuba's dielectric `int_ior` / `ext_ior` (names from its table) make pathspace's ratio;
+/// a GGX rough conductor keeps alpha, eta and k; point, spot (hard cone), directional and
+/// constant emitters keep Mitsuba's units and directions (local +z through `to_world`).
+#[test]
+fn bsdf_and_emitter_parameters_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere">
+        <bsdf type="dielectric" id="water"><string name="int_ior" value="water"/><string name="ext_ior" value="air"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="roughconductor" id="metal">
+            <string name="distribution" value="ggx"/><float name="alpha" value="0.2"/>
+            <rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3.9, 2.4, 2.1"/>
+        </bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="0"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="spot">
+        <transform name="to_world"><lookat origin="0, 3, 0" target="0, 0, 0" up="1, 0, 0"/></transform>
+        <float name="intensity" value="7"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="30"/>
+    </emitter>
+    <emitter type="directional"><vector name="direction" x="0" y="-1" z="-1"/><float name="irradiance" value="2"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.water]
+type = "dielectric"
+ior = {:?}
+[materials.metal]
+type = "rough_conductor"
+alpha = 0.2
+eta = [0.2, 0.9, 1.1]
+k = [3.9, 2.4, 2.1]
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "water"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "metal"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 0.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "spot"
+position = [0.0, 3.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = 7.0
+cone_deg = 30.0
+falloff_deg = 0.0
+[[lights]]
+type = "directional"
+direction = [0.0, -1.0, -1.0]
+irradiance = 2.0
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.3330f64 / 1.000277) as f32
+        ),
+    );
+}
+
+/// `plastic`: Mitsuba's defaults (diffuse 0.5, specular 1, int_ior "polypropylene" over
+/// ext_ior "air", linear, one-sided), named and numeric indices, `nonlinear`, and `twosided`.
+#[test]
+fn plastic_parameters_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere"><bsdf type="plastic"/></shape>
+    <shape type="rectangle">
+        <bsdf type="twosided" id="coated"><bsdf type="plastic">
+            <rgb name="diffuse_reflectance" value="0.1, 0.4, 0.8"/><rgb name="specular_reflectance" value="1, 0.9, 0.7"/>
+            <string name="int_ior" value="water"/><float name="ext_ior" value="1.1"/><boolean name="nonlinear" value="true"/>
+        </bsdf></bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><float name="intensity" value="5"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials."bsdf@8"]
+type = "plastic"
+diffuse = 0.5
+specular = 1.0
+ior = {:?}
+one_sided = true
+[materials.coated]
+type = "plastic"
+diffuse = [0.1, 0.4, 0.8]
+specular = [1.0, 0.9, 0.7]
+ior = {:?}
+nonlinear = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "bsdf@8"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "coated"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = 5.0
+"#,
+            (1.49f64 / 1.000277) as f32,
+            (1.3330f64 / 1.1) as f32
+        ),
+    );
+}
+
+/// `roughplastic` with Mitsuba's defaults (Beckmann alpha 0.1, polypropylene over air,
+/// diffuse 0.5, one-sided) and with every parameter inside a `twosided` (a panel turned away
+/// from the camera: its back is seen); `roughdielectric` and `roughconductor` default to
+/// Beckmann too.
+#[test]
+fn rough_plastic_and_beckmann_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="rectangle">
+        <bsdf type="roughplastic" id="plain"/>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="twosided" id="tinted">
+            <bsdf type="roughplastic">
+                <string name="distribution" value="GGX"/><float name="alpha" value="0.3"/>
+                <float name="int_ior" value="1.6"/><string name="ext_ior" value="water"/>
+                <rgb name="diffuse_reflectance" value="0.8, 0.4, 0.1"/>
+                <rgb name="specular_reflectance" value="0.7, 0.7, 0.7"/>
+                <boolean name="nonlinear" value="true"/>
+            </bsdf>
+        </bsdf>
+        <transform name="to_world"><scale value="0.5"/><rotate y="1" angle="180"/><translate x="0.5"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted"/>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="-0.6" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="roughconductor" id="metal"><float name="alpha" value="0.4"/></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.plain]
+type = "rough_plastic"
+one_sided = true
+[materials.tinted]
+type = "rough_plastic"
+distribution = "ggx"
+alpha = 0.3
+ior = {:?}
+diffuse = [0.8, 0.4, 0.1]
+specular = 0.7
+nonlinear = true
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+alpha = 0.1
+ior = {:?}
+[materials.metal]
+type = "rough_conductor"
+distribution = "beckmann"
+alpha = 0.4
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "plain"
+[[shapes]]
+type = "quad"
+origin = [1.0, -0.5, 0.0]
+u = [-1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+material = "tinted"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "sphere"
+center = [0.0, -0.6, 0.0]
+radius = 0.3
+material = "metal"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.6f64 / 1.3330) as f32,
+            (1.5046f64 / 1.000277) as f32,
+        ),
+    );
+}
+
+/// `envmap`: the file relative to the XML, `scale`, and `to_world` as the map light's
+/// rotation (the mapping itself is Mitsuba's, pinned texel by texel in `tests/spec/scene/envmap.rs`); a
+/// translation is refused.
+#[test]
+fn envmap_is_the_map_light_turned_by_to_world() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere"><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>
+    <emitter type="envmap">
+        <string name="filename" value="scenes/envmap-sky.exr"/><float name="scale" value="2"/>
+        <transform name="to_world"><rotate y="1" angle="90"/></transform>
+    </emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials."bsdf@8"]
+type = "lambert"
+albedo = 0.5
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "bsdf@8"
+[[lights]]
+type = "environment"
+map = "scenes/envmap-sky.exr"
+scale = 2.0
+to_world = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]
+"#
+        ),
+    );
+    let moved = scene(
+        r#"<emitter type="envmap"><string name="filename" value="scenes/envmap-sky.exr"/>
+        <transform name="to_world"><translate x="1"/></transform></emitter>"#,
+    );
+    let Err(err) = xml(&moved) else {
+        panic!("a translated envmap is refused")
+    };
+    assert!(
+        err.contains("t.xml:8:") && err.contains("rotation"),
+        "{err}"
+    );
+}
+
+/// The fog box as shipped for Mitsuba (`benches/mitsuba-fog-box.xml`, one-sided walls, its
+/// medium box grown behind them) and with the exact cube renders like `scenes/fog-box.toml`
+/// (two-sided walls whose backs no path reaches) within error.
+#[test]
+fn the_fog_box_in_xml_renders_like_the_toml() {
+    let text = std::fs::read_to_string(dir().join("benches/mitsuba-fog-box.xml")).unwrap();
+    let small = text.replace(
+        r#"<default name="res"        value="256"/>"#,
+        r#"<default name="res"        value="32"/>"#,
+    );
+    assert_ne!(
+        small, text,
+        "the XML's res default changed; update this test"
+    );
+    let exact = small
+        .replace(r#""gx"         value="1.001""#, r#""gx" value="1""#)
+        .replace(r#""gz"         value="1.0005""#, r#""gz" value="1""#)
+        .replace(r#""tz"         value="-0.0005""#, r#""tz" value="0""#);
+    assert_eq!(
+        exact.matches(r#"value="1"/>"#).count() + exact.matches(r#"value="0"/>"#).count(),
+        small.matches(r#"value="1"/>"#).count() + small.matches(r#"value="0"/>"#).count() + 3,
+        "the cube's defaults changed; update this test"
+    );
+    let toml_text = std::fs::read_to_string(dir().join("scenes/fog-box.toml"))
+        .unwrap()
+        .replace("resolution = [256, 256]", "resolution = [32, 32]");
+    let mean = |src: &SceneSource, seed: u64| {
+        let scene = Scene::load(src).unwrap_or_else(|e| panic!("{e}"));
+        let mut r = Renderer::new(&scene, IntegratorKind::Path, seed, None);
+        r.pass(64, &|| {});
+        let film = r.film.as_ref().unwrap();
+        let m: [(f64, f64, f64); 3] = std::array::from_fn(|c| common::film_mean(film, c));
+        m
+    };
+    let reference = mean(&toml(&toml_text), 1);
+    let mut fam = Family::new("mitsuba import: fog box XML vs TOML");
+    for (what, text, seed) in [("grown", &small, 2), ("exact", &exact, 3)] {
+        let m = mean(&xml(text).unwrap(), seed);
+        for c in 0..3 {
+            fam.means_agree(
+                &format!("{what} XML vs TOML, channel {c}"),
+                m[c],
+                reference[c],
+            );
+        }
+    }
+    fam.finish();
+}
+
+/// Every refusal names the plugin or parameter, the file and the line; nothing outside the
+/// subset is imported as a different scene.
+#[test]
+fn unsupported_input_is_refused_with_its_name_and_line() {
+    let line = SENSOR.lines().count() + 2;
+    let cases: [(&str, &str); 14] = [
+        (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
+        (
+            r#"<shape type="rectangle"><bsdf type="blendbsdf"/></shape>"#,
+            "the BSDF `blendbsdf`",
+        ),
+        (r#"<emitter type="envmap"/>"#, "`filename` is missing"),
+        (
+            r#"<shape type="rectangle"><bsdf type="roughconductor"><string name="distribution" value="phong"/></bsdf></shape>"#,
+            "distribution = phong",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></shape>"#,
+            "material = \"Au\"",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap"/></bsdf></shape>"#,
+            "textures",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="diffuse"><float name="roughness" value="1"/></bsdf></shape>"#,
+            "the parameter `roughness` of `diffuse`",
+        ),
+        (r#"<include filename="other.xml"/>"#, "<include>"),
+        (
+            r#"<shape type="rectangle"><float name="x" value="$nope"/></shape>"#,
+            "`$nope`",
+        ),
+        (r#"<emitter type="spot"/>"#, "beam_width"),
+        (
+            r#"<shape type="cube"><transform name="to_world"><rotate y="1" angle="30"/></transform></shape>"#,
+            "rotated cube",
+        ),
+        (
+            r#"<shape type="obj"><string name="filename" value="x.obj"/></shape>"#,
+            "face_normals",
+        ),
+        (
+            r#"<shape type="rectangle"><ref id="missing"/></shape>"#,
+            "id=\"missing\"",
+        ),
+        (
+            r#"<medium type="homogeneous" id="m"/><shape type="cube"><ref name="interior" id="m"/><bsdf type="null"/><transform name="to_world"><scale value="9"/></transform></shape>"#,
+            "the camera in vacuum",
+        ),
+    ];
+    for (body, needle) in cases {
+        let text = scene(body);
+        let e =
+            match xml(&text).and_then(|s| Scene::load(&s).map(|_| ()).map_err(|e| e.to_string())) {
+                Ok(()) => panic!("accepted: {body}"),
+                Err(e) => e,
+            };
+        assert!(e.contains(needle), "{body}: `{e}` does not name {needle}");
+        let at = if needle == "the camera in vacuum" {
+            3
+        } else {
+            line
+        };
+        assert!(
+            e.starts_with(&format!("t.xml:{at}:")),
+            "{body}: `{e}` is not at line {at}"
+        );
+    }
+    // the volpath/path distinction: Mitsuba's `path` ignores media
+    let path = scene(r#"<medium type="homogeneous" id="m"/><shape type="sphere"><bsdf type="null"/><ref name="interior" id="m"/></shape>"#)
+        .replace(r#"<integrator type="volpath"/>"#, r#"<integrator type="path"/>"#);
+    let e = xml(&path).expect_err("path with media accepted");
+    assert!(
+        e.contains("ignores media") && e.starts_with("t.xml:2:"),
+        "{e}"
+    );
+    let broken = xml("<scene version=\"3.0.0\">\n<shape>\n</scene>")
+        .err()
+        .unwrap();
+    assert!(
+        broken.starts_with("t.xml:3:") && broken.contains("XML"),
+        "{broken}"
+    );
+}
+
+/// A `gridvolume`'s values sit at the cell centres of the unit cube mapped by `to_world`
+/// (Mitsuba 3 ignores the `.vol`'s own box): pathspace's lattice spans the outer centres; a
+/// grid that is not zero on its faces (where Mitsuba clamps) is refused.
+#[test]
+fn gridvolume_values_sit_at_cell_centres() {
+    use pathspace::medium::grid::{encode_vol, Grid};
+    use pathspace::scene::file::{MediumDesc, PhaseDesc, PropagationDesc, RgbValue};
+    let src = mitsuba::import(
+        "grid-cloud.xml",
+        &std::fs::read_to_string(dir().join("scenes/xml/grid-cloud.xml")).unwrap(),
+        dir().join("scenes/xml"),
+    )
+    .unwrap();
+    // the outer cell centres of 16 cells over [-1, 1]; sigma = scale albedo and
+    // scale (1 - albedo) in f64, rounded once
+    let h = 1.0 - 1.0 / 16.0;
+    let per =
+        |f: fn(f64) -> f64| RgbValue::Triple([0.9f64, 0.92, 0.95].map(|x| (f(x) * 8.0) as f32));
+    let expected = MediumDesc::Grid {
+        sigma_a: per(|x| 1.0 - x),
+        sigma_s: per(|x| x),
+        phase: PhaseDesc::Isotropic {},
+        emission: None,
+        file: "blob.vol".into(),
+        min: Some([-h; 3]),
+        max: Some([h; 3]),
+        propagation: PropagationDesc::DeltaTracking,
+        step: None,
+    };
+    assert_eq!(desc(&src).media["cloud"], expected);
+    // a face that is not zero
+    let tmp = std::env::temp_dir().join(format!("pathspace-xml-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let g = Grid::new([2, 2, 2], vec![1.0; 8]).unwrap();
+    std::fs::write(
+        tmp.join("ones.vol"),
+        encode_vol(&g, glam::Vec3::ZERO, glam::Vec3::ONE),
+    )
+    .unwrap();
+    let text = scene(
+        r#"<medium type="heterogeneous" id="m"><volume name="sigma_t" type="gridvolume"><string name="filename" value="ones.vol"/></volume></medium>
+    <shape type="cube"><bsdf type="null"/><ref name="interior" id="m"/></shape>"#,
+    );
+    let e = mitsuba::import("t.xml", &text, tmp.clone())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("t.xml:8:") && e.contains("not zero on its faces"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&tmp).unwrap();
+}
+
+/// A PLY mesh (ASCII or binary, either byte order) reads as the same triangles as the OBJ it
+/// was written from (the same image bit for bit); Mitsuba's `ply` shape becomes that mesh; a
+/// truncated PLY is refused with the file's name.
+#[test]
+fn ply_meshes_read_like_obj() {
+    let obj = std::fs::read_to_string(dir().join("tests/fixtures/cube.obj")).unwrap();
+    let vs: Vec<Vec<f32>> = obj
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| {
+            l[2..]
+                .split_whitespace()
+                .map(|w| w.parse().unwrap())
+                .collect()
+        })
+        .collect();
+    let fs: Vec<Vec<i32>> = obj
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(|l| {
+            l[2..]
+                .split_whitespace()
+                .map(|w| w.split('/').next().unwrap().parse::<i32>().unwrap() - 1)
+                .collect()
+        })
+        .collect();
+    let head = |format: &str| {
+        format!("ply\nformat {format} 1.0\ncomment the test cube\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n", vs.len(), fs.len())
+    };
+    let mut ascii = head("ascii").into_bytes();
+    for v in &vs {
+        ascii.extend(format!("{} {} {}\n", v[0], v[1], v[2]).bytes());
+    }
+    for f in &fs {
+        let ids: Vec<String> = f.iter().map(i32::to_string).collect();
+        ascii.extend(format!("{} {}\n", f.len(), ids.join(" ")).bytes());
+    }
+    let binary = |big: bool| {
+        let mut b = head(if big {
+            "binary_big_endian"
+        } else {
+            "binary_little_endian"
+        })
+        .into_bytes();
+        let word = |x: [u8; 4]| {
+            if big {
+                let mut y = x;
+                y.reverse();
+                y
+            } else {
+                x
+            }
+        };
+        for v in &vs {
+            for c in v {
+                b.extend(word(c.to_le_bytes()));
+            }
+        }
+        for f in &fs {
+            b.push(f.len() as u8);
+            for i in f {
+                b.extend(word(i.to_le_bytes()));
+            }
+        }
+        b
+    };
+    let tmp = std::env::temp_dir().join(format!("pathspace-ply-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    std::fs::copy(dir().join("tests/fixtures/cube.obj"), tmp.join("cube.obj")).unwrap();
+    std::fs::write(tmp.join("ascii.ply"), &ascii).unwrap();
+    std::fs::write(tmp.join("little.ply"), binary(false)).unwrap();
+    std::fs::write(tmp.join("big.ply"), binary(true)).unwrap();
+    std::fs::write(tmp.join("short.ply"), &binary(false)[..300]).unwrap();
+    let with_mesh = |file: &str| {
+        SceneSource {
+        name: "t.toml".into(),
+        text: format!("{CAMERA}\n[[shapes]]\ntype = \"mesh\"\nobj = \"{file}\"\nemission = 1.0\n[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 9.0\nmaterial = \"w\"\n[materials.w]\ntype = \"lambert\"\nalbedo = 0.5\n"),
+        base_dir: tmp.clone(),
+        origin: None,
+        inputs: Default::default(),
+    }
+    };
+    let want = pixels(&with_mesh("cube.obj"));
+    for f in ["ascii.ply", "little.ply", "big.ply"] {
+        assert_eq!(pixels(&with_mesh(f)), want, "{f}");
+    }
+    let e = Scene::load(&with_mesh("short.ply"))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("short.ply") && e.contains("ends early"), "{e}");
+    let text = scene(
+        r#"<shape type="ply"><string name="filename" value="little.ply"/><boolean name="face_normals" value="true"/></shape>"#,
+    );
+    let src = mitsuba::import("t.xml", &text, tmp.clone()).unwrap();
+    assert!(
+        matches!(&desc(&src).shapes[0], file::ShapeDesc::Mesh { obj, .. } if obj == "little.ply")
+    );
+    Scene::load(&src).unwrap();
+    std::fs::remove_dir_all(&tmp).unwrap();
+}
+
+/// `info` on an XML lists every imported element with its line and what it became; the scene's
+/// hash (provenance, shards) does not depend on the path it was read by.
+#[test]
+fn info_lists_what_was_imported_and_how() {
+    let text = std::fs::read_to_string(dir().join("scenes/xml/hg-sphere.xml")).unwrap();
+    let (a, b) = (
+        mitsuba::import("hg-sphere.xml", &text, dir()).unwrap(),
+        mitsuba::import("/elsewhere/hg-sphere.xml", &text, dir()).unwrap(),
+    );
+    assert_eq!(a.hash(), b.hash());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_pathspace"))
+        .arg("info")
+        .arg(dir().join("scenes/xml/hg-sphere.xml"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for line in [
+        "imported from Mitsuba 3 XML, element by element:",
+        "line 8: <integrator type=\"volpath\"> -> render: ",
+        "line 33: <medium type=\"homogeneous\"> -> media.haze: homogeneous, sigma_s = scale sigma_t albedo = [1.425, 2.025, 2.4]",
+        "line 51: <shape type=\"sphere\"> -> shapes[1]: sphere at [0, 0.8, 0], radius 0.8, material null, interior haze",
+    ] {
+        assert!(text.contains(line), "`{line}` missing from:\n{text}");
+    }
+}
+
+/// pathspace does not clip: a near clip beyond Mitsuba's default would give another image, so
+/// it is refused at its line; the defaults themselves are accepted.
+#[test]
+fn clipping_beyond_mitsubas_defaults_is_refused() {
+    let text = scene("").replace(
+        "<float name=\"fov\" value=\"60\"/>",
+        "<float name=\"fov\" value=\"60\"/><float name=\"near_clip\" value=\"0.5\"/>",
+    );
+    let Err(err) = xml(&text) else {
+        panic!("near_clip = 0.5 must be refused")
+    };
+    assert!(
+        err.contains("t.xml:3:") && err.contains("near_clip"),
+        "{err}"
+    );
+    let defaults = scene("").replace(
+        "<float name=\"fov\" value=\"60\"/>",
+        "<float name=\"fov\" value=\"60\"/><float name=\"near_clip\" value=\"0.01\"/><float name=\"far_clip\" value=\"10000\"/>",
+    );
+    xml(&defaults).unwrap();
+}
+
+/// An element with more attributes than any Mitsuba element has is refused before the XML
+/// library reads it (which checks each attribute against its element's earlier ones: 80,000
+/// attributes cost it tens of CPU seconds), naming the line of the tag; attributes in
+/// comments, in quoted values and in CDATA are not counted.
+#[test]
+fn an_element_with_thousands_of_attributes_is_refused_before_parsing() {
+    let attrs: String = (0..80_000).map(|i| format!(" a{i}=\"{i}\"")).collect();
+    let text = format!("<scene version=\"3.0.0\">\n\n<shape type=\"sphere\"{attrs}/>\n</scene>");
+    let e = xml(&text).unwrap_err();
+    assert!(
+        e.contains("t.xml:3") && e.contains("more than 64 attributes"),
+        "{e}"
+    );
+    let limit: String = (0..64).map(|i| format!(" a{i}=\"{i}\"")).collect();
+    let e = xml(&format!("<scene version=\"3.0.0\"><x{limit}/></scene>")).unwrap_err();
+    assert!(
+        !e.contains("attributes"),
+        "64 attributes are within the limit: {e}"
+    );
+    let hidden = format!(
+        "<scene version=\"3.0.0\"><!-- <x{attrs}/> --><x a=\"{}\"/><![CDATA[<x{attrs}>]]></scene>",
+        "=".repeat(100)
+    );
+    let e = xml(&hidden).unwrap_err();
+    assert!(
+        !e.contains("attributes"),
+        "counted outside tags or inside quotes: {e}"
+    );
+}

@@ -1,0 +1,42 @@
+//! The executable specification, laid out like `src/`: the module `a::b` specifies
+//! `src/a/b.rs` (or `src/a/b/mod.rs`); `tests/repository/index.rs` checks that every module
+//! of `src/` has one here or names the test module that covers it.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod aov;
+mod bsdf;
+mod cli;
+mod enlightened;
+mod geometry;
+mod integrator {
+    mod mlt;
+    mod mmlt;
+    mod pssmlt;
+    mod reach;
+    mod settings;
+    mod smc {
+        mod cache;
+        mod march;
+    }
+}
+mod math {
+    mod primary_sample;
+    mod warp;
+}
+mod measure;
+mod medium {
+    mod equiangular;
+    mod heterogeneous;
+    mod homogeneous;
+    mod phase;
+}
+mod path;
+mod render {
+    mod checkpoint;
+    mod provenance;
+    mod run;
+    mod shard;
+}
+mod scene;
