@@ -527,6 +527,13 @@ fn assignment_claims_on_a_full_disk_leave_no_empty_claim() {
         "[package]\nname = \"copy\"\nversion = \"0.1.0+copy.0123abcd\"\n",
     )
     .unwrap();
+    // `check` reads the copy's course registry before it claims a directory
+    std::fs::create_dir_all(copy.join("book")).unwrap();
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/book/course.toml"),
+        copy.join("book/course.toml"),
+    )
+    .unwrap();
     let fs = base.join("fs");
     if !full_tmpfs_with(&fs, "earlier.txt", b"earlier") {
         eprintln!("skipped: this test cannot mount a tmpfs here");
