@@ -854,11 +854,10 @@ fn agreement_deep() {
     fam.finish();
 }
 
-// ---- emitting media (L_e,V0 of eq. 1): the path tracer against its delta-tracking
-// reference; every other integrator refuses the scene, naming the emitting medium ----
+// ---- emitting media (L_e,V0 of eq. 1): the path tracer, light tracing and BDPT (light
+// subpaths from a volume vertex x0) against the delta-tracking reference; MLT and SMC refuse
+// the scene, naming the emitting medium ----
 
-const EMITTING_LIGHT: (&str, &str) = ("light*", "emitting medium");
-const EMITTING_BDPT: (&str, &str) = ("bdpt*", "emitting medium");
 const EMITTING_MLT: (&str, &str) = ("mlt*", "emitting medium");
 const EMITTING_SMC: (&str, &str) = ("smc*", "emitting medium");
 
@@ -882,8 +881,6 @@ fn agreement_emitting_chromatic() {
         &Row {
             refuse: &[
                 NO_AREA_LIGHT,
-                EMITTING_LIGHT,
-                EMITTING_BDPT,
                 EMITTING_MLT,
                 EMITTING_SMC,
             ],
@@ -904,8 +901,6 @@ fn agreement_emitting_grid() {
             spp: SPP / 2,
             refuse: &[
                 EQUIANGULAR_INHOMOGENEOUS,
-                EMITTING_LIGHT,
-                EMITTING_BDPT,
                 EMITTING_MLT,
                 EMITTING_SMC,
             ],
@@ -932,8 +927,6 @@ fn agreement_emitting_procedural() {
             spp: SPP / 2,
             refuse: &[
                 EQUIANGULAR_INHOMOGENEOUS,
-                EMITTING_LIGHT,
-                EMITTING_BDPT,
                 EMITTING_MLT,
                 EMITTING_SMC,
             ],
