@@ -186,7 +186,7 @@ fn emitting_furnace() {
         // light and BDPT take the environment: volume starts x0 and environment starts both
         for (j, kind) in BIDIRECTIONAL.into_iter().enumerate() {
             let seed = 200 + 50 * j as u64 + 10 * i as u64;
-            image_runs_are(&mut fam, what, kind, &scene, (16, 8, seed), truth);
+            image_runs_are(&mut fam, what, kind, &scene, (32, 16, seed), truth);
         }
     }
     fam.finish();
