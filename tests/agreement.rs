@@ -879,11 +879,7 @@ fn agreement_emitting_chromatic() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[
-                NO_AREA_LIGHT,
-                EMITTING_MLT,
-                EMITTING_SMC,
-            ],
+            refuse: &[NO_AREA_LIGHT, EMITTING_MLT, EMITTING_SMC],
             ..row("emitting-chromatic", text, 3)
         },
     );
@@ -899,11 +895,7 @@ fn agreement_emitting_grid() {
         &mut fam,
         &Row {
             spp: SPP / 2,
-            refuse: &[
-                EQUIANGULAR_INHOMOGENEOUS,
-                EMITTING_MLT,
-                EMITTING_SMC,
-            ],
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS, EMITTING_MLT, EMITTING_SMC],
             ..row("emitting-grid", text, 3)
         },
     );
@@ -925,11 +917,7 @@ fn agreement_emitting_procedural() {
         &mut fam,
         &Row {
             spp: SPP / 2,
-            refuse: &[
-                EQUIANGULAR_INHOMOGENEOUS,
-                EMITTING_MLT,
-                EMITTING_SMC,
-            ],
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS, EMITTING_MLT, EMITTING_SMC],
             ..row("emitting-procedural", text, 3)
         },
     );

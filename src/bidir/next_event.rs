@@ -97,7 +97,7 @@ impl Bdpt<'_> {
         );
         v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
         let d2 = (v.p - pt.p).length_squared();
-        if !(v.pdf_fwd > 0.0) || d2 == 0.0 {
+        if v.pdf_fwd.is_nan() || v.pdf_fwd <= 0.0 || d2 == 0.0 {
             return None;
         }
         let wi = (v.p - pt.p) / d2.sqrt();

@@ -484,7 +484,7 @@ impl Bdpt<'_> {
             m,
         );
         v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
-        if !(v0.pdf_fwd > 0.0) || volume <= 0.0 {
+        if v0.pdf_fwd.is_nan() || v0.pdf_fwd <= 0.0 || volume <= 0.0 {
             return;
         }
         v0.beta = vs.emission;
