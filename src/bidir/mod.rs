@@ -128,10 +128,36 @@ impl<'t> Bdpt<'t> {
     /// whatever became of the light subpath: a walk that ended before its first vertex (a
     /// guided emission direction behind the light) must not take that strategy with it.
     pub fn max_light_vertices(scene: &Scene, light: &[Vertex]) -> usize {
-        if scene.lights.is_empty() {
+        if scene.lights.is_empty() && scene.emitters.is_empty() {
             0
         } else {
             light.len().max(1)
         }
     }
+}
+
+/// The probability that a light subpath (or next-event estimation's light vertex) starts in
+/// the emitting media rather than on a light: their share of the emitted power (power
+/// selection across the lights and the emitting media); 0 without emitting media.
+pub fn volume_share(scene: &Scene) -> f32 {
+    if scene.emitters.is_empty() {
+        return 0.0;
+    }
+    if scene.lights.is_empty() {
+        return 1.0;
+    }
+    let v = crate::spectrum::average(scene.emitters.power());
+    let l = scene.light_distr.total();
+    if v + l > 0.0 {
+        v / (v + l)
+    } else {
+        0.5
+    }
+}
+
+/// The factor of every light's selection probability: 1 - [`volume_share`], exactly 1 in a
+/// scene without emitting media (so the densities keep their bits there).
+#[inline]
+pub fn light_share(scene: &Scene) -> f32 {
+    1.0 - volume_share(scene)
 }

@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use super::connect::Connection;
-use super::{Bdpt, Strategies};
+use super::{volume_share, Bdpt, Strategies};
 use crate::math::Sampler;
 use crate::path::geometry_term::cosine_factor;
 use crate::path::subpath::Subpath;
@@ -29,9 +29,15 @@ impl Bdpt<'_> {
         if !pt.is_connectible(scene) {
             return None;
         }
+        // the lights or the emitting media, by power (a number drawn only when some medium
+        // glows)
+        let volume = volume_share(scene);
+        if volume > 0.0 && (volume >= 1.0 || sampler.next_f32() < volume) {
+            return self.connect_volume_sample(scene, eye_path, t, sampler);
+        }
         let (li, ls, sel_pdf, start_prim) = self.sample_light_for(scene, pt.p, sampler)?;
         let mut v = self.light_sample_vertex(scene, li, &ls, start_prim, pt.p);
-        v.beta = ls.value / sel_pdf;
+        v.beta = ls.value / (sel_pdf * (1.0 - volume));
         let (f, raster) = Self::eye_end_factor(scene, eye_path, t, &v, ls.wi)?;
         if f == Rgb::ZERO {
             return None;
@@ -52,6 +58,61 @@ impl Bdpt<'_> {
         // an infinite light's edge leaves the scene: only the passage of its segments counts
         let pdf_qp = e.pdf_ab;
         let pdf_pq = e.pdf_ba;
+        let changed = (t > 1 && self.strategies == Strategies::All)
+            .then(|| self.changed_at_light(scene, &v, eye_path, t, (pdf_qp, pdf_pq)));
+        Some(Connection {
+            l,
+            pdf_qp,
+            pdf_pq,
+            sampled: Some(v),
+            raster,
+            changed,
+        })
+    }
+
+    /// Strategy s = 1 with a volume vertex x0 of the emitting media as the light vertex: a
+    /// point by emitted power, density per unit volume (selection included), connected to the
+    /// eye subpath's end pt with G = g(pt) / r^2 (x0 emits isotropically, no cosine there).
+    fn connect_volume_sample<E: Subpath + ?Sized>(
+        &self,
+        scene: &Scene,
+        eye_path: &E,
+        t: usize,
+        sampler: &mut Sampler,
+    ) -> Option<Connection> {
+        let pt = &eye_path.vertices()[t - 1];
+        let u_select = sampler.next_f32();
+        let u = Vec3::new(sampler.next_f32(), sampler.next_f32(), sampler.next_f32());
+        let vs = scene.emitters.sample(scene, u_select, u)?;
+        if scene.medium_at(vs.p) != Some(vs.medium) || vs.emission == Rgb::ZERO {
+            return None;
+        }
+        let m = Some(vs.medium);
+        let mut v = Vertex::new(
+            VertexKind::Medium { medium: vs.medium },
+            vs.p,
+            Vec3::ZERO,
+            m,
+            m,
+        );
+        v.pdf_fwd = v.light_origin_pdf(scene, self.tech);
+        let d2 = (v.p - pt.p).length_squared();
+        if v.pdf_fwd.is_nan() || v.pdf_fwd <= 0.0 || d2 == 0.0 {
+            return None;
+        }
+        let wi = (v.p - pt.p) / d2.sqrt();
+        // L_e,V0 G / p with G's 1 / r^2 here and g(pt) below
+        v.beta = vs.emission / (v.pdf_fwd * d2);
+        let (f, raster) = Self::eye_end_factor(scene, eye_path, t, &v, wi)?;
+        if f == Rgb::ZERO {
+            return None;
+        }
+        let e = scene.edge(v.edge_end(pt.p), pt.edge_end(v.p), sampler);
+        if e.transmittance == Rgb::ZERO {
+            return None;
+        }
+        let l = pt.beta * f * v.beta * e.transmittance * cosine_factor(pt, wi);
+        let (pdf_qp, pdf_pq) = (e.pdf_ab, e.pdf_ba);
         let changed = (t > 1 && self.strategies == Strategies::All)
             .then(|| self.changed_at_light(scene, &v, eye_path, t, (pdf_qp, pdf_pq)));
         Some(Connection {

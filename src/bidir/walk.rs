@@ -4,7 +4,8 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{Bdpt, Scratch, SensorStart, Strategies, WalkLimits, MAX_SUBPATH_VERTICES};
+use super::MAX_SUBPATH_VERTICES;
+use super::{volume_share, Bdpt, Scratch, SensorStart, Strategies, WalkLimits};
 use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::{offset_origin, Primitive, Ray};
 use crate::math::{warp, Frame, Sampler};
@@ -395,6 +396,12 @@ impl Bdpt<'_> {
         path: &mut Vec<Vertex>,
     ) {
         path.clear();
+        let volume = volume_share(scene);
+        // the choice between the lights and the emitting media draws a number only when
+        // some medium glows
+        if volume > 0.0 && (volume >= 1.0 || sampler.next_f32() < volume) {
+            return self.volume_light_subpath(scene, volume, limits, sampler, path);
+        }
         if scene.lights.is_empty() {
             return;
         }
@@ -423,10 +430,11 @@ impl Bdpt<'_> {
         v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
         if let VertexKind::InfiniteLight { .. } = v0.kind {
             v0.pdf_fwd = match light {
-                Light::Environment(_) => pmf * es.pdf_dir,
+                Light::Environment(_) => pmf * es.pdf_dir * (1.0 - volume),
                 _ => 0.0,
             };
         }
+        let start_pdf = start_pdf * (1.0 - volume);
         let cos = if es.n == Vec3::ZERO || v0.is_infinite_light() {
             1.0
         } else {
@@ -439,6 +447,56 @@ impl Bdpt<'_> {
             medium: lm,
             beta,
             first,
+            mode: TransportMode::Importance,
+            max_vertices: self.max_vertices(1, limits),
+            roulette: limits.roulette,
+        };
+        self.random_walk(scene, start, path, sampler);
+    }
+
+    /// The light subpath from a volume vertex x0 of the emitting media (eq. 5): a point by
+    /// emitted power (`volume`: the media's share of the selection), a direction uniform on
+    /// the sphere; x0's density is per unit volume, the first edge's per solid angle.
+    fn volume_light_subpath(
+        &self,
+        scene: &Scene,
+        volume: f32,
+        limits: WalkLimits,
+        sampler: &mut Sampler,
+        path: &mut Vec<Vertex>,
+    ) {
+        let u_select = sampler.next_f32();
+        let u = Vec3::new(sampler.next_f32(), sampler.next_f32(), sampler.next_f32());
+        let u_dir = sampler.next_2d();
+        let Some(vs) = scene.emitters.sample(scene, u_select, u) else {
+            return;
+        };
+        // the lattice's cells may reach outside the medium
+        if scene.medium_at(vs.p) != Some(vs.medium) || vs.emission == Rgb::ZERO {
+            return;
+        }
+        let m = Some(vs.medium);
+        let mut v0 = Vertex::new(
+            VertexKind::Medium { medium: vs.medium },
+            vs.p,
+            Vec3::ZERO,
+            m,
+            m,
+        );
+        v0.pdf_fwd = v0.light_origin_pdf(scene, self.tech);
+        if v0.pdf_fwd.is_nan() || v0.pdf_fwd <= 0.0 || volume <= 0.0 {
+            return;
+        }
+        v0.beta = vs.emission;
+        let pdf_dir = 0.25 * std::f32::consts::FRAC_1_PI;
+        let d = warp::uniform_sphere(u_dir);
+        let beta = vs.emission / (v0.pdf_fwd * pdf_dir);
+        path.push(v0);
+        let start = WalkStart {
+            ray: Ray::new(vs.p, d),
+            medium: m,
+            beta,
+            first: FirstPdf::SolidAngle(pdf_dir),
             mode: TransportMode::Importance,
             max_vertices: self.max_vertices(1, limits),
             roulette: limits.roulette,

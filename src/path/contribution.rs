@@ -18,10 +18,18 @@ use crate::spectrum::Rgb;
 pub fn measurement_contribution(scene: &Scene, path: &Path, sampler: &mut Sampler) -> Rgb {
     let v = &path.vertices;
     let k = path.length();
-    if k == 0 || !matches!(v[0].kind, VertexKind::Light { .. }) || !v[k].is_sensor() {
+    if k == 0 || !v[k].is_sensor() {
         return Rgb::ZERO;
     }
-    let mut f = v[0].emitted(scene, v[1].p);
+    let mut f = match v[0].kind {
+        VertexKind::Light { .. } => v[0].emitted(scene, v[1].p),
+        // a volume vertex x0: the volume emittance L_e,V0 (isotropic)
+        VertexKind::Medium { medium } => match scene.media[medium as usize].emission(v[0].p) {
+            e if e == Rgb::ZERO => return e,
+            e => e,
+        },
+        _ => return Rgb::ZERO,
+    };
     for i in 0..k {
         let (g, tau) = geometry_term(scene, &v[i], &v[i + 1], sampler);
         f *= tau * g;

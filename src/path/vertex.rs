@@ -209,9 +209,11 @@ impl Vertex {
         emitted_by(&scene.lights[light as usize], self.n, w)
     }
 
-    /// Radiance this surface vertex emits towards `towards`, if it is on an area light.
+    /// Radiance this surface vertex emits towards `towards`, if it is on an area light, or
+    /// the volume emittance L_e,V0 at a medium vertex (eq. 1; isotropic, per unit length).
     pub fn surface_emission(&self, scene: &Scene, towards: Vec3) -> Rgb {
         match self.kind {
+            VertexKind::Medium { medium } => scene.media[medium as usize].emission(self.p),
             VertexKind::Surface { prim }
             | VertexKind::Light {
                 prim: Some(prim), ..
@@ -303,13 +305,23 @@ impl Vertex {
         ) {
             return self.light_pdf_to(scene, tech, next);
         }
+        if prev.is_none() && self.is_medium() {
+            // a medium vertex without predecessor is a light path's volume start x0
+            return self.light_pdf_to(scene, tech, next);
+        }
         let pdf = self.pdf_dir(scene, tech, prev, next.p, mode);
         to_area(pdf, self, next)
     }
 
     /// Density (in its own measure) of choosing this light vertex as the start of a light path.
     pub fn light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
-        match self.kind {
+        // the lights' share of the selection (exactly 1 without emitting media)
+        let share = crate::bidir::light_share(scene);
+        let pdf = match self.kind {
+            // a volume vertex x0 (eq. 5): the media's share times the density per unit volume
+            VertexKind::Medium { medium } => {
+                return crate::bidir::volume_share(scene) * scene.emitters.pdf(medium, self.p);
+            }
             VertexKind::Light { light, prim } => {
                 let pmf = scene.light_pmf(light);
                 match (&scene.lights[light as usize], prim) {
@@ -326,7 +338,8 @@ impl Vertex {
                 _ => 0.0,
             },
             _ => self.surface_light_origin_pdf(scene, tech),
-        }
+        };
+        pdf * share
     }
 
     /// For an eye-path vertex that hit an area light: the light-path density of starting there.
@@ -351,6 +364,10 @@ impl Vertex {
                     Some(l) => l,
                     None => return 0.0,
                 }
+            }
+            // a glowing medium emits uniformly over the sphere
+            VertexKind::Medium { medium } if scene.media[medium as usize].emits() => {
+                return to_area(0.25 * std::f32::consts::FRAC_1_PI, self, next);
             }
             _ => return 0.0,
         };

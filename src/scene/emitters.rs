@@ -5,9 +5,11 @@
 //! density is per unit volume, so an estimator that reaches the same point another way
 //! (a direction, then a free-flight distance r) converts with dV = r^2 dw dr.
 //!
-//! The lattice only shapes the density: a cell whose centre lies outside the medium, or where
-//! the emission is zero, gets no samples, and the estimator that collects emission along free
-//! flights (whose MIS weight is then 1) covers it, so the combination stays unbiased.
+//! The lattice only shapes the density, which is positive over the whole box: a cell whose
+//! centre lies outside the medium gets a small share of samples (the medium may reach into
+//! it), every cell a floor, so an estimator that finds emission only where light subpaths
+//! start (light tracing) sees all of it. A point drawn outside the medium is rejected by the
+//! caller (`Scene::medium_at`).
 //! Book: "The transport equations", section "Emitting media".
 
 use glam::Vec3;
@@ -19,6 +21,10 @@ use crate::spectrum::{average, Rgb};
 
 /// Cells per axis of the lattice an emitting medium's points are drawn from.
 pub const LATTICE_RES: usize = 12;
+/// The weight of a cell whose centre lies outside the medium, relative to its emission.
+const OUTSIDE_SHARE: f32 = 1.0 / 16.0;
+/// The weight every cell gets, relative to the mean cell weight.
+const FLOOR_SHARE: f32 = 1e-3;
 /// Sub-points per axis at which a cell's emission is averaged for its weight.
 const SUB: usize = 2;
 
@@ -143,13 +149,22 @@ impl VolumeEmitter {
         for k in 0..n * n * n {
             let lo = bounds.min + cell * lattice_cell(k).as_vec3();
             let inside = scene.medium_at(lo + 0.5 * cell) == Some(m);
-            let e = if inside {
-                cell_emission(medium, lo, cell)
+            let e = cell_emission(medium, lo, cell);
+            if inside {
+                power += e;
+                weights.push(average(e));
             } else {
-                Rgb::ZERO
-            };
-            power += e;
-            weights.push(average(e));
+                // the medium may still reach into the cell: a small share of samples, so the
+                // density is positive wherever the medium can glow (light subpaths start only
+                // here); a point drawn outside the medium is rejected by its user
+                weights.push(average(e) * OUTSIDE_SHARE);
+            }
+        }
+        // a floor under every cell: a grid's emission may vanish at the sub-points and not
+        // between them
+        let floor = FLOOR_SHARE * weights.iter().sum::<f32>() / weights.len() as f32;
+        for w in &mut weights {
+            *w += floor;
         }
         let volume = cell.x * cell.y * cell.z;
         let power = power * (4.0 * std::f32::consts::PI * volume);

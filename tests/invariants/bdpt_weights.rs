@@ -188,3 +188,133 @@ fn combine_equals_the_strategies_one_by_one() {
         }
     }
 }
+
+// ---- a volume vertex x0: light subpaths that start in a glowing medium ----
+
+/// A closed room of Lambertian walls filled with glowing fog (L_e,V0 = 0.3), a ceiling light,
+/// a meter on the floor and a camera inside: light subpaths start at a volume vertex x0 (by
+/// power, about five in six) or on the ceiling light.
+const GLOWING_ROOM: &str = r#"
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 0.9]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 60.0
+resolution = [8, 8]
+[materials.white]
+type = "lambert"
+albedo = 0.6
+[media.fog]
+type = "homogeneous"
+sigma_a = 0.3
+sigma_s = 0.7
+emission = 0.3
+phase = { type = "hg", g = 0.4 }
+[[shapes]]
+type = "box"
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1.0]
+material = "white"
+interior = "fog"
+[[shapes]]
+type = "quad"
+origin = [-0.3, 0.99, -0.3]
+u = [0.6, 0.0, 0.0]
+v = [0.0, 0.0, 0.6]
+emission = 5.0
+[[sensors]]
+type = "irradiance_meter"
+name = "floor"
+origin = [-0.2, -0.9, -0.2]
+u = [0.0, 0.0, 0.4]
+v = [0.4, 0.0, 0.0]
+"#;
+
+fn glowing_room() -> Scene {
+    Scene::load(&SceneSource::embedded("glowing-room.toml", GLOWING_ROOM)).unwrap()
+}
+
+/// The connections' weights with volume starts x0 (s = 0 at an eye collision that collects
+/// L_e,V0, light subpaths from x0) are the direct ones, bit for bit.
+#[test]
+fn connection_weights_with_a_volume_x0_are_the_direct_ones() {
+    let checked = weights_match(&glowing_room(), 1500, 8);
+    assert!(checked > 5000, "{checked}");
+}
+
+/// Random paths whose x0 is a volume vertex (a light subpath's first vertices joined to an eye
+/// subpath from the meter): the power-heuristic weights of all strategies sum to one and each
+/// is p_s^2 / sum p_i^2 of the densities recomputed from the geometry (x0 per unit volume
+/// from the light side: the media's share of the selection times the point's density; from
+/// the eye side: the collision density sigma_t tau over r^2 times the direction's), and the
+/// walks' own densities of x0 and its neighbours are those recomputed ones.
+#[test]
+fn weights_of_paths_from_a_volume_x0_sum_to_one() {
+    use pathspace::bidir::{mis_weight_of_path, WalkLimits};
+    use pathspace::path::pdf::{densities, strategy_pdf};
+    use pathspace::path::{measurement_contribution, Path, VertexKind};
+    let scene = glowing_room();
+    let b = Bdpt::new(&PLAIN, Some(5), Strategies::All);
+    let mut sampler = Sampler::new(3, 1, 0);
+    let mut scratch = Scratch::default();
+    // surface vertices lift their rays off the surface: distances differ in the last digits
+    let close = |a: f32, b: f32| (a - b).abs() <= 1e-2 * a.abs().max(b.abs());
+    let (mut checked, mut volume) = (0, 0);
+    for i in 0..6000 {
+        b.meter_subpath(&scene, 0, WalkLimits::BDPT, &mut sampler, &mut scratch.eye);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut sampler, &mut scratch.light);
+        let k = 1 + i % 3;
+        if scratch.light.len() < k || scratch.eye.len() < 2 {
+            continue;
+        }
+        let from_volume = matches!(scratch.light[0].kind, VertexKind::Medium { .. });
+        let mut verts: Vec<Vertex> = scratch.light[..k].to_vec();
+        verts.extend(scratch.eye.iter().rev().copied());
+        let path = Path { vertices: verts };
+        if measurement_contribution(&scene, &path, &mut sampler) == Rgb::ZERO {
+            continue;
+        }
+        let d = densities(&scene, &PLAIN, &path, &mut sampler);
+        // the light walk's cached densities of x0 and x1 are the path's (further vertices may
+        // sit next to a surface whose lifted ray origin moves their densities' last digits)
+        for (j, lv) in scratch.light[..k.min(2)].iter().enumerate() {
+            assert!(
+                close(lv.pdf_fwd, d.light[j]),
+                "light vertex {j}: {} vs {}",
+                lv.pdf_fwd,
+                d.light[j]
+            );
+            if j + 2 < k {
+                assert!(
+                    close(lv.pdf_rev, d.eye[j]),
+                    "light vertex {j} reverse: {} vs {}",
+                    lv.pdf_rev,
+                    d.eye[j]
+                );
+            }
+        }
+        let n = path.vertices.len();
+        let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect();
+        let total: f64 = p.iter().map(|x| x * x).sum();
+        if !(total > 0.0 && total.is_finite()) {
+            continue;
+        }
+        let mut sum = 0.0f64;
+        for (s, ps) in p.iter().enumerate() {
+            let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
+            let direct = ps * ps / total;
+            assert!(
+                (w - direct).abs() < 1e-3,
+                "s = {s}: weight {w}, power heuristic {direct}"
+            );
+            sum += w;
+        }
+        assert!((sum - 1.0).abs() < 1e-3, "weights sum to {sum}");
+        checked += 1;
+        volume += from_volume as u32;
+    }
+    assert!(
+        checked > 1500 && volume > 1000,
+        "{checked} paths, {volume} from a volume x0"
+    );
+}

@@ -40,6 +40,44 @@ fn renderer_is(fam: &mut Family, what: &str, mut r: Renderer, spp: u32, truth: [
     }
 }
 
+/// The image mean of every channel of `kind` against `truth`, from `runs` independent renders
+/// of `spp` samples (light tracing and BDPT splat onto other pixels, so the pixels' own
+/// variances do not apply: the runs' spread does).
+fn image_runs_are(
+    fam: &mut Family,
+    what: &str,
+    kind: IntegratorKind,
+    scene: &Scene,
+    (runs, spp, seed): (u64, u32, u64),
+    truth: [f64; 3],
+) {
+    let means: Vec<[f64; 3]> = (0..runs)
+        .map(|i| {
+            let mut r = Renderer::new(scene, kind, seed + i, None);
+            r.pass(spp, &|| {});
+            let img = r.film.as_ref().unwrap().image();
+            let n = (img.width * img.height) as f64;
+            let mut m = [0.0f64; 3];
+            for y in 0..img.height {
+                for x in 0..img.width {
+                    let p = img.get(x, y);
+                    for (c, mc) in m.iter_mut().enumerate() {
+                        *mc += p[c] as f64 / n;
+                    }
+                }
+            }
+            m
+        })
+        .collect();
+    for (c, t) in truth.iter().enumerate() {
+        let a: Vec<f64> = means.iter().map(|m| m[c]).collect();
+        fam.runs_are(&format!("{what}, {} channel {c}", kind.name()), &a, *t);
+    }
+}
+
+/// The integrators that start light subpaths at a volume vertex x0 (eq. 5).
+const BIDIRECTIONAL: [IntegratorKind; 2] = [IntegratorKind::Light, IntegratorKind::Bdpt];
+
 /// A camera on +z looking at the origin.
 fn camera(eye_z: f32, fov: f32) -> String {
     format!(
@@ -71,6 +109,34 @@ fn emitting_slab_head_on() {
             camera(5.0, 0.4)
         );
         image_is(&mut fam, what, &load(&text), 256, 11 + i as u64, truth);
+    }
+    fam.finish();
+}
+
+/// The slab for light tracing and BDPT: a column just wider than the view (half-width 0.03;
+/// the view's cone is 0.022 wide at the far face), so most volume starts x0 are seen by the
+/// camera; every ray still crosses the full depth d. Light tracing sees the glow only through
+/// x0 connected to the camera (s = 1, t = 1), BDPT weighs that against the eye walk's
+/// collisions (s = 0).
+#[test]
+fn emitting_slab_head_on_bidirectional() {
+    let (sa, e, d) = ([0.5f64, 1.0, 2.5], [1.0f64, 2.0, 0.5], 1.2f64);
+    let truth: [f64; 3] = std::array::from_fn(|c| e[c] / sa[c] * (1.0 - (-sa[c] * d).exp()));
+    let text = format!(
+        "{}\n[media.slab]\ntype = \"homogeneous\"\nsigma_a = [0.5, 1.0, 2.5]\nsigma_s = 0.0\nemission = [1.0, 2.0, 0.5]\n\n[[shapes]]\ntype = \"box\"\nmin = [-0.03, -0.03, -1.2]\nmax = [0.03, 0.03, 0.0]\nmaterial = \"null\"\ninterior = \"slab\"\n",
+        camera(5.0, 0.4)
+    );
+    let scene = load(&text);
+    let mut fam = Family::new("emitting slab, bidirectional");
+    for (i, kind) in BIDIRECTIONAL.into_iter().enumerate() {
+        image_runs_are(
+            &mut fam,
+            "slab",
+            kind,
+            &scene,
+            (16, 16, 41 + 100 * i as u64),
+            truth,
+        );
     }
     fam.finish();
 }
@@ -123,14 +189,13 @@ fn emitting_furnace() {
     let truth = L_W.map(|v| v as f64);
     let mut fam = Family::new("emitting furnace");
     for (i, (what, body)) in media.iter().enumerate() {
-        image_is(
-            &mut fam,
-            what,
-            &load(&furnace(body)),
-            96,
-            21 + i as u64,
-            truth,
-        );
+        let scene = load(&furnace(body));
+        image_is(&mut fam, what, &scene, 96, 21 + i as u64, truth);
+        // light and BDPT take the environment: volume starts x0 and environment starts both
+        for (j, kind) in BIDIRECTIONAL.into_iter().enumerate() {
+            let seed = 200 + 50 * j as u64 + 10 * i as u64;
+            image_runs_are(&mut fam, what, kind, &scene, (32, 16, seed), truth);
+        }
     }
     fam.finish();
 }
@@ -358,16 +423,24 @@ fn meters_and_an_emitting_sphere() {
         );
     }
     let scene = load(&text);
-    let mut r = Renderer::new(&scene, IntegratorKind::Path, 31, None);
-    r.meter_samples = 1 << 14;
-    r.pass(1, &|| {});
     let mut fam = Family::new("meters and an emitting sphere");
-    for (est, (name, o, u, v)) in r.meter_estimates().iter().zip(&meters) {
-        assert_eq!(&est.name, name);
-        for c in 0..3 {
-            let (m, se, dof) = common::meter_mean(est, c);
-            let truth = meter_irradiance(*o, *u, *v, c);
-            fam.mean_is(&format!("{name} channel {c}"), m, se, dof, truth);
+    let kinds = [
+        IntegratorKind::Path,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+    ];
+    for (k, kind) in kinds.into_iter().enumerate() {
+        let mut r = Renderer::new(&scene, kind, 31 + k as u64, None);
+        r.meter_samples = 1 << 14;
+        r.pass(1, &|| {});
+        for (est, (name, o, u, v)) in r.meter_estimates().iter().zip(&meters) {
+            assert_eq!(&est.name, name);
+            for c in 0..3 {
+                let (m, se, dof) = common::meter_mean(est, c);
+                let truth = meter_irradiance(*o, *u, *v, c);
+                let what = format!("{} {name} channel {c}", kind.name());
+                fam.mean_is(&what, m, se, dof, truth);
+            }
         }
     }
     fam.finish();
@@ -385,16 +458,23 @@ fn quadrature_at_the_centre_is_the_closed_form() {
 
 // ---- refusals ----
 
-/// Every integrator but the path tracer and SMC refuses an emitting medium, naming it.
+/// Every integrator but the path tracer, light tracing, BDPT and SMC refuses an emitting
+/// medium, naming it.
 #[test]
-fn other_integrators_refuse_an_emitting_medium() {
+fn the_others_refuse_an_emitting_medium() {
     let scene = load(&furnace(
         "type = \"homogeneous\"\nsigma_a = 1.0\nsigma_s = 1.0\nemission = [1.0, 0.5, 2.0]",
     ));
     for kind in IntegratorKind::ALL.iter().copied() {
         let outcome = Renderer::try_new(&scene, kind, 1, None);
         match (kind, outcome) {
-            (IntegratorKind::Path | IntegratorKind::Smc, r) => assert!(r.is_ok()),
+            (
+                IntegratorKind::Path
+                | IntegratorKind::Light
+                | IntegratorKind::Bdpt
+                | IntegratorKind::Smc,
+                r,
+            ) => assert!(r.is_ok()),
             (k, Ok(_)) => panic!("{} rendered an emitting medium", k.name()),
             (k, Err(e)) => {
                 let e = e.to_string();

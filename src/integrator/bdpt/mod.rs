@@ -38,8 +38,10 @@ impl super::Facts for BdptFacts {
         true
     }
 
+    /// Light subpaths start at volume vertices x0 of the glowing media too (eq. 5), the eye
+    /// subpath's collisions collect L_e,V0 (s = 0) and next-event estimation samples x0 (s = 1).
     fn emitting_media_refusal(&self) -> Option<&'static str> {
-        Some("its light subpaths start on lights only, never at a volume vertex x0 in the medium (eq. 5), and the guide and the adjoint image built on them would miss it too")
+        None
     }
 
     /// Light tracing joins the sensor only from a non-specular vertex; BDPT's other
