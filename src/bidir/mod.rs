@@ -136,28 +136,4 @@ impl<'t> Bdpt<'t> {
     }
 }
 
-/// The probability that a light subpath (or next-event estimation's light vertex) starts in
-/// the emitting media rather than on a light: their share of the emitted power (power
-/// selection across the lights and the emitting media); 0 without emitting media.
-pub fn volume_share(scene: &Scene) -> f32 {
-    if scene.emitters.is_empty() {
-        return 0.0;
-    }
-    if scene.lights.is_empty() {
-        return 1.0;
-    }
-    let v = crate::spectrum::average(scene.emitters.power());
-    let l = scene.light_distr.total();
-    if v + l > 0.0 {
-        v / (v + l)
-    } else {
-        0.5
-    }
-}
-
-/// The factor of every light's selection probability: 1 - [`volume_share`], exactly 1 in a
-/// scene without emitting media (so the densities keep their bits there).
-#[inline]
-pub fn light_share(scene: &Scene) -> f32 {
-    1.0 - volume_share(scene)
-}
+pub use crate::scene::emitters::{light_share, volume_share};

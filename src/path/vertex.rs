@@ -316,11 +316,12 @@ impl Vertex {
     /// Density (in its own measure) of choosing this light vertex as the start of a light path.
     pub fn light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
         // the lights' share of the selection (exactly 1 without emitting media)
-        let share = crate::bidir::light_share(scene);
+        let share = crate::scene::emitters::light_share(scene);
         let pdf = match self.kind {
             // a volume vertex x0 (eq. 5): the media's share times the density per unit volume
             VertexKind::Medium { medium } => {
-                return crate::bidir::volume_share(scene) * scene.emitters.pdf(medium, self.p);
+                return crate::scene::emitters::volume_share(scene)
+                    * scene.emitters.pdf(medium, self.p);
             }
             VertexKind::Light { light, prim } => {
                 let pmf = scene.light_pmf(light);

@@ -248,3 +248,29 @@ fn medium_bounds(scene: &Scene, m: u32) -> Option<Aabb> {
     let ok = !b.is_empty() && b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all();
     ok.then_some(b)
 }
+
+/// The probability that a light subpath (or next-event estimation's light vertex) starts in
+/// the emitting media rather than on a light: their share of the emitted power (power
+/// selection across the lights and the emitting media); 0 without emitting media.
+pub fn volume_share(scene: &Scene) -> f32 {
+    if scene.emitters.is_empty() {
+        return 0.0;
+    }
+    if scene.lights.is_empty() {
+        return 1.0;
+    }
+    let v = average(scene.emitters.power());
+    let l = scene.light_distr.total();
+    if v + l > 0.0 {
+        v / (v + l)
+    } else {
+        0.5
+    }
+}
+
+/// The factor of every light's selection probability: 1 - [`volume_share`], exactly 1 in a
+/// scene without emitting media (so the densities keep their bits there).
+#[inline]
+pub fn light_share(scene: &Scene) -> f32 {
+    1.0 - volume_share(scene)
+}

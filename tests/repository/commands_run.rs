@@ -170,6 +170,20 @@ const NOT_RUN: &[(&str, &str)] = &[
         "python3 scripts/fuzz.py",
         "a fuzzing campaign of 20000 cases; .ci/run runs 500 cases of it",
     ),
+    (
+        "python3 -m venv .venv",
+        "the Python package's install (packages from PyPI); .ci/run builds it in a venv and \
+         runs its pytest suite",
+    ),
+    (
+        ". .venv/bin/activate",
+        "the Python package's install; .ci/run activates its own venv",
+    ),
+    (
+        "pip install ./python",
+        "builds the wheel with maturin (Rust and PyPI packages); .ci/run installs it and runs \
+         python/tests",
+    ),
 ];
 
 /// What a command of a document does here.
