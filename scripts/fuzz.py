@@ -333,7 +333,7 @@ def mutate_obj(rng, data):
 ADVERSARIAL = ["checkpoint", "merge", "changed", "xml", "kill", "writers"]
 ADVERSARIAL_WEIGHTS = [30, 25, 10, 15, 12, 8]
 ADVERSARIAL_SHARE = 0.25
-CHECKPOINT_MAGIC = b"pathspace checkpoint v3\n"
+CHECKPOINT_MAGIC = b"pathspace checkpoint v4\n"
 HEAD = len(CHECKPOINT_MAGIC) + 8  # the magic line, then the payload's FNV-1a checksum
 SPECIALS = [float("nan"), float("inf"), -float("inf"), 3.4e38, 1e300, -1.0, -1e30]
 TINY = ["--resolution", "8x8", "--threads", "1"]
