@@ -9,7 +9,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::bsdf::{fresnel_dielectric, Bsdf};
+use crate::bsdf::Bsdf;
 use crate::geometry::Ray;
 use crate::image_io::{Channel, Image};
 use crate::integrator::IntegratorKind;
@@ -137,15 +137,16 @@ impl std::str::FromStr for AovList {
 /// as splats in other pixels, whose per-pixel variance is not recorded.
 pub fn refuse_variance(aovs: &[Aov], kind: IntegratorKind) -> Result<(), String> {
     let asked = aovs.iter().find(|a| a.needs_variance());
-    match (asked, kind) {
-        (None, _) | (Some(_), IntegratorKind::Path | IntegratorKind::Smc) => Ok(()),
-        (Some(a), _) => Err(format!(
-            "--aovs {} needs --integrator path or smc: `{}` splats contributions into other \
+    match asked {
+        Some(a) if !kind.facts().pixel_variance() => Err(format!(
+            "--aovs {} needs --integrator {}: `{}` splats contributions into other \
              pixels, whose per-pixel variance the film does not record (merge independent \
              renders and use their spread instead)",
             a.name(),
+            IntegratorKind::names_where(|f| f.pixel_variance()),
             kind.name()
         )),
+        _ => Ok(()),
     }
 }
 
@@ -216,20 +217,7 @@ pub fn surface_albedo(bsdf: &Bsdf, wo: Vec3, n: Vec3) -> Rgb {
     if bsdf.black_behind(wo, n) {
         return Rgb::ZERO;
     }
-    let cos = wo.dot(n).abs();
-    let coated = |diffuse: Rgb, specular: Rgb, eta: f32| {
-        let f = fresnel_dielectric(cos, eta);
-        specular * f + diffuse * (1.0 - f)
-    };
-    let a = match bsdf {
-        Bsdf::Lambert(l) => l.albedo,
-        Bsdf::Mirror(m) => m.reflectance,
-        Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::RoughDielectric(_) => Rgb::ONE,
-        Bsdf::RoughConductor(c) => c.fresnel.eval(cos),
-        Bsdf::Plastic(p) => coated(p.diffuse, p.specular, p.eta),
-        Bsdf::RoughPlastic(p) => coated(p.diffuse, p.specular, p.eta),
-        Bsdf::Null(_) => Rgb::ZERO,
-    };
+    let a = bsdf.albedo(wo.dot(n).abs());
     a.clamp(Rgb::ZERO, Rgb::ONE)
 }
 

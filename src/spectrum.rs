@@ -9,6 +9,21 @@ use glam::Vec3;
 /// A per-channel radiometric quantity (radiance, throughput, sigma, albedo).
 pub type Rgb = Vec3;
 
+/// A colour or coefficient for a reader, to three decimals: `[0.725, 0.725, 0.725]`, or `0.5`
+/// when all three components are equal.
+pub fn show(v: Rgb) -> String {
+    if v.x == v.y && v.y == v.z {
+        format!("{}", round3(v.x))
+    } else {
+        format!("[{}, {}, {}]", round3(v.x), round3(v.y), round3(v.z))
+    }
+}
+
+/// `x` rounded to three decimals (for a reader).
+pub fn round3(x: f32) -> f32 {
+    (x * 1000.0).round() / 1000.0
+}
+
 /// Rec. 709 luminance weights, used wherever a scalar must stand for a colour (Russian roulette,
 /// MLT's scalar image contribution, SMC's channel average is the plain mean instead).
 pub const LUMINANCE: Rgb = Vec3::new(0.2126, 0.7152, 0.0722);

@@ -21,9 +21,8 @@ use pathspace::cli::CliError;
 use pathspace::image_io::{self, Image, ImageMeta};
 use pathspace::integrator::settings::{RenderOptions, Spelling};
 use pathspace::integrator::{IntegratorKind, RenderSettings};
-use pathspace::render::plan;
 use pathspace::render::run::LiveView;
-use pathspace::render::session::{Preprocessed, RenderResult};
+use pathspace::render::session::{PassView, Preprocessed, RenderResult};
 use pathspace::render::{Frontend, Outputs, Render};
 use pathspace::scene::file::{self as scene_file, SceneFile};
 use pathspace::scene::{SceneError, SceneSource};
@@ -338,7 +337,6 @@ const SIGINT: usize = 2;
 /// stops it after that pass).
 struct Binding {
     threads: Option<usize>,
-    target: Option<u32>,
     passes: mpsc::Sender<u64>,
     answers: Option<std::sync::Mutex<mpsc::Receiver<()>>>,
 }
@@ -360,14 +358,9 @@ impl Frontend for Binding {
     }
 
     fn live(&self, _size: Option<(u32, u32)>) -> Option<LiveView<'_>> {
-        let (tx, target, answers) = (self.passes.clone(), self.target, &self.answers);
-        let mut done = 0u64;
-        Some(Box::new(move |_image| {
-            // the session's own pass plan (1 spp per pass for a timed render)
-            done += target
-                .map_or(Some(1), |t| plan::next_pass_spp(done, t))
-                .unwrap_or(0) as u64;
-            if tx.send(done).is_ok() {
+        let (tx, answers) = (self.passes.clone(), &self.answers);
+        Some(Box::new(move |pass: &PassView| {
+            if tx.send(pass.spp).is_ok() {
                 if let Some(a) = answers {
                     let _ = a.lock().map(|a| a.recv());
                 }
@@ -398,7 +391,6 @@ fn run(
         let worker = s.spawn(move || {
             let mut f = Binding {
                 threads,
-                target,
                 passes: tx,
                 answers,
             };
@@ -626,6 +618,7 @@ fn converge(
             pool.install(|| {
                 convergence::converge(
                     &scene.scene,
+                    &scene.src,
                     &scene.settings,
                     &reference,
                     &kinds,

@@ -118,6 +118,30 @@ impl RoughConductor {
 }
 
 impl BsdfModel for RoughConductor {
+    /// The Fresnel reflectance.
+    fn albedo(&self, cos: f32) -> Rgb {
+        self.fresnel.eval(cos)
+    }
+
+    fn describe(&self) -> String {
+        let show = crate::spectrum::show;
+        match self.fresnel {
+            ConductorFresnel::Schlick(r) => format!(
+                "rough conductor, {} alpha {}, reflectance {}",
+                self.distribution.name(),
+                self.alpha,
+                show(r)
+            ),
+            ConductorFresnel::Complex { eta, k } => format!(
+                "rough conductor, {} alpha {}, eta {}, k {}",
+                self.distribution.name(),
+                self.alpha,
+                show(eta),
+                show(k)
+            ),
+        }
+    }
+
     fn has_regular_lobe(&self) -> bool {
         true
     }

@@ -14,6 +14,15 @@ pub struct Dielectric {
 }
 
 impl BsdfModel for Dielectric {
+    /// 1: the colour of what is seen through it is not its own.
+    fn albedo(&self, _cos: f32) -> Rgb {
+        Rgb::ONE
+    }
+
+    fn describe(&self) -> String {
+        format!("dielectric, ior {}", self.ior)
+    }
+
     fn has_regular_lobe(&self) -> bool {
         false
     }

@@ -19,6 +19,14 @@ pub struct Lambert {
 }
 
 impl BsdfModel for Lambert {
+    fn albedo(&self, _cos: f32) -> Rgb {
+        self.albedo
+    }
+
+    fn describe(&self) -> String {
+        format!("lambert, albedo {}", crate::spectrum::show(self.albedo))
+    }
+
     fn has_regular_lobe(&self) -> bool {
         true
     }

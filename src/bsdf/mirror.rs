@@ -16,6 +16,17 @@ pub struct Mirror {
 }
 
 impl BsdfModel for Mirror {
+    fn albedo(&self, _cos: f32) -> Rgb {
+        self.reflectance
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "mirror, reflectance {}",
+            crate::spectrum::show(self.reflectance)
+        )
+    }
+
     fn has_regular_lobe(&self) -> bool {
         false
     }

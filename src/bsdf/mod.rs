@@ -154,6 +154,18 @@ pub trait BsdfModel {
         uc: f32,
         mode: TransportMode,
     ) -> Option<BsdfSample>;
+    /// Its albedo seen at cosine `cos` to the normal (the albedo layer of `--aovs`, before it
+    /// is clamped to [0, 1] as denoisers expect).
+    fn albedo(&self, cos: f32) -> Rgb;
+    /// What `pathspace info` says of it (`lambert, albedo 0.5`).
+    fn describe(&self) -> String;
+}
+
+/// A coated model's albedo at cosine `cos`: the coat's specular reflectance and the base's
+/// diffuse one mixed by the coat's Fresnel reflectance (index `eta`).
+pub fn coated_albedo(diffuse: Rgb, specular: Rgb, eta: f32, cos: f32) -> Rgb {
+    let f = fresnel_dielectric(cos, eta);
+    specular * f + diffuse * (1.0 - f)
 }
 
 /// `dispatch!(bsdf, m => expr)`: `expr` with `m` bound to the model inside `bsdf`. The one
@@ -256,6 +268,16 @@ impl Bsdf {
             return 0.0;
         }
         dispatch!(self, m => m.pdf(wo, wi, n))
+    }
+
+    /// The model's albedo seen at cosine `cos` to the normal ([`BsdfModel::albedo`]).
+    pub fn albedo(&self, cos: f32) -> Rgb {
+        dispatch!(self, m => m.albedo(cos))
+    }
+
+    /// What `pathspace info` says of the model.
+    pub fn describe(&self) -> String {
+        dispatch!(self, m => m.describe())
     }
 
     /// Samples `wi` given `wo`. `None` when no direction can be produced.

@@ -12,6 +12,15 @@ use crate::spectrum::Rgb;
 pub struct Null;
 
 impl BsdfModel for Null {
+    /// Never a scattering vertex.
+    fn albedo(&self, _cos: f32) -> Rgb {
+        Rgb::ZERO
+    }
+
+    fn describe(&self) -> String {
+        "null (index-matched boundary)".into()
+    }
+
     fn has_regular_lobe(&self) -> bool {
         false
     }

@@ -123,6 +123,20 @@ impl Plastic {
 }
 
 impl BsdfModel for Plastic {
+    fn albedo(&self, cos: f32) -> Rgb {
+        super::coated_albedo(self.diffuse, self.specular, self.eta, cos)
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "plastic, diffuse {}, specular {}, ior {}{}",
+            crate::spectrum::show(self.diffuse),
+            crate::spectrum::show(self.specular),
+            self.eta,
+            if self.nonlinear { ", nonlinear" } else { "" }
+        )
+    }
+
     fn has_regular_lobe(&self) -> bool {
         true
     }

@@ -111,6 +111,20 @@ impl RoughDielectric {
 }
 
 impl BsdfModel for RoughDielectric {
+    /// 1: the colour of what is seen through it is not its own.
+    fn albedo(&self, _cos: f32) -> Rgb {
+        Rgb::ONE
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "rough dielectric, ior {}, {} alpha {}",
+            self.ior,
+            self.distribution.name(),
+            self.alpha
+        )
+    }
+
     fn has_regular_lobe(&self) -> bool {
         true
     }

@@ -123,6 +123,24 @@ impl RoughPlastic {
 }
 
 impl BsdfModel for RoughPlastic {
+    fn albedo(&self, cos: f32) -> Rgb {
+        super::coated_albedo(self.diffuse, self.specular, self.eta, cos)
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "rough plastic, diffuse {}, specular {}, ior {}, {} alpha {}{} (internal reflectance {:.4}, transmittance at normal incidence {:.4})",
+            crate::spectrum::show(self.diffuse),
+            crate::spectrum::show(self.specular),
+            self.eta,
+            self.microfacet.distribution.name(),
+            self.microfacet.alpha,
+            if self.nonlinear { ", nonlinear" } else { "" },
+            self.tables().internal_reflectance,
+            self.transmittance(1.0)
+        )
+    }
+
     fn has_regular_lobe(&self) -> bool {
         true
     }

@@ -26,6 +26,15 @@ pub fn thin_dielectric_reflectance(cos_i: f32, eta: f32) -> f32 {
 }
 
 impl BsdfModel for ThinDielectric {
+    /// 1: the colour of what is seen through it is not its own.
+    fn albedo(&self, _cos: f32) -> Rgb {
+        Rgb::ONE
+    }
+
+    fn describe(&self) -> String {
+        format!("thin dielectric, ior {}", self.ior)
+    }
+
     fn has_regular_lobe(&self) -> bool {
         false
     }

@@ -14,7 +14,7 @@ use crate::integrator::settings::{GuideOptions, Spelling};
 use crate::integrator::smc::OptionError;
 use crate::integrator::IntegratorKind;
 use crate::measure::chart;
-use crate::measure::convergence::{self, ConvergeConfig, Curve, Variant};
+use crate::measure::convergence::{self, ConvergeConfig, Curve, Line, Variant};
 use crate::measure::study::Study;
 
 #[derive(Args, Debug, Clone)]
@@ -260,59 +260,21 @@ fn guided_label(kind: IntegratorKind, g: &crate::enlightened::GuideSettings) -> 
     )
 }
 
-/// Equal-time runs of a guided variant: each run loads the scene, builds its guide (timed,
-/// seeded by the run) and renders until the same checkpoint times as the other lines, the
-/// preprocessing counted in them (checkpoints it overruns are not reached).
-fn converge_guided(
+/// The line of a guided variant: the scene's settings with the guide its name sets over the
+/// `--guide*` options (its preprocessing, built with each run's seed, counted in the run's
+/// time).
+fn guided_line(
     args: &ConvergeArgs,
-    reference: &crate::image_io::Image,
+    settings: &crate::integrator::RenderSettings,
     kind: IntegratorKind,
     over: &GuideOverride,
-    config: &ConvergeConfig,
-    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
-) -> Result<Vec<convergence::CheckpointRow>, CliError> {
-    let times = convergence::checkpoint_times(config.budget, config.checkpoints)?;
-    let mut rows = Vec::new();
-    for run in config.run_indices() {
-        let (scene, mut settings, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
-        let flags = args.guide.apply_flags(settings.guide);
-        let g = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
-        settings.guide = g;
-        let seed = convergence::run_seed(config.seed, run);
-        let t0 = std::time::Instant::now();
-        let mut technique = crate::enlightened::Enlightened::default();
-        let stats = technique.install_guide(&scene, &g, seed);
-        let pre = t0.elapsed().as_secs_f64();
-        if let Some(st) = &stats {
-            eprint!("{}", st.table());
-        }
-        let skipped = times.iter().take_while(|&&t| t <= pre).count();
-        let left: Vec<f64> = times[skipped..].iter().map(|t| t - pre).collect();
-        if left.is_empty() {
-            eprintln!(
-                "{}: the preprocessing ({pre:.2} s) overran the budget",
-                guided_label(kind, &g)
-            );
-            continue;
-        }
-        let setup = crate::integrator::Setup {
-            scene: &scene,
-            technique: &technique,
-            settings: &settings,
-            seed,
-            max_depth: config.max_depth,
-        };
-        let mut part = convergence::measure_run(&setup, reference, kind, &left, run)?;
-        for r in &mut part {
-            r.integrator = guided_label(kind, &g);
-            r.seconds += pre;
-            r.efficiency = convergence::efficiency(r.relmse, r.seconds);
-            r.checkpoint += skipped;
-        }
-        report(&part);
-        rows.extend(part);
-    }
-    Ok(rows)
+) -> Result<Line, CliError> {
+    let mut line = Line::plain(kind, settings);
+    let flags = args.guide.apply_flags(settings.guide);
+    let g = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
+    line.settings.guide = g;
+    line.label = guided_label(kind, &g);
+    Ok(line)
 }
 
 /// One line of the summary printed at the end.
@@ -380,7 +342,7 @@ fn parse_lines(
     args: &ConvergeArgs,
     adjoint: crate::enlightened::AdjointSettings,
 ) -> Result<(Vec<Variant>, GuidedLines), CliError> {
-    // `+guide` lines are run here (`converge_guided`), the others by `converge_variants`
+    // `+guide` lines are parsed here, the others by `Variant`
     let mut variants = Vec::new();
     let mut guided: GuidedLines = Vec::new();
     for s in &integrator_names(&args.integrators) {
@@ -411,32 +373,33 @@ fn parse_lines(
     Ok((variants, guided))
 }
 
+/// The study's lines: the plain, `+adjoint` and `KIND(...)` ones, then the `+guide` ones.
+fn lines_of(
+    args: &ConvergeArgs,
+    settings: &crate::integrator::RenderSettings,
+    (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
+) -> Result<Vec<Line>, CliError> {
+    let mut lines = variants
+        .iter()
+        .map(|v| v.line(settings))
+        .collect::<Result<Vec<_>, _>>()?;
+    for (kind, over) in guided {
+        lines.push(guided_line(args, settings, *kind, over)?);
+    }
+    Ok(lines)
+}
+
 /// Refuses, before the runs begin, lines whose render would need more memory than
 /// `--max-memory` allows (the estimate of `render`, at the scene's resolution).
 fn check_memory(
     args: &ConvergeArgs,
     scene: &crate::scene::Scene,
-    settings: &crate::integrator::RenderSettings,
-    (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
+    lines: &[Line],
 ) -> Result<(), CliError> {
     args.memory.check()?;
     let threads = super::reference::thread_pool(args.threads)?.current_num_threads();
-    let mut lines = Vec::new();
-    for v in variants {
-        let (mut s, adjoint) = v.settings(settings)?;
-        if let Some(a) = adjoint {
-            (s.adjoint_image, s.adjoint) = (true, a);
-        }
-        lines.push((v.kind, s));
-    }
-    for (kind, over) in guided {
-        let mut s = settings.clone();
-        let flags = args.guide.apply_flags(settings.guide);
-        s.guide = over.apply(flags.map_err(|e| CliError::Usage(e.message))?)?;
-        lines.push((*kind, s));
-    }
-    for (kind, s) in &lines {
-        let estimate = crate::render::memory::estimate(scene, *kind, s, threads);
+    for line in lines {
+        let estimate = crate::render::memory::estimate(scene, line.kind, &line.settings, threads);
         args.memory.refuse_above(&estimate)?;
     }
     Ok(())
@@ -486,12 +449,12 @@ fn check_reference_hash(
 fn run_lines(
     args: &ConvergeArgs,
     (scene, settings, source): (
-        &mut crate::scene::Scene,
+        &crate::scene::Scene,
         &crate::integrator::RenderSettings,
         &crate::scene::SceneSource,
     ),
     reference: &image_io::Image,
-    (variants, guided): (&[Variant], &[(IntegratorKind, GuideOverride)]),
+    (variants, lines): (&[Variant], &[Line]),
     config: &ConvergeConfig,
 ) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     let pool = super::reference::thread_pool(args.threads)?;
@@ -503,28 +466,13 @@ fn run_lines(
             );
         }
     };
-    let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        if !variants.is_empty() {
-            rows = pool.install(|| {
-                convergence::converge_variants(
-                    scene,
-                    settings,
-                    reference,
-                    variants,
-                    config,
-                    &mut report,
-                )
-            })?;
-        }
-        for (k, over) in guided {
-            let part =
-                pool.install(|| converge_guided(args, reference, *k, over, config, &mut report))?;
-            rows.extend(part);
-        }
-        return Ok(rows);
+        let at = (scene, source);
+        return Ok(pool
+            .install(|| convergence::converge_lines(at, reference, lines, config, &mut report))?);
     }
     let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
+    let mut rows = Vec::new();
     for name in &args.propagation {
         let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
         let (mut variant, _, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
@@ -535,7 +483,15 @@ fn run_lines(
             )));
         }
         let mut part = pool.install(|| {
-            convergence::converge(&variant, settings, reference, &kinds, config, &mut report)
+            convergence::converge(
+                &variant,
+                source,
+                settings,
+                reference,
+                &kinds,
+                config,
+                &mut report,
+            )
         })?;
         for r in &mut part {
             r.integrator = format!("{}/{}", r.integrator, li.name());
@@ -546,7 +502,7 @@ fn run_lines(
 }
 
 pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
-    let (mut scene, settings, source) = super::load_scene_at(Some(&args.scene), &args.film)?;
+    let (scene, settings, source) = super::load_scene_at(Some(&args.scene), &args.film)?;
     let adjoint = args.adjoint.apply(settings.adjoint)?;
     let (variants, guided) = parse_lines(&args, adjoint)?;
     let externals = parse_externals(&args)?;
@@ -572,7 +528,8 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
             s.index, s.count, config.runs, s.count, config.runs
         )));
     }
-    check_memory(&args, &scene, &settings, (&variants, &guided))?;
+    let lines = lines_of(&args, &settings, (&variants, &guided))?;
+    check_memory(&args, &scene, &lines)?;
     check_study_outputs(&args.output)?;
     let mut external_rows = Vec::new();
     let reads_externals = config.shard.is_none_or(|s| s.index == 1);
@@ -581,9 +538,9 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
     }
     let mut rows = run_lines(
         &args,
-        (&mut scene, &settings, &source),
+        (&scene, &settings, &source),
         &reference,
-        (&variants, &guided),
+        (&variants, &lines),
         &config,
     )?;
     rows.extend(external_rows);

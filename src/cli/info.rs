@@ -6,11 +6,12 @@ use clap::Args;
 use glam::Vec3;
 use std::path::PathBuf;
 
-use crate::bsdf::{Bsdf, ConductorFresnel};
+use crate::bsdf::Bsdf;
 use crate::geometry::Primitive;
-use crate::medium::{Medium, Phase};
+use crate::medium::Medium;
 use crate::scene::file::escape_controls as esc;
 use crate::scene::{Environment, Light, Scene};
+use crate::spectrum::{round3 as round, show as v3};
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
@@ -18,23 +19,9 @@ pub struct InfoArgs {
     pub scene: PathBuf,
 }
 
-/// A colour or coefficient with three significant decimals: `[0.725, 0.725, 0.725]`, or `0.5` when
-/// all three components are equal.
-fn v3(v: Vec3) -> String {
-    if v.x == v.y && v.y == v.z {
-        format!("{}", round(v.x))
-    } else {
-        format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z))
-    }
-}
-
 /// A point or direction, always as a triple.
 fn p3(v: Vec3) -> String {
     format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z))
-}
-
-fn round(x: f32) -> f32 {
-    (x * 1000.0).round() / 1000.0
 }
 
 fn bsdf(b: &Option<Bsdf>) -> String {
@@ -44,67 +31,9 @@ fn bsdf(b: &Option<Bsdf>) -> String {
     };
     let model = match b {
         None => "black (emission only)".into(),
-        Some(Bsdf::Lambert(l)) => format!("lambert, albedo {}", v3(l.albedo)),
-        Some(Bsdf::Mirror(m)) => format!("mirror, reflectance {}", v3(m.reflectance)),
-        Some(Bsdf::Dielectric(d)) => format!("dielectric, ior {}", d.ior),
-        Some(Bsdf::ThinDielectric(d)) => format!("thin dielectric, ior {}", d.ior),
-        Some(Bsdf::RoughConductor(c)) => match c.fresnel {
-            ConductorFresnel::Schlick(r) => format!(
-                "rough conductor, {} alpha {}, reflectance {}",
-                c.distribution.name(),
-                c.alpha,
-                v3(r)
-            ),
-            ConductorFresnel::Complex { eta, k } => format!(
-                "rough conductor, {} alpha {}, eta {}, k {}",
-                c.distribution.name(),
-                c.alpha,
-                v3(eta),
-                v3(k)
-            ),
-        },
-        Some(Bsdf::RoughDielectric(d)) => format!(
-            "rough dielectric, ior {}, {} alpha {}",
-            d.ior,
-            d.distribution.name(),
-            d.alpha
-        ),
-        Some(Bsdf::Plastic(p)) => format!(
-            "plastic, diffuse {}, specular {}, ior {}{}",
-            v3(p.diffuse),
-            v3(p.specular),
-            p.eta,
-            if p.nonlinear { ", nonlinear" } else { "" }
-        ),
-        Some(Bsdf::RoughPlastic(p)) => format!(
-            "rough plastic, diffuse {}, specular {}, ior {}, {} alpha {}{} (internal reflectance {:.4}, transmittance at normal incidence {:.4})",
-            v3(p.diffuse),
-            v3(p.specular),
-            p.eta,
-            p.microfacet.distribution.name(),
-            p.microfacet.alpha,
-            if p.nonlinear { ", nonlinear" } else { "" },
-            p.tables().internal_reflectance,
-            p.transmittance(1.0)
-        ),
-        Some(Bsdf::Null(_)) => "null (index-matched boundary)".into(),
+        Some(b) => b.describe(),
     };
     format!("{model}{sides}")
-}
-
-fn phase(p: &Phase) -> String {
-    match p {
-        Phase::Isotropic => "isotropic".into(),
-        Phase::HenyeyGreenstein { g } => format!("Henyey-Greenstein g = {g}"),
-        Phase::Schlick { k } => format!("Schlick k = {k}"),
-        Phase::Mix(lobes) => {
-            let parts: Vec<String> = lobes
-                .iter()
-                .map(|(w, l)| format!("{} x {}", round(*w), phase(l)))
-                .collect();
-            format!("mix of {}", parts.join(" + "))
-        }
-    }
 }
 
 fn medium(m: &Medium) -> String {
@@ -116,7 +45,7 @@ fn medium(m: &Medium) -> String {
             v3(h.sigma_t),
             v3(h.albedo()),
             v3(h.sigma_t.recip()),
-            phase(&h.phase)
+            h.phase.describe()
         ),
         Medium::Heterogeneous(h) => format!(
             "heterogeneous, sigma_a {} and sigma_s {} per unit density, {}, Delta {}, phase {}",
@@ -124,7 +53,7 @@ fn medium(m: &Medium) -> String {
             v3(h.sigma_s),
             h.line_integral.name(),
             round(h.delta),
-            phase(&h.phase)
+            h.phase.describe()
         ),
     }
 }

@@ -14,7 +14,7 @@ use super::CliError;
 use crate::image_io::{self, ImageMeta};
 use crate::integrator::settings::{AdjointOptions, GuideOptions, RenderOptions, Spelling};
 use crate::integrator::smc::SmcOptions;
-use crate::integrator::{IntegratorKind, RenderSettings, Setup};
+use crate::integrator::{IntegratorKind, OwnOption, RenderSettings, Setup};
 use crate::render::checkpoint::Recipe;
 use crate::render::memory;
 use crate::render::provenance::TIMING_KEYS;
@@ -212,9 +212,11 @@ impl RenderArgs {
                 "--mutations-per-pixel needs --integrator mlt, pssmlt or mmlt".into(),
             ));
         }
-        if kind != IntegratorKind::Smc && !o.smc.is_empty() {
+        let takers = |o: OwnOption| IntegratorKind::names_where(|f| f.takes(o));
+        if !kind.facts().takes(OwnOption::Smc) && !o.smc.is_empty() {
             return Err(CliError::Usage(format!(
-                "--smc-* and --cache-budget apply to --integrator smc, not `{}`",
+                "--smc-* and --cache-budget apply to --integrator {}, not `{}`",
+                takers(OwnOption::Smc),
                 kind.name()
             )));
         }
@@ -224,18 +226,23 @@ impl RenderArgs {
                 "--adjoint-* options need --adjoint-image".into(),
             ));
         }
-        if o.distance == Some(DistanceSampling::EquiangularMis) && kind != IntegratorKind::Path {
+        let equiangular = OwnOption::EquiangularDistance;
+        if o.distance == Some(DistanceSampling::EquiangularMis) && !kind.facts().takes(equiangular)
+        {
             return Err(CliError::Usage(format!(
-                "--distance equiangular-mis applies to --integrator path, not `{}` (it samples distances by free flight only)",
+                "--distance equiangular-mis applies to --integrator {}, not `{}` (it samples distances by free flight only)",
+                takers(equiangular),
                 kind.name()
             )));
         }
         if let Some(list) = &self.session.aovs {
             crate::aov::refuse_variance(&list.0, kind).map_err(CliError::Usage)?;
         }
-        if o.light_selection.is_some() && kind != IntegratorKind::Path {
+        let selection = OwnOption::LightSelection;
+        if o.light_selection.is_some() && !kind.facts().takes(selection) {
             return Err(CliError::Usage(format!(
-                "--light-selection applies to --integrator path, not `{}` (its light subpaths and connections pick lights by power)",
+                "--light-selection applies to --integrator {}, not `{}` (its light subpaths and connections pick lights by power)",
+                takers(selection),
                 kind.name()
             )));
         }
@@ -339,10 +346,12 @@ fn write_strategy_images(
     setup: &Setup,
     render: &Render,
 ) -> Result<(), CliError> {
-    if render.kind != IntegratorKind::Bdpt {
-        return Err(CliError::Usage(
-            "--strategy-images needs --integrator bdpt".into(),
-        ));
+    let images = OwnOption::StrategyImages;
+    if !render.kind.facts().takes(images) {
+        return Err(CliError::Usage(format!(
+            "--strategy-images needs --integrator {}",
+            IntegratorKind::names_where(|f| f.takes(images))
+        )));
     }
     let renderer = crate::integrator::Renderer::prepared(render.kind, setup)?;
     let films = renderer.strategy_images(render.settings.spp, args.strategy_depth);
@@ -679,7 +688,7 @@ impl Frontend for Cli<'_> {
     fn live(&self, size: Option<(u32, u32)>) -> Option<LiveView<'_>> {
         let mut live = live_views(self.args, size);
         live.active().then(|| {
-            Box::new(move |image: &dyn Fn() -> Option<image_io::Image>| live.pass(image)) as _
+            Box::new(move |pass: &crate::render::session::PassView| live.pass(pass.image)) as _
         })
     }
 
@@ -741,11 +750,9 @@ fn warn_negative(result: &RenderResult, kind: IntegratorKind) {
             "warning: {} pixels have a negative estimate (radiance is never negative): the \
              estimator has not converged there{}",
             result.negative_pixels,
-            if kind == IntegratorKind::Smc {
-                " (SMC's control variates: more samples per pixel, or --smc-variant is1_cv0)"
-            } else {
-                ""
-            }
+            kind.facts()
+                .negative_pixels_hint()
+                .map_or(String::new(), |h| format!(" ({h})"))
         );
     }
 }

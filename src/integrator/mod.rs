@@ -14,7 +14,6 @@ pub mod reach;
 pub mod settings;
 pub mod smc;
 
-pub use path::PathTracer;
 pub use settings::RenderSettings;
 
 use rayon::prelude::*;
@@ -107,6 +106,34 @@ impl IntegratorKind {
     pub fn samples_light_starts(self) -> bool {
         self.facts().samples_light_starts()
     }
+
+    /// The names of the integrators whose facts say `yes`, for a message (`path or smc`).
+    pub fn names_where(yes: impl Fn(&dyn Facts) -> bool) -> String {
+        let names: Vec<&str> = Self::ALL
+            .iter()
+            .filter(|k| yes(k.facts()))
+            .map(|k| k.name())
+            .collect();
+        match names.split_last() {
+            Some((last, [])) => last.to_string(),
+            Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+            None => String::new(),
+        }
+    }
+}
+
+/// An option that only the integrators that declare it take ([`Facts::takes`]): a front end
+/// refuses it for the others by asking their facts, never by naming them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OwnOption {
+    /// The `[render.smc]` table and its flags.
+    Smc,
+    /// `distance = "equiangular-mis"` (equiangular sampling on camera rays, by MIS).
+    EquiangularDistance,
+    /// `light_selection` (how next-event estimation picks a light).
+    LightSelection,
+    /// The images of its sampling techniques one by one (`--strategy-images`).
+    StrategyImages,
 }
 
 /// Refuses a scene with an emitting medium for an integrator that cannot collect its light,
@@ -238,6 +265,24 @@ pub trait Facts: Sync {
     fn statistics_key(&self) -> Option<&'static str> {
         None
     }
+
+    /// Whether it takes `option`, one of the options only some integrators take.
+    fn takes(&self, _option: OwnOption) -> bool {
+        false
+    }
+
+    /// Whether the film's per-pixel variance estimates the image's: each sample adds to its
+    /// own pixel only (not where samples splat into other pixels, as light tracing's and MLT's
+    /// do, whose variance the film does not record).
+    fn pixel_variance(&self) -> bool {
+        true
+    }
+
+    /// What to tell a user whose image has pixels with a negative estimate, besides that the
+    /// estimator has not converged there (SMC's control variates), if anything.
+    fn negative_pixels_hint(&self) -> Option<&'static str> {
+        None
+    }
 }
 
 /// What [`Facts`] are asked about before a render: the scene and the render's settings (the
@@ -339,24 +384,30 @@ pub trait Integrator: Send + Sync {
     fn label(&self) -> String;
 
     /// One camera sample through film point `raster`: the pixel's value (splats go to
-    /// `scratch.splats`, what the pass keeps to the integrator's `scratch.own`).
+    /// `scratch.splats`, what the pass keeps to the integrator's `scratch.own`). Unused by a
+    /// film-wide integrator ([`Integrator::film_pass`]), which renders no tiles.
     fn camera_sample(
         &self,
-        scene: &Scene,
-        cam: &Camera,
-        raster: glam::Vec2,
-        sampler: &mut Sampler,
-        scratch: &mut Scratch,
-    ) -> Rgb;
+        _scene: &Scene,
+        _cam: &Camera,
+        _raster: glam::Vec2,
+        _sampler: &mut Sampler,
+        _scratch: &mut Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
 
-    /// One sample of meter `meter`'s mean irradiance.
+    /// One sample of meter `meter`'s mean irradiance. Unused by a film-wide integrator, which
+    /// renders the camera's image only.
     fn meter_sample(
         &self,
-        scene: &Scene,
-        meter: u32,
-        sampler: &mut Sampler,
-        scratch: &mut Scratch,
-    ) -> Rgb;
+        _scene: &Scene,
+        _meter: u32,
+        _sampler: &mut Sampler,
+        _scratch: &mut Scratch,
+    ) -> Rgb {
+        Rgb::ZERO
+    }
 
     /// The camera's direct view of delta lights that the pass adds, one splat per light
     /// standing for one camera sample, drawn from `sampler` (the path tracer and SMC; BDPT's
@@ -379,11 +430,6 @@ pub trait Integrator: Send + Sync {
 
     /// After a pass: the deposits of its tiles, then of its meter chunks, in order.
     fn end_pass(&mut self, _deposits: &[Deposit]) {}
-
-    /// Whether the film's per-pixel variance estimates the image's (not for splats-only MLT).
-    fn pixel_variance(&self) -> bool {
-        true
-    }
 
     /// The statistics the integrator reports.
     fn statistics(&self) -> Statistics {

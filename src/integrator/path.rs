@@ -789,6 +789,12 @@ impl super::Facts for PathFacts {
     fn emitting_media_refusal(&self) -> Option<&'static str> {
         None
     }
+
+    /// Equiangular sampling and the light selection are its next-event estimation's.
+    fn takes(&self, option: super::OwnOption) -> bool {
+        use super::OwnOption::*;
+        matches!(option, EquiangularDistance | LightSelection)
+    }
 }
 
 /// The path tracer for the render loop (it takes no settings but the depth limit).

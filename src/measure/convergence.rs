@@ -11,15 +11,18 @@
 
 use std::fmt::Write;
 use std::path::Path;
-use std::time::Instant;
+use std::sync::Mutex;
 
 use crate::image_io::{self, Image};
 use crate::integrator::settings::{RenderOptions, Spelling};
-use crate::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
+use crate::integrator::{IntegratorKind, RenderSettings};
 use crate::math::sampler::mix64;
 use crate::measure::metrics;
 use crate::measure::stats::{self, MeanStderr, PowerLawFit};
-use crate::scene::Scene;
+use crate::render::run::LiveView;
+use crate::render::session::{PassView, Preprocessed, RenderResult};
+use crate::render::{Frontend, Outputs, Render, RenderError};
+use crate::scene::{Scene, SceneSource};
 
 /// The CSV header of `convergence.csv`; other tools read the columns by these names.
 pub const CSV_HEADER: &str = "integrator,run,checkpoint,seconds,samples,rmse,relmse,efficiency";
@@ -119,12 +122,16 @@ pub enum ConvergenceError {
     /// `NAME+equiangular` for another integrator than the path tracer (the name, the kind).
     #[error("`{0}`: equiangular distance sampling applies to path, not `{1}`")]
     NoEquiangular(String, String),
-    /// The adjoint image's estimation refused (Kristensen 2010 sec. 5.3.1).
-    #[error(transparent)]
-    Adjoint(crate::enlightened::AdjointError),
-    /// An integrator that is none or refuses the scene.
+    /// An integrator that is none.
     #[error(transparent)]
     Integrator(#[from] crate::integrator::IntegratorError),
+    /// A line's render that refuses the scene or its settings (the integrator, the adjoint
+    /// image's estimation, Kristensen 2010 sec. 5.3.1).
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// The worker threads cannot be started.
+    #[error("cannot start the worker threads: {0}")]
+    Threads(String),
     /// A rendered image that cannot be compared with the reference.
     #[error(transparent)]
     Measure(#[from] crate::measure::MeasureError),
@@ -184,63 +191,154 @@ pub fn run_seed(seed: u64, run: usize) -> u64 {
     }
 }
 
-// ANCHOR: measure_run
-/// One run of one integrator: passes of 1 spp until the last checkpoint time; when the render
-/// time passes a checkpoint, the film is snapshotted and compared with the reference. Only the
-/// passes are timed, so the cost of the metrics is not charged to the integrator.
-pub fn measure_run(
-    setup: &Setup,
-    reference: &Image,
-    kind: IntegratorKind,
-    times: &[f64],
-    run: usize,
-) -> Result<Vec<CheckpointRow>, ConvergenceError> {
-    measure_run_from(setup, reference, kind, times, run, kind.name(), 0.0)
+/// One line of a study: the label of its rows, its integrator and its settings. The
+/// preprocessing those settings ask for (the adjoint image, the guide) is built for each run
+/// with the run's seed and charged to the run.
+#[derive(Clone, Debug)]
+pub struct Line {
+    pub label: String,
+    pub kind: IntegratorKind,
+    pub settings: RenderSettings,
 }
-// ANCHOR_END: measure_run
 
-/// [`measure_run`] with a label for the rows and `seconds0` already spent (a pre-pass charged
-/// to the integrator, such as the adjoint image's).
-pub fn measure_run_from(
-    setup: &Setup,
+impl Line {
+    /// The plain line of integrator `kind` with the scene's `settings` (no adjoint image, no
+    /// guide: those are lines of their own).
+    pub fn plain(kind: IntegratorKind, settings: &RenderSettings) -> Line {
+        let mut settings = settings.clone();
+        settings.adjoint_image = false;
+        settings.guide.kind = crate::enlightened::GuideKind::Off;
+        Line {
+            label: kind.name().to_string(),
+            kind,
+            settings,
+        }
+    }
+}
+
+// ANCHOR: measure_run
+/// One run of one line: a render of passes of 1 spp for the last checkpoint's time, its
+/// preprocessing counted, through the render API that `render` uses ([`Render::run`]); when the
+/// render's time passes a checkpoint, the image is compared with the reference. The session
+/// leaves the comparisons (its views of the passes) out of the render's time, so the metrics
+/// cost the integrator nothing.
+pub fn measure_run(
+    render: &Render,
     reference: &Image,
-    kind: IntegratorKind,
     times: &[f64],
     run: usize,
     label: &str,
-    seconds0: f64,
 ) -> Result<Vec<CheckpointRow>, ConvergenceError> {
-    check_reference(setup.scene, reference)?;
-    let mut renderer = Renderer::prepared(kind, setup)?;
-    let mut seconds = seconds0;
-    let mut next = 0;
-    let mut rows = Vec::with_capacity(times.len());
-    while next < times.len() {
-        let start = Instant::now();
-        renderer.pass(1, &|| {});
-        seconds += start.elapsed().as_secs_f64();
-        // a slow pass can pass several checkpoints at once: one row stands for them all
-        let mut passed = None;
-        while next < times.len() && seconds >= times[next] {
-            passed = Some(next);
-            next += 1;
-        }
-        let (Some(checkpoint), Some(film)) = (passed, renderer.film.as_ref()) else {
-            continue;
-        };
-        let m = metrics::compare(&film.image(), reference)?;
-        rows.push(CheckpointRow {
-            integrator: label.to_string(),
-            run,
-            checkpoint,
-            seconds,
-            samples: film.spp,
-            rmse: m.rmse,
-            relmse: m.relmse,
-            efficiency: efficiency(m.relmse, seconds),
-        });
+    check_reference(render.scene, reference)?;
+    let mut study = Checkpoints {
+        reference,
+        times,
+        label,
+        run,
+        preprocessing: 0.0,
+        rows: Mutex::new(Vec::with_capacity(times.len())),
+        error: Mutex::new(None),
+    };
+    // the study checked the memory of its lines before the runs, with its own limit
+    let unlimited = crate::render::memory::Limit {
+        max_gib: Some(f64::INFINITY),
+    };
+    let out = Outputs {
+        max_memory: unlimited,
+        ..Outputs::default()
+    };
+    render.run(&out, &mut study)?;
+    if let Some(e) = study.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        return Err(e.into());
     }
-    Ok(rows)
+    Ok(study.rows.into_inner().unwrap_or_else(|e| e.into_inner()))
+}
+// ANCHOR_END: measure_run
+
+/// The study's part of a run ([`Frontend`]): no files, and after every pass the checkpoints
+/// the render's time has passed, compared with the reference.
+struct Checkpoints<'a> {
+    reference: &'a Image,
+    times: &'a [f64],
+    label: &'a str,
+    run: usize,
+    /// The preprocessing's seconds, charged to the run.
+    preprocessing: f64,
+    rows: Mutex<Vec<CheckpointRow>>,
+    error: Mutex<Option<crate::measure::MeasureError>>,
+}
+
+impl Frontend for Checkpoints<'_> {
+    type Error = ConvergenceError;
+
+    /// The caller's thread count (a study runs in its pool).
+    fn pool(&mut self) -> Result<rayon::ThreadPool, ConvergenceError> {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(rayon::current_num_threads())
+            .build()
+            .map_err(|e| ConvergenceError::Threads(e.to_string()))
+    }
+
+    fn preprocessed(
+        &mut self,
+        _: &Render,
+        pre: &Preprocessed,
+        seconds: f64,
+        _: &rayon::ThreadPool,
+    ) -> Result<(), ConvergenceError> {
+        self.preprocessing = seconds;
+        if let Some(g) = &pre.guide {
+            eprint!("{}", g.table());
+        }
+        Ok(())
+    }
+
+    fn write(
+        &self,
+        _: &Render,
+        _: &RenderResult,
+        _: &Preprocessed,
+    ) -> Result<Vec<String>, ConvergenceError> {
+        Ok(Vec::new())
+    }
+
+    fn live(&self, _size: Option<(u32, u32)>) -> Option<LiveView<'_>> {
+        let mut next = 0;
+        Some(Box::new(move |pass: &PassView| {
+            // the render's clock leaves the preprocessing out: a checkpoint at t is passed at
+            // t - preprocessing, the difference the session's own time limit is
+            let mut passed = None;
+            while next < self.times.len() && pass.seconds >= self.times[next] - self.preprocessing {
+                passed = Some(next);
+                next += 1;
+            }
+            // a slow pass can pass several checkpoints at once: one row stands for them all
+            let (Some(checkpoint), Some(image)) = (passed, (pass.image)()) else {
+                return;
+            };
+            let seconds = self.preprocessing + pass.seconds;
+            match metrics::compare(&image, self.reference) {
+                Ok(m) => lock(&self.rows).push(CheckpointRow {
+                    integrator: self.label.to_string(),
+                    run: self.run,
+                    checkpoint,
+                    seconds,
+                    samples: pass.spp,
+                    rmse: m.rmse,
+                    relmse: m.relmse,
+                    efficiency: efficiency(m.relmse, seconds),
+                }),
+                Err(e) => {
+                    lock(&self.error).get_or_insert(e);
+                }
+            }
+        }))
+    }
+}
+
+/// The value behind a mutex, whether or not a panic poisoned it.
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// Checks that the scene renders an image the reference can be compared with.
@@ -279,25 +377,39 @@ fn study_checkpoints(
 /// row, integrator by integrator, run by run. `on_run` hears of each finished run (progress).
 pub fn converge(
     scene: &Scene,
+    source: &SceneSource,
     settings: &RenderSettings,
     reference: &Image,
     kinds: &[IntegratorKind],
     config: &ConvergeConfig,
     on_run: &mut dyn FnMut(&[CheckpointRow]),
 ) -> Result<Vec<CheckpointRow>, ConvergenceError> {
-    let times = study_checkpoints(scene, reference, kinds.len(), config)?;
+    let lines: Vec<Line> = kinds.iter().map(|&k| Line::plain(k, settings)).collect();
+    converge_lines((scene, source), reference, &lines, config, on_run)
+}
+
+/// Runs every line `config.runs` times for the same budget, each run a render of its own
+/// (the seed of run r `run_seed(seed, r)`, its preprocessing built with that seed and charged
+/// to it); every checkpoint row, line by line, run by run.
+pub fn converge_lines(
+    (scene, source): (&Scene, &SceneSource),
+    reference: &Image,
+    lines: &[Line],
+    config: &ConvergeConfig,
+    on_run: &mut dyn FnMut(&[CheckpointRow]),
+) -> Result<Vec<CheckpointRow>, ConvergenceError> {
+    let times = study_checkpoints(scene, reference, lines.len(), config)?;
     let mut rows = Vec::new();
-    for &kind in kinds {
+    for line in lines {
+        let mut settings = line.settings.clone();
+        settings.max_depth = config.max_depth;
+        // checked (and its warnings given) once per line
+        let mut render = Render::new(scene, source, line.kind, settings, None)?;
+        render.time = times.last().copied();
+        render.show = false;
         for run in config.run_indices() {
-            let seed = run_seed(config.seed, run);
-            let setup = Setup {
-                scene,
-                technique: &crate::path::PLAIN,
-                settings,
-                seed,
-                max_depth: config.max_depth,
-            };
-            let run_rows = measure_run(&setup, reference, kind, &times, run)?;
+            render.settings.seed = run_seed(config.seed, run);
+            let run_rows = measure_run(&render, reference, &times, run, &line.label)?;
             on_run(&run_rows);
             rows.extend(run_rows);
         }
@@ -347,7 +459,10 @@ impl Variant {
         }
         if let Some(base) = s.strip_suffix(Self::EQUIANGULAR_SUFFIX) {
             let kind = IntegratorKind::parse(base)?;
-            if kind != IntegratorKind::Path {
+            if !kind
+                .facts()
+                .takes(crate::integrator::OwnOption::EquiangularDistance)
+            {
                 return Err(ConvergenceError::NoEquiangular(s.into(), base.into()));
             }
             return Ok(Variant {
@@ -409,6 +524,24 @@ impl Variant {
         Ok((s, adjoint))
     }
 
+    /// The study's line: its settings over `base` with the adjoint image it asks for (and no
+    /// other), and the guide only when its options set guide keys.
+    pub fn line(&self, base: &RenderSettings) -> Result<Line, ConvergenceError> {
+        let (mut settings, adjoint) = self.settings(base)?;
+        settings.adjoint_image = adjoint.is_some();
+        if let Some(a) = adjoint {
+            settings.adjoint = a;
+        }
+        if !self.options.as_ref().is_some_and(|(o, _)| o.guide.any()) {
+            settings.guide.kind = crate::enlightened::GuideKind::Off;
+        }
+        Ok(Line {
+            label: self.name(),
+            kind: self.kind,
+            settings,
+        })
+    }
+
     /// The label of its rows.
     pub fn name(&self) -> String {
         if let Some((_, name)) = &self.options {
@@ -444,57 +577,6 @@ pub fn parse_options(list: &str) -> Result<RenderOptions, String> {
         table.push_str(&format!("{k} = {value}\n"));
     }
     toml::from_str::<RenderOptions>(&table).map_err(|e| e.message().to_string())
-}
-
-/// [`converge`] over variants: a `+adjoint` variant estimates the adjoint image with the run's
-/// seed before each run, charges its time to the run (the first checkpoints it overruns are
-/// reported at the first pass); the image lives in that run's technique only.
-pub fn converge_variants(
-    scene: &Scene,
-    settings: &RenderSettings,
-    reference: &Image,
-    variants: &[Variant],
-    config: &ConvergeConfig,
-    on_run: &mut dyn FnMut(&[CheckpointRow]),
-) -> Result<Vec<CheckpointRow>, ConvergenceError> {
-    let times = study_checkpoints(scene, reference, variants.len(), config)?;
-    let mut rows = Vec::new();
-    for v in variants {
-        let (line_settings, adjoint) = v.settings(settings)?;
-        let settings = &line_settings;
-        for run in config.run_indices() {
-            let seed = run_seed(config.seed, run);
-            let mut technique = crate::enlightened::Enlightened::default();
-            let mut seconds0 = match &adjoint {
-                Some(settings) => {
-                    technique
-                        .install_adjoint(scene, settings, seed, config.max_depth)
-                        .map_err(ConvergenceError::Adjoint)?
-                        .seconds
-                }
-                None => 0.0,
-            };
-            // a `KIND(guide.…)` line's guide, built with the run's seed, its time charged
-            if v.options.as_ref().is_some_and(|(o, _)| o.guide.any()) {
-                let t0 = Instant::now();
-                technique.install_guide(scene, &settings.guide, seed);
-                seconds0 += t0.elapsed().as_secs_f64();
-            }
-            let setup = Setup {
-                scene,
-                technique: &technique,
-                settings,
-                seed,
-                max_depth: config.max_depth,
-            };
-            let result =
-                measure_run_from(&setup, reference, v.kind, &times, run, &v.name(), seconds0);
-            let run_rows = result?;
-            on_run(&run_rows);
-            rows.extend(run_rows);
-        }
-    }
-    Ok(rows)
 }
 
 /// Writes the rows as `convergence.csv` (header `CSV_HEADER`).

@@ -52,6 +52,22 @@ pub struct PhaseSample {
 }
 
 impl Phase {
+    /// What `pathspace info` says of it (`Henyey-Greenstein g = 0.5`).
+    pub fn describe(&self) -> String {
+        match self {
+            Phase::Isotropic => "isotropic".into(),
+            Phase::HenyeyGreenstein { g } => format!("Henyey-Greenstein g = {g}"),
+            Phase::Schlick { k } => format!("Schlick k = {k}"),
+            Phase::Mix(lobes) => {
+                let parts: Vec<String> = lobes
+                    .iter()
+                    .map(|(w, l)| format!("{} x {}", crate::spectrum::round3(*w), l.describe()))
+                    .collect();
+                format!("mix of {}", parts.join(" + "))
+            }
+        }
+    }
+
     /// Henyey-Greenstein, validated.
     pub fn henyey_greenstein(g: f32) -> Result<Self, PhaseError> {
         if g.is_finite() && g.abs() < 1.0 {

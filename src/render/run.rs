@@ -303,8 +303,9 @@ impl Outputs {
     }
 }
 
-/// The live view of a render: called after every pass with the image so far on demand.
-pub type LiveView<'f> = Box<dyn FnMut(&dyn Fn() -> Option<image_io::Image>) + Send + 'f>;
+/// The live view of a render: called after every pass with how far it is and the image so
+/// far on demand ([`session::PassView`]), its time left out of the render's.
+pub type LiveView<'f> = Box<dyn FnMut(&session::PassView) + Send + 'f>;
 
 /// What a front end adds to a render: its threads, what it does around the preprocessing,
 /// how it writes the image, its live views, its stop signal and its recipe.
@@ -412,7 +413,7 @@ impl Render<'_> {
         let size = self.scene.camera.as_ref().map(|c| (c.width, c.height));
         let mut live = f
             .live(size)
-            .map(|mut view| move |image: &dyn Fn() -> Option<image_io::Image>| view(image));
+            .map(|mut view| move |pass: &session::PassView| view(pass));
         let control = Control {
             stop: f.stop()?,
             every: out.every,

@@ -160,10 +160,22 @@ pub struct Control<'c> {
     pub on_checkpoint: Option<
         &'c mut (dyn FnMut(&RenderResult, &Checkpoint) -> Result<(), CheckpointError> + Send),
     >,
-    /// Called after every pass with the image so far on demand (asking for it copies the
-    /// film): a live view that only reads, so the render is the same with or without it.
-    #[allow(clippy::type_complexity)]
-    pub on_pass: Option<&'c mut (dyn FnMut(&dyn Fn() -> Option<image_io::Image>) + Send)>,
+    /// Called after every pass with how far the render is and the image so far on demand
+    /// (asking for it copies the film): a view that only reads, so the render is the same with
+    /// or without it, and whose time the render's seconds leave out (a study's metrics cost
+    /// the integrator nothing).
+    pub on_pass: Option<&'c mut (dyn FnMut(&PassView) + Send)>,
+}
+
+/// What the session shows after a pass.
+pub struct PassView<'v> {
+    /// Samples per pixel done (mutations per pixel for MLT).
+    pub spp: u64,
+    /// The render's seconds so far (the preprocessing and these views left out): the number
+    /// a timed render compares with its time.
+    pub seconds: f64,
+    /// The image so far (asking for it copies the film).
+    pub image: &'v dyn Fn() -> Option<image_io::Image>,
 }
 
 /// How a render ended.
@@ -194,6 +206,9 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
         }
     };
     let start = Instant::now();
+    // the render's clock: the time since the start less the views' (`on_pass`)
+    let mut viewing = 0.0;
+    let clock = |viewing: f64| start.elapsed().as_secs_f64() - viewing;
     // counted in the render's time, as when the first pass did it
     if let Some(name) = r.integrator.pending_stage() {
         let scene = job.setup.scene;
@@ -204,13 +219,15 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
         };
     }
     let prior_seconds = progress.seconds;
+    progress.seconds = prior_seconds + clock(viewing);
     let first_spp = progress.spp;
     let mut last_checkpoint = Instant::now();
     let stop = || control.stop.map_or(0, |s| s.load(Ordering::SeqCst));
     let mut stopped_by = None;
     loop {
+        // a timed render compares the seconds the last view was shown with its time
         let spp = match job.time {
-            Some(budget) if prior_seconds + start.elapsed().as_secs_f64() < budget => 1,
+            Some(budget) if progress.seconds < budget => 1,
             Some(_) if r.passes == 0 && progress.spp == 0 => 1,
             Some(_) => break,
             None => match plan::next_pass_spp(progress.spp, job.spp) {
@@ -224,7 +241,7 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
         }
         r.pass(spp, &tick);
         progress.spp += spp as u64;
-        progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
+        progress.seconds = prior_seconds + clock(viewing);
         if bar.is_some() || log.is_some() {
             let pixels = job
                 .setup
@@ -232,7 +249,7 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
                 .camera
                 .as_ref()
                 .map_or(0, |c| c.width * c.height);
-            let elapsed = start.elapsed().as_secs_f64();
+            let elapsed = clock(viewing);
             let rate = ((progress.spp - first_spp) * pixels as u64) as f64 / elapsed;
             let message = progress_message(
                 progress.spp,
@@ -274,13 +291,19 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
             last_checkpoint = Instant::now();
         }
         if let Some(show) = control.on_pass.as_mut() {
-            show(&|| image(&r, job, earlier.as_ref()));
+            let shown = Instant::now();
+            show(&PassView {
+                spp: progress.spp,
+                seconds: progress.seconds,
+                image: &|| image(&r, job, earlier.as_ref()),
+            });
+            viewing += shown.elapsed().as_secs_f64();
         }
     }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    progress.seconds = prior_seconds + start.elapsed().as_secs_f64();
+    progress.seconds = prior_seconds + clock(viewing);
     let checkpoint = control.identity.as_ref().map(|id| {
         snapshot(
             &r,
@@ -497,7 +520,7 @@ fn result(r: &Renderer, job: &Job, progress: &Progress, earlier: Option<&Earlier
         negative_pixels,
         image,
         meters: r.meter_estimates(),
-        variance_of_mean: if r.integrator.pixel_variance() {
+        variance_of_mean: if r.kind.facts().pixel_variance() {
             r.film.as_ref().map(|f| f.variance_of_mean())
         } else {
             None

@@ -339,3 +339,112 @@ fn display_math_has_no_line_that_markdown_takes_for_a_block() {
         bad.join("\n")
     );
 }
+
+/// The rows of the book's key tables of the nested `[render.T]` tables: a table headed
+/// `| key | default | meaning |` under a line that names `` `[render.T]` ``, as (chapter, T,
+/// key, default cell).
+fn nested_key_tables() -> Vec<(String, String, String, String)> {
+    let mut rows = Vec::new();
+    for path in chapters() {
+        let chapter = path.file_name().unwrap().to_string_lossy().to_string();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            if line.trim() != "| key | default | meaning |" {
+                continue;
+            }
+            // the table it documents: the last `[render.T]` named in the lines just above
+            let table = lines[i.saturating_sub(4)..i].iter().rev().find_map(|l| {
+                let at = l.rfind("`[render.")?;
+                let name = &l[at + "`[render.".len()..];
+                Some(name[..name.find("]`")?].to_string())
+            });
+            let Some(table) = table else {
+                continue;
+            };
+            for row in lines[i + 2..].iter().take_while(|l| l.starts_with('|')) {
+                let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+                let key = cells[1].trim_matches('`').to_string();
+                rows.push((chapter.clone(), table.clone(), key, cells[2].to_string()));
+            }
+        }
+    }
+    rows
+}
+
+/// A key table's default cell as the TOML value a scene would write (`1/32` as its value).
+fn toml_value(cell: &str) -> Option<String> {
+    let v = cell.trim_matches('`');
+    let v = match v.split_once('/') {
+        Some((a, b)) if !v.starts_with('"') => {
+            (a.trim().parse::<f64>().ok()? / b.trim().parse::<f64>().ok()?).to_string()
+        }
+        _ => v.to_string(),
+    };
+    toml::from_str::<toml::Table>(&format!("v = {v}")).ok()?;
+    Some(v)
+}
+
+/// The settings a `[render]` table added to the fog box loads to (the record of the options
+/// given left out), or why it does not load.
+fn settings_with(render: &str) -> Result<String, String> {
+    use pathspace::integrator::settings::{load, RenderOptions};
+    let text = format!("{}\n{render}", pathspace::scene::FOG_BOX);
+    let (_, mut s) = load(&pathspace::scene::SceneSource::embedded("fog.toml", &text))
+        .map_err(|e| e.to_string())?;
+    s.given = RenderOptions::default();
+    Ok(format!("{s:?}"))
+}
+
+/// The defaults of the nested tables are written once, in their settings' `Default`; the
+/// book's key tables state them in the chapters, and this test keeps the two together: each
+/// table lists every key of its schema, and writing a key's stated default into a scene leaves
+/// every setting as the code's defaults make it (a default changed in the code, or in the book,
+/// fails here).
+#[test]
+fn the_books_key_tables_state_the_schemas_defaults() {
+    use pathspace::integrator::{mlt::MltOptions, pssmlt::PssmltOptions, smc::SmcOptions};
+    let schema = |v: serde_json::Value| -> Vec<String> {
+        let mut keys: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
+        keys.sort();
+        keys
+    };
+    let tables = [
+        (
+            "mlt",
+            schema(serde_json::to_value(MltOptions::default()).unwrap()),
+        ),
+        (
+            "pssmlt",
+            schema(serde_json::to_value(PssmltOptions::default()).unwrap()),
+        ),
+        (
+            "smc",
+            schema(serde_json::to_value(SmcOptions::default()).unwrap()),
+        ),
+    ];
+    let rows = nested_key_tables();
+    let defaults = settings_with("").unwrap();
+    for (table, keys) in &tables {
+        let mut listed: Vec<String> = rows
+            .iter()
+            .filter(|r| r.1 == *table)
+            .map(|r| r.2.clone())
+            .collect();
+        listed.sort();
+        assert_eq!(&listed, keys, "the book's key table of [render.{table}]");
+    }
+    for (chapter, table, key, cell) in &rows {
+        let value = toml_value(cell).unwrap_or_else(|| {
+            panic!("{chapter}: the default `{cell}` of [render.{table}] {key} is no TOML value")
+        });
+        let loaded = settings_with(&format!("[render.{table}]\n{key} = {value}\n"))
+            .unwrap_or_else(|e| panic!("{chapter}: [render.{table}] {key} = {value}: {e}"));
+        assert!(
+            loaded == defaults,
+            "{chapter}: the book states the default of [render.{table}] {key} as {cell}; the \
+             code's is another"
+        );
+    }
+    assert!(rows.len() >= 20, "only {} rows found", rows.len());
+}

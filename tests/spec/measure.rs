@@ -249,6 +249,7 @@ fn converge_writes_the_csv_and_charts() {
     let settings = pathspace::integrator::RenderSettings::for_scene(&scene);
     let rows = convergence::converge(
         &scene,
+        &SceneSource::embedded("furnace.toml", &furnace_toml(ALBEDO)),
         &settings,
         &exact(1.0),
         &[IntegratorKind::Path],

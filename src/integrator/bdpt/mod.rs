@@ -59,6 +59,17 @@ impl super::Facts for BdptFacts {
             bytes_per_sample: SPLATS_PER_SAMPLE * super::SPLAT_BYTES,
         }
     }
+
+    /// Light tracing's t = 1 strategies add to other pixels as splats, which a pixel's own
+    /// samples do not see: the film's per-pixel variance would leave them out.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
+
+    /// BDPT's (s, t) strategies one by one (light tracing's are all t = 1).
+    fn takes(&self, option: super::OwnOption) -> bool {
+        option == super::OwnOption::StrategyImages && self.0 == Strategies::All
+    }
 }
 
 /// The bidirectional engine with `strategies` (all for `bdpt`, t = 1 for `light`).
@@ -74,12 +85,6 @@ pub fn prepare<'t>(
 }
 
 impl Integrator for Bdpt<'_> {
-    /// Light tracing's t = 1 strategies add to other pixels as splats, which a pixel's own
-    /// samples do not see: the film's per-pixel variance would leave them out.
-    fn pixel_variance(&self) -> bool {
-        false
-    }
-
     fn label(&self) -> String {
         match self.strategies {
             Strategies::LightTracing => "light",

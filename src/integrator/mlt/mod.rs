@@ -781,6 +781,11 @@ impl super::Facts for MltFacts {
     fn statistics_key(&self) -> Option<&'static str> {
         Some("mlt")
     }
+
+    /// Its chains splat over the whole film.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
 }
 
 /// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
@@ -801,40 +806,12 @@ impl super::Integrator for Mlt<'_> {
         "mlt".into()
     }
 
-    /// Unused: MLT renders film-wide ([`Mlt::run`]).
-    fn camera_sample(
-        &self,
-        _scene: &Scene,
-        _cam: &crate::scene::Camera,
-        _raster: Vec2,
-        _sampler: &mut Sampler,
-        _scratch: &mut super::Scratch,
-    ) -> Rgb {
-        Rgb::ZERO
-    }
-
-    /// Unused: MLT renders the camera's image only (meters are not rendered).
-    fn meter_sample(
-        &self,
-        _scene: &Scene,
-        _meter: u32,
-        _sampler: &mut Sampler,
-        _scratch: &mut super::Scratch,
-    ) -> Rgb {
-        Rgb::ZERO
-    }
-
     /// Film-wide: `spp` mutations per pixel over all chains.
     fn film_pass(&mut self, scene: &Scene, film: &mut Film, spp: u32) -> Option<u64> {
         let n = film.width as u64 * film.height as u64 * spp as u64;
         self.run(scene, film, n);
         film.spp += spp as u64;
         Some(n)
-    }
-
-    /// The per-pixel variance of splats is not recorded.
-    fn pixel_variance(&self) -> bool {
-        false
     }
 
     fn pending_stage(&self) -> Option<String> {

@@ -181,4 +181,8 @@ impl super::Facts for MmltFacts {
     fn statistics_key(&self) -> Option<&'static str> {
         Some("mmlt")
     }
+
+    fn pixel_variance(&self) -> bool {
+        PssmltFacts.pixel_variance()
+    }
 }

@@ -464,34 +464,16 @@ impl super::Facts for PssmltFacts {
     fn statistics_key(&self) -> Option<&'static str> {
         Some("pssmlt")
     }
+
+    /// Its chains splat over the whole film.
+    fn pixel_variance(&self) -> bool {
+        false
+    }
 }
 
 impl super::Integrator for Pssmlt<'_> {
     fn label(&self) -> String {
         self.name.into()
-    }
-
-    /// Unused: PSSMLT renders film-wide ([`Pssmlt::run`]).
-    fn camera_sample(
-        &self,
-        _scene: &Scene,
-        _cam: &crate::scene::Camera,
-        _raster: Vec2,
-        _sampler: &mut Sampler,
-        _scratch: &mut super::Scratch,
-    ) -> Rgb {
-        Rgb::ZERO
-    }
-
-    /// Unused: PSSMLT renders the camera's image only.
-    fn meter_sample(
-        &self,
-        _scene: &Scene,
-        _meter: u32,
-        _sampler: &mut Sampler,
-        _scratch: &mut super::Scratch,
-    ) -> Rgb {
-        Rgb::ZERO
     }
 
     /// Film-wide: `spp` mutations per pixel over all chains.
@@ -500,10 +482,6 @@ impl super::Integrator for Pssmlt<'_> {
         self.run(scene, film, n);
         film.spp += spp as u64;
         Some(n)
-    }
-
-    fn pixel_variance(&self) -> bool {
-        false
     }
 
     fn pending_stage(&self) -> Option<String> {

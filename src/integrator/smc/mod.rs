@@ -659,6 +659,15 @@ impl super::Facts for SmcFacts {
     fn statistics_key(&self) -> Option<&'static str> {
         Some("smc")
     }
+
+    fn takes(&self, option: super::OwnOption) -> bool {
+        option == super::OwnOption::Smc
+    }
+
+    /// Its control variates before they converge.
+    fn negative_pixels_hint(&self) -> Option<&'static str> {
+        Some("SMC's control variates: more samples per pixel, or --smc-variant is1_cv0")
+    }
 }
 
 /// SMC's storage in a tile or meter chunk: the walk's path links and the records its samples
