@@ -37,25 +37,7 @@ fn bsdf(b: &Option<Bsdf>) -> String {
 }
 
 fn medium(m: &Medium) -> String {
-    match m {
-        Medium::Homogeneous(h) => format!(
-            "homogeneous, sigma_a {}, sigma_s {}, sigma_t {}, albedo {}, mean free path {}, phase {}",
-            v3(h.sigma_a),
-            v3(h.sigma_s),
-            v3(h.sigma_t),
-            v3(h.albedo()),
-            v3(h.sigma_t.recip()),
-            h.phase.describe()
-        ),
-        Medium::Heterogeneous(h) => format!(
-            "heterogeneous, sigma_a {} and sigma_s {} per unit density, {}, Delta {}, phase {}",
-            v3(h.sigma_a),
-            v3(h.sigma_s),
-            h.line_integral.name(),
-            round(h.delta),
-            h.phase.describe()
-        ),
-    }
+    m.describe()
 }
 
 /// The media that glow (L_e,V0 of eq. 1) and the power next-event estimation samples them by.

@@ -214,6 +214,60 @@ impl Medium {
         }
     }
 
+    /// The box outside which the medium is empty (an inhomogeneous medium's), `None` for a
+    /// medium that fills the shapes enclosing it.
+    pub fn bounds(&self) -> Option<crate::geometry::Aabb> {
+        match self {
+            Medium::Homogeneous(_) => None,
+            Medium::Heterogeneous(h) => Some(h.bounds),
+        }
+    }
+
+    /// The bytes of its own data (an inhomogeneous medium's density grid), for the memory
+    /// estimate.
+    pub fn memory_bytes(&self) -> u64 {
+        match self {
+            Medium::Homogeneous(_) => 0,
+            Medium::Heterogeneous(h) => match &h.density {
+                Density::Grid(g) => g.values.len() as u64 * 4,
+                Density::Field(_) => 0,
+            },
+        }
+    }
+
+    /// True when a camera ray may collide in it at a distance sampled toward a light (a
+    /// closed-form medium that scatters: equiangular sampling's spans).
+    pub fn scatters_in_closed_form(&self) -> bool {
+        match self {
+            Medium::Homogeneous(h) => h.sigma_s.max_element() > 0.0,
+            Medium::Heterogeneous(_) => false,
+        }
+    }
+
+    /// What `pathspace info` says of it (its coefficients, line integral and phase function).
+    pub fn describe(&self) -> String {
+        use crate::spectrum::{round3, show};
+        match self {
+            Medium::Homogeneous(h) => format!(
+                "homogeneous, sigma_a {}, sigma_s {}, sigma_t {}, albedo {}, mean free path {}, phase {}",
+                show(h.sigma_a),
+                show(h.sigma_s),
+                show(h.sigma_t),
+                show(h.albedo()),
+                show(h.sigma_t.recip()),
+                h.phase.describe()
+            ),
+            Medium::Heterogeneous(h) => format!(
+                "heterogeneous, sigma_a {} and sigma_s {} per unit density, {}, Delta {}, phase {}",
+                show(h.sigma_a),
+                show(h.sigma_s),
+                h.line_integral.name(),
+                round3(h.delta),
+                h.phase.describe()
+            ),
+        }
+    }
+
     /// Sets how an inhomogeneous medium integrates sigma_t along a ray; false for a medium
     /// without a line integral to choose (homogeneous: the closed form).
     pub fn set_line_integral(&mut self, li: LineIntegral) -> bool {

@@ -15,7 +15,7 @@
 use glam::Vec3;
 
 use crate::geometry::Ray;
-use crate::medium::{Equiangular, Medium};
+use crate::medium::Equiangular;
 use crate::scene::{Scene, SegmentEnd, Segments};
 use crate::spectrum::Rgb;
 
@@ -57,10 +57,7 @@ impl RayMedia {
                 break;
             }
             if let Some(m) = seg.medium {
-                let scatters = match &scene.media[m as usize] {
-                    Medium::Homogeneous(h) => h.sigma_s.max_element() > 0.0,
-                    Medium::Heterogeneous(_) => false,
-                };
+                let scatters = scene.media[m as usize].scatters_in_closed_form();
                 out.spans[out.n] = Span {
                     t0: seg.t0,
                     t1: seg.t1,

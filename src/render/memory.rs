@@ -17,7 +17,7 @@ use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
 use crate::integrator::settings::RenderSettings;
 use crate::integrator::{Case, IntegratorKind};
-use crate::medium::{Density, Medium};
+use crate::medium::Medium;
 use crate::scene::{Environment, Light, Scene};
 
 /// The film: sum, sum of squares and splats per pixel (exactly `Film::new`'s buffers).
@@ -138,17 +138,7 @@ fn scene_bytes(scene: &Scene) -> u64 {
     /// A null boundary's share of the second tree it is in (`Scene::boundary_bvh`): the node
     /// share of `PRIMITIVE_BYTES` again, without the primitive.
     const BOUNDARY_BYTES: u64 = 160;
-    let grids: u64 = scene
-        .media
-        .iter()
-        .map(|m| match m {
-            Medium::Heterogeneous(h) => match &h.density {
-                Density::Grid(g) => g.values.len() as u64 * 4,
-                Density::Field(_) => 0,
-            },
-            Medium::Homogeneous(_) => 0,
-        })
-        .sum();
+    let grids: u64 = scene.media.iter().map(Medium::memory_bytes).sum();
     let maps: u64 = scene
         .lights
         .iter()

@@ -239,10 +239,10 @@ fn medium_bounds(scene: &Scene, m: u32) -> Option<Aabb> {
             b = b.union(prim.bounds());
         }
     }
-    if let crate::medium::Medium::Heterogeneous(h) = &scene.media[m as usize] {
+    if let Some(own) = scene.media[m as usize].bounds() {
         b = Aabb {
-            min: b.min.max(h.bounds.min),
-            max: b.max.min(h.bounds.max),
+            min: b.min.max(own.min),
+            max: b.max.min(own.max),
         };
     }
     let ok = !b.is_empty() && b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all();

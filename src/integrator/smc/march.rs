@@ -70,10 +70,8 @@ fn longest_segment(scene: &Scene, med: &Medium) -> f32 {
         return 0.0; // no shapes, so no medium is entered
     }
     let scene_diagonal = scene.bounds.extent().length();
-    match med {
-        Medium::Heterogeneous(h) => h.bounds.extent().length().min(scene_diagonal),
-        Medium::Homogeneous(_) => scene_diagonal,
-    }
+    med.bounds()
+        .map_or(scene_diagonal, |b| b.extent().length().min(scene_diagonal))
 }
 
 /// The most steps a march takes along one segment through any medium of `scene` (1 without
