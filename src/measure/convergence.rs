@@ -313,7 +313,10 @@ impl Frontend for Checkpoints<'_> {
                 next += 1;
             }
             // a slow pass can pass several checkpoints at once: one row stands for them all
-            let (Some(checkpoint), Some(image)) = (passed, (pass.image)()) else {
+            let Some(checkpoint) = passed else {
+                return;
+            };
+            let Some(image) = (pass.image)() else {
                 return;
             };
             let seconds = self.preprocessing + pass.seconds;
