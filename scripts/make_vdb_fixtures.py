@@ -16,7 +16,8 @@ and last of these voxels. pathspace must read the `.vdb` into exactly that grid.
 
 Variants: `blosc` (OpenVDB's default: Blosc-LZ4 + active mask), `zip` (zlib + active mask),
 `none` (no codec: the active values stored as they are), `half` (Blosc, values saved as half floats), and
-`two_grids` (Blosc, the density and a second grid `temperature`).
+`two_grids` (Blosc, the density and a second grid `temperature`); and two files the reader
+must refuse: `huge` (a 4096^3 active region held by tiles) and `rotated` (a rotated transform).
 """
 import os
 import struct
@@ -97,6 +98,16 @@ def main():
     half.saveFloatAsHalf = True
     vdb.write(os.path.join(OUT, "half.vdb"), grids=[half])
     vdb.write(os.path.join(OUT, "two_grids.vdb"), grids=[temperature_grid(), density_grid()])
+    # refused: a 4096^3 active region in a file of a few KB (tiles), and a rotated transform
+    huge = vdb.FloatGrid()
+    huge.name = "density"
+    huge.fill((0, 0, 0), (4095, 4095, 4095), 1.0)
+    vdb.write(os.path.join(OUT, "huge.vdb"), grids=[huge])
+    rotated = density_grid()
+    t = vdb.createLinearTransform(voxelSize=SCALE)
+    t.rotate(0.5, vdb.Axis.Z)
+    rotated.transform = t
+    vdb.write(os.path.join(OUT, "rotated.vdb"), grids=[rotated])
     for name in ["blosc", "zip", "none", "half", "two_grids"]:
         grid = vdb.read(os.path.join(OUT, name + ".vdb"), "density")
         write_vol(os.path.join(OUT, name + ".vol"), grid)

@@ -119,7 +119,7 @@ impl<'a> Reader<'a> {
     fn string(&mut self, what: &str) -> Result<String, Fail> {
         let start = self.pos;
         let n = self.u32(what)? as usize;
-        let bytes = self.take(n, what)?;
+        let bytes = self.take(n, what).map_err(|(_, m)| (at(start), m))?;
         String::from_utf8(bytes.to_vec())
             .map_err(|_| (at(start), format!("{what} is not UTF-8 text")))
     }
