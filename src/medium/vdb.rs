@@ -346,10 +346,8 @@ struct Topology {
 
 impl Topology {
     fn include(&mut self, lo: [i64; 3], side: i64) {
-        for k in 0..3 {
-            self.lo[k] = self.lo[k].min(lo[k]);
-            self.hi[k] = self.hi[k].max(lo[k] + side - 1);
-        }
+        self.lo = [0, 1, 2].map(|k| self.lo[k].min(lo[k]));
+        self.hi = [0, 1, 2].map(|k| self.hi[k].max(lo[k] + side - 1));
     }
 
     fn tile(
@@ -689,9 +687,12 @@ fn unshuffle(typesize: usize, src: &[u8], dst: &mut [u8]) {
     dst[tail..].copy_from_slice(&src[tail..]);
 }
 
+/// A dense lattice: its first voxel, its sides and its values (x fastest).
+type Lattice = ([i64; 3], [usize; 3], Vec<f32>);
+
 /// The dense lattice over the active box grown by one voxel, its tiles painted, then the
 /// leaves' buffers read into it.
-fn lattice(r: &mut Reader, t: &Topology) -> Result<([i64; 3], [usize; 3], Vec<f32>), Fail> {
+fn lattice(r: &mut Reader, t: &Topology) -> Result<Lattice, Fail> {
     if t.lo[0] > t.hi[0] {
         return Err((
             String::new(),

@@ -47,7 +47,7 @@ fn truncated_files_are_refused_at_every_length() {
     }
 }
 
-/// Every byte of the fixtures changed in turn: read or refused, never a panic; what is read
+/// Every byte of the fixtures inverted in turn: read or refused, never a panic; what is read
 /// is a valid lattice (finite densities >= 0, by `Grid::new`).
 #[test]
 fn damaged_bytes_are_read_or_refused_never_a_panic() {
@@ -55,12 +55,10 @@ fn damaged_bytes_are_read_or_refused_never_a_panic() {
     for (name, step) in [("blosc.vdb", 1), ("zip.vdb", 5), ("half.vdb", 5)] {
         let b = bytes(name);
         for i in (0..b.len()).step_by(step) {
-            for x in [0xff] {
-                let mut d = b.clone();
-                d[i] ^= x;
-                if let Ok(g) = parse_vdb(&d, "density") {
-                    assert!(g.grid.values.iter().all(|v| v.is_finite() && *v >= 0.0));
-                }
+            let mut d = b.clone();
+            d[i] ^= 0xff;
+            if let Ok(g) = parse_vdb(&d, "density") {
+                assert!(g.grid.values.iter().all(|v| v.is_finite() && *v >= 0.0));
             }
         }
     }
