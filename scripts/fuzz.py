@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids,
-OBJ meshes and EXR environment maps, and of the files it reads back: checkpoints and renders.
+"""Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids
+(text, `.vol` and OpenVDB), OBJ meshes and EXR environment maps, and of the files it reads
+back: checkpoints and renders.
 
 Each scene case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a
 scratch directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types,
@@ -45,7 +46,8 @@ What a case may end as:
 Cases are reproducible: case k of `--seed S` is the same mutation on every machine (a base
 checkpoint's pass count depends on timing, so its bytes may differ; `--keep` saves them).
 `--keep DIR` saves every case that is a bug, with the command lines, for replay; `--only KIND`
-runs only the cases of one kind among the indices.
+runs only the cases of one kind among the indices (`--only vdb`: the
+scene cases that mutate an OpenVDB file).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -121,7 +123,10 @@ def load_seed(rel):
         src = os.path.join(os.path.dirname(path), name)
         if os.path.isfile(src):
             with open(src, "rb") as f:
-                files[name] = f.read()
+                # a companion in another directory (`../vdb/blosc.vdb`) is copied beside the scene
+                local = os.path.basename(name)
+                text = text.replace(name.encode(), local.encode())
+                files[local] = f.read()
     return text, files
 
 
@@ -143,6 +148,15 @@ def grid_with_vol():
     head = b"VOL" + bytes([3]) + struct.pack("<5i", 1, *res, 1) + struct.pack("<6f", -1, -1, -1, 1, 1, 1)
     vol = head + struct.pack(f"<{len(values)}f", *values)
     return text.replace(b"blob.grid", b"blob.vol"), {"blob.vol": vol}
+
+
+def vdb_scene(rng):
+    """The agreement matrix's VDB scene reading one of the OpenVDB fixtures (Blosc, zip, no
+    codec, half floats), so that VDB mutations reach that reader."""
+    text, _ = load_seed(os.path.join("tests", "fixtures", "agreement", "vdb.toml"))
+    name = rng.choice(["blosc", "zip", "none", "half"]) + ".vdb"
+    with open(os.path.join(ROOT, "tests", "fixtures", "vdb", name), "rb") as f:
+        return text.replace(b"blosc.vdb", b"smoke.vdb"), {"smoke.vdb": f.read()}
 
 
 # ---- mutations of TOML text ------------------------------------------------------------
@@ -306,6 +320,25 @@ def mutate_vol(rng, data):
     at = rng.choice([24, 28, 36, 44, 48, 52, len(data) - 4])
     v = rng.choice([float("nan"), float("inf"), -1.0, 1e30, 0.0, -0.0])
     return data[:at] + struct.pack("<f", v) + data[at + 4:], f"vol: float at {at} -> {v}"
+
+
+def mutate_vdb(rng, data):
+    """An OpenVDB file: a truncation, a flipped byte, or a 32- or 64-bit integer (string
+    lengths, counts, grid offsets, compressed sizes, Blosc header fields) set to an extreme."""
+    op = rng.choice(["truncate", "byte", "byte", "int", "int64"])
+    if op == "truncate":
+        at = rng.randrange(len(data) + 1)
+        return data[:at], f"vdb: truncate at {at}"
+    if op == "byte":
+        at = rng.randrange(len(data))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"vdb: byte {at}"
+    if op == "int":
+        at = rng.randrange(len(data) - 4)
+        v = rng.choice([0, 1, -1, 7, 4096, 2**20, 2**31 - 1, -(2**31)])
+        return data[:at] + struct.pack("<i", v) + data[at + 4:], f"vdb: int at {at} -> {v}"
+    at = rng.randrange(len(data) - 8)
+    v = rng.choice([0, 1, -1, 2**31, 2**40, 2**63 - 1, -(2**63)])
+    return data[:at] + struct.pack("<q", v) + data[at + 8:], f"vdb: int64 at {at} -> {v}"
 
 
 def mutate_exr(rng, data):
@@ -747,6 +780,15 @@ ADVERSARIAL_CASES = {"checkpoint": checkpoint_case, "merge": merge_case, "change
 # ---- one case --------------------------------------------------------------------------
 
 
+# the share of scene cases (a range of `make_case`'s first draw) that mutate an OpenVDB scene
+VDB_PICK = (0.14, 0.20)
+
+
+def is_vdb_case(seed, k):
+    """Whether scene case k mutates the OpenVDB scene (`--only vdb`)."""
+    return VDB_PICK[0] <= random.Random(f"{seed}:{k}").random() < VDB_PICK[1]
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -754,6 +796,8 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files) = "fog-box+mesh", fog_box_with_mesh()
     elif pick < 0.14:
         name, (text, files) = "grid+vol", grid_with_vol()
+    elif pick < VDB_PICK[1]:
+        name, (text, files) = "vdb", vdb_scene(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
@@ -761,7 +805,7 @@ def make_case(k, seed, seeds, keys, strings):
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
-            mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr}.get(f[-4:], mutate_grid)
+            mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb}.get(f[-4:], mutate_grid)
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -924,7 +968,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -954,7 +998,9 @@ def main():
 def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
         ks = range(args.first, args.first + args.cases)
-        if args.only:
+        if args.only == "vdb":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None and is_vdb_case(args.seed, k)]
+        elif args.only:
             ks = [k for k in ks if (adversarial_kind(args.seed, k) or "scene") == args.only]
         jobs = [pool.submit(case, args, k, seeds, keys, strings, bases) for k in ks]
         for done, fut in enumerate(concurrent.futures.as_completed(jobs), 1):

@@ -10,6 +10,7 @@ pub mod heterogeneous;
 pub mod homogeneous;
 pub mod phase;
 pub mod procedural;
+pub mod vdb;
 
 pub use equiangular::Equiangular;
 pub use grid::Grid;

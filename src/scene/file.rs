@@ -268,6 +268,25 @@ pub enum MediumDesc {
         /// Marching step as a fraction of the box's largest side.
         step: Option<f32>,
     },
+    /// A float grid of an OpenVDB file (`grid`, default `density`), trilinearly interpolated
+    /// between its voxels over its active box (grown by one voxel) in the world space of the
+    /// grid's transform, scaling sigma_a and sigma_s.
+    Vdb {
+        sigma_a: RgbValue,
+        sigma_s: RgbValue,
+        #[serde(default = "default_phase")]
+        phase: PhaseDesc,
+        /// L_e,V0 per unit density (eq. 1), scaled by the density like sigma_a and sigma_s.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        emission: Option<RgbValue>,
+        file: String,
+        /// The grid's name in the file.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        grid: Option<String>,
+        #[serde(default)]
+        propagation: PropagationDesc,
+        step: Option<f32>,
+    },
     /// A density field evaluated on the fly over the box [min, max] (or baked onto a
     /// `resolution`^3 grid), scaling sigma_a and sigma_s.
     Procedural {

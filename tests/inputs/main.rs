@@ -8,4 +8,5 @@ mod bounds;
 mod error_contract;
 mod mitsuba_import;
 mod scene_errors;
+mod vdb;
 mod writes;

@@ -754,6 +754,17 @@ fn gridvolume_values_sit_at_cell_centres() {
         e.starts_with("t.xml:8:") && e.contains("not zero on its faces"),
         "{e}"
     );
+    // Mitsuba 3 reads no OpenVDB file: a `.vdb` is refused, pointing to the TOML medium
+    let vdb = text.replace("ones.vol", "smoke.vdb");
+    let e = mitsuba::import("t.xml", &vdb, tmp.clone())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("t.xml:8:")
+            && e.contains("no OpenVDB reader")
+            && e.contains("type = \"vdb\""),
+        "{e}"
+    );
     std::fs::remove_dir_all(&tmp).unwrap();
 }
 

@@ -550,6 +550,22 @@ fn agreement_grid() {
     fam.finish();
 }
 
+/// An OpenVDB medium (its tree read into the density lattice, tracked through the majorant
+/// grid built from its voxels and tile).
+#[test]
+fn agreement_vdb() {
+    let mut fam = Family::new("agreement: vdb");
+    check_row(
+        &mut fam,
+        &Row {
+            spp: SPP / 2,
+            refuse: &[EQUIANGULAR_INHOMOGENEOUS],
+            ..row("vdb", fixture("vdb.toml"), 1)
+        },
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_grid_random_offset() {
     let mut fam = Family::new("agreement: grid, random-offset marching");

@@ -31,6 +31,7 @@ mod medium {
     mod heterogeneous;
     mod homogeneous;
     mod phase;
+    mod vdb;
 }
 mod path;
 mod render {

@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use super::values::{finite3, key_of, non_negative};
 use crate::geometry::Aabb;
 use crate::medium::grid::read_grid_file_hashed;
+use crate::medium::vdb::read_vdb_file_hashed;
 use crate::medium::{Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral};
 use crate::medium::{Medium, MediumError, Phase};
 use crate::scene::file::{
@@ -18,6 +19,8 @@ use crate::scene::{SceneError, SceneSource};
 
 /// Default marching step, as a fraction of the medium box's largest side.
 pub const DEFAULT_RELATIVE_STEP: f32 = 1.0 / 64.0;
+/// The grid a `vdb` medium reads when `grid` is not given (the name OpenVDB tools give smoke).
+pub const DEFAULT_VDB_GRID: &str = "density";
 /// Default fBm parameters of the procedural cloud and plume.
 pub const DEFAULT_OCTAVES: u32 = 5;
 pub const DEFAULT_FREQUENCY: f32 = 4.0;
@@ -111,6 +114,19 @@ impl Media {
                     let coefficients = (sigma_a, sigma_s, phase, propagation, step);
                     heterogeneous(src, &key, coefficients, || procedural(src, &key, m))?
                 }
+                MediumDesc::Vdb {
+                    sigma_a,
+                    sigma_s,
+                    phase,
+                    propagation,
+                    step,
+                    file,
+                    grid,
+                    ..
+                } => {
+                    let coefficients = (sigma_a, sigma_s, phase, propagation, step);
+                    heterogeneous(src, &key, coefficients, || vdb(src, &key, file, grid))?
+                }
             };
             let medium = emitting(src, &key, medium, m)?;
             index.insert(name.clone(), media.len() as u32);
@@ -157,7 +173,8 @@ fn emitting(
 ) -> Result<Medium, SceneError> {
     let (MediumDesc::Homogeneous { emission, .. }
     | MediumDesc::Grid { emission, .. }
-    | MediumDesc::Procedural { emission, .. }) = m;
+    | MediumDesc::Procedural { emission, .. }
+    | MediumDesc::Vdb { emission, .. }) = m;
     let Some(e) = emission else {
         return Ok(medium);
     };
@@ -269,6 +286,25 @@ fn grid(
         }
     };
     Ok((Density::Grid(gf.grid), medium_box(src, key, lo, hi, "min")?))
+}
+
+/// The float grid `grid` (default `density`) of the OpenVDB `file`, over the world box its
+/// transform gives.
+fn vdb(
+    src: &SceneSource,
+    key: &KeyPath,
+    file: &str,
+    grid: &Option<String>,
+) -> Result<(Density, Aabb), SceneError> {
+    let name = grid.as_deref().unwrap_or(DEFAULT_VDB_GRID);
+    let (gf, hash) = read_vdb_file_hashed(&src.base_dir.join(file), name)
+        .map_err(|e| src.error(&key_of(key, "file"), e.to_string()))?;
+    src.record_input(file, hash);
+    let (lo, hi) = gf.bounds.expect("a VDB grid brings its box");
+    Ok((
+        Density::Grid(gf.grid),
+        medium_box(src, key, lo, hi, "file")?,
+    ))
 }
 
 /// A procedural density field over [min, max], evaluated on the fly or baked onto a grid; keys

@@ -91,6 +91,9 @@ impl<'a, 'd> Importer<'a, 'd> {
         let file = p
             .string("filename")?
             .ok_or_else(|| p.err("`filename` is missing"))?;
+        if file.to_ascii_lowercase().ends_with(".vdb") {
+            return Err(p.err(format!("`{file}`: Mitsuba 3's gridvolume reads `.vol` files and has no OpenVDB reader; a `.vdb` is read by a TOML scene's medium of type = \"vdb\"")));
+        }
         let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         if p.string("filter_type")?.is_some_and(|f| f != "trilinear") {
             return Err(p.err("only filter_type = \"trilinear\" is supported"));
