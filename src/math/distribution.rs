@@ -257,7 +257,8 @@ impl Bilinear2D {
         self.values[j * (self.nu + 1) + i]
     }
 
-    /// The density at `p` with respect to area on the unit square (coordinates clamped into it).
+    /// The density at `p` with respect to area on the unit square (coordinates clamped into it,
+    /// NaN to 0).
     #[inline]
     pub fn pdf(&self, p: Vec2) -> f32 {
         let (i, fu) = split(p.x, self.nu);
@@ -309,10 +310,10 @@ impl Bilinear2D {
 }
 
 /// The cell of coordinate `x` on a grid of `n` cells over [0, 1] and the fraction within it
-/// (`x` clamped; 1 lies at the end of the last cell).
+/// (`x` clamped, NaN to 0; 1 lies at the end of the last cell).
 #[inline]
 fn split(x: f32, n: usize) -> (usize, f32) {
-    let x = x.clamp(0.0, 1.0) * n as f32;
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) } * n as f32;
     let i = (x as usize).min(n - 1);
     (i, (x - i as f32).clamp(0.0, 1.0))
 }

@@ -124,17 +124,18 @@ impl EnvMap {
     }
 
     /// The radiance at map point `uv`: Mitsuba 3's bilinear lookup between the texel centres,
-    /// wrapped in u, clamped in v.
+    /// wrapped in u, clamped in v (a NaN coordinate reads as 0).
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Rgb {
         let (w, h) = (self.width, self.height);
-        let x = (uv.x - uv.x.floor()) * w as f32 - 0.5;
+        let u = uv.x - uv.x.floor();
+        let x = if u.is_nan() { 0.0 } else { u } * w as f32 - 0.5;
         let x0 = x.floor();
         let fx = x - x0;
         // x0 is in [-1, W - 1] (W - 1 + 1/2 rounds to at most W - 1/2)
         let i0 = (x0 as i64).rem_euclid(w as i64) as usize;
         let i1 = if i0 + 1 == w { 0 } else { i0 + 1 };
-        let y = uv.y.clamp(0.0, 1.0) * (h - 1) as f32;
+        let y = if uv.y.is_nan() { 0.0 } else { uv.y.clamp(0.0, 1.0) } * (h - 1) as f32;
         let j0 = (y as usize).min(h - 2);
         let fy = y - j0 as f32;
         let row = |j: usize| self.texel(i0, j) * (1.0 - fx) + self.texel(i1, j) * fx;
