@@ -155,6 +155,31 @@ def compare(a, shown):
         t, pv = t_and_p(m1[c], s1[c], a.runs, m2[c], s2[c], a.runs)
         print(f"  channel {'RGB'[c]}: difference {m1[c] - m2[c]:+.3g}, "
               f"combined standard error {math.hypot(s1[c], s2[c]):.3g}, t = {t:+.2f}, p = {pv:.3f}")
+    blocks(a, runs[names[0]][0], runs[names[1]][0])
+
+
+def blocks(a, x, y, b=8):
+    """Welch's t of the two renderers' run means per 8x8 block and channel: the largest |t| and
+    the blocks beyond Bonferroni's p < 0.05 over all of them."""
+    import numpy as np
+    h, w = (x.shape[1] // b) * b, (x.shape[2] // b) * b
+    if h == 0 or w == 0:
+        return
+    means = [v[:, :h, :w].reshape(a.runs, h // b, b, w // b, b, 3).mean((2, 4)) for v in (x, y)]
+    n = (h // b) * (w // b) * 3
+    worst, off = (0.0, None), 0
+    for i in range(h // b):
+        for j in range(w // b):
+            for c in range(3):
+                (m1, s1), (m2, s2) = [(m[:, i, j, c].mean(), m[:, i, j, c].std(ddof=1)
+                                       / math.sqrt(a.runs)) for m in means]
+                t, pv = t_and_p(m1, s1, a.runs, m2, s2, a.runs)
+                off += pv < 0.05 / n
+                if abs(t) > abs(worst[0]):
+                    worst = (t, (j, i, "RGB"[c], (m1 - m2) / max(abs(m2), 1e-12)))
+    t, (bx, by, c, rel) = worst
+    print(f"  8x8 blocks: {n // 3} x 3 channels, largest |t| {abs(t):.2f} at block ({bx}, {by}) "
+          f"{c} (relative difference {rel:+.2%}), {off} beyond Bonferroni p < 0.05")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids
-(text, `.vol` and OpenVDB), OBJ meshes and EXR environment maps, and of the files it reads
-back: checkpoints and renders.
+(text, `.vol` and OpenVDB), OBJ meshes and EXR and Radiance (.hdr) environment maps, and of the
+files it reads back: checkpoints and renders.
 
 Each scene case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a
 scratch directory, mutates the scene, its grid or its mesh (extreme numbers, wrong types,
@@ -46,8 +46,8 @@ What a case may end as:
 Cases are reproducible: case k of `--seed S` is the same mutation on every machine (a base
 checkpoint's pass count depends on timing, so its bytes may differ; `--keep` saves them).
 `--keep DIR` saves every case that is a bug, with the command lines, for replay; `--only KIND`
-runs only the cases of one kind among the indices (`--only vdb`: the
-scene cases that mutate an OpenVDB file).
+runs only the cases of one kind among the indices (`--only vdb`: the scene cases that mutate
+an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -157,6 +157,65 @@ def vdb_scene(rng):
     name = rng.choice(["blosc", "zip", "none", "half"]) + ".vdb"
     with open(os.path.join(ROOT, "tests", "fixtures", "vdb", name), "rb") as f:
         return text.replace(b"blosc.vdb", b"smoke.vdb"), {"smoke.vdb": f.read()}
+
+
+def rgbe_map(w, h, rle):
+    """A small sky as a Radiance RGBE file: a blue gradient and a bright sun, its scanlines
+    run-length encoded per channel (`rle`) or flat."""
+    out = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w)
+    for y in range(h):
+        row = []
+        for x in range(w):
+            sun = abs(x - w // 3) <= 1 and abs(y - h // 4) <= 1
+            row.append([255, 240, 200, 140] if sun else [60 + y, 90 + y, 200, 128])
+        if not rle:
+            out += bytes(b for p in row for b in p)
+            continue
+        out += bytes([2, 2, w >> 8, w & 0xFF])
+        for c in range(4):
+            v = [p[c] for p in row]
+            x = 0
+            while x < w:
+                n = 1
+                while x + n < w and n < 127 and v[x + n] == v[x]:
+                    n += 1
+                if n >= 3:
+                    out += bytes([128 + n, v[x]])
+                else:
+                    out += bytes([n] + v[x:x + n])
+                x += n
+    return out
+
+
+def sky_with_hdr(rng):
+    """The envmap scene reading a Radiance sky, so that RGBE mutations reach that reader."""
+    text, _ = load_seed(os.path.join("scenes", "envmap.toml"))
+    w, h = rng.choice([(32, 16), (64, 32), (4, 3)])
+    return text.replace(b"envmap-sky.exr", b"sky.hdr"), {"sky.hdr": rgbe_map(w, h, w >= 8 and rng.random() < 0.7)}
+
+
+def mutate_hdr(rng, data):
+    """A Radiance map's bytes: a truncation, a flipped byte, a run-length code set to an edge
+    value, or a header line (format, resolution, the blank line) replaced."""
+    op = rng.choice(["truncate", "byte", "code", "header", "header"])
+    end = data.find(b"\n", data.find(b"-Y")) + 1 if b"-Y" in data else 0
+    if op == "truncate":
+        at = rng.randrange(len(data) + 1)
+        return data[:at], f"hdr: truncate at {at}"
+    if op in ("byte", "code") or end == 0:
+        at = rng.randrange(max(end, 1) if op == "code" and end < len(data) else 0, len(data))
+        v = rng.choice([0, 1, 2, 127, 128, 129, 255]) if op == "code" else rng.randrange(256)
+        return data[:at] + bytes([v]) + data[at + 1:], f"hdr: byte {at} -> {v}"
+    head = data[:end].split(b"\n")
+    lines = [
+        b"-Y %s +X %s" % (rng.choice([b"0", b"1", b"16", b"99999999", b"-3", b"x"]),
+                          rng.choice([b"0", b"7", b"8", b"32", b"32768", b"4294967296"])),
+        rng.choice([b"+Y 16 +X 32", b"-Y 16 -X 32", b"+X 32 -Y 16", b"-Y 16", b""]),
+        rng.choice([b"FORMAT=32-bit_rle_xyze", b"FORMAT=", b"EXPOSURE=nan", b"#?RGBE", b"P6"]),
+    ]
+    i = rng.randrange(len(head))
+    head[i] = rng.choice(lines)
+    return b"\n".join(head) + data[end:], f"hdr: header line {i} -> {head[i]!r}"
 
 
 # ---- mutations of TOML text ------------------------------------------------------------
@@ -789,6 +848,12 @@ def is_vdb_case(seed, k):
     return VDB_PICK[0] <= random.Random(f"{seed}:{k}").random() < VDB_PICK[1]
 
 
+def hdr_case(seed, k):
+    """Whether scene case k reads a Radiance map (a stream of its own, so that the other scene
+    cases keep their seeds and mutations); drawn after the OpenVDB range of the first draw."""
+    return random.Random(f"{seed}:{k}:hdr").random() < 0.06
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -798,6 +863,8 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files) = "grid+vol", grid_with_vol()
     elif pick < VDB_PICK[1]:
         name, (text, files) = "vdb", vdb_scene(rng)
+    elif hdr_case(seed, k):
+        name, (text, files) = "envmap+hdr", sky_with_hdr(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
@@ -805,7 +872,8 @@ def make_case(k, seed, seeds, keys, strings):
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
-            mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb}.get(f[-4:], mutate_grid)
+            mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb,
+                   ".hdr": mutate_hdr}.get(f[-4:], mutate_grid)
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -968,7 +1036,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene", "vdb"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb", "hdr"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -1000,6 +1068,9 @@ def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
         ks = range(args.first, args.first + args.cases)
         if args.only == "vdb":
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None and is_vdb_case(args.seed, k)]
+        elif args.only == "hdr":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None and hdr_case(args.seed, k)
+                  and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only:
             ks = [k for k in ks if (adversarial_kind(args.seed, k) or "scene") == args.only]
         jobs = [pool.submit(case, args, k, seeds, keys, strings, bases) for k in ks]

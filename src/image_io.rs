@@ -1,6 +1,8 @@
 //! Images in memory and on disk: OpenEXR (linear, with the render's metadata as attributes) and
 //! PNG previews (exposure 0, sRGB transfer, clamped).
 
+pub mod rgbe;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 

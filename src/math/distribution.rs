@@ -176,3 +176,170 @@ fn inside_cell(i: usize, r: f32, n: usize) -> f32 {
     }
     x
 }
+
+/// A piecewise-bilinear density on the unit square: the bilinear interpolation of values on the
+/// `(nu + 1) x (nv + 1)` vertices of an `nu` x `nv` grid of equal cells, normalized, sampled
+/// exactly as the marginal density in v (piecewise linear) times the conditional density in u
+/// at that v (piecewise linear too), each inverted in closed form (Mitsuba 3's `Marginal2D`
+/// without parameters does the same; Heitz, *Can't invert the CDF? The triangle-cut parameterization*,
+/// and Pharr, Jakob and Humphreys, *Physically Based Rendering*, 4th ed., sec. A.4.2, for the
+/// linear inversion). Environment maps interpolated bilinearly.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bilinear2D {
+    nu: usize,
+    nv: usize,
+    /// Vertex values divided by their integral over the square, row-major (`(nu + 1)` a row).
+    values: Vec<f32>,
+    /// Per vertex row: the integral of the row's piecewise-linear function over the cells left
+    /// of each vertex, times `nu` (`nu + 1` a row, the first 0).
+    row_cdf: Vec<f64>,
+    /// The marginal's cumulative integral over the vertex-row cells below each vertex row,
+    /// times `nu nv` (`nv + 1` entries, the first 0).
+    marginal_cdf: Vec<f64>,
+}
+
+impl Bilinear2D {
+    /// Builds from `(nu + 1) * (nv + 1)` finite non-negative vertex values, row-major; all-zero
+    /// values give the uniform density.
+    ///
+    /// # Panics
+    /// If the count is wrong or either side is zero.
+    pub fn new(values: &[f32], nu: usize, nv: usize) -> Self {
+        assert!(nu > 0 && nv > 0 && values.len() == (nu + 1) * (nv + 1));
+        let total: f64 = Self::cells(values, nu, nv).sum::<f64>() / (nu * nv) as f64;
+        let values: Vec<f32> = if total > 0.0 {
+            values
+                .iter()
+                .map(|&v| (v.max(0.0) as f64 / total) as f32)
+                .collect()
+        } else {
+            vec![1.0; values.len()]
+        };
+        let mut row_cdf = Vec::with_capacity(values.len());
+        for row in values.chunks(nu + 1) {
+            let mut acc = 0.0f64;
+            row_cdf.push(0.0);
+            for i in 0..nu {
+                acc += 0.5 * (row[i] as f64 + row[i + 1] as f64);
+                row_cdf.push(acc);
+            }
+        }
+        let mut marginal_cdf = vec![0.0f64];
+        for j in 0..nv {
+            let sum = row_cdf[j * (nu + 1) + nu] + row_cdf[(j + 1) * (nu + 1) + nu];
+            marginal_cdf.push(marginal_cdf[j] + 0.5 * sum);
+        }
+        Bilinear2D {
+            nu,
+            nv,
+            values,
+            row_cdf,
+            marginal_cdf,
+        }
+    }
+
+    /// The cells' sums of their four vertex values over 4 (their integrals times `nu nv`).
+    fn cells(values: &[f32], nu: usize, nv: usize) -> impl Iterator<Item = f64> + '_ {
+        let at = move |i: usize, j: usize| values[j * (nu + 1) + i].max(0.0) as f64;
+        (0..nv).flat_map(move |j| {
+            (0..nu).map(move |i| 0.25 * (at(i, j) + at(i + 1, j) + at(i, j + 1) + at(i + 1, j + 1)))
+        })
+    }
+
+    /// The grid's size in cells (`nu`, `nv`).
+    pub fn size(&self) -> (usize, usize) {
+        (self.nu, self.nv)
+    }
+
+    /// The normalized value at vertex (i, j).
+    #[inline]
+    fn value(&self, i: usize, j: usize) -> f32 {
+        self.values[j * (self.nu + 1) + i]
+    }
+
+    /// The density at `p` with respect to area on the unit square (coordinates clamped into it,
+    /// NaN to 0).
+    #[inline]
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        let (i, fu) = split(p.x, self.nu);
+        let (j, fv) = split(p.y, self.nv);
+        let lerp = |a: f32, b: f32, t: f32| (1.0 - t) * a + t * b;
+        let low = lerp(self.value(i, j), self.value(i + 1, j), fu);
+        let high = lerp(self.value(i, j + 1), self.value(i + 1, j + 1), fu);
+        lerp(low, high, fv)
+    }
+
+    /// Samples a point: v by the marginal from `u.y`, u by the conditional at that v from
+    /// `u.x`. Returns the point and its density ([`Bilinear2D::pdf`] at the point).
+    pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let nu1 = self.nu + 1;
+        // the marginal: a vertex-row cell by its integral, then v within it
+        let m = &self.marginal_cdf;
+        let target = u.y as f64 * m[self.nv];
+        let j = (m[1..].partition_point(|&c| c <= target)).min(self.nv - 1);
+        let (a, b) = (
+            self.row_cdf[j * nu1 + self.nu],
+            self.row_cdf[(j + 1) * nu1 + self.nu],
+        );
+        let r = remap(target - m[j], m[j + 1] - m[j]);
+        let tv = sample_linear(a as f32, b as f32, r);
+        // the conditional at v: the rows' cumulative integrals interpolated
+        let t = tv as f64;
+        let cdf =
+            |i: usize| (1.0 - t) * self.row_cdf[j * nu1 + i] + t * self.row_cdf[(j + 1) * nu1 + i];
+        let target = u.x as f64 * cdf(self.nu);
+        let (mut lo, mut hi) = (0, self.nu - 1);
+        while lo < hi {
+            let mid = (lo + hi).div_ceil(2);
+            if cdf(mid) <= target {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        let i = lo;
+        let at = |i: usize| (1.0 - tv) * self.value(i, j) + tv * self.value(i, j + 1);
+        let r = remap(target - cdf(i), cdf(i + 1) - cdf(i));
+        let tu = sample_linear(at(i), at(i + 1), r);
+        let p = Vec2::new(
+            ((i as f32 + tu) / self.nu as f32).min(1.0),
+            ((j as f32 + tv) / self.nv as f32).min(1.0),
+        );
+        (p, self.pdf(p))
+    }
+}
+
+/// The cell of coordinate `x` on a grid of `n` cells over [0, 1] and the fraction within it
+/// (`x` clamped, NaN to 0; 1 lies at the end of the last cell).
+#[inline]
+fn split(x: f32, n: usize) -> (usize, f32) {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) } * n as f32;
+    let i = (x as usize).min(n - 1);
+    (i, (x - i as f32).clamp(0.0, 1.0))
+}
+
+/// `part / whole` in [0, 1) (0 for an empty whole).
+#[inline]
+fn remap(part: f64, whole: f64) -> f32 {
+    if whole > 0.0 {
+        ((part / whole) as f32).clamp(0.0, ONE_MINUS_EPSILON)
+    } else {
+        0.0
+    }
+}
+
+/// The t in [0, 1] where the density proportional to (1 - t) a + t b on [0, 1] has cumulative
+/// probability `r`: the root of (b - a) t^2 / 2 + a t = r (a + b) / 2, in the form without
+/// cancellation, t = r (a + b) / (a + sqrt((1 - r) a^2 + r b^2)).
+#[inline]
+pub fn sample_linear(a: f32, b: f32, r: f32) -> f32 {
+    if a + b <= 0.0 {
+        return r;
+    }
+    let t = r * (a + b) / (a + ((1.0 - r) * a * a + r * b * b).sqrt());
+    if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        r
+    }
+}

@@ -9,7 +9,7 @@ pub mod sampler;
 pub mod spherical;
 pub mod warp;
 
-pub use distribution::{Distribution1D, Distribution2D};
+pub use distribution::{Bilinear2D, Distribution1D, Distribution2D};
 pub use frame::Frame;
 pub use primary_sample::PrimarySamples;
 pub use sampler::Sampler;

@@ -8,21 +8,20 @@
 //!
 //! (+y up: the top row is the zenith), and the world direction towards the light is
 //! `to_world * d`. Column x of a W-wide image is centred on u = (x + 1/2) / W; row y of an
-//! H-high image is centred on theta = pi y / (H - 1), poles included, as Mitsuba places its
-//! texels. pathspace takes the nearest texel (Mitsuba interpolates bilinearly), so the radiance
-//! is exactly piecewise constant: on the W x 2 (H - 1) grid of half rows in v, half row k shows
-//! texel row (k + 1) / 2 (rows 0 and H - 1 cover half a row each, at the poles).
+//! H-high image is centred on theta = pi y / (H - 1), poles included, and the radiance between
+//! the centres is their bilinear interpolation, wrapping around in u (column W - 1 meets column 0
+//! at u = 0) and clamped in v, as Mitsuba 3's texture lookup does.
 //!
-//! Sampling: the half-row grid carries a [`Distribution2D`] with the weight of each cell its
-//! luminance times its solid angle, so a cell is drawn with the probability of its share of the
-//! luminance, and the point uniformly in (u, v) within it. With d omega = 2 pi^2 sin theta du dv,
-//! the solid-angle density is p(u, v) / (2 pi^2 sin theta) (Pharr, Jakob and Humphreys,
+//! Sampling, Mitsuba's too: on the (W + 1) x H grid of texel centres in (s, v), s = u - 1/(2W)
+//! (the last column repeating the first), the value Y(L) sin theta_y at each centre, interpolated
+//! bilinearly, is a [`Bilinear2D`] density, drawn exactly. With d omega = 2 pi^2 sin theta du dv,
+//! the solid-angle density is p(s, v) / (2 pi^2 sin theta) (Pharr, Jakob and Humphreys,
 //! Physically Based Rendering, 3rd ed., eq. 14.18). Book: "Environment maps".
 
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
-use crate::math::{warp, Distribution2D};
+use crate::math::{warp, Bilinear2D};
 use crate::spectrum::{luminance, Rgb};
 
 /// A latitude-longitude environment map (texels already multiplied by the light's `scale`).
@@ -36,11 +35,11 @@ pub struct EnvMap {
     to_world: Mat3,
     /// Its inverse, the transpose.
     to_local: Mat3,
-    /// Over the W x 2 (H - 1) half-row cells (also the lookup grid).
-    distr: Distribution2D,
+    /// Over the W x (H - 1) cells between texel centres, in (s, v).
+    distr: Bilinear2D,
     /// Sample directions uniformly on the sphere instead (for the variance comparison).
     uniform: bool,
-    /// The mean radiance over the sphere (exact for the piecewise-constant map).
+    /// The mean radiance over the sphere (exact for the bilinear lookup).
     mean: Rgb,
 }
 
@@ -62,30 +61,30 @@ impl EnvMap {
         uniform: bool,
     ) -> Self {
         assert!(width >= MIN_SIDE && height >= MIN_SIDE && texels.len() == width * height);
-        let rows = 2 * (height - 1);
-        let mut weights = Vec::with_capacity(width * rows);
-        let mut mean = glam::DVec3::ZERO;
-        for k in 0..rows {
-            // the cell's solid angle over 2 pi / W: cos theta_0 - cos theta_1
-            let band = |k: usize| (PI as f64 * k as f64 / rows as f64).cos();
-            let omega = band(k) - band(k + 1);
-            for i in 0..width {
-                let l = texels[texel_row(k) * width + i];
-                weights.push((luminance(l) as f64 * omega) as f32);
-                mean += l.as_dvec3() * omega;
-            }
+        let row_theta = |y: usize| std::f64::consts::PI * y as f64 / (height - 1) as f64;
+        let mut values = Vec::with_capacity((width + 1) * height);
+        for y in 0..height {
+            // (exactly 0 at both poles: sin pi rounds to 1e-16)
+            let sin_theta = if y == 0 || y == height - 1 {
+                0.0
+            } else {
+                row_theta(y).sin() as f32
+            };
+            let row = &texels[y * width..(y + 1) * width];
+            values.extend(
+                row.iter()
+                    .chain(&row[..1])
+                    .map(|&l| luminance(l) * sin_theta),
+            );
         }
-        // sum of L omega_cell over 4 pi, with omega_cell = (2 pi / W) (cos theta_0 - cos theta_1)
-        let mean = (mean * (2.0 * std::f64::consts::PI / width as f64)
-            / (4.0 * std::f64::consts::PI))
-            .as_vec3();
+        let mean = mean_of(width, height, &texels);
         EnvMap {
             width,
             height,
             texels,
             to_world,
             to_local: to_world.transpose(),
-            distr: Distribution2D::new(&weights, width, rows),
+            distr: Bilinear2D::new(&values, width, height - 1),
             uniform,
             mean,
         }
@@ -106,11 +105,11 @@ impl EnvMap {
         self.uniform
     }
 
-    /// The bytes the map holds: its texels (12 each) and its distribution (a probability and a
-    /// cumulative sum per half-row cell, 8 bytes).
+    /// The bytes the map holds: its texels (12 each) and its distribution (a value and a
+    /// cumulative sum per vertex of the (W + 1) x H grid, 12 bytes).
     pub fn memory_bytes(&self) -> u64 {
-        let cells = self.width * 2 * (self.height - 1);
-        (self.texels.len() * 12 + cells * 8) as u64
+        let vertices = (self.width + 1) * self.height;
+        (self.texels.len() * 12 + vertices * 12) as u64
     }
 
     /// The mean radiance over the sphere.
@@ -118,16 +117,35 @@ impl EnvMap {
         self.mean
     }
 
-    /// The texel shown by half-row cell (i, k).
+    /// Texel (x, y).
     #[inline]
-    fn texel(&self, (i, k): (usize, usize)) -> Rgb {
-        self.texels[texel_row(k) * self.width + i]
+    fn texel(&self, x: usize, y: usize) -> Rgb {
+        self.texels[y * self.width + x]
+    }
+
+    /// The radiance at map point `uv`: Mitsuba 3's bilinear lookup between the texel centres,
+    /// wrapped in u, clamped in v (a NaN coordinate reads as 0).
+    #[inline]
+    pub fn lookup(&self, uv: Vec2) -> Rgb {
+        let (w, h) = (self.width, self.height);
+        let u = uv.x - uv.x.floor();
+        let x = if u.is_nan() { 0.0 } else { u } * w as f32 - 0.5;
+        let x0 = x.floor();
+        let fx = x - x0;
+        // x0 is in [-1, W - 1] (W - 1 + 1/2 rounds to at most W - 1/2)
+        let i0 = (x0 as i64).rem_euclid(w as i64) as usize;
+        let i1 = if i0 + 1 == w { 0 } else { i0 + 1 };
+        let y = if uv.y.is_nan() { 0.0 } else { uv.y.clamp(0.0, 1.0) } * (h - 1) as f32;
+        let j0 = (y as usize).min(h - 2);
+        let fy = y - j0 as f32;
+        let row = |j: usize| self.texel(i0, j) * (1.0 - fx) + self.texel(i1, j) * fx;
+        row(j0) * (1.0 - fy) + row(j0 + 1) * fy
     }
 
     /// Radiance arriving from world direction `w` (pointing away from the scene).
     #[inline]
     pub fn radiance(&self, w: Vec3) -> Rgb {
-        self.texel(self.distr.cell(uv_of(self.to_local * w)))
+        self.lookup(uv_of(self.to_local * w))
     }
 
     /// The solid-angle density with which [`EnvMap::sample`] draws world direction `w`.
@@ -141,34 +159,52 @@ impl EnvMap {
         if sin_theta <= 0.0 {
             return 0.0;
         }
-        self.distr.pdf(uv_of(d)) / (2.0 * PI * PI * sin_theta)
+        let uv = uv_of(d);
+        let s = uv.x - 0.5 / self.width as f32;
+        let s = if s < 0.0 { s + 1.0 } else { s };
+        self.distr.pdf(Vec2::new(s, uv.y)) / (2.0 * PI * PI * sin_theta)
     }
 
-    /// A world direction towards the light from `u`, with its radiance and solid-angle density;
-    /// `None` for the (measure-zero) poles.
+    /// A world direction towards the light from `u`, with its radiance and solid-angle density
+    /// (both those of [`EnvMap::radiance`] and [`EnvMap::pdf`] at it); `None` for the
+    /// (measure-zero) poles.
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, Rgb, f32)> {
         if self.uniform {
             let w = warp::uniform_sphere(u);
             return Some((w, self.radiance(w), warp::INV_FOUR_PI));
         }
-        let (uv, cell, p) = self.distr.sample(u);
-        let (d, sin_theta) = direction_of(uv);
-        if sin_theta <= 0.0 || p <= 0.0 {
+        let (p, density) = self.distr.sample(u);
+        let u = p.x + 0.5 / self.width as f32;
+        let u = if u >= 1.0 { u - 1.0 } else { u };
+        let (d, sin_theta) = direction_of(Vec2::new(u, p.y));
+        if sin_theta <= 0.0 || density <= 0.0 {
             return None;
         }
-        Some((
-            self.to_world * d,
-            self.texel(cell),
-            p / (2.0 * PI * PI * sin_theta),
-        ))
+        let w = self.to_world * d;
+        let pdf = self.pdf(w);
+        (pdf > 0.0).then(|| (w, self.radiance(w), pdf))
     }
 }
 
-/// The texel row half row `k` shows: (k + 1) / 2 (rows 0 and H - 1 show in one half row each,
-/// the others in two).
-#[inline]
-fn texel_row(k: usize) -> usize {
-    k.div_ceil(2)
+/// The mean over the sphere of the bilinear lookup of a `width` x `height` map: per band between
+/// row centres, the row means (the mean over u of a periodic piecewise-linear function is the
+/// mean of its nodes) linear in theta, against sin theta d theta.
+fn mean_of(width: usize, height: usize, texels: &[Rgb]) -> Rgb {
+    let row_theta = |y: usize| std::f64::consts::PI * y as f64 / (height - 1) as f64;
+    let row_mean = |y: usize| {
+        let row = &texels[y * width..(y + 1) * width];
+        row.iter().map(|l| l.as_dvec3()).sum::<glam::DVec3>() / width as f64
+    };
+    // the row means, linear in theta between the centres, against sin theta d theta:
+    // int (1 - s) sin = c0 - c1 - i1, int s sin = i1 with s = (theta - theta0) / delta
+    let mut mean = glam::DVec3::ZERO;
+    for y in 0..height - 1 {
+        let (t0, t1) = (row_theta(y), row_theta(y + 1));
+        let i1 = (t1.sin() - t0.sin()) / (t1 - t0) - t1.cos();
+        mean += row_mean(y) * (t0.cos() - t1.cos() - i1) + row_mean(y + 1) * i1;
+    }
+    // over 4 pi, with d omega = sin theta d theta d phi and the row mean over 2 pi in phi
+    (mean / 2.0).as_vec3()
 }
 
 /// Mitsuba 3's `uv_to_direction`: the local direction of map point `uv`, with sin theta.

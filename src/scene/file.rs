@@ -678,6 +678,25 @@ pub struct Origin {
     /// The medium the original file places the camera in (`None`: no medium), checked
     /// against the medium around the eye when the scene is built.
     pub camera_medium: Option<String>,
+    /// Where the lines of a text spliced from several files (Mitsuba's `<include>`) come from;
+    /// empty for one file.
+    pub segments: Segments,
+}
+
+/// Lines of a text spliced from files: (its first line there, the file, that line in the
+/// file), ascending.
+pub type Segments = Vec<(usize, String, usize)>;
+
+/// The file and line of line `line` of a spliced text (`main` and `line` before the first
+/// segment, as for a text of one file).
+pub fn place<'s>(segments: &'s Segments, main: &'s str, line: usize) -> (&'s str, usize) {
+    match segments.partition_point(|s| s.0 <= line) {
+        0 => (main, line),
+        k => {
+            let (start, file, local) = &segments[k - 1];
+            (file, local + (line - start))
+        }
+    }
 }
 
 impl Origin {
@@ -710,8 +729,8 @@ impl SceneSource {
     /// file's line (unchanged for a scene read as it is).
     pub fn relocate(&self, mut e: SceneError) -> SceneError {
         if let Some(o) = &self.origin {
-            e.line = o.line_of(&e.key).or(Some(1));
-            e.file = self.name.clone();
+            let (file, line) = place(&o.segments, &self.name, o.line_of(&e.key).unwrap_or(1));
+            (e.file, e.line) = (file.to_string(), Some(line));
         }
         e
     }
@@ -719,13 +738,17 @@ impl SceneSource {
     /// A semantic error at `key`. A key the file lacks altogether (a missing `[camera]`) is
     /// reported at line 1, where a new top-level table would go.
     pub fn error(&self, key: &KeyPath, message: impl Into<String>) -> SceneError {
-        let line = match &self.origin {
-            Some(o) => o.line_of(&key.to_string()),
-            None => locate(&self.text, key),
+        let (file, line) = match &self.origin {
+            Some(o) => place(
+                &o.segments,
+                &self.name,
+                o.line_of(&key.to_string()).unwrap_or(1),
+            ),
+            None => (self.name.as_str(), locate(&self.text, key).unwrap_or(1)),
         };
         SceneError {
-            file: self.name.clone(),
-            line: Some(line.unwrap_or(1)),
+            file: file.to_string(),
+            line: Some(line),
             key: key.to_string(),
             message: message.into(),
         }

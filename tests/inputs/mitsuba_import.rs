@@ -952,3 +952,196 @@ fn an_element_with_thousands_of_attributes_is_refused_before_parsing() {
         "counted outside tags or inside quotes: {e}"
     );
 }
+
+/// A fresh folder holding `files` (name, text), for scenes that include others.
+fn folder(tag: &str, files: &[(&str, &str)]) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pathspace-include-{tag}-{}", std::process::id()));
+    for (name, text) in files {
+        let p = d.join(name);
+        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+        std::fs::write(p, text).unwrap();
+    }
+    d
+}
+
+/// The scene `main.xml` of `d`, read as the command line reads it.
+fn read_xml(d: &std::path::Path) -> Result<SceneSource, String> {
+    SceneSource::read(&d.join("main.xml")).map_err(|e| e.to_string())
+}
+
+/// `<include>`: the children of the included file's `<scene>` in place of the element, found
+/// relative to the including file (`parts/ball.xml` includes `lamp.xml`: `parts/lamp.xml`, not
+/// the main folder's), with `id`s shared; the scene is its TOML twin, bit for bit.
+#[test]
+fn include_splices_the_included_scene_in_place() {
+    let d = folder(
+        "twin",
+        &[
+            (
+                "main.xml",
+                &format!(
+                    "<scene version=\"3.0.0\">\n{SENSOR}\n<include filename=\"parts/ball.xml\"/>\n\
+                     <emitter type=\"constant\"><float name=\"radiance\" value=\"0.25\"/></emitter>\n</scene>\n"
+                ),
+            ),
+            (
+                "parts/ball.xml",
+                "<?xml version=\"1.0\"?>\n<scene version=\"3.0.0\">\n\
+                 <bsdf type=\"diffuse\" id=\"clay\"><rgb name=\"reflectance\" value=\"0.2, 0.3, 0.4\"/></bsdf>\n\
+                 <include filename=\"lamp.xml\"/>\n<shape type=\"sphere\"><ref id=\"clay\"/></shape>\n</scene>\n",
+            ),
+            (
+                "lamp.xml",
+                "<scene version=\"3.0.0\"><emitter type=\"constant\"/></scene>",
+            ),
+            (
+                "parts/lamp.xml",
+                "<scene version=\"3.0.0\"><emitter type=\"point\"><point name=\"position\" x=\"0\" y=\"2\" z=\"0\"/>\
+                 <rgb name=\"intensity\" value=\"3, 2, 1\"/></emitter></scene>",
+            ),
+        ],
+    );
+    let a = read_xml(&d).unwrap_or_else(|e| panic!("{e}"));
+    let b = toml(&format!(
+        r#"{CAMERA}
+[materials.clay]
+type = "lambert"
+albedo = [0.2, 0.3, 0.4]
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "clay"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 0.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#
+    ));
+    assert_eq!(desc(&a), desc(&b), "generated:\n{}", a.text);
+    assert_eq!(pixels(&a), pixels(&b));
+    let _ = std::fs::remove_dir_all(d);
+}
+
+/// Errors in included files name the included file and its own line, also when the build finds
+/// them (a missing map); lines of the including file after an include keep their numbers;
+/// a cycle, nesting beyond Mitsuba's 15 files, a root other than `<scene>` and a missing file
+/// are refused at the `<include>`.
+#[test]
+fn include_errors_name_the_included_file_and_line() {
+    let head = "<scene version=\"3.0.0\">\n";
+    let main = |body: &str| format!("{head}{body}\n</scene>\n");
+    let sensor = SENSOR.replace('\n', " ");
+    let cases: Vec<(Vec<(&str, String)>, &str, &str)> = vec![
+        (
+            vec![
+                ("main.xml", main("<include filename=\"parts/bad.xml\"/>")),
+                (
+                    "parts/bad.xml",
+                    format!("{head}\n<shape type=\"cylinder\"/>\n</scene>"),
+                ),
+            ],
+            "parts/bad.xml:3:",
+            "cylinder",
+        ),
+        (
+            vec![
+                (
+                    "main.xml",
+                    main(&format!(
+                        "{sensor}\n<include filename=\"five.xml\"/>\n<shape type=\"torus\"/>"
+                    )),
+                ),
+                ("five.xml", format!("{head}\n\n\n</scene>")),
+            ],
+            "main.xml:4:",
+            "torus",
+        ),
+        (
+            vec![
+                (
+                    "main.xml",
+                    main(&format!("{sensor}\n<include filename=\"map.xml\"/>")),
+                ),
+                (
+                    "map.xml",
+                    format!(
+                        "{head}\n<emitter type=\"envmap\"><string name=\"filename\" \
+                         value=\"missing.exr\"/></emitter>\n</scene>"
+                    ),
+                ),
+            ],
+            "map.xml:3:",
+            "missing.exr",
+        ),
+        (
+            vec![("main.xml", main("<include filename=\"main.xml\"/>"))],
+            "main.xml:2:",
+            "includes itself",
+        ),
+        (
+            vec![
+                ("main.xml", main("<include filename=\"leaf.xml\"/>")),
+                (
+                    "leaf.xml",
+                    "<bsdf version=\"3.0.0\" type=\"diffuse\"/>".into(),
+                ),
+            ],
+            "leaf.xml:1:",
+            "root must be <scene",
+        ),
+        (
+            vec![("main.xml", main("<include filename=\"nowhere.xml\"/>"))],
+            "main.xml:2:",
+            "nowhere.xml",
+        ),
+    ];
+    for (k, (files, at, needle)) in cases.into_iter().enumerate() {
+        let files: Vec<(&str, &str)> = files.iter().map(|(n, t)| (*n, t.as_str())).collect();
+        let d = folder(&format!("err{k}"), &files);
+        let e = match read_xml(&d)
+            .and_then(|s| Scene::load(&s).map(|_| ()).map_err(|e| e.to_string()))
+        {
+            Ok(()) => panic!("accepted: {files:?}"),
+            Err(e) => e,
+        };
+        let want = format!("{}", d.join(at).display());
+        assert!(
+            e.starts_with(&want) && e.contains(needle),
+            "case {k}: `{e}` is not at {want} or does not name {needle}"
+        );
+        let _ = std::fs::remove_dir_all(d);
+    }
+    // a chain of 16 files nests deeper than Mitsuba's limit of 15; 15 are read
+    for (n, ok) in [(15, true), (16, false)] {
+        let files: Vec<(String, String)> = (0..n)
+            .map(|i| {
+                let name = if i == 0 {
+                    "main.xml".to_string()
+                } else {
+                    format!("d{i}.xml")
+                };
+                let body = if i + 1 < n {
+                    format!("<include filename=\"d{}.xml\"/>", i + 1)
+                } else {
+                    format!("{sensor}")
+                };
+                (name, main(&body))
+            })
+            .collect();
+        let files: Vec<(&str, &str)> = files
+            .iter()
+            .map(|(n, t)| (n.as_str(), t.as_str()))
+            .collect();
+        let d = folder(&format!("deep{n}"), &files);
+        match read_xml(&d) {
+            Ok(_) => assert!(ok, "{n} files read"),
+            Err(e) => assert!(!ok && e.contains("deeper than 15"), "{n} files: {e}"),
+        }
+        let _ = std::fs::remove_dir_all(d);
+    }
+}

@@ -232,6 +232,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "atomic writes, and every EXR read back",
     ),
     (
+        "image_io::rgbe",
+        "spec::scene::envmap",
+        "Radiance files written by the test, run-length encoded and flat, and their defects",
+    ),
+    (
         "integrator",
         "oracles::agreement",
         "every integrator through the one interface, against the reference",
@@ -544,6 +549,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "scene::mitsuba",
         "inputs::mitsuba_import",
         "each Mitsuba convention against a hand-written twin",
+    ),
+    (
+        "scene::mitsuba::include",
+        "inputs::mitsuba_import",
+        "included scenes against a hand-written twin, and errors at the included file's lines",
     ),
     (
         "scene::mitsuba::plugins",

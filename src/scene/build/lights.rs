@@ -6,7 +6,7 @@ use super::values::{finite3, non_negative};
 use glam::Mat3;
 
 use crate::geometry::offset_origin;
-use crate::image_io::read_exr_input_hashed;
+use crate::image_io::{read_exr_input_hashed, rgbe};
 use crate::math::{Distribution1D, Frame};
 use crate::scene::envmap::{self, EnvMap};
 use crate::scene::file::{path, EnvSamplingDesc, KeyPath, LightDesc, SceneFile};
@@ -246,9 +246,13 @@ fn environment_map(
         Some(rows) => orthogonal(src, &key.clone().key("to_world"), rows)?,
         None => Mat3::IDENTITY,
     };
-    let (image, hash) =
-        read_exr_input_hashed(&src.base_dir.join(file), MAX_MAP_BYTES, envmap::MAX_TEXELS)
-            .map_err(|e| src.error(&map_key, e.to_string()))?;
+    let path = src.base_dir.join(file);
+    let (image, hash) = if rgbe::is_rgbe(&path) {
+        rgbe::read_rgbe_input_hashed(&path, MAX_MAP_BYTES, envmap::MAX_TEXELS)
+    } else {
+        read_exr_input_hashed(&path, MAX_MAP_BYTES, envmap::MAX_TEXELS)
+    }
+    .map_err(|e| src.error(&map_key, e.to_string()))?;
     src.record_input(file, hash);
     let (w, h) = (image.width as usize, image.height as usize);
     if w < envmap::MIN_SIDE || h < envmap::MIN_SIDE || w.max(h) > envmap::MAX_SIDE {

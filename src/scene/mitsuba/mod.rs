@@ -13,6 +13,7 @@
 //! generated keys keep their XML lines (`file::Origin`), so errors of the build name XML lines
 //! too.
 
+mod include;
 mod plugins;
 mod props;
 
@@ -20,7 +21,7 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use crate::scene::file::{Origin, SceneFile, SceneSource, FILE_KEY};
+use crate::scene::file::{place, Origin, SceneFile, SceneSource, FILE_KEY};
 use crate::scene::SceneError;
 use props::{newlines, Doc};
 
@@ -100,17 +101,11 @@ fn check_attribute_counts(name: &str, text: &str) -> Result<(), SceneError> {
 /// Translates the Mitsuba 3 XML `text` (read from the file `name`, relative paths from
 /// `base_dir`) into a scene source whose text is the equivalent scene file.
 pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, SceneError> {
-    check_attribute_counts(name, text)?;
-    let options = roxmltree::ParsingOptions {
-        allow_dtd: false,
-        nodes_limit: MAX_XML_NODES,
-        ..roxmltree::ParsingOptions::default()
-    };
-    let xml = roxmltree::Document::parse_with_options(text, options).map_err(|e| SceneError {
-        file: name.to_string(),
-        line: Some(e.pos().row as usize),
-        key: "(xml)".into(),
-        message: format!("not well-formed XML: {e}"),
+    let (text, segments) = include::expand(name, text, &base_dir)?;
+    let xml = parse(name, &text).map_err(|mut e| {
+        let (file, line) = place(&segments, name, e.line.unwrap_or(1));
+        (e.file, e.line) = (file.to_string(), Some(line));
+        e
     })?;
     let root = xml.root_element();
     let mut doc = Doc {
@@ -118,11 +113,13 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         defaults: HashMap::new(),
         ids: HashMap::new(),
         newlines: newlines(xml.input_text()),
+        segments,
     };
     resolve(&mut doc, root)?;
     let mut imp = plugins::Importer::new(&doc, base_dir.clone());
     imp.scene(root)?;
-    let (file, origin) = imp.finish(root)?;
+    let (file, mut origin) = imp.finish(root)?;
+    origin.segments = doc.segments.clone();
     let text = generated_text(name, &file)?;
     Ok(SceneSource {
         name: name.to_string(),
@@ -130,6 +127,21 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         base_dir,
         origin: Some(Arc::new(origin)),
         inputs: Default::default(),
+    })
+}
+
+/// Parses XML `text` (of the file `name`) with the limits.
+fn parse<'t>(name: &str, text: &'t str) -> Result<roxmltree::Document<'t>, SceneError> {
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: false,
+        nodes_limit: MAX_XML_NODES,
+        ..roxmltree::ParsingOptions::default()
+    };
+    roxmltree::Document::parse_with_options(text, options).map_err(|e| SceneError {
+        file: name.to_string(),
+        line: Some(e.pos().row as usize),
+        key: "(xml)".into(),
+        message: format!("not well-formed XML: {e}"),
     })
 }
 
@@ -163,10 +175,7 @@ fn resolve<'a>(doc: &mut Doc<'a>, root: roxmltree::Node<'a, 'a>) -> Result<(), S
     {
         if let Some(id) = n.attribute("id") {
             if let Some(old) = doc.ids.insert(id.to_string(), n) {
-                return Err(doc.err(
-                    n,
-                    format!("id=\"{id}\" is already used at line {}", doc.line(old)),
-                ));
+                return Err(doc.err(n, format!("id=\"{id}\" is already used at {}", doc.at(old))));
             }
         }
     }

@@ -99,8 +99,8 @@ impl<'a, 'd> Importer<'a, 'd> {
             .lines
             .push((key.to_string(), self.doc.line(node)));
         self.origin.notes.push(format!(
-            "line {}: <{} type=\"{}\"> -> {key}: {how}",
-            self.doc.line(node),
+            "{}: <{} type=\"{}\"> -> {key}: {how}",
+            self.doc.at(node),
             node.tag_name().name(),
             node.attribute("type").unwrap_or("")
         ));

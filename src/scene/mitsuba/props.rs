@@ -20,6 +20,8 @@ pub(super) struct Doc<'a> {
     /// The byte offset of every newline of the text, so that a node's line is a binary search
     /// (roxmltree's `text_pos_at` scans from the start: quadratic over many elements).
     pub newlines: Vec<usize>,
+    /// Where the lines of a text spliced from included files come from (empty for one file).
+    pub segments: crate::scene::file::Segments,
 }
 
 /// The offsets of the newlines of `text`, for `Doc::line`.
@@ -37,13 +39,27 @@ impl<'a> Doc<'a> {
         self.newlines.partition_point(|&i| i < node.range().start) + 1
     }
 
+    /// The file and the line in it where `node` starts (an included file's own).
+    pub fn place(&self, node: Node) -> (&str, usize) {
+        crate::scene::file::place(&self.segments, &self.name, self.line(node))
+    }
+
+    /// Where `node` starts, for messages: `line N`, or `file line N` in an included file.
+    pub fn at(&self, node: Node) -> String {
+        match self.place(node) {
+            (file, line) if file == self.name => format!("line {line}"),
+            (file, line) => format!("{file} line {line}"),
+        }
+    }
+
     /// An error at `node`: file, line, the element as key.
     pub fn err(&self, node: Node, message: impl Into<String>) -> SceneError {
+        let (file, line) = self.place(node);
         let ty = node.attribute("type").map(|t| format!(" type=\"{t}\""));
         let id = node.attribute("name").map(|t| format!(" name=\"{t}\""));
         SceneError {
-            file: self.name.clone(),
-            line: Some(self.line(node)),
+            file: file.to_string(),
+            line: Some(line),
             key: format!(
                 "<{}{}{}>",
                 node.tag_name().name(),

@@ -83,7 +83,7 @@ fn envmap(p: &mut Props, m: Option<DMat4>) -> Lighting {
         Some(m) => Some([0, 1, 2].map(|i| m.row(i).truncate().to_array().map(|x| x as f32))),
     };
     let how = format!(
-        "environment map `{map}`, scale {}, sampled by luminance, texels looked up without interpolation",
+        "environment map `{map}`, scale {}, looked up bilinearly and sampled by luminance as Mitsuba",
         scale.unwrap_or(1.0)
     );
     let light = LightDesc::Environment {

@@ -133,6 +133,11 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         "cube" => cube(p, m),
         "sphere" => sphere(p, m),
         "obj" | "ply" => mesh(p, m),
+        "cylinder" => Err(p.err(
+            "the shape `cylinder` is not imported: pathspace has no analytic cylinder, and a \
+             triangulated one is another surface (convert it to an obj or ply mesh if that \
+             approximation is wanted)",
+        )),
         k => Err(p.err(format!(
             "the shape `{k}` is not supported (rectangle, disk, cube, sphere, obj, ply are)"
         ))),
