@@ -720,6 +720,9 @@ pub fn json_report(render: &Render, done: &Rendered) -> serde_json::Value {
 fn finish(args: &RenderArgs, render: &Render, done: &Rendered) -> Result<(), CliError> {
     let (result, written) = (&done.ended.result, &done.written);
     warn_negative(result, render.kind);
+    for w in &result.statistics.warnings {
+        eprintln!("warning: {w}");
+    }
     if args.json {
         println!("{}", json_report(render, done));
     } else if args.reference {

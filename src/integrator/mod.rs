@@ -6,6 +6,7 @@
 //! "Sequential Monte Carlo adaptation" (smc: records merged between passes in tile order).
 
 pub mod bdpt;
+pub mod mixing;
 pub mod mlt;
 pub mod mmlt;
 pub mod path;
@@ -372,6 +373,10 @@ pub struct Statistics {
     pub lines: Vec<String>,
     /// Summary lines printed after the meters'.
     pub closing: Vec<String>,
+    /// Warnings the front end prints on stderr (MCMC chains that have not mixed).
+    pub warnings: Vec<String>,
+    /// Attributes the image's header records (name, value): the chains' mixing diagnostics.
+    pub header: Vec<(String, String)>,
 }
 
 /// An integrator as the render loop sees it: one sample of the camera's film or of a meter,

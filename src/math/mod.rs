@@ -4,6 +4,7 @@
 
 pub mod distribution;
 pub mod frame;
+pub mod mixing;
 pub mod primary_sample;
 pub mod sampler;
 pub mod spherical;

@@ -226,6 +226,10 @@ impl<'a> Render<'a> {
             .set("negative_pixels", result.negative_pixels)
             .set("render_options", s.given.to_toml())
             .set("streams", format_streams(&result.streams));
+        // the integrator's own record (the MCMC chains' mixing)
+        for (key, value) in &result.statistics.header {
+            meta.set(key, value);
+        }
         let inputs = source.inputs();
         if !inputs.is_empty() {
             meta.set("scene_inputs", format_inputs(&inputs));

@@ -11,6 +11,7 @@ mod cli;
 mod enlightened;
 mod geometry;
 mod integrator {
+    mod mixing;
     mod mlt;
     mod mmlt;
     mod pssmlt;
@@ -22,6 +23,7 @@ mod integrator {
     }
 }
 mod math {
+    mod mixing;
     mod primary_sample;
     mod warp;
 }

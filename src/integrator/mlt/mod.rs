@@ -33,6 +33,7 @@ use crate::path::{LocalSampling, Vertex};
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
 
+use super::mixing::Recorder;
 use acceptance::acceptance;
 use contribution::{image_contribution_reusing, scalar_contribution, EdgeFactors};
 use init::Bootstrap;
@@ -398,6 +399,8 @@ pub struct Mlt<'t> {
     /// Mutations run so far (N).
     pub mutations_done: u64,
     cdf: PerMutation<f64>,
+    /// The chains' deposits per image block, for the mixing diagnostics.
+    pub mixing: Recorder,
 }
 
 /// Why MLT refuses its settings or its scene (the messages name the setting or the missing
@@ -544,6 +547,7 @@ impl<'t> Mlt<'t> {
             initialized: false,
             mutations_done: 0,
             cdf,
+            mixing: Recorder::new(scene),
         })
     }
 
@@ -666,21 +670,27 @@ impl<'t> Mlt<'t> {
             return; // no path reaches the camera: the image is black
         }
         let mut chains = std::mem::take(&mut self.chains);
+        let mut traces = self.mixing.take(chains.len());
         let this = &*self;
+        let grid = &self.mixing.grid;
         let results: Vec<ChainPass> = chains
             .par_iter_mut()
+            .zip(traces.par_iter_mut())
             .enumerate()
-            .map(|(c, chain)| {
+            .map(|(c, (chain, trace))| {
                 let quota = mutations / n + u64::from((c as u64) < mutations % n);
                 let mut splats = Vec::with_capacity(2 * quota as usize);
                 let mut stats = [MutationStats::default(); MutationKind::COUNT];
                 for _ in 0..quota {
+                    let from = splats.len();
                     this.step(scene, chain, &mut splats, &mut stats);
+                    trace.step(grid, &splats[from..]);
                 }
                 (splats, stats)
             })
             .collect();
         self.chains = chains;
+        self.mixing.put(traces);
         self.refine_b(scene);
         film.splat_scale = self.b;
         for (splats, stats) in results {
@@ -829,7 +839,7 @@ impl super::Integrator for Mlt<'_> {
         }
     }
 
-    /// b of the pre-pass and each mutation type's counts.
+    /// b of the pre-pass, each mutation type's counts and the chains' mixing.
     fn statistics(&self) -> super::Statistics {
         let report = self.report();
         let mut muts = serde_json::Map::new();
@@ -849,11 +859,13 @@ impl super::Integrator for Mlt<'_> {
                 st.acceptance_rate()
             ));
         }
-        super::Statistics {
+        let mut stats = super::Statistics {
             json: Some(serde_json::json!({"b": self.b, "mutations": muts})),
             lines,
-            closing: Vec::new(),
-        }
+            ..Default::default()
+        };
+        self.mixing.statistics("mlt", &mut stats);
+        stats
     }
 
     /// The chains (current paths, b, mutation statistics) are not saved in a checkpoint.

@@ -34,6 +34,7 @@ use crate::path::LocalSampling;
 use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
+use super::mixing::Recorder;
 use kernel::{KelemenChain, Target};
 use sample::BdptTarget;
 
@@ -225,6 +226,8 @@ pub struct Pssmlt<'t> {
     initialized: bool,
     pub large: StepCounts,
     pub small: StepCounts,
+    /// The chains' deposits per image block, for the mixing diagnostics.
+    pub mixing: Recorder,
 }
 
 /// The stream of bootstrap state `i` or chain `c` (one per index, derived from the seed).
@@ -274,6 +277,7 @@ impl<'t> Pssmlt<'t> {
             initialized: false,
             large: StepCounts::default(),
             small: StepCounts::default(),
+            mixing: Recorder::new(scene),
         })
     }
 
@@ -352,11 +356,14 @@ impl<'t> Pssmlt<'t> {
             return;
         }
         let mut chains = std::mem::take(&mut self.chains);
+        let mut traces = self.mixing.take(chains.len());
         let (bdpt, large_step, make) = (&self.bdpt, self.settings.large_step, self.make_target);
+        let grid = &self.mixing.grid;
         let results: Vec<ChainPass> = chains
             .par_iter_mut()
+            .zip(traces.par_iter_mut())
             .enumerate()
-            .map(|(c, slot)| {
+            .map(|(c, (slot, trace))| {
                 let quota = mutations / n + u64::from((c as u64) < mutations % n);
                 let mut target = make(scene, bdpt, std::mem::take(&mut slot.walks));
                 let mut pass = ChainPass {
@@ -366,9 +373,11 @@ impl<'t> Pssmlt<'t> {
                 };
                 slot.splats.clear();
                 for _ in 0..quota {
+                    let from = slot.splats.len();
                     let splats = &mut slot.splats;
                     let step = &mut |p, v| splats.push((p, v));
                     let o = slot.chain.step(large_step, target.as_mut(), step);
+                    trace.step(grid, &slot.splats[from..]);
                     let counts = if o.large {
                         pass.large_sum += o.fy;
                         &mut pass.large
@@ -396,6 +405,7 @@ impl<'t> Pssmlt<'t> {
             }
         }
         self.chains = chains;
+        self.mixing.put(traces);
         self.b = self.b_sum / self.b_samples.max(1) as f64;
         film.splat_scale = self.b;
     }
@@ -499,7 +509,7 @@ impl super::Integrator for Pssmlt<'_> {
         }
     }
 
-    /// b and the large and small steps' counts.
+    /// b, the large and small steps' counts and the chains' mixing.
     fn statistics(&self) -> super::Statistics {
         let line = |name: &str, c: &StepCounts| {
             format!(
@@ -513,7 +523,7 @@ impl super::Integrator for Pssmlt<'_> {
             serde_json::json!({"attempted": c.attempted, "accepted": c.accepted,
                 "acceptance_rate": c.acceptance_rate()})
         };
-        super::Statistics {
+        let mut stats = super::Statistics {
             json: Some(serde_json::json!({"b": self.b, "b_samples": self.b_samples,
                 "large_steps": json(&self.large), "small_steps": json(&self.small)})),
             lines: vec![
@@ -524,8 +534,10 @@ impl super::Integrator for Pssmlt<'_> {
                 line("large steps", &self.large),
                 line("small steps", &self.small),
             ],
-            closing: Vec::new(),
-        }
+            ..Default::default()
+        };
+        self.mixing.statistics(self.name, &mut stats);
+        stats
     }
 
     /// The chains are not saved in a checkpoint: a resumed run is an independent run merged by

@@ -769,6 +769,7 @@ impl super::Integrator for Smc {
             })),
             lines: Vec::new(),
             closing: vec![format!("  {s}")],
+            ..Default::default()
         }
     }
 
