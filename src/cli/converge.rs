@@ -505,18 +505,8 @@ fn run_lines(
     };
     let mut rows = Vec::new();
     if args.propagation.is_empty() {
-        if !variants.is_empty() {
-            rows = pool.install(|| {
-                convergence::converge_variants(
-                    scene,
-                    settings,
-                    reference,
-                    variants,
-                    config,
-                    &mut report,
-                )
-            })?;
-        }
+        rows = pool
+            .install(|| variant_rows(scene, settings, reference, variants, config, &mut report))?;
         for (k, over) in guided {
             let part =
                 pool.install(|| converge_guided(args, reference, *k, over, config, &mut report))?;
@@ -524,7 +514,6 @@ fn run_lines(
         }
         return Ok(rows);
     }
-    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     for name in &args.propagation {
         let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
         let (mut variant, _, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
@@ -535,13 +524,42 @@ fn run_lines(
             )));
         }
         let mut part = pool.install(|| {
-            convergence::converge(&variant, settings, reference, &kinds, config, &mut report)
+            variant_rows(
+                &mut variant,
+                settings,
+                reference,
+                variants,
+                config,
+                &mut report,
+            )
         })?;
         for r in &mut part {
             r.integrator = format!("{}/{}", r.integrator, li.name());
         }
         rows.extend(part);
     }
+    Ok(rows)
+}
+
+/// The rows of `variants` on `scene`, line by line: a line's transmittance estimator
+/// (`KIND(transmittance=...)`) is set on the scene's media before its runs.
+fn variant_rows(
+    scene: &mut crate::scene::Scene,
+    settings: &crate::integrator::RenderSettings,
+    reference: &image_io::Image,
+    variants: &[Variant],
+    config: &ConvergeConfig,
+    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
+) -> Result<Vec<convergence::CheckpointRow>, CliError> {
+    let mut rows = Vec::new();
+    for v in variants {
+        v.settings(settings)?.0.prepare(scene);
+        let one = std::slice::from_ref(v);
+        rows.extend(convergence::converge_variants(
+            scene, settings, reference, one, config, report,
+        )?);
+    }
+    settings.prepare(scene);
     Ok(rows)
 }
 
