@@ -454,7 +454,7 @@ fn run_lines(
         &crate::scene::SceneSource,
     ),
     reference: &image_io::Image,
-    (variants, lines): (&[Variant], &[Line]),
+    lines: &[Line],
     config: &ConvergeConfig,
 ) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     let pool = super::reference::thread_pool(args.threads)?;
@@ -467,35 +467,69 @@ fn run_lines(
         }
     };
     if args.propagation.is_empty() {
-        let at = (scene, source);
-        return Ok(pool
-            .install(|| convergence::converge_lines(at, reference, lines, config, &mut report))?);
+        let fresh = || Ok(super::load_scene_at(Some(&args.scene), &args.film)?.0);
+        let at = (scene, settings, source);
+        return lines_on_scenes(at, &fresh, reference, lines, config, &pool, &mut report);
     }
-    let kinds: Vec<IntegratorKind> = variants.iter().map(|v| v.kind).collect();
     let mut rows = Vec::new();
     for name in &args.propagation {
         let li = crate::medium::heterogeneous::LineIntegral::parse(name.trim())?;
-        let (mut variant, _, _) = super::load_scene_at(Some(&args.scene), &args.film)?;
-        if variant.set_line_integral(li) == 0 {
-            return Err(CliError::Usage(format!(
-                "--propagation: {} has no inhomogeneous medium",
-                source.name
-            )));
-        }
-        let mut part = pool.install(|| {
-            convergence::converge(
-                &variant,
-                source,
-                settings,
-                reference,
-                &kinds,
-                config,
-                &mut report,
-            )
-        })?;
+        let fresh = || {
+            let mut variant = super::load_scene_at(Some(&args.scene), &args.film)?.0;
+            match variant.set_line_integral(li) {
+                0 => Err(CliError::Usage(format!(
+                    "--propagation: {} has no inhomogeneous medium",
+                    source.name
+                ))),
+                _ => Ok(variant),
+            }
+        };
+        let variant = fresh()?;
+        let at = (&variant, settings, source);
+        let mut part = lines_on_scenes(at, &fresh, reference, lines, config, &pool, &mut report)?;
         for r in &mut part {
             r.integrator = format!("{}/{}", r.integrator, li.name());
         }
+        rows.extend(part);
+    }
+    Ok(rows)
+}
+
+/// Runs `lines` on `scene`, line by line; a line whose transmittance estimator is not the
+/// scene's (`KIND(transmittance=...)`) runs on a scene of its own from `fresh`, set to it.
+fn lines_on_scenes(
+    (scene, settings, source): (
+        &crate::scene::Scene,
+        &crate::integrator::RenderSettings,
+        &crate::scene::SceneSource,
+    ),
+    fresh: &dyn Fn() -> Result<crate::scene::Scene, CliError>,
+    reference: &image_io::Image,
+    lines: &[Line],
+    config: &ConvergeConfig,
+    pool: &rayon::ThreadPool,
+    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
+) -> Result<Vec<convergence::CheckpointRow>, CliError> {
+    if lines.is_empty() {
+        // the study's own error: nothing to measure
+        let none = convergence::converge_lines((scene, source), reference, lines, config, report);
+        return Ok(none?);
+    }
+    let mut rows = Vec::new();
+    for line in lines {
+        let own;
+        let at = if line.settings.transmittance == settings.transmittance {
+            scene
+        } else {
+            let mut s = fresh()?;
+            line.settings.prepare(&mut s);
+            own = s;
+            &own
+        };
+        let one = std::slice::from_ref(line);
+        let part = pool.install(|| {
+            convergence::converge_lines((at, source), reference, one, config, &mut *report)
+        })?;
         rows.extend(part);
     }
     Ok(rows)
@@ -540,7 +574,7 @@ pub fn run(args: ConvergeArgs) -> Result<(), CliError> {
         &args,
         (&scene, &settings, &source),
         &reference,
-        (&variants, &lines),
+        &lines,
         &config,
     )?;
     rows.extend(external_rows);

@@ -146,5 +146,5 @@ pub fn run(args: ReferenceArgs) -> Result<(), CliError> {
     render.session.film.apply(&mut scene)?;
     let (output, _) = super::render::output_paths(&render);
     check_overwrite(&output, &source.name, &hash_hex(source.hash()))?;
-    super::render::run_scene(&render, &scene, settings, &source)
+    super::render::run_scene(&render, &mut scene, settings, &source)
 }

@@ -597,20 +597,22 @@ pub fn run(mut args: RenderArgs) -> Result<(), CliError> {
     if let Some(file) = args.session.resume.clone() {
         super::resume::complete(&mut args, &resume_path(&file))?;
     }
-    let (scene, settings, source) =
+    let (mut scene, settings, source) =
         super::load_scene_at(args.scene.as_deref(), &args.session.film)?;
-    run_scene(&args, &scene, settings, &source)
+    run_scene(&args, &mut scene, settings, &source)
 }
 
 /// Renders a loaded scene: the options applied and checked, then the render's steps
 /// ([`Render::run`]) with `render`'s outputs and reports; `reference` runs it too.
 pub(super) fn run_scene(
     args: &RenderArgs,
-    scene: &crate::scene::Scene,
+    scene: &mut crate::scene::Scene,
     settings: RenderSettings,
     source: &crate::scene::SceneSource,
 ) -> Result<(), CliError> {
     let (kind, settings) = configure(args, settings)?;
+    settings.prepare(scene);
+    let scene = &*scene;
     let mut render = Render::new(scene, source, kind, settings, args.session.shard)?;
     render.time = args.session.time;
     render.show = !args.json;

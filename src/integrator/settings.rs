@@ -14,6 +14,7 @@ use crate::integrator::path::DistanceSampling;
 use crate::integrator::pssmlt::{PssmltOptions, PssmltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::integrator::IntegratorKind;
+use crate::medium::TransmittanceEstimator;
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
@@ -66,6 +67,11 @@ pub struct RenderOptions {
     /// `--volume-next-event=false` collects the emission along free flights alone).
     #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "true", value_name = "BOOL")]
     pub volume_next_event: Option<bool>,
+    /// Transmittance estimator of media propagated by delta tracking, for shadow rays and
+    /// connections (path, light, bdpt, smc): `ratio-tracking` (default) or `delta-tracking`
+    /// (1 or 0 per channel: cheaper walks, more variance). MLT's target uses the exact value.
+    #[arg(long)]
+    pub transmittance: Option<TransmittanceEstimator>,
     /// bdpt, light, mlt: sample area-light start points from the adjoint image (Kristensen
     /// 2010, sec. 5.3.1), estimated by a BDPT pre-pass first (default false;
     /// `--adjoint-image=false` turns off the file's).
@@ -113,6 +119,7 @@ impl RenderOptions {
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
             volume_next_event: Some(true),
+            transmittance: Some(TransmittanceEstimator::RatioTracking),
             adjoint_image: Some(false),
             ..Default::default()
         }
@@ -482,6 +489,9 @@ pub struct RenderSettings {
     /// The path tracer's next-event estimation toward emitting media
     /// (`[render] volume_next_event`).
     pub volume_next_event: bool,
+    /// The tracking media's transmittance estimator (`[render] transmittance`), set on the
+    /// scene's media by [`RenderSettings::prepare`].
+    pub transmittance: TransmittanceEstimator,
     /// Metropolis light transport settings (`[render.mlt]`).
     pub mlt: MltSettings,
     /// Primary-sample-space MLT settings (`[render.pssmlt]`).
@@ -513,6 +523,7 @@ impl RenderSettings {
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
             volume_next_event: d.volume_next_event.expect(given),
+            transmittance: d.transmittance.expect(given),
             mlt: MltSettings::default(),
             pssmlt: PssmltSettings::default(),
             smc: SmcSettings::default(),
@@ -566,6 +577,7 @@ impl RenderSettings {
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
         self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);
+        self.transmittance = o.transmittance.unwrap_or(self.transmittance);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);
         o.mlt.apply(&mut self.mlt);
         self.mlt
@@ -591,9 +603,18 @@ impl RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// Puts the settings that live in the scene's media on `scene` (the transmittance
+    /// estimator of tracking media), before a render of these settings.
+    pub fn prepare(&self, scene: &mut Scene) {
+        scene.set_transmittance_estimator(self.transmittance);
+    }
+}
+
 /// Loads a scene file: the scene, and its `[render]` settings apart from it.
 pub fn load(src: &SceneSource) -> Result<(Scene, RenderSettings), SceneError> {
-    let scene = Scene::load(src)?;
+    let mut scene = Scene::load(src)?;
     let settings = RenderSettings::from_source(src, scene.radius)?;
+    settings.prepare(&mut scene);
     Ok((scene, settings))
 }

@@ -63,6 +63,23 @@ pub enum LineIntegral {
     DeltaTracking,
 }
 
+/// How a tracking medium estimates the transmittance of a shadow ray or a connection
+/// (`[render] transmittance`, `--transmittance`; book: "Table 1: inhomogeneous media").
+/// Both are unbiased; the marching strategies ignore it (their transmittance is the marched
+/// exp(-sigma_t D)).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum TransmittanceEstimator {
+    /// Ratio tracking: the product of (1 - sigma_t / sigma_bar) over the tentative collisions
+    /// (Novak et al. 2014), a value in [0, 1].
+    #[default]
+    RatioTracking,
+    /// Delta tracking: 1 if the walk passes every tentative collision, 0 at the first real
+    /// one (each channel its own Bernoulli thinning of the same tentative collisions).
+    DeltaTracking,
+}
+
+crate::option_value!(TransmittanceEstimator, "transmittance estimator");
+
 /// A propagation name the scene format does not know (`LineIntegral::parse`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("unknown propagation `{0}` (one of: {names})", names = LineIntegral::ALL.map(LineIntegral::name).join(", "))]
@@ -174,6 +191,8 @@ pub struct Heterogeneous {
     /// L_e,V0 per unit density (eq. 1): emission(x) = density(x) emission, like sigma_a and
     /// sigma_s (zero for a medium that does not glow).
     pub emission: Rgb,
+    /// The tracking strategy's transmittance estimator.
+    pub transmittance_estimator: TransmittanceEstimator,
     /// Block maxima of the density on a `MAJORANT_RES`^3 grid over the box.
     majorant: Vec<f32>,
 }
@@ -239,6 +258,7 @@ impl Heterogeneous {
             line_integral,
             delta: relative_step * bounds.extent().max_element(),
             emission: Rgb::ZERO,
+            transmittance_estimator: TransmittanceEstimator::RatioTracking,
             majorant,
         };
         h.check_work(relative_step)?;
@@ -479,6 +499,44 @@ impl Heterogeneous {
     }
     // ANCHOR_END: ratio_tracking
 
+    /// Delta tracking as a transmittance estimator: the tentative collisions of ratio tracking
+    /// (rate sigma_bar), channel c's walk ended at one with probability sigma_t[c](x) /
+    /// sigma_bar, one uniform number shared by the channels. Each channel's estimate is 1 or 0
+    /// with mean exp(-tau_c); ratio tracking is its expectation given the tentative collisions,
+    /// so its variance is never larger, while this walk stops at the first real collision.
+    fn delta_tracking_transmittance(&self, l: &Local, sampler: &mut Sampler) -> Rgb {
+        let k_max = self.sigma_t.max_element();
+        if k_max <= 0.0 {
+            return Rgb::ONE;
+        }
+        let mut alive = Rgb::ONE;
+        let mut s = -(1.0 - sampler.next_f32()).ln();
+        for (a, b, m) in self.majorant_segments(l) {
+            let rate = k_max * m;
+            if rate <= 0.0 {
+                continue;
+            }
+            let mut t = a;
+            loop {
+                let dt = s / rate;
+                if t + dt >= b {
+                    s = (s - (b - t) * rate).max(0.0);
+                    break;
+                }
+                t += dt;
+                let f = self.density.eval(l.u0 + l.du * t);
+                let xi = sampler.next_f32();
+                let real = (self.sigma_t * (f / rate)).cmpgt(Rgb::splat(xi));
+                alive = Rgb::select(real, Rgb::ZERO, alive);
+                if alive == Rgb::ZERO {
+                    return alive;
+                }
+                s = -(1.0 - sampler.next_f32()).ln();
+            }
+        }
+        alive
+    }
+
     // ANCHOR: heterogeneous_sample
     /// Table 1, right column: a collision distance in [0, t_max) along `ray`, or passage.
     pub fn sample_free_flight(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
@@ -533,7 +591,8 @@ impl Heterogeneous {
     // ANCHOR_END: heterogeneous_sample
 
     /// Transmittance over [0, t_max) along `ray`: the marched exp(-sigma_t D) for the marching
-    /// strategies, ratio tracking (stochastic, unbiased) for delta tracking.
+    /// strategies; for delta tracking an unbiased estimate, by ratio tracking or delta tracking
+    /// ([`TransmittanceEstimator`]).
     pub fn transmittance(&self, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> Rgb {
         let Some(l) = self.local(ray, t_max) else {
             return Rgb::ONE;
@@ -542,7 +601,12 @@ impl Heterogeneous {
             let (_, d) = self.march(&l, f32::INFINITY, sampler);
             (-self.sigma_t * d).exp()
         } else {
-            self.ratio_tracking(&l, sampler)
+            match self.transmittance_estimator {
+                TransmittanceEstimator::RatioTracking => self.ratio_tracking(&l, sampler),
+                TransmittanceEstimator::DeltaTracking => {
+                    self.delta_tracking_transmittance(&l, sampler)
+                }
+            }
         }
     }
 

@@ -14,7 +14,7 @@ pub mod vdb;
 
 pub use equiangular::Equiangular;
 pub use grid::Grid;
-pub use heterogeneous::{Density, Heterogeneous, LineIntegral};
+pub use heterogeneous::{Density, Heterogeneous, LineIntegral, TransmittanceEstimator};
 pub use homogeneous::Homogeneous;
 pub use phase::{Phase, PhaseError, PhaseSample};
 pub use procedural::{Axis, Fbm, Field};
@@ -276,6 +276,18 @@ impl Medium {
             Medium::Homogeneous(_) => false,
             Medium::Heterogeneous(h) => {
                 h.line_integral = li;
+                true
+            }
+        }
+    }
+
+    /// Sets how a tracking medium estimates transmittance; false for a medium that has no
+    /// estimator to choose (homogeneous: the closed form).
+    pub fn set_transmittance_estimator(&mut self, e: TransmittanceEstimator) -> bool {
+        match self {
+            Medium::Homogeneous(_) => false,
+            Medium::Heterogeneous(h) => {
+                h.transmittance_estimator = e;
                 true
             }
         }

@@ -568,6 +568,19 @@ impl Scene {
             .count()
     }
 
+    /// Sets the transmittance estimator of every inhomogeneous medium (`[render]
+    /// transmittance`); returns how many media changed.
+    pub fn set_transmittance_estimator(
+        &mut self,
+        e: crate::medium::heterogeneous::TransmittanceEstimator,
+    ) -> usize {
+        self.media
+            .iter_mut()
+            .map(|m| m.set_transmittance_estimator(e))
+            .filter(|&set| set)
+            .count()
+    }
+
     /// The embedded fog box.
     pub fn fog_box() -> Scene {
         Scene::load(&SceneSource::embedded("fog-box.toml (embedded)", FOG_BOX))

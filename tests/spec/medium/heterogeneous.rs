@@ -19,6 +19,7 @@ use pathspace::integrator::{IntegratorKind, MeterEstimate, Renderer};
 use pathspace::medium::grid::{encode_vol, read_grid_file};
 use pathspace::medium::{
     Axis, Density, Fbm, Field, Grid, Heterogeneous, Homogeneous, LineIntegral, Medium, Phase,
+    TransmittanceEstimator,
 };
 use pathspace::scene::{Scene, SceneSource};
 use pathspace::spectrum::Rgb;
@@ -311,6 +312,41 @@ fn ratio_and_delta_tracking_transmittance_are_unbiased() {
                     truth[c] as f64,
                 );
             }
+        }
+    }
+    fam.finish();
+}
+
+/// Delta tracking as a transmittance estimator (`[render] transmittance = "delta-tracking"`)
+/// gives 1 or 0 per channel, with mean exp(-tau_c) for every channel of a chromatic medium
+/// (each channel thins the shared tentative collisions by its own sigma_t / sigma_bar).
+#[test]
+fn delta_tracking_transmittance_is_a_binary_unbiased_estimate() {
+    const N: usize = 20_000;
+    let (ray, len) = oblique();
+    let sigma_t = Vec3::new(0.5, 1.0, 2.5);
+    let mut fam = Family::new("media: delta tracking transmittance");
+    for (k, density) in [linear(), bump_grid(), cloud()].into_iter().enumerate() {
+        let mut m = medium(density, sigma_t, LineIntegral::DeltaTracking, 1.0);
+        m.transmittance_estimator = TransmittanceEstimator::DeltaTracking;
+        let truth = m.transmittance_exact(&ray, len);
+        let mut s = sampler(6, k as u64);
+        let mut est = [vec![], vec![], vec![]];
+        for _ in 0..N {
+            let tr = m.transmittance(&ray, len, &mut s);
+            for c in 0..3 {
+                assert!(
+                    tr[c] == 0.0 || tr[c] == 1.0,
+                    "field {k}, channel {c}: got {}, expected 0 or 1",
+                    tr[c]
+                );
+                est[c].push(tr[c] as f64);
+            }
+        }
+        for (c, v) in est.iter().enumerate() {
+            let (mean, se) = mean_and_stderr(v);
+            let what = format!("field {k}, channel {c}");
+            fam.mean_is(&what, mean, se, (N - 1) as f64, truth[c] as f64);
         }
     }
     fam.finish();
