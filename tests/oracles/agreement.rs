@@ -516,7 +516,7 @@ fn agreement_furnace() {
         &mut fam,
         &Row {
             reference: Reference::Exact(1.0),
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            refuse: &[NO_AREA_LIGHT],
             ..row("furnace", text, 1)
         },
     );
@@ -758,7 +758,6 @@ fn agreement_many_lights() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[("mlt*", "directional")],
             // 4x the samples: the path tracer's MIS at emitters found by chance with the power
             // pmf in place of the tree's shows at 5 standard errors with 64
             spp: 4 * SPP,
@@ -774,7 +773,7 @@ fn agreement_sky() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            refuse: &[NO_AREA_LIGHT],
             ..row("sky", fixture("sky.toml"), 3)
         },
     );
@@ -812,7 +811,7 @@ fn agreement_furnace_map() {
         &mut fam,
         &Row {
             reference: Reference::Exact(1.0),
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            refuse: &[NO_AREA_LIGHT],
             ..row("furnace-map", text, 1)
         },
     );
@@ -844,7 +843,7 @@ fn agreement_envmap() {
     check_row(
         &mut fam,
         &Row {
-            refuse: &[NO_AREA_LIGHT, ("mlt*", "environment")],
+            refuse: &[NO_AREA_LIGHT],
             ..row("envmap", text, 3)
         },
     );

@@ -160,7 +160,7 @@ pub fn image_contribution_reusing(
 ) -> Option<(Rgb, Vec2)> {
     edges.clear();
     let n = v.len();
-    if n < 2 || !matches!(v[0].kind, VertexKind::Light { .. }) {
+    if n < 2 || !is_light_vertex(&v[0]) {
         return None;
     }
     if v[n - 1].kind != VertexKind::Camera || v[1..n - 1].iter().any(|x| !is_scatterer(x)) {
@@ -264,8 +264,62 @@ pub fn singular_densities_into(
             d.eye[i] = to_area(p, &v[i + 1], &v[i]) * d.prop_down[i];
         }
     }
+    if range.start == 0 && n > 0 && is_directional(scene, &v[0]) {
+        directional_origin(scene, &v[0], d);
+    }
 }
 // ANCHOR_END: singular_densities
+
+/// A directional light's vertex in the directional measure (book: "Metropolis light
+/// transport", lights at infinity): its one direction is a point mass, so a light subpath
+/// chooses it with the light's selection probability alone (BDPT's walk keeps the Dirac and
+/// caches 0), and no eye subpath can sample it: p_E(x_0) = 0.
+fn directional_origin(scene: &Scene, v: &Vertex, d: &mut Densities) {
+    if let VertexKind::InfiniteLight { light, .. } = v.kind {
+        d.light[0] = scene.light_pmf(light) * crate::scene::emitters::light_share(scene);
+        d.eye[0] = 0.0;
+    }
+}
+
+/// True for a directional light's vertex.
+pub fn is_directional(scene: &Scene, v: &Vertex) -> bool {
+    match v.kind {
+        VertexKind::InfiniteLight { light, .. } => {
+            matches!(scene.lights[light as usize], Light::Directional { .. })
+        }
+        _ => false,
+    }
+}
+
+/// True for the vertices a path may start with: a point on a light, or a light at infinity.
+#[inline]
+pub fn is_light_vertex(v: &Vertex) -> bool {
+    matches!(
+        v.kind,
+        VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }
+    )
+}
+
+/// Distance from a vertex at `p` to where its infinite light's vertex is placed: beyond the
+/// scene's bounding sphere whatever `p` (as BDPT places the vertex it reaches or connects to).
+pub fn infinite_distance(scene: &Scene, p: Vec3) -> f32 {
+    4.0 * scene.radius + (p - scene.center).length()
+}
+
+/// Places the vertex x_0 of a light at infinity, if `path` starts with one, along its direction
+/// w from x_1: x_0 = x_1 + w (4R + |x_1 - c|). In the directional measure x_0 is the direction
+/// w alone; its position is only where the edge's rays and cosines are computed from, so every
+/// path a chain holds keeps it on the line through x_1 (a mutation that moves x_1 and keeps w
+/// moves it along).
+pub fn anchor_infinite(scene: &Scene, path: &mut [Vertex]) {
+    if path.len() < 2 {
+        return;
+    }
+    if let VertexKind::InfiniteLight { w, .. } = path[0].kind {
+        let p1 = path[1].p;
+        path[0].p = p1 + w * infinite_distance(scene, p1);
+    }
+}
 
 /// True for the vertices a path may have between its ends: surfaces and medium points.
 #[inline]
@@ -276,22 +330,24 @@ pub fn is_scatterer(v: &Vertex) -> bool {
     )
 }
 
-/// True when a light vertex sits at a Dirac position (point and spot lights): resampling it
-/// can land exactly on the old vertex.
+/// True when a light vertex sits at a Dirac position (point and spot lights) or is a
+/// directional light's one direction: resampling it can land exactly on the old vertex.
 pub fn is_delta_position_light(scene: &Scene, v: &Vertex) -> bool {
     match v.kind {
         VertexKind::Light { light, .. } => matches!(
             scene.lights[light as usize],
             Light::Point { .. } | Light::Spot { .. }
         ),
+        VertexKind::InfiniteLight { .. } => is_directional(scene, v),
         _ => false,
     }
 }
 
-/// Same vertex (copied, not recomputed): kind and position bit-equal.
+/// Same vertex (copied, not recomputed): kind and position bit-equal. A light at infinity is
+/// its direction alone (its kind holds it; the position follows x_1, see `anchor_infinite`).
 #[inline]
 pub fn same_vertex(a: &Vertex, b: &Vertex) -> bool {
-    a.kind == b.kind && a.p == b.p
+    a.kind == b.kind && (a.p == b.p || a.is_infinite_light())
 }
 
 /// The scalar target f* of the chain: the luminance of f (Pauly et al. sec. 5 leave the

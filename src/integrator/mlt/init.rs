@@ -243,6 +243,10 @@ impl Bootstrap {
                 true
             },
         );
+        // a light at infinity on its first edge (BDPT places it beyond the disk it started on)
+        if let Some(path) = found.as_mut() {
+            super::contribution::anchor_infinite(scene, path);
+        }
         found
     }
 }

@@ -30,7 +30,7 @@ use crate::bidir::{Bdpt, Strategies};
 use crate::film::Film;
 use crate::math::Sampler;
 use crate::path::{LocalSampling, Vertex};
-use crate::scene::{Light, Scene};
+use crate::scene::Scene;
 use crate::spectrum::Rgb;
 
 use super::mixing::Recorder;
@@ -446,12 +446,6 @@ pub enum MltError {
     /// MLT renders images (Pauly et al. 2000 sec. 3: the measurement is a pixel's).
     #[error("mlt renders images: the scene needs a camera")]
     NoCamera,
-    /// Directional or environment lights: their vertices lie outside the scene's measure.
-    #[error(
-        "mlt does not support directional or environment lights (their vertices lie outside \
-         the scene's measure)"
-    )]
-    InfiniteLight,
     /// A material with a Dirac and a regular lobe: MLT classifies a vertex's lobe by its
     /// neighbours (`contribution::lobe_between`) and its f and densities by whole materials.
     #[error(
@@ -473,13 +467,11 @@ impl From<MltError> for super::IntegratorError {
     }
 }
 
-/// Checks that MLT can render `scene`: a pinhole camera and finite lights only.
+/// Checks that MLT can render `scene`: a pinhole camera, no plastic. Lights at infinity are
+/// path vertices in the directional measure (`contribution::anchor_infinite`).
 pub fn check_scene(scene: &Scene) -> Result<(), MltError> {
     if scene.camera.is_none() {
         return Err(MltError::NoCamera);
-    }
-    if scene.lights.iter().any(Light::is_infinite) {
-        return Err(MltError::InfiniteLight);
     }
     let mixed = scene.shapes.iter().find(|s| {
         s.bsdf
@@ -798,7 +790,7 @@ impl super::Facts for MltFacts {
     }
 }
 
-/// MLT from the scene file's `[render.mlt]`: refused without a camera or with infinite lights.
+/// MLT from the scene file's `[render.mlt]`: refused without a camera or with plastic.
 pub fn prepare<'t>(
     setup: &super::Setup<'_, 't>,
 ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {

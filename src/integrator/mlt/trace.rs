@@ -13,7 +13,7 @@ use crate::math::{warp, Frame, Sampler};
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::{Event, Light, Scene, SegmentEnd, Segments};
 
-use super::contribution::{singular_bsdf, specular_sample};
+use super::contribution::{infinite_distance, singular_bsdf, specular_sample};
 
 /// The ray leaving vertex `v` along unit `d`: its origin (lifted off surfaces), the distance
 /// between the vertex and that origin, and the medium it starts in.
@@ -114,6 +114,11 @@ pub fn sample_light_vertex(
     }
     let start = crate::path::technique::sample_emitted_start(tech, scene, sampler)?;
     let (l, es, prim) = (start.light, start.es, start.prim);
+    if scene.lights[l].is_infinite() {
+        // the direction w alone (the disk point is drawn again by `extend_from_infinite`)
+        let w = -es.d;
+        return (es.pdf_dir > 0.0 && w.is_finite()).then(|| infinite_vertex(l as u32, w, es.p));
+    }
     if prim.is_none() && !matches!(scene.lights[l], Light::Point { .. } | Light::Spot { .. }) {
         return None;
     }
@@ -132,6 +137,90 @@ pub fn sample_light_vertex(
         lm,
         lm,
     ))
+}
+
+/// The vertex of light `light` at infinity in direction `w` (towards the light), placed at
+/// `p` until `contribution::anchor_infinite` puts it on its path's first edge.
+pub fn infinite_vertex(light: u32, w: Vec3, p: Vec3) -> Vertex {
+    Vertex::new(
+        VertexKind::InfiniteLight { light, w },
+        p,
+        Vec3::ZERO,
+        None,
+        None,
+    )
+}
+
+/// The vertex x_1 that a light subpath reaches from a light at infinity `v`: a point uniform on
+/// the disk of the scene's radius facing the light (`Light::sample_le`), its ray along -w, a
+/// free-flight distance by Table 1. Its density is g(x_1) / (pi R^2) times the propagation pdf
+/// (`Vertex::light_pdf_to`): the disk's uniform density per area perpendicular to w.
+pub fn extend_from_infinite(scene: &Scene, v: &Vertex, sampler: &mut Sampler) -> Option<Vertex> {
+    let VertexKind::InfiniteLight { w, .. } = v.kind else {
+        return None;
+    };
+    let u = sampler.next_2d();
+    let frame = Frame::from_normal(w);
+    let disk = warp::concentric_disk(u) * scene.radius;
+    let origin = scene.center + w * scene.radius + frame.s * disk.x + frame.t * disk.y;
+    let mut start = *v;
+    start.p = origin;
+    extend(scene, &start, -w, sampler)
+}
+
+/// [`extend`], with the environment light's vertex where the ray escapes (`None` there without
+/// an environment): an eye subpath that reaches the light by itself. The same random numbers as
+/// `extend`.
+pub fn extend_or_escape(
+    scene: &Scene,
+    v: &Vertex,
+    d: Vec3,
+    sampler: &mut Sampler,
+) -> Option<Vertex> {
+    let (ray, lead, medium) = ray_from(scene, v, d);
+    let prop = scene.propagate(ray, lead, medium, sampler);
+    if prop.pdf <= 0.0 {
+        return None;
+    }
+    match prop.event {
+        Event::Escape => {
+            let env = scene.environment?;
+            Some(infinite_vertex(
+                env,
+                d,
+                v.p + d * infinite_distance(scene, v.p),
+            ))
+        }
+        Event::Medium { p, medium: m, .. } => Some(Vertex::new(
+            VertexKind::Medium { medium: m },
+            p,
+            Vec3::ZERO,
+            Some(m),
+            Some(m),
+        )),
+        Event::Surface { hit, medium } => Some(Vertex::on_surface(scene, &hit, medium)),
+    }
+}
+
+/// The environment's vertex in direction `d` from `v` when the ray meets no non-null surface
+/// (it passes through media: their transmittance enters f, not the proposal).
+pub fn escape_to_environment(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
+    let env = scene.environment?;
+    let (ray, _, medium) = ray_from(scene, v, d);
+    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+        match seg.end {
+            SegmentEnd::Null(_) => {}
+            SegmentEnd::Open => {
+                return Some(infinite_vertex(
+                    env,
+                    d,
+                    v.p + d * infinite_distance(scene, v.p),
+                ))
+            }
+            SegmentEnd::Surface(_) => return None,
+        }
+    }
+    None
 }
 
 /// The first non-null surface along `d` from `v`, no collisions sampled (the ray passes
@@ -183,6 +272,9 @@ pub enum ChainEnd {
     Medium { dist: f32 },
     /// A point on an area light.
     Light,
+    /// The environment light at infinity: the ray escapes (a directional light's one direction
+    /// is never met by a turned ray: the callers leave such chains alone).
+    Environment,
 }
 
 /// The end of the old chain whose vertex is `end` and whose predecessor in tracing order is at
@@ -194,6 +286,8 @@ pub fn chain_end_of(scene: &Scene, end: &Vertex, before: Vec3) -> ChainEnd {
         }
     } else if matches!(end.kind, VertexKind::Light { .. }) {
         ChainEnd::Light
+    } else if end.is_infinite_light() {
+        ChainEnd::Environment
     } else {
         let _ = scene;
         ChainEnd::Surface
@@ -245,6 +339,7 @@ pub fn retrace_chain(
             };
             l
         }
+        ChainEnd::Environment => escape_to_environment(scene, &cur, d)?,
     };
     out.push(v);
     Some(())

@@ -29,8 +29,12 @@ use crate::math::Sampler;
 use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 
-/// The light-vertex kind of a surface vertex on an area light (`None` elsewhere).
+/// The light-vertex kind of a surface vertex on an area light, or of the environment's vertex
+/// an eye side escaped to (`None` elsewhere).
 fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
+    if v.is_infinite_light() {
+        return Some(v.kind);
+    }
     let VertexKind::Surface { prim } = v.kind else {
         return None;
     };
@@ -42,10 +46,22 @@ fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
 }
 
 use super::super::contribution::{
-    is_delta_position_light, is_specular, same_vertex, singular_densities_into,
+    anchor_infinite, is_delta_position_light, is_specular, same_vertex, singular_densities_into,
 };
-use super::super::trace::{extend, sample_direction, sample_light_vertex};
+use super::super::trace::{
+    extend, extend_from_infinite, extend_or_escape, sample_direction, sample_light_vertex,
+};
 use super::{Mutation, Workspace};
+
+/// True when an eye side can end on light vertex `v` by itself: a point of an area light or the
+/// environment's direction (not a point, spot or directional light: their Dirac is never met).
+fn reachable_by_eye(scene: &Scene, v: &Vertex) -> bool {
+    match v.kind {
+        VertexKind::Light { prim, .. } => prim.is_some(),
+        VertexKind::InfiniteLight { light, .. } => scene.environment == Some(light),
+        _ => false,
+    }
+}
 
 /// Veach's weight of deleting k_d edges (sec. 11.4.1: "p_d[1] = 0.25, p_d[2] = 0.5, and
 /// p_d[k] = 2^-k for k >= 3").
@@ -188,6 +204,10 @@ impl Mutation for Bidirectional {
         for _ in 0..s_new {
             let v = match light.len() {
                 0 => sample_light_vertex(scene, tech, sampler)?,
+                // a light at infinity: a disk point, the ray along -w
+                1 if light[0].is_infinite_light() => {
+                    extend_from_infinite(scene, &light[0], sampler)?
+                }
                 len => {
                     let prev = len.checked_sub(2).map(|i| &light[i]);
                     let cur = &light[len - 1];
@@ -207,12 +227,17 @@ impl Mutation for Bidirectional {
         let eye = &mut work.vertices;
         eye.clear();
         eye.extend(x[m..].iter().rev());
-        for _ in 0..added - s_new {
+        for j in 0..added - s_new {
             let len = eye.len();
             let prev = len.checked_sub(2).map(|i| &eye[i]);
             let cur = &eye[len - 1];
             let d = sample_direction(scene, tech, prev, cur, TransportMode::Radiance, sampler)?;
-            let v = extend(scene, cur, d, sampler)?;
+            // the eye side's last vertex with no light side may escape to the environment
+            let v = if light.is_empty() && j + 1 == added - s_new {
+                extend_or_escape(scene, cur, d, sampler)?
+            } else {
+                extend(scene, cur, d, sampler)?
+            };
             eye.push(v);
         }
         if light.is_empty() {
@@ -227,6 +252,7 @@ impl Mutation for Bidirectional {
             return None;
         }
         light.extend(eye.iter().rev());
+        anchor_infinite(scene, light);
         Some(())
     }
     // ANCHOR_END: bidirectional_sample
@@ -288,7 +314,8 @@ impl Mutation for Bidirectional {
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {
                     // no joining edge: the eye side reached the light by itself
-                    if !matches!(y[0].kind, VertexKind::Light { prim: Some(_), .. }) {
+                    // (an area light, or the environment an eye side escaped to)
+                    if !reachable_by_eye(scene, &y[0]) {
                         continue;
                     }
                 } else {

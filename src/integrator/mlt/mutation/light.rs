@@ -28,7 +28,9 @@ pub struct LightPerturbation {
     pub angle: InverseDistance,
 }
 
-/// Index j of the non-specular vertex that starts the chain x_j S* x_{k-1}.
+/// Index j of the non-specular vertex that starts the chain x_j S* x_{k-1}. `None` when x_j is
+/// a light at infinity: its rays are parallel to w, a turn would change the light vertex
+/// itself, so such paths are left to the bidirectional and sensor mutations.
 pub fn caustic_chain_start(scene: &Scene, x: &[Vertex]) -> Option<usize> {
     let k = x.len().checked_sub(1)?;
     if k < 2 || is_specular(scene, &x[k - 1]) {
@@ -38,7 +40,7 @@ pub fn caustic_chain_start(scene: &Scene, x: &[Vertex]) -> Option<usize> {
     while j >= 1 && is_specular(scene, &x[j]) {
         j -= 1;
     }
-    Some(j)
+    (!x[j].is_infinite_light()).then_some(j)
 }
 
 /// The lobes of the chain's specular vertices x_{j+1} ... x_{k-2}.

@@ -15,7 +15,7 @@ use crate::path::vertex::to_area;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
-use super::super::contribution::{is_specular, lobe_at};
+use super::super::contribution::{anchor_infinite, is_directional, is_specular, lobe_at};
 use super::super::trace::{angle_between, chain_end_of, dir, perturb_direction, retrace_chain};
 use super::light::direction_density;
 use super::sensor::{lens_chain_density, lens_chain_end, perturb_lens_chain};
@@ -54,6 +54,16 @@ fn later_chains<'a>(
     })
 }
 
+/// True when the last chain ends on a directional light, whose one direction a turned ray never
+/// meets: such paths are left to the bidirectional mutation (a chain ending on the environment
+/// escapes to a new direction, `ChainEnd::Environment`).
+fn ends_at_directional(scene: &Scene, x: &[Vertex], m: usize) -> bool {
+    later_chains(scene, x, m)
+        .last()
+        .is_some_and(|(_, e)| e == 0)
+        && is_directional(scene, &x[0])
+}
+
 /// The lobes of a chain's specular vertices x_{c-1} ... x_{e+1} (tracing order).
 fn chain_lobes<'a>(
     scene: &'a Scene,
@@ -79,6 +89,9 @@ impl Mutation for MultiChainPerturbation {
         let m = lens_chain_end(scene, x)?;
         // no chain after the lens chain: the sensor perturbation's case
         later_chains(scene, x, m).next()?;
+        if ends_at_directional(scene, x, m) {
+            return None;
+        }
         y.clear();
         y.extend_from_slice(x);
         let chain = &mut work.vertices;
@@ -98,6 +111,8 @@ impl Mutation for MultiChainPerturbation {
                 y[i] = *v;
             }
         }
+        // x_1 moved under a kept light at infinity, or a chain escaped to a new direction
+        anchor_infinite(scene, y);
         Some(())
     }
     // ANCHOR_END: multichain_sample
@@ -119,6 +134,9 @@ impl Mutation for MultiChainPerturbation {
             return 0.0;
         };
         if y.len() != x.len() || !later_chains(scene, y, m).eq(chains.clone()) {
+            return 0.0;
+        }
+        if ends_at_directional(scene, x, m) || ends_at_directional(scene, y, m) {
             return 0.0;
         }
         let mut t = lens_chain_density(scene, tech, x, y, m, &self.offset);

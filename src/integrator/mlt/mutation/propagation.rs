@@ -10,10 +10,10 @@
 //! T(x -> y) = (1/2) p(|t_y - t_x|) / t_y^2. The 1/2 p(D) part is symmetric; t^2 is not.
 
 use crate::math::Sampler;
-use crate::path::{LocalSampling, Vertex};
+use crate::path::{LocalSampling, Vertex, VertexKind};
 use crate::scene::Scene;
 
-use super::super::contribution::SPECULAR_COS_TOLERANCE;
+use super::super::contribution::{anchor_infinite, infinite_distance, SPECULAR_COS_TOLERANCE};
 use super::super::trace::{dir, point_along};
 use super::{same_prefix, InverseDistance, Mutation, Workspace};
 
@@ -42,6 +42,9 @@ impl Mutation for PropagationPerturbation {
         let k = x.len() - 1;
         if k < 2 || !x[k - 1].is_medium() {
             return None;
+        }
+        if x[k - 2].is_infinite_light() {
+            return self.sample_parallel(scene, x, sampler, y);
         }
         let w = dir(&x[k - 2], &x[k - 1]);
         let t = (x[k - 1].p - x[k - 2].p).length();
@@ -82,6 +85,9 @@ impl Mutation for PropagationPerturbation {
         if !same_prefix(x, y, k - 1) || y[k].p != x[k].p {
             return 0.0;
         }
+        if x[k - 2].is_infinite_light() {
+            return self.parallel_density(scene, x, y);
+        }
         if dir(&x[k - 2], &x[k - 1]).dot(dir(&y[k - 2], &y[k - 1])) < 1.0 - SPECULAR_COS_TOLERANCE {
             return 0.0;
         }
@@ -92,3 +98,57 @@ impl Mutation for PropagationPerturbation {
     }
     // ANCHOR_END: propagation_density
 }
+
+/// The slide of x_1 along the ray of a light at infinity x_0 (k = 2): the line is parallel to w,
+/// the volume measure in the coordinates (position across the ray, distance along it) is
+/// dA_perp dt, so T(x -> y) = (1/2) p(|t_y - t_x|) with no t^2 (book: "Metropolis light
+/// transport", lights at infinity).
+impl PropagationPerturbation {
+    fn sample_parallel(
+        &self,
+        scene: &Scene,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
+        let VertexKind::InfiniteLight { w, .. } = x[0].kind else {
+            return None;
+        };
+        let d = self.distance.sample(sampler.next_f32());
+        let sign = if (sampler.next_f32() as f64) < DIRECTION_PROBABILITY {
+            1.0
+        } else {
+            -1.0
+        };
+        // from a far point on x_1's line, so that point_along sees every surface before it
+        let far = infinite_distance(scene, x[1].p);
+        let mut origin = x[0];
+        origin.p = x[1].p + w * far;
+        let v = point_along(scene, &origin, -w, far + sign * d)?;
+        if v.kind != x[1].kind {
+            return None; // left the medium
+        }
+        y.clear();
+        y.extend_from_slice(x);
+        y[1] = v;
+        anchor_infinite(scene, y);
+        Some(())
+    }
+
+    /// (1/2) p(D) for y_1 on x_1's line along w, D = |y_1 - x_1|; zero off the line.
+    fn parallel_density(&self, scene: &Scene, x: &[Vertex], y: &[Vertex]) -> f64 {
+        let VertexKind::InfiniteLight { w, .. } = x[0].kind else {
+            return 0.0;
+        };
+        let step = y[1].p - x[1].p;
+        let off_line = step.cross(w).length();
+        if off_line > PARALLEL_TOLERANCE * scene.radius.max(f32::MIN_POSITIVE) {
+            return 0.0;
+        }
+        DIRECTION_PROBABILITY * self.distance.pdf(step.length())
+    }
+}
+
+/// Distance of y_1 from x_1's line along w (relative to the scene's radius) that still counts as
+/// on it: the slide starts from a point 4R to 6R away, whose rounding moves y_1 by ~1e-6 R.
+const PARALLEL_TOLERANCE: f32 = 1e-4;

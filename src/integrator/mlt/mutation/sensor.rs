@@ -20,7 +20,7 @@ use crate::path::vertex::to_area;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
-use super::super::contribution::{is_specular, lobe_at};
+use super::super::contribution::{anchor_infinite, is_specular, lobe_at};
 use super::super::trace::{chain_end_of, retrace_chain};
 use super::{same_distance, same_prefix, InverseDistance, Mutation, Workspace};
 use crate::bsdf::Lobe;
@@ -163,6 +163,8 @@ impl Mutation for SensorPerturbation {
         y.extend_from_slice(&x[..m]);
         y.extend(chain.iter().rev());
         y.push(x[x.len() - 1]);
+        // x_{m-1} a light at infinity: its direction is kept, the new y_m sees it along w
+        anchor_infinite(scene, y);
         Some(())
     }
     // ANCHOR_END: sensor_sample

@@ -14,7 +14,10 @@
 //! (b) Stationarity. On the 4 x 4 fog box (and a mirror box for the multi-chain perturbation),
 //!     many independent chains of one mutation (plus the bidirectional one, for ergodicity) run
 //!     from seed paths and their last states are binned by pixel and path class; the counts
-//!     must follow f/b, estimated per cell by an independent path tracer.
+//!     must follow f/b, estimated per cell by an independent path tracer. The fog box without
+//!     its ceiling, lit by the sun (a directional light), and the mirror box without its
+//!     ceiling, lit by a sky (an environment), check the mutations on paths that start at
+//!     infinity.
 //!
 //! Set `MLT_DEBUG` to list the cells more than 3 standard deviations off.
 //!
@@ -30,14 +33,17 @@ use std::sync::OnceLock;
 use glam::{Vec2, Vec3};
 use pathspace::bsdf::TransportMode;
 use pathspace::integrator::mlt::contribution::{
-    image_contribution, is_specular, same_vertex, scalar_contribution, singular_densities,
+    anchor_infinite, image_contribution, is_specular, same_vertex, scalar_contribution,
+    singular_densities,
 };
 use pathspace::integrator::mlt::init::Bootstrap;
 use pathspace::integrator::mlt::mutation::{
     Bidirectional, InverseDistance, LightPerturbation, MultiChainPerturbation, Mutation,
     PropagationPerturbation, SensorPerturbation, Workspace,
 };
-use pathspace::integrator::mlt::trace::{extend, sample_direction, sample_light_vertex};
+use pathspace::integrator::mlt::trace::{
+    extend, extend_or_escape, sample_direction, sample_light_vertex,
+};
 use pathspace::integrator::mlt::{Chain, Mlt, MltSettings};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::{Vertex, VertexKind};
@@ -66,7 +72,13 @@ const MIRROR_Y: f32 = -0.98;
 /// the camera sees the back wall in it and the back wall sees the light in it, so the box has
 /// L S D S E paths (the multi-chain perturbation's) and lens and caustic chains through it.
 fn mirror_box(w: u32) -> Scene {
-    let text = pathspace::scene::FOG_BOX
+    let text = mirror_box_text(w);
+    Scene::load(&SceneSource::embedded("mirror-box", &text)).expect("valid mirror box")
+}
+
+/// The scene text of [`mirror_box`].
+fn mirror_box_text(w: u32) -> String {
+    pathspace::scene::FOG_BOX
         .replace(
             "resolution = [256, 256]",
             &format!("resolution = [{w}, {w}]"),
@@ -77,8 +89,7 @@ fn mirror_box(w: u32) -> Scene {
         )
         + &format!(
             "\n[[shapes]]\ntype = \"quad\"\norigin = [-0.6, {MIRROR_Y}, -0.9]\nu = [0.0, 0.0, 1.7]\nv = [1.2, 0.0, 0.0]\nmaterial = \"chrome\"\n"
-        );
-    Scene::load(&SceneSource::embedded("mirror-box", &text)).expect("valid mirror box")
+        )
 }
 
 /// The fog box with the light grown to 1.8 x 1.8 (of the ceiling's 2 x 2): eye subpaths then
@@ -1407,12 +1418,34 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                     ) else {
                         break;
                     };
-                    let Some(v) = extend(scene, &cur, d, &mut s) else {
+                    // (the environment's vertex where the walk escapes, if the scene has one)
+                    let Some(v) = extend_or_escape(scene, &cur, d, &mut s) else {
                         break;
                     };
                     sub.push(v);
                     let vertices = sub.len() - 1; // scattering vertices and the new one
-                                                  // s = 0: the new vertex on the light
+                    if v.is_infinite_light() {
+                        // s = 0 at the environment: the sky seen directly or through a mirror
+                        let mut path: Vec<Vertex> = sub.iter().rev().copied().collect();
+                        anchor_infinite(scene, &mut path);
+                        if path.len() == 2 || is_specular(scene, &path[1]) {
+                            if let Some((f, r)) = image_contribution(scene, &path) {
+                                let dens =
+                                    singular_densities(scene, &pathspace::path::PLAIN, &path);
+                                let p: f64 = dens.eye[..path.len() - 1]
+                                    .iter()
+                                    .map(|&p| p as f64)
+                                    .product();
+                                if p > 0.0 {
+                                    let cell = stationary_cell(scene, &path, r);
+                                    one[cell] += scalar_contribution(f) as f64 / p;
+                                    touched.push(cell);
+                                }
+                            }
+                        }
+                        break;
+                    }
+                    // s = 0: the new vertex on the light
                     if let VertexKind::Surface { prim } = v.kind {
                         let shape = &scene.shapes[scene.prim_shape[prim as usize] as usize];
                         if let Some(light) = shape.light {
@@ -1452,6 +1485,8 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
                     };
                     let mut path = vec![l];
                     path.extend(sub.iter().rev().copied());
+                    // a light at infinity: its direction, seen from x_1
+                    anchor_infinite(scene, &mut path);
                     if let Some((f, r)) = image_contribution(scene, &path) {
                         let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
                         let p: f64 = dens.light[0] as f64
@@ -1651,4 +1686,95 @@ fn multichain_perturbation_chains_follow_f_over_b() {
     };
     chains_follow_f_over_b(&mut fam, "mirror box", &scene, &mlt, &truth, 30_000, 30, 66);
     fam.finish();
+}
+
+// ------------------------------------------------------------------------------------------
+// (b) with lights at infinity: the directional measure
+
+/// The fog box (with the floor mirror of [`mirror_box`] if `mirror`) without its ceiling and
+/// its ceiling light, lit from above by `light` (a `[[lights]]` table): the fog's null box stays,
+/// so the light crosses its top face into the fog, reaches the walls, the floor and the mirror,
+/// and the film's corners see past the box.
+fn open_box(w: u32, light: &str, mirror: bool) -> Scene {
+    let text = if mirror {
+        mirror_box_text(w)
+    } else {
+        pathspace::scene::FOG_BOX.replace(
+            "resolution = [256, 256]",
+            &format!("resolution = [{w}, {w}]"),
+        ) + "\n"
+    };
+    let ceiling = "# ceiling y = +1\n[[shapes]]\ntype = \"quad\"\norigin = [-1.0, 1.0, -1.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 0.0, 2.0]\nmaterial = \"white\"\n";
+    assert!(text.contains(ceiling), "ceiling found");
+    let at = text.find("# ceiling light").expect("ceiling light found");
+    let end = text[at..].find("\n\n").map_or(text.len(), |e| at + e);
+    let text = format!("{}{}\n{light}\n", &text[..at], &text[end..]).replace(ceiling, "");
+    assert!(!text.contains("emission"), "the area light removed");
+    Scene::load(&SceneSource::embedded("open-box", &text)).expect("valid open box")
+}
+
+/// The sun: a directional light from above, tilted so that it reaches the back wall too.
+const SUN: &str =
+    "[[lights]]\ntype = \"directional\"\ndirection = [0.3, -1.0, -0.4]\nirradiance = 2.0\n";
+
+/// A sky: a constant environment.
+const SKY: &str = "[[lights]]\ntype = \"environment\"\nradiance = 1.0\n";
+
+/// Test (b) for the first `kinds` mutations (each with the bidirectional one, as above) on
+/// `scene` lit from infinity: the chains' last states against f/b of the path tracer, whose
+/// strategies reach a light at infinity as they reach an area light (s = 1 by the light's own
+/// sampling, s = 0 where a walk escapes to the sky).
+fn chains_at_infinity_follow_f_over_b(what: &str, scene: &Scene, kinds: usize, seed: u64) {
+    let mut fam = Family::new(&format!("mlt_mutations: chains under {what}"));
+    let truth = truth(scene, 3, 1_500_000, seed);
+    for (i, name) in [
+        "bidirectional",
+        "sensor",
+        "light",
+        "propagation",
+        "multichain",
+    ]
+    .into_iter()
+    .enumerate()
+    .take(kinds)
+    {
+        let mut mlt = engine(scene, with_bidirectional(i), Some(3), seed + i as u64);
+        mlt.mutations.sensor.offset = InverseDistance::new(0.05, 2.0).unwrap();
+        mlt.mutations.light.angle = InverseDistance::new(1e-3, 0.3).unwrap();
+        mlt.mutations.propagation = PropagationPerturbation {
+            distance: InverseDistance::new(0.01, 1.0).unwrap(),
+        };
+        mlt.mutations.multichain = MultiChainPerturbation {
+            offset: InverseDistance::new(0.05, 2.0).unwrap(),
+            angle: InverseDistance::new(1e-3, 0.3).unwrap(),
+        };
+        chains_follow_f_over_b(
+            &mut fam,
+            name,
+            scene,
+            &mlt,
+            &truth,
+            30_000,
+            30,
+            seed + i as u64,
+        );
+    }
+    fam.finish();
+}
+
+/// Under the sun, without the mirror: a path tracer never reaches the sun through a mirror (its
+/// one direction), so the truth has no strategy for L S D E; and the multi-chain perturbation
+/// leaves every chain that ends on a directional light to the others.
+#[test]
+fn chains_under_a_directional_light_follow_f_over_b() {
+    let scene = open_box(RES, SUN, false);
+    chains_at_infinity_follow_f_over_b("the sun", &scene, 4, 70);
+}
+
+/// Under a sky, with the mirror: the multi-chain perturbation retraces L S D E chains to a new
+/// direction of the sky.
+#[test]
+fn chains_under_an_environment_follow_f_over_b() {
+    let scene = open_box(RES, SKY, true);
+    chains_at_infinity_follow_f_over_b("a sky", &scene, 5, 80);
 }
