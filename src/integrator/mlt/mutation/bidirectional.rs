@@ -16,6 +16,12 @@
 //!    emitter by itself (BDPT's s = 0): the only way to reach paths such as L S D S E, which
 //!    have no edge with two non-specular ends.
 //!
+//! Glowing media (eq. 5): a new light vertex is a volume vertex x0 with the media's share of
+//! the emitted power, as BDPT's light subpaths start (`trace::sample_start_vertex`), and
+//! leaves it uniformly over the sphere; with s' = 0 a collision of the eye side in a glowing
+//! medium is the new x0. Their densities are `Vertex::light_origin_pdf` (per unit volume),
+//! `Vertex::light_pdf_to` (1 / 4 pi times g / r^2) and the eye side's sigma_t tau g / r^2.
+//!
 //! Transition density (Veach eq. 11.6's form in the generalized path measure):
 //! T(x -> y) = p_d(k_d) / (k - k_d + 2) * p_a(k_a | k_d, l) *
 //!             sum_{s'} (1 / #splits) prod_{new light-side i} p_L(y_i) prod_{new eye-side i} p_E(y_i),
@@ -44,7 +50,9 @@ fn emitter_kind(scene: &Scene, v: &Vertex) -> Option<VertexKind> {
 use super::super::contribution::{
     is_delta_position_light, is_specular, same_vertex, singular_densities_into,
 };
-use super::super::trace::{extend, sample_direction, sample_light_vertex};
+use super::super::trace::{
+    extend, is_volume_start, sample_direction, sample_start_vertex, sample_volume_direction,
+};
 use super::{Mutation, Workspace};
 
 /// Veach's weight of deleting k_d edges (sec. 11.4.1: "p_d[1] = 0.25, p_d[2] = 0.5, and
@@ -187,7 +195,12 @@ impl Mutation for Bidirectional {
         light.extend_from_slice(&x[..(l + 1) as usize]);
         for _ in 0..s_new {
             let v = match light.len() {
-                0 => sample_light_vertex(scene, tech, sampler)?,
+                // a light or, with the media's share of the power, a volume vertex x0
+                0 => sample_start_vertex(scene, tech, sampler)?,
+                // a volume x0 emits uniformly over the sphere
+                1 if light[0].is_medium() => {
+                    extend(scene, &light[0], sample_volume_direction(sampler), sampler)?
+                }
                 len => {
                     let prev = len.checked_sub(2).map(|i| &light[i]);
                     let cur = &light[len - 1];
@@ -216,9 +229,12 @@ impl Mutation for Bidirectional {
             eye.push(v);
         }
         if light.is_empty() {
-            // s' = 0 after deleting the light: the eye side must have found an emitter
+            // s' = 0 after deleting the light: the eye side must have found an emitter (a
+            // collision in a glowing medium is one: the volume x0 of eq. 5)
             let last = eye.last_mut()?;
-            last.kind = emitter_kind(scene, last)?;
+            if !is_volume_start(scene, last) {
+                last.kind = emitter_kind(scene, last)?;
+            }
         } else if is_specular(scene, &light[light.len() - 1])
             || is_specular(scene, &eye[eye.len() - 1])
         {
@@ -287,8 +303,11 @@ impl Mutation for Bidirectional {
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {
-                    // no joining edge: the eye side reached the light by itself
-                    if !matches!(y[0].kind, VertexKind::Light { prim: Some(_), .. }) {
+                    // no joining edge: the eye side reached the light by itself (an area
+                    // light, or a collision in a glowing medium)
+                    if !matches!(y[0].kind, VertexKind::Light { prim: Some(_), .. })
+                        && !is_volume_start(scene, &y[0])
+                    {
                         continue;
                     }
                 } else {
