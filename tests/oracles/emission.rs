@@ -155,7 +155,7 @@ fn emitting_slab_head_on_mlt() {
     );
     let scene = load(&text);
     let mut fam = Family::new("emitting slab, mlt");
-    mlt_runs_are(&mut fam, "slab", &scene, (16, 16, 43), truth);
+    mlt_runs_are(&mut fam, "slab", &scene, (16, 256, 43), truth);
     fam.finish();
 }
 
@@ -334,7 +334,13 @@ fn emitting_furnace_in_emitting_walls_mlt() {
         let scene = load(&walled_furnace(body));
         // the path tracer checks the scene itself
         image_is(&mut fam, what, &scene, 64, 31 + i as u64, truth);
-        mlt_runs_are(&mut fam, what, &scene, (16, 16, 300 + 20 * i as u64), truth);
+        mlt_runs_are(
+            &mut fam,
+            what,
+            &scene,
+            (16, 512, 300 + 20 * i as u64),
+            truth,
+        );
     }
     fam.finish();
 }

@@ -1091,10 +1091,17 @@ struct BidirCells {
     walls: Vec<(Vertex, Rect)>,
     light: Vertex,
     light_rect: Rect,
+    /// Where a new first vertex x_0 lies: the light, or the fog when it glows (eq. 5).
+    first_region: usize,
 }
 
 impl BidirCells {
     fn new(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>, light_rect: Rect) -> Self {
+        Self::with_first(scene, mlt, x, Some(light_rect))
+    }
+
+    /// Cells whose new x_0 lies on the light `light_rect`, or in the glowing fog (`None`).
+    fn with_first(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>, light_rect: Option<Rect>) -> Self {
         let b = &mlt.mutations.bidirectional;
         let n = x.len();
         let k = n - 1;
@@ -1124,7 +1131,14 @@ impl BidirCells {
             .iter()
             .map(|(_, r)| (vertex_at(scene, r.uniform(Vec2::splat(0.5)), r.n), *r))
             .collect();
-        let light = light_vertex_at(scene, light_rect.uniform(Vec2::splat(0.5)));
+        let (light, light_rect, first_region) = match light_rect {
+            Some(r) => (
+                light_vertex_at(scene, r.uniform(Vec2::splat(0.5))),
+                r,
+                LIGHT_REGION,
+            ),
+            None => (medium_vertex(Vec3::ZERO), big_light_rect(), MEDIUM_REGION),
+        };
         BidirCells {
             x,
             structures,
@@ -1132,6 +1146,7 @@ impl BidirCells {
             walls,
             light,
             light_rect,
+            first_region,
         }
     }
 
@@ -1246,7 +1261,7 @@ impl BidirCells {
         for _ in 0..ka - 1 {
             let first = y.is_empty();
             let region = if first {
-                LIGHT_REGION
+                self.first_region
             } else {
                 1 + s.next_index(REGIONS - 1)
             };
@@ -1334,13 +1349,16 @@ const RES: u32 = 4;
 /// The class of a path for the stationarity cells: the light seen directly, or the kind of
 /// x_{k-1} (which wall, the mirror, the fog near or far from the pinhole) for k = 2 and k >= 3,
 /// times the half of the light x_0 lies in (the multi-chain and light perturbations move it).
-const CLASSES: usize = 2 * (1 + 2 * 8);
+const CLASSES: usize = 2 * (2 + 2 * 8);
 
 fn class_of(scene: &Scene, x: &[Vertex]) -> usize {
     let k = x.len() - 1;
     let half = usize::from(x[0].p.x < 0.0);
     if k == 1 {
-        return half;
+        // the glow seen directly: x_0 in the fog's nearer or farther half from the pinhole
+        // (the propagation perturbation moves it along the ray)
+        let far = x[0].is_medium() && (x[0].p - x[1].p).length() > 3.9;
+        return 2 * usize::from(far) + half;
     }
     let v = &x[k - 1];
     let eye = x[k].p;
@@ -1362,7 +1380,7 @@ fn class_of(scene: &Scene, x: &[Vertex]) -> usize {
             _ => 5,
         },
     };
-    2 * (1 + 8 * (k.min(3) - 2) + kind) + half
+    2 * (2 + 8 * (k.min(3) - 2) + kind) + half
 }
 
 fn stationary_cell(scene: &Scene, x: &[Vertex], raster: Vec2) -> usize {
@@ -1803,7 +1821,7 @@ fn glowing_chains(name: &str, weights: [f64; 5], seed: u64, tune: impl Fn(&mut M
         &mlt,
         glow_truth(),
         30_000,
-        30,
+        100,
         seed,
     );
     fam.finish();
@@ -1854,8 +1872,42 @@ fn multichain_perturbation_chains_follow_f_over_b_with_a_glowing_medium() {
         &mlt,
         &truth,
         30_000,
-        30,
+        100,
         76,
     );
+    fam.finish();
+}
+
+/// The bidirectional mutation's proposals against T at k = 1 ..= 5 edges when the only light
+/// is the glowing fog: a deleted x_0 comes back as a volume vertex, by emitted power (then a
+/// direction uniform on the sphere) or as the eye side's collision (s' = 0), both in T.
+#[test]
+fn bidirectional_proposals_follow_t_with_a_glowing_medium() {
+    let mut fam = Family::new("mlt_mutations: bidirectional proposals, glowing fog");
+    let scene = glowing_fog_box(16);
+    let mlt = engine(&scene, [1.0; 5], Some(4), 53);
+    let b: &Bidirectional = &mlt.mutations.bidirectional;
+    for x in paths_by_length(&scene, &mlt) {
+        let k = x.len() - 1;
+        assert!(x[0].is_medium(), "x_0 in the glowing fog");
+        let kinds: String = x[1..k]
+            .iter()
+            .map(|v| if v.is_medium() { 'V' } else { 'D' })
+            .collect();
+        let cells = BidirCells::with_first(&scene, &mlt, x.clone(), None);
+        proposals_follow_t(
+            &mut fam,
+            &format!("k = {k} (V0{kinds}E)"),
+            &scene,
+            b,
+            &x,
+            cells.cells(),
+            &|y| cells.cell_of(y),
+            150_000,
+            2_000_000,
+            &|s| cells.draw(s),
+            54 + k as u64,
+        );
+    }
     fam.finish();
 }
