@@ -13,6 +13,7 @@ use crate::common;
 
 use common::stats::Family;
 use glam::Vec3;
+use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::scene::{Scene, SceneSource};
@@ -141,6 +142,84 @@ fn emitting_slab_head_on_bidirectional() {
     fam.finish();
 }
 
+/// The slab for MLT: the column of the bidirectional test, whose chains' x0 are volume
+/// vertices from the pre-pass, the bidirectional mutation (by emitted power, or as a
+/// collision of the eye side) and the propagation perturbation (along the pinhole's ray).
+#[test]
+fn emitting_slab_head_on_mlt() {
+    let (sa, e, d) = ([0.5f64, 1.0, 2.5], [1.0f64, 2.0, 0.5], 1.2f64);
+    let truth: [f64; 3] = std::array::from_fn(|c| e[c] / sa[c] * (1.0 - (-sa[c] * d).exp()));
+    let text = format!(
+        "{}\n[media.slab]\ntype = \"homogeneous\"\nsigma_a = [0.5, 1.0, 2.5]\nsigma_s = 0.0\nemission = [1.0, 2.0, 0.5]\n\n[[shapes]]\ntype = \"box\"\nmin = [-0.03, -0.03, -1.2]\nmax = [0.03, 0.03, 0.0]\nmaterial = \"null\"\ninterior = \"slab\"\n",
+        camera(5.0, 0.4)
+    );
+    let scene = load(&text);
+    let mut fam = Family::new("emitting slab, mlt");
+    mlt_runs_are(&mut fam, "slab", &scene, (16, 256, 43), truth);
+    fam.finish();
+}
+
+/// The means of every channel of MLT (a pre-pass of 4096 BDPT samples, 4 chains) over the
+/// whole image, its central 2 x 2 pixels and its four corner pixels against `truth` (the
+/// value of every pixel), from `runs` independent renders of `spp` mutations per pixel. The
+/// image's total luminance is b, BDPT's estimate, whatever the chains do: an error of f or of
+/// a transition density moves light between pixels and channels, so the regions carry it.
+fn mlt_runs_are(
+    fam: &mut Family,
+    what: &str,
+    scene: &Scene,
+    (runs, spp, seed): (u64, u32, u64),
+    truth: [f64; 3],
+) {
+    const REGIONS: [&str; 3] = ["image", "centre", "corners"];
+    let means: Vec<[[f64; 3]; 3]> = (0..runs)
+        .map(|i| {
+            let settings = MltSettings {
+                bootstrap: 4096,
+                chains: 4,
+                ..MltSettings::default()
+            };
+            let mlt = Mlt::new(scene, &pathspace::path::PLAIN, settings, seed + i, None)
+                .unwrap_or_else(|e| panic!("mlt renders the scene: {e}"));
+            let mut r = Renderer::new(scene, IntegratorKind::Mlt, seed + i, None);
+            r.integrator = Box::new(mlt);
+            r.pass(spp, &|| {});
+            let img = r.film.as_ref().unwrap().image();
+            let (w, h) = (img.width, img.height);
+            let corner = |x: u32, y: u32| (x == 0 || x + 1 == w) && (y == 0 || y + 1 == h);
+            let centre = |x: u32, y: u32| {
+                (w / 2 - 1..=w / 2).contains(&x) && (h / 2 - 1..=h / 2).contains(&y)
+            };
+            let mut m = [[0.0f64; 3]; 3];
+            let mut n = [0.0f64; 3];
+            for y in 0..h {
+                for x in 0..w {
+                    let p = img.get(x, y);
+                    for (k, inside) in [true, centre(x, y), corner(x, y)].into_iter().enumerate() {
+                        if inside {
+                            n[k] += 1.0;
+                            for (c, mc) in m[k].iter_mut().enumerate() {
+                                *mc += p[c] as f64;
+                            }
+                        }
+                    }
+                }
+            }
+            for k in 0..3 {
+                assert!(n[k] > 0.0, "the {} has pixels", REGIONS[k]);
+                m[k] = m[k].map(|v| v / n[k]);
+            }
+            m
+        })
+        .collect();
+    for (k, region) in REGIONS.iter().enumerate() {
+        for (c, t) in truth.iter().enumerate() {
+            let a: Vec<f64> = means.iter().map(|m| m[k][c]).collect();
+            fam.runs_are(&format!("{what}, mlt {region} channel {c}"), &a, *t);
+        }
+    }
+}
+
 // ---- (b) the emitting furnace ----
 
 /// Radiance of the environment: chromatic, so a channel mixed up shows.
@@ -196,6 +275,72 @@ fn emitting_furnace() {
             let seed = 200 + 50 * j as u64 + 10 * i as u64;
             image_runs_are(&mut fam, what, kind, &scene, (32, 16, seed), truth);
         }
+    }
+    fam.finish();
+}
+
+/// The emitting furnace for integrators without environment lights: the sphere of [`furnace`]
+/// inside a closed box of black walls that emit L_W inwards (the camera inside). Radiance
+/// L_W leaves every wall, and the medium keeps it so (eq. 1 balances), so every pixel reads
+/// L_W.
+fn walled_furnace(medium: &str) -> String {
+    let (e, a) = (format!("[{}, {}, {}]", L_W[0], L_W[1], L_W[2]), 3.0f32);
+    // origin, u, v of each wall with u x v pointing inwards
+    let walls = [
+        ([-a, -a, -a], [0.0, 0.0, 2.0 * a], [2.0 * a, 0.0, 0.0]),
+        ([-a, a, -a], [2.0 * a, 0.0, 0.0], [0.0, 0.0, 2.0 * a]),
+        ([-a, -a, -a], [2.0 * a, 0.0, 0.0], [0.0, 2.0 * a, 0.0]),
+        ([-a, -a, a], [0.0, 2.0 * a, 0.0], [2.0 * a, 0.0, 0.0]),
+        ([-a, -a, -a], [0.0, 2.0 * a, 0.0], [0.0, 0.0, 2.0 * a]),
+        ([a, -a, -a], [0.0, 0.0, 2.0 * a], [0.0, 2.0 * a, 0.0]),
+    ];
+    let mut text = format!(
+        "{}\n[media.glow]\n{medium}\n\n[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"null\"\ninterior = \"glow\"\n",
+        camera(2.5, 60.0)
+    );
+    for (o, u, v) in walls {
+        text += &format!(
+            "\n[[shapes]]\ntype = \"quad\"\norigin = {o:?}\nu = {u:?}\nv = {v:?}\nemission = {e}\n"
+        );
+    }
+    text
+}
+
+/// The emitting furnace inside black emitting walls for MLT (which refuses environment
+/// lights), the homogeneous and the procedural cloud media of [`emitting_furnace`]: paths
+/// start on the walls or at volume vertices x0, and every pixel is L_W. A doubled or missing
+/// emission at x0, or emission not scaled by the cloud's density, is a bias.
+#[test]
+fn emitting_furnace_in_emitting_walls_mlt() {
+    let sa = [0.6f32, 1.5, 0.3];
+    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
+    let coeffs = format!(
+        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
+        sa[0], sa[1], sa[2], e[0], e[1], e[2]
+    );
+    let media = [
+        (
+            "procedural cloud",
+            format!("type = \"procedural\"\ndensity = \"cloud\"\noctaves = 3\nseed = 4\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\n{coeffs}\nphase = {{ type = \"hg\", g = -0.3 }}"),
+        ),
+        (
+            "homogeneous, hg",
+            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}"),
+        ),
+    ];
+    let truth = L_W.map(|v| v as f64);
+    let mut fam = Family::new("emitting furnace in emitting walls");
+    for (i, (what, body)) in media.iter().enumerate() {
+        let scene = load(&walled_furnace(body));
+        // the path tracer checks the scene itself
+        image_is(&mut fam, what, &scene, 64, 31 + i as u64, truth);
+        mlt_runs_are(
+            &mut fam,
+            what,
+            &scene,
+            (16, 512, 300 + 20 * i as u64),
+            truth,
+        );
     }
     fam.finish();
 }
@@ -458,7 +603,7 @@ fn quadrature_at_the_centre_is_the_closed_form() {
 
 // ---- refusals ----
 
-/// Every integrator but the path tracer, light tracing, BDPT and SMC refuses an emitting
+/// Every integrator but the path tracer, light tracing, BDPT, SMC and MLT refuses an emitting
 /// medium, naming it.
 #[test]
 fn the_others_refuse_an_emitting_medium() {
@@ -475,6 +620,11 @@ fn the_others_refuse_an_emitting_medium() {
                 | IntegratorKind::Smc,
                 r,
             ) => assert!(r.is_ok()),
+            // MLT takes emitting media (it may refuse the furnace's environment light)
+            (IntegratorKind::Mlt, Err(e)) => {
+                assert!(!e.to_string().contains("emitting"), "mlt: {e}")
+            }
+            (IntegratorKind::Mlt, Ok(_)) => {}
             (k, Ok(_)) => panic!("{} rendered an emitting medium", k.name()),
             (k, Err(e)) => {
                 let e = e.to_string();

@@ -160,7 +160,8 @@ pub fn image_contribution_reusing(
 ) -> Option<(Rgb, Vec2)> {
     edges.clear();
     let n = v.len();
-    if n < 2 || !is_light_vertex(&v[0]) {
+    // x0 on a light (at infinity too), or a volume vertex of a glowing medium (eq. 5)
+    if n < 2 || !(is_light_vertex(&v[0]) || v[0].is_medium()) {
         return None;
     }
     if v[n - 1].kind != VertexKind::Camera || v[1..n - 1].iter().any(|x| !is_scatterer(x)) {
@@ -170,7 +171,7 @@ pub fn image_contribution_reusing(
     let imp = cam.importance((v[n - 2].p - v[n - 1].p).normalize_or_zero())?;
     // tau is the exact one, not ratio tracking's estimate: the target must be a function of the
     // path alone, for the acceptance and for reusing an edge's factors across mutations
-    let mut f = v[0].emitted(scene, v[1].p);
+    let mut f = start_emission(scene, &v[0], v[1].p);
     for i in 0..n - 1 {
         if f == Rgb::ZERO {
             return None;
@@ -187,6 +188,17 @@ pub fn image_contribution_reusing(
     (f.is_finite() && luminance(f) > 0.0).then_some((f, imp.raster))
 }
 // ANCHOR_END: image_contribution
+
+/// L_e(x0 -> x1) of eq. (6): the light's emission, or at a volume vertex x0 the volume
+/// emittance L_e,V0(x0) of eq. (1), isotropic and scaled by the density there (radiance per
+/// unit length: with x0's volume measure dV = r^2 dw dr it is the emission of a free flight's
+/// collision, and G(x0, x1) has no cosine at x0).
+pub fn start_emission(scene: &Scene, v0: &Vertex, towards: Vec3) -> Rgb {
+    match v0.kind {
+        VertexKind::Medium { .. } => v0.surface_emission(scene, towards),
+        _ => v0.emitted(scene, towards),
+    }
+}
 
 /// The factors of edge i of `v` if `old` has the same two vertices at the same place counted
 /// from the light end, or from the eye end.

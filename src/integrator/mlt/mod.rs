@@ -745,8 +745,11 @@ impl super::Facts for MltFacts {
         true
     }
 
+    /// A path's x0 may be a volume vertex of a glowing medium (eq. 5): the pre-pass finds such
+    /// paths, the bidirectional mutation regenerates x0, the propagation and multi-chain
+    /// perturbations move it, and f carries L_e,V0(x0) (`contribution::start_emission`).
     fn emitting_media_refusal(&self) -> Option<&'static str> {
-        Some("its chains have no state whose light vertex x0 lies in a medium (eq. 5), nor do its guide and adjoint image")
+        None
     }
 
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {

@@ -223,6 +223,57 @@ pub fn escape_to_environment(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Verte
     None
 }
 
+/// The light vertex x0 of a new light subpath, as BDPT's light subpaths start
+/// (`Bdpt::light_subpath`): a volume vertex of the glowing media with their share of the
+/// emitted power (`scene::emitters::volume_share`, a number drawn only when some medium
+/// glows), else a light by [`sample_light_vertex`]. Its density is
+/// `Vertex::light_origin_pdf`, the share included on both sides.
+pub fn sample_start_vertex(
+    scene: &Scene,
+    tech: &dyn LocalSampling,
+    sampler: &mut Sampler,
+) -> Option<Vertex> {
+    let volume = crate::scene::emitters::volume_share(scene);
+    if volume > 0.0 && (volume >= 1.0 || sampler.next_f32() < volume) {
+        return sample_volume_start(scene, sampler);
+    }
+    sample_light_vertex(scene, tech, sampler)
+}
+
+/// A volume vertex x0 drawn from the emitting media by emitted power (eq. 5's L_e(x0 -> x1)
+/// with x0 in the medium; density per unit volume `scene.emitters.pdf`); `None` when the
+/// point falls outside its medium (the lattice's cells reach past it) or does not glow.
+pub fn sample_volume_start(scene: &Scene, sampler: &mut Sampler) -> Option<Vertex> {
+    let u_select = sampler.next_f32();
+    let u = Vec3::new(sampler.next_f32(), sampler.next_f32(), sampler.next_f32());
+    let vs = scene.emitters.sample(scene, u_select, u)?;
+    if scene.medium_at(vs.p) != Some(vs.medium) || vs.emission == crate::spectrum::Rgb::ZERO {
+        return None;
+    }
+    let m = Some(vs.medium);
+    Some(Vertex::new(
+        VertexKind::Medium { medium: vs.medium },
+        vs.p,
+        Vec3::ZERO,
+        m,
+        m,
+    ))
+}
+
+/// True for a volume vertex in a medium that glows: where a path may start (x0 of eq. 5).
+pub fn is_volume_start(scene: &Scene, v: &Vertex) -> bool {
+    match v.kind {
+        VertexKind::Medium { medium } => scene.media[medium as usize].emits(),
+        _ => false,
+    }
+}
+
+/// The direction a volume start x0 emits along: uniform on the sphere (L_e,V0 is
+/// isotropic; density 1 / (4 pi), `Vertex::light_pdf_to`).
+pub fn sample_volume_direction(sampler: &mut Sampler) -> Vec3 {
+    warp::uniform_sphere(sampler.next_2d())
+}
+
 /// The first non-null surface along `d` from `v`, no collisions sampled (the ray passes
 /// through media; their transmittance enters f, not the proposal).
 pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {

@@ -16,6 +16,12 @@
 //!    emitter by itself (BDPT's s = 0): the only way to reach paths such as L S D S E, which
 //!    have no edge with two non-specular ends.
 //!
+//! Glowing media (eq. 5): a new light vertex is a volume vertex x0 with the media's share of
+//! the emitted power, as BDPT's light subpaths start (`trace::sample_start_vertex`), and
+//! leaves it uniformly over the sphere; with s' = 0 a collision of the eye side in a glowing
+//! medium is the new x0. Their densities are `Vertex::light_origin_pdf` (per unit volume),
+//! `Vertex::light_pdf_to` (1 / 4 pi times g / r^2) and the eye side's sigma_t tau g / r^2.
+//!
 //! Transition density (Veach eq. 11.6's form in the generalized path measure):
 //! T(x -> y) = p_d(k_d) / (k - k_d + 2) * p_a(k_a | k_d, l) *
 //!             sum_{s'} (1 / #splits) prod_{new light-side i} p_L(y_i) prod_{new eye-side i} p_E(y_i),
@@ -203,10 +209,15 @@ impl Mutation for Bidirectional {
         light.extend_from_slice(&x[..(l + 1) as usize]);
         for _ in 0..s_new {
             let v = match light.len() {
-                0 => sample_light_vertex(scene, tech, sampler)?,
+                // a light or, with the media's share of the power, a volume vertex x0
+                0 => sample_start_vertex(scene, tech, sampler)?,
                 // a light at infinity: a disk point, the ray along -w
                 1 if light[0].is_infinite_light() => {
                     extend_from_infinite(scene, &light[0], sampler)?
+                }
+                // a volume x0 emits uniformly over the sphere
+                1 if light[0].is_medium() => {
+                    extend(scene, &light[0], sample_volume_direction(sampler), sampler)?
                 }
                 len => {
                     let prev = len.checked_sub(2).map(|i| &light[i]);
@@ -241,9 +252,12 @@ impl Mutation for Bidirectional {
             eye.push(v);
         }
         if light.is_empty() {
-            // s' = 0 after deleting the light: the eye side must have found an emitter
+            // s' = 0 after deleting the light: the eye side must have found an emitter (a
+            // collision in a glowing medium is one: the volume x0 of eq. 5)
             let last = eye.last_mut()?;
-            last.kind = emitter_kind(scene, last)?;
+            if !is_volume_start(scene, last) {
+                last.kind = emitter_kind(scene, last)?;
+            }
         } else if is_specular(scene, &light[light.len() - 1])
             || is_specular(scene, &eye[eye.len() - 1])
         {
@@ -313,8 +327,9 @@ impl Mutation for Bidirectional {
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {
-                    // no joining edge: the eye side reached the light by itself
-                    // (an area light, or the environment an eye side escaped to)
+                    // no joining edge: the eye side reached the light by itself (an area
+                    // light, the environment an eye side escaped to, or a collision in a
+                    // glowing medium)
                     if !reachable_by_eye(scene, &y[0]) {
                         continue;
                     }

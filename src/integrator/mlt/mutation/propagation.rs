@@ -8,6 +8,10 @@
 //! the distance t; in the coordinates (w, t) about x_{k-2} the volume measure is
 //! dV = t^2 dw dt, so the density of y_{k-1} per unit of the measure the move explores is
 //! T(x -> y) = (1/2) p(|t_y - t_x|) / t_y^2. The 1/2 p(D) part is symmetric; t^2 is not.
+//!
+//! A path x_0 x_1 whose x_0 is a volume vertex of a glowing medium (the pinhole sees the glow
+//! directly, eq. 5) has no x_{k-2}: its x_0 slides along the line from the pinhole instead,
+//! with the same density about the pinhole (t its distance from it), and stays on its pixel.
 
 use crate::math::Sampler;
 use crate::path::{LocalSampling, Vertex, VertexKind};
@@ -38,6 +42,9 @@ impl Mutation for PropagationPerturbation {
         _work: &mut Workspace,
         y: &mut Vec<Vertex>,
     ) -> Option<()> {
+        if x.len() == 2 {
+            return self.sample_volume_start(scene, x, sampler, y);
+        }
         // ASSIGNMENT: propagation_perturbation
         let k = x.len() - 1;
         if k < 2 || !x[k - 1].is_medium() {
@@ -76,6 +83,9 @@ impl Mutation for PropagationPerturbation {
         y: &[Vertex],
         _work: &mut Workspace,
     ) -> f64 {
+        if x.len() == 2 {
+            return self.volume_start_density(x, y);
+        }
         // ASSIGNMENT: propagation_perturbation
         let _ = scene;
         let k = x.len() - 1;
@@ -152,3 +162,50 @@ impl PropagationPerturbation {
 /// Distance of y_1 from x_1's line along w (relative to the scene's radius) that still counts as
 /// on it: the slide starts from a point 4R to 6R away, whose rounding moves y_1 by ~1e-6 R.
 const PARALLEL_TOLERANCE: f32 = 1e-4;
+
+impl PropagationPerturbation {
+    /// The glow seen directly, x_0 (a volume vertex) x_1 (the pinhole): x_0 moved by D along
+    /// the pinhole's ray, forwards or backwards; `None` for a light's x_0 or when y_0 leaves
+    /// x_0's medium.
+    fn sample_volume_start(
+        &self,
+        scene: &Scene,
+        x: &[Vertex],
+        sampler: &mut Sampler,
+        y: &mut Vec<Vertex>,
+    ) -> Option<()> {
+        if !x[0].is_medium() {
+            return None;
+        }
+        let w = dir(&x[1], &x[0]);
+        let t = (x[0].p - x[1].p).length();
+        let d = self.distance.sample(sampler.next_f32());
+        let t_new = if (sampler.next_f32() as f64) < DIRECTION_PROBABILITY {
+            t + d
+        } else {
+            t - d
+        };
+        let v = point_along(scene, &x[1], w, t_new)?;
+        if v.kind != x[0].kind {
+            return None;
+        }
+        y.clear();
+        y.push(v);
+        y.push(x[1]);
+        Some(())
+    }
+
+    /// T(x -> y) of [`Self::sample_volume_start`]: (1/2) p(|t_y - t_x|) / t_y^2 per unit
+    /// volume of y_0, t the distance from the pinhole.
+    fn volume_start_density(&self, x: &[Vertex], y: &[Vertex]) -> f64 {
+        if y.len() != 2 || !x[0].is_medium() || y[0].kind != x[0].kind || y[1].p != x[1].p {
+            return 0.0;
+        }
+        if dir(&x[1], &x[0]).dot(dir(&y[1], &y[0])) < 1.0 - SPECULAR_COS_TOLERANCE {
+            return 0.0;
+        }
+        let tx = (x[0].p - x[1].p).length();
+        let ty = (y[0].p - y[1].p).length();
+        DIRECTION_PROBABILITY * self.distance.pdf((ty - tx).abs()) / (ty as f64 * ty as f64)
+    }
+}

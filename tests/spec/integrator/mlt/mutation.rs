@@ -1102,10 +1102,17 @@ struct BidirCells {
     walls: Vec<(Vertex, Rect)>,
     light: Vertex,
     light_rect: Rect,
+    /// Where a new first vertex x_0 lies: the light, or the fog when it glows (eq. 5).
+    first_region: usize,
 }
 
 impl BidirCells {
     fn new(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>, light_rect: Rect) -> Self {
+        Self::with_first(scene, mlt, x, Some(light_rect))
+    }
+
+    /// Cells whose new x_0 lies on the light `light_rect`, or in the glowing fog (`None`).
+    fn with_first(scene: &Scene, mlt: &Mlt, x: Vec<Vertex>, light_rect: Option<Rect>) -> Self {
         let b = &mlt.mutations.bidirectional;
         let n = x.len();
         let k = n - 1;
@@ -1135,7 +1142,14 @@ impl BidirCells {
             .iter()
             .map(|(_, r)| (vertex_at(scene, r.uniform(Vec2::splat(0.5)), r.n), *r))
             .collect();
-        let light = light_vertex_at(scene, light_rect.uniform(Vec2::splat(0.5)));
+        let (light, light_rect, first_region) = match light_rect {
+            Some(r) => (
+                light_vertex_at(scene, r.uniform(Vec2::splat(0.5))),
+                r,
+                LIGHT_REGION,
+            ),
+            None => (medium_vertex(Vec3::ZERO), big_light_rect(), MEDIUM_REGION),
+        };
         BidirCells {
             x,
             structures,
@@ -1143,6 +1157,7 @@ impl BidirCells {
             walls,
             light,
             light_rect,
+            first_region,
         }
     }
 
@@ -1257,7 +1272,7 @@ impl BidirCells {
         for _ in 0..ka - 1 {
             let first = y.is_empty();
             let region = if first {
-                LIGHT_REGION
+                self.first_region
             } else {
                 1 + s.next_index(REGIONS - 1)
             };
@@ -1345,13 +1360,16 @@ const RES: u32 = 4;
 /// The class of a path for the stationarity cells: the light seen directly, or the kind of
 /// x_{k-1} (which wall, the mirror, the fog near or far from the pinhole) for k = 2 and k >= 3,
 /// times the half of the light x_0 lies in (the multi-chain and light perturbations move it).
-const CLASSES: usize = 2 * (1 + 2 * 8);
+const CLASSES: usize = 2 * (2 + 2 * 8);
 
 fn class_of(scene: &Scene, x: &[Vertex]) -> usize {
     let k = x.len() - 1;
     let half = usize::from(x[0].p.x < 0.0);
     if k == 1 {
-        return half;
+        // the glow seen directly: x_0 in the fog's nearer or farther half from the pinhole
+        // (the propagation perturbation moves it along the ray)
+        let far = x[0].is_medium() && (x[0].p - x[1].p).length() > 3.9;
+        return 2 * usize::from(far) + half;
     }
     let v = &x[k - 1];
     let eye = x[k].p;
@@ -1373,7 +1391,7 @@ fn class_of(scene: &Scene, x: &[Vertex]) -> usize {
             _ => 5,
         },
     };
-    2 * (1 + 8 * (k.min(3) - 2) + kind) + half
+    2 * (2 + 8 * (k.min(3) - 2) + kind) + half
 }
 
 fn stationary_cell(scene: &Scene, x: &[Vertex], raster: Vec2) -> usize {
@@ -1777,4 +1795,245 @@ fn chains_under_a_directional_light_follow_f_over_b() {
 fn chains_under_an_environment_follow_f_over_b() {
     let scene = open_box(RES, SKY, true);
     chains_at_infinity_follow_f_over_b("a sky", &scene, 5, 80);
+}
+
+// ------------------------------------------------------------------------------------------
+// (b) stationarity with a glowing medium as the only light: every path starts at a volume
+// vertex x0 (Pauly et al. eq. 5), which the bidirectional mutation regenerates (by emitted
+// power, or as the eye side's collision), the propagation perturbation slides along the
+// pinhole's ray (the glow seen directly) and the multi-chain perturbation moves at its old
+// distance (a chain through the mirror ending at x0); the sensor and light perturbations keep
+// it. f carries L_e,V0(x0).
+
+/// `text` (the fog box's) with the fog glowing (L_e,V0 = 0.5 per unit length) and the
+/// ceiling light and everything after it gone.
+fn glowing(text: &str) -> String {
+    let cut = text.find("# ceiling light").expect("the fog box's light");
+    let out = text[..cut].replacen(
+        "sigma_s = 0.4\n",
+        "sigma_s = 0.4\nemission = [0.5, 0.5, 0.5]\n",
+        1,
+    );
+    assert!(out.contains("emission = [0.5"), "the fog glows");
+    out
+}
+
+/// The fog box at `w` x `w` pixels lit by its glowing fog alone.
+fn glowing_fog_box(w: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX.replace(
+        "resolution = [256, 256]",
+        &format!("resolution = [{w}, {w}]"),
+    );
+    Scene::load(&SceneSource::embedded("glowing-fog-box", &glowing(&text))).expect("valid box")
+}
+
+/// [`mirror_box`] lit by its glowing fog alone: paths V0 S D S E through the mirror, whose
+/// last chain (for the multi-chain perturbation) ends at the volume x0.
+fn glowing_mirror_box(w: u32) -> Scene {
+    let text = pathspace::scene::FOG_BOX
+        .replace(
+            "resolution = [256, 256]",
+            &format!("resolution = [{w}, {w}]"),
+        )
+        .replace(
+            "[materials.white]",
+            "[materials.chrome]\ntype = \"mirror\"\n\n[materials.white]",
+        );
+    let text = glowing(&text)
+        + &format!(
+            "\n[[shapes]]\ntype = \"quad\"\norigin = [-0.6, {MIRROR_Y}, -0.9]\nu = [0.0, 0.0, 1.7]\nv = [1.2, 0.0, 0.0]\nmaterial = \"chrome\"\n"
+        );
+    Scene::load(&SceneSource::embedded("glowing-mirror-box", &text)).expect("valid box")
+}
+
+/// f/b per cell for a scene lit only by glowing media, by an estimator independent of MLT: a
+/// walk from the pinhole whose every collision in a glowing medium ends one path there (x0 =
+/// the collision, BDPT's s = 0), weighed by f over the walk's density. Every path of the
+/// scene has exactly this one strategy, so the sum is unbiased for f* over each cell.
+fn glow_truth_of(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let eye = eye_vertex(scene);
+    const CHUNK: u64 = 8192;
+    let sums = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut acc = vec![(0.0f64, 0.0f64); CELLS];
+            let mut one = vec![0.0f64; CELLS];
+            let mut touched = Vec::new();
+            let mut s = Sampler::new(seed, c, 7);
+            for _ in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                touched.clear();
+                let mut sub = vec![eye];
+                for _ in 0..=max_depth {
+                    let len = sub.len();
+                    let prev = len.checked_sub(2).map(|i| sub[i]);
+                    let cur = sub[len - 1];
+                    let Some(d) = sample_direction(
+                        scene,
+                        &pathspace::path::PLAIN,
+                        prev.as_ref(),
+                        &cur,
+                        TransportMode::Radiance,
+                        &mut s,
+                    ) else {
+                        break;
+                    };
+                    let Some(v) = extend(scene, &cur, d, &mut s) else {
+                        break;
+                    };
+                    sub.push(v);
+                    if !v.is_medium() {
+                        continue;
+                    }
+                    let path: Vec<Vertex> = sub.iter().rev().copied().collect();
+                    let Some((f, r)) = image_contribution(scene, &path) else {
+                        continue;
+                    };
+                    let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
+                    let p: f64 = dens.eye[..path.len() - 1]
+                        .iter()
+                        .map(|&p| p as f64)
+                        .product();
+                    if p > 0.0 {
+                        let cell = stationary_cell(scene, &path, r);
+                        one[cell] += scalar_contribution(f) as f64 / p;
+                        touched.push(cell);
+                    }
+                }
+                touched.sort_unstable();
+                touched.dedup();
+                for &cell in &touched {
+                    acc[cell].0 += one[cell];
+                    acc[cell].1 += one[cell] * one[cell];
+                    one[cell] = 0.0;
+                }
+            }
+            acc
+        })
+        .reduce(
+            || vec![(0.0, 0.0); CELLS],
+            |a, b| {
+                a.iter()
+                    .zip(&b)
+                    .map(|(x, y)| (x.0 + y.0, x.1 + y.1))
+                    .collect()
+            },
+        );
+    let nf = n as f64;
+    let b: f64 = sums.iter().map(|s| s.0).sum::<f64>() / nf;
+    let share = sums.iter().map(|s| s.0 / nf / b).collect();
+    let var = sums
+        .iter()
+        .map(|s| ((s.1 / nf - (s.0 / nf).powi(2)) / nf).max(0.0) / (b * b))
+        .collect();
+    (share, var)
+}
+
+/// The glowing fog box's f/b per cell at depth limit 2.
+fn glow_truth() -> &'static (Vec<f64>, Vec<f64>) {
+    static T: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
+    T.get_or_init(|| glow_truth_of(&glowing_fog_box(RES), 2, 1_500_000, 71))
+}
+
+/// The chains of `weights` (with `tune` applied to the engine) on the glowing fog box.
+fn glowing_chains(name: &str, weights: [f64; 5], seed: u64, tune: impl Fn(&mut Mlt)) {
+    let mut fam = Family::new(&format!("mlt_mutations: {name} chains, glowing fog"));
+    let scene = glowing_fog_box(RES);
+    let mut mlt = engine(&scene, weights, Some(2), seed);
+    tune(&mut mlt);
+    chains_follow_f_over_b(
+        &mut fam,
+        "glowing fog box",
+        &scene,
+        &mlt,
+        glow_truth(),
+        30_000,
+        100,
+        seed,
+    );
+    fam.finish();
+}
+
+#[test]
+fn bidirectional_chains_follow_f_over_b_with_a_glowing_medium() {
+    glowing_chains("bidirectional", with_bidirectional(0), 72, |_| {});
+}
+
+#[test]
+fn sensor_perturbation_chains_follow_f_over_b_with_a_glowing_medium() {
+    glowing_chains("sensor", with_bidirectional(1), 73, |mlt| {
+        mlt.mutations.sensor.offset = InverseDistance::new(0.05, 2.0).unwrap();
+    });
+}
+
+#[test]
+fn light_perturbation_chains_follow_f_over_b_with_a_glowing_medium() {
+    glowing_chains("light", with_bidirectional(2), 74, |mlt| {
+        mlt.mutations.light.angle = InverseDistance::new(1e-3, 0.3).unwrap();
+    });
+}
+
+#[test]
+fn propagation_perturbation_chains_follow_f_over_b_with_a_glowing_medium() {
+    glowing_chains("propagation", with_bidirectional(3), 75, |mlt| {
+        mlt.mutations.propagation = PropagationPerturbation {
+            distance: InverseDistance::new(0.01, 1.0).unwrap(),
+        };
+    });
+}
+
+#[test]
+fn multichain_perturbation_chains_follow_f_over_b_with_a_glowing_medium() {
+    let mut fam = Family::new("mlt_mutations: multi-chain chains, glowing mirror box");
+    let scene = glowing_mirror_box(RES);
+    let truth = glow_truth_of(&scene, 3, 1_500_000, 76);
+    let mut mlt = engine(&scene, with_bidirectional(4), Some(3), 76);
+    mlt.mutations.multichain = MultiChainPerturbation {
+        offset: InverseDistance::new(0.05, 2.0).unwrap(),
+        angle: InverseDistance::new(1e-3, 0.3).unwrap(),
+    };
+    chains_follow_f_over_b(
+        &mut fam,
+        "glowing mirror box",
+        &scene,
+        &mlt,
+        &truth,
+        30_000,
+        100,
+        76,
+    );
+    fam.finish();
+}
+
+/// The bidirectional mutation's proposals against T at k = 1 ..= 5 edges when the only light
+/// is the glowing fog: a deleted x_0 comes back as a volume vertex, by emitted power (then a
+/// direction uniform on the sphere) or as the eye side's collision (s' = 0), both in T.
+#[test]
+fn bidirectional_proposals_follow_t_with_a_glowing_medium() {
+    let mut fam = Family::new("mlt_mutations: bidirectional proposals, glowing fog");
+    let scene = glowing_fog_box(16);
+    let mlt = engine(&scene, [1.0; 5], Some(4), 53);
+    let b: &Bidirectional = &mlt.mutations.bidirectional;
+    for x in paths_by_length(&scene, &mlt) {
+        let k = x.len() - 1;
+        assert!(x[0].is_medium(), "x_0 in the glowing fog");
+        let kinds: String = x[1..k]
+            .iter()
+            .map(|v| if v.is_medium() { 'V' } else { 'D' })
+            .collect();
+        let cells = BidirCells::with_first(&scene, &mlt, x.clone(), None);
+        proposals_follow_t(
+            &mut fam,
+            &format!("k = {k} (V0{kinds}E)"),
+            &scene,
+            b,
+            &x,
+            cells.cells(),
+            &|y| cells.cell_of(y),
+            150_000,
+            2_000_000,
+            &|s| cells.draw(s),
+            54 + k as u64,
+        );
+    }
+    fam.finish();
 }
