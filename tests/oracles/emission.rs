@@ -79,6 +79,70 @@ fn image_runs_are(
 /// The integrators that start light subpaths at a volume vertex x0 (eq. 5).
 const BIDIRECTIONAL: [IntegratorKind; 2] = [IntegratorKind::Light, IntegratorKind::Bdpt];
 
+/// The primary-sample chains over a BDPT sample (PSSMLT) and over one of its strategies (MMLT).
+const PRIMARY_SAMPLE: [IntegratorKind; 2] = [IntegratorKind::Pssmlt, IntegratorKind::Mmlt];
+
+/// The mean of every channel of `r`'s image (splats included).
+fn image_mean(r: &Renderer) -> [f64; 3] {
+    let img = r.film.as_ref().unwrap().image();
+    let n = (img.width * img.height) as f64;
+    let mut m = [0.0f64; 3];
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let p = img.get(x, y);
+            for (c, mc) in m.iter_mut().enumerate() {
+                *mc += p[c] as f64 / n;
+            }
+        }
+    }
+    m
+}
+
+/// The image mean of every channel of PSSMLT or MMLT (`kind`) against `truth`, from `runs`
+/// independent runs of `spp` mutations per pixel, each with its own small bootstrap of 1024
+/// samples and 4 chains (the chains' correlation is in the runs' spread).
+fn chain_runs_are(
+    fam: &mut Family,
+    what: &str,
+    kind: IntegratorKind,
+    scene: &Scene,
+    (runs, spp, seed): (u64, u32, u64),
+    truth: [f64; 3],
+) {
+    use pathspace::integrator::mmlt::multiplexed_target;
+    use pathspace::integrator::pssmlt::{bdpt_target, Pssmlt, PssmltSettings};
+    let settings = PssmltSettings {
+        bootstrap: 1024,
+        chains: 4,
+        ..PssmltSettings::default()
+    };
+    let target = match kind {
+        IntegratorKind::Mmlt => multiplexed_target,
+        _ => bdpt_target,
+    };
+    let means: Vec<[f64; 3]> = (0..runs)
+        .map(|i| {
+            let plain = &pathspace::path::technique::PLAIN;
+            let mut r = Renderer::new(scene, kind, seed + i, None);
+            let chains = Pssmlt::with_target(
+                scene,
+                plain,
+                settings.clone(),
+                seed + i,
+                None,
+                (kind.name(), target),
+            );
+            r.integrator = Box::new(chains.unwrap());
+            r.pass(spp, &|| {});
+            image_mean(&r)
+        })
+        .collect();
+    for (c, t) in truth.iter().enumerate() {
+        let a: Vec<f64> = means.iter().map(|m| m[c]).collect();
+        fam.runs_are(&format!("{what}, {} channel {c}", kind.name()), &a, *t);
+    }
+}
+
 /// A camera on +z looking at the origin.
 fn camera(eye_z: f32, fov: f32) -> String {
     format!(
@@ -220,6 +284,27 @@ fn mlt_runs_are(
     }
 }
 
+/// The slab column of the bidirectional test through the primary-sample chains: PSSMLT's
+/// BDPT sample starts its light subpath at x0 from the same numbers as BDPT, MMLT picks one
+/// strategy per state, the glow seen through the eye walk's collisions (s = 0) or through x0
+/// joined to the camera (s = 1, t = 1) with its weight.
+#[test]
+fn emitting_slab_head_on_primary_sample_chains() {
+    let (sa, e, d) = ([0.5f64, 1.0, 2.5], [1.0f64, 2.0, 0.5], 1.2f64);
+    let truth: [f64; 3] = std::array::from_fn(|c| e[c] / sa[c] * (1.0 - (-sa[c] * d).exp()));
+    let text = format!(
+        "{}\n[media.slab]\ntype = \"homogeneous\"\nsigma_a = [0.5, 1.0, 2.5]\nsigma_s = 0.0\nemission = [1.0, 2.0, 0.5]\n\n[[shapes]]\ntype = \"box\"\nmin = [-0.03, -0.03, -1.2]\nmax = [0.03, 0.03, 0.0]\nmaterial = \"null\"\ninterior = \"slab\"\n",
+        camera(5.0, 0.4)
+    );
+    let scene = load(&text);
+    let mut fam = Family::new("emitting slab, primary-sample chains");
+    for (i, kind) in PRIMARY_SAMPLE.into_iter().enumerate() {
+        let seed = 61 + 100 * i as u64;
+        chain_runs_are(&mut fam, "slab", kind, &scene, (32, 32, seed), truth);
+    }
+    fam.finish();
+}
+
 // ---- (b) the emitting furnace ----
 
 /// Radiance of the environment: chromatic, so a channel mixed up shows.
@@ -306,8 +391,8 @@ fn walled_furnace(medium: &str) -> String {
     text
 }
 
-/// The emitting furnace inside black emitting walls for MLT (which refuses environment
-/// lights), the homogeneous and the procedural cloud media of [`emitting_furnace`]: paths
+/// The emitting furnace inside black emitting walls for MLT (a closed scene, no light at
+/// infinity), the homogeneous and the procedural cloud media of [`emitting_furnace`]: paths
 /// start on the walls or at volume vertices x0, and every pixel is L_W. A doubled or missing
 /// emission at x0, or emission not scaled by the cloud's density, is a bias.
 #[test]
@@ -341,6 +426,39 @@ fn emitting_furnace_in_emitting_walls_mlt() {
             (16, 512, 300 + 20 * i as u64),
             truth,
         );
+    }
+    fam.finish();
+}
+
+/// The emitting furnace through the primary-sample chains (they take the environment: its
+/// starts and the volume starts x0 share the light subpaths by power): any density of x0
+/// missing from a weight, or a strategy MMLT never picks, leaves the image off L_w.
+#[test]
+fn emitting_furnace_primary_sample_chains() {
+    let sa = [0.6f32, 1.5, 0.3];
+    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
+    let coeffs = format!(
+        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
+        sa[0], sa[1], sa[2], e[0], e[1], e[2]
+    );
+    let media = [
+        (
+            "grid",
+            format!("type = \"grid\"\nfile = \"blob.grid\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\npropagation = \"delta-tracking\"\n{coeffs}"),
+        ),
+        (
+            "homogeneous, hg",
+            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}"),
+        ),
+    ];
+    let truth = L_W.map(|v| v as f64);
+    let mut fam = Family::new("emitting furnace, primary-sample chains");
+    for (i, (what, body)) in media.iter().enumerate() {
+        let scene = load(&furnace(body));
+        for (j, kind) in PRIMARY_SAMPLE.into_iter().enumerate() {
+            let seed = 400 + 50 * j as u64 + 10 * i as u64;
+            chain_runs_are(&mut fam, what, kind, &scene, (32, 32, seed), truth);
+        }
     }
     fam.finish();
 }
@@ -603,8 +721,8 @@ fn quadrature_at_the_centre_is_the_closed_form() {
 
 // ---- refusals ----
 
-/// Every integrator but the path tracer, light tracing, BDPT, SMC and MLT refuses an emitting
-/// medium, naming it.
+/// Every integrator but the path tracer, light tracing, BDPT, SMC and the three MCMC ones
+/// (MLT, PSSMLT, MMLT) refuses an emitting medium, naming it.
 #[test]
 fn the_others_refuse_an_emitting_medium() {
     let scene = load(&furnace(
@@ -617,14 +735,12 @@ fn the_others_refuse_an_emitting_medium() {
                 IntegratorKind::Path
                 | IntegratorKind::Light
                 | IntegratorKind::Bdpt
-                | IntegratorKind::Smc,
+                | IntegratorKind::Smc
+                | IntegratorKind::Mlt
+                | IntegratorKind::Pssmlt
+                | IntegratorKind::Mmlt,
                 r,
-            ) => assert!(r.is_ok()),
-            // MLT takes emitting media (it may refuse the furnace's environment light)
-            (IntegratorKind::Mlt, Err(e)) => {
-                assert!(!e.to_string().contains("emitting"), "mlt: {e}")
-            }
-            (IntegratorKind::Mlt, Ok(_)) => {}
+            ) => assert!(r.is_ok(), "{}: {:?}", kind.name(), r.err()),
             (k, Ok(_)) => panic!("{} rendered an emitting medium", k.name()),
             (k, Err(e)) => {
                 let e = e.to_string();

@@ -86,9 +86,11 @@ impl<'a> MultiplexedTarget<'a> {
             bdpt.light_subpath(scene, WalkLimits::at_most(s), sampler, light);
         }
         // a walk that ended early cannot be joined by strategy (s, t); s = 1 samples its own
-        // light vertex (next-event estimation)
+        // light vertex (next-event estimation); a glowing medium is a light too (its volume
+        // vertices x0 start light subpaths, s = 0 collects L_e,V0 at the eye walk's collisions)
         let (light, eye) = (&self.walks.light, &self.walks.eye);
-        if eye.len() != t || (s > 1 && light.len() != s) || scene.lights.is_empty() {
+        let unlit = scene.lights.is_empty() && scene.emitters.is_empty();
+        if eye.len() != t || (s > 1 && light.len() != s) || unlit {
             return None;
         }
         sampler.set_stream(STREAM_CONNECT);
@@ -156,6 +158,13 @@ impl super::Facts for MmltFacts {
 
     fn samples_light_starts(&self) -> bool {
         true
+    }
+
+    /// A strategy (s, t) of BDPT's: light subpaths from volume vertices x0 (s >= 2),
+    /// next-event estimation of the glowing media (s = 1) and the emission the eye walk's
+    /// collisions collect (s = 0), each with its MIS weight among the path's strategies.
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        None
     }
 
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {

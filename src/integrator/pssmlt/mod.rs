@@ -12,7 +12,8 @@
 //! uniform sample of f*, so b is refined by them as the run goes (Kelemen et al. sec. 4).
 //!
 //! Everything a BDPT sample can render, this renders: media, every light (environment and
-//! directional lights too: their vertices are BDPT's), every BSDF.
+//! directional lights too: their vertices are BDPT's), emitting media (light subpaths from a
+//! volume vertex x0), every BSDF.
 //!
 //! Determinism: bootstrap state i is stream (seed, i), chain c draws its seed and its steps from
 //! streams of (seed, c); chains run in parallel and are merged in chain order, so an image
@@ -435,6 +436,12 @@ impl super::Facts for PssmltFacts {
 
     fn samples_light_starts(&self) -> bool {
         true
+    }
+
+    /// A BDPT sample: its light subpath starts at a volume vertex x0 from the same primary
+    /// samples as BDPT's (`bidir::walk`), its strategies collect L_e,V0 with BDPT's weights.
+    fn emitting_media_refusal(&self) -> Option<&'static str> {
+        None
     }
 
     fn check(&self, case: &super::Case) -> Result<(), super::IntegratorError> {

@@ -241,6 +241,51 @@ fn chains_of_the_bdpt_target_keep_f_star_over_b_on_the_fog_box() {
     fam.finish();
 }
 
+/// The light subpath of a uniform primary-sample state starts where BDPT's does: it reads its
+/// numbers with BDPT's own walk (`Bdpt::light_subpath`), so a volume vertex x0 of a glowing
+/// fog is chosen with the media's share of the emitted power and lies uniformly in the
+/// homogeneous fog's box (mean height 0, variance 1/3).
+#[test]
+fn primary_states_start_light_subpaths_at_a_volume_x0_by_power() {
+    use pathspace::bidir::{volume_share, Bdpt, Strategies, WalkLimits};
+    use pathspace::integrator::pssmlt::sample::STREAM_LIGHT;
+    use pathspace::math::PrimarySamples;
+    use pathspace::path::VertexKind;
+    let text = "[camera]\ntype = \"pinhole\"\neye = [0.0, 0.0, 0.9]\nlook_at = [0.0, 0.0, 0.0]\nfov_deg = 60.0\nresolution = [4, 4]\n\
+        [materials.white]\ntype = \"lambert\"\nalbedo = 0.6\n\
+        [media.fog]\ntype = \"homogeneous\"\nsigma_a = 0.3\nsigma_s = 0.7\nemission = 0.05\n\
+        [[shapes]]\ntype = \"box\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\nmaterial = \"white\"\ninterior = \"fog\"\n\
+        [[shapes]]\ntype = \"quad\"\norigin = [-0.3, 0.99, -0.3]\nu = [0.6, 0.0, 0.0]\nv = [0.0, 0.0, 0.6]\nemission = 5.0\n";
+    let scene = Scene::load(&SceneSource::embedded("glowing-room", text)).unwrap();
+    let share = volume_share(&scene) as f64;
+    assert!(
+        share > 0.2 && share < 0.8,
+        "the share {share} tests both starts"
+    );
+    let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
+    let n = 40_000u64;
+    let heights: Vec<Option<f64>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut sampler = Sampler::primary(PrimarySamples::new(stream(7, 5, i), 0.01));
+            sampler.chain().unwrap().start_iteration(true);
+            sampler.set_stream(STREAM_LIGHT);
+            let mut path = Vec::new();
+            bdpt.light_subpath(&scene, WalkLimits::BDPT, &mut sampler, &mut path);
+            let x0 = path.first().expect("every start succeeds here");
+            matches!(x0.kind, VertexKind::Medium { .. }).then_some(x0.p.y as f64)
+        })
+        .collect();
+    let y: Vec<f64> = heights.into_iter().flatten().collect();
+    let mut fam = Family::new("pssmlt: light subpaths from a volume x0");
+    fam.binomial("volume starts", y.len() as u64, n, share);
+    let k = y.len() as f64;
+    let mean = y.iter().sum::<f64>() / k;
+    let var = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (k - 1.0);
+    fam.samples_are("height of x0", mean, var, y.len() as u64, 0.0);
+    fam.finish();
+}
+
 // ------------------------------------------------------------------------------------------
 // (c) determinism
 
