@@ -508,7 +508,7 @@ fn lines_on_scenes(
     lines: &[Line],
     config: &ConvergeConfig,
     pool: &rayon::ThreadPool,
-    report: &mut dyn FnMut(&[convergence::CheckpointRow]),
+    report: &mut (dyn FnMut(&[convergence::CheckpointRow]) + Send),
 ) -> Result<Vec<convergence::CheckpointRow>, CliError> {
     if lines.is_empty() {
         // the study's own error: nothing to measure

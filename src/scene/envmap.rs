@@ -135,7 +135,11 @@ impl EnvMap {
         // x0 is in [-1, W - 1] (W - 1 + 1/2 rounds to at most W - 1/2)
         let i0 = (x0 as i64).rem_euclid(w as i64) as usize;
         let i1 = if i0 + 1 == w { 0 } else { i0 + 1 };
-        let y = if uv.y.is_nan() { 0.0 } else { uv.y.clamp(0.0, 1.0) } * (h - 1) as f32;
+        let y = if uv.y.is_nan() {
+            0.0
+        } else {
+            uv.y.clamp(0.0, 1.0)
+        } * (h - 1) as f32;
         let j0 = (y as usize).min(h - 2);
         let fy = y - j0 as f32;
         let row = |j: usize| self.texel(i0, j) * (1.0 - fx) + self.texel(i1, j) * fx;

@@ -183,7 +183,7 @@ fn every_enumerated_scene_value_is_checked_at_its_key() {
             procedural("type", "\"fluid\""),
             3,
             "media.cloud.type",
-            "unknown variant `fluid`, expected one of `homogeneous`, `grid`, `procedural`",
+            "unknown variant `fluid`, expected one of `homogeneous`, `grid`, `vdb`, `procedural`",
         ),
         (
             "\n[materials.shiny]\ntype = \"velvet\"\n".into(),

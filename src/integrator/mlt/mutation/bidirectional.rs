@@ -55,16 +55,19 @@ use super::super::contribution::{
     anchor_infinite, is_delta_position_light, is_specular, same_vertex, singular_densities_into,
 };
 use super::super::trace::{
-    extend, extend_from_infinite, extend_or_escape, sample_direction, sample_light_vertex,
+    extend, extend_from_infinite, extend_or_escape, is_volume_start, sample_direction,
+    sample_start_vertex, sample_volume_direction,
 };
 use super::{Mutation, Workspace};
 
-/// True when an eye side can end on light vertex `v` by itself: a point of an area light or the
-/// environment's direction (not a point, spot or directional light: their Dirac is never met).
+/// True when an eye side can end on light vertex `v` by itself: a point of an area light, the
+/// environment's direction or a collision in a glowing medium (not a point, spot or
+/// directional light: their Dirac is never met).
 fn reachable_by_eye(scene: &Scene, v: &Vertex) -> bool {
     match v.kind {
         VertexKind::Light { prim, .. } => prim.is_some(),
         VertexKind::InfiniteLight { light, .. } => scene.environment == Some(light),
+        VertexKind::Medium { .. } => is_volume_start(scene, v),
         _ => false,
     }
 }
