@@ -1027,6 +1027,9 @@ radiance = 0.25
     let _ = std::fs::remove_dir_all(d);
 }
 
+/// The files of an include case, the file the error names and its text.
+type IncludeCase<'a> = (Vec<(&'a str, String)>, &'a str, &'a str);
+
 /// Errors in included files name the included file and its own line, also when the build finds
 /// them (a missing map); lines of the including file after an include keep their numbers;
 /// a cycle, nesting beyond Mitsuba's 15 files, a root other than `<scene>` and a missing file
@@ -1036,7 +1039,8 @@ fn include_errors_name_the_included_file_and_line() {
     let head = "<scene version=\"3.0.0\">\n";
     let main = |body: &str| format!("{head}{body}\n</scene>\n");
     let sensor = SENSOR.replace('\n', " ");
-    let cases: Vec<(Vec<(&str, String)>, &str, &str)> = vec![
+    // (the files, the file named in the error, the error's text)
+    let cases: Vec<IncludeCase> = vec![
         (
             vec![
                 ("main.xml", main("<include filename=\"parts/bad.xml\"/>")),
@@ -1128,7 +1132,7 @@ fn include_errors_name_the_included_file_and_line() {
                 let body = if i + 1 < n {
                     format!("<include filename=\"d{}.xml\"/>", i + 1)
                 } else {
-                    format!("{sensor}")
+                    sensor.clone()
                 };
                 (name, main(&body))
             })
