@@ -345,7 +345,7 @@ impl Frontend for Binding {
     type Error = CliError;
 
     fn pool(&mut self) -> Result<rayon::ThreadPool, CliError> {
-        pathspace::cli::reference::thread_pool(self.threads)
+        pathspace::cli::thread_pool(self.threads)
     }
 
     fn write(
@@ -612,7 +612,7 @@ fn converge(
         max_depth: scene.settings.max_depth,
         shard: None,
     };
-    let pool = pathspace::cli::reference::thread_pool(threads).map_err(error)?;
+    let pool = pathspace::cli::thread_pool(threads).map_err(error)?;
     let rows = py
         .detach(|| {
             pool.install(|| {

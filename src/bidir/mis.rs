@@ -8,8 +8,8 @@ use glam::Vec3;
 use super::Bdpt;
 use crate::bsdf::TransportMode;
 use crate::path::geometry_term::cosine_factor;
+use crate::path::geometry_term::to_area;
 use crate::path::subpath::{remap, Subpath};
-use crate::path::vertex::to_area;
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 
@@ -44,7 +44,7 @@ pub(super) struct Changed {
 pub(super) struct End<'a> {
     pub(super) p: &'a Vertex,
     pub(super) p_to_q: f32,
-    pub(super) p_minus: Option<(f32, crate::path::vertex::AreaFactor)>,
+    pub(super) p_minus: Option<(f32, crate::path::geometry_term::AreaFactor)>,
 }
 
 impl Bdpt<'_> {

@@ -71,13 +71,13 @@ pub struct ConvergeArgs {
     /// `+adjoint` variants: the adjoint image's pre-pass (default: the scene's
     /// `[render.adjoint]`).
     #[command(flatten)]
-    pub adjoint: super::render::AdjointTuning,
+    pub adjoint: super::render_args::AdjointTuning,
     /// Guided local sampling of the `+guide` variants.
     #[command(flatten)]
     pub guide: Box<super::render::GuideArgs>,
     /// The memory limit every line's render is checked against before the runs begin.
     #[command(flatten)]
-    pub memory: super::render::MemoryArgs,
+    pub memory: super::render_args::MemoryArgs,
     /// `--resolution WxH` (the reference must have the same).
     #[command(flatten)]
     pub film: super::ResolutionArg,
@@ -397,7 +397,7 @@ fn check_memory(
     lines: &[Line],
 ) -> Result<(), CliError> {
     args.memory.check()?;
-    let threads = super::reference::thread_pool(args.threads)?.current_num_threads();
+    let threads = super::thread_pool(args.threads)?.current_num_threads();
     for line in lines {
         let estimate = crate::render::memory::estimate(scene, line.kind, &line.settings, threads);
         args.memory.refuse_above(&estimate)?;
@@ -457,7 +457,7 @@ fn run_lines(
     lines: &[Line],
     config: &ConvergeConfig,
 ) -> Result<Vec<convergence::CheckpointRow>, CliError> {
-    let pool = super::reference::thread_pool(args.threads)?;
+    let pool = super::thread_pool(args.threads)?;
     let mut report = |rows: &[convergence::CheckpointRow]| {
         if let Some(last) = rows.last() {
             eprintln!(

@@ -8,6 +8,7 @@ pub mod interrupt;
 pub mod merge;
 pub mod reference;
 pub mod render;
+pub mod render_args;
 pub mod resume;
 pub mod rooms;
 
@@ -37,7 +38,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Render a scene (default: the embedded fog box).
-    Render(render::RenderArgs),
+    Render(render_args::RenderArgs),
     /// Compare two EXR images: RMSE, relMSE, means, max abs difference, error heatmap.
     Diff(diff::DiffArgs),
     /// Render a high-sample reference image with the most robust integrator.
@@ -340,4 +341,27 @@ pub fn load_scene_at(
     let (mut scene, settings, source) = load_scene(path)?;
     resolution.apply(&mut scene)?;
     Ok((scene, settings, source))
+}
+
+/// The most worker threads a command starts: far above any machine's cores, far below the
+/// count whose mere creation costs seconds (100,000 threads take about 13 CPU-s to fail).
+pub const MAX_THREADS: usize = 1024;
+
+/// A rayon pool of `threads` workers (all cores when None), at least 1 and at most
+/// [`MAX_THREADS`].
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = threads {
+        if t == 0 {
+            return Err(CliError::Usage("--threads must be at least 1".into()));
+        }
+        if t > MAX_THREADS {
+            return Err(CliError::Usage(format!(
+                "--threads {t}: at most {MAX_THREADS} (this machine has {} cores)",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            )));
+        }
+        pool = pool.num_threads(t);
+    }
+    pool.build().map_err(CliError::Threads)
 }

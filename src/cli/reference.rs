@@ -10,7 +10,7 @@
 use clap::Args;
 use std::path::{Path, PathBuf};
 
-use super::render::{RenderArgs, SessionArgs};
+use super::render_args::{RenderArgs, SessionArgs};
 use super::CliError;
 use crate::image_io;
 use crate::integrator::settings::{GuideOptions, RenderOptions};
@@ -70,29 +70,6 @@ impl ReferenceArgs {
             ..RenderArgs::default()
         }
     }
-}
-
-/// The most worker threads a command starts: far above any machine's cores, far below the
-/// count whose mere creation costs seconds (100,000 threads take about 13 CPU-s to fail).
-pub const MAX_THREADS: usize = 1024;
-
-/// A rayon pool of `threads` workers (all cores when None), at least 1 and at most
-/// [`MAX_THREADS`].
-pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, CliError> {
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(t) = threads {
-        if t == 0 {
-            return Err(CliError::Usage("--threads must be at least 1".into()));
-        }
-        if t > MAX_THREADS {
-            return Err(CliError::Usage(format!(
-                "--threads {t}: at most {MAX_THREADS} (this machine has {} cores)",
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            )));
-        }
-        pool = pool.num_threads(t);
-    }
-    pool.build().map_err(CliError::Threads)
 }
 
 /// The scene hash as written in EXR attributes: 16 hex digits.

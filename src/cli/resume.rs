@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::render::RenderArgs;
+use super::render_args::RenderArgs;
 use super::CliError;
 use crate::integrator::settings::RenderOptions;
 use crate::render::checkpoint::{Checkpoint, Recipe};

@@ -42,7 +42,7 @@ use crate::bidir::{Bdpt, Strategies};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{Distribution1D, Sampler};
 pub use crate::path::technique::{LightStart, MapPoint};
-use crate::path::{LocalSampling, Vertex, VertexKind};
+use crate::path::{LocalSampling, Vertex};
 use crate::scene::{Light, Scene};
 
 /// Default grid: 64 x 64 cells (the thesis's "typically 64x64"); columns are rounded up to a
@@ -436,21 +436,6 @@ impl AdjointImage {
     }
     // ANCHOR_END: adjoint_pdf
 
-    /// The (light, primitive) of a vertex on an area light: a light vertex, or a surface vertex
-    /// an eye path found on an emitter.
-    pub fn light_point(scene: &Scene, v: &Vertex) -> Option<(u32, u32)> {
-        match v.kind {
-            VertexKind::Light {
-                light,
-                prim: Some(prim),
-            } => Some((light, prim)),
-            VertexKind::Surface { prim } => scene.shapes[scene.prim_shape[prim as usize] as usize]
-                .light
-                .map(|l| (l, prim)),
-            _ => None,
-        }
-    }
-
     /// Estimates the adjoint image with a BDPT pre-pass: `settings.samples_per_cell` camera
     /// samples per cell at raster positions uniform over the film; every MIS-weighted
     /// contribution (splats included) is deposited, as luminance, in the cell of its path's
@@ -482,7 +467,7 @@ impl AdjointImage {
         let chunks = samples.div_ceil(CHUNK);
         let n_pix = cam.width as f64 * cam.height as f64;
         let cell_index = |v: &Vertex| -> Option<usize> {
-            let (light, prim) = Self::light_point(scene, v)?;
+            let (light, prim) = v.area_light_point(scene)?;
             let u = map.inverse(scene, light, prim, v.p)?;
             let c = ((u.x * cols as f32) as u32).min(cols - 1);
             let r = ((u.y * rows as f32) as u32).min(rows - 1);

@@ -177,7 +177,7 @@ impl Evaluator<'_> {
     /// the light walk's first vertex, or, for s = 0, the emitter the eye walk ended on.
     fn light_vertex(&self) -> Option<LightStart> {
         let v = self.walks.light.first().or(self.walks.eye.last())?;
-        let (light, prim) = crate::enlightened::AdjointImage::light_point(self.scene, v)?;
+        let (light, prim) = v.area_light_point(self.scene)?;
         Some(LightStart {
             light,
             prim,

@@ -71,3 +71,59 @@ fn edge_factors(
     }
     (g, e.transmittance)
 }
+
+/// Solid-angle density `pdf` at `from` converted to the measure of `to`.
+#[inline]
+pub fn to_area(pdf: f32, from: &Vertex, to: &Vertex) -> f32 {
+    AreaFactor::new(from, to).apply(pdf)
+}
+
+/// The factor g(to -> from) / d^2 of [`to_area`] for one pair of vertices, kept in its two parts
+/// so that a density converted with it rounds exactly as `to_area` rounds it (BDPT keeps one per
+/// subpath edge for its weights).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AreaFactor {
+    /// g(to -> from).
+    cos: f32,
+    /// The squared distance (0 for coincident vertices: no density).
+    d2: f32,
+    /// `to` is an infinite light's vertex: no distance and no cosine.
+    infinite: bool,
+}
+
+impl AreaFactor {
+    #[inline]
+    pub fn new(from: &Vertex, to: &Vertex) -> Self {
+        if to.is_infinite_light() {
+            return AreaFactor {
+                cos: 1.0,
+                d2: 1.0,
+                infinite: true,
+            };
+        }
+        let d = to.p - from.p;
+        let d2 = d.length_squared();
+        let cos = if d2 == 0.0 {
+            0.0
+        } else {
+            cosine_factor(to, d / d2.sqrt())
+        };
+        AreaFactor {
+            cos,
+            d2,
+            infinite: false,
+        }
+    }
+
+    /// The density `pdf` (per solid angle at `from`) in the measure of `to`.
+    #[inline]
+    pub fn apply(self, pdf: f32) -> f32 {
+        if self.infinite {
+            pdf
+        } else if self.d2 == 0.0 {
+            0.0
+        } else {
+            pdf * self.cos / self.d2
+        }
+    }
+}

@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use super::vertex::AreaFactor;
+use super::geometry_term::AreaFactor;
 use super::Vertex;
 
 /// A density in the MIS ratios: zero (an unset or Dirac density) counts as one (Veach 1997,

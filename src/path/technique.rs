@@ -13,6 +13,7 @@
 
 use glam::{Vec2, Vec3};
 
+use super::geometry_term::{cosine_factor, to_area};
 use super::{Vertex, VertexKind};
 use crate::bsdf::{BsdfSample, Lobe, TransportMode};
 use crate::math::Sampler;
@@ -20,6 +21,7 @@ use crate::medium::phase::PhaseSample;
 use crate::scene::light::EmissionSample;
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
+use std::f32::consts::FRAC_1_PI;
 
 /// A point F(u) on an area light (the light-sampling map of Kristensen 2010, sec. 5.2.1).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -355,3 +357,136 @@ pub fn sample_emitted_start(
     })
 }
 // ANCHOR_END: sample_emitted_start
+
+/// A vertex's densities under a local-sampling technique: the direction it samples towards the
+/// next vertex (solid angle, or converted to the next vertex's measure), and, for a light
+/// path's start, the density of choosing it and of the direction it emits along.
+impl Vertex {
+    /// Solid-angle density with which this vertex samples the direction towards `next`, given
+    /// its subpath predecessor at `prev` (none for lights and sensors). `mode` is the quantity
+    /// of the subpath that samples it (Radiance: an eye subpath walking towards the lights,
+    /// Importance: a light subpath): it selects the guide's map (Kristensen 2010, eqs. 5.18,
+    /// 5.19) and is ignored when guiding is off. `tech` is the technique that sampled it.
+    pub fn pdf_dir(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        prev: Option<Vec3>,
+        next: Vec3,
+        mode: TransportMode,
+    ) -> f32 {
+        let wn = (next - self.p).normalize_or_zero();
+        match self.kind {
+            VertexKind::Camera => scene
+                .camera
+                .as_ref()
+                .and_then(|c| c.importance(wn))
+                .map_or(0.0, |i| i.pdf_dir),
+            VertexKind::Meter { meter } => {
+                let c = wn.dot(scene.sensors[meter as usize].normal());
+                c.max(0.0) * FRAC_1_PI
+            }
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light, .. } => {
+                tech.emission_pdf(scene, &scene.lights[light as usize], self.p, self.n, wn)
+            }
+            VertexKind::Surface { .. } | VertexKind::Medium { .. } => {
+                let Some(prev) = prev else { return 0.0 };
+                let wp = (prev - self.p).normalize_or_zero();
+                tech.scatter_pdf(scene, self, wp, wn, mode)
+            }
+        }
+    }
+
+    /// [`Vertex::pdf_dir`] converted to the measure of `next` (area or volume): times
+    /// g(next -> self) / d^2, or g(next) alone when `next` is an infinite light's vertex. The
+    /// propagation pdf of the edge is not included.
+    pub fn pdf_area(
+        &self,
+        scene: &Scene,
+        tech: &dyn LocalSampling,
+        prev: Option<Vec3>,
+        next: &Vertex,
+        mode: TransportMode,
+    ) -> f32 {
+        if matches!(
+            self.kind,
+            VertexKind::Light { .. } | VertexKind::InfiniteLight { .. }
+        ) {
+            return self.light_pdf_to(scene, tech, next);
+        }
+        if prev.is_none() && self.is_medium() {
+            // a medium vertex without predecessor is a light path's volume start x0
+            return self.light_pdf_to(scene, tech, next);
+        }
+        let pdf = self.pdf_dir(scene, tech, prev, next.p, mode);
+        to_area(pdf, self, next)
+    }
+
+    /// Density (in its own measure) of choosing this light vertex as the start of a light path.
+    pub fn light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
+        // the lights' share of the selection (exactly 1 without emitting media)
+        let share = crate::scene::emitters::light_share(scene);
+        let pdf = match self.kind {
+            // a volume vertex x0 (eq. 5): the media's share times the density per unit volume
+            VertexKind::Medium { medium } => {
+                return crate::scene::emitters::volume_share(scene)
+                    * scene.emitters.pdf(medium, self.p);
+            }
+            VertexKind::Light { light, prim } => {
+                let pmf = scene.light_pmf(light);
+                match (&scene.lights[light as usize], prim) {
+                    (Light::Area { .. }, Some(p)) => {
+                        tech.area_light_start_pdf(scene, light, p, self.p)
+                    }
+                    _ => pmf,
+                }
+            }
+            // the density of the direction (the position is drawn on a disk per direction and
+            // its density enters the next vertex, see `light_pdf_to`)
+            VertexKind::InfiniteLight { light, w } => match &scene.lights[light as usize] {
+                Light::Environment(env) => scene.light_pmf(light) * env.pdf(w),
+                _ => 0.0,
+            },
+            _ => self.surface_light_origin_pdf(scene, tech),
+        };
+        pdf * share
+    }
+
+    /// For an eye-path vertex that hit an area light: the light-path density of starting there.
+    fn surface_light_origin_pdf(&self, scene: &Scene, tech: &dyn LocalSampling) -> f32 {
+        let VertexKind::Surface { prim } = self.kind else {
+            return 0.0;
+        };
+        match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
+            Some(l) => tech.area_light_start_pdf(scene, l, prim, self.p),
+            None => 0.0,
+        }
+    }
+
+    /// Density (in `next`'s measure) with which a light path starting at this emitting vertex
+    /// reaches `next` (direction sampling converted; for infinite lights the disk density times
+    /// g(next)). Propagation not included.
+    pub fn light_pdf_to(&self, scene: &Scene, tech: &dyn LocalSampling, next: &Vertex) -> f32 {
+        let light = match self.kind {
+            VertexKind::Light { light, .. } | VertexKind::InfiniteLight { light, .. } => light,
+            VertexKind::Surface { prim } => {
+                match scene.shapes[scene.prim_shape[prim as usize] as usize].light {
+                    Some(l) => l,
+                    None => return 0.0,
+                }
+            }
+            // a glowing medium emits uniformly over the sphere
+            VertexKind::Medium { medium } if scene.media[medium as usize].emits() => {
+                return to_area(0.25 * std::f32::consts::FRAC_1_PI, self, next);
+            }
+            _ => return 0.0,
+        };
+        let l = &scene.lights[light as usize];
+        if l.is_infinite() {
+            let w = (self.p - next.p).normalize_or_zero();
+            return cosine_factor(next, w) / (std::f32::consts::PI * scene.radius * scene.radius);
+        }
+        let wn = (next.p - self.p).normalize_or_zero();
+        to_area(tech.emission_pdf(scene, l, self.p, self.n, wn), self, next)
+    }
+}

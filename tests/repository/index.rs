@@ -117,6 +117,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "what a newcomer meets around a render",
     ),
     (
+        "cli::render_args",
+        "spec::integrator::settings",
+        "the flags parse into the schema's options, and a flag an integrator does not take is refused",
+    ),
+    (
         "cli::resume",
         "spec::render::checkpoint",
         "`resume` continues an interrupted render bit for bit",

@@ -11,7 +11,7 @@ use pathspace::scene::{SceneSource, FOG_BOX};
 
 use crate::common;
 
-fn render_args(argv: &[&str]) -> pathspace::cli::render::RenderArgs {
+fn render_args(argv: &[&str]) -> pathspace::cli::render_args::RenderArgs {
     let mut full = vec!["pathspace", "render"];
     full.extend_from_slice(argv);
     match Cli::try_parse_from(full)

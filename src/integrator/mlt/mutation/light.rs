@@ -12,7 +12,7 @@
 use std::f32::consts::TAU;
 
 use crate::math::Sampler;
-use crate::path::vertex::to_area;
+use crate::path::geometry_term::to_area;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 

@@ -16,7 +16,7 @@ use std::f32::consts::TAU;
 use glam::Vec2;
 
 use crate::math::Sampler;
-use crate::path::vertex::to_area;
+use crate::path::geometry_term::to_area;
 use crate::path::{LocalSampling, Vertex};
 use crate::scene::Scene;
 
