@@ -225,3 +225,30 @@ fn short_runs_are_unbiased_on_the_white_furnace() {
     }
     fam.finish();
 }
+
+/// (a) on the volume caustic (a spot light focused by a glass sphere into haze, no depth
+/// limit): the caustic's paths have one strategy each (light tracing through the glass, t = 1),
+/// and the multiplexed target still deposits BDPT's image pixel by pixel.
+#[test]
+fn the_multiplexed_target_deposits_bdpts_image_on_the_volume_caustic() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/volume-caustic.toml"
+    ))
+    .expect("the volume caustic");
+    let at = text.find("resolution = [").expect("a resolution");
+    let end = text[at..].find(']').expect("its end") + at + 1;
+    let text = format!("{}resolution = [{RES}, {RES}]{}", &text[..at], &text[end..]);
+    let scene = Scene::load(&SceneSource::embedded("volume-caustic", &text)).expect("valid");
+    let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
+    let n = 400_000;
+    let mmlt = pixel_sums(|| MultiplexedTarget::new(&scene, &bdpt), n, 5);
+    let pssmlt = pixel_sums(|| BdptTarget::new(&scene, &bdpt), n, 6);
+    let mut fam = Family::new("mmlt: the multiplexed target's image is BDPT's, volume caustic");
+    for j in 0..(RES * RES) as usize {
+        let a: Vec<f64> = mmlt.iter().map(|s| s[j]).collect();
+        let b: Vec<f64> = pssmlt.iter().map(|s| s[j]).collect();
+        fam.runs_agree(&format!("pixel {j}"), &a, &b);
+    }
+    fam.finish();
+}
