@@ -43,12 +43,14 @@ fn temp_dir(what: &str) -> PathBuf {
 
 /// Hosts that Chromium itself calls, whatever the page: Debian's wrapper (`/etc/chromium.d`)
 /// turns on remote extensions (their updater) and Google API keys (account sign-in), which no
-/// flag turns off. Their requests are answered 403 and logged, but are not the page's; no book
-/// page would load anything from them.
-const CHROMIUM_OWN_HOSTS: [&str; 3] = [
+/// flag turns off; Debian's Chromium 148 also connects to www.google.com with these flags on a
+/// page that names no host at all. Their requests are answered 403 and logged, but are not the
+/// page's; no book page would load anything from them.
+const CHROMIUM_OWN_HOSTS: [&str; 4] = [
     "update.googleapis.com",
     "accounts.google.com",
     "clients2.google.com",
+    "www.google.com",
 ];
 
 /// The host a proxy request names: `CONNECT host:port` or `GET http://host[:port]/...`.
