@@ -43,15 +43,17 @@ fn temp_dir(what: &str) -> PathBuf {
 
 /// Hosts that Chromium itself calls, whatever the page: Debian's wrapper (`/etc/chromium.d`)
 /// turns on remote extensions (their updater) and Google API keys (account sign-in), which no
-/// flag turns off; Debian's Chromium 148 also connects to www.google.com with these flags on a
-/// page that names no host at all. Their requests are answered 403 and logged, but are not the
-/// page's; no book page would load anything from them.
-const CHROMIUM_OWN_HOSTS: [&str; 4] = [
-    "update.googleapis.com",
-    "accounts.google.com",
-    "clients2.google.com",
-    "www.google.com",
-];
+/// flag turns off; Debian's Chromium 148 also connects to www.google.com and, now and then,
+/// android.clients.google.com with these flags on a page that names no host at all, so every
+/// host under google.com counts as its own (a book page would load fonts or scripts from
+/// googleapis.com or gstatic.com, which stay foreign). Their requests are answered 403 and
+/// logged, but are not the page's.
+const CHROMIUM_OWN_HOSTS: [&str; 1] = ["update.googleapis.com"];
+
+/// Whether `host` is one Chromium calls on its own ([`CHROMIUM_OWN_HOSTS`], or under google.com).
+fn chromium_own_host(host: &str) -> bool {
+    CHROMIUM_OWN_HOSTS.contains(&host) || host == "google.com" || host.ends_with(".google.com")
+}
 
 /// The host a proxy request names: `CONNECT host:port` or `GET http://host[:port]/...`.
 fn request_host(method: &str, target: &str) -> String {
@@ -180,8 +182,7 @@ fn serve(stream: TcpStream, root: &Path, port: u16, label: &str, log: &Mutex<Vec
         } else {
             (403, true, b"not the book's host\n".to_vec(), "text/plain")
         };
-        let chromium_own =
-            foreign && CHROMIUM_OWN_HOSTS.contains(&&*request_host(&method, &target));
+        let chromium_own = foreign && chromium_own_host(&request_host(&method, &target));
         let note = if chromium_own {
             " (Chromium's own)"
         } else {
