@@ -18,6 +18,9 @@
 //! and receives, when next read, all the small steps it missed at once (n steps of deviation
 //! sigma are one step of deviation sigma sqrt(n)), or a fresh value when a large step was
 //! accepted since. That is the same chain as mutating every coordinate every step.
+//! The value a number has in the current state is fixed when a proposal first reads it, and a
+//! rejection keeps it: drawing it afresh after a rejection would forget what the rejection said
+//! of it and favour the proposals that read more numbers.
 //!
 //! Streams keep a small step small when a sampler's parts consume a varying count of numbers:
 //! coordinate j of stream s is number `s + STREAMS * j`, so the eye walk's numbers do not shift
@@ -164,24 +167,34 @@ impl PrimarySamples {
         if i >= self.coords.len() {
             self.coords.resize(i + 1, Coordinate::default());
         }
-        // each number is read at most once per iteration: back it up now
-        let c = self.coords[i];
-        self.coords[i].touched = self.iteration;
-        self.coords[i].backup = (c.value, c.modified, c.read);
         // the number as of the last accepted large step: one that was not read then (or
         // never) is uniform, as that step would have redrawn it
+        let c = self.coords[i];
         let (value, modified) = if !c.read || c.modified < self.last_large_step {
             (self.uniform(), self.last_large_step)
         } else {
             (c.value, c.modified)
         };
+        // the number in the current state: the small steps it missed in the accepted
+        // iterations since, at once
+        let before = self.iteration.saturating_sub(1);
+        let current = if before > modified {
+            let z = self.normal();
+            small_step(value, self.sigma, (before - modified) as f64, z)
+        } else {
+            value
+        };
+        // each number is read at most once per iteration: back up the current state's number.
+        // A rejected proposal keeps it: it was part of the state already, and drawing it
+        // afresh after a rejection would forget what the rejection said of it (proposals that
+        // read more numbers would be favoured)
+        self.coords[i].touched = self.iteration;
+        self.coords[i].backup = (current, before, true);
         let value = if self.large_step {
             self.uniform()
         } else {
-            // the small steps it missed since it was last read, and this one
-            let n = (self.iteration - modified) as f64;
             let z = self.normal();
-            small_step(value, self.sigma, n, z)
+            small_step(current, self.sigma, 1.0, z)
         };
         let c = &mut self.coords[i];
         c.value = value;
