@@ -322,6 +322,46 @@ fn furnace(medium: &str) -> String {
     )
 }
 
+/// The emitting furnace's coefficients: chromatic sigma_a and sigma_s, and L_e,V0 = sigma_a L_W,
+/// which balances eq. (1) at L = L_W.
+fn furnace_coeffs() -> String {
+    let sa = [0.6f32, 1.5, 0.3];
+    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
+    format!(
+        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
+        sa[0], sa[1], sa[2], e[0], e[1], e[2]
+    )
+}
+
+/// The media the emitting furnaces fill their sphere with.
+#[derive(Clone, Copy)]
+enum FurnaceMedium {
+    /// The blob grid, delta-tracked.
+    Grid,
+    /// The procedural cloud with a backward HG lobe, delta-tracked or ray-marched.
+    Cloud { tracked: bool },
+    /// A homogeneous medium with a forward HG lobe.
+    HomogeneousHg,
+}
+
+/// The `[media.glow]` body of `kind` with the coefficients `coeffs`.
+fn furnace_medium(kind: FurnaceMedium, coeffs: &str) -> String {
+    let box_ = "min = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]";
+    let tracking = "propagation = \"delta-tracking\"";
+    match kind {
+        FurnaceMedium::Grid => {
+            format!("type = \"grid\"\nfile = \"blob.grid\"\n{box_}\n{tracking}\n{coeffs}")
+        }
+        FurnaceMedium::Cloud { tracked } => format!(
+            "type = \"procedural\"\ndensity = \"cloud\"\noctaves = 3\nseed = 4\n{box_}\n{}{coeffs}\nphase = {{ type = \"hg\", g = -0.3 }}",
+            if tracked { format!("{tracking}\n") } else { String::new() }
+        ),
+        FurnaceMedium::HomogeneousHg => {
+            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}")
+        }
+    }
+}
+
 /// L_e,V0 = sigma_a L_w balances eq. (1) at L = L_w: 0 = sigma_a L_w - sigma_t L_w + sigma_s
 /// L_w. So every pixel is L_w for any albedo, phase function and density; the sphere fills
 /// the view. Collected emission, next-event estimation of the medium and their MIS weights all
@@ -330,24 +370,16 @@ fn furnace(medium: &str) -> String {
 /// `volume_emission_found` with this test.
 #[test]
 fn emitting_furnace() {
-    let sa = [0.6f32, 1.5, 0.3];
-    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
-    let coeffs = format!(
-        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
-        sa[0], sa[1], sa[2], e[0], e[1], e[2]
-    );
+    let coeffs = furnace_coeffs();
     let media = [
-        (
-            "grid",
-            format!("type = \"grid\"\nfile = \"blob.grid\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\npropagation = \"delta-tracking\"\n{coeffs}"),
-        ),
+        ("grid", furnace_medium(FurnaceMedium::Grid, &coeffs)),
         (
             "procedural cloud",
-            format!("type = \"procedural\"\ndensity = \"cloud\"\noctaves = 3\nseed = 4\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\npropagation = \"delta-tracking\"\n{coeffs}\nphase = {{ type = \"hg\", g = -0.3 }}"),
+            furnace_medium(FurnaceMedium::Cloud { tracked: true }, &coeffs),
         ),
         (
             "homogeneous, hg",
-            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}"),
+            furnace_medium(FurnaceMedium::HomogeneousHg, &coeffs),
         ),
     ];
     let truth = L_W.map(|v| v as f64);
@@ -397,20 +429,15 @@ fn walled_furnace(medium: &str) -> String {
 /// emission at x0, or emission not scaled by the cloud's density, is a bias.
 #[test]
 fn emitting_furnace_in_emitting_walls_mlt() {
-    let sa = [0.6f32, 1.5, 0.3];
-    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
-    let coeffs = format!(
-        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
-        sa[0], sa[1], sa[2], e[0], e[1], e[2]
-    );
+    let coeffs = furnace_coeffs();
     let media = [
         (
             "procedural cloud",
-            format!("type = \"procedural\"\ndensity = \"cloud\"\noctaves = 3\nseed = 4\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\n{coeffs}\nphase = {{ type = \"hg\", g = -0.3 }}"),
+            furnace_medium(FurnaceMedium::Cloud { tracked: false }, &coeffs),
         ),
         (
             "homogeneous, hg",
-            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}"),
+            furnace_medium(FurnaceMedium::HomogeneousHg, &coeffs),
         ),
     ];
     let truth = L_W.map(|v| v as f64);
@@ -435,20 +462,12 @@ fn emitting_furnace_in_emitting_walls_mlt() {
 /// missing from a weight, or a strategy MMLT never picks, leaves the image off L_w.
 #[test]
 fn emitting_furnace_primary_sample_chains() {
-    let sa = [0.6f32, 1.5, 0.3];
-    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
-    let coeffs = format!(
-        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
-        sa[0], sa[1], sa[2], e[0], e[1], e[2]
-    );
+    let coeffs = furnace_coeffs();
     let media = [
-        (
-            "grid",
-            format!("type = \"grid\"\nfile = \"blob.grid\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\npropagation = \"delta-tracking\"\n{coeffs}"),
-        ),
+        ("grid", furnace_medium(FurnaceMedium::Grid, &coeffs)),
         (
             "homogeneous, hg",
-            format!("type = \"homogeneous\"\n{coeffs}\nphase = {{ type = \"hg\", g = 0.6 }}"),
+            furnace_medium(FurnaceMedium::HomogeneousHg, &coeffs),
         ),
     ];
     let truth = L_W.map(|v| v as f64);
@@ -533,18 +552,10 @@ fn smc_emitting_slab_head_on() {
 /// that the next estimates' control variates are built from shows as a bias.
 #[test]
 fn smc_emitting_furnace() {
-    let sa = [0.6f32, 1.5, 0.3];
-    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
-    let coeffs = format!(
-        "sigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]",
-        sa[0], sa[1], sa[2], e[0], e[1], e[2]
-    );
+    let coeffs = furnace_coeffs();
     let media = [
         ("homogeneous", format!("type = \"homogeneous\"\n{coeffs}")),
-        (
-            "grid",
-            format!("type = \"grid\"\nfile = \"blob.grid\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 1.0]\npropagation = \"delta-tracking\"\n{coeffs}"),
-        ),
+        ("grid", furnace_medium(FurnaceMedium::Grid, &coeffs)),
     ];
     let truth = L_W.map(|v| v as f64);
     let mut fam = Family::new("smc: emitting furnace");
@@ -563,12 +574,7 @@ fn smc_emitting_furnace() {
 /// would make it dark), is unbiased on the furnace and the slab.
 #[test]
 fn path_without_volume_next_event() {
-    let sa = [0.6f32, 1.5, 0.3];
-    let e: Vec<f32> = (0..3).map(|c| sa[c] * L_W[c]).collect();
-    let body = format!(
-        "type = \"homogeneous\"\nsigma_a = [{}, {}, {}]\nsigma_s = [1.2, 0.4, 2.0]\nemission = [{}, {}, {}]\nphase = {{ type = \"hg\", g = 0.6 }}",
-        sa[0], sa[1], sa[2], e[0], e[1], e[2]
-    );
+    let body = furnace_medium(FurnaceMedium::HomogeneousHg, &furnace_coeffs());
     let scene = load(&furnace(&body));
     let mut settings = RenderSettings::for_scene(&scene);
     assert!(settings.volume_next_event, "on by default");
