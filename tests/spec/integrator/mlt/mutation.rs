@@ -1402,15 +1402,15 @@ fn stationary_cell(scene: &Scene, x: &[Vertex], raster: Vec2) -> usize {
 
 const CELLS: usize = (RES * RES) as usize * CLASSES;
 
-/// f/b per cell by an independent estimator: a path tracer from the pinhole that at each
-/// eye vertex either connects to a light vertex (s = 1, for paths whose x_1 is not specular)
-/// or, having hit the light, keeps the path (s = 0, for the light seen directly and for paths
-/// whose x_1 is specular): each path has exactly one of the two strategies, so the sum is
-/// unbiased for f* over each cell without weights. Returns the per-cell share of b and the
-/// variance of that estimate (the normalization's own noise neglected: b is estimated to a
-/// fraction of the cells' errors).
-fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f64>) {
-    let eye = eye_vertex(scene);
+/// Per-cell shares of b and the variance of each share, from `n` independent eye walks
+/// (chunks of 8192 on streams of `seed`): `walk` traces one walk and adds each path it scores
+/// to its cell (the normalization's own noise neglected: b is estimated to a fraction of the
+/// cells' errors).
+fn cell_shares(
+    n: u64,
+    seed: u64,
+    walk: impl Fn(&mut Sampler, &mut dyn FnMut(usize, f64)) + Sync,
+) -> (Vec<f64>, Vec<f64>) {
     const CHUNK: u64 = 8192;
     let sums = (0..n.div_ceil(CHUNK))
         .into_par_iter()
@@ -1421,104 +1421,10 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
             let mut s = Sampler::new(seed, c, 7);
             for _ in c * CHUNK..((c + 1) * CHUNK).min(n) {
                 touched.clear();
-                let mut sub = vec![eye];
-                for _ in 0..=max_depth {
-                    let len = sub.len();
-                    let prev = len.checked_sub(2).map(|i| sub[i]);
-                    let cur = sub[len - 1];
-                    let Some(d) = sample_direction(
-                        scene,
-                        &pathspace::path::PLAIN,
-                        prev.as_ref(),
-                        &cur,
-                        TransportMode::Radiance,
-                        &mut s,
-                    ) else {
-                        break;
-                    };
-                    // (the environment's vertex where the walk escapes, if the scene has one)
-                    let Some(v) = extend_or_escape(scene, &cur, d, &mut s) else {
-                        break;
-                    };
-                    sub.push(v);
-                    let vertices = sub.len() - 1; // scattering vertices and the new one
-                    if v.is_infinite_light() {
-                        // s = 0 at the environment: the sky seen directly or through a mirror
-                        let mut path: Vec<Vertex> = sub.iter().rev().copied().collect();
-                        anchor_infinite(scene, &mut path);
-                        if path.len() == 2 || is_specular(scene, &path[1]) {
-                            if let Some((f, r)) = image_contribution(scene, &path) {
-                                let dens =
-                                    singular_densities(scene, &pathspace::path::PLAIN, &path);
-                                let p: f64 = dens.eye[..path.len() - 1]
-                                    .iter()
-                                    .map(|&p| p as f64)
-                                    .product();
-                                if p > 0.0 {
-                                    let cell = stationary_cell(scene, &path, r);
-                                    one[cell] += scalar_contribution(f) as f64 / p;
-                                    touched.push(cell);
-                                }
-                            }
-                        }
-                        break;
-                    }
-                    // s = 0: the new vertex on the light
-                    if let VertexKind::Surface { prim } = v.kind {
-                        let shape = &scene.shapes[scene.prim_shape[prim as usize] as usize];
-                        if let Some(light) = shape.light {
-                            let mut path: Vec<Vertex> = sub.iter().rev().copied().collect();
-                            path[0].kind = VertexKind::Light {
-                                light,
-                                prim: Some(prim),
-                            };
-                            if path.len() == 2 || is_specular(scene, &path[1]) {
-                                if let Some((f, r)) = image_contribution(scene, &path) {
-                                    let dens =
-                                        singular_densities(scene, &pathspace::path::PLAIN, &path);
-                                    let p: f64 = dens.eye[..path.len() - 1]
-                                        .iter()
-                                        .map(|&p| p as f64)
-                                        .product();
-                                    if p > 0.0 {
-                                        let cell = stationary_cell(scene, &path, r);
-                                        one[cell] += scalar_contribution(f) as f64 / p;
-                                        touched.push(cell);
-                                    }
-                                }
-                            }
-                            break;
-                        }
-                    }
-                    if vertices > max_depth {
-                        break;
-                    }
-                    // s = 1: a light vertex connected to the new one
-                    if is_specular(scene, &v) {
-                        continue;
-                    }
-                    let Some(l) = sample_light_vertex(scene, &pathspace::path::PLAIN, &mut s)
-                    else {
-                        continue;
-                    };
-                    let mut path = vec![l];
-                    path.extend(sub.iter().rev().copied());
-                    // a light at infinity: its direction, seen from x_1
-                    anchor_infinite(scene, &mut path);
-                    if let Some((f, r)) = image_contribution(scene, &path) {
-                        let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
-                        let p: f64 = dens.light[0] as f64
-                            * dens.eye[1..path.len() - 1]
-                                .iter()
-                                .map(|&p| p as f64)
-                                .product::<f64>();
-                        if p > 0.0 {
-                            let cell = stationary_cell(scene, &path, r);
-                            one[cell] += scalar_contribution(f) as f64 / p;
-                            touched.push(cell);
-                        }
-                    }
-                }
+                walk(&mut s, &mut |cell, v| {
+                    one[cell] += v;
+                    touched.push(cell);
+                });
                 touched.sort_unstable();
                 touched.dedup();
                 for &cell in &touched {
@@ -1546,6 +1452,116 @@ fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f
         .map(|s| ((s.1 / nf - (s.0 / nf).powi(2)) / nf).max(0.0) / (b * b))
         .collect();
     (share, var)
+}
+
+/// f/b per cell by an independent estimator: a path tracer from the pinhole that at each
+/// eye vertex either connects to a light vertex (s = 1, for paths whose x_1 is not specular)
+/// or, having hit the light, keeps the path (s = 0, for the light seen directly and for paths
+/// whose x_1 is specular): each path has exactly one of the two strategies, so the sum is
+/// unbiased for f* over each cell without weights. Returns the per-cell share of b and the
+/// variance of that estimate (the normalization's own noise neglected: b is estimated to a
+/// fraction of the cells' errors).
+fn truth(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let eye = eye_vertex(scene);
+    cell_shares(
+        n,
+        seed,
+        |s: &mut Sampler, add: &mut dyn FnMut(usize, f64)| {
+            let mut sub = vec![eye];
+            for _ in 0..=max_depth {
+                let len = sub.len();
+                let prev = len.checked_sub(2).map(|i| sub[i]);
+                let cur = sub[len - 1];
+                let Some(d) = sample_direction(
+                    scene,
+                    &pathspace::path::PLAIN,
+                    prev.as_ref(),
+                    &cur,
+                    TransportMode::Radiance,
+                    s,
+                ) else {
+                    break;
+                };
+                // (the environment's vertex where the walk escapes, if the scene has one)
+                let Some(v) = extend_or_escape(scene, &cur, d, s) else {
+                    break;
+                };
+                sub.push(v);
+                let vertices = sub.len() - 1; // scattering vertices and the new one
+                if v.is_infinite_light() {
+                    // s = 0 at the environment: the sky seen directly or through a mirror
+                    let mut path: Vec<Vertex> = sub.iter().rev().copied().collect();
+                    anchor_infinite(scene, &mut path);
+                    if path.len() == 2 || is_specular(scene, &path[1]) {
+                        if let Some((f, r)) = image_contribution(scene, &path) {
+                            let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
+                            let p: f64 = dens.eye[..path.len() - 1]
+                                .iter()
+                                .map(|&p| p as f64)
+                                .product();
+                            if p > 0.0 {
+                                let cell = stationary_cell(scene, &path, r);
+                                add(cell, scalar_contribution(f) as f64 / p);
+                            }
+                        }
+                    }
+                    break;
+                }
+                // s = 0: the new vertex on the light
+                if let VertexKind::Surface { prim } = v.kind {
+                    let shape = &scene.shapes[scene.prim_shape[prim as usize] as usize];
+                    if let Some(light) = shape.light {
+                        let mut path: Vec<Vertex> = sub.iter().rev().copied().collect();
+                        path[0].kind = VertexKind::Light {
+                            light,
+                            prim: Some(prim),
+                        };
+                        if path.len() == 2 || is_specular(scene, &path[1]) {
+                            if let Some((f, r)) = image_contribution(scene, &path) {
+                                let dens =
+                                    singular_densities(scene, &pathspace::path::PLAIN, &path);
+                                let p: f64 = dens.eye[..path.len() - 1]
+                                    .iter()
+                                    .map(|&p| p as f64)
+                                    .product();
+                                if p > 0.0 {
+                                    let cell = stationary_cell(scene, &path, r);
+                                    add(cell, scalar_contribution(f) as f64 / p);
+                                }
+                            }
+                        }
+                        break;
+                    }
+                }
+                if vertices > max_depth {
+                    break;
+                }
+                // s = 1: a light vertex connected to the new one
+                if is_specular(scene, &v) {
+                    continue;
+                }
+                let Some(l) = sample_light_vertex(scene, &pathspace::path::PLAIN, s) else {
+                    continue;
+                };
+                let mut path = vec![l];
+                path.extend(sub.iter().rev().copied());
+                // a light at infinity: its direction, seen from x_1
+                anchor_infinite(scene, &mut path);
+                if let Some((f, r)) = image_contribution(scene, &path) {
+                    let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
+                    let p: f64 = dens.light[0] as f64
+                        * dens.eye[1..path.len() - 1]
+                            .iter()
+                            .map(|&p| p as f64)
+                            .product::<f64>();
+                    if p > 0.0 {
+                        let cell = stationary_cell(scene, &path, r);
+                        add(cell, scalar_contribution(f) as f64 / p);
+                    }
+                }
+            }
+        },
+    )
 }
 
 /// The fog box's f/b per cell at depth limit 2 (shared by the tests that use it).
@@ -1852,80 +1868,48 @@ fn glowing_mirror_box(w: u32) -> Scene {
 /// scene has exactly this one strategy, so the sum is unbiased for f* over each cell.
 fn glow_truth_of(scene: &Scene, max_depth: usize, n: u64, seed: u64) -> (Vec<f64>, Vec<f64>) {
     let eye = eye_vertex(scene);
-    const CHUNK: u64 = 8192;
-    let sums = (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut acc = vec![(0.0f64, 0.0f64); CELLS];
-            let mut one = vec![0.0f64; CELLS];
-            let mut touched = Vec::new();
-            let mut s = Sampler::new(seed, c, 7);
-            for _ in c * CHUNK..((c + 1) * CHUNK).min(n) {
-                touched.clear();
-                let mut sub = vec![eye];
-                for _ in 0..=max_depth {
-                    let len = sub.len();
-                    let prev = len.checked_sub(2).map(|i| sub[i]);
-                    let cur = sub[len - 1];
-                    let Some(d) = sample_direction(
-                        scene,
-                        &pathspace::path::PLAIN,
-                        prev.as_ref(),
-                        &cur,
-                        TransportMode::Radiance,
-                        &mut s,
-                    ) else {
-                        break;
-                    };
-                    let Some(v) = extend(scene, &cur, d, &mut s) else {
-                        break;
-                    };
-                    sub.push(v);
-                    if !v.is_medium() {
-                        continue;
-                    }
-                    let path: Vec<Vertex> = sub.iter().rev().copied().collect();
-                    let Some((f, r)) = image_contribution(scene, &path) else {
-                        continue;
-                    };
-                    let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
-                    let p: f64 = dens.eye[..path.len() - 1]
-                        .iter()
-                        .map(|&p| p as f64)
-                        .product();
-                    if p > 0.0 {
-                        let cell = stationary_cell(scene, &path, r);
-                        one[cell] += scalar_contribution(f) as f64 / p;
-                        touched.push(cell);
-                    }
+    cell_shares(
+        n,
+        seed,
+        |s: &mut Sampler, add: &mut dyn FnMut(usize, f64)| {
+            let mut sub = vec![eye];
+            for _ in 0..=max_depth {
+                let len = sub.len();
+                let prev = len.checked_sub(2).map(|i| sub[i]);
+                let cur = sub[len - 1];
+                let Some(d) = sample_direction(
+                    scene,
+                    &pathspace::path::PLAIN,
+                    prev.as_ref(),
+                    &cur,
+                    TransportMode::Radiance,
+                    s,
+                ) else {
+                    break;
+                };
+                let Some(v) = extend(scene, &cur, d, s) else {
+                    break;
+                };
+                sub.push(v);
+                if !v.is_medium() {
+                    continue;
                 }
-                touched.sort_unstable();
-                touched.dedup();
-                for &cell in &touched {
-                    acc[cell].0 += one[cell];
-                    acc[cell].1 += one[cell] * one[cell];
-                    one[cell] = 0.0;
+                let path: Vec<Vertex> = sub.iter().rev().copied().collect();
+                let Some((f, r)) = image_contribution(scene, &path) else {
+                    continue;
+                };
+                let dens = singular_densities(scene, &pathspace::path::PLAIN, &path);
+                let p: f64 = dens.eye[..path.len() - 1]
+                    .iter()
+                    .map(|&p| p as f64)
+                    .product();
+                if p > 0.0 {
+                    let cell = stationary_cell(scene, &path, r);
+                    add(cell, scalar_contribution(f) as f64 / p);
                 }
             }
-            acc
-        })
-        .reduce(
-            || vec![(0.0, 0.0); CELLS],
-            |a, b| {
-                a.iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x.0 + y.0, x.1 + y.1))
-                    .collect()
-            },
-        );
-    let nf = n as f64;
-    let b: f64 = sums.iter().map(|s| s.0).sum::<f64>() / nf;
-    let share = sums.iter().map(|s| s.0 / nf / b).collect();
-    let var = sums
-        .iter()
-        .map(|s| ((s.1 / nf - (s.0 / nf).powi(2)) / nf).max(0.0) / (b * b))
-        .collect();
-    (share, var)
+        },
+    )
 }
 
 /// The glowing fog box's f/b per cell at depth limit 2.
