@@ -325,16 +325,14 @@ impl<'t> Pssmlt<'t> {
         if !(total > 0.0 && total.is_finite()) {
             return; // no sample reaches the camera: the image is black
         }
-        let (seed, sigma) = (self.seed, self.settings.sigma);
+        let seed = self.seed;
         let chains: Vec<Option<Slot>> = (0..self.settings.chains as u64)
             .into_par_iter()
             .map(|c| {
                 let u = Sampler::new(seed, CHAIN_SALT ^ c, 0).next_f64() * total;
                 let i = cdf.partition_point(|&x| x <= u).min(cdf.len() - 1);
                 let mut target = (self.make_target)(scene, &self.bdpt, Scratch::default());
-                let state = stream(seed, BOOTSTRAP_SALT, i as u64);
-                let own = stream(seed, CHAIN_SALT, c);
-                let chain = kernel::start_chain(state, own, sigma, target.as_mut())?;
+                let chain = self.replay(i as u64, c, target.as_mut())?;
                 Some(Slot {
                     chain,
                     walks: target.storage(),
@@ -343,6 +341,16 @@ impl<'t> Pssmlt<'t> {
             })
             .collect();
         self.chains = chains.into_iter().flatten().collect();
+    }
+
+    /// Bootstrap state `i` re-created from its stream as chain `c`'s start (None where its f*
+    /// is 0). The replay must reach the bootstrap's f* bit for bit: a chain that started from
+    /// another value would not be seeded in proportion to f*, and in a medium, where a path
+    /// reads a varying count of numbers, that is the easy thing to get wrong.
+    pub fn replay(&self, i: u64, c: u64, target: &mut dyn Target) -> Option<KelemenChain> {
+        let state = stream(self.seed, BOOTSTRAP_SALT, i);
+        let own = stream(self.seed, CHAIN_SALT, c);
+        kernel::start_chain(state, own, self.settings.sigma, target)
     }
 
     /// Runs `mutations` steps in total over the chains and splats them into `film` (whose

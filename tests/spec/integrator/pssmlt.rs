@@ -372,3 +372,55 @@ fn the_pssmlt_flags_are_their_own() {
     assert_eq!((o.mlt.chains, o.mlt.bootstrap), (Some(5), Some(77)));
     assert_eq!(o.guide.sigma, Some(0.03));
 }
+
+/// A scene of the repository at `RES` x `RES` pixels.
+fn repository_scene(name: &str) -> Scene {
+    let path = format!("{}/scenes/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).expect("a repository scene");
+    let at = text.find("resolution = [").expect("a resolution");
+    let end = text[at..].find(']').expect("its end") + at + 1;
+    let text = format!("{}resolution = [{RES}, {RES}]{}", &text[..at], &text[end..]);
+    Scene::load(&SceneSource::embedded(name, &text)).expect("valid scene")
+}
+
+/// A chain starts from the bootstrap state it drew, re-created from that state's stream: the
+/// re-creation reaches the bootstrap's f* bit for bit (and no chain where f* was 0), for
+/// PSSMLT's and MMLT's targets, in a homogeneous fog, through glass into haze, in a glowing
+/// plume and in the cloud, where a path reads a varying count of numbers. A replay that read
+/// its numbers in another order would seed the chains away from f*/b.
+#[test]
+fn a_chain_starts_from_the_bootstrap_state_it_drew() {
+    use pathspace::bidir::Scratch;
+    use pathspace::integrator::mmlt::multiplexed_target;
+    use pathspace::integrator::pssmlt::{bdpt_target, MakeTarget, Pssmlt};
+    let settings = PssmltSettings {
+        bootstrap: 1024,
+        ..PssmltSettings::default()
+    };
+    for name in ["fog-box", "volume-caustic", "plume-glow", "cloud"] {
+        let scene = repository_scene(name);
+        for (kind, make) in [
+            ("pssmlt", bdpt_target as MakeTarget),
+            ("mmlt", multiplexed_target as MakeTarget),
+        ] {
+            let p = Pssmlt::with_target(&scene, &PLAIN, settings.clone(), 7, None, (kind, make))
+                .expect("settings");
+            let f = p.bootstrap(&scene);
+            let mut replayed = 0;
+            for (i, &fi) in f.iter().enumerate() {
+                let mut target = (p.make_target)(&scene, &p.bdpt, Scratch::default());
+                let got = p.replay(i as u64, 0, target.as_mut()).map_or(0.0, |c| c.f);
+                assert_eq!(
+                    got.to_bits(),
+                    fi.to_bits(),
+                    "{kind} on {name}, bootstrap state {i}: replay got f* = {got}, expected {fi}"
+                );
+                replayed += (fi > 0.0) as u32;
+            }
+            assert!(
+                replayed > 16,
+                "{kind} on {name}: only {replayed} states reach the camera"
+            );
+        }
+    }
+}
