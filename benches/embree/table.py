@@ -15,8 +15,11 @@ def main(path):
     rate = defaultdict(dict)  # (scene, set, kind, side) -> {alternation: rays/s}
     check = {}  # (scene, set, side) -> (hits, sum_t)
     build = defaultdict(list)  # (scene, side) -> seconds
+    version = "?"
     for line in open(path):
         f = line.split()
+        if len(f) >= 3 and f[1] == "EMBREE":
+            version = f[2]
         if len(f) >= 2 and f[1] == "BUILD":
             build[(f[3], f[2])].append(float(f[5]))
         if len(f) != 11 or f[1] != "RESULT":
@@ -27,7 +30,7 @@ def main(path):
         check[(scene, rays_set, side)] = (int(hits), float(sum_t))
     rows = sorted({k[:3] for k in rate}, key=lambda k: list(rate).index(k + ("pathspace",)))
     runs = len(next(iter(rate.values())))
-    print(f"median of {runs} alternations, one thread, Mrays/s of thread CPU time")
+    print(f"Embree {version}; median of {runs} alternations, one thread, Mrays/s of thread CPU time")
     print("| ray set | kind | pathspace | Embree 1 | ratio | Embree 8 | ratio | checksums equal |")
     print("|---|---|---|---|---|---|---|---|")
     notes = []

@@ -261,7 +261,13 @@ fn trace_scene(dir: &Path, name: &str, passes: usize) -> Result<()> {
         let start = cpu_seconds();
         let mut sum = format::Checksum::default();
         for _ in 0..passes {
-            sum = format::trace(&bvh, &prims, &opaque, std::hint::black_box(&set));
+            // black boxes on both ends: every pass is traced, none hoisted or dropped
+            sum = std::hint::black_box(format::trace(
+                &bvh,
+                &prims,
+                &opaque,
+                std::hint::black_box(&set),
+            ));
         }
         let seconds = cpu_seconds() - start;
         println!(
