@@ -2,6 +2,7 @@
 # pathspace's BVH against Embree 3 on the same rays (book: "Measuring a renderer: the tools").
 #
 #     benches/embree/run.sh [ALTERNATIONS]     # default 5
+#     EMBREE_FLAGS=--robust benches/embree/run.sh   # Embree with RTC_SCENE_FLAG_ROBUST
 #
 # Builds benches/embree/embree_trace.c with the system compiler if Embree 3's headers are
 # installed (Debian: apt-get install -y libembree-dev) and exits 0 saying so if not; writes the
@@ -23,7 +24,7 @@ target/release/examples/ray_sets write "$dir"
 log="$dir/results.txt"
 : >"$log"
 ours() { target/release/examples/ray_sets trace "$dir" | sed "s/^/$1 /" >>"$log"; }
-embree() { target/embree_trace "$dir" fog-box rooms100 sphere1m | sed "s/^/$1 /" >>"$log"; }
+embree() { target/embree_trace "$dir" ${EMBREE_FLAGS:-} fog-box rooms100 sphere1m | sed "s/^/$1 /" >>"$log"; }
 for i in $(seq "$runs"); do
     if [ $((i % 2)) -eq 1 ]; then ours "$i"; embree "$i"; else embree "$i"; ours "$i"; fi
 done
