@@ -5,7 +5,7 @@
  * rtcOccluded1 ("1") and with 8-ray packets rtcIntersect8 / rtcOccluded8 ("8"), printing
  *
  *     BUILD embree SCENE TRIANGLES CPU_SECONDS
- *     RESULT embree SCENE SET KIND MODE RAYS CPU_SECONDS HITS SUM_T
+ *     RESULT embree SCENE SET KIND MODE RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S
  *
  * with the checksum of format.rs: hits and the sum of hit distances (t_max of blocked rays).
  *
@@ -174,9 +174,10 @@ int main(int argc, char **argv) {
           hits = 0; sum = 0.0;
           (mode == 1 ? trace1 : trace8)(scene, rays, n, kind == 1, &hits, &sum);
         }
-        printf("RESULT embree %s %s %s %d %llu %.6f %llu %.6f\n", name, SETS[s],
-               kind == 1 ? "any" : "closest", mode, (unsigned long long)(n * passes),
-               cpu_seconds() - start, (unsigned long long)hits, sum);
+        double seconds = cpu_seconds() - start;
+        printf("RESULT embree %s %s %s %d %llu %.6f %llu %.6f %.3f\n", name, SETS[s],
+               kind == 1 ? "any" : "closest", mode, (unsigned long long)(n * passes), seconds,
+               (unsigned long long)hits, sum, n * passes / seconds * 1e-6);
       }
       free(bytes);
     }

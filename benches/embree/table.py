@@ -22,9 +22,9 @@ def main(path):
             version = f[2]
         if len(f) >= 2 and f[1] == "BUILD":
             build[(f[3], f[2])].append(float(f[5]))
-        if len(f) != 11 or f[1] != "RESULT":
+        if len(f) != 12 or f[1] != "RESULT":
             continue
-        run, _, side, scene, rays_set, kind, mode, rays, secs, hits, sum_t = f
+        run, _, side, scene, rays_set, kind, mode, rays, secs, hits, sum_t, _ = f
         side = side if mode == "1" else f"{side}{mode}"
         rate[(scene, rays_set, kind, side)][run] = int(rays) / float(secs)
         check[(scene, rays_set, side)] = (int(hits), float(sum_t))

@@ -11,7 +11,7 @@
 //! camera hit, cosine-distributed about the normal on the side the camera sees, closest hit)
 //! and shadow rays (from each camera hit to a point on a light, any hit). `trace` builds
 //! pathspace's BVH over the triangles and traces every set on one thread, printing per set
-//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T`.
+//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S`.
 
 mod format;
 
@@ -270,12 +270,13 @@ fn trace_scene(dir: &Path, name: &str, passes: usize) -> Result<()> {
             ));
         }
         let seconds = cpu_seconds() - start;
+        let rays = set.rays.len() * passes;
         println!(
-            "RESULT pathspace {name} {label} {} 1 {} {seconds:.6} {} {:.6}",
+            "RESULT pathspace {name} {label} {} 1 {rays} {seconds:.6} {} {:.6} {:.3}",
             set.kind.name(),
-            set.rays.len() * passes,
             sum.hits,
-            sum.sum_t
+            sum.sum_t,
+            rays as f64 / seconds * 1e-6
         );
     }
     Ok(())
