@@ -13,3 +13,4 @@ mod commands_run;
 mod figures;
 mod index;
 mod layers;
+mod ray_sets;
