@@ -45,7 +45,9 @@ fn importance_integrates_to_one_per_pixel_over_lens_and_directions() {
             let px = (imp.raster.x as usize).min(cam.width as usize - 1);
             let py = (imp.raster.y as usize).min(cam.height as usize - 1);
             let cos = w.dot(cam.forward) as f64;
-            let pdf = cam.lens_pdf_area() as f64 / (4.0 * std::f64::consts::PI);
+            // the lens disk's own area, not the camera's density: W_e must carry exactly 1 / (pi r^2)
+            let lens_area = std::f64::consts::PI * (RADIUS as f64).powi(2);
+            let pdf = 1.0 / (lens_area * 4.0 * std::f64::consts::PI);
             sum[py * cam.width as usize + px] += imp.we as f64 * cos / pdf;
         }
         for (r, v) in runs.iter_mut().zip(sum) {
@@ -272,4 +274,67 @@ fn point_light_images_to_its_circle_of_confusion() {
         }
     }
     fam.finish();
+}
+
+/// A small diffuse ball out of focus, lit by a point light beside the camera: every connection
+/// to the camera leaves from a scattering vertex (light tracing's t = 1 through a sampled lens
+/// point, BDPT's camera walks), and the ball's image is the union of its points' circles of
+/// confusion. Pixels wholly outside the largest one (plus the ball's own image) stay black;
+/// pixels wholly inside the circle of the ball's nearest point, which the light sees, are lit.
+#[test]
+fn ball_out_of_focus_images_to_its_circles_of_confusion() {
+    let (d, rho) = (5.0f64, 0.1f64);
+    let text = format!(
+        r#"
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, -1.0]
+fov_deg = 30.0
+resolution = [33, 33]
+aperture_radius = {RADIUS}
+focus_distance = {FOCUS}
+
+[materials.white]
+type = "lambert"
+albedo = 0.8
+
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, -{d}]
+radius = {rho}
+material = "white"
+
+[[lights]]
+type = "point"
+position = [0.0, 0.3, -0.5]
+intensity = 5.0
+"#
+    );
+    let (r, f) = (RADIUS as f64, FOCUS as f64);
+    let pixel = 2.0 * (15.0f64).to_radians().tan() / 33.0;
+    let outer = rho / (d - rho) + r * (d + rho - f) / ((d + rho) * f);
+    let inner = r * (d - rho - f) / ((d - rho) * f);
+    for (kind, spp) in [
+        (IntegratorKind::Light, 256),
+        (IntegratorKind::Bdpt, 64),
+        (IntegratorKind::Path, 64),
+    ] {
+        let runs = point_light_runs(&text, kind, 1, spp);
+        for j in 0..1089 {
+            let (x, y) = ((j % 33) as f64, (j / 33) as f64);
+            let (x0, x1) = ((x - 16.5) * pixel, (x - 15.5) * pixel);
+            let (y0, y1) = ((15.5 - y) * pixel, (16.5 - y) * pixel);
+            let near = x0.max(0.0).min(x1).hypot(y0.max(0.0).min(y1));
+            let far = x0.abs().max(x1.abs()).hypot(y0.abs().max(y1.abs()));
+            let lit = runs.iter().filter(|r| r[j] != 0.0).count();
+            let what = kind.name();
+            if near > outer * (1.0 + 1e-3) {
+                assert_eq!(lit, 0, "{what}: pixel ({x}, {y}) outside the image is lit");
+            }
+            if far < inner * (1.0 - 1e-3) {
+                assert!(lit > 0, "{what}: pixel ({x}, {y}) inside the image is dark");
+            }
+        }
+    }
 }
