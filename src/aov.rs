@@ -238,7 +238,7 @@ pub fn features(scene: &Scene, seed: u64) -> Option<Features> {
                 let u = sampler.next_2d();
                 let stratum = Vec2::new((s % side) as f32, (s / side) as f32);
                 let raster = Vec2::new(x, y) + (stratum + u) / side as f32;
-                let e = first_event(scene, cam.generate_ray(raster), &mut sampler);
+                let e = first_event(scene, cam.sample_ray(raster, &mut sampler), &mut sampler);
                 sum.albedo += e.albedo;
                 sum.normal += e.normal;
                 sum.depth += e.depth;

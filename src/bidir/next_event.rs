@@ -162,8 +162,9 @@ impl Bdpt<'_> {
 
     /// What the eye subpath's end pt = `eye[t - 1]` gives the light vertex `v` in direction
     /// `wi` (from pt): for the sensor itself (t = 1), W_e over the density of its point (1 for
-    /// the pinhole, whose W_e lands in another pixel, the raster position returned; A * (1/A)
-    /// for a meter); otherwise `f_hat(v -> pt -> eye[t - 2])`.
+    /// the pinhole, whose W_e lands in another pixel, the raster position returned; the lens
+    /// point's 1 / (pi r^2) for a thin lens; A * (1/A) for a meter); otherwise
+    /// `f_hat(v -> pt -> eye[t - 2])`.
     fn eye_end_factor<E: Subpath + ?Sized>(
         scene: &Scene,
         eye_path: &E,
@@ -182,8 +183,8 @@ impl Bdpt<'_> {
         }
         match pt.kind {
             VertexKind::Camera => {
-                let imp = scene.camera.as_ref()?.importance(wi)?;
-                Some((Rgb::splat(imp.we), Some(imp.raster)))
+                let imp = scene.camera.as_ref()?.importance(pt.p, wi)?;
+                Some((Rgb::splat(imp.we) / pt.pdf_fwd, Some(imp.raster)))
             }
             VertexKind::Meter { .. } => Some((pt.importance(scene, pt.p + wi) / pt.pdf_fwd, None)),
             _ => None,

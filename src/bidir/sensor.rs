@@ -46,10 +46,8 @@ impl Bdpt<'_> {
             pdf_dir: sensor_pdf,
             raster,
         } = Self::sensor_towards(scene, &eye[0], qs.p, sampler)?;
-        let area_inv = match sensor.kind {
-            VertexKind::Meter { .. } => 1.0 / sensor.pdf_fwd,
-            _ => 1.0,
-        };
+        // 1 / p(z_0): the pinhole's Dirac gives 1
+        let area_inv = 1.0 / sensor.pdf_fwd;
         let d = sensor.p - qs.p;
         let w = d.normalize_or_zero();
         // `f_hat(light[s - 2] -> qs -> sensor)`
@@ -86,10 +84,12 @@ impl Bdpt<'_> {
         })
     }
 
-    /// The sensor's end of a connection to the point `q`: the camera vertex `z0` itself, or a
-    /// point sampled uniformly on the meter of `z0` (W_e / p(x) = (1/A) / (1/A) in its
-    /// throughput), with W_e towards `q` and, for the camera, the density of sampling `q`'s
-    /// direction and the raster position, from the one importance evaluation both need.
+    /// The sensor's end of a connection to the point `q`: the pinhole camera vertex `z0`
+    /// itself, a point sampled uniformly on a thin lens (its density 1 / (pi r^2) in
+    /// `pdf_fwd`), or a point sampled uniformly on the meter of `z0` (W_e / p(x) = (1/A) /
+    /// (1/A) in its throughput), with W_e towards `q` and, for the camera, the density of
+    /// sampling `q`'s direction and the raster position, from the one importance evaluation
+    /// both need.
     fn sensor_towards(
         scene: &Scene,
         z0: &Vertex,
@@ -99,8 +99,11 @@ impl Bdpt<'_> {
         Some(match z0.kind {
             VertexKind::Camera => {
                 let cam = scene.camera.as_ref()?;
-                let imp = cam.importance((q - cam.eye).normalize_or_zero())?;
+                let lens = cam.sample_lens(sampler);
+                let imp = cam.importance(lens, (q - lens).normalize_or_zero())?;
                 let mut v = *z0;
+                v.p = lens;
+                v.pdf_fwd = cam.lens_pdf_area();
                 v.beta = Rgb::ONE;
                 SensorEnd {
                     sensor: v,

@@ -317,18 +317,21 @@ impl Bdpt<'_> {
         let Some(cam) = scene.camera.as_ref() else {
             return;
         };
-        let ray = cam.generate_ray(raster);
+        // a thin lens's point, uniform on the disk (the pinhole's eye, a Dirac)
+        let lens = cam.sample_lens(sampler);
+        let ray = cam.ray_through(raster, lens);
         let mut v0 = Vertex::new(
             VertexKind::Camera,
-            cam.eye,
+            lens,
             cam.forward,
             scene.camera_medium,
             scene.camera_medium,
         );
-        v0.pdf_fwd = 1.0;
+        v0.pdf_fwd = cam.lens_pdf_area();
         path.push(v0);
-        let pdf_dir = cam.importance(ray.d).map_or(0.0, |i| i.pdf_dir);
-        // W_e cos / (per-pixel density) = 1: the pixel is the mean over its film area
+        let pdf_dir = cam.importance(lens, ray.d).map_or(0.0, |i| i.pdf_dir);
+        // W_e cos / (per-pixel density p(lens) p(w)) = 1: the pixel is the mean over its film
+        // area (and over the lens)
         let start = WalkStart {
             ray,
             medium: scene.camera_medium,

@@ -31,7 +31,7 @@ fn subpaths(scene: &Scene, index: u64, stream: u64) -> Option<(Vec<Vertex>, Vec<
 /// Whether the edge a-b carries light: unoccluded, and seen by the camera if one end is it.
 fn joins(scene: &Scene, a: &Vertex, b: &Vertex) -> bool {
     let seen = match (a.is_sensor(), scene.camera.as_ref()) {
-        (true, Some(c)) => c.importance((b.p - a.p).normalize_or_zero()).is_some(),
+        (true, Some(c)) => c.importance(a.p, (b.p - a.p).normalize_or_zero()).is_some(),
         _ => true,
     };
     seen && geometry_term_exact(scene, a, b).0 > 0.0

@@ -616,8 +616,9 @@ pub fn volume_next_event(
 }
 // ANCHOR_END: volume_next_event
 
-/// The direct image of every delta light (point, spot, directional) on the pinhole camera's
-/// film: one splat per light the camera sees, with its transmittance from `sampler`.
+/// The direct image of every delta light (point, spot, directional) on the camera's film: one
+/// splat per light the camera sees, with its transmittance from `sampler`; a thin lens spreads
+/// it over the light's circle of confusion, one lens point per light and pass.
 ///
 /// A path x_0 x_1 from a Dirac light to the pinhole has no vertex a walk from the camera can hit
 /// (Pauly et al. 2000, eq. 5: both ends are Diracs), yet its measurement is finite: the light
@@ -631,10 +632,12 @@ pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2
     };
     let mut out = Vec::new();
     for light in scene.lights.iter().filter(|l| l.is_delta()) {
-        let Some(ls) = light.sample_li(&scene.prims, cam.eye, sampler.next_2d(), 0.0) else {
+        // the lens point (drawn before the light's numbers; none for the pinhole)
+        let lens = cam.sample_lens(sampler);
+        let Some(ls) = light.sample_li(&scene.prims, lens, sampler.next_2d(), 0.0) else {
             continue;
         };
-        let Some(imp) = cam.importance(ls.wi) else {
+        let Some(imp) = cam.importance(lens, ls.wi) else {
             continue;
         };
         if ls.value == Rgb::ZERO || ls.pdf <= 0.0 {
@@ -643,12 +646,13 @@ pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2
         let dist = if ls.dist.is_infinite() {
             f32::INFINITY
         } else {
-            shadow_distance(cam.eye, ls.p)
+            shadow_distance(lens, ls.p)
         };
-        let tr = scene.transmittance(cam.eye, ls.wi, dist, scene.camera_medium, sampler);
-        // W_e times the pinhole's cosine (its delta position absorbs the area measure)
+        let tr = scene.transmittance(lens, ls.wi, dist, scene.camera_medium, sampler);
+        // W_e times the lens's cosine over the lens point's density (1 for the pinhole: its
+        // delta position absorbs the area measure)
         let cos = ls.wi.dot(cam.forward);
-        let l = ls.value * tr * (imp.we * cos / ls.pdf);
+        let l = ls.value * tr * (imp.we * cos / ls.pdf) / cam.lens_pdf_area();
         if l != Rgb::ZERO && l.is_finite() {
             out.push((imp.raster, l));
         }
@@ -841,7 +845,7 @@ impl super::Integrator for PathTracer {
     ) -> Rgb {
         self.radiance(
             scene,
-            cam.generate_ray(raster),
+            cam.sample_ray(raster, sampler),
             scene.camera_medium,
             sampler,
         )

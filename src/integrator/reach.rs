@@ -164,7 +164,8 @@ fn delta_light_reaches(light: &Light, b: &Aabb) -> bool {
 /// Whether the camera or a meter may see the box.
 fn sensor_sees(scene: &Scene, b: &Aabb) -> bool {
     if let Some(cam) = scene.camera.as_ref() {
-        if contains(b, cam.eye) {
+        // a thin lens's rays cross beyond the focus plane: its view is no pinhole frustum
+        if !cam.is_pinhole() || contains(b, cam.eye) {
             return true;
         }
         let f = cam.forward;

@@ -119,10 +119,11 @@ pub fn densities_into(
 }
 // ANCHOR_END: densities
 
-/// Density of the sensor vertex's position: 1 for the pinhole (a Dirac), 1/A on a meter.
+/// Density of the sensor vertex's position: 1 for the pinhole (a Dirac), 1/A on a thin lens
+/// or a meter.
 pub fn sensor_position_pdf(scene: &Scene, v: &Vertex) -> f32 {
     match v.kind {
-        VertexKind::Camera => 1.0,
+        VertexKind::Camera => scene.camera.as_ref().map_or(1.0, |c| c.lens_pdf_area()),
         VertexKind::Meter { meter } => {
             1.0 / crate::geometry::Primitive::Quad(scene.sensors[meter as usize].quad).area()
         }

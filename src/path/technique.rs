@@ -380,7 +380,7 @@ impl Vertex {
             VertexKind::Camera => scene
                 .camera
                 .as_ref()
-                .and_then(|c| c.importance(wn))
+                .and_then(|c| c.importance(self.p, wn))
                 .map_or(0.0, |i| i.pdf_dir),
             VertexKind::Meter { meter } => {
                 let c = wn.dot(scene.sensors[meter as usize].normal());

@@ -252,7 +252,7 @@ impl Vertex {
             VertexKind::Camera => scene
                 .camera
                 .as_ref()
-                .and_then(|c| c.importance(w))
+                .and_then(|c| c.importance(self.p, w))
                 .map_or(Rgb::ZERO, |i| Rgb::splat(i.we)),
             VertexKind::Meter { meter } => {
                 let m = &scene.sensors[meter as usize];

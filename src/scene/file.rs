@@ -97,7 +97,18 @@ pub enum CameraDesc {
         fov_deg: f32,
         #[serde(deserialize_with = "exact")]
         resolution: [u32; 2],
+        /// Radius of a thin lens around `eye` (scene units); 0, the default, is the pinhole.
+        #[serde(default, skip_serializing_if = "is_zero")]
+        aperture_radius: f32,
+        /// Distance from the lens to the plane in focus along the viewing direction; needed
+        /// when `aperture_radius` > 0.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        focus_distance: Option<f32>,
     },
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 fn default_up() -> [f32; 3] {

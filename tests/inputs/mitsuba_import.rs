@@ -1149,3 +1149,63 @@ fn include_errors_name_the_included_file_and_line() {
         let _ = std::fs::remove_dir_all(d);
     }
 }
+
+/// `thinlens` is `perspective` through a lens (Mitsuba 3 documentation, plugin `thinlens`):
+/// `aperture_radius` (required) and `focus_distance` (the distance of the focal plane along the
+/// viewing direction, defaulting to `far_clip`, itself 10^4 by default) become the camera's
+/// keys; a zero aperture, which Mitsuba replaces by its float epsilon, is the pinhole.
+#[test]
+fn thinlens_aperture_and_focus_are_mitsubas() {
+    let sensor = |props: &str| {
+        SENSOR
+            .replace("type=\"perspective\"", "type=\"thinlens\"")
+            .replace(
+                "<float name=\"fov\" value=\"60\"/>",
+                &format!("<float name=\"fov\" value=\"60\"/>{props}"),
+            )
+    };
+    let body = r#"<shape type="rectangle"><emitter type="area"/></shape>"#;
+    let quad = "[[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 0.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nemission = 1.0\n";
+    let scene_with = |s: String| format!("<scene version=\"3.0.0\">\n{s}\n{body}\n</scene>");
+    let twin = |lens: &str| format!("{CAMERA}{lens}\n{quad}");
+    same_scene(
+        &scene_with(sensor(
+            r#"<float name="aperture_radius" value="0.25"/><float name="focus_distance" value="3.5"/>"#,
+        )),
+        &twin("aperture_radius = 0.25\nfocus_distance = 3.5"),
+    );
+    same_scene(
+        &scene_with(sensor(r#"<float name="aperture_radius" value="0.1"/>"#)),
+        &twin("aperture_radius = 0.1\nfocus_distance = 10000.0"),
+    );
+    same_scene(
+        &scene_with(sensor(
+            r#"<float name="aperture_radius" value="0.1"/><float name="far_clip" value="50"/>"#,
+        )),
+        &twin("aperture_radius = 0.1\nfocus_distance = 50.0"),
+    );
+    same_scene(
+        &scene_with(sensor(r#"<float name="aperture_radius" value="0"/>"#)),
+        &twin(""),
+    );
+    // the lens changes the image
+    let a = xml(&scene_with(sensor(
+        r#"<float name="aperture_radius" value="0.5"/><float name="focus_distance" value="1"/>"#,
+    )))
+    .unwrap();
+    assert_ne!(pixels(&a), pixels(&toml(&twin(""))));
+    for (props, word) in [
+        ("", "aperture_radius"),
+        (
+            r#"<float name="aperture_radius" value="-1"/>"#,
+            "aperture_radius",
+        ),
+        (
+            r#"<float name="aperture_radius" value="0.1"/><float name="focus_distance" value="0"/>"#,
+            "focus_distance",
+        ),
+    ] {
+        let e = xml(&scene_with(sensor(props))).unwrap_err();
+        assert!(e.contains(word) && e.contains("t.xml:"), "{e}");
+    }
+}

@@ -747,3 +747,45 @@ fn rough_plastic_values_outside_their_range() {
         &["phong"],
     );
 }
+
+#[test]
+fn camera_thin_lens_without_focus_or_with_a_bad_aperture() {
+    let lens = |keys: &str| {
+        BASE.replace(
+            "resolution = [8, 8]",
+            &format!("resolution = [8, 8]\n{keys}"),
+        )
+    };
+    let e = load("cam.toml", &lens("aperture_radius = 0.1"))
+        .err()
+        .unwrap();
+    assert_eq!(e.key.as_str(), "camera.focus_distance", "{e}");
+    assert!(e.message.contains("thin lens"), "{e}");
+    let e = load(
+        "cam.toml",
+        &lens("aperture_radius = -0.1\nfocus_distance = 2.0"),
+    )
+    .err()
+    .unwrap();
+    assert_eq!(
+        (e.line, e.key.as_str()),
+        (Some(8), "camera.aperture_radius"),
+        "{e}"
+    );
+    let e = load(
+        "cam.toml",
+        &lens("aperture_radius = 0.1\nfocus_distance = -2.0"),
+    )
+    .err()
+    .unwrap();
+    assert_eq!(
+        (e.line, e.key.as_str()),
+        (Some(9), "camera.focus_distance"),
+        "{e}"
+    );
+    assert!(load(
+        "cam.toml",
+        &lens("aperture_radius = 0.1\nfocus_distance = 2.0")
+    )
+    .is_ok());
+}

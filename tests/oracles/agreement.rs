@@ -974,3 +974,20 @@ fn agreement_emitting_procedural() {
     );
     fam.finish();
 }
+
+/// A thin-lens camera (a lens point per camera ray, W_e per lens point, a lens point sampled for
+/// every connection to the camera): a small area light and a point light in view, out of focus.
+/// Path-space MLT refuses the thin lens by name.
+#[test]
+fn agreement_lens() {
+    let mut fam = Family::new("agreement: thin lens");
+    check_row(
+        &mut fam,
+        &Row {
+            spp: 2 * SPP,
+            refuse: &[("mlt*", "thin lens")],
+            ..row("lens", fixture("lens.toml"), 3)
+        },
+    );
+    fam.finish();
+}

@@ -7,6 +7,7 @@ mod common;
 mod agreement;
 mod emission;
 mod golden;
+mod lens;
 mod mlt_failures;
 mod primer;
 mod slab;

@@ -168,7 +168,7 @@ pub fn image_contribution_reusing(
         return None;
     }
     let cam = scene.camera.as_ref()?;
-    let imp = cam.importance((v[n - 2].p - v[n - 1].p).normalize_or_zero())?;
+    let imp = cam.importance(v[n - 1].p, (v[n - 2].p - v[n - 1].p).normalize_or_zero())?;
     // tau is the exact one, not ratio tracking's estimate: the target must be a function of the
     // path alone, for the acceptance and for reusing an edge's factors across mutations
     let mut f = start_emission(scene, &v[0], v[1].p);

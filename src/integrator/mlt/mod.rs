@@ -453,6 +453,9 @@ pub enum MltError {
          lobe, where its mutations and densities classify a vertex by its whole material"
     )]
     MixedLobes(String),
+    /// A thin-lens camera (its aperture radius): the mutations move a pinhole's film point.
+    #[error("mlt renders through a pinhole only: the camera is a thin lens (aperture_radius = {0}); use pssmlt, mmlt or bdpt")]
+    ThinLens(f32),
 }
 
 impl From<MltError> for String {
@@ -468,10 +471,14 @@ impl From<MltError> for super::IntegratorError {
 }
 
 /// Checks that MLT can render `scene`: a pinhole camera, no plastic. Lights at infinity are
-/// path vertices in the directional measure (`contribution::anchor_infinite`).
+/// path vertices in the directional measure (`contribution::anchor_infinite`). A thin lens is
+/// refused: the lens and caustic perturbations and the bidirectional mutation move the film
+/// point from a fixed eye, and would need the lens point as a path vertex with its density.
 pub fn check_scene(scene: &Scene) -> Result<(), MltError> {
-    if scene.camera.is_none() {
-        return Err(MltError::NoCamera);
+    match scene.camera.as_ref() {
+        None => return Err(MltError::NoCamera),
+        Some(c) if !c.is_pinhole() => return Err(MltError::ThinLens(c.lens_radius)),
+        Some(_) => {}
     }
     let mixed = scene.shapes.iter().find(|s| {
         s.bsdf

@@ -707,7 +707,7 @@ impl super::Integrator for Smc {
         let own = scratch.own.get::<PassScratch>();
         self.radiance(
             scene,
-            cam.generate_ray(raster),
+            cam.sample_ray(raster, sampler),
             scene.camera_medium,
             sampler,
             &mut own.links,

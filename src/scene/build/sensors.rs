@@ -1,4 +1,4 @@
-//! `[camera]` and `[[sensors]]`: the pinhole camera and the irradiance meters, the
+//! `[camera]` and `[[sensors]]`: the camera (pinhole or thin lens) and the irradiance meters, the
 //! instruments of the measurement equation (eq. 5), each placed in the medium around it.
 
 use super::values::finite3;
@@ -18,6 +18,8 @@ pub(super) fn camera(
         up,
         fov_deg,
         resolution,
+        aperture_radius,
+        focus_distance,
     }) = &desc.camera
     {
         let key = path("camera");
@@ -53,10 +55,47 @@ pub(super) fn camera(
                     "up is zero or parallel to the viewing direction look_at - eye",
                 )
             })?;
+        let cam = lens(src, cam, *aperture_radius, *focus_distance)?;
         scene.camera_medium = scene.medium_at(eye);
         scene.camera = Some(cam);
     }
     Ok(())
+}
+
+/// The camera through a thin lens of radius `aperture_radius` focused at `focus_distance`, or
+/// the pinhole for radius 0.
+fn lens(
+    src: &SceneSource,
+    cam: Camera,
+    aperture_radius: f32,
+    focus_distance: Option<f32>,
+) -> Result<Camera, SceneError> {
+    let key = path("camera");
+    if !(aperture_radius >= 0.0 && aperture_radius.is_finite()) {
+        return Err(src.error(
+            &key.key("aperture_radius"),
+            format!("aperture_radius = {aperture_radius} must be finite and >= 0 (0: a pinhole)"),
+        ));
+    }
+    let focus = match focus_distance {
+        Some(f) if !(f > 0.0 && f.is_finite()) => {
+            return Err(src.error(
+                &key.key("focus_distance"),
+                format!("focus_distance = {f} must be finite and > 0"),
+            ))
+        }
+        Some(f) => f,
+        None if aperture_radius > 0.0 => {
+            return Err(src.error(
+                &key.key("focus_distance"),
+                "a thin lens (aperture_radius > 0) needs focus_distance",
+            ))
+        }
+        None => 1.0,
+    };
+    // both checked above
+    cam.with_lens(aperture_radius, focus)
+        .ok_or_else(|| src.error(&key.key("aperture_radius"), "invalid thin lens"))
 }
 
 /// Installs every `[[sensors]]` entry, each with the medium at its centre; names are unique.

@@ -43,7 +43,7 @@ pub fn lens_chain_end(scene: &Scene, x: &[Vertex]) -> Option<usize> {
 pub fn raster_of(scene: &Scene, x: &[Vertex]) -> Option<Vec2> {
     let k = x.len() - 1;
     let cam = scene.camera.as_ref()?;
-    cam.importance((x[k - 1].p - x[k].p).normalize_or_zero())
+    cam.importance(x[k].p, (x[k - 1].p - x[k].p).normalize_or_zero())
         .map(|i| i.raster)
 }
 

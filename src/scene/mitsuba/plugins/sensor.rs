@@ -1,5 +1,5 @@
-//! The `perspective` sensor with its `hdrfilm` and sampler: the camera and the `[render]`
-//! table's resolution, samples and seed.
+//! The `perspective` and `thinlens` sensors with their `hdrfilm` and sampler: the camera and
+//! the `[render]` table's resolution, samples and seed.
 
 use glam::{DMat4, DVec3};
 use roxmltree::Node;
@@ -8,10 +8,15 @@ use super::{f3, linear, similarity, Importer, Props};
 use crate::scene::file::CameraDesc;
 use crate::scene::SceneError;
 
-/// A `perspective` sensor's own properties, read and checked, with its film and sampler.
+/// A `perspective` or `thinlens` sensor's own properties, read and checked, with its film and
+/// sampler.
 struct Perspective<'a> {
     /// Degrees along `axis`.
     fov: f64,
+    /// The thin lens's `aperture_radius` and `focus_distance` (Mitsuba 3 documentation, plugin
+    /// `thinlens`; the focus distance defaults to `far_clip`, as `ProjectiveCamera` reads it);
+    /// `None` for `perspective`.
+    lens: Option<(f64, f64)>,
     axis: String,
     to_world: DMat4,
     medium: Option<String>,
@@ -28,6 +33,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         self.sensor_seen = true;
         let Perspective {
             fov,
+            lens,
             axis,
             to_world: m,
             medium,
@@ -52,12 +58,19 @@ impl<'a, 'd> Importer<'a, 'd> {
         }
         let eye = m.w_axis.truncate();
         let forward = l * DVec3::Z;
+        // Mitsuba replaces a zero aperture by its float epsilon: the pinhole's image
+        let (aperture_radius, focus_distance) = match lens {
+            Some((r, f)) if r > 0.0 => (r as f32, Some(f as f32)),
+            _ => (0.0, None),
+        };
         self.out.camera = Some(CameraDesc::Pinhole {
             eye: f3(eye),
             look_at: f3(eye + forward),
             up: f3(l * DVec3::Y),
             fov_deg: (2.0 * tan_y.atan()).to_degrees() as f32,
             resolution: [w, h],
+            aperture_radius,
+            focus_distance,
         });
         self.render.insert("spp".into(), toml::Value::Integer(spp));
         self.render
@@ -67,7 +80,11 @@ impl<'a, 'd> Importer<'a, 'd> {
             node,
             "camera",
             format!(
-                "pinhole, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
+                "{}, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
+                match focus_distance {
+                    Some(f) => format!("thin lens of radius {aperture_radius} focused at {f}"),
+                    None => "pinhole".into(),
+                },
                 (2.0 * tan_y.atan()).to_degrees(),
                 medium.as_deref().unwrap_or("vacuum")
             ),
@@ -75,12 +92,12 @@ impl<'a, 'd> Importer<'a, 'd> {
         Ok(())
     }
 
-    /// The properties of a `perspective` sensor, each consumed or refused.
+    /// The properties of a `perspective` or `thinlens` sensor, each consumed or refused.
     fn perspective(&mut self, node: Node<'a, 'a>) -> Result<Perspective<'a>, SceneError> {
         let mut p = Props::new(self.doc, node)?;
-        if p.plugin != "perspective" {
+        if p.plugin != "perspective" && p.plugin != "thinlens" {
             return Err(p.err(format!(
-                "the sensor `{}` is not supported (perspective is)",
+                "the sensor `{}` is not supported (perspective and thinlens are)",
                 p.plugin
             )));
         }
@@ -97,8 +114,23 @@ impl<'a, 'd> Importer<'a, 'd> {
             return Err(p.err("a near_clip above Mitsuba's default 0.01 is not supported (pathspace does not clip)"));
         }
         // a far clip matters only inside the scene's extent, which the sensor cannot see here:
-        // accepted, and `info` says it is not applied
-        p.ignore(&["far_clip"]);
+        // accepted, and `info` says it is not applied; a thin lens focuses there by default
+        let far_clip = p.float("far_clip")?.unwrap_or(1e4);
+        let lens = if p.plugin == "thinlens" {
+            let r = p
+                .float("aperture_radius")?
+                .ok_or_else(|| p.err("`aperture_radius` is missing (thinlens has no default)"))?;
+            let f = p.float("focus_distance")?.unwrap_or(far_clip);
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(p.err(format!("aperture_radius = {r} must be finite and >= 0")));
+            }
+            if !(f > 0.0 && f.is_finite()) {
+                return Err(p.err(format!("focus_distance = {f} must be finite and > 0")));
+            }
+            Some((r, f))
+        } else {
+            None
+        };
         let medium = match p.object("medium", None)? {
             Some(m) => Some(self.medium(m)?),
             None => None,
@@ -110,6 +142,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         p.finish()?;
         Ok(Perspective {
             fov,
+            lens,
             axis,
             to_world,
             medium,
