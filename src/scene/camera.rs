@@ -1,11 +1,13 @@
 //! The pinhole camera: the sensor responsivity W_e^(j) of the measurement equation (Pauly,
-//! Kollig, Keller 2000, eq. 5) for pixel j with a box filter.
+//! Kollig, Keller 2000, eq. 5) for pixel j with a box filter (another reconstruction filter
+//! spreads a film point over its neighbours in the film, `film::filter`).
 //!
 //! The image plane sits at distance 1 in front of the pinhole; pixel (0, 0) is the top-left.
 //! `importance` gives W_e for a direction, so light tracing, BDPT (t = 1) and MLT can splat.
 
 use glam::{Vec2, Vec3};
 
+use crate::film::PixelFilter;
 use crate::geometry::Ray;
 
 #[derive(Clone, Debug)]
@@ -21,6 +23,8 @@ pub struct Camera {
     pub tan_half_x: f32,
     pub width: u32,
     pub height: u32,
+    /// The pixels' reconstruction filter (the box unless the scene asks for another).
+    pub filter: PixelFilter,
 }
 
 /// The camera's response to light arriving from a point: where on the film and how much.
@@ -60,6 +64,7 @@ impl Camera {
             tan_half_x,
             width,
             height,
+            filter: PixelFilter::Box,
         })
     }
 
