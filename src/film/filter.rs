@@ -55,6 +55,7 @@ impl PixelFilter {
         }
     }
 
+    // ANCHOR: norms
     /// The integral of w from -radius to t (t clamped to the support), in closed form.
     pub fn primitive(self, t: f64) -> f64 {
         let r = self.radius();
@@ -82,6 +83,7 @@ impl PixelFilter {
             })
             .collect()
     }
+    // ANCHOR_END: norms
 
     /// The pixels along an axis of `n` pixels that a sample at coordinate `p` reaches, those of
     /// `|j + 1/2 - p| <= radius` (Mitsuba's `ImageBlock::put`), clipped to `lo..hi`.
