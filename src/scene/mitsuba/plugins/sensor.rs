@@ -180,9 +180,11 @@ impl<'a, 'd> Importer<'a, 'd> {
                 let s = p.float("stddev")?.unwrap_or(0.5);
                 (FilterDesc::Gaussian { stddev: s as f32 }, "stddev", s)
             }
-            other => return Err(p.err(format!(
+            other => {
+                return Err(p.err(format!(
                 "the reconstruction filter `{other}` is not supported (box, tent and gaussian are)"
-            ))),
+            )))
+            }
         };
         let radius = if name == "stddev" { 4.0 * v } else { v };
         if !(v > 0.0 && radius <= MAX_RADIUS) {
