@@ -197,12 +197,13 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     }
     match &scene.camera {
         Some(c) => println!(
-            "  camera: pinhole at {} looking along {}, vertical fov {} deg, {}x{}, in {}",
+            "  camera: pinhole at {} looking along {}, vertical fov {} deg, {}x{}{}, in {}",
             p3(c.eye),
             p3(c.forward),
             round(2.0 * c.tan_half_y.atan().to_degrees()),
             c.width,
             c.height,
+            filter_note(c.filter),
             medium_name(&scene, scene.camera_medium)
         ),
         None => println!("  camera: none"),
@@ -265,4 +266,14 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         );
     }
     Ok(())
+}
+
+/// The camera's reconstruction filter as `info` names it (nothing for the box, the default).
+fn filter_note(f: crate::film::PixelFilter) -> String {
+    use crate::film::PixelFilter;
+    match f {
+        PixelFilter::Box => String::new(),
+        PixelFilter::Tent { radius } => format!(", tent filter (radius {radius})"),
+        PixelFilter::Gaussian { stddev } => format!(", gaussian filter (stddev {stddev})"),
+    }
 }

@@ -19,7 +19,7 @@ pub use settings::RenderSettings;
 
 use rayon::prelude::*;
 
-use crate::film::Film;
+use crate::film::{Film, FilterBlock, PixelFilter};
 use crate::math::Sampler;
 use crate::path::{LocalSampling, PLAIN};
 use crate::scene::{Camera, Scene};
@@ -567,14 +567,30 @@ pub struct Renderer<'a> {
     pub meter_samples: u64,
 }
 
-/// One tile's results: (pixel index, sum, sum of squares) per pixel, splats, its NaN count and
-/// its deposit.
-type TileResult = (
-    Vec<(usize, [f64; 3], [f64; 3])>,
-    Vec<Splat>,
-    u64,
-    Option<Deposit>,
-);
+/// One tile's results: its camera samples ([`TileOut`]), splats, its NaN count and its deposit.
+type TileResult = (TileOut, Vec<Splat>, u64, Option<Deposit>);
+
+/// A tile's camera samples: with the box, (pixel index, sum, sum of squares) per pixel; with
+/// another filter, the block of the tile and its margin the samples spread over.
+enum TileOut {
+    Box(Vec<(usize, [f64; 3], [f64; 3])>),
+    Filtered(FilterBlock),
+}
+
+impl TileOut {
+    fn new(
+        filter: PixelFilter,
+        size: (u32, u32),
+        xs: std::ops::Range<u32>,
+        ys: std::ops::Range<u32>,
+    ) -> Self {
+        if filter.is_box() {
+            TileOut::Box(Vec::with_capacity((TILE * TILE) as usize))
+        } else {
+            TileOut::Filtered(FilterBlock::new(filter, size, xs, ys))
+        }
+    }
+}
 
 impl<'a> Renderer<'a> {
     /// A renderer of `scene` with integrator `kind` and the default render settings.
@@ -636,7 +652,10 @@ impl<'a> Renderer<'a> {
             max_depth: setup.max_depth,
             technique: setup.technique,
             integrator: kind.prepare(setup)?,
-            film: scene.camera.as_ref().map(|c| Film::new(c.width, c.height)),
+            film: scene
+                .camera
+                .as_ref()
+                .map(|c| Film::with_filter(c.width, c.height, c.filter)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
             passes: 0,
             nan_count: 0,
@@ -703,15 +722,20 @@ impl<'a> Renderer<'a> {
         let (w, h) = (cam.width, cam.height);
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);
+        let filter = film.filter;
         let results: Vec<TileResult> = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|t| {
                 let (tx, ty) = (t % tiles_x, t / tiles_x);
-                let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                let (xs, ys) = (
+                    tx * TILE..((tx + 1) * TILE).min(w),
+                    ty * TILE..((ty + 1) * TILE).min(h),
+                );
+                let mut out = TileOut::new(filter, (w, h), xs.clone(), ys.clone());
                 let mut scratch = Scratch::default();
                 let mut nans = 0u64;
-                for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                for y in ys {
+                    for x in xs.clone() {
                         let index = (y * w + x) as usize;
                         let mut sampler = Sampler::new(seed, index as u64, pass);
                         let mut sum = [0.0f64; 3];
@@ -735,13 +759,19 @@ impl<'a> Renderer<'a> {
                                 scratch.splats.truncate(first_splat);
                                 continue;
                             }
+                            if let TileOut::Filtered(block) = &mut out {
+                                block.put(filter, raster, l);
+                                continue;
+                            }
                             for c in 0..3 {
                                 let v = l[c] as f64;
                                 sum[c] += v;
                                 sum_sq[c] += v * v;
                             }
                         }
-                        out.push((index, sum, sum_sq));
+                        if let TileOut::Box(pixels) = &mut out {
+                            pixels.push((index, sum, sum_sq));
+                        }
                     }
                 }
                 on_tile();
@@ -750,15 +780,23 @@ impl<'a> Renderer<'a> {
             })
             .collect();
         let mut records = Vec::with_capacity(results.len());
-        for (pixels, splats, nans, tile_deposit) in results {
+        for (out, splats, nans, tile_deposit) in results {
             records.extend(tile_deposit);
             self.nan_count += nans;
-            for (i, s, q) in pixels {
-                film.add_pixel(i, s, q);
+            match out {
+                TileOut::Box(pixels) => {
+                    for (i, s, q) in pixels {
+                        film.add_pixel(i, s, q);
+                    }
+                }
+                TileOut::Filtered(block) => film.add_block(&block),
             }
             for (r, l) in splats {
                 film.add_splat(r, l);
             }
+        }
+        if !filter.is_box() {
+            film.end_pass();
         }
         let samples = (w * h) as u64 * spp as u64;
         // the direct image of delta lights, one splat per light standing for the pass's camera

@@ -210,6 +210,7 @@ impl Checkpoint {
                 || f.sum.len() != n
                 || f.sum_sq.len() != n
                 || f.splat.len() != n
+                || f.filtered.len() != if f.filter.is_box() { 0 } else { n }
             {
                 return bad("the film's arrays do not match its size");
             }
@@ -240,6 +241,16 @@ impl Checkpoint {
                 && within(&f.sum_sq, f64::INFINITY)
                 && f.splat_scale.is_finite()
                 && within(&f.splat, splats)
+                && f.filtered.iter().zip(&f.sum).all(|(p, s)| {
+                    let w = [p.weight, p.weight_sq];
+                    w.iter()
+                        .chain(&p.pass)
+                        .chain(&p.cross)
+                        .all(|x| x.is_finite())
+                        && p.weight >= 0.0
+                        && s.iter()
+                            .all(|a| (a / p.weight.max(1e-300)).abs() <= f32::MAX as f64)
+                })
         });
         let meters = self.meters.iter().all(|m| {
             let n = m.samples.max(1) as f64;

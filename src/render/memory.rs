@@ -15,6 +15,7 @@ use std::mem::size_of;
 
 use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
+use crate::film::FilteredPixel;
 use crate::integrator::settings::RenderSettings;
 use crate::integrator::{Case, IntegratorKind};
 use crate::medium::Medium;
@@ -85,12 +86,24 @@ pub fn estimate(
     let mut parts = vec![
         ("process", PROCESS_BYTES + threads as u64 * THREAD_BYTES),
         ("scene", scene_bytes(scene)),
-        ("film", pixels * FILM_BYTES_PER_PIXEL),
+        ("film", pixels * film_bytes_per_pixel(scene)),
         ("pass", pixels * pass_bytes_per_pixel(scene, kind, settings)),
         ("image", pixels * OUTPUT_BYTES_PER_PIXEL),
     ];
     parts.extend(integrator_parts(scene, kind, settings));
     MemoryEstimate { parts }
+}
+
+/// The film's bytes per pixel: [`FILM_BYTES_PER_PIXEL`], and a filtered pixel's sums with a
+/// filter other than the box (`Film::with_filter`).
+fn film_bytes_per_pixel(scene: &Scene) -> u64 {
+    let filtered = scene.camera.as_ref().is_some_and(|c| !c.filter.is_box());
+    FILM_BYTES_PER_PIXEL
+        + if filtered {
+            size_of::<FilteredPixel>() as u64
+        } else {
+            0
+        }
 }
 
 /// Bytes per pixel of one pass's results (tile results and what the integrator's samples

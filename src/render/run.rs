@@ -90,7 +90,13 @@ impl<'a> Render<'a> {
         shard: Option<Shard>,
     ) -> Result<Self, RenderError> {
         let shard = match shard {
-            Some(s) => Some(ShardOf::narrow(s, kind, &mut settings)?),
+            Some(s) => {
+                let filtered = scene.camera.as_ref().is_some_and(|c| !c.filter.is_box());
+                if filtered && kind.facts().chains().is_none() {
+                    return Err(shard::ShardError::Filtered.into());
+                }
+                Some(ShardOf::narrow(s, kind, &mut settings)?)
+            }
             None => None,
         };
         // the guide and the adjoint image do not represent light paths starting in a medium

@@ -19,6 +19,9 @@
 //!   estimator as one run only in expectation.
 //! - **SMC** is refused: its radiance cache at pass k is learnt from passes 0..k, so a shard of
 //!   later passes would need every earlier one.
+//! - **A filter other than the box** is refused for pass-based integrators: a pixel is the ratio
+//!   sum(w f) / sum(w) of its samples, and the merge of the shards' ratios by samples would be
+//!   the single run's only in expectation.
 //! - **`--time`** is refused: a timed render's pass count is known only at its end.
 //!
 //! Book: "Measuring a renderer" (shards).
@@ -56,6 +59,12 @@ pub enum ShardError {
          independent runs with other --seed values and merge them"
     )]
     Learning(&'static str),
+    #[error(
+        "--shard cannot split a render through a tent or gaussian filter: each pixel is the \
+         ratio sum(w f) / sum(w) of the samples around it, which the merge of the shards' \
+         images would not reproduce; render unsharded, or with filter = {{ type = \"box\" }}"
+    )]
+    Filtered,
     #[error(
         "--shard {index}/{count}: {spp} spp are only {passes} passes of {PASS_SPP} spp, fewer \
          than the {count} shards (ask for at most {passes} shards or more spp)"

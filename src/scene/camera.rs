@@ -1,5 +1,6 @@
 //! The camera: the sensor responsivity W_e^(j) of the measurement equation (Pauly, Kollig,
-//! Keller 2000, eq. 5) for pixel j with a box filter, of a pinhole or of a thin lens.
+//! Keller 2000, eq. 5) for pixel j with a box filter, of a pinhole or of a thin lens (another
+//! reconstruction filter spreads a film point over its neighbours in the film, `film::filter`).
 //!
 //! The image plane sits at distance 1 in front of the lens centre `eye`; pixel (0, 0) is the
 //! top-left. A thin lens (Kolb, Mitchell, Hanrahan 1995; Mitsuba 3 documentation, plugin
@@ -10,6 +11,7 @@
 
 use glam::{Vec2, Vec3};
 
+use crate::film::PixelFilter;
 use crate::geometry::Ray;
 use crate::math::{warp, Sampler};
 
@@ -30,6 +32,8 @@ pub struct Camera {
     pub lens_radius: f32,
     /// Distance of the plane in focus from the lens along `forward` (unused by the pinhole).
     pub focus_distance: f32,
+    /// The pixels' reconstruction filter (the box unless the scene asks for another).
+    pub filter: PixelFilter,
 }
 
 /// The camera's response to light arriving from a point: where on the film and how much.
@@ -73,6 +77,7 @@ impl Camera {
             height,
             lens_radius: 0.0,
             focus_distance: 1.0,
+            filter: PixelFilter::Box,
         })
     }
 

@@ -104,11 +104,46 @@ pub enum CameraDesc {
         /// when `aperture_radius` > 0.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         focus_distance: Option<f32>,
+        /// The pixels' reconstruction filter (Mitsuba 3's `box`, `tent`, `gaussian`).
+        #[serde(default, skip_serializing_if = "FilterDesc::is_box")]
+        filter: FilterDesc,
     },
 }
 
 fn is_zero(x: &f32) -> bool {
     *x == 0.0
+}
+
+/// `[camera] filter`: a reconstruction filter with Mitsuba 3's parameters and defaults.
+#[derive(Debug, Clone, Copy, Default, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FilterDesc {
+    #[default]
+    Box,
+    Tent {
+        #[serde(default = "default_tent_radius")]
+        radius: f32,
+    },
+    Gaussian {
+        #[serde(default = "default_stddev")]
+        stddev: f32,
+    },
+}
+
+impl FilterDesc {
+    fn is_box(&self) -> bool {
+        *self == FilterDesc::Box
+    }
+}
+
+/// Mitsuba 3, plugin `tent`: radius 1 pixel.
+fn default_tent_radius() -> f32 {
+    1.0
+}
+
+/// Mitsuba 3, plugin `gaussian`: standard deviation 0.5 pixels.
+fn default_stddev() -> f32 {
+    0.5
 }
 
 fn default_up() -> [f32; 3] {

@@ -618,6 +618,108 @@ fn the_fog_box_in_xml_renders_like_the_toml() {
     fam.finish();
 }
 
+/// A lit rectangle in front of a darker one, seen through `film` (the film's inner XML).
+fn filtered_scene(film: &str) -> String {
+    let body = r#"<shape type="rectangle"><transform name="to_world"><scale x="0.5" y="1"/></transform><emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter></shape>
+    <shape type="rectangle"><transform name="to_world"><scale value="3"/><translate z="-1"/></transform></shape>"#;
+    scene(body).replace(r#"<rfilter type="box"/>"#, film)
+}
+
+/// The TOML twin of [`filtered_scene`] with the camera key `filter`.
+fn filtered_twin(filter: &str) -> String {
+    format!(
+        r#"{CAMERA}{filter}
+[materials."default diffuse"]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-0.5, -1.0, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "quad"
+origin = [-3.0, -3.0, -1.0]
+u = [6.0, 0.0, 0.0]
+v = [0.0, 6.0, 0.0]
+material = "default diffuse"
+"#
+    )
+}
+
+/// A film without `<rfilter>` is Mitsuba's default, the gaussian of stddev 0.5 (Mitsuba 3
+/// documentation, plugin `gaussian`): the same scene file as the TOML with
+/// `filter = { type = "gaussian", stddev = 0.5 }`, and the same image bit for bit; `tent` and
+/// `gaussian` keep their parameters and defaults; `box` stays the box.
+#[test]
+fn a_film_without_rfilter_is_mitsubas_gaussian() {
+    let gaussian = r#"filter = { type = "gaussian", stddev = 0.5 }"#;
+    same_scene(&filtered_scene(""), &filtered_twin(gaussian));
+    let a = pixels(&xml(&filtered_scene("")).unwrap());
+    let b = pixels(&xml(&filtered_scene(r#"<rfilter type="box"/>"#)).unwrap());
+    assert_ne!(a, b, "the gaussian and the box give one image");
+    for (film, twin) in [
+        (r#"<rfilter type="gaussian"/>"#, gaussian),
+        (
+            r#"<rfilter type="gaussian"><float name="stddev" value="0.25"/></rfilter>"#,
+            r#"filter = { type = "gaussian", stddev = 0.25 }"#,
+        ),
+        (
+            r#"<rfilter type="tent"/>"#,
+            r#"filter = { type = "tent", radius = 1.0 }"#,
+        ),
+        (
+            r#"<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>"#,
+            r#"filter = { type = "tent", radius = 1.5 }"#,
+        ),
+        (r#"<rfilter type="box"/>"#, ""),
+    ] {
+        let x = xml(&filtered_scene(film)).unwrap();
+        assert_eq!(desc(&x), desc(&toml(&filtered_twin(twin))), "{film}");
+    }
+}
+
+/// Filters without an exact counterpart are refused by name at their line, and so is a
+/// sample border, which would put camera samples outside the film.
+#[test]
+fn other_filters_are_refused_by_name() {
+    for (film, needle) in [
+        (
+            r#"<rfilter type="lanczos"/>"#,
+            "the reconstruction filter `lanczos`",
+        ),
+        (
+            r#"<rfilter type="mitchell"/>"#,
+            "the reconstruction filter `mitchell`",
+        ),
+        (
+            r#"<rfilter type="catmullrom"/>"#,
+            "the reconstruction filter `catmullrom`",
+        ),
+        (
+            r#"<rfilter type="gaussian"><float name="stddev" value="0"/></rfilter>"#,
+            "stddev = 0",
+        ),
+        (
+            r#"<rfilter type="tent"><float name="radius" value="1"/><float name="b" value="1"/></rfilter>"#,
+            "`b`",
+        ),
+        (
+            r#"<boolean name="sample_border" value="true"/>"#,
+            "sample_border",
+        ),
+    ] {
+        let e = xml(&filtered_scene(film)).expect_err(film);
+        assert!(e.contains(needle), "{film}: `{e}` does not name {needle}");
+        assert!(
+            e.starts_with("t.xml:6:"),
+            "{film}: `{e}` is not at the film's line"
+        );
+    }
+}
+
 /// Every refusal names the plugin or parameter, the file and the line; nothing outside the
 /// subset is imported as a different scene.
 #[test]

@@ -10,7 +10,20 @@ fn render(threads: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
 }
 
 fn render_with(kind: IntegratorKind, threads: usize, seed: u64) -> (Vec<[f64; 3]>, Vec<f64>) {
-    let text = FOG_BOX.replace("resolution = [256, 256]", "resolution = [40, 24]");
+    render_filtered(kind, "", threads, seed)
+}
+
+/// A render at 40 x 24 pixels (tiles of 16 cut both axes) with the camera key `filter` (or none).
+fn render_filtered(
+    kind: IntegratorKind,
+    filter: &str,
+    threads: usize,
+    seed: u64,
+) -> (Vec<[f64; 3]>, Vec<f64>) {
+    let text = FOG_BOX.replace(
+        "resolution = [256, 256]",
+        &format!("resolution = [40, 24]\n{filter}"),
+    );
     let mut text = text;
     text.push_str(
         "\n[[sensors]]\ntype = \"irradiance_meter\"\nname = \"floor\"\norigin = [-0.5, -0.99, -0.5]\nu = [0.0, 0.0, 1.0]\nv = [1.0, 0.0, 0.0]\n",
@@ -28,6 +41,12 @@ fn render_with(kind: IntegratorKind, threads: usize, seed: u64) -> (Vec<[f64; 3]
         let meters = r.meters.iter().flat_map(|m| m.sum).collect();
         let film = r.film.unwrap();
         let mut pixels = film.sum;
+        // a filtered film's weights and batch sums, which sum over neighbouring tiles
+        pixels.extend(film.sum_sq);
+        for f in &film.filtered {
+            pixels.push([f.weight, f.weight_sq, f.batches as f64]);
+            pixels.push(f.cross);
+        }
         // splatted contributions (light tracing, BDPT's t = 1) must be just as reproducible
         pixels.extend(film.splat);
         (pixels, meters)
@@ -56,6 +75,32 @@ fn bidirectional_integrators_are_deterministic_with_splats() {
         let (b, mb) = render_with(kind, 2, 5);
         assert!(a == b, "{kind:?}: the image depends on the thread count");
         assert!(ma == mb, "{kind:?}: the meters depend on the thread count");
+    }
+}
+
+/// With a filter, a camera sample adds to pixels of the neighbouring tiles and a splat to up to
+/// 25 pixels: the tiles' blocks and the splats are summed in tile order, so the image is the
+/// same bit for bit with 1 or 3 threads.
+#[test]
+fn filtered_images_with_splats_are_deterministic() {
+    let gaussian = "filter = { type = \"gaussian\" }";
+    for kind in [
+        IntegratorKind::Path,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+    ] {
+        let (a, ma) = render_filtered(kind, gaussian, 1, 5);
+        let (b, mb) = render_filtered(kind, gaussian, 3, 5);
+        assert!(
+            a == b,
+            "{kind:?}: the filtered image depends on the thread count"
+        );
+        assert!(ma == mb, "{kind:?}: the meters depend on the thread count");
+        let (boxed, _) = render_with(kind, 1, 5);
+        assert!(
+            a[..boxed.len()] != boxed[..],
+            "{kind:?}: the filter has no effect"
+        );
     }
 }
 

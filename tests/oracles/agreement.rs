@@ -523,6 +523,49 @@ fn agreement_furnace() {
     fam.finish();
 }
 
+/// The fog box through Mitsuba's default gaussian filter (stddev 0.5, radius 2 pixels): on 8 x 8
+/// pixels half the image is within the radius of an edge, where the film cuts the filter and
+/// camera samples (sum(w f) / sum(w)) and splats (w f / N_j) must renormalize alike.
+#[test]
+fn agreement_fog_box_gaussian() {
+    let mut fam = Family::new("agreement: fog box, gaussian filter");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/fog-box.toml"))
+        .unwrap()
+        .replace(
+            "resolution = [256, 256]",
+            "resolution = [8, 8]\nfilter = { type = \"gaussian\" }",
+        );
+    check_row(&mut fam, &row("fog-box-gaussian", text, 3));
+    fam.finish();
+}
+
+/// A scene of constant radiance stays constant under every filter, for every integrator: the
+/// furnace through the gaussian and a wide tent (radius 1.5), against its closed form 1.
+#[test]
+fn agreement_furnace_filtered() {
+    let mut fam = Family::new("agreement: furnace, filtered");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace.toml"))
+        .unwrap();
+    for (name, filter) in [
+        ("furnace-gaussian", "{ type = \"gaussian\" }"),
+        ("furnace-tent", "{ type = \"tent\", radius = 1.5 }"),
+    ] {
+        let text = text.replace(
+            "resolution = [32, 32]",
+            &format!("resolution = [8, 8]\nfilter = {filter}"),
+        );
+        check_row(
+            &mut fam,
+            &Row {
+                reference: Reference::Exact(1.0),
+                refuse: &[NO_AREA_LIGHT],
+                ..row(name, text, 1)
+            },
+        );
+    }
+    fam.finish();
+}
+
 #[test]
 fn agreement_chromatic() {
     let mut fam = Family::new("agreement: chromatic");

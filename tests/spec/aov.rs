@@ -33,11 +33,27 @@ fn fog_box_32() -> Scene {
     Scene::load(&SceneSource::embedded("fog-box.toml", &text)).unwrap()
 }
 
+/// The fog box at 32 x 32 pixels through Mitsuba's default gaussian filter.
+fn fog_box_32_gaussian() -> Scene {
+    let text = FOG_BOX.replace(
+        "resolution = [256, 256]",
+        "resolution = [32, 32]\nfilter = { type = \"gaussian\" }",
+    );
+    Scene::load(&SceneSource::embedded("fog-box.toml", &text)).unwrap()
+}
+
 /// One render of `scene` with `seed`: its image, as (pixel, channel) means, and its variance
-/// layer as `--aovs variance` writes it.
+/// layer as `--aovs variance` writes it. With the box, one pass of `SPP` samples; with another
+/// filter, passes of 4 as the command line renders (its variance comes from the passes).
 fn render_with_variance(scene: &Scene, seed: u64) -> Run {
     let mut r = Renderer::new(scene, IntegratorKind::Path, seed, None);
-    r.pass(SPP, &|| {});
+    if scene.camera.as_ref().unwrap().filter.is_box() {
+        r.pass(SPP, &|| {});
+    } else {
+        for _ in 0..SPP / 4 {
+            r.pass(4, &|| {});
+        }
+    }
     let film = r.film.unwrap();
     let (image, variance) = (film.image(), film.variance_of_mean());
     let sources = Sources {
@@ -72,10 +88,23 @@ fn mean_layer(runs: &[Run], p: usize) -> f64 {
 /// (spp times too large), or twice or half Var[mean], fails by more than 12 standard errors.
 #[test]
 fn variance_layer_matches_the_spread_of_16_independent_renders() {
-    let scene = fog_box_32();
+    calibrate(&fog_box_32(), "box");
+}
+
+/// With a filter, neighbouring pixels share samples and a pixel is the ratio sum(w f) / sum(w):
+/// its layer is the delta-method variance of the ratio over the render's independent passes,
+/// calibrated like the box's. A layer from the per-sample spread of the weighted values, or one
+/// without the K / (K - 1) of K passes, fails.
+#[test]
+fn filtered_variance_layer_matches_the_spread_of_16_independent_renders() {
+    calibrate(&fog_box_32_gaussian(), "gaussian");
+}
+
+/// The calibration of the variance layer of `scene` against 16 independent renders.
+fn calibrate(scene: &Scene, filter: &str) {
     let render = |seeds: std::ops::RangeInclusive<u64>| -> Vec<_> {
         seeds
-            .map(|seed| render_with_variance(&scene, seed))
+            .map(|seed| render_with_variance(scene, seed))
             .collect()
     };
     let (runs, scale_runs) = (render(1..=RUNS), render(1001..=1000 + RUNS));
@@ -104,7 +133,9 @@ fn variance_layer_matches_the_spread_of_16_independent_renders() {
         spread_total / layer_total
     );
     assert!(layer_total > 0.0, "the fog box has noise to measure");
-    let mut fam = Family::new("variance layer against the spread of independent renders");
+    let mut fam = Family::new(&format!(
+        "variance layer against the spread of independent renders, {filter} filter"
+    ));
     fam.runs_are(
         "per pixel, (spread of the means - mean variance layer) / independent scale",
         &d,

@@ -9,6 +9,9 @@ mod aov;
 mod bsdf;
 mod cli;
 mod enlightened;
+mod film {
+    mod filter;
+}
 mod geometry;
 mod integrator {
     mod mixing;

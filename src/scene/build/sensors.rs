@@ -2,6 +2,7 @@
 //! instruments of the measurement equation (eq. 5), each placed in the medium around it.
 
 use super::values::finite3;
+use crate::film::filter::{PixelFilter, MAX_RADIUS};
 use crate::geometry::shape::Quad;
 use crate::scene::file::{self, path, SceneFile, SensorDesc};
 use crate::scene::{Camera, IrradianceMeter, Scene, SceneError, SceneSource};
@@ -20,6 +21,7 @@ pub(super) fn camera(
         resolution,
         aperture_radius,
         focus_distance,
+        filter,
     }) = &desc.camera
     {
         let key = path("camera");
@@ -48,6 +50,7 @@ pub(super) fn camera(
                 "look_at equals eye: the camera looks nowhere",
             ));
         }
+        let filter = pixel_filter(src, &key.clone().key("filter"), *filter)?;
         let cam = Camera::new(eye, look_at, up, *fov_deg, resolution[0], resolution[1])
             .ok_or_else(|| {
                 src.error(
@@ -55,7 +58,8 @@ pub(super) fn camera(
                     "up is zero or parallel to the viewing direction look_at - eye",
                 )
             })?;
-        let cam = lens(src, cam, *aperture_radius, *focus_distance)?;
+        let mut cam = lens(src, cam, *aperture_radius, *focus_distance)?;
+        cam.filter = filter;
         scene.camera_medium = scene.medium_at(eye);
         scene.camera = Some(cam);
     }
@@ -96,6 +100,29 @@ fn lens(
     // both checked above
     cam.with_lens(aperture_radius, focus)
         .ok_or_else(|| src.error(&key.key("aperture_radius"), "invalid thin lens"))
+}
+
+/// The reconstruction filter of `[camera] filter`, its parameter positive and its radius at
+/// most [`MAX_RADIUS`] pixels.
+fn pixel_filter(
+    src: &SceneSource,
+    key: &file::KeyPath,
+    desc: file::FilterDesc,
+) -> Result<PixelFilter, SceneError> {
+    let (filter, name, v) = match desc {
+        file::FilterDesc::Box => return Ok(PixelFilter::Box),
+        file::FilterDesc::Tent { radius } => (PixelFilter::Tent { radius }, "radius", radius),
+        file::FilterDesc::Gaussian { stddev } => {
+            (PixelFilter::Gaussian { stddev }, "stddev", stddev)
+        }
+    };
+    if !(v > 0.0 && filter.radius() <= MAX_RADIUS) {
+        return Err(src.error(
+            &key.clone().key(name),
+            format!("{name} = {v} must be positive, with a filter radius of at most {MAX_RADIUS} pixels"),
+        ));
+    }
+    Ok(filter)
 }
 
 /// Installs every `[[sensors]]` entry, each with the medium at its centre; names are unique.

@@ -75,11 +75,15 @@ fn render(text: &str, kind: IntegratorKind, spp: u32, first: Option<u32>) -> Vec
 
 #[test]
 fn a_resumed_render_is_the_uninterrupted_one_bit_for_bit() {
+    let gaussian = FOG_BOX.replace("[camera]\n", "[camera]\nfilter = { type = \"gaussian\" }\n");
+    assert_ne!(gaussian, FOG_BOX);
     for (kind, text) in [
         (IntegratorKind::Path, FOG_BOX),
         (IntegratorKind::Light, FOG_BOX),
         (IntegratorKind::Bdpt, FOG_BOX),
         (IntegratorKind::Smc, SMC_TESTBED),
+        (IntegratorKind::Path, gaussian.as_str()),
+        (IntegratorKind::Bdpt, gaussian.as_str()),
     ] {
         let whole = render(text, kind, 16, None);
         let resumed = render(text, kind, 16, Some(8));

@@ -5,7 +5,8 @@ use glam::{DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, similarity, Importer, Props};
-use crate::scene::file::CameraDesc;
+use crate::film::filter::MAX_RADIUS;
+use crate::scene::file::{CameraDesc, FilterDesc};
 use crate::scene::SceneError;
 
 /// A `perspective` or `thinlens` sensor's own properties, read and checked, with its film and
@@ -40,7 +41,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             film,
             sampler,
         } = self.perspective(node)?;
-        let (w, h) = self.film(film)?;
+        let (w, h, filter) = self.film(film)?;
         let (spp, seed) = match sampler {
             Some(s) => self.sampler(s)?,
             None => (4, 0),
@@ -71,6 +72,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             resolution: [w, h],
             aperture_radius,
             focus_distance,
+            filter,
         });
         self.render.insert("spp".into(), toml::Value::Integer(spp));
         self.render
@@ -80,12 +82,13 @@ impl<'a, 'd> Importer<'a, 'd> {
             node,
             "camera",
             format!(
-                "{}, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, box filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
+                "{}, fov {fov} deg along {axis} = {:.4} deg vertical, {w}x{h}, {} filter, {spp} spp, seed {seed}, in {}; no clipping (geometry nearer than Mitsuba's default near clip, 1 cm, or beyond a far_clip is rendered)",
                 match focus_distance {
                     Some(f) => format!("thin lens of radius {aperture_radius} focused at {f}"),
                     None => "pinhole".into(),
                 },
                 (2.0 * tan_y.atan()).to_degrees(),
+                filter_note(filter),
                 medium.as_deref().unwrap_or("vacuum")
             ),
         );
@@ -151,7 +154,11 @@ impl<'a, 'd> Importer<'a, 'd> {
         })
     }
 
-    pub(super) fn film(&mut self, node: Node<'a, 'a>) -> Result<(u32, u32), SceneError> {
+    /// An `hdrfilm`: its size and its reconstruction filter.
+    pub(super) fn film(
+        &mut self,
+        node: Node<'a, 'a>,
+    ) -> Result<(u32, u32, FilterDesc), SceneError> {
         let mut p = Props::new(self.doc, node)?;
         if p.plugin != "hdrfilm" {
             return Err(p.err(format!(
@@ -169,22 +176,19 @@ impl<'a, 'd> Importer<'a, 'd> {
                 )));
             }
         }
-        p.ignore(&["component_format", "file_format", "sample_border"]);
+        p.ignore(&["component_format", "file_format"]);
+        let border = p.boolean("sample_border")?.unwrap_or(false);
         p.finish()?;
-        match filter {
-            Some(f) if self.doc.plugin(f)? == "box" => Props::new(self.doc, f)?.finish()?,
-            Some(f) => {
-                return Err(self.doc.err(
-                    f,
-                    "only the box filter is supported (pathspace's pixels are boxes)",
-                ))
-            }
-            None => {
-                return Err(self.doc.err(
-                    node,
-                    "no <rfilter>: Mitsuba's default is gaussian, pathspace's pixels are boxes; add <rfilter type=\"box\"/>",
-                ))
-            }
+        let filter = match filter {
+            Some(f) => self.rfilter(f)?,
+            // Mitsuba 3 documentation, plugin `gaussian`: the default reconstruction filter
+            None => FilterDesc::Gaussian { stddev: 0.5 },
+        };
+        if border && filter != FilterDesc::Box {
+            return Err(self.doc.err(
+                node,
+                "sample_border = true with a filter other than the box is not supported (camera samples stay inside the film)",
+            ));
         }
         let ok = |v: i64| (1..=16384).contains(&v);
         if !(ok(w) && ok(h)) {
@@ -193,7 +197,36 @@ impl<'a, 'd> Importer<'a, 'd> {
                 format!("{w}x{h} pixels: each side must be in 1..=16384"),
             ));
         }
-        Ok((w as u32, h as u32))
+        Ok((w as u32, h as u32, filter))
+    }
+
+    /// An `<rfilter>`: `box`, `tent` (radius) or `gaussian` (stddev), Mitsuba 3's defaults.
+    fn rfilter(&mut self, node: Node<'a, 'a>) -> Result<FilterDesc, SceneError> {
+        let mut p = Props::new(self.doc, node)?;
+        let (filter, name, v) = match p.plugin.as_str() {
+            "box" => (FilterDesc::Box, "", 1.0),
+            "tent" => {
+                let r = p.float("radius")?.unwrap_or(1.0);
+                (FilterDesc::Tent { radius: r as f32 }, "radius", r)
+            }
+            "gaussian" => {
+                let s = p.float("stddev")?.unwrap_or(0.5);
+                (FilterDesc::Gaussian { stddev: s as f32 }, "stddev", s)
+            }
+            other => {
+                return Err(p.err(format!(
+                "the reconstruction filter `{other}` is not supported (box, tent and gaussian are)"
+            )))
+            }
+        };
+        let radius = if name == "stddev" { 4.0 * v } else { v };
+        if !(v > 0.0 && radius <= MAX_RADIUS) {
+            return Err(p.err(format!(
+                "{name} = {v} must be positive, with a filter radius of at most {MAX_RADIUS} pixels"
+            )));
+        }
+        p.finish()?;
+        Ok(filter)
     }
 
     pub(super) fn sampler(&mut self, node: Node<'a, 'a>) -> Result<(i64, i64), SceneError> {
@@ -227,4 +260,13 @@ fn vertical_tan(fov: f64, axis: &str, w: u32, h: u32) -> Option<f64> {
         "larger" => tan,
         _ => return None,
     })
+}
+
+/// How `info` names a filter.
+fn filter_note(f: FilterDesc) -> String {
+    match f {
+        FilterDesc::Box => "box".into(),
+        FilterDesc::Tent { radius } => format!("tent (radius {radius})"),
+        FilterDesc::Gaussian { stddev } => format!("gaussian (stddev {stddev})"),
+    }
 }
