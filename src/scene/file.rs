@@ -128,8 +128,24 @@ pub enum MaterialDesc {
     ThinDielectric {
         ior: f32,
     },
-    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick) or
-    /// `eta` and `k` (complex index); reflectance 1 when neither is given.
+    /// Smooth metal (Mitsuba 3's `conductor`): the Fresnel reflectance of a complex index,
+    /// `material` (one of Mitsuba's named conductors, `"Au"`) or `eta` and `k`; eta 0, k 1
+    /// (reflectance 1) when neither is given; `specular` (1) scales it.
+    Conductor {
+        #[serde(default)]
+        material: Option<String>,
+        #[serde(default)]
+        eta: Option<RgbValue>,
+        #[serde(default)]
+        k: Option<RgbValue>,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
+        #[serde(default)]
+        one_sided: bool,
+    },
+    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick),
+    /// `material` (a named conductor) or `eta` and `k` (complex index); reflectance 1 when none
+    /// is given; `specular` (1) scales the Fresnel term.
     RoughConductor {
         alpha: f32,
         #[serde(default)]
@@ -137,9 +153,13 @@ pub enum MaterialDesc {
         #[serde(default)]
         reflectance: Option<RgbValue>,
         #[serde(default)]
+        material: Option<String>,
+        #[serde(default)]
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
         #[serde(default)]
         one_sided: bool,
     },
