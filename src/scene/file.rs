@@ -433,6 +433,21 @@ pub enum ShapeDesc {
         interior: Option<String>,
         exterior: Option<String>,
     },
+    /// An open cylinder (Mitsuba 3's `cylinder`, no caps) of `radius` about the segment from
+    /// `p0` to `p1`; its normal points outwards, inwards with `flip_normals`.
+    Cylinder {
+        #[serde(deserialize_with = "exact")]
+        p0: [f32; 3],
+        #[serde(deserialize_with = "exact")]
+        p1: [f32; 3],
+        radius: f32,
+        #[serde(default)]
+        flip_normals: bool,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
     Mesh {
         obj: String,
         /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
@@ -478,6 +493,13 @@ impl ShapeDesc {
                 exterior,
                 ..
             }
+            | ShapeDesc::Cylinder {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
             | ShapeDesc::Mesh {
                 material,
                 emission,
@@ -500,6 +522,7 @@ impl ShapeDesc {
             ShapeDesc::Box { .. } => "box",
             ShapeDesc::Sphere { .. } => "sphere",
             ShapeDesc::Disk { .. } => "disk",
+            ShapeDesc::Cylinder { .. } => "cylinder",
             ShapeDesc::Mesh { .. } => "mesh",
         }
     }
