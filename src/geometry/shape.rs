@@ -221,7 +221,11 @@ impl Cylinder {
         }
         let q = -(half_b + half_b.signum() * disc.sqrt());
         let c = op.length_squared() - r * r;
-        let (mut t0, mut t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q / qa) };
+        let (mut t0, mut t1) = if q == 0.0 {
+            (0.0, 0.0)
+        } else {
+            (c / q, q / qa)
+        };
         if t0 > t1 {
             std::mem::swap(&mut t0, &mut t1);
         }

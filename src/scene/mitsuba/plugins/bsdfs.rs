@@ -206,6 +206,10 @@ fn conductor_index(
         let how = format!("material {material}");
         return Ok(((Some(material), None, None), how));
     }
+    if eta.is_none() && k.is_none() {
+        // pathspace's default index is Mitsuba's (eta 0, k 1: a Fresnel term of 1)
+        return Ok(((None, None, None), "reflectance 1 (material none)".into()));
+    }
     let (e, k) = (eta.unwrap_or(DVec3::ZERO), k.unwrap_or(DVec3::ONE));
     let how = format!("eta {}, k {}", show(e), show(k));
     Ok(((None, Some(rgb(e)), Some(rgb(k))), how))

@@ -28,9 +28,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         let flip = p.boolean("flip_normals")? == Some(true);
         if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk" | "cylinder") {
-            return Err(p.err(
-                "flip_normals is supported on rectangles, disks and cylinders only",
-            ));
+            return Err(p.err("flip_normals is supported on rectangles, disks and cylinders only"));
         }
         let [interior, exterior] = self.shape_media(&mut p)?;
         let bsdf = p.object("bsdf", None)?;
@@ -256,8 +254,9 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         return Err(p.err("a cylinder needs a positive radius and p1 apart from p0"));
     }
     let l = linear(m);
-    let e0 = d.any_orthonormal_vector();
-    let (c0, c1, c2) = (l * e0, l * d.cross(e0).normalize(), l * d);
+    let e0 = d.normalize().any_orthonormal_vector();
+    let e1 = d.normalize().cross(e0);
+    let (c0, c1, c2) = (l * e0, l * e1, l * d);
     let s2 = c0.length_squared();
     let tol = 1e-6 * s2;
     let round = (c1.length_squared() - s2).abs() <= tol
