@@ -51,6 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             distribution: Distribution::Ggx,
             alpha,
             fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+            specular: Vec3::ONE,
             one_sided: false,
         })
     };

@@ -1,4 +1,5 @@
-//! The rough conductor: a GGX or Beckmann microsurface of metal facets, reflection only,
+//! The smooth conductor (Mitsuba 3's `conductor`): a Dirac reflection weighted by the exact
+//! Fresnel reflectance of a complex index and a `specular` colour; and the rough conductor: a GGX or Beckmann microsurface of metal facets, reflection only,
 //! two-sided like the mirror (it reflects on whichever side `wo` is). Walter et al. 2007, eq.
 //! (20), with D and G1 of eqs. (33), (34) (GGX) or (25), (27) (Beckmann) and Smith's separable G
 //! of eq. (23); GGX directions are sampled from the visible normals (Heitz 2018), which makes
@@ -11,7 +12,7 @@
 use glam::{Vec2, Vec3};
 
 use super::microfacet::{reflect_about, Distribution, Microfacet};
-use super::{BsdfModel, BsdfSample, Lobe, TransportMode};
+use super::{reflect, BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
@@ -92,12 +93,98 @@ pub fn fresnel_complex(cos_i: f32, eta: f32, k: f32) -> f32 {
     (0.5 * (r_perp.norm2() + r_par.norm2())) as f32
 }
 
+/// A smooth conductor (Mitsuba 3 documentation, plugin `conductor`): the mirror reflection with
+/// weight `specular` F(cos) of the complex index `eta` + i `k` per channel (`eta` 0, `k` 1 is
+/// Mitsuba's material `none`: F = 1, a perfect mirror).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conductor {
+    pub eta: Rgb,
+    pub k: Rgb,
+    /// A colour scaling the Fresnel reflectance (Mitsuba's `specular_reflectance`).
+    pub specular: Rgb,
+    /// Black behind the normal (see `Bsdf::black_behind`).
+    pub one_sided: bool,
+}
+
+impl Conductor {
+    /// The fraction of light reflected at cosine `cos`: `specular` times the Fresnel term.
+    pub fn reflectance(&self, cos: f32) -> Rgb {
+        let fresnel = ConductorFresnel::Complex {
+            eta: self.eta,
+            k: self.k,
+        };
+        self.specular * fresnel.eval(cos)
+    }
+}
+
+impl BsdfModel for Conductor {
+    fn albedo(&self, cos: f32) -> Rgb {
+        self.reflectance(cos)
+    }
+
+    fn describe(&self) -> String {
+        let show = crate::spectrum::show;
+        format!(
+            "conductor, eta {}, k {}, specular {}",
+            show(self.eta),
+            show(self.k),
+            show(self.specular)
+        )
+    }
+
+    fn has_regular_lobe(&self) -> bool {
+        false
+    }
+    fn has_dirac_lobe(&self) -> bool {
+        true
+    }
+    fn transmits(&self) -> bool {
+        false
+    }
+    fn one_sided(&self) -> bool {
+        self.one_sided
+    }
+
+    /// Zero: a Dirac has no value at a given direction.
+    fn eval(&self, _wo: Vec3, _wi: Vec3, _n: Vec3, _mode: TransportMode) -> Rgb {
+        Rgb::ZERO
+    }
+
+    fn pdf(&self, _wo: Vec3, _wi: Vec3, _n: Vec3) -> f32 {
+        0.0
+    }
+
+    /// The mirror direction with probability 1; the weight is the reflectance at `wo`'s cosine
+    /// (the same at `wi`'s: reflection keeps the angle, so the value is reciprocal).
+    fn sample(
+        &self,
+        wo: Vec3,
+        n: Vec3,
+        _u: Vec2,
+        _uc: f32,
+        _mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        let nf = if wo.dot(n) > 0.0 { n } else { -n };
+        let wi = reflect(wo, nf);
+        let c = wi.dot(nf).abs();
+        let value = self.reflectance(wo.dot(nf)) / c;
+        (value.is_finite() && value != Rgb::ZERO).then_some(BsdfSample {
+            wi,
+            value,
+            pdf: 1.0,
+            lobe: Lobe::SingularReflection,
+        })
+    }
+}
+
 /// A rough conductor: the distribution, its roughness `alpha` and its facets' Fresnel term.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughConductor {
     pub distribution: Distribution,
     pub alpha: f32,
     pub fresnel: ConductorFresnel,
+    /// A colour scaling the Fresnel term (Mitsuba's `specular_reflectance`, default 1).
+    pub specular: Rgb,
     /// Black behind the normal (see `Bsdf::black_behind`).
     pub one_sided: bool,
 }
@@ -118,14 +205,14 @@ impl RoughConductor {
 }
 
 impl BsdfModel for RoughConductor {
-    /// The Fresnel reflectance.
+    /// The Fresnel reflectance times `specular`.
     fn albedo(&self, cos: f32) -> Rgb {
-        self.fresnel.eval(cos)
+        self.specular * self.fresnel.eval(cos)
     }
 
     fn describe(&self) -> String {
         let show = crate::spectrum::show;
-        match self.fresnel {
+        let base = match self.fresnel {
             ConductorFresnel::Schlick(r) => format!(
                 "rough conductor, {} alpha {}, reflectance {}",
                 self.distribution.name(),
@@ -139,6 +226,11 @@ impl BsdfModel for RoughConductor {
                 show(eta),
                 show(k)
             ),
+        };
+        if self.specular == Rgb::ONE {
+            base
+        } else {
+            format!("{base}, specular {}", show(self.specular))
         }
     }
 
@@ -167,7 +259,7 @@ impl BsdfModel for RoughConductor {
             return Rgb::ZERO;
         }
         let g = self.microfacet();
-        let f = self.fresnel.eval(lo.dot(m));
+        let f = self.specular * self.fresnel.eval(lo.dot(m));
         let value = f * (g.d(m) * g.g(lo, li, m) / (4.0 * lo.z * li.z));
         if value.is_finite() {
             value

@@ -1,5 +1,5 @@
 //! Surface scattering f_s of the local scattering equation (Pauly, Kollig, Keller 2000, eq. 2):
-//! Lambertian (two-sided), mirror, smooth dielectric with Fresnel, a thin dielectric sheet, the
+//! Lambertian (two-sided), mirror, smooth conductor (complex-index Fresnel), smooth dielectric with Fresnel, a thin dielectric sheet, the
 //! rough (GGX or Beckmann microfacet) conductor, dielectric and plastic (`conductor`,
 //! `rough_dielectric`, `rough_plastic`, over `microfacet`), smooth plastic (`plastic`: a Dirac
 //! coat over a diffuse base, the one model with a Dirac and a regular lobe), and the null
@@ -31,13 +31,14 @@ pub mod dielectric;
 pub mod lambert;
 pub mod microfacet;
 pub mod mirror;
+pub mod named_conductor;
 pub mod null;
 pub mod plastic;
 pub mod rough_dielectric;
 pub mod rough_plastic;
 pub mod thin_dielectric;
 
-pub use conductor::{ConductorFresnel, RoughConductor};
+pub use conductor::{Conductor, ConductorFresnel, RoughConductor};
 pub use dielectric::Dielectric;
 pub use lambert::Lambert;
 pub use microfacet::{Beckmann, Distribution, Ggx, Microfacet};
@@ -113,6 +114,9 @@ pub enum Bsdf {
     /// the surrounding one. Light is reflected or passes straight through, with the sheet's
     /// internal reflections summed ([`thin_dielectric_reflectance`]); no refraction, no eta^2.
     ThinDielectric(ThinDielectric),
+    /// A smooth conductor: a Dirac reflection with complex-index Fresnel (Mitsuba's
+    /// `conductor`; one-sided unless in a `twosided`).
+    Conductor(Conductor),
     /// A GGX microfacet conductor (glossy reflection, two-sided unless `one_sided`).
     RoughConductor(RoughConductor),
     /// A GGX microfacet dielectric interface (glossy reflection and refraction).
@@ -177,6 +181,7 @@ macro_rules! dispatch {
             Bsdf::Mirror($m) => $e,
             Bsdf::Dielectric($m) => $e,
             Bsdf::ThinDielectric($m) => $e,
+            Bsdf::Conductor($m) => $e,
             Bsdf::RoughConductor($m) => $e,
             Bsdf::RoughDielectric($m) => $e,
             Bsdf::Plastic($m) => $e,

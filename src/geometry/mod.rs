@@ -8,7 +8,7 @@ pub mod wide;
 
 pub use aabb::Aabb;
 pub use bvh::Bvh;
-pub use shape::{Disk, Hit, Primitive};
+pub use shape::{Cylinder, Disk, Hit, Primitive};
 
 use glam::Vec3;
 

@@ -1,5 +1,5 @@
-//! Primitives: parallelograms ("quads"), triangles, spheres and (elliptic) disks, with
-//! intersection and uniform
+//! Primitives: parallelograms ("quads"), triangles, spheres, (elliptic) disks and open
+//! cylinders, with intersection and uniform
 //! area sampling (area lights, irradiance meters and BDPT need points with an area density).
 
 use glam::{Vec2, Vec3};
@@ -130,6 +130,123 @@ pub struct Sphere {
     pub radius: f32,
 }
 
+/// An open cylinder (Mitsuba 3 documentation, plugin `cylinder`): the points at distance
+/// `radius` from the segment `p0 + z axis`, z in [0, length], without caps; the normal points
+/// away from the axis, towards it when `flip`.
+#[derive(Clone, Copy, Debug)]
+pub struct Cylinder {
+    pub p0: Vec3,
+    /// The unit direction from `p0` to the other end.
+    pub axis: Vec3,
+    pub length: f32,
+    pub radius: f32,
+    pub flip: bool,
+    /// Two unit vectors completing `axis` to a right-handed frame: the angle phi of a point is
+    /// measured from `x` towards `y`.
+    x: Vec3,
+    y: Vec3,
+}
+
+impl Cylinder {
+    /// The cylinder from `p0` to `p1`; `None` when they coincide or the radius is not positive.
+    pub fn new(p0: Vec3, p1: Vec3, radius: f32, flip: bool) -> Option<Self> {
+        let d = p1 - p0;
+        let length = d.length();
+        if !(length > 0.0 && length.is_finite() && radius > 0.0 && radius.is_finite()) {
+            return None;
+        }
+        let axis = d / length;
+        let frame = crate::math::Frame::from_normal(axis);
+        Some(Cylinder {
+            p0,
+            axis,
+            length,
+            radius,
+            flip,
+            x: frame.s,
+            y: frame.t,
+        })
+    }
+
+    /// The point at height `z` along the axis and angle `phi`, and its unit normal.
+    fn point(&self, z: f32, phi: f32) -> (Vec3, Vec3) {
+        let radial = phi.cos() * self.x + phi.sin() * self.y;
+        (
+            self.p0 + z * self.axis + self.radius * radial,
+            self.oriented(radial),
+        )
+    }
+
+    /// The outward unit vector `radial`, flipped for a `flip`ped cylinder.
+    fn oriented(&self, radial: Vec3) -> Vec3 {
+        if self.flip {
+            -radial
+        } else {
+            radial
+        }
+    }
+
+    /// Mitsuba's surface coordinates of a point: (phi / 2 pi, z / length), phi in [0, 2 pi).
+    pub fn uv(&self, p: Vec3) -> Vec2 {
+        let rel = p - self.p0;
+        let mut phi = rel.dot(self.y).atan2(rel.dot(self.x));
+        if phi < 0.0 {
+            phi += std::f32::consts::TAU;
+        }
+        Vec2::new(
+            phi / std::f32::consts::TAU,
+            rel.dot(self.axis) / self.length,
+        )
+    }
+
+    /// The nearest hit with t in (t_min, t_max): the roots of |o_perp + t d_perp|^2 = r^2 (the
+    /// ray's components perpendicular to the axis), solved in f64 with the cancellation-free
+    /// quadratic; the near root when its height lies on the tube, else the far one (a ray from
+    /// inside, or one passing over an open end).
+    fn intersect_range(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, Vec3, Vec3)> {
+        let a = self.axis.as_dvec3();
+        let o = (ray.o - self.p0).as_dvec3();
+        let d = ray.d.as_dvec3();
+        let (op, dp) = (o - o.dot(a) * a, d - d.dot(a) * a);
+        let qa = dp.length_squared();
+        if qa == 0.0 {
+            return None; // parallel to the axis
+        }
+        let r = self.radius as f64;
+        let half_b = op.dot(dp);
+        // discriminant / 4 as r^2 |d_perp|^2 - |o_perp x d_perp|^2: no cancellation of b^2 - ac
+        let disc = r * r * qa - op.cross(dp).length_squared();
+        if disc < 0.0 {
+            return None;
+        }
+        let q = -(half_b + half_b.signum() * disc.sqrt());
+        let c = op.length_squared() - r * r;
+        let (mut t0, mut t1) = if q == 0.0 {
+            (0.0, 0.0)
+        } else {
+            (c / q, q / qa)
+        };
+        if t0 > t1 {
+            std::mem::swap(&mut t0, &mut t1);
+        }
+        for t in [t0, t1] {
+            let tf = t as f32;
+            if !(tf > t_min && tf < t_max) {
+                continue;
+            }
+            let z = o.dot(a) + t * d.dot(a);
+            if !(0.0..=self.length as f64).contains(&z) {
+                continue;
+            }
+            // reprojected onto the tube: the radial direction of the hit, at exactly `radius`
+            let radial = (op + t * dp).normalize_or_zero().as_vec3();
+            let p = self.p0 + (z as f32) * self.axis + self.radius * radial;
+            return Some((tf, p, self.oriented(radial)));
+        }
+        None
+    }
+}
+
 /// The closed set of primitive kinds (an enum: the BVH stores them inline, no virtual calls).
 #[derive(Clone, Copy, Debug)]
 pub enum Primitive {
@@ -137,6 +254,7 @@ pub enum Primitive {
     Triangle(Triangle),
     Sphere(Sphere),
     Disk(Disk),
+    Cylinder(Cylinder),
 }
 
 /// A ray-primitive intersection.
@@ -174,6 +292,22 @@ impl Primitive {
                     max: d.center + r,
                 }
             }
+            Primitive::Cylinder(c) => {
+                // the two end circles bound it; a circle of radius r normal to the unit axis a
+                // extends r sqrt(1 - a_i^2) along axis i
+                let e = c.radius
+                    * Vec3::from_array(
+                        (Vec3::ONE - c.axis * c.axis)
+                            .max(Vec3::ZERO)
+                            .to_array()
+                            .map(f32::sqrt),
+                    );
+                let p1 = c.p0 + c.length * c.axis;
+                Aabb {
+                    min: c.p0.min(p1) - e,
+                    max: c.p0.max(p1) + e,
+                }
+            }
         }
     }
 
@@ -183,6 +317,7 @@ impl Primitive {
             Primitive::Triangle(t) => t.area,
             Primitive::Sphere(s) => 4.0 * std::f32::consts::PI * s.radius * s.radius,
             Primitive::Disk(d) => d.area,
+            Primitive::Cylinder(c) => std::f32::consts::TAU * c.radius * c.length,
         }
     }
 
@@ -279,6 +414,7 @@ impl Primitive {
                 }
                 Some((t, d.center + a * d.u + b * d.v, d.n))
             }
+            Primitive::Cylinder(c) => c.intersect_range(ray, t_min, t_max),
         }
     }
 
@@ -299,6 +435,8 @@ impl Primitive {
                 let p = warp::concentric_disk(u);
                 (d.center + p.x * d.u + p.y * d.v, d.n)
             }
+            // height and angle uniform: the tube unrolls to a rectangle (as Mitsuba samples it)
+            Primitive::Cylinder(c) => c.point(u.x * c.length, std::f32::consts::TAU * u.y),
         }
     }
 
@@ -323,6 +461,10 @@ impl Primitive {
             Primitive::Disk(d) => {
                 let (a, b) = plane_coordinates(p - d.center, d.u, d.v);
                 clamp(warp::concentric_disk_inverse(Vec2::new(a, b)))
+            }
+            Primitive::Cylinder(c) => {
+                let uv = c.uv(p);
+                clamp(Vec2::new(uv.y, uv.x))
             }
         }
     }

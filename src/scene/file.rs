@@ -174,8 +174,24 @@ pub enum MaterialDesc {
     ThinDielectric {
         ior: f32,
     },
-    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick) or
-    /// `eta` and `k` (complex index); reflectance 1 when neither is given.
+    /// Smooth metal (Mitsuba 3's `conductor`): the Fresnel reflectance of a complex index,
+    /// `material` (one of Mitsuba's named conductors, `"Au"`) or `eta` and `k`; eta 0, k 1
+    /// (reflectance 1) when neither is given; `specular` (1) scales it.
+    Conductor {
+        #[serde(default)]
+        material: Option<String>,
+        #[serde(default)]
+        eta: Option<RgbValue>,
+        #[serde(default)]
+        k: Option<RgbValue>,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
+        #[serde(default)]
+        one_sided: bool,
+    },
+    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick),
+    /// `material` (a named conductor) or `eta` and `k` (complex index); reflectance 1 when none
+    /// is given; `specular` (1) scales the Fresnel term.
     RoughConductor {
         alpha: f32,
         #[serde(default)]
@@ -183,9 +199,13 @@ pub enum MaterialDesc {
         #[serde(default)]
         reflectance: Option<RgbValue>,
         #[serde(default)]
+        material: Option<String>,
+        #[serde(default)]
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
+        #[serde(default = "one_rgb")]
+        specular: RgbValue,
         #[serde(default)]
         one_sided: bool,
     },
@@ -459,6 +479,21 @@ pub enum ShapeDesc {
         interior: Option<String>,
         exterior: Option<String>,
     },
+    /// An open cylinder (Mitsuba 3's `cylinder`, no caps) of `radius` about the segment from
+    /// `p0` to `p1`; its normal points outwards, inwards with `flip_normals`.
+    Cylinder {
+        #[serde(deserialize_with = "exact")]
+        p0: [f32; 3],
+        #[serde(deserialize_with = "exact")]
+        p1: [f32; 3],
+        radius: f32,
+        #[serde(default)]
+        flip_normals: bool,
+        material: Option<String>,
+        emission: Option<RgbValue>,
+        interior: Option<String>,
+        exterior: Option<String>,
+    },
     Mesh {
         obj: String,
         /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
@@ -504,6 +539,13 @@ impl ShapeDesc {
                 exterior,
                 ..
             }
+            | ShapeDesc::Cylinder {
+                material,
+                emission,
+                interior,
+                exterior,
+                ..
+            }
             | ShapeDesc::Mesh {
                 material,
                 emission,
@@ -526,6 +568,7 @@ impl ShapeDesc {
             ShapeDesc::Box { .. } => "box",
             ShapeDesc::Sphere { .. } => "sphere",
             ShapeDesc::Disk { .. } => "disk",
+            ShapeDesc::Cylinder { .. } => "cylinder",
             ShapeDesc::Mesh { .. } => "mesh",
         }
     }

@@ -129,6 +129,8 @@ impl LightBounds {
                         Primitive::Triangle(t) => (t.n, 0.0),
                         Primitive::Disk(d) => (d.n, 0.0),
                         Primitive::Sphere(_) => (Vec3::Y, PI),
+                        // normals perpendicular to the axis: the great circle about it
+                        Primitive::Cylinder(c) => (c.axis, FRAC_PI_2),
                     };
                     bounds = bounds.union(prim.bounds());
                     (axis, theta_o) = if theta_o < 0.0 {

@@ -189,7 +189,7 @@ fn every_enumerated_scene_value_is_checked_at_its_key() {
             "\n[materials.shiny]\ntype = \"velvet\"\n".into(),
             3,
             "materials.shiny.type",
-            "unknown variant `velvet`, expected one of `lambert`, `mirror`, `dielectric`, `thin_dielectric`, `rough_conductor`, `rough_dielectric`, `rough_plastic`, `plastic`, `null`",
+            "unknown variant `velvet`, expected one of `lambert`, `mirror`, `dielectric`, `thin_dielectric`, `conductor`, `rough_conductor`, `rough_dielectric`, `rough_plastic`, `plastic`, `null`",
         ),
         (
             "\n[media.haze]\ntype = \"homogeneous\"\nsigma_a = 0.1\nsigma_s = 0.1\nphase = { type = \"rayleigh\" }\n".into(),

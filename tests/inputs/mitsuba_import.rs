@@ -173,6 +173,126 @@ material = "diffuse"
     );
 }
 
+/// `cylinder`: p0 (0,0,0) to p1 (0,0,1), radius 1, open, under `to_world` (a uniform scale
+/// across the axis, another along it); `flip_normals` turns the normals (and the area light's
+/// side) inwards.
+#[test]
+fn cylinder_extent_and_normal_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="cylinder">
+        <point name="p0" x="0" y="-1" z="-1"/><point name="p1" x="0" y="1" z="-1"/>
+        <float name="radius" value="0.5"/>
+        <emitter type="area"><rgb name="radiance" value="2, 3, 4"/></emitter>
+    </shape>
+    <shape type="cylinder">
+        <boolean name="flip_normals" value="true"/>
+        <transform name="to_world"><scale x="2" y="2" z="3"/><translate z="-3"/></transform>
+        <bsdf type="diffuse" id="diffuse"/>
+    </shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.diffuse]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "cylinder"
+p0 = [0.0, -1.0, -1.0]
+p1 = [0.0, 1.0, -1.0]
+radius = 0.5
+emission = [2.0, 3.0, 4.0]
+[[shapes]]
+type = "cylinder"
+p0 = [0.0, 0.0, -3.0]
+p1 = [0.0, 0.0, 0.0]
+radius = 2.0
+flip_normals = true
+material = "diffuse"
+"#
+        ),
+    );
+}
+
+/// `conductor` and `roughconductor`: a named `material` (Mitsuba's spectra as its RGB variants
+/// see them), or `eta` (default 0) and `k` (default 1), none at all a Fresnel term of 1;
+/// `specular_reflectance` scales the term; one-sided unless in a `twosided`.
+#[test]
+fn conductor_materials_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="sphere"><bsdf type="conductor" id="gold"><string name="material" value="Au"/></bsdf></shape>
+    <shape type="rectangle">
+        <bsdf type="roughconductor" id="copper">
+            <string name="material" value="Cu"/><string name="distribution" value="ggx"/>
+            <float name="alpha" value="0.3"/><rgb name="specular_reflectance" value="0.9, 0.8, 0.7"/>
+        </bsdf>
+        <transform name="to_world"><scale x="3" y="3"/><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="twosided" id="tinted"><bsdf type="conductor">
+            <rgb name="eta" value="0.2, 0.9, 1.1"/><float name="specular_reflectance" value="0.5"/>
+        </bsdf></bsdf>
+        <transform name="to_world"><translate x="1.5" z="-1"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="conductor" id="plain"/>
+        <transform name="to_world"><translate x="-1.5" z="-1"/></transform>
+    </shape>
+    <emitter type="constant"><float name="radiance" value="0.5"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials.gold]
+type = "conductor"
+material = "Au"
+one_sided = true
+[materials.copper]
+type = "rough_conductor"
+alpha = 0.3
+material = "Cu"
+specular = [0.9, 0.8, 0.7]
+one_sided = true
+[materials.tinted]
+type = "conductor"
+eta = [0.2, 0.9, 1.1]
+k = 1.0
+specular = 0.5
+[materials.plain]
+type = "conductor"
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "gold"
+[[shapes]]
+type = "quad"
+origin = [-3.0, -3.0, -2.0]
+u = [6.0, 0.0, 0.0]
+v = [0.0, 6.0, 0.0]
+material = "copper"
+[[shapes]]
+type = "quad"
+origin = [0.5, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "tinted"
+[[shapes]]
+type = "quad"
+origin = [-2.5, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "plain"
+[[lights]]
+type = "environment"
+radiance = 0.5
+"#
+        ),
+    );
+}
+
 /// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
 /// unbent, two-sided.
 #[test]
@@ -725,8 +845,11 @@ fn other_filters_are_refused_by_name() {
 #[test]
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
-    let cases: [(&str, &str); 14] = [
-        (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
+    let cases: [(&str, &str); 15] = [
+        (
+            r#"<shape type="cylinder"><transform name="to_world"><scale x="2"/></transform></shape>"#,
+            "keep it round",
+        ),
         (
             r#"<shape type="rectangle"><bsdf type="blendbsdf"/></shape>"#,
             "the BSDF `blendbsdf`",
@@ -737,8 +860,12 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "distribution = phong",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></shape>"#,
-            "material = \"Au\"",
+            r#"<shape type="rectangle"><bsdf type="conductor"><string name="material" value="Xx"/></bsdf></shape>"#,
+            "material = \"Xx\"",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="roughconductor"><string name="material" value="Au"/><rgb name="eta" value="1, 1, 1"/></bsdf></shape>"#,
+            "either the material or eta and k",
         ),
         (
             r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap"/></bsdf></shape>"#,
@@ -1148,11 +1275,11 @@ fn include_errors_name_the_included_file_and_line() {
                 ("main.xml", main("<include filename=\"parts/bad.xml\"/>")),
                 (
                     "parts/bad.xml",
-                    format!("{head}\n<shape type=\"cylinder\"/>\n</scene>"),
+                    format!("{head}\n<shape type=\"sdfgrid\"/>\n</scene>"),
                 ),
             ],
             "parts/bad.xml:3:",
-            "cylinder",
+            "sdfgrid",
         ),
         (
             vec![

@@ -225,7 +225,7 @@ fn glossy_roughness_outside_its_range() {
         "\n[materials.steel]\ntype = \"rough_conductor\"\nalpha = 0.0001\n",
         4,
         "materials.steel.alpha",
-        &["below 0.001", "type = \"mirror\""],
+        &["below 0.001", "type = \"conductor\""],
     );
     expect_error(
         "\n[materials.frost]\ntype = \"rough_dielectric\"\nior = 1.5\nalpha = 0\n",

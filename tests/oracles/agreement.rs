@@ -696,6 +696,30 @@ fn agreement_specular() {
     fam.finish();
 }
 
+/// Smooth conductors with complex-index Fresnel (a gold sphere by Mitsuba's name, a tinted
+/// copper mirror by eta and k) and a named rough conductor: the camera sees the light in the
+/// Dirac metals, which light tracing cannot reach (it warns).
+#[test]
+fn agreement_gold() {
+    let mut fam = Family::new("agreement: gold");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("gold", fixture("gold.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+/// Open cylinders (Mitsuba's `cylinder`) as the area light, a flipped tube and a pillar.
+#[test]
+fn agreement_cylinder() {
+    let mut fam = Family::new("agreement: cylinder");
+    check_row(&mut fam, &row("cylinder", fixture("cylinder.toml"), 3));
+    fam.finish();
+}
+
 /// Thin glass panes: light passes a Dirac transmission unbent (thin_dielectric).
 #[test]
 fn agreement_thin() {

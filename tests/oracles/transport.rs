@@ -623,3 +623,117 @@ fn next_event_sees_a_parallel_light_at_grazing_angles() {
     fam.mean_is("irradiance", mean, se, (n - 1) as f64, truth);
     fam.finish();
 }
+
+/// A meter just above a large smooth conductor, facing it, under a uniform sky of radiance 1:
+/// every direction it sees leaves the metal as sky light reflected once with the weight
+/// specular F(cos) of Mitsuba's `conductor`, so E = 2 pi specular int_0^1 F(mu) mu dmu per
+/// channel (the sky is the same in every direction: only the Fresnel term shapes it). Gold by
+/// Mitsuba's name, with a tint; the integral by Simpson's rule on 2000 intervals.
+#[test]
+fn meter_over_a_smooth_conductor_under_a_uniform_sky() {
+    let text = r#"
+[render]
+meter_samples = 16384
+[materials.gold]
+type = "conductor"
+material = "Au"
+specular = [0.9, 0.7, 0.5]
+[[shapes]]
+type = "quad"
+origin = [-1000.0, 0.0, -1000.0]
+u = [0.0, 0.0, 2000.0]
+v = [2000.0, 0.0, 0.0]
+material = "gold"
+[[lights]]
+type = "environment"
+radiance = 1.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [-0.001, 0.01, -0.001]
+u = [0.002, 0.0, 0.0]
+v = [0.0, 0.0, 0.002]
+"#;
+    let m = meters(&load_with(text), 1, 3, None);
+    let (eta, k) = pathspace::bsdf::named_conductor::named_conductor("Au").unwrap();
+    let specular = [0.9, 0.7, 0.5];
+    let mut fam = Family::new("transport: meter over a smooth conductor");
+    for c in 0..3 {
+        let f = |mu: f64| {
+            pathspace::bsdf::conductor::fresnel_complex(mu as f32, eta[c], k[c]) as f64 * mu
+        };
+        let n = 2000;
+        let h = 1.0 / n as f64;
+        let simpson: f64 = (0..=n)
+            .map(|i| {
+                let w = if i == 0 || i == n {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                w * f(i as f64 * h)
+            })
+            .sum::<f64>()
+            * h
+            / 3.0;
+        let truth = std::f64::consts::TAU * specular[c] * simpson;
+        check(&mut fam, "E = 2 pi s int F mu dmu", &m[0], c, truth);
+    }
+    fam.finish();
+}
+
+/// A meter on the axis of an open cylinder of radius R and length 2H that glows with radiance
+/// L inwards (flip_normals), facing the wall: it sees the wall wherever the tangent of the
+/// elevation is below H / R, i.e. |d_z| < s = H / sqrt(R^2 + H^2), and the dark open ends
+/// elsewhere: E = L int_{|d_z| < s, d_x > 0} d_x dw = 2 L (s sqrt(1 - s^2) + asin s). Light
+/// sampling draws the wall's points by area (density 1 / (2 pi R 2H)), the continuation hits
+/// it (both roots: from inside, the far one); a wrong area, root or radius moves E. Without the
+/// flip the meter sees the tube's back, which is black: E = 0.
+#[test]
+fn meter_inside_a_glowing_cylinder_sees_its_wall() {
+    let scene = |flip: bool| {
+        format!(
+            r#"
+[render]
+meter_samples = 65536
+[[shapes]]
+type = "cylinder"
+p0 = [0.0, 0.0, -1.5]
+p1 = [0.0, 0.0, 1.5]
+radius = 1.0
+flip_normals = {flip}
+emission = 2.0
+[[sensors]]
+type = "irradiance_meter"
+name = "M"
+origin = [0.0, -0.001, -0.001]
+u = [0.0, 0.002, 0.0]
+v = [0.0, 0.0, 0.002]
+"#
+        )
+    };
+    let m = meters(&load_with(&scene(true)), 1, 13, None);
+    let (r, h, l) = (1.0f64, 1.5f64, 2.0f64);
+    let s = h / (r * r + h * h).sqrt();
+    let truth = 2.0 * l * (s * (1.0 - s * s).sqrt() + s.asin());
+    let mut fam = Family::new("transport: meter inside a glowing cylinder");
+    check(
+        &mut fam,
+        "E = 2 L (s sqrt(1 - s^2) + asin s)",
+        &m[0],
+        0,
+        truth,
+    );
+    fam.finish();
+    let dark = meters(&load_with(&scene(false)), 1, 13, None);
+    assert_eq!(dark[0].value[0], 0.0, "the tube's back side emits nothing");
+    // its power, pi L A with A = 2 pi R 2H, whichever side emits
+    for flip in [true, false] {
+        let sc = load(&scene(flip));
+        let power = sc.lights[0].power(sc.radius) as f64;
+        let exact = std::f64::consts::PI * l * std::f64::consts::TAU * r * 2.0 * h;
+        assert!((power - exact).abs() <= 1e-5 * exact, "{power} vs {exact}");
+    }
+}

@@ -47,11 +47,6 @@ const COVERED: &[(&str, &str, &str)] = &[
         "every density a walk caches equals its recomputation",
     ),
     (
-        "bsdf::conductor",
-        "spec::bsdf::microfacet",
-        "the rough conductor with the other microfacet models",
-    ),
-    (
         "bsdf::dielectric",
         "spec::bsdf::contract",
         "the contract run over every model",
@@ -65,6 +60,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "bsdf::mirror",
         "spec::bsdf::contract",
         "the contract run over every model",
+    ),
+    (
+        "bsdf::named_conductor",
+        "spec::bsdf::conductor",
+        "the named table against Mitsuba's values, with the conductor it feeds",
     ),
     (
         "bsdf::null",

@@ -657,6 +657,7 @@ fn one_sided_models_are_black_behind_and_two_sided_in_front() {
                 distribution: pathspace::bsdf::Distribution::Ggx,
                 alpha: 0.3,
                 fresnel: ConductorFresnel::Schlick(ALBEDO),
+                specular: Vec3::ONE,
                 one_sided,
             }),
             Bsdf::Plastic(Plastic {
@@ -985,6 +986,7 @@ fn plastic_sample_weights_estimate_its_albedo() {
 }
 
 // The modules of `src/bsdf/` (the layout: tests/repository/index.rs).
+mod conductor;
 mod contract;
 mod microfacet;
 mod rough_plastic;

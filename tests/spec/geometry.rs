@@ -2,13 +2,18 @@
 //! either insertion order, spawned rays do not re-hit their own surface, spheres work from both
 //! sides, disks are hit inside their ellipse only, and a box's faces point outwards. Book: "Scenes and geometry".
 
-use glam::Vec3;
+use crate::common;
+
+use common::assert_close;
+use common::stats::Family;
+use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 use pathspace::geometry::bvh::TIE_EPSILON;
-use pathspace::geometry::shape::{Quad, Sphere, Triangle};
+use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
 use pathspace::geometry::{offset_origin, Bvh, Disk, Primitive, Ray};
+use pathspace::math::warp;
 use pathspace::scene::{Scene, SceneSource};
 
 fn rng(seed: u64) -> Pcg64Mcg {
@@ -37,18 +42,26 @@ fn point(r: &mut Pcg64Mcg, half: f32) -> Vec3 {
     )
 }
 
-/// A soup of `n` primitives in [-10, 10]^3: small and large triangles, quads, disks and spheres.
+/// A soup of `n` primitives in [-10, 10]^3: small and large triangles, quads, disks, spheres
+/// and cylinders (their bounds, hit through the BVH as by brute force).
 fn soup(r: &mut Pcg64Mcg, n: usize) -> Vec<Primitive> {
     let mut prims = Vec::with_capacity(n);
     while prims.len() < n {
         let c = point(r, 10.0);
         let size = if r.random::<f32>() < 0.1 { 5.0 } else { 0.8 };
-        let p = match r.random_range(0..5) {
+        let p = match r.random_range(0..6) {
             0 | 1 => {
                 Triangle::new(c, c + size * unit(r), c + size * unit(r)).map(Primitive::Triangle)
             }
             2 => Quad::new(c, size * unit(r), size * unit(r)).map(Primitive::Quad),
             3 => Disk::new(c, size * unit(r), size * unit(r)).map(Primitive::Disk),
+            4 => Cylinder::new(
+                c,
+                c + size * unit(r),
+                0.05 + 0.3 * size * r.random::<f32>(),
+                false,
+            )
+            .map(Primitive::Cylinder),
             _ => Some(Primitive::Sphere(Sphere {
                 center: c,
                 radius: 0.1 + 0.5 * size * r.random::<f32>(),
@@ -386,6 +399,15 @@ fn opaque_wins_a_coplanar_tie_in_either_order() {
         .into_iter()
         .map(|p| match p {
             // keep the clutter out of the way of the rays (all of it above z = 2)
+            Primitive::Cylinder(c) => Primitive::Cylinder(
+                Cylinder::new(
+                    c.p0 + 25.0 * Vec3::Z,
+                    c.p0 + c.length * c.axis + 25.0 * Vec3::Z,
+                    c.radius,
+                    c.flip,
+                )
+                .unwrap(),
+            ),
             Primitive::Sphere(s) => Primitive::Sphere(Sphere {
                 center: s.center + Vec3::new(0.0, 0.0, 25.0),
                 ..s
@@ -702,4 +724,227 @@ fn an_exact_tie_goes_to_the_lowest_index_in_any_traversal_order() {
         let hit = bvh.intersect(&prims, &opaque, &ray, f32::INFINITY).unwrap();
         assert_eq!(hit.prim, 0, "ray {ray:?}");
     }
+}
+
+// ---- cylinders ----
+
+/// Cylinders of several sizes and directions, outward and flipped.
+fn cylinders() -> Vec<Cylinder> {
+    vec![
+        Cylinder::new(Vec3::ZERO, Vec3::Z, 1.0, false).unwrap(),
+        Cylinder::new(
+            Vec3::new(0.5, -1.0, 2.0),
+            Vec3::new(1.5, 1.0, 1.0),
+            0.3,
+            false,
+        )
+        .unwrap(),
+        Cylinder::new(
+            Vec3::new(-2.0, 0.0, 1.0),
+            Vec3::new(-2.0, 4.0, 1.0),
+            2.5,
+            true,
+        )
+        .unwrap(),
+        Cylinder::new(
+            Vec3::new(3.0, 3.0, -1.0),
+            Vec3::new(-1.0, 2.0, 0.5),
+            0.05,
+            true,
+        )
+        .unwrap(),
+    ]
+}
+
+/// The nearest t in (0, inf) with |q(t) - p0 - (q(t) - p0).a a| = r and 0 <= (q(t) - p0).a <=
+/// L, from the textbook quadratic in f64 on the full 3-D offset (not the code's formulation),
+/// with `None` also when the answer sits within `slack` of an open end or of tangency, where f32
+/// rounding may decide either way.
+fn reference_hit(c: &Cylinder, ray: &Ray) -> Option<Option<f64>> {
+    let (a, p0) = (c.axis.as_dvec3(), c.p0.as_dvec3());
+    let (o, d) = (ray.o.as_dvec3() - p0, ray.d.as_dvec3());
+    let perp = |v: glam::DVec3| v - v.dot(a) * a;
+    let (op, dp) = (perp(o), perp(d));
+    let (qa, qb, qc) = (
+        dp.dot(dp),
+        2.0 * op.dot(dp),
+        op.dot(op) - (c.radius as f64).powi(2),
+    );
+    let disc = qb * qb - 4.0 * qa * qc;
+    let slack = 1e-3;
+    if qa < 1e-9 || disc.abs() < slack * (qb * qb + 4.0 * qa * qc.abs()) {
+        return None;
+    }
+    if disc < 0.0 {
+        return Some(None);
+    }
+    let mut roots = [
+        (-qb - disc.sqrt()) / (2.0 * qa),
+        (-qb + disc.sqrt()) / (2.0 * qa),
+    ];
+    roots.sort_by(f64::total_cmp);
+    for t in roots {
+        let z = o.dot(a) + t * d.dot(a);
+        let len = c.length as f64;
+        if t.abs() < slack || (z.abs() < slack * len) || ((z - len).abs() < slack * len) {
+            return None;
+        }
+        if t > 0.0 && (0.0..=len).contains(&z) {
+            return Some(Some(t));
+        }
+    }
+    Some(None)
+}
+
+/// Every ray (from outside, from inside the tube, through the open ends) hits a cylinder where
+/// the textbook quadratic says, at the nearest root on the tube (the far one when the near
+/// one is behind the origin or beyond an end): the hit lies on the implicit surface (distance
+/// radius from the axis, height in [0, L]) and its normal is the unit radial direction, inwards
+/// when flipped.
+#[test]
+fn cylinder_hits_are_the_nearest_root_on_the_implicit_surface() {
+    let mut r = rng(41);
+    let (mut hits, mut far, mut checked) = (0, 0, 0);
+    for c in cylinders() {
+        let prim = Primitive::Cylinder(c);
+        let centre = c.p0 + 0.5 * c.length * c.axis;
+        for _ in 0..20_000 {
+            // origins around the cylinder, a third of them inside the tube
+            let o = if r.random_range(0.0..1.0) < 0.33 {
+                let (p, _) = prim.sample_area(Vec2::new(r.random(), r.random()));
+                centre + r.random_range(0.0f32..0.95) * (p - centre)
+            } else {
+                centre + (c.length + c.radius) * point(&mut r, 1.5)
+            };
+            let ray = Ray::new(o, unit(&mut r));
+            let Some(expected) = reference_hit(&c, &ray) else {
+                continue;
+            };
+            checked += 1;
+            let got = prim.intersect(&ray, f32::INFINITY);
+            match (expected, got) {
+                (None, None) => {}
+                (Some(t), Some((tg, p, n))) => {
+                    hits += 1;
+                    let rel = p - c.p0;
+                    let z = rel.dot(c.axis);
+                    let radial = rel - z * c.axis;
+                    assert!(
+                        (tg as f64 - t).abs() <= 1e-4 * (1.0 + t),
+                        "t {tg} vs {t} for {ray:?}, {c:?}"
+                    );
+                    assert!(
+                        (radial.length() - c.radius).abs() <= 1e-5 * (1.0 + p.abs().max_element())
+                    );
+                    assert!((-1e-5..=c.length + 1e-5).contains(&z), "height {z}");
+                    let out = radial.normalize();
+                    let want = if c.flip { -out } else { out };
+                    assert!(n.abs_diff_eq(want, 1e-5), "normal {n} vs {want}");
+                    assert!((ray.at(tg) - p).length() <= 1e-4 * (1.0 + tg));
+                    if (o - c.p0 - (o - c.p0).dot(c.axis) * c.axis).length() < c.radius {
+                        far += 1;
+                    }
+                }
+                (e, g) => panic!("expected {e:?}, got {g:?} for {ray:?}, {c:?}"),
+            }
+        }
+    }
+    // the sample covered hits from inside (the far root) and misses
+    assert!(
+        hits > 10_000 && far > 3_000 && checked > 70_000,
+        "{hits} {far} {checked}"
+    );
+}
+
+/// Cauchy-Crofton: isotropic random lines meeting a ball of radius R cross a surface inside
+/// it A / (2 pi R^2) times on average, so counting every crossing (each root) of lines
+/// estimates the area 2 pi r L the light sampler's density 1 / A assumes.
+#[test]
+fn cylinder_area_is_what_random_lines_cross() {
+    let mut fam = Family::new("geometry: cylinder area by Crofton's formula");
+    let mut r = rng(5);
+    for c in cylinders() {
+        let prim = Primitive::Cylinder(c);
+        let centre = c.p0 + 0.5 * c.length * c.axis;
+        let big = 0.5 * c.length + c.radius + 0.01;
+        let n = 200_000u64;
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let d = unit(&mut r);
+            let f = pathspace::math::Frame::from_normal(d);
+            let disk = warp::concentric_disk(Vec2::new(r.random(), r.random())) * big;
+            let o = centre + disk.x * f.s + disk.y * f.t - 2.0 * big * d;
+            let ray = Ray::new(o, d);
+            let mut count = 0.0;
+            let mut t_min = 0.0;
+            while let Some((t, _, _)) = prim.intersect_range(&ray, t_min, f32::INFINITY) {
+                count += 1.0;
+                t_min = t * (1.0 + 1e-6);
+            }
+            sum += count;
+            sum2 += count * count;
+        }
+        let mean = sum / n as f64;
+        let var = sum2 / n as f64 - mean * mean;
+        let scale = 2.0 * std::f64::consts::PI * (big as f64).powi(2);
+        fam.samples_are(
+            &format!("area of {c:?}"),
+            mean * scale,
+            var * scale * scale,
+            n,
+            prim.area() as f64,
+        );
+        let closed = std::f64::consts::TAU * c.radius as f64 * c.length as f64;
+        assert_close("area", prim.area() as f64, closed, 1e-6);
+    }
+    fam.finish();
+}
+
+/// Area sampling: every point lies on the tube with its radial normal (inwards when flipped),
+/// inside the bounds; height and angle are uniform (the unrolled tube is a rectangle, so the
+/// density 1 / A is uniform); `sample_area_inverse` gives back the sample.
+#[test]
+fn cylinder_samples_are_uniform_on_the_tube() {
+    let mut fam = Family::new("geometry: cylinder area sampling");
+    let mut r = rng(9);
+    for c in cylinders() {
+        let prim = Primitive::Cylinder(c);
+        let bounds = prim.bounds();
+        let (mut heights, mut angles) = (Vec::new(), Vec::new());
+        for _ in 0..20_000 {
+            let u = Vec2::new(r.random(), r.random());
+            let (p, n) = prim.sample_area(u);
+            let rel = p - c.p0;
+            let z = rel.dot(c.axis);
+            let radial = rel - z * c.axis;
+            assert!((radial.length() - c.radius).abs() <= 1e-5 * (1.0 + p.abs().max_element()));
+            let want = if c.flip {
+                -radial.normalize()
+            } else {
+                radial.normalize()
+            };
+            // the normal from the position carries its rounding over the radius
+            let tol = 1e-5 * (1.0 + p.abs().max_element() / c.radius);
+            assert!(n.abs_diff_eq(want, tol), "{n} vs {want}");
+            assert!(
+                (p.cmpge(bounds.min - 1e-5).all() && p.cmple(bounds.max + 1e-5).all()),
+                "{p} outside {bounds:?}"
+            );
+            let back = prim.sample_area_inverse(p);
+            assert!(
+                (back - u).abs().max_element() < 1e-4 || (back.y - u.y).abs() > 0.999,
+                "{u} -> {back}"
+            );
+            heights.push((z / c.length) as f64);
+            let uv = c.uv(p);
+            angles.push(uv.x as f64);
+        }
+        fam.ks(&format!("height of {c:?}"), &mut heights, |x| {
+            x.clamp(0.0, 1.0)
+        });
+        fam.ks(&format!("angle of {c:?}"), &mut angles, |x| {
+            x.clamp(0.0, 1.0)
+        });
+    }
+    fam.finish();
 }

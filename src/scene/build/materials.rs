@@ -4,13 +4,15 @@ use std::collections::BTreeMap;
 
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
+use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
 use crate::bsdf::plastic::default_eta;
 use crate::bsdf::{
-    Bsdf, ConductorFresnel, Dielectric, Distribution, Lambert, Microfacet, Mirror, Null, Plastic,
-    RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
+    Bsdf, Conductor, ConductorFresnel, Dielectric, Distribution, Lambert, Microfacet, Mirror, Null,
+    Plastic, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
 };
 use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
+use crate::spectrum::Rgb;
 
 /// Every material of the file by name, with the built-in `null` (the index-matched boundary of
 /// a medium).
@@ -61,17 +63,36 @@ pub(super) fn materials(
                 }
                 Bsdf::ThinDielectric(ThinDielectric { ior: *ior })
             }
+            MaterialDesc::Conductor {
+                material,
+                eta,
+                k,
+                specular,
+                one_sided,
+            } => {
+                let index = complex_index(src, &key, material.as_deref(), *eta, *k)?;
+                let (eta, k) = index.unwrap_or((Rgb::ZERO, Rgb::ONE));
+                Bsdf::Conductor(Conductor {
+                    eta,
+                    k,
+                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    one_sided: *one_sided,
+                })
+            }
             MaterialDesc::RoughConductor {
                 alpha,
                 distribution,
                 reflectance,
+                material,
                 eta,
                 k,
+                specular,
                 one_sided,
             } => Bsdf::RoughConductor(RoughConductor {
                 distribution: distribution_of(*distribution),
-                alpha: roughness(src, &key, *alpha, "mirror")?,
-                fresnel: conductor_fresnel(src, &key, *reflectance, *eta, *k)?,
+                alpha: roughness(src, &key, *alpha, "conductor")?,
+                fresnel: conductor_fresnel(src, &key, *reflectance, material.as_deref(), *eta, *k)?,
+                specular: albedo(src, &key.clone().key("specular"), *specular)?,
                 one_sided: *one_sided,
             }),
             MaterialDesc::RoughDielectric {
@@ -207,38 +228,90 @@ fn plastic_ior(src: &SceneSource, key: &KeyPath, ior: Option<f32>) -> Result<f32
     Ok(ior)
 }
 
-/// Schlick's Fresnel about `reflectance` (default 1), or the complex index `eta` + i `k`
-/// (both needed), never both.
+/// Schlick's Fresnel about `reflectance` (default 1), or a complex index (`material` or `eta`
+/// and `k`, [`complex_index`]), never both.
 fn conductor_fresnel(
     src: &SceneSource,
     key: &KeyPath,
     reflectance: Option<RgbValue>,
+    material: Option<&str>,
     eta: Option<RgbValue>,
     k: Option<RgbValue>,
 ) -> Result<ConductorFresnel, SceneError> {
-    match (reflectance, eta, k) {
-        (r, None, None) => Ok(ConductorFresnel::Schlick(albedo(
+    let index = complex_index(src, key, material, eta, k)?;
+    match (reflectance, index) {
+        (r, None) => Ok(ConductorFresnel::Schlick(albedo(
             src,
             &key.clone().key("reflectance"),
             r.unwrap_or(RgbValue::Scalar(1.0)),
         )?)),
-        (Some(_), _, _) => Err(src.error(
-            &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
-            "give either `reflectance` (Schlick's Fresnel) or `eta` and `k` (a complex index), \
-             not both",
+        (Some(_), Some(_)) => Err(src.error(
+            &key.clone().key(match (material, eta) {
+                (Some(_), _) => "material",
+                (_, Some(_)) => "eta",
+                _ => "k",
+            }),
+            "give either `reflectance` (Schlick's Fresnel) or a complex index (`material`, or \
+             `eta` and `k`), not both",
         )),
-        (None, Some(eta), Some(k)) => {
-            let eta_key = key.clone().key("eta");
-            let e = non_negative(src, &eta_key, eta, "eta")?;
-            if e.min_element() <= 0.0 {
-                return Err(src.error(&eta_key, format!("eta = {eta} must be positive")));
-            }
-            let k = non_negative(src, &key.clone().key("k"), k, "k")?;
-            Ok(ConductorFresnel::Complex { eta: e, k })
-        }
-        (None, eta, _) => Err(src.error(
-            &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
-            "a complex index needs both `eta` and `k`",
-        )),
+        (None, Some((eta, k))) => Ok(ConductorFresnel::Complex { eta, k }),
     }
+}
+
+/// A conductor's complex index eta + i k per channel: one of Mitsuba 3's named conductors
+/// (`material`; `none` is no index), or `eta` and `k` (both needed, >= 0, not both 0 in a
+/// channel, where the Fresnel term is 0 / 0); `None` when none is given.
+fn complex_index(
+    src: &SceneSource,
+    key: &KeyPath,
+    material: Option<&str>,
+    eta: Option<RgbValue>,
+    k: Option<RgbValue>,
+) -> Result<Option<(Rgb, Rgb)>, SceneError> {
+    let index = match (material, eta, k) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+            return Err(src.error(
+                &key.clone().key("material"),
+                "give either `material` or `eta` and `k`, not both",
+            ))
+        }
+        (Some("none"), None, None) | (None, None, None) => return Ok(None),
+        (Some(name), None, None) => named_conductor(name).ok_or_else(|| {
+            let names: Vec<&str> = NAMED_CONDUCTORS.iter().map(|c| c.0).collect();
+            src.error(
+                &key.clone().key("material"),
+                format!(
+                    "material = \"{name}\" is not one of Mitsuba 3's named conductors ({}, none)",
+                    names.join(", ")
+                ),
+            )
+        })?,
+        (None, Some(eta), Some(k)) => (
+            non_negative(src, &key.clone().key("eta"), eta, "eta")?,
+            non_negative(src, &key.clone().key("k"), k, "k")?,
+        ),
+        (None, eta, _) => {
+            return Err(src.error(
+                &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
+                "a complex index needs both `eta` and `k`",
+            ))
+        }
+    };
+    let (e, kk) = index;
+    if (0..3).any(|c| e[c] == 0.0 && kk[c] == 0.0) {
+        let at = if material.is_some() {
+            "material"
+        } else {
+            "eta"
+        };
+        return Err(src.error(
+            &key.clone().key(at),
+            format!(
+                "eta {} and k {} are both 0 in a channel: the Fresnel term is undefined there",
+                crate::spectrum::show(e),
+                crate::spectrum::show(kk)
+            ),
+        ));
+    }
+    Ok(Some(index))
 }

@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, HashMap};
 use super::media::Media;
 use super::values::{finite3, non_negative};
 use crate::bsdf::Bsdf;
-use crate::geometry::shape::{Disk, Quad, Sphere, Triangle};
+use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
 use crate::math::Distribution1D;
 use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
@@ -287,6 +287,30 @@ fn primitives(
                 )
             })?;
             new.push(Primitive::Disk(d));
+            closed = false;
+        }
+        ShapeDesc::Cylinder {
+            p0,
+            p1,
+            radius,
+            flip_normals,
+            ..
+        } => {
+            let a = finite3(src, &key.clone().key("p0"), *p0)?;
+            let b = finite3(src, &key.clone().key("p1"), *p1)?;
+            if !(radius.is_finite() && *radius > 0.0) {
+                return Err(src.error(
+                    &key.clone().key("radius"),
+                    format!("radius = {radius} must be positive"),
+                ));
+            }
+            let c = Cylinder::new(a, b, *radius, *flip_normals).ok_or_else(|| {
+                src.error(
+                    &key.clone().key("p1"),
+                    "p1 equals p0: the cylinder has no length",
+                )
+            })?;
+            new.push(Primitive::Cylinder(c));
             closed = false;
         }
         ShapeDesc::Mesh { obj, to_world, .. } => {

@@ -25,8 +25,9 @@ use common::stats::{student_two_sided, Family, ZERO_VARIANCE_ALLOWANCE};
 use common::*;
 use glam::Vec3;
 use pathspace::bsdf::{
-    plastic, Bsdf, ConductorFresnel, Dielectric, Distribution, Lambert, Lobe, Microfacet, Mirror,
-    Null, Plastic, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric, TransportMode,
+    plastic, Bsdf, Conductor, ConductorFresnel, Dielectric, Distribution, Lambert, Lobe,
+    Microfacet, Mirror, Null, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
+    ThinDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
@@ -49,6 +50,24 @@ fn models() -> Vec<(&'static str, Bsdf)> {
         ("lambert one-sided", Bsdf::Lambert(lambert(true))),
         ("mirror", Bsdf::Mirror(mirror(false))),
         ("mirror one-sided", Bsdf::Mirror(mirror(true))),
+        (
+            "conductor",
+            Bsdf::Conductor(Conductor {
+                eta: Vec3::new(0.2, 0.9, 1.1),
+                k: Vec3::new(3.9, 2.4, 2.1),
+                specular: Vec3::ONE,
+                one_sided: false,
+            }),
+        ),
+        (
+            "conductor tinted one-sided",
+            Bsdf::Conductor(Conductor {
+                eta: Vec3::new(1.5, 0.4, 0.0),
+                k: Vec3::new(0.0, 1.0, 3.0),
+                specular: ALBEDO,
+                one_sided: true,
+            }),
+        ),
         ("dielectric 1.5", Bsdf::Dielectric(Dielectric { ior: 1.5 })),
         (
             "dielectric 0.75",
@@ -64,6 +83,7 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 distribution: Distribution::Ggx,
                 alpha: 0.3,
                 fresnel: complex,
+                specular: Vec3::ONE,
                 one_sided: false,
             }),
         ),
@@ -73,6 +93,7 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 distribution: Distribution::Beckmann,
                 alpha: 0.4,
                 fresnel: ConductorFresnel::Schlick(Rgb::ONE),
+                specular: Vec3::ONE,
                 one_sided: true,
             }),
         ),
@@ -141,6 +162,7 @@ fn eta_of(bsdf: &Bsdf, w: Vec3, n: Vec3) -> f64 {
         Bsdf::ThinDielectric(_) => 1.0,
         Bsdf::Lambert(_)
         | Bsdf::Mirror(_)
+        | Bsdf::Conductor(_)
         | Bsdf::RoughConductor(_)
         | Bsdf::Plastic(_)
         | Bsdf::RoughPlastic(_)

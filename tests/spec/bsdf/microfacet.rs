@@ -38,6 +38,7 @@ fn conductor(distribution: Distribution, alpha: f32) -> Bsdf {
         distribution,
         alpha,
         fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+        specular: Vec3::ONE,
         one_sided: false,
     })
 }
@@ -399,6 +400,7 @@ fn rough_conductor_is_reciprocal() {
                 eta: Vec3::new(0.2, 0.9, 1.1),
                 k: Vec3::new(3.9, 2.4, 2.1),
             },
+            specular: Vec3::ONE,
             one_sided: false,
         });
         let mut nonzero = 0;
@@ -589,6 +591,7 @@ fn small_alpha_conductor_is_the_mirror() {
             distribution: dist,
             alpha: ALPHA_SMALL,
             fresnel: ConductorFresnel::Schlick(r0),
+            specular: Vec3::ONE,
             one_sided: false,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 2.0);

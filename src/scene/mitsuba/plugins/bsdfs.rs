@@ -1,12 +1,13 @@
 //! The BSDFs: `diffuse`, `conductor`, `roughconductor`, `dielectric`, `roughdielectric`,
 //! `thindielectric`, `plastic`, `roughplastic`, `twosided` and `null`, with Mitsuba's named
-//! indices of refraction.
+//! indices of refraction and conductors.
 
 use glam::DVec3;
 use roxmltree::Node;
 
 use super::{rgb, show, Importer, Props};
-use crate::scene::file::{DistributionDesc, MaterialDesc};
+use crate::bsdf::named_conductor::named_conductor;
+use crate::scene::file::{DistributionDesc, MaterialDesc, RgbValue};
 use crate::scene::SceneError;
 
 /// Mitsuba's named indices of refraction (the whole table of its `ior.h`).
@@ -132,10 +133,12 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
             ))
         }
         "conductor" => {
-            let r = no_named_conductor(p)?;
+            let (index, how) = conductor_index(p)?;
+            let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+            let (material, eta, k) = index;
             Ok((
-                MaterialDesc::Mirror { reflectance: rgb(r), one_sided },
-                format!("mirror, reflectance {}{side}", show(r)),
+                MaterialDesc::Conductor { material, eta, k, specular: rgb(s), one_sided },
+                format!("conductor, {how}, specular {}{side}", show(s)),
             ))
         }
         "roughconductor" => rough_conductor(p, one_sided, side),
@@ -149,38 +152,67 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
     }
 }
 
-/// `roughconductor`: GGX with a complex index (`eta`, `k`) or Mitsuba's `none` (a Fresnel term
-/// of 1, exactly pathspace's reflectance 1).
+/// `roughconductor`: Beckmann or GGX with the complex index of [`conductor_index`] and
+/// `specular_reflectance` (1) scaling the Fresnel term, as Mitsuba's.
 fn rough_conductor(
     p: &mut Props,
     one_sided: bool,
     side: &str,
 ) -> Result<(MaterialDesc, String), SceneError> {
     let (distribution, alpha) = microfacet(p)?;
-    let eta = p.color("eta")?;
-    let k = p.color("k")?;
-    let r = no_named_conductor(p)?;
-    let (eta, k, how) = match (eta, k) {
-        (Some(e), Some(k)) if r == DVec3::ONE => (Some(rgb(e)), Some(rgb(k)), format!("eta {}, k {}", show(e), show(k))),
-        (None, None) if r == DVec3::ONE => (None, None, "reflectance 1 (material none)".into()),
-        (None, None) => return Err(p.err("specular_reflectance other than 1 with material none: Mitsuba scales a Fresnel term of 1, pathspace's `reflectance` is Schlick's F0; give eta and k instead")),
-        (Some(_), Some(_)) => return Err(p.err("specular_reflectance other than 1 with eta and k is not supported")),
-        _ => return Err(p.err("give both eta and k")),
-    };
+    let ((material, eta, k), how) = conductor_index(p)?;
+    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
     Ok((
         MaterialDesc::RoughConductor {
             alpha: alpha as f32,
             distribution,
             reflectance: None,
+            material,
             eta,
             k,
+            specular: rgb(s),
             one_sided,
         },
         format!(
-            "rough conductor ({}), alpha {alpha}, {how}{side}",
-            dist_name(distribution)
+            "rough conductor ({}), alpha {alpha}, {how}, specular {}{side}",
+            dist_name(distribution),
+            show(s)
         ),
     ))
+}
+
+/// A conductor's index as Mitsuba 3 reads it (plugins `conductor`, `roughconductor`):
+/// `material` (default `none`) names tabulated spectra, turned into RGB as its RGB variants do
+/// (`bsdf::named_conductor`); with `none`, `eta` (default 0) and `k` (default 1), so that no
+/// index at all is a Fresnel term of 1. A name with `eta` is Mitsuba's error, with `k` alone
+/// an ambiguity it ignores: both refused.
+#[allow(clippy::type_complexity)]
+fn conductor_index(
+    p: &mut Props,
+) -> Result<((Option<String>, Option<RgbValue>, Option<RgbValue>), String), SceneError> {
+    let material = p.string("material")?.unwrap_or_else(|| "none".into());
+    let (eta, k) = (p.color("eta")?, p.color("k")?);
+    if material != "none" {
+        if eta.is_some() || k.is_some() {
+            return Err(p.err(format!(
+                "material = \"{material}\" with eta or k: give either the material or eta and k"
+            )));
+        }
+        if named_conductor(&material).is_none() {
+            return Err(p.err(format!(
+                "material = \"{material}\" is not one of Mitsuba 3's named conductors"
+            )));
+        }
+        let how = format!("material {material}");
+        return Ok(((Some(material), None, None), how));
+    }
+    if eta.is_none() && k.is_none() {
+        // pathspace's default index is Mitsuba's (eta 0, k 1: a Fresnel term of 1)
+        return Ok(((None, None, None), "reflectance 1 (material none)".into()));
+    }
+    let (e, k) = (eta.unwrap_or(DVec3::ZERO), k.unwrap_or(DVec3::ONE));
+    let how = format!("eta {}, k {}", show(e), show(k));
+    Ok(((None, Some(rgb(e)), Some(rgb(k))), how))
 }
 
 /// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`.
@@ -256,21 +288,6 @@ fn plastic(
             if nonlinear { ", nonlinear" } else { "" }
         ),
     ))
-}
-
-/// A conductor's `material` must be `none` (no tabulated spectra); its reflectance.
-fn no_named_conductor(p: &mut Props) -> Result<DVec3, SceneError> {
-    if let Some(m) = p.string("material")? {
-        if m != "none" {
-            return Err(p.err(format!(
-                "material = \"{m}\": tabulated conductor spectra are not imported; give eta and k as <rgb>"
-            )));
-        }
-    }
-    if p.plugin == "conductor" && (p.color("eta")?.is_some() || p.color("k")?.is_some()) {
-        return Err(p.err("a smooth conductor with eta and k is not supported: pathspace's mirror has a constant reflectance"));
-    }
-    Ok(p.color("specular_reflectance")?.unwrap_or(DVec3::ONE))
 }
 
 /// An index of refraction given as a number or one of Mitsuba's names.

@@ -1,4 +1,4 @@
-//! The shapes `rectangle`, `disk`, `cube`, `sphere`, `obj` and `ply`, with their media, BSDF
+//! The shapes `rectangle`, `disk`, `cube`, `sphere`, `cylinder`, `obj` and `ply`, with their media, BSDF
 //! and area emitter, and the default material of a shape without either.
 
 use glam::{DMat3, DMat4, DVec3};
@@ -27,8 +27,8 @@ impl<'a, 'd> Importer<'a, 'd> {
         let mut p = Props::new(self.doc, node)?;
         let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         let flip = p.boolean("flip_normals")? == Some(true);
-        if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk") {
-            return Err(p.err("flip_normals is supported on rectangles and disks only"));
+        if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk" | "cylinder") {
+            return Err(p.err("flip_normals is supported on rectangles, disks and cylinders only"));
         }
         let [interior, exterior] = self.shape_media(&mut p)?;
         let bsdf = p.object("bsdf", None)?;
@@ -133,13 +133,9 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         "cube" => cube(p, m),
         "sphere" => sphere(p, m),
         "obj" | "ply" => mesh(p, m),
-        "cylinder" => Err(p.err(
-            "the shape `cylinder` is not imported: pathspace has no analytic cylinder, and a \
-             triangulated one is another surface (convert it to an obj or ply mesh if that \
-             approximation is wanted)",
-        )),
+        "cylinder" => cylinder(p, m, flip),
         k => Err(p.err(format!(
-            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, obj, ply are)"
+            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, cylinder, obj, ply are)"
         ))),
     }
 }
@@ -246,6 +242,55 @@ fn sphere(p: &mut Props, m: &DMat4) -> Geometry {
     ))
 }
 
+/// `cylinder`: `p0` (0,0,0), `p1` (0,0,1), `radius` (1) under `to_world`, which must map the
+/// circle about the axis to a circle (a uniform scale across the axis, any scale along it, no
+/// shear): Mitsuba warns and keeps only a part of other maps.
+fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
+    let a = p.point("p0")?.unwrap_or(DVec3::ZERO);
+    let b = p.point("p1")?.unwrap_or(DVec3::Z);
+    let r = p.float("radius")?.unwrap_or(1.0);
+    let d = b - a;
+    if !(r > 0.0 && d.length() > 0.0) {
+        return Err(p.err("a cylinder needs a positive radius and p1 apart from p0"));
+    }
+    let l = linear(m);
+    let e0 = d.normalize().any_orthonormal_vector();
+    let e1 = d.normalize().cross(e0);
+    let (c0, c1, c2) = (l * e0, l * e1, l * d);
+    let s2 = c0.length_squared();
+    let tol = 1e-6 * s2;
+    let round = (c1.length_squared() - s2).abs() <= tol
+        && c0.dot(c1).abs() <= tol
+        && c2.dot(c0).abs() <= 1e-6 * (s2 * c2.length_squared()).sqrt()
+        && c2.dot(c1).abs() <= 1e-6 * (s2 * c2.length_squared()).sqrt();
+    if !round {
+        return Err(p.err(
+            "a cylinder's to_world must keep it round: a uniform scale across its axis, no shear",
+        ));
+    }
+    let (a, b, r) = (m.transform_point3(a), m.transform_point3(b), r * s2.sqrt());
+    let how = format!(
+        "cylinder from {} to {}, radius {r}, open ends, normals {}",
+        show(a),
+        show(b),
+        if flip { "inwards" } else { "outwards" }
+    );
+    let (material, emission, interior, exterior) = (None, None, None, None);
+    Ok((
+        ShapeDesc::Cylinder {
+            p0: f3(a),
+            p1: f3(b),
+            radius: r as f32,
+            flip_normals: flip,
+            material,
+            emission,
+            interior,
+            exterior,
+        },
+        how,
+    ))
+}
+
 /// `obj` and `ply`: the file under `to_world`, with face normals only.
 fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
     let obj = p
@@ -304,6 +349,13 @@ fn with_common(
             ..
         }
         | ShapeDesc::Disk {
+            material: m,
+            emission: e,
+            interior: i,
+            exterior: x,
+            ..
+        }
+        | ShapeDesc::Cylinder {
             material: m,
             emission: e,
             interior: i,
