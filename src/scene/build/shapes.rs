@@ -146,7 +146,7 @@ pub(super) fn shapes(
         if corners.is_some() && common.emission.is_some() {
             return Err(src.error(
                 &key.clone().key("smooth_normals"),
-                "an emitting mesh is shaded by its face normals only: remove smooth_normals (or emission)",
+                "an emitting mesh is shaded by its face normals only: remove smooth_normals (in Mitsuba XML: add <boolean name=\"face_normals\" value=\"true\"/>)",
             ));
         }
         if common.interior.is_some() && !closed {
