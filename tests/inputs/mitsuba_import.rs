@@ -623,7 +623,7 @@ fn the_fog_box_in_xml_renders_like_the_toml() {
 #[test]
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
-    let cases: [(&str, &str); 14] = [
+    let cases: [(&str, &str); 13] = [
         (r#"<shape type="cylinder"/>"#, "the shape `cylinder`"),
         (
             r#"<shape type="rectangle"><bsdf type="blendbsdf"/></shape>"#,
