@@ -248,7 +248,7 @@ fn primitives(
     key: &KeyPath,
     s: &ShapeDesc,
     common: &ShapeCommon,
-) -> Result<(Vec<Primitive>, bool, Option<Vec<[Vec3; 3]>>), SceneError> {
+) -> Result<(Vec<Primitive>, bool, Corners), SceneError> {
     let mut new: Vec<Primitive> = Vec::new();
     let mut closed = true;
     match s {
@@ -472,5 +472,8 @@ fn mesh(
     Ok((tris, closed, smooth.then_some(corners)))
 }
 
+/// A smooth mesh's normals at the corners of each triangle (`None`: flat).
+type Corners = Option<Vec<[Vec3; 3]>>;
+
 /// A mesh's triangles, whether it is closed, and its corner normals when smooth.
-type MeshTriangles = (Vec<Triangle>, bool, Option<Vec<[Vec3; 3]>>);
+type MeshTriangles = (Vec<Triangle>, bool, Corners);
