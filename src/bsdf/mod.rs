@@ -97,6 +97,48 @@ impl BsdfSample {
     }
 }
 
+// ANCHOR: normals
+/// The two normals of a surface point: the geometric `ng` (the shape's: cosines of the
+/// geometry term, sides, media, ray offsets) and the shading `ns` (the frame the model is
+/// evaluated in: interpolated on smooth meshes, `ng` everywhere else).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Normals {
+    pub ng: Vec3,
+    pub ns: Vec3,
+}
+
+impl Normals {
+    /// A point shaded by its geometric normal.
+    #[inline]
+    pub fn flat(n: Vec3) -> Self {
+        Normals { ng: n, ns: n }
+    }
+
+    /// The factor that turns f_s evaluated in the shading frame into the BSDF of the
+    /// geometric measure both transport directions share (Veach 1997, sec. 5.3):
+    /// `|w_l . ns| / |w_l . ng|` for the direction `w_l` light arrives from (`wi` in radiance
+    /// mode, `wo` in importance mode), so that with the cosine `|w_e . ng|` of the other
+    /// direction, which the path's geometry term carries, radiance sees `f |wi . ns|` and
+    /// importance `f |wo . ns| |wi . ng| / |wo . ng|`, Veach's adjoint (eq. 5.19). Zero when
+    /// either direction lies on one side of `ng` and the other of `ns` (Mitsuba 3's particle
+    /// tracer refuses these as light leaks; here every mode does).
+    // ANCHOR: shading_correction
+    #[inline]
+    pub fn correction(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> f32 {
+        let (o_g, o_s) = (wo.dot(self.ng), wo.dot(self.ns));
+        let (i_g, i_s) = (wi.dot(self.ng), wi.dot(self.ns));
+        if o_g * o_s <= 0.0 || i_g * i_s <= 0.0 {
+            return 0.0;
+        }
+        match mode {
+            TransportMode::Radiance => (i_s / i_g).abs(),
+            TransportMode::Importance => (o_s / o_g).abs(),
+        }
+    }
+    // ANCHOR_END: shading_correction
+}
+// ANCHOR_END: normals
+
 /// The closed set of surface models, one struct per model (each in its own file, each a
 /// [`BsdfModel`]). Adding a model is its file, its variant here (and in `dispatch!`'s one
 /// match), and its scene key (`scene::file::MaterialDesc`, built in `scene::build::materials`);
@@ -283,6 +325,48 @@ impl Bsdf {
     /// What `pathspace info` says of the model.
     pub fn describe(&self) -> String {
         dispatch!(self, m => m.describe())
+    }
+
+    /// f_s(wo, wi) at a point with normals `nn`: evaluated in the shading frame, times
+    /// [`Normals::correction`] (the plain [`Bsdf::eval`] where `ns` is `ng`), so that with the
+    /// geometric cosine of the outgoing side it is the same path contribution in both modes.
+    pub fn eval_shaded(&self, wo: Vec3, wi: Vec3, nn: Normals, mode: TransportMode) -> Rgb {
+        if nn.ns == nn.ng {
+            return self.eval(wo, wi, nn.ng, mode);
+        }
+        let c = nn.correction(wo, wi, mode);
+        if c == 0.0 {
+            return Rgb::ZERO;
+        }
+        self.eval(wo, wi, nn.ns, mode) * c
+    }
+
+    /// The density of [`Bsdf::sample_shaded`]: the model's own, in the shading frame.
+    #[inline]
+    pub fn pdf_shaded(&self, wo: Vec3, wi: Vec3, nn: Normals) -> f32 {
+        self.pdf(wo, wi, nn.ns)
+    }
+
+    /// Samples `wi` in the shading frame, its value times [`Normals::correction`], so that
+    /// `value |wi . ng| / pdf` ([`BsdfSample::weight`] with `ng`) is the path weight; `None`
+    /// where the correction vanishes (a leak across the two normals).
+    pub fn sample_shaded(
+        &self,
+        wo: Vec3,
+        nn: Normals,
+        u: Vec2,
+        uc: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        let mut s = self.sample(wo, nn.ns, u, uc, mode)?;
+        if nn.ns != nn.ng {
+            let c = nn.correction(wo, s.wi, mode);
+            if c == 0.0 {
+                return None;
+            }
+            s.value *= c;
+        }
+        Some(s)
     }
 
     /// Samples `wi` given `wo`. `None` when no direction can be produced.

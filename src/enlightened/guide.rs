@@ -565,9 +565,10 @@ pub fn guided_fresnel(
         return None;
     }
     // uc = 0 always reflects, uc -> 1 transmits unless the light is totally reflected
-    let r = bsdf.sample(wo, v.n, Vec2::ZERO, 0.0, mode)?;
+    // in the shading frame; the chosen sample's value gets its correction afterwards
+    let r = bsdf.sample(wo, v.ns, Vec2::ZERO, 0.0, mode)?;
     let t = bsdf
-        .sample(wo, v.n, Vec2::ZERO, ONE_MINUS_EPSILON, mode)
+        .sample(wo, v.ns, Vec2::ZERO, ONE_MINUS_EPSILON, mode)
         .filter(|t| t.lobe == Lobe::SingularTransmission);
     let Some(t) = t else {
         return Some((1.0, r, None));
@@ -611,9 +612,18 @@ pub fn sample_scatter_with(
                     Some(t) if uc >= p_r => (t, 1.0 - p_r),
                     _ => (r, p_r),
                 };
+                let nn = v.normals();
+                let c = if nn.ns == nn.ng {
+                    1.0
+                } else {
+                    nn.correction(wo, bs.wi, mode)
+                };
+                if c == 0.0 {
+                    return None;
+                }
                 return Some(ScatterSample {
                     wi: bs.wi,
-                    value: bs.value,
+                    value: bs.value * c,
                     pdf,
                     lobe: bs.lobe,
                     lhat: None,
@@ -621,18 +631,18 @@ pub fn sample_scatter_with(
             }
             let Some((c, map, level)) = guided else {
                 return bsdf
-                    .sample(wo, v.n, u, uc, mode)
+                    .sample_shaded(wo, v.normals(), u, uc, mode)
                     .map(ScatterSample::from_bsdf);
             };
             let wi = if sampler.next_f32() < c {
                 map.sample(u)?.0
             } else {
-                bsdf.sample(wo, v.n, u, uc, mode)?.wi
+                bsdf.sample(wo, v.ns, u, uc, mode)?.wi
             };
-            let pdf = mixture(c, bsdf.pdf(wo, wi, v.n), map, wi);
+            let pdf = mixture(c, bsdf.pdf_shaded(wo, wi, v.normals()), map, wi);
             Some(ScatterSample {
                 wi,
-                value: bsdf.eval(wo, wi, v.n, mode),
+                value: bsdf.eval_shaded(wo, wi, v.normals(), mode),
                 pdf,
                 lobe: Lobe::Regular,
                 lhat: Some(level * map.relative(wi)),

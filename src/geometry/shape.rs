@@ -94,6 +94,35 @@ impl Triangle {
     }
 }
 
+impl Triangle {
+    /// The barycentric coordinates (b1, b2) of a point `p` of the triangle's plane:
+    /// `p = p0 + b1 e1 + b2 e2`.
+    pub fn barycentric(&self, p: Vec3) -> (f32, f32) {
+        let r = p - self.p0;
+        let (d11, d12, d22) = (
+            self.e1.dot(self.e1),
+            self.e1.dot(self.e2),
+            self.e2.dot(self.e2),
+        );
+        let (r1, r2) = (r.dot(self.e1), r.dot(self.e2));
+        let det = d11 * d22 - d12 * d12;
+        ((d22 * r1 - d12 * r2) / det, (d11 * r2 - d12 * r1) / det)
+    }
+
+    /// The shading normal at `p` from the corner normals `n`: `n0 + b1 (n1 - n0) + b2 (n2 -
+    /// n0)` normalized, as Mitsuba 3's meshes interpolate it; the geometric normal where that
+    /// vanishes.
+    pub fn shading_normal(&self, n: &[Vec3; 3], p: Vec3) -> Vec3 {
+        let (b1, b2) = self.barycentric(p);
+        let s = (n[0] + b1 * (n[1] - n[0]) + b2 * (n[2] - n[0])).normalize_or_zero();
+        if s != Vec3::ZERO && s.is_finite() {
+            s
+        } else {
+            self.n
+        }
+    }
+}
+
 /// An elliptic disk `center + a u + b v`, a^2 + b^2 <= 1 (Mitsuba's unit `disk` under an affine
 /// map: `u`, `v` are the images of its x and y axes); geometric normal `normalize(u x v)`.
 #[derive(Clone, Copy, Debug)]

@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use crate::bsdf::TransportMode;
+use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::distance::RayMedia;
@@ -404,12 +404,16 @@ impl PathTracer {
         }
         w.depth += 1;
         let wo = -w.ray.d;
+        let nn = Normals {
+            ng: n,
+            ns: scene.shading_normal(hit),
+        };
         // the regular lobe's light by next-event estimation; a Dirac lobe's only by sampling
         if bsdf.has_regular_lobe() {
             let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
             let scatter = |wi: Vec3| {
-                let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
-                (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+                let f = bsdf.eval_shaded(wo, wi, nn, TransportMode::Radiance);
+                (f * wi.dot(n).abs(), bsdf.pdf_shaded(wo, wi, nn))
             };
             let (sel, no_weight) = (&self.selection, |_: usize, _: &_| 1.0);
             *l += w.beta
@@ -428,7 +432,7 @@ impl PathTracer {
         }
         let u = sampler.next_2d();
         let uc = sampler.next_f32();
-        let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+        let Some(bs) = bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance) else {
             return false;
         };
         if bs.pdf <= 0.0 {

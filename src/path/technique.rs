@@ -218,7 +218,7 @@ pub static PLAIN: Plain = Plain;
 #[inline]
 pub fn local_scatter_pdf(scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3) -> Option<f32> {
     match v.kind {
-        VertexKind::Surface { .. } => v.bsdf(scene).map(|b| b.pdf(wo, wi, v.n)),
+        VertexKind::Surface { .. } => v.bsdf(scene).map(|b| b.pdf_shaded(wo, wi, v.normals())),
         VertexKind::Medium { medium } => Some(scene.media[medium as usize].phase().pdf(wo, wi)),
         _ => None,
     }
@@ -273,7 +273,7 @@ impl LocalSampling for Plain {
             VertexKind::Surface { .. } => {
                 let uc = sampler.next_f32();
                 let bsdf = v.bsdf(scene)?;
-                bsdf.sample(wo, v.n, u, uc, mode)
+                bsdf.sample_shaded(wo, v.normals(), u, uc, mode)
                     .map(ScatterSample::from_bsdf)
             }
             VertexKind::Medium { medium } => Some(ScatterSample::from_phase(

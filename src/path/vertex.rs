@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{Lobe, Normals, TransportMode};
 use crate::geometry::Primitive;
 use crate::scene::light::emitted_by;
 use crate::scene::{EdgeEnd, Light, Scene};
@@ -42,6 +42,9 @@ pub struct Vertex {
     /// Geometric normal on surfaces, area lights and meters; the viewing direction at the
     /// camera; zero in the medium and at point, spot and infinite lights.
     pub n: Vec3,
+    /// The shading normal the BSDF is evaluated with (interpolated on a smooth mesh; `n`
+    /// everywhere else).
+    pub ns: Vec3,
     /// Throughput of the subpath up to this vertex (its own scattering not included).
     pub beta: Rgb,
     /// Density of this vertex given its predecessor in the subpath that sampled it.
@@ -88,6 +91,7 @@ impl Vertex {
             kind,
             p,
             n,
+            ns: n,
             beta: Rgb::ONE,
             pdf_fwd: 0.0,
             pdf_rev: 0.0,
@@ -108,13 +112,24 @@ impl Vertex {
         } else {
             (medium, medium)
         };
-        Vertex::new(
+        let mut v = Vertex::new(
             VertexKind::Surface { prim: hit.prim },
             hit.p,
             hit.ng,
             front,
             back,
-        )
+        );
+        v.ns = scene.shading_normal(hit);
+        v
+    }
+
+    /// The geometric and shading normals, for the BSDF.
+    #[inline]
+    pub fn normals(&self) -> Normals {
+        Normals {
+            ng: self.n,
+            ns: self.ns,
+        }
     }
 
     #[inline]
@@ -198,7 +213,7 @@ impl Vertex {
     pub fn f_hat_dirs(&self, scene: &Scene, wi: Vec3, wo: Vec3) -> Rgb {
         match self.kind {
             VertexKind::Surface { .. } => match self.bsdf(scene) {
-                Some(b) => b.eval(wo, wi, self.n, TransportMode::Radiance),
+                Some(b) => b.eval_shaded(wo, wi, self.normals(), TransportMode::Radiance),
                 None => Rgb::ZERO,
             },
             VertexKind::Medium { medium } => {

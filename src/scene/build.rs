@@ -8,6 +8,7 @@ mod hidden;
 mod lights;
 mod materials;
 mod media;
+mod normals;
 mod ply;
 mod sensors;
 mod shapes;

@@ -500,6 +500,11 @@ pub enum ShapeDesc {
         /// x' = a x + b y + c z + t (how an imported scene places a mesh).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         to_world: Option<[[f32; 4]; 3]>,
+        /// Shade with normals interpolated from the vertices (the file's `vn` or `nx, ny, nz`,
+        /// else angle-weighted face normals, as Mitsuba 3's meshes without `face_normals`);
+        /// false: the face normal everywhere.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        smooth_normals: bool,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,

@@ -50,6 +50,18 @@ pub struct ShapeInfo {
     pub interface: bool,
     /// Name for messages (`shapes[3] (box)`).
     pub label: String,
+    /// A smooth mesh's corner normals (`smooth_normals`); `None`: shaded by the face normal.
+    pub normals: Option<CornerNormals>,
+}
+
+/// The unit normals at the three corners of each triangle of a smooth mesh, for the shading
+/// normal at a hit (`Triangle::shading_normal`).
+#[derive(Clone, Debug)]
+pub struct CornerNormals {
+    /// The scene's index of the shape's first primitive.
+    pub first_prim: u32,
+    /// One entry per primitive of the shape, in order.
+    pub corners: Vec<[Vec3; 3]>,
 }
 
 impl ShapeInfo {
@@ -204,6 +216,21 @@ impl Scene {
     #[inline]
     pub fn shape_of(&self, hit: &Hit) -> &ShapeInfo {
         &self.shapes[self.prim_shape[hit.prim as usize] as usize]
+    }
+
+    /// The shading normal at a hit: interpolated from the corner normals on a smooth mesh, the
+    /// geometric normal elsewhere (bitwise, so flat scenes take no other path).
+    #[inline]
+    pub fn shading_normal(&self, hit: &Hit) -> Vec3 {
+        let Some(cn) = &self.shape_of(hit).normals else {
+            return hit.ng;
+        };
+        match &self.prims[hit.prim as usize] {
+            Primitive::Triangle(t) => {
+                t.shading_normal(&cn.corners[(hit.prim - cn.first_prim) as usize], hit.p)
+            }
+            _ => hit.ng,
+        }
     }
 
     /// Propagates `ray`, starting in `medium`, through media and null boundaries until a

@@ -845,7 +845,7 @@ fn other_filters_are_refused_by_name() {
 #[test]
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
-    let cases: [(&str, &str); 15] = [
+    let cases: [(&str, &str); 14] = [
         (
             r#"<shape type="cylinder"><transform name="to_world"><scale x="2"/></transform></shape>"#,
             "keep it round",
@@ -884,10 +884,6 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
         (
             r#"<shape type="cube"><transform name="to_world"><rotate y="1" angle="30"/></transform></shape>"#,
             "rotated cube",
-        ),
-        (
-            r#"<shape type="obj"><string name="filename" value="x.obj"/></shape>"#,
-            "face_normals",
         ),
         (
             r#"<shape type="rectangle"><ref id="missing"/></shape>"#,
@@ -1097,6 +1093,45 @@ fn ply_meshes_read_like_obj() {
     );
     Scene::load(&src).unwrap();
     std::fs::remove_dir_all(&tmp).unwrap();
+}
+
+/// An `obj` without `face_normals` is a smooth mesh (Mitsuba 3 interpolates its vertex
+/// normals: the file's `vn`, else computed ones), with `face_normals` a flat one; each XML is its
+/// TOML twin, bit for bit, and the two shadings are different images.
+#[test]
+fn an_obj_without_face_normals_is_a_smooth_mesh() {
+    let obj = "tests/fixtures/agreement/sphere-vn.obj";
+    let body = |flat: &str| {
+        format!(
+            r#"<shape type="obj"><string name="filename" value="{obj}"/>{flat}
+        <bsdf type="diffuse" id="clay"><rgb name="reflectance" value="0.2, 0.3, 0.4"/></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="1" y="2" z="3"/><float name="intensity" value="5"/></emitter>"#
+        )
+    };
+    let twin = |smooth: &str| {
+        format!(
+            r#"{CAMERA}
+[materials.clay]
+type = "lambert"
+albedo = [0.2, 0.3, 0.4]
+one_sided = true
+[[shapes]]
+type = "mesh"
+obj = "{obj}"
+{smooth}material = "clay"
+[[lights]]
+type = "point"
+position = [1.0, 2.0, 3.0]
+intensity = 5.0
+"#
+        )
+    };
+    let smooth = scene(&body(""));
+    let flat = scene(&body(r#"<boolean name="face_normals" value="true"/>"#));
+    same_scene(&smooth, &twin("smooth_normals = true\n"));
+    same_scene(&flat, &twin(""));
+    assert_ne!(pixels(&xml(&smooth).unwrap()), pixels(&xml(&flat).unwrap()));
 }
 
 /// `info` on an XML lists every imported element with its line and what it became; the scene's

@@ -802,6 +802,16 @@ fn agreement_rough_plastic() {
     fam.finish();
 }
 
+/// Low-poly spheres shaded by interpolated vertex normals (the file's and angle-weighted ones):
+/// light and importance transport use the adjoint BSDF of shading normals (Veach 1997 sec.
+/// 5.3), so every column must agree.
+#[test]
+fn agreement_smooth() {
+    let mut fam = Family::new("agreement: smooth normals");
+    check_row(&mut fam, &row("smooth", fixture("smooth.toml"), 3));
+    fam.finish();
+}
+
 #[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");

@@ -496,6 +496,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "every key of the scene file, built or refused",
     ),
     (
+        "scene::build::normals",
+        "spec::scene::normals",
+        "smooth meshes' normals, built and rendered",
+    ),
+    (
         "scene::build::ply",
         "inputs::mitsuba_import",
         "PLY meshes read for imported scenes",

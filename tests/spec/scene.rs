@@ -230,3 +230,4 @@ fn degenerate_edges_are_zero() {
 // The modules of `src/scene/` (the layout: tests/repository/index.rs).
 mod envmap;
 mod light_tree;
+mod normals;

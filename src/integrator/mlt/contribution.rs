@@ -14,7 +14,7 @@ use std::ops::Range;
 
 use glam::{Vec2, Vec3};
 
-use crate::bsdf::{Bsdf, Lobe, TransportMode};
+use crate::bsdf::{Bsdf, Lobe, Normals, TransportMode};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::Sampler;
 use crate::path::geometry_term::geometry_term_exact;
@@ -41,12 +41,13 @@ pub fn is_specular(scene: &Scene, v: &Vertex) -> bool {
     singular_bsdf(scene, v).is_some()
 }
 
-/// The singular lobe `bsdf` uses to turn direction `wo` into `lobe`'s direction, with the
-/// sample record (Dirac-free value and lobe probability). `None` if the lobe cannot occur.
+/// The singular lobe `bsdf` uses to turn direction `wo` into `lobe`'s direction at a point
+/// with normals `nn`, with the sample record (Dirac-free value, shading correction included,
+/// and lobe probability). `None` if the lobe cannot occur.
 pub fn specular_sample(
     bsdf: &Bsdf,
     wo: Vec3,
-    n: Vec3,
+    nn: Normals,
     lobe: Lobe,
     mode: TransportMode,
 ) -> Option<crate::bsdf::BsdfSample> {
@@ -56,7 +57,7 @@ pub fn specular_sample(
         Lobe::SingularTransmission => ONE_MINUS_EPSILON,
         _ => 0.0,
     };
-    let s = bsdf.sample(wo, n, Vec2::ZERO, uc, mode)?;
+    let s = bsdf.sample_shaded(wo, nn, Vec2::ZERO, uc, mode)?;
     (s.lobe == lobe && s.pdf > 0.0).then_some(s)
 }
 
@@ -91,7 +92,7 @@ pub fn f_hat_singular(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> Rgb {
     let wo = (to - v.p).normalize_or_zero();
     let wi = (from - v.p).normalize_or_zero();
     let lobe = lobe_between(scene, v, from, to);
-    match specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) {
+    match specular_sample(bsdf, wo, v.normals(), lobe, TransportMode::Radiance) {
         Some(s) if s.wi.dot(wi) >= 1.0 - SPECULAR_COS_TOLERANCE => s.value,
         _ => Rgb::ZERO,
     }
@@ -117,7 +118,7 @@ pub fn lobe_probability(
     let wo = (from - v.p).normalize_or_zero();
     let wi = (to - v.p).normalize_or_zero();
     let lobe = lobe_between(scene, v, from, to);
-    let Some(s) = specular_sample(bsdf, wo, v.n, lobe, TransportMode::Radiance) else {
+    let Some(s) = specular_sample(bsdf, wo, v.normals(), lobe, TransportMode::Radiance) else {
         return 0.0;
     };
     if s.wi.dot(wi) < 1.0 - SPECULAR_COS_TOLERANCE {

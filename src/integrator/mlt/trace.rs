@@ -362,7 +362,7 @@ pub fn retrace_chain(
     for lobe in lobes {
         let v = trace_surface(scene, &cur, d)?;
         let bsdf = singular_bsdf(scene, &v)?;
-        let s = specular_sample(bsdf, -d, v.n, lobe, TransportMode::Radiance)?;
+        let s = specular_sample(bsdf, -d, v.normals(), lobe, TransportMode::Radiance)?;
         out.push(v);
         d = s.wi;
         cur = v;

@@ -18,7 +18,7 @@
 use glam::Vec3;
 
 use super::octree::Record;
-use crate::bsdf::TransportMode;
+use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Hit, Ray};
 use crate::integrator::path::power_heuristic;
 use crate::math::Sampler;
@@ -257,16 +257,20 @@ pub fn surface(
     }
     *depth += 1;
     let wo = -ray.d;
+    let nn = Normals {
+        ng: n,
+        ns: scene.shading_normal(hit),
+    };
     if bsdf.has_regular_lobe() {
         let towards = |wi: Vec3| shape.medium_across(wo, wi, n, medium);
         a += crate::integrator::path::next_event(scene, hit.p, Some(n), towards, sampler, |wi| {
-            let f = bsdf.eval(wo, wi, n, TransportMode::Radiance);
-            (f * wi.dot(n).abs(), bsdf.pdf(wo, wi, n))
+            let f = bsdf.eval_shaded(wo, wi, nn, TransportMode::Radiance);
+            (f * wi.dot(n).abs(), bsdf.pdf_shaded(wo, wi, nn))
         });
     }
     let u = sampler.next_2d();
     let uc = sampler.next_f32();
-    let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+    let Some(bs) = bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance) else {
         return SurfaceStep { a, next: None };
     };
     if bs.pdf <= 0.0 {

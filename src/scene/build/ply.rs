@@ -183,15 +183,19 @@ fn header(bytes: &[u8]) -> Result<(Format, Vec<Element>, usize), String> {
     Ok((format, elements, body))
 }
 
-/// Positions and triangle indices of a PLY file.
-pub fn read_ply(bytes: &[u8]) -> Result<(Vec<Vec3>, Vec<u32>), String> {
+/// One part of a mesh file: positions, triangle indices and, when the file gives them, the
+/// normal of each triangle corner (aligned with the indices).
+pub type MeshPart = (Vec<Vec3>, Vec<u32>, Option<Vec<Vec3>>);
+
+/// Positions, triangle indices and vertex normals (`nx`, `ny`, `nz`) of a PLY file.
+pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
     let (format, elements, start) = header(bytes)?;
     let mut body = Body {
         bytes,
         at: start,
         format,
     };
-    let (mut pos, mut idx) = (Vec::new(), Vec::new());
+    let (mut pos, mut idx, mut nrm) = (Vec::new(), Vec::new(), Vec::new());
     for e in &elements {
         // every instance takes at least one byte per property (two in ASCII, with a separator)
         let least = e.props.len().max(1) * if format == Format::Ascii { 2 } else { 1 };
@@ -204,6 +208,9 @@ pub fn read_ply(bytes: &[u8]) -> Result<(Vec<Vec3>, Vec<u32>), String> {
             ));
         }
         let xyz = ["x", "y", "z"].map(|a| e.props.iter().position(|p| p.name == a));
+        // vertex normals: all three of nx, ny, nz or none (Mitsuba 3 documentation, plugin `ply`)
+        let nxyz = ["nx", "ny", "nz"].map(|a| e.props.iter().position(|p| p.name == a));
+        let has_normals = e.name == "vertex" && nxyz.iter().all(Option::is_some);
         if e.name == "vertex" {
             if xyz.iter().any(Option::is_none) {
                 return Err("the vertices have no x, y, z".into());
@@ -211,12 +218,15 @@ pub fn read_ply(bytes: &[u8]) -> Result<(Vec<Vec3>, Vec<u32>), String> {
             pos.reserve(e.count);
         }
         for _ in 0..e.count {
-            let mut v = [0f64; 3];
+            let (mut v, mut n) = ([0f64; 3], [0f64; 3]);
             for (k, p) in e.props.iter().enumerate() {
                 let Some(ct) = p.list else {
                     let x = body.value(p.ty)?;
                     if let Some(a) = xyz.iter().position(|&i| i == Some(k)) {
                         v[a] = x;
+                    }
+                    if let Some(a) = nxyz.iter().position(|&i| i == Some(k)) {
+                        n[a] = x;
                     }
                     continue;
                 };
@@ -244,6 +254,9 @@ pub fn read_ply(bytes: &[u8]) -> Result<(Vec<Vec3>, Vec<u32>), String> {
             }
             if e.name == "vertex" {
                 pos.push(Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32));
+                if has_normals {
+                    nrm.push(Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32));
+                }
             }
         }
     }
@@ -253,5 +266,8 @@ pub fn read_ply(bytes: &[u8]) -> Result<(Vec<Vec3>, Vec<u32>), String> {
             pos.len()
         ));
     }
-    Ok((pos, idx))
+    // normals only when every vertex has one
+    let normals = (!nrm.is_empty() && nrm.len() == pos.len())
+        .then(|| idx.iter().map(|&k| nrm[k as usize]).collect());
+    Ok((pos, idx, normals))
 }

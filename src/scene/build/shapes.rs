@@ -5,6 +5,8 @@ use glam::Vec3;
 use std::collections::{BTreeMap, HashMap};
 
 use super::media::Media;
+use super::normals;
+use super::ply::MeshPart;
 use super::values::{finite3, non_negative};
 use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
@@ -140,7 +142,13 @@ pub(super) fn shapes(
         let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
         let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
         let interface = common.interior.is_some() || common.exterior.is_some();
-        let (new, closed) = primitives(src, &key, s, &common)?;
+        let (new, closed, corners) = primitives(src, &key, s, &common)?;
+        if corners.is_some() && common.emission.is_some() {
+            return Err(src.error(
+                &key.clone().key("smooth_normals"),
+                "an emitting mesh is shaded by its face normals only: remove smooth_normals (in Mitsuba XML: add <boolean name=\"face_normals\" value=\"true\"/>)",
+            ));
+        }
         if common.interior.is_some() && !closed {
             return Err(src.error(
                 &key.clone().key("interior"),
@@ -154,6 +162,10 @@ pub(super) fn shapes(
             ));
         }
         let shape_id = shapes.len() as u32;
+        let normals = corners.map(|corners| crate::scene::CornerNormals {
+            first_prim: prims.len() as u32,
+            corners,
+        });
         let light = emission.map(|radiance| {
             let first = prims.len() as u32;
             let ids: Vec<u32> = (first..first + new.len() as u32).collect();
@@ -178,6 +190,7 @@ pub(super) fn shapes(
             exterior,
             interface,
             label: format!("shapes[{i}] ({})", s.kind()),
+            normals,
         });
     }
     Ok(Surfaces {
@@ -228,14 +241,14 @@ fn surface(
     Ok((emission, bsdf))
 }
 
-/// A shape's primitives, and whether they enclose a volume (a quad does not; a mesh does when
-/// it is closed).
+/// A shape's primitives, whether they enclose a volume (a quad does not; a mesh does when it is
+/// closed), and a smooth mesh's corner normals.
 fn primitives(
     src: &SceneSource,
     key: &KeyPath,
     s: &ShapeDesc,
     common: &ShapeCommon,
-) -> Result<(Vec<Primitive>, bool), SceneError> {
+) -> Result<(Vec<Primitive>, bool, Corners), SceneError> {
     let mut new: Vec<Primitive> = Vec::new();
     let mut closed = true;
     match s {
@@ -313,14 +326,20 @@ fn primitives(
             new.push(Primitive::Cylinder(c));
             closed = false;
         }
-        ShapeDesc::Mesh { obj, to_world, .. } => {
+        ShapeDesc::Mesh {
+            obj,
+            to_world,
+            smooth_normals,
+            ..
+        } => {
             let place = placement(src, key, to_world)?;
-            let (tris, all_closed) = mesh(src, key, obj, place, common)?;
+            let (tris, all_closed, corners) = mesh(src, key, obj, place, common, *smooth_normals)?;
             closed = all_closed;
             new.extend(tris.into_iter().map(Primitive::Triangle));
+            return Ok((new, closed, corners));
         }
     }
-    Ok((new, closed))
+    Ok((new, closed, None))
 }
 
 /// A mesh's `to_world` rows as an affine map (identity without them), every entry finite and
@@ -345,13 +364,15 @@ fn placement(
     Ok(m)
 }
 
-/// The models of an OBJ file as (positions, triangle indices), every face index checked first
-/// so that an error names the OBJ line.
+/// The models of an OBJ file as (positions, triangle indices, corner normals), every face
+/// index checked first so that an error names the OBJ line. A smooth mesh keeps the file's
+/// position indices (its computed normals are per position, as Mitsuba's) and its `vn`.
 fn obj_parts(
     src: &SceneSource,
     obj_key: &KeyPath,
     file: &std::path::Path,
     bytes: Vec<u8>,
+    smooth: bool,
 ) -> Result<Vec<MeshPart>, SceneError> {
     let cannot = |e: &dyn std::fmt::Display| {
         src.error(obj_key, format!("cannot read `{}`: {e}", file.display()))
@@ -361,78 +382,103 @@ fn obj_parts(
         .map_err(|e| src.error(obj_key, format!("`{}` {e}", file.display())))?;
     let options = tobj::LoadOptions {
         triangulate: true,
-        single_index: true,
+        single_index: !smooth,
         ..Default::default()
     };
     let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed) // materials are not used
     })
     .map_err(|e| src.error(obj_key, format!("cannot load `{}`: {e}", file.display())))?;
-    Ok(models
+    let vec3s = |v: &[f32]| -> Vec<Vec3> {
+        v.chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect()
+    };
+    models
         .into_iter()
         .map(|m| {
-            let pos = m
-                .mesh
-                .positions
-                .chunks_exact(3)
-                .map(|c| Vec3::new(c[0], c[1], c[2]))
-                .collect();
-            (pos, m.mesh.indices)
+            let m = m.mesh;
+            let normals = vec3s(&m.normals);
+            let corners = (smooth && !m.normal_indices.is_empty())
+                .then(|| {
+                    if m.normal_indices.len() != m.indices.len() {
+                        return Err("some faces have vertex normals (`vn`) and some have none");
+                    }
+                    m.normal_indices
+                        .iter()
+                        .map(|&k| normals.get(k as usize).copied())
+                        .collect::<Option<Vec<Vec3>>>()
+                        .ok_or("a vertex normal index is out of range")
+                })
+                .transpose()
+                .map_err(|e| src.error(obj_key, format!("`{}`: {e}", file.display())))?;
+            Ok((vec3s(&m.positions), m.indices, corners))
         })
-        .collect())
+        .collect()
 }
-
-/// One part of a mesh file: positions and triangle indices.
-type MeshPart = (Vec<Vec3>, Vec<u32>);
 
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;
 
-/// The triangles of an OBJ file, every index and vertex checked, and whether the mesh is
-/// closed; a closed mesh holding a medium must be wound outwards.
+/// The triangles of an OBJ or PLY file, every index and vertex checked, whether the mesh is
+/// closed (a closed mesh holding a medium must be wound outwards), and with `smooth` the corner
+/// normals of each triangle kept.
 fn mesh(
     src: &SceneSource,
     key: &KeyPath,
     obj: &str,
     place: glam::Affine3A,
     common: &ShapeCommon,
-) -> Result<(Vec<Triangle>, bool), SceneError> {
+    smooth: bool,
+) -> Result<MeshTriangles, SceneError> {
     let file = src.base_dir.join(obj);
     let obj_key = key.clone().key("obj");
-    let cannot = |e: &dyn std::fmt::Display| {
-        src.error(&obj_key, format!("cannot read `{}`: {e}", file.display()))
-    };
-    let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES).map_err(|e| cannot(&e))?;
+    let fail =
+        |e: &dyn std::fmt::Display| src.error(&obj_key, format!("`{}`: {e}", file.display()));
+    let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES)
+        .map_err(|e| src.error(&obj_key, format!("cannot read `{}`: {e}", file.display())))?;
     src.record_input(obj, crate::conventions::fnv1a(&bytes));
     let is_ply = file
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
     let parts = if is_ply {
-        vec![super::ply::read_ply(&bytes)
-            .map_err(|e| src.error(&obj_key, format!("`{}`: {e}", file.display())))?]
+        vec![super::ply::read_ply(&bytes).map_err(|e| fail(&e))?]
     } else {
-        obj_parts(src, &obj_key, &file, bytes)?
+        obj_parts(src, &obj_key, &file, bytes, smooth)?
     };
     let mut all_closed = true;
     let mut tris = Vec::new();
-    for (pos, idx) in &parts {
+    let mut corners = Vec::new();
+    for (pos, idx, normals) in &parts {
         let pos: Vec<Vec3> = pos.iter().map(|&p| place.transform_point3(p)).collect();
         if idx.iter().any(|&k| k as usize >= pos.len()) {
-            return Err(src.error(
-                &obj_key,
-                format!("`{}`: a face index is out of range", file.display()),
-            ));
+            return Err(fail(&"a face index is out of range"));
         }
         if pos.iter().any(|p| !p.is_finite()) {
-            return Err(src.error(
-                &obj_key,
-                format!("`{}`: a vertex is not finite", file.display()),
-            ));
+            return Err(fail(&"a vertex is not finite"));
         }
         all_closed &= mesh_is_closed(&pos, idx);
-        tris.extend(idx.chunks_exact(3).filter_map(|t| {
-            Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
-        }));
+        let smooth_part = if !smooth {
+            None
+        } else if let Some(ns) = normals {
+            let placed: Option<Vec<Vec3>> =
+                ns.iter().map(|&n| normals::placed(&place, n)).collect();
+            Some(placed.ok_or_else(|| fail(&"a vertex normal is not finite or has zero length"))?)
+        } else {
+            let per_position = normals::angle_weighted(&pos, idx);
+            Some(idx.iter().map(|&k| per_position[k as usize]).collect())
+        };
+        for (c, t) in idx.chunks_exact(3).enumerate() {
+            let Some(tri) =
+                Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+            else {
+                continue;
+            };
+            tris.push(tri);
+            if let Some(n) = &smooth_part {
+                corners.push([n[3 * c], n[3 * c + 1], n[3 * c + 2]]);
+            }
+        }
     }
     if tris.is_empty() {
         return Err(src.error(&obj_key, format!("`{}` has no triangles", file.display())));
@@ -447,5 +493,11 @@ fn mesh(
             ),
         ));
     }
-    Ok((tris, closed))
+    Ok((tris, closed, smooth.then_some(corners)))
 }
+
+/// A smooth mesh's normals at the corners of each triangle (`None`: flat).
+type Corners = Option<Vec<[Vec3; 3]>>;
+
+/// A mesh's triangles, whether it is closed, and its corner normals when smooth.
+type MeshTriangles = (Vec<Triangle>, bool, Corners);

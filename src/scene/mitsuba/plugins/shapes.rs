@@ -291,23 +291,27 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
     ))
 }
 
-/// `obj` and `ply`: the file under `to_world`, with face normals only.
+/// `obj` and `ply`: the file under `to_world`, shaded with interpolated vertex normals unless
+/// `face_normals` is true (Mitsuba 3 documentation, plugins `obj` and `ply`).
 fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
     let obj = p
         .string("filename")?
         .ok_or_else(|| p.err("`filename` is missing"))?;
-    if p.boolean("face_normals")? != Some(true) {
-        return Err(p.err("Mitsuba interpolates vertex normals unless face_normals = true, pathspace has geometric normals only: add <boolean name=\"face_normals\" value=\"true\"/>"));
-    }
+    let smooth_normals = p.boolean("face_normals")? != Some(true);
     p.ignore(&["flip_tex_coords"]);
     let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
     let to_world = (*m != DMat4::IDENTITY).then_some(rows);
-    let how = format!("mesh `{obj}`, flat (face normals)");
+    let how = if smooth_normals {
+        format!("mesh `{obj}`, smooth (interpolated vertex normals)")
+    } else {
+        format!("mesh `{obj}`, flat (face normals)")
+    };
     let (material, emission, interior, exterior) = (None, None, None, None);
     Ok((
         ShapeDesc::Mesh {
             obj,
             to_world,
+            smooth_normals,
             material,
             emission,
             interior,

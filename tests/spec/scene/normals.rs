@@ -1,0 +1,164 @@
+//! Smooth meshes (`smooth_normals`, `scene::build::normals`): a mesh whose vertex normals are
+//! its face normals renders bit for bit as the flat mesh, in every mode of transport; without
+//! normals in the file, each position gets the angle-weighted normal of the faces around it
+//! (Mitsuba 3's `Mesh::compute_normals`), which a triangulated cube tells from an
+//! area-weighted one; an emitting smooth mesh is refused.
+//! Book: "Scenes and geometry" (the `smooth_normals` key), "Surface scattering" (shading
+//! normals).
+
+use glam::Vec3;
+use pathspace::geometry::Primitive;
+use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::scene::{Scene, SceneSource};
+
+/// The fixtures' folder (`cube.obj`: per-face `vn`, the face normals).
+fn fixtures() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
+}
+
+/// The cube in haze under an area light, with `mesh_keys` added to its mesh entry.
+fn cube_scene(obj: &str, mesh_keys: &str) -> String {
+    format!(
+        r#"
+[camera]
+type = "pinhole"
+eye = [3.0, 2.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 40.0
+resolution = [12, 10]
+
+[materials.white]
+type = "lambert"
+albedo = 0.7
+
+[materials.plastic]
+type = "rough_plastic"
+alpha = 0.2
+
+[media.haze]
+type = "homogeneous"
+sigma_a = 0.05
+sigma_s = 0.2
+
+[[shapes]]
+type = "mesh"
+obj = "{obj}"
+material = "plastic"
+{mesh_keys}
+
+[[shapes]]
+type = "box"
+min = [-4.0, -1.0, -4.0]
+max = [4.0, 4.0, 6.0]
+material = "white"
+interior = "haze"
+
+[[shapes]]
+type = "quad"
+origin = [-1.0, 3.9, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+emission = 5.0
+"#
+    )
+}
+
+fn load(dir: &std::path::Path, text: &str) -> Scene {
+    let mut src = SceneSource::embedded("cube.toml", text);
+    src.base_dir = dir.to_path_buf();
+    Scene::load(&src).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Every pixel and splat of a few passes, as bits.
+fn render_bits(scene: &Scene, kind: IntegratorKind) -> Vec<u64> {
+    let mut r = Renderer::new(scene, kind, 7, None);
+    r.pass(4, &|| {});
+    let film = r.film.unwrap();
+    film.sum
+        .iter()
+        .chain(film.splat.iter())
+        .flatten()
+        .map(|x| x.to_bits())
+        .collect()
+}
+
+#[test]
+fn vertex_normals_equal_to_the_face_normals_render_as_the_flat_mesh() {
+    let dir = fixtures();
+    let flat = load(&dir, &cube_scene("cube.obj", ""));
+    let smooth = load(&dir, &cube_scene("cube.obj", "smooth_normals = true"));
+    assert!(smooth.shapes[0].normals.is_some() && flat.shapes[0].normals.is_none());
+    for kind in [
+        IntegratorKind::Path,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+    ] {
+        let (a, b) = (render_bits(&flat, kind), render_bits(&smooth, kind));
+        assert!(a.iter().any(|&x| x != 0), "{kind:?}: a black image");
+        assert!(a == b, "{kind:?}: the smooth cube's image differs");
+    }
+}
+
+/// The cube without its `vn`: every corner's angle-weighted normal is the diagonal
+/// `sign(p) / sqrt(3)` (each of its three faces meets it with a right angle, however the
+/// triangulation splits it; area weights would favour the faces split at that corner).
+#[test]
+fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
+    let dir = crate::common::cli::scratch("normals", "bare");
+    let cube = std::fs::read_to_string(fixtures().join("cube.obj")).unwrap();
+    let bare: String = cube
+        .lines()
+        .filter(|l| !l.starts_with("vn"))
+        .map(|l| {
+            let words: Vec<&str> = l.split_whitespace().collect();
+            if words.first() == Some(&"f") {
+                let ids: Vec<&str> = words[1..]
+                    .iter()
+                    .map(|w| w.split('/').next().unwrap())
+                    .collect();
+                format!("f {}\n", ids.join(" "))
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    std::fs::write(dir.join("bare.obj"), bare).unwrap();
+    let scene = load(&dir, &cube_scene("bare.obj", "smooth_normals = true"));
+    let normals = scene.shapes[0].normals.as_ref().expect("a smooth mesh");
+    assert_eq!(normals.corners.len(), 12);
+    for (k, corners) in normals.corners.iter().enumerate() {
+        let Primitive::Triangle(t) = scene.prims[normals.first_prim as usize + k] else {
+            panic!("triangle {k} is not a triangle");
+        };
+        for (p, n) in [t.p0, t.p0 + t.e1, t.p0 + t.e2].iter().zip(corners) {
+            let expected = p.signum() / 3f32.sqrt();
+            assert!(
+                (*n - expected).length() < 1e-6,
+                "corner {p}: {n} vs {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn an_emitting_smooth_mesh_is_refused_by_name() {
+    let text = cube_scene("cube.obj", "smooth_normals = true\nemission = 1.0");
+    let mut src = SceneSource::embedded("cube.toml", &text);
+    src.base_dir = fixtures();
+    let err = Scene::load(&src).err().expect("refused").to_string();
+    assert!(err.contains("smooth_normals"), "{err}");
+}
+
+/// The interpolated normal is a unit vector: at the centre of a triangle whose corners carry
+/// the three axes it is the diagonal, not a third of it.
+#[test]
+fn the_interpolated_normal_is_normalized() {
+    let t = pathspace::geometry::shape::Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y).unwrap();
+    let n = [Vec3::X, Vec3::Y, Vec3::Z];
+    let centre = (Vec3::X + Vec3::Y) / 3.0;
+    let s = t.shading_normal(&n, centre);
+    assert!((s - Vec3::ONE / 3f32.sqrt()).length() < 1e-6, "{s}");
+    for (p, c) in [(Vec3::ZERO, n[0]), (Vec3::X, n[1]), (Vec3::Y, n[2])] {
+        assert!((t.shading_normal(&n, p) - c).length() < 1e-6, "corner {p}");
+    }
+}
