@@ -11,6 +11,7 @@ mod media;
 mod ply;
 mod sensors;
 mod shapes;
+mod textures;
 mod values;
 
 use glam::Vec3;

@@ -24,7 +24,7 @@ use std::path::Path;
 fn layer(module: &str) -> Option<u32> {
     Some(match module {
         "math" | "spectrum" | "conventions" => 0,
-        "geometry" | "medium" | "bsdf" | "film" | "image_io" => 1,
+        "geometry" | "medium" | "bsdf" | "film" | "image_io" | "texture" => 1,
         "scene" => 2,
         "path" => 3,
         "bidir" => 4,

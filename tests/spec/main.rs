@@ -43,3 +43,4 @@ mod render {
     mod shard;
 }
 mod scene;
+mod texture;
