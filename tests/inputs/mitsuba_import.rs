@@ -199,11 +199,11 @@ fn textures_are_mitsubas() {
         ),
         &format!(
             r#"{CAMERA}
-[materials."bsdf@10"]
+[materials."bsdf@9"]
 type = "lambert"
 albedo = {{ texture = "bitmap", file = "tests/fixtures/textures/rgb4x3.png", filter_type = "nearest", wrap_mode = "mirror", raw = true, to_uv = [[2.0, 0.0, 0.25], [0.0, 3.0, -0.5]] }}
 one_sided = true
-[materials."bsdf@22"]
+[materials."bsdf@21"]
 type = "lambert"
 albedo = {{ texture = "checkerboard", color0 = 0.4, color1 = 0.2 }}
 [[shapes]]
@@ -211,12 +211,12 @@ type = "quad"
 origin = [-1.0, -1.0, 0.0]
 u = [2.0, 0.0, 0.0]
 v = [0.0, 2.0, 0.0]
-material = "bsdf@10"
+material = "bsdf@9"
 [[shapes]]
 type = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 0.3
-material = "bsdf@22"
+material = "bsdf@21"
 [[shapes]]
 type = "disk"
 center = [0.0, 0.0, 1.0]
@@ -238,17 +238,17 @@ emission = 1.0
         &format!(
             r#"<shape type="rectangle"><boolean name="flip_normals" value="true"/>{checker}</shape>"#
         ),
-        "t.xml:9",
+        "t.xml:8",
     );
     refused(
         &format!(
             r#"<shape type="sphere"><transform name="to_world"><rotate z="1" angle="30"/></transform>{checker}</shape>"#
         ),
-        "t.xml:9",
+        "t.xml:8",
     );
     refused(
         r#"<shape type="rectangle"><bsdf type="plastic"><texture type="checkerboard" name="diffuse_reflectance"/></bsdf></shape>"#,
-        "t.xml:9",
+        "t.xml:8",
     );
     refused(
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="missing.png"/></texture></bsdf></shape>"#,
@@ -256,7 +256,7 @@ emission = 1.0
     );
     refused(
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="x.png"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#,
-        "t.xml:9",
+        "t.xml:8",
     );
 }
 
@@ -484,7 +484,7 @@ fn plastic_parameters_are_mitsubas() {
         ),
         &format!(
             r#"{CAMERA}
-[materials."bsdf@10"]
+[materials."bsdf@9"]
 type = "plastic"
 diffuse = 0.5
 specular = 1.0
@@ -500,7 +500,7 @@ nonlinear = true
 type = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 1.0
-material = "bsdf@10"
+material = "bsdf@9"
 [[shapes]]
 type = "quad"
 origin = [-1.0, -1.0, -2.0]
@@ -627,14 +627,14 @@ fn envmap_is_the_map_light_turned_by_to_world() {
         ),
         &format!(
             r#"{CAMERA}
-[materials."bsdf@10"]
+[materials."bsdf@9"]
 type = "lambert"
 albedo = 0.5
 [[shapes]]
 type = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 1.0
-material = "bsdf@10"
+material = "bsdf@9"
 [[lights]]
 type = "environment"
 map = "scenes/envmap-sky.exr"
