@@ -484,7 +484,7 @@ fn plastic_parameters_are_mitsubas() {
         ),
         &format!(
             r#"{CAMERA}
-[materials."bsdf@9"]
+[materials."bsdf@8"]
 type = "plastic"
 diffuse = 0.5
 specular = 1.0
@@ -500,7 +500,7 @@ nonlinear = true
 type = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 1.0
-material = "bsdf@9"
+material = "bsdf@8"
 [[shapes]]
 type = "quad"
 origin = [-1.0, -1.0, -2.0]
@@ -627,14 +627,14 @@ fn envmap_is_the_map_light_turned_by_to_world() {
         ),
         &format!(
             r#"{CAMERA}
-[materials."bsdf@9"]
+[materials."bsdf@8"]
 type = "lambert"
 albedo = 0.5
 [[shapes]]
 type = "sphere"
 center = [0.0, 0.0, 0.0]
 radius = 1.0
-material = "bsdf@9"
+material = "bsdf@8"
 [[lights]]
 type = "environment"
 map = "scenes/envmap-sky.exr"
@@ -726,7 +726,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "material = \"Au\"",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap"/></bsdf></shape>"#,
+            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="diffuse_reflectance" type="bitmap"/></bsdf></shape>"#,
             "textures",
         ),
         (
