@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids
-(text, `.vol` and OpenVDB), OBJ meshes and EXR and Radiance (.hdr) environment maps, and of the
+(text, `.vol` and OpenVDB), OBJ meshes, EXR and Radiance (.hdr) environment maps and PNG
+textures, and of the
 files it reads back: checkpoints and renders.
 
 Each scene case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a
@@ -47,7 +48,8 @@ Cases are reproducible: case k of `--seed S` is the same mutation on every machi
 checkpoint's pass count depends on timing, so its bytes may differ; `--keep` saves them).
 `--keep DIR` saves every case that is a bug, with the command lines, for replay; `--only KIND`
 runs only the cases of one kind among the indices (`--only vdb`: the scene cases that mutate
-an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map).
+an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map; `--only png`: those
+that read a PNG texture).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -216,6 +218,41 @@ def mutate_hdr(rng, data):
     i = rng.randrange(len(head))
     head[i] = rng.choice(lines)
     return b"\n".join(head) + data[end:], f"hdr: header line {i} -> {head[i]!r}"
+
+
+def textured_with_png(rng):
+    """The textured agreement scene, so that PNG mutations reach the texture reader."""
+    return load_seed(os.path.join("tests", "fixtures", "agreement", "textured.toml"))
+
+
+def png_chunk(kind, body):
+    import zlib
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+
+def mutate_png(rng, data):
+    """A texture's PNG bytes: a truncation, a flipped byte, or the header (IHDR: width, height,
+    bit depth, colour type) rewritten with a valid checksum, so the sizes reach the reader."""
+    op = rng.choice(["truncate", "byte", "header", "header"])
+    if op == "truncate":
+        at = rng.randrange(len(data) + 1)
+        return data[:at], f"png: truncate at {at}"
+    if op == "byte" or data[12:16] != b"IHDR":
+        at = rng.randrange(len(data))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"png: byte {at}"
+    w, h, depth, colour = struct.unpack(">IIBB", data[16:26])
+    edge = [0, 1, 2, 3, 2**14, 2**16, 2**31 - 1, 2**32 - 1]
+    field = rng.choice(["width", "height", "depth", "colour"])
+    if field == "width":
+        w = rng.choice(edge)
+    elif field == "height":
+        h = rng.choice(edge)
+    elif field == "depth":
+        depth = rng.choice([0, 1, 2, 4, 8, 16, 3, 255])
+    else:
+        colour = rng.choice([0, 2, 3, 4, 6, 1, 7, 255])
+    body = struct.pack(">IIBB", w, h, depth, colour) + data[26:29]
+    return data[:8] + png_chunk(b"IHDR", body) + data[33:], f"png: {field} -> {w} x {h}, depth {depth}, colour {colour}"
 
 
 # ---- mutations of TOML text ------------------------------------------------------------
@@ -854,6 +891,11 @@ def hdr_case(seed, k):
     return random.Random(f"{seed}:{k}:hdr").random() < 0.06
 
 
+def png_case(seed, k):
+    """Whether scene case k reads a PNG texture (a stream of its own, as `hdr_case`)."""
+    return random.Random(f"{seed}:{k}:png").random() < 0.06
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -865,6 +907,8 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files) = "vdb", vdb_scene(rng)
     elif hdr_case(seed, k):
         name, (text, files) = "envmap+hdr", sky_with_hdr(rng)
+    elif png_case(seed, k):
+        name, (text, files) = "textured+png", textured_with_png(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
@@ -873,7 +917,7 @@ def make_case(k, seed, seeds, keys, strings):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
             mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb,
-                   ".hdr": mutate_hdr}.get(f[-4:], mutate_grid)
+                   ".hdr": mutate_hdr, ".png": mutate_png}.get(f[-4:], mutate_grid)
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -1036,7 +1080,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene", "vdb", "hdr"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -1070,6 +1114,10 @@ def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None and is_vdb_case(args.seed, k)]
         elif args.only == "hdr":
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None and hdr_case(args.seed, k)
+                  and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
+        elif args.only == "png":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None and png_case(args.seed, k)
+                  and not hdr_case(args.seed, k)
                   and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only:
             ks = [k for k in ks if (adversarial_kind(args.seed, k) or "scene") == args.only]

@@ -191,10 +191,8 @@ pub fn first_event(scene: &Scene, ray: Ray, sampler: &mut Sampler) -> FirstEvent
         Event::Surface { hit, .. } => {
             let wo = -ray.d;
             let albedo = scene
-                .shape_of(&hit)
-                .bsdf
-                .as_ref()
-                .map_or(Rgb::ZERO, |b| surface_albedo(b, wo, hit.ng));
+                .bsdf_at(hit.prim, hit.p)
+                .map_or(Rgb::ZERO, |b| surface_albedo(&b, wo, hit.ng));
             FirstEvent {
                 albedo,
                 normal: if wo.dot(hit.ng) < 0.0 {

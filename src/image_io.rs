@@ -1,6 +1,7 @@
 //! Images in memory and on disk: OpenEXR (linear, with the render's metadata as attributes) and
 //! PNG previews (exposure 0, sRGB transfer, clamped).
 
+pub mod png_input;
 pub mod rgbe;
 
 use std::collections::BTreeMap;

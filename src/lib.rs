@@ -41,3 +41,4 @@ pub mod path;
 pub mod render;
 pub mod scene;
 pub mod spectrum;
+pub mod texture;

@@ -233,7 +233,20 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         } else {
             String::new()
         };
-        println!("    {}: {}{}{}", s.label, bsdf(&s.bsdf), emits, iface);
+        let texture = s.texture.as_ref().map_or(String::new(), |t| {
+            format!(
+                " (albedo textured: {}; its mean shown)",
+                t.reflectance.describe()
+            )
+        });
+        println!(
+            "    {}: {}{}{}{}",
+            s.label,
+            bsdf(&s.bsdf),
+            texture,
+            emits,
+            iface
+        );
     }
     println!("  media: {}", scene.media.len());
     for (n, m) in scene.medium_names.iter().zip(&scene.media) {

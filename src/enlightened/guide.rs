@@ -555,7 +555,7 @@ pub fn guided_fresnel(
     mode: TransportMode,
 ) -> Option<LobeChoice> {
     let bsdf = v.bsdf(scene)?;
-    if !g.settings.kind.surface() || !matches!(bsdf, Bsdf::Dielectric(_)) {
+    if !g.settings.kind.surface() || !matches!(*bsdf, Bsdf::Dielectric(_)) {
         return None;
     }
     let field = g.field(mode);

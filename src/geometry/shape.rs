@@ -512,3 +512,46 @@ fn plane_coordinates(d: Vec3, u: Vec3, v: Vec3) -> (f32, f32) {
         ((dv * uu - du * uv) / det) as f32,
     )
 }
+
+impl Primitive {
+    /// The surface coordinates (u, v) of a point `p` on the primitive, as Mitsuba 3 defines them
+    /// for its shapes (`src/shapes/*.cpp`, `compute_surface_interaction`): a quad's coordinates
+    /// (a, b) along its edges (Mitsuba's `rectangle`: ((x + 1) / 2, (y + 1) / 2)); a disk's
+    /// (r, phi / 2 pi) in its own axes, phi in [0, 2 pi); a sphere's (phi / 2 pi, theta / pi)
+    /// about its centre, theta from +z, phi from +x towards +y in [0, 2 pi); a triangle's
+    /// barycentric (b1, b2), which a mesh's texture coordinates then interpolate. Computed from
+    /// the hit point when a texture asks, so untextured scenes never pay for it. A cylinder's is
+    /// (phi / 2 pi, height / length), phi about its axis from its own frame.
+    pub fn uv(&self, p: Vec3) -> Vec2 {
+        use std::f32::consts::{FRAC_1_PI, TAU};
+        match self {
+            Primitive::Quad(q) => {
+                let (a, b) = q.coordinates(p);
+                Vec2::new(a, b)
+            }
+            Primitive::Triangle(t) => {
+                let (b1, b2) = plane_coordinates(p - t.p0, t.e1, t.e2);
+                Vec2::new(b1, b2)
+            }
+            Primitive::Sphere(s) => {
+                let l = (p - s.center) / s.radius;
+                let theta = l.z.clamp(-1.0, 1.0).acos();
+                let mut phi = l.y.atan2(l.x);
+                if phi < 0.0 {
+                    phi += TAU;
+                }
+                Vec2::new(phi / TAU, theta * FRAC_1_PI)
+            }
+            Primitive::Disk(d) => {
+                let rel = p - d.center;
+                let (a, b) = (d.w.dot(rel.cross(d.v)), d.w.dot(d.u.cross(rel)));
+                let mut v = b.atan2(a) / TAU;
+                if v < 0.0 {
+                    v += 1.0;
+                }
+                Vec2::new((a * a + b * b).sqrt(), v)
+            }
+            Primitive::Cylinder(c) => c.uv(p),
+        }
+    }
+}

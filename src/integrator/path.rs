@@ -396,7 +396,7 @@ impl PathTracer {
                 *l += e;
             }
         }
-        let Some(bsdf) = &shape.bsdf else {
+        let Some(bsdf) = scene.bsdf_at(hit.prim, hit.p) else {
             return false;
         };
         if w.depth >= self.max_depth {

@@ -173,12 +173,24 @@ impl Vertex {
         }
     }
 
-    /// The BSDF at a surface vertex (`None` elsewhere or at a black emitter).
-    pub fn bsdf<'a>(&self, scene: &'a Scene) -> Option<&'a crate::bsdf::Bsdf> {
+    /// The shape's material as declared, for questions about its lobes (Dirac or regular),
+    /// which textures never change; [`Vertex::bsdf`] for its values.
+    #[inline]
+    pub fn material<'a>(&self, scene: &'a Scene) -> Option<&'a crate::bsdf::Bsdf> {
         match self.kind {
             VertexKind::Surface { prim } => scene.shapes[scene.prim_shape[prim as usize] as usize]
                 .bsdf
                 .as_ref(),
+            _ => None,
+        }
+    }
+
+    /// The BSDF at a surface vertex (`None` elsewhere or at a black emitter); a textured
+    /// material is looked up at the vertex's point ([`Scene::bsdf_at`]).
+    #[inline]
+    pub fn bsdf<'a>(&self, scene: &'a Scene) -> Option<std::borrow::Cow<'a, crate::bsdf::Bsdf>> {
+        match self.kind {
+            VertexKind::Surface { prim } => scene.bsdf_at(prim, self.p),
             _ => None,
         }
     }
@@ -192,7 +204,9 @@ impl Vertex {
             VertexKind::InfiniteLight { light, .. } => {
                 !matches!(scene.lights[light as usize], Light::Directional { .. })
             }
-            VertexKind::Surface { .. } => self.bsdf(scene).is_some_and(|b| b.has_regular_lobe()),
+            VertexKind::Surface { .. } => {
+                self.material(scene).is_some_and(|b| b.has_regular_lobe())
+            }
         }
     }
 

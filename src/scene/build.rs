@@ -12,6 +12,7 @@ mod normals;
 mod ply;
 mod sensors;
 mod shapes;
+mod textures;
 mod values;
 
 use glam::Vec3;

@@ -81,6 +81,89 @@ impl RgbValue {
     }
 }
 
+/// A reflectance: a number, an RGB triple, or a texture (`{ texture = "checkerboard" }`).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum ReflectanceValue {
+    Value(RgbValue),
+    Texture(TextureDesc),
+}
+
+impl From<RgbValue> for ReflectanceValue {
+    fn from(v: RgbValue) -> Self {
+        ReflectanceValue::Value(v)
+    }
+}
+
+impl fmt::Display for ReflectanceValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ReflectanceValue::Value(v) => write!(f, "{v}"),
+            ReflectanceValue::Texture(TextureDesc::Bitmap { file, .. }) => {
+                write!(f, "bitmap `{file}`")
+            }
+            ReflectanceValue::Texture(TextureDesc::Checkerboard { color0, color1, .. }) => {
+                write!(f, "checkerboard {color0} / {color1}")
+            }
+        }
+    }
+}
+
+/// A texture, as Mitsuba 3's plugins of the same names and defaults (`texture::bitmap`,
+/// `texture::checkerboard`); `to_uv` is the rows `[[a, b, c], [d, e, f]]` of u' = a u + b v + c,
+/// v' = d u + e v + f.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(tag = "texture", rename_all = "snake_case", deny_unknown_fields)]
+pub enum TextureDesc {
+    /// An 8-bit PNG (sRGB-decoded unless `raw`) or an EXR (linear), relative to the scene file.
+    Bitmap {
+        file: String,
+        #[serde(default)]
+        filter_type: FilterTypeDesc,
+        #[serde(default)]
+        wrap_mode: WrapModeDesc,
+        #[serde(default)]
+        raw: bool,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to_uv: Option<[[f32; 3]; 2]>,
+    },
+    /// `color0` (0.4) and `color1` (0.2) alternating on the unit square.
+    Checkerboard {
+        #[serde(default = "checker0")]
+        color0: RgbValue,
+        #[serde(default = "checker1")]
+        color1: RgbValue,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to_uv: Option<[[f32; 3]; 2]>,
+    },
+}
+
+fn checker0() -> RgbValue {
+    RgbValue::Scalar(crate::texture::checkerboard::COLOR0)
+}
+fn checker1() -> RgbValue {
+    RgbValue::Scalar(crate::texture::checkerboard::COLOR1)
+}
+
+/// A bitmap's `filter_type` (Mitsuba 3's names).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FilterTypeDesc {
+    #[default]
+    Bilinear,
+    Nearest,
+}
+
+/// A bitmap's `wrap_mode` (Mitsuba 3's names).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum WrapModeDesc {
+    #[default]
+    Repeat,
+    Mirror,
+    Clamp,
+}
+
 /// `[camera]`.
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -155,8 +238,9 @@ fn default_up() -> [f32; 3] {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MaterialDesc {
     /// `one_sided`: black behind the normal, as Mitsuba's `diffuse` (default: two-sided).
+    /// `albedo` may be a texture.
     Lambert {
-        albedo: RgbValue,
+        albedo: ReflectanceValue,
         #[serde(default)]
         one_sided: bool,
     },

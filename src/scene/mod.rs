@@ -52,6 +52,8 @@ pub struct ShapeInfo {
     pub label: String,
     /// A smooth mesh's corner normals (`smooth_normals`); `None`: shaded by the face normal.
     pub normals: Option<CornerNormals>,
+    /// The material's textured reflectance with this shape's (u, v); `None` when constant.
+    pub texture: Option<ShapeTexture>,
 }
 
 /// The unit normals at the three corners of each triangle of a smooth mesh, for the shading
@@ -62,6 +64,75 @@ pub struct CornerNormals {
     pub first_prim: u32,
     /// One entry per primitive of the shape, in order.
     pub corners: Vec<[Vec3; 3]>,
+}
+
+/// A textured parameter of a shape's material: the texture, and how the shape maps a point to
+/// (u, v). The material's constant value stands in wherever no point is known (`info`).
+#[derive(Clone, Debug)]
+pub struct ShapeTexture {
+    pub reflectance: std::sync::Arc<crate::texture::Texture>,
+    pub uv: UvMap,
+}
+
+/// How a shape gives (u, v) to a point of one of its primitives.
+#[derive(Clone, Copy, Debug)]
+pub enum UvMap {
+    /// The primitive's own coordinates ([`Primitive::uv`]).
+    Primitive,
+    /// Mitsuba 3's `cube` ([-1,1]^3 scaled and moved to `center`, half sides `half`): each face
+    /// is the unit square, laid out as `src/shapes/cube.cpp` lists its vertices.
+    Cube { center: Vec3, half: Vec3 },
+}
+
+/// Mitsuba 3's `cube`: per face (in its order, by outward normal), the corners of uv (0, 0),
+/// (1, 0) and (0, 1) (`src/shapes/cube.cpp`: `position_index` with `side_uv`).
+const CUBE_FACES: [(Vec3, [Vec3; 3]); 6] = {
+    const fn c(i: u32) -> Vec3 {
+        Vec3::new(
+            if i & 1 != 0 { 1.0 } else { -1.0 },
+            if i & 2 != 0 { 1.0 } else { -1.0 },
+            if i & 4 != 0 { 1.0 } else { -1.0 },
+        )
+    }
+    // face s has corners position_index[4s..4s+4] with uv (0,1), (1,1), (1,0), (0,0)
+    const IDX: [u32; 24] = [
+        1, 5, 4, 0, 3, 2, 6, 7, 1, 3, 7, 5, 5, 7, 6, 4, 4, 6, 2, 0, 3, 1, 0, 2,
+    ];
+    const N: [Vec3; 6] = [
+        Vec3::new(0.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(-1.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, -1.0),
+    ];
+    let mut out = [(Vec3::ZERO, [Vec3::ZERO; 3]); 6];
+    let mut s = 0;
+    while s < 6 {
+        out[s] = (N[s], [c(IDX[4 * s + 3]), c(IDX[4 * s + 2]), c(IDX[4 * s])]);
+        s += 1;
+    }
+    out
+};
+
+impl UvMap {
+    /// The (u, v) of point `p` on primitive `prim` (with unit normal `n`).
+    pub fn uv(&self, prim: &Primitive, p: Vec3, n: Vec3) -> glam::Vec2 {
+        match *self {
+            UvMap::Primitive => prim.uv(p),
+            UvMap::Cube { center, half } => {
+                let local = (p - center) / half;
+                let face = CUBE_FACES
+                    .iter()
+                    .max_by(|a, b| a.0.dot(n).total_cmp(&b.0.dot(n)))
+                    .map_or([Vec3::ZERO; 3], |f| f.1);
+                let [o, eu, ev] = face;
+                // the edges are 2 long: a coordinate is the projection over 4
+                let rel = local - o;
+                glam::Vec2::new(rel.dot(eu - o) / 4.0, rel.dot(ev - o) / 4.0)
+            }
+        }
+    }
 }
 
 impl ShapeInfo {
@@ -231,6 +302,36 @@ impl Scene {
             }
             _ => hit.ng,
         }
+    }
+
+    /// The BSDF at point `p` of primitive `prim`: the shape's material, with its textured
+    /// reflectance looked up at the point's (u, v); borrowed, unchanged, when nothing is
+    /// textured (`None` at a black emitter).
+    #[inline]
+    pub fn bsdf_at(&self, prim: u32, p: Vec3) -> Option<std::borrow::Cow<'_, Bsdf>> {
+        let shape = &self.shapes[self.prim_shape[prim as usize] as usize];
+        let bsdf = shape.bsdf.as_ref()?;
+        let Some(t) = &shape.texture else {
+            return Some(std::borrow::Cow::Borrowed(bsdf));
+        };
+        Some(std::borrow::Cow::Owned(self.textured(bsdf, t, prim, p)))
+    }
+
+    /// `bsdf` with `t`'s value at `p` (kept out of line: untextured scenes never call it).
+    #[inline(never)]
+    fn textured(&self, bsdf: &Bsdf, t: &ShapeTexture, prim: u32, p: Vec3) -> Bsdf {
+        let prim = &self.prims[prim as usize];
+        // only the cube's faces (quads) need the normal
+        let n = match prim {
+            Primitive::Quad(q) => q.n,
+            _ => Vec3::ZERO,
+        };
+        let value = t.reflectance.eval(t.uv.uv(prim, p, n));
+        let mut out = bsdf.clone();
+        if let Bsdf::Lambert(l) = &mut out {
+            l.albedo = value;
+        }
+        out
     }
 
     /// Propagates `ray`, starting in `medium`, through media and null boundaries until a

@@ -293,6 +293,93 @@ radiance = 0.5
     );
 }
 
+/// `diffuse` with a `bitmap` and a `checkerboard` `reflectance`: every parameter with its
+/// Mitsuba name and default, `to_uv` from a 4x4 transform without its z row and column; a
+/// texture where the importer would change the uv is refused with its line.
+#[test]
+fn textures_are_mitsubas() {
+    same_scene(
+        &scene(
+            r#"<shape type="rectangle">
+        <bsdf type="diffuse">
+            <texture type="bitmap" name="reflectance">
+                <string name="filename" value="tests/fixtures/textures/rgb4x3.png"/>
+                <string name="filter_type" value="nearest"/>
+                <string name="wrap_mode" value="mirror"/>
+                <boolean name="raw" value="true"/>
+                <transform name="to_uv"><scale x="2" y="3"/><translate x="0.25" y="-0.5" z="7"/></transform>
+            </texture>
+        </bsdf>
+    </shape>
+    <shape type="sphere">
+        <float name="radius" value="0.3"/>
+        <bsdf type="twosided"><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></bsdf>
+    </shape>
+    <shape type="disk"><transform name="to_world"><translate z="1"/></transform><emitter type="area"/></shape>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[materials."bsdf@9"]
+type = "lambert"
+albedo = {{ texture = "bitmap", file = "tests/fixtures/textures/rgb4x3.png", filter_type = "nearest", wrap_mode = "mirror", raw = true, to_uv = [[2.0, 0.0, 0.25], [0.0, 3.0, -0.5]] }}
+one_sided = true
+[materials."bsdf@21"]
+type = "lambert"
+albedo = {{ texture = "checkerboard", color0 = 0.4, color1 = 0.2 }}
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "bsdf@9"
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 0.3
+material = "bsdf@21"
+[[shapes]]
+type = "disk"
+center = [0.0, 0.0, 1.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+emission = 1.0
+"#
+        ),
+    );
+    let refused = |body: &str, line: &str| {
+        let e =
+            xml(&scene(body)).and_then(|s| Scene::load(&s).map(|_| ()).map_err(|e| e.to_string()));
+        let e = e.expect_err(body);
+        assert!(e.contains(line), "{e}");
+    };
+    let checker =
+        r#"<bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf>"#;
+    refused(
+        &format!(
+            r#"<shape type="rectangle"><boolean name="flip_normals" value="true"/>{checker}</shape>"#
+        ),
+        "t.xml:8",
+    );
+    refused(
+        &format!(
+            r#"<shape type="sphere"><transform name="to_world"><rotate z="1" angle="30"/></transform>{checker}</shape>"#
+        ),
+        "t.xml:8",
+    );
+    refused(
+        r#"<shape type="rectangle"><bsdf type="plastic"><texture type="checkerboard" name="diffuse_reflectance"/></bsdf></shape>"#,
+        "t.xml:8",
+    );
+    refused(
+        r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="missing.png"/></texture></bsdf></shape>"#,
+        "missing.png",
+    );
+    refused(
+        r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="x.png"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#,
+        "t.xml:8",
+    );
+}
+
 /// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
 /// unbent, two-sided.
 #[test]
@@ -868,7 +955,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "either the material or eta and k",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap"/></bsdf></shape>"#,
+            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="diffuse_reflectance" type="bitmap"/></bsdf></shape>"#,
             "textures",
         ),
         (

@@ -675,6 +675,15 @@ fn agreement_nested() {
     fam.finish();
 }
 
+/// Textured albedos (checkerboard, PNG and EXR bitmaps) on a quad, a box, a sphere and a disk:
+/// every integrator looks the texture up at its own vertices.
+#[test]
+fn agreement_textured() {
+    let mut fam = Family::new("agreement: textured");
+    check_row(&mut fam, &row("textured", fixture("textured.toml"), 3));
+    fam.finish();
+}
+
 /// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
 #[test]
 fn agreement_disk() {

@@ -237,6 +237,26 @@ const COVERED: &[(&str, &str, &str)] = &[
         "atomic writes, and every EXR read back",
     ),
     (
+        "image_io::png_input",
+        "spec::texture",
+        "the PNG fixture read through a bitmap texture, raw and sRGB-decoded, against Mitsuba 3's lookups",
+    ),
+    (
+        "scene::build::textures",
+        "spec::texture",
+        "textures built from TOML keys (every filter, wrap mode, raw, to_uv) and looked up against Mitsuba 3",
+    ),
+    (
+        "texture::bitmap",
+        "spec::texture",
+        "bilinear and nearest lookups, wrap modes and sRGB against Mitsuba 3's values and identities",
+    ),
+    (
+        "texture::checkerboard",
+        "spec::texture",
+        "the pattern and to_uv against Mitsuba 3's values",
+    ),
+    (
         "image_io::rgbe",
         "spec::scene::envmap",
         "Radiance files written by the test, run-length encoded and flat, and their defects",

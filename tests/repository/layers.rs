@@ -1,6 +1,6 @@
 //! The crate's layers: a module may use the layers below it, never one above. The order, from
 //! the bottom: `math`, `spectrum`, `conventions` <- `geometry`, `medium`, `bsdf`, `film`,
-//! `image_io` <- `scene` <- `path` <- `bidir` <- `enlightened` <- `integrator` <- `render` <-
+//! `image_io`, `texture` <- `scene` <- `path` <- `bidir` <- `enlightened` <- `integrator` <- `render` <-
 //! `measure`, `aov` <- `cli`, `figures` (the course is a workspace member of its own, `course/`). A lower layer that reaches up ties the house into one import
 //! circle: a change to an integrator can then break the scene, and nobody can read the scene
 //! without the integrators.
@@ -24,7 +24,7 @@ use std::path::Path;
 fn layer(module: &str) -> Option<u32> {
     Some(match module {
         "math" | "spectrum" | "conventions" => 0,
-        "geometry" | "medium" | "bsdf" | "film" | "image_io" => 1,
+        "geometry" | "medium" | "bsdf" | "film" | "image_io" | "texture" => 1,
         "scene" => 2,
         "path" => 3,
         "bidir" => 4,

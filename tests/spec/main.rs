@@ -46,3 +46,4 @@ mod render {
     mod shard;
 }
 mod scene;
+mod texture;

@@ -33,7 +33,7 @@ pub const SPECULAR_COS_TOLERANCE: f32 = 1e-5;
 /// The BSDF at a surface vertex if all its lobes are Dirac (mirror, glass). A material with a
 /// Dirac and a regular lobe (plastic) is refused by MLT (`check_scene`).
 pub fn singular_bsdf<'a>(scene: &'a Scene, v: &Vertex) -> Option<&'a Bsdf> {
-    v.bsdf(scene).filter(|b| b.only_dirac_lobes())
+    v.material(scene).filter(|b| b.only_dirac_lobes())
 }
 
 /// True when vertex `v` scatters only through Dirac lobes (mirror, glass).

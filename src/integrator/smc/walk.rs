@@ -249,7 +249,7 @@ pub fn surface(
             }
         }
     }
-    let Some(bsdf) = &shape.bsdf else {
+    let Some(bsdf) = scene.bsdf_at(hit.prim, hit.p) else {
         return SurfaceStep { a, next: None };
     };
     if *depth >= max_depth {

@@ -2,6 +2,9 @@
 
 use std::collections::BTreeMap;
 
+use std::sync::Arc;
+
+use super::textures::reflectance;
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
@@ -13,14 +16,19 @@ use crate::bsdf::{
 use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
 use crate::scene::{SceneError, SceneSource};
 use crate::spectrum::Rgb;
+use crate::texture::Texture;
+
+/// The materials by name, and the textured reflectance of those that have one.
+pub(super) struct Materials {
+    pub(super) bsdfs: BTreeMap<String, Bsdf>,
+    pub(super) textures: BTreeMap<String, Arc<Texture>>,
+}
 
 /// Every material of the file by name, with the built-in `null` (the index-matched boundary of
 /// a medium).
-pub(super) fn materials(
-    src: &SceneSource,
-    desc: &SceneFile,
-) -> Result<BTreeMap<String, Bsdf>, SceneError> {
+pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials, SceneError> {
     let mut materials: BTreeMap<String, Bsdf> = BTreeMap::new();
+    let mut textures = BTreeMap::new();
     materials.insert("null".into(), Bsdf::Null(Null));
     for (name, m) in &desc.materials {
         let key = path("materials").key(name);
@@ -34,10 +42,16 @@ pub(super) fn materials(
             MaterialDesc::Lambert {
                 albedo: a,
                 one_sided,
-            } => Bsdf::Lambert(Lambert {
-                albedo: albedo(src, &key.clone().key("albedo"), *a)?,
-                one_sided: *one_sided,
-            }),
+            } => {
+                let (albedo, texture) = reflectance(src, &key.clone().key("albedo"), a)?;
+                if let Some(t) = texture {
+                    textures.insert(name.clone(), Arc::new(t));
+                }
+                Bsdf::Lambert(Lambert {
+                    albedo,
+                    one_sided: *one_sided,
+                })
+            }
             MaterialDesc::Mirror {
                 reflectance,
                 one_sided,
@@ -140,7 +154,10 @@ pub(super) fn materials(
         };
         materials.insert(name.clone(), bsdf);
     }
-    Ok(materials)
+    Ok(Materials {
+        bsdfs: materials,
+        textures,
+    })
 }
 
 fn distribution_of(d: DistributionDesc) -> Distribution {

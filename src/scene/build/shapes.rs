@@ -4,6 +4,7 @@
 use glam::Vec3;
 use std::collections::{BTreeMap, HashMap};
 
+use super::materials::Materials;
 use super::media::Media;
 use super::normals;
 use super::ply::MeshPart;
@@ -13,7 +14,7 @@ use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
 use crate::math::Distribution1D;
 use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
-use crate::scene::{Light, SceneError, SceneSource, ShapeInfo};
+use crate::scene::{Light, SceneError, SceneSource, ShapeInfo, ShapeTexture, UvMap};
 
 /// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
 /// triangles that traverse it in opposite directions. Vertices are welded by position first, so
@@ -128,7 +129,7 @@ pub(super) struct Surfaces {
 pub(super) fn shapes(
     src: &SceneSource,
     desc: &SceneFile,
-    materials: &BTreeMap<String, Bsdf>,
+    materials: &Materials,
     media: &Media,
 ) -> Result<Surfaces, SceneError> {
     let mut prims = Vec::new();
@@ -138,7 +139,8 @@ pub(super) fn shapes(
     for (i, s) in desc.shapes.iter().enumerate() {
         let key = path("shapes").index(i);
         let common = s.common();
-        let (emission, bsdf) = surface(src, &key, &common, materials)?;
+        let (emission, bsdf) = surface(src, &key, &common, &materials.bsdfs)?;
+        let texture = shape_texture(src, &key, s, &common, materials)?;
         let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
         let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
         let interface = common.interior.is_some() || common.exterior.is_some();
@@ -191,6 +193,7 @@ pub(super) fn shapes(
             interface,
             label: format!("shapes[{i}] ({})", s.kind()),
             normals,
+            texture,
         });
     }
     Ok(Surfaces {
@@ -199,6 +202,44 @@ pub(super) fn shapes(
         shapes,
         lights,
     })
+}
+
+/// The textured reflectance of a shape's material with the shape's (u, v): Mitsuba 3's
+/// conventions for the quad (`rectangle`), disk, sphere and box (`cube`); meshes are refused.
+fn shape_texture(
+    src: &SceneSource,
+    key: &KeyPath,
+    s: &ShapeDesc,
+    common: &ShapeCommon,
+    materials: &Materials,
+) -> Result<Option<ShapeTexture>, SceneError> {
+    let Some(t) = common
+        .material
+        .as_ref()
+        .and_then(|m| materials.textures.get(m))
+    else {
+        return Ok(None);
+    };
+    let uv = match s {
+        ShapeDesc::Box { min, max, .. } => {
+            let (lo, hi) = (Vec3::from_array(*min), Vec3::from_array(*max));
+            UvMap::Cube {
+                center: 0.5 * (lo + hi),
+                half: 0.5 * (hi - lo),
+            }
+        }
+        ShapeDesc::Mesh { .. } => {
+            return Err(src.error(
+                &key.clone().key("material"),
+                "a textured material on a mesh: meshes carry no texture coordinates here (quads, disks, spheres and boxes do)",
+            ))
+        }
+        _ => UvMap::Primitive,
+    };
+    Ok(Some(ShapeTexture {
+        reflectance: t.clone(),
+        uv,
+    }))
 }
 
 /// A shape's emission (black counts as none) and material: one of them is required, and a null

@@ -350,6 +350,14 @@ impl<'a, 'd> Props<'a, 'd> {
         }
     }
 
+    /// The property `name` when it is a `<texture>` (nested or referenced).
+    pub fn texture(&mut self, name: &str) -> Option<Node<'a, 'a>> {
+        if self.tag_of(name) != Some("texture") {
+            return None;
+        }
+        self.take(name).map(|(_, node)| node)
+    }
+
     /// The nested object with tag `tag` (named `name`, or any name when `None`).
     pub fn object(
         &mut self,

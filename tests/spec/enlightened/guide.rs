@@ -853,7 +853,7 @@ fn guided_fresnel_choice_is_sampled_with_the_probability_its_densities_use() {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
         b.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut s, &mut eye);
         for i in 1..eye.len() {
-            if matches!(eye[i].bsdf(&scene), Some(Bsdf::Dielectric(_))) {
+            if matches!(eye[i].material(&scene), Some(Bsdf::Dielectric(_))) {
                 glass.push((eye[i], (eye[i - 1].p - eye[i].p).normalize()));
                 break;
             }
@@ -968,7 +968,8 @@ fn mlt_densities_carry_each_subpaths_guided_lobe_choice() {
             continue;
         };
         let n = x.len();
-        let Some(j) = (1..n - 1).find(|&j| matches!(x[j].bsdf(&scene), Some(Bsdf::Dielectric(_))))
+        let Some(j) =
+            (1..n - 1).find(|&j| matches!(x[j].material(&scene), Some(Bsdf::Dielectric(_))))
         else {
             continue;
         };

@@ -7,7 +7,11 @@ use roxmltree::Node;
 
 use super::{rgb, show, Importer, Props};
 use crate::bsdf::named_conductor::named_conductor;
-use crate::scene::file::{DistributionDesc, MaterialDesc, RgbValue};
+use crate::scene::file::{
+    DistributionDesc, FilterTypeDesc, MaterialDesc, ReflectanceValue, RgbValue, TextureDesc,
+    WrapModeDesc,
+};
+use crate::scene::mitsuba::props::Doc;
 use crate::scene::SceneError;
 
 /// Mitsuba's named indices of refraction (the whole table of its `ior.h`).
@@ -126,11 +130,12 @@ impl<'a, 'd> Importer<'a, 'd> {
 fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, String), SceneError> {
     match p.plugin.as_str() {
         "diffuse" => {
-            let a = p.color("reflectance")?.unwrap_or(DVec3::splat(0.5));
-            Ok((
-                MaterialDesc::Lambert { albedo: rgb(a), one_sided },
-                format!("lambert, albedo {}{side}", show(a)),
-            ))
+            let albedo = match p.texture("reflectance") {
+                Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
+                None => rgb(p.color("reflectance")?.unwrap_or(DVec3::splat(0.5))).into(),
+            };
+            let how = format!("lambert, albedo {albedo}{side}");
+            Ok((MaterialDesc::Lambert { albedo, one_sided }, how))
         }
         "conductor" => {
             let (index, how) = conductor_index(p)?;
@@ -150,6 +155,83 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
             "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
         ))),
     }
+}
+
+/// A `<texture>`: Mitsuba 3's `bitmap` (`filename`, `filter_type`, `wrap_mode`, `raw`,
+/// `to_uv`) or `checkerboard` (`color0`, `color1`, `to_uv`), with their defaults.
+fn texture(doc: &Doc, node: Node) -> Result<TextureDesc, SceneError> {
+    let mut p = Props::new(doc, node)?;
+    let to_uv = match p.transform("to_uv")? {
+        // Mitsuba's 4x4 to 3x3 (`AffineTransform::extract`): the z row and column dropped
+        Some(m) => {
+            let r = |i: usize| [m.row(i).x, m.row(i).y, m.row(i).w].map(|x| x as f32);
+            Some([r(0), r(1)])
+        }
+        None => None,
+    };
+    let t = match p.plugin.as_str() {
+        "checkerboard" => {
+            let c = |p: &mut Props, k: &str, d: f32| -> Result<RgbValue, SceneError> {
+                if p.tag_of(k) == Some("texture") {
+                    return Err(p.err(format!(
+                        "a texture as `{k}` of a checkerboard is not supported"
+                    )));
+                }
+                Ok(p.color(k)?.map_or(RgbValue::Scalar(d), rgb))
+            };
+            use crate::texture::checkerboard::{COLOR0, COLOR1};
+            let (color0, color1) = (c(&mut p, "color0", COLOR0)?, c(&mut p, "color1", COLOR1)?);
+            TextureDesc::Checkerboard {
+                color0,
+                color1,
+                to_uv,
+            }
+        }
+        "bitmap" => {
+            let file = p
+                .string("filename")?
+                .ok_or_else(|| p.err("`filename` is missing"))?;
+            let filter_type = match p.string("filter_type")?.as_deref() {
+                None | Some("bilinear") => FilterTypeDesc::Bilinear,
+                Some("nearest") => FilterTypeDesc::Nearest,
+                Some(f) => {
+                    return Err(p.err(format!(
+                        "filter_type = {f}: Mitsuba knows bilinear and nearest"
+                    )))
+                }
+            };
+            let wrap_mode = match p.string("wrap_mode")?.as_deref() {
+                None | Some("repeat") => WrapModeDesc::Repeat,
+                Some("mirror") => WrapModeDesc::Mirror,
+                Some("clamp") => WrapModeDesc::Clamp,
+                Some(w) => {
+                    return Err(p.err(format!(
+                        "wrap_mode = {w}: Mitsuba knows repeat, mirror and clamp"
+                    )))
+                }
+            };
+            let raw = p.boolean("raw")?.unwrap_or(false);
+            if p.string("format")?.is_some_and(|f| f != "variant") {
+                return Err(
+                    p.err("a `format` other than variant is not supported (it rounds texels)")
+                );
+            }
+            TextureDesc::Bitmap {
+                file,
+                filter_type,
+                wrap_mode,
+                raw,
+                to_uv,
+            }
+        }
+        k => {
+            return Err(p.err(format!(
+                "the texture `{k}` is not supported (bitmap, checkerboard are)"
+            )))
+        }
+    };
+    p.finish()?;
+    Ok(t)
 }
 
 /// `roughconductor`: Beckmann or GGX with the complex index of [`conductor_index`] and

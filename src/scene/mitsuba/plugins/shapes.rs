@@ -5,7 +5,7 @@ use glam::{DMat3, DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, show, similarity, Importer, Props};
-use crate::scene::file::{MaterialDesc, RgbValue, ShapeDesc};
+use crate::scene::file::{MaterialDesc, ReflectanceValue, RgbValue, ShapeDesc};
 use crate::scene::SceneError;
 
 impl<'a, 'd> Importer<'a, 'd> {
@@ -39,6 +39,16 @@ impl<'a, 'd> Importer<'a, 'd> {
         let (geometry, how) = geometry(&mut p, &m, flip)?;
         p.finish()?;
         let (material, emission) = self.surface(bsdf, emitter)?;
+        let textured = matches!(
+            material.as_ref().and_then(|m| self.out.materials.get(m)),
+            Some(MaterialDesc::Lambert {
+                albedo: ReflectanceValue::Texture(_),
+                ..
+            })
+        );
+        if textured {
+            textured_uv(self.doc, node, &m, flip)?;
+        }
         self.push_shape(node, geometry, how, material, emission, interior, exterior)
     }
 
@@ -61,7 +71,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             None => self.default_material(),
         };
         // a black diffuse emitter is an emitter without a material
-        let black = matches!(self.out.materials.get(&material), Some(MaterialDesc::Lambert { albedo, .. }) if albedo.to_rgb() == glam::Vec3::ZERO);
+        let black = matches!(self.out.materials.get(&material), Some(MaterialDesc::Lambert { albedo: ReflectanceValue::Value(albedo), .. }) if albedo.to_rgb() == glam::Vec3::ZERO);
         let material = if emission.is_some() && black {
             if self.materials.len() > known {
                 // made for this shape alone: not part of the scene
@@ -114,11 +124,38 @@ impl<'a, 'd> Importer<'a, 'd> {
             .materials
             .entry(name.clone())
             .or_insert(MaterialDesc::Lambert {
-                albedo: RgbValue::Scalar(0.5),
+                albedo: RgbValue::Scalar(0.5).into(),
                 one_sided: true,
             });
         name
     }
+}
+
+/// Refuses a textured shape whose (u, v) the translation would not keep: a flipped rectangle
+/// or disk (u and v swap), a rotated sphere (pathspace's has no axes) and a cylinder (its
+/// angle counts from pathspace's own frame about the axis, not from Mitsuba's).
+fn textured_uv(
+    doc: &crate::scene::mitsuba::props::Doc,
+    node: Node,
+    m: &DMat4,
+    flip: bool,
+) -> Result<(), SceneError> {
+    let plugin = node.attribute("type").unwrap_or("");
+    let l = linear(m);
+    let rotated = plugin == "sphere" && {
+        let s = l.x_axis.length();
+        (l - DMat3::from_diagonal(DVec3::splat(s)))
+            .to_cols_array()
+            .iter()
+            .any(|x| x.abs() > 1e-9 * s)
+    };
+    if flip || rotated || plugin == "cylinder" {
+        return Err(doc.err(
+            node,
+            "a textured flipped rectangle or disk, a textured rotated sphere or a textured cylinder is not supported (its (u, v) would change)",
+        ));
+    }
+    Ok(())
 }
 
 /// A shape's geometry and its note.

@@ -1,0 +1,148 @@
+//! Textured reflectances (`albedo = { texture = "bitmap", file = "wood.png" }`): the texture
+//! of a material key, its image read within limits, every texel a reflectance in [0, 1].
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::values::albedo;
+use crate::image_io::{png_input, read_exr_input_hashed, Image};
+use crate::scene::file::{FilterTypeDesc, KeyPath, ReflectanceValue, TextureDesc, WrapModeDesc};
+use crate::scene::{SceneError, SceneSource};
+use crate::texture::{
+    srgb_to_linear, Bitmap, Checkerboard, FilterType, Texture, UvTransform, WrapMode,
+};
+
+/// The largest texture file read, in bytes.
+pub const MAX_TEXTURE_BYTES: u64 = 1 << 28;
+/// The most texels a texture may have (an 8k x 8k image).
+pub const MAX_TEXELS: usize = 1 << 26;
+
+/// A reflectance at `key`: its constant value, or the texture (whose mean stands in for the
+/// constant where no point is known, as in `pathspace info`).
+pub(super) fn reflectance(
+    src: &SceneSource,
+    key: &KeyPath,
+    v: &ReflectanceValue,
+) -> Result<(Vec3, Option<Texture>), SceneError> {
+    match v {
+        ReflectanceValue::Value(c) => Ok((albedo(src, key, *c)?, None)),
+        ReflectanceValue::Texture(t) => {
+            let t = texture(src, key, t)?;
+            let mean = match &t {
+                Texture::Bitmap(b) => b.texels().iter().sum::<Vec3>() / b.texels().len() as f32,
+                Texture::Checkerboard(c) => 0.5 * (c.color0 + c.color1),
+            };
+            Ok((mean, Some(t)))
+        }
+    }
+}
+
+/// The texture `t` at `key`.
+fn texture(src: &SceneSource, key: &KeyPath, t: &TextureDesc) -> Result<Texture, SceneError> {
+    match t {
+        TextureDesc::Checkerboard {
+            color0,
+            color1,
+            to_uv,
+        } => Ok(Texture::Checkerboard(Checkerboard {
+            color0: albedo(src, &key.clone().key("color0"), *color0)?,
+            color1: albedo(src, &key.clone().key("color1"), *color1)?,
+            to_uv: uv_transform(src, key, to_uv)?,
+        })),
+        TextureDesc::Bitmap {
+            file,
+            filter_type,
+            wrap_mode,
+            raw,
+            to_uv,
+        } => {
+            let file_key = key.clone().key("file");
+            let (image, srgb) = read_image(src, &file_key, file, *raw)?;
+            let texels: Vec<Vec3> = image
+                .pixels
+                .iter()
+                .map(|c| if srgb { c.map(srgb_to_linear) } else { *c })
+                .collect();
+            if let Some(k) = texels.iter().position(|c| {
+                !c.to_array()
+                    .iter()
+                    .all(|x| x.is_finite() && (0.0..=1.0).contains(x))
+            }) {
+                let w = image.width as usize;
+                return Err(src.error(
+                    &file_key,
+                    format!(
+                        "{file}: texel ({}, {}) is {}: a reflectance must be finite and in [0, 1]",
+                        k % w,
+                        k / w,
+                        texels[k]
+                    ),
+                ));
+            }
+            let filter = match filter_type {
+                FilterTypeDesc::Bilinear => FilterType::Bilinear,
+                FilterTypeDesc::Nearest => FilterType::Nearest,
+            };
+            let wrap = match wrap_mode {
+                WrapModeDesc::Repeat => WrapMode::Repeat,
+                WrapModeDesc::Mirror => WrapMode::Mirror,
+                WrapModeDesc::Clamp => WrapMode::Clamp,
+            };
+            let to_uv = uv_transform(src, key, to_uv)?;
+            let (w, h) = (image.width as usize, image.height as usize);
+            Bitmap::new(w, h, texels, filter, wrap, to_uv)
+                .map(Texture::Bitmap)
+                .ok_or_else(|| {
+                    src.error(
+                        &file_key,
+                        format!(
+                            "{file}: a {w} x {h} image; each side must be at least 2 (Mitsuba pads smaller ones)"
+                        ),
+                    )
+                })
+        }
+    }
+}
+
+/// The image `file` (relative to the scene file): a PNG (8-bit, sRGB unless `raw`) or an EXR
+/// (linear), by its first bytes; with whether it is to be sRGB-decoded.
+fn read_image(
+    src: &SceneSource,
+    key: &KeyPath,
+    file: &str,
+    raw: bool,
+) -> Result<(Image, bool), SceneError> {
+    let path = src.base_dir.join(file);
+    let (image, hash, srgb) = if is_png(&path) {
+        png_input::read_png8_input_hashed(&path, MAX_TEXTURE_BYTES, MAX_TEXELS)
+            .map(|(i, h)| (i, h, !raw))
+    } else {
+        read_exr_input_hashed(&path, MAX_TEXTURE_BYTES, MAX_TEXELS).map(|(i, h)| (i, h, false))
+    }
+    .map_err(|e| src.error(key, e.to_string()))?;
+    src.record_input(file, hash);
+    Ok((image, srgb))
+}
+
+/// True when the file starts with PNG's signature.
+fn is_png(path: &Path) -> bool {
+    use std::io::Read;
+    let mut start = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut start))
+        .is_ok_and(|_| start == *b"\x89PNG\r\n\x1a\n")
+}
+
+/// `to_uv` at `key`: finite rows, identity when absent.
+fn uv_transform(
+    src: &SceneSource,
+    key: &KeyPath,
+    rows: &Option<[[f32; 3]; 2]>,
+) -> Result<UvTransform, SceneError> {
+    match rows {
+        None => Ok(UvTransform::default()),
+        Some(r) if r.iter().flatten().all(|x| x.is_finite()) => Ok(UvTransform { rows: *r }),
+        Some(r) => Err(src.error(&key.clone().key("to_uv"), format!("{r:?} is not finite"))),
+    }
+}

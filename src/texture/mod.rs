@@ -1,0 +1,87 @@
+//! Textures: a reflectance that varies over a surface, looked up at the hit's (u, v) (Mitsuba 3
+//! documentation, "Textures"). Two plugins, as Mitsuba 3 defines them: `bitmap` (an image with
+//! bilinear or nearest lookup and a wrap mode) and `checkerboard` (two colours alternating on
+//! the unit square). Both take an affine `to_uv` applied to (u, v) before the lookup.
+//!
+//! A texture only answers "which value at (u, v)"; where (u, v) comes from is the shape's
+//! (`geometry::shape::Primitive::uv`, and `scene::UvMap` for the cube), and which parameter it
+//! replaces is the material's (`scene::ShapeTexture`).
+//! Book: "Scenes and geometry" (textures); spec: `tests/spec/texture.rs`.
+
+pub mod bitmap;
+pub mod checkerboard;
+
+pub use bitmap::{srgb_to_linear, Bitmap, FilterType, WrapMode};
+pub use checkerboard::Checkerboard;
+
+use glam::Vec2;
+
+use crate::spectrum::Rgb;
+
+/// Mitsuba 3's `to_uv`: the affine map `uv' = [m0 m1] uv + m2` (the top two rows of its 3x3
+/// matrix, columns here), identity by default.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    /// Rows `[a, b, c]`, `[d, e, f]`: u' = a u + b v + c, v' = d u + e v + f.
+    pub rows: [[f32; 3]; 2],
+}
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        UvTransform {
+            rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        }
+    }
+}
+
+impl UvTransform {
+    #[inline]
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let [a, d] = self.rows;
+        Vec2::new(
+            a[0] * uv.x + a[1] * uv.y + a[2],
+            d[0] * uv.x + d[1] * uv.y + d[2],
+        )
+    }
+}
+
+/// The closed set of textures.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texture {
+    Bitmap(Bitmap),
+    Checkerboard(Checkerboard),
+}
+
+impl Texture {
+    /// The value at surface coordinates `uv` (before `to_uv`).
+    #[inline]
+    pub fn eval(&self, uv: Vec2) -> Rgb {
+        match self {
+            Texture::Bitmap(b) => b.eval(uv),
+            Texture::Checkerboard(c) => c.eval(uv),
+        }
+    }
+
+    /// The largest value of any channel anywhere (a reflectance must stay at most 1).
+    pub fn max_value(&self) -> f32 {
+        match self {
+            Texture::Bitmap(b) => b
+                .texels()
+                .iter()
+                .fold(0.0f32, |m, t| m.max(t.max_element())),
+            Texture::Checkerboard(c) => c.color0.max_element().max(c.color1.max_element()),
+        }
+    }
+
+    /// What `pathspace info` says of it.
+    pub fn describe(&self) -> String {
+        match self {
+            Texture::Bitmap(b) => format!("bitmap {} x {}", b.width(), b.height()),
+            Texture::Checkerboard(c) => format!(
+                "checkerboard {} / {}",
+                crate::spectrum::show(c.color0),
+                crate::spectrum::show(c.color1)
+            ),
+        }
+    }
+}

@@ -1,0 +1,247 @@
+//! Textures (`src/texture`) and the (u, v) of the shapes, against Mitsuba 3: the values its
+//! `bitmap` and `checkerboard` give at a list of points for every filter, wrap mode and `raw`,
+//! and the uv its `rectangle`, `disk`, `sphere` and `cube` give at ray hits, all recorded by
+//! `scripts/make_texture_fixtures.py` in `tests/fixtures/textures/mitsuba.json`; and the
+//! identities a texture keeps (bilinear at texel centres, the wrap of edge texels, sRGB).
+
+use glam::{Vec2, Vec3};
+use pathspace::geometry::Ray;
+use pathspace::scene::{mitsuba, Scene, SceneSource};
+use pathspace::texture::{srgb_to_linear, Bitmap, FilterType, Texture, UvTransform, WrapMode};
+use serde_json::Value;
+use std::path::PathBuf;
+
+fn fixtures() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/textures")
+}
+
+fn recorded() -> Value {
+    let text = std::fs::read_to_string(fixtures().join("mitsuba.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn v3(v: &Value) -> Vec3 {
+    Vec3::new(
+        v[0].as_f64().unwrap() as f32,
+        v[1].as_f64().unwrap() as f32,
+        v[2].as_f64().unwrap() as f32,
+    )
+}
+
+/// Two renderers' f32 evaluations of one formula: a few ulps apart, and Dr.Jit's sRGB curve is
+/// a polynomial within 1e-6 of the exact one.
+const F32_AGREEMENT: f32 = 1e-5;
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).abs().max_element() <= F32_AGREEMENT * (1.0 + b.abs().max_element())
+}
+
+/// The albedo texture of the first shape of a TOML scene (a quad) whose material is `albedo`.
+fn texture_of(albedo: &str) -> Texture {
+    let text = format!(
+        "[camera]\ntype = \"pinhole\"\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_deg = 40.0\nresolution = [4, 4]\n\
+         [materials.t]\ntype = \"lambert\"\nalbedo = {albedo}\n\
+         [[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 0.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nmaterial = \"t\"\n\
+         [[lights]]\ntype = \"point\"\nposition = [0.0, 0.0, 2.0]\nintensity = 1.0\n"
+    );
+    let mut src = SceneSource::embedded("t.toml", &text);
+    src.base_dir = fixtures();
+    let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
+    let t = scene.shapes[0].texture.as_ref().expect("a textured shape");
+    (*t.reflectance).clone()
+}
+
+#[test]
+fn bitmap_lookups_are_mitsubas_for_every_filter_wrap_and_raw() {
+    let r = recorded();
+    let uvs: Vec<Vec2> = r["uvs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| Vec2::new(p[0].as_f64().unwrap() as f32, p[1].as_f64().unwrap() as f32))
+        .collect();
+    let lookups = r["lookups"].as_array().unwrap();
+    assert!(lookups.len() >= 25);
+    for l in lookups {
+        let to_uv = match l.get("to_uv") {
+            Some(m) => format!(", to_uv = {m}"),
+            None => String::new(),
+        };
+        let albedo = format!(
+            "{{ texture = \"bitmap\", file = {}, filter_type = {}, wrap_mode = {}, raw = {}{to_uv} }}",
+            l["file"], l["filter_type"], l["wrap_mode"], l["raw"]
+        );
+        let t = texture_of(&albedo);
+        for (uv, want) in uvs.iter().zip(l["values"].as_array().unwrap()) {
+            let (got, want) = (t.eval(*uv), v3(want));
+            assert!(
+                close(got, want),
+                "{albedo} at {uv}: {got} against Mitsuba's {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn checkerboard_is_mitsubas() {
+    let r = recorded();
+    let t =
+        texture_of("{ texture = \"checkerboard\", to_uv = [[3.0, 0.0, 0.0], [0.0, 2.0, 0.0]] }");
+    for (uv, want) in r["uvs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(r["checkerboard"]["values"].as_array().unwrap())
+    {
+        let uv = Vec2::new(
+            uv[0].as_f64().unwrap() as f32,
+            uv[1].as_f64().unwrap() as f32,
+        );
+        assert_eq!(t.eval(uv), v3(want), "at {uv}");
+    }
+    // the pattern: color0 (0.4) on the diagonal quarters of each unit square, color1 (0.2) off it
+    let t = texture_of("{ texture = \"checkerboard\" }");
+    for (u, v, c) in [
+        (0.25, 0.25, 0.4),
+        (0.75, 0.75, 0.4),
+        (0.75, 0.25, 0.2),
+        (0.25, 0.75, 0.2),
+        (-0.25, 0.25, 0.2),
+        (1.25, 1.75, 0.2),
+    ] {
+        assert_eq!(t.eval(Vec2::new(u, v)), Vec3::splat(c), "at ({u}, {v})");
+    }
+}
+
+fn bitmap(filter: FilterType, wrap: WrapMode) -> Bitmap {
+    let texels = (0..12)
+        .map(|k| Vec3::new(k as f32, 2.0 * k as f32, 0.5))
+        .collect();
+    Bitmap::new(4, 3, texels, filter, wrap, UvTransform::default()).unwrap()
+}
+
+#[test]
+fn bilinear_at_a_texel_centre_is_the_texel_and_nearest_is_constant_on_a_texel() {
+    for wrap in [WrapMode::Repeat, WrapMode::Mirror, WrapMode::Clamp] {
+        let b = bitmap(FilterType::Bilinear, wrap);
+        let n = bitmap(FilterType::Nearest, wrap);
+        for j in 0..3 {
+            for i in 0..4 {
+                let centre = Vec2::new((i as f32 + 0.5) / 4.0, (j as f32 + 0.5) / 3.0);
+                let texel = b.texels()[j * 4 + i];
+                assert_eq!(b.eval(centre), texel, "texel ({i}, {j}), {wrap:?}");
+                // v = 0 is row 0, the image's first (top) row
+                for d in [
+                    Vec2::new(0.12, 0.0),
+                    Vec2::new(-0.1, 0.16),
+                    Vec2::new(0.0, -0.16),
+                ] {
+                    assert_eq!(n.eval(centre + d / Vec2::new(4.0, 3.0) * 0.9), texel);
+                }
+            }
+        }
+        // halfway between two texel centres: their mean
+        let mid = Vec2::new(2.0 / 4.0, 0.5 / 3.0);
+        assert_eq!(b.eval(mid), 0.5 * (b.texels()[1] + b.texels()[2]));
+    }
+}
+
+#[test]
+fn wrap_modes_at_the_edges() {
+    // repeat: the opposite edge; mirror: the edge texel again, then inwards; clamp: the edge
+    let cases = [
+        (
+            WrapMode::Repeat,
+            [(-1, 3), (-4, 0), (4, 0), (5, 1), (-5, 3)],
+        ),
+        (WrapMode::Mirror, [(-1, 0), (-2, 1), (4, 3), (5, 2), (8, 0)]),
+        (WrapMode::Clamp, [(-1, 0), (-7, 0), (4, 3), (9, 3), (2, 2)]),
+    ];
+    for (mode, pairs) in cases {
+        for (i, want) in pairs {
+            assert_eq!(mode.wrap(i, 4), want, "{mode:?} of {i}");
+        }
+    }
+    // bilinear at u = 0 blends the first texel with what the wrap puts left of it
+    let t = |w| {
+        bitmap(FilterType::Bilinear, w)
+            .eval(Vec2::new(0.0, 0.5 / 3.0))
+            .x
+    };
+    assert_eq!(t(WrapMode::Repeat), 0.5 * (0.0 + 3.0));
+    assert_eq!(t(WrapMode::Mirror), 0.0);
+    assert_eq!(t(WrapMode::Clamp), 0.0);
+}
+
+#[test]
+fn srgb_decoding_of_known_8_bit_values() {
+    // IEC 61966-2-1: the linear segment below 0.04045, the 2.4 power above
+    assert_eq!(srgb_to_linear(0.0), 0.0);
+    assert_eq!(srgb_to_linear(1.0), 1.0);
+    assert_eq!(srgb_to_linear(10.0 / 255.0), 10.0 / 255.0 / 12.92);
+    for (byte, linear) in [
+        (128u8, 0.215_860_5f32),
+        (200, 0.577_580_4),
+        (64, 0.051_269_46),
+    ] {
+        let got = srgb_to_linear(byte as f32 / 255.0);
+        assert!(
+            (got - linear).abs() < 1e-6,
+            "{byte}: {got} against {linear}"
+        );
+    }
+    // the PNG fixture's texel (0, 0) is the bytes (10, 200, 0), decoded unless raw
+    let centre = Vec2::new(0.125, 1.0 / 6.0);
+    let png = |raw| {
+        texture_of(&format!(
+            "{{ texture = \"bitmap\", file = \"rgb4x3.png\", raw = {raw} }}"
+        ))
+        .eval(centre)
+    };
+    assert_eq!(png(true), Vec3::new(10.0, 200.0, 0.0) / 255.0);
+    assert_eq!(
+        png(false),
+        Vec3::new(10.0, 200.0, 0.0).map(|b| srgb_to_linear(b / 255.0))
+    );
+}
+
+/// The uv of Mitsuba's shapes at the points its rays hit, from the XML through the importer.
+#[test]
+fn each_shapes_uv_is_mitsubas() {
+    let r = recorded();
+    let xml = |shape: &str| {
+        format!(
+            "<scene version=\"3.0.0\"><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><film type=\"hdrfilm\"><integer name=\"width\" value=\"4\"/><integer name=\"height\" value=\"4\"/><rfilter type=\"box\"/></film></sensor>{shape}<bsdf type=\"diffuse\"><texture type=\"checkerboard\" name=\"reflectance\"/></bsdf></shape></scene>"
+        )
+    };
+    let shapes = [
+        ("rectangle", "<shape type=\"rectangle\"><transform name=\"to_world\"><scale x=\"2\" y=\"0.5\"/><rotate z=\"1\" angle=\"30\"/><translate x=\"1\" y=\"2\" z=\"3\"/></transform>"),
+        ("disk", "<shape type=\"disk\"><transform name=\"to_world\"><scale x=\"2\" y=\"1\"/><translate z=\"1\"/></transform>"),
+        ("sphere", "<shape type=\"sphere\"><point name=\"center\" x=\"1\" y=\"-1\" z=\"0.5\"/><float name=\"radius\" value=\"2\"/>"),
+        ("cube", "<shape type=\"cube\"><transform name=\"to_world\"><scale x=\"1\" y=\"2\" z=\"0.5\"/><translate x=\"0.5\" z=\"-1\"/></transform>"),
+    ];
+    for (name, shape) in shapes {
+        let src =
+            mitsuba::import("t.xml", &xml(shape), fixtures()).unwrap_or_else(|e| panic!("{e}"));
+        let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
+        let hits = r["shapes"][name].as_array().unwrap();
+        assert!(!hits.is_empty());
+        for h in hits {
+            let (p, n) = (v3(&h["p"]), v3(&h["n"]));
+            // a ray towards the recorded point along its normal finds the same point
+            let hit = scene.intersect(&Ray::new(p + n, -n), 2.0).expect("a hit");
+            let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
+            let t = shape.texture.as_ref().unwrap();
+            let prim = &scene.prims[hit.prim as usize];
+            let uv = t.uv.uv(prim, hit.p, hit.ng);
+            let want = Vec2::new(
+                h["uv"][0].as_f64().unwrap() as f32,
+                h["uv"][1].as_f64().unwrap() as f32,
+            );
+            assert!(
+                (uv - want).abs().max_element() < 1e-5 * (1.0 + p.abs().max_element()),
+                "{name} at {p}: uv {uv} against Mitsuba's {want}"
+            );
+        }
+    }
+}
