@@ -3,6 +3,9 @@
 //! triangles (rays from inside the soup). A small harness instead of criterion: a dependency
 //! fewer, and the median of a handful of runs is what a reader needs to compare two builds.
 //!
+//! Last, the triangle test alone against Moller-Trumbore (the test it replaced), alternating the
+//! two run by run so that both see the same load, and the median of the per-run ratios.
+//!
 //! Run: `cargo bench --bench bvh`. Book: "Scenes and geometry".
 
 use std::hint::black_box;
@@ -146,4 +149,79 @@ fn main() {
     let soup_rays = rays(&mut r, 200_000, 1.0);
     report("100k triangle soup", &prims, &opaque, &bvh, &soup_rays);
     println!("(100k-triangle BVH built in {:.0} ms)", build * 1e3);
+    triangle_test(&mut r);
+}
+
+/// Moller-Trumbore (1997), the triangle test before the watertight one, for the ratio below.
+fn moller_trumbore(tri: &Triangle, ray: &Ray, t_max: f32) -> Option<(f32, Vec3, Vec3)> {
+    let (e1, e2) = (tri.e1(), tri.e2());
+    let pvec = ray.d.cross(e2);
+    let det = e1.dot(pvec);
+    if det == 0.0 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let tvec = ray.o - tri.p0;
+    let b1 = tvec.dot(pvec) * inv;
+    if !(0.0..=1.0).contains(&b1) {
+        return None;
+    }
+    let qvec = tvec.cross(e1);
+    let b2 = ray.d.dot(qvec) * inv;
+    if b2 < 0.0 || b1 + b2 > 1.0 {
+        return None;
+    }
+    let t = e2.dot(qvec) * inv;
+    if !(t > 0.0 && t < t_max) {
+        return None;
+    }
+    Some((t, tri.p0 + b1 * e1 + b2 * e2, tri.n))
+}
+
+/// Ray-triangle tests per second, the watertight test (`Primitive::intersect`) and
+/// Moller-Trumbore on the same pairs (a ray aimed near its triangle: about half hit).
+fn triangle_test(r: &mut Pcg64Mcg) {
+    let pairs: Vec<(Ray, Triangle)> = std::iter::repeat_with(|| {
+        let c = point(r, 1.0);
+        let tri = Triangle::new(c, c + 0.3 * unit(r), c + 0.3 * unit(r))?;
+        let o = point(r, 2.0);
+        let target = c + 0.1 * (unit(r) + unit(r));
+        Some((Ray::new(o, (target - o).normalize()), tri))
+    })
+    .flatten()
+    .take(1_000_000)
+    .collect();
+    let time = |f: &dyn Fn(&Ray, &Triangle) -> bool| {
+        let start = Instant::now();
+        let hits = pairs
+            .iter()
+            .filter(|(ray, tri)| f(black_box(ray), black_box(tri)))
+            .count();
+        black_box(hits);
+        pairs.len() as f64 / start.elapsed().as_secs_f64()
+    };
+    let watertight = |ray: &Ray, tri: &Triangle| {
+        Primitive::Triangle(*tri)
+            .intersect(ray, f32::INFINITY)
+            .is_some()
+    };
+    let reference = |ray: &Ray, tri: &Triangle| moller_trumbore(tri, ray, f32::INFINITY).is_some();
+    let mut runs: Vec<(f64, f64)> = (0..RUNS)
+        .map(|_| (time(&watertight), time(&reference)))
+        .collect();
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let ratio = median(&mut runs.iter().map(|(w, m)| w / m).collect());
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let w = runs[RUNS / 2].0;
+    runs.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let m = runs[RUNS / 2].1;
+    println!(
+        "triangle test alone: watertight {:.1} M tests/s, Moller-Trumbore {:.1} M tests/s, \
+         ratio {ratio:.2} (median of per-run ratios)",
+        w * 1e-6,
+        m * 1e-6
+    );
 }

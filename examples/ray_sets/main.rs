@@ -116,7 +116,7 @@ fn from_scene(scene: Scene, res: u32) -> Result<Source> {
                 let [a, b, c, d] = q.corners();
                 tris.extend([[a, b, c], [a, c, d]]);
             }
-            Primitive::Triangle(t) => tris.push([t.p0, t.p0 + t.e1, t.p0 + t.e2]),
+            Primitive::Triangle(t) => tris.push([t.p0, t.p1, t.p2]),
             _ => return Err(format!("{}: only quads and triangles", scene.source_name)),
         }
     }

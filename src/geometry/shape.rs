@@ -2,7 +2,7 @@
 //! cylinders, with intersection and uniform
 //! area sampling (area lights, irradiance meters and BDPT need points with an area density).
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3Swizzles};
 
 use super::{Aabb, Ray};
 use crate::math::distribution::ONE_MINUS_EPSILON;
@@ -64,12 +64,15 @@ fn plane_of(u: Vec3, v: Vec3) -> Option<(Vec3, Vec3, f32)> {
     Some((c / len2.sqrt(), c / len2, len2.sqrt()))
 }
 
-/// A triangle `p0 + b1 e1 + b2 e2`; geometric normal `normalize(e1 x e2)`.
+/// A triangle `p0 + b1 e1 + b2 e2` with `e1 = p1 - p0`, `e2 = p2 - p0`; geometric normal
+/// `normalize(e1 x e2)`. The corners are stored as given (not as p0 plus edges, which rounds):
+/// triangles of a mesh that share a corner must see the very same point, or the watertight test
+/// ([`Triangle::intersect_range`]) cannot close their common edge.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle {
     pub p0: Vec3,
-    pub e1: Vec3,
-    pub e2: Vec3,
+    pub p1: Vec3,
+    pub p2: Vec3,
     pub n: Vec3,
     area: f32,
 }
@@ -77,21 +80,134 @@ pub struct Triangle {
 impl Triangle {
     /// A triangle; `None` when degenerate.
     pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Option<Self> {
-        let e1 = p1 - p0;
-        let e2 = p2 - p0;
-        let c = e1.cross(e2);
+        let c = (p1 - p0).cross(p2 - p0);
         let len = c.length();
         if len <= 0.0 || !len.is_finite() {
             return None;
         }
         Some(Triangle {
             p0,
-            e1,
-            e2,
+            p1,
+            p2,
             n: c / len,
             area: 0.5 * len,
         })
     }
+
+    /// The edge `p1 - p0`.
+    #[inline]
+    pub fn e1(&self) -> Vec3 {
+        self.p1 - self.p0
+    }
+
+    /// The edge `p2 - p0`.
+    #[inline]
+    pub fn e2(&self) -> Vec3 {
+        self.p2 - self.p0
+    }
+
+    // ANCHOR: watertight
+    /// The intersection with `t` in (t_min, t_max), as (t, b1, b2): the hit is
+    /// `p0 + b1 e1 + b2 e2`. Watertight (Woop, Benthin and Wald 2013, "Watertight Ray/Triangle
+    /// Intersection", JCGT 2(1), sec. 3-4): the corners are moved into a frame where the ray is
+    /// the +z axis through the origin, and the 2-D edge functions there decide inside or out.
+    /// A corner's image depends only on the corner and the ray, and an edge's function is the
+    /// same products in either direction, so the two triangles of a shared edge compute exactly
+    /// opposite values: a ray through the edge is inside one of them or on the edge of both,
+    /// never outside both. A function that rounds to 0 is recomputed in f64, where the product
+    /// of two f32 is exact (the paper's fallback), so that 0 means the ray is really on the edge.
+    #[inline]
+    pub fn intersect_range(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
+        let s = RayShear::new(ray);
+        let [a, b, c] = s.apply([self.p0 - ray.o, self.p1 - ray.o, self.p2 - ray.o]);
+        let (mut u, mut v, mut w) = (edge(c, b), edge(a, c), edge(b, a));
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            (u, v, w) = (edge_f64(c, b), edge_f64(a, c), edge_f64(b, a));
+        }
+        // both sides: outside when the signs differ (0 counts as either)
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        // z in the frame is distance along the ray
+        let t = (u * a.z + v * b.z + w * c.z) * s.sz * inv;
+        if !(t > t_min && t < t_max) {
+            return None;
+        }
+        Some((t, v * inv, w * inv))
+    }
+    // ANCHOR_END: watertight
+}
+
+/// The ray's frame of the watertight test (Woop et al. 2013, sec. 3): the axis `kz` where the
+/// direction is largest becomes z, the other two follow it cyclically, and a shear maps the
+/// direction to +z. (The paper also swaps x and y when d[kz] < 0 to keep the winding for
+/// back-face culling; a two-sided test does not need it: the swap only negates every edge
+/// function exactly.) The scale 1 / d[kz] that makes z the distance along the ray is applied
+/// once, to the interpolated z of a hit.
+struct RayShear {
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl RayShear {
+    #[inline]
+    fn new(ray: &Ray) -> Self {
+        let ad = ray.d.abs();
+        let kz = if ad.x > ad.y && ad.x > ad.z {
+            0
+        } else if ad.y > ad.z {
+            1
+        } else {
+            2
+        };
+        let d = cyclic(ray.d, kz);
+        let sz = 1.0 / d.z;
+        RayShear {
+            kz,
+            sx: d.x * sz,
+            sy: d.y * sz,
+            sz,
+        }
+    }
+
+    /// Points relative to the ray's origin in the ray's frame, z not yet scaled by `sz`.
+    #[inline]
+    fn apply(&self, ps: [Vec3; 3]) -> [Vec3; 3] {
+        ps.map(|p| {
+            let p = cyclic(p, self.kz);
+            Vec3::new(p.x - self.sx * p.z, p.y - self.sy * p.z, p.z)
+        })
+    }
+}
+
+/// `p`'s coordinates in the cyclic order that ends with axis `kz`.
+#[inline]
+fn cyclic(p: Vec3, kz: usize) -> Vec3 {
+    match kz {
+        0 => p.yzx(),
+        1 => p.zxy(),
+        _ => p,
+    }
+}
+
+/// The 2-D edge function of the frame's points `p`, `q` (twice the signed area of the triangle
+/// they make with the ray's axis); `edge(q, p)` is exactly `-edge(p, q)`.
+#[inline]
+fn edge(p: Vec3, q: Vec3) -> f32 {
+    p.x * q.y - p.y * q.x
+}
+
+/// [`edge`] in f64, where the two products are exact.
+#[inline]
+fn edge_f64(p: Vec3, q: Vec3) -> f32 {
+    (p.x as f64 * q.y as f64 - p.y as f64 * q.x as f64) as f32
 }
 
 impl Triangle {
@@ -308,7 +424,7 @@ impl Primitive {
                 q.origin + q.v,
                 q.origin + q.u + q.v,
             ]),
-            Primitive::Triangle(t) => Aabb::from_points(&[t.p0, t.p0 + t.e1, t.p0 + t.e2]),
+            Primitive::Triangle(t) => Aabb::from_points(&[t.p0, t.p1, t.p2]),
             Primitive::Sphere(s) => Aabb {
                 min: s.center - Vec3::splat(s.radius),
                 max: s.center + Vec3::splat(s.radius),
@@ -379,28 +495,8 @@ impl Primitive {
                 Some((t, q.origin + a * q.u + b * q.v, q.n))
             }
             Primitive::Triangle(tri) => {
-                // Moller-Trumbore
-                let pvec = ray.d.cross(tri.e2);
-                let det = tri.e1.dot(pvec);
-                if det == 0.0 {
-                    return None;
-                }
-                let inv = 1.0 / det;
-                let tvec = ray.o - tri.p0;
-                let b1 = tvec.dot(pvec) * inv;
-                if !(0.0..=1.0).contains(&b1) {
-                    return None;
-                }
-                let qvec = tvec.cross(tri.e1);
-                let b2 = ray.d.dot(qvec) * inv;
-                if b2 < 0.0 || b1 + b2 > 1.0 {
-                    return None;
-                }
-                let t = tri.e2.dot(qvec) * inv;
-                if !(t > t_min && t < t_max) {
-                    return None;
-                }
-                Some((t, tri.p0 + b1 * tri.e1 + b2 * tri.e2, tri.n))
+                let (t, b1, b2) = tri.intersect_range(ray, t_min, t_max)?;
+                Some((t, tri.p0 + b1 * tri.e1() + b2 * tri.e2(), tri.n))
             }
             Primitive::Sphere(s) => {
                 // numerically stable quadratic on the offset from the centre
@@ -453,7 +549,7 @@ impl Primitive {
             Primitive::Quad(q) => (q.origin + u.x * q.u + u.y * q.v, q.n),
             Primitive::Triangle(t) => {
                 let b = warp::uniform_triangle(u);
-                (t.p0 + b.x * t.e1 + b.y * t.e2, t.n)
+                (t.p0 + b.x * t.e1() + b.y * t.e2(), t.n)
             }
             Primitive::Sphere(s) => {
                 let n = warp::uniform_sphere(u);
@@ -480,7 +576,7 @@ impl Primitive {
                 clamp(Vec2::new(a, b))
             }
             Primitive::Triangle(t) => {
-                let (b0, b1) = plane_coordinates(p - t.p0, t.e1, t.e2);
+                let (b0, b1) = plane_coordinates(p - t.p0, t.e1(), t.e2());
                 clamp(warp::uniform_triangle_inverse(Vec2::new(b0, b1)))
             }
             Primitive::Sphere(s) => {

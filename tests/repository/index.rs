@@ -222,11 +222,6 @@ const COVERED: &[(&str, &str, &str)] = &[
         "the BVH against brute force, either insertion order",
     ),
     (
-        "geometry::shape",
-        "spec::geometry",
-        "spheres and triangles from both sides, spawned rays",
-    ),
-    (
         "geometry::wide",
         "spec::geometry",
         "the wide BVH's hits equal the brute-force ones",

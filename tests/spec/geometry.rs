@@ -16,6 +16,8 @@ use pathspace::geometry::{offset_origin, Bvh, Disk, Primitive, Ray};
 use pathspace::math::warp;
 use pathspace::scene::{Scene, SceneSource};
 
+mod shape;
+
 fn rng(seed: u64) -> Pcg64Mcg {
     Pcg64Mcg::seed_from_u64(seed)
 }
@@ -415,8 +417,8 @@ fn opaque_wins_a_coplanar_tie_in_either_order() {
             Primitive::Triangle(t) => Primitive::Triangle(
                 Triangle::new(
                     t.p0 + 25.0 * Vec3::Z,
-                    t.p0 + t.e1 + 25.0 * Vec3::Z,
-                    t.p0 + t.e2 + 25.0 * Vec3::Z,
+                    t.p1 + 25.0 * Vec3::Z,
+                    t.p2 + 25.0 * Vec3::Z,
                 )
                 .unwrap(),
             ),

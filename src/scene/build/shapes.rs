@@ -43,7 +43,9 @@ fn mesh_is_closed(positions: &[Vec3], indices: &[u32]) -> bool {
 
 /// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards.
 fn signed_volume(tris: &[Triangle]) -> f32 {
-    tris.iter().map(|t| t.p0.dot(t.e1.cross(t.e2)) / 6.0).sum()
+    tris.iter()
+        .map(|t| t.p0.dot(t.e1().cross(t.e2())) / 6.0)
+        .sum()
 }
 
 /// Why an OBJ file's face indices were refused, with the OBJ line.
