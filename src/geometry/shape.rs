@@ -214,13 +214,9 @@ impl Triangle {
     /// The barycentric coordinates (b1, b2) of a point `p` of the triangle's plane:
     /// `p = p0 + b1 e1 + b2 e2`.
     pub fn barycentric(&self, p: Vec3) -> (f32, f32) {
-        let r = p - self.p0;
-        let (d11, d12, d22) = (
-            self.e1.dot(self.e1),
-            self.e1.dot(self.e2),
-            self.e2.dot(self.e2),
-        );
-        let (r1, r2) = (r.dot(self.e1), r.dot(self.e2));
+        let (r, e1, e2) = (p - self.p0, self.e1(), self.e2());
+        let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (r1, r2) = (r.dot(e1), r.dot(e2));
         let det = d11 * d22 - d12 * d12;
         ((d22 * r1 - d12 * r2) / det, (d11 * r2 - d12 * r1) / det)
     }
@@ -626,7 +622,7 @@ impl Primitive {
                 Vec2::new(a, b)
             }
             Primitive::Triangle(t) => {
-                let (b1, b2) = plane_coordinates(p - t.p0, t.e1, t.e2);
+                let (b1, b2) = plane_coordinates(p - t.p0, t.e1(), t.e2());
                 Vec2::new(b1, b2)
             }
             Primitive::Sphere(s) => {

@@ -130,7 +130,7 @@ fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
         let Primitive::Triangle(t) = scene.prims[normals.first_prim as usize + k] else {
             panic!("triangle {k} is not a triangle");
         };
-        for (p, n) in [t.p0, t.p0 + t.e1, t.p0 + t.e2].iter().zip(corners) {
+        for (p, n) in [t.p0, t.p1, t.p2].iter().zip(corners) {
             let expected = p.signum() / 3f32.sqrt();
             assert!(
                 (*n - expected).length() < 1e-6,
