@@ -12,7 +12,7 @@
 use glam::{Vec2, Vec3};
 
 use super::microfacet::{reflect_about, Distribution, Microfacet};
-use super::{reflect, BsdfModel, BsdfSample, Lobe, TransportMode};
+use super::{BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
@@ -164,16 +164,8 @@ impl BsdfModel for Conductor {
         _uc: f32,
         _mode: TransportMode,
     ) -> Option<BsdfSample> {
-        let nf = if wo.dot(n) > 0.0 { n } else { -n };
-        let wi = reflect(wo, nf);
-        let c = wi.dot(nf).abs();
-        let value = self.reflectance(wo.dot(nf)) / c;
-        (value.is_finite() && value != Rgb::ZERO).then_some(BsdfSample {
-            wi,
-            value,
-            pdf: 1.0,
-            lobe: Lobe::SingularReflection,
-        })
+        let s = super::mirror::mirror_reflection(wo, n, |cos| self.reflectance(cos));
+        (s.value.is_finite() && s.value != Rgb::ZERO).then_some(s)
     }
 }
 

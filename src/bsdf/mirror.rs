@@ -57,14 +57,26 @@ impl BsdfModel for Mirror {
         _uc: f32,
         _mode: TransportMode,
     ) -> Option<BsdfSample> {
-        let nf = if wo.dot(n) > 0.0 { n } else { -n };
-        let wi = reflect(wo, nf);
-        let c = wi.dot(nf).abs();
-        Some(BsdfSample {
-            wi,
-            value: self.reflectance / c,
-            pdf: 1.0,
-            lobe: Lobe::SingularReflection,
-        })
+        Some(mirror_reflection(wo, n, |_| self.reflectance))
+    }
+}
+
+/// The mirror direction of `wo` about `n` (on `wo`'s side), drawn with probability 1, and its
+/// weight `reflectance(cos) / cos` at `wo`'s cosine (the cosine the integrators multiply back;
+/// reflection keeps the angle, so the value is reciprocal). Shared by [`Mirror`] and the
+/// smooth conductor, whose reflectance is a Fresnel term of the angle.
+pub(super) fn mirror_reflection(
+    wo: Vec3,
+    n: Vec3,
+    reflectance: impl FnOnce(f32) -> Rgb,
+) -> BsdfSample {
+    let nf = if wo.dot(n) > 0.0 { n } else { -n };
+    let wi = reflect(wo, nf);
+    let c = wi.dot(nf).abs();
+    BsdfSample {
+        wi,
+        value: reflectance(wo.dot(nf)) / c,
+        pdf: 1.0,
+        lobe: Lobe::SingularReflection,
     }
 }
