@@ -29,3 +29,42 @@ def read(path):
 def relmse(img, ref):
     """Mean of the squared error over the squared reference plus EPSILON, per pixel and channel."""
     return float((((img - ref) ** 2) / (ref ** 2 + EPSILON)).mean())
+
+
+def _beta_fraction(a, b, x):
+    """The continued fraction of the incomplete beta function (modified Lentz), for
+    x < (a + 1) / (a + b + 2) where it converges fast."""
+    tiny = 1e-300
+    c, d = 1.0, 1.0 - (a + b) * x / (a + 1.0)
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 400):
+        for num in (m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m)),
+                    -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))):
+            d = 1.0 + num * d
+            d = 1.0 / (d if abs(d) > tiny else tiny)
+            c = 1.0 + num / c
+            c = c if abs(c) > tiny else tiny
+            h *= d * c
+        if abs(d * c - 1.0) < 1e-15:
+            break
+    return h
+
+
+def incomplete_beta(a, b, x):
+    """The regularized incomplete beta function I_x(a, b)."""
+    import math
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    log_front = (math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+                 + a * math.log(x) + b * math.log1p(-x))
+    if x < (a + 1.0) / (a + b + 2.0):
+        return math.exp(log_front) * _beta_fraction(a, b, x) / a
+    return 1.0 - math.exp(log_front) * _beta_fraction(b, a, 1.0 - x) / b
+
+
+def student_t_two_sided(t, dof):
+    """P(|T| >= |t|) for Student's t with `dof` degrees of freedom (real dof, as Welch's)."""
+    return incomplete_beta(dof / 2.0, 0.5, dof / (dof + t * t))
