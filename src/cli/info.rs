@@ -197,7 +197,8 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
     }
     match &scene.camera {
         Some(c) => println!(
-            "  camera: pinhole at {} looking along {}, vertical fov {} deg, {}x{}{}, in {}",
+            "  camera: {} at {} looking along {}, vertical fov {} deg, {}x{}{}, in {}",
+            lens_note(c),
             p3(c.eye),
             p3(c.forward),
             round(2.0 * c.tan_half_y.atan().to_degrees()),
@@ -279,6 +280,19 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         );
     }
     Ok(())
+}
+
+/// The camera's kind: a pinhole, or a thin lens with its radius and focus distance.
+fn lens_note(c: &crate::scene::camera::Camera) -> String {
+    if c.lens_radius > 0.0 {
+        format!(
+            "thin lens of radius {} focused at {}",
+            round(c.lens_radius),
+            round(c.focus_distance)
+        )
+    } else {
+        "pinhole".to_string()
+    }
 }
 
 /// The camera's reconstruction filter as `info` names it (nothing for the box, the default).
