@@ -482,7 +482,7 @@ pub struct RenderSettings {
     pub seed: u64,
     pub max_depth: Option<u32>,
     pub meter_samples: u32,
-    /// The path tracer's distance sampling on camera rays (`[render] distance`).
+    /// The path tracer's distance sampling on its rays (`[render] distance`).
     pub distance: DistanceSampling,
     /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
     pub light_selection: LightSelectionKind,

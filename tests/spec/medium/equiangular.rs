@@ -541,8 +541,8 @@ fn tracked_walk_agrees_with_and_without_equiangular_mis() {
                 .collect();
             est.push(stats);
         }
-        for c in 0..3 {
-            fam.means_agree(&format!("depth {depth} channel {c}"), est[0][c], est[1][c]);
+        for (c, (ff, eq)) in est[0].iter().zip(&est[1]).enumerate() {
+            fam.means_agree(&format!("depth {depth} channel {c}"), *ff, *eq);
         }
     }
     fam.finish();
