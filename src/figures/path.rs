@@ -169,7 +169,7 @@ fn ray_curve(scene: &Scene, name: &'static str) -> Option<RayCurve> {
                 .iter()
                 .position(|s| t <= s.t1)
                 .unwrap_or(spans.len() - 1);
-            (t, media.transmittance(scene, i, t.max(spans[i].t0)).x)
+            (t, media.transmittance_exact(scene, i, t.max(spans[i].t0)).x)
         })
         .collect();
     let (mut collisions, mut passages) = (Vec::new(), 0);

@@ -129,7 +129,7 @@ impl IntegratorKind {
 pub enum OwnOption {
     /// The `[render.smc]` table and its flags.
     Smc,
-    /// `distance = "equiangular-mis"` (equiangular sampling on camera rays, by MIS).
+    /// `distance = "equiangular-mis"` (equiangular sampling on every ray, by MIS).
     EquiangularDistance,
     /// `light_selection` (how next-event estimation picks a light).
     LightSelection,

@@ -57,7 +57,7 @@ pub fn distance_mis(a: f32, b: f32) -> f32 {
 pub struct PathTracer {
     /// Maximum number of scattering vertices (surface or medium) between sensor and light.
     pub max_depth: u32,
-    /// How distances along camera rays are sampled for single-scattered light.
+    /// How distances along the walk's rays are sampled for the light scattered toward lights.
     pub distance: DistanceSampling,
     /// How next-event estimation picks a light (`[render] light_selection`).
     pub selection: LightSelection,
@@ -66,17 +66,18 @@ pub struct PathTracer {
     pub volume_next_event: bool,
 }
 
-/// How the path tracer samples the distance to a medium vertex on a camera ray, for the
-/// light scattered there once (`[render] distance`, `--distance`; book: "Table 1: homogeneous
+/// How the path tracer samples the distance to a medium vertex on each ray of its walk, for
+/// the light that vertex gathers by next-event estimation (`[render] distance`, `--distance`; book: "Table 1: homogeneous
 /// media", section "Equiangular sampling").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum DistanceSampling {
     /// Table 1's free flight alone.
     #[default]
     FreeFlight,
-    /// Free flight and equiangular sampling toward a light point (Kulla and Fajardo 2012),
-    /// one sample of each, their next-event estimates combined by the balance heuristic; the
-    /// walk continues from the free-flight sample only.
+    /// Free flight and equiangular sampling toward a light point (Kulla and Fajardo 2012) on
+    /// every ray of the walk (after each surface or medium scattering), one sample of each,
+    /// their next-event estimates combined by the balance heuristic; the walk continues from
+    /// the free-flight sample only.
     EquiangularMis,
 }
 
@@ -118,7 +119,7 @@ impl PathTracer {
         self
     }
 
-    /// This path tracer sampling camera-ray distances by `distance`.
+    /// This path tracer sampling its rays' distances by `distance`.
     pub fn with_distance(mut self, distance: DistanceSampling) -> Self {
         self.distance = distance;
         self
@@ -139,21 +140,17 @@ impl PathTracer {
             singular: true,
         };
         let w = WalkState::new(ray, medium, Rgb::ONE, prev);
-        if self.distance == DistanceSampling::FreeFlight {
-            return self.walk(scene, w, sampler, None);
-        }
-        let media = RayMedia::collect(scene, ray, medium);
-        self.equiangular_estimate(scene, &media, sampler)
-            + self.walk(scene, w, sampler, Some(&media))
+        self.walk(scene, w, sampler)
     }
 
-    /// The equiangular strategy's estimate of the light scattered once on the camera ray
-    /// `media.ray`: a light and a point y on it as next-event estimation draws them, a
-    /// distance toward y (Kulla and Fajardo 2012), and that light sample's estimate there,
-    /// weighted by the balance heuristic against the free-flight density of the same distance.
+    /// The equiangular strategy's estimate of the light scattered once on the ray
+    /// `media.ray` (per unit throughput before it): a light and a point y on it as next-event
+    /// estimation draws them, a distance toward y (Kulla and Fajardo 2012), and that light
+    /// sample's estimate there, weighted by the balance heuristic against the free-flight
+    /// density of the same distance.
     // ANCHOR: equiangular_estimate
     fn equiangular_estimate(&self, scene: &Scene, media: &RayMedia, sampler: &mut Sampler) -> Rgb {
-        if scene.lights.is_empty() || self.max_depth == 0 {
+        if scene.lights.is_empty() {
             return Rgb::ZERO;
         }
         // a light chosen at the ray's origin: the vertex is not known yet
@@ -178,7 +175,8 @@ impl PathTracer {
         let medium = &scene.media[m as usize];
         let mis = distance_mis(pdf_eq, media.free_flight_pdf(scene, i, t));
         // transmittance to the vertex times sigma_s there, over the equiangular density
-        let beta = media.transmittance(scene, i, t) * medium.sigma_s(p) * (mis / pdf_eq);
+        let tr = media.transmittance(scene, i, t, sampler);
+        let beta = tr * medium.sigma_s(p) * (mis / pdf_eq);
         let (phase, wo) = (medium.phase(), -media.ray.d);
         let scatter = |wi: Vec3| {
             let f = phase.eval(wo, wi);
@@ -252,21 +250,24 @@ impl PathTracer {
             Rgb::splat(std::f32::consts::PI),
             prev,
         );
-        l += self.walk(scene, w, sampler, None);
+        l += self.walk(scene, w, sampler);
         l
     }
 
     /// The random walk from `w.ray` with throughput `w.beta` after `w.depth` scattering vertices.
+    /// With `distance = "equiangular-mis"` every ray of it also gets the equiangular estimate,
+    /// the partner of its free-flight vertex's next-event estimate.
     // ANCHOR: walk
-    fn walk(
-        &self,
-        scene: &Scene,
-        mut w: WalkState,
-        sampler: &mut Sampler,
-        mut camera: Option<&RayMedia>,
-    ) -> Rgb {
+    fn walk(&self, scene: &Scene, mut w: WalkState, sampler: &mut Sampler) -> Rgb {
         let mut l = Rgb::ZERO;
         loop {
+            // equiangular sampling on this ray, if a vertex on it may still scatter
+            let media = (self.distance == DistanceSampling::EquiangularMis
+                && w.depth < self.max_depth)
+                .then(|| RayMedia::collect_from(scene, w.ray, w.lead, w.medium));
+            if let Some(media) = &media {
+                l += w.beta * self.equiangular_estimate(scene, media, sampler);
+            }
             // propagation: Table 1 through media and null boundaries
             let prop = scene.propagate(w.ray, w.lead, w.medium, sampler);
             if let Event::Medium { p, medium: m, .. } = prop.event {
@@ -287,9 +288,9 @@ impl PathTracer {
                 Event::Medium {
                     p, t, medium: m, ..
                 } => {
-                    // on the camera ray, the free-flight partner of the equiangular estimate
-                    let on_camera_ray = camera.and_then(|c| Some((c, c.locate(t, m)?, t)));
-                    self.medium_vertex(scene, &mut w, (p, m), on_camera_ray, sampler, &mut l)
+                    // the free-flight partner of this ray's equiangular estimate
+                    let on_ray = media.as_ref().and_then(|c| Some((c, c.locate(t, m)?, t)));
+                    self.medium_vertex(scene, &mut w, (p, m), on_ray, sampler, &mut l)
                 }
                 Event::Surface { hit, medium: m } => {
                     self.surface_vertex(scene, &mut w, &hit, m, sampler, &mut l)
@@ -298,7 +299,6 @@ impl PathTracer {
             if !go_on {
                 break;
             }
-            camera = None;
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
             if w.depth >= PATH_RR_START_DEPTH {
                 let q = w.beta.max_element().min(RR_MAX_SURVIVAL);
@@ -313,14 +313,14 @@ impl PathTracer {
     // ANCHOR_END: walk
 
     /// A medium vertex at `p` in medium `m`: next-event estimation into `l`, then a direction
-    /// from the phase function; false ends the walk. `camera` is the camera ray's spans with
-    /// the vertex's span and ray parameter when the equiangular strategy shares its estimate.
+    /// from the phase function; false ends the walk. `on_ray` is the ray's spans with the
+    /// vertex's span and ray parameter when the equiangular strategy shares its estimate.
     fn medium_vertex(
         &self,
         scene: &Scene,
         w: &mut WalkState,
         (p, m): (Vec3, u32),
-        camera: Option<(&RayMedia, usize, f32)>,
+        on_ray: Option<(&RayMedia, usize, f32)>,
         sampler: &mut Sampler,
         l: &mut Rgb,
     ) -> bool {
@@ -330,10 +330,10 @@ impl PathTracer {
         w.depth += 1;
         let phase = scene.media[m as usize].phase();
         let wo = -w.ray.d;
-        let pdf_ff = camera.map_or(0.0, |(c, i, t)| c.free_flight_pdf(scene, i, t));
+        let pdf_ff = on_ray.map_or(0.0, |(c, i, t)| c.free_flight_pdf(scene, i, t));
         // the balance heuristic against equiangular sampling toward the light point drawn
         // (which never samples infinite lights: weight 1 for them)
-        let mis = |light: usize, ls: &crate::scene::light::LightSample| match camera {
+        let mis = |light: usize, ls: &crate::scene::light::LightSample| match on_ray {
             Some((c, i, t)) if !scene.lights[light].is_infinite() => {
                 distance_mis(pdf_ff, c.equiangular_pdf(ls.p, i, t))
             }
@@ -691,7 +691,7 @@ pub fn next_event(
 }
 
 /// [`next_event`] with the estimate of light `l`'s sample `ls` multiplied by `weight(l, ls)`:
-/// the distance-MIS weight of a free-flight vertex on a camera ray (`distance =
+/// the distance-MIS weight of a free-flight vertex (`distance =
 /// "equiangular-mis"`), which depends on the light point the sample drew.
 #[allow(clippy::too_many_arguments)]
 pub fn next_event_weighted(
@@ -820,14 +820,14 @@ pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super
     ))
 }
 
-/// Equiangular sampling's MIS needs the free-flight density at any point of a camera ray in
-/// closed form: refused for a scene with an inhomogeneous medium (its tracking density has
-/// none), naming the medium.
+/// Equiangular sampling's MIS needs the density with which free flight draws any point of a
+/// ray: Table 1's, which tracking follows and a march does not. Refused for a scene with a
+/// marched medium (`propagation` other than `delta-tracking`), naming it.
 pub fn check_equiangular(scene: &Scene) -> Result<(), super::IntegratorError> {
     for (m, name) in scene.media.iter().zip(&scene.medium_names) {
-        if !m.closed_form() {
+        if m.marched() {
             return Err(super::IntegratorError::Refused(format!(
-                "distance = \"equiangular-mis\" (--distance) needs homogeneous media: medium `{name}` is inhomogeneous (use free-flight)"
+                "distance = \"equiangular-mis\" (--distance) needs homogeneous or tracked media: medium `{name}` is marched (use propagation = \"delta-tracking\" or free-flight)"
             )));
         }
     }

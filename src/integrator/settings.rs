@@ -52,9 +52,9 @@ pub struct RenderOptions {
     /// Samples per irradiance meter per pixel-sample pass (default 4096).
     #[arg(long)]
     pub meter_samples: Option<u32>,
-    /// path: distance sampling on camera rays, `free-flight` (default) or `equiangular-mis`
+    /// path: distance sampling on the walk's rays, `free-flight` (default) or `equiangular-mis`
     /// (free flight and equiangular sampling toward a light point, Kulla and Fajardo 2012,
-    /// combined by MIS; homogeneous media only).
+    /// combined by MIS on every ray; homogeneous or tracked media, not marched ones).
     #[arg(long)]
     pub distance: Option<DistanceSampling>,
     /// path: light selection for next-event estimation, `tree` (default: a light hierarchy
@@ -482,7 +482,7 @@ pub struct RenderSettings {
     pub seed: u64,
     pub max_depth: Option<u32>,
     pub meter_samples: u32,
-    /// The path tracer's distance sampling on camera rays (`[render] distance`).
+    /// The path tracer's distance sampling on its rays (`[render] distance`).
     pub distance: DistanceSampling,
     /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
     pub light_selection: LightSelectionKind,

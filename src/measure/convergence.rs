@@ -438,7 +438,7 @@ pub struct Variant {
 impl Variant {
     /// Suffix that asks for the adjoint image.
     pub const ADJOINT_SUFFIX: &'static str = "+adjoint";
-    /// Suffix that asks for equiangular MIS on camera rays.
+    /// Suffix that asks for equiangular MIS on the walk's rays.
     pub const EQUIANGULAR_SUFFIX: &'static str = "+equiangular";
 
     /// Parses `NAME`, `NAME+adjoint`, `path+equiangular` or `NAME(key=value, ...)`;

@@ -236,12 +236,41 @@ impl Medium {
         }
     }
 
-    /// True when a camera ray may collide in it at a distance sampled toward a light (a
-    /// closed-form medium that scatters: equiangular sampling's spans).
-    pub fn scatters_in_closed_form(&self) -> bool {
+    /// True when equiangular sampling may place a scattering vertex in it (the path tracer's
+    /// `distance = "equiangular-mis"`): a medium that scatters in some channel, homogeneous or
+    /// tracked. Delta tracking draws collisions with exactly the density sigma_t(x) exp(-tau)
+    /// of Table 1, which [`Medium::free_flight_pdf`] evaluates from the deterministic optical
+    /// depth, so the MIS weights against it are those densities (for fBm fields, the fixed
+    /// quadrature's: still a partition of unity, see `path::distance`); a marched medium is
+    /// left out (its collisions do not follow that density, see [`Medium::marched`]).
+    pub fn scatters_equiangular(&self) -> bool {
         match self {
             Medium::Homogeneous(h) => h.sigma_s.max_element() > 0.0,
-            Medium::Heterogeneous(_) => false,
+            Medium::Heterogeneous(h) => {
+                !h.line_integral.is_marching() && h.sigma_s.max_element() > 0.0
+            }
+        }
+    }
+
+    /// True for an inhomogeneous medium sampled by ray marching (biased for any step): its
+    /// collisions do not follow [`Medium::free_flight_pdf`], which is the exact density.
+    pub fn marched(&self) -> bool {
+        match self {
+            Medium::Homogeneous(_) => false,
+            Medium::Heterogeneous(h) => h.line_integral.is_marching(),
+        }
+    }
+
+    /// True when [`Medium::optical_depth`] is the exact integral of sigma_t (closed forms and
+    /// grids' per-cell rule), false for the fixed quadrature of fBm fields: only then is
+    /// [`Medium::transmittance_exact`] the transmittance itself rather than an approximation.
+    pub fn exact_optical_depth(&self) -> bool {
+        match self {
+            Medium::Homogeneous(_) => true,
+            Medium::Heterogeneous(h) => match &h.density {
+                Density::Grid(_) => true,
+                Density::Field(f) => f.has_closed_form_integral(),
+            },
         }
     }
 

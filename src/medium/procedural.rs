@@ -195,6 +195,12 @@ impl Field {
         }
     }
 
+    /// True when [`Field::integrate_closed_form`] has an answer (the constant and linear
+    /// fields).
+    pub fn has_closed_form_integral(&self) -> bool {
+        matches!(self, Field::Constant | Field::Linear { .. })
+    }
+
     /// The closed-form integral of the density over t in [ta, tb] along u(t) = u0 + t du, for
     /// the analytic fields; `None` for the procedural ones.
     // ANCHOR: closed_form

@@ -6,8 +6,18 @@
 //! point of the ray, whichever strategy drew it: [`RayMedia`] holds the ray's medium spans once
 //! (from the shared [`Segments`] iterator, so its spans are the ones propagation walks) and
 //! evaluates [`RayMedia::free_flight_pdf`] and [`RayMedia::equiangular_pdf`] there. The path
-//! tracer uses them on camera rays (`distance = "equiangular-mis"`); BDPT and MLT sample by
-//! free flight only and do not need them.
+//! tracer uses them on every ray of its walk (`distance = "equiangular-mis"`); BDPT and MLT
+//! sample by free flight only and do not need them.
+//!
+//! Inhomogeneous media: delta tracking draws a collision with exactly Table 1's density
+//! sigma_t(x) exp(-tau(t)) (Woodcock tracking's classical result; Pauly, Kollig, Keller 2000,
+//! Table 1, right column), and the optical depth tau is a deterministic function of the ray
+//! (`Medium::optical_depth`: exact for grids and closed-form fields), so the free-flight density
+//! is known at any point, as BDPT's weights use it too. Where tau is the fixed quadrature of an
+//! fBm field, the weights take the quadrature's density: balance-heuristic weights built from
+//! any deterministic densities still sum to one at every point, so the estimate stays unbiased
+//! (Veach 1997, sec. 9.2: only that sum and the support matter), and the equiangular estimate
+//! takes the tracked (unbiased) transmittance there instead of the approximate closed form.
 //!
 //! Book: "Sampling toward lights", section "Equiangular distances"; tests:
 //! `tests/spec/medium/equiangular.rs`.
@@ -15,6 +25,7 @@
 use glam::Vec3;
 
 use crate::geometry::Ray;
+use crate::math::Sampler;
 use crate::medium::Equiangular;
 use crate::scene::{Scene, SegmentEnd, Segments};
 use crate::spectrum::Rgb;
@@ -29,9 +40,14 @@ pub struct Span {
     pub t0: f32,
     pub t1: f32,
     pub medium: u32,
-    /// True for a homogeneous medium that scatters in some channel: equiangular sampling's
-    /// domain is the union of these spans.
+    /// True for a medium that scatters in some channel and is not marched
+    /// (`Medium::scatters_equiangular`): equiangular sampling's domain is the union of these
+    /// spans' stretches `lo..hi`.
     pub scatters: bool,
+    /// The part of `t0..t1` where the medium can scatter: the whole span, or its clip to an
+    /// inhomogeneous medium's box (its density is zero outside).
+    pub lo: f32,
+    pub hi: f32,
 }
 
 /// The medium spans of a ray up to its first non-null surface (at most [`MAX_SPANS`]), held
@@ -47,23 +63,23 @@ impl RayMedia {
     /// The spans of `ray` starting in `medium` (vacuum stretches are left out: they add
     /// nothing to optical depth, and no collision happens in them).
     pub fn collect(scene: &Scene, ray: Ray, medium: Option<u32>) -> Self {
+        Self::collect_from(scene, ray, 0.0, medium)
+    }
+
+    /// [`RayMedia::collect`] for a ray lifted `lead` past its vertex: the first span starts at
+    /// t = -lead, as `Scene::propagate` measures it, so that both agree on every parameter.
+    pub fn collect_from(scene: &Scene, ray: Ray, lead: f32, medium: Option<u32>) -> Self {
         let mut out = RayMedia {
             ray,
             spans: [Span::default(); MAX_SPANS],
             n: 0,
         };
-        for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+        for seg in Segments::new(scene, ray, medium, f32::INFINITY).lead(lead) {
             if out.n == MAX_SPANS {
                 break;
             }
             if let Some(m) = seg.medium {
-                let scatters = scene.media[m as usize].scatters_in_closed_form();
-                out.spans[out.n] = Span {
-                    t0: seg.t0,
-                    t1: seg.t1,
-                    medium: m,
-                    scatters,
-                };
+                out.spans[out.n] = Self::span(scene, ray, (seg.t0, seg.t1), m);
                 out.n += 1;
             }
             if !matches!(seg.end, SegmentEnd::Null(_)) {
@@ -71,6 +87,31 @@ impl RayMedia {
             }
         }
         out
+    }
+
+    /// The span `t0..t1` of `ray` in medium `m`, its scattering stretch clipped to the
+    /// medium's box.
+    fn span(scene: &Scene, ray: Ray, (t0, t1): (f32, f32), m: u32) -> Span {
+        let med = &scene.media[m as usize];
+        let clip = match med.bounds() {
+            None => Some((t0, t1)),
+            Some(b) if t1.is_finite() => {
+                let sr = Ray::new(ray.at(t0), ray.d);
+                b.intersect(&sr, sr.d.recip(), t1 - t0)
+                    .map(|(a, e)| (t0 + a, (t0 + e).min(t1)))
+            }
+            // an unbounded span never holds a box: an inhomogeneous medium fills a shape
+            Some(_) => None,
+        };
+        let (lo, hi) = clip.filter(|(a, e)| e > a).unwrap_or((t0, t0));
+        Span {
+            t0,
+            t1,
+            medium: m,
+            scatters: med.scatters_equiangular() && hi > lo,
+            lo,
+            hi,
+        }
     }
 
     /// The spans, in order along the ray.
@@ -92,18 +133,18 @@ impl RayMedia {
         self.spans()
             .iter()
             .filter(|s| s.scatters)
-            .map(|s| eq.angle(s.t1) - eq.angle(s.t0))
+            .map(|s| eq.angle(s.hi) - eq.angle(s.lo))
             .sum()
     }
 
     /// The density (per unit length) with which [`RayMedia::sample_equiangular`] toward `y`
     /// draws ray parameter `t` in span `i`: h / (Theta (h^2 + (t - delta)^2)), 0 outside the
-    /// scattering spans (Kulla and Fajardo 2012, restricted to a union of intervals).
+    /// scattering stretches (Kulla and Fajardo 2012, restricted to a union of intervals).
     pub fn equiangular_pdf(&self, y: Vec3, i: usize, t: f32) -> f32 {
         let Some(s) = self.spans().get(i) else {
             return 0.0;
         };
-        if !s.scatters || !(s.t0..=s.t1).contains(&t) {
+        if !s.scatters || !(s.lo..=s.hi).contains(&t) {
             return 0.0;
         }
         let Some(eq) = Equiangular::new(self.ray.o, self.ray.d, y) else {
@@ -130,7 +171,7 @@ impl RayMedia {
         let mut acc = 0.0;
         let mut chosen = None;
         for (i, s) in self.spans().iter().enumerate() {
-            let a = eq.angle(s.t1) - eq.angle(s.t0);
+            let a = eq.angle(s.hi) - eq.angle(s.lo);
             if !s.scatters || a <= 0.0 {
                 continue;
             }
@@ -143,7 +184,7 @@ impl RayMedia {
         }
         let (i, v) = chosen?;
         let s = self.spans[i];
-        let t = eq.sample(s.t0, s.t1, v);
+        let t = eq.sample(s.lo, s.hi, v);
         let pdf = eq.angular_rate(t) / total;
         (pdf > 0.0 && pdf.is_finite() && t.is_finite()).then_some((i, t, pdf))
     }
@@ -164,14 +205,36 @@ impl RayMedia {
         0.0
     }
 
-    /// The transmittance from the ray's origin to ray parameter `t` in span `i` (eq. 3).
-    pub fn transmittance(&self, scene: &Scene, i: usize, t: f32) -> Rgb {
+    /// The deterministic exp(-tau) from the start of the first span to ray parameter `t` in
+    /// span `i` (eq. 3), by `Medium::transmittance_exact` (fBm fields: the quadrature's).
+    pub fn transmittance_exact(&self, scene: &Scene, i: usize, t: f32) -> Rgb {
         let mut tr = Rgb::ONE;
         for (k, s) in self.spans().iter().enumerate().take(i + 1) {
             let med = &scene.media[s.medium as usize];
             let sr = Ray::new(self.ray.at(s.t0), self.ray.d);
             let end = if k == i { t } else { s.t1 };
             tr *= med.transmittance_exact(&sr, end - s.t0);
+        }
+        tr
+    }
+
+    /// The transmittance from the start of the first span to ray parameter `t` in span `i`
+    /// (eq. 3): exact where the optical depth is (`Medium::exact_optical_depth`), else the
+    /// medium's unbiased tracking estimate drawn from `sampler`.
+    pub fn transmittance(&self, scene: &Scene, i: usize, t: f32, sampler: &mut Sampler) -> Rgb {
+        let mut tr = Rgb::ONE;
+        for (k, s) in self.spans().iter().enumerate().take(i + 1) {
+            let med = &scene.media[s.medium as usize];
+            let sr = Ray::new(self.ray.at(s.t0), self.ray.d);
+            let end = if k == i { t } else { s.t1 };
+            tr *= if med.exact_optical_depth() {
+                med.transmittance_exact(&sr, end - s.t0)
+            } else {
+                med.transmittance(&sr, end - s.t0, sampler)
+            };
+            if tr == Rgb::ZERO {
+                break;
+            }
         }
         tr
     }

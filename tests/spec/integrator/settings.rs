@@ -500,7 +500,7 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
 
 /// `distance` (the path tracer's equiangular MIS, Kulla and Fajardo 2012): a bad value is
 /// reported at its key, the flag is refused for the integrators that sample by free flight
-/// only, and the path tracer refuses a scene with an inhomogeneous medium, naming it.
+/// only, and the path tracer refuses a scene with a marched medium, naming it.
 #[test]
 fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
     let text = format!(
@@ -536,11 +536,21 @@ fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
         err.contains("--distance equiangular-mis applies to --integrator path"),
         "{err}"
     );
-    let grid =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement/grid.toml");
+    // a marched medium: its collisions do not follow the density the MIS weights need
+    let fixtures =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/agreement");
+    let grid = std::fs::read_to_string(fixtures.join("grid.toml"))
+        .unwrap()
+        .replace("delta-tracking", "random-offset")
+        .replace(
+            "file = \"blob.grid\"",
+            &format!("file = {:?}", fixtures.join("blob.grid")),
+        );
+    let marched = dir.join("marched.toml");
+    std::fs::write(&marched, grid).unwrap();
     let run = common::cli::pathspace(&[
         "render",
-        grid.to_str().unwrap(),
+        marched.to_str().unwrap(),
         "--integrator",
         "path",
         "--distance",
@@ -553,7 +563,7 @@ fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
     assert!(!run.status.success());
     let err = common::cli::stderr(&run);
     assert!(
-        err.contains("equiangular-mis") && err.contains("inhomogeneous"),
+        err.contains("equiangular-mis") && err.contains("`blob` is marched"),
         "{err}"
     );
 }

@@ -9,7 +9,11 @@
 //!   `RayMedia::equiangular_pdf`, and the density it reports equal to that function;
 //! - `RayMedia::free_flight_pdf` equal to the density propagation reports for its collisions;
 //! - the path tracer's single scattering from two point lights along a ray through both media,
-//!   with and without equiangular MIS, against the quadrature of its integral.
+//!   with and without equiangular MIS, against the quadrature of its integral;
+//! - in tracked inhomogeneous media (a baked grid, a closed form, an fBm field on the fly):
+//!   the free-flight density equal to delta tracking's on a lifted ray, the equiangular
+//!   density integrating to one over the boxes' clips, the two weights summing to one, and the
+//!   walk with equiangular MIS on every ray agreeing with free flight at depths 1, 2 and 4.
 
 use crate::common;
 
@@ -315,6 +319,230 @@ fn single_scattering_is_unbiased_with_and_without_equiangular_mis() {
                 N,
                 truth,
             );
+        }
+    }
+    fam.finish();
+}
+
+/// Tracked inhomogeneous media along the x axis: an fBm cloud baked onto a grid (exact optical
+/// depth), a linear gradient (closed form) and an fBm plume evaluated on the fly (the fixed
+/// quadrature), each in a null box, over a diffuse floor, a point light between them.
+const TRACKED_SCENE: &str = r#"
+[camera]
+type = "pinhole"
+eye = [-1.9, 0.05, -0.02]
+look_at = [0.0, 0.05, -0.02]
+fov_deg = 30.0
+resolution = [8, 8]
+
+[materials.white]
+type = "lambert"
+albedo = 0.7
+
+[media.cloud]
+type = "procedural"
+density = "cloud"
+octaves = 3
+frequency = 2.0
+seed = 5
+resolution = 16
+min = [-2.0, -0.5, -0.5]
+max = [-0.9, 0.5, 0.5]
+sigma_a = 0.3
+sigma_s = [3.0, 2.0, 1.0]
+phase = { type = "hg", g = 0.4 }
+propagation = "delta-tracking"
+
+[media.gradient]
+type = "procedural"
+density = "linear"
+axis = "y"
+from = 1.0
+to = 0.2
+min = [-0.8, -0.5, -0.5]
+max = [0.2, 0.5, 0.5]
+sigma_a = 0.2
+sigma_s = 1.5
+propagation = "delta-tracking"
+
+[media.plume]
+type = "procedural"
+density = "plume"
+octaves = 2
+frequency = 3.0
+seed = 2
+min = [0.3, -0.5, -0.5]
+max = [1.3, 0.5, 0.5]
+sigma_a = 0.5
+sigma_s = 4.0
+propagation = "delta-tracking"
+
+[[shapes]]
+type = "quad"
+origin = [-3.0, -0.6, -3.0]
+u = [0.0, 0.0, 6.0]
+v = [6.0, 0.0, 0.0]
+material = "white"
+
+[[shapes]]
+type = "box"
+min = [-2.0, -0.5, -0.5]
+max = [-0.9, 0.5, 0.5]
+material = "null"
+interior = "cloud"
+
+[[shapes]]
+type = "box"
+min = [-0.8, -0.5, -0.5]
+max = [0.2, 0.5, 0.5]
+material = "null"
+interior = "gradient"
+
+[[shapes]]
+type = "box"
+min = [0.3, -0.5, -0.5]
+max = [1.3, 0.5, 0.5]
+material = "null"
+interior = "plume"
+
+[[lights]]
+type = "point"
+position = [-0.3, 0.3, 0.1]
+intensity = [2.0, 3.0, 4.0]
+"#;
+
+fn tracked_scene() -> Scene {
+    Scene::load(&SceneSource::embedded("equiangular tracked", TRACKED_SCENE)).unwrap()
+}
+
+/// A ray from the floor up through all three boxes, lifted off the floor by `LEAD` as a walk
+/// lifts it (its spans then start at t = -LEAD).
+const LEAD: f32 = 1e-3;
+
+fn tracked_ray(scene: &Scene) -> (Ray, Option<u32>) {
+    let d = Vec3::new(1.0, 0.32, 0.03).normalize();
+    let o = Vec3::new(-2.3, -0.6, -0.05) + LEAD * d;
+    (Ray::new(o, d), scene.medium_at(o))
+}
+
+/// In tracked media the free-flight density the MIS weights use is the one delta tracking
+/// draws with (Table 1: sigma_t(x) exp(-tau)), on a ray lifted off a surface; and the
+/// equiangular density integrates to one over the stretches where the media have density.
+#[test]
+fn tracked_free_flight_pdf_is_propagations() {
+    let scene = tracked_scene();
+    let (ray, medium) = tracked_ray(&scene);
+    let media = RayMedia::collect_from(&scene, ray, LEAD, medium);
+    assert_eq!(media.spans().len(), 3, "{:?}", media.spans());
+    let mut s = Sampler::new(15, 0, 0);
+    let mut collisions = [0u32; 3];
+    for _ in 0..20_000 {
+        let prop = scene.propagate(ray, LEAD, medium, &mut s);
+        if let Event::Medium { t, medium: m, .. } = prop.event {
+            let i = media.locate(t, m).expect("a collision lies in a span");
+            let pdf = media.free_flight_pdf(&scene, i, t);
+            assert!(
+                (pdf - prop.pdf).abs() <= 1e-4 * prop.pdf,
+                "free_flight_pdf {pdf} against propagation's {} at t = {t} (span {i})",
+                prop.pdf
+            );
+            collisions[i] += 1;
+        }
+    }
+    assert!(collisions.iter().all(|&c| c > 100), "{collisions:?}");
+    let y = scene.lights[0].sample_point(&scene.prims, glam::Vec2::ZERO, 0.0);
+    let y = y.expect("a point light has its point").0;
+    let total: f64 = media
+        .spans()
+        .iter()
+        .enumerate()
+        .map(|(i, sp)| {
+            let pdf = |t: f64| media.equiangular_pdf(y, i, t as f32) as f64;
+            simpson(pdf, sp.lo as f64, sp.hi as f64, 20_000)
+        })
+        .sum();
+    assert!((total - 1.0).abs() < 1e-4, "the pdf integrates to {total}");
+    // the stretches are the boxes' clips: nothing outside them
+    for (i, sp) in media.spans().iter().enumerate() {
+        let outside = [sp.t0 + 0.5 * (sp.lo - sp.t0), sp.hi + 0.5 * (sp.t1 - sp.hi)];
+        for t in outside.into_iter().filter(|&t| t < sp.lo || t > sp.hi) {
+            assert_eq!(media.equiangular_pdf(y, i, t), 0.0, "span {i} at t = {t}");
+        }
+    }
+}
+
+/// The two distance strategies' weights (the balance heuristic) sum to one wherever either
+/// density is positive, and give the whole estimate to the only strategy that can draw a point.
+#[test]
+fn distance_weights_sum_to_one() {
+    use pathspace::integrator::path::distance_mis;
+    let scene = tracked_scene();
+    let (ray, medium) = tracked_ray(&scene);
+    let media = RayMedia::collect_from(&scene, ray, LEAD, medium);
+    let y = Vec3::new(-0.3, 0.3, 0.1);
+    let mut s = Sampler::new(16, 0, 0);
+    for _ in 0..2_000 {
+        let (i, t, pdf_eq) = media.sample_equiangular(y, s.next_f32()).unwrap();
+        let pdf_ff = media.free_flight_pdf(&scene, i, t);
+        let sum = distance_mis(pdf_ff, pdf_eq) + distance_mis(pdf_eq, pdf_ff);
+        assert!((sum - 1.0).abs() <= 1e-6, "{pdf_ff} {pdf_eq}: {sum}");
+    }
+    assert_eq!(distance_mis(0.0, 2.0), 0.0);
+    assert_eq!(distance_mis(2.0, 0.0), 1.0);
+    assert_eq!(distance_mis(f32::INFINITY, 1.0), 1.0);
+}
+
+/// The path tracer through tracked media, lit by a point light that only next-event estimation
+/// reaches: with equiangular MIS on every ray of the walk (after the floor and after medium
+/// vertices) its estimate equals free flight's, depth by depth (1: single scattering; 2 and 4:
+/// rays that leave surface and medium vertices), by Welch's test on independent samples.
+#[test]
+fn tracked_walk_agrees_with_and_without_equiangular_mis() {
+    const N: u64 = 40_000;
+    let mut fam = Family::new("equiangular: tracked media, with and without MIS");
+    let scene = tracked_scene();
+    let (ray, medium) = tracked_ray(&scene);
+    let eye = Ray::new(
+        Vec3::new(-1.9, 0.05, -0.02),
+        Vec3::new(1.0, -0.25, 0.02).normalize(),
+    );
+    let eye_medium = scene.medium_at(eye.o);
+    for depth in [1u32, 2, 4] {
+        let mut est = Vec::new();
+        for (k, distance) in [
+            DistanceSampling::FreeFlight,
+            DistanceSampling::EquiangularMis,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let pt = PathTracer::new(Some(depth)).with_distance(distance);
+            let (mut sum, mut sum_sq) = ([0.0f64; 3], [0.0f64; 3]);
+            for n in 0..N {
+                let mut s = Sampler::new(17, n, (depth as u64) * 2 + k as u64);
+                // half the samples from the floor's lifted ray, half from the eye
+                let (r, m) = if n % 2 == 0 {
+                    (ray, medium)
+                } else {
+                    (eye, eye_medium)
+                };
+                let l = pt.radiance(&scene, r, m, &mut s);
+                for c in 0..3 {
+                    sum[c] += l[c] as f64;
+                    sum_sq[c] += (l[c] as f64).powi(2);
+                }
+            }
+            let stats: Vec<(f64, f64, f64)> = (0..3)
+                .map(|c| {
+                    let mean = sum[c] / N as f64;
+                    let var = (sum_sq[c] / N as f64 - mean * mean) * N as f64 / (N - 1) as f64;
+                    (mean, (var / N as f64).sqrt(), (N - 1) as f64)
+                })
+                .collect();
+            est.push(stats);
+        }
+        for (c, (ff, eq)) in est[0].iter().zip(&est[1]).enumerate() {
+            fam.means_agree(&format!("depth {depth} channel {c}"), *ff, *eq);
         }
     }
     fam.finish();
