@@ -137,6 +137,16 @@ for file in ["rgb4x3.png", "rgb4x3.exr"]:
         si.uv = mi.Point2f(u, v)
         values.append(float(tex.eval_1(si)))
     eval_1.append({"file": file, "values": values})
+# Mitsuba 3's checkerboard `eval_1` gives color1 where `eval` gives color0 and back
+tex = mi.load_dict({"type": "checkerboard", "color0": 0.05, "color1": 0.4,
+                    "to_uv": mi.ScalarTransform4f().scale([3, 2, 1])})
+si = mi.SurfaceInteraction3f()
+values = []
+for u, v in UVS:
+    si.uv = mi.Point2f(u, v)
+    values.append(float(tex.eval_1(si)))
+eval_1.append({"checkerboard": {"color0": 0.05, "color1": 0.4, "to_uv": [[3, 0, 0], [0, 2, 0]]},
+               "values": values})
 
 with open(os.path.join(OUT, "mitsuba.json"), "w") as f:
     json.dump({"mitsuba": mi.__version__, "uvs": UVS, "lookups": lookups,

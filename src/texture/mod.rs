@@ -68,12 +68,16 @@ impl Texture {
     }
 
     /// The one-channel value at `uv`: the luminance of [`Texture::eval`] with Mitsuba 3's
-    /// weights (`Texture::eval_1` of its RGB `bitmap` and `checkerboard`, `luminance` in
+    /// weights (`Texture::eval_1` of its RGB `bitmap`, `luminance` in
     /// `include/mitsuba/core/spectrum.h`), where a scalar parameter such as a roughness is
-    /// textured.
+    /// textured; a checkerboard's with its two colours swapped, as Mitsuba's `eval_1`
+    /// ([`Checkerboard::eval_1_colour`]).
     #[inline]
     pub fn eval_1(&self, uv: Vec2) -> f32 {
-        self.eval(uv).dot(MITSUBA_LUMINANCE)
+        match self {
+            Texture::Bitmap(b) => b.eval(uv).dot(MITSUBA_LUMINANCE),
+            Texture::Checkerboard(c) => c.eval_1_colour(uv).dot(MITSUBA_LUMINANCE),
+        }
     }
 
     /// The least and largest one-channel value anywhere ([`Texture::eval_1`] is linear in the

@@ -290,13 +290,19 @@ fn each_meshs_uv_is_mitsubas() {
 }
 
 /// A texture's one-channel value (a textured roughness) is Mitsuba's `eval_1`: the luminance
-/// of the RGB lookup with Mitsuba's weights.
+/// of the RGB lookup with Mitsuba's weights, and a checkerboard's colours swapped as Mitsuba's.
 #[test]
 fn one_channel_lookups_are_mitsubas() {
     let r = recorded();
     let uvs = r["uvs"].as_array().unwrap();
     for e in r["eval_1"].as_array().unwrap() {
-        let t = texture_of(&format!("{{ texture = \"bitmap\", file = {} }}", e["file"]));
+        let t = match e.get("checkerboard") {
+            Some(c) => texture_of(&format!(
+                "{{ texture = \"checkerboard\", color0 = {}, color1 = {}, to_uv = {} }}",
+                c["color0"], c["color1"], c["to_uv"]
+            )),
+            None => texture_of(&format!("{{ texture = \"bitmap\", file = {} }}", e["file"])),
+        };
         for (uv, want) in uvs.iter().zip(e["values"].as_array().unwrap()) {
             let uv = Vec2::new(
                 uv[0].as_f64().unwrap() as f32,
