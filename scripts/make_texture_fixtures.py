@@ -8,7 +8,9 @@ Images (tests/fixtures/textures/): `rgb4x3.png`, a 4 x 3 8-bit RGB PNG whose byt
 `rgb4x3.exr`, the same texels as linear floats (byte / 255). `mitsuba.json`: Mitsuba 3's
 `bitmap` evaluated (scalar_rgb) at a list of uv points for every filter_type, wrap_mode and
 raw, `checkerboard` at the same points, and the uv Mitsuba's `rectangle`, `disk`, `sphere` and
-`cube` give at the points rays hit.
+`cube` give at the points rays hit; meshes with and without texture coordinates
+(`mesh-vt.obj`, `mesh.obj`, `mesh-uv.ply`, `mesh-st.ply`) and the uv Mitsuba's `obj` and `ply`
+give at ray hits for each `flip_tex_coords`; and the bitmaps' one-channel `eval_1`.
 """
 import json
 import os
@@ -92,8 +94,63 @@ shapes = {
                        ([0.3, 5, -1.2], [0, -1, 0]), ([0.9, -5, -0.9], [0, 1, 0]),
                        ([0.2, 0.5, 5], [0, 0, -1]), ([0.7, -1.3, -5], [0, 0, 1])]),
 }
+
+# Meshes: a non-planar quad (one OBJ face, split into a fan) and a triangle, with texture
+# coordinates (OBJ `vt`; PLY `u`, `v` and `s`, `t`) and without; the rays come from +z.
+MESH_V = [(0, 0, 0), (2, 0, 0), (0, 1, 0), (2, 1, 0.5), (3, 0.5, 0.2)]
+MESH_VT = [(0.1, 0.2), (0.9, 0.3), (0.2, 0.7), (0.8, 0.95), (1.4, -0.3)]
+MESH_F = [(0, 1, 3, 2), (1, 4, 3)]
+with open(os.path.join(OUT, "mesh-vt.obj"), "w") as f:
+    f.write("".join(f"v {x} {y} {z}\n" for x, y, z in MESH_V))
+    f.write("".join(f"vt {u} {v}\n" for u, v in MESH_VT))
+    f.write("".join("f " + " ".join(f"{i + 1}/{i + 1}" for i in face) + "\n" for face in MESH_F))
+with open(os.path.join(OUT, "mesh.obj"), "w") as f:
+    f.write("".join(f"v {x} {y} {z}\n" for x, y, z in MESH_V))
+    f.write("".join("f " + " ".join(f"{i + 1}" for i in face) + "\n" for face in MESH_F))
+for name, (a, b) in [("mesh-uv.ply", ("u", "v")), ("mesh-st.ply", ("s", "t"))]:
+    with open(os.path.join(OUT, name), "w") as f:
+        f.write("ply\nformat ascii 1.0\nelement vertex 5\n")
+        f.write("".join(f"property float {c}\n" for c in ["x", "y", "z", a, b]))
+        # Mitsuba's `ply` reads triangles only: the quad as the OBJ's fan
+        tris = [(0, 1, 3), (0, 3, 2), (1, 4, 3)]
+        f.write("element face 3\nproperty list uchar int vertex_indices\nend_header\n")
+        f.write("".join(f"{x} {y} {z} {u} {v}\n" for (x, y, z), (u, v) in zip(MESH_V, MESH_VT)))
+        f.write("".join("3 " + " ".join(map(str, t)) + "\n" for t in tris))
+MESH_RAYS = [([x, y, 5], [0, 0, -1]) for x, y in
+             [(0.5, 0.3), (1.5, 0.8), (1.0, 0.1), (0.2, 0.9), (2.5, 0.5), (2.2, 0.3)]]
+meshes = []
+for file in ["mesh-vt.obj", "mesh.obj", "mesh-uv.ply", "mesh-st.ply"]:
+    for flip in [None, True, False]:
+        props = {"type": file.rsplit(".", 1)[1], "filename": os.path.join(OUT, file),
+                 "face_normals": True}
+        if flip is not None:
+            props["flip_tex_coords"] = flip
+        meshes.append({"file": file, "flip_tex_coords": flip, "hits": shape_uvs(props, MESH_RAYS)})
+
+# a texture's one-channel value (`eval_1`, what a textured roughness reads)
+eval_1 = []
+for file in ["rgb4x3.png", "rgb4x3.exr"]:
+    tex = mi.load_dict({"type": "bitmap", "filename": os.path.join(OUT, file)})
+    si = mi.SurfaceInteraction3f()
+    values = []
+    for u, v in UVS:
+        si.uv = mi.Point2f(u, v)
+        values.append(float(tex.eval_1(si)))
+    eval_1.append({"file": file, "values": values})
+# Mitsuba 3's checkerboard `eval_1` gives color1 where `eval` gives color0 and back
+tex = mi.load_dict({"type": "checkerboard", "color0": 0.05, "color1": 0.4,
+                    "to_uv": mi.ScalarTransform4f().scale([3, 2, 1])})
+si = mi.SurfaceInteraction3f()
+values = []
+for u, v in UVS:
+    si.uv = mi.Point2f(u, v)
+    values.append(float(tex.eval_1(si)))
+eval_1.append({"checkerboard": {"color0": 0.05, "color1": 0.4, "to_uv": [[3, 0, 0], [0, 2, 0]]},
+               "values": values})
+
 with open(os.path.join(OUT, "mitsuba.json"), "w") as f:
     json.dump({"mitsuba": mi.__version__, "uvs": UVS, "lookups": lookups,
                "checkerboard": {"to_uv": [[3, 0, 0], [0, 2, 0]], "values": checker},
-               "shapes": shapes}, f, separators=(",", ":"))
+               "shapes": shapes, "meshes": meshes, "eval_1": eval_1}, f,
+              separators=(",", ":"))
 print("wrote", OUT)

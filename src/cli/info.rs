@@ -235,9 +235,15 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
             String::new()
         };
         let texture = s.texture.as_ref().map_or(String::new(), |t| {
+            let part = |what: &str, t: &Option<std::sync::Arc<crate::texture::Texture>>| {
+                t.as_ref()
+                    .map(|t| format!(" ({what} textured: {}; its mean shown)", t.describe()))
+                    .unwrap_or_default()
+            };
             format!(
-                " (albedo textured: {}; its mean shown)",
-                t.reflectance.describe()
+                "{}{}",
+                part("reflectance", &t.reflectance),
+                part("alpha", &t.alpha)
             )
         });
         println!(

@@ -109,6 +109,30 @@ impl fmt::Display for ReflectanceValue {
     }
 }
 
+/// A roughness: a number, or a texture whose one-channel value (the luminance, as Mitsuba 3's
+/// `eval_1`) is the roughness at each point.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum RoughnessValue {
+    Value(f32),
+    Texture(TextureDesc),
+}
+
+impl From<f32> for RoughnessValue {
+    fn from(v: f32) -> Self {
+        RoughnessValue::Value(v)
+    }
+}
+
+impl fmt::Display for RoughnessValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RoughnessValue::Value(v) => write!(f, "{v}"),
+            RoughnessValue::Texture(t) => write!(f, "{}", ReflectanceValue::Texture(t.clone())),
+        }
+    }
+}
+
 /// A texture, as Mitsuba 3's plugins of the same names and defaults (`texture::bitmap`,
 /// `texture::checkerboard`); `to_uv` is the rows `[[a, b, c], [d, e, f]]` of u' = a u + b v + c,
 /// v' = d u + e v + f.
@@ -273,11 +297,11 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// Microfacet metal: `alpha`, `distribution` (default ggx), and `reflectance` (Schlick),
-    /// `material` (a named conductor) or `eta` and `k` (complex index); reflectance 1 when none
-    /// is given; `specular` (1) scales the Fresnel term.
+    /// Microfacet metal: `alpha` (a number or a texture), `distribution` (default ggx), and
+    /// `reflectance` (Schlick), `material` (a named conductor) or `eta` and `k` (complex index);
+    /// reflectance 1 when none is given; `specular` (1) scales the Fresnel term.
     RoughConductor {
-        alpha: f32,
+        alpha: RoughnessValue,
         #[serde(default)]
         distribution: DistributionDesc,
         #[serde(default)]
@@ -293,10 +317,11 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// Microfacet glass: `ior` inside over outside, `alpha`, `distribution` (default ggx).
+    /// Microfacet glass: `ior` inside over outside, `alpha` (a number or a texture),
+    /// `distribution` (default ggx).
     RoughDielectric {
         ior: f32,
-        alpha: f32,
+        alpha: RoughnessValue,
         #[serde(default)]
         distribution: DistributionDesc,
     },
@@ -305,8 +330,8 @@ pub enum MaterialDesc {
     /// `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false; two-sided unless
     /// `one_sided`.
     RoughPlastic {
-        #[serde(default = "half_rgb")]
-        diffuse: RgbValue,
+        #[serde(default = "half_reflectance")]
+        diffuse: ReflectanceValue,
         #[serde(default = "one_rgb")]
         specular: RgbValue,
         #[serde(default = "plastic_alpha")]
@@ -324,8 +349,8 @@ pub enum MaterialDesc {
     /// of `ior` inside over outside (default 1.49 / 1.000277) reflecting `specular` (default
     /// 1) times Fresnel; `nonlinear` internal bounces; `one_sided` as for `lambert`.
     Plastic {
-        #[serde(default = "half_rgb")]
-        diffuse: RgbValue,
+        #[serde(default = "half_reflectance")]
+        diffuse: ReflectanceValue,
         #[serde(default = "one_rgb")]
         specular: RgbValue,
         #[serde(default)]
@@ -338,12 +363,12 @@ pub enum MaterialDesc {
     Null {},
 }
 
-fn one_rgb() -> RgbValue {
-    RgbValue::Scalar(1.0)
+fn half_reflectance() -> ReflectanceValue {
+    ReflectanceValue::Value(RgbValue::Scalar(0.5))
 }
 
-fn half_rgb() -> RgbValue {
-    RgbValue::Scalar(0.5)
+fn one_rgb() -> RgbValue {
+    RgbValue::Scalar(1.0)
 }
 
 fn plastic_alpha() -> f32 {
@@ -589,6 +614,10 @@ pub enum ShapeDesc {
         /// false: the face normal everywhere.
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         smooth_normals: bool,
+        /// Read a texture coordinate v as 1 - v; by default true for an OBJ file and false for a
+        /// PLY file, as Mitsuba 3's `obj` and `ply` (`flip_tex_coords`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        flip_tex_coords: Option<bool>,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,

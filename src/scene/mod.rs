@@ -66,22 +66,35 @@ pub struct CornerNormals {
     pub corners: Vec<[Vec3; 3]>,
 }
 
-/// A textured parameter of a shape's material: the texture, and how the shape maps a point to
-/// (u, v). The material's constant value stands in wherever no point is known (`info`).
+/// The textured parameters of a shape's material, and how the shape maps a point to (u, v).
+/// The material's constant values stand in wherever no point is known (`info`).
 #[derive(Clone, Debug)]
 pub struct ShapeTexture {
-    pub reflectance: std::sync::Arc<crate::texture::Texture>,
+    /// A `lambert`'s albedo or a plastic's `diffuse` (Mitsuba's `reflectance`,
+    /// `diffuse_reflectance`).
+    pub reflectance: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
+    /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
+    pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
     pub uv: UvMap,
 }
 
 /// How a shape gives (u, v) to a point of one of its primitives.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub enum UvMap {
-    /// The primitive's own coordinates ([`Primitive::uv`]).
+    /// The primitive's own coordinates ([`Primitive::uv`]); a mesh's barycentrics (b1, b2)
+    /// when it has no texture coordinates, as Mitsuba 3's meshes.
     Primitive,
     /// Mitsuba 3's `cube` ([-1,1]^3 scaled and moved to `center`, half sides `half`): each face
     /// is the unit square, laid out as `src/shapes/cube.cpp` lists its vertices.
     Cube { center: Vec3, half: Vec3 },
+    /// A mesh's texture coordinates at the three corners of each triangle (the scene's
+    /// primitives from `first_prim` on), interpolated by the barycentrics as Mitsuba 3's
+    /// `Mesh::compute_surface_interaction`: uv0 (1 - b1 - b2) + uv1 b1 + uv2 b2.
+    Mesh {
+        first_prim: u32,
+        corners: std::sync::Arc<[[glam::Vec2; 3]]>,
+    },
 }
 
 /// Mitsuba 3's `cube`: per face (in its order, by outward normal), the corners of uv (0, 0),
@@ -116,11 +129,19 @@ const CUBE_FACES: [(Vec3, [Vec3; 3]); 6] = {
 };
 
 impl UvMap {
-    /// The (u, v) of point `p` on primitive `prim` (with unit normal `n`).
-    pub fn uv(&self, prim: &Primitive, p: Vec3, n: Vec3) -> glam::Vec2 {
-        match *self {
+    /// The (u, v) of point `p` on primitive `prim` (index `id`, with unit normal `n`).
+    pub fn uv(&self, id: u32, prim: &Primitive, p: Vec3, n: Vec3) -> glam::Vec2 {
+        match self {
             UvMap::Primitive => prim.uv(p),
-            UvMap::Cube { center, half } => {
+            UvMap::Mesh {
+                first_prim,
+                corners,
+            } => {
+                let b = prim.uv(p);
+                let [t0, t1, t2] = corners[(id - first_prim) as usize];
+                t0 * (1.0 - b.x - b.y) + t1 * b.x + t2 * b.y
+            }
+            &UvMap::Cube { center, half } => {
                 let local = (p - center) / half;
                 let face = CUBE_FACES
                     .iter()
@@ -317,19 +338,34 @@ impl Scene {
         Some(std::borrow::Cow::Owned(self.textured(bsdf, t, prim, p)))
     }
 
-    /// `bsdf` with `t`'s value at `p` (kept out of line: untextured scenes never call it).
+    /// `bsdf` with `t`'s values at `p` (kept out of line: untextured scenes never call it).
     #[inline(never)]
-    fn textured(&self, bsdf: &Bsdf, t: &ShapeTexture, prim: u32, p: Vec3) -> Bsdf {
-        let prim = &self.prims[prim as usize];
+    fn textured(&self, bsdf: &Bsdf, t: &ShapeTexture, id: u32, p: Vec3) -> Bsdf {
+        let prim = &self.prims[id as usize];
         // only the cube's faces (quads) need the normal
         let n = match prim {
             Primitive::Quad(q) => q.n,
             _ => Vec3::ZERO,
         };
-        let value = t.reflectance.eval(t.uv.uv(prim, p, n));
+        let uv = t.uv.uv(id, prim, p, n);
         let mut out = bsdf.clone();
-        if let Bsdf::Lambert(l) = &mut out {
-            l.albedo = value;
+        if let Some(r) = &t.reflectance {
+            let value = r.eval(uv);
+            match &mut out {
+                Bsdf::Lambert(l) => l.albedo = value,
+                Bsdf::Plastic(m) => m.diffuse = value,
+                // its sampling weight stays the texture mean's, as Mitsuba's
+                Bsdf::RoughPlastic(m) => m.diffuse = value,
+                _ => {}
+            }
+        }
+        if let Some(a) = &t.alpha {
+            let alpha = a.eval_1(uv);
+            match &mut out {
+                Bsdf::RoughConductor(m) => m.alpha = alpha,
+                Bsdf::RoughDielectric(m) => m.alpha = alpha,
+                _ => {}
+            }
         }
         out
     }

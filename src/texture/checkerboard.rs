@@ -31,4 +31,17 @@ impl Checkerboard {
             self.color1
         }
     }
+
+    /// The one-channel lookup as Mitsuba 3 (3.9) makes it: its `eval_1` takes `color1` where
+    /// `eval` takes `color0` and back (recorded by `scripts/make_texture_fixtures.py`), so a
+    /// textured roughness reads the swapped pattern in both renderers.
+    #[inline]
+    pub fn eval_1_colour(&self, uv: Vec2) -> Rgb {
+        let c = self.eval(uv);
+        if c == self.color0 {
+            self.color1
+        } else {
+            self.color0
+        }
+    }
 }

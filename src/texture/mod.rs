@@ -45,6 +45,11 @@ impl UvTransform {
     }
 }
 
+/// Mitsuba 3's luminance weights of linear sRGB (`luminance` in its `spectrum.h`), not the
+/// rounded Rec. 709 ones of [`crate::spectrum::LUMINANCE`]: a textured roughness must be
+/// the value Mitsuba reads.
+pub const MITSUBA_LUMINANCE: Rgb = glam::Vec3::new(0.212671, 0.715160, 0.072169);
+
 /// The closed set of textures.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
@@ -60,6 +65,34 @@ impl Texture {
             Texture::Bitmap(b) => b.eval(uv),
             Texture::Checkerboard(c) => c.eval(uv),
         }
+    }
+
+    /// The one-channel value at `uv`: the luminance of [`Texture::eval`] with Mitsuba 3's
+    /// weights (`Texture::eval_1` of its RGB `bitmap`, `luminance` in
+    /// `include/mitsuba/core/spectrum.h`), where a scalar parameter such as a roughness is
+    /// textured; a checkerboard's with its two colours swapped, as Mitsuba's `eval_1`
+    /// ([`Checkerboard::eval_1_colour`]).
+    #[inline]
+    pub fn eval_1(&self, uv: Vec2) -> f32 {
+        match self {
+            Texture::Bitmap(b) => b.eval(uv).dot(MITSUBA_LUMINANCE),
+            Texture::Checkerboard(c) => c.eval_1_colour(uv).dot(MITSUBA_LUMINANCE),
+        }
+    }
+
+    /// The least and largest one-channel value anywhere ([`Texture::eval_1`] is linear in the
+    /// texels, so bilinear lookups stay between them).
+    pub fn range_1(&self) -> (f32, f32) {
+        let l = |c: Rgb| c.dot(MITSUBA_LUMINANCE);
+        let values: Vec<f32> = match self {
+            Texture::Bitmap(b) => b.texels().iter().map(|&t| l(t)).collect(),
+            Texture::Checkerboard(c) => vec![l(c.color0), l(c.color1)],
+        };
+        values
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
     }
 
     /// The largest value of any channel anywhere (a reflectance must stay at most 1).

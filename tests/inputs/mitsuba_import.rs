@@ -367,7 +367,7 @@ emission = 1.0
         "t.xml:8",
     );
     refused(
-        r#"<shape type="rectangle"><bsdf type="plastic"><texture type="checkerboard" name="diffuse_reflectance"/></bsdf></shape>"#,
+        &format!(r#"<shape type="cylinder">{checker}</shape>"#),
         "t.xml:8",
     );
     refused(
@@ -377,6 +377,134 @@ emission = 1.0
     refused(
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="x.png"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#,
         "t.xml:8",
+    );
+}
+
+/// Textures beyond `diffuse`: a `plastic`'s and a `roughplastic`'s `diffuse_reflectance`, a
+/// `roughconductor`'s and a `roughdielectric`'s `alpha` (read as one channel), and meshes with
+/// texture coordinates: an OBJ's `vt` (v flipped by default, as Mitsuba's `obj`) and a PLY's
+/// `u`, `v` (`flip_tex_coords` given), each becoming the same TOML keys. A texture as a
+/// `roughplastic`'s `alpha` (a number in Mitsuba) is refused with its line.
+#[test]
+fn textured_bsdfs_and_meshes_are_mitsubas() {
+    let png = "tests/fixtures/textures/rgb4x3.png";
+    let checker = r#"<texture type="checkerboard" name="NAME"><float name="color0" value="0.3"/><float name="color1" value="0.05"/></texture>"#;
+    let c = |name: &str| checker.replace("NAME", name);
+    same_scene(
+        &scene(&format!(
+            r#"<shape type="rectangle">
+        <bsdf type="plastic" id="coat">{}</bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="roughplastic" id="rcoat"><texture type="bitmap" name="diffuse_reflectance"><string name="filename" value="{png}"/></texture></bsdf>
+        <transform name="to_world"><scale value="0.5"/><translate x="0.5" z="-1"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted"><texture type="bitmap" name="alpha"><string name="filename" value="{png}"/><boolean name="raw" value="true"/></texture></bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="-0.6" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="roughconductor" id="metal">{}</bsdf>
+    </shape>
+    <shape type="obj">
+        <string name="filename" value="tests/fixtures/textures/mesh-vt.obj"/>
+        <transform name="to_world"><translate x="-1" y="0.2"/></transform>
+        <bsdf type="diffuse" id="wood"><texture type="bitmap" name="reflectance"><string name="filename" value="{png}"/></texture></bsdf>
+    </shape>
+    <shape type="ply">
+        <string name="filename" value="tests/fixtures/textures/mesh-uv.ply"/>
+        <boolean name="flip_tex_coords" value="true"/>
+        <boolean name="face_normals" value="true"/>
+        <transform name="to_world"><translate x="-1" y="-1"/></transform>
+        <ref id="wood"/>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#,
+            c("diffuse_reflectance"),
+            c("alpha"),
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials.coat]
+type = "plastic"
+diffuse = {{ texture = "checkerboard", color0 = 0.3, color1 = 0.05 }}
+specular = 1.0
+ior = {:?}
+one_sided = true
+[materials.rcoat]
+type = "rough_plastic"
+diffuse = {{ texture = "bitmap", file = "{png}" }}
+one_sided = true
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+alpha = {{ texture = "bitmap", file = "{png}", raw = true }}
+ior = {:?}
+[materials.metal]
+type = "rough_conductor"
+distribution = "beckmann"
+alpha = {{ texture = "checkerboard", color0 = 0.3, color1 = 0.05 }}
+one_sided = true
+[materials.wood]
+type = "lambert"
+albedo = {{ texture = "bitmap", file = "{png}" }}
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "coat"
+[[shapes]]
+type = "quad"
+origin = [0.0, -0.5, -1.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+material = "rcoat"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "sphere"
+center = [0.0, -0.6, 0.0]
+radius = 0.3
+material = "metal"
+[[shapes]]
+type = "mesh"
+obj = "tests/fixtures/textures/mesh-vt.obj"
+to_world = [[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.0]]
+smooth_normals = true
+material = "wood"
+[[shapes]]
+type = "mesh"
+obj = "tests/fixtures/textures/mesh-uv.ply"
+to_world = [[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, 0.0, 1.0, 0.0]]
+flip_tex_coords = true
+material = "wood"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.49f64 / 1.000277) as f32,
+            (1.5046f64 / 1.000277) as f32,
+        ),
+    );
+    let e = xml(&scene(&format!(
+        r#"<shape type="rectangle"><bsdf type="roughplastic">{}</bsdf></shape>"#,
+        c("alpha")
+    )))
+    .expect_err("a textured roughplastic alpha");
+    assert!(
+        e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 2)) && e.contains("alpha"),
+        "{e}"
     );
 }
 
@@ -955,7 +1083,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "either the material or eta and k",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="diffuse_reflectance" type="bitmap"/></bsdf></shape>"#,
+            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="specular_reflectance" type="bitmap"/></bsdf></shape>"#,
             "textures",
         ),
         (

@@ -682,6 +682,18 @@ fn agreement_textured() {
 }
 
 /// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
+/// A checkerboard roughness on a rough conductor floor and a rough glass sphere: every column
+/// reads alpha at its own vertices for values, sampling and densities.
+#[test]
+fn agreement_textured_roughness() {
+    let mut fam = Family::new("agreement: textured roughness");
+    check_row(
+        &mut fam,
+        &row("textured-roughness", fixture("textured-roughness.toml"), 3),
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_disk() {
     let mut fam = Family::new("agreement: disk");

@@ -1,8 +1,10 @@
 //! Textures (`src/texture`) and the (u, v) of the shapes, against Mitsuba 3: the values its
 //! `bitmap` and `checkerboard` give at a list of points for every filter, wrap mode and `raw`,
 //! and the uv its `rectangle`, `disk`, `sphere` and `cube` give at ray hits, all recorded by
-//! `scripts/make_texture_fixtures.py` in `tests/fixtures/textures/mitsuba.json`; and the
-//! identities a texture keeps (bilinear at texel centres, the wrap of edge texels, sRGB).
+//! `scripts/make_texture_fixtures.py` in `tests/fixtures/textures/mitsuba.json`, with the uv
+//! its `obj` and `ply` meshes give (texture coordinates interpolated, v flipped or not, or
+//! barycentrics) and its one-channel `eval_1` (a textured roughness); and the identities a
+//! texture keeps (bilinear at texel centres, the wrap of edge texels, sRGB).
 
 use glam::{Vec2, Vec3};
 use pathspace::geometry::Ray;
@@ -48,7 +50,7 @@ fn texture_of(albedo: &str) -> Texture {
     src.base_dir = fixtures();
     let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
     let t = scene.shapes[0].texture.as_ref().expect("a textured shape");
-    (*t.reflectance).clone()
+    (**t.reflectance.as_ref().expect("a textured reflectance")).clone()
 }
 
 #[test]
@@ -233,7 +235,7 @@ fn each_shapes_uv_is_mitsubas() {
             let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
             let t = shape.texture.as_ref().unwrap();
             let prim = &scene.prims[hit.prim as usize];
-            let uv = t.uv.uv(prim, hit.p, hit.ng);
+            let uv = t.uv.uv(hit.prim, prim, hit.p, hit.ng);
             let want = Vec2::new(
                 h["uv"][0].as_f64().unwrap() as f32,
                 h["uv"][1].as_f64().unwrap() as f32,
@@ -241,6 +243,76 @@ fn each_shapes_uv_is_mitsubas() {
             assert!(
                 (uv - want).abs().max_element() < 1e-5 * (1.0 + p.abs().max_element()),
                 "{name} at {p}: uv {uv} against Mitsuba's {want}"
+            );
+        }
+    }
+}
+
+/// The uv of Mitsuba's `obj` and `ply` meshes at the points its rays hit, for every
+/// `flip_tex_coords` (default: flipped for OBJ, not for PLY), with texture coordinates (OBJ
+/// `vt`, PLY `u`, `v` and `s`, `t`) and without (the barycentrics), through the importer.
+#[test]
+fn each_meshs_uv_is_mitsubas() {
+    let r = recorded();
+    let meshes = r["meshes"].as_array().unwrap();
+    assert_eq!(meshes.len(), 12);
+    for m in meshes {
+        let file = m["file"].as_str().unwrap();
+        let kind = file.rsplit('.').next().unwrap();
+        let flip = match m["flip_tex_coords"].as_bool() {
+            Some(f) => format!("<boolean name=\"flip_tex_coords\" value=\"{f}\"/>"),
+            None => String::new(),
+        };
+        let xml = format!(
+            "<scene version=\"3.0.0\"><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><film type=\"hdrfilm\"><integer name=\"width\" value=\"4\"/><integer name=\"height\" value=\"4\"/><rfilter type=\"box\"/></film></sensor><shape type=\"{kind}\"><string name=\"filename\" value=\"{file}\"/>{flip}<boolean name=\"face_normals\" value=\"true\"/><bsdf type=\"diffuse\"><texture type=\"checkerboard\" name=\"reflectance\"/></bsdf></shape></scene>"
+        );
+        let src = mitsuba::import("t.xml", &xml, fixtures()).unwrap_or_else(|e| panic!("{e}"));
+        let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
+        for h in m["hits"].as_array().unwrap() {
+            let p = v3(&h["p"]);
+            let hit = scene
+                .intersect(&Ray::new(p + Vec3::Z, -Vec3::Z), 2.0)
+                .expect("a hit");
+            let t = scene.shapes[0].texture.as_ref().unwrap();
+            let prim = &scene.prims[hit.prim as usize];
+            let uv = t.uv.uv(hit.prim, prim, hit.p, hit.ng);
+            let want = Vec2::new(
+                h["uv"][0].as_f64().unwrap() as f32,
+                h["uv"][1].as_f64().unwrap() as f32,
+            );
+            assert!(
+                (uv - want).abs().max_element() < 1e-5,
+                "{file}, flip_tex_coords {:?}, at {p}: uv {uv} against Mitsuba's {want}",
+                m["flip_tex_coords"]
+            );
+        }
+    }
+}
+
+/// A texture's one-channel value (a textured roughness) is Mitsuba's `eval_1`: the luminance
+/// of the RGB lookup with Mitsuba's weights, and a checkerboard's colours swapped as Mitsuba's.
+#[test]
+fn one_channel_lookups_are_mitsubas() {
+    let r = recorded();
+    let uvs = r["uvs"].as_array().unwrap();
+    for e in r["eval_1"].as_array().unwrap() {
+        let t = match e.get("checkerboard") {
+            Some(c) => texture_of(&format!(
+                "{{ texture = \"checkerboard\", color0 = {}, color1 = {}, to_uv = {} }}",
+                c["color0"], c["color1"], c["to_uv"]
+            )),
+            None => texture_of(&format!("{{ texture = \"bitmap\", file = {} }}", e["file"])),
+        };
+        for (uv, want) in uvs.iter().zip(e["values"].as_array().unwrap()) {
+            let uv = Vec2::new(
+                uv[0].as_f64().unwrap() as f32,
+                uv[1].as_f64().unwrap() as f32,
+            );
+            let (got, want) = (t.eval_1(uv), want.as_f64().unwrap() as f32);
+            assert!(
+                (got - want).abs() <= F32_AGREEMENT,
+                "{} at {uv}: {got} against Mitsuba's {want}",
+                e["file"]
             );
         }
     }

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 
 use std::sync::Arc;
 
-use super::textures::reflectance;
+use super::textures::{mean, reflectance, texture};
 use super::values::{albedo, non_negative};
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
@@ -13,15 +13,41 @@ use crate::bsdf::{
     Bsdf, Conductor, ConductorFresnel, Dielectric, Distribution, Lambert, Microfacet, Mirror, Null,
     Plastic, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
 };
-use crate::scene::file::{path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, SceneFile};
+use crate::scene::file::{
+    path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, RoughnessValue, SceneFile,
+};
 use crate::scene::{SceneError, SceneSource};
 use crate::spectrum::Rgb;
-use crate::texture::Texture;
+use crate::texture::{Texture, MITSUBA_LUMINANCE};
 
-/// The materials by name, and the textured reflectance of those that have one.
+/// The materials by name, and the textured parameters of those that have some.
 pub(super) struct Materials {
     pub(super) bsdfs: BTreeMap<String, Bsdf>,
-    pub(super) textures: BTreeMap<String, Arc<Texture>>,
+    pub(super) textures: BTreeMap<String, Textured>,
+}
+
+/// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`) and its
+/// roughness (`alpha`).
+#[derive(Default)]
+pub(super) struct Textured {
+    pub(super) reflectance: Option<Arc<Texture>>,
+    pub(super) alpha: Option<Arc<Texture>>,
+}
+
+impl Textured {
+    fn reflectance(t: Option<Texture>) -> Self {
+        Textured {
+            reflectance: t.map(Arc::new),
+            alpha: None,
+        }
+    }
+
+    fn alpha(t: Option<Texture>) -> Self {
+        Textured {
+            reflectance: None,
+            alpha: t.map(Arc::new),
+        }
+    }
 }
 
 /// Every material of the file by name, with the built-in `null` (the index-matched boundary of
@@ -38,15 +64,14 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 "`null` is the built-in index-matched boundary; choose another name",
             ));
         }
+        let mut textured = Textured::default();
         let bsdf = match m {
             MaterialDesc::Lambert {
                 albedo: a,
                 one_sided,
             } => {
                 let (albedo, texture) = reflectance(src, &key.clone().key("albedo"), a)?;
-                if let Some(t) = texture {
-                    textures.insert(name.clone(), Arc::new(t));
-                }
+                textured = Textured::reflectance(texture);
                 Bsdf::Lambert(Lambert {
                     albedo,
                     one_sided: *one_sided,
@@ -102,35 +127,54 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 k,
                 specular,
                 one_sided,
-            } => Bsdf::RoughConductor(RoughConductor {
-                distribution: distribution_of(*distribution),
-                alpha: roughness(src, &key, *alpha, "conductor")?,
-                fresnel: conductor_fresnel(src, &key, *reflectance, material.as_deref(), *eta, *k)?,
-                specular: albedo(src, &key.clone().key("specular"), *specular)?,
-                one_sided: *one_sided,
-            }),
+            } => {
+                let (alpha, texture) = textured_roughness(src, &key, alpha, "conductor")?;
+                textured = Textured::alpha(texture);
+                Bsdf::RoughConductor(RoughConductor {
+                    distribution: distribution_of(*distribution),
+                    alpha,
+                    fresnel: conductor_fresnel(
+                        src,
+                        &key,
+                        *reflectance,
+                        material.as_deref(),
+                        *eta,
+                        *k,
+                    )?,
+                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    one_sided: *one_sided,
+                })
+            }
             MaterialDesc::RoughDielectric {
                 ior,
                 alpha,
                 distribution,
-            } => Bsdf::RoughDielectric(RoughDielectric {
-                ior: rough_ior(src, &key, *ior)?,
-                distribution: distribution_of(*distribution),
-                alpha: roughness(src, &key, *alpha, "dielectric")?,
-            }),
+            } => {
+                let (alpha, texture) = textured_roughness(src, &key, alpha, "dielectric")?;
+                textured = Textured::alpha(texture);
+                Bsdf::RoughDielectric(RoughDielectric {
+                    ior: rough_ior(src, &key, *ior)?,
+                    distribution: distribution_of(*distribution),
+                    alpha,
+                })
+            }
             MaterialDesc::Plastic {
                 diffuse,
                 specular,
                 ior,
                 nonlinear,
                 one_sided,
-            } => Bsdf::Plastic(Plastic {
-                diffuse: albedo(src, &key.clone().key("diffuse"), *diffuse)?,
-                specular: albedo(src, &key.clone().key("specular"), *specular)?,
-                eta: plastic_ior(src, &key, *ior)?,
-                nonlinear: *nonlinear,
-                one_sided: *one_sided,
-            }),
+            } => {
+                let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
+                textured = Textured::reflectance(texture);
+                Bsdf::Plastic(Plastic {
+                    diffuse,
+                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    eta: plastic_ior(src, &key, *ior)?,
+                    nonlinear: *nonlinear,
+                    one_sided: *one_sided,
+                })
+            }
             MaterialDesc::RoughPlastic {
                 diffuse,
                 specular,
@@ -139,20 +183,28 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 ior,
                 nonlinear,
                 one_sided,
-            } => Bsdf::RoughPlastic(RoughPlastic::new(
-                Microfacet::new(
-                    distribution_of(*distribution),
-                    roughness(src, &key, *alpha, "plastic")?,
-                ),
-                rough_plastic_ior(src, &key, *ior)?,
-                albedo(src, &key.clone().key("diffuse"), *diffuse)?,
-                albedo(src, &key.clone().key("specular"), *specular)?,
-                *nonlinear,
-                *one_sided,
-            )),
+            } => {
+                // a textured diffuse: the texture's mean sets the sampling weight, as Mitsuba's
+                let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
+                textured = Textured::reflectance(texture);
+                Bsdf::RoughPlastic(RoughPlastic::new(
+                    Microfacet::new(
+                        distribution_of(*distribution),
+                        roughness(src, &key, *alpha, "plastic")?,
+                    ),
+                    rough_plastic_ior(src, &key, *ior)?,
+                    diffuse,
+                    albedo(src, &key.clone().key("specular"), *specular)?,
+                    *nonlinear,
+                    *one_sided,
+                ))
+            }
             MaterialDesc::Null {} => Bsdf::Null(Null),
         };
         materials.insert(name.clone(), bsdf);
+        if textured.reflectance.is_some() || textured.alpha.is_some() {
+            textures.insert(name.clone(), textured);
+        }
     }
     Ok(Materials {
         bsdfs: materials,
@@ -211,6 +263,25 @@ fn roughness(
         ));
     }
     Ok(alpha)
+}
+
+/// A roughness that may be a texture: a number as [`roughness`], or a texture whose
+/// one-channel values all lie in [`roughness`]'s range (the texture's mean luminance stands in
+/// where no point is known).
+fn textured_roughness(
+    src: &SceneSource,
+    key: &KeyPath,
+    alpha: &RoughnessValue,
+    smooth: &str,
+) -> Result<(f32, Option<Texture>), SceneError> {
+    let t = match alpha {
+        RoughnessValue::Value(a) => return Ok((roughness(src, key, *a, smooth)?, None)),
+        RoughnessValue::Texture(t) => texture(src, &key.clone().key("alpha"), t)?,
+    };
+    let (lo, hi) = t.range_1();
+    roughness(src, key, lo, smooth)?;
+    roughness(src, key, hi, smooth)?;
+    Ok((mean(&t).dot(MITSUBA_LUMINANCE), Some(t)))
 }
 
 /// A rough dielectric's index: positive and not within 1% of 1, where every refracted

@@ -1,9 +1,10 @@
 //! A small reader of PLY meshes (Turk 1994; the format Mitsuba's `ply` shape reads): ASCII
-//! and binary (either byte order), the vertices' `x`, `y`, `z` and the faces'
-//! `vertex_indices` (or `vertex_index`) as triangle fans; every other element and property is
+//! and binary (either byte order), the vertices' `x`, `y`, `z` (with normals and texture
+//! coordinates when present) and the faces' `vertex_indices` (or `vertex_index`) as triangle
+//! fans; every other element and property is
 //! read past. Counts are checked against the bytes left before anything is reserved.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// The most vertices one face may list (a polygon is split into a fan of triangles).
 pub const MAX_FACE_VERTICES: usize = 1024;
@@ -184,10 +185,14 @@ fn header(bytes: &[u8]) -> Result<(Format, Vec<Element>, usize), String> {
 }
 
 /// One part of a mesh file: positions, triangle indices and, when the file gives them, the
-/// normal of each triangle corner (aligned with the indices).
-pub type MeshPart = (Vec<Vec3>, Vec<u32>, Option<Vec<Vec3>>);
+/// normal and the texture coordinates of each triangle corner (aligned with the indices).
+pub type MeshPart = (Vec<Vec3>, Vec<u32>, Option<Vec<Vec3>>, Option<Vec<Vec2>>);
 
-/// Positions, triangle indices and vertex normals (`nx`, `ny`, `nz`) of a PLY file.
+/// The names of a vertex's texture coordinates Mitsuba 3's `ply` reads.
+const UV_NAMES: [[&str; 2]; 3] = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"]];
+
+/// Positions, triangle indices, vertex normals (`nx`, `ny`, `nz`) and texture coordinates
+/// (`u`, `v` or `s`, `t` or `texture_u`, `texture_v`) of a PLY file.
 pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
     let (format, elements, start) = header(bytes)?;
     let mut body = Body {
@@ -195,7 +200,7 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
         at: start,
         format,
     };
-    let (mut pos, mut idx, mut nrm) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut pos, mut idx, mut nrm, mut tex) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for e in &elements {
         // every instance takes at least one byte per property (two in ASCII, with a separator)
         let least = e.props.len().max(1) * if format == Format::Ascii { 2 } else { 1 };
@@ -211,6 +216,11 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
         // vertex normals: all three of nx, ny, nz or none (Mitsuba 3 documentation, plugin `ply`)
         let nxyz = ["nx", "ny", "nz"].map(|a| e.props.iter().position(|p| p.name == a));
         let has_normals = e.name == "vertex" && nxyz.iter().all(Option::is_some);
+        let uv = UV_NAMES
+            .iter()
+            .map(|n| n.map(|a| e.props.iter().position(|p| p.name == a)))
+            .find(|uv| uv.iter().all(Option::is_some))
+            .filter(|_| e.name == "vertex");
         if e.name == "vertex" {
             if xyz.iter().any(Option::is_none) {
                 return Err("the vertices have no x, y, z".into());
@@ -218,7 +228,7 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
             pos.reserve(e.count);
         }
         for _ in 0..e.count {
-            let (mut v, mut n) = ([0f64; 3], [0f64; 3]);
+            let (mut v, mut n, mut t) = ([0f64; 3], [0f64; 3], [0f64; 2]);
             for (k, p) in e.props.iter().enumerate() {
                 let Some(ct) = p.list else {
                     let x = body.value(p.ty)?;
@@ -227,6 +237,9 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
                     }
                     if let Some(a) = nxyz.iter().position(|&i| i == Some(k)) {
                         n[a] = x;
+                    }
+                    if let Some(a) = uv.and_then(|uv| uv.iter().position(|&i| i == Some(k))) {
+                        t[a] = x;
                     }
                     continue;
                 };
@@ -257,6 +270,9 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
                 if has_normals {
                     nrm.push(Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32));
                 }
+                if uv.is_some() {
+                    tex.push(Vec2::new(t[0] as f32, t[1] as f32));
+                }
             }
         }
     }
@@ -269,5 +285,7 @@ pub fn read_ply(bytes: &[u8]) -> Result<MeshPart, String> {
     // normals only when every vertex has one
     let normals = (!nrm.is_empty() && nrm.len() == pos.len())
         .then(|| idx.iter().map(|&k| nrm[k as usize]).collect());
-    Ok((pos, idx, normals))
+    let uvs = (!tex.is_empty() && tex.len() == pos.len())
+        .then(|| idx.iter().map(|&k| tex[k as usize]).collect());
+    Ok((pos, idx, normals, uvs))
 }

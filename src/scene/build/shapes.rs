@@ -1,7 +1,7 @@
 //! `[[shapes]]`: quads, boxes, spheres and OBJ meshes with their material, emission and media;
 //! emitting shapes become area lights. A shape that holds a medium must be closed.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use std::collections::{BTreeMap, HashMap};
 
 use super::materials::Materials;
@@ -142,11 +142,14 @@ pub(super) fn shapes(
         let key = path("shapes").index(i);
         let common = s.common();
         let (emission, bsdf) = surface(src, &key, &common, &materials.bsdfs)?;
-        let texture = shape_texture(src, &key, s, &common, materials)?;
+        let textured = common
+            .material
+            .as_ref()
+            .and_then(|m| materials.textures.get(m));
         let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
         let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
         let interface = common.interior.is_some() || common.exterior.is_some();
-        let (new, closed, corners) = primitives(src, &key, s, &common)?;
+        let (new, closed, corners, uvs) = primitives(src, &key, s, &common, textured.is_some())?;
         if corners.is_some() && common.emission.is_some() {
             return Err(src.error(
                 &key.clone().key("smooth_normals"),
@@ -169,6 +172,11 @@ pub(super) fn shapes(
         let normals = corners.map(|corners| crate::scene::CornerNormals {
             first_prim: prims.len() as u32,
             corners,
+        });
+        let texture = textured.map(|t| ShapeTexture {
+            reflectance: t.reflectance.clone(),
+            alpha: t.alpha.clone(),
+            uv: uv_map(s, prims.len() as u32, uvs),
         });
         let light = emission.map(|radiance| {
             let first = prims.len() as u32;
@@ -206,42 +214,24 @@ pub(super) fn shapes(
     })
 }
 
-/// The textured reflectance of a shape's material with the shape's (u, v): Mitsuba 3's
-/// conventions for the quad (`rectangle`), disk, sphere and box (`cube`); meshes are refused.
-fn shape_texture(
-    src: &SceneSource,
-    key: &KeyPath,
-    s: &ShapeDesc,
-    common: &ShapeCommon,
-    materials: &Materials,
-) -> Result<Option<ShapeTexture>, SceneError> {
-    let Some(t) = common
-        .material
-        .as_ref()
-        .and_then(|m| materials.textures.get(m))
-    else {
-        return Ok(None);
-    };
-    let uv = match s {
-        ShapeDesc::Box { min, max, .. } => {
+/// How a textured shape maps its points to (u, v), with Mitsuba 3's conventions: the quad
+/// (`rectangle`), disk, sphere and cylinder by their own coordinates, the box as `cube`, a mesh
+/// by its texture coordinates `uvs` (its first primitive `first_prim`), else its barycentrics.
+fn uv_map(s: &ShapeDesc, first_prim: u32, uvs: Option<Vec<[Vec2; 3]>>) -> UvMap {
+    match (s, uvs) {
+        (ShapeDesc::Box { min, max, .. }, _) => {
             let (lo, hi) = (Vec3::from_array(*min), Vec3::from_array(*max));
             UvMap::Cube {
                 center: 0.5 * (lo + hi),
                 half: 0.5 * (hi - lo),
             }
         }
-        ShapeDesc::Mesh { .. } => {
-            return Err(src.error(
-                &key.clone().key("material"),
-                "a textured material on a mesh: meshes carry no texture coordinates here (quads, disks, spheres and boxes do)",
-            ))
-        }
+        (_, Some(corners)) => UvMap::Mesh {
+            first_prim,
+            corners: corners.into(),
+        },
         _ => UvMap::Primitive,
-    };
-    Ok(Some(ShapeTexture {
-        reflectance: t.clone(),
-        uv,
-    }))
+    }
 }
 
 /// A shape's emission (black counts as none) and material: one of them is required, and a null
@@ -285,13 +275,15 @@ fn surface(
 }
 
 /// A shape's primitives, whether they enclose a volume (a quad does not; a mesh does when it is
-/// closed), and a smooth mesh's corner normals.
+/// closed), a smooth mesh's corner normals, and with `want_uv` a mesh's corner texture
+/// coordinates when its file has them.
 fn primitives(
     src: &SceneSource,
     key: &KeyPath,
     s: &ShapeDesc,
     common: &ShapeCommon,
-) -> Result<(Vec<Primitive>, bool, Corners), SceneError> {
+    want_uv: bool,
+) -> Result<(Vec<Primitive>, bool, Corners, CornerUvs), SceneError> {
     let mut new: Vec<Primitive> = Vec::new();
     let mut closed = true;
     match s {
@@ -373,16 +365,21 @@ fn primitives(
             obj,
             to_world,
             smooth_normals,
+            flip_tex_coords,
             ..
         } => {
             let place = placement(src, key, to_world)?;
-            let (tris, all_closed, corners) = mesh(src, key, obj, place, common, *smooth_normals)?;
+            let form = MeshForm {
+                smooth: *smooth_normals,
+                uv: want_uv.then_some(*flip_tex_coords),
+            };
+            let (tris, all_closed, corners, uvs) = mesh(src, key, obj, place, common, form)?;
             closed = all_closed;
             new.extend(tris.into_iter().map(Primitive::Triangle));
-            return Ok((new, closed, corners));
+            return Ok((new, closed, corners, uvs));
         }
     }
-    Ok((new, closed, None))
+    Ok((new, closed, None, None))
 }
 
 /// A mesh's `to_world` rows as an affine map (identity without them), every entry finite and
@@ -455,25 +452,65 @@ fn obj_parts(
                 })
                 .transpose()
                 .map_err(|e| src.error(obj_key, format!("`{}`: {e}", file.display())))?;
-            Ok((vec3s(&m.positions), m.indices, corners))
+            let uvs = obj_uvs(&m, smooth)
+                .map_err(|e| src.error(obj_key, format!("`{}`: {e}", file.display())))?;
+            Ok((vec3s(&m.positions), m.indices, corners, uvs))
         })
         .collect()
+}
+
+/// An OBJ model's texture coordinates (`vt`) at each triangle corner, aligned with its
+/// indices; `None` without `vt`. tobj keeps them per vertex when it made one index (`!smooth`),
+/// else per corner by their own indices.
+fn obj_uvs(m: &tobj::Mesh, smooth: bool) -> Result<Option<Vec<Vec2>>, &'static str> {
+    if m.texcoords.is_empty() {
+        return Ok(None);
+    }
+    let uv = |k: u32| {
+        let k = 2 * k as usize;
+        m.texcoords.get(k..k + 2).map(|t| Vec2::new(t[0], t[1]))
+    };
+    let mixed = "some faces have texture coordinates (`vt`) and some have none";
+    let ids = if smooth {
+        if m.texcoord_indices.len() != m.indices.len() {
+            return Err(mixed);
+        }
+        &m.texcoord_indices
+    } else {
+        if m.texcoords.len() != 2 * (m.positions.len() / 3) {
+            return Err(mixed);
+        }
+        &m.indices
+    };
+    ids.iter()
+        .map(|&k| uv(k))
+        .collect::<Option<Vec<Vec2>>>()
+        .map(Some)
+        .ok_or("a texture coordinate index is out of range")
 }
 
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;
 
+/// What a mesh keeps beside its triangles: corner normals when `smooth`, and with `uv` (the
+/// shape's `flip_tex_coords`) the file's texture coordinates, if any.
+struct MeshForm {
+    smooth: bool,
+    uv: Option<Option<bool>>,
+}
+
 /// The triangles of an OBJ or PLY file, every index and vertex checked, whether the mesh is
-/// closed (a closed mesh holding a medium must be wound outwards), and with `smooth` the corner
-/// normals of each triangle kept.
+/// closed (a closed mesh holding a medium must be wound outwards), and the corner normals and
+/// texture coordinates of each triangle that `form` asks for.
 fn mesh(
     src: &SceneSource,
     key: &KeyPath,
     obj: &str,
     place: glam::Affine3A,
     common: &ShapeCommon,
-    smooth: bool,
+    form: MeshForm,
 ) -> Result<MeshTriangles, SceneError> {
+    let smooth = form.smooth;
     let file = src.base_dir.join(obj);
     let obj_key = key.clone().key("obj");
     let fail =
@@ -492,7 +529,11 @@ fn mesh(
     let mut all_closed = true;
     let mut tris = Vec::new();
     let mut corners = Vec::new();
-    for (pos, idx, normals) in &parts {
+    // Mitsuba 3's `obj` flips v by default, its `ply` does not
+    let flip = form.uv.map(|f| f.unwrap_or(!is_ply));
+    let mut uvs = Vec::new();
+    let mut parts_with_uv = 0;
+    for (pos, idx, normals, tex) in &parts {
         let pos: Vec<Vec3> = pos.iter().map(|&p| place.transform_point3(p)).collect();
         if idx.iter().any(|&k| k as usize >= pos.len()) {
             return Err(fail(&"a face index is out of range"));
@@ -521,7 +562,20 @@ fn mesh(
             if let Some(n) = &smooth_part {
                 corners.push([n[3 * c], n[3 * c + 1], n[3 * c + 2]]);
             }
+            if let (Some(flip), Some(t)) = (flip, tex) {
+                let f = |t: Vec2| if flip { Vec2::new(t.x, 1.0 - t.y) } else { t };
+                uvs.push([f(t[3 * c]), f(t[3 * c + 1]), f(t[3 * c + 2])]);
+            }
         }
+        parts_with_uv += usize::from(tex.is_some());
+    }
+    if flip.is_some() && parts_with_uv != 0 && parts_with_uv != parts.len() {
+        return Err(fail(
+            &"some of its objects have texture coordinates and some have none",
+        ));
+    }
+    if uvs.iter().flatten().any(|t| !t.is_finite()) {
+        return Err(fail(&"a texture coordinate is not finite"));
     }
     if tris.is_empty() {
         return Err(src.error(&obj_key, format!("`{}` has no triangles", file.display())));
@@ -536,11 +590,17 @@ fn mesh(
             ),
         ));
     }
-    Ok((tris, closed, smooth.then_some(corners)))
+    let uvs = (flip.is_some() && parts_with_uv != 0).then_some(uvs);
+    Ok((tris, closed, smooth.then_some(corners), uvs))
 }
 
 /// A smooth mesh's normals at the corners of each triangle (`None`: flat).
 type Corners = Option<Vec<[Vec3; 3]>>;
 
-/// A mesh's triangles, whether it is closed, and its corner normals when smooth.
-type MeshTriangles = (Vec<Triangle>, bool, Corners);
+/// A textured mesh's texture coordinates at the corners of each triangle (`None`: the file
+/// has none, or the shape is not textured).
+type CornerUvs = Option<Vec<[Vec2; 3]>>;
+
+/// A mesh's triangles, whether it is closed, its corner normals when smooth, and its corner
+/// texture coordinates when textured.
+type MeshTriangles = (Vec<Triangle>, bool, Corners, CornerUvs);

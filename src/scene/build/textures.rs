@@ -29,17 +29,26 @@ pub(super) fn reflectance(
         ReflectanceValue::Value(c) => Ok((albedo(src, key, *c)?, None)),
         ReflectanceValue::Texture(t) => {
             let t = texture(src, key, t)?;
-            let mean = match &t {
-                Texture::Bitmap(b) => b.texels().iter().sum::<Vec3>() / b.texels().len() as f32,
-                Texture::Checkerboard(c) => 0.5 * (c.color0 + c.color1),
-            };
-            Ok((mean, Some(t)))
+            Ok((mean(&t), Some(t)))
         }
     }
 }
 
+/// A texture's mean value over the unit square of (u, v) (of its texels; a checkerboard's
+/// two colours cover it equally).
+pub(super) fn mean(t: &Texture) -> Vec3 {
+    match t {
+        Texture::Bitmap(b) => b.texels().iter().sum::<Vec3>() / b.texels().len() as f32,
+        Texture::Checkerboard(c) => 0.5 * (c.color0 + c.color1),
+    }
+}
+
 /// The texture `t` at `key`.
-fn texture(src: &SceneSource, key: &KeyPath, t: &TextureDesc) -> Result<Texture, SceneError> {
+pub(super) fn texture(
+    src: &SceneSource,
+    key: &KeyPath,
+    t: &TextureDesc,
+) -> Result<Texture, SceneError> {
     match t {
         TextureDesc::Checkerboard {
             color0,

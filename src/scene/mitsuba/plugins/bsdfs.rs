@@ -8,8 +8,8 @@ use roxmltree::Node;
 use super::{rgb, show, Importer, Props};
 use crate::bsdf::named_conductor::named_conductor;
 use crate::scene::file::{
-    DistributionDesc, FilterTypeDesc, MaterialDesc, ReflectanceValue, RgbValue, TextureDesc,
-    WrapModeDesc,
+    DistributionDesc, FilterTypeDesc, MaterialDesc, ReflectanceValue, RgbValue, RoughnessValue,
+    TextureDesc, WrapModeDesc,
 };
 use crate::scene::mitsuba::props::Doc;
 use crate::scene::SceneError;
@@ -130,10 +130,7 @@ impl<'a, 'd> Importer<'a, 'd> {
 fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, String), SceneError> {
     match p.plugin.as_str() {
         "diffuse" => {
-            let albedo = match p.texture("reflectance") {
-                Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
-                None => rgb(p.color("reflectance")?.unwrap_or(DVec3::splat(0.5))).into(),
-            };
+            let albedo = reflectance(p, "reflectance")?;
             let how = format!("lambert, albedo {albedo}{side}");
             Ok((MaterialDesc::Lambert { albedo, one_sided }, how))
         }
@@ -155,6 +152,15 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
             "the BSDF `{k}` is not supported (diffuse, conductor, roughconductor, dielectric, roughdielectric, thindielectric, plastic, roughplastic, twosided, null are)"
         ))),
     }
+}
+
+/// A colour parameter that may be a texture (Mitsuba's `diffuse` `reflectance`, a plastic's
+/// `diffuse_reflectance`), 0.5 when absent as in every plugin that has one.
+fn reflectance(p: &mut Props, key: &str) -> Result<ReflectanceValue, SceneError> {
+    Ok(match p.texture(key) {
+        Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
+        None => rgb(p.color(key)?.unwrap_or(DVec3::splat(0.5))).into(),
+    })
 }
 
 /// A `<texture>`: Mitsuba 3's `bitmap` (`filename`, `filter_type`, `wrap_mode`, `raw`,
@@ -246,7 +252,7 @@ fn rough_conductor(
     let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
     Ok((
         MaterialDesc::RoughConductor {
-            alpha: alpha as f32,
+            alpha: alpha.clone(),
             distribution,
             reflectance: None,
             material,
@@ -315,7 +321,7 @@ fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
         Some((d, a)) => (
             MaterialDesc::RoughDielectric {
                 ior: ior as f32,
-                alpha: a as f32,
+                alpha: a.clone(),
                 distribution: d,
             },
             format!(
@@ -352,20 +358,19 @@ fn plastic(
     if !(ior.is_finite() && ior > 0.0) {
         return Err(p.err("int_ior and ext_ior must be positive"));
     }
-    let d = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let d = reflectance(p, "diffuse_reflectance")?;
     let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
     let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
     Ok((
         MaterialDesc::Plastic {
-            diffuse: rgb(d),
+            diffuse: d.clone(),
             specular: rgb(s),
             ior: Some(ior as f32),
             nonlinear,
             one_sided,
         },
         format!(
-            "plastic, diffuse {}, specular {}, ior {ior} (int_ior / ext_ior){}{side}",
-            show(d),
+            "plastic, diffuse {d}, specular {}, ior {ior} (int_ior / ext_ior){}{side}",
             show(s),
             if nonlinear { ", nonlinear" } else { "" }
         ),
@@ -390,8 +395,9 @@ fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
 }
 
 /// The microfacet model of a rough plugin: `distribution` (Mitsuba's default beckmann, or
-/// ggx) and one isotropic `alpha` (default 0.1).
-fn microfacet(p: &mut Props) -> Result<(DistributionDesc, f64), SceneError> {
+/// ggx) and one isotropic `alpha` (default 0.1), a number or a texture (roughconductor and
+/// roughdielectric read it with `eval_1`; Mitsuba's roughplastic takes a number only).
+fn microfacet(p: &mut Props) -> Result<(DistributionDesc, RoughnessValue), SceneError> {
     // Mitsuba lowercases the name
     let d = match p
         .string("distribution")?
@@ -411,7 +417,13 @@ fn microfacet(p: &mut Props) -> Result<(DistributionDesc, f64), SceneError> {
     }
     // only the sampler depends on it, not the BSDF
     p.ignore(&["sample_visible"]);
-    Ok((d, p.float("alpha")?.unwrap_or(0.1)))
+    if let Some(t) = p.texture("alpha") {
+        return Ok((d, RoughnessValue::Texture(texture(p.doc, t)?)));
+    }
+    Ok((
+        d,
+        RoughnessValue::Value(p.float("alpha")?.unwrap_or(0.1) as f32),
+    ))
 }
 
 fn dist_name(d: DistributionDesc) -> &'static str {
@@ -429,28 +441,30 @@ fn rough_plastic(
     side: &str,
 ) -> Result<(MaterialDesc, String), SceneError> {
     let (distribution, alpha) = microfacet(p)?;
+    let RoughnessValue::Value(alpha) = alpha else {
+        return Err(p.err("a texture as `alpha` of a roughplastic: Mitsuba 3's roughplastic takes a number (its tables are computed for one alpha)"));
+    };
     let (int_ior, ext_ior) = (ior(p, "int_ior", 1.49)?, ior(p, "ext_ior", 1.000277)?);
     if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
         return Err(p.err("int_ior and ext_ior must be positive and differ"));
     }
     let ior = int_ior / ext_ior;
-    let diffuse = p.color("diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+    let diffuse = reflectance(p, "diffuse_reflectance")?;
     let specular = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
     let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
     Ok((
         MaterialDesc::RoughPlastic {
-            diffuse: rgb(diffuse),
+            diffuse: diffuse.clone(),
             specular: rgb(specular),
-            alpha: alpha as f32,
+            alpha,
             distribution,
             ior: ior as f32,
             nonlinear,
             one_sided,
         },
         format!(
-            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {}, specular {}{}{side}",
+            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {diffuse}, specular {}{}{side}",
             dist_name(distribution),
-            show(diffuse),
             show(specular),
             if nonlinear { ", nonlinear" } else { "" }
         ),

@@ -39,13 +39,10 @@ impl<'a, 'd> Importer<'a, 'd> {
         let (geometry, how) = geometry(&mut p, &m, flip)?;
         p.finish()?;
         let (material, emission) = self.surface(bsdf, emitter)?;
-        let textured = matches!(
-            material.as_ref().and_then(|m| self.out.materials.get(m)),
-            Some(MaterialDesc::Lambert {
-                albedo: ReflectanceValue::Texture(_),
-                ..
-            })
-        );
+        let textured = material
+            .as_ref()
+            .and_then(|m| self.out.materials.get(m))
+            .is_some_and(is_textured);
         if textured {
             textured_uv(self.doc, node, &m, flip)?;
         }
@@ -128,6 +125,23 @@ impl<'a, 'd> Importer<'a, 'd> {
                 one_sided: true,
             });
         name
+    }
+}
+
+/// True when a parameter of the material is a texture.
+fn is_textured(m: &MaterialDesc) -> bool {
+    use crate::scene::file::RoughnessValue;
+    match m {
+        MaterialDesc::Lambert { albedo: r, .. }
+        | MaterialDesc::Plastic { diffuse: r, .. }
+        | MaterialDesc::RoughPlastic { diffuse: r, .. } => {
+            matches!(r, ReflectanceValue::Texture(_))
+        }
+        MaterialDesc::RoughConductor { alpha: a, .. }
+        | MaterialDesc::RoughDielectric { alpha: a, .. } => {
+            matches!(a, RoughnessValue::Texture(_))
+        }
+        _ => false,
     }
 }
 
@@ -335,7 +349,7 @@ fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
         .string("filename")?
         .ok_or_else(|| p.err("`filename` is missing"))?;
     let smooth_normals = p.boolean("face_normals")? != Some(true);
-    p.ignore(&["flip_tex_coords"]);
+    let flip_tex_coords = p.boolean("flip_tex_coords")?;
     let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
     let to_world = (*m != DMat4::IDENTITY).then_some(rows);
     let how = if smooth_normals {
@@ -349,6 +363,7 @@ fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
             obj,
             to_world,
             smooth_normals,
+            flip_tex_coords,
             material,
             emission,
             interior,
