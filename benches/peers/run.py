@@ -90,11 +90,10 @@ def run(cmd, log, env=None, limit=600):
         except subprocess.TimeoutExpired:
             raise Failed(f"still running after {limit} s")
     cpu = child_cpu() - before
-    if r.returncode < 0:
-        raise Failed(f"killed by signal {-r.returncode}" + (" (segmentation fault)" if r.returncode == -11 else ""))
     if r.returncode != 0:
         lines = [x.strip() for x in open(log, errors="replace") if x.strip()]
-        raise Failed(lines[-1] if lines else f"exit status {r.returncode}")
+        how = {-6: "aborted", -11: "segmentation fault"}.get(r.returncode, f"exit status {r.returncode}")
+        raise Failed(f"{how}: {lines[-1][-160:]}" if lines else how)
     return cpu
 
 

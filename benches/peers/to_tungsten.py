@@ -66,10 +66,10 @@ def integrator(kind, max_bounces, radius):
                     photon_count=100000, volume_photon_count=100000, gather_radius=radius,
                     volume_gather_radius=radius, fixed_volume_radius=True)
     out = dict(base, type=kind)
-    if kind in ("kelemen_mlt", "multiplexed_mlt"):
-        out.update(initial_sample_pool=300000, large_step_probability=0.1, image_pyramid=False)
-        if kind == "kelemen_mlt":
-            out["bidirectional"] = True
+    if kind == "multiplexed_mlt":
+        # tungsten's default pool, 3,000,000 bootstrap samples, alone outlasts the budgets
+        out["initial_sample_pool"] = 300000
+    # Kelemen MLT keeps tungsten's defaults: a pool of 10,000, large steps 0.1, bidirectional
     return out
 
 
