@@ -13,4 +13,5 @@ mod commands_run;
 mod figures;
 mod index;
 mod layers;
+mod peers;
 mod ray_sets;

@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""pathspace TOML -> tungsten scene JSON, for the peers' harness (`run.py`).
+
+    python3 benches/peers/to_tungsten.py scenes/fog-box.toml bidirectional_path_tracer [--res 64] > scene.json
+
+tungsten is Benedikt Bitterli's research renderer (github.com/tunabrain/tungsten, read at
+commit 88ea020: `src/core/primitives/{Quad,Cube,Sphere}.cpp`, `bsdfs/LambertBsdf.cpp`,
+`integrators/*/…Settings.hpp`); it is never part of this repository. Exact counterparts only;
+anything else is refused with the reason (`scene.Refused`), exit status 2. tungsten's Lambert
+is one-sided, so the integrator's `enable_two_sided_shading` makes it pathspace's two-sided
+one; a quad's frame has edge0 = the matrix's x column, edge1 = its z column and the normal
+edge1 x edge0, so pathspace's (u, v) become the columns (v, n, u). Medium boxes are grown by
+`scene.GROW` (tungsten leaks light through a null face coplanar with a wall, as Mitsuba 3
+does); the camera and every emitter are given the medium they sit in (an emitter without it
+starts its light paths in vacuum: BDPT and Kelemen MLT come out 22% too bright in the fog box).
+"""
+
+import argparse
+import json
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from scene import Refused, Scene, quad_frame, resolution  # noqa: E402
+
+INTEGRATORS = ("path_tracer", "bidirectional_path_tracer", "kelemen_mlt", "multiplexed_mlt",
+               "photon_beams", "photon_planes")
+
+
+def mat(x, y, z, t):
+    """Row-major 4x4 with columns x, y, z and the translation t."""
+    return [x[0], y[0], z[0], t[0], x[1], y[1], z[1], t[1], x[2], y[2], z[2], t[2], 0, 0, 0, 1]
+
+
+def primitive(sc, s):
+    if s["type"] == "quad":
+        c, hu, hv, n = quad_frame(s)
+        p = {"type": "quad", "transform": mat([2 * x for x in hv], n, [2 * x for x in hu], c)}
+    elif s["type"] == "box":
+        lo, hi = s["min"], s["max"]
+        p = {"type": "cube", "transform": {"position": [(lo[i] + hi[i]) / 2 for i in range(3)],
+                                           "scale": [hi[i] - lo[i] for i in range(3)]}}
+    else:
+        p = {"type": "sphere", "transform": {"position": s["center"], "scale": float(s["radius"])}}
+    if "emission" in s:
+        p["emission"] = s["emission"]
+        p["bsdf"] = "black"
+        c = quad_frame(s)[0]
+        m = sc.medium_at(c)
+        if m:
+            p["int_medium"] = p["ext_medium"] = m
+    else:
+        p["bsdf"] = "null" if s["material"] == "null" else s["material"]
+        for side, key in (("interior", "int_medium"), ("exterior", "ext_medium")):
+            if s.get(side) is not None:
+                # "vacuum" is an empty name: no medium on that side
+                p[key] = "" if s[side] == "vacuum" else s[side]
+    return p
+
+
+def integrator(kind, max_bounces, radius):
+    base = {"min_bounces": 0, "max_bounces": max_bounces, "enable_consistency_checks": False,
+            "enable_two_sided_shading": True}
+    if kind in ("photon_beams", "photon_planes"):
+        return dict(base, type="photon_map", volume_photon_type=kind.split("_")[1],
+                    photon_count=100000, volume_photon_count=100000, gather_radius=radius,
+                    volume_gather_radius=radius, fixed_volume_radius=True)
+    out = dict(base, type=kind)
+    if kind == "multiplexed_mlt":
+        # tungsten's default pool, 3,000,000 bootstrap samples, alone outlasts the budgets
+        out["initial_sample_pool"] = 300000
+    # Kelemen MLT keeps tungsten's defaults: a pool of 10,000, large steps 0.1, bidirectional
+    return out
+
+
+def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20):
+    if kind not in INTEGRATORS:
+        raise SystemExit(f"unknown tungsten integrator {kind} ({', '.join(INTEGRATORS)})")
+    bsdfs = [{"name": "black", "type": "lambert", "albedo": 0.0},
+             {"name": "null", "type": "forward"}]
+    for name, m in sc.materials.items():
+        if m["type"] == "lambert":
+            bsdfs.append({"name": name, "type": "lambert", "albedo": m["albedo"]})
+        else:
+            bsdfs.append({"name": name, "type": "dielectric", "ior": m["ior"], "enable_refraction": True})
+    media = []
+    for name, m in sc.media.items():
+        phase = ({"type": "isotropic"} if m["g"] is None
+                 else {"type": "henyey_greenstein", "g": m["g"]})
+        media.append({"name": name, "type": "homogeneous", "sigma_a": m["sigma_a"],
+                      "sigma_s": m["sigma_s"], "density": 1.0, "phase_function": phase,
+                      "max_bounces": 1 << 20})
+    eye, look, up = sc.eye()
+    w, h = sc.resolution(res)
+    import math
+    # pathspace's fov_deg is vertical, tungsten's fov horizontal
+    fov = math.degrees(2 * math.atan(math.tan(math.radians(sc.camera["fov_deg"]) / 2) * w / h))
+    camera = {"type": "pinhole", "fov": fov, "resolution": [w, h], "reconstruction_filter": "box",
+              "transform": {"position": eye, "look_at": look, "up": up}}
+    if sc.medium_at(eye):
+        camera["medium"] = sc.medium_at(eye)
+    lo = [min(s["min"][i] for s in sc.shapes if s["type"] == "box") for i in range(3)] if sc.boxes else None
+    hi = [max(s["max"][i] for s in sc.shapes if s["type"] == "box") for i in range(3)] if sc.boxes else None
+    diag = math.dist(lo, hi) if lo else 1.0
+    return {"media": media, "bsdfs": bsdfs, "primitives": [primitive(sc, s) for s in sc.shapes],
+            "camera": camera, "integrator": integrator(kind, max_bounces, 0.005 * diag),
+            "renderer": {"output_file": "out.png", "hdr_output_file": "out.pfm",
+                         "overwrite_output_files": True, "enable_resume_render": False,
+                         "spp": spp, "spp_step": 1, "timeout": "0", "adaptive_sampling": False,
+                         "stratified_sampler": False, "scene_bvh": True}}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("scene")
+    ap.add_argument("integrator", choices=INTEGRATORS)
+    ap.add_argument("--res", type=resolution, help="N or WxH (default: the scene's)")
+    ap.add_argument("--max-bounces", type=int, default=64, help="tungsten's path length cap (its default 64)")
+    ap.add_argument("--spp", type=int, default=1 << 20, help="spp cap (the harness stops by --timeout)")
+    a = ap.parse_args()
+    try:
+        j = convert(Scene(a.scene), a.integrator, a.res,
+                    a.max_bounces, a.spp)
+    except Refused as e:
+        print(f"{a.scene}: refused: {e}", file=sys.stderr)
+        sys.exit(2)
+    json.dump(j, sys.stdout, indent=1)
+    print()
+
+
+if __name__ == "__main__":
+    main()

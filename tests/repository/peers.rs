@@ -1,0 +1,127 @@
+//! `benches/peers/to_tungsten.py`, the tungsten side of the peers' harness, offline (tungsten
+//! itself is never needed): each quad keeps pathspace's side (tungsten's normal is the frame's
+//! z column cross its x column), each emitter and the camera carry the medium they sit in,
+//! medium boxes are grown by 1e-3 and nothing else changes size; scenes outside the common
+//! subset are refused with the reason. The Mitsuba side is read back through the importer in
+//! `inputs::mitsuba_import`.
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The converter's output for `scene` (a file under `scenes/`), or its exit status and stderr.
+fn convert(script: &str, scene: &str, args: &[&str]) -> Result<String, (i32, String)> {
+    let out = Command::new("python3")
+        .arg(dir().join("benches/peers").join(script))
+        .arg(dir().join("scenes").join(scene))
+        .args(args)
+        .output()
+        .expect("python3 runs the converter");
+    match out.status.code() {
+        Some(0) => Ok(String::from_utf8(out.stdout).unwrap()),
+        code => Err((
+            code.unwrap_or(-1),
+            String::from_utf8_lossy(&out.stderr).into(),
+        )),
+    }
+}
+
+fn vec3(v: &Value) -> [f64; 3] {
+    std::array::from_fn(|i| v[i].as_f64().unwrap())
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn toml_shapes(scene: &str) -> Vec<toml::Value> {
+    let text = std::fs::read_to_string(dir().join("scenes").join(scene)).unwrap();
+    let t: toml::Table = toml::from_str(&text).unwrap();
+    t["shapes"].as_array().unwrap().clone()
+}
+
+fn f(v: &toml::Value) -> [f64; 3] {
+    std::array::from_fn(|i| {
+        let x = &v.as_array().unwrap()[i];
+        x.as_float()
+            .unwrap_or_else(|| x.as_integer().unwrap() as f64)
+    })
+}
+
+#[test]
+fn tungsten_scenes_keep_sides_sizes_and_media() {
+    for (scene, medium_at_eye) in [("fog-box.toml", None), ("maze-fog.toml", Some("fog"))] {
+        let json: Value =
+            serde_json::from_str(&convert("to_tungsten.py", scene, &["path_tracer"]).unwrap())
+                .unwrap();
+        let prims = json["primitives"].as_array().unwrap();
+        let shapes = toml_shapes(scene);
+        assert_eq!(prims.len(), shapes.len(), "{scene}");
+        assert_eq!(json["camera"]["medium"].as_str(), medium_at_eye, "{scene}");
+        for (p, s) in prims.iter().zip(&shapes) {
+            match s["type"].as_str().unwrap() {
+                "quad" => {
+                    let m: Vec<f64> = p["transform"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|x| x.as_f64().unwrap())
+                        .collect();
+                    let (x, z) = ([m[0], m[4], m[8]], [m[2], m[6], m[10]]);
+                    let (n, want) = (cross(z, x), cross(f(&s["u"]), f(&s["v"])));
+                    for i in 0..3 {
+                        assert!((n[i] - want[i]).abs() < 1e-9, "{scene}: {n:?} vs {want:?}");
+                    }
+                    if s.get("emission").is_some() {
+                        // the lights of both scenes hang inside the fog
+                        assert_eq!(p["ext_medium"], "fog", "{scene}: {p}");
+                    }
+                }
+                "box" => {
+                    let (lo, hi) = (f(&s["min"]), f(&s["max"]));
+                    let grow = if s.get("interior").is_some() {
+                        2e-3
+                    } else {
+                        0.0
+                    };
+                    let size = vec3(&p["transform"]["scale"]);
+                    for i in 0..3 {
+                        assert!(
+                            (size[i] - (hi[i] - lo[i] + grow)).abs() < 1e-9,
+                            "{scene}: {p}"
+                        );
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+#[test]
+fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
+    for script in ["to_tungsten.py", "to_mitsuba.py"] {
+        let args: &[&str] = if script == "to_tungsten.py" {
+            &["path_tracer"]
+        } else {
+            &[]
+        };
+        for (scene, reason) in [
+            ("door-slit.toml", "procedural"),
+            ("cloud.toml", "procedural"),
+            ("volume-caustic.toml", "spot light"),
+        ] {
+            let (code, err) = convert(script, scene, args).unwrap_err();
+            assert_eq!(code, 2, "{script} {scene}: {err}");
+            assert!(err.contains(reason), "{script} {scene}: {err}");
+        }
+    }
+}
