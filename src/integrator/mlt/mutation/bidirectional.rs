@@ -31,9 +31,9 @@
 //! summed over the splits s' whose joining edge has two non-specular ends (the others cannot
 //! produce a path with f > 0), times p_E(y_k) = 1 / (pi r^2) when a thin lens's point was
 //! redrawn (m = k; a y that keeps x's lens point then has T = 0 unless x_{k-1} is kept too).
-//! p_L, p_E are `contribution::singular_densities` of y. The kept
-//! vertices fix l and m: for continuous vertices only one decomposition of y -> x agrees with
-//! both paths; a point light at x_0 adds the one that resampled it onto itself.
+//! p_L, p_E are `contribution::singular_densities` of y. The kept vertices fix l and m: for
+//! continuous vertices only one decomposition of y -> x agrees with both paths; a point light
+//! at x_0 adds the one that resampled it onto itself.
 
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
