@@ -1,5 +1,6 @@
 //! The image contribution f of Metropolis light transport (Pauly, Kollig, Keller 2000, sec. 5:
-//! f_j(x) = h_j(x) f(x)) for an explicit path x_0 (light) ... x_k (pinhole), and the densities
+//! f_j(x) = h_j(x) f(x)) for an explicit path x_0 (light) ... x_k (camera: the pinhole or a
+//! point of a thin lens, with the lens's W_e in the area measure there), and the densities
 //! of its vertices under local sampling, both with the Dirac factors of singular scattering
 //! removed in the same way.
 //!
@@ -135,7 +136,7 @@ pub fn lobe_probability(
 
 /// The image contribution of a path: f (RGB, Dirac-free, eq. 6 with W_e of the pixel the path
 /// lands in) and that pixel's continuous raster position. `None` when f = 0 or the path is not
-/// light ... pinhole.
+/// light ... camera.
 pub fn image_contribution(scene: &Scene, v: &[Vertex]) -> Option<(Rgb, Vec2)> {
     image_contribution_reusing(scene, v, None, &mut Vec::new())
 }

@@ -74,9 +74,10 @@ fn run_sample(
     );
 }
 
-/// The path x_0 (light) ... x_k (pinhole) of strategy (s, t): `light[..s]`, then `eye[..t]`
-/// reversed, with the endpoint the connection sampled (s = 1: the light vertex; t = 1: the
-/// sensor). For s = 0 the eye subpath's emitter vertex becomes the light vertex.
+/// The path x_0 (light) ... x_k (camera; a thin lens's point as BDPT sampled it) of strategy
+/// (s, t): `light[..s]`, then `eye[..t]` reversed, with the endpoint the connection sampled
+/// (s = 1: the light vertex; t = 1: the sensor, a lens point of its own). For s = 0 the eye
+/// subpath's emitter vertex becomes the light vertex.
 pub fn joined_path(
     scene: &Scene,
     light: &[Vertex],

@@ -10,6 +10,8 @@
 //! - `init`: the BDPT pre-pass that estimates b and seeds the chains (sec. 5.1);
 //! - `acceptance`: eq. (8);
 //! - `mutation`: bidirectional, sensor (lens), light (caustic), propagation, multi-chain;
+//!   a thin lens's point is the path's camera vertex, redrawn by the bidirectional mutation
+//!   and kept by the perturbations (the sensor perturbation moves the film point about it);
 //! - `trace`: local sampling and deterministic retracing of vertices.
 //!
 //! Chains are independent, each with its own seed path and random stream
@@ -453,9 +455,6 @@ pub enum MltError {
          lobe, where its mutations and densities classify a vertex by its whole material"
     )]
     MixedLobes(String),
-    /// A thin-lens camera (its aperture radius): the mutations move a pinhole's film point.
-    #[error("mlt renders through a pinhole only: the camera is a thin lens (aperture_radius = {0}); use pssmlt, mmlt or bdpt")]
-    ThinLens(f32),
 }
 
 impl From<MltError> for String {
@@ -470,15 +469,13 @@ impl From<MltError> for super::IntegratorError {
     }
 }
 
-/// Checks that MLT can render `scene`: a pinhole camera, no plastic. Lights at infinity are
-/// path vertices in the directional measure (`contribution::anchor_infinite`). A thin lens is
-/// refused: the lens and caustic perturbations and the bidirectional mutation move the film
-/// point from a fixed eye, and would need the lens point as a path vertex with its density.
+/// Checks that MLT can render `scene`: a camera, no plastic. Lights at infinity are path
+/// vertices in the directional measure (`contribution::anchor_infinite`); a thin lens's point
+/// is the camera vertex x_k in the area measure of the aperture (the bidirectional mutation
+/// redraws it, the perturbations keep it).
 pub fn check_scene(scene: &Scene) -> Result<(), MltError> {
-    match scene.camera.as_ref() {
-        None => return Err(MltError::NoCamera),
-        Some(c) if !c.is_pinhole() => return Err(MltError::ThinLens(c.lens_radius)),
-        Some(_) => {}
+    if scene.camera.is_none() {
+        return Err(MltError::NoCamera);
     }
     let mixed = scene.shapes.iter().find(|s| {
         s.bsdf

@@ -33,8 +33,9 @@ pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
 }
 
 /// Samples a direction at `v` as a light or eye subpath would: emission for a light vertex,
-/// uniform film position for the pinhole, the BSDF or phase function elsewhere (`prev` is the
-/// subpath predecessor).
+/// a uniform film position seen from the camera vertex's lens point (a thin lens's rays pass
+/// through the film point's image on the focus plane), the BSDF or phase function elsewhere
+/// (`prev` is the subpath predecessor).
 pub fn sample_direction(
     scene: &Scene,
     tech: &dyn LocalSampling,
@@ -48,7 +49,8 @@ pub fn sample_direction(
         VertexKind::Camera => {
             let cam = scene.camera.as_ref()?;
             let raster = Vec2::new(u.x * cam.width as f32, u.y * cam.height as f32);
-            Some(cam.generate_ray(raster).d)
+            // from the vertex's lens point (the pinhole ignores it: `generate_ray`)
+            Some(cam.ray_through(raster, v.p).d)
         }
         VertexKind::Light { light, .. } => match &scene.lights[light as usize] {
             l @ Light::Area { .. } => {

@@ -4,7 +4,10 @@
 //! join the two subpaths by one edge. Any path with a non-specular edge can be produced from
 //! any other in one step, so the mutation is ergodic on its own.
 //!
-//! Indexing. x_0 ... x_k with x_k the pinhole, which is never deleted (its position is fixed).
+//! Indexing. x_0 ... x_k with x_k the camera vertex, which keeps its index: the pinhole is
+//! never deleted (its position is fixed); a thin lens's point x_k is redrawn, uniform on the
+//! aperture disk, whenever the deleted section reaches it (m = k below), so the eye side starts
+//! from a new lens point as a camera subpath does.
 //! A virtual vertex x_{-1} stands before the light so that the light vertex itself can be
 //! deleted: the k + 1 edges (x_{-1}, x_0) ... (x_{k-1}, x_k) are candidates.
 //! 1. Deleted edges k_d in 1 ..= k + 1 with Veach's p_d: weights 1/4, 1/2, then 2^-k_d,
@@ -26,9 +29,11 @@
 //! T(x -> y) = p_d(k_d) / (k - k_d + 2) * p_a(k_a | k_d, l) *
 //!             sum_{s'} (1 / #splits) prod_{new light-side i} p_L(y_i) prod_{new eye-side i} p_E(y_i),
 //! summed over the splits s' whose joining edge has two non-specular ends (the others cannot
-//! produce a path with f > 0). p_L, p_E are `contribution::singular_densities` of y. The kept
-//! vertices fix l and m: for continuous vertices only one decomposition of y -> x agrees with
-//! both paths; a point light at x_0 adds the one that resampled it onto itself.
+//! produce a path with f > 0), times p_E(y_k) = 1 / (pi r^2) when a thin lens's point was
+//! redrawn (m = k; a y that keeps x's lens point then has T = 0 unless x_{k-1} is kept too).
+//! p_L, p_E are `contribution::singular_densities` of y. The kept vertices fix l and m: for
+//! continuous vertices only one decomposition of y -> x agrees with both paths; a point light
+//! at x_0 adds the one that resampled it onto itself.
 
 use crate::bsdf::TransportMode;
 use crate::math::Sampler;
@@ -70,6 +75,23 @@ fn reachable_by_eye(scene: &Scene, v: &Vertex) -> bool {
         VertexKind::Medium { .. } => is_volume_start(scene, v),
         _ => false,
     }
+}
+
+/// Draws a new lens point for camera vertex `v` of a thin lens, uniform on the aperture disk
+/// (`Camera::sample_lens`, density `Camera::lens_pdf_area`); the pinhole's vertex stays and
+/// draws no numbers, so its chains consume the stream as before.
+fn resample_lens(scene: &Scene, v: &mut Vertex, sampler: &mut Sampler) -> Option<()> {
+    let cam = scene.camera.as_ref()?;
+    if v.kind == VertexKind::Camera && !cam.is_pinhole() {
+        v.p = cam.sample_lens(sampler);
+    }
+    Some(())
+}
+
+/// True when both ends are camera vertices at different lens points: a proposal that redrew
+/// x_k (the deleted section reached the camera, m = k).
+fn new_lens_point(x_end: &Vertex, y_end: &Vertex) -> bool {
+    x_end.kind == VertexKind::Camera && y_end.kind == VertexKind::Camera && x_end.p != y_end.p
 }
 
 /// Veach's weight of deleting k_d edges (sec. 11.4.1: "p_d[1] = 0.25, p_d[2] = 0.5, and
@@ -241,6 +263,10 @@ impl Mutation for Bidirectional {
         let eye = &mut work.vertices;
         eye.clear();
         eye.extend(x[m..].iter().rev());
+        if m == k {
+            // a thin lens's x_k goes with its edge: a new lens point (the pinhole draws none)
+            resample_lens(scene, &mut eye[0], sampler)?;
+        }
         for j in 0..added - s_new {
             let len = eye.len();
             let prev = len.checked_sub(2).map(|i| &eye[i]);
@@ -287,14 +313,21 @@ impl Mutation for Bidirectional {
         if nx < 2 || ny < 2 || ny > self.max_vertices {
             return 0.0;
         }
-        let common_suffix = x
-            .iter()
-            .rev()
-            .zip(y.iter().rev())
-            .take_while(|(a, b)| same_vertex(a, b))
-            .count();
-        if common_suffix == 0 {
-            return 0.0; // the pinhole is never deleted
+        let thin_lens = scene.camera.as_ref().is_some_and(|c| !c.is_pinhole());
+        let new_lens = thin_lens && new_lens_point(&x[nx - 1], &y[ny - 1]);
+        let common_suffix = if new_lens {
+            1 // m = k: the lens point went with the deleted edge (x_k's index stays the end)
+        } else {
+            x.iter()
+                .rev()
+                .zip(y.iter().rev())
+                .take_while(|(a, b)| same_vertex(a, b))
+                .count()
+        };
+        // the pinhole is never deleted; a thin lens's point is redrawn whenever m = k, so y
+        // keeps x's lens point with density zero unless x_{k-1} is kept too
+        if common_suffix == 0 || (thin_lens && !new_lens && common_suffix == 1) {
+            return 0.0;
         }
         let common_prefix = x
             .iter()
@@ -324,9 +357,12 @@ impl Mutation for Bidirectional {
             let added = ka - 1;
             let splits = added + 1;
             let first = (l + 1) as usize; // index in y of the first new vertex
-                                          // only the added vertices' densities enter (and only their edges are traced)
+                                          // only the added vertices' densities enter (and only their edges are traced), and
+                                          // a new lens point's area density 1 / (pi r^2) (`sensor_position_pdf`)
+            let lens = usize::from(new_lens);
             let dy = &mut work.densities;
-            singular_densities_into(scene, tech, y, first..first + added, dy);
+            singular_densities_into(scene, tech, y, first..first + added + lens, dy);
+            let p_lens = if new_lens { dy.eye[ny - 1] as f64 } else { 1.0 };
             let mut sum = 0.0f64;
             for s_new in 0..=added {
                 if l < 0 && s_new == 0 {
@@ -352,7 +388,7 @@ impl Mutation for Bidirectional {
                 }
                 sum += p;
             }
-            total += p_delete * p_add * sum / splits as f64;
+            total += p_delete * p_add * p_lens * sum / splits as f64;
         }
         total
     }

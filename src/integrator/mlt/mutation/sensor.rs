@@ -7,9 +7,16 @@
 //!
 //! Transition density (film offset in pixels, then the deterministic retrace):
 //! T(x -> y) = p(D) / (2 pi D) * (W H) * p_cam(w_{k -> k-1}) * prod_i (g_i / d_i^2),
-//! where (W H) p_cam converts a density per pixel^2 to solid angle at the pinhole and each g/d^2
+//! where (W H) p_cam converts a density per pixel^2 to solid angle at the camera and each g/d^2
 //! carries it to the next retraced vertex (specular vertices contribute no lobe choice: the
 //! lobe is kept, not sampled). p(D) / (2 pi D) is symmetric in x and y; the Jacobians are not.
+//!
+//! A thin lens: Veach's perturbation changes the direction of the lens edge, which for a thin
+//! lens the lens point and the film point determine together. The lens point x_k is kept (the
+//! bidirectional mutation redraws it) and the film point moves: the new ray runs from x_k
+//! through the new film point's image on the focus plane. Seen from x_k that plane lies at
+//! f / cos along the ray and holds the film scaled by f, so d(omega) = cos^3 dA_film as for the
+//! pinhole: p_cam is the same `Camera::importance(x_k, w).pdf_dir`, and T keeps its form.
 
 use std::f32::consts::TAU;
 
@@ -25,7 +32,7 @@ use super::super::trace::{chain_end_of, retrace_chain};
 use super::{same_distance, same_prefix, InverseDistance, Mutation, Workspace};
 use crate::bsdf::Lobe;
 
-/// Index m of the first non-specular vertex seen from the pinhole (x_k S* x_m), if it is not
+/// Index m of the first non-specular vertex seen from the camera (x_k S* x_m), if it is not
 /// the light.
 pub fn lens_chain_end(scene: &Scene, x: &[Vertex]) -> Option<usize> {
     let k = x.len().checked_sub(1)?;
@@ -76,7 +83,9 @@ pub fn perturb_lens_chain(
     if !(v.x >= 0.0 && v.y >= 0.0 && v.x < cam.width as f32 && v.y < cam.height as f32) {
         return None;
     }
-    let d = cam.generate_ray(v).d;
+    // a thin lens keeps the lens point x_k: the ray from it through the new film point's
+    // image on the focus plane (the pinhole's ray for the pinhole)
+    let d = cam.ray_through(v, x[k].p).d;
     let end = chain_end_of(scene, &x[m], x[m + 1].p);
     retrace_chain(scene, &x[k], d, lens_lobes(scene, x, m), end, out)
 }
