@@ -63,20 +63,54 @@ def render(renderer, a, seed, out):
 
 
 
-def welch_p(m1, s1, n1, m2, s2, n2):
-    """Two-sided p-value of Welch's t for means m with standard errors s from n runs."""
-    from scipy import stats  # noqa: F401 (optional); fall back to the normal tail
-    t = (m1 - m2) / math.sqrt(s1 * s1 + s2 * s2) if s1 + s2 > 0 else 0.0
-    dof = (s1 ** 2 + s2 ** 2) ** 2 / (s1 ** 4 / (n1 - 1) + s2 ** 4 / (n2 - 1))
-    return t, float(2 * stats.t.sf(abs(t), dof))
+def student_t_sf2(t, dof):
+    """Two-sided tail P(|T| > |t|) of Student's t with `dof` (real) degrees of freedom: the
+    regularized incomplete beta I_x(dof/2, 1/2) at x = dof / (dof + t^2), evaluated by its
+    continued fraction (Lentz's method; Abramowitz and Stegun 26.5.8 and 26.7.1). No SciPy."""
+    if t == 0 or not math.isfinite(dof) or dof <= 0:
+        return 1.0 if t == 0 else math.erfc(abs(t) / math.sqrt(2))
+    x, a, b = dof / (dof + t * t), dof / 2, 0.5
+    # I_x(a, b) converges fast for x < (a + 1) / (a + b + 2), else use 1 - I_(1-x)(b, a)
+    if x > (a + 1) / (a + b + 2):
+        return 1.0 - incomplete_beta(1 - x, b, a)
+    return incomplete_beta(x, a, b)
+
+
+def incomplete_beta(x, a, b):
+    """I_x(a, b) by the continued fraction, for x below (a + 1) / (a + b + 2)."""
+    if x <= 0:
+        return 0.0
+    lead = math.exp(math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+                    + a * math.log(x) + b * math.log1p(-x)) / a
+    tiny = 1e-300
+    f, c, d = 1.0, 1.0, 0.0
+    for i in range(400):
+        m = i // 2
+        if i == 0:
+            num = 1.0
+        elif i % 2 == 0:
+            num = m * (b - m) * x / ((a + 2 * m - 1) * (a + 2 * m))
+        else:
+            num = -(a + m) * (a + b + m) * x / ((a + 2 * m) * (a + 2 * m + 1))
+        d = 1.0 + num * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + num / c
+        c = c if abs(c) > tiny else tiny
+        f *= c * d
+        if abs(1.0 - c * d) < 1e-15:
+            break
+    return lead * (f - 1.0)
 
 
 def t_and_p(m1, s1, n1, m2, s2, n2):
-    try:
-        return welch_p(m1, s1, n1, m2, s2, n2)
-    except ImportError:
-        t = (m1 - m2) / math.sqrt(s1 * s1 + s2 * s2) if s1 + s2 > 0 else 0.0
-        return t, math.erfc(abs(t) / math.sqrt(2))
+    """Welch's t of means m with standard errors s from n runs, and its two-sided p-value from
+    Student's t with the Welch-Satterthwaite degrees of freedom (not the normal tail: with a
+    few runs per renderer the standard errors are themselves noisy)."""
+    if s1 + s2 <= 0:
+        return 0.0, 1.0
+    t = (m1 - m2) / math.sqrt(s1 * s1 + s2 * s2)
+    dof = (s1 ** 2 + s2 ** 2) ** 2 / (s1 ** 4 / (n1 - 1) + s2 ** 4 / (n2 - 1))
+    return t, student_t_sf2(t, dof)
 
 
 def main():
