@@ -1690,7 +1690,7 @@ fn a_planar_emitting_mesh_needs_no_face_normals() {
     let body = |obj: &str, flat: &str| {
         format!(
             r#"<shape type="obj"><string name="filename" value="{obj}"/>{flat}
-        <transform name="to_world"><rotate x="1" angle="90"/></transform>
+        <transform name="to_world"><rotate x="1" y="0.3" angle="97"/><translate z="-0.5"/></transform>
         <emitter type="area"><rgb name="radiance" value="3, 2, 1"/></emitter>
     </shape>
     <shape type="sphere"><point name="center" x="0" y="0" z="-2"/></shape>"#
