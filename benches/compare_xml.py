@@ -12,7 +12,9 @@ included). Printed per renderer: the image mean per channel with its standard er
 spread of the runs' means, Student-t with runs - 1 degrees of freedom), the CPU seconds per
 render, and relMSE (pathspace's metric, mean of (a - b)^2 / (b^2 + 1e-2)) of one run against
 the other renderer's converged image (the mean of its runs) next to the same run against its own
-renderer's other runs (the noise level). The verdict per channel is Welch's t of the two means.
+renderer's other runs (the noise level). The verdict per channel is Welch's t of the two means,
+its p-value from Student's t with the Welch-Satterthwaite degrees of freedom (no SciPy needed);
+the 8x8 block test applies the same per block and channel, Bonferroni over all of them.
 
 `-D name=value` overrides a `<default>` of the XML (both renderers read a copy written beside it),
 `--res N` is `-D res=N`;

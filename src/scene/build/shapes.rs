@@ -149,12 +149,16 @@ pub(super) fn shapes(
         let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
         let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
         let interface = common.interior.is_some() || common.exterior.is_some();
-        let (new, closed, corners, uvs) = primitives(src, &key, s, &common, textured.is_some())?;
-        if corners.is_some() && common.emission.is_some() {
-            return Err(src.error(
-                &key.clone().key("smooth_normals"),
-                "an emitting mesh is shaded by its face normals only: remove smooth_normals (in Mitsuba XML: add <boolean name=\"face_normals\" value=\"true\"/>)",
-            ));
+        let (new, closed, mut corners, uvs) =
+            primitives(src, &key, s, &common, textured.is_some())?;
+        if common.emission.is_some() {
+            if corners.as_ref().is_some_and(|c| !shaded_flat(&new, c)) {
+                return Err(src.error(
+                    &key.clone().key("smooth_normals"),
+                    "an emitting mesh is shaded by its face normals only, and this one's vertex normals are not its face normals (a curved mesh): remove smooth_normals (in Mitsuba XML: add <boolean name=\"face_normals\" value=\"true\"/>)",
+                ));
+            }
+            corners = None;
         }
         if common.interior.is_some() && !closed {
             return Err(src.error(
@@ -380,6 +384,24 @@ fn primitives(
         }
     }
     Ok((new, closed, None, None))
+}
+
+/// The most a unit vertex normal may differ from its triangle's face normal, per component, and
+/// still be the same normal: the two are computed from the same corners in different orders,
+/// a few f32 roundings apart on a planar mesh.
+const SAME_NORMAL: f32 = 1e-6;
+
+/// Whether every corner normal of a smooth mesh is its triangle's face normal (a planar mesh, as
+/// a light's quad usually is): then interpolated shading is flat shading, and an emitting mesh
+/// is the same light either way (Mitsuba 3 tests an area emitter's side and samples it by the
+/// interpolated normal).
+fn shaded_flat(prims: &[Primitive], corners: &[[Vec3; 3]]) -> bool {
+    prims.iter().zip(corners).all(|(p, c)| match p {
+        Primitive::Triangle(t) => c
+            .iter()
+            .all(|n| (*n - t.n).abs().max_element() <= SAME_NORMAL),
+        _ => false,
+    })
 }
 
 /// A mesh's `to_world` rows as an affine map (identity without them), every entry finite and

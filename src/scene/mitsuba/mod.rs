@@ -3,7 +3,7 @@
 //!
 //! The subset research scenes use (book: "Importing scenes", with the table of every plugin and
 //! parameter): `<default>` and `$name`, `id` / `<ref>`, the `path`/`volpath` integrators,
-//! the `perspective` sensor with `hdrfilm` (box filter) and any sampler, the shapes
+//! the `direct` integrator, the `perspective` sensor with `hdrfilm` (box filter) and any sampler, the shapes
 //! `rectangle`, `disk`, `cube`, `sphere`, `obj`, `ply`, the BSDFs `diffuse`, `conductor`, `roughconductor`,
 //! `dielectric`, `roughdielectric`, `thindielectric`, `plastic`, `twosided`, `null`, the media `homogeneous` and
 //! `heterogeneous` (`gridvolume`), the phases `isotropic` and `hg`, the emitters `area`,

@@ -138,10 +138,10 @@ impl<'a, 'd> Importer<'a, 'd> {
             return Err(self.doc.err(root, "the scene has no <sensor>"));
         }
         let (kind, node) = self.integrator.clone().unwrap_or(("path".into(), root));
-        if kind == "path" && !self.out.media.is_empty() {
+        if (kind == "path" || kind == "direct") && !self.out.media.is_empty() {
             return Err(self.doc.err(
                 node,
-                "Mitsuba's `path` integrator ignores media, but the scene has some: use `volpath`",
+                format!("Mitsuba's `{kind}` integrator ignores media, but the scene has some: use `volpath`"),
             ));
         }
         self.render.insert("integrator".into(), "path".into());
@@ -155,13 +155,18 @@ impl<'a, 'd> Importer<'a, 'd> {
     fn integrator(&mut self, node: Node<'a, 'a>) -> Result<(), SceneError> {
         let mut p = Props::new(self.doc, node)?;
         let kind = p.plugin.clone();
-        if !["path", "volpath", "volpathmis"].contains(&kind.as_str()) {
+        if !["path", "volpath", "volpathmis", "direct"].contains(&kind.as_str()) {
             return Err(p.err(format!(
-                "the integrator `{kind}` is not supported (path, volpath, volpathmis are)"
+                "the integrator `{kind}` is not supported (path, volpath, volpathmis, direct are)"
             )));
         }
-        let max_depth = p.integer("max_depth")?.unwrap_or(-1);
-        let rr = p.integer("rr_depth")?.unwrap_or(5);
+        let (max_depth, rr) = if kind == "direct" {
+            direct_samples(&mut p)?;
+            (2, 5)
+        } else {
+            let d = p.integer("max_depth")?.unwrap_or(-1);
+            (d, p.integer("rr_depth")?.unwrap_or(5))
+        };
         if p.boolean("hide_emitters")? == Some(true) {
             return Err(p.err("hide_emitters = true is not supported"));
         }
@@ -182,14 +187,46 @@ impl<'a, 'd> Importer<'a, 'd> {
                 .insert("max_depth".into(), toml::Value::Integer(d));
         }
         self.integrator = Some((kind.clone(), node));
+        let how = if kind == "direct" {
+            "emitters seen directly and lit once: the path tracer with max_depth 1 (Mitsuba's `path` with max_depth 2)".to_string()
+        } else {
+            format!(
+                "max_depth {} (Mitsuba's {max_depth} counts segments); rr_depth {rr} not used (pathspace's own roulette, unbiased either way)",
+                depth.map_or("unlimited".into(), |d| d.to_string())
+            )
+        };
         self.note(
             node,
             "render",
-            format!(
-                "pathspace's volumetric path tracer, max_depth {} (Mitsuba's {max_depth} counts segments); rr_depth {rr} not used (pathspace's own roulette, unbiased either way)",
-                depth.map_or("unlimited".into(), |d| d.to_string())
-            ),
+            format!("pathspace's volumetric path tracer, {how}"),
         );
         Ok(())
     }
+}
+
+/// The `direct` integrator's sample counts (Mitsuba 3 documentation, plugin `direct`:
+/// `shading_samples`, 1 by default, or `emitter_samples` and `bsdf_samples`). Its estimate is
+/// the power-heuristic combination of both strategies, whose expectation, the light arriving
+/// after one scattering, is `path`'s with max_depth 2 only while each strategy has a sample:
+/// without emitter samples Mitsuba misses point lights, without BSDF samples mirrors.
+fn direct_samples(p: &mut Props) -> Result<(), SceneError> {
+    let shading = p.integer("shading_samples")?;
+    let (emitter, bsdf) = (p.integer("emitter_samples")?, p.integer("bsdf_samples")?);
+    if shading.is_some() && (emitter.is_some() || bsdf.is_some()) {
+        return Err(p.err(
+            "shading_samples with emitter_samples or bsdf_samples: Mitsuba refuses both at once",
+        ));
+    }
+    let shading = shading.unwrap_or(1);
+    for (k, v) in [
+        ("emitter_samples", emitter.unwrap_or(shading)),
+        ("bsdf_samples", bsdf.unwrap_or(shading)),
+    ] {
+        if v < 1 {
+            return Err(p.err(format!(
+                "{k} = {v}: without samples of both strategies Mitsuba's `direct` misses light (point lights without emitter samples, mirrors without BSDF samples)"
+            )));
+        }
+    }
+    Ok(())
 }

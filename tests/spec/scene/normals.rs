@@ -2,7 +2,8 @@
 //! its face normals renders bit for bit as the flat mesh, in every mode of transport; without
 //! normals in the file, each position gets the angle-weighted normal of the faces around it
 //! (Mitsuba 3's `Mesh::compute_normals`), which a triangulated cube tells from an
-//! area-weighted one; an emitting smooth mesh is refused.
+//! area-weighted one; an emitting smooth mesh is shaded flat when its normals are its face
+//! normals, else refused.
 //! Book: "Scenes and geometry" (the `smooth_normals` key), "Surface scattering" (shading
 //! normals).
 
@@ -99,12 +100,9 @@ fn vertex_normals_equal_to_the_face_normals_render_as_the_flat_mesh() {
     }
 }
 
-/// The cube without its `vn`: every corner's angle-weighted normal is the diagonal
-/// `sign(p) / sqrt(3)` (each of its three faces meets it with a right angle, however the
-/// triangulation splits it; area weights would favour the faces split at that corner).
-#[test]
-fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
-    let dir = crate::common::cli::scratch("normals", "bare");
+/// A folder holding `bare.obj`: the fixture cube without its `vn` (faces keep positions only).
+fn bare_cube(tag: &str) -> std::path::PathBuf {
+    let dir = crate::common::cli::scratch("normals", tag);
     let cube = std::fs::read_to_string(fixtures().join("cube.obj")).unwrap();
     let bare: String = cube
         .lines()
@@ -123,6 +121,15 @@ fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
         })
         .collect();
     std::fs::write(dir.join("bare.obj"), bare).unwrap();
+    dir
+}
+
+/// The cube without its `vn`: every corner's angle-weighted normal is the diagonal
+/// `sign(p) / sqrt(3)` (each of its three faces meets it with a right angle, however the
+/// triangulation splits it; area weights would favour the faces split at that corner).
+#[test]
+fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
+    let dir = bare_cube("bare");
     let scene = load(&dir, &cube_scene("bare.obj", "smooth_normals = true"));
     let normals = scene.shapes[0].normals.as_ref().expect("a smooth mesh");
     assert_eq!(normals.corners.len(), 12);
@@ -140,13 +147,33 @@ fn without_normals_in_the_file_the_corners_get_angle_weighted_normals() {
     }
 }
 
+/// An emitting smooth mesh whose vertex normals are its face normals (the cube's `vn`) is shaded
+/// flat, the flat emitting cube bit for bit; without its `vn` its corners get the diagonals, a
+/// curved light (Mitsuba 3 tests an area emitter's side and samples it by the interpolated
+/// normal, which the light sampling here does not), refused naming the key.
 #[test]
-fn an_emitting_smooth_mesh_is_refused_by_name() {
-    let text = cube_scene("cube.obj", "smooth_normals = true\nemission = 1.0");
+fn an_emitting_smooth_mesh_is_flat_or_refused_by_name() {
+    let dir = fixtures();
+    let flat = load(&dir, &cube_scene("cube.obj", "emission = 1.0"));
+    let smooth = load(
+        &dir,
+        &cube_scene("cube.obj", "smooth_normals = true\nemission = 1.0"),
+    );
+    assert!(smooth.shapes[0].normals.is_none() && smooth.shapes[0].light.is_some());
+    for kind in [IntegratorKind::Path, IntegratorKind::Bdpt] {
+        assert!(
+            render_bits(&flat, kind) == render_bits(&smooth, kind),
+            "{kind:?}"
+        );
+    }
+    let text = cube_scene("bare.obj", "smooth_normals = true\nemission = 1.0");
     let mut src = SceneSource::embedded("cube.toml", &text);
-    src.base_dir = fixtures();
+    src.base_dir = bare_cube("bare-emitting");
     let err = Scene::load(&src).err().expect("refused").to_string();
-    assert!(err.contains("smooth_normals"), "{err}");
+    assert!(
+        err.contains("smooth_normals") && err.contains("curved"),
+        "{err}"
+    );
 }
 
 /// The interpolated normal is a unit vector: at the centre of a triangle whose corners carry

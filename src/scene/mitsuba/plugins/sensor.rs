@@ -104,8 +104,7 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.plugin
             )));
         }
-        let fov = p.float("fov")?.ok_or_else(|| p.err("`fov` is missing"))?;
-        let axis = p.string("fov_axis")?.unwrap_or_else(|| "x".into());
+        let (fov, axis) = field_of_view(&mut p)?;
         let to_world = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         for k in ["principal_point_offset_x", "principal_point_offset_y"] {
             if p.float(k)?.is_some_and(|x| x != 0.0) {
@@ -132,6 +131,8 @@ impl<'a, 'd> Importer<'a, 'd> {
             }
             Some((r, f))
         } else {
+            // every projective camera reads it (`ProjectiveCamera`), the pinhole never uses it
+            p.float("focus_distance")?;
             None
         };
         let medium = match p.object("medium", None)? {
@@ -242,6 +243,37 @@ impl<'a, 'd> Importer<'a, 'd> {
                 .err(node, "sample_count must be positive and seed non-negative"));
         }
         Ok((spp, seed))
+    }
+}
+
+/// The field of view in degrees and its axis: `fov` along `fov_axis` (x by default), or a 35 mm
+/// camera's diagonal at `focal_length` ("50mm" by default, the unit optional), as Mitsuba 3's
+/// `parse_fov` reads them (a focal length ignores `fov_axis`, which is then refused as unused).
+fn field_of_view(p: &mut Props) -> Result<(f64, String), SceneError> {
+    let fov = p.float("fov")?;
+    let focal = p.string("focal_length")?;
+    match (fov, focal) {
+        (Some(_), Some(_)) => Err(p.err("both `fov` and `focal_length`: Mitsuba takes one")),
+        (Some(fov), None) => Ok((fov, p.string("fov_axis")?.unwrap_or_else(|| "x".into()))),
+        (None, focal) => {
+            let text = focal.unwrap_or_else(|| "50mm".into());
+            let f: f64 = text
+                .strip_suffix("mm")
+                .unwrap_or(&text)
+                .trim()
+                .parse()
+                .ok()
+                .filter(|f: &f64| *f > 0.0 && f.is_finite())
+                .ok_or_else(|| {
+                    p.err(format!(
+                        "focal_length = \"{text}\" must be a positive number of millimetres"
+                    ))
+                })?;
+            // the diagonal of the 36 x 24 mm frame
+            let diagonal = (36.0f64 * 36.0 + 24.0 * 24.0).sqrt();
+            let fov = 2.0 * (diagonal / (2.0 * f)).atan().to_degrees();
+            Ok((fov, "diagonal".into()))
+        }
     }
 }
 
