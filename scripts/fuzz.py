@@ -49,7 +49,8 @@ checkpoint's pass count depends on timing, so its bytes may differ; `--keep` sav
 `--keep DIR` saves every case that is a bug, with the command lines, for replay; `--only KIND`
 runs only the cases of one kind among the indices (`--only vdb`: the scene cases that mutate
 an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map; `--only png`: those
-that read a PNG texture).
+that read a PNG texture; `--only uv`: those that mutate a textured mesh, an OBJ with `vt` or a
+PLY with `u`, `v`).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -223,6 +224,33 @@ def mutate_hdr(rng, data):
 def textured_with_png(rng):
     """The textured agreement scene, so that PNG mutations reach the texture reader."""
     return load_seed(os.path.join("tests", "fixtures", "agreement", "textured.toml"))
+
+
+def textured_with_mesh(rng):
+    """The textured agreement scene with its mesh mutated first: the OBJ with texture coordinates
+    (`vt`, `f v/vt`), or in its place the PLY with `u`, `v` properties, so that mutations reach
+    the meshes' texture coordinates (read only for textured meshes)."""
+    text, files = load_seed(os.path.join("tests", "fixtures", "agreement", "textured.toml"))
+    if rng.random() < 0.5:
+        with open(os.path.join(ROOT, "tests", "fixtures", "textures", "mesh-uv.ply"), "rb") as f:
+            files["mesh-uv.ply"] = f.read()
+        del files["mesh-vt.obj"]
+        text = text.replace(b"mesh-vt.obj", b"mesh-uv.ply")
+    name = "mesh-uv.ply" if "mesh-uv.ply" in files else "mesh-vt.obj"
+    mutate = mutate_ply if name.endswith(".ply") else mutate_obj_uv
+    files[name], what = mutate(rng, files[name])
+    return text, files, what
+
+
+def mutate_obj_uv(rng, data):
+    words = ["0", "-1", "1e30", "nan", "inf", "1/1", "1/9", "1//1", "9/1", "1/0", "vt", "vn", "x"]
+    return mutate_words(rng, data, words, "obj")
+
+
+def mutate_ply(rng, data):
+    words = ["0", "-1", "4294967295", "nan", "inf", "1e30", "u", "v", "s", "t", "texture_u",
+             "double", "uchar", "list", "binary_little_endian", "end_header", "x"]
+    return mutate_words(rng, data, words, "ply")
 
 
 def png_chunk(kind, body):
@@ -896,6 +924,11 @@ def png_case(seed, k):
     return random.Random(f"{seed}:{k}:png").random() < 0.06
 
 
+def uv_case(seed, k):
+    """Whether scene case k mutates a textured mesh (a stream of its own, as `hdr_case`)."""
+    return random.Random(f"{seed}:{k}:uv").random() < 0.05
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -909,15 +942,17 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files) = "envmap+hdr", sky_with_hdr(rng)
     elif png_case(seed, k):
         name, (text, files) = "textured+png", textured_with_png(rng)
+    elif uv_case(seed, k):
+        name, (text, files, what) = "textured+mesh", textured_with_mesh(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
-    steps = []
+    steps = [what] if name == "textured+mesh" else []
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
             mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb,
-                   ".hdr": mutate_hdr, ".png": mutate_png}.get(f[-4:], mutate_grid)
+                   ".hdr": mutate_hdr, ".png": mutate_png, ".ply": mutate_ply}.get(f[-4:], mutate_grid)
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -1080,7 +1115,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png", "uv"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -1118,6 +1153,10 @@ def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
         elif args.only == "png":
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None and png_case(args.seed, k)
                   and not hdr_case(args.seed, k)
+                  and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
+        elif args.only == "uv":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None and uv_case(args.seed, k)
+                  and not hdr_case(args.seed, k) and not png_case(args.seed, k)
                   and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only:
             ks = [k for k in ks if (adversarial_kind(args.seed, k) or "scene") == args.only]
