@@ -284,7 +284,7 @@ pub enum MaterialDesc {
     },
     /// Smooth metal (Mitsuba 3's `conductor`): the Fresnel reflectance of a complex index,
     /// `material` (one of Mitsuba's named conductors, `"Au"`) or `eta` and `k`; eta 0, k 1
-    /// (reflectance 1) when neither is given; `specular` (1) scales it.
+    /// (reflectance 1) when neither is given; `specular` (1, or a texture) scales it.
     Conductor {
         #[serde(default)]
         material: Option<String>,
@@ -292,14 +292,14 @@ pub enum MaterialDesc {
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default)]
         one_sided: bool,
     },
     /// Microfacet metal: `alpha` (a number or a texture), `distribution` (default ggx), and
     /// `reflectance` (Schlick), `material` (a named conductor) or `eta` and `k` (complex index);
-    /// reflectance 1 when none is given; `specular` (1) scales the Fresnel term.
+    /// reflectance 1 when none is given; `specular` (1, or a texture) scales the Fresnel term.
     RoughConductor {
         alpha: RoughnessValue,
         #[serde(default)]
@@ -312,8 +312,8 @@ pub enum MaterialDesc {
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default)]
         one_sided: bool,
     },
@@ -365,6 +365,10 @@ pub enum MaterialDesc {
 
 fn half_reflectance() -> ReflectanceValue {
     ReflectanceValue::Value(RgbValue::Scalar(0.5))
+}
+
+fn one_reflectance() -> ReflectanceValue {
+    ReflectanceValue::Value(RgbValue::Scalar(1.0))
 }
 
 fn one_rgb() -> RgbValue {

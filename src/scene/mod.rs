@@ -76,6 +76,9 @@ pub struct ShapeTexture {
     /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
     /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
     pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// A conductor's or rough conductor's `specular`, the texture's RGB value (Mitsuba's
+    /// `eval`, as plugins `conductor` and `roughconductor` scale their Fresnel term).
+    pub specular: Option<std::sync::Arc<crate::texture::Texture>>,
     pub uv: UvMap,
 }
 
@@ -364,6 +367,15 @@ impl Scene {
             match &mut out {
                 Bsdf::RoughConductor(m) => m.alpha = alpha,
                 Bsdf::RoughDielectric(m) => m.alpha = alpha,
+                _ => {}
+            }
+        }
+        if let Some(s) = &t.specular {
+            // the value only: a conductor's sampling never reads `specular`
+            let value = s.eval(uv);
+            match &mut out {
+                Bsdf::Conductor(m) => m.specular = value,
+                Bsdf::RoughConductor(m) => m.specular = value,
                 _ => {}
             }
         }

@@ -508,6 +508,72 @@ radiance = 0.25
     );
 }
 
+/// A texture as a conductor's or rough conductor's `specular_reflectance` is the TOML
+/// `specular` texture (Mitsuba 3 documentation, plugins `conductor`, `roughconductor`: it scales
+/// the Fresnel term at each point); a plastic's stays refused.
+#[test]
+fn textured_conductor_specular_is_mitsubas() {
+    let png = "tests/fixtures/textures/rgb4x3.png";
+    same_scene(
+        &scene(&format!(
+            r#"<shape type="rectangle">
+        <bsdf type="conductor" id="gilt"><string name="material" value="Au"/><texture type="bitmap" name="specular_reflectance"><string name="filename" value="{png}"/></texture></bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="-0.4" z="0"/><float name="radius" value="0.5"/>
+        <bsdf type="roughconductor" id="metal"><float name="alpha" value="0.2"/><texture type="checkerboard" name="specular_reflectance"><rgb name="color0" value="0.9, 0.5, 0.2"/><float name="color1" value="0.3"/></texture></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials.gilt]
+type = "conductor"
+material = "Au"
+specular = {{ texture = "bitmap", file = "{png}" }}
+one_sided = true
+[materials.metal]
+type = "rough_conductor"
+distribution = "beckmann"
+alpha = 0.2
+specular = {{ texture = "checkerboard", color0 = [0.9, 0.5, 0.2], color1 = 0.3 }}
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "gilt"
+[[shapes]]
+type = "sphere"
+center = [0.0, -0.4, 0.0]
+radius = 0.5
+material = "metal"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#
+        ),
+    );
+    for plugin in ["plastic", "roughplastic"] {
+        let e = xml(&scene(&format!(
+            r#"<shape type="rectangle"><bsdf type="{plugin}"><texture type="checkerboard" name="specular_reflectance"/></bsdf></shape>"#
+        )))
+        .expect_err("a textured plastic specular_reflectance");
+        assert!(
+            e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 2))
+                && e.contains("specular_reflectance"),
+            "{e}"
+        );
+    }
+}
+
 /// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
 /// unbent, two-sided.
 #[test]

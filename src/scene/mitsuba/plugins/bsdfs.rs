@@ -136,11 +136,11 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
         }
         "conductor" => {
             let (index, how) = conductor_index(p)?;
-            let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+            let (specular, shown) = conductor_specular(p)?;
             let (material, eta, k) = index;
             Ok((
-                MaterialDesc::Conductor { material, eta, k, specular: rgb(s), one_sided },
-                format!("conductor, {how}, specular {}{side}", show(s)),
+                MaterialDesc::Conductor { material, eta, k, specular, one_sided },
+                format!("conductor, {how}, specular {shown}{side}"),
             ))
         }
         "roughconductor" => rough_conductor(p, one_sided, side),
@@ -161,6 +161,20 @@ fn reflectance(p: &mut Props, key: &str) -> Result<ReflectanceValue, SceneError>
         Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
         None => rgb(p.color(key)?.unwrap_or(DVec3::splat(0.5))).into(),
     })
+}
+
+/// A conductor's `specular_reflectance` (Mitsuba 3 documentation, plugins `conductor` and
+/// `roughconductor`: a colour or a texture, default 1, scaling the Fresnel term), and how the
+/// note shows it.
+fn conductor_specular(p: &mut Props) -> Result<(ReflectanceValue, String), SceneError> {
+    let key = "specular_reflectance";
+    if let Some(t) = p.texture(key) {
+        let t = ReflectanceValue::Texture(texture(p.doc, t)?);
+        let shown = t.to_string();
+        return Ok((t, shown));
+    }
+    let s = p.color(key)?.unwrap_or(DVec3::ONE);
+    Ok((rgb(s).into(), show(s)))
 }
 
 /// A `<texture>`: Mitsuba 3's `bitmap` (`filename`, `filter_type`, `wrap_mode`, `raw`,
@@ -249,7 +263,7 @@ fn rough_conductor(
 ) -> Result<(MaterialDesc, String), SceneError> {
     let (distribution, alpha) = microfacet(p)?;
     let ((material, eta, k), how) = conductor_index(p)?;
-    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let (specular, shown) = conductor_specular(p)?;
     Ok((
         MaterialDesc::RoughConductor {
             alpha: alpha.clone(),
@@ -258,13 +272,12 @@ fn rough_conductor(
             material,
             eta,
             k,
-            specular: rgb(s),
+            specular,
             one_sided,
         },
         format!(
-            "rough conductor ({}), alpha {alpha}, {how}, specular {}{side}",
+            "rough conductor ({}), alpha {alpha}, {how}, specular {shown}{side}",
             dist_name(distribution),
-            show(s)
         ),
     ))
 }

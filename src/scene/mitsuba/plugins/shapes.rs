@@ -137,10 +137,13 @@ fn is_textured(m: &MaterialDesc) -> bool {
         | MaterialDesc::RoughPlastic { diffuse: r, .. } => {
             matches!(r, ReflectanceValue::Texture(_))
         }
-        MaterialDesc::RoughConductor { alpha: a, .. }
-        | MaterialDesc::RoughDielectric { alpha: a, .. } => {
-            matches!(a, RoughnessValue::Texture(_))
-        }
+        MaterialDesc::RoughConductor {
+            alpha: a,
+            specular: s,
+            ..
+        } => matches!(a, RoughnessValue::Texture(_)) || matches!(s, ReflectanceValue::Texture(_)),
+        MaterialDesc::Conductor { specular: s, .. } => matches!(s, ReflectanceValue::Texture(_)),
+        MaterialDesc::RoughDielectric { alpha: a, .. } => matches!(a, RoughnessValue::Texture(_)),
         _ => false,
     }
 }
