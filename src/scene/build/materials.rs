@@ -27,7 +27,7 @@ pub(super) struct Materials {
 }
 
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
-/// roughness (`alpha`) and a conductor's `specular`.
+/// roughness (`alpha`) and a conductor's or plastic's `specular`.
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
@@ -178,9 +178,11 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             } => {
                 let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
                 textured = Textured::reflectance(texture);
+                let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::Plastic(Plastic {
                     diffuse,
-                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     eta: plastic_ior(src, &key, *ior)?,
                     nonlinear: *nonlinear,
                     one_sided: *one_sided,
@@ -195,9 +197,12 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 nonlinear,
                 one_sided,
             } => {
-                // a textured diffuse: the texture's mean sets the sampling weight, as Mitsuba's
+                // textured diffuse and specular: the textures' means set the sampling weight,
+                // as Mitsuba's (`m_specular_sampling_weight`, computed once at load)
                 let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
                 textured = Textured::reflectance(texture);
+                let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::RoughPlastic(RoughPlastic::new(
                     Microfacet::new(
                         distribution_of(*distribution),
@@ -205,7 +210,7 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                     ),
                     rough_plastic_ior(src, &key, *ior)?,
                     diffuse,
-                    albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     *nonlinear,
                     *one_sided,
                 ))

@@ -132,11 +132,19 @@ impl<'a, 'd> Importer<'a, 'd> {
 fn is_textured(m: &MaterialDesc) -> bool {
     use crate::scene::file::RoughnessValue;
     match m {
-        MaterialDesc::Lambert { albedo: r, .. }
-        | MaterialDesc::Plastic { diffuse: r, .. }
-        | MaterialDesc::RoughPlastic { diffuse: r, .. } => {
-            matches!(r, ReflectanceValue::Texture(_))
+        MaterialDesc::Lambert { albedo: r, .. } => matches!(r, ReflectanceValue::Texture(_)),
+        MaterialDesc::Plastic {
+            diffuse: r,
+            specular: s,
+            ..
         }
+        | MaterialDesc::RoughPlastic {
+            diffuse: r,
+            specular: s,
+            ..
+        } => [r, s]
+            .iter()
+            .any(|v| matches!(v, ReflectanceValue::Texture(_))),
         MaterialDesc::RoughConductor {
             alpha: a,
             specular: s,
