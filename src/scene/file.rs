@@ -326,9 +326,9 @@ pub enum MaterialDesc {
         distribution: DistributionDesc,
     },
     /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`), with
-    /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1 (both may be textures), `alpha` 0.1, `distribution` beckmann,
-    /// `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false; two-sided unless
-    /// `one_sided`.
+    /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1 (both may be textures), `alpha` 0.1,
+    /// `distribution` beckmann, `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false;
+    /// two-sided unless `one_sided`.
     RoughPlastic {
         #[serde(default = "half_reflectance")]
         diffuse: ReflectanceValue,
@@ -347,7 +347,8 @@ pub enum MaterialDesc {
     },
     /// Smooth plastic (Mitsuba 3's `plastic`): `diffuse` (default 0.5) under a dielectric coat
     /// of `ior` inside over outside (default 1.49 / 1.000277) reflecting `specular` (default
-    /// 1, or a texture) times Fresnel; `nonlinear` internal bounces; `one_sided` as for `lambert`.
+    /// 1, or a texture) times Fresnel; `nonlinear` internal bounces; `one_sided` as for
+    /// `lambert`.
     Plastic {
         #[serde(default = "half_reflectance")]
         diffuse: ReflectanceValue,
