@@ -1167,7 +1167,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "either the material or eta and k",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="specular_reflectance" type="bitmap"/></bsdf></shape>"#,
+            r#"<shape type="rectangle"><bsdf type="dielectric"><texture name="specular_reflectance" type="checkerboard"/></bsdf></shape>"#,
             "textures",
         ),
         (
