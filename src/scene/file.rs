@@ -284,7 +284,7 @@ pub enum MaterialDesc {
     },
     /// Smooth metal (Mitsuba 3's `conductor`): the Fresnel reflectance of a complex index,
     /// `material` (one of Mitsuba's named conductors, `"Au"`) or `eta` and `k`; eta 0, k 1
-    /// (reflectance 1) when neither is given; `specular` (1) scales it.
+    /// (reflectance 1) when neither is given; `specular` (1, or a texture) scales it.
     Conductor {
         #[serde(default)]
         material: Option<String>,
@@ -292,14 +292,14 @@ pub enum MaterialDesc {
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default)]
         one_sided: bool,
     },
     /// Microfacet metal: `alpha` (a number or a texture), `distribution` (default ggx), and
     /// `reflectance` (Schlick), `material` (a named conductor) or `eta` and `k` (complex index);
-    /// reflectance 1 when none is given; `specular` (1) scales the Fresnel term.
+    /// reflectance 1 when none is given; `specular` (1, or a texture) scales the Fresnel term.
     RoughConductor {
         alpha: RoughnessValue,
         #[serde(default)]
@@ -312,8 +312,8 @@ pub enum MaterialDesc {
         eta: Option<RgbValue>,
         #[serde(default)]
         k: Option<RgbValue>,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default)]
         one_sided: bool,
     },
@@ -326,14 +326,14 @@ pub enum MaterialDesc {
         distribution: DistributionDesc,
     },
     /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`), with
-    /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1, `alpha` 0.1, `distribution` beckmann,
-    /// `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false; two-sided unless
-    /// `one_sided`.
+    /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1 (both may be textures), `alpha` 0.1,
+    /// `distribution` beckmann, `ior` 1.49 / 1.000277 (polypropylene in air), `nonlinear` false;
+    /// two-sided unless `one_sided`.
     RoughPlastic {
         #[serde(default = "half_reflectance")]
         diffuse: ReflectanceValue,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default = "plastic_alpha")]
         alpha: f32,
         #[serde(default = "beckmann")]
@@ -347,12 +347,13 @@ pub enum MaterialDesc {
     },
     /// Smooth plastic (Mitsuba 3's `plastic`): `diffuse` (default 0.5) under a dielectric coat
     /// of `ior` inside over outside (default 1.49 / 1.000277) reflecting `specular` (default
-    /// 1) times Fresnel; `nonlinear` internal bounces; `one_sided` as for `lambert`.
+    /// 1, or a texture) times Fresnel; `nonlinear` internal bounces; `one_sided` as for
+    /// `lambert`.
     Plastic {
         #[serde(default = "half_reflectance")]
         diffuse: ReflectanceValue,
-        #[serde(default = "one_rgb")]
-        specular: RgbValue,
+        #[serde(default = "one_reflectance")]
+        specular: ReflectanceValue,
         #[serde(default)]
         ior: Option<f32>,
         #[serde(default)]
@@ -365,6 +366,10 @@ pub enum MaterialDesc {
 
 fn half_reflectance() -> ReflectanceValue {
     ReflectanceValue::Value(RgbValue::Scalar(0.5))
+}
+
+fn one_reflectance() -> ReflectanceValue {
+    ReflectanceValue::Value(RgbValue::Scalar(1.0))
 }
 
 fn one_rgb() -> RgbValue {

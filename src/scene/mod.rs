@@ -76,6 +76,10 @@ pub struct ShapeTexture {
     /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
     /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
     pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// A conductor's or plastic's `specular`, the texture's RGB value (Mitsuba's `eval`, as
+    /// plugins `conductor`, `roughconductor`, `plastic`, `roughplastic` scale their Fresnel
+    /// term).
+    pub specular: Option<std::sync::Arc<crate::texture::Texture>>,
     pub uv: UvMap,
 }
 
@@ -364,6 +368,19 @@ impl Scene {
             match &mut out {
                 Bsdf::RoughConductor(m) => m.alpha = alpha,
                 Bsdf::RoughDielectric(m) => m.alpha = alpha,
+                _ => {}
+            }
+        }
+        if let Some(s) = &t.specular {
+            // the value only: a conductor's sampling never reads `specular`, a rough plastic's
+            // keeps the weight of the texture's mean (Mitsuba's); a smooth plastic's lobe
+            // choice follows the point's colours (same expectation, same values)
+            let value = s.eval(uv);
+            match &mut out {
+                Bsdf::Conductor(m) => m.specular = value,
+                Bsdf::RoughConductor(m) => m.specular = value,
+                Bsdf::Plastic(m) => m.specular = value,
+                Bsdf::RoughPlastic(m) => m.specular = value,
                 _ => {}
             }
         }

@@ -508,6 +508,90 @@ radiance = 0.25
     );
 }
 
+/// A texture as a conductor's or rough conductor's `specular_reflectance` is the TOML
+/// `specular` texture (Mitsuba 3 documentation, plugins `conductor`, `roughconductor`: it scales
+/// the Fresnel term at each point), and likewise a plastic's and rough plastic's.
+#[test]
+fn textured_specular_reflectance_is_mitsubas() {
+    let png = "tests/fixtures/textures/rgb4x3.png";
+    same_scene(
+        &scene(&format!(
+            r#"<shape type="rectangle">
+        <bsdf type="conductor" id="gilt"><string name="material" value="Au"/><texture type="bitmap" name="specular_reflectance"><string name="filename" value="{png}"/></texture></bsdf>
+        <transform name="to_world"><translate z="-2"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="-0.4" z="0"/><float name="radius" value="0.5"/>
+        <bsdf type="roughconductor" id="metal"><float name="alpha" value="0.2"/><texture type="checkerboard" name="specular_reflectance"><rgb name="color0" value="0.9, 0.5, 0.2"/><float name="color1" value="0.3"/></texture></bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0.4" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="plastic" id="coat"><texture type="checkerboard" name="specular_reflectance"><float name="color0" value="0.8"/><float name="color1" value="0.1"/></texture></bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0.6" y="0.4" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="roughplastic" id="rcoat"><texture type="bitmap" name="specular_reflectance"><string name="filename" value="{png}"/></texture><texture type="checkerboard" name="diffuse_reflectance"/></bsdf>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials.gilt]
+type = "conductor"
+material = "Au"
+specular = {{ texture = "bitmap", file = "{png}" }}
+one_sided = true
+[materials.metal]
+type = "rough_conductor"
+distribution = "beckmann"
+alpha = 0.2
+specular = {{ texture = "checkerboard", color0 = [0.9, 0.5, 0.2], color1 = 0.3 }}
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -2.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "gilt"
+[materials.coat]
+type = "plastic"
+specular = {{ texture = "checkerboard", color0 = 0.8, color1 = 0.1 }}
+ior = {:?}
+one_sided = true
+[materials.rcoat]
+type = "rough_plastic"
+diffuse = {{ texture = "checkerboard" }}
+specular = {{ texture = "bitmap", file = "{png}" }}
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.0, -0.4, 0.0]
+radius = 0.5
+material = "metal"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.4, 0.0]
+radius = 0.3
+material = "coat"
+[[shapes]]
+type = "sphere"
+center = [0.6, 0.4, 0.0]
+radius = 0.3
+material = "rcoat"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.49f64 / 1.000277) as f32,
+        ),
+    );
+}
+
 /// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
 /// unbent, two-sided.
 #[test]
@@ -1083,7 +1167,7 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "either the material or eta and k",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="plastic"><texture name="specular_reflectance" type="bitmap"/></bsdf></shape>"#,
+            r#"<shape type="rectangle"><bsdf type="dielectric"><texture name="specular_reflectance" type="checkerboard"/></bsdf></shape>"#,
             "textures",
         ),
         (

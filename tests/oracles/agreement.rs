@@ -682,14 +682,27 @@ fn agreement_textured() {
 }
 
 /// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
-/// A checkerboard roughness on a rough conductor floor and a rough glass sphere: every column
-/// reads alpha at its own vertices for values, sampling and densities.
+/// A checkerboard roughness on a rough conductor floor and a rough glass sphere, and a
+/// checkerboard specular on the floor: every column reads alpha and specular at its own
+/// vertices for values, sampling and densities.
 #[test]
 fn agreement_textured_roughness() {
     let mut fam = Family::new("agreement: textured roughness");
     check_row(
         &mut fam,
         &row("textured-roughness", fixture("textured-roughness.toml"), 3),
+    );
+    fam.finish();
+}
+
+/// A checkerboard specular on a rough plastic floor: every column reads it at its own vertices
+/// (the conductor's is in `agreement_textured_roughness`).
+#[test]
+fn agreement_textured_specular() {
+    let mut fam = Family::new("agreement: textured specular");
+    check_row(
+        &mut fam,
+        &row("textured-specular", fixture("textured-specular.toml"), 3),
     );
     fam.finish();
 }

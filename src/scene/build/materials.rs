@@ -26,27 +26,32 @@ pub(super) struct Materials {
     pub(super) textures: BTreeMap<String, Textured>,
 }
 
-/// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`) and its
-/// roughness (`alpha`).
+/// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
+/// roughness (`alpha`) and a conductor's or plastic's `specular`.
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
     pub(super) alpha: Option<Arc<Texture>>,
+    pub(super) specular: Option<Arc<Texture>>,
 }
 
 impl Textured {
     fn reflectance(t: Option<Texture>) -> Self {
         Textured {
             reflectance: t.map(Arc::new),
-            alpha: None,
+            ..Textured::default()
         }
     }
 
     fn alpha(t: Option<Texture>) -> Self {
         Textured {
-            reflectance: None,
             alpha: t.map(Arc::new),
+            ..Textured::default()
         }
+    }
+
+    fn is_some(&self) -> bool {
+        self.reflectance.is_some() || self.alpha.is_some() || self.specular.is_some()
     }
 }
 
@@ -111,10 +116,12 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             } => {
                 let index = complex_index(src, &key, material.as_deref(), *eta, *k)?;
                 let (eta, k) = index.unwrap_or((Rgb::ZERO, Rgb::ONE));
+                let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::Conductor(Conductor {
                     eta,
                     k,
-                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     one_sided: *one_sided,
                 })
             }
@@ -130,6 +137,10 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             } => {
                 let (alpha, texture) = textured_roughness(src, &key, alpha, "conductor")?;
                 textured = Textured::alpha(texture);
+                let specular_key = key.clone().key("specular");
+                let (specular, texture) =
+                    super::textures::reflectance(src, &specular_key, specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::RoughConductor(RoughConductor {
                     distribution: distribution_of(*distribution),
                     alpha,
@@ -141,7 +152,7 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                         *eta,
                         *k,
                     )?,
-                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     one_sided: *one_sided,
                 })
             }
@@ -167,9 +178,11 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             } => {
                 let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
                 textured = Textured::reflectance(texture);
+                let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::Plastic(Plastic {
                     diffuse,
-                    specular: albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     eta: plastic_ior(src, &key, *ior)?,
                     nonlinear: *nonlinear,
                     one_sided: *one_sided,
@@ -184,9 +197,12 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 nonlinear,
                 one_sided,
             } => {
-                // a textured diffuse: the texture's mean sets the sampling weight, as Mitsuba's
+                // textured diffuse and specular: the textures' means set the sampling weight,
+                // as Mitsuba's (`m_specular_sampling_weight`, computed once at load)
                 let (diffuse, texture) = reflectance(src, &key.clone().key("diffuse"), diffuse)?;
                 textured = Textured::reflectance(texture);
+                let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
+                textured.specular = texture.map(Arc::new);
                 Bsdf::RoughPlastic(RoughPlastic::new(
                     Microfacet::new(
                         distribution_of(*distribution),
@@ -194,7 +210,7 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                     ),
                     rough_plastic_ior(src, &key, *ior)?,
                     diffuse,
-                    albedo(src, &key.clone().key("specular"), *specular)?,
+                    specular,
                     *nonlinear,
                     *one_sided,
                 ))
@@ -202,7 +218,7 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             MaterialDesc::Null {} => Bsdf::Null(Null),
         };
         materials.insert(name.clone(), bsdf);
-        if textured.reflectance.is_some() || textured.alpha.is_some() {
+        if textured.is_some() {
             textures.insert(name.clone(), textured);
         }
     }

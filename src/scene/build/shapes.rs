@@ -180,6 +180,7 @@ pub(super) fn shapes(
         let texture = textured.map(|t| ShapeTexture {
             reflectance: t.reflectance.clone(),
             alpha: t.alpha.clone(),
+            specular: t.specular.clone(),
             uv: uv_map(s, prims.len() as u32, uvs),
         });
         let light = emission.map(|radiance| {

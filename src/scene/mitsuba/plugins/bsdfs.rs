@@ -136,11 +136,11 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
         }
         "conductor" => {
             let (index, how) = conductor_index(p)?;
-            let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+            let (specular, shown) = specular_reflectance(p)?;
             let (material, eta, k) = index;
             Ok((
-                MaterialDesc::Conductor { material, eta, k, specular: rgb(s), one_sided },
-                format!("conductor, {how}, specular {}{side}", show(s)),
+                MaterialDesc::Conductor { material, eta, k, specular, one_sided },
+                format!("conductor, {how}, specular {shown}{side}"),
             ))
         }
         "roughconductor" => rough_conductor(p, one_sided, side),
@@ -161,6 +161,20 @@ fn reflectance(p: &mut Props, key: &str) -> Result<ReflectanceValue, SceneError>
         Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
         None => rgb(p.color(key)?.unwrap_or(DVec3::splat(0.5))).into(),
     })
+}
+
+/// A `specular_reflectance` (Mitsuba 3 documentation, plugins `conductor`, `roughconductor`,
+/// `plastic`, `roughplastic`: a colour or a texture, default 1, scaling the Fresnel term), and
+/// how the note shows it.
+fn specular_reflectance(p: &mut Props) -> Result<(ReflectanceValue, String), SceneError> {
+    let key = "specular_reflectance";
+    if let Some(t) = p.texture(key) {
+        let t = ReflectanceValue::Texture(texture(p.doc, t)?);
+        let shown = t.to_string();
+        return Ok((t, shown));
+    }
+    let s = p.color(key)?.unwrap_or(DVec3::ONE);
+    Ok((rgb(s).into(), show(s)))
 }
 
 /// A `<texture>`: Mitsuba 3's `bitmap` (`filename`, `filter_type`, `wrap_mode`, `raw`,
@@ -249,7 +263,7 @@ fn rough_conductor(
 ) -> Result<(MaterialDesc, String), SceneError> {
     let (distribution, alpha) = microfacet(p)?;
     let ((material, eta, k), how) = conductor_index(p)?;
-    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let (specular, shown) = specular_reflectance(p)?;
     Ok((
         MaterialDesc::RoughConductor {
             alpha: alpha.clone(),
@@ -258,13 +272,12 @@ fn rough_conductor(
             material,
             eta,
             k,
-            specular: rgb(s),
+            specular,
             one_sided,
         },
         format!(
-            "rough conductor ({}), alpha {alpha}, {how}, specular {}{side}",
+            "rough conductor ({}), alpha {alpha}, {how}, specular {shown}{side}",
             dist_name(distribution),
-            show(s)
         ),
     ))
 }
@@ -359,19 +372,18 @@ fn plastic(
         return Err(p.err("int_ior and ext_ior must be positive"));
     }
     let d = reflectance(p, "diffuse_reflectance")?;
-    let s = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let (specular, shown) = specular_reflectance(p)?;
     let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
     Ok((
         MaterialDesc::Plastic {
             diffuse: d.clone(),
-            specular: rgb(s),
+            specular,
             ior: Some(ior as f32),
             nonlinear,
             one_sided,
         },
         format!(
-            "plastic, diffuse {d}, specular {}, ior {ior} (int_ior / ext_ior){}{side}",
-            show(s),
+            "plastic, diffuse {d}, specular {shown}, ior {ior} (int_ior / ext_ior){}{side}",
             if nonlinear { ", nonlinear" } else { "" }
         ),
     ))
@@ -450,12 +462,12 @@ fn rough_plastic(
     }
     let ior = int_ior / ext_ior;
     let diffuse = reflectance(p, "diffuse_reflectance")?;
-    let specular = p.color("specular_reflectance")?.unwrap_or(DVec3::ONE);
+    let (specular, shown) = specular_reflectance(p)?;
     let nonlinear = p.boolean("nonlinear")?.unwrap_or(false);
     Ok((
         MaterialDesc::RoughPlastic {
             diffuse: diffuse.clone(),
-            specular: rgb(specular),
+            specular,
             alpha,
             distribution,
             ior: ior as f32,
@@ -463,9 +475,8 @@ fn rough_plastic(
             one_sided,
         },
         format!(
-            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {diffuse}, specular {}{}{side}",
+            "rough plastic ({}), alpha {alpha}, ior {ior} (int_ior / ext_ior), diffuse {diffuse}, specular {shown}{}{side}",
             dist_name(distribution),
-            show(specular),
             if nonlinear { ", nonlinear" } else { "" }
         ),
     ))

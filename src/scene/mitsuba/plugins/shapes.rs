@@ -132,15 +132,26 @@ impl<'a, 'd> Importer<'a, 'd> {
 fn is_textured(m: &MaterialDesc) -> bool {
     use crate::scene::file::RoughnessValue;
     match m {
-        MaterialDesc::Lambert { albedo: r, .. }
-        | MaterialDesc::Plastic { diffuse: r, .. }
-        | MaterialDesc::RoughPlastic { diffuse: r, .. } => {
-            matches!(r, ReflectanceValue::Texture(_))
+        MaterialDesc::Lambert { albedo: r, .. } => matches!(r, ReflectanceValue::Texture(_)),
+        MaterialDesc::Plastic {
+            diffuse: r,
+            specular: s,
+            ..
         }
-        MaterialDesc::RoughConductor { alpha: a, .. }
-        | MaterialDesc::RoughDielectric { alpha: a, .. } => {
-            matches!(a, RoughnessValue::Texture(_))
-        }
+        | MaterialDesc::RoughPlastic {
+            diffuse: r,
+            specular: s,
+            ..
+        } => [r, s]
+            .iter()
+            .any(|v| matches!(v, ReflectanceValue::Texture(_))),
+        MaterialDesc::RoughConductor {
+            alpha: a,
+            specular: s,
+            ..
+        } => matches!(a, RoughnessValue::Texture(_)) || matches!(s, ReflectanceValue::Texture(_)),
+        MaterialDesc::Conductor { specular: s, .. } => matches!(s, ReflectanceValue::Texture(_)),
+        MaterialDesc::RoughDielectric { alpha: a, .. } => matches!(a, RoughnessValue::Texture(_)),
         _ => false,
     }
 }
