@@ -619,6 +619,37 @@ fn proposals_follow_t(
 /// The path with a moved vertex at a point, and its real-over-Dirac-free factor.
 type Rebuild<'a> = dyn Fn(Vec3) -> Option<(Vec<Vertex>, f64)> + Sync + 'a;
 
+/// A move of vertex `i` on the back wall (normal +z) about `c`, binned by radius in
+/// `r0..r1` and sector, each proposal rebuilt by `rebuild`.
+fn back_wall_move<'a>(
+    c: Vec3,
+    (r0, r1): (f64, f64),
+    i: usize,
+    rebuild: &'a Rebuild<'a>,
+) -> PlaneMove<'a> {
+    PlaneMove {
+        c,
+        n: Vec3::Z,
+        r0,
+        r1,
+        i,
+        rect: walls()[1].1,
+        rebuild,
+    }
+}
+
+/// The path `x` with vertex `i` moved to a point, at no extra factor.
+fn moving_vertex(
+    x: &[Vertex],
+    i: usize,
+) -> impl Fn(Vec3) -> Option<(Vec<Vertex>, f64)> + Sync + '_ {
+    move |p| {
+        let mut y = x.to_vec();
+        y[i].p = p;
+        Some((y, 1.0))
+    }
+}
+
 /// Cells and draws for a perturbation that moves one vertex `i` of x on a plane (normal `n`)
 /// around x_i, with `factor(y)` the real-over-Dirac-free factor: radius bins over [r0, r1]
 /// crossed with 8 sectors; the draws log-polar over [r0 / 2, 2 r1] (the rectangle `rect`
@@ -680,24 +711,11 @@ fn sensor_perturbation_proposals_follow_t_on_a_wall_through_a_mirror_and_in_the_
     let m = SensorPerturbation {
         offset: InverseDistance::new(0.1, 4.0).unwrap(),
     };
-    let back = walls()[1].1;
     // on the back wall, seen directly
     let x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
     let wall = x[2];
-    let rebuild = |p: Vec3| {
-        let mut y = x.clone();
-        y[2].p = p;
-        Some((y, 1.0))
-    };
-    let mv = PlaneMove {
-        c: wall.p,
-        n: Vec3::Z,
-        r0: 3e-3,
-        r1: 0.4,
-        i: 2,
-        rect: back,
-        rebuild: &rebuild,
-    };
+    let rebuild = moving_vertex(&x, 2);
+    let mv = back_wall_move(wall.p, (3e-3, 0.4), 2, &rebuild);
     proposals_follow_t(
         &mut fam,
         "back wall",
@@ -791,15 +809,7 @@ fn sensor_perturbation_proposals_follow_t_on_a_wall_through_a_mirror_and_in_the_
         y[2].p = mp;
         Some((y, mirror_factor(eye.p, mp, p)))
     };
-    let mv = PlaneMove {
-        c: wall_p,
-        n: Vec3::Z,
-        r0: 3e-3,
-        r1: 0.4,
-        i: 1,
-        rect: back,
-        rebuild: &rebuild,
-    };
+    let mv = back_wall_move(wall_p, (3e-3, 0.4), 1, &rebuild);
     proposals_follow_t(
         &mut fam,
         "back wall through the mirror",
@@ -827,7 +837,6 @@ fn sensor_perturbation_proposals_through_a_thin_lens_follow_t_on_a_wall() {
     let m = SensorPerturbation {
         offset: InverseDistance::new(0.1, 4.0).unwrap(),
     };
-    let back = walls()[1].1;
     let cam = scene.camera.as_ref().unwrap();
     let lens_p = cam.eye + cam.right * 0.2 - cam.up * 0.15;
     let mut x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
@@ -837,20 +846,8 @@ fn sensor_perturbation_proposals_through_a_thin_lens_follow_t_on_a_wall() {
         "the wall seen through the lens"
     );
     let wall = x[2];
-    let rebuild = |p: Vec3| {
-        let mut y = x.clone();
-        y[2].p = p;
-        Some((y, 1.0))
-    };
-    let mv = PlaneMove {
-        c: wall.p,
-        n: Vec3::Z,
-        r0: 3e-3,
-        r1: 0.4,
-        i: 2,
-        rect: back,
-        rebuild: &rebuild,
-    };
+    let rebuild = moving_vertex(&x, 2);
+    let mv = back_wall_move(wall.p, (3e-3, 0.4), 2, &rebuild);
     // a proposal that moved the lens point is in no cell: T counts only the kept one
     let cell_of = |y: &[Vertex]| (y[3].p == lens_p).then(|| mv.cell_of(y)).flatten();
     proposals_follow_t(
@@ -876,23 +873,10 @@ fn light_perturbation_proposals_follow_t_on_a_wall_in_the_fog_and_through_a_mirr
     let m = LightPerturbation {
         angle: InverseDistance::new(1e-3, 0.1).unwrap(),
     };
-    let back = walls()[1].1;
     // the direction floor -> back wall turned; the back wall point ~1.1 away
     let x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
-    let rebuild = |p: Vec3| {
-        let mut y = x.clone();
-        y[2].p = p;
-        Some((y, 1.0))
-    };
-    let mv = PlaneMove {
-        c: x[2].p,
-        n: Vec3::Z,
-        r0: 5e-4,
-        r1: 0.3,
-        i: 2,
-        rect: back,
-        rebuild: &rebuild,
-    };
+    let rebuild = moving_vertex(&x, 2);
+    let mv = back_wall_move(x[2].p, (5e-4, 0.3), 2, &rebuild);
     proposals_follow_t(
         &mut fam,
         "back wall",
@@ -982,15 +966,7 @@ fn light_perturbation_proposals_follow_t_on_a_wall_in_the_fog_and_through_a_mirr
         y[2] = vertex_at(ms2, p, Vec3::Z);
         Some((y, mirror_factor(lp, mp, p)))
     };
-    let mv = PlaneMove {
-        c: wall_p,
-        n: Vec3::Z,
-        r0: 1e-3,
-        r1: 0.5,
-        i: 2,
-        rect: back,
-        rebuild: &rebuild,
-    };
+    let mv = back_wall_move(wall_p, (1e-3, 0.5), 2, &rebuild);
     proposals_follow_t(
         &mut fam,
         "back wall through the mirror",
