@@ -96,6 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ior: 1.5,
                 distribution: Distribution::Ggx,
                 alpha: 0.15,
+                specular: pathspace::bsdf::Specular::ONE,
             }),
             RGBColor(33, 102, 172),
         ),

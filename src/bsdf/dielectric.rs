@@ -1,6 +1,6 @@
 //! The smooth dielectric interface: Fresnel-weighted Dirac reflection and refraction (Snell's
 //! law), reflection chosen with probability F so that both weights are 1 (times the eta^2 of
-//! refracted radiance, Kristensen 2010 eq. 2.15).
+//! refracted radiance, Kristensen 2010 eq. 2.15), times the [`Specular`] factors.
 
 use glam::{Vec2, Vec3};
 
@@ -11,6 +11,49 @@ use crate::spectrum::Rgb;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dielectric {
     pub ior: f32,
+    pub specular: Specular,
+}
+
+/// The colours that scale a dielectric's reflection and transmission (Mitsuba 3's
+/// `specular_reflectance` and `specular_transmittance` of plugins `dielectric`,
+/// `roughdielectric` and `thindielectric`, default 1): they multiply the value of the lobe
+/// only, never its probability, which stays Fresnel's (`src/bsdfs/dielectric.cpp`), and they
+/// are the same in both transport modes (a factor of the point, symmetric in the directions).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Specular {
+    pub reflectance: Rgb,
+    pub transmittance: Rgb,
+}
+
+impl Specular {
+    /// Mitsuba's default: clear glass.
+    pub const ONE: Specular = Specular {
+        reflectance: Rgb::ONE,
+        transmittance: Rgb::ONE,
+    };
+
+    /// What `describe` adds: nothing for clear glass.
+    pub fn describe(&self) -> String {
+        let show = crate::spectrum::show;
+        let mut s = String::new();
+        if self.reflectance != Rgb::ONE {
+            s += &format!(", specular reflectance {}", show(self.reflectance));
+        }
+        if self.transmittance != Rgb::ONE {
+            s += &format!(", specular transmittance {}", show(self.transmittance));
+        }
+        s
+    }
+}
+
+impl Dielectric {
+    /// Clear glass of index `ior`.
+    pub fn new(ior: f32) -> Self {
+        Dielectric {
+            ior,
+            specular: Specular::ONE,
+        }
+    }
 }
 
 impl BsdfModel for Dielectric {
@@ -20,7 +63,7 @@ impl BsdfModel for Dielectric {
     }
 
     fn describe(&self) -> String {
-        format!("dielectric, ior {}", self.ior)
+        format!("dielectric, ior {}{}", self.ior, self.specular.describe())
     }
 
     fn has_regular_lobe(&self) -> bool {
@@ -70,7 +113,7 @@ impl BsdfModel for Dielectric {
             let wi = reflect(wo, nf);
             return Some(BsdfSample {
                 wi,
-                value: Rgb::splat(f / cos_i),
+                value: self.specular.reflectance * (f / cos_i),
                 pdf: f,
                 lobe: Lobe::SingularReflection,
             });
@@ -92,7 +135,7 @@ impl BsdfModel for Dielectric {
         };
         Some(BsdfSample {
             wi,
-            value: Rgb::splat((1.0 - f) * scale / cos_t),
+            value: self.specular.transmittance * ((1.0 - f) * scale / cos_t),
             pdf: 1.0 - f,
             lobe: Lobe::SingularTransmission,
         })

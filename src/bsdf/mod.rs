@@ -39,7 +39,7 @@ pub mod rough_plastic;
 pub mod thin_dielectric;
 
 pub use conductor::{Conductor, ConductorFresnel, RoughConductor};
-pub use dielectric::Dielectric;
+pub use dielectric::{Dielectric, Specular};
 pub use lambert::Lambert;
 pub use microfacet::{Beckmann, Distribution, Ggx, Microfacet};
 pub use mirror::Mirror;

@@ -16,17 +16,19 @@
 use glam::{Vec2, Vec3};
 
 use super::microfacet::{reflect_about, refract_about, Distribution, Microfacet};
-use super::{fresnel_dielectric, BsdfModel, BsdfSample, Lobe, TransportMode};
+use super::{fresnel_dielectric, BsdfModel, BsdfSample, Lobe, Specular, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
 
 /// A rough dielectric interface: `ior` inside (behind the normal) over outside, the
-/// distribution and its roughness `alpha`.
+/// distribution and its roughness `alpha`; `specular` scales the values of reflection and
+/// refraction, not their densities (Mitsuba 3's `roughdielectric.cpp`, `eval` and `sample`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RoughDielectric {
     pub ior: f32,
     pub distribution: Distribution,
     pub alpha: f32,
+    pub specular: Specular,
 }
 
 /// `wo`, `wi` in the frame of the normal on `wo`'s side, with the indices on `wo`'s side
@@ -118,10 +120,11 @@ impl BsdfModel for RoughDielectric {
 
     fn describe(&self) -> String {
         format!(
-            "rough dielectric, ior {}, {} alpha {}",
+            "rough dielectric, ior {}, {} alpha {}{}",
             self.ior,
             self.distribution.name(),
-            self.alpha
+            self.alpha,
+            self.specular.describe()
         )
     }
 
@@ -152,8 +155,8 @@ impl BsdfModel for RoughDielectric {
         let g = self.microfacet();
         let dg = g.d(h.m) * g.g(l.lo, l.li, h.m);
         let f = Self::fresnel(&l, &h);
-        let value = if h.reflect {
-            f * dg / (4.0 * l.lo.z * l.li.z)
+        let (value, tint) = if h.reflect {
+            (f * dg / (4.0 * l.lo.z * l.li.z), self.specular.reflectance)
         } else {
             let (co, ci) = (l.lo.dot(h.m), l.li.dot(h.m));
             let den = l.eta_o * co + l.eta_t * ci;
@@ -162,10 +165,11 @@ impl BsdfModel for RoughDielectric {
                 TransportMode::Radiance => l.eta_o * l.eta_o,
                 TransportMode::Importance => l.eta_t * l.eta_t,
             };
-            (co * ci).abs() / (l.lo.z * l.li.z).abs() * eta2 * (1.0 - f) * dg / (den * den)
+            let v = (co * ci).abs() / (l.lo.z * l.li.z).abs() * eta2 * (1.0 - f) * dg / (den * den);
+            (v, self.specular.transmittance)
         };
         if value.is_finite() && value > 0.0 {
-            Rgb::splat(value)
+            tint * value
         } else {
             Rgb::ZERO
         }

@@ -1,17 +1,28 @@
 //! The thin dielectric sheet (Mitsuba 3's `thindielectric`): light is reflected or passes
 //! straight through, with the sheet's internal reflections summed
 //! ([`thin_dielectric_reflectance`]); no refraction, no eta^2. Both lobes are Dirac and both
-//! weights are 1.
+//! weights are 1, times the [`Specular`] factors.
 
 use glam::{Vec2, Vec3};
 
-use super::{fresnel_dielectric, reflect, BsdfModel, BsdfSample, Lobe, TransportMode};
+use super::{fresnel_dielectric, reflect, BsdfModel, BsdfSample, Lobe, Specular, TransportMode};
 use crate::spectrum::Rgb;
 
 /// A thin dielectric sheet: `ior` is the sheet's index over the surrounding one.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ThinDielectric {
     pub ior: f32,
+    pub specular: Specular,
+}
+
+impl ThinDielectric {
+    /// A clear sheet of index `ior`.
+    pub fn new(ior: f32) -> Self {
+        ThinDielectric {
+            ior,
+            specular: Specular::ONE,
+        }
+    }
 }
 
 /// Reflectance of a thin dielectric sheet of relative index `eta` at incidence cosine `cos_i`:
@@ -32,7 +43,11 @@ impl BsdfModel for ThinDielectric {
     }
 
     fn describe(&self) -> String {
-        format!("thin dielectric, ior {}", self.ior)
+        format!(
+            "thin dielectric, ior {}{}",
+            self.ior,
+            self.specular.describe()
+        )
     }
 
     fn has_regular_lobe(&self) -> bool {
@@ -70,18 +85,20 @@ impl BsdfModel for ThinDielectric {
         let nf = if cos_o > 0.0 { n } else { -n };
         let cos_i = cos_o.abs();
         let r = thin_dielectric_reflectance(cos_i, self.ior);
-        let (wi, p, lobe) = if uc < r {
-            (reflect(wo, nf), r, Lobe::SingularReflection)
+        let (wi, p, lobe, tint) = if uc < r {
+            let tint = self.specular.reflectance;
+            (reflect(wo, nf), r, Lobe::SingularReflection, tint)
         } else {
             // straight through: the sheet's two refractions cancel
-            (-wo, 1.0 - r, Lobe::SingularTransmission)
+            let tint = self.specular.transmittance;
+            (-wo, 1.0 - r, Lobe::SingularTransmission, tint)
         };
         if p <= 0.0 {
             return None;
         }
         Some(BsdfSample {
             wi,
-            value: Rgb::splat(p / cos_i),
+            value: tint * (p / cos_i),
             pdf: p,
             lobe,
         })

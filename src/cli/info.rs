@@ -241,9 +241,11 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
                     .unwrap_or_default()
             };
             format!(
-                "{}{}",
+                "{}{}{}{}",
                 part("reflectance", &t.reflectance),
-                part("alpha", &t.alpha)
+                part("alpha", &t.alpha),
+                part("specular", &t.specular),
+                part("transmittance", &t.transmittance)
             )
         });
         println!(

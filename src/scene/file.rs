@@ -274,13 +274,25 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
+    /// Smooth glass: `ior` inside over outside; `specular_reflectance` and
+    /// `specular_transmittance` (1, or textures) scale reflection and refraction, as Mitsuba
+    /// 3's `dielectric`.
     Dielectric {
         ior: f32,
+        #[serde(default = "one_reflectance")]
+        specular_reflectance: ReflectanceValue,
+        #[serde(default = "one_reflectance")]
+        specular_transmittance: ReflectanceValue,
     },
     /// A thin dielectric sheet (Mitsuba 3's `thindielectric`): reflects or lets light through
-    /// unbent; `ior` is the sheet's index over the surrounding one.
+    /// unbent; `ior` is the sheet's index over the surrounding one; the two factors as
+    /// `dielectric`'s.
     ThinDielectric {
         ior: f32,
+        #[serde(default = "one_reflectance")]
+        specular_reflectance: ReflectanceValue,
+        #[serde(default = "one_reflectance")]
+        specular_transmittance: ReflectanceValue,
     },
     /// Smooth metal (Mitsuba 3's `conductor`): the Fresnel reflectance of a complex index,
     /// `material` (one of Mitsuba's named conductors, `"Au"`) or `eta` and `k`; eta 0, k 1
@@ -318,12 +330,16 @@ pub enum MaterialDesc {
         one_sided: bool,
     },
     /// Microfacet glass: `ior` inside over outside, `alpha` (a number or a texture),
-    /// `distribution` (default ggx).
+    /// `distribution` (default ggx), the two factors as `dielectric`'s.
     RoughDielectric {
         ior: f32,
         alpha: RoughnessValue,
         #[serde(default)]
         distribution: DistributionDesc,
+        #[serde(default = "one_reflectance")]
+        specular_reflectance: ReflectanceValue,
+        #[serde(default = "one_reflectance")]
+        specular_transmittance: ReflectanceValue,
     },
     /// A diffuse base under a rough dielectric coating (Mitsuba 3's `roughplastic`), with
     /// Mitsuba's defaults: `diffuse` 0.5, `specular` 1 (both may be textures), `alpha` 0.1,

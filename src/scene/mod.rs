@@ -76,10 +76,13 @@ pub struct ShapeTexture {
     /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
     /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
     pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
-    /// A conductor's or plastic's `specular`, the texture's RGB value (Mitsuba's `eval`, as
-    /// plugins `conductor`, `roughconductor`, `plastic`, `roughplastic` scale their Fresnel
-    /// term).
+    /// A conductor's or plastic's `specular` or a dielectric's `specular_reflectance`, the
+    /// texture's RGB value (Mitsuba's `eval`, as plugins `conductor`, `roughconductor`,
+    /// `plastic`, `roughplastic`, `dielectric`, `roughdielectric`, `thindielectric` scale
+    /// their Fresnel term).
     pub specular: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// A dielectric's `specular_transmittance`, the texture's RGB value (Mitsuba's `eval`).
+    pub transmittance: Option<std::sync::Arc<crate::texture::Texture>>,
     pub uv: UvMap,
 }
 
@@ -381,6 +384,19 @@ impl Scene {
                 Bsdf::RoughConductor(m) => m.specular = value,
                 Bsdf::Plastic(m) => m.specular = value,
                 Bsdf::RoughPlastic(m) => m.specular = value,
+                // a dielectric's lobe choice stays Fresnel's (Mitsuba's)
+                Bsdf::Dielectric(m) => m.specular.reflectance = value,
+                Bsdf::ThinDielectric(m) => m.specular.reflectance = value,
+                Bsdf::RoughDielectric(m) => m.specular.reflectance = value,
+                _ => {}
+            }
+        }
+        if let Some(s) = &t.transmittance {
+            let value = s.eval(uv);
+            match &mut out {
+                Bsdf::Dielectric(m) => m.specular.transmittance = value,
+                Bsdf::ThinDielectric(m) => m.specular.transmittance = value,
+                Bsdf::RoughDielectric(m) => m.specular.transmittance = value,
                 _ => {}
             }
         }

@@ -707,6 +707,22 @@ fn agreement_textured_specular() {
     fam.finish();
 }
 
+/// Tinted glass: `specular_reflectance` and `specular_transmittance` on a smooth glass sphere
+/// (a checkerboard transmittance), a rough glass sphere (a checkerboard reflectance) and a
+/// thin pane; light tracing cannot reach the camera through the smooth glass (it warns).
+#[test]
+fn agreement_tinted_glass() {
+    let mut fam = Family::new("agreement: tinted glass");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("tinted-glass", fixture("tinted-glass.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_disk() {
     let mut fam = Family::new("agreement: disk");

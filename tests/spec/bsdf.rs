@@ -240,7 +240,7 @@ fn dielectric_lobe(
     mode: TransportMode,
 ) -> Option<BsdfSample> {
     let uc = if transmit { ONE_MINUS_EPSILON } else { 0.0 };
-    Bsdf::Dielectric(Dielectric { ior }).sample(wo, n, Vec2::new(0.5, 0.5), uc, mode)
+    Bsdf::Dielectric(Dielectric::new(ior)).sample(wo, n, Vec2::new(0.5, 0.5), uc, mode)
 }
 
 /// The indices on wo's side and on the other side of an interface whose inside (behind `n`)
@@ -387,7 +387,7 @@ fn dielectric_reflects_totally_beyond_the_critical_angle() {
                 }
             );
             for _ in 0..64 {
-                let bs = Bsdf::Dielectric(Dielectric { ior })
+                let bs = Bsdf::Dielectric(Dielectric::new(ior))
                     .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
                     .unwrap();
                 if total {
@@ -459,7 +459,7 @@ fn thin_dielectric_reflects_the_sum_of_its_inner_passes_and_transmits_unbent() {
                     term *= r * r;
                 }
                 for mode in modes() {
-                    let thin = Bsdf::ThinDielectric(ThinDielectric { ior });
+                    let thin = Bsdf::ThinDielectric(ThinDielectric::new(ior));
                     let refl = thin.sample(wo, n, Vec2::splat(0.5), 0.0, mode).unwrap();
                     let tran = thin.sample(wo, n, Vec2::splat(0.5), ONE_MINUS_EPSILON, mode);
                     assert_eq!(refl.lobe, Lobe::SingularReflection);
@@ -493,7 +493,7 @@ fn dielectric_chooses_reflection_with_the_fresnel_probability() {
                 let mut s = sampler(32, (i * 8 + j * 2) as u64 + (side > 0.0) as u64);
                 let mut reflected = 0u64;
                 for _ in 0..N {
-                    let bs = Bsdf::Dielectric(Dielectric { ior })
+                    let bs = Bsdf::Dielectric(Dielectric::new(ior))
                         .sample(wo, n, s.next_2d(), s.next_f32(), TransportMode::Radiance)
                         .unwrap();
                     if bs.lobe == Lobe::SingularReflection {
@@ -990,3 +990,97 @@ mod conductor;
 mod contract;
 mod microfacet;
 mod rough_plastic;
+
+// ---------------------------------------------------------------------------------------------
+// Tinted dielectrics (Mitsuba 3's `specular_reflectance` and `specular_transmittance`)
+
+/// The two factors of [`tinted`]: distinct channels, distinct from each other.
+const REFLECTANCE: Rgb = Vec3::new(0.9, 0.6, 0.3);
+const TRANSMITTANCE: Rgb = Vec3::new(0.4, 0.7, 1.0);
+
+/// The three dielectrics clear and tinted, with their names.
+fn tinted() -> Vec<(&'static str, Bsdf, Bsdf)> {
+    use pathspace::bsdf::{Distribution, RoughDielectric, Specular};
+    let tint = Specular {
+        reflectance: REFLECTANCE,
+        transmittance: TRANSMITTANCE,
+    };
+    let rough = |specular| {
+        Bsdf::RoughDielectric(RoughDielectric {
+            ior: 1.5,
+            distribution: Distribution::Ggx,
+            alpha: 0.3,
+            specular,
+        })
+    };
+    vec![
+        (
+            "dielectric",
+            Bsdf::Dielectric(Dielectric::new(1.5)),
+            Bsdf::Dielectric(Dielectric {
+                ior: 1.5,
+                specular: tint,
+            }),
+        ),
+        (
+            "thin dielectric",
+            Bsdf::ThinDielectric(ThinDielectric::new(1.5)),
+            Bsdf::ThinDielectric(ThinDielectric {
+                ior: 1.5,
+                specular: tint,
+            }),
+        ),
+        ("rough dielectric", rough(Specular::ONE), rough(tint)),
+    ]
+}
+
+/// Mitsuba 3's `dielectric.cpp`, `roughdielectric.cpp` and `thindielectric.cpp`: the factors
+/// multiply the value of the lobe taken (reflection by `specular_reflectance`, transmission by
+/// `specular_transmittance`), in both transport modes, and leave the direction, the lobe and its
+/// probability (Fresnel's choice) as the clear glass has them.
+#[test]
+fn tinted_glass_scales_each_lobe_by_its_factor_and_keeps_the_choice() {
+    let mut s = sampler(77, 0);
+    for (name, clear, tinted) in tinted() {
+        for n in normals() {
+            let mut lobes = [0usize; 2];
+            for _ in 0..400 {
+                let wo = warp::uniform_sphere(s.next_2d());
+                let (u, uc) = (s.next_2d(), s.next_f32());
+                for mode in modes() {
+                    let (a, b) = (
+                        clear.sample(wo, n, u, uc, mode),
+                        tinted.sample(wo, n, u, uc, mode),
+                    );
+                    let (Some(a), Some(b)) = (a, b) else {
+                        assert!(a.is_none() && b.is_none(), "{name}: one sample only");
+                        continue;
+                    };
+                    assert_eq!((a.wi, a.pdf, a.lobe), (b.wi, b.pdf, b.lobe), "{name}");
+                    let reflects = a.wi.dot(n) * wo.dot(n) > 0.0;
+                    lobes[reflects as usize] += 1;
+                    let factor = if reflects { REFLECTANCE } else { TRANSMITTANCE };
+                    let want = a.value * factor;
+                    for c in 0..3 {
+                        let (x, y) = (b.value[c] as f64, want[c] as f64);
+                        assert!(
+                            (x - y).abs() <= F32_TOL * y.abs(),
+                            "{name} {mode:?}: {x} vs {y}"
+                        );
+                    }
+                    let wi = a.wi;
+                    let (ea, eb) = (clear.eval(wo, wi, n, mode), tinted.eval(wo, wi, n, mode));
+                    assert_eq!(clear.pdf(wo, wi, n), tinted.pdf(wo, wi, n), "{name}");
+                    for c in 0..3 {
+                        let (x, y) = (eb[c] as f64, (ea * factor)[c] as f64);
+                        assert!(
+                            (x - y).abs() <= F32_TOL * y.abs(),
+                            "{name} eval: {x} vs {y}"
+                        );
+                    }
+                }
+            }
+            assert!(lobes.iter().all(|&k| k > 20), "{name}: lobes {lobes:?}");
+        }
+    }
+}

@@ -85,15 +85,18 @@ pub fn lobe_at(scene: &Scene, path: &[Vertex], i: usize) -> Lobe {
 
 /// Dirac-free f-hat(from -> v -> to) in radiance mode: f_s or sigma_s f_p for regular vertices,
 /// R / |cos| of the lobe for a specular vertex whose neighbours satisfy the specular relation
-/// (zero otherwise).
+/// (zero otherwise). The value is the BSDF at the vertex's point (a textured glass's tint).
 pub fn f_hat_singular(scene: &Scene, v: &Vertex, from: Vec3, to: Vec3) -> Rgb {
-    let Some(bsdf) = singular_bsdf(scene, v) else {
+    if !is_specular(scene, v) {
         return v.f_hat(scene, from, to);
+    }
+    let Some(bsdf) = v.bsdf(scene) else {
+        return Rgb::ZERO;
     };
     let wo = (to - v.p).normalize_or_zero();
     let wi = (from - v.p).normalize_or_zero();
     let lobe = lobe_between(scene, v, from, to);
-    match specular_sample(bsdf, wo, v.normals(), lobe, TransportMode::Radiance) {
+    match specular_sample(&bsdf, wo, v.normals(), lobe, TransportMode::Radiance) {
         Some(s) if s.wi.dot(wi) >= 1.0 - SPECULAR_COS_TOLERANCE => s.value,
         _ => Rgb::ZERO,
     }

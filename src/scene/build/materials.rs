@@ -11,10 +11,11 @@ use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
 use crate::bsdf::plastic::default_eta;
 use crate::bsdf::{
     Bsdf, Conductor, ConductorFresnel, Dielectric, Distribution, Lambert, Microfacet, Mirror, Null,
-    Plastic, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
+    Plastic, RoughConductor, RoughDielectric, RoughPlastic, Specular, ThinDielectric,
 };
 use crate::scene::file::{
-    path, DistributionDesc, KeyPath, MaterialDesc, RgbValue, RoughnessValue, SceneFile,
+    path, DistributionDesc, KeyPath, MaterialDesc, ReflectanceValue, RgbValue, RoughnessValue,
+    SceneFile,
 };
 use crate::scene::{SceneError, SceneSource};
 use crate::spectrum::Rgb;
@@ -27,12 +28,14 @@ pub(super) struct Materials {
 }
 
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
-/// roughness (`alpha`) and a conductor's or plastic's `specular`.
+/// roughness (`alpha`), a conductor's or plastic's `specular` or a dielectric's
+/// `specular_reflectance`, and a dielectric's `specular_transmittance`.
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
     pub(super) alpha: Option<Arc<Texture>>,
     pub(super) specular: Option<Arc<Texture>>,
+    pub(super) transmittance: Option<Arc<Texture>>,
 }
 
 impl Textured {
@@ -51,7 +54,10 @@ impl Textured {
     }
 
     fn is_some(&self) -> bool {
-        self.reflectance.is_some() || self.alpha.is_some() || self.specular.is_some()
+        self.reflectance.is_some()
+            || self.alpha.is_some()
+            || self.specular.is_some()
+            || self.transmittance.is_some()
     }
 }
 
@@ -89,23 +95,39 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 reflectance: albedo(src, &key.clone().key("reflectance"), *reflectance)?,
                 one_sided: *one_sided,
             }),
-            MaterialDesc::Dielectric { ior } => {
+            MaterialDesc::Dielectric {
+                ior,
+                specular_reflectance: r,
+                specular_transmittance: t,
+            } => {
                 if !(ior.is_finite() && *ior > 0.0) {
                     return Err(src.error(
                         &key.clone().key("ior"),
                         format!("ior = {ior} must be positive"),
                     ));
                 }
-                Bsdf::Dielectric(Dielectric { ior: *ior })
+                let specular = specular_factors(src, &key, r, t, &mut textured)?;
+                Bsdf::Dielectric(Dielectric {
+                    ior: *ior,
+                    specular,
+                })
             }
-            MaterialDesc::ThinDielectric { ior } => {
+            MaterialDesc::ThinDielectric {
+                ior,
+                specular_reflectance: r,
+                specular_transmittance: t,
+            } => {
                 if !(ior.is_finite() && *ior > 0.0) {
                     return Err(src.error(
                         &key.clone().key("ior"),
                         format!("ior = {ior} must be positive"),
                     ));
                 }
-                Bsdf::ThinDielectric(ThinDielectric { ior: *ior })
+                let specular = specular_factors(src, &key, r, t, &mut textured)?;
+                Bsdf::ThinDielectric(ThinDielectric {
+                    ior: *ior,
+                    specular,
+                })
             }
             MaterialDesc::Conductor {
                 material,
@@ -160,13 +182,17 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 ior,
                 alpha,
                 distribution,
+                specular_reflectance: r,
+                specular_transmittance: t,
             } => {
                 let (alpha, texture) = textured_roughness(src, &key, alpha, "dielectric")?;
                 textured = Textured::alpha(texture);
+                let specular = specular_factors(src, &key, r, t, &mut textured)?;
                 Bsdf::RoughDielectric(RoughDielectric {
                     ior: rough_ior(src, &key, *ior)?,
                     distribution: distribution_of(*distribution),
                     alpha,
+                    specular,
                 })
             }
             MaterialDesc::Plastic {
@@ -225,6 +251,26 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
     Ok(Materials {
         bsdfs: materials,
         textures,
+    })
+}
+
+/// A dielectric's `specular_reflectance` and `specular_transmittance` (each a colour in
+/// [0, 1] or a texture, whose mean stands in where no point is known); their textures go to
+/// `textured` (`specular` and `transmittance`).
+fn specular_factors(
+    src: &SceneSource,
+    key: &KeyPath,
+    r: &ReflectanceValue,
+    t: &ReflectanceValue,
+    textured: &mut Textured,
+) -> Result<Specular, SceneError> {
+    let (r, rt) = reflectance(src, &key.clone().key("specular_reflectance"), r)?;
+    let (t, tt) = reflectance(src, &key.clone().key("specular_transmittance"), t)?;
+    textured.specular = rt.map(Arc::new);
+    textured.transmittance = tt.map(Arc::new);
+    Ok(Specular {
+        reflectance: r,
+        transmittance: t,
     })
 }
 

@@ -181,6 +181,7 @@ pub(super) fn shapes(
             reflectance: t.reflectance.clone(),
             alpha: t.alpha.clone(),
             specular: t.specular.clone(),
+            transmittance: t.transmittance.clone(),
             uv: uv_map(s, prims.len() as u32, uvs),
         });
         let light = emission.map(|radiance| {

@@ -27,7 +27,7 @@ use glam::Vec3;
 use pathspace::bsdf::{
     plastic, Bsdf, Conductor, ConductorFresnel, Dielectric, Distribution, Lambert, Lobe,
     Microfacet, Mirror, Normals, Null, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
-    ThinDielectric, TransportMode,
+    Specular, ThinDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
@@ -36,6 +36,13 @@ use std::collections::BTreeSet;
 
 /// An albedo per channel, each below one, distinct so that a channel mix-up shows.
 const ALBEDO: Rgb = Vec3::new(0.2, 0.5, 0.9);
+
+/// A dielectric's `specular_reflectance` and `specular_transmittance`: distinct channels, and
+/// distinct from each other, so that a factor on the wrong lobe or in one mode only shows.
+const TINT: Specular = Specular {
+    reflectance: Vec3::new(0.9, 0.6, 0.3),
+    transmittance: Vec3::new(0.4, 0.7, 1.0),
+};
 
 /// Every model under contract: each variant of `Bsdf` at least once, one-sided and two-sided,
 /// both microfacet distributions, and interfaces seen from the rarer and the denser side.
@@ -68,14 +75,34 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 one_sided: true,
             }),
         ),
-        ("dielectric 1.5", Bsdf::Dielectric(Dielectric { ior: 1.5 })),
-        (
-            "dielectric 0.75",
-            Bsdf::Dielectric(Dielectric { ior: 0.75 }),
-        ),
+        ("dielectric 1.5", Bsdf::Dielectric(Dielectric::new(1.5))),
+        ("dielectric 0.75", Bsdf::Dielectric(Dielectric::new(0.75))),
         (
             "thin dielectric",
-            Bsdf::ThinDielectric(ThinDielectric { ior: 1.5 }),
+            Bsdf::ThinDielectric(ThinDielectric::new(1.5)),
+        ),
+        (
+            "dielectric 1.5 tinted",
+            Bsdf::Dielectric(Dielectric {
+                ior: 1.5,
+                specular: TINT,
+            }),
+        ),
+        (
+            "thin dielectric tinted",
+            Bsdf::ThinDielectric(ThinDielectric {
+                ior: 1.5,
+                specular: TINT,
+            }),
+        ),
+        (
+            "rough dielectric GGX 0.75 tinted",
+            Bsdf::RoughDielectric(RoughDielectric {
+                ior: 0.75,
+                distribution: Distribution::Ggx,
+                alpha: 0.3,
+                specular: TINT,
+            }),
         ),
         (
             "rough conductor GGX",
@@ -149,6 +176,7 @@ fn rough_dielectric(distribution: Distribution, ior: f32) -> Bsdf {
         ior,
         distribution,
         alpha: 0.3,
+        specular: pathspace::bsdf::Specular::ONE,
     })
 }
 

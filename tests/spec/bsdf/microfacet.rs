@@ -48,6 +48,7 @@ fn dielectric(distribution: Distribution, alpha: f32) -> Bsdf {
         ior: 1.5,
         distribution,
         alpha,
+        specular: pathspace::bsdf::Specular::ONE,
     })
 }
 
@@ -450,6 +451,7 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
                 ior,
                 distribution: dist,
                 alpha,
+                specular: pathspace::bsdf::Specular::ONE,
             });
             let (mut refracting, mut reflecting) = (0, 0);
             for (a, b) in pairs(4, n) {
@@ -645,7 +647,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
     const N: u64 = 40_000;
     let n = normal();
     let ior = 1.5f32;
-    let smooth = Bsdf::Dielectric(Dielectric { ior });
+    let smooth = Bsdf::Dielectric(Dielectric::new(ior));
     let mut fam = Family::new("microfacet: alpha -> 0 is the smooth dielectric");
     let configs = DISTRIBUTIONS
         .into_iter()
@@ -655,6 +657,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
             ior,
             distribution: dist,
             alpha: ALPHA_SMALL,
+            specular: pathspace::bsdf::Specular::ONE,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 0.7);
         for mode in [TransportMode::Radiance, TransportMode::Importance] {

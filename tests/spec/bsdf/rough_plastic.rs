@@ -225,6 +225,7 @@ fn tables_match_the_rough_dielectric() {
             ior: eta,
             distribution: d,
             alpha,
+            specular: pathspace::bsdf::Specular::ONE,
         });
         let g = Microfacet::new(d, alpha);
         let p = plastic(d, alpha, eta, Vec3::ONE, 1.0);

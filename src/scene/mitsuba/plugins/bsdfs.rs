@@ -316,47 +316,75 @@ fn conductor_index(
     Ok(((None, Some(rgb(e)), Some(rgb(k))), how))
 }
 
-/// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`.
+/// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`, with the two
+/// factors of [`specular_factors`].
 fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
     let rough = p.plugin == "roughdielectric";
     let alpha = if rough { Some(microfacet(p)?) } else { None };
     let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
-    for k in ["specular_reflectance", "specular_transmittance"] {
-        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
-            return Err(p.err(format!("{k} other than 1 is not supported")));
-        }
-    }
+    let ((specular_reflectance, specular_transmittance), shown) = specular_factors(p)?;
     Ok(match alpha {
         None => (
-            MaterialDesc::Dielectric { ior: ior as f32 },
-            format!("dielectric, ior {ior} (int_ior / ext_ior)"),
+            MaterialDesc::Dielectric {
+                ior: ior as f32,
+                specular_reflectance,
+                specular_transmittance,
+            },
+            format!("dielectric, ior {ior} (int_ior / ext_ior){shown}"),
         ),
         Some((d, a)) => (
             MaterialDesc::RoughDielectric {
                 ior: ior as f32,
                 alpha: a.clone(),
                 distribution: d,
+                specular_reflectance,
+                specular_transmittance,
             },
             format!(
-                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), alpha {a}",
+                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), alpha {a}{shown}",
                 dist_name(d)
             ),
         ),
     })
 }
 
-/// `thindielectric`: `ior` = int_ior / ext_ior (defaults bk7 and air), as `dielectric`.
+/// `thindielectric`: `ior` = int_ior / ext_ior (defaults bk7 and air), and the two factors,
+/// as `dielectric`.
 fn thin_dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
     let ior = ior(p, "int_ior", 1.5046)? / ior(p, "ext_ior", 1.000277)?;
-    for k in ["specular_reflectance", "specular_transmittance"] {
-        if p.color(k)?.is_some_and(|c| c != DVec3::ONE) {
-            return Err(p.err(format!("{k} other than 1 is not supported")));
-        }
-    }
+    let ((specular_reflectance, specular_transmittance), shown) = specular_factors(p)?;
     Ok((
-        MaterialDesc::ThinDielectric { ior: ior as f32 },
-        format!("thin dielectric, ior {ior} (int_ior / ext_ior)"),
+        MaterialDesc::ThinDielectric {
+            ior: ior as f32,
+            specular_reflectance,
+            specular_transmittance,
+        },
+        format!("thin dielectric, ior {ior} (int_ior / ext_ior){shown}"),
     ))
+}
+
+/// A dielectric's `specular_reflectance` and `specular_transmittance` (Mitsuba 3
+/// documentation, plugins `dielectric`, `roughdielectric`, `thindielectric`: a colour or a
+/// texture, default 1, scaling reflection and transmission), and what the note adds.
+fn specular_factors(
+    p: &mut Props,
+) -> Result<((ReflectanceValue, ReflectanceValue), String), SceneError> {
+    let mut shown = String::new();
+    let mut factor = |p: &mut Props, key: &str| -> Result<ReflectanceValue, SceneError> {
+        if let Some(t) = p.texture(key) {
+            let t = ReflectanceValue::Texture(texture(p.doc, t)?);
+            shown += &format!(", {key} {t}");
+            return Ok(t);
+        }
+        let c = p.color(key)?.unwrap_or(DVec3::ONE);
+        if c != DVec3::ONE {
+            shown += &format!(", {key} {}", show(c));
+        }
+        Ok(rgb(c).into())
+    };
+    let r = factor(p, "specular_reflectance")?;
+    let t = factor(p, "specular_transmittance")?;
+    Ok(((r, t), shown))
 }
 
 /// `plastic`: pathspace's `ior` is `int_ior / ext_ior` (defaults "polypropylene" and "air"),

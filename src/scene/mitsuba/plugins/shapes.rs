@@ -151,7 +151,29 @@ fn is_textured(m: &MaterialDesc) -> bool {
             ..
         } => matches!(a, RoughnessValue::Texture(_)) || matches!(s, ReflectanceValue::Texture(_)),
         MaterialDesc::Conductor { specular: s, .. } => matches!(s, ReflectanceValue::Texture(_)),
-        MaterialDesc::RoughDielectric { alpha: a, .. } => matches!(a, RoughnessValue::Texture(_)),
+        MaterialDesc::RoughDielectric {
+            alpha: a,
+            specular_reflectance: r,
+            specular_transmittance: t,
+            ..
+        } => {
+            matches!(a, RoughnessValue::Texture(_))
+                || [r, t]
+                    .iter()
+                    .any(|v| matches!(v, ReflectanceValue::Texture(_)))
+        }
+        MaterialDesc::Dielectric {
+            specular_reflectance: r,
+            specular_transmittance: t,
+            ..
+        }
+        | MaterialDesc::ThinDielectric {
+            specular_reflectance: r,
+            specular_transmittance: t,
+            ..
+        } => [r, t]
+            .iter()
+            .any(|v| matches!(v, ReflectanceValue::Texture(_))),
         _ => false,
     }
 }
