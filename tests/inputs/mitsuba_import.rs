@@ -592,6 +592,79 @@ radiance = 0.25
     );
 }
 
+/// A dielectric's `specular_reflectance` and `specular_transmittance` (Mitsuba 3
+/// documentation, plugins `dielectric`, `roughdielectric`, `thindielectric`: a colour or a
+/// texture scaling reflection and transmission) are the TOML keys of the same names.
+#[test]
+fn tinted_dielectrics_are_mitsubas() {
+    let png = "tests/fixtures/textures/rgb4x3.png";
+    same_scene(
+        &scene(&format!(
+            r#"<shape type="sphere">
+        <point name="center" x="-0.5" y="0" z="0"/><float name="radius" value="0.5"/>
+        <bsdf type="dielectric" id="tinted"><rgb name="specular_reflectance" value="0.5, 0.8, 1"/><texture type="checkerboard" name="specular_transmittance"><rgb name="color0" value="1, 0.5, 0.1"/><rgb name="color1" value="0.1, 0.5, 1"/></texture></bsdf>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted"><float name="alpha" value="0.3"/><texture type="bitmap" name="specular_reflectance"><string name="filename" value="{png}"/></texture><float name="specular_transmittance" value="0.7"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="thindielectric" id="pane"><rgb name="specular_reflectance" value="0.2, 0.5, 1"/><rgb name="specular_transmittance" value="1, 0.5, 0.2"/></bsdf>
+        <transform name="to_world"><translate z="-1"/></transform>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.5"/></emitter>"#
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials.tinted]
+type = "dielectric"
+ior = {:?}
+specular_reflectance = [0.5, 0.8, 1.0]
+specular_transmittance = {{ texture = "checkerboard", color0 = [1.0, 0.5, 0.1], color1 = [0.1, 0.5, 1.0] }}
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+ior = {:?}
+alpha = 0.3
+specular_reflectance = {{ texture = "bitmap", file = "{png}" }}
+specular_transmittance = 0.7
+[materials.pane]
+type = "thin_dielectric"
+ior = {:?}
+specular_reflectance = [0.2, 0.5, 1.0]
+specular_transmittance = [1.0, 0.5, 0.2]
+[[shapes]]
+type = "sphere"
+center = [-0.5, 0.0, 0.0]
+radius = 0.5
+material = "tinted"
+[[shapes]]
+type = "sphere"
+center = [0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "pane"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.5
+"#,
+            (1.5046f64 / 1.000277) as f32,
+            (1.5046f64 / 1.000277) as f32,
+            (1.5046f64 / 1.000277) as f32,
+        ),
+    );
+}
+
 /// `thindielectric`: `int_ior` over `ext_ior` (numbers or Mitsuba's names), reflected or passed
 /// unbent, two-sided.
 #[test]
@@ -1167,8 +1240,8 @@ fn unsupported_input_is_refused_with_its_name_and_line() {
             "either the material or eta and k",
         ),
         (
-            r#"<shape type="rectangle"><bsdf type="dielectric"><texture name="specular_reflectance" type="checkerboard"/></bsdf></shape>"#,
-            "textures",
+            r#"<shape type="rectangle"><bsdf type="dielectric"><texture name="specular_transmittance" type="mesh_attribute"/></bsdf></shape>"#,
+            "the texture `mesh_attribute`",
         ),
         (
             r#"<shape type="rectangle"><bsdf type="diffuse"><float name="roughness" value="1"/></bsdf></shape>"#,
