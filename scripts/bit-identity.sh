@@ -24,6 +24,7 @@ configs() {
   done
   echo "fog-bdpt-guide|scenes/fog-box.toml|--integrator bdpt --guide both --guide-particles 2000 --guide-regions 16"
   echo "fog-light-guide|scenes/fog-box.toml|--integrator light --guide volume --guide-particles 2000 --guide-regions 16 --guide-roulette 1"
+  echo "fog-path-guide|scenes/fog-box.toml|--integrator path --guide both --guide-particles 2000 --guide-regions 16 --guide-roulette 1"
   echo "fog-mlt-guide|scenes/fog-box.toml|--integrator mlt --guide both --guide-particles 2000 --guide-regions 16 --guide-sampler metropolis"
   echo "fog-bdpt-adjoint|scenes/fog-box.toml|--integrator bdpt --adjoint-image --adjoint-resolution 8x8"
   echo "fog-light-adjoint|scenes/fog-box.toml|--integrator light --adjoint-image --adjoint-resolution 8x8 --adjoint-estimator metropolis"

@@ -210,7 +210,8 @@ impl GuidedVariant {
         };
         if !super::render::guides(kind) {
             return Err(CliError::Usage(format!(
-                "`{s}`: +guide applies to bdpt, light and mlt, not `{}`",
+                "`{s}`: +guide applies to {}, not `{}`",
+                crate::render::run::guide_takers(),
                 kind.name()
             )));
         }

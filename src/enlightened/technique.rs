@@ -199,4 +199,10 @@ impl LocalSampling for Enlightened {
     ) -> Option<f32> {
         guide::roulette_survival(self.guide.as_deref()?, lhat, throughput_ratio, q_max)
     }
+
+    fn guides_scattering(&self) -> bool {
+        self.guide
+            .as_deref()
+            .is_some_and(|g| g.settings.kind != GuideKind::Off)
+    }
 }

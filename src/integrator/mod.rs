@@ -102,10 +102,14 @@ impl IntegratorKind {
         self.facts().prepare(setup)
     }
 
-    /// Whether the integrator samples light start points (and so can use the guide and the
-    /// adjoint image).
+    /// Whether the integrator samples light start points (and so can use the adjoint image).
     pub fn samples_light_starts(self) -> bool {
         self.facts().samples_light_starts()
+    }
+
+    /// Whether the integrator samples with the guide ([`Facts::takes_guide`]).
+    pub fn takes_guide(self) -> bool {
+        self.facts().takes_guide()
     }
 
     /// The names of the integrators whose facts say `yes`, for a message (`path or smc`).
@@ -214,9 +218,17 @@ pub trait Facts: Sync {
         setup: &Setup<'_, 't>,
     ) -> Result<Box<dyn Integrator + 't>, IntegratorError>;
 
-    /// Whether it samples light start points (and so can use the guide and the adjoint image).
+    /// Whether it samples light start points (and so can use the adjoint image).
     fn samples_light_starts(&self) -> bool {
         false
+    }
+
+    /// Whether it samples with the guide (`--guide`, `[render.guide]`): its walks draw their
+    /// scattering directions, and its MIS weights evaluate them, through the technique. By
+    /// default the integrators that sample light start points (their subpaths are the
+    /// technique's from both ends).
+    fn takes_guide(&self) -> bool {
+        self.samples_light_starts()
     }
 
     /// Why it cannot render a scene with an emitting medium (L_e,V0 of eq. 1), or `None` when

@@ -12,6 +12,8 @@ use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Ray};
 use crate::math::{warp, Frame, Sampler};
 use crate::path::distance::RayMedia;
+use crate::path::technique::{local_scatter_pdf, LocalSampling, ScatterSample};
+use crate::path::{Vertex, VertexKind};
 use crate::scene::{Event, IrradianceMeter, LightSelection, Scene};
 use crate::spectrum::Rgb;
 
@@ -54,7 +56,7 @@ pub fn distance_mis(a: f32, b: f32) -> f32 {
 
 /// The path tracer's parameters.
 #[derive(Clone, Debug)]
-pub struct PathTracer {
+pub struct PathTracer<'t> {
     /// Maximum number of scattering vertices (surface or medium) between sensor and light.
     pub max_depth: u32,
     /// How distances along the walk's rays are sampled for the light scattered toward lights.
@@ -64,6 +66,10 @@ pub struct PathTracer {
     /// Next-event estimation toward emitting media (`[render] volume_next_event`); without
     /// it their emission is collected along free flights alone, with MIS weight 1.
     pub volume_next_event: bool,
+    /// The technique that guides scattering directions (Kristensen 2010, sec. 5.3: the
+    /// mixtures of eq. 5.18 and its medium form, the guided choice at glass, guided roulette),
+    /// when one does; `None`: the BSDF's and phase function's own sampling, as always.
+    pub guide: Option<&'t dyn LocalSampling>,
 }
 
 /// How the path tracer samples the distance to a medium vertex on each ray of its walk, for
@@ -97,14 +103,63 @@ struct Previous {
     singular: bool,
 }
 
-impl PathTracer {
+impl<'t> PathTracer<'t> {
     pub fn new(max_depth: Option<u32>) -> Self {
         PathTracer {
             max_depth: max_depth.unwrap_or(u32::MAX),
             distance: DistanceSampling::FreeFlight,
             selection: LightSelection::Power,
             volume_next_event: true,
+            guide: None,
         }
+    }
+
+    /// This path tracer sampling its scattering directions from `technique` where it guides
+    /// them ([`LocalSampling::guides_scattering`]), else as before.
+    pub fn with_guide(mut self, technique: &'t dyn LocalSampling) -> Self {
+        self.guide = technique.guides_scattering().then_some(technique);
+        self
+    }
+
+    /// The solid-angle density with which the walk samples `wi` at the surface or medium
+    /// vertex `v` reached from `wo`: the guide's mixture (c1 p_fs + c2 p_Li, eq. 5.18, or
+    /// c1 p_fp + c2 p_Li in a medium) where it guides `v`, else the BSDF's or phase function's
+    /// own. Every MIS weight of the walk against a direction it could have sampled (next-event
+    /// estimation toward lights and emitting media, the equiangular estimate's light sample)
+    /// takes this density, the partner of the sampled direction's [`ScatterSample::pdf`].
+    // ANCHOR: path_scatter_pdf
+    pub fn scatter_pdf(&self, scene: &Scene, v: &Vertex, wo: Vec3, wi: Vec3) -> f32 {
+        match self.guide {
+            Some(tech) => tech.scatter_pdf(scene, v, wo, wi, TransportMode::Radiance),
+            None => local_scatter_pdf(scene, v, wo, wi).unwrap_or(0.0),
+        }
+    }
+    // ANCHOR_END: path_scatter_pdf
+
+    /// The walk's direction at the surface or medium vertex `v` reached from `wo`: from the
+    /// guide where one is installed (its mixture, the guided lobe choice at glass), with the
+    /// density [`PathTracer::scatter_pdf`] gives; `None` ends the walk.
+    pub fn sample_scatter(
+        &self,
+        scene: &Scene,
+        v: &Vertex,
+        wo: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<ScatterSample> {
+        let tech = self.guide.unwrap_or(&crate::path::technique::PLAIN);
+        tech.sample_scatter(scene, v, wo, TransportMode::Radiance, sampler)
+            .filter(|ss| ss.pdf > 0.0)
+    }
+
+    /// The medium vertex at `p` in medium `m`, for the guide's map lookup.
+    fn medium_vertex_at(p: Vec3, m: u32) -> Vertex {
+        Vertex::new(
+            VertexKind::Medium { medium: m },
+            p,
+            Vec3::ZERO,
+            Some(m),
+            Some(m),
+        )
     }
 
     /// This path tracer with or without next-event estimation toward emitting media.
@@ -178,9 +233,12 @@ impl PathTracer {
         let tr = media.transmittance(scene, i, t, sampler);
         let beta = tr * medium.sigma_s(p) * (mis / pdf_eq);
         let (phase, wo) = (medium.phase(), -media.ray.d);
+        // the MIS partner is the walk's direction sampling at p: the guide's mixture there
+        let v = self.guide.map(|_| Self::medium_vertex_at(p, m));
         let scatter = |wi: Vec3| {
             let f = phase.eval(wo, wi);
-            (Rgb::splat(f), f)
+            let pdf = v.as_ref().map_or(f, |v| self.scatter_pdf(scene, v, wo, wi));
+            (Rgb::splat(f), pdf)
         };
         // the MIS weight against phase sampling at p takes the selection's probability at p,
         // as the walk's emission found from p does; the estimate divides by the one drawn
@@ -301,7 +359,7 @@ impl PathTracer {
             }
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
             if w.depth >= PATH_RR_START_DEPTH {
-                let q = w.beta.max_element().min(RR_MAX_SURVIVAL);
+                let q = self.survival(&w);
                 if sampler.next_f32() >= q || q.is_nan() {
                     break;
                 }
@@ -340,9 +398,11 @@ impl PathTracer {
             _ => 1.0,
         };
         // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
+        let v = self.guide.map(|_| Self::medium_vertex_at(p, m));
         let scatter = |wi: Vec3| {
             let f = phase.eval(wo, wi);
-            (Rgb::splat(f), f)
+            let pdf = v.as_ref().map_or(f, |v| self.scatter_pdf(scene, v, wo, wi));
+            (Rgb::splat(f), pdf)
         };
         *l += w.beta
             * next_event_weighted(
@@ -358,11 +418,18 @@ impl PathTracer {
         *l += w.beta * self.volume_nee(scene, (p, None), |_| Some(m), sampler, scatter);
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
-        let ps = phase.sample(wo, sampler.next_2d());
+        let ps = match &v {
+            Some(v) => match self.sample_scatter(scene, v, wo, sampler) {
+                Some(ss) => ss,
+                None => return false,
+            },
+            None => ScatterSample::from_phase(phase.sample(wo, sampler.next_2d())),
+        };
         if ps.pdf <= 0.0 {
             return false;
         }
         w.beta *= ps.value / ps.pdf;
+        w.lhat = ps.lhat;
         w.prev = Previous {
             p,
             n: None,
@@ -408,12 +475,17 @@ impl PathTracer {
             ng: n,
             ns: scene.shading_normal(hit),
         };
+        let v = self.guide.map(|_| Vertex::on_surface(scene, hit, m));
         // the regular lobe's light by next-event estimation; a Dirac lobe's only by sampling
         if bsdf.has_regular_lobe() {
             let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
             let scatter = |wi: Vec3| {
                 let f = bsdf.eval_shaded(wo, wi, nn, TransportMode::Radiance);
-                (f * wi.dot(n).abs(), bsdf.pdf_shaded(wo, wi, nn))
+                let pdf = match &v {
+                    Some(v) => self.scatter_pdf(scene, v, wo, wi),
+                    None => bsdf.pdf_shaded(wo, wi, nn),
+                };
+                (f * wi.dot(n).abs(), pdf)
             };
             let (sel, no_weight) = (&self.selection, |_: usize, _: &_| 1.0);
             *l += w.beta
@@ -430,9 +502,18 @@ impl PathTracer {
             let to = (hit.p, Some(n));
             *l += w.beta * self.volume_nee(scene, to, towards, sampler, scatter);
         }
-        let u = sampler.next_2d();
-        let uc = sampler.next_f32();
-        let Some(bs) = bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance) else {
+        let bs = match &v {
+            Some(v) => self.sample_scatter(scene, v, wo, sampler).map(|ss| {
+                w.lhat = ss.lhat;
+                ss.as_bsdf_sample()
+            }),
+            None => {
+                let u = sampler.next_2d();
+                let uc = sampler.next_f32();
+                bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance)
+            }
+        };
+        let Some(bs) = bs else {
             return false;
         };
         if bs.pdf <= 0.0 {
@@ -453,7 +534,20 @@ impl PathTracer {
     }
 }
 
-impl PathTracer {
+impl PathTracer<'_> {
+    /// Russian roulette's survival probability after the walk's latest scattering: the
+    /// throughput rule, or the guide's (sec. 5.3.4) where it guided that direction and guided
+    /// roulette is on (`--guide-roulette`).
+    fn survival(&self, w: &WalkState) -> f32 {
+        let plain = w.beta.max_element().min(RR_MAX_SURVIVAL);
+        let Some(tech) = self.guide else {
+            return plain;
+        };
+        let ratio = w.beta.max_element() / w.beta_start;
+        tech.roulette_survival(w.lhat, ratio, RR_MAX_SURVIVAL)
+            .unwrap_or(plain)
+    }
+
     /// [`volume_next_event`] when it is on, else nothing (and no random number drawn).
     fn volume_nee(
         &self,
@@ -480,6 +574,10 @@ struct WalkState {
     prev: Previous,
     /// Distance between the scattering vertex and the lifted ray origin.
     lead: f32,
+    /// The largest channel of the throughput the walk started with (guided roulette's beta_0).
+    beta_start: f32,
+    /// The guide's Lhat of the latest sampled direction, where it guided it.
+    lhat: Option<f32>,
 }
 
 impl WalkState {
@@ -492,6 +590,8 @@ impl WalkState {
             depth: 0,
             prev,
             lead: 0.0,
+            beta_start: beta.max_element(),
+            lhat: None,
         }
     }
 }
@@ -803,10 +903,19 @@ impl super::Facts for PathFacts {
         use super::OwnOption::*;
         matches!(option, EquiangularDistance | LightSelection)
     }
+
+    /// Its surface and medium vertices sample from the guide's mixtures (eq. 5.18 and its
+    /// medium form); it starts no light paths, so the guide's emission (eq. 5.17) is unused.
+    fn takes_guide(&self) -> bool {
+        true
+    }
 }
 
-/// The path tracer for the render loop (it takes no settings but the depth limit).
-pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super::IntegratorError> {
+/// The path tracer for the render loop: its depth limit, distance sampling, light selection
+/// and the setup's technique where it guides scattering.
+pub fn prepare<'t>(
+    setup: &super::Setup<'_, 't>,
+) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
     let distance = setup.settings.distance;
     let selection = LightSelection::build(setup.settings.light_selection, setup.scene);
     if distance == DistanceSampling::EquiangularMis {
@@ -816,7 +925,8 @@ pub fn prepare(setup: &super::Setup) -> Result<Box<dyn super::Integrator>, super
         PathTracer::new(setup.max_depth)
             .with_distance(distance)
             .with_light_selection(selection)
-            .with_volume_next_event(setup.settings.volume_next_event),
+            .with_volume_next_event(setup.settings.volume_next_event)
+            .with_guide(setup.technique),
     ))
 }
 
@@ -834,7 +944,7 @@ pub fn check_equiangular(scene: &Scene) -> Result<(), super::IntegratorError> {
     Ok(())
 }
 
-impl super::Integrator for PathTracer {
+impl super::Integrator for PathTracer<'_> {
     fn label(&self) -> String {
         "path".into()
     }

@@ -353,7 +353,7 @@ impl Spelling {
 /// and checks every value.
 #[derive(clap::Args, Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-#[command(next_help_heading = "Guiding (bdpt, light, mlt; [render.guide])")]
+#[command(next_help_heading = "Guiding (path, light, bdpt, mlt, pssmlt, mmlt; [render.guide])")]
 pub struct GuideOptions {
     /// Guide directions at `surface`, `volume` (medium) or `both` kinds of vertices, or `off`.
     #[arg(id = "guide_vertices", long = "guide", alias = "guide-vertices")]

@@ -517,9 +517,10 @@ impl Variant {
             refused(format!("{}: {}", key.trim_matches('.'), e.message))
         })?;
         let starts = self.kind.samples_light_starts();
-        if o.guide.any() && !starts {
+        if o.guide.any() && !self.kind.takes_guide() {
+            let takers = IntegratorKind::names_where(|f| f.takes_guide());
             return Err(refused(format!(
-                "guiding applies to bdpt, light and mlt, not `{}`",
+                "guiding applies to {takers}, not `{}`",
                 self.kind.name()
             )));
         }

@@ -181,6 +181,13 @@ pub trait LocalSampling: Sync + std::fmt::Debug {
         q_max: f32,
     ) -> Option<f32>;
 
+    /// Whether the technique guides any scattering direction (its [`LocalSampling::sample_scatter`]
+    /// differs from the BSDF's and phase function's own): the path tracer, which otherwise
+    /// samples them itself, then asks the technique.
+    fn guides_scattering(&self) -> bool {
+        false
+    }
+
     /// [`LocalSampling::sample_scatter_with`] drawing its numbers from `sampler`: a surface
     /// without a BSDF ends the walk before any number is drawn (the streams of plain renders
     /// stay as they always were).

@@ -126,7 +126,7 @@ fn integrator_parts(
 ) -> Vec<(&'static str, u64)> {
     let mut parts = kind.facts().memory_parts(&Case { scene, settings });
     let g = &settings.guide;
-    if g.kind != GuideKind::Off && kind.samples_light_starts() {
+    if g.kind != GuideKind::Off && kind.takes_guide() {
         let maps = g.regions.regions as u64 * g.cols as u64 * g.rows as u64 * 2 * 4;
         parts.push((
             "guide",

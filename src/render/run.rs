@@ -56,9 +56,14 @@ impl ShardOf {
     }
 }
 
-/// Whether integrator `kind` samples with the guide (the ones that sample light start points).
+/// Whether integrator `kind` samples with the guide ([`crate::integrator::Facts::takes_guide`]).
 pub fn guides(kind: IntegratorKind) -> bool {
-    kind.samples_light_starts()
+    kind.takes_guide()
+}
+
+/// The integrators that take the guide, for a message (`path, light, ... or mmlt`).
+pub fn guide_takers() -> String {
+    IntegratorKind::names_where(|f| f.takes_guide())
 }
 
 /// A render checked before any work: the scene, the integrator and its settings (a shard's
@@ -116,7 +121,8 @@ impl<'a> Render<'a> {
         warn_unreachable(scene, kind, &settings);
         if settings.guide.kind != GuideKind::Off && !guides(kind) {
             return Err(IntegratorError::Refused(format!(
-                "guiding (--guide or [render.guide] vertices) applies to bdpt, light and mlt, not `{}`",
+                "guiding (--guide or [render.guide] vertices) applies to {}, not `{}`",
+                guide_takers(),
                 kind.name()
             ))
             .into());

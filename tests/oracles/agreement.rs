@@ -109,6 +109,7 @@ impl Config {
             Config::Plain(Path),
             Config::PathPower,
             Config::Equiangular,
+            Config::Guided(Path),
             Config::Plain(Light),
             Config::Plain(Bdpt),
             Config::Plain(Mlt),

@@ -774,6 +774,14 @@ fn guide_and_adjoint_image_refuse_an_emitting_medium() {
             assert_eq!(names("adjoint image"), adjoint, "{e}");
         }
     }
+    // the path tracer takes the guide (not the adjoint image: it starts no light paths)
+    let mut s = settings.clone();
+    s.guide.kind = GuideKind::Volume;
+    let e = match Render::new(&scene, &src, IntegratorKind::Path, s, None) {
+        Ok(_) => panic!("path with the guide rendered an emitting medium"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("`glow`") && e.contains("the guide"), "path: {e}");
 }
 
 /// A scene without emission has no volume emitters: nothing is sampled, no random number

@@ -322,11 +322,6 @@ const COVERED: &[(&str, &str, &str)] = &[
         "the traced paths the mutations start from",
     ),
     (
-        "integrator::path",
-        "oracles::transport",
-        "the path tracer against analytic scenes",
-    ),
-    (
         "integrator::smc",
         "spec::integrator::smc::march",
         "SMC's estimators in media, with the cache's tests beside",

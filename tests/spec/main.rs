@@ -17,6 +17,7 @@ mod integrator {
     mod mixing;
     mod mlt;
     mod mmlt;
+    mod path;
     mod pssmlt;
     mod reach;
     mod settings;

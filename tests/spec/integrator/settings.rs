@@ -333,7 +333,7 @@ fn help_groups_the_options_and_lists_the_integrators() {
         "Render (each also a [render] key",
         "MLT: Metropolis light transport",
         "SMC: sequential Monte Carlo",
-        "Guiding (bdpt, light, mlt",
+        "Guiding (path, light, bdpt, mlt, pssmlt, mmlt;",
         "Adjoint image (bdpt, light, mlt",
         "Session: length, threads, output",
     ];
@@ -367,6 +367,16 @@ fn help_groups_the_options_and_lists_the_integrators() {
     assert!(
         listed.windows(2).all(|w| w[0] < w[1]) && places[0] < listed[0],
         "the integrators are not listed under --integrator in order: {listed:?}"
+    );
+    // the guiding heading names the integrators that take the guide, in the registry's order
+    let takers: Vec<&str> = pathspace::integrator::IntegratorKind::ALL
+        .iter()
+        .filter(|k| k.takes_guide())
+        .map(|k| k.name())
+        .collect();
+    assert!(
+        help.contains(&format!("Guiding ({}; [render.guide])", takers.join(", "))),
+        "the guiding heading does not name {takers:?}"
     );
 }
 
@@ -800,7 +810,7 @@ fn converge_lines_take_any_option_of_the_schema() {
     for (bad, says) in [
         ("path(colour=red)", "colour"),
         ("smc(smc.threshold=-1)", "smc.threshold"),
-        ("path(guide.vertices=surface)", "guiding applies"),
+        ("smc(guide.vertices=surface)", "guiding applies"),
         ("mlt(spp=4)", "the study's"),
         ("path(distance=equiangular", "`)`"),
     ] {
