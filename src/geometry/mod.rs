@@ -3,6 +3,7 @@
 
 pub mod aabb;
 pub mod bvh;
+pub mod leaf;
 pub mod shape;
 pub mod wide;
 

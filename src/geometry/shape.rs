@@ -141,6 +141,12 @@ impl Triangle {
         Some((t, v * inv, w * inv))
     }
     // ANCHOR_END: watertight
+
+    /// The point at barycentrics (b1, b2): `p0 + b1 e1 + b2 e2`.
+    #[inline]
+    pub fn point(&self, b1: f32, b2: f32) -> Vec3 {
+        self.p0 + b1 * self.e1() + b2 * self.e2()
+    }
 }
 
 /// The ray's frame of the watertight test (Woop et al. 2013, sec. 3): the axis `kz` where the
@@ -148,17 +154,19 @@ impl Triangle {
 /// direction to +z. (The paper also swaps x and y when d[kz] < 0 to keep the winding for
 /// back-face culling; a two-sided test does not need it: the swap only negates every edge
 /// function exactly.) The scale 1 / d[kz] that makes z the distance along the ray is applied
-/// once, to the interpolated z of a hit.
-struct RayShear {
-    kz: usize,
-    sx: f32,
-    sy: f32,
-    sz: f32,
+/// once, to the interpolated z of a hit. Leaves of triangles (`geometry::leaf`) set it up once
+/// per ray.
+pub struct RayShear {
+    /// The axis that becomes z; x and y are the next two, cyclically.
+    pub kz: usize,
+    pub sx: f32,
+    pub sy: f32,
+    pub sz: f32,
 }
 
 impl RayShear {
     #[inline]
-    fn new(ray: &Ray) -> Self {
+    pub fn new(ray: &Ray) -> Self {
         let ad = ray.d.abs();
         let kz = if ad.x > ad.y && ad.x > ad.z {
             0
@@ -206,7 +214,7 @@ fn edge(p: Vec3, q: Vec3) -> f32 {
 
 /// [`edge`] in f64, where the two products are exact.
 #[inline]
-fn edge_f64(p: Vec3, q: Vec3) -> f32 {
+pub fn edge_f64(p: Vec3, q: Vec3) -> f32 {
     (p.x as f64 * q.y as f64 - p.y as f64 * q.x as f64) as f32
 }
 
@@ -492,7 +500,7 @@ impl Primitive {
             }
             Primitive::Triangle(tri) => {
                 let (t, b1, b2) = tri.intersect_range(ray, t_min, t_max)?;
-                Some((t, tri.p0 + b1 * tri.e1() + b2 * tri.e2(), tri.n))
+                Some((t, tri.point(b1, b2), tri.n))
             }
             Primitive::Sphere(s) => {
                 // numerically stable quadratic on the offset from the centre

@@ -18,8 +18,9 @@ use super::Aabb;
 /// Children per node.
 pub const WIDTH: usize = 4;
 
-/// A child: an interior node of the four-wide tree or a leaf, which is named by its node in
-/// the binary tree (that node holds its run of primitive indices). One `u32`, the low bit
+/// A child: an interior node of the four-wide tree or a leaf, which [`collapse`] names by its
+/// node in the binary tree (that node holds its run of primitive indices) and the BVH then by
+/// its first block (`geometry::leaf`). One `u32`, the low bit
 /// telling which, so that traversal stacks stay small (a stack is set up for every ray).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Slot(pub u32);
@@ -28,7 +29,7 @@ pub struct Slot(pub u32);
 pub enum Child {
     /// A node of the four-wide tree.
     Node(usize),
-    /// The binary tree's leaf node.
+    /// A leaf: its binary node, or its first block once the BVH has laid the leaves out.
     Leaf(usize),
 }
 
@@ -37,8 +38,8 @@ impl Slot {
         Slot(index << 1)
     }
 
-    fn leaf(binary_node: usize) -> Self {
-        Slot(((binary_node as u32) << 1) | 1)
+    pub fn leaf(index: usize) -> Self {
+        Slot(((index as u32) << 1) | 1)
     }
 
     #[inline]

@@ -146,8 +146,10 @@ fn integrator_parts(
 fn scene_bytes(scene: &Scene) -> u64 {
     /// A primitive in the BVH with its node share: up to two references per primitive (large
     /// ones are split, `geometry::bvh`), each with about one binary node (32 bytes), a third of
-    /// a four-wide one (128) and its index, besides the primitive itself.
-    const PRIMITIVE_BYTES: u64 = 256;
+    /// a four-wide one (128) and its index, besides the primitive itself, and its share of its
+    /// leaf's block (`geometry::leaf`: 176 bytes for up to four references, 62 to 66 bytes per
+    /// primitive on the million-triangle sphere and the hundred rooms).
+    const PRIMITIVE_BYTES: u64 = 320;
     /// A null boundary's share of the second tree it is in (`Scene::boundary_bvh`): the node
     /// share of `PRIMITIVE_BYTES` again, without the primitive.
     const BOUNDARY_BYTES: u64 = 160;

@@ -148,6 +148,85 @@ fn closest_hit_equals_brute_force() {
     assert!(hits > 3000, "the test rays mostly miss ({hits} hits)");
 }
 
+/// The closest hit of an all-opaque scene by testing every primitive: the least (t, index)
+/// (the tie-break's order when no null primitive competes), with the primitive's own point
+/// and normal.
+fn brute_exact(prims: &[Primitive], ray: &Ray, t_max: f32) -> Option<(f32, u32, Vec3, Vec3)> {
+    let mut best: Option<(f32, u32, Vec3, Vec3)> = None;
+    for (i, p) in prims.iter().enumerate() {
+        if let Some((t, q, n)) = p.intersect(ray, t_max) {
+            if best.is_none_or(|b| t < b.0) {
+                best = Some((t, i as u32, q, n));
+            }
+        }
+    }
+    best
+}
+
+/// The BVH's hit is brute force's bit for bit: the same primitive, and the distance, point and
+/// normal that primitive's own test gives, although the leaves test triangles four at a time
+/// (`geometry::leaf`). Over the random soup (triangles in the same leaves as other kinds) and a
+/// grid of triangles hit through its shared edges and corners, where edge functions vanish and
+/// the test falls back to f64.
+#[test]
+fn hits_are_the_primitives_own_bit_for_bit() {
+    let bits = |h: (f32, u32, Vec3, Vec3)| {
+        let v = |p: Vec3| p.to_array().map(f32::to_bits);
+        (h.0.to_bits(), h.1, v(h.2), v(h.3))
+    };
+    let mut r = rng(41);
+    let mut grid = Vec::new();
+    let corner =
+        |i: usize, j: usize| Vec3::new(i as f32 / 8.0, 0.25 * (i % 3) as f32, j as f32 / 8.0);
+    for i in 0..16 {
+        for j in 0..16 {
+            let (a, b, c, d) = (
+                corner(i, j),
+                corner(i + 1, j),
+                corner(i + 1, j + 1),
+                corner(i, j + 1),
+            );
+            grid.extend(
+                [[a, b, c], [a, c, d]]
+                    .map(|[p, q, s]| Triangle::new(p, q, s).map(Primitive::Triangle)),
+            );
+        }
+    }
+    let grid: Vec<Primitive> = grid.into_iter().flatten().collect();
+    let mut checked = (0, 0);
+    for (scene, prims) in [soup(&mut r, 600), grid].into_iter().enumerate() {
+        let opaque = vec![true; prims.len()];
+        let bvh = Bvh::build(&prims);
+        for _ in 0..4000 {
+            let ray = if scene == 0 {
+                random_ray(&mut r)
+            } else {
+                // through a corner or the middle of an edge of the grid, from above
+                let (i, j) = (r.random_range(1..32), r.random_range(1..32));
+                let at = Vec3::new(i as f32 / 16.0, 0.0, j as f32 / 16.0);
+                let at = at + Vec3::Y * 0.25 * ((i / 2) % 3) as f32 * ((i % 2 == 0) as u32 as f32);
+                let o = at + Vec3::new(r.random_range(-1.0..1.0), 2.0, r.random_range(-1.0..1.0));
+                Ray::new(o, (at - o).normalize())
+            };
+            let got = bvh.intersect(&prims, &opaque, &ray, f32::INFINITY);
+            let got = got.map(|h| bits((h.t, h.prim, h.p, h.ng)));
+            assert_eq!(
+                got,
+                brute_exact(&prims, &ray, f32::INFINITY).map(bits),
+                "scene {scene}: {ray:?}"
+            );
+            if got.is_some() {
+                if scene == 0 {
+                    checked.0 += 1
+                } else {
+                    checked.1 += 1
+                }
+            }
+        }
+    }
+    assert!(checked.0 > 1000 && checked.1 > 3000, "{checked:?} hits");
+}
+
 /// A scene of up to 8 walls is split to leaves of at most two, although the SAH prefers one
 /// leaf (it counts rays entering the box from outside; the rays of a box of walls start inside
 /// it), and its hits from inside are those of brute force.
