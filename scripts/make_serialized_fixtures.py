@@ -101,11 +101,12 @@ def fixtures():
         shape(3, "", **TETRA),
         shape(3, "", normals=PANEL_NORMALS, double=True, **PANEL),
     ])
-    files = {"multi.serialized": (multi, 3), "legacy.serialized": (legacy, 2)}
+    files = {"multi.serialized": (multi, [True, False, False]),
+             "legacy.serialized": (legacy, [True, True])}
     for name, (data, _) in files.items():
         with open(os.path.join(FIXTURES, name), "wb") as f:
             f.write(data)
-    return {name: count for name, (_, count) in files.items()}
+    return {name: stored for name, (_, stored) in files.items()}
 
 
 def obj_mesh(name):
@@ -140,17 +141,18 @@ def scene_file():
         f.write(data)
 
 
-def mitsuba_reads(counts):
-    """What Mitsuba 3 loads for every shape of every fixture."""
+def mitsuba_reads(stored):
+    """What Mitsuba 3 loads for every shape of every fixture (`stored`: per file, whether each
+    shape stores its normals)."""
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
     shapes = []
-    for name, count in counts.items():
-        for k in range(count):
+    for name, has_normals in stored.items():
+        for k in range(len(has_normals)):
             s = mi.load_dict({"type": "serialized", "filename": os.path.join(FIXTURES, name),
                               "shape_index": k})
             p = mi.traverse(s)
-            rec = {"file": name, "shape_index": k}
+            rec = {"file": name, "shape_index": k, "stored_normals": has_normals[k]}
             for key, dim in (("vertex_positions", 3), ("vertex_normals", 3),
                              ("vertex_texcoords", 2), ("faces", 3)):
                 flat = list(p[key]) if key in p else []
@@ -162,11 +164,10 @@ def mitsuba_reads(counts):
             shapes.append(rec)
     out = {"mitsuba": mi.__version__, "variant": "scalar_rgb", "shapes": shapes}
     with open(os.path.join(FIXTURES, "mitsuba.json"), "w") as f:
-        json.dump(out, f, indent=0)
-        f.write("\n")
+        f.write(json.dumps(out, separators=(",", ":")).replace("},{", "},\n{") + "\n")
 
 
 if __name__ == "__main__":
-    counts = fixtures()
+    stored = fixtures()
     scene_file()
-    mitsuba_reads(counts)
+    mitsuba_reads(stored)
