@@ -292,6 +292,8 @@ def mutate_serialized(rng, data):
     extreme, or one shape's stream inflated, mutated (`mutate_serialized_stream`) and
     compressed again, so that mutations get past zlib's checksum."""
     import zlib
+    if not data:
+        return data, "serialized: empty"
     op = rng.choice(["truncate", "byte", "dictionary", "stream", "stream", "stream"])
     if op == "truncate":
         at = rng.randrange(len(data) + 1)
@@ -299,8 +301,13 @@ def mutate_serialized(rng, data):
     if op == "byte":
         at = rng.randrange(len(data))
         return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"serialized: byte {at}"
-    count = struct.unpack("<I", data[-4:])[0]
-    offsets = list(struct.unpack(f"<{count}Q", data[-4 - 8 * count:-4]))
+    count = struct.unpack("<I", data[-4:])[0] if len(data) >= 4 else 0
+    table_start = len(data) - 4 - 8 * count
+    offsets = list(struct.unpack(f"<{count}Q", data[table_start:-4])) if table_start >= 4 else []
+    if not (offsets and offsets == sorted(offsets) and offsets[-1] < table_start):
+        # an earlier step broke the dictionary: its shapes cannot be found, so flip a byte
+        at = rng.randrange(max(len(data), 1))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"serialized: byte {at}"
     if op == "dictionary":
         v = rng.choice(SERIALIZED_COUNTS)
         at = len(data) - 4 if rng.random() < 0.4 else len(data) - 4 - 8 * rng.randrange(1, count + 1)
@@ -311,7 +318,10 @@ def mutate_serialized(rng, data):
         return out, f"serialized: dictionary at {at} -> {v}"
     k = rng.randrange(count)
     end = offsets[k + 1] if k + 1 < count else len(data) - 4 - 8 * count
-    body = zlib.decompress(data[offsets[k] + 4:end])
+    try:
+        body = zlib.decompress(data[offsets[k] + 4:end])
+    except zlib.error:  # an earlier step damaged the stream
+        return data[:end - 1], f"serialized: truncate at {end - 1}"
     body, what = mutate_serialized_stream(rng, body)
     shape = data[offsets[k]:offsets[k] + 4] + zlib.compress(body)
     shift = len(shape) - (end - offsets[k])
