@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids
-(text, `.vol` and OpenVDB), OBJ meshes, EXR and Radiance (.hdr) environment maps and PNG
+(text, `.vol` and OpenVDB), OBJ, PLY and Mitsuba `serialized` meshes, EXR and Radiance (.hdr) environment maps and PNG
 textures, and of the
 files it reads back: checkpoints and renders.
 
@@ -50,7 +50,7 @@ checkpoint's pass count depends on timing, so its bytes may differ; `--keep` sav
 runs only the cases of one kind among the indices (`--only vdb`: the scene cases that mutate
 an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map; `--only png`: those
 that read a PNG texture; `--only uv`: those that mutate a textured mesh, an OBJ with `vt` or a
-PLY with `u`, `v`).
+PLY with `u`, `v`; `--only serialized`: those that mutate a Mitsuba `serialized` mesh file).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -251,6 +251,84 @@ def mutate_ply(rng, data):
     words = ["0", "-1", "4294967295", "nan", "inf", "1e30", "u", "v", "s", "t", "texture_u",
              "double", "uchar", "list", "binary_little_endian", "end_header", "x"]
     return mutate_words(rng, data, words, "ply")
+
+
+def serialized_scene(rng):
+    """scenes/xml/serialized.xml, whose three meshes come from one `serialized` file, with that
+    file mutated first."""
+    text, files = load_seed(os.path.join("scenes", "xml", "serialized.xml"))
+    files["spheres.serialized"], what = mutate_serialized(rng, files["spheres.serialized"])
+    return text, files, what
+
+
+SERIALIZED_COUNTS = [0, 1, 3, 2**31, 2**32, 2**40, 2**63, 2**64 - 1]
+
+
+def mutate_serialized_stream(rng, body):
+    """One shape's inflated stream: its flags, its counts, a face index, a value or its end."""
+    name_end = body.find(b"\0", 4) + 1 if body.find(b"\0", 4) >= 0 else 4
+    op = rng.choice(["flags", "count", "count", "index", "float", "cut"])
+    if op == "flags":
+        v = rng.choice([0, 1, 2, 3, 8, 0x10, 0x2000, 0x2003, 0x3000, 0x40, 0xFFFFFFFF])
+        return struct.pack("<I", v) + body[4:], f"flags -> 0x{v:x}"
+    if op == "count":
+        at = name_end + rng.choice([0, 8])
+        v = rng.choice(SERIALIZED_COUNTS)
+        return body[:at] + struct.pack("<Q", v) + body[at + 8:], f"count at {at} -> {v}"
+    if op == "index" and len(body) >= 4:
+        at = len(body) - 4 * rng.randrange(1, 7)
+        v = rng.choice([0, 3, 2**31, 2**32 - 1])
+        return body[:at] + struct.pack("<I", v) + body[at + 4:], f"index at {at} -> {v}"
+    if op == "float":
+        at = rng.randrange(name_end + 16, max(name_end + 17, len(body) - 4))
+        v = rng.choice([float("nan"), float("inf"), -1e30, 0.0])
+        return body[:at] + struct.pack("<f", v) + body[at + 4:], f"float at {at} -> {v}"
+    at = rng.randrange(len(body) + 1)
+    return body[:at], f"inflated stream cut at {at}"
+
+
+def mutate_serialized(rng, data):
+    """A `serialized` file: a truncation, a flipped byte, a dictionary entry or count set to an
+    extreme, or one shape's stream inflated, mutated (`mutate_serialized_stream`) and
+    compressed again, so that mutations get past zlib's checksum."""
+    import zlib
+    if not data:
+        return data, "serialized: empty"
+    op = rng.choice(["truncate", "byte", "dictionary", "stream", "stream", "stream"])
+    if op == "truncate":
+        at = rng.randrange(len(data) + 1)
+        return data[:at], f"serialized: truncate at {at}"
+    if op == "byte":
+        at = rng.randrange(len(data))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"serialized: byte {at}"
+    count = struct.unpack("<I", data[-4:])[0] if len(data) >= 4 else 0
+    table_start = len(data) - 4 - 8 * count
+    offsets = list(struct.unpack(f"<{count}Q", data[table_start:-4])) if table_start >= 4 else []
+    if not (offsets and offsets == sorted(offsets) and offsets[-1] < table_start):
+        # an earlier step broke the dictionary: its shapes cannot be found, so flip a byte
+        at = rng.randrange(max(len(data), 1))
+        return data[:at] + bytes([rng.randrange(256)]) + data[at + 1:], f"serialized: byte {at}"
+    if op == "dictionary":
+        v = rng.choice(SERIALIZED_COUNTS)
+        at = len(data) - 4 if rng.random() < 0.4 else len(data) - 4 - 8 * rng.randrange(1, count + 1)
+        fmt = "<I" if at == len(data) - 4 else "<Q"
+        if fmt == "<I":
+            v &= 0xFFFFFFFF
+        out = data[:at] + struct.pack(fmt, v) + data[at + struct.calcsize(fmt):]
+        return out, f"serialized: dictionary at {at} -> {v}"
+    k = rng.randrange(count)
+    end = offsets[k + 1] if k + 1 < count else len(data) - 4 - 8 * count
+    try:
+        body = zlib.decompress(data[offsets[k] + 4:end])
+    except zlib.error:  # an earlier step damaged the stream
+        return data[:end - 1], f"serialized: truncate at {end - 1}"
+    body, what = mutate_serialized_stream(rng, body)
+    shape = data[offsets[k]:offsets[k] + 4] + zlib.compress(body)
+    shift = len(shape) - (end - offsets[k])
+    rest = data[end:len(data) - 4 - 8 * count]
+    table = [o if i <= k else o + shift for i, o in enumerate(offsets)]
+    out = data[:offsets[k]] + shape + rest + struct.pack(f"<{count}QI", *table, count)
+    return out, f"serialized: shape {k}: {what}"
 
 
 def png_chunk(kind, body):
@@ -929,6 +1007,11 @@ def uv_case(seed, k):
     return random.Random(f"{seed}:{k}:uv").random() < 0.05
 
 
+def serialized_case(seed, k):
+    """Whether scene case k mutates a `serialized` mesh file (a stream of its own, as `hdr_case`)."""
+    return random.Random(f"{seed}:{k}:serialized").random() < 0.05
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -944,15 +1027,18 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files) = "textured+png", textured_with_png(rng)
     elif uv_case(seed, k):
         name, (text, files, what) = "textured+mesh", textured_with_mesh(rng)
+    elif serialized_case(seed, k):
+        name, (text, files, what) = "serialized.xml", serialized_scene(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
-    steps = [what] if name == "textured+mesh" else []
+    steps = [what] if name in ("textured+mesh", "serialized.xml") else []
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
             mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb,
                    ".hdr": mutate_hdr, ".png": mutate_png, ".ply": mutate_ply}.get(f[-4:], mutate_grid)
+            mut = mutate_serialized if f.endswith(".serialized") else mut
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -1115,7 +1201,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png", "uv"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png", "uv", "serialized"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -1156,6 +1242,11 @@ def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
                   and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only == "uv":
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None and uv_case(args.seed, k)
+                  and not hdr_case(args.seed, k) and not png_case(args.seed, k)
+                  and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
+        elif args.only == "serialized":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None
+                  and serialized_case(args.seed, k) and not uv_case(args.seed, k)
                   and not hdr_case(args.seed, k) and not png_case(args.seed, k)
                   and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only:

@@ -11,6 +11,7 @@ mod media;
 mod normals;
 mod ply;
 mod sensors;
+mod serialized;
 mod shapes;
 mod textures;
 mod values;

@@ -625,6 +625,8 @@ pub enum ShapeDesc {
         exterior: Option<String>,
     },
     Mesh {
+        /// The mesh file, relative to the scene file: OBJ, or PLY (`.ply`), or Mitsuba's
+        /// serialized format (`.serialized`), by its extension.
         obj: String,
         /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
         /// x' = a x + b y + c z + t (how an imported scene places a mesh).
@@ -639,6 +641,10 @@ pub enum ShapeDesc {
         /// PLY file, as Mitsuba 3's `obj` and `ply` (`flip_tex_coords`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         flip_tex_coords: Option<bool>,
+        /// Which shape of a Mitsuba `.serialized` file (0 by default), as Mitsuba 3's
+        /// `serialized` (`shape_index`); refused for other files.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        shape_index: Option<u32>,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,

@@ -8,5 +8,6 @@ mod bounds;
 mod error_contract;
 mod mitsuba_import;
 mod scene_errors;
+mod serialized;
 mod vdb;
 mod writes;

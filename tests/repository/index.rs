@@ -521,6 +521,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "PLY meshes read for imported scenes",
     ),
     (
+        "scene::build::serialized",
+        "inputs::serialized",
+        "Mitsuba's serialized meshes against what Mitsuba 3 loads",
+    ),
+    (
         "scene::build::sensors",
         "inputs::scene_errors",
         "every key of the scene file, built or refused",

@@ -372,12 +372,14 @@ fn primitives(
             to_world,
             smooth_normals,
             flip_tex_coords,
+            shape_index,
             ..
         } => {
             let place = placement(src, key, to_world)?;
             let form = MeshForm {
                 smooth: *smooth_normals,
                 uv: want_uv.then_some(*flip_tex_coords),
+                shape_index: *shape_index,
             };
             let (tris, all_closed, corners, uvs) = mesh(src, key, obj, place, common, form)?;
             closed = all_closed;
@@ -521,9 +523,31 @@ pub const MAX_OBJ_BYTES: u64 = 1 << 30;
 struct MeshForm {
     smooth: bool,
     uv: Option<Option<bool>>,
+    shape_index: Option<u32>,
 }
 
-/// The triangles of an OBJ or PLY file, every index and vertex checked, whether the mesh is
+/// The mesh formats, told apart by the file's extension.
+#[derive(Clone, Copy, PartialEq)]
+enum MeshFile {
+    Obj,
+    Ply,
+    Serialized,
+}
+
+impl MeshFile {
+    fn of(file: &std::path::Path) -> MeshFile {
+        let ext = file.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ext.eq_ignore_ascii_case("ply") {
+            MeshFile::Ply
+        } else if ext.eq_ignore_ascii_case("serialized") {
+            MeshFile::Serialized
+        } else {
+            MeshFile::Obj
+        }
+    }
+}
+
+/// The triangles of an OBJ, PLY or serialized file, every index and vertex checked, whether the mesh is
 /// closed (a closed mesh holding a medium must be wound outwards), and the corner normals and
 /// texture coordinates of each triangle that `form` asks for.
 fn mesh(
@@ -542,19 +566,29 @@ fn mesh(
     let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES)
         .map_err(|e| src.error(&obj_key, format!("cannot read `{}`: {e}", file.display())))?;
     src.record_input(obj, crate::conventions::fnv1a(&bytes));
-    let is_ply = file
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    let parts = if is_ply {
-        vec![super::ply::read_ply(&bytes).map_err(|e| fail(&e))?]
-    } else {
-        obj_parts(src, &obj_key, &file, bytes, smooth)?
+    let format = MeshFile::of(&file);
+    if form.shape_index.is_some() && format != MeshFile::Serialized {
+        return Err(src.error(
+            &key.clone().key("shape_index"),
+            format!(
+                "shape_index selects a shape of a `.serialized` file, and `{}` is not one",
+                file.display()
+            ),
+        ));
+    }
+    let parts = match format {
+        MeshFile::Ply => vec![super::ply::read_ply(&bytes).map_err(|e| fail(&e))?],
+        MeshFile::Serialized => {
+            let k = form.shape_index.unwrap_or(0);
+            vec![super::serialized::read_serialized(&bytes, k).map_err(|e| fail(&e))?]
+        }
+        MeshFile::Obj => obj_parts(src, &obj_key, &file, bytes, smooth)?,
     };
     let mut all_closed = true;
     let mut tris = Vec::new();
     let mut corners = Vec::new();
-    // Mitsuba 3's `obj` flips v by default, its `ply` does not
-    let flip = form.uv.map(|f| f.unwrap_or(!is_ply));
+    // Mitsuba 3's `obj` flips v by default, its `ply` and `serialized` do not
+    let flip = form.uv.map(|f| f.unwrap_or(format == MeshFile::Obj));
     let mut uvs = Vec::new();
     let mut parts_with_uv = 0;
     for (pos, idx, normals, tex) in &parts {

@@ -1,4 +1,4 @@
-//! The shapes `rectangle`, `disk`, `cube`, `sphere`, `cylinder`, `obj` and `ply`, with their media, BSDF
+//! The shapes `rectangle`, `disk`, `cube`, `sphere`, `cylinder`, `obj`, `ply` and `serialized`, with their media, BSDF
 //! and area emitter, and the default material of a shape without either.
 
 use glam::{DMat3, DMat4, DVec3};
@@ -216,10 +216,10 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         "disk" => Ok(disk(m, flip)),
         "cube" => cube(p, m),
         "sphere" => sphere(p, m),
-        "obj" | "ply" => mesh(p, m),
+        "obj" | "ply" | "serialized" => mesh(p, m),
         "cylinder" => cylinder(p, m, flip),
         k => Err(p.err(format!(
-            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, cylinder, obj, ply are)"
+            "the shape `{k}` is not supported (rectangle, disk, cube, sphere, cylinder, obj, ply, serialized are)"
         ))),
     }
 }
@@ -375,20 +375,46 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
     ))
 }
 
-/// `obj` and `ply`: the file under `to_world`, shaded with interpolated vertex normals unless
-/// `face_normals` is true (Mitsuba 3 documentation, plugins `obj` and `ply`).
+/// `obj`, `ply` and `serialized`: the file under `to_world`, shaded with interpolated vertex
+/// normals unless `face_normals` is true (Mitsuba 3 documentation, plugins `obj`, `ply` and
+/// `serialized`); a serialized file's shape `shape_index` (0), its texture coordinates as
+/// stored (the plugin has no `flip_tex_coords`).
 fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
     let obj = p
         .string("filename")?
         .ok_or_else(|| p.err("`filename` is missing"))?;
     let smooth_normals = p.boolean("face_normals")? != Some(true);
-    let flip_tex_coords = p.boolean("flip_tex_coords")?;
+    let serialized = p.plugin == "serialized";
+    let (flip_tex_coords, shape_index) = if serialized {
+        let k = p.integer("shape_index")?.unwrap_or(0);
+        let k = u32::try_from(k)
+            .map_err(|_| p.err(format!("shape_index {k} must be a non-negative index")))?;
+        (None, Some(k))
+    } else {
+        (p.boolean("flip_tex_coords")?, None)
+    };
+    let ext = std::path::Path::new(&obj)
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let read_as = match ext.as_deref() {
+        Some("ply") => "ply",
+        Some("serialized") => "serialized",
+        _ => "obj",
+    };
+    if read_as != p.plugin {
+        return Err(p.err(format!(
+            "`{obj}` would be read as {read_as} (pathspace tells a mesh file's format by its extension), not as the shape's `{}`",
+            p.plugin
+        )));
+    }
     let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
     let to_world = (*m != DMat4::IDENTITY).then_some(rows);
+    let which = shape_index.map_or(String::new(), |k| format!(" shape {k}"));
     let how = if smooth_normals {
-        format!("mesh `{obj}`, smooth (interpolated vertex normals)")
+        format!("mesh `{obj}`{which}, smooth (interpolated vertex normals)")
     } else {
-        format!("mesh `{obj}`, flat (face normals)")
+        format!("mesh `{obj}`{which}, flat (face normals)")
     };
     let (material, emission, interior, exterior) = (None, None, None, None);
     Ok((
@@ -397,6 +423,7 @@ fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
             to_world,
             smooth_normals,
             flip_tex_coords,
+            shape_index,
             material,
             emission,
             interior,
