@@ -95,6 +95,8 @@ class Scene:
         kind = s["type"]
         if kind not in ("quad", "box", "sphere"):
             raise Refused(f"shape {kind}: only quads, boxes and spheres are converted")
+        if s.get("flip_normals"):
+            raise Refused(f"a {kind} with flip_normals")
         out = dict(s)
         mat = s.get("material")
         if "emission" in s:

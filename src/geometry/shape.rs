@@ -6,15 +6,16 @@ use glam::{Vec2, Vec3, Vec3Swizzles};
 
 use super::{Aabb, Ray};
 use crate::math::distribution::ONE_MINUS_EPSILON;
-use crate::math::warp;
+use crate::math::{warp, Frame};
 
-/// A parallelogram `origin + a u + b v`, a, b in [0, 1]; geometric normal `normalize(u x v)`.
+/// A parallelogram `origin + a u + b v`, a, b in [0, 1]; geometric normal `normalize(u x v)`,
+/// or its opposite once [`Quad::flipped`].
 #[derive(Clone, Copy, Debug)]
 pub struct Quad {
     pub origin: Vec3,
     pub u: Vec3,
     pub v: Vec3,
-    /// Unit normal `normalize(u x v)`.
+    /// Unit normal `normalize(u x v)` (negated when flipped).
     pub n: Vec3,
     /// `(u x v) / |u x v|^2`, for the barycentric coordinates of a hit.
     w: Vec3,
@@ -37,6 +38,12 @@ impl Quad {
 }
 
 impl Quad {
+    /// The same quad with the opposite normal and the same coordinates (a, b): Mitsuba 3's
+    /// `flip_normals` turns a `rectangle` around without changing its (u, v).
+    pub fn flipped(self) -> Self {
+        Quad { n: -self.n, ..self }
+    }
+
     /// The coordinates (a, b) of `p` along `u` and `v`: `p = origin + a u + b v` when `p` lies
     /// in the quad's plane, and the quad is `[0, 1]^2`.
     #[inline]
@@ -244,13 +251,14 @@ impl Triangle {
 }
 
 /// An elliptic disk `center + a u + b v`, a^2 + b^2 <= 1 (Mitsuba's unit `disk` under an affine
-/// map: `u`, `v` are the images of its x and y axes); geometric normal `normalize(u x v)`.
+/// map: `u`, `v` are the images of its x and y axes); geometric normal `normalize(u x v)`, or
+/// its opposite once [`Disk::flipped`].
 #[derive(Clone, Copy, Debug)]
 pub struct Disk {
     pub center: Vec3,
     pub u: Vec3,
     pub v: Vec3,
-    /// Unit normal `normalize(u x v)`.
+    /// Unit normal `normalize(u x v)` (negated when flipped).
     pub n: Vec3,
     /// `(u x v) / |u x v|^2`, for the coordinates (a, b) of a hit, as for [`Quad`].
     w: Vec3,
@@ -270,6 +278,12 @@ impl Disk {
             area: std::f32::consts::PI * len,
         })
     }
+
+    /// The same disk with the opposite normal and the same coordinates: Mitsuba 3's
+    /// `flip_normals` mirrors the disk's local z only, so its (u, v) stay.
+    pub fn flipped(self) -> Self {
+        Disk { n: -self.n, ..self }
+    }
 }
 
 /// A sphere; the geometric normal points outwards.
@@ -277,6 +291,25 @@ impl Disk {
 pub struct Sphere {
     pub center: Vec3,
     pub radius: f32,
+    /// The sphere's own axes (x, y, z) as `s`, `t`, `n`, from which its (u, v) are measured:
+    /// Mitsuba 3's `sphere` takes them from the rotation in its `to_world`.
+    pub frame: Frame,
+}
+
+impl Sphere {
+    /// A sphere with the world's axes as its own.
+    pub fn new(center: Vec3, radius: f32) -> Self {
+        let frame = Frame {
+            s: Vec3::X,
+            t: Vec3::Y,
+            n: Vec3::Z,
+        };
+        Sphere {
+            center,
+            radius,
+            frame,
+        }
+    }
 }
 
 /// An open cylinder (Mitsuba 3 documentation, plugin `cylinder`): the points at distance
@@ -291,7 +324,9 @@ pub struct Cylinder {
     pub radius: f32,
     pub flip: bool,
     /// Two unit vectors completing `axis` to a right-handed frame: the angle phi of a point is
-    /// measured from `x` towards `y`.
+    /// measured from `x` towards `y`. By default Mitsuba 3's `Frame3f(axis)` (Duff et al.'s
+    /// basis, as [`Frame::from_normal`]); an imported cylinder under a `to_world` takes the
+    /// image of that frame's `s` ([`Cylinder::with_x_axis`]).
     x: Vec3,
     y: Vec3,
 }
@@ -305,7 +340,7 @@ impl Cylinder {
             return None;
         }
         let axis = d / length;
-        let frame = crate::math::Frame::from_normal(axis);
+        let frame = Frame::from_normal(axis);
         Some(Cylinder {
             p0,
             axis,
@@ -315,6 +350,20 @@ impl Cylinder {
             x: frame.s,
             y: frame.t,
         })
+    }
+
+    /// The same cylinder with phi measured from the direction `x`; `None` unless `x` is
+    /// (within 1e-3 of its length) perpendicular to the axis. It is made exactly perpendicular
+    /// (Gram-Schmidt), so an axis rounded to f32 keeps the frame orthonormal.
+    pub fn with_x_axis(self, x: Vec3) -> Option<Self> {
+        let len = x.length();
+        let along = x.dot(self.axis);
+        if !(len > 0.0 && len.is_finite() && along.abs() <= 1e-3 * len) {
+            return None;
+        }
+        let x = (x - along * self.axis).normalize();
+        let y = self.axis.cross(x);
+        Some(Cylinder { x, y, ..self })
     }
 
     /// The point at height `z` along the axis and angle `phi`, and its unit normal.
@@ -617,11 +666,12 @@ impl Primitive {
     /// The surface coordinates (u, v) of a point `p` on the primitive, as Mitsuba 3 defines them
     /// for its shapes (`src/shapes/*.cpp`, `compute_surface_interaction`): a quad's coordinates
     /// (a, b) along its edges (Mitsuba's `rectangle`: ((x + 1) / 2, (y + 1) / 2)); a disk's
-    /// (r, phi / 2 pi) in its own axes, phi in [0, 2 pi); a sphere's (phi / 2 pi, theta / pi)
-    /// about its centre, theta from +z, phi from +x towards +y in [0, 2 pi); a triangle's
+    /// (r, phi / 2 pi) in its own axes, phi in [0, 2 pi), whichever way its normal points; a
+    /// sphere's (phi / 2 pi, theta / pi) about its centre in its own `frame`, theta from its
+    /// z, phi from its x towards its y in [0, 2 pi); a triangle's
     /// barycentric (b1, b2), which a mesh's texture coordinates then interpolate. Computed from
     /// the hit point when a texture asks, so untextured scenes never pay for it. A cylinder's is
-    /// (phi / 2 pi, height / length), phi about its axis from its own frame.
+    /// (phi / 2 pi, height / length), phi about its axis from its `x` towards its `y`.
     pub fn uv(&self, p: Vec3) -> Vec2 {
         use std::f32::consts::{FRAC_1_PI, TAU};
         match self {
@@ -634,7 +684,7 @@ impl Primitive {
                 Vec2::new(b1, b2)
             }
             Primitive::Sphere(s) => {
-                let l = (p - s.center) / s.radius;
+                let l = s.frame.to_local((p - s.center) / s.radius);
                 let theta = l.z.clamp(-1.0, 1.0).acos();
                 let mut phi = l.y.atan2(l.x);
                 if phi < 0.0 {

@@ -564,6 +564,8 @@ pub struct ShapeCommon {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeDesc {
+    /// A parallelogram `origin + a u + b v`, a, b in [0, 1], whose (u, v) are (a, b); normal
+    /// `normalize(u x v)`, the opposite with `flip_normals` (Mitsuba 3's `rectangle`).
     Quad {
         #[serde(deserialize_with = "exact")]
         origin: [f32; 3],
@@ -571,6 +573,8 @@ pub enum ShapeDesc {
         u: [f32; 3],
         #[serde(deserialize_with = "exact")]
         v: [f32; 3],
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        flip_normals: bool,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,
@@ -586,17 +590,33 @@ pub enum ShapeDesc {
         interior: Option<String>,
         exterior: Option<String>,
     },
+    /// A sphere; its (u, v) are (phi / 2 pi, theta / pi) in its own axes: theta from `z_axis`,
+    /// phi from `x_axis` towards `z_axis x x_axis` (default: the world's z and x), as Mitsuba 3's
+    /// `sphere` measures them in the rotation of its `to_world`.
     Sphere {
         #[serde(deserialize_with = "exact")]
         center: [f32; 3],
         radius: f32,
+        #[serde(
+            default,
+            deserialize_with = "exact_opt",
+            skip_serializing_if = "Option::is_none"
+        )]
+        x_axis: Option<[f32; 3]>,
+        #[serde(
+            default,
+            deserialize_with = "exact_opt",
+            skip_serializing_if = "Option::is_none"
+        )]
+        z_axis: Option<[f32; 3]>,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
     /// An elliptic disk `center + a u + b v`, a^2 + b^2 <= 1 (a circle of radius r when u and
-    /// v are orthogonal of length r); normal `normalize(u x v)`.
+    /// v are orthogonal of length r); normal `normalize(u x v)`, the opposite with
+    /// `flip_normals`; (u, v) are the polar (r, phi / 2 pi) of (a, b) either way.
     Disk {
         #[serde(deserialize_with = "exact")]
         center: [f32; 3],
@@ -604,13 +624,17 @@ pub enum ShapeDesc {
         u: [f32; 3],
         #[serde(deserialize_with = "exact")]
         v: [f32; 3],
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        flip_normals: bool,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
     /// An open cylinder (Mitsuba 3's `cylinder`, no caps) of `radius` about the segment from
-    /// `p0` to `p1`; its normal points outwards, inwards with `flip_normals`.
+    /// `p0` to `p1`; its normal points outwards, inwards with `flip_normals`. Its (u, v) are
+    /// (phi / 2 pi, height / length), phi from `x_axis` (perpendicular to the axis; default
+    /// Mitsuba 3's frame about the axis) towards `axis x x_axis`.
     Cylinder {
         #[serde(deserialize_with = "exact")]
         p0: [f32; 3],
@@ -619,6 +643,12 @@ pub enum ShapeDesc {
         radius: f32,
         #[serde(default)]
         flip_normals: bool,
+        #[serde(
+            default,
+            deserialize_with = "exact_opt",
+            skip_serializing_if = "Option::is_none"
+        )]
+        x_axis: Option<[f32; 3]>,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,

@@ -127,8 +127,9 @@ material = "front"
 [[shapes]]
 type = "quad"
 origin = [-1.0, -1.0, -3.0]
-u = [0.0, 2.0, 0.0]
-v = [2.0, 0.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+flip_normals = true
 material = "default diffuse"
 "#
         ),
@@ -136,7 +137,7 @@ material = "default diffuse"
 }
 
 /// `disk` is the unit disk at z = 0 with normal +z, an ellipse under a scale, its normal
-/// reversed by `flip_normals`.
+/// reversed by `flip_normals` (its axes, and so its uv, unchanged).
 #[test]
 fn disk_extent_and_normal_are_mitsubas() {
     same_scene(
@@ -165,8 +166,9 @@ emission = [2.0, 3.0, 4.0]
 [[shapes]]
 type = "disk"
 center = [0.0, 0.0, -1.0]
-u = [0.0, 1.5, 0.0]
-v = [2.0, 0.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 1.5, 0.0]
+flip_normals = true
 material = "diffuse"
 "#
         ),
@@ -175,7 +177,7 @@ material = "diffuse"
 
 /// `cylinder`: p0 (0,0,0) to p1 (0,0,1), radius 1, open, under `to_world` (a uniform scale
 /// across the axis, another along it); `flip_normals` turns the normals (and the area light's
-/// side) inwards.
+/// side) inwards; `x_axis`, where its phi starts, is the image of Mitsuba's frame about the axis.
 #[test]
 fn cylinder_extent_and_normal_are_mitsubas() {
     same_scene(
@@ -202,6 +204,7 @@ type = "cylinder"
 p0 = [0.0, -1.0, -1.0]
 p1 = [0.0, 1.0, -1.0]
 radius = 0.5
+x_axis = [1.0, 0.0, 0.0]
 emission = [2.0, 3.0, 4.0]
 [[shapes]]
 type = "cylinder"
@@ -209,6 +212,7 @@ p0 = [0.0, 0.0, -3.0]
 p1 = [0.0, 0.0, 0.0]
 radius = 2.0
 flip_normals = true
+x_axis = [1.0, 0.0, 0.0]
 material = "diffuse"
 "#
         ),
@@ -295,7 +299,7 @@ radiance = 0.5
 
 /// `diffuse` with a `bitmap` and a `checkerboard` `reflectance`: every parameter with its
 /// Mitsuba name and default, `to_uv` from a 4x4 transform without its z row and column; a
-/// texture where the importer would change the uv is refused with its line.
+/// missing file and an unknown wrap mode are refused with their line.
 #[test]
 fn textures_are_mitsubas() {
     same_scene(
@@ -352,24 +356,6 @@ emission = 1.0
         let e = e.expect_err(body);
         assert!(e.contains(line), "{e}");
     };
-    let checker =
-        r#"<bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf>"#;
-    refused(
-        &format!(
-            r#"<shape type="rectangle"><boolean name="flip_normals" value="true"/>{checker}</shape>"#
-        ),
-        "t.xml:8",
-    );
-    refused(
-        &format!(
-            r#"<shape type="sphere"><transform name="to_world"><rotate z="1" angle="30"/></transform>{checker}</shape>"#
-        ),
-        "t.xml:8",
-    );
-    refused(
-        &format!(r#"<shape type="cylinder">{checker}</shape>"#),
-        "t.xml:8",
-    );
     refused(
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="missing.png"/></texture></bsdf></shape>"#,
         "missing.png",
@@ -377,6 +363,72 @@ emission = 1.0
     refused(
         r#"<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="x.png"/><string name="wrap_mode" value="border"/></texture></bsdf></shape>"#,
         "t.xml:8",
+    );
+}
+
+/// Textures on the shapes whose uv needs more than their surface, with their Mitsuba uv: a
+/// flipped `rectangle` and `disk` keep their axes (`flip_normals` turns the normal only), a
+/// `sphere` rotated by `to_world` keeps the rotated axes (`x_axis`, `z_axis`), a `cylinder`
+/// the image of Mitsuba's frame about its axis (`x_axis`).
+#[test]
+fn textured_flipped_rotated_and_cylinder_shapes_are_mitsubas() {
+    let checker = r#"<bsdf type="diffuse" id="check"><texture type="checkerboard" name="reflectance"><transform name="to_uv"><scale x="4" y="3"/></transform></texture></bsdf>"#;
+    same_scene(
+        &scene(&format!(
+            r#"{checker}
+    <shape type="rectangle"><boolean name="flip_normals" value="true"/><ref id="check"/>
+        <transform name="to_world"><scale x="2" y="0.5"/><translate z="-2"/></transform>
+    </shape>
+    <shape type="disk"><boolean name="flip_normals" value="true"/><ref id="check"/>
+        <transform name="to_world"><scale value="0.5"/><translate x="1" z="-1"/></transform>
+    </shape>
+    <shape type="sphere"><float name="radius" value="0.4"/><ref id="check"/>
+        <transform name="to_world"><matrix value="0 1 0 -0.8  0 0 1 0  1 0 0 -1  0 0 0 1"/></transform>
+    </shape>
+    <shape type="cylinder"><float name="radius" value="0.3"/><ref id="check"/>
+        <transform name="to_world"><matrix value="0 1 0 0.5  0 0 1 -0.5  1 0 0 -1.5  0 0 0 1"/></transform>
+    </shape>
+    <emitter type="constant"/>"#
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials.check]
+type = "lambert"
+albedo = {{ texture = "checkerboard", color0 = 0.4, color1 = 0.2, to_uv = [[4.0, 0.0, 0.0], [0.0, 3.0, 0.0]] }}
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-2.0, -0.5, -2.0]
+u = [4.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+flip_normals = true
+material = "check"
+[[shapes]]
+type = "disk"
+center = [1.0, 0.0, -1.0]
+u = [0.5, 0.0, 0.0]
+v = [0.0, 0.5, 0.0]
+flip_normals = true
+material = "check"
+[[shapes]]
+type = "sphere"
+center = [-0.8, 0.0, -1.0]
+radius = 0.4
+x_axis = [0.0, 0.0, 1.0]
+z_axis = [0.0, 1.0, 0.0]
+material = "check"
+[[shapes]]
+type = "cylinder"
+p0 = [0.5, -0.5, -1.5]
+p1 = [0.5, 0.5, -1.5]
+radius = 0.3
+x_axis = [0.0, 0.0, 1.0]
+material = "check"
+[[lights]]
+type = "environment"
+radiance = 1.0
+"#
+        ),
     );
 }
 

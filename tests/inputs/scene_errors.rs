@@ -269,6 +269,34 @@ fn glossy_fresnel_and_index_contradictions() {
     );
 }
 
+// ---- the axes a shape's (u, v) are measured in ----
+
+#[test]
+fn sphere_axes_that_are_not_perpendicular() {
+    expect_error(
+        "\n[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nx_axis = [1, 0, 0.1]\nmaterial = \"white\"\n",
+        6,
+        "shapes[0].x_axis",
+        &["perpendicular to z_axis"],
+    );
+    expect_error(
+        "\n[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nz_axis = [0, 0, 0]\nmaterial = \"white\"\n",
+        6,
+        "shapes[0].z_axis",
+        &["z_axis must be a direction"],
+    );
+}
+
+#[test]
+fn cylinder_x_axis_along_its_axis() {
+    expect_error(
+        "\n[[shapes]]\ntype = \"cylinder\"\np0 = [0, 0, 0]\np1 = [0, 1, 0]\nradius = 1\nx_axis = [0.1, 1, 0]\nmaterial = \"white\"\n",
+        7,
+        "shapes[0].x_axis",
+        &["perpendicular to p1 - p0"],
+    );
+}
+
 // ---- media need closed shapes ----
 
 #[test]

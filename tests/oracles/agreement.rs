@@ -682,6 +682,19 @@ fn agreement_textured() {
     fam.finish();
 }
 
+/// Textures on a sphere turned by its own axes, a cylinder with its own `x_axis` and a flipped
+/// disk, lit by a flipped quad lamp: every integrator measures uv in each shape's frame at its
+/// own vertices.
+#[test]
+fn agreement_textured_shapes() {
+    let mut fam = Family::new("agreement: textured shapes");
+    check_row(
+        &mut fam,
+        &row("textured-shapes", fixture("textured-shapes.toml"), 3),
+    );
+    fam.finish();
+}
+
 /// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
 /// A checkerboard roughness on a rough conductor floor and a rough glass sphere, and a
 /// checkerboard specular on the floor: every column reads alpha and specular at its own

@@ -64,10 +64,10 @@ fn soup(r: &mut Pcg64Mcg, n: usize) -> Vec<Primitive> {
                 false,
             )
             .map(Primitive::Cylinder),
-            _ => Some(Primitive::Sphere(Sphere {
-                center: c,
-                radius: 0.1 + 0.5 * size * r.random::<f32>(),
-            })),
+            _ => Some(Primitive::Sphere(Sphere::new(
+                c,
+                0.1 + 0.5 * size * r.random::<f32>(),
+            ))),
         };
         prims.extend(p);
     }
@@ -373,10 +373,7 @@ fn rooms_like(r: &mut Pcg64Mcg) -> Vec<Primitive> {
             )
             .unwrap(),
         ),
-        Primitive::Sphere(Sphere {
-            center: Vec3::new(24.0, 1.5, 8.0),
-            radius: 4.0,
-        }),
+        Primitive::Sphere(Sphere::new(Vec3::new(24.0, 1.5, 8.0), 4.0)),
     ];
     while prims.len() < 600 {
         let c = Vec3::new(
@@ -590,10 +587,10 @@ fn primitives_for_offsets(r: &mut Pcg64Mcg) -> Vec<Primitive> {
             prims.push(Primitive::Triangle(
                 Triangle::new(c, c + scale * unit(r), c + scale * unit(r)).unwrap(),
             ));
-            prims.push(Primitive::Sphere(Sphere {
-                center: c,
-                radius: scale * r.random_range(0.2..1.0),
-            }));
+            prims.push(Primitive::Sphere(Sphere::new(
+                c,
+                scale * r.random_range(0.2..1.0),
+            )));
         }
     }
     prims
@@ -641,10 +638,7 @@ fn offset_rays_do_not_rehit_their_own_surface() {
 
 #[test]
 fn sphere_from_outside_and_inside() {
-    let s = Primitive::Sphere(Sphere {
-        center: Vec3::new(1.0, 2.0, 3.0),
-        radius: 2.0,
-    });
+    let s = Primitive::Sphere(Sphere::new(Vec3::new(1.0, 2.0, 3.0), 2.0));
     // from outside, towards the centre: the near side, normal facing the ray
     let (t, p, n) = s
         .intersect(

@@ -12,7 +12,7 @@ use super::values::{finite3, non_negative};
 use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
-use crate::math::Distribution1D;
+use crate::math::{Distribution1D, Frame};
 use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
 use crate::scene::{Light, SceneError, SceneSource, ShapeInfo, ShapeTexture, UvMap};
 
@@ -220,6 +220,35 @@ pub(super) fn shapes(
     })
 }
 
+/// A sphere's own axes from `x_axis` and `z_axis` (either defaulting to the world's): unit,
+/// perpendicular within 1e-3 (then made exactly so, x against z), y = z x x.
+fn sphere_frame(
+    src: &SceneSource,
+    key: &KeyPath,
+    x: Option<[f32; 3]>,
+    z: Option<[f32; 3]>,
+) -> Result<Frame, SceneError> {
+    let axis = |name: &str, v: Option<[f32; 3]>, default: Vec3| -> Result<Vec3, SceneError> {
+        let k = key.clone().key(name);
+        let v = v.map_or(Ok(default), |v| finite3(src, &k, v))?;
+        v.try_normalize()
+            .ok_or_else(|| src.error(&k, format!("{name} must be a direction, not zero")))
+    };
+    let (x, z) = (axis("x_axis", x, Vec3::X)?, axis("z_axis", z, Vec3::Z)?);
+    if x.dot(z).abs() > 1e-3 {
+        return Err(src.error(
+            &key.clone().key("x_axis"),
+            "x_axis must be perpendicular to z_axis",
+        ));
+    }
+    let x = (x - x.dot(z) * z).normalize();
+    Ok(Frame {
+        s: x,
+        t: z.cross(x),
+        n: z,
+    })
+}
+
 /// How a textured shape maps its points to (u, v), with Mitsuba 3's conventions: the quad
 /// (`rectangle`), disk, sphere and cylinder by their own coordinates, the box as `cube`, a mesh
 /// by its texture coordinates `uvs` (its first primitive `first_prim`), else its barycentrics.
@@ -293,7 +322,13 @@ fn primitives(
     let mut new: Vec<Primitive> = Vec::new();
     let mut closed = true;
     match s {
-        ShapeDesc::Quad { origin, u, v, .. } => {
+        ShapeDesc::Quad {
+            origin,
+            u,
+            v,
+            flip_normals,
+            ..
+        } => {
             let o = finite3(src, &key.clone().key("origin"), *origin)?;
             let u = finite3(src, &key.clone().key("u"), *u)?;
             let v = finite3(src, &key.clone().key("v"), *v)?;
@@ -303,7 +338,7 @@ fn primitives(
                     "u and v are parallel: the quad has no area",
                 )
             })?;
-            new.push(Primitive::Quad(q));
+            new.push(Primitive::Quad(if *flip_normals { q.flipped() } else { q }));
             closed = false;
         }
         ShapeDesc::Box { min, max, .. } => {
@@ -317,7 +352,13 @@ fn primitives(
             }
             new.extend(box_quads(lo, hi).into_iter().map(Primitive::Quad));
         }
-        ShapeDesc::Sphere { center, radius, .. } => {
+        ShapeDesc::Sphere {
+            center,
+            radius,
+            x_axis,
+            z_axis,
+            ..
+        } => {
             let c = finite3(src, &key.clone().key("center"), *center)?;
             if !(radius.is_finite() && *radius > 0.0) {
                 return Err(src.error(
@@ -325,12 +366,19 @@ fn primitives(
                     format!("radius = {radius} must be positive"),
                 ));
             }
-            new.push(Primitive::Sphere(Sphere {
-                center: c,
-                radius: *radius,
-            }));
+            let mut sphere = Sphere::new(c, *radius);
+            if x_axis.is_some() || z_axis.is_some() {
+                sphere.frame = sphere_frame(src, key, *x_axis, *z_axis)?;
+            }
+            new.push(Primitive::Sphere(sphere));
         }
-        ShapeDesc::Disk { center, u, v, .. } => {
+        ShapeDesc::Disk {
+            center,
+            u,
+            v,
+            flip_normals,
+            ..
+        } => {
             let c = finite3(src, &key.clone().key("center"), *center)?;
             let u = finite3(src, &key.clone().key("u"), *u)?;
             let v = finite3(src, &key.clone().key("v"), *v)?;
@@ -340,7 +388,7 @@ fn primitives(
                     "u and v are parallel: the disk has no area",
                 )
             })?;
-            new.push(Primitive::Disk(d));
+            new.push(Primitive::Disk(if *flip_normals { d.flipped() } else { d }));
             closed = false;
         }
         ShapeDesc::Cylinder {
@@ -348,6 +396,7 @@ fn primitives(
             p1,
             radius,
             flip_normals,
+            x_axis,
             ..
         } => {
             let a = finite3(src, &key.clone().key("p0"), *p0)?;
@@ -364,6 +413,15 @@ fn primitives(
                     "p1 equals p0: the cylinder has no length",
                 )
             })?;
+            let c = match x_axis {
+                Some(x) => {
+                    let k = key.clone().key("x_axis");
+                    c.with_x_axis(finite3(src, &k, *x)?).ok_or_else(|| {
+                        src.error(&k, "x_axis must be a direction perpendicular to p1 - p0")
+                    })?
+                }
+                None => c,
+            };
             new.push(Primitive::Cylinder(c));
             closed = false;
         }

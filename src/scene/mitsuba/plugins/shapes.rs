@@ -39,13 +39,6 @@ impl<'a, 'd> Importer<'a, 'd> {
         let (geometry, how) = geometry(&mut p, &m, flip)?;
         p.finish()?;
         let (material, emission) = self.surface(bsdf, emitter)?;
-        let textured = material
-            .as_ref()
-            .and_then(|m| self.out.materials.get(m))
-            .is_some_and(is_textured);
-        if textured {
-            textured_uv(self.doc, node, &m, flip)?;
-        }
         self.push_shape(node, geometry, how, material, emission, interior, exterior)
     }
 
@@ -128,82 +121,6 @@ impl<'a, 'd> Importer<'a, 'd> {
     }
 }
 
-/// True when a parameter of the material is a texture.
-fn is_textured(m: &MaterialDesc) -> bool {
-    use crate::scene::file::RoughnessValue;
-    match m {
-        MaterialDesc::Lambert { albedo: r, .. } => matches!(r, ReflectanceValue::Texture(_)),
-        MaterialDesc::Plastic {
-            diffuse: r,
-            specular: s,
-            ..
-        }
-        | MaterialDesc::RoughPlastic {
-            diffuse: r,
-            specular: s,
-            ..
-        } => [r, s]
-            .iter()
-            .any(|v| matches!(v, ReflectanceValue::Texture(_))),
-        MaterialDesc::RoughConductor {
-            alpha: a,
-            specular: s,
-            ..
-        } => matches!(a, RoughnessValue::Texture(_)) || matches!(s, ReflectanceValue::Texture(_)),
-        MaterialDesc::Conductor { specular: s, .. } => matches!(s, ReflectanceValue::Texture(_)),
-        MaterialDesc::RoughDielectric {
-            alpha: a,
-            specular_reflectance: r,
-            specular_transmittance: t,
-            ..
-        } => {
-            matches!(a, RoughnessValue::Texture(_))
-                || [r, t]
-                    .iter()
-                    .any(|v| matches!(v, ReflectanceValue::Texture(_)))
-        }
-        MaterialDesc::Dielectric {
-            specular_reflectance: r,
-            specular_transmittance: t,
-            ..
-        }
-        | MaterialDesc::ThinDielectric {
-            specular_reflectance: r,
-            specular_transmittance: t,
-            ..
-        } => [r, t]
-            .iter()
-            .any(|v| matches!(v, ReflectanceValue::Texture(_))),
-        _ => false,
-    }
-}
-
-/// Refuses a textured shape whose (u, v) the translation would not keep: a flipped rectangle
-/// or disk (u and v swap), a rotated sphere (pathspace's has no axes) and a cylinder (its
-/// angle counts from pathspace's own frame about the axis, not from Mitsuba's).
-fn textured_uv(
-    doc: &crate::scene::mitsuba::props::Doc,
-    node: Node,
-    m: &DMat4,
-    flip: bool,
-) -> Result<(), SceneError> {
-    let plugin = node.attribute("type").unwrap_or("");
-    let l = linear(m);
-    let rotated = plugin == "sphere" && {
-        let s = l.x_axis.length();
-        (l - DMat3::from_diagonal(DVec3::splat(s)))
-            .to_cols_array()
-            .iter()
-            .any(|x| x.abs() > 1e-9 * s)
-    };
-    if flip || rotated || plugin == "cylinder" {
-        return Err(doc.err(
-            node,
-            "a textured flipped rectangle or disk, a textured rotated sphere or a textured cylinder is not supported (its (u, v) would change)",
-        ));
-    }
-    Ok(())
-}
 
 /// A shape's geometry and its note.
 type Geometry = Result<(ShapeDesc, String), SceneError>;
@@ -225,23 +142,23 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
 }
 
 /// A planar shape's origin and edge vectors: the local point `o` and the local axes x and y
-/// scaled by `edge`, mapped by `m` (u and v swapped to flip the normal u x v), and the note.
+/// scaled by `edge`, mapped by `m`, and the note. Mitsuba 3's `flip_normals` mirrors the local
+/// z only, so the axes (and the shape's (u, v)) stay and the normal is `-(u x v)`.
 fn planar(m: &DMat4, flip: bool, o: DVec3, edge: f64, what: &str) -> ([[f32; 3]; 3], String) {
     let l = linear(m);
     let o = m.transform_point3(o);
     let (u, v) = (l * (edge * DVec3::X), l * (edge * DVec3::Y));
-    let (u, v) = if flip { (v, u) } else { (u, v) };
     let how = format!(
-        "at {}, u {}, v {} ({what} at z = 0 mapped, normal u x v{})",
+        "at {}, u {}, v {} ({what} at z = 0 mapped, normal {}u x v)",
         show(o),
         show(u),
         show(v),
-        if flip { ", flipped" } else { "" }
+        if flip { "-" } else { "" }
     );
     ([f3(o), f3(u), f3(v)], how)
 }
 
-/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+/// `rectangle`: [-1,1]^2 at z = 0 with normal +z, mapped.
 fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
     let ([origin, u, v], how) = planar(m, flip, DVec3::new(-1.0, -1.0, 0.0), 2.0, "[-1,1]^2");
     let (material, emission, interior, exterior) = (None, None, None, None);
@@ -249,6 +166,7 @@ fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
         origin,
         u,
         v,
+        flip_normals: flip,
         material,
         emission,
         interior,
@@ -257,7 +175,7 @@ fn rectangle(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
     (quad, format!("quad {how}"))
 }
 
-/// `disk`: the unit disk at z = 0 with normal +z, mapped (u and v swapped to flip the normal).
+/// `disk`: the unit disk at z = 0 with normal +z, mapped.
 fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
     let ([center, u, v], how) = planar(m, flip, DVec3::ZERO, 1.0, "unit disk");
     let (material, emission, interior, exterior) = (None, None, None, None);
@@ -265,6 +183,7 @@ fn disk(m: &DMat4, flip: bool) -> (ShapeDesc, String) {
         center,
         u,
         v,
+        flip_normals: flip,
         material,
         emission,
         interior,
@@ -310,13 +229,33 @@ fn sphere(p: &mut Props, m: &DMat4) -> Geometry {
         p.err("a sphere's to_world must be a uniform scale, a rotation and a translation")
     })?;
     let (c, r) = (m.transform_point3(c), r * s);
-    let how = format!("sphere at {}, radius {r}", show(c));
+    // the rotation's images of x and z: Mitsuba measures (u, v) in the sphere's own frame
+    let l = linear(m) / s;
+    let (x, z) = (l.x_axis, l.z_axis);
+    let rotated =
+        (x - DVec3::X).abs().max_element() > 1e-9 || (z - DVec3::Z).abs().max_element() > 1e-9;
+    let how = format!(
+        "sphere at {}, radius {r}{}",
+        show(c),
+        if rotated {
+            format!(", axes x {} and z {}", show(x), show(z))
+        } else {
+            String::new()
+        }
+    );
     let (center, radius) = (f3(c), r as f32);
+    let (x_axis, z_axis) = if rotated {
+        (Some(f3(x + DVec3::ZERO)), Some(f3(z + DVec3::ZERO)))
+    } else {
+        (None, None)
+    };
     let (material, emission, interior, exterior) = (None, None, None, None);
     Ok((
         ShapeDesc::Sphere {
             center,
             radius,
+            x_axis,
+            z_axis,
             material,
             emission,
             interior,
@@ -338,8 +277,9 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         return Err(p.err("a cylinder needs a positive radius and p1 apart from p0"));
     }
     let l = linear(m);
-    let e0 = d.normalize().any_orthonormal_vector();
-    let e1 = d.normalize().cross(e0);
+    // Mitsuba's frame about the axis (`Frame3f(d)`), whose image under `to_world` is where the
+    // cylinder's phi starts
+    let (e0, e1) = coordinate_system(d.normalize());
     let (c0, c1, c2) = (l * e0, l * e1, l * d);
     let s2 = c0.length_squared();
     let tol = 1e-6 * s2;
@@ -366,6 +306,8 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
             p1: f3(b),
             radius: r as f32,
             flip_normals: flip,
+            // (+ 0 writes a negative zero as 0)
+            x_axis: Some(f3(c0.normalize() + DVec3::ZERO)),
             material,
             emission,
             interior,
@@ -373,6 +315,19 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         },
         how,
     ))
+}
+
+
+/// Mitsuba 3's `coordinate_system(n)` (`include/mitsuba/core/vector.h`; Duff et al. 2017,
+/// "Building an orthonormal basis, revisited"): the s and t of its `Frame3f(n)`.
+fn coordinate_system(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 /// `obj`, `ply` and `serialized`: the file under `to_world`, shaded with interpolated vertex
