@@ -121,7 +121,6 @@ impl<'a, 'd> Importer<'a, 'd> {
     }
 }
 
-
 /// A shape's geometry and its note.
 type Geometry = Result<(ShapeDesc, String), SceneError>;
 
@@ -316,7 +315,6 @@ fn cylinder(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         how,
     ))
 }
-
 
 /// Mitsuba 3's `coordinate_system(n)` (`include/mitsuba/core/vector.h`; Duff et al. 2017,
 /// "Building an orthonormal basis, revisited"): the s and t of its `Frame3f(n)`.
