@@ -7,7 +7,7 @@
 //! texture keeps (bilinear at texel centres, the wrap of edge texels, sRGB).
 
 use glam::{Vec2, Vec3};
-use pathspace::geometry::Ray;
+use pathspace::geometry::{Hit, Ray};
 use pathspace::scene::{mitsuba, Scene, SceneSource};
 use pathspace::texture::{srgb_to_linear, Bitmap, FilterType, Texture, UvTransform, WrapMode};
 use serde_json::Value;
@@ -232,20 +232,27 @@ fn each_shapes_uv_is_mitsubas() {
             let (p, n) = (v3(&h["p"]), v3(&h["n"]));
             // a ray towards the recorded point along its normal finds the same point
             let hit = scene.intersect(&Ray::new(p + n, -n), 2.0).expect("a hit");
-            let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
-            let t = shape.texture.as_ref().unwrap();
-            let prim = &scene.prims[hit.prim as usize];
-            let uv = t.uv.uv(hit.prim, prim, hit.p, hit.ng);
-            let want = Vec2::new(
-                h["uv"][0].as_f64().unwrap() as f32,
-                h["uv"][1].as_f64().unwrap() as f32,
-            );
-            assert!(
-                (uv - want).abs().max_element() < 1e-5 * (1.0 + p.abs().max_element()),
-                "{name} at {p}: uv {uv} against Mitsuba's {want}"
-            );
+            assert_uv_is_recorded(&scene, &hit, h, name);
         }
     }
+}
+
+/// The uv pathspace's texture lookup gives at `hit` equals the `uv` Mitsuba recorded in `h`,
+/// within f32 rounding at the recorded point's magnitude.
+fn assert_uv_is_recorded(scene: &Scene, hit: &Hit, h: &Value, name: &str) {
+    let p = v3(&h["p"]);
+    let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
+    let t = shape.texture.as_ref().unwrap();
+    let prim = &scene.prims[hit.prim as usize];
+    let uv = t.uv.uv(hit.prim, prim, hit.p, hit.ng);
+    let want = Vec2::new(
+        h["uv"][0].as_f64().unwrap() as f32,
+        h["uv"][1].as_f64().unwrap() as f32,
+    );
+    assert!(
+        (uv - want).abs().max_element() < 1e-5 * (1.0 + p.abs().max_element()),
+        "{name} at {p}: uv {uv} against Mitsuba's {want}"
+    );
 }
 
 /// The uv of Mitsuba's shapes where its own uv depends on more than the surface: a flipped
@@ -281,18 +288,7 @@ fn each_transformed_shapes_uv_is_mitsubas() {
                 "{name} at {p}: normal {} against Mitsuba's {n}",
                 hit.ng
             );
-            let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
-            let t = shape.texture.as_ref().unwrap();
-            let prim = &scene.prims[hit.prim as usize];
-            let uv = t.uv.uv(hit.prim, prim, hit.p, hit.ng);
-            let want = Vec2::new(
-                h["uv"][0].as_f64().unwrap() as f32,
-                h["uv"][1].as_f64().unwrap() as f32,
-            );
-            assert!(
-                (uv - want).abs().max_element() < 1e-5 * scale,
-                "{name} at {p}: uv {uv} against Mitsuba's {want}"
-            );
+            assert_uv_is_recorded(&scene, &hit, h, name);
         }
     }
 }
