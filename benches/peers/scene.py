@@ -82,11 +82,11 @@ class Scene:
         for name, m in t.get("materials", {}).items():
             if m["type"] == "lambert" and not m.get("one_sided", False) and "texture" not in m:
                 self.materials[name] = dict(type="lambert", albedo=rgb(m["albedo"]))
-            elif m["type"] == "dielectric":
+            elif m["type"] == "dielectric" and not ({"specular_reflectance", "specular_transmittance"} & m.keys()):
                 self.materials[name] = dict(type="dielectric", ior=float(m["ior"]))
             else:
                 raise Refused(f"material `{name}` ({m['type']}): only two-sided lambert and "
-                              "dielectric are converted")
+                              "clear (untinted) dielectric are converted")
         self.shapes = [self._shape(s) for s in t["shapes"]]
         self.boxes = [(s["min"], s["max"], s["interior"]) for s in self.shapes
                       if s["type"] == "box" and s.get("interior") not in (None, "vacuum")]

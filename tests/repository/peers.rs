@@ -114,14 +114,51 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
         } else {
             &[]
         };
+        let tinted = tinted_glass_scene();
         for (scene, reason) in [
             ("door-slit.toml", "procedural"),
             ("cloud.toml", "procedural"),
             ("volume-caustic.toml", "spot light"),
+            (tinted.to_str().unwrap(), "untinted"),
         ] {
             let (code, err) = convert(script, scene, args).unwrap_err();
             assert_eq!(code, 2, "{script} {scene}: {err}");
             assert!(err.contains(reason), "{script} {scene}: {err}");
         }
     }
+}
+
+/// A glass ball with a `specular_transmittance` under a lamp, written to the temporary
+/// directory: the peers' converters know only clear glass, so they must refuse it rather than
+/// render clear glass in its place.
+fn tinted_glass_scene() -> PathBuf {
+    let path = std::env::temp_dir().join("pathspace-peers-tinted-glass.toml");
+    let text = r#"
+[camera]
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = 40.0
+resolution = [8, 8]
+
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+specular_transmittance = 0.5
+
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 0.5
+material = "glass"
+
+[[shapes]]
+type = "quad"
+origin = [-1.0, 1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+emission = 1.0
+"#;
+    std::fs::write(&path, text).expect("the temporary directory is writable");
+    path
 }
