@@ -17,6 +17,10 @@ use crate::spectrum::{round3 as round, show as v3};
 pub struct InfoArgs {
     /// Scene file (TOML, or Mitsuba 3 XML by its `.xml` extension).
     pub scene: PathBuf,
+    /// Write each grid medium's density lattice (read or baked from a procedural field) to
+    /// DIR/NAME.vol, boxed by the medium's box (for the peers' converters, benches/peers).
+    #[arg(long, value_name = "DIR")]
+    pub write_grids: Option<PathBuf>,
 }
 
 /// A point or direction, always as a triple.
@@ -286,6 +290,36 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
             p3(s.normal()),
             medium_name(&scene, s.medium)
         );
+    }
+    match &args.write_grids {
+        Some(dir) => write_grids(&scene, dir),
+        None => Ok(()),
+    }
+}
+
+/// `--write-grids DIR`: every grid medium's lattice as DIR/NAME.vol over its box.
+fn write_grids(scene: &Scene, dir: &std::path::Path) -> Result<(), super::CliError> {
+    use crate::medium::{grid::encode_vol, Density};
+    let io = |p: &std::path::Path, e: std::io::Error| {
+        super::CliError::Usage(format!("--write-grids: {}: {e}", p.display()))
+    };
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    for (name, m) in scene.medium_names.iter().zip(&scene.media) {
+        if let Medium::Heterogeneous(h) = m {
+            if let Density::Grid(g) = &h.density {
+                let plain = |c: char| c.is_ascii_alphanumeric() || "-_".contains(c);
+                if !name.chars().all(plain) {
+                    return Err(super::CliError::Usage(format!("--write-grids: the medium name `{}` is not a plain file name (letters, digits, - and _)", esc(name))));
+                }
+                let path = dir.join(format!("{name}.vol"));
+                std::fs::write(&path, encode_vol(g, h.bounds.min, h.bounds.max))
+                    .map_err(|e| io(&path, e))?;
+                println!("  wrote {}: {} grid of {}", path.display(), esc(name), {
+                    let [x, y, z] = g.res;
+                    format!("{x}x{y}x{z}")
+                });
+            }
+        }
     }
     Ok(())
 }
