@@ -6,8 +6,9 @@
     cargo build --release
     venv/bin/python benches/peers/run.py --cpu 8 --seeds 3 --res 64
 
-Per scene (`--scenes`: TOML names under scenes/, or `rooms`, the 100 rooms of `pathspace rooms
---n 10`), per renderer (`--renderers`), per method, `--seeds` renders of `--cpu` CPU seconds
+Per scene (`--scenes`: TOML names under scenes/, `rooms`, the 100 rooms of `pathspace rooms
+--n 10`, or a variant of `scene.VARIANTS`, a paper scene with one named change that lets the
+peers render it exactly, written to `--cache`), per renderer (`--renderers`), per method, `--seeds` renders of `--cpu` CPU seconds
 each, one render at a time on one thread, each a process of its own charged its user + system
 time (RUSAGE_CHILDREN: loading, JIT compilation and preprocessing included). A method's spp for
 the budget comes from two probes (cost = fixed + per-spp x spp). Every render is compared with
@@ -38,11 +39,11 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 from exr_metrics import child_cpu, read, relmse  # noqa: E402
-from scene import Refused, Scene  # noqa: E402
+from scene import VARIANTS, Refused, Scene, variant_text  # noqa: E402
 import to_mitsuba  # noqa: E402
 import to_tungsten  # noqa: E402
 
-SCENES = ["fog-box", "door-slit", "volume-caustic", "cloud", "maze-fog", "rooms"]
+SCENES = ["fog-box", "door-slit-ior", "volume-caustic-hard-cone", "cloud-tracking", "maze-fog", "rooms"]
 PATHSPACE = ["path", "path-equiangular", "bdpt", "mlt", "pssmlt", "mmlt", "smc"]
 MITSUBA = ["llvm_ad_rgb/volpath", "llvm_ad_rgb/volpathmis"]
 TUNGSTEN = ["path_tracer", "bidirectional_path_tracer", "kelemen_mlt", "multiplexed_mlt",
@@ -108,7 +109,7 @@ class Job:
             variant, integ = method.split("/")
             self.input = os.path.join(work, f"{scene}-{integ}.xml")
             with open(self.input, "w") as f:
-                f.write(to_mitsuba.convert(Scene(toml), [a.res, a.res], integ))
+                f.write(to_mitsuba.convert(Scene(toml), [a.res, a.res], integ, grids=work, binary=a.bin))
         elif renderer == "tungsten":
             import json
             self.input = os.path.join(work, f"{scene}-{method}.json")
@@ -176,6 +177,11 @@ def scene_file(a, scene):
     if scene == "rooms":
         path = os.path.join(a.cache, "rooms.toml")
         subprocess.run([a.bin, "rooms", "--n", "10", "-o", path], check=True, stdout=subprocess.DEVNULL)
+        return path
+    if scene in VARIANTS:
+        path = os.path.join(a.cache, scene + ".toml")
+        with open(path, "w") as f:
+            f.write(variant_text(scene))
         return path
     return os.path.join(ROOT, "scenes", scene + ".toml")
 
@@ -272,8 +278,7 @@ def main():
         refused = {}
         for peer in (p for p in a.renderers if p != "pathspace"):
             try:
-                (to_mitsuba.convert(Scene(toml)) if peer == "mitsuba" else
-                 to_tungsten.convert(Scene(toml), "path_tracer"))
+                (Scene(toml) if peer == "mitsuba" else to_tungsten.convert(Scene(toml), "path_tracer"))
             except Refused as e:
                 refused[peer] = str(e)
                 notes.append(f"{scene}: {peer} refused: {e}")

@@ -73,9 +73,26 @@ def integrator(kind, max_bounces, radius):
     return out
 
 
+def refuse_beyond_tungsten(sc):
+    """What the common subset (`scene.py`) has and tungsten cannot take: a spot light (it has
+    none), a grid medium (tungsten reads heterogeneous media only from OpenVDB files,
+    `src/core/grids/VdbGrid.cpp`, and the harness's build has no OpenVDB), a rough conductor
+    (not converted: no scene tungsten renders has one)."""
+    if sc.spots:
+        raise Refused("a spot light (tungsten has none)")
+    for name, m in sc.media.items():
+        if m["kind"] == "grid":
+            raise Refused(f"medium `{name}` is a grid (tungsten reads heterogeneous media only from "
+                          "OpenVDB files, and its build here has no OpenVDB)")
+    for name, m in sc.materials.items():
+        if m["type"] == "rough_conductor":
+            raise Refused(f"material `{name}`: a rough conductor (not converted for tungsten)")
+
+
 def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20):
     if kind not in INTEGRATORS:
         raise SystemExit(f"unknown tungsten integrator {kind} ({', '.join(INTEGRATORS)})")
+    refuse_beyond_tungsten(sc)
     bsdfs = [{"name": "black", "type": "lambert", "albedo": 0.0},
              {"name": "null", "type": "forward"}]
     for name, m in sc.materials.items():
