@@ -685,10 +685,12 @@ pub fn roulette_survival(
     let alpha = g.settings.roulette?;
     let l = lhat?;
     let q = alpha * throughput_ratio * l;
+    // the floor keeps a survivor's throughput within ROULETTE_MAX_WEIGHT times the start
+    let floor = (throughput_ratio / ROULETTE_MAX_WEIGHT).clamp(ROULETTE_MIN_SURVIVAL, q_max);
     Some(if q.is_nan() {
         q_max
     } else {
-        q.clamp(ROULETTE_MIN_SURVIVAL, q_max)
+        q.clamp(floor, q_max)
     })
 }
 // ANCHOR_END: roulette
@@ -698,6 +700,12 @@ pub fn roulette_survival(
 /// Lhat = 0 there, which is an estimate, not a fact (DEVIATION: the thesis's formula has no
 /// floor; without one the fog box loses 5% of its light, see `tests/spec/enlightened/guide.rs`).
 pub const ROULETTE_MIN_SURVIVAL: f32 = 0.05;
+
+/// The weight window of guided roulette: a survivor's throughput is at most this many times the
+/// walk's starting throughput (q >= (beta'/beta_0) / 4). Without it the survivors of directions
+/// a map underrates are 20 times heavier at every vertex, an estimator so heavy-tailed that its
+/// mean over finite runs sits below the truth (DEVIATION, a choice of this crate).
+pub const ROULETTE_MAX_WEIGHT: f32 = 4.0;
 
 impl From<&crate::enlightened::Particle> for Deposit {
     /// A particle's position, normal (surfaces) or medium (volumes), incident direction and

@@ -398,6 +398,19 @@ impl GuideOptions {
         *self != GuideOptions::default()
     }
 
+    /// The keys of the given options other than `vertices` when `vertices` itself was never
+    /// given: nothing guides then, so they would change nothing (an explicit `off` keeps a
+    /// file's guide table quiet).
+    pub fn without_guiding(&self) -> Vec<String> {
+        if self.vertices.is_some() {
+            return Vec::new();
+        }
+        match toml::Value::try_from(self) {
+            Ok(toml::Value::Table(t)) => t.keys().cloned().collect(),
+            _ => Vec::new(),
+        }
+    }
+
     /// `base` with these options as flags over it, checked (the messages name the flags).
     pub fn apply_flags(&self, base: GuideSettings) -> Result<GuideSettings, OptionError> {
         self.apply(base, Spelling::Flag)

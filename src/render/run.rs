@@ -127,6 +127,7 @@ impl<'a> Render<'a> {
             ))
             .into());
         }
+        refuse_unused_guide_options(&settings)?;
         // the scene's key is a default for the integrators it applies to
         let adjoint =
             (settings.adjoint_image && kind.samples_light_starts()).then_some(settings.adjoint);
@@ -267,6 +268,24 @@ impl<'a> Render<'a> {
         }
         meta
     }
+}
+
+/// Refuses guide options given without guiding: `--guide-particles 1000` alone would
+/// otherwise render unguided, and the user would believe the guide was tuned.
+fn refuse_unused_guide_options(settings: &RenderSettings) -> Result<(), RenderError> {
+    let unused = settings.given.guide.without_guiding();
+    if unused.is_empty() {
+        return Ok(());
+    }
+    let named: Vec<String> = unused
+        .iter()
+        .map(|k| format!("--guide-{} ([render.guide] {k})", k.replace('_', "-")))
+        .collect();
+    Err(IntegratorError::Refused(format!(
+        "{} given without guiding: add --guide surface, volume or both (or [render.guide] vertices)",
+        named.join(", ")
+    ))
+    .into())
 }
 
 /// Warns once, before the work, of the light paths integrator `kind` cannot sample on `scene`

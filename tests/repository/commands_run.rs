@@ -44,8 +44,8 @@ const REDUCED: &[(&str, &str)] = &[
 
 /// The flags added, with [`REDUCED`]'s value, to a command of these subcommands that has none
 /// where its parser accepts them with its other flags: the sizes the scene would give are long
-/// too. `--guide-particles` only to `render`, which ignores it without guiding (`converge`
-/// refuses it without a `+guide` integrator).
+/// too. `--guide-particles` only to a `render` that guides (`--guide`; it is refused without
+/// guiding, and `converge` refuses it without a `+guide` integrator).
 const ADDED: [(&str, &[&str]); 3] = [
     ("--spp", &["render", "reference"]),
     ("--mlt-bootstrap", &["render", "reference", "converge"]),
@@ -441,6 +441,10 @@ fn reduced(printed: &[String], scratch: &Path) -> Vec<String> {
     let resolution = (!toml_scene).then_some(("--resolution", &["render"][..]));
     for (flag, subcommands) in ADDED.into_iter().chain(resolution) {
         if !subcommands.contains(&args[0].as_str()) || args.iter().any(|a| a == flag) {
+            continue;
+        }
+        // guide options without guiding are refused
+        if flag.starts_with("--guide-") && !args.iter().any(|a| a == "--guide") {
             continue;
         }
         let value = match REDUCED.iter().find(|(f, _)| *f == flag) {

@@ -619,6 +619,41 @@ fn guided_bdpt_agrees_with_unguided_bdpt() {
     fam.finish();
 }
 
+/// Guided roulette (sec. 5.3.4) keeps the thesis's rule q = alpha beta'/beta_0 Lhat inside its
+/// bounds, and never lets a survivor carry more than `ROULETTE_MAX_WEIGHT` times the walk's
+/// starting throughput: without that window a map that underrates a direction gives q = 0.05
+/// there, survivors 20 times heavier at each vertex, and an estimator whose runs are so skewed
+/// that their mean sits below the truth in most finite samples.
+#[test]
+fn guided_roulette_follows_the_maps_within_a_weight_window() {
+    use pathspace::enlightened::guide::{
+        roulette_survival, ROULETTE_MAX_WEIGHT, ROULETTE_MIN_SURVIVAL,
+    };
+    let scene = fog_box(RES);
+    let mut settings = GuideSettings::for_radius(scene.radius);
+    settings.kind = GuideKind::Both;
+    settings.particles = 2_000;
+    settings.regions.regions = 16;
+    settings.roulette = Some(2.0);
+    let guide = build_guide(&scene, &PLAIN, settings);
+    let q_max = 0.95;
+    for ratio in [0.01f32, 0.1, 0.5, 1.0, 2.0, 3.0, 3.9, 10.0] {
+        for lhat in [0.0f32, 1e-3, 0.05, 0.2, 1.0, 10.0, f32::NAN] {
+            let q = roulette_survival(&guide, Some(lhat), ratio, q_max).unwrap();
+            assert!((ROULETTE_MIN_SURVIVAL..=q_max).contains(&q), "q = {q}");
+            let window = (ratio / ROULETTE_MAX_WEIGHT).max(ROULETTE_MIN_SURVIVAL);
+            let expected = if lhat.is_nan() {
+                q_max
+            } else {
+                (2.0 * ratio * lhat).clamp(window.min(q_max), q_max)
+            };
+            assert_eq!(q, expected, "ratio {ratio}, Lhat {lhat}");
+            let heaviest = ROULETTE_MAX_WEIGHT.max(ratio / q_max);
+            assert!(ratio / q <= heaviest * (1.0 + 1e-6), "ratio {ratio}, q {q}");
+        }
+    }
+}
+
 /// Guided MLT (surface and volume guiding in every subpath the bidirectional mutation
 /// regenerates, and in its transition densities) agrees with unguided BDPT.
 #[test]

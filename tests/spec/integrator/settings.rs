@@ -629,6 +629,44 @@ fn light_selection_is_checked_and_applied() {
 /// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
 /// start from): the book's key table lists every key of the schema with that default, and the
 /// key's flag states it in `--help`.
+/// A guide option without guiding would change nothing: it is refused by name, on the command
+/// line and in a file, and an explicit `off` keeps a file's guide table quiet.
+#[test]
+fn guide_options_without_guiding_are_refused() {
+    let dir = common::cli::scratch("options", "guide-without-guiding");
+    let out = dir.join("x.exr");
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", "--spp", "1", "--resolution", "4x4"];
+        args.extend_from_slice(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        common::cli::pathspace(&args)
+    };
+    let run = render(&["--guide-particles", "1000"]);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("--guide-particles") && err.contains("without guiding"),
+        "{err}"
+    );
+    let guided = ["--guide", "surface", "--guide-particles", "1000"];
+    assert!(render(&guided).status.success());
+    let scene = dir.join("g.toml");
+    let text = format!(
+        "[render.guide]\nweight = 0.3\n\n{}",
+        fog_box_without_render()
+    );
+    std::fs::write(&scene, text).unwrap();
+    let run = render(&[scene.to_str().unwrap()]);
+    let err = common::cli::stderr(&run);
+    assert!(
+        !run.status.success() && err.contains("[render.guide] weight"),
+        "{err}"
+    );
+    assert!(render(&[scene.to_str().unwrap(), "--guide", "off"])
+        .status
+        .success());
+}
+
 #[test]
 fn the_book_and_the_help_state_each_render_default_of_the_schema() {
     use serde_json::Value;
