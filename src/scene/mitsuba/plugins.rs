@@ -17,7 +17,7 @@ mod shapes;
 
 use super::props::{Doc, Props};
 use super::FORMAT;
-use crate::scene::file::{MaterialDesc, Origin, RgbValue, SceneFile};
+use crate::scene::file::{Origin, RgbValue, SceneFile};
 use crate::scene::SceneError;
 
 /// The translation in progress.
@@ -223,13 +223,7 @@ impl Importer<'_, '_> {
         let shapes = || self.out.shapes.iter().map(|s| s.common());
         let why = if shapes().any(|c| c.emission.is_some()) {
             "hide_emitters = true with an area emitter: Mitsuba makes emitting surfaces transparent to camera rays, which pathspace does not model"
-        } else if kind == "direct"
-            && shapes().any(|c| {
-                c.material.as_ref().is_some_and(|m| {
-                    matches!(self.out.materials.get(m), Some(MaterialDesc::Null {}))
-                })
-            })
-        {
+        } else if kind == "direct" && shapes().any(|c| c.material.as_deref() == Some("null")) {
             "hide_emitters = true under `direct` with a null surface: Mitsuba's `direct` shows emitters through it"
         } else {
             return Ok(());
