@@ -755,6 +755,16 @@ fn agreement_hidden_emitters() {
     fam.finish();
 }
 
+/// The same with a white sphere for the glass: light tracing reaches every path and is
+/// compared too.
+#[test]
+fn agreement_hidden_emitters_without_glass() {
+    let mut fam = Family::new("agreement: hidden emitters without glass");
+    let text = fixture("hidden.toml").replace("material = \"glass\"", "material = \"white\"");
+    check_row(&mut fam, &row("hidden-white", text, 3));
+    fam.finish();
+}
+
 #[test]
 fn agreement_disk() {
     let mut fam = Family::new("agreement: disk");
