@@ -59,7 +59,7 @@ impl Bdpt<'_> {
         for t in 1..=eye.len() {
             for s in 0..=Self::max_light_vertices(scene, light) {
                 let depth = s as i64 + t as i64 - 2;
-                if depth < 0 || depth as u64 > self.max_depth as u64 {
+                if depth < scene.min_depth() as i64 || depth as u64 > self.max_depth as u64 {
                     continue;
                 }
                 let Some((l, splat, sampled)) =

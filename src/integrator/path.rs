@@ -340,7 +340,9 @@ impl<'t> PathTracer<'t> {
             }
             let go_on = match prop.event {
                 Event::Escape => {
-                    l += escaped(scene, &self.selection, &w);
+                    if w.depth >= scene.min_depth() {
+                        l += escaped(scene, &self.selection, &w);
+                    }
                     false
                 }
                 Event::Medium {
@@ -456,7 +458,7 @@ impl<'t> PathTracer<'t> {
         let shape = scene.shape_of(hit);
         let n = hit.ng;
         if let Some(li) = shape.light {
-            if w.ray.d.dot(n) < 0.0 {
+            if w.ray.d.dot(n) < 0.0 && w.depth >= scene.min_depth() {
                 let Some(e) = emission_found(scene, &self.selection, w, hit, li) else {
                     return false;
                 };
@@ -735,6 +737,10 @@ pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2
         return Vec::new();
     };
     let mut out = Vec::new();
+    if scene.min_depth() > 0 {
+        // every path of this image has no scattering vertex
+        return out;
+    }
     for light in scene.lights.iter().filter(|l| l.is_delta()) {
         // the lens point (drawn before the light's numbers; none for the pinhole)
         let lens = cam.sample_lens(sampler);

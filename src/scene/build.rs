@@ -103,6 +103,7 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
         radius,
         has_null,
         hidden_faces,
+        hide_emitters: desc.hide_emitters,
         hash: src.hash(),
         source_name: src.name.clone(),
     };
@@ -117,7 +118,25 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
     if scene.camera.is_none() && scene.sensors.is_empty() {
         return Err(src.error(&path("camera"), "the scene has neither a camera nor a sensor, so nothing would be measured: add a [camera] table or a [[sensors]] entry"));
     }
+    hide_emitters_supported(src, &scene)?;
     Ok(scene)
+}
+
+/// `hide_emitters` removes the paths whose sensor and emitter are adjacent; it is defined for
+/// the camera alone (Mitsuba's is), and emitting media are left out for now: the path tracer
+/// collects their emission along the camera's first ray apart from its vertices.
+fn hide_emitters_supported(src: &SceneSource, scene: &Scene) -> Result<(), SceneError> {
+    if !scene.hide_emitters {
+        return Ok(());
+    }
+    let why = if !scene.sensors.is_empty() {
+        "hide_emitters with [[sensors]] is not supported: it hides emitters from the camera only"
+    } else if !scene.emitters.is_empty() {
+        "hide_emitters with an emitting medium is not supported"
+    } else {
+        return Ok(());
+    };
+    Err(src.error(&path("hide_emitters"), why))
 }
 
 /// A translated scene declares the camera's medium (Mitsuba's sensor names it, or is in

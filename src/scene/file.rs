@@ -838,6 +838,11 @@ pub struct SceneFile {
     pub lights: Vec<LightDesc>,
     #[serde(default)]
     pub sensors: Vec<SensorDesc>,
+    /// Leaves out of the measurement every path with no scattering vertex: light reaching the
+    /// camera from an emitter through null boundaries and media alone (Mitsuba 3 documentation,
+    /// integrators `path`, `volpath`: `hide_emitters`, "hide directly visible emitters").
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub hide_emitters: bool,
 }
 
 /// One step of a key path.

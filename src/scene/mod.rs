@@ -299,12 +299,24 @@ pub struct Scene {
     pub has_null: bool,
     /// Null faces left out of the BVH because a coplanar wall covers them (`build::hidden`).
     pub hidden_faces: usize,
+    /// The scene file's `hide_emitters`: the fewest scattering vertices a measured path has
+    /// ([`Scene::min_depth`]).
+    pub hide_emitters: bool,
     /// Hash of the scene file text.
     pub hash: u64,
     pub source_name: String,
 }
 
 impl Scene {
+    /// The fewest scattering vertices (surface or medium, null boundaries not counted) a path
+    /// needs to be measured: 1 with `hide_emitters`, which removes every path whose camera and
+    /// emitter are adjacent (Mitsuba 3's "directly visible emitters", seen through null
+    /// boundaries and media too, as its `volpath` counts only scattering in its depth), else 0.
+    #[inline]
+    pub fn min_depth(&self) -> u32 {
+        self.hide_emitters as u32
+    }
+
     /// Closest hit along the ray, null boundaries included.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Hit> {

@@ -2362,3 +2362,83 @@ fn public_scenes_import_unedited() {
         assert!(sum.is_finite() && sum > 0.0, "{file}: sum {sum}");
     }
 }
+
+/// `hide_emitters` (Mitsuba 3.9.1's `volpath`: no emission before the first scattering, which
+/// null surfaces and media do not count) is pathspace's `hide_emitters`: the environment seen
+/// directly or through a null surface is dark, through glass and off a mirror it stays. An area
+/// emitter is refused (Mitsuba makes it transparent to camera rays, not only dark), and so is
+/// `direct` with a null surface (Mitsuba's shows emitters through it).
+#[test]
+fn hide_emitters_is_pathspaces() {
+    let hidden =
+        r#"<integrator type="volpath"><boolean name="hide_emitters" value="true"/></integrator>"#;
+    let body = r#"<shape type="sphere">
+        <point name="center" x="0.5" y="0" z="0"/><float name="radius" value="0.5"/>
+        <bsdf type="dielectric" id="glass"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="conductor" id="plain"/>
+        <transform name="to_world"><translate x="-1.5" z="-1"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="null" id="pass"/>
+        <transform name="to_world"><scale x="3" y="3"/><translate z="1"/></transform>
+    </shape>
+    <emitter type="constant"><float name="radiance" value="0.5"/></emitter>"#;
+    let with = |integrator: &str, body: &str| {
+        scene(body).replace(r#"<integrator type="volpath"/>"#, integrator)
+    };
+    let twin = format!(
+        r#"hide_emitters = true
+{CAMERA}
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+[materials.plain]
+type = "conductor"
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.5, 0.0, 0.0]
+radius = 0.5
+material = "glass"
+[[shapes]]
+type = "quad"
+origin = [-2.5, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "plain"
+[[shapes]]
+type = "quad"
+origin = [-3.0, -3.0, 1.0]
+u = [6.0, 0.0, 0.0]
+v = [0.0, 6.0, 0.0]
+material = "null"
+[[lights]]
+type = "environment"
+radiance = 0.5
+"#
+    );
+    same_scene(&with(hidden, body), &twin);
+    // the same scene shown differs: the sky seen directly is 0.5
+    let shown = pixels(&xml(&with(r#"<integrator type="volpath"/>"#, body)).unwrap());
+    assert_ne!(shown, pixels(&toml(&twin)));
+    let lamp = r#"<shape type="rectangle"><emitter type="area"/><transform name="to_world"><translate z="-2"/></transform></shape>"#;
+    let refused = [
+        with(hidden, &format!("{body}\n{lamp}")),
+        with(
+            r#"<integrator type="direct"><boolean name="hide_emitters" value="true"/></integrator>"#,
+            body,
+        ),
+    ];
+    for (text, needle) in refused
+        .iter()
+        .zip(["an area emitter", "`direct` with a null surface"])
+    {
+        let e = xml(text).unwrap_err();
+        assert!(
+            e.contains("hide_emitters") && e.contains(needle) && e.contains("t.xml"),
+            "{e}"
+        );
+    }
+}

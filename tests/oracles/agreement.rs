@@ -737,6 +737,34 @@ fn agreement_tinted_glass() {
     fam.finish();
 }
 
+/// `hide_emitters`: an area light in view, the environment and both seen through glass, in a
+/// haze behind a null boundary: every column leaves out the paths without a scattering vertex
+/// (the path tracer's first hit and escape, BDPT's and light tracing's (0, 2) and (1, 1), MLT's
+/// contribution), and keeps the light arriving through the glass; light tracing cannot reach
+/// the camera through the smooth glass (it warns).
+#[test]
+fn agreement_hidden_emitters() {
+    let mut fam = Family::new("agreement: hidden emitters");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("hidden", fixture("hidden.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
+/// The same with a white sphere for the glass: light tracing reaches every path and is
+/// compared too.
+#[test]
+fn agreement_hidden_emitters_without_glass() {
+    let mut fam = Family::new("agreement: hidden emitters without glass");
+    let text = fixture("hidden.toml").replace("material = \"glass\"", "material = \"white\"");
+    check_row(&mut fam, &row("hidden-white", text, 3));
+    fam.finish();
+}
+
 #[test]
 fn agreement_disk() {
     let mut fam = Family::new("agreement: disk");

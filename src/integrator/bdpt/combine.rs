@@ -41,7 +41,7 @@ impl Bdpt<'_> {
         for t in 1..=eye.path.len() {
             for s in 0..=Bdpt::max_light_vertices(scene, light.path) {
                 let depth = s as i64 + t as i64 - 2;
-                if depth < 0 || depth as u64 > self.max_depth as u64 {
+                if depth < scene.min_depth() as i64 || depth as u64 > self.max_depth as u64 {
                     continue;
                 }
                 match self.strategies {

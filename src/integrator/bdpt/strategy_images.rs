@@ -88,7 +88,7 @@ fn row(scene: &Scene, b: &Bdpt, samples: Samples, y: u32, w: u32) -> Vec<Contrib
             for t in 1..=scratch.eye.len() {
                 for s in 0..=Bdpt::max_light_vertices(scene, &scratch.light) {
                     let depth = s + t;
-                    if depth < 2
+                    if depth < 2 + scene.min_depth() as usize
                         || depth - 2 > samples.max_depth_shown as usize
                         || depth - 2 > b.max_depth as usize
                     {

@@ -166,7 +166,8 @@ pub fn image_contribution_reusing(
     edges.clear();
     let n = v.len();
     // x0 on a light (at infinity too), or a volume vertex of a glowing medium (eq. 5)
-    if n < 2 || !(is_light_vertex(&v[0]) || v[0].is_medium()) {
+    // n - 2 scattering vertices, at least the scene's min_depth (`hide_emitters`)
+    if n < 2 + scene.min_depth() as usize || !(is_light_vertex(&v[0]) || v[0].is_medium()) {
         return None;
     }
     if v[n - 1].kind != VertexKind::Camera || v[1..n - 1].iter().any(|x| !is_scatterer(x)) {

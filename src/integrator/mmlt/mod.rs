@@ -73,6 +73,10 @@ impl<'a> MultiplexedTarget<'a> {
         sampler.set_stream(STREAM_FILM);
         let raster = sampler.next_2d() * self.film;
         let (d, p_d) = sample_depth(sampler.next_f64(), bdpt.max_depth);
+        if d < scene.min_depth() as usize {
+            // paths of d scattering vertices are not measured (`hide_emitters`)
+            return None;
+        }
         let strategies = d + 2;
         let s = sampler.next_index(strategies);
         let t = strategies - s;

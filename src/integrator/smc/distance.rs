@@ -93,7 +93,7 @@ pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scrat
             }
             // line 16: the background
             Event::Escape => {
-                let a = weight * walk::escaped(scene, s.ray.d, &s.prev);
+                let a = weight * walk::escaped(scene, s.ray.d, &s.prev, s.depth);
                 scratch.links.push(Link::plain(a, Rgb::ZERO));
                 return;
             }

@@ -222,7 +222,7 @@ impl March<'_> {
             match seg.end {
                 SegmentEnd::Null(_) => {}
                 SegmentEnd::Open => {
-                    let a = walk::escaped(self.scene, s.ray.d, &s.prev);
+                    let a = walk::escaped(self.scene, s.ray.d, &s.prev, s.depth);
                     self.scratch.links.push(Link::plain(a, Rgb::ZERO));
                     return false;
                 }

@@ -104,12 +104,16 @@ impl Previous {
     }
 }
 
-/// Radiance of the environment along an escaping ray, MIS-weighted against next-event
-/// estimation at the previous vertex.
-pub fn escaped(scene: &Scene, d: Vec3, prev: &Previous) -> Rgb {
+/// Radiance of the environment along an escaping ray after `depth` scattering vertices,
+/// MIS-weighted against next-event estimation at the previous vertex (none below the scene's
+/// `min_depth`).
+pub fn escaped(scene: &Scene, d: Vec3, prev: &Previous, depth: u32) -> Rgb {
     let Some(e) = scene.environment else {
         return Rgb::ZERO;
     };
+    if depth < scene.min_depth() {
+        return Rgb::ZERO;
+    }
     let Light::Environment(env) = &scene.lights[e as usize] else {
         return Rgb::ZERO;
     };
@@ -230,7 +234,7 @@ pub fn surface(
     let n = hit.ng;
     let mut a = Rgb::ZERO;
     if let Some(li) = shape.light {
-        if ray.d.dot(n) < 0.0 {
+        if ray.d.dot(n) < 0.0 && *depth >= scene.min_depth() {
             if let Light::Area { radiance, .. } = &scene.lights[li as usize] {
                 let w = if prev.singular {
                     1.0

@@ -144,6 +144,9 @@ impl<'a, 'd> Importer<'a, 'd> {
                 format!("Mitsuba's `{kind}` integrator ignores media, but the scene has some: use `volpath`"),
             ));
         }
+        if self.out.hide_emitters {
+            self.hidden_emitters_exact(&kind, node)?;
+        }
         self.render.insert("integrator".into(), "path".into());
         self.origin
             .lines
@@ -167,10 +170,16 @@ impl<'a, 'd> Importer<'a, 'd> {
             let d = p.integer("max_depth")?.unwrap_or(-1);
             (d, p.integer("rr_depth")?.unwrap_or(5))
         };
-        if p.boolean("hide_emitters")? == Some(true) {
-            return Err(p.err("hide_emitters = true is not supported"));
-        }
+        let hide = p.boolean("hide_emitters")? == Some(true);
         p.finish()?;
+        if hide {
+            self.out.hide_emitters = true;
+            self.note(
+                node,
+                "hide_emitters",
+                "paths with no scattering vertex left out (pathspace's `hide_emitters`)".into(),
+            );
+        }
         // Mitsuba counts path segments (1: emitters seen directly), pathspace scattering vertices
         let depth = match max_depth {
             -1 => None,
@@ -201,6 +210,25 @@ impl<'a, 'd> Importer<'a, 'd> {
             format!("pathspace's volumetric path tracer, {how}"),
         );
         Ok(())
+    }
+}
+
+impl Importer<'_, '_> {
+    /// Mitsuba's `hide_emitters` as pathspace's (no path without a scattering vertex), refused
+    /// where they differ (Mitsuba 3.9.1, `volpath.cpp`, `path.cpp`, `direct.cpp`): an area
+    /// emitter is transparent to Mitsuba's camera rays before their first scattering (its
+    /// `skip_area_emitters`), not only dark, and inside a medium opaque again; `direct` shows an
+    /// emitter seen through a null surface (it looks at the first surface alone).
+    fn hidden_emitters_exact(&self, kind: &str, node: Node) -> Result<(), SceneError> {
+        let shapes = || self.out.shapes.iter().map(|s| s.common());
+        let why = if shapes().any(|c| c.emission.is_some()) {
+            "hide_emitters = true with an area emitter: Mitsuba makes emitting surfaces transparent to camera rays, which pathspace does not model"
+        } else if kind == "direct" && shapes().any(|c| c.material.as_deref() == Some("null")) {
+            "hide_emitters = true under `direct` with a null surface: Mitsuba's `direct` shows emitters through it"
+        } else {
+            return Ok(());
+        };
+        Err(self.doc.err(node, why))
     }
 }
 
