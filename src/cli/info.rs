@@ -213,6 +213,9 @@ pub fn run(args: InfoArgs) -> Result<(), super::CliError> {
         ),
         None => println!("  camera: none"),
     }
+    if scene.hide_emitters {
+        println!("  hide_emitters: paths with no scattering vertex between camera and emitter are not measured");
+    }
     println!(
         "  shapes: {} ({} primitives, BVH of {} nodes)",
         scene.shapes.len(),

@@ -107,3 +107,17 @@ v = [0.0, 1.0, 0.0]
         "{e}"
     );
 }
+
+/// `info` says that a scene hides its emitters, and says nothing of it otherwise.
+#[test]
+fn info_states_hide_emitters() {
+    let dir = crate::common::cli::scratch("hide-emitters", "info");
+    for hide in [false, true] {
+        let path = dir.join(format!("hide-{hide}.toml"));
+        std::fs::write(&path, format!("hide_emitters = {hide}\n{CAMERA}{MIRROR}")).unwrap();
+        let out = crate::common::cli::pathspace(&["info", path.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", crate::common::cli::stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert_eq!(text.contains("hide_emitters:"), hide, "{text}");
+    }
+}
