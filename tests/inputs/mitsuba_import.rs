@@ -1269,7 +1269,15 @@ fn other_filters_are_refused_by_name() {
 #[test]
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
-    let cases: [(&str, &str); 15] = [
+    let cases: [(&str, &str); 17] = [
+        (
+            r#"<shape type="rectangle"><bsdf type="conductor"><texture type="checkerboard" name="eta"/></bsdf></shape>"#,
+            "`eta` of `conductor` is a <texture>",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="roughconductor"><texture type="checkerboard" name="k"/></bsdf></shape>"#,
+            "`k` of `roughconductor` is a <texture>",
+        ),
         (
             r#"<shape type="sphere"><boolean name="flip_normals" value="true"/></shape>"#,
             "flip_normals is supported on rectangles, disks, cylinders and meshes",
