@@ -72,9 +72,10 @@ fn plane_of(u: Vec3, v: Vec3) -> Option<(Vec3, Vec3, f32)> {
 }
 
 /// A triangle `p0 + b1 e1 + b2 e2` with `e1 = p1 - p0`, `e2 = p2 - p0`; geometric normal
-/// `normalize(e1 x e2)`. The corners are stored as given (not as p0 plus edges, which rounds):
-/// triangles of a mesh that share a corner must see the very same point, or the watertight test
-/// ([`Triangle::intersect_range`]) cannot close their common edge.
+/// `normalize(e1 x e2)`, or its opposite once [`Triangle::flipped`]. The corners are stored as
+/// given (not as p0 plus edges, which rounds): triangles of a mesh that share a corner must see
+/// the very same point, or the watertight test ([`Triangle::intersect_range`]) cannot close
+/// their common edge.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle {
     pub p0: Vec3,
@@ -99,6 +100,13 @@ impl Triangle {
             n: c / len,
             area: 0.5 * len,
         })
+    }
+
+    /// The same triangle with the opposite normal, its corners (and so its hits, barycentrics
+    /// and (u, v)) unchanged: Mitsuba 3's `flip_normals` on a mesh negates the geometric and the
+    /// shading normal only (`src/render/mesh.cpp`, `compute_surface_interaction`).
+    pub fn flipped(self) -> Self {
+        Triangle { n: -self.n, ..self }
     }
 
     /// The edge `p1 - p0`.

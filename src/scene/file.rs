@@ -656,8 +656,12 @@ pub enum ShapeDesc {
     },
     Mesh {
         /// The mesh file, relative to the scene file: OBJ, or PLY (`.ply`), or Mitsuba's
-        /// serialized format (`.serialized`), by its extension.
+        /// serialized format (`.serialized`), by its extension unless `format` says.
         obj: String,
+        /// The file's format whatever its name (Mitsuba 3 reads a mesh by its plugin, `obj`,
+        /// `ply` or `serialized`, not by the file's extension).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        format: Option<MeshFormat>,
         /// An affine map applied to the file's vertices: three rows [a, b, c, t] of
         /// x' = a x + b y + c z + t (how an imported scene places a mesh).
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -675,6 +679,11 @@ pub enum ShapeDesc {
         /// `serialized` (`shape_index`); refused for other files.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         shape_index: Option<u32>,
+        /// Negate the geometric and the shading normals (their side: emission, one-sided
+        /// materials, interior and exterior), the corners and (u, v) unchanged (Mitsuba 3's
+        /// `flip_normals` on `obj`, `ply` and `serialized`).
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        flip_normals: bool,
         material: Option<String>,
         emission: Option<RgbValue>,
         interior: Option<String>,
@@ -747,6 +756,15 @@ impl ShapeDesc {
             ShapeDesc::Mesh { .. } => "mesh",
         }
     }
+}
+
+/// `format = "obj" | "ply" | "serialized"` of a mesh.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum MeshFormat {
+    Obj,
+    Ply,
+    Serialized,
 }
 
 /// `[[lights]]`: delta and infinite lights.

@@ -1269,7 +1269,19 @@ fn other_filters_are_refused_by_name() {
 #[test]
 fn unsupported_input_is_refused_with_its_name_and_line() {
     let line = SENSOR.lines().count() + 2;
-    let cases: [(&str, &str); 14] = [
+    let cases: [(&str, &str); 17] = [
+        (
+            r#"<shape type="rectangle"><bsdf type="conductor"><texture type="checkerboard" name="eta"/></bsdf></shape>"#,
+            "`eta` of `conductor` is a <texture>",
+        ),
+        (
+            r#"<shape type="rectangle"><bsdf type="roughconductor"><texture type="checkerboard" name="k"/></bsdf></shape>"#,
+            "`k` of `roughconductor` is a <texture>",
+        ),
+        (
+            r#"<shape type="sphere"><boolean name="flip_normals" value="true"/></shape>"#,
+            "flip_normals is supported on rectangles, disks, cylinders and meshes",
+        ),
         (
             r#"<shape type="cylinder"><transform name="to_world"><scale x="2"/></transform></shape>"#,
             "keep it round",
@@ -1556,6 +1568,59 @@ intensity = 5.0
     same_scene(&smooth, &twin("smooth_normals = true\n"));
     same_scene(&flat, &twin(""));
     assert_ne!(pixels(&xml(&smooth).unwrap()), pixels(&xml(&flat).unwrap()));
+}
+
+/// `flip_normals` on `obj` (and `ply`, `serialized`) turns a mesh around as Mitsuba 3 does:
+/// around the camera, a smooth sphere's one-sided diffuse faces inwards and a lamp mesh emits
+/// from its other side; each XML is its TOML twin bit for bit, and the flip changes the image.
+#[test]
+fn flip_normals_on_meshes_is_mitsubas() {
+    let (sphere, lamp) = (
+        "tests/fixtures/agreement/sphere-vn.obj",
+        "tests/fixtures/agreement/lamp.obj",
+    );
+    let body = |flip: bool| {
+        format!(
+            r#"<shape type="obj"><string name="filename" value="{sphere}"/><boolean name="flip_normals" value="{flip}"/>
+        <transform name="to_world"><scale value="8"/></transform>
+        <bsdf type="diffuse" id="clay"><rgb name="reflectance" value="0.2, 0.3, 0.4"/></bsdf>
+    </shape>
+    <shape type="obj"><string name="filename" value="{lamp}"/><boolean name="flip_normals" value="{flip}"/>
+        <transform name="to_world"><translate y="1"/></transform>
+        <emitter type="area"><rgb name="radiance" value="3, 2, 1"/></emitter>
+    </shape>"#
+        )
+    };
+    let twin = format!(
+        r#"{CAMERA}
+[materials.clay]
+type = "lambert"
+albedo = [0.2, 0.3, 0.4]
+one_sided = true
+[[shapes]]
+type = "mesh"
+obj = "{sphere}"
+to_world = [[8.0, 0.0, 0.0, 0.0], [0.0, 8.0, 0.0, 0.0], [0.0, 0.0, 8.0, 0.0]]
+smooth_normals = true
+flip_normals = true
+material = "clay"
+[[shapes]]
+type = "mesh"
+obj = "{lamp}"
+to_world = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0]]
+smooth_normals = true
+flip_normals = true
+emission = [3.0, 2.0, 1.0]
+"#
+    );
+    let flipped = scene(&body(true));
+    same_scene(&flipped, &twin);
+    let img = pixels(&xml(&flipped).unwrap());
+    assert!(
+        img.iter().any(|p| p[0] > 0.0),
+        "the flipped sphere is black"
+    );
+    assert_ne!(img, pixels(&xml(&scene(&body(false))).unwrap()));
 }
 
 /// `info` on an XML lists every imported element with its line and what it became; the scene's

@@ -329,6 +329,18 @@ fn inside_out_mesh_carrying_a_medium() {
     );
 }
 
+/// A closed mesh wound outwards turned inwards by `flip_normals` holds its medium outside:
+/// refused, naming the flip (the same cube wound inside out and flipped holds it).
+#[test]
+fn flipped_mesh_carrying_a_medium_outside() {
+    expect_error(
+        "\n[[shapes]]\ntype = \"mesh\"\nobj = \"cube.obj\"\nflip_normals = true\nmaterial = \"null\"\ninterior = \"fog\"\n",
+        4,
+        "shapes[0].obj",
+        &["inside out", "flip_normals"],
+    );
+}
+
 // ---- syntax and types ----
 
 #[test]

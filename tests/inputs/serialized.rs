@@ -215,8 +215,7 @@ fn load_error(dir: &Path, name: &str, bytes: &[u8], k: Option<u32>) -> String {
 }
 
 /// A malformed file is refused naming the file, the shape and what is wrong, before anything
-/// its counts claim is allocated; `shape_index` on another format and a `serialized` shape whose
-/// file pathspace would read as another format are refused.
+/// its counts claim is allocated; `shape_index` on another format is refused.
 #[test]
 fn malformed_serialized_files_are_refused_by_file_shape_and_cause() {
     let dir = common::cli::scratch("serialized", "errors");
@@ -307,18 +306,66 @@ fn malformed_serialized_files_are_refused_by_file_shape_and_cause() {
     let src = mesh_scene(&dir, "obj = \"cube.obj\"\nshape_index = 0");
     let e = Scene::load(&src).err().unwrap().to_string();
     assert!(e.contains("shape_index") && e.contains("cube.obj"), "{e}");
-    // the importer: another format's file, a negative index
+    // the importer: a negative index
     let shape = |file: &str, k: i64| {
         format!(
             r#"<scene version="3.0.0"><shape type="serialized"><string name="filename" value="{file}"/><integer name="shape_index" value="{k}"/></shape></scene>"#
         )
     };
-    let e = mitsuba::import("t.xml", &shape("cube.obj", 0), dir.clone())
-        .err()
-        .unwrap();
-    assert!(e.to_string().contains("would be read as obj"), "{e}");
     let e = mitsuba::import("t.xml", &shape("two.serialized", -1), dir.clone())
         .err()
         .unwrap();
     assert!(e.to_string().contains("non-negative"), "{e}");
+}
+
+/// Mitsuba 3 reads a mesh by its plugin, whatever the file's name: a `serialized` shape whose
+/// file is named otherwise imports with `format = "serialized"` and builds the very triangles
+/// of the `.serialized` file; the TOML reads it so with the key, as OBJ without it; an OBJ read
+/// by a `serialized` shape is refused by the serialized reader.
+#[test]
+fn a_serialized_file_is_read_by_the_shape_not_the_name() {
+    let dir = common::cli::scratch("serialized", "renamed");
+    let fixture = root().join("tests/fixtures/serialized");
+    let file = std::fs::read_dir(&fixture)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "serialized"))
+        .expect("a serialized fixture");
+    std::fs::copy(&file, dir.join("mesh.serialized")).unwrap();
+    std::fs::copy(&file, dir.join("mesh.bin")).unwrap();
+    std::fs::copy(root().join("tests/fixtures/cube.obj"), dir.join("cube.obj")).unwrap();
+    let triangles = |src: &SceneSource| -> Vec<[f32; 9]> {
+        let scene = Scene::load(src).unwrap_or_else(|e| panic!("{e}"));
+        let corners = |p: &Primitive| match p {
+            Primitive::Triangle(t) => [t.p0, t.p1, t.p2].map(|p| p.to_array()).concat(),
+            _ => panic!("not a triangle"),
+        };
+        scene
+            .prims
+            .iter()
+            .map(|p| corners(p).try_into().unwrap())
+            .collect()
+    };
+    let want = triangles(&mesh_scene(&dir, "obj = \"mesh.serialized\""));
+    let keyed = mesh_scene(&dir, "obj = \"mesh.bin\"\nformat = \"serialized\"");
+    assert_eq!(triangles(&keyed), want);
+    let e = Scene::load(&mesh_scene(&dir, "obj = \"mesh.bin\""))
+        .err()
+        .expect("a serialized file read as OBJ")
+        .to_string();
+    assert!(e.contains("mesh.bin"), "{e}");
+    let xml = |file: &str| {
+        format!(
+            r#"<scene version="3.0.0"><sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/><rfilter type="box"/></film></sensor><shape type="serialized"><string name="filename" value="{file}"/><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></shape></scene>"#
+        )
+    };
+    let src = mitsuba::import("t.xml", &xml("mesh.bin"), dir.clone()).unwrap();
+    assert!(src.text.contains("format = \"serialized\""), "{}", src.text);
+    assert_eq!(triangles(&src), want);
+    let src = mitsuba::import("t.xml", &xml("cube.obj"), dir.clone()).unwrap();
+    let e = Scene::load(&src).err().expect("an OBJ read as serialized");
+    assert!(
+        e.to_string().contains("cube.obj") && e.to_string().contains("0x041C"),
+        "{e}"
+    );
 }

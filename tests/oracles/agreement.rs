@@ -901,6 +901,16 @@ fn agreement_smooth() {
     fam.finish();
 }
 
+/// Meshes turned around by `flip_normals`: a smooth sphere seen from inside (both normals
+/// negated), a lamp mesh emitting from its flipped side and an inside-out cube holding haze
+/// through its flip: every column must agree.
+#[test]
+fn agreement_flipped_meshes() {
+    let mut fam = Family::new("agreement: flipped meshes");
+    check_row(&mut fam, &row("flipped", fixture("flipped.toml"), 3));
+    fam.finish();
+}
+
 #[test]
 fn agreement_caustic() {
     let mut fam = Family::new("agreement: caustic");

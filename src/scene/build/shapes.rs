@@ -13,7 +13,7 @@ use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
 use crate::math::{Distribution1D, Frame};
-use crate::scene::file::{path, KeyPath, SceneFile, ShapeCommon, ShapeDesc};
+use crate::scene::file::{path, KeyPath, MeshFormat, SceneFile, ShapeCommon, ShapeDesc};
 use crate::scene::{Light, SceneError, SceneSource, ShapeInfo, ShapeTexture, UvMap};
 
 /// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
@@ -41,10 +41,19 @@ fn mesh_is_closed(positions: &[Vec3], indices: &[u32]) -> bool {
             .all(|(&(a, b), &c)| c == 1 && edges.get(&(b, a)) == Some(&1))
 }
 
-/// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards.
+/// Signed volume enclosed by a closed triangle mesh: positive when its normals point outwards
+/// (a flipped triangle's counts negated: its normal is -(e1 x e2)).
 fn signed_volume(tris: &[Triangle]) -> f32 {
     tris.iter()
-        .map(|t| t.p0.dot(t.e1().cross(t.e2())) / 6.0)
+        .map(|t| {
+            let c = t.e1().cross(t.e2());
+            let v = t.p0.dot(c) / 6.0;
+            if t.n.dot(c) < 0.0 {
+                -v
+            } else {
+                v
+            }
+        })
         .sum()
 }
 
@@ -427,17 +436,21 @@ fn primitives(
         }
         ShapeDesc::Mesh {
             obj,
+            format,
             to_world,
             smooth_normals,
             flip_tex_coords,
             shape_index,
+            flip_normals,
             ..
         } => {
             let place = placement(src, key, to_world)?;
             let form = MeshForm {
+                format: *format,
                 smooth: *smooth_normals,
                 uv: want_uv.then_some(*flip_tex_coords),
                 shape_index: *shape_index,
+                flip_normals: *flip_normals,
             };
             let (tris, all_closed, corners, uvs) = mesh(src, key, obj, place, common, form)?;
             closed = all_closed;
@@ -576,32 +589,26 @@ fn obj_uvs(m: &tobj::Mesh, smooth: bool) -> Result<Option<Vec<Vec2>>, &'static s
 /// The largest OBJ file read (about 10 million triangles).
 pub const MAX_OBJ_BYTES: u64 = 1 << 30;
 
-/// What a mesh keeps beside its triangles: corner normals when `smooth`, and with `uv` (the
-/// shape's `flip_tex_coords`) the file's texture coordinates, if any.
+/// How a mesh file is read (`format`, else by its extension) and what it keeps beside its
+/// triangles: corner normals when `smooth`, and with `uv` (the shape's `flip_tex_coords`) the
+/// file's texture coordinates, if any; `flip_normals` turns every normal around.
 struct MeshForm {
+    format: Option<MeshFormat>,
     smooth: bool,
     uv: Option<Option<bool>>,
     shape_index: Option<u32>,
+    flip_normals: bool,
 }
 
-/// The mesh formats, told apart by the file's extension.
-#[derive(Clone, Copy, PartialEq)]
-enum MeshFile {
-    Obj,
-    Ply,
-    Serialized,
-}
-
-impl MeshFile {
-    fn of(file: &std::path::Path) -> MeshFile {
-        let ext = file.extension().and_then(|e| e.to_str()).unwrap_or("");
-        if ext.eq_ignore_ascii_case("ply") {
-            MeshFile::Ply
-        } else if ext.eq_ignore_ascii_case("serialized") {
-            MeshFile::Serialized
-        } else {
-            MeshFile::Obj
-        }
+/// A mesh file's format by its extension: `.ply`, `.serialized`, else OBJ.
+fn format_of(file: &std::path::Path) -> MeshFormat {
+    let ext = file.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if ext.eq_ignore_ascii_case("ply") {
+        MeshFormat::Ply
+    } else if ext.eq_ignore_ascii_case("serialized") {
+        MeshFormat::Serialized
+    } else {
+        MeshFormat::Obj
     }
 }
 
@@ -624,29 +631,29 @@ fn mesh(
     let bytes = crate::conventions::read_at_most(&file, MAX_OBJ_BYTES)
         .map_err(|e| src.error(&obj_key, format!("cannot read `{}`: {e}", file.display())))?;
     src.record_input(obj, crate::conventions::fnv1a(&bytes));
-    let format = MeshFile::of(&file);
-    if form.shape_index.is_some() && format != MeshFile::Serialized {
+    let format = form.format.unwrap_or_else(|| format_of(&file));
+    if form.shape_index.is_some() && format != MeshFormat::Serialized {
         return Err(src.error(
             &key.clone().key("shape_index"),
             format!(
-                "shape_index selects a shape of a `.serialized` file, and `{}` is not one",
+                "shape_index selects a shape of a serialized file, and `{}` is not read as one (format)",
                 file.display()
             ),
         ));
     }
     let parts = match format {
-        MeshFile::Ply => vec![super::ply::read_ply(&bytes).map_err(|e| fail(&e))?],
-        MeshFile::Serialized => {
+        MeshFormat::Ply => vec![super::ply::read_ply(&bytes).map_err(|e| fail(&e))?],
+        MeshFormat::Serialized => {
             let k = form.shape_index.unwrap_or(0);
             vec![super::serialized::read_serialized(&bytes, k).map_err(|e| fail(&e))?]
         }
-        MeshFile::Obj => obj_parts(src, &obj_key, &file, bytes, smooth)?,
+        MeshFormat::Obj => obj_parts(src, &obj_key, &file, bytes, smooth)?,
     };
     let mut all_closed = true;
     let mut tris = Vec::new();
     let mut corners = Vec::new();
     // Mitsuba 3's `obj` flips v by default, its `ply` and `serialized` do not
-    let flip = form.uv.map(|f| f.unwrap_or(format == MeshFile::Obj));
+    let flip = form.uv.map(|f| f.unwrap_or(format == MeshFormat::Obj));
     let mut uvs = Vec::new();
     let mut parts_with_uv = 0;
     for (pos, idx, normals, tex) in &parts {
@@ -668,13 +675,25 @@ fn mesh(
             let per_position = normals::angle_weighted(&pos, idx);
             Some(idx.iter().map(|&k| per_position[k as usize]).collect())
         };
+        // Mitsuba negates the interpolated normal: negating the corners is the same
+        let smooth_part = smooth_part.map(|n: Vec<Vec3>| {
+            if form.flip_normals {
+                n.into_iter().map(|n| -n).collect()
+            } else {
+                n
+            }
+        });
         for (c, t) in idx.chunks_exact(3).enumerate() {
             let Some(tri) =
                 Triangle::new(pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
             else {
                 continue;
             };
-            tris.push(tri);
+            tris.push(if form.flip_normals {
+                tri.flipped()
+            } else {
+                tri
+            });
             if let Some(n) = &smooth_part {
                 corners.push([n[3 * c], n[3 * c + 1], n[3 * c + 2]]);
             }
@@ -698,10 +717,15 @@ fn mesh(
     }
     let closed = all_closed;
     if closed && common.interior.is_some() && signed_volume(&tris) < 0.0 {
+        let why = if form.flip_normals {
+            "flip_normals turns its normals inwards, so `interior` would be outside; remove flip_normals"
+        } else {
+            "`interior` would be outside; reverse the faces' vertex order"
+        };
         return Err(src.error(
             &obj_key,
             format!(
-                "`{}` is wound inside out (its normals point inwards), so `interior` would be outside; reverse the faces' vertex order",
+                "`{}` is wound inside out (its normals point inwards): {why}",
                 file.display()
             ),
         ));

@@ -5,7 +5,7 @@ use glam::{DMat3, DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, show, similarity, Importer, Props};
-use crate::scene::file::{MaterialDesc, ReflectanceValue, RgbValue, ShapeDesc};
+use crate::scene::file::{MaterialDesc, MeshFormat, ReflectanceValue, RgbValue, ShapeDesc};
 use crate::scene::SceneError;
 
 impl<'a, 'd> Importer<'a, 'd> {
@@ -27,8 +27,11 @@ impl<'a, 'd> Importer<'a, 'd> {
         let mut p = Props::new(self.doc, node)?;
         let m = p.transform("to_world")?.unwrap_or(DMat4::IDENTITY);
         let flip = p.boolean("flip_normals")? == Some(true);
-        if flip && !matches!(p.plugin.as_str(), "rectangle" | "disk" | "cylinder") {
-            return Err(p.err("flip_normals is supported on rectangles, disks and cylinders only"));
+        let flippable = ["rectangle", "disk", "cylinder", "obj", "ply", "serialized"];
+        if flip && !flippable.contains(&p.plugin.as_str()) {
+            return Err(p.err(
+                "flip_normals is supported on rectangles, disks, cylinders and meshes (obj, ply, serialized) only",
+            ));
         }
         let [interior, exterior] = self.shape_media(&mut p)?;
         let bsdf = p.object("bsdf", None)?;
@@ -132,7 +135,7 @@ fn geometry(p: &mut Props, m: &DMat4, flip: bool) -> Geometry {
         "disk" => Ok(disk(m, flip)),
         "cube" => cube(p, m),
         "sphere" => sphere(p, m),
-        "obj" | "ply" | "serialized" => mesh(p, m),
+        "obj" | "ply" | "serialized" => mesh(p, m, flip),
         "cylinder" => cylinder(p, m, flip),
         k => Err(p.err(format!(
             "the shape `{k}` is not supported (rectangle, disk, cube, sphere, cylinder, obj, ply, serialized are)"
@@ -328,11 +331,12 @@ fn coordinate_system(n: DVec3) -> (DVec3, DVec3) {
     )
 }
 
-/// `obj`, `ply` and `serialized`: the file under `to_world`, shaded with interpolated vertex
-/// normals unless `face_normals` is true (Mitsuba 3 documentation, plugins `obj`, `ply` and
+/// `obj`, `ply` and `serialized`: the file under `to_world`, read by the plugin whatever the
+/// file's name, shaded with interpolated vertex normals unless `face_normals` is true, both
+/// normals negated with `flip_normals` (Mitsuba 3 documentation, plugins `obj`, `ply` and
 /// `serialized`); a serialized file's shape `shape_index` (0), its texture coordinates as
 /// stored (the plugin has no `flip_tex_coords`).
-fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
+fn mesh(p: &mut Props, m: &DMat4, flip_normals: bool) -> Geometry {
     let obj = p
         .string("filename")?
         .ok_or_else(|| p.err("`filename` is missing"))?;
@@ -350,33 +354,43 @@ fn mesh(p: &mut Props, m: &DMat4) -> Geometry {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let read_as = match ext.as_deref() {
-        Some("ply") => "ply",
-        Some("serialized") => "serialized",
-        _ => "obj",
+    let by_name = match ext.as_deref() {
+        Some("ply") => MeshFormat::Ply,
+        Some("serialized") => MeshFormat::Serialized,
+        _ => MeshFormat::Obj,
     };
-    if read_as != p.plugin {
-        return Err(p.err(format!(
-            "`{obj}` would be read as {read_as} (pathspace tells a mesh file's format by its extension), not as the shape's `{}`",
-            p.plugin
-        )));
-    }
+    let plugin = match p.plugin.as_str() {
+        "ply" => MeshFormat::Ply,
+        "serialized" => MeshFormat::Serialized,
+        _ => MeshFormat::Obj,
+    };
+    // Mitsuba reads the file as its plugin says: the format is written only where the name
+    // would say otherwise
+    let format = (by_name != plugin).then_some(plugin);
     let rows = [0, 1, 2].map(|i| m.row(i).to_array().map(|x| x as f32));
     let to_world = (*m != DMat4::IDENTITY).then_some(rows);
     let which = shape_index.map_or(String::new(), |k| format!(" shape {k}"));
+    let read = format.map_or(String::new(), |_| format!(" read as {}", p.plugin));
     let how = if smooth_normals {
-        format!("mesh `{obj}`{which}, smooth (interpolated vertex normals)")
+        format!("mesh `{obj}`{read}{which}, smooth (interpolated vertex normals)")
     } else {
-        format!("mesh `{obj}`{which}, flat (face normals)")
+        format!("mesh `{obj}`{read}{which}, flat (face normals)")
+    };
+    let how = if flip_normals {
+        format!("{how}, normals flipped")
+    } else {
+        how
     };
     let (material, emission, interior, exterior) = (None, None, None, None);
     Ok((
         ShapeDesc::Mesh {
             obj,
+            format,
             to_world,
             smooth_normals,
             flip_tex_coords,
             shape_index,
+            flip_normals,
             material,
             emission,
             interior,
