@@ -339,12 +339,13 @@ impl<'a, 'd> Props<'a, 'd> {
         }
     }
 
-    /// A `<spectrum>` with `value` or (exclusively) `filename`, as RGB.
+    /// A `<spectrum>` with `value` or (exclusively) `filename` (relative to the main XML file's
+    /// directory), as RGB.
     fn spectrum(&self, n: Node, response: Response) -> Result<DVec3, SceneError> {
         let spectrum = match (self.doc.attr(n, "value")?, self.doc.attr(n, "filename")?) {
             (Some(t), None) => spectrum::parse_value(&t)
                 .map_err(|e| self.doc.err(n, format!("value=\"{t}\": {e}")))?,
-            (None, Some(f)) => spectrum::read_spd(&self.doc.base_dir.join(&f))
+            (None, Some(f)) => spectrum::read_spd(&self.spd_path(n, &f))
                 .map_err(|e| self.doc.err(n, format!("filename=\"{f}\": {e}")))?,
             _ => {
                 return Err(self.doc.err(
@@ -353,7 +354,22 @@ impl<'a, 'd> Props<'a, 'd> {
                 ))
             }
         };
-        Ok(spectrum.rgb(response).0)
+        // the f32 colour Mitsuba's `srgb` texture holds
+        Ok(spectrum.rgb(response).0.as_vec3().as_dvec3())
+    }
+
+    /// Where a `.spd` file is read from: Mitsuba resolves it while parsing, with the folder of
+    /// an included file searched before the main file's.
+    fn spd_path(&self, n: Node, f: &str) -> std::path::PathBuf {
+        let (file, _) = self.doc.place(n);
+        if file != self.doc.name {
+            if let Some(near) = std::path::Path::new(file).parent().map(|d| d.join(f)) {
+                if near.exists() {
+                    return near;
+                }
+            }
+        }
+        self.doc.base_dir.join(f)
     }
 
     pub fn point(&mut self, name: &str) -> Result<Option<DVec3>, SceneError> {
