@@ -33,8 +33,10 @@ impl Spectrum {
 
 /// A number of a spectrum (finite, as every number the importer reads).
 fn number(s: &str, what: &str) -> Result<f64, String> {
-    s.trim_matches([' ', '\t'])
-        .trim_start_matches('+')
+    let t = s.trim_matches([' ', '\t']);
+    // one leading `+`, as Mitsuba's `parse_float` skips
+    t.strip_prefix('+')
+        .unwrap_or(t)
         .parse::<f64>()
         .ok()
         .filter(|x| x.is_finite())
