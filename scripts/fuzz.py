@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Mutation fuzzing of pathspace's inputs: scene files (TOML and Mitsuba XML), density grids
 (text, `.vol` and OpenVDB), OBJ, PLY and Mitsuba `serialized` meshes, EXR and Radiance (.hdr) environment maps and PNG
-textures, and of the
+textures, Mitsuba `.spd` spectra, and of the
 files it reads back: checkpoints and renders.
 
 Each scene case copies one shipped scene (with the grid, OBJ or EXR file it reads) into a
@@ -50,7 +50,8 @@ checkpoint's pass count depends on timing, so its bytes may differ; `--keep` sav
 runs only the cases of one kind among the indices (`--only vdb`: the scene cases that mutate
 an OpenVDB file; `--only hdr`: the scene cases that read a Radiance map; `--only png`: those
 that read a PNG texture; `--only uv`: those that mutate a textured mesh, an OBJ with `vt` or a
-PLY with `u`, `v`; `--only serialized`: those that mutate a Mitsuba `serialized` mesh file).
+PLY with `u`, `v`; `--only serialized`: those that mutate a Mitsuba `serialized` mesh file;
+`--only spd`: those that mutate a `.spd` spectrum of scenes/xml/spectrum-lists.xml).
 
   python3 scripts/fuzz.py --cases 20000 --jobs 2        # the campaign before an issue closes
   python3 scripts/fuzz.py --cases 500 --jobs 2          # the short version .ci/run runs
@@ -120,9 +121,10 @@ def load_seed(rel):
     with open(path, "rb") as f:
         text = f.read()
     files = {}
-    companions = rb'(?:file|obj|map)\s*=\s*"([^"]+)"|name="filename"\s+value="([^"]+)"'
+    companions = (rb'(?:file|obj|map)\s*=\s*"([^"]+)"|name="filename"\s+value="([^"]+)"'
+                  rb'|<spectrum[^>]*\sfilename="([^"]+)"')
     for m in re.finditer(companions, text):
-        name = (m.group(1) or m.group(2)).decode()
+        name = (m.group(1) or m.group(2) or m.group(3)).decode()
         src = os.path.join(os.path.dirname(path), name)
         if os.path.isfile(src):
             with open(src, "rb") as f:
@@ -262,6 +264,31 @@ def serialized_scene(rng):
 
 
 SERIALIZED_COUNTS = [0, 1, 3, 2**31, 2**32, 2**40, 2**63, 2**64 - 1]
+
+
+def spd_scene(rng):
+    """scenes/xml/spectrum-lists.xml, whose lamp is a `.spd` spectrum, with that file mutated
+    first."""
+    text, files = load_seed(os.path.join("scenes", "xml", "spectrum-lists.xml"))
+    files["lamp.spd"], what = mutate_spd(rng, files["lamp.spd"])
+    return text, files, what
+
+
+def mutate_spd(rng, data):
+    """A `.spd` spectrum: a word set to an extreme, a comma or a third number, lines swapped
+    (wavelengths no longer increasing), or the file grown past the reader's 1 MiB bound."""
+    op = rng.choice(["words", "words", "swap", "huge"])
+    if op == "huge":
+        n = rng.choice([10, 200000])
+        body = b"".join(b"%d 0.5\n" % (400 + i) for i in range(n))
+        return body, f"spd: {n} lines"
+    if op == "swap":
+        lines = data.split(b"\n")
+        i, j = rng.randrange(len(lines)), rng.randrange(len(lines))
+        lines[i], lines[j] = lines[j], lines[i]
+        return b"\n".join(lines), f"spd: lines {i} and {j} swapped"
+    words = ["0", "-1", "1e308", "-1e308", "nan", "inf", "x", "#", "400,", "1 2", "5e-324", "+3"]
+    return mutate_words(rng, data, words, "spd")
 
 
 def mutate_serialized_stream(rng, body):
@@ -1012,6 +1039,11 @@ def serialized_case(seed, k):
     return random.Random(f"{seed}:{k}:serialized").random() < 0.05
 
 
+def spd_case(seed, k):
+    """Whether scene case k mutates a `.spd` spectrum (a stream of its own, as `hdr_case`)."""
+    return random.Random(f"{seed}:{k}:spd").random() < 0.04
+
+
 def make_case(k, seed, seeds, keys, strings):
     rng = random.Random(f"{seed}:{k}")
     pick = rng.random()
@@ -1029,16 +1061,19 @@ def make_case(k, seed, seeds, keys, strings):
         name, (text, files, what) = "textured+mesh", textured_with_mesh(rng)
     elif serialized_case(seed, k):
         name, (text, files, what) = "serialized.xml", serialized_scene(rng)
+    elif spd_case(seed, k):
+        name, (text, files, what) = "spectrum-lists.xml", spd_scene(rng)
     else:
         name = rng.choice(seeds)
         text, files = load_seed(name)
-    steps = [what] if name in ("textured+mesh", "serialized.xml") else []
+    steps = [what] if name in ("textured+mesh", "serialized.xml", "spectrum-lists.xml") else []
     for _ in range(rng.choice([1, 1, 1, 2, 3])):
         if files and rng.random() < 0.3:
             f = rng.choice(sorted(files))
             mut = {".obj": mutate_obj, ".vol": mutate_vol, ".exr": mutate_exr, ".vdb": mutate_vdb,
                    ".hdr": mutate_hdr, ".png": mutate_png, ".ply": mutate_ply}.get(f[-4:], mutate_grid)
             mut = mutate_serialized if f.endswith(".serialized") else mut
+            mut = mutate_spd if f.endswith(".spd") else mut
             files[f], what = mut(rng, files[f])
         else:
             text, what = mutate_toml(rng, text, keys, strings)
@@ -1201,7 +1236,7 @@ def main():
     ap.add_argument("--info-timeout", type=float, default=10.0)
     ap.add_argument("--render-timeout", type=float, default=60.0)
     ap.add_argument("--memory-gib", type=float, default=4.0, help="address-space limit per process")
-    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png", "uv", "serialized"] + ADVERSARIAL,
+    ap.add_argument("--only", choices=["scene", "vdb", "hdr", "png", "uv", "serialized", "spd"] + ADVERSARIAL,
                     help="run only the cases of this kind among the indices (replays, tests)")
     ap.add_argument("--keep", help="directory for the cases that are bugs")
     ap.add_argument("--scratch", default=None, help="where cases run (default: the system's temp)")
@@ -1247,6 +1282,12 @@ def run_cases(args, seeds, keys, strings, bases, counts, kinds, bugs):
         elif args.only == "serialized":
             ks = [k for k in ks if adversarial_kind(args.seed, k) is None
                   and serialized_case(args.seed, k) and not uv_case(args.seed, k)
+                  and not hdr_case(args.seed, k) and not png_case(args.seed, k)
+                  and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
+        elif args.only == "spd":
+            ks = [k for k in ks if adversarial_kind(args.seed, k) is None
+                  and spd_case(args.seed, k) and not serialized_case(args.seed, k)
+                  and not uv_case(args.seed, k)
                   and not hdr_case(args.seed, k) and not png_case(args.seed, k)
                   and random.Random(f"{args.seed}:{k}").random() >= VDB_PICK[1]]
         elif args.only:

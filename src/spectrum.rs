@@ -4,6 +4,8 @@
 //! `glam::Vec3`, the simplest representation that shows chromatic media (a per-channel `sigma_t`).
 //! Book: "Conventions of the code".
 
+pub mod cie;
+
 use glam::Vec3;
 
 /// A per-channel radiometric quantity (radiance, throughput, sigma, albedo).

@@ -2507,3 +2507,131 @@ radiance = 0.5
         );
     }
 }
+
+/// `<spectrum>` lists and `.spd` files become the RGB colours Mitsuba 3's RGB variants give them
+/// (the f32 values below are Mitsuba's own, from `tests/fixtures/spectra/mitsuba.txt`): a
+/// reflectance and a medium's `sigma_t` and `albedo` bounded under D65 (`sigma_t` clamped to
+/// 1, as Mitsuba clamps it), a conductor's `eta` and `k` unbounded under D65, emission from a
+/// `.spd` file without D65, and a uniform emission the sRGB of a flat spectrum.
+#[test]
+fn spectra_are_mitsubas_rgb() {
+    let st = [1.0f32, 1.0, 0.4287373];
+    let albedo = [0.5115173f32, 0.46194986, 0.1477761];
+    let (ss, sa): (Vec<f32>, Vec<f32>) = (0..3)
+        .map(|c| {
+            let (t, a) = (st[c] as f64 * 0.5, albedo[c] as f64);
+            ((t * a) as f32, (t * (1.0 - a)) as f32)
+        })
+        .unzip();
+    same_scene(
+        &scene(
+            r#"<medium type="homogeneous" id="haze">
+        <spectrum name="sigma_t" value="380:1.5, 480:0.2, 580:2.5, 780:0.7"/>
+        <spectrum name="albedo" value="450:0.3 650:0.6"/><float name="scale" value="0.5"/>
+    </medium>
+    <shape type="sphere"><bsdf type="null"/><ref name="interior" id="haze"/></shape>
+    <shape type="sphere">
+        <point name="center" x="0" y="1.5" z="0"/><float name="radius" value="0.3"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0, 0, 0"/></bsdf>
+        <emitter type="area"><spectrum name="radiance" filename="tests/fixtures/spectra/ramp.spd"/></emitter>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="diffuse" id="a"><spectrum name="reflectance" value="400:0.1, 500:0.5, 600:0.7, 700:0.8"/></bsdf>
+        <transform name="to_world"><scale x="3" y="3"/><translate z="-2"/></transform>
+    </shape>
+    <shape type="rectangle">
+        <bsdf type="conductor" id="b">
+            <spectrum name="eta" value="300:0.2, 450:0.9, 550:0.1, 900:0.6"/>
+            <spectrum name="k" value="380:1.5, 480:0.2, 580:2.5, 780:0.7"/>
+        </bsdf>
+        <transform name="to_world"><translate x="1.5" z="-1"/></transform>
+    </shape>
+    <emitter type="constant"><spectrum name="radiance" value="0.1"/></emitter>"#,
+        ),
+        &format!(
+            r#"{CAMERA}
+[media.haze]
+type = "homogeneous"
+sigma_a = {sa:?}
+sigma_s = {ss:?}
+phase = {{ type = "isotropic" }}
+[materials.a]
+type = "lambert"
+albedo = [0.75443333, 0.5950902, 0.27726075]
+one_sided = true
+[materials.b]
+type = "conductor"
+eta = [0.12662868, 0.20219022, 0.85763144]
+k = [2.6911857, 1.588412, 0.4287373]
+one_sided = true
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "null"
+interior = "haze"
+[[shapes]]
+type = "sphere"
+center = [0.0, 1.5, 0.0]
+radius = 0.3
+emission = [0.9271941, 0.5627954, 0.22137243]
+[[shapes]]
+type = "quad"
+origin = [-3.0, -3.0, -2.0]
+u = [6.0, 0.0, 0.0]
+v = [0.0, 6.0, 0.0]
+material = "a"
+[[shapes]]
+type = "quad"
+origin = [0.5, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "b"
+[[lights]]
+type = "environment"
+radiance = [0.1204794, 0.0948291, 0.09089161]
+"#
+        ),
+    );
+}
+
+/// A malformed `<spectrum>` is refused naming the file, the line, the property and what is
+/// wrong with it; a `.spd` file's own line is named too.
+#[test]
+fn malformed_spectra_are_refused_by_line_and_key() {
+    let line = SENSOR.lines().count() + 2;
+    let bad = std::env::temp_dir().join(format!("pathspace-bad-{}.spd", std::process::id()));
+    std::fs::write(&bad, "400 0.1\n500 x\n").unwrap();
+    let bad = bad.display().to_string();
+    for (spectrum, needle) in [
+        (
+            r#"value="500:0.1, 400:0.2""#,
+            "the wavelengths must increase",
+        ),
+        (r#"value="400:0.1""#, "at least two"),
+        (
+            r#"value="400:0.1, 500:abc""#,
+            "the value `abc` is not a finite number",
+        ),
+        (r#"value="400:0.1, 500:-1""#, "negative"),
+        (r#"filename="missing.spd""#, "filename=\"missing.spd\""),
+        (&format!(r#"filename="{bad}""#), "line 2: the value `x`"),
+        (
+            r#"value="400:0.1, 500:0.2" filename="x.spd""#,
+            "either `value` or `filename`",
+        ),
+    ] {
+        let text = scene(&format!(
+            "<shape type=\"sphere\"><bsdf type=\"diffuse\"><spectrum name=\"reflectance\" {spectrum}/></bsdf></shape>"
+        ));
+        let e = xml(&text).expect_err(spectrum);
+        assert!(
+            e.contains(needle),
+            "{spectrum}: `{e}` does not say {needle}"
+        );
+        assert!(
+            e.starts_with(&format!("t.xml:{line}:")) && e.contains("name=\"reflectance\""),
+            "{spectrum}: `{e}` does not name the line and the key"
+        );
+    }
+}

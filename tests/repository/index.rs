@@ -616,6 +616,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "each Mitsuba convention against a hand-written twin",
     ),
     (
+        "scene::mitsuba::spectrum",
+        "spec::spectrum::cie",
+        "lists and `.spd` files against the colours Mitsuba 3 gives them",
+    ),
+    (
         "scene::mitsuba::props",
         "inputs::mitsuba_import",
         "each Mitsuba convention against a hand-written twin",

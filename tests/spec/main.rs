@@ -47,4 +47,7 @@ mod render {
     mod shard;
 }
 mod scene;
+mod spectrum {
+    mod cie;
+}
 mod texture;

@@ -16,6 +16,7 @@
 mod include;
 mod plugins;
 mod props;
+pub mod spectrum;
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -114,6 +115,7 @@ pub fn import(name: &str, text: &str, base_dir: PathBuf) -> Result<SceneSource, 
         ids: HashMap::new(),
         newlines: newlines(xml.input_text()),
         segments,
+        base_dir: base_dir.clone(),
     };
     resolve(&mut doc, root)?;
     let mut imp = plugins::Importer::new(&doc, base_dir.clone());

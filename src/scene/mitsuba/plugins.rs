@@ -15,7 +15,7 @@ mod media;
 mod sensor;
 mod shapes;
 
-use super::props::{Doc, Props};
+use super::props::{Doc, Props, Response};
 use super::FORMAT;
 use crate::scene::file::{Origin, RgbValue, SceneFile};
 use crate::scene::SceneError;

@@ -6,7 +6,9 @@ use glam::{DMat3, DMat4, DVec3, DVec4};
 use roxmltree::Node;
 use std::collections::HashMap;
 
+use super::spectrum;
 use crate::scene::SceneError;
+pub use crate::spectrum::cie::Response;
 
 /// The longest attribute value after `$name` substitution (a default repeated in one attribute
 /// would otherwise multiply the file's size).
@@ -22,6 +24,8 @@ pub(super) struct Doc<'a> {
     pub newlines: Vec<usize>,
     /// Where the lines of a text spliced from included files come from (empty for one file).
     pub segments: crate::scene::file::Segments,
+    /// The directory relative file names are read from (a spectrum's `.spd` file).
+    pub base_dir: std::path::PathBuf,
 }
 
 /// The offsets of the newlines of `text`, for `Doc::line`.
@@ -314,19 +318,18 @@ impl<'a, 'd> Props<'a, 'd> {
         }
     }
 
-    /// A constant colour: `<float>`, `<rgb>`, or a `<spectrum>` with one value (uniform).
-    pub fn color(&mut self, name: &str) -> Result<Option<DVec3>, SceneError> {
+    /// A constant colour: `<float>`, `<rgb>`, or a `<spectrum>` (one value, wavelength:value
+    /// pairs or a `.spd` file) reduced to RGB with `response`, the way the plugin reads the
+    /// property in Mitsuba 3 (`spectrum::cie::Response`).
+    pub fn color(&mut self, name: &str, response: Response) -> Result<Option<DVec3>, SceneError> {
         let Some(n) = self.value(name, &["float", "rgb", "spectrum"])? else {
             return Ok(None);
         };
+        if n.tag_name().name() == "spectrum" {
+            return self.spectrum(n, response).map(Some);
+        }
         let t = self.doc.need(n, "value")?;
-        let v = self.doc.numbers(n, &t).map_err(|_| {
-            self.doc.err(
-                n,
-                format!("value=\"{t}\": only constant colours are imported (no wavelength:value pairs or files)"),
-            )
-        })?;
-        match (n.tag_name().name(), v.as_slice()) {
+        match (n.tag_name().name(), self.doc.numbers(n, &t)?.as_slice()) {
             (_, [x]) => Ok(Some(DVec3::splat(*x))),
             ("rgb", [r, g, b]) => Ok(Some(DVec3::new(*r, *g, *b))),
             _ => Err(self.doc.err(
@@ -334,6 +337,39 @@ impl<'a, 'd> Props<'a, 'd> {
                 format!("value=\"{t}\" must be one number (or three for <rgb>)"),
             )),
         }
+    }
+
+    /// A `<spectrum>` with `value` or (exclusively) `filename` (relative to the main XML file's
+    /// directory), as RGB.
+    fn spectrum(&self, n: Node, response: Response) -> Result<DVec3, SceneError> {
+        let spectrum = match (self.doc.attr(n, "value")?, self.doc.attr(n, "filename")?) {
+            (Some(t), None) => spectrum::parse_value(&t)
+                .map_err(|e| self.doc.err(n, format!("value=\"{t}\": {e}")))?,
+            (None, Some(f)) => spectrum::read_spd(&self.spd_path(n, &f))
+                .map_err(|e| self.doc.err(n, format!("filename=\"{f}\": {e}")))?,
+            _ => {
+                return Err(self.doc.err(
+                    n,
+                    "a <spectrum> takes either `value` or `filename` (but not both)",
+                ))
+            }
+        };
+        // the f32 colour Mitsuba's `srgb` texture holds
+        Ok(spectrum.rgb(response).0.as_vec3().as_dvec3())
+    }
+
+    /// Where a `.spd` file is read from: Mitsuba resolves it while parsing, with the folder of
+    /// an included file searched before the main file's.
+    fn spd_path(&self, n: Node, f: &str) -> std::path::PathBuf {
+        let (file, _) = self.doc.place(n);
+        if file != self.doc.name {
+            if let Some(near) = std::path::Path::new(file).parent().map(|d| d.join(f)) {
+                if near.exists() {
+                    return near;
+                }
+            }
+        }
+        self.doc.base_dir.join(f)
     }
 
     pub fn point(&mut self, name: &str) -> Result<Option<DVec3>, SceneError> {

@@ -5,7 +5,7 @@
 use glam::DVec3;
 use roxmltree::Node;
 
-use super::{rgb, show, Importer, Props};
+use super::{rgb, show, Importer, Props, Response};
 use crate::bsdf::named_conductor::named_conductor;
 use crate::scene::file::{
     DistributionDesc, FilterTypeDesc, MaterialDesc, ReflectanceValue, RgbValue, RoughnessValue,
@@ -159,7 +159,10 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
 fn reflectance(p: &mut Props, key: &str) -> Result<ReflectanceValue, SceneError> {
     Ok(match p.texture(key) {
         Some(t) => ReflectanceValue::Texture(texture(p.doc, t)?),
-        None => rgb(p.color(key)?.unwrap_or(DVec3::splat(0.5))).into(),
+        None => rgb(p
+            .color(key, Response::Bounded)?
+            .unwrap_or(DVec3::splat(0.5)))
+        .into(),
     })
 }
 
@@ -173,7 +176,7 @@ fn specular_reflectance(p: &mut Props) -> Result<(ReflectanceValue, String), Sce
         let shown = t.to_string();
         return Ok((t, shown));
     }
-    let s = p.color(key)?.unwrap_or(DVec3::ONE);
+    let s = p.color(key, Response::Bounded)?.unwrap_or(DVec3::ONE);
     Ok((rgb(s).into(), show(s)))
 }
 
@@ -197,7 +200,8 @@ fn texture(doc: &Doc, node: Node) -> Result<TextureDesc, SceneError> {
                         "a texture as `{k}` of a checkerboard is not supported"
                     )));
                 }
-                Ok(p.color(k)?.map_or(RgbValue::Scalar(d), rgb))
+                Ok(p.color(k, Response::Bounded)?
+                    .map_or(RgbValue::Scalar(d), rgb))
             };
             use crate::texture::checkerboard::{COLOR0, COLOR1};
             let (color0, color1) = (c(&mut p, "color0", COLOR0)?, c(&mut p, "color1", COLOR1)?);
@@ -292,7 +296,10 @@ fn conductor_index(
     p: &mut Props,
 ) -> Result<((Option<String>, Option<RgbValue>, Option<RgbValue>), String), SceneError> {
     let material = p.string("material")?.unwrap_or_else(|| "none".into());
-    let (eta, k) = (p.color("eta")?, p.color("k")?);
+    let (eta, k) = (
+        p.color("eta", Response::Unbounded)?,
+        p.color("k", Response::Unbounded)?,
+    );
     if material != "none" {
         if eta.is_some() || k.is_some() {
             return Err(p.err(format!(
@@ -376,7 +383,7 @@ fn specular_factors(
             shown += &format!(", {key} {t}");
             return Ok(t);
         }
-        let c = p.color(key)?.unwrap_or(DVec3::ONE);
+        let c = p.color(key, Response::Bounded)?.unwrap_or(DVec3::ONE);
         if c != DVec3::ONE {
             shown += &format!(", {key} {}", show(c));
         }

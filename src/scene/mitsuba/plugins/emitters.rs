@@ -4,7 +4,7 @@
 use glam::{DMat4, DVec3};
 use roxmltree::Node;
 
-use super::{f3, linear, rgb, show, Importer, Props};
+use super::{f3, linear, rgb, show, Importer, Props, Response};
 use crate::scene::file::{LightDesc, RgbValue};
 use crate::scene::SceneError;
 
@@ -18,7 +18,9 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.plugin
             )));
         }
-        let r = p.color("radiance")?.unwrap_or(DVec3::ONE);
+        let r = p
+            .color("radiance", Response::Emissive)?
+            .unwrap_or(DVec3::ONE);
         p.finish()?;
         Ok(rgb(r))
     }
@@ -32,7 +34,9 @@ impl<'a, 'd> Importer<'a, 'd> {
             "spot" => spot(&mut p, m.unwrap_or(DMat4::IDENTITY))?,
             "directional" => directional(&mut p, m)?,
             "constant" if m.is_none() => {
-                let r = p.color("radiance")?.unwrap_or(DVec3::ONE);
+                let r = p
+                    .color("radiance", Response::Emissive)?
+                    .unwrap_or(DVec3::ONE);
                 let (zenith, horizon, nadir) = (None, None, None);
                 let radiance = Some(rgb(r));
                 let env = LightDesc::Environment {
@@ -107,7 +111,9 @@ fn point(p: &mut Props, m: Option<DMat4>) -> Lighting {
         (None, None) => DVec3::ZERO,
         (Some(_), Some(_)) => return Err(p.err("give `position` or `to_world`, not both")),
     };
-    let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
+    let i = p
+        .color("intensity", Response::Emissive)?
+        .unwrap_or(DVec3::ONE);
     let how = format!("point light at {}, intensity {} W/sr", show(pos), show(i));
     let (position, intensity) = (f3(pos), rgb(i));
     Ok((
@@ -122,7 +128,9 @@ fn point(p: &mut Props, m: Option<DMat4>) -> Lighting {
 /// `spot`: along local +z of `to_world`; only the hard cone (`beam_width` = `cutoff_angle`)
 /// is the same light in both renderers.
 fn spot(p: &mut Props, m: DMat4) -> Lighting {
-    let i = p.color("intensity")?.unwrap_or(DVec3::ONE);
+    let i = p
+        .color("intensity", Response::Emissive)?
+        .unwrap_or(DVec3::ONE);
     let cutoff = p.float("cutoff_angle")?.unwrap_or(20.0);
     let beam = p.float("beam_width")?.unwrap_or(0.75 * cutoff);
     if beam != cutoff {
@@ -155,7 +163,9 @@ fn directional(p: &mut Props, m: Option<DMat4>) -> Lighting {
         (None, None) => DVec3::Z,
         (Some(_), Some(_)) => return Err(p.err("give `direction` or `to_world`, not both")),
     };
-    let e = p.color("irradiance")?.unwrap_or(DVec3::ONE);
+    let e = p
+        .color("irradiance", Response::Emissive)?
+        .unwrap_or(DVec3::ONE);
     let how = format!(
         "directional light along {}, irradiance {}",
         show(dir),

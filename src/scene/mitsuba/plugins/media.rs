@@ -4,7 +4,7 @@
 use glam::{DMat3, DMat4, DVec3};
 use roxmltree::Node;
 
-use super::{f3, linear, rgb, show, Doc, Importer, Props};
+use super::{f3, linear, rgb, show, Doc, Importer, Props, Response};
 use crate::scene::file::{MediumDesc, PhaseDesc, PropagationDesc};
 use crate::scene::SceneError;
 
@@ -50,7 +50,9 @@ impl<'a, 'd> Importer<'a, 'd> {
         scale: f64,
         phase: PhaseDesc,
     ) -> Result<(MediumDesc, String), SceneError> {
-        let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
+        let albedo = p
+            .color("albedo", Response::Bounded)?
+            .unwrap_or(DVec3::splat(0.75));
         let grid = p
             .object("volume", Some("sigma_t"))?
             .ok_or_else(|| p.err("`sigma_t` must be a <volume type=\"gridvolume\">"))?;
@@ -131,8 +133,10 @@ fn homogeneous(
     scale: f64,
     phase: PhaseDesc,
 ) -> Result<(MediumDesc, String), SceneError> {
-    let st = p.color("sigma_t")?.unwrap_or(DVec3::ONE) * scale;
-    let albedo = p.color("albedo")?.unwrap_or(DVec3::splat(0.75));
+    let st = p.color("sigma_t", Response::Bounded)?.unwrap_or(DVec3::ONE) * scale;
+    let albedo = p
+        .color("albedo", Response::Bounded)?
+        .unwrap_or(DVec3::splat(0.75));
     p.finish()?;
     let (ss, sa) = (st * albedo, st * (DVec3::ONE - albedo));
     Ok((
