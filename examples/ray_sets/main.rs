@@ -256,6 +256,13 @@ fn trace_scene(dir: &Path, name: &str, passes: usize) -> Result<()> {
         prims.len(),
         cpu_seconds() - start
     );
+    // what the hierarchy holds, and what the binary tree of its build held (dropped)
+    println!(
+        "MEMORY pathspace {name} {} bytes; binary tree {} nodes, {} references",
+        bvh.memory_bytes(),
+        bvh.node_count(),
+        bvh.reference_count()
+    );
     for label in SETS {
         let set = format::read_rays(&dir.join(format!("{name}.{label}.rays"))).map_err(io)?;
         let start = cpu_seconds();

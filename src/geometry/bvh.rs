@@ -45,13 +45,12 @@ const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 const SHALLOW: usize = 8;
 const SMALL_STACK: usize = (WIDTH - 1) * SHALLOW + 1;
 
-/// The hierarchy over a slice of primitives (the primitives are not owned): the binary tree
-/// of the build, and the four-wide tree traversal walks (`geometry::wide`) with its leaves'
-/// blocks (`geometry::leaf`), which copy the leaves' triangles.
+/// The hierarchy over a slice of primitives (the primitives are not owned): the four-wide
+/// tree traversal walks (`geometry::wide`) with its leaves' blocks (`geometry::leaf`), which
+/// copy the leaves' triangles. The binary tree of the build ([`Tree`]) is collapsed into it
+/// and dropped; what is kept of it is its root's box and its figures for statistics.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    nodes: Vec<Node>,
-    indices: Vec<u32>,
     wide: Vec<Node4>,
     /// The leaves of `wide`, each a run of blocks its slot names by the first.
     blocks: Vec<Block>,
@@ -60,6 +59,21 @@ pub struct Bvh {
     triangles: bool,
     /// Levels of the four-wide tree (which stack size its queries need).
     wide_depth: usize,
+    /// The binary tree's root box, depth, nodes and references ([`Bvh::bounds`],
+    /// [`Bvh::depth`], [`Bvh::node_count`], [`Bvh::reference_count`]).
+    bounds: Aabb,
+    depth: usize,
+    node_count: usize,
+    reference_count: usize,
+}
+
+/// The binary tree of the SAH build, flattened depth-first (the left child follows its
+/// parent). The four-wide tree is collapsed from it and its leaves' index lists are laid out
+/// as blocks; then it is dropped: its nodes and indices (about 36 bytes a reference) are not
+/// read by queries.
+struct Tree {
+    nodes: Vec<Node>,
+    indices: Vec<u32>,
     /// Whether the build may end a branch of up to `4 * MAX_LEAF` items in one leaf where the
     /// SAH prefers it: not in a scene of that few references, which is split to leaves of
     /// [`MAX_LEAF`]. The SAH counts rays that enter a node from outside, so it finds that a
@@ -68,7 +82,7 @@ pub struct Bvh {
     sah_leaves: bool,
 }
 
-impl Binary for Bvh {
+impl Binary for Tree {
     fn bounds(&self, node: usize) -> Aabb {
         self.nodes[node].bounds
     }
@@ -98,42 +112,31 @@ impl Bvh {
     /// (indices still refer to the whole slice).
     pub fn build_over(prims: &[Primitive], keep: impl Fn(usize) -> bool) -> Self {
         let mut items = split_references(prims, keep);
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * items.len().max(1)),
+        if items.is_empty() {
+            return Bvh::default();
+        }
+        let mut tree = Tree {
+            nodes: Vec::with_capacity(2 * items.len()),
             indices: Vec::with_capacity(items.len()),
-            wide: Vec::new(),
-            blocks: Vec::new(),
-            triangles: false,
-            wide_depth: 0,
             sah_leaves: items.len() > 4 * MAX_LEAF,
         };
-        if !items.is_empty() {
-            let mut leaf_of = vec![u32::MAX; prims.len()];
-            bvh.build_recursive(&mut items, 1, &mut leaf_of);
-            bvh.wide = collapse(&bvh, 0);
-            bvh.wide_depth = wide_depth(&bvh.wide, 0);
-            bvh.lay_out_leaves(prims);
+        let mut leaf_of = vec![u32::MAX; prims.len()];
+        tree.build_recursive(&mut items, 1, &mut leaf_of);
+        drop((items, leaf_of));
+        let mut wide = collapse(&tree, 0);
+        let mut blocks = tree.lay_out_leaves(&mut wide, prims);
+        wide.shrink_to_fit();
+        blocks.shrink_to_fit();
+        Bvh {
+            wide_depth: wide_depth(&wide, 0),
+            triangles: blocks.iter().any(|b| b.triangles),
+            wide,
+            blocks,
+            bounds: tree.nodes[0].bounds,
+            depth: tree.depth(0),
+            node_count: tree.nodes.len(),
+            reference_count: tree.indices.len(),
         }
-        bvh
-    }
-
-    /// Renames every leaf slot of the four-wide tree from its binary node to its first block,
-    /// laying the blocks out in the order the slots come in.
-    fn lay_out_leaves(&mut self, prims: &[Primitive]) {
-        let mut blocks = Vec::with_capacity(self.indices.len().div_ceil(2));
-        for i in 0..self.wide.len() {
-            for k in 0..WIDTH {
-                if !self.wide[i].has(k) {
-                    continue;
-                }
-                if let Child::Leaf(n) = self.wide[i].slots[k].child() {
-                    let first = leaf::lay_out(self.leaf_indices(n), prims, &mut blocks);
-                    self.wide[i].slots[k] = Slot::leaf(first as usize);
-                }
-            }
-        }
-        self.triangles = blocks.iter().any(|b| b.triangles);
-        self.blocks = blocks;
     }
 
     /// Calls `visit` on the blocks of the leaf whose first block is `first` until it returns
@@ -151,22 +154,22 @@ impl Bvh {
         false
     }
 
-    /// Number of nodes of the binary tree (for statistics).
+    /// Number of nodes of the binary tree of the build (for statistics).
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// The primitive indices of leaf `leaf` of the binary tree.
-    #[inline]
-    fn leaf_indices(&self, leaf: usize) -> &[u32] {
-        let n = &self.nodes[leaf];
-        &self.indices[n.offset as usize..(n.offset + n.count) as usize]
+        self.node_count
     }
 
     /// Number of primitive references in the leaves: more than the primitives where large ones
     /// were split ([`split_references`]).
     pub fn reference_count(&self) -> usize {
-        self.indices.len()
+        self.reference_count
+    }
+
+    /// Bytes the hierarchy holds: its four-wide nodes and leaf blocks (the render's memory
+    /// estimate, `render::memory`).
+    pub fn memory_bytes(&self) -> usize {
+        self.wide.capacity() * std::mem::size_of::<Node4>()
+            + self.blocks.capacity() * std::mem::size_of::<Block>()
     }
 
     /// Number of nodes of the four-wide tree traversal walks.
@@ -174,115 +177,14 @@ impl Bvh {
         self.wide.len()
     }
 
-    /// Depth of the deepest leaf (the root alone has depth 1).
+    /// Depth of the binary tree's deepest leaf (the root alone has depth 1; no tree: 0).
     pub fn depth(&self) -> usize {
-        fn walk(nodes: &[Node], i: usize) -> usize {
-            let n = &nodes[i];
-            if n.count > 0 {
-                1
-            } else {
-                1 + walk(nodes, i + 1).max(walk(nodes, n.offset as usize))
-            }
-        }
-        if self.nodes.is_empty() {
-            0
-        } else {
-            walk(&self.nodes, 0)
-        }
+        self.depth
     }
 
     /// Bounds of everything.
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
-    }
-
-    /// `leaf_of[i]` is the last leaf primitive `i` was put in: a leaf holding two references
-    /// of one primitive lists it once.
-    fn build_recursive(
-        &mut self,
-        items: &mut [BuildItem],
-        depth: usize,
-        leaf_of: &mut [u32],
-    ) -> usize {
-        let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
-        let node_index = self.nodes.len();
-        self.nodes.push(Node {
-            bounds,
-            offset: 0,
-            count: 0,
-        });
-        let make_leaf = |bvh: &mut Bvh, items: &mut [BuildItem], leaf_of: &mut [u32]| {
-            let first = bvh.indices.len();
-            for it in items.iter() {
-                if std::mem::replace(&mut leaf_of[it.index as usize], node_index as u32)
-                    != node_index as u32
-                {
-                    bvh.indices.push(it.index);
-                }
-            }
-            bvh.nodes[node_index].offset = first as u32;
-            bvh.nodes[node_index].count = (bvh.indices.len() - first) as u32;
-            node_index
-        };
-        if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
-            return make_leaf(self, items, leaf_of);
-        }
-        let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
-        let extent = cb.extent();
-        let widest = extent.max_position();
-        if extent[widest] <= 0.0 {
-            // all centroids coincide: split in the middle of the list
-            let mid = items.len() / 2;
-            return self.split(node_index, items, mid, depth, leaf_of);
-        }
-        // the cheapest binned SAH split over the axes along which the centroids spread
-        let mut best = Split {
-            cost: f32::INFINITY,
-            axis: widest,
-            bin: 0,
-        };
-        for axis in (0..3).filter(|&a| extent[a] > 0.0) {
-            let split = sah_split(items, &cb, axis);
-            if split.cost < best.cost {
-                best = split;
-            }
-        }
-        let leaf_cost = items.len() as f32;
-        let split_cost = TRAVERSAL_COST + best.cost / bounds.surface_area().max(f32::MIN_POSITIVE);
-        if best.cost.is_infinite()
-            || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF && self.sah_leaves)
-        {
-            if best.cost.is_infinite() {
-                let mid = items.len() / 2;
-                items.sort_by(|a, b| a.centroid[widest].total_cmp(&b.centroid[widest]));
-                return self.split(node_index, items, mid, depth, leaf_of);
-            }
-            return make_leaf(self, items, leaf_of);
-        }
-        let mut mid = 0;
-        for i in 0..items.len() {
-            if bin_of(&cb, best.axis, items[i].centroid) < best.bin {
-                items.swap(i, mid);
-                mid += 1;
-            }
-        }
-        self.split(node_index, items, mid, depth, leaf_of)
-    }
-
-    fn split(
-        &mut self,
-        node_index: usize,
-        items: &mut [BuildItem],
-        mid: usize,
-        depth: usize,
-        leaf_of: &mut [u32],
-    ) -> usize {
-        let (left, right) = items.split_at_mut(mid);
-        self.build_recursive(left, depth + 1, leaf_of);
-        let r = self.build_recursive(right, depth + 1, leaf_of);
-        self.nodes[node_index].offset = r as u32;
-        self.nodes[node_index].count = 0;
-        node_index
+        self.bounds
     }
 
     /// The closest hit with t in (0, t_max). `opaque[i]` tells whether primitive `i` wins ties:
@@ -333,7 +235,7 @@ impl Bvh {
         let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
         // no separate test of the root's box: the top node's four-lane test of its children
         // rejects a ray that misses the scene at the same cost
-        if self.nodes.is_empty() {
+        if self.wide.is_empty() {
             return None;
         }
         let lanes = RayLanes::new(ray.o, inv_d);
@@ -405,7 +307,7 @@ impl Bvh {
         t_max: f32,
     ) -> bool {
         let inv_d = ray.d.recip();
-        if self.nodes.is_empty() {
+        if self.wide.is_empty() {
             return false;
         }
         let lanes = RayLanes::new(ray.o, inv_d);
@@ -437,6 +339,129 @@ impl Bvh {
             sp -= 1;
             child = unpack(stack[sp]).0.child();
         }
+    }
+}
+
+impl Tree {
+    /// Renames every leaf slot of the four-wide tree `wide` from its binary node to its first
+    /// block, laying the blocks out in the order the slots come in; returns the blocks.
+    fn lay_out_leaves(&self, wide: &mut [Node4], prims: &[Primitive]) -> Vec<Block> {
+        let mut blocks = Vec::with_capacity(self.indices.len().div_ceil(2));
+        for node in wide.iter_mut() {
+            for k in 0..WIDTH {
+                if !node.has(k) {
+                    continue;
+                }
+                if let Child::Leaf(n) = node.slots[k].child() {
+                    let first = leaf::lay_out(self.leaf_indices(n), prims, &mut blocks);
+                    node.slots[k] = Slot::leaf(first as usize);
+                }
+            }
+        }
+        blocks
+    }
+
+    /// The primitive indices of leaf `leaf`.
+    fn leaf_indices(&self, leaf: usize) -> &[u32] {
+        let n = &self.nodes[leaf];
+        &self.indices[n.offset as usize..(n.offset + n.count) as usize]
+    }
+
+    /// Depth of the deepest leaf under node `i` (a leaf: 1).
+    fn depth(&self, i: usize) -> usize {
+        match self.children(i) {
+            None => 1,
+            Some((l, r)) => 1 + self.depth(l).max(self.depth(r)),
+        }
+    }
+
+    /// `leaf_of[i]` is the last leaf primitive `i` was put in: a leaf holding two references
+    /// of one primitive lists it once.
+    fn build_recursive(
+        &mut self,
+        items: &mut [BuildItem],
+        depth: usize,
+        leaf_of: &mut [u32],
+    ) -> usize {
+        let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+        let node_index = self.nodes.len();
+        self.nodes.push(Node {
+            bounds,
+            offset: 0,
+            count: 0,
+        });
+        let make_leaf = |tree: &mut Tree, items: &mut [BuildItem], leaf_of: &mut [u32]| {
+            let first = tree.indices.len();
+            for it in items.iter() {
+                if std::mem::replace(&mut leaf_of[it.index as usize], node_index as u32)
+                    != node_index as u32
+                {
+                    tree.indices.push(it.index);
+                }
+            }
+            tree.nodes[node_index].offset = first as u32;
+            tree.nodes[node_index].count = (tree.indices.len() - first) as u32;
+            node_index
+        };
+        if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
+            return make_leaf(self, items, leaf_of);
+        }
+        let cb = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+        let extent = cb.extent();
+        let widest = extent.max_position();
+        if extent[widest] <= 0.0 {
+            // all centroids coincide: split in the middle of the list
+            let mid = items.len() / 2;
+            return self.split(node_index, items, mid, depth, leaf_of);
+        }
+        // the cheapest binned SAH split over the axes along which the centroids spread
+        let mut best = Split {
+            cost: f32::INFINITY,
+            axis: widest,
+            bin: 0,
+        };
+        for axis in (0..3).filter(|&a| extent[a] > 0.0) {
+            let split = sah_split(items, &cb, axis);
+            if split.cost < best.cost {
+                best = split;
+            }
+        }
+        let leaf_cost = items.len() as f32;
+        let split_cost = TRAVERSAL_COST + best.cost / bounds.surface_area().max(f32::MIN_POSITIVE);
+        if best.cost.is_infinite()
+            || (split_cost >= leaf_cost && items.len() <= 4 * MAX_LEAF && self.sah_leaves)
+        {
+            if best.cost.is_infinite() {
+                let mid = items.len() / 2;
+                items.sort_by(|a, b| a.centroid[widest].total_cmp(&b.centroid[widest]));
+                return self.split(node_index, items, mid, depth, leaf_of);
+            }
+            return make_leaf(self, items, leaf_of);
+        }
+        let mut mid = 0;
+        for i in 0..items.len() {
+            if bin_of(&cb, best.axis, items[i].centroid) < best.bin {
+                items.swap(i, mid);
+                mid += 1;
+            }
+        }
+        self.split(node_index, items, mid, depth, leaf_of)
+    }
+
+    fn split(
+        &mut self,
+        node_index: usize,
+        items: &mut [BuildItem],
+        mid: usize,
+        depth: usize,
+        leaf_of: &mut [u32],
+    ) -> usize {
+        let (left, right) = items.split_at_mut(mid);
+        self.build_recursive(left, depth + 1, leaf_of);
+        let r = self.build_recursive(right, depth + 1, leaf_of);
+        self.nodes[node_index].offset = r as u32;
+        self.nodes[node_index].count = 0;
+        node_index
     }
 }
 
