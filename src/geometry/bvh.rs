@@ -356,10 +356,12 @@ impl Bvh {
     fn closest8(&self, nodes: &[Node8], q: &Query) -> Option<Hit> {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
         let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
-        match self.wide_depth {
-            ..=SHALLOW => self.closest::<_, SMALL_STACK8>(nodes, q, test),
-            ..=MID8 => self.closest::<_, MID_STACK8>(nodes, q, test),
-            _ => self.closest::<_, STACK8>(nodes, q, test),
+        if self.wide_depth <= SHALLOW {
+            self.closest::<_, SMALL_STACK8>(nodes, q, test)
+        } else if self.wide_depth <= MID8 {
+            self.closest::<_, MID_STACK8>(nodes, q, test)
+        } else {
+            self.closest::<_, STACK8>(nodes, q, test)
         }
     }
 
@@ -469,10 +471,12 @@ impl Bvh {
     fn any8(&self, nodes: &[Node8], q: &Query) -> bool {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
         let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
-        match self.wide_depth {
-            ..=SHALLOW => self.any::<_, SMALL_STACK8>(nodes, q, test),
-            ..=MID8 => self.any::<_, MID_STACK8>(nodes, q, test),
-            _ => self.any::<_, STACK8>(nodes, q, test),
+        if self.wide_depth <= SHALLOW {
+            self.any::<_, SMALL_STACK8>(nodes, q, test)
+        } else if self.wide_depth <= MID8 {
+            self.any::<_, MID_STACK8>(nodes, q, test)
+        } else {
+            self.any::<_, STACK8>(nodes, q, test)
         }
     }
 

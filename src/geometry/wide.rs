@@ -318,7 +318,7 @@ impl Node8 {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub fn intersect_avx2(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
+    pub(super) fn intersect_avx2(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
         use std::arch::x86_64::{_mm256_cmp_ps, _mm256_movemask_ps, _mm256_setr_ps, _CMP_LE_OQ};
         let (near, far) = if ray.finite {
             self.slabs::<true>(ray, limit)
@@ -342,7 +342,7 @@ impl Node8 {
         ray: &RayLanes8,
         limit: f32,
     ) -> ([f32; WIDTH8], [f32; WIDTH8]) {
-        let (min, max): (fn(f32, f32) -> f32, fn(f32, f32) -> f32) = if FINITE {
+        let (min, max): (LaneOp, LaneOp) = if FINITE {
             (lane_min, lane_max)
         } else {
             (
@@ -364,6 +364,9 @@ impl Node8 {
         (near, far.map(|f| f * 1.000_000_4))
     }
 }
+
+/// A lane's `min` or `max`.
+type LaneOp = fn(f32, f32) -> f32;
 
 /// One lane of the vector `min` (`minps`, which `Vec4::min` is): `b` unless `a < b`, so `b`
 /// where either is NaN.
