@@ -2,6 +2,9 @@
 ...` lines both sides printed and writes, per ray set, the median rays per second of each side
 over the alternations and the median of the per-alternation ratios pathspace / Embree (the
 machine may be shared: a ratio of two runs made one after the other is steadier than either).
+Where the processor has AVX2, the rates of pathspace's four-wide and eight-wide trees follow
+(`pathspace4`, `pathspace8`, whatever the scene's size), each with its ratio to Embree's single
+rays, and whether their checksums are identical (they must be: the same hits bit for bit).
 
 Checksums are equal when the hit counts are equal and the sums of hit distances agree to 1e-6
 relative (the two triangle tests round t differently: f32 t carries a few ulps)."""
@@ -31,8 +34,11 @@ def main(path):
     rows = sorted({k[:3] for k in rate}, key=lambda k: list(rate).index(k + ("pathspace",)))
     runs = len(next(iter(rate.values())))
     print(f"Embree {version}; median of {runs} alternations, one thread, Mrays/s of thread CPU time")
-    print("| ray set | kind | pathspace | Embree 1 | ratio | Embree 8 | ratio | checksums equal |")
-    print("|---|---|---|---|---|---|---|---|")
+    four = any(k[3] == "pathspace4" for k in rate)
+    extra = " 4-wide | ratio | 8-wide | ratio | 4 = 8 |" if four else ""
+    print("| ray set | kind | pathspace | Embree 1 | ratio | Embree 8 | ratio | checksums equal |"
+          + extra)
+    print("|---|---|---|---|---|---|---|---|" + ("---|---|---|---|---|" if four else ""))
     notes = []
     for scene, rays_set, kind in rows:
         ps = rate[(scene, rays_set, kind, "pathspace")]
@@ -51,6 +57,17 @@ def main(path):
             (h1, s1) = check[(scene, rays_set, "embree")]
             notes.append(f"{scene}.{rays_set}: hits {h0} (pathspace) vs {h1} (Embree), "
                          f"sum t {s0:.6f} vs {s1:.6f}")
+        if four:
+            cells.append("yes" if same else "no")
+            e = rate[(scene, rays_set, kind, "embree")]
+            for side in ("pathspace4", "pathspace8"):
+                p = rate[(scene, rays_set, kind, side)]
+                ratio = statistics.median(p[r] / e[r] for r in p if r in e)
+                cells += [f"{statistics.median(p.values()) * 1e-6:.2f}", f"{ratio:.2f}"]
+            identical = check[(scene, rays_set, "pathspace4")] == check[(scene, rays_set, "pathspace8")]
+            cells.append("yes" if identical else "NO")
+            print(f"| {scene}.{rays_set} | {kind} | " + " | ".join(cells) + " |")
+            continue
         print(f"| {scene}.{rays_set} | {kind} | " + " | ".join(cells)
               + f" | {'yes' if same else 'no'} |")
     for note in notes:

@@ -11,7 +11,8 @@
 //! camera hit, cosine-distributed about the normal on the side the camera sees, closest hit)
 //! and shadow rays (from each camera hit to a point on a light, any hit). `trace` builds
 //! pathspace's BVH over the triangles and traces every set on one thread, printing per set
-//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S`.
+//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S`; where the
+//! processor has AVX2 the four- and eight-wide trees follow as `pathspace4` and `pathspace8`.
 
 mod format;
 
@@ -23,6 +24,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 use format::{Kind, RaySet};
+use pathspace::geometry::bvh::Width;
 use pathspace::geometry::{offset_origin, shadow_distance, Bvh, Primitive, Ray};
 use pathspace::math::frame::Frame;
 use pathspace::math::warp;
@@ -249,35 +251,58 @@ fn trace_scene(dir: &Path, name: &str, passes: usize) -> Result<()> {
     let tris = format::read_triangles(&dir.join(format!("{name}.tri"))).map_err(io)?;
     let prims = format::primitives(&tris)?;
     let opaque = vec![true; prims.len()];
-    let start = cpu_seconds();
-    let bvh = Bvh::build(&prims);
-    println!(
-        "BUILD pathspace {name} {} {:.4}",
-        prims.len(),
-        cpu_seconds() - start
-    );
+    // the renderer's tree (`Bvh::build`: eight-wide nodes for large trees where the processor
+    // has AVX2) and, where it has, the four-wide and eight-wide trees whatever the size
+    let mut sides = vec![("pathspace", None)];
+    if Width::native() != Width::Four {
+        sides.push(("pathspace4", Some(Width::Four)));
+        sides.push(("pathspace8", Some(Width::Eight)));
+    }
+    let mut trees = Vec::new();
+    for &(side, width) in &sides {
+        let start = cpu_seconds();
+        let bvh = match width {
+            Some(w) => Bvh::build_with(&prims, |_| true, w),
+            None => Bvh::build(&prims),
+        };
+        println!(
+            "BUILD {side} {name} {} {:.4}",
+            prims.len(),
+            cpu_seconds() - start
+        );
+        // what the hierarchy holds, and what the binary tree of its build held (dropped)
+        println!(
+            "MEMORY {side} {name} {} bytes; binary tree {} nodes, {} references",
+            bvh.memory_bytes(),
+            bvh.node_count(),
+            bvh.reference_count()
+        );
+        trees.push((side, bvh));
+    }
     for label in SETS {
         let set = format::read_rays(&dir.join(format!("{name}.{label}.rays"))).map_err(io)?;
-        let start = cpu_seconds();
-        let mut sum = format::Checksum::default();
-        for _ in 0..passes {
-            // black boxes on both ends: every pass is traced, none hoisted or dropped
-            sum = std::hint::black_box(format::trace(
-                &bvh,
-                &prims,
-                &opaque,
-                std::hint::black_box(&set),
-            ));
+        for (side, bvh) in &trees {
+            let start = cpu_seconds();
+            let mut sum = format::Checksum::default();
+            for _ in 0..passes {
+                // black boxes on both ends: every pass is traced, none hoisted or dropped
+                sum = std::hint::black_box(format::trace(
+                    bvh,
+                    &prims,
+                    &opaque,
+                    std::hint::black_box(&set),
+                ));
+            }
+            let seconds = cpu_seconds() - start;
+            let rays = set.rays.len() * passes;
+            println!(
+                "RESULT {side} {name} {label} {} 1 {rays} {seconds:.6} {} {:.6} {:.3}",
+                set.kind.name(),
+                sum.hits,
+                sum.sum_t,
+                rays as f64 / seconds * 1e-6
+            );
         }
-        let seconds = cpu_seconds() - start;
-        let rays = set.rays.len() * passes;
-        println!(
-            "RESULT pathspace {name} {label} {} 1 {rays} {seconds:.6} {} {:.6} {:.3}",
-            set.kind.name(),
-            sum.hits,
-            sum.sum_t,
-            rays as f64 / seconds * 1e-6
-        );
     }
     Ok(())
 }

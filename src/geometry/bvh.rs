@@ -10,7 +10,8 @@
 use glam::Vec3;
 
 use super::leaf::{self, Block, TriangleRay};
-use super::wide::{collapse, Binary, Child, Node4, RayLanes, Slot, WIDTH};
+use super::wide::{collapse, Binary, Child, Node4, Node8, RayLanes, RayLanes8, Slot, Wide};
+use super::wide::{WIDTH, WIDTH8};
 use super::{shape::Hit, Aabb, Primitive, Ray};
 
 const BINS: usize = 12;
@@ -36,30 +37,103 @@ struct Node {
     count: u32,
 }
 
-/// Entries of the traversal stack: a visit pops one entry and pushes at most `WIDTH`, once per
-/// level of the four-wide tree, which is no deeper than the binary one.
+/// Entries of the traversal stack: a visit pops one entry and pushes at most `WIDTH - 1` more,
+/// once per level of the wide tree, which is no deeper than the binary one.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+const STACK8: usize = (WIDTH8 - 1) * MAX_DEPTH + 1;
 
-/// Levels of a four-wide tree that a query walks with the small stack [`SMALL_STACK`]: a stack
-/// is set up (zeroed) for every ray, and 1.5 kB of it showed in the profile of small scenes.
+/// Levels of a wide tree that a query walks with the small stack [`SMALL_STACK`]
+/// ([`SMALL_STACK8`]): a stack is set up (zeroed) for every ray, and 1.5 kB of it showed in the
+/// profile of small scenes.
 const SHALLOW: usize = 8;
 const SMALL_STACK: usize = (WIDTH - 1) * SHALLOW + 1;
+const SMALL_STACK8: usize = (WIDTH8 - 1) * SHALLOW + 1;
+/// Levels of an eight-wide tree walked with [`MID_STACK8`] (the million-triangle sphere's
+/// has 11), since the full stack of an eight-wide tree is 3.6 kB.
+const MID8: usize = 16;
+const MID_STACK8: usize = (WIDTH8 - 1) * MID8 + 1;
 
-/// The hierarchy over a slice of primitives (the primitives are not owned): the binary tree
-/// of the build, and the four-wide tree traversal walks (`geometry::wide`) with its leaves'
-/// blocks (`geometry::leaf`), which copy the leaves' triangles.
+/// References from which [`Bvh::build`] chooses eight-wide nodes where it can: measured
+/// against Embree (book: "Measuring a renderer", "Against Embree, ray for ray"), they made the
+/// million-triangle sphere's rays 5 to 12% faster and the fog box's (12 triangles) and the
+/// hundred rooms' (7824 references) any-hit rays 4 to 6% slower. Between the two sizes the
+/// threshold is a round guess, not a measurement.
+pub const EIGHT_WIDE_REFERENCES: usize = 100_000;
+
+/// Children per node of the tree traversal walks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Width {
+    /// [`Node4`], four-lane SSE (or the target's four-lane) operations.
+    Four,
+    /// [`Node8`], eight-lane AVX2 operations.
+    Eight,
+}
+
+impl Width {
+    /// Eight where the processor running this has AVX2 (detected at run time), four elsewhere.
+    pub fn native() -> Width {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Width::Eight;
+        }
+        Width::Four
+    }
+}
+
+/// The wide tree traversal walks.
+#[derive(Clone, Debug)]
+enum Nodes {
+    Four(Vec<Node4>),
+    /// Built only where [`Width::native`] is [`Width::Eight`]: its traversal is compiled for
+    /// AVX2.
+    Eight(Vec<Node8>),
+}
+
+impl Default for Nodes {
+    fn default() -> Self {
+        Nodes::Four(Vec::new())
+    }
+}
+
+/// What a query asks, shared by the traversals of both widths.
+struct Query<'a> {
+    prims: &'a [Primitive],
+    /// Closest hit: which primitives win ties (`opaque`); any hit: which block (`blocks`).
+    flags: &'a [bool],
+    ray: &'a Ray,
+    t_min: f32,
+    t_max: f32,
+}
+
+/// The hierarchy over a slice of primitives (the primitives are not owned): the four- or
+/// eight-wide tree traversal walks (`geometry::wide`, [`Width`]) with its leaves' blocks
+/// (`geometry::leaf`), which copy the leaves' triangles. The binary tree of the build ([`Tree`]) is collapsed into it
+/// and dropped; what is kept of it is its root's box and its figures for statistics.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    nodes: Vec<Node>,
-    indices: Vec<u32>,
-    wide: Vec<Node4>,
+    wide: Nodes,
     /// The leaves of `wide`, each a run of blocks its slot names by the first.
     blocks: Vec<Block>,
     /// Whether a block holds triangles: queries of a tree without set up no [`TriangleRay`],
     /// whose division and splats showed as 3% of the path tracer's time on the fog box's quads.
     triangles: bool,
-    /// Levels of the four-wide tree (which stack size its queries need).
+    /// Levels of the wide tree (which stack size its queries need).
     wide_depth: usize,
+    /// The binary tree's root box, depth, nodes and references ([`Bvh::bounds`],
+    /// [`Bvh::depth`], [`Bvh::node_count`], [`Bvh::reference_count`]).
+    bounds: Aabb,
+    depth: usize,
+    node_count: usize,
+    reference_count: usize,
+}
+
+/// The binary tree of the SAH build, flattened depth-first (the left child follows its
+/// parent). The four-wide tree is collapsed from it and its leaves' index lists are laid out
+/// as blocks; then it is dropped: its nodes and indices (about 36 bytes a reference) are not
+/// read by queries.
+struct Tree {
+    nodes: Vec<Node>,
+    indices: Vec<u32>,
     /// Whether the build may end a branch of up to `4 * MAX_LEAF` items in one leaf where the
     /// SAH prefers it: not in a scene of that few references, which is split to leaves of
     /// [`MAX_LEAF`]. The SAH counts rays that enter a node from outside, so it finds that a
@@ -68,7 +142,7 @@ pub struct Bvh {
     sah_leaves: bool,
 }
 
-impl Binary for Bvh {
+impl Binary for Tree {
     fn bounds(&self, node: usize) -> Aabb {
         self.nodes[node].bounds
     }
@@ -96,44 +170,64 @@ impl Bvh {
 
     /// Builds the hierarchy over the primitives `keep` accepts; queries never see the others
     /// (indices still refer to the whole slice).
+    /// Eight-wide nodes where the processor has AVX2 and the tree has at least
+    /// [`EIGHT_WIDE_REFERENCES`] references, four-wide ones otherwise.
     pub fn build_over(prims: &[Primitive], keep: impl Fn(usize) -> bool) -> Self {
-        let mut items = split_references(prims, keep);
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * items.len().max(1)),
-            indices: Vec::with_capacity(items.len()),
-            wide: Vec::new(),
-            blocks: Vec::new(),
-            triangles: false,
-            wide_depth: 0,
-            sah_leaves: items.len() > 4 * MAX_LEAF,
-        };
-        if !items.is_empty() {
-            let mut leaf_of = vec![u32::MAX; prims.len()];
-            bvh.build_recursive(&mut items, 1, &mut leaf_of);
-            bvh.wide = collapse(&bvh, 0);
-            bvh.wide_depth = wide_depth(&bvh.wide, 0);
-            bvh.lay_out_leaves(prims);
-        }
-        bvh
+        Self::build_choosing(prims, keep, |references| {
+            if references >= EIGHT_WIDE_REFERENCES {
+                Width::native()
+            } else {
+                Width::Four
+            }
+        })
     }
 
-    /// Renames every leaf slot of the four-wide tree from its binary node to its first block,
-    /// laying the blocks out in the order the slots come in.
-    fn lay_out_leaves(&mut self, prims: &[Primitive]) {
-        let mut blocks = Vec::with_capacity(self.indices.len().div_ceil(2));
-        for i in 0..self.wide.len() {
-            for k in 0..WIDTH {
-                if !self.wide[i].has(k) {
-                    continue;
-                }
-                if let Child::Leaf(n) = self.wide[i].slots[k].child() {
-                    let first = leaf::lay_out(self.leaf_indices(n), prims, &mut blocks);
-                    self.wide[i].slots[k] = Slot::leaf(first as usize);
-                }
-            }
+    /// [`Bvh::build_over`] with nodes of `width` children whatever the tree's size;
+    /// [`Width::Eight`] where the processor has no AVX2 builds [`Width::Four`].
+    pub fn build_with(prims: &[Primitive], keep: impl Fn(usize) -> bool, width: Width) -> Self {
+        Self::build_choosing(prims, keep, |_| width)
+    }
+
+    /// The build, the width of its nodes chosen by `width` from the number of references.
+    fn build_choosing(
+        prims: &[Primitive],
+        keep: impl Fn(usize) -> bool,
+        width: impl FnOnce(usize) -> Width,
+    ) -> Self {
+        let mut items = split_references(prims, keep);
+        if items.is_empty() {
+            return Bvh::default();
         }
-        self.triangles = blocks.iter().any(|b| b.triangles);
-        self.blocks = blocks;
+        let width = width(items.len());
+        let mut tree = Tree {
+            nodes: Vec::with_capacity(2 * items.len()),
+            indices: Vec::with_capacity(items.len()),
+            sah_leaves: items.len() > 4 * MAX_LEAF,
+        };
+        let mut leaf_of = vec![u32::MAX; prims.len()];
+        tree.build_recursive(&mut items, 1, &mut leaf_of);
+        drop((items, leaf_of));
+        let (wide, wide_depth, mut blocks) = match (width, Width::native()) {
+            (Width::Eight, Width::Eight) => {
+                let (nodes, depth, blocks) = tree.collapse(prims);
+                (Nodes::Eight(nodes), depth, blocks)
+            }
+            _ => {
+                let (nodes, depth, blocks) = tree.collapse(prims);
+                (Nodes::Four(nodes), depth, blocks)
+            }
+        };
+        blocks.shrink_to_fit();
+        Bvh {
+            wide_depth,
+            triangles: blocks.iter().any(|b| b.triangles),
+            wide,
+            blocks,
+            bounds: tree.nodes[0].bounds,
+            depth: tree.depth(0),
+            node_count: tree.nodes.len(),
+            reference_count: tree.indices.len(),
+        }
     }
 
     /// Calls `visit` on the blocks of the leaf whose first block is `first` until it returns
@@ -151,49 +245,326 @@ impl Bvh {
         false
     }
 
-    /// Number of nodes of the binary tree (for statistics).
+    /// Number of nodes of the binary tree of the build (for statistics).
     pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// The primitive indices of leaf `leaf` of the binary tree.
-    #[inline]
-    fn leaf_indices(&self, leaf: usize) -> &[u32] {
-        let n = &self.nodes[leaf];
-        &self.indices[n.offset as usize..(n.offset + n.count) as usize]
+        self.node_count
     }
 
     /// Number of primitive references in the leaves: more than the primitives where large ones
     /// were split ([`split_references`]).
     pub fn reference_count(&self) -> usize {
-        self.indices.len()
+        self.reference_count
     }
 
-    /// Number of nodes of the four-wide tree traversal walks.
+    /// Bytes the hierarchy holds: its four-wide nodes and leaf blocks (the render's memory
+    /// estimate, `render::memory`).
+    pub fn memory_bytes(&self) -> usize {
+        let nodes = match &self.wide {
+            Nodes::Four(n) => n.capacity() * std::mem::size_of::<Node4>(),
+            Nodes::Eight(n) => n.capacity() * std::mem::size_of::<Node8>(),
+        };
+        nodes + self.blocks.capacity() * std::mem::size_of::<Block>()
+    }
+
+    /// Children per node of the tree traversal walks.
+    pub fn width(&self) -> Width {
+        match self.wide {
+            Nodes::Four(_) => Width::Four,
+            Nodes::Eight(_) => Width::Eight,
+        }
+    }
+
+    /// Number of nodes of the wide tree traversal walks.
     pub fn wide_node_count(&self) -> usize {
-        self.wide.len()
+        match &self.wide {
+            Nodes::Four(n) => n.len(),
+            Nodes::Eight(n) => n.len(),
+        }
     }
 
-    /// Depth of the deepest leaf (the root alone has depth 1).
+    /// Depth of the binary tree's deepest leaf (the root alone has depth 1; no tree: 0).
     pub fn depth(&self) -> usize {
-        fn walk(nodes: &[Node], i: usize) -> usize {
-            let n = &nodes[i];
-            if n.count > 0 {
-                1
-            } else {
-                1 + walk(nodes, i + 1).max(walk(nodes, n.offset as usize))
-            }
-        }
-        if self.nodes.is_empty() {
-            0
-        } else {
-            walk(&self.nodes, 0)
-        }
+        self.depth
     }
 
     /// Bounds of everything.
     pub fn bounds(&self) -> Aabb {
-        self.nodes.first().map(|n| n.bounds).unwrap_or(Aabb::EMPTY)
+        self.bounds
+    }
+
+    /// The closest hit with t in (0, t_max). `opaque[i]` tells whether primitive `i` wins ties:
+    /// among hits within [`TIE_EPSILON`] (relative) of each other an opaque one is returned.
+    pub fn intersect(
+        &self,
+        prims: &[Primitive],
+        opaque: &[bool],
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<Hit> {
+        self.intersect_range(prims, opaque, ray, 0.0, t_max)
+    }
+
+    /// [`Bvh::intersect`] restricted to t in (t_min, t_max).
+    ///
+    /// Traversal tests a node's children together, stacks those the ray enters with their
+    /// entry distances, the nearest on top, and checks each distance again when it is popped:
+    /// a subtree the best hit so far has moved out of reach is dropped without touching its
+    /// node.
+    #[inline]
+    pub fn intersect_range(
+        &self,
+        prims: &[Primitive],
+        opaque: &[bool],
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<Hit> {
+        let q = Query {
+            prims,
+            flags: opaque,
+            ray,
+            t_min,
+            t_max,
+        };
+        let shallow = self.wide_depth <= SHALLOW;
+        match &self.wide {
+            Nodes::Four(n) if shallow => self.closest4::<SMALL_STACK>(n, &q),
+            Nodes::Four(n) => self.closest4::<STACK>(n, &q),
+            #[cfg(not(target_arch = "x86_64"))]
+            Nodes::Eight(_) => unreachable!("eight-wide nodes are built on x86-64 only"),
+            #[cfg(target_arch = "x86_64")]
+            Nodes::Eight(n) => {
+                // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
+                // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
+                unsafe { self.closest8(n, &q) }
+            }
+        }
+    }
+
+    /// [`Bvh::closest`] on the four-wide tree with a stack of `N` entries.
+    fn closest4<const N: usize>(&self, nodes: &[Node4], q: &Query) -> Option<Hit> {
+        let lanes = RayLanes::new(q.ray.o, q.ray.d.recip());
+        self.closest::<_, N>(nodes, q, |node: &Node4, limit| {
+            node.intersect(&lanes, limit)
+        })
+    }
+
+    /// [`Bvh::closest`] on the eight-wide tree, compiled for AVX2 so that its node tests run as
+    /// eight-lane instructions.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn closest8(&self, nodes: &[Node8], q: &Query) -> Option<Hit> {
+        let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
+        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
+        if self.wide_depth <= SHALLOW {
+            self.closest::<_, SMALL_STACK8>(nodes, q, test)
+        } else if self.wide_depth <= MID8 {
+            self.closest::<_, MID_STACK8>(nodes, q, test)
+        } else {
+            self.closest::<_, STACK8>(nodes, q, test)
+        }
+    }
+
+    /// The closest-hit traversal of `nodes` with a stack of `N` entries (enough for the
+    /// tree's depth), `test` the ray's slab test of a node's children before a limit.
+    #[inline(always)]
+    fn closest<W: Wide, const N: usize>(
+        &self,
+        nodes: &[W],
+        q: &Query,
+        test: impl Fn(&W, f32) -> (u32, W::Near),
+    ) -> Option<Hit> {
+        let (prims, ray, t_max) = (q.prims, q.ray, q.t_max);
+        // hits this far past the best one still compete in the tie-break
+        let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
+        // no separate test of the root's box: the top node's test of its children rejects a
+        // ray that misses the scene at the same cost
+        if nodes.is_empty() {
+            return None;
+        }
+        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
+        let query = LeafQuery {
+            prims,
+            opaque: q.flags,
+            ray,
+            tri_ray: tri_ray.as_ref(),
+            t_min: q.t_min,
+            t_max,
+            reach: &reach,
+        };
+        let mut best: Option<Best> = None;
+        let mut stack = [0u64; N];
+        let mut sp = 0usize;
+        let mut child = Child::Node(0);
+        loop {
+            match child {
+                Child::Leaf(first) => {
+                    self.leaf(first, |block| {
+                        query.block(block, &mut best);
+                        false
+                    });
+                }
+                Child::Node(i) => {
+                    let limit = reach(best.map_or(t_max, |b| b.t));
+                    let nearest;
+                    let node = &nodes[i];
+                    (sp, nearest) = push_farther(&mut stack, sp, node, test(node, limit));
+                    if let Some(slot) = nearest {
+                        child = slot.child();
+                        continue;
+                    }
+                }
+            }
+            // the next stacked subtree the ray still enters before the best hit's reach (with
+            // the slack of the box test)
+            loop {
+                if sp == 0 {
+                    return best.map(|b| b.hit(prims));
+                }
+                sp -= 1;
+                let (next, t_near) = unpack(stack[sp]);
+                if t_near <= reach(best.map_or(t_max, |b| b.t)) * 1.000_000_4 {
+                    child = next.child();
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true, the nearer
+    /// children entered first as in [`Bvh::intersect_range`].
+    #[inline]
+    pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
+        let q = Query {
+            prims,
+            flags: blocks,
+            ray,
+            t_min: 0.0,
+            t_max,
+        };
+        let shallow = self.wide_depth <= SHALLOW;
+        match &self.wide {
+            Nodes::Four(n) if shallow => self.any4::<SMALL_STACK>(n, &q),
+            Nodes::Four(n) => self.any4::<STACK>(n, &q),
+            #[cfg(not(target_arch = "x86_64"))]
+            Nodes::Eight(_) => unreachable!("eight-wide nodes are built on x86-64 only"),
+            #[cfg(target_arch = "x86_64")]
+            Nodes::Eight(n) => {
+                // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
+                // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
+                unsafe { self.any8(n, &q) }
+            }
+        }
+    }
+
+    /// [`Bvh::any`] on the four-wide tree with a stack of `N` entries.
+    fn any4<const N: usize>(&self, nodes: &[Node4], q: &Query) -> bool {
+        let lanes = RayLanes::new(q.ray.o, q.ray.d.recip());
+        self.any::<_, N>(nodes, q, |node: &Node4, limit| {
+            node.intersect(&lanes, limit)
+        })
+    }
+
+    /// [`Bvh::any`] on the eight-wide tree, compiled for AVX2 ([`Bvh::closest8`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn any8(&self, nodes: &[Node8], q: &Query) -> bool {
+        let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
+        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
+        if self.wide_depth <= SHALLOW {
+            self.any::<_, SMALL_STACK8>(nodes, q, test)
+        } else if self.wide_depth <= MID8 {
+            self.any::<_, MID_STACK8>(nodes, q, test)
+        } else {
+            self.any::<_, STACK8>(nodes, q, test)
+        }
+    }
+
+    /// The any-hit traversal of `nodes` with a stack of `N` entries (enough for the tree's
+    /// depth), `test` as in [`Bvh::closest`].
+    #[inline(always)]
+    fn any<W: Wide, const N: usize>(
+        &self,
+        nodes: &[W],
+        q: &Query,
+        test: impl Fn(&W, f32) -> (u32, W::Near),
+    ) -> bool {
+        let (prims, blocks, ray, t_max) = (q.prims, q.flags, q.ray, q.t_max);
+        if nodes.is_empty() {
+            return false;
+        }
+        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
+        let mut stack = [0u64; N];
+        let mut sp = 0usize;
+        let mut child = Child::Node(0);
+        loop {
+            match child {
+                Child::Leaf(first) => {
+                    let occludes =
+                        |b: &Block| block_occludes(b, prims, blocks, ray, &tri_ray, t_max);
+                    if self.leaf(first, occludes) {
+                        return true;
+                    }
+                }
+                Child::Node(i) => {
+                    let nearest;
+                    let node = &nodes[i];
+                    (sp, nearest) = push_farther(&mut stack, sp, node, test(node, t_max));
+                    if let Some(slot) = nearest {
+                        child = slot.child();
+                        continue;
+                    }
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            child = unpack(stack[sp]).0.child();
+        }
+    }
+}
+
+impl Tree {
+    /// The wide tree of this one ([`collapse`]), its levels, and its leaves' blocks.
+    fn collapse<W: Wide>(&self, prims: &[Primitive]) -> (Vec<W>, usize, Vec<Block>) {
+        let mut wide = collapse(self, 0);
+        let blocks = self.lay_out_leaves(&mut wide, prims);
+        wide.shrink_to_fit();
+        let depth = wide_depth(&wide, 0);
+        (wide, depth, blocks)
+    }
+
+    /// Renames every leaf slot of the wide tree `wide` from its binary node to its first
+    /// block, laying the blocks out in the order the slots come in; returns the blocks.
+    fn lay_out_leaves<W: Wide>(&self, wide: &mut [W], prims: &[Primitive]) -> Vec<Block> {
+        let mut blocks = Vec::with_capacity(self.indices.len().div_ceil(2));
+        for node in wide.iter_mut() {
+            for k in 0..W::WIDTH {
+                if !node.has(k) {
+                    continue;
+                }
+                if let Child::Leaf(n) = node.slot(k).child() {
+                    let first = leaf::lay_out(self.leaf_indices(n), prims, &mut blocks);
+                    node.set_slot(k, Slot::leaf(first as usize));
+                }
+            }
+        }
+        blocks
+    }
+
+    /// The primitive indices of leaf `leaf`.
+    fn leaf_indices(&self, leaf: usize) -> &[u32] {
+        let n = &self.nodes[leaf];
+        &self.indices[n.offset as usize..(n.offset + n.count) as usize]
+    }
+
+    /// Depth of the deepest leaf under node `i` (a leaf: 1).
+    fn depth(&self, i: usize) -> usize {
+        match self.children(i) {
+            None => 1,
+            Some((l, r)) => 1 + self.depth(l).max(self.depth(r)),
+        }
     }
 
     /// `leaf_of[i]` is the last leaf primitive `i` was put in: a leaf holding two references
@@ -211,17 +582,17 @@ impl Bvh {
             offset: 0,
             count: 0,
         });
-        let make_leaf = |bvh: &mut Bvh, items: &mut [BuildItem], leaf_of: &mut [u32]| {
-            let first = bvh.indices.len();
+        let make_leaf = |tree: &mut Tree, items: &mut [BuildItem], leaf_of: &mut [u32]| {
+            let first = tree.indices.len();
             for it in items.iter() {
                 if std::mem::replace(&mut leaf_of[it.index as usize], node_index as u32)
                     != node_index as u32
                 {
-                    bvh.indices.push(it.index);
+                    tree.indices.push(it.index);
                 }
             }
-            bvh.nodes[node_index].offset = first as u32;
-            bvh.nodes[node_index].count = (bvh.indices.len() - first) as u32;
+            tree.nodes[node_index].offset = first as u32;
+            tree.nodes[node_index].count = (tree.indices.len() - first) as u32;
             node_index
         };
         if items.len() <= MAX_LEAF || depth >= MAX_DEPTH {
@@ -283,160 +654,6 @@ impl Bvh {
         self.nodes[node_index].offset = r as u32;
         self.nodes[node_index].count = 0;
         node_index
-    }
-
-    /// The closest hit with t in (0, t_max). `opaque[i]` tells whether primitive `i` wins ties:
-    /// among hits within [`TIE_EPSILON`] (relative) of each other an opaque one is returned.
-    pub fn intersect(
-        &self,
-        prims: &[Primitive],
-        opaque: &[bool],
-        ray: &Ray,
-        t_max: f32,
-    ) -> Option<Hit> {
-        self.intersect_range(prims, opaque, ray, 0.0, t_max)
-    }
-
-    /// [`Bvh::intersect`] restricted to t in (t_min, t_max).
-    ///
-    /// Traversal tests a node's four children together, stacks those the ray enters with
-    /// their entry distances, the nearest on top, and checks each distance again when it is
-    /// popped: a subtree the best hit so far has moved out of reach is dropped without touching
-    /// its node.
-    #[inline]
-    pub fn intersect_range(
-        &self,
-        prims: &[Primitive],
-        opaque: &[bool],
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<Hit> {
-        if self.wide_depth <= SHALLOW {
-            self.intersect_with::<SMALL_STACK>(prims, opaque, ray, t_min, t_max)
-        } else {
-            self.intersect_with::<STACK>(prims, opaque, ray, t_min, t_max)
-        }
-    }
-
-    /// [`Bvh::intersect_range`] with a stack of `N` entries (enough for the tree's depth).
-    fn intersect_with<const N: usize>(
-        &self,
-        prims: &[Primitive],
-        opaque: &[bool],
-        ray: &Ray,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<Hit> {
-        let inv_d = ray.d.recip();
-        // hits this far past the best one still compete in the tie-break
-        let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
-        // no separate test of the root's box: the top node's four-lane test of its children
-        // rejects a ray that misses the scene at the same cost
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let lanes = RayLanes::new(ray.o, inv_d);
-        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
-        let query = LeafQuery {
-            prims,
-            opaque,
-            ray,
-            tri_ray: tri_ray.as_ref(),
-            t_min,
-            t_max,
-            reach: &reach,
-        };
-        let mut best: Option<Best> = None;
-        let mut stack = [0u64; N];
-        let mut sp = 0usize;
-        let mut child = Child::Node(0);
-        loop {
-            match child {
-                Child::Leaf(first) => {
-                    self.leaf(first, |block| {
-                        query.block(block, &mut best);
-                        false
-                    });
-                }
-                Child::Node(i) => {
-                    let limit = reach(best.map_or(t_max, |b| b.t));
-                    let nearest;
-                    (sp, nearest) = push_farther(&mut stack, sp, &self.wide[i], &lanes, limit);
-                    if let Some(slot) = nearest {
-                        child = slot.child();
-                        continue;
-                    }
-                }
-            }
-            // the next stacked subtree the ray still enters before the best hit's reach (with
-            // the slack of the box test)
-            loop {
-                if sp == 0 {
-                    return best.map(|b| b.hit(prims));
-                }
-                sp -= 1;
-                let (next, t_near) = unpack(stack[sp]);
-                if t_near <= reach(best.map_or(t_max, |b| b.t)) * 1.000_000_4 {
-                    child = next.child();
-                    break;
-                }
-            }
-        }
-    }
-
-    /// Any hit with t in (0, t_max) among primitives for which `blocks` is true, the nearer
-    /// children entered first as in [`Bvh::intersect_range`].
-    #[inline]
-    pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
-        if self.wide_depth <= SHALLOW {
-            self.occluded_with::<SMALL_STACK>(prims, blocks, ray, t_max)
-        } else {
-            self.occluded_with::<STACK>(prims, blocks, ray, t_max)
-        }
-    }
-
-    /// [`Bvh::occluded`] with a stack of `N` entries (enough for the tree's depth).
-    fn occluded_with<const N: usize>(
-        &self,
-        prims: &[Primitive],
-        blocks: &[bool],
-        ray: &Ray,
-        t_max: f32,
-    ) -> bool {
-        let inv_d = ray.d.recip();
-        if self.nodes.is_empty() {
-            return false;
-        }
-        let lanes = RayLanes::new(ray.o, inv_d);
-        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
-        let mut stack = [0u64; N];
-        let mut sp = 0usize;
-        let mut child = Child::Node(0);
-        loop {
-            match child {
-                Child::Leaf(first) => {
-                    let occludes =
-                        |b: &Block| block_occludes(b, prims, blocks, ray, &tri_ray, t_max);
-                    if self.leaf(first, occludes) {
-                        return true;
-                    }
-                }
-                Child::Node(i) => {
-                    let nearest;
-                    (sp, nearest) = push_farther(&mut stack, sp, &self.wide[i], &lanes, t_max);
-                    if let Some(slot) = nearest {
-                        child = slot.child();
-                        continue;
-                    }
-                }
-            }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            child = unpack(stack[sp]).0.child();
-        }
     }
 }
 
@@ -556,24 +773,25 @@ fn halves(b: Aabb) -> Option<(Aabb, Aabb)> {
     Some((lo, hi))
 }
 
-/// Pushes the children of `node` the ray enters before `limit` onto `stack` above `sp`, the
+/// Pushes the children of `node` the ray enters (`enters`, at distances `near`, the node's slab
+/// test before `limit`) onto `stack` above `sp`, the
 /// farthest first, except the nearest, which is returned to be visited next without a trip
 /// through the stack (it would be popped next, and it passes the pop's distance test, since
-/// it was entered before `limit`); returns the new stack pointer. At most `WIDTH - 1` entries
-/// more than were popped to get here: cannot overflow a stack of [`STACK`] entries, nor one of
-/// [`SMALL_STACK`] in a tree of at most [`SHALLOW`] levels.
-#[inline]
-fn push_farther<const N: usize>(
+/// it was entered before `limit`); returns the new stack pointer. At most `W::WIDTH - 1`
+/// entries more than were popped to get here: cannot overflow a stack of [`STACK`]
+/// ([`STACK8`]) entries, nor one of the smaller stacks in a tree of the levels they are for.
+/// Always inlined: in the AVX2 traversal ([`Bvh::closest8`]) its eight-lane slab test is then
+/// compiled with AVX2 (out of line it was two four-lane halves, slower than four-wide nodes).
+#[inline(always)]
+fn push_farther<W: Wide, const N: usize>(
     stack: &mut [u64; N],
     mut sp: usize,
-    node: &Node4,
-    ray: &RayLanes,
-    limit: f32,
+    node: &W,
+    (enters, near): (u32, W::Near),
 ) -> (usize, Option<Slot>) {
-    let (enters, near) = node.intersect(ray, limit);
-    let mut entered = [(0.0f32, Slot(0)); WIDTH];
+    let mut entered = [(0.0f32, Slot(0)); WIDTH8];
     let mut n = 0;
-    for k in 0..WIDTH {
+    for k in 0..W::WIDTH {
         if enters & (1 << k) != 0 {
             let t = near[k];
             // insertion by decreasing distance; of equal ones the later child is popped first
@@ -582,7 +800,7 @@ fn push_farther<const N: usize>(
                 entered[j] = entered[j - 1];
                 j -= 1;
             }
-            entered[j] = (t, node.slots[k]);
+            entered[j] = (t, node.slot(k));
             n += 1;
         }
     }
@@ -596,14 +814,11 @@ fn push_farther<const N: usize>(
     (sp, Some(nearest))
 }
 
-/// Levels of the four-wide tree under node `i` (a node whose children are all leaves: 1).
-fn wide_depth(wide: &[Node4], i: usize) -> usize {
-    let below = wide[i]
-        .slots
-        .iter()
-        .zip(0..WIDTH)
-        .filter(|&(_, k)| wide[i].has(k))
-        .filter_map(|(slot, _)| match slot.child() {
+/// Levels of the wide tree under node `i` (a node whose children are all leaves: 1).
+fn wide_depth<W: Wide>(wide: &[W], i: usize) -> usize {
+    let below = (0..W::WIDTH)
+        .filter(|&k| wide[i].has(k))
+        .filter_map(|k| match wide[i].slot(k).child() {
             Child::Node(j) => Some(wide_depth(wide, j)),
             Child::Leaf(_) => None,
         })

@@ -16,6 +16,7 @@ use std::mem::size_of;
 use super::plan::PASS_SPP;
 use crate::enlightened::GuideKind;
 use crate::film::FilteredPixel;
+use crate::geometry::Primitive;
 use crate::integrator::settings::RenderSettings;
 use crate::integrator::{Case, IntegratorKind};
 use crate::medium::Medium;
@@ -142,17 +143,11 @@ fn integrator_parts(
 }
 
 /// The scene's grids (their values and majorant blocks), environment map and primitives with
-/// the BVH.
+/// their two BVHs (`Scene::bvh`, `Scene::boundary_bvh`), whose bytes are counted as built
+/// ([`Bvh::memory_bytes`](crate::geometry::Bvh::memory_bytes)).
 fn scene_bytes(scene: &Scene) -> u64 {
-    /// A primitive in the BVH with its node share: up to two references per primitive (large
-    /// ones are split, `geometry::bvh`), each with about one binary node (32 bytes), a third of
-    /// a four-wide one (128) and its index, besides the primitive itself, and its share of its
-    /// leaf's block (`geometry::leaf`: 176 bytes for up to four references, 62 to 66 bytes per
-    /// primitive on the million-triangle sphere and the hundred rooms).
-    const PRIMITIVE_BYTES: u64 = 320;
-    /// A null boundary's share of the second tree it is in (`Scene::boundary_bvh`): the node
-    /// share of `PRIMITIVE_BYTES` again, without the primitive.
-    const BOUNDARY_BYTES: u64 = 160;
+    /// A primitive with its shape index and opacity flag.
+    const PRIMITIVE_BYTES: u64 = (size_of::<Primitive>() + size_of::<u32>() + 1) as u64;
     let grids: u64 = scene.media.iter().map(Medium::memory_bytes).sum();
     let maps: u64 = scene
         .lights
@@ -162,8 +157,8 @@ fn scene_bytes(scene: &Scene) -> u64 {
             _ => 0,
         })
         .sum();
-    let boundaries = scene.prim_opaque.iter().filter(|&&o| !o).count() as u64;
-    grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES + boundaries * BOUNDARY_BYTES
+    let trees = scene.bvh.memory_bytes() + scene.boundary_bvh.memory_bytes();
+    grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES + trees as u64
 }
 
 /// The default `--max-memory`: [`MACHINE_SHARE`] of the machine's memory (MemTotal of

@@ -10,9 +10,9 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use pathspace::geometry::bvh::TIE_EPSILON;
+use pathspace::geometry::bvh::{Width, TIE_EPSILON};
 use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
-use pathspace::geometry::{offset_origin, Bvh, Disk, Primitive, Ray};
+use pathspace::geometry::{offset_origin, Bvh, Disk, Hit, Primitive, Ray};
 use pathspace::math::warp;
 use pathspace::scene::{Scene, SceneSource};
 
@@ -386,6 +386,123 @@ fn rooms_like(r: &mut Pcg64Mcg) -> Vec<Primitive> {
         );
     }
     prims
+}
+
+/// A unit sphere of `cols` x `rows` longitude-latitude cells, two triangles each, its radius
+/// displaced by a few percent: the million-triangle sphere of the Embree benchmark
+/// (`examples/ray_sets`) in a smaller form, a dense mesh of thin triangles sharing edges.
+fn displaced_sphere(cols: usize, rows: usize) -> Vec<Primitive> {
+    let vertex = |i: usize, j: usize| {
+        let (phi, theta) = (
+            std::f32::consts::TAU * i as f32 / cols as f32,
+            std::f32::consts::PI * j as f32 / rows as f32,
+        );
+        let radius = 1.0 + 0.03 * (7.0 * phi).sin() * (5.0 * theta).cos();
+        radius
+            * Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            )
+    };
+    let mut prims = Vec::new();
+    for i in 0..cols {
+        for j in 0..rows {
+            let (a, b) = (vertex(i, j), vertex(i + 1, j));
+            let (c, d) = (vertex(i + 1, j + 1), vertex(i, j + 1));
+            for [p, q, s] in [[a, b, c], [a, c, d]] {
+                prims.extend(Triangle::new(p, q, s).map(Primitive::Triangle));
+            }
+        }
+    }
+    prims
+}
+
+/// The eight-wide tree (AVX2, where the processor has it) answers every query with the
+/// four-wide tree's hit bit for bit: the same t, primitive, point and normal (the barycentrics
+/// the point is made of), and the same any-hit answer, over random rays (some along coordinate
+/// planes and axes) and ranges in a random soup with null primitives (the tie-break's order), its null copies coplanar with its walls,
+/// a room-like scene and a displaced sphere of 80,000 triangles.
+#[test]
+fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
+    let native = Width::native();
+    let mut r = rng(88);
+    let mut soup_with_copies = soup(&mut r, 800);
+    let copies: Vec<Primitive> = soup_with_copies[..200].to_vec();
+    soup_with_copies.extend(copies);
+    let scenes = [
+        soup(&mut r, 3000),
+        soup_with_copies,
+        rooms_like(&mut r),
+        displaced_sphere(200, 200),
+    ];
+    let bits = |h: Option<Hit>| {
+        h.map(|h| {
+            let v = |p: Vec3| p.to_array().map(f32::to_bits);
+            (h.t.to_bits(), h.prim, v(h.p), v(h.ng))
+        })
+    };
+    let mut hits = [0usize; 4];
+    for (scene, prims) in scenes.iter().enumerate() {
+        let opaque: Vec<bool> = (0..prims.len()).map(|i| i % 5 != 3).collect();
+        let four = Bvh::build_with(prims, |_| true, Width::Four);
+        let eight = Bvh::build_with(prims, |_| true, Width::Eight);
+        assert_eq!(four.width(), Width::Four);
+        assert_eq!(
+            eight.width(),
+            native,
+            "the widest nodes this processor runs"
+        );
+        for _ in 0..20_000 {
+            let ray = match scene {
+                2 => Ray::new(
+                    Vec3::new(r.random_range(0.0..32.0), 1.5, r.random_range(0.0..32.0)),
+                    unit(&mut r),
+                ),
+                3 if r.random::<bool>() => {
+                    // from near the surface, as bounce and shadow rays leave it
+                    Ray::new(unit(&mut r) * r.random_range(0.9f32..1.1), unit(&mut r))
+                }
+                3 => {
+                    let o = 3.5 * unit(&mut r);
+                    Ray::new(o, (0.8 * unit(&mut r) - o).normalize())
+                }
+                _ => random_ray(&mut r),
+            };
+            // a direction along a coordinate plane or axis: inverse components of +-inf, the
+            // slab test's NaN rule
+            let ray = match r.random_range(0..8) {
+                0 => Ray::new(
+                    ray.o,
+                    (ray.d * Vec3::new(0.0, 1.0, 1.0)).normalize_or(Vec3::Z),
+                ),
+                1 => Ray::new(ray.o, Vec3::X * ray.d.x.signum()),
+                // from a corner of a primitive's box, on the planes of the boxes' slabs
+                2 => {
+                    let corner = prims[r.random_range(0..prims.len())].bounds().min;
+                    let d = (ray.d * Vec3::new(1.0, 0.0, 1.0)).normalize_or(Vec3::X);
+                    Ray::new(corner, d)
+                }
+                _ => ray,
+            };
+            let t_min = [0.0, 1e-4, r.random_range(0.0..2.0)][r.random_range(0..3)];
+            let t_max = [f32::INFINITY, r.random_range(0.1..30.0)][r.random_range(0..2)];
+            let h4 = four.intersect_range(prims, &opaque, &ray, t_min, t_max);
+            let h8 = eight.intersect_range(prims, &opaque, &ray, t_min, t_max);
+            hits[scene] += h4.is_some() as usize;
+            assert_eq!(
+                bits(h8),
+                bits(h4),
+                "scene {scene}: {ray:?} ({t_min}, {t_max})"
+            );
+            assert_eq!(
+                eight.occluded(prims, &opaque, &ray, t_max),
+                four.occluded(prims, &opaque, &ray, t_max),
+                "scene {scene}: {ray:?} {t_max}"
+            );
+        }
+    }
+    assert!(hits.iter().all(|&h| h > 5000), "hits per scene {hits:?}");
 }
 
 #[test]
