@@ -326,8 +326,12 @@ impl<'t> PathTracer<'t> {
             if let Some(media) = &media {
                 l += w.beta * self.equiangular_estimate(scene, media, sampler);
             }
-            // propagation: Table 1 through media and null boundaries
-            let prop = scene.propagate(w.ray, w.lead, w.medium, sampler);
+            // propagation: Table 1 through media and null boundaries (along the segments the
+            // equiangular spans were read from, when it kept them all)
+            let prop = match media.as_ref().and_then(RayMedia::segments) {
+                Some(segs) => scene.propagate_along(w.ray, segs.iter().copied(), sampler),
+                None => scene.propagate(w.ray, w.lead, w.medium, sampler),
+            };
             if let Event::Medium { p, medium: m, .. } = prop.event {
                 if scene.media[m as usize].emits() {
                     let nee = self.volume_next_event;

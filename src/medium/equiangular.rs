@@ -52,7 +52,13 @@ impl Equiangular {
     // ANCHOR: equiangular_sample
     #[inline]
     pub fn sample(&self, a: f32, b: f32, u: f32) -> f32 {
-        let (ta, tb) = (self.angle(a), self.angle(b));
+        self.sample_between((a, self.angle(a)), (b, self.angle(b)), u)
+    }
+
+    /// [`Equiangular::sample`] with the ends' angles `ta` = theta(a) and `tb` = theta(b) already
+    /// known (a caller that summed them need not take the arc tangents again).
+    #[inline]
+    pub fn sample_between(&self, (a, ta): (f32, f32), (b, tb): (f32, f32), u: f32) -> f32 {
         let theta = ta + u * (tb - ta);
         // f32's pi/2 lies above the true one, where tan changes sign: the ends are the ends
         if theta >= std::f32::consts::FRAC_PI_2 {

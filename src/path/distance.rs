@@ -27,12 +27,25 @@ use glam::Vec3;
 use crate::geometry::Ray;
 use crate::math::Sampler;
 use crate::medium::Equiangular;
-use crate::scene::{Scene, SegmentEnd, Segments};
+use crate::scene::{Scene, Segment, SegmentEnd, Segments};
 use crate::spectrum::Rgb;
 
 /// The most medium spans of one ray that equiangular sampling covers: spans beyond them are
 /// outside its domain (its density is 0 there, for the sampler and the MIS weights alike).
 pub const MAX_SPANS: usize = 16;
+
+/// The most segments of one ray that [`RayMedia`] keeps for propagation to walk again
+/// (a ray crossing more null boundaries is walked by new queries).
+const MAX_SEGMENTS: usize = 8;
+
+/// A placeholder for the unused entries of [`RayMedia`]'s segments.
+const NO_SEGMENT: Segment = Segment {
+    t0: 0.0,
+    t1: 0.0,
+    medium: None,
+    first: false,
+    end: SegmentEnd::Open,
+};
 
 /// One stretch of the ray inside one medium, between ray parameters `t0` and `t1`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -57,6 +70,11 @@ pub struct RayMedia {
     pub ray: Ray,
     spans: [Span; MAX_SPANS],
     n: usize,
+    /// The ray's segments as [`Segments`] gave them, all of them up to the one that ends the
+    /// ray when `complete` (then `n_segments` of them).
+    segments: [Segment; MAX_SEGMENTS],
+    n_segments: usize,
+    complete: bool,
 }
 
 impl RayMedia {
@@ -73,20 +91,37 @@ impl RayMedia {
             ray,
             spans: [Span::default(); MAX_SPANS],
             n: 0,
+            segments: [NO_SEGMENT; MAX_SEGMENTS],
+            n_segments: 0,
+            complete: false,
         };
         for seg in Segments::new(scene, ray, medium, f32::INFINITY).lead(lead) {
             if out.n == MAX_SPANS {
                 break;
+            }
+            let kept = out.n_segments < MAX_SEGMENTS;
+            if kept {
+                out.segments[out.n_segments] = seg;
+                out.n_segments += 1;
             }
             if let Some(m) = seg.medium {
                 out.spans[out.n] = Self::span(scene, ray, (seg.t0, seg.t1), m);
                 out.n += 1;
             }
             if !matches!(seg.end, SegmentEnd::Null(_)) {
+                // kept, so were all before it
+                out.complete = kept;
                 break;
             }
         }
         out
+    }
+
+    /// Every segment of the ray up to the one that ends it, as [`Segments`] gives them from
+    /// the ray, lead and medium this was collected from; `None` when more than were kept.
+    #[inline]
+    pub fn segments(&self) -> Option<&[Segment]> {
+        self.complete.then(|| &self.segments[..self.n_segments])
     }
 
     /// The span `t0..t1` of `ray` in medium `m`, its scattering stretch clipped to the
@@ -137,6 +172,26 @@ impl RayMedia {
             .sum()
     }
 
+    /// The angles theta(lo) and theta(hi) of each span's scattering stretch seen from `eq`'s
+    /// light point (zeros for a span that does not scatter), and their total as
+    /// [`RayMedia::angle_total`] sums it: the arc tangents of one sample, taken once.
+    fn angles(&self, eq: &Equiangular) -> ([(f32, f32); MAX_SPANS], f32) {
+        let mut ends = [(0.0, 0.0); MAX_SPANS];
+        for (e, s) in ends.iter_mut().zip(self.spans()) {
+            if s.scatters {
+                *e = (eq.angle(s.lo), eq.angle(s.hi));
+            }
+        }
+        let total = self
+            .spans()
+            .iter()
+            .zip(&ends)
+            .filter(|(s, _)| s.scatters)
+            .map(|(_, &(lo, hi))| hi - lo)
+            .sum();
+        (ends, total)
+    }
+
     /// The density (per unit length) with which [`RayMedia::sample_equiangular`] toward `y`
     /// draws ray parameter `t` in span `i`: h / (Theta (h^2 + (t - delta)^2)), 0 outside the
     /// scattering stretches (Kulla and Fajardo 2012, restricted to a union of intervals).
@@ -163,7 +218,7 @@ impl RayMedia {
     /// Returns (span, t, density), or `None` when `y` lies on the ray's line or sees no span.
     pub fn sample_equiangular(&self, y: Vec3, u: f32) -> Option<(usize, f32, f32)> {
         let eq = Equiangular::new(self.ray.o, self.ray.d, y)?;
-        let total = self.angle_total(&eq);
+        let (ends, total) = self.angles(&eq);
         if !(total > 0.0 && total.is_finite()) {
             return None;
         }
@@ -171,7 +226,7 @@ impl RayMedia {
         let mut acc = 0.0;
         let mut chosen = None;
         for (i, s) in self.spans().iter().enumerate() {
-            let a = eq.angle(s.hi) - eq.angle(s.lo);
+            let a = ends[i].1 - ends[i].0;
             if !s.scatters || a <= 0.0 {
                 continue;
             }
@@ -184,7 +239,7 @@ impl RayMedia {
         }
         let (i, v) = chosen?;
         let s = self.spans[i];
-        let t = eq.sample(s.lo, s.hi, v);
+        let t = eq.sample_between((s.lo, ends[i].0), (s.hi, ends[i].1), v);
         let pdf = eq.angular_rate(t) / total;
         (pdf > 0.0 && pdf.is_finite() && t.is_finite()).then_some((i, t, pdf))
     }

@@ -425,7 +425,20 @@ impl Scene {
         medium: Option<u32>,
         sampler: &mut Sampler,
     ) -> Propagation {
-        self.propagate_impl::<false>(ray, lead, medium, false, sampler)
+        let segments = Segments::new(self, ray, medium, f32::INFINITY).lead(lead);
+        self.propagate_impl::<false>(ray, segments, false, sampler)
+    }
+
+    /// [`Scene::propagate`] along `segments`, the ones [`Segments`] gave for the same ray, lead
+    /// and medium (kept by a caller that walked them already: the same events and random
+    /// numbers without a second set of intersection queries).
+    pub fn propagate_along(
+        &self,
+        ray: Ray,
+        segments: impl Iterator<Item = Segment>,
+        sampler: &mut Sampler,
+    ) -> Propagation {
+        self.propagate_impl::<false>(ray, segments, false, sampler)
     }
 
     /// [`Scene::propagate`] that also computes the reverse propagation pdf, for bidirectional
@@ -438,15 +451,15 @@ impl Scene {
         origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
-        self.propagate_impl::<true>(ray, lead, medium, origin_in_medium, sampler)
+        let segments = Segments::new(self, ray, medium, f32::INFINITY).lead(lead);
+        self.propagate_impl::<true>(ray, segments, origin_in_medium, sampler)
     }
 
     #[inline]
     fn propagate_impl<const REV: bool>(
         &self,
         ray: Ray,
-        lead: f32,
-        medium: Option<u32>,
+        segments: impl Iterator<Item = Segment>,
         origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
@@ -454,7 +467,7 @@ impl Scene {
         let mut pdf = 1.0f32;
         let mut pdf_rev = 1.0f32;
         // the first segment starts `lead` before the lifted origin, at the vertex itself
-        for seg in Segments::new(self, ray, medium, f32::INFINITY).lead(lead) {
+        for seg in segments {
             if let Some(m) = seg.medium {
                 // Table 1 on this segment; memorylessness makes the segments independent
                 let sr = Ray::new(ray.at(seg.t0), ray.d);
