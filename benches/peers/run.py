@@ -114,7 +114,7 @@ class Job:
             import json
             self.input = os.path.join(work, f"{scene}-{method}.json")
             with open(self.input, "w") as f:
-                json.dump(to_tungsten.convert(Scene(toml), method, [a.res, a.res]), f)
+                json.dump(to_tungsten.convert(Scene(toml), method, [a.res, a.res], grids=work, binary=a.bin), f)
 
     def render(self, spp, seed, tag):
         out = os.path.join(self.work, f"{self.scene}-{self.renderer}-{self.method.replace('/', '-')}-{tag}")
@@ -278,7 +278,7 @@ def main():
         refused = {}
         for peer in (p for p in a.renderers if p != "pathspace"):
             try:
-                (Scene(toml) if peer == "mitsuba" else to_tungsten.convert(Scene(toml), "path_tracer"))
+                (Scene(toml) if peer == "mitsuba" else to_tungsten.refuse_beyond_tungsten(Scene(toml)))
             except Refused as e:
                 refused[peer] = str(e)
                 notes.append(f"{scene}: {peer} refused: {e}")

@@ -13,11 +13,29 @@ edge1 x edge0, so pathspace's (u, v) become the columns (v, n, u). Medium boxes 
 `scene.GROW` (tungsten leaks light through a null face coplanar with a wall, as Mitsuba 3
 does); the camera and every emitter are given the medium they sit in (an emitter without it
 starts its light paths in vacuum: BDPT and Kelemen MLT come out 22% too bright in the fog box).
+
+A grid medium (a procedural field baked with `resolution`, tracked) becomes a `voxel` medium
+over a `vdb` grid (`src/core/media/VoxelMedium.cpp`, `src/core/grids/VdbGrid.cpp`): pathspace's
+baked lattice (`pathspace info --write-grids`) is written under `--grids` as an OpenVDB
+FloatGrid `density` with every lattice voxel active, by python3-openvdb (this Python's
+`pyopenvdb`, else `$VDB_PYTHON`, default Debian's /usr/bin/python3). tungsten samples the grid
+with OpenVDB's `BoxSampler` (trilinear, values at integer index coordinates, zero outside), so
+with `normalize_size` off the grid's `transform` (index -> world: scale h, then translate to
+min) puts voxel i on pathspace's vertex min + i h: the interpolant inside the box is the same
+and falls to zero over one cell outside, as in `to_mitsuba.py`. Free paths and transmittance
+are tungsten's `exact_linear` (trapezoids of the trilinear density between a ray's crossings of
+the lattice planes, for free paths the planes half a voxel off): the one approximation. The
+trilinear density is cubic along a ray, so a trapezoid misses by a part in 10^4 of
+transmittance on average over the cloud's lattice (the book, *Measuring a renderer*). Its
+`raymarching` divides by zero where the density is constant along a step (the cloud's clamped
+core) and is not used. It needs a tungsten built with OpenVDB; one without fails at render time
+with its message.
 """
 
 import argparse
 import json
 import os
+import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -73,26 +91,69 @@ def integrator(kind, max_bounces, radius):
     return out
 
 
+def vol_to_vdb(src, dst):
+    """Writes pathspace's `.vol` lattice `src` (x fastest) as the OpenVDB FloatGrid `density`
+    in `dst`, index (i, j, k) holding vertex (i, j, k), every lattice voxel active."""
+    import numpy as np
+    import pyopenvdb
+    b = open(src, "rb").read()
+    nx, ny, nz = (int(x) for x in np.frombuffer(b[8:20], "<i4"))
+    lattice = np.frombuffer(b[48:], "<f4").reshape(nz, ny, nx).transpose(2, 1, 0)
+    grid = pyopenvdb.FloatGrid(0.0)
+    grid.copyFromArray(np.ascontiguousarray(lattice, np.float32), tolerance=-1.0)
+    grid.name = "density"
+    pyopenvdb.write(dst, grids=[grid])
+
+
+def write_vdb(src, dst):
+    """`vol_to_vdb` in this Python, or in `$VDB_PYTHON` (Debian's python3-openvdb) without
+    `pyopenvdb` here."""
+    try:
+        import pyopenvdb  # noqa: F401
+    except ImportError:
+        py = os.environ.get("VDB_PYTHON", "/usr/bin/python3")
+        r = subprocess.run([py, os.path.abspath(__file__), "--vol-to-vdb", src, dst],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            raise Refused(f"writing {dst} needs python3-openvdb (`pyopenvdb` in {py}): "
+                          f"{r.stderr.strip()[-200:]}")
+        return
+    vol_to_vdb(src, dst)
+
+
+def voxel_grid(m, vdb):
+    """tungsten's `vdb` grid for pathspace's grid medium `m` stored in `vdb`: index i at world
+    min + i h (`normalize_size` off: the grid's own index space, then `transform`)."""
+    lo, hi = m["min"], m["max"]
+    h = [(hi[i] - lo[i]) / (m["res"][i] - 1) for i in range(3)]
+    return {"type": "vdb", "file": vdb, "density_name": "density", "normalize_size": False,
+            "integration_method": "exact_linear", "sampling_method": "exact_linear",
+            "transform": mat([h[0], 0, 0], [0, h[1], 0], [0, 0, h[2]], lo)}
+
+
 def refuse_beyond_tungsten(sc):
     """What the common subset (`scene.py`) has and tungsten cannot take: a spot light (it has
-    none), a grid medium (tungsten reads heterogeneous media only from OpenVDB files,
-    `src/core/grids/VdbGrid.cpp`, and the harness's build has no OpenVDB), a rough conductor
-    (not converted: no scene tungsten renders has one)."""
+    none), a rough conductor (not converted: no scene tungsten renders has one)."""
     if sc.spots:
         raise Refused("a spot light (tungsten has none)")
-    for name, m in sc.media.items():
-        if m["kind"] == "grid":
-            raise Refused(f"medium `{name}` is a grid (tungsten reads heterogeneous media only from "
-                          "OpenVDB files, and its build here has no OpenVDB)")
     for name, m in sc.materials.items():
         if m["type"] == "rough_conductor":
             raise Refused(f"material `{name}`: a rough conductor (not converted for tungsten)")
 
 
-def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20):
+def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20, grids=None, binary=None):
+    """The scene JSON; a grid medium's lattice is written under `grids` (a folder, made if
+    missing) by `binary` (pathspace's)."""
     if kind not in INTEGRATORS:
         raise SystemExit(f"unknown tungsten integrator {kind} ({', '.join(INTEGRATORS)})")
     refuse_beyond_tungsten(sc)
+    vdbs = {}
+    if any(m["kind"] == "grid" for m in sc.media.values()):
+        grids = os.path.abspath(grids or os.path.splitext(os.path.basename(sc.path))[0] + "-grids")
+        os.makedirs(grids, exist_ok=True)
+        for name, src in sc.grids(grids, binary).items():
+            vdbs[name] = os.path.join(grids, name + "-tungsten.vdb")
+            write_vdb(src, vdbs[name])
     bsdfs = [{"name": "black", "type": "lambert", "albedo": 0.0},
              {"name": "null", "type": "forward"}]
     for name, m in sc.materials.items():
@@ -104,9 +165,13 @@ def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20):
     for name, m in sc.media.items():
         phase = ({"type": "isotropic"} if m["g"] is None
                  else {"type": "henyey_greenstein", "g": m["g"]})
-        media.append({"name": name, "type": "homogeneous", "sigma_a": m["sigma_a"],
-                      "sigma_s": m["sigma_s"], "density": 1.0, "phase_function": phase,
-                      "max_bounces": 1 << 20})
+        medium = {"name": name, "type": "homogeneous", "sigma_a": m["sigma_a"],
+                  "sigma_s": m["sigma_s"], "density": 1.0, "phase_function": phase,
+                  "max_bounces": 1 << 20}
+        if m["kind"] == "grid":
+            del medium["density"]
+            medium.update(type="voxel", grid=voxel_grid(m, vdbs[name]))
+        media.append(medium)
     eye, look, up = sc.eye()
     w, h = sc.resolution(res)
     import math
@@ -128,16 +193,22 @@ def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20):
 
 
 def main():
+    if sys.argv[1:2] == ["--vol-to-vdb"]:
+        # `write_vdb`'s subprocess in a Python with pyopenvdb
+        vol_to_vdb(*sys.argv[2:4])
+        return
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("scene")
     ap.add_argument("integrator", choices=INTEGRATORS)
     ap.add_argument("--res", type=resolution, help="N or WxH (default: the scene's)")
     ap.add_argument("--max-bounces", type=int, default=64, help="tungsten's path length cap (its default 64)")
     ap.add_argument("--spp", type=int, default=1 << 20, help="spp cap (the harness stops by --timeout)")
+    ap.add_argument("--grids", help="folder for grid media's .vdb files (default: SCENE-grids)")
+    ap.add_argument("--bin", help="pathspace's binary (default: target/release/pathspace)")
     a = ap.parse_args()
     try:
         j = convert(Scene(a.scene), a.integrator, a.res,
-                    a.max_bounces, a.spp)
+                    a.max_bounces, a.spp, a.grids, a.bin)
     except Refused as e:
         print(f"{a.scene}: refused: {e}", file=sys.stderr)
         sys.exit(2)
