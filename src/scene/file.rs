@@ -81,7 +81,8 @@ impl RgbValue {
     }
 }
 
-/// A reflectance: a number, an RGB triple, or a texture (`{ texture = "checkerboard" }`).
+/// A colour (a reflectance, or a conductor's `eta` or `k`): a number, an RGB triple, or a
+/// texture (`{ texture = "checkerboard" }`).
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum ReflectanceValue {
@@ -301,9 +302,9 @@ pub enum MaterialDesc {
         #[serde(default)]
         material: Option<String>,
         #[serde(default)]
-        eta: Option<RgbValue>,
+        eta: Option<ReflectanceValue>,
         #[serde(default)]
-        k: Option<RgbValue>,
+        k: Option<ReflectanceValue>,
         #[serde(default = "one_reflectance")]
         specular: ReflectanceValue,
         #[serde(default)]
@@ -321,9 +322,9 @@ pub enum MaterialDesc {
         #[serde(default)]
         material: Option<String>,
         #[serde(default)]
-        eta: Option<RgbValue>,
+        eta: Option<ReflectanceValue>,
         #[serde(default)]
-        k: Option<RgbValue>,
+        k: Option<ReflectanceValue>,
         #[serde(default = "one_reflectance")]
         specular: ReflectanceValue,
         #[serde(default)]

@@ -26,7 +26,7 @@ pub use sensor::IrradianceMeter;
 
 use glam::Vec3;
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, ConductorFresnel};
 use crate::geometry::{Aabb, Bvh, Hit, Primitive, Ray};
 use crate::math::{Distribution1D, Sampler};
 use crate::medium::Medium;
@@ -83,6 +83,10 @@ pub struct ShapeTexture {
     pub specular: Option<std::sync::Arc<crate::texture::Texture>>,
     /// A dielectric's `specular_transmittance`, the texture's RGB value (Mitsuba's `eval`).
     pub transmittance: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// A conductor's `eta` and `k`, the textures' RGB values (Mitsuba's `eval`, as plugins
+    /// `conductor` and `roughconductor` read them for their Fresnel term), unclamped.
+    pub eta: Option<std::sync::Arc<crate::texture::Texture>>,
+    pub k: Option<std::sync::Arc<crate::texture::Texture>>,
     pub uv: UvMap,
 }
 
@@ -409,6 +413,21 @@ impl Scene {
                 Bsdf::Dielectric(m) => m.specular.transmittance = value,
                 Bsdf::ThinDielectric(m) => m.specular.transmittance = value,
                 Bsdf::RoughDielectric(m) => m.specular.transmittance = value,
+                _ => {}
+            }
+        }
+        if t.eta.is_some() || t.k.is_some() {
+            // the Fresnel term only: no density of a conductor reads the index
+            let at = |t: &Option<std::sync::Arc<crate::texture::Texture>>, c: Rgb| {
+                t.as_ref().map_or(c, |t| t.eval(uv))
+            };
+            match &mut out {
+                Bsdf::Conductor(m) => (m.eta, m.k) = (at(&t.eta, m.eta), at(&t.k, m.k)),
+                Bsdf::RoughConductor(m) => {
+                    if let ConductorFresnel::Complex { eta, k } = &mut m.fresnel {
+                        (*eta, *k) = (at(&t.eta, *eta), at(&t.k, *k));
+                    }
+                }
                 _ => {}
             }
         }

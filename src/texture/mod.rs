@@ -95,6 +95,15 @@ impl Texture {
             })
     }
 
+    /// The least value of each channel anywhere (bilinear lookups stay above it), where a
+    /// conductor's `eta` and `k` must not both reach 0.
+    pub fn least(&self) -> Rgb {
+        match self {
+            Texture::Bitmap(b) => b.texels().iter().fold(Rgb::INFINITY, |m, &t| m.min(t)),
+            Texture::Checkerboard(c) => c.color0.min(c.color1),
+        }
+    }
+
     /// The largest value of any channel anywhere (a reflectance must stay at most 1).
     pub fn max_value(&self) -> f32 {
         match self {

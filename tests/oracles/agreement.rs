@@ -709,6 +709,22 @@ fn agreement_textured_roughness() {
     fam.finish();
 }
 
+/// A checkerboard eta on a smooth conductor sphere and a checkerboard k on a rough conductor
+/// floor: every column (MLT's Dirac vertices too) reads the complex index at its own vertices;
+/// light tracing cannot reach the camera through the Dirac sphere (it warns).
+#[test]
+fn agreement_textured_eta() {
+    let mut fam = Family::new("agreement: textured eta");
+    check_row(
+        &mut fam,
+        &Row {
+            warn: &[("light*", "non-specular vertex")],
+            ..row("textured-eta", fixture("textured-eta.toml"), 3)
+        },
+    );
+    fam.finish();
+}
+
 /// A checkerboard specular on a rough plastic floor: every column reads it at its own vertices
 /// (the conductor's is in `agreement_textured_roughness`).
 #[test]

@@ -362,3 +362,68 @@ fn one_channel_lookups_are_mitsubas() {
         }
     }
 }
+
+/// A conductor whose `eta` is a 2 x 2 EXR (nearest) with texels above 1 and whose `k` is a
+/// checkerboard, as a TOML scene on the quad [-1, 1]^2; `eta` is the texels' first channel.
+fn textured_conductor(etas: [f32; 4], tag: &str) -> Result<Scene, String> {
+    use pathspace::image_io::{write_exr, Image, ImageMeta};
+    let dir = std::env::temp_dir().join(format!("pathspace-eta-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let image = Image {
+        width: 2,
+        height: 2,
+        pixels: etas.iter().map(|&e| Vec3::new(e, 1.0, 1.0)).collect(),
+    };
+    write_exr(&dir.join("eta.exr"), &image, &ImageMeta::default()).unwrap();
+    let text = "[camera]\ntype = \"pinhole\"\neye = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\nfov_deg = 40.0\nresolution = [4, 4]\n\
+         [materials.t]\ntype = \"conductor\"\n\
+         eta = { texture = \"bitmap\", file = \"eta.exr\", filter_type = \"nearest\" }\n\
+         k = { texture = \"checkerboard\", color0 = 3.0, color1 = 1.0 }\n\
+         [[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, 0.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nmaterial = \"t\"\n\
+         [[lights]]\ntype = \"point\"\nposition = [0.0, 0.0, 2.0]\nintensity = 1.0\n";
+    let mut src = SceneSource::embedded("t.toml", text);
+    src.base_dir = dir;
+    Scene::load(&src).map_err(|e| e.to_string())
+}
+
+/// A textured `eta` and `k` (Mitsuba 3 documentation, plugin `conductor`: "spectrum or
+/// texture") are the conductor's index at each point: the EXR's texels unclamped (2.5, 4 are
+/// indices, not reflectances), the checkerboard's colours as `k`, and the Fresnel term of
+/// that index at the point.
+#[test]
+fn a_textured_conductor_index_is_the_texel_at_the_point() {
+    use pathspace::bsdf::{conductor::fresnel_complex, Bsdf};
+    let texels = [0.2, 2.5, 4.0, 1.5];
+    let scene = textured_conductor(texels, "ok").unwrap_or_else(|e| panic!("{e}"));
+    let (mut etas, mut ks) = (vec![], vec![]);
+    for p in [[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5], [0.5, 0.5]] {
+        let p = Vec3::new(p[0], p[1], 0.0);
+        let b = scene.bsdf_at(0, p).expect("a material");
+        let Bsdf::Conductor(c) = &*b else {
+            panic!("{b:?} is not a conductor")
+        };
+        etas.push(c.eta.x);
+        ks.push(c.k.x);
+        let want = fresnel_complex(1.0, c.eta.x, c.k.x);
+        assert_eq!(b.albedo(1.0).x, want, "Fresnel at {p}");
+    }
+    etas.sort_by(f32::total_cmp);
+    ks.sort_by(f32::total_cmp);
+    assert_eq!(etas, [0.2, 1.5, 2.5, 4.0], "eta at the four texels");
+    assert_eq!(ks, [1.0, 1.0, 3.0, 3.0], "k at the four checks");
+}
+
+/// A negative or non-finite index texel is refused at its file, line and key.
+#[test]
+fn a_negative_or_non_finite_index_texel_is_refused() {
+    for (bad, tag) in [(-0.5, "neg"), (f32::INFINITY, "inf")] {
+        let Err(e) = textured_conductor([0.2, bad, 4.0, 1.5], tag) else {
+            panic!("a bad texel {bad} was accepted")
+        };
+        assert!(
+            e.contains("t.toml:") && e.contains("materials.t.eta.file") && e.contains("eta.exr"),
+            "{e}"
+        );
+        assert!(e.contains("an index must be finite and >= 0"), "{e}");
+    }
+}

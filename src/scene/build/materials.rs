@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 
 use std::sync::Arc;
 
-use super::textures::{mean, reflectance, texture};
-use super::values::{albedo, non_negative};
+use super::textures::{colour, mean, reflectance, texture, Texels};
+use super::values::albedo;
 use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
 use crate::bsdf::plastic::default_eta;
@@ -29,13 +29,16 @@ pub(super) struct Materials {
 
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
 /// roughness (`alpha`), a conductor's or plastic's `specular` or a dielectric's
-/// `specular_reflectance`, and a dielectric's `specular_transmittance`.
+/// `specular_reflectance`, a dielectric's `specular_transmittance`, and a conductor's complex
+/// index (`eta`, `k`).
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
     pub(super) alpha: Option<Arc<Texture>>,
     pub(super) specular: Option<Arc<Texture>>,
     pub(super) transmittance: Option<Arc<Texture>>,
+    pub(super) eta: Option<Arc<Texture>>,
+    pub(super) k: Option<Arc<Texture>>,
 }
 
 impl Textured {
@@ -58,6 +61,8 @@ impl Textured {
             || self.alpha.is_some()
             || self.specular.is_some()
             || self.transmittance.is_some()
+            || self.eta.is_some()
+            || self.k.is_some()
     }
 }
 
@@ -136,10 +141,15 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 specular,
                 one_sided,
             } => {
-                let index = complex_index(src, &key, material.as_deref(), *eta, *k)?;
-                let (eta, k) = index.unwrap_or((Rgb::ZERO, Rgb::ONE));
                 let (specular, texture) = reflectance(src, &key.clone().key("specular"), specular)?;
                 textured.specular = texture.map(Arc::new);
+                let index = Index {
+                    material: material.as_deref(),
+                    eta: eta.as_ref(),
+                    k: k.as_ref(),
+                };
+                let index = complex_index(src, &key, index, &mut textured)?;
+                let (eta, k) = index.unwrap_or((Rgb::ZERO, Rgb::ONE));
                 Bsdf::Conductor(Conductor {
                     eta,
                     k,
@@ -170,9 +180,12 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                         src,
                         &key,
                         *reflectance,
-                        material.as_deref(),
-                        *eta,
-                        *k,
+                        Index {
+                            material: material.as_deref(),
+                            eta: eta.as_ref(),
+                            k: k.as_ref(),
+                        },
+                        &mut textured,
                     )?,
                     specular,
                     one_sided: *one_sided,
@@ -378,17 +391,26 @@ fn plastic_ior(src: &SceneSource, key: &KeyPath, ior: Option<f32>) -> Result<f32
     Ok(ior)
 }
 
+/// A conductor's complex index as the file gives it: a named conductor, or `eta` and `k`
+/// (each a colour or a texture).
+#[derive(Clone, Copy)]
+struct Index<'a> {
+    material: Option<&'a str>,
+    eta: Option<&'a ReflectanceValue>,
+    k: Option<&'a ReflectanceValue>,
+}
+
 /// Schlick's Fresnel about `reflectance` (default 1), or a complex index (`material` or `eta`
 /// and `k`, [`complex_index`]), never both.
 fn conductor_fresnel(
     src: &SceneSource,
     key: &KeyPath,
     reflectance: Option<RgbValue>,
-    material: Option<&str>,
-    eta: Option<RgbValue>,
-    k: Option<RgbValue>,
+    index: Index,
+    textured: &mut Textured,
 ) -> Result<ConductorFresnel, SceneError> {
-    let index = complex_index(src, key, material, eta, k)?;
+    let (material, eta) = (index.material, index.eta);
+    let index = complex_index(src, key, index, textured)?;
     match (reflectance, index) {
         (r, None) => Ok(ConductorFresnel::Schlick(albedo(
             src,
@@ -410,14 +432,18 @@ fn conductor_fresnel(
 
 /// A conductor's complex index eta + i k per channel: one of Mitsuba 3's named conductors
 /// (`material`; `none` is no index), or `eta` and `k` (both needed, >= 0, not both 0 in a
-/// channel, where the Fresnel term is 0 / 0); `None` when none is given.
+/// channel, where the Fresnel term is 0 / 0); `None` when none is given. A textured `eta` or
+/// `k` (Mitsuba 3 documentation, plugin `conductor`: "float or texture") goes to `textured`,
+/// its mean standing in where no point is known; it may be 0 in a channel only where the
+/// other is positive everywhere.
 fn complex_index(
     src: &SceneSource,
     key: &KeyPath,
-    material: Option<&str>,
-    eta: Option<RgbValue>,
-    k: Option<RgbValue>,
+    index: Index,
+    textured: &mut Textured,
 ) -> Result<Option<(Rgb, Rgb)>, SceneError> {
+    let Index { material, eta, k } = index;
+    let least;
     let index = match (material, eta, k) {
         (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
             return Err(src.error(
@@ -426,20 +452,31 @@ fn complex_index(
             ))
         }
         (Some("none"), None, None) | (None, None, None) => return Ok(None),
-        (Some(name), None, None) => named_conductor(name).ok_or_else(|| {
-            let names: Vec<&str> = NAMED_CONDUCTORS.iter().map(|c| c.0).collect();
-            src.error(
-                &key.clone().key("material"),
-                format!(
-                    "material = \"{name}\" is not one of Mitsuba 3's named conductors ({}, none)",
-                    names.join(", ")
-                ),
-            )
-        })?,
-        (None, Some(eta), Some(k)) => (
-            non_negative(src, &key.clone().key("eta"), eta, "eta")?,
-            non_negative(src, &key.clone().key("k"), k, "k")?,
-        ),
+        (Some(name), None, None) => {
+            let index = named_conductor(name).ok_or_else(|| {
+                let names: Vec<&str> = NAMED_CONDUCTORS.iter().map(|c| c.0).collect();
+                src.error(
+                    &key.clone().key("material"),
+                    format!(
+                        "material = \"{name}\" is not one of Mitsuba 3's named conductors ({}, none)",
+                        names.join(", ")
+                    ),
+                )
+            })?;
+            least = index;
+            index
+        }
+        (None, Some(eta), Some(k)) => {
+            let (e, te) = colour(src, &key.clone().key("eta"), eta, Texels::Index("eta"))?;
+            let (kk, tk) = colour(src, &key.clone().key("k"), k, Texels::Index("k"))?;
+            least = (
+                te.as_ref().map_or(e, Texture::least),
+                tk.as_ref().map_or(kk, Texture::least),
+            );
+            textured.eta = te.map(Arc::new);
+            textured.k = tk.map(Arc::new);
+            (e, kk)
+        }
         (None, eta, _) => {
             return Err(src.error(
                 &key.clone().key(if eta.is_some() { "eta" } else { "k" }),
@@ -447,7 +484,7 @@ fn complex_index(
             ))
         }
     };
-    let (e, kk) = index;
+    let (e, kk) = least;
     if (0..3).any(|c| e[c] == 0.0 && kk[c] == 0.0) {
         let at = if material.is_some() {
             "material"
@@ -457,7 +494,8 @@ fn complex_index(
         return Err(src.error(
             &key.clone().key(at),
             format!(
-                "eta {} and k {} are both 0 in a channel: the Fresnel term is undefined there",
+                "eta {} and k {} are both 0 in a channel (their least values): the Fresnel term \
+                 is undefined there",
                 crate::spectrum::show(e),
                 crate::spectrum::show(kk)
             ),

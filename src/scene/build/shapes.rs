@@ -191,6 +191,8 @@ pub(super) fn shapes(
             alpha: t.alpha.clone(),
             specular: t.specular.clone(),
             transmittance: t.transmittance.clone(),
+            eta: t.eta.clone(),
+            k: t.k.clone(),
             uv: uv_map(s, prims.len() as u32, uvs),
         });
         let light = emission.map(|radiance| {

@@ -1,11 +1,12 @@
 //! Textured reflectances (`albedo = { texture = "bitmap", file = "wood.png" }`): the texture
-//! of a material key, its image read within limits, every texel a reflectance in [0, 1].
+//! of a material key, its image read within limits, every texel a reflectance in [0, 1], or,
+//! for a conductor's `eta` and `k`, any finite value >= 0 ([`Texels::Index`]).
 
 use std::path::Path;
 
 use glam::Vec3;
 
-use super::values::albedo;
+use super::values::{albedo, non_negative};
 use crate::image_io::{png_input, read_exr_input_hashed, Image};
 use crate::scene::file::{FilterTypeDesc, KeyPath, ReflectanceValue, TextureDesc, WrapModeDesc};
 use crate::scene::{SceneError, SceneSource};
@@ -18,6 +19,16 @@ pub const MAX_TEXTURE_BYTES: u64 = 1 << 28;
 /// The most texels a texture may have (an 8k x 8k image).
 pub const MAX_TEXELS: usize = 1 << 26;
 
+/// What a texture's values are, and so which values it may hold.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Texels {
+    /// A reflectance: finite, in [0, 1].
+    Reflectance,
+    /// A conductor's `eta` or `k` (Mitsuba 3 documentation, plugin `conductor`): finite and
+    /// >= 0, unbounded above (an EXR may carry eta = 2.5); never clamped. Named in messages.
+    Index(&'static str),
+}
+
 /// A reflectance at `key`: its constant value, or the texture (whose mean stands in for the
 /// constant where no point is known, as in `pathspace info`).
 pub(super) fn reflectance(
@@ -25,12 +36,35 @@ pub(super) fn reflectance(
     key: &KeyPath,
     v: &ReflectanceValue,
 ) -> Result<(Vec3, Option<Texture>), SceneError> {
+    colour(src, key, v, Texels::Reflectance)
+}
+
+/// A colour at `key` holding `texels`: its constant value, or the texture with its mean.
+pub(super) fn colour(
+    src: &SceneSource,
+    key: &KeyPath,
+    v: &ReflectanceValue,
+    texels: Texels,
+) -> Result<(Vec3, Option<Texture>), SceneError> {
     match v {
-        ReflectanceValue::Value(c) => Ok((albedo(src, key, *c)?, None)),
+        ReflectanceValue::Value(c) => Ok((value(src, key, *c, texels)?, None)),
         ReflectanceValue::Texture(t) => {
-            let t = texture(src, key, t)?;
+            let t = texture_of(src, key, t, texels)?;
             Ok((mean(&t), Some(t)))
         }
+    }
+}
+
+/// A constant colour holding `texels`, checked as such.
+fn value(
+    src: &SceneSource,
+    key: &KeyPath,
+    c: crate::scene::file::RgbValue,
+    texels: Texels,
+) -> Result<Vec3, SceneError> {
+    match texels {
+        Texels::Reflectance => albedo(src, key, c),
+        Texels::Index(what) => non_negative(src, key, c, what),
     }
 }
 
@@ -43,11 +77,21 @@ pub(super) fn mean(t: &Texture) -> Vec3 {
     }
 }
 
-/// The texture `t` at `key`.
+/// The reflectance texture `t` at `key`.
 pub(super) fn texture(
     src: &SceneSource,
     key: &KeyPath,
     t: &TextureDesc,
+) -> Result<Texture, SceneError> {
+    texture_of(src, key, t, Texels::Reflectance)
+}
+
+/// The texture `t` at `key`, its values checked as `texels`.
+fn texture_of(
+    src: &SceneSource,
+    key: &KeyPath,
+    t: &TextureDesc,
+    texels: Texels,
 ) -> Result<Texture, SceneError> {
     match t {
         TextureDesc::Checkerboard {
@@ -55,8 +99,8 @@ pub(super) fn texture(
             color1,
             to_uv,
         } => Ok(Texture::Checkerboard(Checkerboard {
-            color0: albedo(src, &key.clone().key("color0"), *color0)?,
-            color1: albedo(src, &key.clone().key("color1"), *color1)?,
+            color0: value(src, &key.clone().key("color0"), *color0, texels)?,
+            color1: value(src, &key.clone().key("color1"), *color1, texels)?,
             to_uv: uv_transform(src, key, to_uv)?,
         })),
         TextureDesc::Bitmap {
@@ -68,27 +112,32 @@ pub(super) fn texture(
         } => {
             let file_key = key.clone().key("file");
             let (image, srgb) = read_image(src, &file_key, file, *raw)?;
-            let texels: Vec<Vec3> = image
+            let values: Vec<Vec3> = image
                 .pixels
                 .iter()
                 .map(|c| if srgb { c.map(srgb_to_linear) } else { *c })
                 .collect();
-            if let Some(k) = texels.iter().position(|c| {
+            let (max, what) = match texels {
+                Texels::Reflectance => (1.0, "a reflectance must be finite and in [0, 1]"),
+                Texels::Index(_) => (f32::INFINITY, "an index must be finite and >= 0"),
+            };
+            if let Some(k) = values.iter().position(|c| {
                 !c.to_array()
                     .iter()
-                    .all(|x| x.is_finite() && (0.0..=1.0).contains(x))
+                    .all(|x| x.is_finite() && (0.0..=max).contains(x))
             }) {
                 let w = image.width as usize;
                 return Err(src.error(
                     &file_key,
                     format!(
-                        "{file}: texel ({}, {}) is {}: a reflectance must be finite and in [0, 1]",
+                        "{file}: texel ({}, {}) is {}: {what}",
                         k % w,
                         k / w,
-                        texels[k]
+                        values[k]
                     ),
                 ));
             }
+            let texels = values;
             let filter = match filter_type {
                 FilterTypeDesc::Bilinear => FilterType::Bilinear,
                 FilterTypeDesc::Nearest => FilterType::Nearest,

@@ -139,7 +139,7 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
             let (specular, shown) = specular_reflectance(p)?;
             let (material, eta, k) = index;
             Ok((
-                MaterialDesc::Conductor { material, eta, k, specular, one_sided },
+                MaterialDesc::Conductor { material, eta: eta.map(Into::into), k: k.map(Into::into), specular, one_sided },
                 format!("conductor, {how}, specular {shown}{side}"),
             ))
         }
@@ -274,8 +274,8 @@ fn rough_conductor(
             distribution,
             reflectance: None,
             material,
-            eta,
-            k,
+            eta: eta.map(Into::into),
+            k: k.map(Into::into),
             specular,
             one_sided,
         },
