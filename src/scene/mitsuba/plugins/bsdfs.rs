@@ -139,7 +139,7 @@ fn bsdf(p: &mut Props, one_sided: bool, side: &str) -> Result<(MaterialDesc, Str
             let (specular, shown) = specular_reflectance(p)?;
             let (material, eta, k) = index;
             Ok((
-                MaterialDesc::Conductor { material, eta: eta.map(Into::into), k: k.map(Into::into), specular, one_sided },
+                MaterialDesc::Conductor { material, eta, k, specular, one_sided },
                 format!("conductor, {how}, specular {shown}{side}"),
             ))
         }
@@ -274,8 +274,8 @@ fn rough_conductor(
             distribution,
             reflectance: None,
             material,
-            eta: eta.map(Into::into),
-            k: k.map(Into::into),
+            eta,
+            k,
             specular,
             one_sided,
         },
@@ -288,18 +288,32 @@ fn rough_conductor(
 
 /// A conductor's index as Mitsuba 3 reads it (plugins `conductor`, `roughconductor`):
 /// `material` (default `none`) names tabulated spectra, turned into RGB as its RGB variants do
-/// (`bsdf::named_conductor`); with `none`, `eta` (default 0) and `k` (default 1), so that no
-/// index at all is a Fresnel term of 1. A name with `eta` is Mitsuba's error, with `k` alone
-/// an ambiguity it ignores: both refused.
+/// (`bsdf::named_conductor`); with `none`, `eta` (default 0) and `k` (default 1), each a colour
+/// or a texture (unbounded: Mitsuba reads both with `get_unbounded_texture`), so that no index
+/// at all is a Fresnel term of 1. A name with `eta` is Mitsuba's error, with `k` alone an
+/// ambiguity it ignores: both refused.
 #[allow(clippy::type_complexity)]
 fn conductor_index(
     p: &mut Props,
-) -> Result<((Option<String>, Option<RgbValue>, Option<RgbValue>), String), SceneError> {
+) -> Result<
+    (
+        (
+            Option<String>,
+            Option<ReflectanceValue>,
+            Option<ReflectanceValue>,
+        ),
+        String,
+    ),
+    SceneError,
+> {
     let material = p.string("material")?.unwrap_or_else(|| "none".into());
-    let (eta, k) = (
-        p.color("eta", Response::Unbounded)?,
-        p.color("k", Response::Unbounded)?,
-    );
+    let index_part = |p: &mut Props, key: &str| -> Result<Option<ReflectanceValue>, SceneError> {
+        if let Some(t) = p.texture(key) {
+            return Ok(Some(ReflectanceValue::Texture(texture(p.doc, t)?)));
+        }
+        Ok(p.color(key, Response::Unbounded)?.map(|c| rgb(c).into()))
+    };
+    let (eta, k) = (index_part(p, "eta")?, index_part(p, "k")?);
     if material != "none" {
         if eta.is_some() || k.is_some() {
             return Err(p.err(format!(
@@ -318,9 +332,10 @@ fn conductor_index(
         // pathspace's default index is Mitsuba's (eta 0, k 1: a Fresnel term of 1)
         return Ok(((None, None, None), "reflectance 1 (material none)".into()));
     }
-    let (e, k) = (eta.unwrap_or(DVec3::ZERO), k.unwrap_or(DVec3::ONE));
-    let how = format!("eta {}, k {}", show(e), show(k));
-    Ok(((None, Some(rgb(e)), Some(rgb(k))), how))
+    let eta = eta.unwrap_or_else(|| rgb(DVec3::ZERO).into());
+    let k = k.unwrap_or_else(|| rgb(DVec3::ONE).into());
+    let how = format!("eta {eta}, k {k}");
+    Ok(((None, Some(eta), Some(k)), how))
 }
 
 /// `dielectric` and `roughdielectric`: pathspace's `ior` is `int_ior / ext_ior`, with the two
