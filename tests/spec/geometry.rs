@@ -505,6 +505,80 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
     assert!(hits.iter().all(|&h| h > 5000), "hits per scene {hits:?}");
 }
 
+/// Rays through a triangle's box face, edge or corner, where they meet the triangle's
+/// axis-aligned edges and its corners: the slab test's exit distance carries rounding
+/// error, so without its relative slack (`1.000_000_4` in `geometry::wide`) such a ray's
+/// box test can fail although the triangle test hits. Both widths return brute force's hit
+/// bit for bit on them.
+#[test]
+fn rays_grazing_a_childs_box_hit_what_brute_force_hits_in_either_width() {
+    // right triangles apart from each other (a leaf each), flat on a coordinate plane or
+    // tilted, so that edges and corners lie on their boxes' faces
+    let mut prims = Vec::new();
+    for (k, a) in [-6.0f32, -2.0, 2.0, 6.0].into_iter().enumerate() {
+        let o = Vec3::new(a, 0.3 * a, 0.1 - 0.7 * a);
+        let (u, v) = match k % 2 {
+            0 => (Vec3::X * 1.3, Vec3::Y * 0.7),
+            _ => (Vec3::new(0.9, 0.0, 0.0), Vec3::new(0.0, 1.1, 0.6)),
+        };
+        for [p, q, s] in [
+            [o, o + u, o + v],
+            [
+                o + 4.0 * Vec3::Y,
+                o + 4.0 * Vec3::Y + v,
+                o + 4.0 * Vec3::Y + u,
+            ],
+        ] {
+            prims.extend(Triangle::new(p, q, s).map(Primitive::Triangle));
+        }
+    }
+    let opaque = vec![true; prims.len()];
+    let trees = [Width::Four, Width::Eight].map(|w| Bvh::build_with(&prims, |_| true, w));
+    let bits = |h: Option<(f32, u32, Vec3, Vec3)>| {
+        h.map(|(t, p, q, n)| {
+            (
+                t.to_bits(),
+                p,
+                q.to_array().map(f32::to_bits),
+                n.to_array().map(f32::to_bits),
+            )
+        })
+    };
+    let mut r = rng(5);
+    let mut hits = 0;
+    for prim in &prims {
+        let Primitive::Triangle(tri) = prim else {
+            unreachable!()
+        };
+        let [p0, p1, p2] = [
+            tri.point(0.0, 0.0),
+            tri.point(1.0, 0.0),
+            tri.point(0.0, 1.0),
+        ];
+        for i in 0..400 {
+            // a point on an edge from p0 (axis-aligned) or a corner, or one ulp off an edge
+            let s = (i % 20) as f32 / 20.0;
+            let target = match i % 4 {
+                0 => p0 + s * (p1 - p0),
+                1 => p0 + s * (p2 - p0),
+                2 => [p0, p1, p2][i % 3],
+                _ => (p0 + s * (p1 - p0)).map(|x| f32::from_bits(x.to_bits() + 1)),
+            };
+            let o = target + r.random_range(0.5..6.0) * unit(&mut r);
+            let ray = Ray::new(o, (target - o).normalize());
+            let want = bits(brute_exact(&prims, &ray, f32::INFINITY));
+            hits += want.is_some() as usize;
+            for bvh in &trees {
+                let got = bvh
+                    .intersect(&prims, &opaque, &ray, f32::INFINITY)
+                    .map(|h| (h.t, h.prim, h.p, h.ng));
+                assert_eq!(bits(got), want, "{:?}: {ray:?}", bvh.width());
+            }
+        }
+    }
+    assert!(hits > 1000, "{hits} rays hit");
+}
+
 #[test]
 fn large_primitives_split_into_several_references_are_hit_as_by_brute_force() {
     let mut r = rng(11);
