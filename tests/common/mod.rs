@@ -314,6 +314,24 @@ v = [1.0, 0.0, 0.0]
     )
 }
 
+/// Every pixel sum and splat of one 4-spp pass of `kind` on `scene` with `seed`, as bits: what
+/// two renders must share to be the same image.
+pub fn film_bits(
+    scene: &pathspace::scene::Scene,
+    kind: pathspace::integrator::IntegratorKind,
+    seed: u64,
+) -> Vec<u64> {
+    let mut r = pathspace::integrator::Renderer::new(scene, kind, seed, None);
+    r.pass(4, &|| {});
+    let film = r.film.unwrap();
+    film.sum
+        .iter()
+        .chain(film.splat.iter())
+        .flatten()
+        .map(|x| x.to_bits())
+        .collect()
+}
+
 /// Mean RGB of the four image quadrants (12 numbers): a coarse picture of an image that
 /// independent runs of two integrators must agree on.
 pub fn quadrant_means(img: &pathspace::image_io::Image) -> Vec<f64> {

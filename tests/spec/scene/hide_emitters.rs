@@ -3,7 +3,7 @@
 //! `volpath` counts only scattering in its depth), and only those: light arriving after a
 //! mirror is kept.
 
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::IntegratorKind;
 use pathspace::scene::{Scene, SceneSource};
 
 const CAMERA: &str = r#"[render]
@@ -49,17 +49,8 @@ fn load(hide: bool, body: &str) -> Scene {
     Scene::load(&SceneSource::embedded("hide.toml", &text)).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Every pixel sum and splat of one pass, as bits.
 fn render_bits(scene: &Scene, kind: IntegratorKind) -> Vec<u64> {
-    let mut r = Renderer::new(scene, kind, 3, None);
-    r.pass(4, &|| {});
-    let film = r.film.unwrap();
-    film.sum
-        .iter()
-        .chain(film.splat.iter())
-        .flatten()
-        .map(|x| x.to_bits())
-        .collect()
+    crate::common::film_bits(scene, kind, 3)
 }
 
 #[test]

@@ -10,7 +10,7 @@
 
 use glam::Vec3;
 use pathspace::geometry::Primitive;
-use pathspace::integrator::{IntegratorKind, Renderer};
+use pathspace::integrator::IntegratorKind;
 use pathspace::scene::{Scene, SceneSource};
 
 /// The fixtures' folder (`cube.obj`: per-face `vn`, the face normals).
@@ -71,17 +71,8 @@ fn load(dir: &std::path::Path, text: &str) -> Scene {
     Scene::load(&src).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// Every pixel and splat of a few passes, as bits.
 fn render_bits(scene: &Scene, kind: IntegratorKind) -> Vec<u64> {
-    let mut r = Renderer::new(scene, kind, 7, None);
-    r.pass(4, &|| {});
-    let film = r.film.unwrap();
-    film.sum
-        .iter()
-        .chain(film.splat.iter())
-        .flatten()
-        .map(|x| x.to_bits())
-        .collect()
+    crate::common::film_bits(scene, kind, 7)
 }
 
 #[test]
