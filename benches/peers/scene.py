@@ -92,6 +92,9 @@ class Scene:
             self.toml = tomllib.load(f)
         t = self.toml
         self.path = path
+        if t.get("hide_emitters", False):
+            raise Refused("hide_emitters (the converters show every emitter, so the peers would "
+                          "render another image)")
         self.spots = []
         for x in t.get("lights", []):
             if x.get("type") == "spot" and float(x.get("falloff_deg", 0.0)) != 0.0:
@@ -153,6 +156,9 @@ class Scene:
         if "material" in m or m.get("one_sided", False) or not isinstance(m["alpha"], (int, float)) \
                 or not isinstance(m.get("specular", 1.0), (int, float, list)):
             raise Refused(f"material `{name}`: a rough conductor with a named material, one side or a texture")
+        for key in ("eta", "k"):
+            if key in m and not isinstance(m[key], (int, float, list)):
+                raise Refused(f"material `{name}`: a rough conductor with a textured `{key}`")
         has_index = "eta" in m or "k" in m
         return dict(type="rough_conductor", alpha=float(m["alpha"]),
                     eta=rgb(m.get("eta", 0.0)) if has_index else None,

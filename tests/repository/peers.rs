@@ -116,6 +116,19 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
         };
         let tinted = tinted_glass_scene();
         let schlick = schlick_floor_scene();
+        let hidden = glass_scene_variant(
+            "hidden",
+            ("specular_transmittance = 0.5\n", ""),
+            "hide_emitters = true\n",
+        );
+        let textured_eta = glass_scene_variant(
+            "textured-eta",
+            (
+                "type = \"dielectric\"\nior = 1.5\nspecular_transmittance = 0.5",
+                "type = \"rough_conductor\"\nalpha = 0.2\neta = { texture = \"checkerboard\" }",
+            ),
+            "",
+        );
         let variant = |name: &str| variant_scene(name).to_str().unwrap().to_string();
         let mut refused = vec![
             ("door-slit.toml".to_string(), "Schlick"),
@@ -126,7 +139,11 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             ),
             (tinted.to_str().unwrap().to_string(), "untinted"),
             (schlick.to_str().unwrap().to_string(), "Schlick"),
+            (hidden.to_str().unwrap().to_string(), "hide_emitters"),
         ];
+        if script == "to_mitsuba.py" {
+            refused.push((textured_eta.to_str().unwrap().to_string(), "textured `eta`"));
+        }
         if script == "to_tungsten.py" {
             // the variants Mitsuba 3 renders: tungsten has no spot light, and its rough
             // conductor is not converted
@@ -229,6 +246,17 @@ fn schlick_floor_scene() -> PathBuf {
         "type = \"rough_conductor\"\nalpha = 0.2\nreflectance = 0.9",
     );
     assert!(text.contains("rough_conductor"));
+    std::fs::write(&path, text).expect("the temporary directory is writable");
+    path
+}
+
+/// The tinted glass scene with `from` replaced by `to` and `head` before it, written to the
+/// temporary directory as `pathspace-peers-NAME.toml`: a scene that differs from what the
+/// converters translate in one named thing.
+fn glass_scene_variant(name: &str, (from, to): (&str, &str), head: &str) -> PathBuf {
+    let path = std::env::temp_dir().join(format!("pathspace-peers-{name}.toml"));
+    assert!(tinted_glass_text().contains(from));
+    let text = format!("{head}{}", tinted_glass_text().replacen(from, to, 1));
     std::fs::write(&path, text).expect("the temporary directory is writable");
     path
 }
