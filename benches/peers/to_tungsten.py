@@ -131,14 +131,32 @@ def voxel_grid(m, vdb):
             "transform": mat([h[0], 0, 0], [0, h[1], 0], [0, 0, h[2]], lo)}
 
 
+# tungsten's `roughnessToAlpha` raises a GGX alpha below this to it (`bsdfs/Microfacet.hpp`)
+MIN_ALPHA = 1e-3
+
+
 def refuse_beyond_tungsten(sc):
     """What the common subset (`scene.py`) has and tungsten cannot take: a spot light (it has
-    none), a rough conductor (not converted: no scene tungsten renders has one)."""
+    none), a rough conductor smoother than tungsten's smallest alpha."""
     if sc.spots:
         raise Refused("a spot light (tungsten has none)")
     for name, m in sc.materials.items():
-        if m["type"] == "rough_conductor":
-            raise Refused(f"material `{name}`: a rough conductor (not converted for tungsten)")
+        if m["type"] == "rough_conductor" and m["alpha"] < MIN_ALPHA:
+            raise Refused(f"material `{name}`: a rough conductor with alpha {m['alpha']!r} (tungsten "
+                          f"raises alpha below {MIN_ALPHA} to it)")
+
+
+def rough_conductor(name, m):
+    """tungsten's `rough_conductor` (`bsdfs/RoughConductorBsdf.cpp`): Walter et al.'s GGX with
+    D, the separable Smith G of G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2)) and the exact Fresnel
+    term of the complex index `eta` + i `k` at the facet, as pathspace's; its `roughness` is
+    alpha itself for GGX (`Microfacet::roughnessToAlpha`), its `albedo` the `specular` factor.
+    pathspace's conductor without an index (F = 1) is eta 0, k 1: tungsten's Fresnel gives
+    exactly 1 there (a = 0, Rs = Rp = 1). One-sided in tungsten; `enable_two_sided_shading`
+    flips the frame on a back-side hit, as for Lambert."""
+    eta, k = (m["eta"], m["k"]) if m["eta"] is not None else ([0.0] * 3, [1.0] * 3)
+    return {"name": name, "type": "rough_conductor", "distribution": "ggx",
+            "roughness": m["alpha"], "eta": eta, "k": k, "albedo": m["specular"]}
 
 
 def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20, grids=None, binary=None):
@@ -159,6 +177,8 @@ def convert(sc, kind, res=None, max_bounces=64, spp=1 << 20, grids=None, binary=
     for name, m in sc.materials.items():
         if m["type"] == "lambert":
             bsdfs.append({"name": name, "type": "lambert", "albedo": m["albedo"]})
+        elif m["type"] == "rough_conductor":
+            bsdfs.append(rough_conductor(name, m))
         else:
             bsdfs.append({"name": name, "type": "dielectric", "ior": m["ior"], "enable_refraction": True})
     media = []

@@ -1,9 +1,9 @@
 //! `benches/peers/to_tungsten.py`, the tungsten side of the peers' harness, offline (tungsten
 //! itself is never needed): each quad keeps pathspace's side (tungsten's normal is the frame's
 //! z column cross its x column), each emitter and the camera carry the medium they sit in,
-//! medium boxes are grown by 1e-3 and nothing else changes size; scenes outside the common
-//! subset are refused with the reason. The Mitsuba side is read back through the importer in
-//! `inputs::mitsuba_import`.
+//! medium boxes are grown by 1e-3 and nothing else changes size, a rough conductor keeps its
+//! alpha and complex index; scenes outside the common subset are refused with the reason. The
+//! Mitsuba side is read back through the importer in `inputs::mitsuba_import`.
 
 use serde_json::Value;
 use std::path::PathBuf;
@@ -15,9 +15,18 @@ fn dir() -> PathBuf {
 
 /// The converter's output for `scene` (a file under `scenes/`), or its exit status and stderr.
 fn convert(script: &str, scene: &str, args: &[&str]) -> Result<String, (i32, String)> {
+    convert_path(
+        script,
+        &dir().join("scenes").join(scene).to_string_lossy(),
+        args,
+    )
+}
+
+/// The converter's output for the scene file `path`, or its exit status and stderr.
+fn convert_path(script: &str, path: &str, args: &[&str]) -> Result<String, (i32, String)> {
     let out = Command::new("python3")
         .arg(dir().join("benches/peers").join(script))
-        .arg(dir().join("scenes").join(scene))
+        .arg(path)
         .args(args)
         .output()
         .expect("python3 runs the converter");
@@ -141,16 +150,17 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             (schlick.to_str().unwrap().to_string(), "Schlick"),
             (hidden.to_str().unwrap().to_string(), "hide_emitters"),
         ];
-        if script == "to_mitsuba.py" {
-            refused.push((textured_eta.to_str().unwrap().to_string(), "textured `eta`"));
-        }
+        refused.push((textured_eta.to_str().unwrap().to_string(), "textured `eta`"));
         if script == "to_tungsten.py" {
-            // the variants Mitsuba 3 renders: tungsten has no spot light, and its rough
-            // conductor is not converted
-            refused.push((variant("door-slit-ior"), "rough conductor"));
+            // the variant Mitsuba 3 renders with a spot light, which tungsten has not; and a
+            // GGX alpha below the 1e-3 tungsten raises every alpha to
             refused.push((
                 variant("volume-caustic-hard-cone"),
                 "spot light (tungsten has none)",
+            ));
+            refused.push((
+                rough_metal_scene("mirror-like", "alpha = 0.0005\neta = 1.0\nk = 2.0"),
+                "alpha 0.0005 (tungsten raises alpha below 0.001",
             ));
         }
         for (scene, reason) in &refused {
@@ -160,6 +170,54 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             assert!(err.contains(reason), "{script} {scene}: {err}");
         }
     }
+}
+
+/// tungsten's `rough_conductor` for pathspace's: GGX, `roughness` the same alpha (tungsten's
+/// `roughnessToAlpha` is the identity for GGX), the same complex index per channel, `specular`
+/// as its `albedo`; without an index (pathspace's F = 1) eta 0 and k 1, where tungsten's
+/// Fresnel term is exactly 1.
+#[test]
+fn tungsten_rough_conductor_keeps_alpha_and_the_complex_index() {
+    for (name, keys, eta, k, albedo) in [
+        (
+            "index",
+            "alpha = 0.2\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.45, 2.14]\nspecular = [0.9, 0.8, 0.7]",
+            [0.2, 0.9, 1.1],
+            [3.9, 2.45, 2.14],
+            [0.9, 0.8, 0.7],
+        ),
+        ("no-index", "alpha = 0.2", [0.0; 3], [1.0; 3], [1.0; 3]),
+    ] {
+        let path = rough_metal_scene(name, keys);
+        let json = convert_path("to_tungsten.py", &path, &["path_tracer"]).unwrap();
+        let json: Value = serde_json::from_str(&json).unwrap();
+        let bsdf = json["bsdfs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["name"] == "glass")
+            .unwrap();
+        assert_eq!(bsdf["type"], "rough_conductor", "{bsdf}");
+        assert_eq!(bsdf["distribution"], "ggx", "{bsdf}");
+        assert_eq!(bsdf["roughness"].as_f64(), Some(0.2), "{bsdf}");
+        assert_eq!(vec3(&bsdf["eta"]), eta, "{bsdf}");
+        assert_eq!(vec3(&bsdf["k"]), k, "{bsdf}");
+        assert_eq!(vec3(&bsdf["albedo"]), albedo, "{bsdf}");
+    }
+}
+
+/// The tinted glass scene with its ball a rough conductor of the TOML `keys`, written to the
+/// temporary directory.
+fn rough_metal_scene(name: &str, keys: &str) -> String {
+    let path = glass_scene_variant(
+        &format!("rough-{name}"),
+        (
+            "type = \"dielectric\"\nior = 1.5\nspecular_transmittance = 0.5",
+            &format!("type = \"rough_conductor\"\n{keys}"),
+        ),
+        "",
+    );
+    path.to_str().unwrap().to_string()
 }
 
 /// tungsten's grid for the cloud's baked lattice: OpenVDB's index i (where `BoxSampler` puts
