@@ -1,6 +1,6 @@
 """A pathspace TOML scene read for the peers' converters (`to_mitsuba.py`, `to_tungsten.py`):
 the subset both peers can render exactly (quads, boxes and spheres; Lambert and smooth
-dielectric surfaces; homogeneous media with isotropic or Henyey-Greenstein phase; emitting
+dielectric surfaces, GGX rough conductors with a complex index; homogeneous media with isotropic or Henyey-Greenstein phase; emitting
 quads; a pinhole camera), everything else refused by name with `Refused`.
 
 Two facts of the peers shape the conversion (book: *Measuring a renderer*, "Against other

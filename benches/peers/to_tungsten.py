@@ -4,7 +4,7 @@
     python3 benches/peers/to_tungsten.py scenes/fog-box.toml bidirectional_path_tracer [--res 64] > scene.json
 
 tungsten is Benedikt Bitterli's research renderer (github.com/tunabrain/tungsten, read at
-commit 88ea020: `src/core/primitives/{Quad,Cube,Sphere}.cpp`, `bsdfs/LambertBsdf.cpp`,
+commit 88ea020: `src/core/primitives/{Quad,Cube,Sphere}.cpp`, `bsdfs/{Lambert,RoughConductor}Bsdf.cpp`,
 `integrators/*/…Settings.hpp`); it is never part of this repository. Exact counterparts only;
 anything else is refused with the reason (`scene.Refused`), exit status 2. tungsten's Lambert
 is one-sided, so the integrator's `enable_two_sided_shading` makes it pathspace's two-sided
