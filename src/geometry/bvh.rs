@@ -10,10 +10,7 @@
 use glam::Vec3;
 
 use super::leaf::{self, Block, TriangleRay};
-#[cfg(target_arch = "x86_64")]
-use super::wide::Lanes8;
-use super::wide::{collapse, Binary, Child, Children, Node4, Node8, QNode8, RayLanes, RayLanes8};
-use super::wide::{Slot, Wide};
+use super::wide::{collapse, Binary, Child, Node4, Node8, RayLanes, RayLanes8, Slot, Wide};
 use super::wide::{WIDTH, WIDTH8};
 use super::{shape::Hit, Aabb, Primitive, Ray};
 
@@ -68,12 +65,8 @@ pub const EIGHT_WIDE_REFERENCES: usize = 100_000;
 pub enum Width {
     /// [`Node4`], four-lane SSE (or the target's four-lane) operations.
     Four,
-    /// [`QNode8`], eight-lane AVX2 operations on children's boxes quantized to eight bits.
+    /// [`Node8`], eight-lane AVX2 operations.
     Eight,
-    /// [`Node8`], the same operations on the children's exact boxes: the tree [`Width::Eight`]
-    /// builds where a box is not finite, and the quantized tree's reference in tests and
-    /// measurements.
-    EightExact,
 }
 
 impl Width {
@@ -93,9 +86,7 @@ enum Nodes {
     Four(Vec<Node4>),
     /// Built only where [`Width::native`] is [`Width::Eight`]: its traversal is compiled for
     /// AVX2.
-    Eight(Vec<QNode8>),
-    /// As `Eight`, with exact boxes.
-    EightExact(Vec<Node8>),
+    Eight(Vec<Node8>),
 }
 
 impl Default for Nodes {
@@ -217,16 +208,9 @@ impl Bvh {
         tree.build_recursive(&mut items, 1, &mut leaf_of);
         drop((items, leaf_of));
         let (wide, wide_depth, mut blocks) = match (width, Width::native()) {
-            (Width::Eight | Width::EightExact, Width::Eight) => {
-                let (nodes, depth, blocks) = tree.collapse::<Node8>(prims);
-                let quantized: Option<Vec<QNode8>> = match width {
-                    Width::Eight => nodes.iter().map(QNode8::quantize).collect(),
-                    _ => None,
-                };
-                match quantized {
-                    Some(q) => (Nodes::Eight(q), depth, blocks),
-                    None => (Nodes::EightExact(nodes), depth, blocks),
-                }
+            (Width::Eight, Width::Eight) => {
+                let (nodes, depth, blocks) = tree.collapse(prims);
+                (Nodes::Eight(nodes), depth, blocks)
             }
             _ => {
                 let (nodes, depth, blocks) = tree.collapse(prims);
@@ -277,8 +261,7 @@ impl Bvh {
     pub fn memory_bytes(&self) -> usize {
         let nodes = match &self.wide {
             Nodes::Four(n) => n.capacity() * std::mem::size_of::<Node4>(),
-            Nodes::Eight(n) => n.capacity() * std::mem::size_of::<QNode8>(),
-            Nodes::EightExact(n) => n.capacity() * std::mem::size_of::<Node8>(),
+            Nodes::Eight(n) => n.capacity() * std::mem::size_of::<Node8>(),
         };
         nodes + self.blocks.capacity() * std::mem::size_of::<Block>()
     }
@@ -288,7 +271,6 @@ impl Bvh {
         match self.wide {
             Nodes::Four(_) => Width::Four,
             Nodes::Eight(_) => Width::Eight,
-            Nodes::EightExact(_) => Width::EightExact,
         }
     }
 
@@ -297,7 +279,6 @@ impl Bvh {
         match &self.wide {
             Nodes::Four(n) => n.len(),
             Nodes::Eight(n) => n.len(),
-            Nodes::EightExact(n) => n.len(),
         }
     }
 
@@ -350,15 +331,13 @@ impl Bvh {
             Nodes::Four(n) if shallow => self.closest4::<SMALL_STACK>(n, &q),
             Nodes::Four(n) => self.closest4::<STACK>(n, &q),
             #[cfg(not(target_arch = "x86_64"))]
-            Nodes::Eight(_) | Nodes::EightExact(_) => {
-                unreachable!("eight-wide nodes are built on x86-64 only")
+            Nodes::Eight(_) => unreachable!("eight-wide nodes are built on x86-64 only"),
+            #[cfg(target_arch = "x86_64")]
+            Nodes::Eight(n) => {
+                // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
+                // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
+                unsafe { self.closest8(n, &q) }
             }
-            // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
-            // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
-            #[cfg(target_arch = "x86_64")]
-            Nodes::Eight(n) => unsafe { self.closest8(n, &q) },
-            #[cfg(target_arch = "x86_64")]
-            Nodes::EightExact(n) => unsafe { self.closest8(n, &q) },
         }
     }
 
@@ -374,10 +353,9 @@ impl Bvh {
     /// eight-lane instructions.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn closest8<W: Lanes8>(&self, nodes: &[W], q: &Query) -> Option<Hit> {
+    fn closest8(&self, nodes: &[Node8], q: &Query) -> Option<Hit> {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
-        // SAFETY: this function runs only where AVX2 is (its caller's contract)
-        let test = |node: &W, limit| unsafe { node.enters(&lanes, limit) };
+        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
         if self.wide_depth <= SHALLOW {
             self.closest::<_, SMALL_STACK8>(nodes, q, test)
         } else if self.wide_depth <= MID8 {
@@ -390,7 +368,7 @@ impl Bvh {
     /// The closest-hit traversal of `nodes` with a stack of `N` entries (enough for the
     /// tree's depth), `test` the ray's slab test of a node's children before a limit.
     #[inline(always)]
-    fn closest<W: Children, const N: usize>(
+    fn closest<W: Wide, const N: usize>(
         &self,
         nodes: &[W],
         q: &Query,
@@ -470,15 +448,13 @@ impl Bvh {
             Nodes::Four(n) if shallow => self.any4::<SMALL_STACK>(n, &q),
             Nodes::Four(n) => self.any4::<STACK>(n, &q),
             #[cfg(not(target_arch = "x86_64"))]
-            Nodes::Eight(_) | Nodes::EightExact(_) => {
-                unreachable!("eight-wide nodes are built on x86-64 only")
+            Nodes::Eight(_) => unreachable!("eight-wide nodes are built on x86-64 only"),
+            #[cfg(target_arch = "x86_64")]
+            Nodes::Eight(n) => {
+                // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
+                // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
+                unsafe { self.any8(n, &q) }
             }
-            // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
-            // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
-            #[cfg(target_arch = "x86_64")]
-            Nodes::Eight(n) => unsafe { self.any8(n, &q) },
-            #[cfg(target_arch = "x86_64")]
-            Nodes::EightExact(n) => unsafe { self.any8(n, &q) },
         }
     }
 
@@ -493,10 +469,9 @@ impl Bvh {
     /// [`Bvh::any`] on the eight-wide tree, compiled for AVX2 ([`Bvh::closest8`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn any8<W: Lanes8>(&self, nodes: &[W], q: &Query) -> bool {
+    fn any8(&self, nodes: &[Node8], q: &Query) -> bool {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
-        // SAFETY: this function runs only where AVX2 is (its caller's contract)
-        let test = |node: &W, limit| unsafe { node.enters(&lanes, limit) };
+        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
         if self.wide_depth <= SHALLOW {
             self.any::<_, SMALL_STACK8>(nodes, q, test)
         } else if self.wide_depth <= MID8 {
@@ -509,7 +484,7 @@ impl Bvh {
     /// The any-hit traversal of `nodes` with a stack of `N` entries (enough for the tree's
     /// depth), `test` as in [`Bvh::closest`].
     #[inline(always)]
-    fn any<W: Children, const N: usize>(
+    fn any<W: Wide, const N: usize>(
         &self,
         nodes: &[W],
         q: &Query,
@@ -816,7 +791,7 @@ fn halves(b: Aabb) -> Option<(Aabb, Aabb)> {
 /// Always inlined: in the AVX2 traversal ([`Bvh::closest8`]) its eight-lane slab test is then
 /// compiled with AVX2 (out of line it was two four-lane halves, slower than four-wide nodes).
 #[inline(always)]
-fn push_farther<W: Children, const N: usize>(
+fn push_farther<W: Wide, const N: usize>(
     stack: &mut [u64; N],
     mut sp: usize,
     node: &W,
@@ -850,7 +825,7 @@ fn push_farther<W: Children, const N: usize>(
 /// [`push_farther`] without the sort, for any-hit queries, whose answer does not depend on
 /// the order: the lowest entered child is visited next, the others are stacked.
 #[inline(always)]
-fn push_unsorted<W: Children, const N: usize>(
+fn push_unsorted<W: Wide, const N: usize>(
     stack: &mut [u64; N],
     mut sp: usize,
     node: &W,
@@ -871,7 +846,7 @@ fn push_unsorted<W: Children, const N: usize>(
 }
 
 /// Levels of the wide tree under node `i` (a node whose children are all leaves: 1).
-fn wide_depth<W: Children>(wide: &[W], i: usize) -> usize {
+fn wide_depth<W: Wide>(wide: &[W], i: usize) -> usize {
     let below = (0..W::WIDTH)
         .filter(|&k| wide[i].has(k))
         .filter_map(|k| match wide[i].slot(k).child() {

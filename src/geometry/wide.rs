@@ -24,21 +24,17 @@ pub const WIDTH: usize = 4;
 /// Children per node of the eight-wide tree.
 pub const WIDTH8: usize = 8;
 
-/// A node of a wide tree as traversal reads it: which slots hold children, and what they are.
-pub trait Children: Copy {
+/// A node of a wide tree as [`collapse`] writes it and traversal reads it.
+pub trait Wide: Copy {
     /// Children per node.
     const WIDTH: usize;
     /// The children's entry distances, child k's in lane k.
     type Near: std::ops::Index<usize, Output = f32>;
+    fn empty() -> Self;
+    fn set(&mut self, k: usize, b: Aabb, slot: Slot);
     /// Whether slot `k` holds a child.
     fn has(&self, k: usize) -> bool;
     fn slot(&self, k: usize) -> Slot;
-}
-
-/// A node of a wide tree as [`collapse`] writes it, with its children's exact boxes.
-pub trait Wide: Children {
-    fn empty() -> Self;
-    fn set(&mut self, k: usize, b: Aabb, slot: Slot);
     fn set_slot(&mut self, k: usize, slot: Slot);
 }
 
@@ -146,22 +142,10 @@ fn build<N: Wide>(tree: &impl Binary, at: usize, nodes: &mut Vec<N>) -> u32 {
     index as u32
 }
 
-impl Children for Node4 {
+impl Wide for Node4 {
     const WIDTH: usize = WIDTH;
     type Near = Vec4;
 
-    #[inline]
-    fn has(&self, k: usize) -> bool {
-        self.used & (1 << k) != 0
-    }
-
-    #[inline]
-    fn slot(&self, k: usize) -> Slot {
-        self.slots[k]
-    }
-}
-
-impl Wide for Node4 {
     fn empty() -> Self {
         Node4 {
             min: [Vec4::INFINITY; 3],
@@ -178,6 +162,16 @@ impl Wide for Node4 {
         }
         self.slots[k] = slot;
         self.used |= 1 << k;
+    }
+
+    #[inline]
+    fn has(&self, k: usize) -> bool {
+        self.used & (1 << k) != 0
+    }
+
+    #[inline]
+    fn slot(&self, k: usize) -> Slot {
+        self.slots[k]
     }
 
     fn set_slot(&mut self, k: usize, slot: Slot) {
@@ -269,22 +263,10 @@ pub struct RayLanes8 {
     finite: bool,
 }
 
-impl Children for Node8 {
+impl Wide for Node8 {
     const WIDTH: usize = WIDTH8;
     type Near = [f32; WIDTH8];
 
-    #[inline]
-    fn has(&self, k: usize) -> bool {
-        self.used & (1 << k) != 0
-    }
-
-    #[inline]
-    fn slot(&self, k: usize) -> Slot {
-        self.slots[k]
-    }
-}
-
-impl Wide for Node8 {
     fn empty() -> Self {
         Node8 {
             min: [[f32::INFINITY; WIDTH8]; 3],
@@ -301,6 +283,16 @@ impl Wide for Node8 {
         }
         self.slots[k] = slot;
         self.used |= 1 << k;
+    }
+
+    #[inline]
+    fn has(&self, k: usize) -> bool {
+        self.used & (1 << k) != 0
+    }
+
+    #[inline]
+    fn slot(&self, k: usize) -> Slot {
+        self.slots[k]
     }
 
     fn set_slot(&mut self, k: usize, slot: Slot) {
@@ -325,266 +317,53 @@ impl Node8 {
     /// runs only where the processor has it (`Bvh`).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    #[inline(never)]
+    #[inline]
     pub(super) fn intersect_avx2(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
-        // SAFETY: this function's target feature
-        unsafe { enters_avx2(&self.min, &self.max, self.used, ray, limit) }
-    }
-}
-
-/// The eight-lane slab test of the boxes `min`, `max` (axis by axis, child k in lane k): the
-/// bit mask of the children in `used` the ray enters before `limit`, and their entry
-/// distances. Always inlined, into the nodes' AVX2 tests (a call of its own, as a target
-/// feature function, passed the boxes through memory).
-///
-/// # Safety
-/// The processor has AVX2.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn enters_avx2(
-    min: &[[f32; WIDTH8]; 3],
-    max: &[[f32; WIDTH8]; 3],
-    used: u32,
-    ray: &RayLanes8,
-    limit: f32,
-) -> (u32, [f32; WIDTH8]) {
-    use std::arch::x86_64::{_mm256_cmp_ps, _mm256_movemask_ps, _mm256_setr_ps, _CMP_LE_OQ};
-    let (near, far) = if ray.finite {
-        slabs8::<true>(min, max, ray, limit)
-    } else {
-        slabs8::<false>(min, max, ray, limit)
-    };
-    // the compare and its sign bits as one mask (`Vec4::cmple(..).bitmask()`'s eight-lane
-    // form), which the compiler does not find in a loop over the lanes
-    let v = |a: [f32; WIDTH8]| _mm256_setr_ps(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]);
-    // SAFETY: the caller's contract
-    let enters = unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(v(near), v(far))) };
-    (enters as u32 & used, near)
-}
-
-/// The slab test's entry distances and (slack included) exit distances on eight lanes,
-/// written lane by lane with the vector instructions' own rules ([`lane_min`],
-/// [`lane_max`]), so that it is [`Node4::intersect`]'s arithmetic whether the compiler
-/// keeps it scalar or makes it eight-lane.
-#[inline(always)]
-fn slabs8<const FINITE: bool>(
-    min_b: &[[f32; WIDTH8]; 3],
-    max_b: &[[f32; WIDTH8]; 3],
-    ray: &RayLanes8,
-    limit: f32,
-) -> ([f32; WIDTH8], [f32; WIDTH8]) {
-    let (min, max): (LaneOp, LaneOp) = if FINITE {
-        (lane_min, lane_max)
-    } else {
-        (
-            |a, b| if b.is_nan() { a } else { lane_min(a, b) },
-            |a, b| if b.is_nan() { a } else { lane_max(a, b) },
-        )
-    };
-    let mut near = [0.0f32; WIDTH8];
-    let mut far = [limit; WIDTH8];
-    for axis in 0..3 {
-        let (origin, inv) = (ray.o[axis], ray.inv_d[axis]);
-        for k in 0..WIDTH8 {
-            let t0 = (min_b[axis][k] - origin) * inv;
-            let t1 = (max_b[axis][k] - origin) * inv;
-            near[k] = max(near[k], min(t0, t1));
-            far[k] = min(far[k], max(t0, t1));
-        }
-    }
-    (near, far.map(|f| f * 1.000_000_4))
-}
-
-/// An eight-wide node's AVX2 slab test, for the traversal generic over exact and quantized
-/// boxes (a direct call, where a function pointer was an indirect one).
-#[cfg(target_arch = "x86_64")]
-pub trait Lanes8: Children<Near = [f32; WIDTH8]> {
-    /// The node's `intersect_avx2`.
-    ///
-    /// # Safety
-    /// The processor has AVX2.
-    unsafe fn enters(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]);
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Lanes8 for Node8 {
-    #[inline(always)]
-    unsafe fn enters(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
-        // SAFETY: the caller's contract
-        unsafe { self.intersect_avx2(ray, limit) }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Lanes8 for QNode8 {
-    #[inline(always)]
-    unsafe fn enters(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
-        // SAFETY: the caller's contract
-        unsafe { self.intersect_avx2(ray, limit) }
-    }
-}
-
-// ANCHOR: quantized
-/// Eight children whose boxes are stored in eight bits per bound against the node's own box
-/// (Ylitie, Karras and Laine 2017, "Efficient incoherent ray traversal on GPUs through
-/// compressed wide BVHs", sec. 3.1; Embree's quantized nodes): bound q of axis a stands for
-/// `origin[a] + q * scale[a]` ([`dequantize`]), rounded outward so that the stored box holds
-/// the child's exact box. 128 bytes, two cache lines, where [`Node8`] takes four: on a
-/// million triangles traversal waits on node loads. The slab test is the exact boxes' on the
-/// dequantized ones; a box that holds another is entered wherever the other is (subtraction,
-/// product, `min` and `max` round monotonically, and an end on the ray's origin plane whose
-/// slab gives NaN moves outward to an infinite one), so a query tests every primitive the
-/// exact tree would, and perhaps a few more, and returns the same hit.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-pub struct QNode8 {
-    origin: [f32; 3],
-    scale: [f32; 3],
-    /// Bit k set when slot k holds a child.
-    used: u32,
-    qmin: [[u8; WIDTH8]; 3],
-    qmax: [[u8; WIDTH8]; 3],
-    slots: [Slot; WIDTH8],
-}
-
-/// Bound `q` of a [`QNode8`] axis whose box starts at `origin` in steps of `scale`: the one
-/// formula of the build's rounding and of the traversal (a product and a sum, never fused).
-#[inline(always)]
-fn dequantize(origin: f32, scale: f32, q: u8) -> f32 {
-    origin + f32::from(q) * scale
-}
-
-impl Children for QNode8 {
-    const WIDTH: usize = WIDTH8;
-    type Near = [f32; WIDTH8];
-
-    #[inline]
-    fn has(&self, k: usize) -> bool {
-        self.used & (1 << k) != 0
-    }
-
-    #[inline]
-    fn slot(&self, k: usize) -> Slot {
-        self.slots[k]
-    }
-}
-
-impl QNode8 {
-    /// `node` with its children's boxes quantized outward; `None` where a bound or the node's
-    /// extent is not finite (the exact node then stays).
-    pub fn quantize(node: &Node8) -> Option<QNode8> {
-        let mut q = QNode8 {
-            origin: [0.0; 3],
-            scale: [0.0; 3],
-            used: node.used,
-            qmin: [[0; WIDTH8]; 3],
-            qmax: [[0; WIDTH8]; 3],
-            slots: node.slots,
+        use std::arch::x86_64::{_mm256_cmp_ps, _mm256_movemask_ps, _mm256_setr_ps, _CMP_LE_OQ};
+        let (near, far) = if ray.finite {
+            self.slabs::<true>(ray, limit)
+        } else {
+            self.slabs::<false>(ray, limit)
         };
-        let children = (0..WIDTH8).filter(|&k| node.has(k));
-        for a in 0..3 {
-            let lo = children
-                .clone()
-                .map(|k| node.min[a][k])
-                .fold(f32::INFINITY, f32::min);
-            let hi = children
-                .clone()
-                .map(|k| node.max[a][k])
-                .fold(f32::NEG_INFINITY, f32::max);
-            let scale = step(lo, hi)?;
-            (q.origin[a], q.scale[a]) = (lo, scale);
-            for k in children.clone() {
-                q.qmin[a][k] = below(lo, scale, node.min[a][k]);
-                q.qmax[a][k] = above(lo, scale, node.max[a][k]);
-            }
-        }
-        Some(q)
+        // the compare and its sign bits as one mask (`Vec4::cmple(..).bitmask()`'s eight-lane
+        // form), which the compiler does not find in a loop over the lanes
+        let v = |a: [f32; WIDTH8]| _mm256_setr_ps(a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7]);
+        let enters = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(v(near), v(far))) as u32;
+        (enters & self.used, near)
     }
 
-    /// The stored box of child `k`.
-    pub fn child_box(&self, k: usize) -> Aabb {
-        let (min, max) = self.boxes();
-        Aabb {
-            min: Vec3::new(min[0][k], min[1][k], min[2][k]),
-            max: Vec3::new(max[0][k], max[1][k], max[2][k]),
-        }
-    }
-
-    /// The children's boxes dequantized, axis by axis.
+    /// The slab test's entry distances and (slack included) exit distances on eight lanes,
+    /// written lane by lane with the vector instructions' own rules ([`lane_min`],
+    /// [`lane_max`]), so that it is [`Node4::intersect`]'s arithmetic whether the compiler
+    /// keeps it scalar or makes it eight-lane.
     #[inline(always)]
-    fn boxes(&self) -> ([[f32; WIDTH8]; 3], [[f32; WIDTH8]; 3]) {
-        let (mut min, mut max) = ([[0.0; WIDTH8]; 3], [[0.0; WIDTH8]; 3]);
-        for a in 0..3 {
+    fn slabs<const FINITE: bool>(
+        &self,
+        ray: &RayLanes8,
+        limit: f32,
+    ) -> ([f32; WIDTH8], [f32; WIDTH8]) {
+        let (min, max): (LaneOp, LaneOp) = if FINITE {
+            (lane_min, lane_max)
+        } else {
+            (
+                |a, b| if b.is_nan() { a } else { lane_min(a, b) },
+                |a, b| if b.is_nan() { a } else { lane_max(a, b) },
+            )
+        };
+        let mut near = [0.0f32; WIDTH8];
+        let mut far = [limit; WIDTH8];
+        for axis in 0..3 {
+            let (origin, inv) = (ray.o[axis], ray.inv_d[axis]);
             for k in 0..WIDTH8 {
-                min[a][k] = dequantize(self.origin[a], self.scale[a], self.qmin[a][k]);
-                max[a][k] = dequantize(self.origin[a], self.scale[a], self.qmax[a][k]);
+                let t0 = (self.min[axis][k] - origin) * inv;
+                let t1 = (self.max[axis][k] - origin) * inv;
+                near[k] = max(near[k], min(t0, t1));
+                far[k] = min(far[k], max(t0, t1));
             }
         }
-        (min, max)
-    }
-
-    /// [`Node8::intersect_avx2`] on the dequantized boxes.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline(never)]
-    pub(super) fn intersect_avx2(&self, ray: &RayLanes8, limit: f32) -> (u32, [f32; WIDTH8]) {
-        let (min, max) = self.boxes();
-        // SAFETY: this function's target feature
-        unsafe { enters_avx2(&min, &max, self.used, ray, limit) }
+        (near, far.map(|f| f * 1.000_000_4))
     }
 }
-
-/// The step of an axis from `lo` to `hi` in 255 steps, rounded up until step 255 reaches `hi`;
-/// `None` where the axis is not finite.
-fn step(lo: f32, hi: f32) -> Option<f32> {
-    if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
-        return None;
-    }
-    let mut scale = ((hi - lo) / 255.0).max(if hi > lo { f32::MIN_POSITIVE } else { 0.0 });
-    let mut bump = f32::EPSILON;
-    // the relative bump doubles, so that a step far below the spacing of floats near `lo`
-    // still reaches `hi` in a few rounds
-    for _ in 0..64 {
-        let top = dequantize(lo, scale, 255);
-        if top >= hi {
-            return (scale.is_finite() && top.is_finite()).then_some(scale);
-        }
-        scale += scale * bump;
-        bump *= 2.0;
-    }
-    None
-}
-
-/// The largest code whose bound is at most `b` (code 0 is `lo`, the least of the bounds).
-fn below(lo: f32, scale: f32, b: f32) -> u8 {
-    if scale == 0.0 {
-        return 0;
-    }
-    let mut q = ((b - lo) / scale).floor().clamp(0.0, 255.0) as u8;
-    while q > 0 && dequantize(lo, scale, q) > b {
-        q -= 1;
-    }
-    while q < 255 && dequantize(lo, scale, q + 1) <= b {
-        q += 1;
-    }
-    q
-}
-
-/// The smallest code whose bound is at least `b` (code 255 reaches the greatest of the bounds).
-fn above(lo: f32, scale: f32, b: f32) -> u8 {
-    if scale == 0.0 {
-        return 0;
-    }
-    let mut q = ((b - lo) / scale).ceil().clamp(0.0, 255.0) as u8;
-    while q < 255 && dequantize(lo, scale, q) < b {
-        q += 1;
-    }
-    while q > 0 && dequantize(lo, scale, q - 1) >= b {
-        q -= 1;
-    }
-    q
-}
-// ANCHOR_END: quantized
 
 /// A lane's `min` or `max`.
 type LaneOp = fn(f32, f32) -> f32;
