@@ -131,15 +131,10 @@ impl Block {
         let neg = u.cmplt(z) | v.cmplt(z) | w.cmplt(z);
         let pos = u.cmpgt(z) | v.cmpgt(z) | w.cmpgt(z);
         let det = u + v + w;
-        let inside = !(neg & pos).bitmask() & !det.cmpeq(z).bitmask() & used;
-        if inside == 0 {
-            // no lane is hit: the division and the distances are not needed (most blocks a ray
-            // reaches in a small scene, where the box tests reject little)
-            return (0, z, z, z);
-        }
         let inv = Vec4::ONE / det;
         let t = (u * a.2 + v * b.2 + w * c.2) * ray.sz * inv;
-        let mask = inside & t.cmpgt(Vec4::splat(t_min)).bitmask();
+        let inside = !(neg & pos).bitmask() & !det.cmpeq(z).bitmask();
+        let mask = inside & t.cmpgt(Vec4::splat(t_min)).bitmask() & used;
         (mask, t, v * inv, w * inv)
     }
 }
