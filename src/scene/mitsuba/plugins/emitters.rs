@@ -5,12 +5,15 @@ use glam::{DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, rgb, show, Importer, Props, Response};
-use crate::scene::file::{LightDesc, RgbValue};
+use crate::scene::file::{EmissionValue, LightDesc, ReflectanceValue};
 use crate::scene::SceneError;
 
 impl<'a, 'd> Importer<'a, 'd> {
-    /// An `area` emitter's radiance.
-    pub(super) fn area(&mut self, node: Node<'a, 'a>) -> Result<RgbValue, SceneError> {
+    /// An `area` emitter's radiance: a colour (1 by default), or a `bitmap` or `checkerboard`
+    /// texture over the shape's (u, v), read as Mitsuba 3's RGB variants read it (Mitsuba 3
+    /// documentation, plugin `area`: its `radiance` is a texture, evaluated at the point's
+    /// (u, v); a bitmap's texels unclamped, a checkerboard's colours as for a reflectance).
+    pub(super) fn area(&mut self, node: Node<'a, 'a>) -> Result<EmissionValue, SceneError> {
         let mut p = Props::new(self.doc, node)?;
         if p.plugin != "area" {
             return Err(p.err(format!(
@@ -18,11 +21,16 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.plugin
             )));
         }
+        if let Some(t) = p.texture("radiance") {
+            let t = super::bsdfs::texture(self.doc, t)?;
+            p.finish()?;
+            return Ok(ReflectanceValue::Texture(t));
+        }
         let r = p
             .color("radiance", Response::Emissive)?
             .unwrap_or(DVec3::ONE);
         p.finish()?;
-        Ok(rgb(r))
+        Ok(rgb(r).into())
     }
 
     /// A top-level emitter.
