@@ -671,6 +671,16 @@ material = "default diffuse"
         e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 2)) && e.contains("volume"),
         "{e}"
     );
+    // Mitsuba 3 refuses a checkerboard's <rgb> above 1 even in an emitter
+    let e = xml(&scene(
+        r#"<shape type="rectangle"><emitter type="area"><texture type="checkerboard" name="radiance">
+        <rgb name="color0" value="5, 2, 1"/></texture></emitter></shape>"#,
+    ))
+    .expect_err("an <rgb> above 1 in a checkerboard");
+    assert!(
+        e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 3)) && e.contains("[0, 1]"),
+        "{e}"
+    );
 }
 
 /// A texture as a conductor's or rough conductor's `specular_reflectance` is the TOML

@@ -22,6 +22,7 @@ impl<'a, 'd> Importer<'a, 'd> {
             )));
         }
         if let Some(t) = p.texture("radiance") {
+            self.checker_rgb_in_range(t)?;
             let t = super::bsdfs::texture(self.doc, t)?;
             p.finish()?;
             return Ok(ReflectanceValue::Texture(t));
@@ -31,6 +32,25 @@ impl<'a, 'd> Importer<'a, 'd> {
             .unwrap_or(DVec3::ONE);
         p.finish()?;
         Ok(rgb(r).into())
+    }
+
+    /// Mitsuba 3 reads a checkerboard's `<rgb>` colours as reflectances even in an emitter
+    /// (its parser's `srgb` texture, bounded: "must be in the range [0, 1]"), so a scene with
+    /// one above 1 does not load there; refused here alike (a `<float>` is unbounded in both).
+    fn checker_rgb_in_range(&self, t: Node<'a, 'a>) -> Result<(), SceneError> {
+        if t.attribute("type") != Some("checkerboard") {
+            return Ok(());
+        }
+        for c in t.children().filter(|c| c.tag_name().name() == "rgb") {
+            let values = self.doc.numbers(c, &self.doc.need(c, "value")?)?;
+            if values.iter().any(|&x| x > 1.0) {
+                return Err(self.doc.err(
+                    c,
+                    "an <rgb> above 1 in a checkerboard: Mitsuba 3 reads a checkerboard's <rgb> colours as reflectances in [0, 1], even as an emitter's radiance (a <float> is unbounded)",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// A top-level emitter.
