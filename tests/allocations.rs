@@ -65,7 +65,14 @@ fn allowance(spp: u32) -> u64 {
 /// The fog box at `SIDE` x `SIDE` with its render settings, SMC's octree held fixed (it
 /// allocates when it refines: a cost of the structure, bounded by its budget, not of samples).
 fn fog_box() -> (Scene, RenderSettings) {
-    let (mut scene, mut settings) = load(&SceneSource::embedded("fog.toml", FOG_BOX)).unwrap();
+    fog_box_from(FOG_BOX)
+}
+
+/// The fog box with its lamp's radiance a checkerboard: a texture read at every light vertex.
+const TEXTURED_LAMP: &str = "textured lamp";
+
+fn fog_box_from(text: &str) -> (Scene, RenderSettings) {
+    let (mut scene, mut settings) = load(&SceneSource::embedded("fog.toml", text)).unwrap();
     settings.smc.threshold = f64::MAX;
     let cam = scene.camera.take().unwrap();
     scene.camera = cam.with_resolution(SIDE, SIDE);
@@ -78,7 +85,14 @@ const EQUIANGULAR: &str = "equiangular";
 /// Checks one integrator with technique `tech`; `label` names the case. Integrators that refuse
 /// the technique are skipped.
 fn check(kind: IntegratorKind, tech: &dyn LocalSampling, label: &str) {
-    let (scene, mut settings) = fog_box();
+    let (scene, mut settings) = if label == TEXTURED_LAMP {
+        let lamp = "emission = [10.0, 10.0, 10.0]";
+        assert!(FOG_BOX.contains(lamp));
+        let textured = r#"emission = { texture = "checkerboard", color0 = 14.0, color1 = 6.0 }"#;
+        fog_box_from(&FOG_BOX.replace(lamp, textured))
+    } else {
+        fog_box()
+    };
     if label == EQUIANGULAR {
         settings.distance = DistanceSampling::EquiangularMis;
     }
@@ -134,6 +148,7 @@ fn a_pass_of_more_samples_allocates_no_more_than_a_logarithmic_allowance() {
         for &kind in IntegratorKind::ALL {
             check(kind, &PLAIN, "plain");
             check(kind, &guided, "enlightened");
+            check(kind, &PLAIN, TEXTURED_LAMP);
         }
         check(IntegratorKind::Path, &PLAIN, EQUIANGULAR);
     });

@@ -230,6 +230,8 @@ class Scene:
         if "emission" in s:
             if kind != "quad" or mat is not None:
                 raise Refused("only black quads emit in the converted scenes")
+            if isinstance(s["emission"], dict):
+                raise Refused("a textured emission")
             out["emission"] = rgb(s["emission"])
         elif mat is None:
             raise Refused(f"a {kind} without material")

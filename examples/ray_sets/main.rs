@@ -128,8 +128,8 @@ fn from_scene(scene: Scene, res: u32) -> Result<Source> {
     let light_point = Box::new(move |r: &mut Pcg64Mcg| loop {
         let light = &lights[r.random_range(0..lights.len())];
         let u = Vec2::new(r.random(), r.random());
-        if let Some((p, _, _)) = light.sample_point(&prims, u, r.random()) {
-            return p;
+        if let Some(at) = light.sample_point(&prims, u, r.random()) {
+            return at.p;
         }
     });
     Ok(Source {

@@ -141,7 +141,8 @@ impl Bdpt<'_> {
             StartDraw::Drawn(st) => {
                 // the light vertex from the technique, as light subpaths start
                 li = st.point.light as usize;
-                let ls = scene.lights[li].li_from(p, st.point.p, st.point.n, st.pdf)?;
+                let (light, prim) = (&scene.lights[li], st.point.prim);
+                let ls = light.li_from(&scene.prims, prim, p, st.point.p, st.point.n, st.pdf)?;
                 (ls, ls.pdf, Some(st.point.prim))
             }
             StartDraw::ByPower => {

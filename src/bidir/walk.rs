@@ -519,7 +519,8 @@ impl Bdpt<'_> {
             let n = es.n;
             let (d, pdf) =
                 (self.tech).sample_emission(scene, light, (es.p, n), es.d, start.u_dir, sampler)?;
-            es.value = crate::scene::light::emitted_by(light, n, d);
+            let prim = start.prim.unwrap_or(0);
+            es.value = crate::scene::light::emitted_by(light, &scene.prims, prim, (es.p, n), d);
             es.d = d;
             es.pdf_dir = pdf;
         }

@@ -10,7 +10,7 @@ use crate::bsdf::Bsdf;
 use crate::geometry::Primitive;
 use crate::medium::Medium;
 use crate::scene::file::escape_controls as esc;
-use crate::scene::{Environment, Light, Scene};
+use crate::scene::{AreaRadiance, Environment, Light, Scene};
 use crate::spectrum::{round3 as round, show as v3};
 
 #[derive(Args, Debug)]
@@ -85,7 +85,11 @@ fn light(l: &Light) -> String {
             "area light on shapes[{shape}] ({} primitives), area {}, radiance {}",
             prims.len(),
             round(*area),
-            v3(*radiance)
+            match radiance {
+                AreaRadiance::Constant(r) => v3(*r),
+                AreaRadiance::Textured { texture, mean, .. } =>
+                    format!("{} (mean {})", texture.describe(), v3(*mean)),
+            }
         ),
         Light::Point {
             position,

@@ -217,14 +217,14 @@ impl<'t> PathTracer<'t> {
         };
         let (u, u_t) = (sampler.next_2d(), sampler.next_f32());
         let light = &scene.lights[l];
-        let Some((y, ny, pdf_area)) = light.sample_point(&scene.prims, u, u_prim) else {
+        let Some(at) = light.sample_point(&scene.prims, u, u_prim) else {
             return Rgb::ZERO;
         };
-        let Some((i, t, pdf_eq)) = media.sample_equiangular(y, u_t) else {
+        let Some((i, t, pdf_eq)) = media.sample_equiangular(at.p, u_t) else {
             return Rgb::ZERO;
         };
         let (p, m) = (media.ray.at(t), media.spans()[i].medium);
-        let Some(ls) = light.li_towards(&scene.prims, p, y, ny, pdf_area) else {
+        let Some(ls) = light.li_towards(&scene.prims, p, &at) else {
             return Rgb::ZERO;
         };
         let medium = &scene.media[m as usize];
@@ -628,9 +628,11 @@ fn emission_found(
     hit: &crate::geometry::Hit,
     li: u32,
 ) -> Option<Rgb> {
-    let crate::scene::Light::Area { radiance, .. } = &scene.lights[li as usize] else {
+    let light = &scene.lights[li as usize];
+    if !matches!(light, crate::scene::Light::Area { .. }) {
         return None;
-    };
+    }
+    let radiance = light.area_radiance(&scene.prims, hit.prim, hit.p);
     let mis = if w.prev.singular {
         1.0
     } else {
@@ -638,7 +640,7 @@ fn emission_found(
             * scene.lights[li as usize].pdf_li(&scene.prims, w.prev.p, hit.p, hit.ng, hit.prim);
         power_heuristic(w.prev.pdf_dir, pdf_light)
     };
-    Some(w.beta * *radiance * mis)
+    Some(w.beta * radiance * mis)
 }
 
 /// The volume emittance L_e,V0 (eqs. 1 and 3) collected at the collision `p` in medium `m` that

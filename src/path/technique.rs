@@ -334,7 +334,8 @@ pub fn sample_emitted_start(
         StartDraw::Failed => return None,
         StartDraw::Drawn(st) => {
             l = st.point.light as usize;
-            let es = scene.lights[l].emission_at(st.point.p, st.point.n, st.pdf, u_dir);
+            let at = (st.point.p, st.point.n);
+            let es = scene.lights[l].emission_at(&scene.prims, st.point.prim, at, st.pdf, u_dir);
             (es, st.pdf, Some(st.point.prim))
         }
         StartDraw::ByPower => {

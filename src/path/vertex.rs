@@ -241,14 +241,19 @@ impl Vertex {
     /// L_e(self -> towards) at a light vertex (irradiance for a directional light, intensity for
     /// point and spot lights: their Dirac is consumed by the sampler).
     pub fn emitted(&self, scene: &Scene, towards: Vec3) -> Rgb {
-        let (light, w) = match self.kind {
-            VertexKind::Light { light, .. } => (light, (towards - self.p).normalize_or_zero()),
+        let (light, prim, w) = match self.kind {
+            VertexKind::Light { light, prim } => (
+                light,
+                prim.unwrap_or(0),
+                (towards - self.p).normalize_or_zero(),
+            ),
             // the emission direction is the vertex's own (an environment's radiance depends on
             // it, and the far point's difference would round it)
-            VertexKind::InfiniteLight { light, w } => (light, -w),
+            VertexKind::InfiniteLight { light, w } => (light, 0, -w),
             _ => return Rgb::ZERO,
         };
-        emitted_by(&scene.lights[light as usize], self.n, w)
+        let light = &scene.lights[light as usize];
+        emitted_by(light, &scene.prims, prim, (self.p, self.n), w)
     }
 
     /// Radiance this surface vertex emits towards `towards`, if it is on an area light, or
@@ -264,7 +269,9 @@ impl Vertex {
                 match shape.light {
                     Some(l) => emitted_by(
                         &scene.lights[l as usize],
-                        self.n,
+                        &scene.prims,
+                        prim,
+                        (self.p, self.n),
                         (towards - self.p).normalize_or_zero(),
                     ),
                     None => Rgb::ZERO,

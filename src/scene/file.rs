@@ -110,6 +110,11 @@ impl fmt::Display for ReflectanceValue {
     }
 }
 
+/// A shape's `emission`: the radiance its normal side emits, a number, an RGB triple, or a
+/// texture over the shape's (u, v) (the syntax of a reflectance, values any finite >= 0; Mitsuba
+/// 3 documentation, plugin `area`, `radiance`).
+pub type EmissionValue = ReflectanceValue;
+
 /// A roughness: a number, or a texture whose one-channel value (the luminance, as Mitsuba 3's
 /// `eval_1`) is the roughness at each point.
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
@@ -556,7 +561,7 @@ fn default_phase() -> PhaseDesc {
 #[serde(deny_unknown_fields)]
 pub struct ShapeCommon {
     pub material: Option<String>,
-    pub emission: Option<RgbValue>,
+    pub emission: Option<EmissionValue>,
     pub interior: Option<String>,
     pub exterior: Option<String>,
 }
@@ -577,7 +582,7 @@ pub enum ShapeDesc {
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         flip_normals: bool,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -587,7 +592,7 @@ pub enum ShapeDesc {
         #[serde(deserialize_with = "exact")]
         max: [f32; 3],
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -611,7 +616,7 @@ pub enum ShapeDesc {
         )]
         z_axis: Option<[f32; 3]>,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -628,7 +633,7 @@ pub enum ShapeDesc {
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         flip_normals: bool,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -651,7 +656,7 @@ pub enum ShapeDesc {
         )]
         x_axis: Option<[f32; 3]>,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -686,7 +691,7 @@ pub enum ShapeDesc {
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         flip_normals: bool,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     },
@@ -739,7 +744,7 @@ impl ShapeDesc {
                 ..
             } => ShapeCommon {
                 material: material.clone(),
-                emission: *emission,
+                emission: emission.clone(),
                 interior: interior.clone(),
                 exterior: exterior.clone(),
             },

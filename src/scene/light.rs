@@ -8,10 +8,46 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use super::EnvMap;
+use super::{EnvMap, UvMap};
 use crate::geometry::Primitive;
 use crate::math::{warp, Distribution1D, Frame};
 use crate::spectrum::Rgb;
+use crate::texture::Texture;
+
+/// What an area light emits from a point of its surface (Mitsuba 3 documentation, plugin
+/// `area`: `radiance` is a spectrum or a texture over the shape's (u, v)).
+#[derive(Clone, Debug)]
+pub enum AreaRadiance {
+    Constant(Rgb),
+    /// The texture looked up at the point's (u, v) by `uv`, the shape's map (as a textured
+    /// reflectance); `mean`, its mean over the unit square, stands in for it in the light's
+    /// power, which only weighs the light's selection (points stay uniform by area).
+    Textured {
+        texture: std::sync::Arc<Texture>,
+        uv: UvMap,
+        mean: Rgb,
+    },
+}
+
+impl AreaRadiance {
+    /// The radiance at the scene's primitive `prim`'s point `p`: the one place an area light's
+    /// radiance is read (its (u, v) computed only when textured).
+    #[inline]
+    pub fn at(&self, prims: &[Primitive], prim: u32, p: Vec3) -> Rgb {
+        match self {
+            AreaRadiance::Constant(l) => *l,
+            AreaRadiance::Textured { texture, uv, .. } => texture.eval(uv.uv_of(prims, prim, p)),
+        }
+    }
+
+    /// The mean radiance over the surface's (u, v) (the constant itself).
+    pub fn mean(&self) -> Rgb {
+        match self {
+            AreaRadiance::Constant(l) => *l,
+            AreaRadiance::Textured { mean, .. } => *mean,
+        }
+    }
+}
 
 /// A constant, vertical gradient or image-based environment: radiance as a function of
 /// direction.
@@ -99,7 +135,7 @@ pub enum Light {
         /// Selection of a primitive proportional to its area.
         distr: Distribution1D,
         area: f32,
-        radiance: Rgb,
+        radiance: AreaRadiance,
     },
     Point {
         position: Vec3,
@@ -136,6 +172,18 @@ pub struct LightSample {
     /// selection probability is not included); 1 for delta lights.
     pub pdf: f32,
     pub is_delta: bool,
+}
+
+/// A point drawn on a finite light ([`Light::sample_point`]).
+#[derive(Clone, Copy, Debug)]
+pub struct LightPoint {
+    pub p: Vec3,
+    /// Its unit normal (zero for point and spot lights).
+    pub n: Vec3,
+    /// Its density per area (1 for point and spot lights).
+    pub pdf_area: f32,
+    /// The scene's primitive it lies on (an area light's; 0 otherwise).
+    pub prim: u32,
 }
 
 /// An emitted ray for light paths.
@@ -183,7 +231,7 @@ impl Light {
     pub fn power(&self, scene_radius: f32) -> f32 {
         let lum = |c: Rgb| crate::spectrum::average(c);
         match self {
-            Light::Area { area, radiance, .. } => PI * area * lum(*radiance),
+            Light::Area { area, radiance, .. } => PI * area * lum(radiance.mean()),
             Light::Point { intensity, .. } => 4.0 * PI * lum(*intensity),
             Light::Spot {
                 intensity,
@@ -200,16 +248,11 @@ impl Light {
         }
     }
 
-    /// A point on a finite light drawn without a reference point, with its normal and density
-    /// per area: an area light's as [`Light::sample_li`] draws it (a primitive by area, then
-    /// uniform on it), a point or spot light's position (normal zero, density 1); `None` for
-    /// infinite lights. Equiangular sampling needs the light point before the point it lights.
-    pub fn sample_point(
-        &self,
-        prims: &[Primitive],
-        u: Vec2,
-        u_prim: f32,
-    ) -> Option<(Vec3, Vec3, f32)> {
+    /// A point on a finite light drawn without a reference point: an area light's as
+    /// [`Light::sample_li`] draws it (a primitive by area, then uniform on it), a point or spot
+    /// light's position (normal zero, density 1); `None` for infinite lights. Equiangular
+    /// sampling needs the light point before the point it lights.
+    pub fn sample_point(&self, prims: &[Primitive], u: Vec2, u_prim: f32) -> Option<LightPoint> {
         match self {
             Light::Area {
                 prims: ids, distr, ..
@@ -218,30 +261,45 @@ impl Light {
                 let prim = &prims[ids[k] as usize];
                 let (p, n) = prim.sample_area(u);
                 // area density pk / A_k
-                Some((p, n, pk / prim.area()))
+                Some(LightPoint {
+                    p,
+                    n,
+                    pdf_area: pk / prim.area(),
+                    prim: ids[k],
+                })
             }
-            Light::Point { position, .. } | Light::Spot { position, .. } => {
-                Some((*position, Vec3::ZERO, 1.0))
-            }
+            Light::Point { position, .. } | Light::Spot { position, .. } => Some(LightPoint {
+                p: *position,
+                n: Vec3::ZERO,
+                pdf_area: 1.0,
+                prim: 0,
+            }),
             Light::Directional { .. } | Light::Environment(_) => None,
         }
     }
 
-    /// The light sample from `p_ref` towards the point `p` (normal `n`, density `pdf_area`)
-    /// that [`Light::sample_point`] drew: what [`Light::sample_li`] returns when it draws that
-    /// point.
+    /// The light sample from `p_ref` towards the point `at` that [`Light::sample_point`] drew:
+    /// what [`Light::sample_li`] returns when it draws that point.
     pub fn li_towards(
         &self,
         prims: &[Primitive],
         p_ref: Vec3,
-        p: Vec3,
-        n: Vec3,
-        pdf_area: f32,
+        at: &LightPoint,
     ) -> Option<LightSample> {
         match self {
-            Light::Area { .. } => self.li_from(p_ref, p, n, pdf_area),
+            Light::Area { .. } => self.li_from(prims, at.prim, p_ref, at.p, at.n, at.pdf_area),
             // a delta light's sample does not depend on the random numbers
             _ => self.sample_li(prims, p_ref, Vec2::ZERO, 0.0),
+        }
+    }
+
+    /// An area light's radiance at point `p` of the scene's primitive `prim` (one of its
+    /// own); black for other lights ([`AreaRadiance::at`]).
+    #[inline]
+    pub fn area_radiance(&self, prims: &[Primitive], prim: u32, p: Vec3) -> Rgb {
+        match self {
+            Light::Area { radiance, .. } => radiance.at(prims, prim, p),
+            _ => Rgb::ZERO,
         }
     }
 
@@ -255,9 +313,9 @@ impl Light {
     ) -> Option<LightSample> {
         match self {
             Light::Area { .. } => {
-                let (p, n, pdf_area) = self.sample_point(prims, u, u_prim)?;
+                let at = self.sample_point(prims, u, u_prim)?;
                 // the back of an emitter is black
-                self.li_from(p_ref, p, n, pdf_area)
+                self.li_from(prims, at.prim, p_ref, at.p, at.n, at.pdf_area)
             }
             Light::Point {
                 position,
@@ -359,16 +417,21 @@ impl Light {
         }
     }
 
-    /// The emitted ray of an area light from a given point `p` (normal `n`, position density
-    /// `pdf_pos`): a cosine-distributed direction from `u_dir`, as [`Light::sample_le`] draws
-    /// it. Used when the position comes from elsewhere (the adjoint image).
-    pub fn emission_at(&self, p: Vec3, n: Vec3, pdf_pos: f32, u_dir: Vec2) -> EmissionSample {
+    /// The emitted ray of an area light from a given point `p` of primitive `prim` (normal
+    /// `n`, position density `pdf_pos`): a cosine-distributed direction from `u_dir`, as
+    /// [`Light::sample_le`] draws it. Used when the position comes from elsewhere (the adjoint
+    /// image).
+    pub fn emission_at(
+        &self,
+        prims: &[Primitive],
+        prim: u32,
+        (p, n): (Vec3, Vec3),
+        pdf_pos: f32,
+        u_dir: Vec2,
+    ) -> EmissionSample {
         let local = warp::cosine_hemisphere(u_dir);
         let d = Frame::from_normal(n).to_world(local);
-        let value = match self {
-            Light::Area { radiance, .. } => *radiance,
-            _ => Rgb::ZERO,
-        };
+        let value = self.area_radiance(prims, prim, p);
         EmissionSample {
             p,
             n,
@@ -379,10 +442,19 @@ impl Light {
         }
     }
 
-    /// A [`LightSample`] towards point `p` (normal `n`) of this area light from `p_ref`, the
-    /// point having been drawn elsewhere with area density `pdf_area`; `pdf` is converted to
-    /// solid angle at `p_ref`. `None` from behind the emitter or at zero distance.
-    pub fn li_from(&self, p_ref: Vec3, p: Vec3, n: Vec3, pdf_area: f32) -> Option<LightSample> {
+    /// A [`LightSample`] towards point `p` (normal `n`) of primitive `prim` of this area light
+    /// from `p_ref`, the point having been drawn elsewhere with area density `pdf_area`; `pdf`
+    /// is converted to solid angle at `p_ref`. `None` from behind the emitter or at zero
+    /// distance.
+    pub fn li_from(
+        &self,
+        prims: &[Primitive],
+        prim: u32,
+        p_ref: Vec3,
+        p: Vec3,
+        n: Vec3,
+        pdf_area: f32,
+    ) -> Option<LightSample> {
         let Light::Area { radiance, .. } = self else {
             return None;
         };
@@ -402,7 +474,7 @@ impl Light {
             dist,
             p,
             n,
-            value: *radiance,
+            value: radiance.at(prims, prim, p),
             pdf: pdf_area * d2 / cos_l,
             is_delta: false,
         })
@@ -434,7 +506,7 @@ impl Light {
                     p,
                     n,
                     d,
-                    value: *radiance,
+                    value: radiance.at(prims, ids[k], p),
                     pdf_pos: pk / prim.area(),
                     pdf_dir: warp::cosine_hemisphere_pdf(local),
                 })
@@ -504,13 +576,19 @@ impl Light {
     }
 }
 
-/// Emitted radiance (or intensity, irradiance) of `light` in direction `w` from a point with
-/// normal `n`.
-pub fn emitted_by(light: &Light, n: Vec3, w: Vec3) -> Rgb {
+/// Emitted radiance (or intensity, irradiance) of `light` in direction `w` from a point `p`
+/// with normal `n` (on the scene's primitive `prim` of an area light).
+pub fn emitted_by(
+    light: &Light,
+    prims: &[Primitive],
+    prim: u32,
+    (p, n): (Vec3, Vec3),
+    w: Vec3,
+) -> Rgb {
     match light {
         Light::Area { radiance, .. } => {
             if n.dot(w) > 0.0 {
-                *radiance
+                radiance.at(prims, prim, p)
             } else {
                 Rgb::ZERO
             }

@@ -19,7 +19,7 @@ pub mod source;
 pub use camera::Camera;
 pub use envmap::EnvMap;
 pub use file::{SceneError, SceneFile, SceneSource};
-pub use light::{Environment, Light};
+pub use light::{AreaRadiance, Environment, Light};
 pub use light_tree::{LightSelection, LightSelectionKind};
 pub use segments::{Segment, SegmentEnd, Segments};
 pub use sensor::IrradianceMeter;
@@ -140,6 +140,18 @@ const CUBE_FACES: [(Vec3, [Vec3; 3]); 6] = {
 };
 
 impl UvMap {
+    /// The (u, v) of point `p` on the scene's primitive `id` (of `prims`).
+    #[inline]
+    pub fn uv_of(&self, prims: &[Primitive], id: u32, p: Vec3) -> glam::Vec2 {
+        let prim = &prims[id as usize];
+        // only the cube's faces (quads) need the normal
+        let n = match prim {
+            Primitive::Quad(q) => q.n,
+            _ => Vec3::ZERO,
+        };
+        self.uv(id, prim, p, n)
+    }
+
     /// The (u, v) of point `p` on primitive `prim` (index `id`, with unit normal `n`).
     pub fn uv(&self, id: u32, prim: &Primitive, p: Vec3, n: Vec3) -> glam::Vec2 {
         match self {
@@ -364,13 +376,7 @@ impl Scene {
     /// `bsdf` with `t`'s values at `p` (kept out of line: untextured scenes never call it).
     #[inline(never)]
     fn textured(&self, bsdf: &Bsdf, t: &ShapeTexture, id: u32, p: Vec3) -> Bsdf {
-        let prim = &self.prims[id as usize];
-        // only the cube's faces (quads) need the normal
-        let n = match prim {
-            Primitive::Quad(q) => q.n,
-            _ => Vec3::ZERO,
-        };
-        let uv = t.uv.uv(id, prim, p, n);
+        let uv = t.uv.uv_of(&self.prims, id, p);
         let mut out = bsdf.clone();
         if let Some(r) = &t.reflectance {
             let value = r.eval(uv);

@@ -616,6 +616,73 @@ radiance = 0.25
     );
 }
 
+/// An `area` emitter's `radiance` as a texture (Mitsuba 3 documentation, plugin `area`) is the
+/// TOML's textured `emission`: a checkerboard (a `<float>` colour above 1, as Mitsuba reads it
+/// in an emitter) on a rectangle and an EXR bitmap on a sphere, lighting a diffuse wall and
+/// seen directly. A texture Mitsuba has and pathspace has not is refused at its line.
+#[test]
+fn textured_area_radiance_is_mitsubas() {
+    let exr = "tests/fixtures/textures/rgb4x3.exr";
+    same_scene(
+        &scene(&format!(
+            r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5"/><translate x="-0.5" z="-1"/></transform>
+        <emitter type="area"><texture type="checkerboard" name="radiance"><float name="color0" value="5"/><rgb name="color1" value="0.2, 0.5, 0.9"/><transform name="to_uv"><scale x="3" y="2"/></transform></texture></emitter>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="0.6" y="-0.3" z="0"/><float name="radius" value="0.3"/>
+        <emitter type="area"><texture type="bitmap" name="radiance"><string name="filename" value="{exr}"/><string name="filter_type" value="nearest"/></texture></emitter>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="2"/><translate z="-2"/></transform>
+    </shape>"#
+        )),
+        &format!(
+            r#"{CAMERA}
+[materials."default diffuse"]
+type = "lambert"
+albedo = 0.5
+one_sided = true
+[[shapes]]
+type = "quad"
+origin = [-1.0, -0.5, -1.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+emission = {{ texture = "checkerboard", color0 = 5.0, color1 = [0.2, 0.5, 0.9], to_uv = [[3.0, 0.0, 0.0], [0.0, 2.0, 0.0]] }}
+[[shapes]]
+type = "sphere"
+center = [0.6, -0.3, 0.0]
+radius = 0.3
+emission = {{ texture = "bitmap", file = "{exr}", filter_type = "nearest" }}
+[[shapes]]
+type = "quad"
+origin = [-2.0, -2.0, -2.0]
+u = [4.0, 0.0, 0.0]
+v = [0.0, 4.0, 0.0]
+material = "default diffuse"
+"#
+        ),
+    );
+    let e = xml(&scene(
+        r#"<shape type="rectangle"><emitter type="area"><texture type="volume" name="radiance"/></emitter></shape>"#,
+    ))
+    .expect_err("a volume texture as radiance");
+    assert!(
+        e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 2)) && e.contains("volume"),
+        "{e}"
+    );
+    // Mitsuba 3 refuses a checkerboard's <rgb> above 1 even in an emitter
+    let e = xml(&scene(
+        r#"<shape type="rectangle"><emitter type="area"><texture type="checkerboard" name="radiance">
+        <rgb name="color0" value="5, 2, 1"/></texture></emitter></shape>"#,
+    ))
+    .expect_err("an <rgb> above 1 in a checkerboard");
+    assert!(
+        e.starts_with(&format!("t.xml:{}:", SENSOR.lines().count() + 3)) && e.contains("[0, 1]"),
+        "{e}"
+    );
+}
+
 /// A texture as a conductor's or rough conductor's `specular_reflectance` is the TOML
 /// `specular` texture (Mitsuba 3 documentation, plugins `conductor`, `roughconductor`: it scales
 /// the Fresnel term at each point), and likewise a plastic's and rough plastic's.

@@ -695,6 +695,19 @@ fn agreement_textured_shapes() {
     fam.finish();
 }
 
+/// Textured emission (a checkerboard quad lamp and an EXR sphere lamp, seen directly and
+/// lighting a floor and a wall through haze): every column reads the radiance at its own light
+/// vertices, and selects the lights by the textures' mean power.
+#[test]
+fn agreement_textured_emitter() {
+    let mut fam = Family::new("agreement: textured emitter");
+    check_row(
+        &mut fam,
+        &row("textured-emitter", fixture("textured-emitter.toml"), 3),
+    );
+    fam.finish();
+}
+
 /// Elliptic disks as light, floor and wall (the Mitsuba `disk` shape).
 /// A checkerboard roughness on a rough conductor floor and a rough glass sphere, and a
 /// checkerboard specular on the floor: every column reads alpha and specular at its own

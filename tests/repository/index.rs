@@ -571,11 +571,6 @@ const COVERED: &[(&str, &str, &str)] = &[
         "bounded cost for every accepted input",
     ),
     (
-        "scene::light",
-        "oracles::transport",
-        "lights of analytic scenes with known answers",
-    ),
-    (
         "scene::mitsuba",
         "inputs::mitsuba_import",
         "each Mitsuba convention against a hand-written twin",

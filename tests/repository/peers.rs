@@ -138,6 +138,15 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             ),
             "",
         );
+        let textured_emission = std::env::temp_dir().join("pathspace-peers-textured-emission.toml");
+        let text = tinted_glass_text()
+            .replacen("specular_transmittance = 0.5\n", "", 1)
+            .replacen(
+                "emission = 1.0",
+                "emission = { texture = \"checkerboard\" }",
+                1,
+            );
+        std::fs::write(&textured_emission, text).expect("the temporary directory is writable");
         let variant = |name: &str| variant_scene(name).to_str().unwrap().to_string();
         let mut refused = vec![
             ("door-slit.toml".to_string(), "Schlick"),
@@ -149,6 +158,10 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             (tinted.to_str().unwrap().to_string(), "untinted"),
             (schlick.to_str().unwrap().to_string(), "Schlick"),
             (hidden.to_str().unwrap().to_string(), "hide_emitters"),
+            (
+                textured_emission.to_str().unwrap().to_string(),
+                "textured emission",
+            ),
         ];
         refused.push((textured_eta.to_str().unwrap().to_string(), "textured `eta`"));
         if script == "to_tungsten.py" {

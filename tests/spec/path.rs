@@ -370,7 +370,7 @@ fn spot_light_intensity_has_its_closed_form_falloff() {
     let at = |c: f32| {
         let s = (1.0 - c * c).max(0.0).sqrt();
         let w = frame.to_world(Vec3::new(s * 0.6, s * 0.8, c));
-        emitted_by(&spot, Vec3::ZERO, w).x as f64
+        emitted_by(&spot, &[], 0, (Vec3::ZERO, Vec3::ZERO), w).x as f64
     };
     let smooth = |x: f64| x * x * (3.0 - 2.0 * x);
     for (c, expect) in [

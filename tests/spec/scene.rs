@@ -230,5 +230,6 @@ fn degenerate_edges_are_zero() {
 // The modules of `src/scene/` (the layout: tests/repository/index.rs).
 mod envmap;
 mod hide_emitters;
+mod light;
 mod light_tree;
 mod normals;

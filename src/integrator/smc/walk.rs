@@ -235,7 +235,9 @@ pub fn surface(
     let mut a = Rgb::ZERO;
     if let Some(li) = shape.light {
         if ray.d.dot(n) < 0.0 && *depth >= scene.min_depth() {
-            if let Light::Area { radiance, .. } = &scene.lights[li as usize] {
+            let light = &scene.lights[li as usize];
+            if matches!(light, Light::Area { .. }) {
+                let radiance = light.area_radiance(&scene.prims, hit.prim, hit.p);
                 let w = if prev.singular {
                     1.0
                 } else {
@@ -249,7 +251,7 @@ pub fn surface(
                         );
                     power_heuristic(prev.pdf_dir, pdf_light)
                 };
-                a += *radiance * w;
+                a += radiance * w;
             }
         }
     }

@@ -8,13 +8,18 @@ use super::materials::Materials;
 use super::media::Media;
 use super::normals;
 use super::ply::MeshPart;
-use super::values::{finite3, non_negative};
+use super::textures::{colour, Texels};
+use super::values::finite3;
 use crate::bsdf::Bsdf;
 use crate::geometry::shape::{Cylinder, Disk, Quad, Sphere, Triangle};
 use crate::geometry::Primitive;
 use crate::math::{Distribution1D, Frame};
 use crate::scene::file::{path, KeyPath, MeshFormat, SceneFile, ShapeCommon, ShapeDesc};
-use crate::scene::{Light, SceneError, SceneSource, ShapeInfo, ShapeTexture, UvMap};
+use crate::scene::{AreaRadiance, Light, SceneError, SceneSource, ShapeInfo, ShapeTexture, UvMap};
+use crate::texture::Texture;
+
+/// A shape's emission: the constant radiance (a texture's mean), and the texture if any.
+type Emission = (Vec3, Option<Texture>);
 
 /// A closed, consistently oriented triangle mesh: every edge is shared by exactly two
 /// triangles that traverse it in opposite directions. Vertices are welded by position first, so
@@ -158,8 +163,14 @@ pub(super) fn shapes(
         let interior = media.find(src, desc, &key.clone().key("interior"), &common.interior)?;
         let exterior = media.find(src, desc, &key.clone().key("exterior"), &common.exterior)?;
         let interface = common.interior.is_some() || common.exterior.is_some();
-        let (new, closed, mut corners, uvs) =
-            primitives(src, &key, s, &common, textured.is_some())?;
+        let emission_texture = emission.as_ref().is_some_and(|e| e.1.is_some());
+        let (new, closed, mut corners, uvs) = primitives(
+            src,
+            &key,
+            s,
+            &common,
+            textured.is_some() || emission_texture,
+        )?;
         if common.emission.is_some() {
             if corners.as_ref().is_some_and(|c| !shaded_flat(&new, c)) {
                 return Err(src.error(
@@ -186,6 +197,7 @@ pub(super) fn shapes(
             first_prim: prims.len() as u32,
             corners,
         });
+        let uv = uv_map(s, prims.len() as u32, uvs);
         let texture = textured.map(|t| ShapeTexture {
             reflectance: t.reflectance.clone(),
             alpha: t.alpha.clone(),
@@ -193,9 +205,17 @@ pub(super) fn shapes(
             transmittance: t.transmittance.clone(),
             eta: t.eta.clone(),
             k: t.k.clone(),
-            uv: uv_map(s, prims.len() as u32, uvs),
+            uv: uv.clone(),
         });
-        let light = emission.map(|radiance| {
+        let light = emission.map(|(mean, texture)| {
+            let radiance = match texture {
+                None => AreaRadiance::Constant(mean),
+                Some(t) => AreaRadiance::Textured {
+                    texture: std::sync::Arc::new(t),
+                    uv,
+                    mean,
+                },
+            };
             let first = prims.len() as u32;
             let ids: Vec<u32> = (first..first + new.len() as u32).collect();
             let areas: Vec<f32> = new.iter().map(Primitive::area).collect();
@@ -287,17 +307,17 @@ fn surface(
     key: &KeyPath,
     common: &ShapeCommon,
     materials: &BTreeMap<String, Bsdf>,
-) -> Result<(Option<Vec3>, Option<Bsdf>), SceneError> {
-    let emission = match common.emission {
-        Some(e) => Some(non_negative(
+) -> Result<(Option<Emission>, Option<Bsdf>), SceneError> {
+    let emission = match &common.emission {
+        Some(e) => Some(colour(
             src,
             &key.clone().key("emission"),
             e,
-            "emission",
+            Texels::Emission,
         )?),
         None => None,
     }
-    .filter(|e| e.max_element() > 0.0);
+    .filter(|(mean, t)| t.as_ref().map_or(mean.max_element(), Texture::max_value) > 0.0);
     let bsdf = match &common.material {
         Some(m) => Some(materials.get(m).cloned().ok_or_else(|| {
             let known: Vec<&str> = materials.keys().map(String::as_str).collect();

@@ -27,6 +27,9 @@ pub(super) enum Texels {
     /// A conductor's `eta` or `k` (Mitsuba 3 documentation, plugin `conductor`): finite and
     /// >= 0, unbounded above (an EXR may carry eta = 2.5); never clamped. Named in messages.
     Index(&'static str),
+    /// An emitted radiance (Mitsuba 3 documentation, plugin `area`): finite and >= 0,
+    /// unbounded above, never clamped (Mitsuba's RGB variants read an emitter's bitmap as is).
+    Emission,
 }
 
 /// A reflectance at `key`: its constant value, or the texture (whose mean stands in for the
@@ -65,6 +68,7 @@ fn value(
     match texels {
         Texels::Reflectance => albedo(src, key, c),
         Texels::Index(what) => non_negative(src, key, c, what),
+        Texels::Emission => non_negative(src, key, c, "emission"),
     }
 }
 
@@ -120,6 +124,7 @@ fn texture_of(
             let (max, what) = match texels {
                 Texels::Reflectance => (1.0, "a reflectance must be finite and in [0, 1]"),
                 Texels::Index(_) => (f32::INFINITY, "an index must be finite and >= 0"),
+                Texels::Emission => (f32::INFINITY, "an emission must be finite and >= 0"),
             };
             if let Some(k) = values.iter().position(|c| {
                 !c.to_array()

@@ -451,7 +451,7 @@ fn tracked_free_flight_pdf_is_propagations() {
     }
     assert!(collisions.iter().all(|&c| c > 100), "{collisions:?}");
     let y = scene.lights[0].sample_point(&scene.prims, glam::Vec2::ZERO, 0.0);
-    let y = y.expect("a point light has its point").0;
+    let y = y.expect("a point light has its point").p;
     let total: f64 = media
         .spans()
         .iter()

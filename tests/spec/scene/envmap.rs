@@ -447,7 +447,7 @@ fn the_lights_records_agree_with_its_densities() {
         );
         assert_eq!(
             es.value,
-            pathspace::scene::light::emitted_by(&light, es.n, es.d)
+            pathspace::scene::light::emitted_by(&light, &[], 0, (es.p, es.n), es.d)
         );
     }
 }

@@ -236,7 +236,14 @@ fn flipped_meshes_normals_are_mitsubas() {
             );
             let shape = scene.shape_of(&hit);
             if let Some(l) = shape.light {
-                let le = pathspace::scene::light::emitted_by(&scene.lights[l as usize], hit.ng, -d);
+                let light = &scene.lights[l as usize];
+                let le = pathspace::scene::light::emitted_by(
+                    light,
+                    &scene.prims,
+                    hit.prim,
+                    (hit.p, hit.ng),
+                    -d,
+                );
                 assert_eq!(
                     le.x,
                     h["le"].as_f64().unwrap() as f32,

@@ -182,7 +182,7 @@ fn specular_reflectance(p: &mut Props) -> Result<(ReflectanceValue, String), Sce
 
 /// A `<texture>`: Mitsuba 3's `bitmap` (`filename`, `filter_type`, `wrap_mode`, `raw`,
 /// `to_uv`) or `checkerboard` (`color0`, `color1`, `to_uv`), with their defaults.
-fn texture(doc: &Doc, node: Node) -> Result<TextureDesc, SceneError> {
+pub(super) fn texture(doc: &Doc, node: Node) -> Result<TextureDesc, SceneError> {
     let mut p = Props::new(doc, node)?;
     let to_uv = match p.transform("to_uv")? {
         // Mitsuba's 4x4 to 3x3 (`AffineTransform::extract`): the z row and column dropped

@@ -5,12 +5,15 @@ use glam::{DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, rgb, show, Importer, Props, Response};
-use crate::scene::file::{LightDesc, RgbValue};
+use crate::scene::file::{EmissionValue, LightDesc, ReflectanceValue};
 use crate::scene::SceneError;
 
 impl<'a, 'd> Importer<'a, 'd> {
-    /// An `area` emitter's radiance.
-    pub(super) fn area(&mut self, node: Node<'a, 'a>) -> Result<RgbValue, SceneError> {
+    /// An `area` emitter's radiance: a colour (1 by default), or a `bitmap` or `checkerboard`
+    /// texture over the shape's (u, v), read as Mitsuba 3's RGB variants read it (Mitsuba 3
+    /// documentation, plugin `area`: its `radiance` is a texture, evaluated at the point's
+    /// (u, v); a bitmap's texels unclamped, a checkerboard's colours as for a reflectance).
+    pub(super) fn area(&mut self, node: Node<'a, 'a>) -> Result<EmissionValue, SceneError> {
         let mut p = Props::new(self.doc, node)?;
         if p.plugin != "area" {
             return Err(p.err(format!(
@@ -18,11 +21,36 @@ impl<'a, 'd> Importer<'a, 'd> {
                 p.plugin
             )));
         }
+        if let Some(t) = p.texture("radiance") {
+            self.checker_rgb_in_range(t)?;
+            let t = super::bsdfs::texture(self.doc, t)?;
+            p.finish()?;
+            return Ok(ReflectanceValue::Texture(t));
+        }
         let r = p
             .color("radiance", Response::Emissive)?
             .unwrap_or(DVec3::ONE);
         p.finish()?;
-        Ok(rgb(r))
+        Ok(rgb(r).into())
+    }
+
+    /// Mitsuba 3 reads a checkerboard's `<rgb>` colours as reflectances even in an emitter
+    /// (its parser's `srgb` texture, bounded: "must be in the range [0, 1]"), so a scene with
+    /// one above 1 does not load there; refused here alike (a `<float>` is unbounded in both).
+    fn checker_rgb_in_range(&self, t: Node<'a, 'a>) -> Result<(), SceneError> {
+        if t.attribute("type") != Some("checkerboard") {
+            return Ok(());
+        }
+        for c in t.children().filter(|c| c.tag_name().name() == "rgb") {
+            let values = self.doc.numbers(c, &self.doc.need(c, "value")?)?;
+            if values.iter().any(|&x| x > 1.0) {
+                return Err(self.doc.err(
+                    c,
+                    "an <rgb> above 1 in a checkerboard: Mitsuba 3 reads a checkerboard's <rgb> colours as reflectances in [0, 1], even as an emitter's radiance (a <float> is unbounded)",
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// A top-level emitter.

@@ -5,7 +5,9 @@ use glam::{DMat3, DMat4, DVec3};
 use roxmltree::Node;
 
 use super::{f3, linear, show, similarity, Importer, Props};
-use crate::scene::file::{MaterialDesc, MeshFormat, ReflectanceValue, RgbValue, ShapeDesc};
+use crate::scene::file::{
+    EmissionValue, MaterialDesc, MeshFormat, ReflectanceValue, RgbValue, ShapeDesc,
+};
 use crate::scene::SceneError;
 
 impl<'a, 'd> Importer<'a, 'd> {
@@ -51,7 +53,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         &mut self,
         bsdf: Option<Node<'a, 'a>>,
         emitter: Option<Node<'a, 'a>>,
-    ) -> Result<(Option<String>, Option<RgbValue>), SceneError> {
+    ) -> Result<(Option<String>, Option<EmissionValue>), SceneError> {
         let emission = match emitter {
             Some(e) => Some(self.area(e)?),
             None => None,
@@ -86,7 +88,7 @@ impl<'a, 'd> Importer<'a, 'd> {
         geometry: ShapeDesc,
         how: String,
         material: Option<String>,
-        emission: Option<RgbValue>,
+        emission: Option<EmissionValue>,
         interior: Option<String>,
         exterior: Option<String>,
     ) -> Result<(), SceneError> {
@@ -94,7 +96,9 @@ impl<'a, 'd> Importer<'a, 'd> {
         let how = format!(
             "{how}, material {}{}{}{}",
             material.as_deref().unwrap_or("none (black emitter)"),
-            emission.map_or(String::new(), |e| format!(", emission {e}")),
+            emission
+                .as_ref()
+                .map_or(String::new(), |e| format!(", emission {e}")),
             interior
                 .as_ref()
                 .map_or(String::new(), |m| format!(", interior {m}")),
@@ -404,7 +408,7 @@ fn mesh(p: &mut Props, m: &DMat4, flip_normals: bool) -> Geometry {
 fn with_common(
     geometry: ShapeDesc,
     material: Option<String>,
-    emission: Option<RgbValue>,
+    emission: Option<EmissionValue>,
     interior: Option<String>,
     exterior: Option<String>,
 ) -> ShapeDesc {
