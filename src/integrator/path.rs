@@ -347,9 +347,11 @@ impl<'t> PathTracer<'t> {
         let mut l = Rgb::ZERO;
         loop {
             // equiangular sampling on this ray, if a vertex on it may still scatter
+            // the camera's rays see through hidden emitters until the first scattering vertex
+            let from_camera = w.depth == 0;
             let media = (self.distance == DistanceSampling::EquiangularMis
                 && w.depth < self.max_depth)
-                .then(|| RayMedia::collect_from(scene, w.ray, w.lead, w.medium));
+                .then(|| RayMedia::collect_seen(scene, w.ray, (w.lead, w.medium), from_camera));
             if let Some(media) = &media {
                 l += w.beta * self.equiangular_estimate(scene, media, sampler);
             }
@@ -357,7 +359,7 @@ impl<'t> PathTracer<'t> {
             // equiangular spans were read from, when it kept them all)
             let prop = match media.as_ref().and_then(RayMedia::segments) {
                 Some(segs) => scene.propagate_along(w.ray, segs.iter().copied(), sampler),
-                None => scene.propagate(w.ray, w.lead, w.medium, sampler),
+                None => scene.propagate_from(w.ray, w.lead, w.medium, from_camera, sampler),
             };
             if let Event::Medium { p, medium: m, .. } = prop.event {
                 if scene.media[m as usize].emits() {
