@@ -179,7 +179,7 @@ pub struct Features {
 /// The first event along `ray` from the camera's medium, propagated by Table 1 as the path
 /// tracer does (through null boundaries, a collision sampled by free flight in each medium).
 pub fn first_event(scene: &Scene, ray: Ray, sampler: &mut Sampler) -> FirstEvent {
-    let prop = scene.propagate(ray, 0.0, scene.camera_medium, sampler);
+    let prop = scene.propagate_from(ray, 0.0, scene.camera_medium, true, sampler);
     match prop.event {
         Event::Escape => FirstEvent::default(),
         Event::Medium { p, medium, .. } => FirstEvent {

@@ -150,8 +150,10 @@ impl Bdpt<'_> {
         sampler: &mut Sampler,
     ) -> Option<()> {
         let prev = path.len() - 1;
-        let prop =
-            scene.propagate_bidirectional(w.ray, w.lead, w.medium, w.origin_in_medium, sampler);
+        // the camera's first ray sees through hidden emitters (`Scene::camera_bvh`)
+        let from_camera = matches!(path[prev].kind, VertexKind::Camera);
+        let ends = (w.origin_in_medium, from_camera);
+        let prop = scene.propagate_bidirectional(w.ray, w.lead, w.medium, ends, sampler);
         // tau / p only: sigma_s belongs to f-hat of the medium vertex (eq. 6), applied when
         // the vertex scatters below and in every connection through it
         if prop.pdf <= 0.0 {

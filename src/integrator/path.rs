@@ -10,6 +10,7 @@ use glam::Vec3;
 
 use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Ray};
+use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{warp, Frame, Sampler};
 use crate::path::distance::RayMedia;
 use crate::path::technique::{local_scatter_pdf, LocalSampling, ScatterSample};
@@ -208,11 +209,10 @@ impl<'t> PathTracer<'t> {
         if scene.lights.is_empty() {
             return Rgb::ZERO;
         }
-        // a light chosen at the ray's origin: the vertex is not known yet
-        let Some((l, pmf, u_prim)) =
-            self.selection
-                .sample(scene, media.ray.o, None, sampler.next_f32())
-        else {
+        // a light chosen at the ray's origin (the vertex is not known yet), half the time by
+        // power: a one-sided light facing away from the origin gets no share of a tree there,
+        // yet may light the ray's points, where the free-flight vertex's weight counts on it
+        let Some((l, pmf, u_prim)) = self.equiangular_light(scene, media.ray.o, sampler) else {
             return Rgb::ZERO;
         };
         let (u, u_t) = (sampler.next_2d(), sampler.next_f32());
@@ -251,6 +251,33 @@ impl<'t> PathTracer<'t> {
         beta * est * (pmf_here / pmf)
     }
     // ANCHOR_END: equiangular_estimate
+
+    /// The equiangular estimate's light, its probability and the number left for its point:
+    /// the selection at `o` (the light tree or power) mixed half and half with power, so
+    /// that every light with power has a share whatever `o` sees of it.
+    fn equiangular_light(
+        &self,
+        scene: &Scene,
+        o: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<(usize, f32, f32)> {
+        let u = sampler.next_f32();
+        let power = matches!(self.selection, LightSelection::Power);
+        if power {
+            return self.selection.sample(scene, o, None, u);
+        }
+        let (l, rem) = if u < 0.5 {
+            let (l, _, rem) = self.selection.sample(scene, o, None, 2.0 * u)?;
+            (l, rem)
+        } else {
+            let (l, _, rem) = scene
+                .light_distr
+                .sample((2.0 * u - 1.0).min(ONE_MINUS_EPSILON));
+            (l, rem)
+        };
+        let pmf = 0.5 * (self.selection.pmf(scene, o, None, l as u32) + scene.light_pmf(l as u32));
+        Some((l, pmf, rem))
+    }
 
     /// One sample of a meter's mean irradiance: a point uniform on the meter, then the meter
     /// treated as a vertex whose "BSDF" is 1 on its normal side, so that integrating it against
@@ -320,9 +347,11 @@ impl<'t> PathTracer<'t> {
         let mut l = Rgb::ZERO;
         loop {
             // equiangular sampling on this ray, if a vertex on it may still scatter
+            // the camera's rays see through hidden emitters until the first scattering vertex
+            let from_camera = w.depth == 0;
             let media = (self.distance == DistanceSampling::EquiangularMis
                 && w.depth < self.max_depth)
-                .then(|| RayMedia::collect_from(scene, w.ray, w.lead, w.medium));
+                .then(|| RayMedia::collect_seen(scene, w.ray, (w.lead, w.medium), from_camera));
             if let Some(media) = &media {
                 l += w.beta * self.equiangular_estimate(scene, media, sampler);
             }
@@ -330,7 +359,7 @@ impl<'t> PathTracer<'t> {
             // equiangular spans were read from, when it kept them all)
             let prop = match media.as_ref().and_then(RayMedia::segments) {
                 Some(segs) => scene.propagate_along(w.ray, segs.iter().copied(), sampler),
-                None => scene.propagate(w.ray, w.lead, w.medium, sampler),
+                None => scene.propagate_from(w.ray, w.lead, w.medium, from_camera, sampler),
             };
             if let Event::Medium { p, medium: m, .. } = prop.event {
                 if scene.media[m as usize].emits() {

@@ -87,6 +87,17 @@ impl RayMedia {
     /// [`RayMedia::collect`] for a ray lifted `lead` past its vertex: the first span starts at
     /// t = -lead, as `Scene::propagate` measures it, so that both agree on every parameter.
     pub fn collect_from(scene: &Scene, ray: Ray, lead: f32, medium: Option<u32>) -> Self {
+        Self::collect_seen(scene, ray, (lead, medium), false)
+    }
+
+    /// [`RayMedia::collect_from`] along the segments the camera sees before its first
+    /// scattering vertex when `from_camera` ([`Segments::from_camera`]).
+    pub fn collect_seen(
+        scene: &Scene,
+        ray: Ray,
+        (lead, medium): (f32, Option<u32>),
+        from_camera: bool,
+    ) -> Self {
         let mut out = RayMedia {
             ray,
             spans: [Span::default(); MAX_SPANS],
@@ -95,7 +106,10 @@ impl RayMedia {
             n_segments: 0,
             complete: false,
         };
-        for seg in Segments::new(scene, ray, medium, f32::INFINITY).lead(lead) {
+        let segments = Segments::new(scene, ray, medium, f32::INFINITY)
+            .lead(lead)
+            .from_camera(from_camera);
+        for seg in segments {
             if out.n == MAX_SPANS {
                 break;
             }

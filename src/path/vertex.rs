@@ -132,6 +132,13 @@ impl Vertex {
         }
     }
 
+    /// True for the camera's vertex (pinhole or lens point).
+    #[inline]
+    pub fn is_camera(&self) -> bool {
+        matches!(self.kind, VertexKind::Camera)
+    }
+
+    /// True for a medium vertex.
     #[inline]
     pub fn is_medium(&self) -> bool {
         matches!(self.kind, VertexKind::Medium { .. })
@@ -170,6 +177,14 @@ impl Vertex {
             n: surface_n,
             medium: self.medium_towards(w),
             in_medium: self.is_medium(),
+            prim: match self.kind {
+                VertexKind::Surface { prim }
+                | VertexKind::Light {
+                    prim: Some(prim), ..
+                } => Some(prim),
+                _ => None,
+            },
+            camera: matches!(self.kind, VertexKind::Camera),
         }
     }
 

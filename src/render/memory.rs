@@ -143,7 +143,7 @@ fn integrator_parts(
 }
 
 /// The scene's grids (their values and majorant blocks), environment map and primitives with
-/// their two BVHs (`Scene::bvh`, `Scene::boundary_bvh`), whose bytes are counted as built
+/// their BVHs (`Scene::bvh`, `Scene::boundary_bvh`, `Scene::camera_bvh`), whose bytes are counted as built
 /// ([`Bvh::memory_bytes`](crate::geometry::Bvh::memory_bytes)).
 fn scene_bytes(scene: &Scene) -> u64 {
     /// A primitive with its shape index and opacity flag.
@@ -157,7 +157,8 @@ fn scene_bytes(scene: &Scene) -> u64 {
             _ => 0,
         })
         .sum();
-    let trees = scene.bvh.memory_bytes() + scene.boundary_bvh.memory_bytes();
+    let camera = scene.camera_bvh.as_ref().map_or(0, |b| b.memory_bytes());
+    let trees = scene.bvh.memory_bytes() + scene.boundary_bvh.memory_bytes() + camera;
     grids + maps + scene.prims.len() as u64 * PRIMITIVE_BYTES + trees as u64
 }
 

@@ -74,9 +74,15 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
         .map(|&s| !shapes[s as usize].is_null())
         .collect();
     let has_null = prim_opaque.iter().any(|o| !o);
-    let crossable = hidden::crossable(&prims, &prim_shape, &shapes);
+    let crossable = hidden::crossable(&prims, &prim_shape, &shapes, true);
     let bvh = Bvh::build_over(&prims, |i| crossable[i]);
     let boundary_bvh = Bvh::build_over(&prims, |i| crossable[i] && !prim_opaque[i]);
+    let emitter = |i: usize| shapes[prim_shape[i] as usize].light.is_some();
+    let camera_bvh = (desc.hide_emitters && (0..prims.len()).any(emitter)).then(|| {
+        // the null faces hidden by walls other than the emitters the camera sees through
+        let seen = hidden::crossable(&prims, &prim_shape, &shapes, false);
+        Bvh::build_over(&prims, |i| !emitter(i) && seen[i])
+    });
     let closed_form_tau = media.iter().all(Medium::closed_form);
     let hidden_faces = crossable.iter().filter(|&&c| !c).count();
 
@@ -86,6 +92,7 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
         prim_opaque,
         bvh,
         boundary_bvh,
+        camera_bvh,
         closed_form_tau,
         shapes,
         media,
@@ -124,7 +131,8 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
 
 /// `hide_emitters` removes the paths whose sensor and emitter are adjacent; it is defined for
 /// the camera alone (Mitsuba's is), and emitting media are left out for now: the path tracer
-/// collects their emission along the camera's first ray apart from its vertices.
+/// collects their emission along the camera's first ray apart from its vertices. Emitter
+/// shapes are transparent to the camera's first rays, so none may bound a medium.
 fn hide_emitters_supported(src: &SceneSource, scene: &Scene) -> Result<(), SceneError> {
     if !scene.hide_emitters {
         return Ok(());
@@ -133,6 +141,12 @@ fn hide_emitters_supported(src: &SceneSource, scene: &Scene) -> Result<(), Scene
         "hide_emitters with [[sensors]] is not supported: it hides emitters from the camera only"
     } else if !scene.emitters.is_empty() {
         "hide_emitters with an emitting medium is not supported"
+    } else if scene
+        .shapes
+        .iter()
+        .any(|s| s.light.is_some() && s.interface)
+    {
+        "hide_emitters with an area light on a medium boundary is not supported: the camera sees through hidden emitters, which would leave the medium it is in unknown"
     } else {
         return Ok(());
     };

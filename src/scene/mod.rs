@@ -267,13 +267,16 @@ pub struct EdgeEval {
 }
 
 /// One end of an edge: a point, its surface normal (zero in a medium or at a point light), the
-/// medium the edge leaves it into, and whether it is a medium vertex.
+/// medium the edge leaves it into, and whether it is a medium vertex; the primitive it lies on
+/// and whether it is the camera, for hidden emitters ([`Scene::camera_bvh`]).
 #[derive(Clone, Copy, Debug)]
 pub struct EdgeEnd {
     pub p: Vec3,
     pub n: Vec3,
     pub medium: Option<u32>,
     pub in_medium: bool,
+    pub prim: Option<u32>,
+    pub camera: bool,
 }
 
 /// A scene ready to render.
@@ -287,6 +290,10 @@ pub struct Scene {
     /// The null boundaries of `bvh` alone: once an any-hit query has found no opaque surface
     /// along an edge, only these remain to cut it into medium segments (`Scene::edge`).
     pub boundary_bvh: Bvh,
+    /// The scene as the camera sees it before its first scattering vertex when emitters are
+    /// hidden: `bvh` without the emitter shapes, which are transparent to those rays (Mitsuba
+    /// 3.9.1's `skip_area_emitters`); `None` without `hide_emitters` or without area lights.
+    pub camera_bvh: Option<Bvh>,
     /// True when every medium's transmittance is a closed form (homogeneous media): a shadow
     /// ray draws no random numbers, so an occluded one may stop before its first segment.
     pub closed_form_tau: bool,
@@ -331,6 +338,14 @@ impl Scene {
     #[inline]
     pub fn min_depth(&self) -> u32 {
         self.hide_emitters as u32
+    }
+
+    /// True when `prim` belongs to an emitter shape (an area light's).
+    #[inline]
+    pub fn on_emitter(&self, prim: u32) -> bool {
+        self.shapes[self.prim_shape[prim as usize] as usize]
+            .light
+            .is_some()
     }
 
     /// Closest hit along the ray, null boundaries included.
@@ -454,6 +469,22 @@ impl Scene {
         self.propagate_impl::<false>(ray, segments, false, sampler)
     }
 
+    /// [`Scene::propagate`] of a ray from the camera before its first scattering vertex when
+    /// `from_camera` ([`Segments::from_camera`]: hidden emitters are transparent to it).
+    pub fn propagate_from(
+        &self,
+        ray: Ray,
+        lead: f32,
+        medium: Option<u32>,
+        from_camera: bool,
+        sampler: &mut Sampler,
+    ) -> Propagation {
+        let segments = Segments::new(self, ray, medium, f32::INFINITY)
+            .lead(lead)
+            .from_camera(from_camera);
+        self.propagate_impl::<false>(ray, segments, false, sampler)
+    }
+
     /// [`Scene::propagate`] along `segments`, the ones [`Segments`] gave for the same ray, lead
     /// and medium (kept by a caller that walked them already: the same events and random
     /// numbers without a second set of intersection queries).
@@ -467,16 +498,19 @@ impl Scene {
     }
 
     /// [`Scene::propagate`] that also computes the reverse propagation pdf, for bidirectional
-    /// methods. `origin_in_medium` tells whether the ray starts at a medium vertex.
+    /// methods. `origin_in_medium` tells whether the ray starts at a medium vertex,
+    /// `from_camera` whether at the camera ([`Scene::propagate_from`]).
     pub fn propagate_bidirectional(
         &self,
         ray: Ray,
         lead: f32,
         medium: Option<u32>,
-        origin_in_medium: bool,
+        (origin_in_medium, from_camera): (bool, bool),
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = Segments::new(self, ray, medium, f32::INFINITY).lead(lead);
+        let segments = Segments::new(self, ray, medium, f32::INFINITY)
+            .lead(lead)
+            .from_camera(from_camera);
         self.propagate_impl::<true>(ray, segments, origin_in_medium, sampler)
     }
 
@@ -551,6 +585,17 @@ impl Scene {
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         self.bvh
             .occluded(&self.prims, &self.prim_opaque, ray, t_max)
+    }
+
+    /// [`Scene::occluded`] as the camera sees before its first scattering vertex when
+    /// `from_camera` (hidden emitters left out, [`Scene::camera_bvh`]).
+    #[inline]
+    pub fn occluded_from(&self, ray: &Ray, t_max: f32, from_camera: bool) -> bool {
+        let bvh = match &self.camera_bvh {
+            Some(b) if from_camera => b,
+            _ => &self.bvh,
+        };
+        bvh.occluded(&self.prims, &self.prim_opaque, ray, t_max)
     }
 
     /// Transmittance from `o` along unit `d` over distance `dist` (may be infinite), starting in
@@ -721,11 +766,23 @@ impl Scene {
             pdf_ab: 1.0,
             pdf_ba: 1.0,
         };
+        // the camera's edge to its first vertex when emitters are hidden: through emitter
+        // shapes, and never ending on one
+        let camera = self.camera_bvh.is_some() && (a.camera || b.camera);
+        if camera
+            && [a.prim, b.prim]
+                .into_iter()
+                .flatten()
+                .any(|p| self.on_emitter(p))
+        {
+            return zero;
+        }
         let mut segments = Segments::new(self, ray, a.medium, dist)
             .lead(lead_a)
-            .open_end(dist + lead_b);
+            .open_end(dist + lead_b)
+            .from_camera(camera);
         if shortcut {
-            if self.occluded(&ray, dist) {
+            if self.occluded_from(&ray, dist, camera) {
                 return zero;
             }
             segments = segments.boundaries_only();

@@ -111,6 +111,18 @@ impl<'a> Segments<'a> {
         self
     }
 
+    /// With `from_camera`, queries the scene as the camera sees it before its first scattering
+    /// vertex ([`Scene::camera_bvh`]): with `hide_emitters`, emitter shapes are transparent,
+    /// index-matched and no medium boundary (Mitsuba 3.9.1's `skip_area_emitters`, used by
+    /// `path`, `volpath` and `volpathmis` while the depth is 0). A no-op otherwise.
+    #[inline]
+    pub fn from_camera(mut self, from_camera: bool) -> Self {
+        if let (true, Some(b)) = (from_camera, &self.scene.camera_bvh) {
+            self.bvh = b;
+        }
+        self
+    }
+
     /// The ray the queries run along.
     #[inline]
     pub fn ray(&self) -> &Ray {

@@ -2550,8 +2550,10 @@ fn public_scenes_import_unedited() {
 /// `hide_emitters` (Mitsuba 3.9.1's `volpath`: no emission before the first scattering, which
 /// null surfaces and media do not count) is pathspace's `hide_emitters`: the environment seen
 /// directly or through a null surface is dark, through glass and off a mirror it stays. An area
-/// emitter is refused (Mitsuba makes it transparent to camera rays, not only dark), and so is
-/// `direct` with a null surface (Mitsuba's shows emitters through it).
+/// emitter is imported (transparent to the camera's rays until they scatter, in both), except
+/// where Mitsuba's integrators stop seeing through it: `path` behind a null surface, `volpath`
+/// in a medium; `direct` with a null surface is refused too (Mitsuba's shows emitters through
+/// it).
 #[test]
 fn hide_emitters_is_pathspaces() {
     let hidden =
@@ -2608,17 +2610,27 @@ radiance = 0.5
     let shown = pixels(&xml(&with(r#"<integrator type="volpath"/>"#, body)).unwrap());
     assert_ne!(shown, pixels(&toml(&twin)));
     let lamp = r#"<shape type="rectangle"><emitter type="area"/><transform name="to_world"><translate z="-2"/></transform></shape>"#;
+    // an area emitter the camera sees through before the first scattering, as `volpath` does
+    let lit = with(hidden, &format!("{body}\n{lamp}"));
+    let lamp_twin = "[[shapes]]\ntype = \"quad\"\norigin = [-1.0, -1.0, -2.0]\nu = [2.0, 0.0, 0.0]\nv = [0.0, 2.0, 0.0]\nemission = 1.0\n";
+    same_scene(&lit, &format!("{twin}{lamp_twin}"));
+    let fog = r#"<medium type="homogeneous" id="m"/><shape type="sphere"><bsdf type="null"/><ref name="interior" id="m"/><transform name="to_world"><translate x="-0.5"/><scale value="0.5"/></transform></shape>"#;
     let refused = [
-        with(hidden, &format!("{body}\n{lamp}")),
+        with(
+            r#"<integrator type="path"><boolean name="hide_emitters" value="true"/></integrator>"#,
+            &format!("{body}\n{lamp}"),
+        ),
         with(
             r#"<integrator type="direct"><boolean name="hide_emitters" value="true"/></integrator>"#,
             body,
         ),
+        with(hidden, &format!("{body}\n{lamp}\n{fog}")),
     ];
-    for (text, needle) in refused
-        .iter()
-        .zip(["an area emitter", "`direct` with a null surface"])
-    {
+    for (text, needle) in refused.iter().zip([
+        "`path` with an area emitter and a null surface",
+        "`direct` with a null surface",
+        "an area emitter and a medium",
+    ]) {
         let e = xml(text).unwrap_err();
         assert!(
             e.contains("hide_emitters") && e.contains(needle) && e.contains("t.xml"),

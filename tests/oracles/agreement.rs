@@ -794,6 +794,22 @@ fn agreement_hidden_emitters_without_glass() {
     fam.finish();
 }
 
+/// `hide_emitters` with area lights the camera looks through (`hidden-area.toml`): the wall a
+/// panel lights seen through it, a white panel facing the camera transparent with its
+/// reflection, the camera's collisions in a haze behind both; every column sees through them
+/// on the camera's side of the first scattering vertex only (the path tracer's and SMC's first
+/// ray, the camera subpath's first edge, light tracing's and BDPT's t = 1 connections, MLT's
+/// contribution and its mutations' camera edges).
+#[test]
+fn agreement_hidden_area_emitters() {
+    let mut fam = Family::new("agreement: hidden area emitters");
+    check_row(
+        &mut fam,
+        &row("hidden-area", fixture("hidden-area.toml"), 3),
+    );
+    fam.finish();
+}
+
 #[test]
 fn agreement_disk() {
     let mut fam = Family::new("agreement: disk");

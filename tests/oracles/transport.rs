@@ -561,12 +561,16 @@ fn grazing_edges_between_parallel_surfaces_are_unoccluded() {
             n: Vec3::X,
             medium: None,
             in_medium: false,
+            prim: None,
+            camera: false,
         };
         let b = EdgeEnd {
             p: Vec3::new(0.3, 0.25, 0.25 + z),
             n: Vec3::X,
             medium: None,
             in_medium: false,
+            prim: None,
+            camera: false,
         };
         for (from, to) in [(a, b), (b, a)] {
             let e = scene.edge(from, to, &mut sampler);

@@ -28,6 +28,8 @@ fn free_point(scene: &Scene, s: &mut Sampler) -> EdgeEnd {
         n: Vec3::ZERO,
         medium,
         in_medium: medium.is_some(),
+        prim: None,
+        camera: false,
     }
 }
 
@@ -41,6 +43,8 @@ fn surface_point(scene: &Scene, toward: Vec3, s: &mut Sampler) -> EdgeEnd {
         n: side,
         medium: scene.medium_at(p + 1e-3 * side),
         in_medium: false,
+        prim: None,
+        camera: false,
     }
 }
 
@@ -161,6 +165,8 @@ fn an_edge_to_a_wall_is_measured_between_the_true_end_points() {
         n: Vec3::ZERO,
         medium: fog,
         in_medium: true,
+        prim: None,
+        camera: false,
     };
     for b_p in [Vec3::new(0.3, -1.0, 0.2), Vec3::new(-0.6, -1.0, -0.1)] {
         let b = EdgeEnd {
@@ -168,6 +174,8 @@ fn an_edge_to_a_wall_is_measured_between_the_true_end_points() {
             n: Vec3::Y,
             medium: fog,
             in_medium: false,
+            prim: None,
+            camera: false,
         };
         let l = f64::from((b.p - a.p).length());
         let passage = (-sigma_t * l).exp();
@@ -201,6 +209,8 @@ fn degenerate_edges_are_zero() {
         n,
         medium: fog,
         in_medium: n == Vec3::ZERO,
+        prim: None,
+        camera: false,
     };
     let p = Vec3::new(0.2, -1.0, 0.1);
     let cases = [

@@ -32,6 +32,12 @@ pub fn ray_from(scene: &Scene, v: &Vertex, d: Vec3) -> (Ray, f32, Option<u32>) {
     }
 }
 
+/// The medium segments of `ray` leaving `v`: seen from the camera when `v` is it (hidden
+/// emitters transparent, [`Segments::from_camera`]).
+fn segments_from<'a>(scene: &'a Scene, v: &Vertex, ray: Ray, medium: Option<u32>) -> Segments<'a> {
+    Segments::new(scene, ray, medium, f32::INFINITY).from_camera(v.is_camera())
+}
+
 /// Samples a direction at `v` as a light or eye subpath would: emission for a light vertex,
 /// a uniform film position seen from the camera vertex's lens point (a thin lens's rays pass
 /// through the film point's image on the focus plane), the BSDF or phase function elsewhere
@@ -84,7 +90,7 @@ pub fn sample_direction(
 /// (`Scene::propagate`); `None` when the ray escapes.
 pub fn extend(scene: &Scene, v: &Vertex, d: Vec3, sampler: &mut Sampler) -> Option<Vertex> {
     let (ray, lead, medium) = ray_from(scene, v, d);
-    let prop = scene.propagate(ray, lead, medium, sampler);
+    let prop = scene.propagate_from(ray, lead, medium, v.is_camera(), sampler);
     if prop.pdf <= 0.0 {
         return None;
     }
@@ -180,7 +186,7 @@ pub fn extend_or_escape(
     sampler: &mut Sampler,
 ) -> Option<Vertex> {
     let (ray, lead, medium) = ray_from(scene, v, d);
-    let prop = scene.propagate(ray, lead, medium, sampler);
+    let prop = scene.propagate_from(ray, lead, medium, v.is_camera(), sampler);
     if prop.pdf <= 0.0 {
         return None;
     }
@@ -209,7 +215,7 @@ pub fn extend_or_escape(
 pub fn escape_to_environment(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
     let env = scene.environment?;
     let (ray, _, medium) = ray_from(scene, v, d);
-    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+    for seg in segments_from(scene, v, ray, medium) {
         match seg.end {
             SegmentEnd::Null(_) => {}
             SegmentEnd::Open => {
@@ -280,7 +286,7 @@ pub fn sample_volume_direction(sampler: &mut Sampler) -> Vec3 {
 /// through media; their transmittance enters f, not the proposal).
 pub fn trace_surface(scene: &Scene, v: &Vertex, d: Vec3) -> Option<Vertex> {
     let (ray, _, medium) = ray_from(scene, v, d);
-    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+    for seg in segments_from(scene, v, ray, medium) {
         match seg.end {
             SegmentEnd::Null(_) => {}
             SegmentEnd::Open => return None,
@@ -297,7 +303,7 @@ pub fn point_along(scene: &Scene, v: &Vertex, d: Vec3, dist: f32) -> Option<Vert
         return None;
     }
     let (ray, lead, medium) = ray_from(scene, v, d);
-    for seg in Segments::new(scene, ray, medium, f32::INFINITY) {
+    for seg in segments_from(scene, v, ray, medium) {
         match seg.end {
             SegmentEnd::Null(h) if h.t + lead < dist => {}
             SegmentEnd::Surface(h) if h.t + lead < dist => return None,

@@ -37,7 +37,8 @@ pub fn walk(smc: &Smc, scene: &Scene, mut s: State, sampler: &mut Sampler, scrat
         // line 2: a distance by the free-flight pdf of the ray (eq. 7)
         // medium segments are measured from the vertex itself, not the lifted origin
         let lead = (s.ray.o - s.prev.p).dot(s.ray.d).max(0.0);
-        let prop = scene.propagate(s.ray, lead, s.medium, sampler);
+        // the camera's rays see through hidden emitters until the first scattering vertex
+        let prop = scene.propagate_from(s.ray, lead, s.medium, s.depth == 0, sampler);
         let weight = prop.weight();
         // eq. (7)'s source term sigma_a L_e / sigma_t: the emission of the medium at a collision
         let emitted = walk::emitted(scene, &prop);

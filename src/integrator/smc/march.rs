@@ -210,7 +210,9 @@ impl March<'_> {
     /// Follows the state's ray through media and null boundaries to its next scattering
     /// vertex (the state then holds the new ray); false when the path ends.
     fn ray(&mut self, s: &mut State) -> bool {
-        for seg in Segments::new(self.scene, s.ray, s.medium, f32::INFINITY) {
+        // the camera's rays see through hidden emitters until the first scattering vertex
+        let segments = Segments::new(self.scene, s.ray, s.medium, f32::INFINITY);
+        for seg in segments.from_camera(s.depth == 0) {
             if let Some(m) = seg.medium {
                 match self.segment(s, m, seg.t0, seg.t1) {
                     Flow::Through => {}

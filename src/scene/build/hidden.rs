@@ -59,11 +59,13 @@ fn covers(wall: &Quad, face: &Quad, scale: f32) -> bool {
 }
 
 /// For each primitive, whether queries must see it: false only for a null quad that one
-/// coplanar wall quad covers whole.
+/// coplanar wall quad covers whole. Without `emitter_walls` no emitter shape counts as a wall
+/// (for `Scene::camera_bvh`, where the camera's rays pass through emitters).
 pub(super) fn crossable(
     prims: &[Primitive],
     prim_shape: &[u32],
     shapes: &[ShapeInfo],
+    emitter_walls: bool,
 ) -> Vec<bool> {
     let scale = prims
         .iter()
@@ -79,7 +81,8 @@ pub(super) fn crossable(
     let shape = |i: usize| &shapes[prim_shape[i] as usize];
     let mut walls: HashMap<PlaneKey, Vec<usize>> = HashMap::new();
     for i in 0..prims.len() {
-        if let Some(q) = quad(i).filter(|_| is_wall(shape(i))) {
+        let wall = is_wall(shape(i)) && (emitter_walls || shape(i).light.is_none());
+        if let Some(q) = quad(i).filter(|_| wall) {
             walls.entry(plane_key(q, scale)).or_default().push(i);
         }
     }

@@ -214,17 +214,22 @@ impl<'a, 'd> Importer<'a, 'd> {
 }
 
 impl Importer<'_, '_> {
-    /// Mitsuba's `hide_emitters` as pathspace's (no path without a scattering vertex), refused
-    /// where they differ (Mitsuba 3.9.1, `volpath.cpp`, `path.cpp`, `direct.cpp`): an area
-    /// emitter is transparent to Mitsuba's camera rays before their first scattering (its
-    /// `skip_area_emitters`), not only dark, and inside a medium opaque again; `direct` shows an
-    /// emitter seen through a null surface (it looks at the first surface alone).
+    /// Mitsuba's `hide_emitters` as pathspace's (no path without a scattering vertex; area
+    /// emitters transparent to the camera's rays until then), refused where they differ
+    /// (Mitsuba 3.9.1, `path.cpp`, `volpath.cpp`, `volpathmis.cpp`, `direct.cpp`): `path` and
+    /// `direct` skip area emitters on the camera's first ray alone, so behind a null surface
+    /// one is hit again (and `direct` shows it); `volpath` and `volpathmis` skip them only on
+    /// the intersections they make outside media, so inside one it is opaque again.
     fn hidden_emitters_exact(&self, kind: &str, node: Node) -> Result<(), SceneError> {
         let shapes = || self.out.shapes.iter().map(|s| s.common());
-        let why = if shapes().any(|c| c.emission.is_some()) {
-            "hide_emitters = true with an area emitter: Mitsuba makes emitting surfaces transparent to camera rays, which pathspace does not model"
-        } else if kind == "direct" && shapes().any(|c| c.material.as_deref() == Some("null")) {
+        let area = shapes().any(|c| c.emission.is_some());
+        let null = shapes().any(|c| c.material.as_deref() == Some("null"));
+        let why = if kind == "direct" && null {
             "hide_emitters = true under `direct` with a null surface: Mitsuba's `direct` shows emitters through it"
+        } else if area && kind == "path" && null {
+            "hide_emitters = true under `path` with an area emitter and a null surface: Mitsuba's `path` sees through area emitters on the camera's first ray only, not behind a null surface"
+        } else if area && !self.out.media.is_empty() {
+            "hide_emitters = true with an area emitter and a medium: Mitsuba's `volpath` sees through area emitters only outside media, inside one they stop the camera's ray again"
         } else {
             return Ok(());
         };
