@@ -116,6 +116,7 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
     };
 
     scene.light_media = lights::media_around(&scene);
+    lights::one_medium_each(src, &scene)?;
     if scene.media.iter().any(Medium::emits) {
         scene.emitters = super::emitters::VolumeEmitters::build(&scene);
     }

@@ -309,6 +309,32 @@ fn quad_carrying_a_medium() {
     );
 }
 
+/// A light half inside a fog would start the light paths of its other half in the fog too
+/// (light tracing and BDPT would differ from path tracing), so it is refused at its shape.
+#[test]
+fn area_light_across_a_medium_boundary() {
+    let fog_box = "\n[[shapes]]\ntype = \"box\"\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\nmaterial = \"null\"\ninterior = \"fog\"\n";
+    let lamp = |x: f32| {
+        format!("\n[[shapes]]\ntype = \"quad\"\norigin = [{x}, 0.9, -0.2]\nu = [0, 0, 0.4]\nv = [0.4, 0, 0]\nmaterial = \"white\"\nemission = 5.0\n")
+    };
+    let e = expect_error(
+        &format!("{fog_box}{}", lamp(0.8)),
+        9,
+        "shapes[1]",
+        &[
+            "more than one medium",
+            "medium `fog`",
+            "no medium",
+            "split the shape",
+        ],
+    );
+    assert!(e.message.contains("area light"), "{e}");
+    // wholly inside or wholly outside, the lamp loads
+    for x in [0.2, 1.5] {
+        load("ok.toml", &format!("{BASE}{fog_box}{}", lamp(x))).unwrap();
+    }
+}
+
 #[test]
 fn open_mesh_carrying_a_medium() {
     expect_error(

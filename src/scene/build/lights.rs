@@ -3,7 +3,9 @@
 //! next-event estimation and light paths.
 
 use super::values::{finite3, non_negative};
-use glam::Mat3;
+use glam::{Mat3, Vec2, Vec3};
+
+use crate::geometry::Aabb;
 
 use crate::geometry::offset_origin;
 use crate::image_io::{read_exr_input_hashed, rgbe};
@@ -41,6 +43,59 @@ pub(super) fn media_around(scene: &Scene) -> Vec<Option<u32>> {
             _ => None,
         })
         .collect()
+}
+
+/// Refuses an area light that lies in more than one medium: light subpaths start in the one
+/// medium `media_around` found, so a light half inside a fog would start its other half's
+/// paths in the wrong medium (light tracing and BDPT would silently differ from path tracing).
+/// Each emitting primitive whose box touches a medium boundary's box is probed on a grid of
+/// points, lifted to its emitting side (about a thousand points per light; a boundary that
+/// crosses the light between the points is not seen).
+pub(super) fn one_medium_each(src: &SceneSource, scene: &Scene) -> Result<(), SceneError> {
+    let boundaries: Vec<Aabb> = (scene.prims.iter().enumerate())
+        .filter(|(i, _)| scene.shapes[scene.prim_shape[*i] as usize].interface)
+        .map(|(_, p)| p.bounds())
+        .collect();
+    if boundaries.is_empty() {
+        return Ok(());
+    }
+    let touches = |b: &Aabb| {
+        let e = Vec3::splat(1e-4 * (1.0 + b.extent().max_element()));
+        (boundaries.iter())
+            .any(|o| (b.min - e).cmple(o.max).all() && (o.min - e).cmple(b.max).all())
+    };
+    for (l, light) in scene.lights.iter().enumerate() {
+        let Light::Area { prims, shape, .. } = light else {
+            continue;
+        };
+        let per_side = ((1024.0 / prims.len() as f32).sqrt() as u32).clamp(1, 8);
+        for &i in prims {
+            let prim = &scene.prims[i as usize];
+            if !touches(&prim.bounds()) {
+                continue;
+            }
+            for k in 0..per_side * per_side {
+                let (a, b) = (k % per_side, k / per_side);
+                let u = Vec2::new(a as f32 + 0.5, b as f32 + 0.5) / per_side as f32;
+                let (p, n) = prim.sample_area(u);
+                let m = scene.medium_at(offset_origin(p, n, n));
+                if m != scene.light_media[l] {
+                    let name = |m: Option<u32>| {
+                        m.map_or("no medium".to_string(), |m| {
+                            format!("medium `{}`", scene.medium_names[m as usize])
+                        })
+                    };
+                    let why = format!(
+                        "this area light lies in more than one medium ({} at one point, {} at another): light paths start in one medium per light, so split the shape at the medium's boundary",
+                        name(scene.light_media[l]),
+                        name(m)
+                    );
+                    return Err(src.error(&path("shapes").index(*shape as usize), &why));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Appends every `[[lights]]` entry to the area lights `lights` and builds the power
