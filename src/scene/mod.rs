@@ -87,6 +87,9 @@ pub struct ShapeTexture {
     /// `conductor` and `roughconductor` read them for their Fresnel term), unclamped.
     pub eta: Option<std::sync::Arc<crate::texture::Texture>>,
     pub k: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// An anisotropic rough material: its tangent at a point is the shape's dp/du there
+    /// ([`UvMap::dp_du`]).
+    pub tangent: bool,
     pub uv: UvMap,
 }
 
@@ -163,6 +166,42 @@ impl UvMap {
                 let rel = local - o;
                 glam::Vec2::new(rel.dot(eu - o) / 4.0, rel.dot(ev - o) / 4.0)
             }
+        }
+    }
+}
+
+impl UvMap {
+    /// dp/du at point `p` of primitive `prim` (index `id`, unit normal `n`) in this map's
+    /// (u, v), as Mitsuba 3 computes it: [`Primitive::dp_du`]; a cube face's edge from its uv
+    /// (0, 0) corner to its (1, 0) one; a mesh's from the corners' texture coordinates
+    /// (`Mesh::compute_surface_interaction`), or Duff et al.'s first axis around the face
+    /// normal where they are degenerate (zero determinant).
+    pub fn dp_du(&self, id: u32, prim: &Primitive, p: Vec3, n: Vec3) -> Vec3 {
+        match (self, prim) {
+            (
+                UvMap::Mesh {
+                    first_prim,
+                    corners,
+                },
+                Primitive::Triangle(t),
+            ) => {
+                let [t0, t1, t2] = corners[(id - first_prim) as usize];
+                let (d0, d1) = (t1 - t0, t2 - t0);
+                let det = d0.x * d1.y - d0.y * d1.x;
+                if det == 0.0 {
+                    let face = t.e1().cross(t.e2()).normalize_or_zero();
+                    return crate::math::Frame::from_normal(face).s;
+                }
+                (d1.y * t.e1() - d0.y * t.e2()) / det
+            }
+            (&UvMap::Cube { half, .. }, _) => {
+                let face = CUBE_FACES
+                    .iter()
+                    .max_by(|a, b| a.0.dot(n).total_cmp(&b.0.dot(n)))
+                    .map_or([Vec3::ZERO; 3], |f| f.1);
+                (face[1] - face[0]) * half
+            }
+            _ => prim.dp_du(p),
         }
     }
 }
@@ -379,6 +418,18 @@ impl Scene {
                 Bsdf::Plastic(m) => m.diffuse = value,
                 // its sampling weight stays the texture mean's, as Mitsuba's
                 Bsdf::RoughPlastic(m) => m.diffuse = value,
+                _ => {}
+            }
+        }
+        if t.tangent {
+            let tangent = t.uv.dp_du(id, prim, p, n);
+            match &mut out {
+                Bsdf::RoughConductor(m) => {
+                    m.anisotropy.iter_mut().for_each(|a| a.tangent = tangent)
+                }
+                Bsdf::RoughDielectric(m) => {
+                    m.anisotropy.iter_mut().for_each(|a| a.tangent = tangent)
+                }
                 _ => {}
             }
         }

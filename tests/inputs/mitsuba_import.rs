@@ -2181,6 +2181,8 @@ fn triples(m: file::MaterialDesc) -> file::MaterialDesc {
         },
         M::RoughConductor {
             alpha,
+            alpha_u,
+            alpha_v,
             distribution,
             reflectance,
             material,
@@ -2190,6 +2192,8 @@ fn triples(m: file::MaterialDesc) -> file::MaterialDesc {
             one_sided,
         } => M::RoughConductor {
             alpha,
+            alpha_u,
+            alpha_v,
             distribution,
             reflectance: reflectance.map(t),
             material,

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use super::textures::{colour, mean, reflectance, texture, Texels};
 use super::values::albedo;
-use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
+use crate::bsdf::microfacet::{Anisotropy, ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
 use crate::bsdf::plastic::default_eta;
 use crate::bsdf::{
@@ -20,6 +20,7 @@ use crate::scene::file::{
 use crate::scene::{SceneError, SceneSource};
 use crate::spectrum::Rgb;
 use crate::texture::{Texture, MITSUBA_LUMINANCE};
+use glam::Vec3;
 
 /// The materials by name, and the textured parameters of those that have some.
 pub(super) struct Materials {
@@ -30,7 +31,7 @@ pub(super) struct Materials {
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
 /// roughness (`alpha`), a conductor's or plastic's `specular` or a dielectric's
 /// `specular_reflectance`, a dielectric's `specular_transmittance`, and a conductor's complex
-/// index (`eta`, `k`).
+/// index (`eta`, `k`); and whether its roughness is anisotropic (`tangent`).
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
@@ -39,6 +40,8 @@ pub(super) struct Textured {
     pub(super) transmittance: Option<Arc<Texture>>,
     pub(super) eta: Option<Arc<Texture>>,
     pub(super) k: Option<Arc<Texture>>,
+    /// An anisotropic roughness: the BSDF at a point takes the shape's dp/du there.
+    pub(super) tangent: bool,
 }
 
 impl Textured {
@@ -63,6 +66,7 @@ impl Textured {
             || self.transmittance.is_some()
             || self.eta.is_some()
             || self.k.is_some()
+            || self.tangent
     }
 }
 
@@ -159,6 +163,8 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             }
             MaterialDesc::RoughConductor {
                 alpha,
+                alpha_u,
+                alpha_v,
                 distribution,
                 reflectance,
                 material,
@@ -167,8 +173,11 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 specular,
                 one_sided,
             } => {
-                let (alpha, texture) = textured_roughness(src, &key, alpha, "conductor")?;
+                let alphas = [alpha, alpha_u, alpha_v];
+                let (alpha, anisotropy, texture) =
+                    material_roughness(src, &key, alphas, "conductor")?;
                 textured = Textured::alpha(texture);
+                textured.tangent = anisotropy.is_some();
                 let specular_key = key.clone().key("specular");
                 let (specular, texture) =
                     super::textures::reflectance(src, &specular_key, specular)?;
@@ -189,23 +198,30 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                     )?,
                     specular,
                     one_sided: *one_sided,
+                    anisotropy,
                 })
             }
             MaterialDesc::RoughDielectric {
                 ior,
                 alpha,
+                alpha_u,
+                alpha_v,
                 distribution,
                 specular_reflectance: r,
                 specular_transmittance: t,
             } => {
-                let (alpha, texture) = textured_roughness(src, &key, alpha, "dielectric")?;
+                let alphas = [alpha, alpha_u, alpha_v];
+                let (alpha, anisotropy, texture) =
+                    material_roughness(src, &key, alphas, "dielectric")?;
                 textured = Textured::alpha(texture);
+                textured.tangent = anisotropy.is_some();
                 let specular = specular_factors(src, &key, r, t, &mut textured)?;
                 Bsdf::RoughDielectric(RoughDielectric {
                     ior: rough_ior(src, &key, *ior)?,
                     distribution: distribution_of(*distribution),
                     alpha,
                     specular,
+                    anisotropy,
                 })
             }
             MaterialDesc::Plastic {
@@ -318,12 +334,23 @@ fn roughness(
     alpha: f32,
     smooth: &str,
 ) -> Result<f32, SceneError> {
-    let key = key.clone().key("alpha");
+    roughness_at(src, key, "alpha", alpha, smooth)
+}
+
+/// [`roughness`] of the key `name` (`alpha`, `alpha_u`, `alpha_v`).
+fn roughness_at(
+    src: &SceneSource,
+    key: &KeyPath,
+    name: &str,
+    alpha: f32,
+    smooth: &str,
+) -> Result<f32, SceneError> {
+    let key = key.clone().key(name);
     if !alpha.is_finite() || alpha < ALPHA_MIN {
         return Err(src.error(
             &key,
             format!(
-                "alpha = {alpha} is below {ALPHA_MIN}: a lobe that narrow is lost in f32 \
+                "{name} = {alpha} is below {ALPHA_MIN}: a lobe that narrow is lost in f32 \
                  rounding; use type = \"{smooth}\" for a smooth surface"
             ),
         ));
@@ -332,7 +359,7 @@ fn roughness(
         return Err(src.error(
             &key,
             format!(
-                "alpha = {alpha} is above {ALPHA_MAX}: the microfacet model without multiple \
+                "{name} = {alpha} is above {ALPHA_MAX}: the microfacet model without multiple \
                  scattering loses too much energy beyond it; use lambert for a matte surface"
             ),
         ));
@@ -357,6 +384,57 @@ fn textured_roughness(
     roughness(src, key, lo, smooth)?;
     roughness(src, key, hi, smooth)?;
     Ok((mean(&t).dot(MITSUBA_LUMINANCE), Some(t)))
+}
+
+/// A rough material's roughness: `alpha` (a number or a texture, as [`textured_roughness`]), or
+/// `alpha_u` along the shape's dp/du and `alpha_v` across it (Mitsuba 3 documentation, plugins
+/// `roughconductor` and `roughdielectric`: both or neither, never with `alpha`), numbers in
+/// [`roughness`]'s range. Equal, they are the isotropic `alpha` (the same BSDF and code).
+fn material_roughness(
+    src: &SceneSource,
+    key: &KeyPath,
+    alphas: [&Option<RoughnessValue>; 3],
+    smooth: &str,
+) -> Result<(f32, Option<Anisotropy>, Option<Texture>), SceneError> {
+    let number = |name: &str, a: &RoughnessValue| {
+        match a {
+        RoughnessValue::Value(a) => roughness_at(src, key, name, *a, smooth),
+        RoughnessValue::Texture(_) => Err(src.error(
+            &key.clone().key(name),
+            format!("a texture as {name} is not supported: give a number (only the isotropic `alpha` takes a texture)"),
+        )),
+    }
+    };
+    let missing = |name: &str, other: &str| {
+        src.error(
+            &key.clone().key(other),
+            format!("{other} needs {name}: give both alpha_u and alpha_v, or one `alpha`"),
+        )
+    };
+    match alphas {
+        [Some(a), None, None] => {
+            let (alpha, texture) = textured_roughness(src, key, a, smooth)?;
+            Ok((alpha, None, texture))
+        }
+        [Some(_), _, _] => Err(src.error(
+            &key.clone().key("alpha"),
+            "give either `alpha` or `alpha_u` and `alpha_v`, not both",
+        )),
+        [None, Some(u), Some(v)] => {
+            let (alpha_u, alpha_v) = (number("alpha_u", u)?, number("alpha_v", v)?);
+            let anisotropy = (alpha_u != alpha_v).then_some(Anisotropy {
+                alpha_v,
+                tangent: Vec3::ZERO,
+            });
+            Ok((alpha_u, anisotropy, None))
+        }
+        [None, Some(_), None] => Err(missing("alpha_u", "alpha_v")),
+        [None, None, Some(_)] => Err(missing("alpha_v", "alpha_u")),
+        [None, None, None] => Err(src.error(
+            &key.clone().key("alpha"),
+            "missing the roughness: give `alpha`, or `alpha_u` and `alpha_v`",
+        )),
+    }
 }
 
 /// A rough dielectric's index: positive and not within 1% of 1, where every refracted

@@ -193,6 +193,7 @@ pub(super) fn shapes(
             transmittance: t.transmittance.clone(),
             eta: t.eta.clone(),
             k: t.k.clone(),
+            tangent: t.tangent,
             uv: uv_map(s, prims.len() as u32, uvs),
         });
         let light = emission.map(|radiance| {

@@ -40,6 +40,7 @@ fn conductor(distribution: Distribution, alpha: f32) -> Bsdf {
         fresnel: ConductorFresnel::Schlick(Vec3::ONE),
         specular: Vec3::ONE,
         one_sided: false,
+        anisotropy: None,
     })
 }
 
@@ -49,6 +50,7 @@ fn dielectric(distribution: Distribution, alpha: f32) -> Bsdf {
         distribution,
         alpha,
         specular: pathspace::bsdf::Specular::ONE,
+        anisotropy: None,
     })
 }
 
@@ -403,6 +405,7 @@ fn rough_conductor_is_reciprocal() {
             },
             specular: Vec3::ONE,
             one_sided: false,
+            anisotropy: None,
         });
         let mut nonzero = 0;
         for (a, b) in pairs(3, n) {
@@ -452,6 +455,7 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
                 distribution: dist,
                 alpha,
                 specular: pathspace::bsdf::Specular::ONE,
+                anisotropy: None,
             });
             let (mut refracting, mut reflecting) = (0, 0);
             for (a, b) in pairs(4, n) {
@@ -595,6 +599,7 @@ fn small_alpha_conductor_is_the_mirror() {
             fresnel: ConductorFresnel::Schlick(r0),
             specular: Vec3::ONE,
             one_sided: false,
+            anisotropy: None,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 2.0);
         // the mirror with the Fresnel reflectance of this angle (Schlick's about r0)
@@ -658,6 +663,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
             distribution: dist,
             alpha: ALPHA_SMALL,
             specular: pathspace::bsdf::Specular::ONE,
+            anisotropy: None,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 0.7);
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
