@@ -2691,3 +2691,110 @@ fn malformed_spectra_are_refused_by_line_and_key() {
         );
     }
 }
+
+/// Anisotropic roughness (Mitsuba 3 documentation, plugins `roughconductor`,
+/// `roughdielectric`: `alpha_u` along the shape's dp/du, `alpha_v` across it) becomes the same
+/// TOML keys, on a rectangle, a sphere and an OBJ mesh with texture coordinates (whose dp/du
+/// comes from them); `alpha_u` equal to `alpha_v` is the isotropic `alpha`, bit for bit; half a
+/// pair, a pair with `alpha`, a texture as either, and a `roughplastic`'s pair are refused with
+/// the line.
+#[test]
+fn anisotropic_roughness_is_mitsubas() {
+    let pair = |u: f32, v: f32| {
+        format!(r#"<float name="alpha_u" value="{u}"/><float name="alpha_v" value="{v}"/>"#)
+    };
+    let body = |metal: &str| {
+        format!(
+            r#"<shape type="rectangle">
+        <bsdf type="roughconductor" id="brushed"><string name="distribution" value="ggx"/>{metal}</bsdf>
+        <transform name="to_world"><rotate z="1" angle="30"/><translate z="-2"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted">{}</bsdf>
+    </shape>
+    <shape type="obj">
+        <string name="filename" value="tests/fixtures/textures/mesh-vt.obj"/>
+        <transform name="to_world"><translate x="-1" y="-0.8"/></transform>
+        <ref id="brushed"/>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#,
+            pair(0.5, 0.08)
+        )
+    };
+    let twin = |metal: &str| {
+        format!(
+            r#"{CAMERA}
+[materials.brushed]
+type = "rough_conductor"
+distribution = "ggx"
+{metal}
+one_sided = true
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+alpha_u = 0.5
+alpha_v = 0.08
+ior = {:?}
+[[shapes]]
+type = "quad"
+origin = [-0.36602542, -1.3660254, -2.0]
+u = [1.7320508, 1.0, 0.0]
+v = [-1.0, 1.7320508, 0.0]
+material = "brushed"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "mesh"
+obj = "tests/fixtures/textures/mesh-vt.obj"
+to_world = [[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -0.8], [0.0, 0.0, 1.0, 0.0]]
+smooth_normals = true
+material = "brushed"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.5046f64 / 1.000277) as f32,
+        )
+    };
+    let aniso = scene(&body(&pair(0.05, 0.3)));
+    same_scene(&aniso, &twin("alpha_u = 0.05\nalpha_v = 0.3"));
+    // equal: the isotropic material, the same image as `alpha`
+    let equal = xml(&scene(&body(&pair(0.3, 0.3)))).unwrap();
+    assert_eq!(pixels(&equal), pixels(&toml(&twin("alpha = 0.3"))));
+    // the orientation matters: swapped, another image
+    let swapped = xml(&scene(&body(&pair(0.3, 0.05)))).unwrap();
+    assert_ne!(pixels(&swapped), pixels(&xml(&aniso).unwrap()));
+    let line = SENSOR.lines().count() + 2;
+    for (bsdf, needle) in [
+        (
+            r#"<bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf>"#,
+            "both alpha_u and alpha_v",
+        ),
+        (
+            r#"<bsdf type="roughdielectric"><float name="alpha" value="0.1"/><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf>"#,
+            "either alpha or alpha_u and alpha_v",
+        ),
+        (
+            r#"<bsdf type="roughconductor"><texture type="checkerboard" name="alpha_u"/><float name="alpha_v" value="0.2"/></bsdf>"#,
+            "`alpha_u` of `roughconductor` is a <texture>",
+        ),
+        (
+            r#"<bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf>"#,
+            "refuses anisotropic roughness",
+        ),
+    ] {
+        let body = format!(r#"<shape type="rectangle">{bsdf}</shape>"#);
+        let e = xml(&scene(&body)).expect_err(bsdf);
+        assert!(e.contains(needle), "{bsdf}: `{e}` does not name {needle}");
+        assert!(e.starts_with(&format!("t.xml:{line}:")), "{bsdf}: `{e}`");
+    }
+}

@@ -715,7 +715,10 @@ fn agreement_textured_roughness() {
 #[test]
 fn agreement_anisotropic() {
     let mut fam = Family::new("agreement: anisotropic roughness");
-    check_row(&mut fam, &row("anisotropic", fixture("anisotropic.toml"), 3));
+    check_row(
+        &mut fam,
+        &row("anisotropic", fixture("anisotropic.toml"), 3),
+    );
     fam.finish();
 }
 
