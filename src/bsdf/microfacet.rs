@@ -2,6 +2,10 @@
 //! their samplers (GGX: its visible normals; Beckmann: D(m) cos theta_m), shared by the rough
 //! conductor, the rough dielectric and the rough plastic. [`Microfacet`] is the one a material
 //! names (`distribution = "ggx" | "beckmann"`), dispatched by a `match` without allocation.
+//! Anisotropic roughness (`alpha_u` along the local x, `alpha_v` along y; [`AnisoGgx`],
+//! [`AnisoBeckmann`]) is the isotropic distribution of roughness 1 under the stretch (alpha_u x,
+//! alpha_v y, z) (Heitz 2014, "Understanding the masking-shadowing function", sec. 5.3), in the
+//! frame of the shape's dp/du ([`shading_frame`]).
 //!
 //! Every function here works in a local frame whose +z is the macro-surface normal on the side
 //! the sampled-from direction `wo` lies (`wo.z > 0`); microfacet normals `m` have `m.z > 0`.

@@ -7,7 +7,10 @@
 //! generalized (eta^2) relation of refraction with its adjoint; the white furnace of the rough
 //! conductor (its single-scattering albedo by two independent quadratures against the
 //! sampler's mean weight); the limit alpha -> 0 against the mirror and the smooth dielectric;
-//! the conductor's complex Fresnel against the dielectric's.
+//! the conductor's complex Fresnel against the dielectric's. Anisotropic roughness: D against
+//! Heitz 2014's eqs. 81, 82, Lambda at the projected roughness (eq. 80) against the visible
+//! projected area, the stretched samplers by chi-square, the models' sampling, reciprocity and
+//! white furnace in the frame of a tangent that needs Gram-Schmidt.
 
 use crate::common;
 
