@@ -310,8 +310,9 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// Microfacet metal: `alpha` (a number or a texture) or `alpha_u` and `alpha_v` (numbers:
-    /// the roughness along the shape's dp/du and across it), `distribution` (default ggx), and
+    /// Microfacet metal: `alpha` (a number or a texture) or `alpha_u` and `alpha_v` (each a
+    /// number or a texture: the roughness along the shape's dp/du and across it),
+    /// `distribution` (default ggx), and
     /// `reflectance` (Schlick), `material` (a named conductor) or `eta` and `k` (complex index);
     /// reflectance 1 when none is given; `specular` (1, or a texture) scales the Fresnel term.
     RoughConductor {

@@ -76,6 +76,9 @@ pub struct ShapeTexture {
     /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
     /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
     pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// An anisotropic rough material's `alpha_v` (its `alpha` above is then `alpha_u`), the
+    /// texture's one-channel value.
+    pub alpha_v: Option<std::sync::Arc<crate::texture::Texture>>,
     /// A conductor's or plastic's `specular` or a dielectric's `specular_reflectance`, the
     /// texture's RGB value (Mitsuba's `eval`, as plugins `conductor`, `roughconductor`,
     /// `plastic`, `roughplastic`, `dielectric`, `roughdielectric`, `thindielectric` scale
@@ -422,15 +425,16 @@ impl Scene {
             }
         }
         if t.tangent {
-            let tangent = t.uv.dp_du(id, prim, p, n);
-            match &mut out {
-                Bsdf::RoughConductor(m) => {
-                    m.anisotropy.iter_mut().for_each(|a| a.tangent = tangent)
+            let anisotropy = match &mut out {
+                Bsdf::RoughConductor(m) => m.anisotropy.as_mut(),
+                Bsdf::RoughDielectric(m) => m.anisotropy.as_mut(),
+                _ => None,
+            };
+            if let Some(a) = anisotropy {
+                a.tangent = t.uv.dp_du(id, prim, p, n);
+                if let Some(v) = &t.alpha_v {
+                    a.alpha_v = v.eval_1(uv);
                 }
-                Bsdf::RoughDielectric(m) => {
-                    m.anisotropy.iter_mut().for_each(|a| a.tangent = tangent)
-                }
-                _ => {}
             }
         }
         if let Some(a) = &t.alpha {

@@ -29,13 +29,14 @@ pub(super) struct Materials {
 }
 
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
-/// roughness (`alpha`), a conductor's or plastic's `specular` or a dielectric's
+/// roughness (`alpha` or `alpha_u`, and `alpha_v`), a conductor's or plastic's `specular` or a dielectric's
 /// `specular_reflectance`, a dielectric's `specular_transmittance`, and a conductor's complex
 /// index (`eta`, `k`); and whether its roughness is anisotropic (`tangent`).
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
     pub(super) alpha: Option<Arc<Texture>>,
+    pub(super) alpha_v: Option<Arc<Texture>>,
     pub(super) specular: Option<Arc<Texture>>,
     pub(super) transmittance: Option<Arc<Texture>>,
     pub(super) eta: Option<Arc<Texture>>,
@@ -52,9 +53,12 @@ impl Textured {
         }
     }
 
-    fn alpha(t: Option<Texture>) -> Self {
+    /// A rough material's textured `alpha` (or `alpha_u`) and `alpha_v`, and its tangent.
+    fn roughness(r: Roughness) -> Self {
         Textured {
-            alpha: t.map(Arc::new),
+            alpha: r.texture.map(Arc::new),
+            alpha_v: r.texture_v.map(Arc::new),
+            tangent: r.anisotropy.is_some(),
             ..Textured::default()
         }
     }
@@ -62,6 +66,7 @@ impl Textured {
     fn is_some(&self) -> bool {
         self.reflectance.is_some()
             || self.alpha.is_some()
+            || self.alpha_v.is_some()
             || self.specular.is_some()
             || self.transmittance.is_some()
             || self.eta.is_some()
@@ -173,11 +178,9 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 specular,
                 one_sided,
             } => {
-                let alphas = [alpha, alpha_u, alpha_v];
-                let (alpha, anisotropy, texture) =
-                    material_roughness(src, &key, alphas, "conductor")?;
-                textured = Textured::alpha(texture);
-                textured.tangent = anisotropy.is_some();
+                let r = material_roughness(src, &key, [alpha, alpha_u, alpha_v], "conductor")?;
+                let (alpha, anisotropy) = (r.alpha, r.anisotropy);
+                textured = Textured::roughness(r);
                 let specular_key = key.clone().key("specular");
                 let (specular, texture) =
                     super::textures::reflectance(src, &specular_key, specular)?;
@@ -210,11 +213,9 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 specular_reflectance: r,
                 specular_transmittance: t,
             } => {
-                let alphas = [alpha, alpha_u, alpha_v];
-                let (alpha, anisotropy, texture) =
-                    material_roughness(src, &key, alphas, "dielectric")?;
-                textured = Textured::alpha(texture);
-                textured.tangent = anisotropy.is_some();
+                let rough = material_roughness(src, &key, [alpha, alpha_u, alpha_v], "dielectric")?;
+                let (alpha, anisotropy) = (rough.alpha, rough.anisotropy);
+                textured = Textured::roughness(rough);
                 let specular = specular_factors(src, &key, r, t, &mut textured)?;
                 Bsdf::RoughDielectric(RoughDielectric {
                     ior: rough_ior(src, &key, *ior)?,
@@ -376,35 +377,46 @@ fn textured_roughness(
     alpha: &RoughnessValue,
     smooth: &str,
 ) -> Result<(f32, Option<Texture>), SceneError> {
+    textured_roughness_at(src, key, "alpha", alpha, smooth)
+}
+
+/// [`textured_roughness`] of the key `name` (`alpha`, `alpha_u`, `alpha_v`).
+fn textured_roughness_at(
+    src: &SceneSource,
+    key: &KeyPath,
+    name: &str,
+    alpha: &RoughnessValue,
+    smooth: &str,
+) -> Result<(f32, Option<Texture>), SceneError> {
     let t = match alpha {
-        RoughnessValue::Value(a) => return Ok((roughness(src, key, *a, smooth)?, None)),
-        RoughnessValue::Texture(t) => texture(src, &key.clone().key("alpha"), t)?,
+        RoughnessValue::Value(a) => return Ok((roughness_at(src, key, name, *a, smooth)?, None)),
+        RoughnessValue::Texture(t) => texture(src, &key.clone().key(name), t)?,
     };
     let (lo, hi) = t.range_1();
-    roughness(src, key, lo, smooth)?;
-    roughness(src, key, hi, smooth)?;
+    roughness_at(src, key, name, lo, smooth)?;
+    roughness_at(src, key, name, hi, smooth)?;
     Ok((mean(&t).dot(MITSUBA_LUMINANCE), Some(t)))
 }
 
-/// A rough material's roughness: `alpha` (a number or a texture, as [`textured_roughness`]), or
-/// `alpha_u` along the shape's dp/du and `alpha_v` across it (Mitsuba 3 documentation, plugins
-/// `roughconductor` and `roughdielectric`: both or neither, never with `alpha`), numbers in
-/// [`roughness`]'s range. Equal, they are the isotropic `alpha` (the same BSDF and code).
+/// A rough material's roughness: `alpha` (the roughness along the tangent when anisotropic),
+/// the anisotropy, and the textures of `alpha` (or `alpha_u`) and `alpha_v`.
+struct Roughness {
+    alpha: f32,
+    anisotropy: Option<Anisotropy>,
+    texture: Option<Texture>,
+    texture_v: Option<Texture>,
+}
+
+/// A rough material's roughness: `alpha`, or `alpha_u` along the shape's dp/du and `alpha_v`
+/// across it (Mitsuba 3 documentation, plugins `roughconductor` and `roughdielectric`: both or
+/// neither, never with `alpha`), each a number or a texture as [`textured_roughness`]. Equal
+/// numbers are the isotropic `alpha` (the same BSDF and code).
 fn material_roughness(
     src: &SceneSource,
     key: &KeyPath,
     alphas: [&Option<RoughnessValue>; 3],
     smooth: &str,
-) -> Result<(f32, Option<Anisotropy>, Option<Texture>), SceneError> {
-    let number = |name: &str, a: &RoughnessValue| {
-        match a {
-        RoughnessValue::Value(a) => roughness_at(src, key, name, *a, smooth),
-        RoughnessValue::Texture(_) => Err(src.error(
-            &key.clone().key(name),
-            format!("a texture as {name} is not supported: give a number (only the isotropic `alpha` takes a texture)"),
-        )),
-    }
-    };
+) -> Result<Roughness, SceneError> {
     let missing = |name: &str, other: &str| {
         src.error(
             &key.clone().key(other),
@@ -414,19 +426,31 @@ fn material_roughness(
     match alphas {
         [Some(a), None, None] => {
             let (alpha, texture) = textured_roughness(src, key, a, smooth)?;
-            Ok((alpha, None, texture))
+            Ok(Roughness {
+                alpha,
+                anisotropy: None,
+                texture,
+                texture_v: None,
+            })
         }
         [Some(_), _, _] => Err(src.error(
             &key.clone().key("alpha"),
             "give either `alpha` or `alpha_u` and `alpha_v`, not both",
         )),
         [None, Some(u), Some(v)] => {
-            let (alpha_u, alpha_v) = (number("alpha_u", u)?, number("alpha_v", v)?);
-            let anisotropy = (alpha_u != alpha_v).then_some(Anisotropy {
+            let (alpha, texture) = textured_roughness_at(src, key, "alpha_u", u, smooth)?;
+            let (alpha_v, texture_v) = textured_roughness_at(src, key, "alpha_v", v, smooth)?;
+            let textured = texture.is_some() || texture_v.is_some();
+            let anisotropy = (alpha != alpha_v || textured).then_some(Anisotropy {
                 alpha_v,
                 tangent: Vec3::ZERO,
             });
-            Ok((alpha_u, anisotropy, None))
+            Ok(Roughness {
+                alpha,
+                anisotropy,
+                texture,
+                texture_v,
+            })
         }
         [None, Some(_), None] => Err(missing("alpha_u", "alpha_v")),
         [None, None, Some(_)] => Err(missing("alpha_v", "alpha_u")),

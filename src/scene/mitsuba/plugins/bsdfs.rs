@@ -461,12 +461,12 @@ fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
     }
 }
 
-/// A rough plugin's roughness: one `alpha` (a number or a texture), or `alpha_u` along the
-/// shape's dp/du and `alpha_v` across it (numbers).
+/// A rough plugin's roughness: one `alpha`, or `alpha_u` along the shape's dp/du and `alpha_v`
+/// across it, each a number or a texture.
 #[derive(Clone)]
 enum Alphas {
     Isotropic(RoughnessValue),
-    Anisotropic(f32, f32),
+    Anisotropic(RoughnessValue, RoughnessValue),
 }
 
 impl Alphas {
@@ -474,7 +474,7 @@ impl Alphas {
     fn keys(&self) -> [Option<RoughnessValue>; 3] {
         match self {
             Alphas::Isotropic(a) => [Some(a.clone()), None, None],
-            Alphas::Anisotropic(u, v) => [None, Some((*u).into()), Some((*v).into())],
+            Alphas::Anisotropic(u, v) => [None, Some(u.clone()), Some(v.clone())],
         }
     }
 }
@@ -492,7 +492,7 @@ impl std::fmt::Display for Alphas {
 /// ggx) and the roughness: one isotropic `alpha` (default 0.1), a number or a texture
 /// (roughconductor and roughdielectric read it with `eval_1`; Mitsuba's roughplastic takes a
 /// number only), or `alpha_u` and `alpha_v` (Mitsuba 3 documentation, plugins
-/// `roughconductor`, `roughdielectric`: both or neither, not with `alpha`), numbers here.
+/// `roughconductor`, `roughdielectric`: both or neither, not with `alpha`), each the same.
 fn microfacet(p: &mut Props) -> Result<(DistributionDesc, Alphas), SceneError> {
     // Mitsuba lowercases the name
     let d = match p
@@ -510,7 +510,10 @@ fn microfacet(p: &mut Props) -> Result<(DistributionDesc, Alphas), SceneError> {
     };
     // only the sampler depends on it, not the BSDF
     p.ignore(&["sample_visible"]);
-    let (u, v) = (p.float("alpha_u")?, p.float("alpha_v")?);
+    let (u, v) = (
+        roughness_value(p, "alpha_u")?,
+        roughness_value(p, "alpha_v")?,
+    );
     if u.is_some() || v.is_some() {
         let (Some(u), Some(v)) = (u, v) else {
             return Err(
@@ -522,16 +525,19 @@ fn microfacet(p: &mut Props) -> Result<(DistributionDesc, Alphas), SceneError> {
                 "give either alpha or alpha_u and alpha_v, not both (Mitsuba 3's microfacet model)",
             ));
         }
-        return Ok((d, Alphas::Anisotropic(u as f32, v as f32)));
+        return Ok((d, Alphas::Anisotropic(u, v)));
     }
-    if let Some(t) = p.texture("alpha") {
-        return Ok((
-            d,
-            Alphas::Isotropic(RoughnessValue::Texture(texture(p.doc, t)?)),
-        ));
+    let alpha = roughness_value(p, "alpha")?.unwrap_or(RoughnessValue::Value(0.1));
+    Ok((d, Alphas::Isotropic(alpha)))
+}
+
+/// A roughness property `name`: a number or a texture (Mitsuba's `get_unbounded_texture`, read
+/// with `eval_1`); `None` when absent.
+fn roughness_value(p: &mut Props, name: &str) -> Result<Option<RoughnessValue>, SceneError> {
+    if let Some(t) = p.texture(name) {
+        return Ok(Some(RoughnessValue::Texture(texture(p.doc, t)?)));
     }
-    let alpha = p.float("alpha")?.unwrap_or(0.1) as f32;
-    Ok((d, Alphas::Isotropic(RoughnessValue::Value(alpha))))
+    Ok(p.float(name)?.map(|v| RoughnessValue::Value(v as f32)))
 }
 
 fn dist_name(d: DistributionDesc) -> &'static str {
