@@ -53,6 +53,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             fresnel: ConductorFresnel::Schlick(Vec3::ONE),
             specular: Vec3::ONE,
             one_sided: false,
+            anisotropy: None,
         })
     };
     let root = SVGBackend::new(&out, (900, 720)).into_drawing_area();
@@ -97,6 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 distribution: Distribution::Ggx,
                 alpha: 0.15,
                 specular: pathspace::bsdf::Specular::ONE,
+                anisotropy: None,
             }),
             RGBColor(33, 102, 172),
         ),

@@ -11,7 +11,9 @@
 
 use glam::{Vec2, Vec3};
 
-use super::microfacet::{reflect_about, Distribution, Microfacet};
+use super::microfacet::{
+    describe_alpha, reflect_about, shading_frame, Anisotropy, Distribution, Microfacet,
+};
 use super::{BsdfModel, BsdfSample, Lobe, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
@@ -179,18 +181,27 @@ pub struct RoughConductor {
     pub specular: Rgb,
     /// Black behind the normal (see `Bsdf::black_behind`).
     pub one_sided: bool,
+    /// `None`: isotropic (`alpha` in every direction); else `alpha` is Mitsuba's `alpha_u`,
+    /// along the tangent.
+    pub anisotropy: Option<Anisotropy>,
 }
 
 impl RoughConductor {
     fn microfacet(&self) -> Microfacet {
-        Microfacet::new(self.distribution, self.alpha)
+        let alpha_v = self.anisotropy.map_or(self.alpha, |a| a.alpha_v);
+        Microfacet::anisotropic(self.distribution, self.alpha, alpha_v)
+    }
+
+    /// The local frame whose +z is the normal on `wo`'s side ([`shading_frame`]).
+    fn frame(&self, wo: Vec3, n: Vec3) -> Frame {
+        let nf = if wo.dot(n) >= 0.0 { n } else { -n };
+        shading_frame(self.anisotropy.as_ref(), n, nf)
     }
 
     /// `wo` and `wi` in the frame of the normal on `wo`'s side, or `None` when they do not lie
     /// on one side (the conductor does not transmit) or either is grazing.
-    fn local(wo: Vec3, wi: Vec3, n: Vec3) -> Option<(Frame, Vec3, Vec3)> {
-        let nf = if wo.dot(n) >= 0.0 { n } else { -n };
-        let frame = Frame::from_normal(nf);
+    fn local(&self, wo: Vec3, wi: Vec3, n: Vec3) -> Option<(Frame, Vec3, Vec3)> {
+        let frame = self.frame(wo, n);
         let (lo, li) = (frame.to_local(wo), frame.to_local(wi));
         (lo.z > 0.0 && li.z > 0.0).then_some((frame, lo, li))
     }
@@ -206,15 +217,15 @@ impl BsdfModel for RoughConductor {
         let show = crate::spectrum::show;
         let base = match self.fresnel {
             ConductorFresnel::Schlick(r) => format!(
-                "rough conductor, {} alpha {}, reflectance {}",
+                "rough conductor, {} {}, reflectance {}",
                 self.distribution.name(),
-                self.alpha,
+                describe_alpha(self.alpha, self.anisotropy.as_ref()),
                 show(r)
             ),
             ConductorFresnel::Complex { eta, k } => format!(
-                "rough conductor, {} alpha {}, eta {}, k {}",
+                "rough conductor, {} {}, eta {}, k {}",
                 self.distribution.name(),
-                self.alpha,
+                describe_alpha(self.alpha, self.anisotropy.as_ref()),
                 show(eta),
                 show(k)
             ),
@@ -243,7 +254,7 @@ impl BsdfModel for RoughConductor {
     /// 2007, eq. (20)); reciprocal.
     // ANCHOR: conductor_eval
     fn eval(&self, wo: Vec3, wi: Vec3, n: Vec3, _mode: TransportMode) -> Rgb {
-        let Some((_, lo, li)) = Self::local(wo, wi, n) else {
+        let Some((_, lo, li)) = self.local(wo, wi, n) else {
             return Rgb::ZERO;
         };
         let m = (lo + li).normalize_or_zero();
@@ -265,7 +276,7 @@ impl BsdfModel for RoughConductor {
     /// reflection's Jacobian 1 / (4 wo.m) (Walter et al. 2007, eq. (14)), = G1(wo) D(m) /
     /// (4 cos_o).
     fn pdf(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
-        let Some((_, lo, li)) = Self::local(wo, wi, n) else {
+        let Some((_, lo, li)) = self.local(wo, wi, n) else {
             return 0.0;
         };
         let m = (lo + li).normalize_or_zero();
@@ -291,8 +302,7 @@ impl BsdfModel for RoughConductor {
         _uc: f32,
         mode: TransportMode,
     ) -> Option<BsdfSample> {
-        let nf = if wo.dot(n) >= 0.0 { n } else { -n };
-        let frame = Frame::from_normal(nf);
+        let frame = self.frame(wo, n);
         let lo = frame.to_local(wo);
         if lo.z <= 0.0 {
             return None;

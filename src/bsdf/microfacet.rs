@@ -2,6 +2,10 @@
 //! their samplers (GGX: its visible normals; Beckmann: D(m) cos theta_m), shared by the rough
 //! conductor, the rough dielectric and the rough plastic. [`Microfacet`] is the one a material
 //! names (`distribution = "ggx" | "beckmann"`), dispatched by a `match` without allocation.
+//! Anisotropic roughness (`alpha_u` along the local x, `alpha_v` along y; [`AnisoGgx`],
+//! [`AnisoBeckmann`]) is the isotropic distribution of roughness 1 under the stretch (alpha_u x,
+//! alpha_v y, z) (Heitz 2014, "Understanding the masking-shadowing function", sec. 5.3), in the
+//! frame of the shape's dp/du ([`shading_frame`]).
 //!
 //! Every function here works in a local frame whose +z is the macro-surface normal on the side
 //! the sampled-from direction `wo` lies (`wo.z > 0`); microfacet normals `m` have `m.z > 0`.
@@ -16,6 +20,8 @@
 //! Book: "Surface scattering (eq. 2)", section "Rough surfaces"; spec: `tests/spec/bsdf/microfacet.rs`.
 
 use glam::{Vec2, Vec3};
+
+use crate::math::Frame;
 use std::f32::consts::PI;
 use std::f64::consts::PI as PI64;
 
@@ -177,11 +183,7 @@ impl Beckmann {
         if w.dot(m) * w.z <= 0.0 {
             return 0.0;
         }
-        let a = self.a(w);
-        if a >= 1.6 {
-            return 1.0;
-        }
-        ((3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)) as f32
+        walter_rational(self.a(w))
     }
 
     /// A facet normal with density D(m) cos theta_m: tan^2 theta_m = -alpha^2 ln(1 - u) inverts
@@ -196,6 +198,136 @@ impl Beckmann {
     }
 
     /// The density of [`Beckmann::sample`]: D(m) cos theta_m.
+    pub fn pdf(&self, m: Vec3) -> f32 {
+        self.d(m) * m.z.max(0.0)
+    }
+}
+
+/// Walter et al. 2007, eq. (27): Beckmann's Smith G1 as a rational function of a = 1 /
+/// (alpha tan theta), exactly 1 from a = 1.6 on (Mitsuba 3's `smith_g1`).
+fn walter_rational(a: f64) -> f32 {
+    if a >= 1.6 {
+        return 1.0;
+    }
+    ((3.535 * a + 2.181 * a * a) / (1.0 + 2.276 * a + 2.577 * a * a)) as f32
+}
+
+/// `w` stretched by the two roughnesses, (alpha_u x, alpha_v y, z): the configuration in which
+/// an anisotropic distribution is the isotropic one of roughness 1 (Heitz 2014, sec. 5.3; the
+/// projected roughness of eq. (80) is |stretched xy| / |xy|).
+fn stretch(w: Vec3, alpha_u: f32, alpha_v: f32) -> Vec3 {
+    Vec3::new(alpha_u * w.x, alpha_v * w.y, w.z)
+}
+
+/// The anisotropic GGX distribution: roughness `alpha_u` along the local x (the tangent) and
+/// `alpha_v` along y. Only the rough models' anisotropic materials use it; an isotropic one
+/// (`alpha_u == alpha_v`) goes through [`Ggx`], bit for bit as before.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AnisoGgx {
+    pub alpha_u: f32,
+    pub alpha_v: f32,
+}
+
+impl AnisoGgx {
+    /// D(m) = 1 / (pi a_u a_v cos^4 theta_m (1 + tan^2 theta_m (cos^2 phi / a_u^2 + sin^2 phi /
+    /// a_v^2))^2) (Heitz 2014, eq. 82), with the tangential components as [`Ggx::d`].
+    pub fn d(&self, m: Vec3) -> f32 {
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        let (au, av) = (self.alpha_u, self.alpha_v);
+        let k = m.z * m.z + m.x * m.x / (au * au) + m.y * m.y / (av * av);
+        1.0 / (PI * au * av * k * k)
+    }
+
+    /// Smith's Lambda(w) with the projected roughness alpha(phi_w)^2 = cos^2 phi a_u^2 + sin^2
+    /// phi a_v^2 (Heitz 2014, eqs. 72 and 80): the isotropic Lambda of roughness 1 at the
+    /// stretched direction.
+    pub fn lambda(&self, w: Vec3) -> f32 {
+        Ggx { alpha: 1.0 }.lambda(stretch(w, self.alpha_u, self.alpha_v))
+    }
+
+    /// G1(w, m) = chi+(w.m / w.z) / (1 + Lambda(w)) (Heitz 2014, eq. 43).
+    pub fn g1(&self, w: Vec3, m: Vec3) -> f32 {
+        if w.dot(m) * w.z <= 0.0 {
+            return 0.0;
+        }
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    /// The density of visible normals seen from `wo`, G1(wo) max(0, wo.m) D(m) / wo.z (Heitz
+    /// 2018, eq. 1), the density of [`AnisoGgx::sample_visible`].
+    pub fn pdf_visible(&self, wo: Vec3, m: Vec3) -> f32 {
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
+        let c = wo.dot(m);
+        if c <= 0.0 {
+            return 0.0;
+        }
+        self.g1(wo, m) * c * self.d(m) / wo.z
+    }
+
+    /// Heitz 2018 (JCGT 7(4), sec. 2) with two roughnesses: stretch `wo` by (a_u, a_v, 1), draw
+    /// a visible normal of the hemisphere (roughness 1) seen from it, unstretch the normal by
+    /// the same factors (steps 1 and 5 of the listing are the only ones that read alpha).
+    pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        let (au, av) = (self.alpha_u, self.alpha_v);
+        let vh = stretch(wo, au, av).normalize();
+        let nh = Ggx { alpha: 1.0 }.sample_visible(vh, u);
+        Vec3::new(au * nh.x, av * nh.y, nh.z.max(1e-7)).normalize()
+    }
+}
+
+/// The anisotropic Beckmann distribution (RMS slopes `alpha_u` along x, `alpha_v` along y),
+/// with Walter's rational G1 at the projected roughness, as Mitsuba 3's `MicrofacetDistribution`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AnisoBeckmann {
+    pub alpha_u: f32,
+    pub alpha_v: f32,
+}
+
+impl AnisoBeckmann {
+    /// D(m) = exp(-tan^2 theta_m (cos^2 phi / a_u^2 + sin^2 phi / a_v^2)) / (pi a_u a_v cos^4
+    /// theta_m) (Heitz 2014, eq. 81).
+    pub fn d(&self, m: Vec3) -> f32 {
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        let (au, av) = (self.alpha_u, self.alpha_v);
+        let z2 = m.z * m.z;
+        let e = (m.x * m.x / (au * au) + m.y * m.y / (av * av)) / z2;
+        let d = (-e).exp() / (PI * au * av * z2 * z2);
+        if d.is_finite() {
+            d
+        } else {
+            0.0
+        }
+    }
+
+    /// G1(w, m) by Walter et al. 2007, eq. (27), at a = 1 / (alpha(phi_w) tan theta_w), the
+    /// projected roughness of Heitz 2014, eq. 80 (Mitsuba 3's `smith_g1`).
+    pub fn g1(&self, w: Vec3, m: Vec3) -> f32 {
+        if w.dot(m) * w.z <= 0.0 {
+            return 0.0;
+        }
+        let s = stretch(w, self.alpha_u, self.alpha_v).as_dvec3();
+        walter_rational(s.z.abs() / (s.x * s.x + s.y * s.y).sqrt())
+    }
+
+    /// A facet normal with density D(m) cos theta_m: its slopes (-m.x / m.z, -m.y / m.z) are a
+    /// Gaussian of deviations a_u / sqrt 2, a_v / sqrt 2 (Heitz 2014, eq. 81 as a slope
+    /// density), drawn as the unit one (radius^2 = -ln(1 - u), Walter et al. 2007, eq. (28))
+    /// scaled per axis.
+    pub fn sample(&self, u: Vec2) -> Vec3 {
+        let r = (-(1.0 - u.x as f64).max(f64::MIN_POSITIVE).ln()).sqrt();
+        let phi = 2.0 * PI64 * u.y as f64;
+        let (au, av) = (self.alpha_u as f64, self.alpha_v as f64);
+        let m = glam::DVec3::new(au * r * phi.cos(), av * r * phi.sin(), 1.0).normalize();
+        m.as_vec3()
+    }
+
+    /// The density of [`AnisoBeckmann::sample`]: D(m) cos theta_m.
     pub fn pdf(&self, m: Vec3) -> f32 {
         self.d(m) * m.z.max(0.0)
     }
@@ -219,34 +351,69 @@ impl Distribution {
     }
 }
 
-/// A distribution with its roughness: the one interface the rough models use.
+/// A distribution with its roughness: the one interface the rough models use. `alpha` is the
+/// roughness along the local x (Mitsuba's `alpha_u`), `alpha_v` along y; equal, the isotropic
+/// [`Ggx`] and [`Beckmann`] evaluate it (so isotropic materials keep their bits), otherwise
+/// [`AnisoGgx`] and [`AnisoBeckmann`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Microfacet {
     pub distribution: Distribution,
     pub alpha: f32,
+    pub alpha_v: f32,
+}
+
+/// One of the four distributions a [`Microfacet`] stands for.
+enum Kind {
+    Ggx(Ggx),
+    Beckmann(Beckmann),
+    AnisoGgx(AnisoGgx),
+    AnisoBeckmann(AnisoBeckmann),
 }
 
 impl Microfacet {
+    /// An isotropic distribution.
     pub fn new(distribution: Distribution, alpha: f32) -> Self {
+        Self::anisotropic(distribution, alpha, alpha)
+    }
+
+    /// Roughness `alpha_u` along the tangent (local x), `alpha_v` along the bitangent.
+    pub fn anisotropic(distribution: Distribution, alpha_u: f32, alpha_v: f32) -> Self {
         Microfacet {
             distribution,
-            alpha,
+            alpha: alpha_u,
+            alpha_v,
+        }
+    }
+
+    fn kind(&self) -> Kind {
+        let (alpha_u, alpha_v) = (self.alpha, self.alpha_v);
+        match (self.distribution, alpha_u == alpha_v) {
+            (Distribution::Ggx, true) => Kind::Ggx(Ggx { alpha: alpha_u }),
+            (Distribution::Beckmann, true) => Kind::Beckmann(Beckmann { alpha: alpha_u }),
+            (Distribution::Ggx, false) => Kind::AnisoGgx(AnisoGgx { alpha_u, alpha_v }),
+            (Distribution::Beckmann, false) => {
+                Kind::AnisoBeckmann(AnisoBeckmann { alpha_u, alpha_v })
+            }
         }
     }
 
     /// D(m), normalized so that the projected area is one (integral of D(m) m.z is 1).
     pub fn d(&self, m: Vec3) -> f32 {
-        match self.distribution {
-            Distribution::Ggx => Ggx { alpha: self.alpha }.d(m),
-            Distribution::Beckmann => Beckmann { alpha: self.alpha }.d(m),
+        match self.kind() {
+            Kind::Ggx(g) => g.d(m),
+            Kind::Beckmann(b) => b.d(m),
+            Kind::AnisoGgx(g) => g.d(m),
+            Kind::AnisoBeckmann(b) => b.d(m),
         }
     }
 
     /// Smith's G1(w, m) (GGX exactly, Beckmann by Walter's rational approximation).
     pub fn g1(&self, w: Vec3, m: Vec3) -> f32 {
-        match self.distribution {
-            Distribution::Ggx => Ggx { alpha: self.alpha }.g1(w, m),
-            Distribution::Beckmann => Beckmann { alpha: self.alpha }.g1(w, m),
+        match self.kind() {
+            Kind::Ggx(g) => g.g1(w, m),
+            Kind::Beckmann(b) => b.g1(w, m),
+            Kind::AnisoGgx(g) => g.g1(w, m),
+            Kind::AnisoBeckmann(b) => b.g1(w, m),
         }
     }
 
@@ -259,20 +426,62 @@ impl Microfacet {
     /// D(m) cos theta_m (its visible normals have no closed-form inverse, and an iterated one
     /// would leave the density inexact). The normal may face away from `wo`; callers reject it.
     pub fn sample(&self, wo: Vec3, u: Vec2) -> Vec3 {
-        match self.distribution {
-            Distribution::Ggx => Ggx { alpha: self.alpha }.sample_visible(wo, u),
-            Distribution::Beckmann => Beckmann { alpha: self.alpha }.sample(u),
+        match self.kind() {
+            Kind::Ggx(g) => g.sample_visible(wo, u),
+            Kind::Beckmann(b) => b.sample(u),
+            Kind::AnisoGgx(g) => g.sample_visible(wo, u),
+            Kind::AnisoBeckmann(b) => b.sample(u),
         }
     }
 
     /// The density of `m` under [`Microfacet::sample`] from `wo`, zero for a facet `wo` sees
     /// from behind (those samples are rejected, so they carry no density of a direction).
     pub fn pdf(&self, wo: Vec3, m: Vec3) -> f32 {
-        match self.distribution {
-            Distribution::Ggx => Ggx { alpha: self.alpha }.pdf_visible(wo, m),
-            Distribution::Beckmann if wo.dot(m) > 0.0 => Beckmann { alpha: self.alpha }.pdf(m),
-            Distribution::Beckmann => 0.0,
+        match self.kind() {
+            Kind::Ggx(g) => g.pdf_visible(wo, m),
+            Kind::AnisoGgx(g) => g.pdf_visible(wo, m),
+            Kind::Beckmann(b) if wo.dot(m) > 0.0 => b.pdf(m),
+            Kind::AnisoBeckmann(b) if wo.dot(m) > 0.0 => b.pdf(m),
+            Kind::Beckmann(_) | Kind::AnisoBeckmann(_) => 0.0,
         }
+    }
+}
+
+/// The anisotropy of a rough material at a point: the roughness `alpha_v` across the tangent
+/// (the material's `alpha` is along it) and the tangent, the shape's dp/du there (Mitsuba 3's
+/// shading frame: `SurfaceInteraction::initialize_sh_frame`). `tangent` is zero until a point
+/// is known (`Scene::bsdf_at` sets it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Anisotropy {
+    pub alpha_v: f32,
+    pub tangent: Vec3,
+}
+
+/// `alpha 0.3`, or `alpha_u 0.1, alpha_v 0.4` (what `pathspace info` says of a roughness).
+pub fn describe_alpha(alpha: f32, anisotropy: Option<&Anisotropy>) -> String {
+    match anisotropy {
+        None => format!("alpha {alpha}"),
+        Some(a) => format!("alpha_u {alpha}, alpha_v {}", a.alpha_v),
+    }
+}
+
+/// The local frame of a rough model at a point with shading normal `n` (as the shape gives
+/// it), whose +z is `nf` (`n` or `-n`, the side of `wo`): Duff et al.'s frame around `nf` for
+/// an isotropic material (whose value does not depend on the tangent), else Mitsuba 3's
+/// shading frame: x the tangent made perpendicular to `n` (Gram-Schmidt), or Duff et al.'s
+/// first axis around `n` where the tangent is zero or along `n` (a sphere's poles).
+pub fn shading_frame(anisotropy: Option<&Anisotropy>, n: Vec3, nf: Vec3) -> Frame {
+    let Some(a) = anisotropy else {
+        return Frame::from_normal(nf);
+    };
+    let s = (a.tangent - n * n.dot(a.tangent))
+        .try_normalize()
+        .unwrap_or_else(|| Frame::from_normal(n).s);
+    // D is even in x and in y: the orientation of t (which side of nf) does not matter
+    Frame {
+        s,
+        t: nf.cross(s),
+        n: nf,
     }
 }
 

@@ -41,7 +41,9 @@ pub mod thin_dielectric;
 pub use conductor::{Conductor, ConductorFresnel, RoughConductor};
 pub use dielectric::{Dielectric, Specular};
 pub use lambert::Lambert;
-pub use microfacet::{Beckmann, Distribution, Ggx, Microfacet};
+pub use microfacet::{
+    AnisoBeckmann, AnisoGgx, Anisotropy, Beckmann, Distribution, Ggx, Microfacet,
+};
 pub use mirror::Mirror;
 pub use null::Null;
 pub use plastic::Plastic;

@@ -15,7 +15,10 @@
 
 use glam::{Vec2, Vec3};
 
-use super::microfacet::{reflect_about, refract_about, Distribution, Microfacet};
+use super::microfacet::{
+    describe_alpha, reflect_about, refract_about, shading_frame, Anisotropy, Distribution,
+    Microfacet,
+};
 use super::{fresnel_dielectric, BsdfModel, BsdfSample, Lobe, Specular, TransportMode};
 use crate::math::Frame;
 use crate::spectrum::Rgb;
@@ -29,6 +32,8 @@ pub struct RoughDielectric {
     pub distribution: Distribution,
     pub alpha: f32,
     pub specular: Specular,
+    /// `None`: isotropic; else `alpha` is Mitsuba's `alpha_u`, along the tangent.
+    pub anisotropy: Option<Anisotropy>,
 }
 
 /// `wo`, `wi` in the frame of the normal on `wo`'s side, with the indices on `wo`'s side
@@ -48,7 +53,8 @@ struct Half {
 
 impl RoughDielectric {
     fn microfacet(&self) -> Microfacet {
-        Microfacet::new(self.distribution, self.alpha)
+        let alpha_v = self.anisotropy.map_or(self.alpha, |a| a.alpha_v);
+        Microfacet::anisotropic(self.distribution, self.alpha, alpha_v)
     }
 
     /// The frame of `wo`'s side and the indices on both sides; `None` at a grazing `wo`.
@@ -58,9 +64,13 @@ impl RoughDielectric {
             return None;
         }
         Some(if c > 0.0 {
-            (Frame::from_normal(n), 1.0, self.ior)
+            (shading_frame(self.anisotropy.as_ref(), n, n), 1.0, self.ior)
         } else {
-            (Frame::from_normal(-n), self.ior, 1.0)
+            (
+                shading_frame(self.anisotropy.as_ref(), n, -n),
+                self.ior,
+                1.0,
+            )
         })
     }
 
@@ -120,10 +130,10 @@ impl BsdfModel for RoughDielectric {
 
     fn describe(&self) -> String {
         format!(
-            "rough dielectric, ior {}, {} alpha {}{}",
+            "rough dielectric, ior {}, {} {}{}",
             self.ior,
             self.distribution.name(),
-            self.alpha,
+            describe_alpha(self.alpha, self.anisotropy.as_ref()),
             self.specular.describe()
         )
     }

@@ -712,4 +712,36 @@ impl Primitive {
             Primitive::Cylinder(c) => c.uv(p),
         }
     }
+
+    /// dp/du at `p`: the derivative of the point along [`Primitive::uv`]'s u, as Mitsuba 3's
+    /// shapes give it (`compute_surface_interaction`), the first axis of their shading frame
+    /// and the direction of an anisotropic roughness's `alpha_u`. A quad's edge `u`; a
+    /// triangle's `p1 - p0` (the barycentric parametrization; a mesh's texture coordinates
+    /// are `scene::UvMap`'s); a sphere's and a cylinder's 2 pi times the tangent of the
+    /// circle of latitude (zero at a sphere's poles); a disk's radial direction (zero at its
+    /// centre). Only its direction is used, against the shading normal.
+    pub fn dp_du(&self, p: Vec3) -> Vec3 {
+        use std::f32::consts::TAU;
+        match self {
+            Primitive::Quad(q) => q.u,
+            Primitive::Triangle(t) => t.e1(),
+            Primitive::Sphere(s) => {
+                let l = s.frame.to_local(p - s.center);
+                TAU * (-l.y * s.frame.s + l.x * s.frame.t)
+            }
+            Primitive::Disk(d) => {
+                let rel = p - d.center;
+                let (a, b) = (d.w.dot(rel.cross(d.v)), d.w.dot(d.u.cross(rel)));
+                let r = (a * a + b * b).sqrt();
+                if r == 0.0 {
+                    return Vec3::ZERO;
+                }
+                (a * d.u + b * d.v) / r
+            }
+            Primitive::Cylinder(c) => {
+                let rel = p - c.p0;
+                TAU * (-rel.dot(c.y) * c.x + rel.dot(c.x) * c.y)
+            }
+        }
+    }
 }

@@ -315,11 +315,18 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// Microfacet metal: `alpha` (a number or a texture), `distribution` (default ggx), and
+    /// Microfacet metal: `alpha` (a number or a texture) or `alpha_u` and `alpha_v` (each a
+    /// number or a texture: the roughness along the shape's dp/du and across it),
+    /// `distribution` (default ggx), and
     /// `reflectance` (Schlick), `material` (a named conductor) or `eta` and `k` (complex index);
     /// reflectance 1 when none is given; `specular` (1, or a texture) scales the Fresnel term.
     RoughConductor {
-        alpha: RoughnessValue,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<RoughnessValue>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_u: Option<RoughnessValue>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_v: Option<RoughnessValue>,
         #[serde(default)]
         distribution: DistributionDesc,
         #[serde(default)]
@@ -335,11 +342,17 @@ pub enum MaterialDesc {
         #[serde(default)]
         one_sided: bool,
     },
-    /// Microfacet glass: `ior` inside over outside, `alpha` (a number or a texture),
-    /// `distribution` (default ggx), the two factors as `dielectric`'s.
+    /// Microfacet glass: `ior` inside over outside, `alpha` (a number or a texture) or
+    /// `alpha_u` and `alpha_v` (as `rough_conductor`'s), `distribution` (default ggx), the two
+    /// factors as `dielectric`'s.
     RoughDielectric {
         ior: f32,
-        alpha: RoughnessValue,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha: Option<RoughnessValue>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_u: Option<RoughnessValue>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        alpha_v: Option<RoughnessValue>,
         #[serde(default)]
         distribution: DistributionDesc,
         #[serde(default = "one_reflectance")]

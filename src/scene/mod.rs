@@ -76,6 +76,9 @@ pub struct ShapeTexture {
     /// A rough conductor's or rough dielectric's `alpha`, the texture's one-channel value
     /// (Mitsuba's `eval_1`, [`crate::texture::Texture::eval_1`]).
     pub alpha: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// An anisotropic rough material's `alpha_v` (its `alpha` above is then `alpha_u`), the
+    /// texture's one-channel value.
+    pub alpha_v: Option<std::sync::Arc<crate::texture::Texture>>,
     /// A conductor's or plastic's `specular` or a dielectric's `specular_reflectance`, the
     /// texture's RGB value (Mitsuba's `eval`, as plugins `conductor`, `roughconductor`,
     /// `plastic`, `roughplastic`, `dielectric`, `roughdielectric`, `thindielectric` scale
@@ -87,6 +90,9 @@ pub struct ShapeTexture {
     /// `conductor` and `roughconductor` read them for their Fresnel term), unclamped.
     pub eta: Option<std::sync::Arc<crate::texture::Texture>>,
     pub k: Option<std::sync::Arc<crate::texture::Texture>>,
+    /// An anisotropic rough material: its tangent at a point is the shape's dp/du there
+    /// ([`UvMap::dp_du`]).
+    pub tangent: bool,
     pub uv: UvMap,
 }
 
@@ -139,17 +145,28 @@ const CUBE_FACES: [(Vec3, [Vec3; 3]); 6] = {
     out
 };
 
+/// The normal a (u, v) lookup needs: only the cube's faces (quads) use it.
+#[inline]
+fn cube_normal(prim: &Primitive) -> Vec3 {
+    match prim {
+        Primitive::Quad(q) => q.n,
+        _ => Vec3::ZERO,
+    }
+}
+
 impl UvMap {
     /// The (u, v) of point `p` on the scene's primitive `id` (of `prims`).
     #[inline]
     pub fn uv_of(&self, prims: &[Primitive], id: u32, p: Vec3) -> glam::Vec2 {
         let prim = &prims[id as usize];
-        // only the cube's faces (quads) need the normal
-        let n = match prim {
-            Primitive::Quad(q) => q.n,
-            _ => Vec3::ZERO,
-        };
-        self.uv(id, prim, p, n)
+        self.uv(id, prim, p, cube_normal(prim))
+    }
+
+    /// The dp/du of point `p` on the scene's primitive `id` (of `prims`), as [`UvMap::dp_du`].
+    #[inline]
+    pub fn dp_du_of(&self, prims: &[Primitive], id: u32, p: Vec3) -> Vec3 {
+        let prim = &prims[id as usize];
+        self.dp_du(id, prim, p, cube_normal(prim))
     }
 
     /// The (u, v) of point `p` on primitive `prim` (index `id`, with unit normal `n`).
@@ -175,6 +192,42 @@ impl UvMap {
                 let rel = local - o;
                 glam::Vec2::new(rel.dot(eu - o) / 4.0, rel.dot(ev - o) / 4.0)
             }
+        }
+    }
+}
+
+impl UvMap {
+    /// dp/du at point `p` of primitive `prim` (index `id`, unit normal `n`) in this map's
+    /// (u, v), as Mitsuba 3 computes it: [`Primitive::dp_du`]; a cube face's edge from its uv
+    /// (0, 0) corner to its (1, 0) one; a mesh's from the corners' texture coordinates
+    /// (`Mesh::compute_surface_interaction`), or Duff et al.'s first axis around the face
+    /// normal where they are degenerate (zero determinant).
+    pub fn dp_du(&self, id: u32, prim: &Primitive, p: Vec3, n: Vec3) -> Vec3 {
+        match (self, prim) {
+            (
+                UvMap::Mesh {
+                    first_prim,
+                    corners,
+                },
+                Primitive::Triangle(t),
+            ) => {
+                let [t0, t1, t2] = corners[(id - first_prim) as usize];
+                let (d0, d1) = (t1 - t0, t2 - t0);
+                let det = d0.x * d1.y - d0.y * d1.x;
+                if det == 0.0 {
+                    let face = t.e1().cross(t.e2()).normalize_or_zero();
+                    return crate::math::Frame::from_normal(face).s;
+                }
+                (d1.y * t.e1() - d0.y * t.e2()) / det
+            }
+            (&UvMap::Cube { half, .. }, _) => {
+                let face = CUBE_FACES
+                    .iter()
+                    .max_by(|a, b| a.0.dot(n).total_cmp(&b.0.dot(n)))
+                    .map_or([Vec3::ZERO; 3], |f| f.1);
+                (face[1] - face[0]) * half
+            }
+            _ => prim.dp_du(p),
         }
     }
 }
@@ -401,6 +454,19 @@ impl Scene {
                 // its sampling weight stays the texture mean's, as Mitsuba's
                 Bsdf::RoughPlastic(m) => m.diffuse = value,
                 _ => {}
+            }
+        }
+        if t.tangent {
+            let anisotropy = match &mut out {
+                Bsdf::RoughConductor(m) => m.anisotropy.as_mut(),
+                Bsdf::RoughDielectric(m) => m.anisotropy.as_mut(),
+                _ => None,
+            };
+            if let Some(a) = anisotropy {
+                a.tangent = t.uv.dp_du_of(&self.prims, id, p);
+                if let Some(v) = &t.alpha_v {
+                    a.alpha_v = v.eval_1(uv);
+                }
             }
         }
         if let Some(a) = &t.alpha {

@@ -2248,6 +2248,8 @@ fn triples(m: file::MaterialDesc) -> file::MaterialDesc {
         },
         M::RoughConductor {
             alpha,
+            alpha_u,
+            alpha_v,
             distribution,
             reflectance,
             material,
@@ -2257,6 +2259,8 @@ fn triples(m: file::MaterialDesc) -> file::MaterialDesc {
             one_sided,
         } => M::RoughConductor {
             alpha,
+            alpha_u,
+            alpha_v,
             distribution,
             reflectance: reflectance.map(t),
             material,
@@ -2764,5 +2768,122 @@ fn malformed_spectra_are_refused_by_line_and_key() {
             e.starts_with(&format!("t.xml:{line}:")) && e.contains("name=\"reflectance\""),
             "{spectrum}: `{e}` does not name the line and the key"
         );
+    }
+}
+
+/// Anisotropic roughness (Mitsuba 3 documentation, plugins `roughconductor`,
+/// `roughdielectric`: `alpha_u` along the shape's dp/du, `alpha_v` across it) becomes the same
+/// TOML keys, on a rectangle, a sphere and an OBJ mesh with texture coordinates (whose dp/du
+/// comes from them), a checkerboard as `alpha_u`; `alpha_u` equal to `alpha_v` is the isotropic
+/// `alpha`, bit for bit; half a pair, a pair with `alpha` and a `roughplastic`'s pair are
+/// refused with the line.
+#[test]
+fn anisotropic_roughness_is_mitsubas() {
+    let pair = |u: f32, v: f32| {
+        format!(r#"<float name="alpha_u" value="{u}"/><float name="alpha_v" value="{v}"/>"#)
+    };
+    let body = |metal: &str| {
+        format!(
+            r#"<shape type="rectangle">
+        <bsdf type="roughconductor" id="brushed"><string name="distribution" value="ggx"/>{metal}</bsdf>
+        <transform name="to_world"><rotate z="1" angle="30"/><translate z="-2"/></transform>
+    </shape>
+    <shape type="sphere">
+        <point name="center" x="-0.6" y="0" z="0"/><float name="radius" value="0.4"/>
+        <bsdf type="roughdielectric" id="frosted"><texture type="checkerboard" name="alpha_u"><float name="color0" value="0.5"/><float name="color1" value="0.1"/></texture><float name="alpha_v" value="0.08"/></bsdf>
+    </shape>
+    <shape type="obj">
+        <string name="filename" value="tests/fixtures/textures/mesh-vt.obj"/>
+        <transform name="to_world"><translate x="-1" y="-0.8"/></transform>
+        <ref id="brushed"/>
+    </shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="1"/><rgb name="intensity" value="3, 2, 1"/></emitter>
+    <emitter type="constant"><float name="radiance" value="0.25"/></emitter>"#
+        )
+    };
+    let twin = |metal: &str| {
+        format!(
+            r#"{CAMERA}
+[materials.brushed]
+type = "rough_conductor"
+distribution = "ggx"
+{metal}
+one_sided = true
+[materials.frosted]
+type = "rough_dielectric"
+distribution = "beckmann"
+alpha_u = {{ texture = "checkerboard", color0 = 0.5, color1 = 0.1 }}
+alpha_v = 0.08
+ior = {:?}
+[[shapes]]
+type = "quad"
+origin = [-0.36602542, -1.3660254, -2.0]
+u = [1.7320508, 1.0, 0.0]
+v = [-1.0, 1.7320508, 0.0]
+material = "brushed"
+[[shapes]]
+type = "sphere"
+center = [-0.6, 0.0, 0.0]
+radius = 0.4
+material = "frosted"
+[[shapes]]
+type = "mesh"
+obj = "tests/fixtures/textures/mesh-vt.obj"
+to_world = [[1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -0.8], [0.0, 0.0, 1.0, 0.0]]
+smooth_normals = true
+material = "brushed"
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 1.0]
+intensity = [3.0, 2.0, 1.0]
+[[lights]]
+type = "environment"
+radiance = 0.25
+"#,
+            (1.5046f64 / 1.000277) as f32,
+        )
+    };
+    let aniso = scene(&body(&pair(0.05, 0.3)));
+    same_scene(&aniso, &twin("alpha_u = 0.05\nalpha_v = 0.3"));
+    // at a point of the rectangle (turned 30 degrees about z) the metal's tangent is its local
+    // x, Mitsuba's dp/du: alpha_u = 0.05 lies along (cos 30, sin 30, 0)
+    let s = Scene::load(&xml(&aniso).unwrap()).unwrap();
+    let ray = pathspace::geometry::Ray::new(glam::Vec3::new(0.3, 0.5, 4.0), -glam::Vec3::Z);
+    let hit = s.intersect(&ray, f32::INFINITY).expect("the rectangle");
+    let bsdf = s.bsdf_at(hit.prim, hit.p);
+    let Some(pathspace::bsdf::Bsdf::RoughConductor(m)) = bsdf.as_deref() else {
+        panic!("no rough conductor at {}", hit.p);
+    };
+    let a = m.anisotropy.expect("anisotropic");
+    let x = glam::Vec3::new(30f32.to_radians().cos(), 30f32.to_radians().sin(), 0.0);
+    assert!(
+        (m.alpha, a.alpha_v) == (0.05, 0.3) && a.tangent.normalize().dot(x) > 0.9999,
+        "{m:?}"
+    );
+    // equal: the isotropic material, the same image as `alpha`
+    let equal = xml(&scene(&body(&pair(0.3, 0.3)))).unwrap();
+    assert_eq!(pixels(&equal), pixels(&toml(&twin("alpha = 0.3"))));
+    // the orientation matters: swapped, another image
+    let swapped = xml(&scene(&body(&pair(0.3, 0.05)))).unwrap();
+    assert_ne!(pixels(&swapped), pixels(&xml(&aniso).unwrap()));
+    let line = SENSOR.lines().count() + 2;
+    for (bsdf, needle) in [
+        (
+            r#"<bsdf type="roughconductor"><float name="alpha_u" value="0.1"/></bsdf>"#,
+            "both alpha_u and alpha_v",
+        ),
+        (
+            r#"<bsdf type="roughdielectric"><float name="alpha" value="0.1"/><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf>"#,
+            "either alpha or alpha_u and alpha_v",
+        ),
+        (
+            r#"<bsdf type="roughplastic"><float name="alpha_u" value="0.1"/><float name="alpha_v" value="0.2"/></bsdf>"#,
+            "refuses anisotropic roughness",
+        ),
+    ] {
+        let body = format!(r#"<shape type="rectangle">{bsdf}</shape>"#);
+        let e = xml(&scene(&body)).expect_err(bsdf);
+        assert!(e.contains(needle), "{bsdf}: `{e}` does not name {needle}");
+        assert!(e.starts_with(&format!("t.xml:{line}:")), "{bsdf}: `{e}`");
     }
 }

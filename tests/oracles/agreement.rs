@@ -722,6 +722,19 @@ fn agreement_textured_roughness() {
     fam.finish();
 }
 
+/// Anisotropic roughness on a GGX conductor quad and disk and a Beckmann rough glass sphere:
+/// every column evaluates, samples and weighs the lobes in the frame of the shape's dp/du at
+/// its own vertices.
+#[test]
+fn agreement_anisotropic() {
+    let mut fam = Family::new("agreement: anisotropic roughness");
+    check_row(
+        &mut fam,
+        &row("anisotropic", fixture("anisotropic.toml"), 3),
+    );
+    fam.finish();
+}
+
 /// A checkerboard eta on a smooth conductor sphere and a checkerboard k on a rough conductor
 /// floor: every column (MLT's Dirac vertices too) reads the complex index at its own vertices;
 /// light tracing cannot reach the camera through the Dirac sphere (it warns).

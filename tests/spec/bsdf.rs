@@ -659,6 +659,7 @@ fn one_sided_models_are_black_behind_and_two_sided_in_front() {
                 fresnel: ConductorFresnel::Schlick(ALBEDO),
                 specular: Vec3::ONE,
                 one_sided,
+                anisotropy: None,
             }),
             Bsdf::Plastic(Plastic {
                 diffuse: ALBEDO,
@@ -1011,6 +1012,7 @@ fn tinted() -> Vec<(&'static str, Bsdf, Bsdf)> {
             distribution: Distribution::Ggx,
             alpha: 0.3,
             specular,
+            anisotropy: None,
         })
     };
     vec![

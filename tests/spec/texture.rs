@@ -253,6 +253,32 @@ fn assert_uv_is_recorded(scene: &Scene, hit: &Hit, h: &Value, name: &str) {
         (uv - want).abs().max_element() < 1e-5 * (1.0 + p.abs().max_element()),
         "{name} at {p}: uv {uv} against Mitsuba's {want}"
     );
+    assert_dp_du_is_the_uv_derivative(t, hit, prim, name);
+}
+
+/// The shape's dp/du at `hit` (the tangent of an anisotropic roughness, Mitsuba's shading
+/// frame) is the derivative of its (u, v): a step along it changes u at the rate 1 / |dp/du|
+/// and leaves v (central differences, the seams of a periodic coordinate unwrapped).
+fn assert_dp_du_is_the_uv_derivative(
+    t: &pathspace::scene::ShapeTexture,
+    hit: &Hit,
+    prim: &pathspace::geometry::Primitive,
+    name: &str,
+) {
+    let d = t.uv.dp_du(hit.prim, prim, hit.p, hit.ng);
+    let len = d.length();
+    assert!(len > 0.0, "{name} at {}: dp/du is zero", hit.p);
+    let h = 3e-3 * (1.0 + hit.p.abs().max_element());
+    let e = d / len;
+    let step = t.uv.uv(hit.prim, prim, hit.p + h * e, hit.ng)
+        - t.uv.uv(hit.prim, prim, hit.p - h * e, hit.ng);
+    let step = step - step.round();
+    let rate = step * len / (2.0 * h);
+    assert!(
+        (rate - Vec2::X).abs().max_element() < 1e-2,
+        "{name} at {}: along dp/du {d} the uv changes at {rate} x |dp/du|, not (1, 0)",
+        hit.p
+    );
 }
 
 /// The uv of Mitsuba's shapes where its own uv depends on more than the surface: a flipped
@@ -330,6 +356,7 @@ fn each_meshs_uv_is_mitsubas() {
                 "{file}, flip_tex_coords {:?}, at {p}: uv {uv} against Mitsuba's {want}",
                 m["flip_tex_coords"]
             );
+            assert_dp_du_is_the_uv_derivative(t, &hit, prim, file);
         }
     }
 }

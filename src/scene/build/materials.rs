@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use super::textures::{colour, mean, reflectance, texture, Texels};
 use super::values::albedo;
-use crate::bsdf::microfacet::{ALPHA_MAX, ALPHA_MIN};
+use crate::bsdf::microfacet::{Anisotropy, ALPHA_MAX, ALPHA_MIN};
 use crate::bsdf::named_conductor::{named_conductor, NAMED_CONDUCTORS};
 use crate::bsdf::plastic::default_eta;
 use crate::bsdf::{
@@ -20,6 +20,7 @@ use crate::scene::file::{
 use crate::scene::{SceneError, SceneSource};
 use crate::spectrum::Rgb;
 use crate::texture::{Texture, MITSUBA_LUMINANCE};
+use glam::Vec3;
 
 /// The materials by name, and the textured parameters of those that have some.
 pub(super) struct Materials {
@@ -28,17 +29,20 @@ pub(super) struct Materials {
 }
 
 /// A material's textured parameters: its reflectance (`albedo`, a plastic's `diffuse`), its
-/// roughness (`alpha`), a conductor's or plastic's `specular` or a dielectric's
+/// roughness (`alpha` or `alpha_u`, and `alpha_v`), a conductor's or plastic's `specular` or a dielectric's
 /// `specular_reflectance`, a dielectric's `specular_transmittance`, and a conductor's complex
-/// index (`eta`, `k`).
+/// index (`eta`, `k`); and whether its roughness is anisotropic (`tangent`).
 #[derive(Default)]
 pub(super) struct Textured {
     pub(super) reflectance: Option<Arc<Texture>>,
     pub(super) alpha: Option<Arc<Texture>>,
+    pub(super) alpha_v: Option<Arc<Texture>>,
     pub(super) specular: Option<Arc<Texture>>,
     pub(super) transmittance: Option<Arc<Texture>>,
     pub(super) eta: Option<Arc<Texture>>,
     pub(super) k: Option<Arc<Texture>>,
+    /// An anisotropic roughness: the BSDF at a point takes the shape's dp/du there.
+    pub(super) tangent: bool,
 }
 
 impl Textured {
@@ -49,9 +53,12 @@ impl Textured {
         }
     }
 
-    fn alpha(t: Option<Texture>) -> Self {
+    /// A rough material's textured `alpha` (or `alpha_u`) and `alpha_v`, and its tangent.
+    fn roughness(r: Roughness) -> Self {
         Textured {
-            alpha: t.map(Arc::new),
+            alpha: r.texture.map(Arc::new),
+            alpha_v: r.texture_v.map(Arc::new),
+            tangent: r.anisotropy.is_some(),
             ..Textured::default()
         }
     }
@@ -59,10 +66,12 @@ impl Textured {
     fn is_some(&self) -> bool {
         self.reflectance.is_some()
             || self.alpha.is_some()
+            || self.alpha_v.is_some()
             || self.specular.is_some()
             || self.transmittance.is_some()
             || self.eta.is_some()
             || self.k.is_some()
+            || self.tangent
     }
 }
 
@@ -159,6 +168,8 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
             }
             MaterialDesc::RoughConductor {
                 alpha,
+                alpha_u,
+                alpha_v,
                 distribution,
                 reflectance,
                 material,
@@ -167,8 +178,9 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                 specular,
                 one_sided,
             } => {
-                let (alpha, texture) = textured_roughness(src, &key, alpha, "conductor")?;
-                textured = Textured::alpha(texture);
+                let r = material_roughness(src, &key, [alpha, alpha_u, alpha_v], "conductor")?;
+                let (alpha, anisotropy) = (r.alpha, r.anisotropy);
+                textured = Textured::roughness(r);
                 let specular_key = key.clone().key("specular");
                 let (specular, texture) =
                     super::textures::reflectance(src, &specular_key, specular)?;
@@ -189,23 +201,28 @@ pub(super) fn materials(src: &SceneSource, desc: &SceneFile) -> Result<Materials
                     )?,
                     specular,
                     one_sided: *one_sided,
+                    anisotropy,
                 })
             }
             MaterialDesc::RoughDielectric {
                 ior,
                 alpha,
+                alpha_u,
+                alpha_v,
                 distribution,
                 specular_reflectance: r,
                 specular_transmittance: t,
             } => {
-                let (alpha, texture) = textured_roughness(src, &key, alpha, "dielectric")?;
-                textured = Textured::alpha(texture);
+                let rough = material_roughness(src, &key, [alpha, alpha_u, alpha_v], "dielectric")?;
+                let (alpha, anisotropy) = (rough.alpha, rough.anisotropy);
+                textured = Textured::roughness(rough);
                 let specular = specular_factors(src, &key, r, t, &mut textured)?;
                 Bsdf::RoughDielectric(RoughDielectric {
                     ior: rough_ior(src, &key, *ior)?,
                     distribution: distribution_of(*distribution),
                     alpha,
                     specular,
+                    anisotropy,
                 })
             }
             MaterialDesc::Plastic {
@@ -318,12 +335,23 @@ fn roughness(
     alpha: f32,
     smooth: &str,
 ) -> Result<f32, SceneError> {
-    let key = key.clone().key("alpha");
+    roughness_at(src, key, "alpha", alpha, smooth)
+}
+
+/// [`roughness`] of the key `name` (`alpha`, `alpha_u`, `alpha_v`).
+fn roughness_at(
+    src: &SceneSource,
+    key: &KeyPath,
+    name: &str,
+    alpha: f32,
+    smooth: &str,
+) -> Result<f32, SceneError> {
+    let key = key.clone().key(name);
     if !alpha.is_finite() || alpha < ALPHA_MIN {
         return Err(src.error(
             &key,
             format!(
-                "alpha = {alpha} is below {ALPHA_MIN}: a lobe that narrow is lost in f32 \
+                "{name} = {alpha} is below {ALPHA_MIN}: a lobe that narrow is lost in f32 \
                  rounding; use type = \"{smooth}\" for a smooth surface"
             ),
         ));
@@ -332,7 +360,7 @@ fn roughness(
         return Err(src.error(
             &key,
             format!(
-                "alpha = {alpha} is above {ALPHA_MAX}: the microfacet model without multiple \
+                "{name} = {alpha} is above {ALPHA_MAX}: the microfacet model without multiple \
                  scattering loses too much energy beyond it; use lambert for a matte surface"
             ),
         ));
@@ -349,14 +377,88 @@ fn textured_roughness(
     alpha: &RoughnessValue,
     smooth: &str,
 ) -> Result<(f32, Option<Texture>), SceneError> {
+    textured_roughness_at(src, key, "alpha", alpha, smooth)
+}
+
+/// [`textured_roughness`] of the key `name` (`alpha`, `alpha_u`, `alpha_v`).
+fn textured_roughness_at(
+    src: &SceneSource,
+    key: &KeyPath,
+    name: &str,
+    alpha: &RoughnessValue,
+    smooth: &str,
+) -> Result<(f32, Option<Texture>), SceneError> {
     let t = match alpha {
-        RoughnessValue::Value(a) => return Ok((roughness(src, key, *a, smooth)?, None)),
-        RoughnessValue::Texture(t) => texture(src, &key.clone().key("alpha"), t)?,
+        RoughnessValue::Value(a) => return Ok((roughness_at(src, key, name, *a, smooth)?, None)),
+        RoughnessValue::Texture(t) => texture(src, &key.clone().key(name), t)?,
     };
     let (lo, hi) = t.range_1();
-    roughness(src, key, lo, smooth)?;
-    roughness(src, key, hi, smooth)?;
+    roughness_at(src, key, name, lo, smooth)?;
+    roughness_at(src, key, name, hi, smooth)?;
     Ok((mean(&t).dot(MITSUBA_LUMINANCE), Some(t)))
+}
+
+/// A rough material's roughness: `alpha` (the roughness along the tangent when anisotropic),
+/// the anisotropy, and the textures of `alpha` (or `alpha_u`) and `alpha_v`.
+struct Roughness {
+    alpha: f32,
+    anisotropy: Option<Anisotropy>,
+    texture: Option<Texture>,
+    texture_v: Option<Texture>,
+}
+
+/// A rough material's roughness: `alpha`, or `alpha_u` along the shape's dp/du and `alpha_v`
+/// across it (Mitsuba 3 documentation, plugins `roughconductor` and `roughdielectric`: both or
+/// neither, never with `alpha`), each a number or a texture as [`textured_roughness`]. Equal
+/// numbers are the isotropic `alpha` (the same BSDF and code).
+fn material_roughness(
+    src: &SceneSource,
+    key: &KeyPath,
+    alphas: [&Option<RoughnessValue>; 3],
+    smooth: &str,
+) -> Result<Roughness, SceneError> {
+    let missing = |name: &str, other: &str| {
+        src.error(
+            &key.clone().key(other),
+            format!("{other} needs {name}: give both alpha_u and alpha_v, or one `alpha`"),
+        )
+    };
+    match alphas {
+        [Some(a), None, None] => {
+            let (alpha, texture) = textured_roughness(src, key, a, smooth)?;
+            Ok(Roughness {
+                alpha,
+                anisotropy: None,
+                texture,
+                texture_v: None,
+            })
+        }
+        [Some(_), _, _] => Err(src.error(
+            &key.clone().key("alpha"),
+            "give either `alpha` or `alpha_u` and `alpha_v`, not both",
+        )),
+        [None, Some(u), Some(v)] => {
+            let (alpha, texture) = textured_roughness_at(src, key, "alpha_u", u, smooth)?;
+            let (alpha_v, texture_v) = textured_roughness_at(src, key, "alpha_v", v, smooth)?;
+            let textured = texture.is_some() || texture_v.is_some();
+            let anisotropy = (alpha != alpha_v || textured).then_some(Anisotropy {
+                alpha_v,
+                tangent: Vec3::ZERO,
+            });
+            Ok(Roughness {
+                alpha,
+                anisotropy,
+                texture,
+                texture_v,
+            })
+        }
+        [None, Some(_), None] => Err(missing("alpha_u", "alpha_v")),
+        [None, None, Some(_)] => Err(missing("alpha_v", "alpha_u")),
+        [None, None, None] => Err(src.error(
+            &key.clone().key("alpha"),
+            "missing the roughness: give `alpha`, or `alpha_u` and `alpha_v`",
+        )),
+    }
 }
 
 /// A rough dielectric's index: positive and not within 1% of 1, where every refracted

@@ -201,10 +201,12 @@ pub(super) fn shapes(
         let texture = textured.map(|t| ShapeTexture {
             reflectance: t.reflectance.clone(),
             alpha: t.alpha.clone(),
+            alpha_v: t.alpha_v.clone(),
             specular: t.specular.clone(),
             transmittance: t.transmittance.clone(),
             eta: t.eta.clone(),
             k: t.k.clone(),
+            tangent: t.tangent,
             uv: uv.clone(),
         });
         let light = emission.map(|(mean, texture)| {

@@ -102,6 +102,7 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 distribution: Distribution::Ggx,
                 alpha: 0.3,
                 specular: TINT,
+                anisotropy: None,
             }),
         ),
         (
@@ -112,6 +113,7 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 fresnel: complex,
                 specular: Vec3::ONE,
                 one_sided: false,
+                anisotropy: None,
             }),
         ),
         (
@@ -122,6 +124,7 @@ fn models() -> Vec<(&'static str, Bsdf)> {
                 fresnel: ConductorFresnel::Schlick(Rgb::ONE),
                 specular: Vec3::ONE,
                 one_sided: true,
+                anisotropy: None,
             }),
         ),
         (
@@ -177,6 +180,7 @@ fn rough_dielectric(distribution: Distribution, ior: f32) -> Bsdf {
         distribution,
         alpha: 0.3,
         specular: pathspace::bsdf::Specular::ONE,
+        anisotropy: None,
     })
 }
 

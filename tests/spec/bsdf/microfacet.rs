@@ -7,7 +7,10 @@
 //! generalized (eta^2) relation of refraction with its adjoint; the white furnace of the rough
 //! conductor (its single-scattering albedo by two independent quadratures against the
 //! sampler's mean weight); the limit alpha -> 0 against the mirror and the smooth dielectric;
-//! the conductor's complex Fresnel against the dielectric's.
+//! the conductor's complex Fresnel against the dielectric's. Anisotropic roughness: D against
+//! Heitz 2014's eqs. 81, 82, Lambda at the projected roughness (eq. 80) against the visible
+//! projected area, the stretched samplers by chi-square, the models' sampling, reciprocity and
+//! white furnace in the frame of a tangent that needs Gram-Schmidt.
 
 use crate::common;
 
@@ -16,8 +19,8 @@ use common::*;
 use glam::{Vec2, Vec3};
 use pathspace::bsdf::conductor::fresnel_complex;
 use pathspace::bsdf::{
-    fresnel_dielectric, Beckmann, Bsdf, ConductorFresnel, Dielectric, Distribution, Ggx, Lobe,
-    Microfacet, Mirror, RoughConductor, RoughDielectric, TransportMode,
+    fresnel_dielectric, Anisotropy, Beckmann, Bsdf, ConductorFresnel, Dielectric, Distribution,
+    Ggx, Lobe, Microfacet, Mirror, RoughConductor, RoughDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
 use pathspace::math::{warp, Frame};
@@ -40,6 +43,7 @@ fn conductor(distribution: Distribution, alpha: f32) -> Bsdf {
         fresnel: ConductorFresnel::Schlick(Vec3::ONE),
         specular: Vec3::ONE,
         one_sided: false,
+        anisotropy: None,
     })
 }
 
@@ -49,6 +53,7 @@ fn dielectric(distribution: Distribution, alpha: f32) -> Bsdf {
         distribution,
         alpha,
         specular: pathspace::bsdf::Specular::ONE,
+        anisotropy: None,
     })
 }
 
@@ -403,6 +408,7 @@ fn rough_conductor_is_reciprocal() {
             },
             specular: Vec3::ONE,
             one_sided: false,
+            anisotropy: None,
         });
         let mut nonzero = 0;
         for (a, b) in pairs(3, n) {
@@ -452,6 +458,7 @@ fn rough_dielectric_satisfies_generalized_reciprocity_and_its_adjoint() {
                 distribution: dist,
                 alpha,
                 specular: pathspace::bsdf::Specular::ONE,
+                anisotropy: None,
             });
             let (mut refracting, mut reflecting) = (0, 0);
             for (a, b) in pairs(4, n) {
@@ -595,6 +602,7 @@ fn small_alpha_conductor_is_the_mirror() {
             fresnel: ConductorFresnel::Schlick(r0),
             specular: Vec3::ONE,
             one_sided: false,
+            anisotropy: None,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 2.0);
         // the mirror with the Fresnel reflectance of this angle (Schlick's about r0)
@@ -658,6 +666,7 @@ fn small_alpha_dielectric_is_the_smooth_dielectric() {
             distribution: dist,
             alpha: ALPHA_SMALL,
             specular: pathspace::bsdf::Specular::ONE,
+            anisotropy: None,
         });
         let wo = direction(&Frame::from_normal(n), cos_o, 0.7);
         for mode in [TransportMode::Radiance, TransportMode::Importance] {
@@ -790,4 +799,316 @@ fn glossy_values_stay_finite_at_grazing_and_degenerate_directions() {
             }
         }
     }
+}
+
+// ---- anisotropic roughness (alpha_u along the tangent, alpha_v across it) ----
+
+/// The (alpha_u, alpha_v) pairs of the anisotropic tests: elongated either way.
+const ANISO: [(f32, f32); 2] = [(0.15, 0.5), (0.6, 0.2)];
+
+/// A tangent neither unit nor perpendicular to [`normal`], so that the models' Gram-Schmidt
+/// is exercised.
+fn tangent() -> Vec3 {
+    Vec3::new(1.0, 0.5, 0.2)
+}
+
+fn anisotropy(alpha_v: f32) -> Option<Anisotropy> {
+    Some(Anisotropy {
+        alpha_v,
+        tangent: tangent(),
+    })
+}
+
+fn aniso_conductor(distribution: Distribution, (alpha_u, alpha_v): (f32, f32)) -> Bsdf {
+    Bsdf::RoughConductor(RoughConductor {
+        distribution,
+        alpha: alpha_u,
+        fresnel: ConductorFresnel::Complex {
+            eta: Vec3::new(0.2, 0.9, 1.1),
+            k: Vec3::new(3.9, 2.4, 2.1),
+        },
+        specular: Vec3::ONE,
+        one_sided: false,
+        anisotropy: anisotropy(alpha_v),
+    })
+}
+
+fn aniso_dielectric(distribution: Distribution, (alpha_u, alpha_v): (f32, f32)) -> Bsdf {
+    Bsdf::RoughDielectric(RoughDielectric {
+        ior: 1.5,
+        distribution,
+        alpha: alpha_u,
+        specular: pathspace::bsdf::Specular::ONE,
+        anisotropy: anisotropy(alpha_v),
+    })
+}
+
+/// The anisotropic D of Heitz 2014, eqs. 81 (Beckmann) and 82 (GGX), in spherical
+/// coordinates of the facet normal, written independently of the crate's slope form.
+fn aniso_d(dist: Distribution, (au, av): (f64, f64), theta: f64, phi: f64) -> f64 {
+    let t2 = theta.tan().powi(2);
+    let e = t2 * (phi.cos().powi(2) / (au * au) + phi.sin().powi(2) / (av * av));
+    let c4 = theta.cos().powi(4);
+    match dist {
+        Distribution::Ggx => 1.0 / (PI * au * av * c4 * (1.0 + e).powi(2)),
+        Distribution::Beckmann => (-e).exp() / (PI * au * av * c4),
+    }
+}
+
+/// The exact Smith Lambda at projected roughness alpha(phi)^2 = cos^2 phi a_u^2 + sin^2 phi
+/// a_v^2 (Heitz 2014, eqs. 72, 80 and the Beckmann form of eq. 26 of Walter et al. 2007).
+fn aniso_lambda(dist: Distribution, (au, av): (f64, f64), cos_v: f64, phi: f64) -> f64 {
+    let alpha = (phi.cos().powi(2) * au * au + phi.sin().powi(2) * av * av).sqrt();
+    let tan = (1.0 - cos_v * cos_v).sqrt() / cos_v;
+    match dist {
+        Distribution::Ggx => (-1.0 + (1.0 + alpha * alpha * tan * tan).sqrt()) / 2.0,
+        Distribution::Beckmann => beckmann_lambda(alpha, cos_v),
+    }
+}
+
+/// The integral of g(m) D(m) over the facet normals for the anisotropic D of [`aniso_d`], in
+/// y = x / (1 + x), x = tan(theta_m) / min(a_u, a_v), as [`facet_integral`].
+fn aniso_integral(
+    dist: Distribution,
+    alphas: (f64, f64),
+    g: impl Fn(Vec3) -> f64,
+    n_y: usize,
+    n_phi: usize,
+) -> f64 {
+    let a = alphas.0.min(alphas.1);
+    simpson(
+        |y| {
+            if y >= 1.0 {
+                return 0.0;
+            }
+            let x = y / (1.0 - y);
+            let theta = (a * x).atan();
+            let jac = a / (1.0 + a * a * x * x) / ((1.0 - y) * (1.0 - y));
+            simpson(
+                |phi| {
+                    let m = Vec3::new(
+                        (theta.sin() * phi.cos()) as f32,
+                        (theta.sin() * phi.sin()) as f32,
+                        theta.cos() as f32,
+                    );
+                    g(m) * aniso_d(dist, alphas, theta, phi) * theta.sin() * jac
+                },
+                0.0,
+                TAU,
+                n_phi,
+            )
+        },
+        0.0,
+        1.0,
+        n_y,
+    )
+}
+
+#[test]
+fn anisotropic_distributions_are_normalized_and_lambda_is_their_projected_area() {
+    // D against Heitz 2014's closed forms (which axis is alpha_u), the projected area of D is
+    // 1, and the visible projected area from v is v.z (1 + Lambda(v)) with the projected
+    // roughness (Heitz 2014, eq. 80), so that GGX's visible-normal density integrates to 1;
+    // Beckmann's G1 is eq. (27) of Walter et al. 2007 within its stated 0.35%
+    for dist in DISTRIBUTIONS {
+        for (au, av) in ANISO {
+            let g = Microfacet::anisotropic(dist, au, av);
+            let al = (au as f64, av as f64);
+            let what = format!("{dist:?} ({au}, {av})");
+            for (theta, phi) in [(0.3f64, 0.0f64), (0.3, PI / 2.0), (0.6, 1.0), (1.1, 4.0)] {
+                let m = Vec3::new(
+                    (theta.sin() * phi.cos()) as f32,
+                    (theta.sin() * phi.sin()) as f32,
+                    theta.cos() as f32,
+                );
+                let want = aniso_d(dist, al, theta, phi);
+                let got = g.d(m) as f64;
+                assert_close(
+                    &format!("{what}: D at ({theta}, {phi})"),
+                    got,
+                    want,
+                    1e-5 * want,
+                );
+            }
+            let area = aniso_integral(dist, al, |m| m.z as f64, 2000, 512);
+            assert_close(&format!("{what}: int D cos"), area, 1.0, 1e-5);
+            for (cos_v, phi) in [(0.9f64, 0.4f64), (0.5, 1.3), (0.2, 2.5)] {
+                let v = direction(&Frame::from_normal(Vec3::Z), cos_v, phi);
+                let lambda = aniso_lambda(dist, al, cos_v, phi);
+                let w = format!("{what}, cos_v {cos_v}, phi {phi}");
+                let projected = aniso_integral(dist, al, |m| (v.dot(m) as f64).max(0.0), 2000, 512);
+                assert_close(
+                    &format!("{w}: projected area"),
+                    projected,
+                    cos_v * (1.0 + lambda),
+                    2e-4,
+                );
+                let exact = 1.0 / (1.0 + lambda);
+                let tol = match dist {
+                    Distribution::Ggx => 1e-5,
+                    Distribution::Beckmann => 0.0035,
+                };
+                assert_close(
+                    &format!("{w}: G1"),
+                    g.g1(v, Vec3::Z) as f64,
+                    exact,
+                    tol * exact,
+                );
+                if dist == Distribution::Ggx {
+                    let mass =
+                        aniso_integral(dist, al, |m| g.pdf(v, m) as f64 / g.d(m) as f64, 2000, 512);
+                    // Simpson across the kink of max(0, v.m): a few 1e-4 of quadrature error
+                    assert_close(&format!("{w}: visible-normal density"), mass, 1.0, 5e-4);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn anisotropic_facet_samplers_draw_their_density() {
+    // GGX's stretched visible normals against G1 max(0, wo.m) D / wo.z, Beckmann's scaled
+    // Gaussian slopes against D cos, by chi-square over the facet normals
+    const N: u64 = 200_000;
+    let mut fam = Family::new("microfacet: anisotropic facet samplers vs density");
+    let frame = Frame::from_normal(Vec3::Z);
+    for (k, dist) in DISTRIBUTIONS.into_iter().enumerate() {
+        for (i, (au, av)) in ANISO.into_iter().enumerate() {
+            for (j, (cos_o, phi)) in [(0.9f64, 0.3f64), (0.3, 2.0)].into_iter().enumerate() {
+                let g = Microfacet::anisotropic(dist, au, av);
+                let wo = direction(&frame, cos_o, phi);
+                let mut grid = SphereGrid::new(frame, 40, 32);
+                grid.quad_cos = 1024;
+                let mut s = sampler(31 + k as u64, (2 * i + j) as u64);
+                let density = |m: Vec3| match dist {
+                    Distribution::Ggx => g.pdf(wo, m) as f64,
+                    Distribution::Beckmann => (g.d(m) * m.z.max(0.0)) as f64,
+                };
+                chi_square_sphere(
+                    &mut fam,
+                    &format!("{dist:?} ({au}, {av}), wo ({cos_o}, {phi})"),
+                    &grid,
+                    || Some(g.sample(wo, s.next_2d())),
+                    density,
+                    N,
+                );
+            }
+        }
+    }
+    fam.finish();
+}
+
+#[test]
+fn anisotropic_rough_models_sample_their_density() {
+    // the models' directions against their densities, in the frame of a tangent that is
+    // neither unit nor perpendicular to the normal (the models make it so)
+    let mut fam = Family::new("microfacet: anisotropic models' sampling vs pdf");
+    let n = normal();
+    for (k, dist) in DISTRIBUTIONS.into_iter().enumerate() {
+        for (i, alphas) in ANISO.into_iter().enumerate() {
+            for (j, cos_o) in [0.8f64, -0.4].into_iter().enumerate() {
+                let wo = direction(&Frame::from_normal(n), cos_o, 1.0);
+                let seed = (40 + 10 * k as u64, (2 * i + j) as u64);
+                let what = format!("{dist:?} {alphas:?}, cos_o {cos_o}");
+                let metal = aniso_conductor(dist, alphas);
+                check_sampler(&mut fam, &format!("conductor {what}"), &metal, wo, seed);
+                let glass = aniso_dielectric(dist, alphas);
+                let seed = (seed.0 + 5, seed.1);
+                check_sampler(&mut fam, &format!("dielectric {what}"), &glass, wo, seed);
+            }
+        }
+    }
+    fam.finish();
+}
+
+#[test]
+fn anisotropic_rough_models_are_reciprocal() {
+    // reflection: f(a, b) = f(b, a); refraction: f(a, b) / eta_a^2 = f(b, a) / eta_b^2, and
+    // the importance BSDF is the radiance BSDF with its arguments swapped
+    let n = normal();
+    for dist in DISTRIBUTIONS {
+        for alphas in ANISO {
+            let (metal, glass) = (
+                aniso_conductor(dist, alphas),
+                aniso_dielectric(dist, alphas),
+            );
+            let mut nonzero = 0;
+            for (a, b) in pairs(6, n) {
+                let what = format!("{dist:?} {alphas:?} ({a}, {b})");
+                let (fab, fba) = (
+                    metal.eval(a, b, n, TransportMode::Radiance).x as f64,
+                    metal.eval(b, a, n, TransportMode::Radiance).x as f64,
+                );
+                assert_close(
+                    &format!("{what}: conductor"),
+                    fab,
+                    fba,
+                    REL * fab.max(fba) + ABS,
+                );
+                nonzero += (fab > 0.0) as usize;
+                let r_ab = glass.eval(a, b, n, TransportMode::Radiance).x as f64;
+                let r_ba = glass.eval(b, a, n, TransportMode::Radiance).x as f64;
+                let i_ab = glass.eval(a, b, n, TransportMode::Importance).x as f64;
+                let (ea, eb) = (eta_of(a, n, 1.5), eta_of(b, n, 1.5));
+                let (x, y) = (r_ab / (ea * ea), r_ba / (eb * eb));
+                assert_close(&format!("{what}: generalized"), x, y, REL * x.max(y) + ABS);
+                assert_close(
+                    &format!("{what}: adjoint"),
+                    i_ab,
+                    r_ba,
+                    REL * i_ab.max(r_ba) + ABS,
+                );
+            }
+            assert!(
+                nonzero > 500,
+                "{dist:?} {alphas:?}: only {nonzero} pairs reflect"
+            );
+        }
+    }
+}
+
+#[test]
+fn white_furnace_anisotropic_conductor() {
+    // with F = 1 the albedo by quadrature of f |cos| (from eval) equals the sampler's mean
+    // weight (from sample), at most 1
+    const N: usize = 100_000;
+    let mut fam = Family::new("microfacet: white furnace of the anisotropic conductor");
+    let n = normal();
+    let frame = Frame::from_normal(n);
+    for (k, dist) in DISTRIBUTIONS.into_iter().enumerate() {
+        for (i, (au, av)) in ANISO.into_iter().enumerate() {
+            let bsdf = Bsdf::RoughConductor(RoughConductor {
+                distribution: dist,
+                alpha: au,
+                fresnel: ConductorFresnel::Schlick(Vec3::ONE),
+                specular: Vec3::ONE,
+                one_sided: false,
+                anisotropy: anisotropy(av),
+            });
+            for (j, cos_o) in [0.9f64, 0.3].into_iter().enumerate() {
+                let wo = direction(&frame, cos_o, 0.5);
+                let mode = TransportMode::Radiance;
+                let f_cos = |wi: Vec3| bsdf.eval(wo, wi, n, mode).x as f64 * wi.dot(n).abs() as f64;
+                let quad = hemisphere_integral(n, f_cos, 4096, 1024);
+                let mut s = sampler(50 + k as u64, (2 * i + j) as u64);
+                let w: Vec<f64> = (0..N)
+                    .map(|_| {
+                        bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)
+                            .map_or(0.0, |bs| bs.weight(n).x as f64)
+                    })
+                    .collect();
+                let (mean, se) = mean_and_stderr(&w);
+                let what = format!("{dist:?} ({au}, {av}), cos_o {cos_o}");
+                fam.mean_is(
+                    &format!("{what}: E by sampling"),
+                    mean,
+                    (se * se + QUAD_ERR * QUAD_ERR).sqrt(),
+                    (N - 1) as f64,
+                    quad,
+                );
+                assert!(quad <= 1.0 + 1e-4, "{what}: albedo {quad} above 1");
+            }
+        }
+    }
+    fam.finish();
 }

@@ -226,6 +226,7 @@ fn tables_match_the_rough_dielectric() {
             distribution: d,
             alpha,
             specular: pathspace::bsdf::Specular::ONE,
+            anisotropy: None,
         });
         let g = Microfacet::new(d, alpha);
         let p = plastic(d, alpha, eta, Vec3::ONE, 1.0);

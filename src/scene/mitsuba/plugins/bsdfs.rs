@@ -265,12 +265,15 @@ fn rough_conductor(
     one_sided: bool,
     side: &str,
 ) -> Result<(MaterialDesc, String), SceneError> {
-    let (distribution, alpha) = microfacet(p)?;
+    let (distribution, alphas) = microfacet(p)?;
     let ((material, eta, k), how) = conductor_index(p)?;
     let (specular, shown) = specular_reflectance(p)?;
+    let [alpha, alpha_u, alpha_v] = alphas.keys();
     Ok((
         MaterialDesc::RoughConductor {
-            alpha: alpha.clone(),
+            alpha,
+            alpha_u,
+            alpha_v,
             distribution,
             reflectance: None,
             material,
@@ -280,7 +283,7 @@ fn rough_conductor(
             one_sided,
         },
         format!(
-            "rough conductor ({}), alpha {alpha}, {how}, specular {shown}{side}",
+            "rough conductor ({}), {alphas}, {how}, specular {shown}{side}",
             dist_name(distribution),
         ),
     ))
@@ -357,13 +360,15 @@ fn dielectric(p: &mut Props) -> Result<(MaterialDesc, String), SceneError> {
         Some((d, a)) => (
             MaterialDesc::RoughDielectric {
                 ior: ior as f32,
-                alpha: a.clone(),
+                alpha: a.keys()[0].clone(),
+                alpha_u: a.keys()[1].clone(),
+                alpha_v: a.keys()[2].clone(),
                 distribution: d,
                 specular_reflectance,
                 specular_transmittance,
             },
             format!(
-                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), alpha {a}{shown}",
+                "rough dielectric ({}), ior {ior} (int_ior / ext_ior), {a}{shown}",
                 dist_name(d)
             ),
         ),
@@ -456,10 +461,39 @@ fn ior(p: &mut Props, key: &str, dflt: f64) -> Result<f64, SceneError> {
     }
 }
 
+/// A rough plugin's roughness: one `alpha`, or `alpha_u` along the shape's dp/du and `alpha_v`
+/// across it, each a number or a texture.
+#[derive(Clone)]
+enum Alphas {
+    Isotropic(RoughnessValue),
+    Anisotropic(RoughnessValue, RoughnessValue),
+}
+
+impl Alphas {
+    /// The scene file's `alpha`, `alpha_u` and `alpha_v`.
+    fn keys(&self) -> [Option<RoughnessValue>; 3] {
+        match self {
+            Alphas::Isotropic(a) => [Some(a.clone()), None, None],
+            Alphas::Anisotropic(u, v) => [None, Some(u.clone()), Some(v.clone())],
+        }
+    }
+}
+
+impl std::fmt::Display for Alphas {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Alphas::Isotropic(a) => write!(f, "alpha {a}"),
+            Alphas::Anisotropic(u, v) => write!(f, "alpha_u {u}, alpha_v {v}"),
+        }
+    }
+}
+
 /// The microfacet model of a rough plugin: `distribution` (Mitsuba's default beckmann, or
-/// ggx) and one isotropic `alpha` (default 0.1), a number or a texture (roughconductor and
-/// roughdielectric read it with `eval_1`; Mitsuba's roughplastic takes a number only).
-fn microfacet(p: &mut Props) -> Result<(DistributionDesc, RoughnessValue), SceneError> {
+/// ggx) and the roughness: one isotropic `alpha` (default 0.1), a number or a texture
+/// (roughconductor and roughdielectric read it with `eval_1`; Mitsuba's roughplastic takes a
+/// number only), or `alpha_u` and `alpha_v` (Mitsuba 3 documentation, plugins
+/// `roughconductor`, `roughdielectric`: both or neither, not with `alpha`), each the same.
+fn microfacet(p: &mut Props) -> Result<(DistributionDesc, Alphas), SceneError> {
     // Mitsuba lowercases the name
     let d = match p
         .string("distribution")?
@@ -474,18 +508,36 @@ fn microfacet(p: &mut Props) -> Result<(DistributionDesc, RoughnessValue), Scene
             )))
         }
     };
-    if p.float("alpha_u")?.is_some() || p.float("alpha_v")?.is_some() {
-        return Err(p.err("anisotropic roughness (alpha_u, alpha_v) is not supported"));
-    }
     // only the sampler depends on it, not the BSDF
     p.ignore(&["sample_visible"]);
-    if let Some(t) = p.texture("alpha") {
-        return Ok((d, RoughnessValue::Texture(texture(p.doc, t)?)));
+    let (u, v) = (
+        roughness_value(p, "alpha_u")?,
+        roughness_value(p, "alpha_v")?,
+    );
+    if u.is_some() || v.is_some() {
+        let (Some(u), Some(v)) = (u, v) else {
+            return Err(
+                p.err("both alpha_u and alpha_v must be given (Mitsuba 3's microfacet model)")
+            );
+        };
+        if p.tag_of("alpha").is_some() {
+            return Err(p.err(
+                "give either alpha or alpha_u and alpha_v, not both (Mitsuba 3's microfacet model)",
+            ));
+        }
+        return Ok((d, Alphas::Anisotropic(u, v)));
     }
-    Ok((
-        d,
-        RoughnessValue::Value(p.float("alpha")?.unwrap_or(0.1) as f32),
-    ))
+    let alpha = roughness_value(p, "alpha")?.unwrap_or(RoughnessValue::Value(0.1));
+    Ok((d, Alphas::Isotropic(alpha)))
+}
+
+/// A roughness property `name`: a number or a texture (Mitsuba's `get_unbounded_texture`, read
+/// with `eval_1`); `None` when absent.
+fn roughness_value(p: &mut Props, name: &str) -> Result<Option<RoughnessValue>, SceneError> {
+    if let Some(t) = p.texture(name) {
+        return Ok(Some(RoughnessValue::Texture(texture(p.doc, t)?)));
+    }
+    Ok(p.float(name)?.map(|v| RoughnessValue::Value(v as f32)))
 }
 
 fn dist_name(d: DistributionDesc) -> &'static str {
@@ -503,8 +555,14 @@ fn rough_plastic(
     side: &str,
 ) -> Result<(MaterialDesc, String), SceneError> {
     let (distribution, alpha) = microfacet(p)?;
-    let RoughnessValue::Value(alpha) = alpha else {
-        return Err(p.err("a texture as `alpha` of a roughplastic: Mitsuba 3's roughplastic takes a number (its tables are computed for one alpha)"));
+    let alpha = match alpha {
+        Alphas::Isotropic(RoughnessValue::Value(alpha)) => alpha,
+        Alphas::Isotropic(RoughnessValue::Texture(_)) => {
+            return Err(p.err("a texture as `alpha` of a roughplastic: Mitsuba 3's roughplastic takes a number (its tables are computed for one alpha)"))
+        }
+        Alphas::Anisotropic(..) => {
+            return Err(p.err("alpha_u and alpha_v of a roughplastic: Mitsuba 3's roughplastic refuses anisotropic roughness"))
+        }
     };
     let (int_ior, ext_ior) = (ior(p, "int_ior", 1.49)?, ior(p, "ext_ior", 1.000277)?);
     if !(int_ior > 0.0 && ext_ior > 0.0) || int_ior == ext_ior {
