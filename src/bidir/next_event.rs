@@ -204,7 +204,7 @@ impl Bdpt<'_> {
         p_ref: Vec3,
     ) -> Vertex {
         let light_ref = &scene.lights[li];
-        let lm = scene.light_media[li];
+        let lm = scene.light_medium(li, start_prim);
         let mut v = match light_ref {
             Light::Area { .. } => Vertex::new(
                 VertexKind::Light {

@@ -425,7 +425,7 @@ impl Bdpt<'_> {
         if es.pdf_pos <= 0.0 || es.pdf_dir <= 0.0 || es.value == Rgb::ZERO {
             return;
         }
-        let lm = scene.light_media[l];
+        let lm = scene.light_medium(l, start_prim);
         let Some((mut v0, origin, first)) =
             light_start_vertex(light, l as u32, start_prim, &es, lm)
         else {

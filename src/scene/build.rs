@@ -101,6 +101,7 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
         light_distr,
         environment,
         light_media: Vec::new(),
+        light_prim_media: Vec::new(),
         camera: None,
         camera_medium: None,
         emitters: Default::default(),
@@ -116,7 +117,7 @@ pub fn build_parsed(src: &SceneSource, desc: &file::SceneFile) -> Result<Scene, 
     };
 
     scene.light_media = lights::media_around(&scene);
-    lights::one_medium_each(src, &scene)?;
+    scene.light_prim_media = lights::media_per_primitive(src, &scene)?;
     if scene.media.iter().any(Medium::emits) {
         scene.emitters = super::emitters::VolumeEmitters::build(&scene);
     }

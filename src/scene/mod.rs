@@ -35,6 +35,10 @@ use crate::spectrum::Rgb;
 /// The fog box, compiled into the binary: what `pathspace render` draws without a scene file.
 pub const FOG_BOX: &str = include_str!("../../scenes/fog-box.toml");
 
+/// The media of an area light's primitives, in the order of its `prims` (`None`: all in the
+/// light's one medium, `Scene::light_media`).
+pub type PrimMedia = Option<Box<[Option<u32>]>>;
+
 /// What a shape is made of and what it separates.
 #[derive(Clone, Debug)]
 pub struct ShapeInfo {
@@ -362,6 +366,10 @@ pub struct Scene {
     /// next-event estimation, MLT's light vertices), found once when the scene is built;
     /// `None` in vacuum and for the infinite lights.
     pub light_media: Vec<Option<u32>>,
+    /// For an area light whose primitives lie in different media (a lamp on the floor of a
+    /// fog, one face emitting into the fog and one under the floor), the medium of each of its
+    /// primitives, in the order of its `prims`; `None` where `light_media` holds for all.
+    pub light_prim_media: Vec<PrimMedia>,
     pub camera: Option<Camera>,
     pub camera_medium: Option<u32>,
     /// The emitting media as lights (L_e,V0 of eq. 1): empty unless a medium glows.
@@ -878,6 +886,20 @@ impl Scene {
 
     /// The medium containing `p`: found from the first medium boundary a fixed ray from `p`
     /// meets (leaving through a boundary means being inside it).
+    /// The medium light `l`'s paths start in, from its primitive `prim` (an area light's;
+    /// `None` for the others): [`Scene::light_prim_media`] where the light's primitives
+    /// differ, [`Scene::light_media`] elsewhere.
+    #[inline]
+    pub fn light_medium(&self, l: usize, prim: Option<u32>) -> Option<u32> {
+        if let (Some(media), Some(prim), Light::Area { prims, .. }) =
+            (&self.light_prim_media[l], prim, &self.lights[l])
+        {
+            // an area light's primitives are consecutive (`scene::build::shapes`)
+            return media[(prim - prims[0]) as usize];
+        }
+        self.light_media[l]
+    }
+
     pub fn medium_at(&self, p: Vec3) -> Option<u32> {
         // an irrational-looking direction avoids grazing axis-aligned faces and edges; only
         // medium boundaries count (a wall coplanar with a boundary must not hide it), so this

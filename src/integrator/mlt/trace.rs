@@ -133,7 +133,7 @@ pub fn sample_light_vertex(
     if es.pdf_pos <= 0.0 {
         return None;
     }
-    let lm = scene.light_media[l];
+    let lm = scene.light_medium(l, prim);
     let n = if prim.is_some() { es.n } else { Vec3::ZERO };
     Some(Vertex::new(
         VertexKind::Light {

@@ -5,14 +5,14 @@
 use super::values::{finite3, non_negative};
 use glam::{Mat3, Vec2, Vec3};
 
-use crate::geometry::Aabb;
+use crate::geometry::{Bvh, Ray};
 
 use crate::geometry::offset_origin;
 use crate::image_io::{read_exr_input_hashed, rgbe};
 use crate::math::{Distribution1D, Frame};
 use crate::scene::envmap::{self, EnvMap};
 use crate::scene::file::{path, EnvSamplingDesc, KeyPath, LightDesc, SceneFile};
-use crate::scene::{Environment, Light, Scene, SceneError, SceneSource};
+use crate::scene::{Environment, Light, PrimMedia, Scene, SceneError, SceneSource};
 
 /// Every light of the scene: the area lights first, then `[[lights]]` in order.
 pub(super) struct Lights {
@@ -45,57 +45,81 @@ pub(super) fn media_around(scene: &Scene) -> Vec<Option<u32>> {
         .collect()
 }
 
-/// Refuses an area light that lies in more than one medium: light subpaths start in the one
-/// medium `media_around` found, so a light half inside a fog would start its other half's
-/// paths in the wrong medium (light tracing and BDPT would silently differ from path tracing).
-/// Each emitting primitive whose box touches a medium boundary's box is probed on a grid of
-/// points, lifted to its emitting side (about a thousand points per light; a boundary that
-/// crosses the light between the points is not seen).
-pub(super) fn one_medium_each(src: &SceneSource, scene: &Scene) -> Result<(), SceneError> {
-    let boundaries: Vec<Aabb> = (scene.prims.iter().enumerate())
-        .filter(|(i, _)| scene.shapes[scene.prim_shape[*i] as usize].interface)
-        .map(|(_, p)| p.bounds())
-        .collect();
-    if boundaries.is_empty() {
-        return Ok(());
+/// The medium of each primitive of the area lights whose primitives lie in different media
+/// (`Scene::light_prim_media`), and a refusal for a primitive that itself lies in two: light
+/// paths start in one medium per primitive, so a quad half inside a fog would start the paths
+/// of its other half in the fog too (light tracing and BDPT would differ from path tracing).
+/// Each primitive is probed at its centre and at eight points near its rim, lifted to its
+/// emitting side (a boundary that cuts a primitive between these points is not seen).
+pub(super) fn media_per_primitive(
+    src: &SceneSource,
+    scene: &Scene,
+) -> Result<Vec<PrimMedia>, SceneError> {
+    let mut out = vec![None; scene.lights.len()];
+    let interface = |i: usize| scene.shapes[scene.prim_shape[i] as usize].interface;
+    if !(0..scene.prims.len()).any(interface) {
+        return Ok(out);
     }
-    let touches = |b: &Aabb| {
-        let e = Vec3::splat(1e-4 * (1.0 + b.extent().max_element()));
-        (boundaries.iter())
-            .any(|o| (b.min - e).cmple(o.max).all() && (o.min - e).cmple(b.max).all())
+    let boundaries = Bvh::build_over(&scene.prims, interface);
+    let reach = boundaries.bounds();
+    // `Scene::medium_at` through a tree of the medium boundaries alone
+    let medium_at = |p: Vec3| {
+        let d = Vec3::new(0.389_312, 0.727_003, 0.565_516).normalize();
+        let hit = boundaries.intersect(
+            &scene.prims,
+            &scene.prim_opaque,
+            &Ray::new(p, d),
+            f32::INFINITY,
+        )?;
+        let shape = &scene.shapes[scene.prim_shape[hit.prim as usize] as usize];
+        if d.dot(hit.ng) > 0.0 {
+            shape.interior
+        } else {
+            shape.exterior
+        }
+    };
+    let at = |prim: &crate::geometry::Primitive, u: Vec2| {
+        let (p, n) = prim.sample_area(u);
+        medium_at(offset_origin(p, n, n))
+    };
+    let name = |m: Option<u32>| {
+        m.map_or("no medium".to_string(), |m| {
+            format!("medium `{}`", scene.medium_names[m as usize])
+        })
     };
     for (l, light) in scene.lights.iter().enumerate() {
         let Light::Area { prims, shape, .. } = light else {
             continue;
         };
-        let per_side = ((1024.0 / prims.len() as f32).sqrt() as u32).clamp(1, 8);
+        let mut media = Vec::with_capacity(prims.len());
         for &i in prims {
             let prim = &scene.prims[i as usize];
-            if !touches(&prim.bounds()) {
-                continue;
-            }
-            for k in 0..per_side * per_side {
-                let (a, b) = (k % per_side, k / per_side);
-                let u = Vec2::new(a as f32 + 0.5, b as f32 + 0.5) / per_side as f32;
-                let (p, n) = prim.sample_area(u);
-                let m = scene.medium_at(offset_origin(p, n, n));
-                if m != scene.light_media[l] {
-                    let name = |m: Option<u32>| {
-                        m.map_or("no medium".to_string(), |m| {
-                            format!("medium `{}`", scene.medium_names[m as usize])
-                        })
-                    };
+            let b = prim.bounds();
+            let near = b.min.cmple(reach.max).all() && reach.min.cmple(b.max).all();
+            let m = if near {
+                at(prim, Vec2::splat(0.5))
+            } else {
+                medium_at(b.centroid())
+            };
+            for k in (0..9).filter(|k| near && *k != 4) {
+                let u = Vec2::new([0.02, 0.5, 0.98][k % 3], [0.02, 0.5, 0.98][k / 3]);
+                let other = at(prim, u);
+                if other != m {
                     let why = format!(
-                        "this area light lies in more than one medium ({} at one point, {} at another): light paths start in one medium per light, so split the shape at the medium's boundary",
-                        name(scene.light_media[l]),
-                        name(m)
+                        "this area light lies in more than one medium ({} at one point of a primitive, {} at another): light paths start in one medium per primitive, so split the shape at the medium's boundary",
+                        name(m),
+                        name(other)
                     );
                     return Err(src.error(&path("shapes").index(*shape as usize), &why));
                 }
             }
+            media.push(m);
+        }
+        if media.iter().any(|m| *m != scene.light_media[l]) {
+            out[l] = Some(media.into_boxed_slice());
         }
     }
-    Ok(())
+    Ok(out)
 }
 
 /// Appends every `[[lights]]` entry to the area lights `lights` and builds the power

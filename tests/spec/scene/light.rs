@@ -217,3 +217,29 @@ fn a_box_lamp_reads_the_cube_uv() {
         );
     }
 }
+
+/// A box lamp on the floor of the fog box: five faces emit into the fog, the bottom one under
+/// the floor, outside it. Light paths start from each face in that face's own medium
+/// (`Scene::light_medium`), so light tracing and BDPT see the lamp as path tracing does.
+#[test]
+fn each_face_of_a_lamp_starts_its_paths_in_its_own_medium() {
+    let text = pathspace::scene::FOG_BOX.to_string()
+        + "\n[[shapes]]\ntype = \"box\"\nmin = [0.5, -1.0, -0.9]\nmax = [0.8, -0.7, -0.6]\nemission = 2.0\n";
+    let scene = Scene::load(&SceneSource::embedded("lamp.toml", &text)).unwrap();
+    let fog = scene.medium_names.iter().position(|n| n == "fog").unwrap() as u32;
+    let (l, prims) = (scene.lights.iter().enumerate())
+        .find_map(|(l, light)| match light {
+            Light::Area { prims, .. } if prims.len() > 2 => Some((l, prims.clone())),
+            _ => None,
+        })
+        .expect("the box lamp");
+    for prim in prims {
+        let (_, n) = scene.prims[prim as usize].sample_area(glam::Vec2::splat(0.5));
+        let expected = if n.y < -0.5 { None } else { Some(fog) };
+        assert_eq!(
+            scene.light_medium(l, Some(prim)),
+            expected,
+            "face with normal {n}"
+        );
+    }
+}
