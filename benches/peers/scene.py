@@ -153,6 +153,9 @@ class Scene:
         if "reflectance" in m:
             raise Refused(f"material `{name}`: a rough conductor with a Schlick `reflectance` (Mitsuba 3's "
                           "roughconductor has the Fresnel term of a complex index only)")
+        if "alpha_u" in m or "alpha_v" in m:
+            raise Refused(f"material `{name}`: a rough conductor with anisotropic roughness "
+                          "(`alpha_u`, `alpha_v`; the peers' frames are not pathspace's)")
         if "material" in m or m.get("one_sided", False) or not isinstance(m["alpha"], (int, float)) \
                 or not isinstance(m.get("specular", 1.0), (int, float, list)):
             raise Refused(f"material `{name}`: a rough conductor with a named material, one side or a texture")

@@ -164,6 +164,18 @@ fn scenes_outside_the_common_subset_are_refused_with_the_reason() {
             ),
         ];
         refused.push((textured_eta.to_str().unwrap().to_string(), "textured `eta`"));
+        let anisotropic = glass_scene_variant(
+            "anisotropic",
+            (
+                "type = \"dielectric\"\nior = 1.5\nspecular_transmittance = 0.5",
+                "type = \"rough_conductor\"\nalpha_u = 0.2\nalpha_v = 0.05",
+            ),
+            "",
+        );
+        refused.push((
+            anisotropic.to_str().unwrap().to_string(),
+            "anisotropic roughness",
+        ));
         if script == "to_tungsten.py" {
             // the variant Mitsuba 3 renders with a spot light, which tungsten has not; and a
             // GGX alpha below the 1e-3 tungsten raises every alpha to
