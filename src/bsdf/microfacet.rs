@@ -85,14 +85,7 @@ impl Ggx {
     /// The density of visible normals seen from `wo` (wo.z > 0): G1(wo) max(0, wo.m) D(m) /
     /// wo.z (Heitz 2018, eq. 1), the density [`Ggx::sample_visible`] draws `m` with.
     pub fn pdf_visible(&self, wo: Vec3, m: Vec3) -> f32 {
-        if wo.z <= 0.0 {
-            return 0.0;
-        }
-        let c = wo.dot(m);
-        if c <= 0.0 {
-            return 0.0;
-        }
-        self.g1(wo, m) * c * self.d(m) / wo.z
+        visible_density(wo, m, self.g1(wo, m), || self.d(m))
     }
 
     /// A microfacet normal drawn from the visible normals seen from `wo` (wo.z > 0), by Heitz
@@ -258,14 +251,7 @@ impl AnisoGgx {
     /// The density of visible normals seen from `wo`, G1(wo) max(0, wo.m) D(m) / wo.z (Heitz
     /// 2018, eq. 1), the density of [`AnisoGgx::sample_visible`].
     pub fn pdf_visible(&self, wo: Vec3, m: Vec3) -> f32 {
-        if wo.z <= 0.0 {
-            return 0.0;
-        }
-        let c = wo.dot(m);
-        if c <= 0.0 {
-            return 0.0;
-        }
-        self.g1(wo, m) * c * self.d(m) / wo.z
+        visible_density(wo, m, self.g1(wo, m), || self.d(m))
     }
 
     /// Heitz 2018 (JCGT 7(4), sec. 2) with two roughnesses: stretch `wo` by (a_u, a_v, 1), draw
@@ -502,4 +488,18 @@ pub fn refract_about(w: Vec3, m: Vec3, eta: f32) -> Option<Vec3> {
     }
     let cos_t = (1.0 - sin2_t).sqrt();
     Some((-eta * w + (eta * cos_w - cos_t) * m).normalize())
+}
+
+/// G1(wo) max(0, wo.m) D(m) / wo.z (Heitz 2018, eq. 1) from `g1` = G1(wo, m) and D(m) (read
+/// only where the density is not 0), for wo.z > 0; 0 elsewhere.
+#[inline]
+fn visible_density(wo: Vec3, m: Vec3, g1: f32, d: impl FnOnce() -> f32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    let c = wo.dot(m);
+    if c <= 0.0 {
+        return 0.0;
+    }
+    g1 * c * d() / wo.z
 }
