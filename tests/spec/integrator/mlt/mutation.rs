@@ -2214,3 +2214,38 @@ fn bidirectional_proposals_follow_t_with_a_glowing_medium() {
     }
     fam.finish();
 }
+
+/// With `hide_emitters`, emitting surfaces are transparent to the camera's rays up to the
+/// first scattering vertex (Mitsuba 3's `skip_area_emitters`): a hidden panel between the
+/// pinhole and the back wall must not stop the sensor perturbation's new rays, so the
+/// proposals reach the wall behind it as T says.
+#[test]
+fn sensor_perturbation_proposals_see_through_a_hidden_panel() {
+    let mut fam = Family::new("mlt_mutations: sensor perturbation through a hidden panel");
+    let text = format!(
+        "hide_emitters = true\n{}\n[[shapes]]\ntype = \"quad\"\norigin = [-0.25, -0.1, -0.3]\nu = [0.4, 0.0, 0.0]\nv = [0.0, 0.35, 0.0]\nemission = 1.0\n",
+        fog_box_text(64)
+    );
+    let scene = Scene::load(&SceneSource::embedded("hidden panel", &text)).expect("valid scene");
+    let m = SensorPerturbation {
+        offset: InverseDistance::new(0.1, 4.0).unwrap(),
+    };
+    // the pinhole sees this wall point through the panel
+    let x = floor_wall_path(&scene, Vec3::new(-0.05, 0.1, -1.0));
+    let rebuild = moving_vertex(&x, 2);
+    let mv = back_wall_move(x[2].p, (3e-3, 0.4), 2, &rebuild);
+    proposals_follow_t(
+        &mut fam,
+        "back wall behind the panel",
+        &scene,
+        &m,
+        &x,
+        mv.cells(),
+        &|y| mv.cell_of(y),
+        100_000,
+        200_000,
+        &|s| mv.draw(s),
+        14,
+    );
+    fam.finish();
+}
