@@ -23,7 +23,7 @@ use pathspace::bsdf::{
     Ggx, Lobe, Microfacet, Mirror, RoughConductor, RoughDielectric, TransportMode,
 };
 use pathspace::math::distribution::ONE_MINUS_EPSILON;
-use pathspace::math::{warp, Frame};
+use pathspace::math::{warp, Frame, Sampler};
 use std::f64::consts::{PI, TAU};
 
 const ALPHAS: [f32; 3] = [0.15, 0.4, 1.0];
@@ -515,6 +515,29 @@ fn normal_incidence_albedo(alpha: f64) -> f64 {
 /// The error of the albedo's 4096 x 1024 Simpson quadrature, bounded from above.
 const QUAD_ERR: f64 = 1e-6;
 
+/// The directional albedo of `bsdf` seen from `wo` (red channel) two ways: by the Simpson
+/// quadrature of f |cos| over the sphere (from `eval`), and as the mean of `count` sampled
+/// weights (from `sample`) with its standard error.
+fn albedo_two_ways(
+    bsdf: &Bsdf,
+    wo: Vec3,
+    n: Vec3,
+    s: &mut Sampler,
+    count: usize,
+) -> (f64, f64, f64) {
+    let mode = TransportMode::Radiance;
+    let f_cos = |wi: Vec3| bsdf.eval(wo, wi, n, mode).x as f64 * wi.dot(n).abs() as f64;
+    let quad = hemisphere_integral(n, f_cos, 4096, 1024);
+    let w: Vec<f64> = (0..count)
+        .map(|_| {
+            bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)
+                .map_or(0.0, |bs| bs.weight(n).x as f64)
+        })
+        .collect();
+    let (mean, se) = mean_and_stderr(&w);
+    (quad, mean, se)
+}
+
 #[test]
 fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
     // with F = 1 every ray the microsurface does not shadow is reflected, so the directional
@@ -534,17 +557,8 @@ fn white_furnace_rough_conductor_loses_only_what_single_scattering_drops() {
         let bsdf = conductor(dist, alpha);
         for (j, cos_o) in [1.0f64, 0.6, 0.3, 0.1].into_iter().enumerate() {
             let wo = direction(&frame, cos_o, 0.5);
-            let mode = TransportMode::Radiance;
-            let f_cos = |wi: Vec3| bsdf.eval(wo, wi, n, mode).x as f64 * wi.dot(n).abs() as f64;
-            let quad = hemisphere_integral(n, f_cos, 4096, 1024);
-            let mut s = sampler(5, (4 * i + j) as u64);
-            let w: Vec<f64> = (0..N)
-                .map(|_| {
-                    bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)
-                        .map_or(0.0, |bs| bs.weight(n).x as f64)
-                })
-                .collect();
-            let (mean, se) = mean_and_stderr(&w);
+            let (quad, mean, se) =
+                albedo_two_ways(&bsdf, wo, n, &mut sampler(5, (4 * i + j) as u64), N);
             let what = format!("{dist:?} alpha {alpha}, cos_o {cos_o}");
             // the quadrature's own error (about 1e-7 here) joins the sampling error: Beckmann's
             // rational G1 is exactly 1 near the normal, so at normal incidence and small alpha
@@ -1087,17 +1101,8 @@ fn white_furnace_anisotropic_conductor() {
             });
             for (j, cos_o) in [0.9f64, 0.3].into_iter().enumerate() {
                 let wo = direction(&frame, cos_o, 0.5);
-                let mode = TransportMode::Radiance;
-                let f_cos = |wi: Vec3| bsdf.eval(wo, wi, n, mode).x as f64 * wi.dot(n).abs() as f64;
-                let quad = hemisphere_integral(n, f_cos, 4096, 1024);
                 let mut s = sampler(50 + k as u64, (2 * i + j) as u64);
-                let w: Vec<f64> = (0..N)
-                    .map(|_| {
-                        bsdf.sample(wo, n, s.next_2d(), s.next_f32(), mode)
-                            .map_or(0.0, |bs| bs.weight(n).x as f64)
-                    })
-                    .collect();
-                let (mean, se) = mean_and_stderr(&w);
+                let (quad, mean, se) = albedo_two_ways(&bsdf, wo, n, &mut s, N);
                 let what = format!("{dist:?} ({au}, {av}), cos_o {cos_o}");
                 fam.mean_is(
                     &format!("{what}: E by sampling"),
