@@ -65,12 +65,18 @@ impl Aabb {
     }
 
     /// Slab test: the parametric interval of the ray inside the box, clipped to [0, t_max].
+    /// A ray lying in a face's plane (a zero direction component, its origin on that bound)
+    /// gives 0 x inf = NaN at that slab end: it is on the closed box's face, so that axis does
+    /// not constrain it (`geometry::wide` keeps the same rule lane by lane).
     #[inline]
     pub fn intersect(&self, ray: &Ray, inv_d: Vec3, t_max: f32) -> Option<(f32, f32)> {
         let t0 = (self.min - ray.o) * inv_d;
         let t1 = (self.max - ray.o) * inv_d;
-        let near = t0.min(t1).max_element().max(0.0);
-        let far = t0.max(t1).min_element().min(t_max);
+        let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+        let lo = Vec3::select(on_face, Vec3::NEG_INFINITY, t0.min(t1));
+        let hi = Vec3::select(on_face, Vec3::INFINITY, t0.max(t1));
+        let near = lo.max_element().max(0.0);
+        let far = hi.min_element().min(t_max);
         // the 1 + 2 gamma(3) factor keeps the test conservative (pbrt's robust slab test)
         if near <= far * 1.000_000_4 {
             Some((near, far))

@@ -3,12 +3,12 @@
 //! node's four slab tests run as four-lane vector operations. A binary tree of depth d becomes a
 //! tree of about d / 2 levels; a ray loads half as many nodes and tests their children together.
 //!
-//! The box test is the binary tree's, lane by lane, with the same arithmetic and the same
-//! NaN-ignoring `min`/`max` (a ray parallel to a slab whose plane holds its origin gives 0 * inf:
-//! that axis does not constrain the interval), so a child is entered exactly when the binary
-//! traversal would test it, and closest hits stay bit for bit the same. The NaN rule costs a
-//! select per `min`/`max`; a ray whose inverse direction is finite cannot produce a NaN, so it
-//! takes the same test without them ([`RayLanes`]).
+//! The box test is the binary tree's ([`Aabb::intersect`]), lane by lane, with the same
+//! arithmetic and the same rule for a ray lying in a slab's plane (0 * inf = NaN at that slab
+//! end: the ray is on the closed box's face, so that axis does not constrain it), so a child is
+//! entered exactly when the binary traversal would test it, and closest hits stay bit for bit
+//! the same. The rule costs selects; a ray whose inverse direction is finite cannot produce a
+//! NaN, so it takes the same test without them ([`RayLanes`]).
 //!
 //! Where the processor has AVX2 the tree is collapsed into nodes of eight children instead
 //! ([`Node8`]), tested as eight-lane operations, with the same arithmetic lane for lane: a
@@ -182,8 +182,7 @@ impl Wide for Node4 {
 impl Node4 {
     /// The slab test of the four children: a bit mask of the children the ray enters before
     /// `limit`, and their entry distances. Lane for lane the arithmetic of [`Aabb::intersect`],
-    /// except for a ray lying in a slab's plane (0 * inf = NaN at a slab end): glam's `Vec3`
-    /// `min`/`max` there return their second operand, these lanes the other (non-NaN) one.
+    /// a ray lying in a slab's plane included ([`slab_on_face`]).
     #[inline]
     pub fn intersect(&self, ray: &RayLanes, limit: f32) -> (u32, Vec4) {
         if ray.finite {
@@ -196,35 +195,41 @@ impl Node4 {
     /// The slab test; `FINITE`: the inverse direction is finite, so no slab end is NaN.
     #[inline]
     fn slabs<const FINITE: bool>(&self, ray: &RayLanes, limit: f32) -> (u32, Vec4) {
-        let (min, max) = if FINITE {
-            (
-                Vec4::min as fn(Vec4, Vec4) -> Vec4,
-                Vec4::max as fn(Vec4, Vec4) -> Vec4,
-            )
-        } else {
-            (
-                min_num as fn(Vec4, Vec4) -> Vec4,
-                max_num as fn(Vec4, Vec4) -> Vec4,
-            )
-        };
         let mut near = Vec4::ZERO;
         let mut far = Vec4::splat(limit);
         for axis in 0..3 {
             let (origin, inv) = (ray.o[axis], ray.inv_d[axis]);
             let t0 = (self.min[axis] - origin) * inv;
             let t1 = (self.max[axis] - origin) * inv;
-            near = max(near, min(t0, t1));
-            far = min(far, max(t0, t1));
+            let (lo, hi) = if FINITE {
+                (t0.min(t1), t0.max(t1))
+            } else {
+                slab_on_face(t0, t1)
+            };
+            near = near.max(lo);
+            far = far.min(hi);
         }
         let enters = near.cmple(far * 1.000_000_4).bitmask() & self.used;
         (enters, near)
     }
 }
 
+/// One axis's interval where a slab end may be NaN: 0 x inf, a ray along the slab's plane (a
+/// zero direction component) with its origin on it. Such a ray lies on the closed box's face,
+/// so that axis does not constrain it: (-inf, inf), as [`Aabb::intersect`] takes it.
+#[inline]
+fn slab_on_face(t0: Vec4, t1: Vec4) -> (Vec4, Vec4) {
+    let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+    (
+        Vec4::select(on_face, Vec4::NEG_INFINITY, t0.min(t1)),
+        Vec4::select(on_face, Vec4::INFINITY, t0.max(t1)),
+    )
+}
+
 /// A ray as the four-lane slab tests read it: its origin and inverse direction splatted once
 /// per query instead of once per node. When every component of the inverse direction is finite
 /// no slab end can be NaN (NaN needs 0 * inf, and a box's bound minus the origin is finite), so
-/// the plain lane `min`/`max` give exactly what the NaN-ignoring ones give, with no selects:
+/// the plain lane `min`/`max` give exactly what [`slab_on_face`] gives, with no selects:
 /// nearly every ray takes that path; one with an exactly zero direction component does not.
 pub struct RayLanes {
     o: [Vec4; 3],
@@ -342,14 +347,6 @@ impl Node8 {
         ray: &RayLanes8,
         limit: f32,
     ) -> ([f32; WIDTH8], [f32; WIDTH8]) {
-        let (min, max): (LaneOp, LaneOp) = if FINITE {
-            (lane_min, lane_max)
-        } else {
-            (
-                |a, b| if b.is_nan() { a } else { lane_min(a, b) },
-                |a, b| if b.is_nan() { a } else { lane_max(a, b) },
-            )
-        };
         let mut near = [0.0f32; WIDTH8];
         let mut far = [limit; WIDTH8];
         for axis in 0..3 {
@@ -357,16 +354,19 @@ impl Node8 {
             for k in 0..WIDTH8 {
                 let t0 = (self.min[axis][k] - origin) * inv;
                 let t1 = (self.max[axis][k] - origin) * inv;
-                near[k] = max(near[k], min(t0, t1));
-                far[k] = min(far[k], max(t0, t1));
+                // a NaN end: the ray lies on the box's face, as in `slab_on_face`
+                let (lo, hi) = if !FINITE && (t0.is_nan() || t1.is_nan()) {
+                    (f32::NEG_INFINITY, f32::INFINITY)
+                } else {
+                    (lane_min(t0, t1), lane_max(t0, t1))
+                };
+                near[k] = lane_max(near[k], lo);
+                far[k] = lane_min(far[k], hi);
             }
         }
         (near, far.map(|f| f * 1.000_000_4))
     }
 }
-
-/// A lane's `min` or `max`.
-type LaneOp = fn(f32, f32) -> f32;
 
 /// One lane of the vector `min` (`minps`, which `Vec4::min` is): `b` unless `a < b`, so `b`
 /// where either is NaN.
@@ -389,69 +389,81 @@ fn lane_max(a: f32, b: f32) -> f32 {
     }
 }
 
-/// `f32::min` lane by lane: a NaN operand yields the other one. `Vec4::min` already returns
-/// `b` where `a` is NaN (the vector `min` instruction returns its second operand when either is
-/// NaN, and glam's scalar fallback is `f32::min`), so only a NaN `b` needs the select; one
-/// select instead of two is a measured part of the BDPT and path tracer speed-up
-/// (book: "Measuring a renderer", "Where the time goes").
-#[inline]
-fn min_num(a: Vec4, b: Vec4) -> Vec4 {
-    Vec4::select(b.is_nan_mask(), a, a.min(b))
-}
-
-/// `f32::max` lane by lane, NaN operands ignored as by [`min_num`].
-#[inline]
-fn max_num(a: Vec4, b: Vec4) -> Vec4 {
-    Vec4::select(b.is_nan_mask(), a, a.max(b))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// `f32::min` / `f32::max` lane by lane, written out: the rule the one-select forms keep.
-    fn reference(a: Vec4, b: Vec4, max: bool) -> Vec4 {
-        let f = |x: f32, y: f32| if max { x.max(y) } else { x.min(y) };
-        Vec4::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z), f(a.w, b.w))
+    /// The exact interval of the line o + t d inside the closed slab [lo, hi], from the real
+    /// numbers' rules: a zero direction is inside everywhere or nowhere.
+    fn exact_interval(lo: f32, hi: f32, o: f32, d: f32) -> Option<(f64, f64)> {
+        let (lo, hi, o, d) = (lo as f64, hi as f64, o as f64, d as f64);
+        if d == 0.0 {
+            return (lo <= o && o <= hi).then_some((f64::NEG_INFINITY, f64::INFINITY));
+        }
+        let (a, b) = ((lo - o) / d, (hi - o) / d);
+        Some((a.min(b), a.max(b)))
     }
 
-    /// The slab test's NaN-aware min/max against `f32::min`/`max`, on the slab ends a ray meets
-    /// where the NaN rule matters: flat boxes, origins on their planes, direction components of
-    /// +0 and -0 (inverse +-inf), so that 0 * inf is either end of a slab, or both.
+    /// The slab test on the slab ends a ray meets where 0 x inf = NaN can occur: flat boxes,
+    /// origins on their planes, direction components of +0 and -0 (inverse +-inf). Each lane
+    /// of the four-wide test, and each of the eight-wide one, enters the box exactly when the
+    /// line's exact interval on that axis is not empty; where it is (-inf, inf), the ray lies
+    /// on the closed box's face and must not be refused.
     #[test]
-    fn lane_min_and_max_ignore_nan_operands_as_f32_min_and_max_do() {
+    fn a_ray_along_a_boxs_face_enters_the_closed_box() {
         let coords = [-1.0f32, 0.0, 1.0];
         let dirs = [-1.0f32, -0.0, 0.0, 0.5];
-        let (mut checked, mut nan) = (0, 0);
+        let (mut checked, mut on_face) = (0, 0);
         for (lo, hi, o, d) in slab_cases(&coords, &dirs) {
-            let inv = 1.0 / d;
-            let t0 = Vec4::new((lo - o) * inv, 0.5, f32::NAN, 1.0);
-            let t1 = Vec4::new((hi - o) * inv, f32::NAN, 2.0, f32::NAN);
-            for (a, b) in [(t0, t1), (t1, t0)] {
-                for (got, max) in [(min_num(a, b), false), (max_num(a, b), true)] {
-                    let want = reference(a, b, max);
-                    for k in 0..WIDTH {
-                        let same = got[k].to_bits() == want[k].to_bits()
-                            || (got[k].is_nan() && want[k].is_nan());
-                        assert!(same, "lane {k} of {a} and {b}: {} not {}", got[k], want[k]);
-                        nan += usize::from(a[k].is_nan() || b[k].is_nan());
-                        checked += 1;
-                    }
-                }
-            }
+            let want = exact_interval(lo, hi, o, d);
+            // the slab on the x axis, the others wide open around the origin
+            let mut node4 = Node4::empty();
+            let mut node8 = Node8::empty();
+            let b = Aabb {
+                min: Vec3::new(lo, -5.0, -5.0),
+                max: Vec3::new(hi, 5.0, 5.0),
+            };
+            node4.set(0, b, Slot(0));
+            node8.set(0, b, Slot(0));
+            let inv_d = Vec3::new(d, 0.6, 0.8).recip();
+            let o3 = Vec3::new(o, 0.0, 0.0);
+            let (m4, _) = node4.intersect(&RayLanes::new(o3, inv_d), f32::INFINITY);
+            let (n8, f8) = node8.slabs::<false>(&RayLanes8::new(o3, inv_d), f32::INFINITY);
+            let enters = want.is_some_and(|(_, b)| b >= 0.0);
+            assert_eq!(
+                m4 & 1 == 1,
+                enters,
+                "four-wide: slab [{lo}, {hi}], o {o}, d {d}"
+            );
+            assert_eq!(
+                n8[0] <= f8[0],
+                enters,
+                "eight-wide: slab [{lo}, {hi}], o {o}, d {d}"
+            );
+            let ray = crate::geometry::Ray {
+                o: o3,
+                d: inv_d.recip(),
+            };
+            assert_eq!(
+                b.intersect(&ray, inv_d, f32::INFINITY).is_some(),
+                enters,
+                "Aabb"
+            );
+            on_face += usize::from(d == 0.0 && (o == lo || o == hi));
+            checked += 1;
         }
         assert!(
-            checked > 1000 && nan > 300,
-            "{checked} lanes, {nan} with a NaN"
+            checked == 72 && on_face == 18,
+            "{checked} cases, {on_face} on a face"
         );
     }
 
     /// The select-free slab test that rays with a finite inverse direction take gives the
-    /// NaN-ignoring test's mask and entry distances bit for bit, on boxes whose planes hold the
+    /// general test's mask and entry distances bit for bit, on boxes whose planes hold the
     /// origin (a slab end of exactly 0) and on direction components so small that the inverse
-    /// overflows to infinity in the product; a zero component takes the NaN-ignoring test.
+    /// overflows to infinity in the product; a zero component takes the general test.
     #[test]
-    fn the_finite_ray_slab_test_is_the_nan_ignoring_one() {
+    fn the_finite_ray_slab_test_is_the_general_one() {
         let c = [-2.0f32, -1.0, 0.0, 0.5, 1.0, 3.0];
         let d = [-1.0f32, -0.3, -1e-38, 1e-38, 0.2, 0.7, 1.0];
         let (mut checked, mut overflows) = (0, 0);

@@ -470,7 +470,7 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
                 _ => random_ray(&mut r),
             };
             // a direction along a coordinate plane or axis: inverse components of +-inf, the
-            // slab test's NaN rule
+            // slab test's rule for a NaN slab end
             let ray = match r.random_range(0..8) {
                 0 => Ray::new(
                     ray.o,
@@ -510,10 +510,9 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
 /// error, so without its relative slack (`1.000_000_4` in `geometry::wide`) such a ray's
 /// box test can fail although the triangle test hits. Both widths return brute force's hit
 /// bit for bit on them.
-#[test]
-fn rays_grazing_a_childs_box_hit_what_brute_force_hits_in_either_width() {
-    // right triangles apart from each other (a leaf each), flat on a coordinate plane or
-    // tilted, so that edges and corners lie on their boxes' faces
+/// Right triangles apart from each other (a leaf each), flat on a coordinate plane or tilted,
+/// so that edges and corners lie on their boxes' faces.
+fn triangles_on_their_boxes_faces() -> Vec<Primitive> {
     let mut prims = Vec::new();
     for (k, a) in [-6.0f32, -2.0, 2.0, 6.0].into_iter().enumerate() {
         let o = Vec3::new(a, 0.3 * a, 0.1 - 0.7 * a);
@@ -532,6 +531,12 @@ fn rays_grazing_a_childs_box_hit_what_brute_force_hits_in_either_width() {
             prims.extend(Triangle::new(p, q, s).map(Primitive::Triangle));
         }
     }
+    prims
+}
+
+#[test]
+fn rays_grazing_a_childs_box_hit_what_brute_force_hits_in_either_width() {
+    let prims = triangles_on_their_boxes_faces();
     let opaque = vec![true; prims.len()];
     let trees = [Width::Four, Width::Eight].map(|w| Bvh::build_with(&prims, |_| true, w));
     let bits = |h: Option<(f32, u32, Vec3, Vec3)>| {
@@ -577,6 +582,47 @@ fn rays_grazing_a_childs_box_hit_what_brute_force_hits_in_either_width() {
         }
     }
     assert!(hits > 1000, "{hits} rays hit");
+}
+
+/// Rays lying in the plane of a box's face, along it (a direction component of +0 or -0, an
+/// inverse of +inf or -inf), through a triangle's edge on that face: the slab ends on that axis
+/// are 0 x inf = NaN and +-inf, and the axis must not constrain the ray (its origin is on the
+/// closed box's face). Both widths return brute force's hit bit for bit.
+#[test]
+fn rays_along_a_boxs_face_hit_what_brute_force_hits_in_either_width() {
+    let prims = triangles_on_their_boxes_faces();
+    let opaque = vec![true; prims.len()];
+    let trees = [Width::Four, Width::Eight].map(|w| Bvh::build_with(&prims, |_| true, w));
+    let key = |h: Option<(f32, u32)>| h.map(|(t, p)| (t.to_bits(), p));
+    let mut r = rng(6);
+    let mut hits = 0;
+    for prim in &prims {
+        let Primitive::Triangle(tri) = prim else {
+            unreachable!()
+        };
+        let p0 = tri.point(0.0, 0.0);
+        // the triangle's edge along x from p0, on the plane y = p0.y of the triangle's box
+        let p1 = [tri.point(1.0, 0.0), tri.point(0.0, 1.0)]
+            .into_iter()
+            .find(|p| p.y == p0.y && p.z == p0.z)
+            .expect("an edge along x");
+        for i in 0..200 {
+            let target = p0 + ((i % 20) as f32 / 20.0) * (p1 - p0);
+            let o = target + Vec3::new(r.random_range(-3.0..3.0), 0.0, r.random_range(2.0..6.0));
+            let mut d = (target - o).normalize();
+            assert_eq!(d.y, 0.0);
+            d.y = if i % 2 == 0 { 0.0 } else { -0.0 };
+            let ray = Ray::new(o, d);
+            let want = brute_exact(&prims, &ray, f32::INFINITY).map(|h| (h.0, h.1));
+            hits += want.is_some() as usize;
+            for bvh in &trees {
+                let got = bvh.intersect(&prims, &opaque, &ray, f32::INFINITY);
+                let got = got.map(|h| (h.t, h.prim));
+                assert_eq!(key(got), key(want), "{:?}: {ray:?}", bvh.width());
+            }
+        }
+    }
+    assert!(hits > 400, "{hits} rays hit");
 }
 
 #[test]
