@@ -12,11 +12,14 @@ peers render it exactly, written to `--cache`), per renderer (`--renderers`), pe
 each, one render at a time on one thread, each a process of its own charged its user + system
 time (RUSAGE_CHILDREN: loading, JIT compilation and preprocessing included). A method's spp for
 the budget comes from two probes (cost = fixed + per-spp x spp). Every render is compared with
-the scene's one reference, a pathspace BDPT render of `--ref-time` s on `--ref-threads` threads
-(`pathspace reference`, seed 999, cached in `--cache`, outside the repository): relMSE as
-pathspace defines it (`benches/exr_metrics.py`). The reference's own noise is in every figure
-(the same amount for every method: BDPT at ref-time x ref-threads / cpu times the budget has
-that fraction of a BDPT render's error); it narrows ratios towards 1, never widens them. The table gives per method
+the scene's reference: the average of two independent pathspace renders (`pathspace reference`,
+seeds 999 and 998, `--ref-time` s each on `--ref-threads` threads, cached in `--cache`, outside
+the repository) by the scene's best method (`REF_INTEGRATOR`: BDPT where it wins, the path
+tracer in the maze, the rooms and the cloud), relMSE as pathspace defines it
+(`benches/exr_metrics.py`). The reference's own noise, estimated from its two halves as
+mean((r1 - r2)^2 / 4 / (r^2 + eps)), is subtracted from every relMSE (and printed), so each
+figure estimates the error against the truth: without it a noisy reference adds the same
+amount to every method and narrows all ratios towards 1. The table gives per method
 the mean CPU-s, relMSE mean +- standard error and median over the seeds, and relMSE x CPU-s
 (lower is better); per scene the ratio of pathspace's best product to each peer's best.
 Methods that converge to a different, consistent-but-biased answer (tungsten's photon beams
@@ -38,7 +41,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
-from exr_metrics import child_cpu, read, relmse  # noqa: E402
+from exr_metrics import EPSILON, child_cpu, read, relmse  # noqa: E402
 from scene import VARIANTS, Refused, Scene, variant_text  # noqa: E402
 import to_mitsuba  # noqa: E402
 import to_tungsten  # noqa: E402
@@ -46,10 +49,14 @@ import to_tungsten  # noqa: E402
 SCENES = ["fog-box", "door-slit-ior", "volume-caustic-hard-cone", "cloud-tracking", "maze-fog", "rooms"]
 PATHSPACE = ["path", "path-equiangular", "bdpt", "mlt", "pssmlt", "mmlt", "smc"]
 MITSUBA = ["llvm_ad_rgb/volpath", "llvm_ad_rgb/volpathmis"]
-TUNGSTEN = ["path_tracer", "bidirectional_path_tracer", "kelemen_mlt", "multiplexed_mlt",
-            "photon_beams", "photon_planes"]
+TUNGSTEN = ["path_tracer", "bidirectional_path_tracer", "bidirectional_path_tracer@16",
+            "kelemen_mlt", "multiplexed_mlt", "photon_beams", "photon_planes"]
 BIASED = {("tungsten", "photon_beams"), ("tungsten", "photon_planes")}
-REF_SEED = 999
+# tungsten has no Russian roulette: its bidirectional tracer is cheaper per sample with a lower
+# bounce cap ("@16"), at the price of the longer paths' light (the screening flags a visible loss)
+REF_SEEDS = (999, 998)
+# the reference's method per scene: the scene's most efficient unbiased method in pathspace
+REF_INTEGRATOR = {"maze-fog": "path", "rooms": "path", "cloud-tracking": "path"}
 
 
 class Failed(Exception):
@@ -113,8 +120,10 @@ class Job:
         elif renderer == "tungsten":
             import json
             self.input = os.path.join(work, f"{scene}-{method}.json")
+            kind, _, cap = method.partition("@")  # "@N": max_bounces N instead of tungsten's 64
             with open(self.input, "w") as f:
-                json.dump(to_tungsten.convert(Scene(toml), method, [a.res, a.res], grids=work, binary=a.bin), f)
+                json.dump(to_tungsten.convert(Scene(toml), kind, [a.res, a.res], max_bounces=int(cap or 64),
+                                              grids=work, binary=a.bin), f)
 
     def render(self, spp, seed, tag):
         out = os.path.join(self.work, f"{self.scene}-{self.renderer}-{self.method.replace('/', '-')}-{tag}")
@@ -162,15 +171,23 @@ def image(path):
 
 
 def reference(a, scene, toml):
-    """The scene's reference, made once, then read from the cache."""
-    path = os.path.join(a.cache, f"{scene}-{a.res}x{a.res}-bdpt-{a.ref_time:g}s.exr")
-    if not os.path.exists(path):
-        print(f"# making the reference {path} ({a.ref_time:g} s on {a.ref_threads} threads)", file=sys.stderr)
-        subprocess.run([a.bin, "reference", toml, "--integrator", "bdpt", "--resolution",
-                        f"{a.res}x{a.res}", "--time", str(a.ref_time), "--threads", str(a.ref_threads),
-                        "--seed", str(REF_SEED), "-o", path], check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return read(path)
+    """The scene's reference, the average of two independent halves made once and then read
+    from the cache, and its own relMSE noise as estimated from the halves."""
+    integ = REF_INTEGRATOR.get(scene, "bdpt")
+    halves = []
+    for seed in REF_SEEDS:
+        path = os.path.join(a.cache, f"{scene}-{a.res}x{a.res}-{integ}-{a.ref_time:g}s-seed{seed}.exr")
+        if not os.path.exists(path):
+            print(f"# making the reference {path} ({a.ref_time:g} s on {a.ref_threads} threads)", file=sys.stderr)
+            subprocess.run([a.bin, "reference", toml, "--integrator", integ, "--resolution",
+                            f"{a.res}x{a.res}", "--time", str(a.ref_time), "--threads", str(a.ref_threads),
+                            "--seed", str(seed), "-o", path], check=True,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        halves.append(read(path))
+    ref = (halves[0] + halves[1]) / 2
+    # Var of the average = E[(r1 - r2)^2] / 4 for independent halves of equal variance
+    noise = float((((halves[0] - halves[1]) ** 2 / 4) / (ref ** 2 + EPSILON)).mean())
+    return ref, integ, noise
 
 
 def scene_file(a, scene):
@@ -186,16 +203,16 @@ def scene_file(a, scene):
     return os.path.join(ROOT, "scenes", scene + ".toml")
 
 
-def measure(job, ref):
-    """The method's row: spp, CPU-s per render, relMSE per seed, and each render's image mean
-    over the reference's."""
+def measure(job, ref, noise):
+    """The method's row: spp, CPU-s per render, relMSE per seed (the reference's own noise
+    subtracted), and each render's image mean over the reference's."""
     spp = job.spp_for_budget()
     cpus, errs, means = [], [], []
     for seed in range(1, job.a.seeds + 1):
         cpu, out = job.render(spp, seed, f"seed{seed}")
         img = image(out)
         cpus.append(cpu)
-        errs.append(relmse(img, ref))
+        errs.append(relmse(img, ref) - noise)
         means.append(float(img.mean() / ref.mean()))
     return spp, cpus, errs, means
 
@@ -214,8 +231,8 @@ def fmt(x):
 
 def table(a, rows, notes, ratios):
     print(f"Equal CPU time: {a.cpu:g} CPU-s per render, one thread, {a.res}x{a.res}, seeds "
-          f"1..{a.seeds}; reference: pathspace BDPT, {a.ref_time:g} s on {a.ref_threads} threads, "
-          f"seed {REF_SEED}. Methods marked biased (consistent, not unbiased) or another image (mean off "
+          f"1..{a.seeds}; reference: two halves of {a.ref_time:g} s on {a.ref_threads} threads "
+          f"(seeds {REF_SEEDS[0]}, {REF_SEEDS[1]}), their noise subtracted (notes). Methods marked biased (consistent, not unbiased) or another image (mean off "
           "the reference's by over 1% and 4 s.e.) are left out of the ratios.\n")
     print("| scene | renderer | method | spp | CPU-s | mean / ref | relMSE (mean ± s.e.) | median | relMSE × CPU-s |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -285,7 +302,9 @@ def main():
         if all(p in refused for p in a.renderers if p != "pathspace") and not a.all_scenes \
                 and len(a.renderers) > 1:
             continue
-        ref = reference(a, scene, toml)
+        ref, ref_integ, noise = reference(a, scene, toml)
+        notes.append(f"{scene}: reference {ref_integ}, 2 x {a.ref_time:g} s on {a.ref_threads} threads, "
+                     f"its own relMSE {noise:.2e} (subtracted from every row)")
         best = {}
         for renderer in a.renderers:
             if renderer in refused:
@@ -294,7 +313,7 @@ def main():
                 print(f"# {scene} {renderer} {method}", file=sys.stderr, flush=True)
                 try:
                     job = Job(a, scene, toml, renderer, method, work)
-                    spp, cpus, errs, means = measure(job, ref)
+                    spp, cpus, errs, means = measure(job, ref, noise)
                 except Failed as e:
                     rows.append([scene, renderer, method, "", "", "", f"failed: {e}", "", ""])
                     continue
