@@ -169,7 +169,7 @@ impl Grid {
 
     /// The eight vertex values of the cell whose first vertex is `base`, as the corner pairs
     /// along x: (000, 100), (010, 110), (001, 101), (011, 111), lower ends first.
-    #[inline]
+    #[inline(always)]
     fn cell(&self, base: usize) -> [Vec4; 2] {
         // the cell's eight vertices from one bounds-checked slice
         let (dy, dz) = (self.res[0], self.res[0] * self.res[1]);
