@@ -185,7 +185,7 @@ impl LightBounds {
     /// zero only where no light below the node can send light to `p`. The angle differences
     /// are taken on cosines and sines (cos(a - b) = cos a cos b + sin a sin b), without
     /// inverse trigonometric functions: the descent evaluates this twice per level, in vector
-    /// lanes with the same arithmetic ([`Bounds4::importance`]); this scalar form is its spec.
+    /// lanes with the same arithmetic (`Bounds4::importance`); this scalar form is its spec.
     #[inline]
     pub fn importance(&self, p: Vec3, n: Option<Vec3>) -> f32 {
         if self.power <= 0.0 {
@@ -272,7 +272,7 @@ pub const BOX_DISTANCE_FLOOR: f32 = 0.01;
 #[derive(Clone, Copy, Debug)]
 enum Node {
     /// Children at these indices; their bounds, and their children's, at this index of
-    /// [`LightTree::pairs`] and [`LightTree::grand`].
+    /// [`LightTree::sides`].
     Inner(u32, u32, u32),
     /// The light with this scene index.
     Leaf(u32),
@@ -284,12 +284,12 @@ enum Node {
 pub struct LightTree {
     nodes: Vec<Node>,
     bounds: Vec<LightBounds>,
-    /// The children's bounds of each inner node in vector lanes (left, right, left, right).
-    pairs: Vec<Bounds4>,
-    /// The grandchildren's bounds of each inner node in vector lanes: the left child's two
-    /// children, then the right child's (a child that is a leaf fills its two lanes with its
-    /// own bounds, which the descent does not read).
-    grand: Vec<Bounds4>,
+    /// For each inner node, the bounds of its two children and of one child's two children in
+    /// vector lanes: (left, right, left's left, left's right) and (left, right, right's left,
+    /// right's right); a child that is a leaf fills its lanes with its own bounds, which the
+    /// descent does not read. The choice below a node and the one below the chosen child take
+    /// one set of vector operations where the child is known (`pmf`), two where it is not.
+    sides: Vec<[Bounds4; 2]>,
     /// For each scene light: its root-to-leaf trail (bit k: right child at depth k) and
     /// depth, or `None` when the tree does not hold it.
     trail: Vec<Option<(u64, u32)>>,
@@ -329,8 +329,7 @@ impl LightTree {
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * leaves.len()),
             bounds: Vec::with_capacity(2 * leaves.len()),
-            pairs: Vec::with_capacity(leaves.len()),
-            grand: Vec::with_capacity(leaves.len()),
+            sides: Vec::with_capacity(leaves.len()),
             trail: vec![None; lights.len()],
             p_tree: (finite / (finite + at_infinity)) as f32,
             infinite_distr: (!infinite.is_empty()).then(|| {
@@ -386,14 +385,16 @@ impl LightTree {
         let l = self.split(left, depth + 1, trail);
         let r = self.split(right, depth + 1, trail | (1 << depth));
         let (bl, br) = (&self.bounds[l as usize], &self.bounds[r as usize]);
-        self.nodes[at as usize] = Node::Inner(l, r, self.pairs.len() as u32);
-        self.pairs.push(Bounds4::new([bl, br, bl, br]));
+        self.nodes[at as usize] = Node::Inner(l, r, self.sides.len() as u32);
         let children = |c: u32| match self.nodes[c as usize] {
             Node::Inner(cl, cr, _) => [&self.bounds[cl as usize], &self.bounds[cr as usize]],
             Node::Leaf(_) => [&self.bounds[c as usize]; 2],
         };
         let ([ll, lr], [rl, rr]) = (children(l), children(r));
-        self.grand.push(Bounds4::new([ll, lr, rl, rr]));
+        self.sides.push([
+            Bounds4::new([bl, br, ll, lr]),
+            Bounds4::new([bl, br, rl, rr]),
+        ]);
         self.bounds[at as usize] = LightBounds::union(bl, br);
         at
     }
@@ -424,16 +425,15 @@ impl LightTree {
                 return true;
             };
             let scalar = |c: u32| self.bounds[c as usize].importance(p, n).to_bits();
-            let grand = |c: u32| match self.nodes[c as usize] {
+            let below = |c: u32| match self.nodes[c as usize] {
                 Node::Inner(cl, cr, _) => Some([scalar(cl), scalar(cr)]),
                 Node::Leaf(_) => None,
             };
-            let bits = |v: Vec4| v.to_array().map(f32::to_bits);
-            let near = bits(self.pairs[pair as usize].importance(&pl, nl.as_ref()));
-            let far = bits(self.grand[pair as usize].importance(&pl, nl.as_ref()));
-            near[..2] == [scalar(l), scalar(r)]
-                && grand(l).is_none_or(|g| far[..2] == g)
-                && grand(r).is_none_or(|g| far[2..] == g)
+            [l, r].iter().enumerate().all(|(side, &c)| {
+                let v = self.sides[pair as usize][side].importance(&pl, nl.as_ref());
+                let v = v.to_array().map(f32::to_bits);
+                v[..2] == [scalar(l), scalar(r)] && below(c).is_none_or(|g| v[2..] == g)
+            })
         })
     }
 
@@ -454,21 +454,20 @@ impl LightTree {
         // two levels per step: the grandchildren's importances do not depend on the choice
         // between the children, so both sets are computed side by side
         while let Node::Inner(l, r, pair) = *self.nodes.get(node as usize)? {
-            let near = self.pairs[pair as usize].importance(&p, n.as_ref());
-            let inner = |c: u32| matches!(self.nodes[c as usize], Node::Inner(..));
-            // below two leaves there is nothing to compute
-            let far = if inner(l) || inner(r) {
-                self.grand[pair as usize].importance(&p, n.as_ref())
-            } else {
-                Vec4::ZERO
+            let [to_l, to_r] = &self.sides[pair as usize];
+            let a = to_l.importance(&p, n.as_ref());
+            // below a leaf there is nothing to compute
+            let b = match self.nodes[r as usize] {
+                Node::Inner(..) => to_r.importance(&p, n.as_ref()),
+                Node::Leaf(_) => a,
             };
-            let left = choose(&mut u, &mut pmf, self.p_left(l, r, near.x, near.y));
+            let left = choose(&mut u, &mut pmf, self.p_left(l, r, a.x, a.y));
             node = if left { l } else { r };
             let Node::Inner(cl, cr, _) = self.nodes[node as usize] else {
                 break;
             };
-            let (il, ir) = if left { (far.x, far.y) } else { (far.z, far.w) };
-            node = if choose(&mut u, &mut pmf, self.p_left(cl, cr, il, ir)) {
+            let g = if left { a } else { b };
+            node = if choose(&mut u, &mut pmf, self.p_left(cl, cr, g.z, g.w)) {
                 cl
             } else {
                 cr
@@ -500,18 +499,26 @@ impl LightTree {
         };
         let (p, n) = (splat3(p), n.map(splat3));
         let mut node = 0u32;
+        // two levels per set of vector operations: the trail names the child in advance
+        let mut v = Vec4::ZERO;
         for k in 0..depth {
             let Node::Inner(l, r, pair) = self.nodes[node as usize] else {
                 return 0.0;
             };
-            let v = self.pairs[pair as usize].importance(&p, n.as_ref());
-            let pl = self.p_left(l, r, v.x, v.y);
-            if trail & (1 << k) == 0 {
-                pmf *= pl;
-                node = l;
+            let right = trail & (1 << k) != 0;
+            let (il, ir) = if k % 2 == 0 {
+                v = self.sides[pair as usize][right as usize].importance(&p, n.as_ref());
+                (v.x, v.y)
             } else {
+                (v.z, v.w)
+            };
+            let pl = self.p_left(l, r, il, ir);
+            if right {
                 pmf *= 1.0 - pl;
                 node = r;
+            } else {
+                pmf *= pl;
+                node = l;
             }
         }
         pmf
