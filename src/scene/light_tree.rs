@@ -415,7 +415,7 @@ impl LightTree {
     }
 
     /// For tests: whether at `p` (normal `n`) every inner node's importances in lanes
-    /// ([`Bounds4::importance`], of its children and of its grandchildren) are bit for bit
+    /// (`Bounds4::importance`, of its children and of its grandchildren) are bit for bit
     /// [`LightBounds::importance`] of those nodes.
     #[doc(hidden)]
     pub fn lanes_match_scalar(&self, p: Vec3, n: Option<Vec3>) -> bool {
