@@ -266,16 +266,17 @@ impl<'t> PathTracer<'t> {
         if power {
             return self.selection.sample(scene, o, None, u);
         }
-        let (l, rem) = if u < 0.5 {
-            let (l, _, rem) = self.selection.sample(scene, o, None, 2.0 * u)?;
-            (l, rem)
+        // the selection's probability of a light it sampled is the one it returned, bit for
+        // bit what `pmf` evaluates (`tests/spec/scene/light_tree.rs`)
+        let (l, pmf_sel, rem) = if u < 0.5 {
+            self.selection.sample(scene, o, None, 2.0 * u)?
         } else {
             let (l, _, rem) = scene
                 .light_distr
                 .sample((2.0 * u - 1.0).min(ONE_MINUS_EPSILON));
-            (l, rem)
+            (l, self.selection.pmf(scene, o, None, l as u32), rem)
         };
-        let pmf = 0.5 * (self.selection.pmf(scene, o, None, l as u32) + scene.light_pmf(l as u32));
+        let pmf = 0.5 * (pmf_sel + scene.light_pmf(l as u32));
         Some((l, pmf, rem))
     }
 

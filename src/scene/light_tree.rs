@@ -12,7 +12,7 @@
 //! (directional, environment) have no position to weigh: one choice by power first decides
 //! between them and the tree.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use std::f32::consts::{FRAC_PI_2, PI};
 
 use super::{Light, Scene};
@@ -184,7 +184,8 @@ impl LightBounds {
     /// theta_u the box's bounding sphere subtends, so the bound holds for every light inside:
     /// zero only where no light below the node can send light to `p`. The angle differences
     /// are taken on cosines and sines (cos(a - b) = cos a cos b + sin a sin b), without
-    /// inverse trigonometric functions: the descent evaluates this twice per level.
+    /// inverse trigonometric functions: the descent evaluates this twice per level, in vector
+    /// lanes with the same arithmetic (`Bounds4::importance`); this scalar form is its spec.
     #[inline]
     pub fn importance(&self, p: Vec3, n: Option<Vec3>) -> f32 {
         if self.power <= 0.0 {
@@ -270,8 +271,9 @@ pub const BOX_DISTANCE_FLOOR: f32 = 0.01;
 
 #[derive(Clone, Copy, Debug)]
 enum Node {
-    /// Children at these indices.
-    Inner(u32, u32),
+    /// Children at these indices; their bounds, and their children's, at this index of
+    /// [`LightTree::sides`].
+    Inner(u32, u32, u32),
     /// The light with this scene index.
     Leaf(u32),
 }
@@ -282,6 +284,12 @@ enum Node {
 pub struct LightTree {
     nodes: Vec<Node>,
     bounds: Vec<LightBounds>,
+    /// For each inner node, the bounds of its two children and of one child's two children in
+    /// vector lanes: (left, right, left's left, left's right) and (left, right, right's left,
+    /// right's right); a child that is a leaf fills its lanes with its own bounds, which the
+    /// descent does not read. The choice below a node and the one below the chosen child take
+    /// one set of vector operations where the child is known (`pmf`), two where it is not.
+    sides: Vec<[Bounds4; 2]>,
     /// For each scene light: its root-to-leaf trail (bit k: right child at depth k) and
     /// depth, or `None` when the tree does not hold it.
     trail: Vec<Option<(u64, u32)>>,
@@ -321,6 +329,7 @@ impl LightTree {
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * leaves.len()),
             bounds: Vec::with_capacity(2 * leaves.len()),
+            sides: Vec::with_capacity(leaves.len()),
             trail: vec![None; lights.len()],
             p_tree: (finite / (finite + at_infinity)) as f32,
             infinite_distr: (!infinite.is_empty()).then(|| {
@@ -375,25 +384,57 @@ impl LightTree {
         let (left, right) = leaves.split_at_mut(mid);
         let l = self.split(left, depth + 1, trail);
         let r = self.split(right, depth + 1, trail | (1 << depth));
-        self.nodes[at as usize] = Node::Inner(l, r);
-        self.bounds[at as usize] =
-            LightBounds::union(&self.bounds[l as usize], &self.bounds[r as usize]);
+        let (bl, br) = (&self.bounds[l as usize], &self.bounds[r as usize]);
+        self.nodes[at as usize] = Node::Inner(l, r, self.sides.len() as u32);
+        let children = |c: u32| match self.nodes[c as usize] {
+            Node::Inner(cl, cr, _) => [&self.bounds[cl as usize], &self.bounds[cr as usize]],
+            Node::Leaf(_) => [&self.bounds[c as usize]; 2],
+        };
+        let ([ll, lr], [rl, rr]) = (children(l), children(r));
+        self.sides.push([
+            Bounds4::new([bl, br, ll, lr]),
+            Bounds4::new([bl, br, rl, rr]),
+        ]);
+        self.bounds[at as usize] = LightBounds::union(bl, br);
         at
     }
 
-    /// The probability of the left child of inner node (`l`, `r`) at `p`: by importance, or
-    /// by power where neither child's bound reaches `p` (a looser bound above may have led
-    /// here), so that every descent ends at a light and the probabilities sum to one.
+    /// The probability of the left child of inner node (`l`, `r`) whose children have
+    /// importances `il` and `ir` at the shading point: by importance, or by power where neither
+    /// child's bound reaches the point (a looser bound above may have led here), so that every
+    /// descent ends at a light and the probabilities sum to one.
     #[inline]
-    fn p_left(&self, l: u32, r: u32, p: Vec3, n: Option<Vec3>) -> f32 {
-        let (bl, br) = (&self.bounds[l as usize], &self.bounds[r as usize]);
-        let (il, ir) = (bl.importance(p, n), br.importance(p, n));
+    fn p_left(&self, l: u32, r: u32, il: f32, ir: f32) -> f32 {
         let sum = il + ir;
         if sum > 0.0 && sum.is_finite() {
             il / sum
         } else {
+            let (bl, br) = (&self.bounds[l as usize], &self.bounds[r as usize]);
             bl.power / (bl.power + br.power)
         }
+    }
+
+    /// For tests: whether at `p` (normal `n`) every inner node's importances in lanes
+    /// (`Bounds4::importance`, of its children and of its grandchildren) are bit for bit
+    /// [`LightBounds::importance`] of those nodes.
+    #[doc(hidden)]
+    pub fn lanes_match_scalar(&self, p: Vec3, n: Option<Vec3>) -> bool {
+        let (pl, nl) = (splat3(p), n.map(splat3));
+        self.nodes.iter().all(|node| {
+            let Node::Inner(l, r, pair) = *node else {
+                return true;
+            };
+            let scalar = |c: u32| self.bounds[c as usize].importance(p, n).to_bits();
+            let below = |c: u32| match self.nodes[c as usize] {
+                Node::Inner(cl, cr, _) => Some([scalar(cl), scalar(cr)]),
+                Node::Leaf(_) => None,
+            };
+            [l, r].iter().enumerate().all(|(side, &c)| {
+                let v = self.sides[pair as usize][side].importance(&pl, nl.as_ref());
+                let v = v.to_array().map(f32::to_bits);
+                v[..2] == [scalar(l), scalar(r)] && below(c).is_none_or(|g| v[2..] == g)
+            })
+        })
     }
 
     /// A light for `p` (normal `n`) from `u`, its probability and `u` rescaled.
@@ -408,23 +449,33 @@ impl LightTree {
             pmf = self.p_tree;
             u = (u / self.p_tree).min(ONE_MINUS_EPSILON);
         }
+        let (p, n) = (splat3(p), n.map(splat3));
         let mut node = 0u32;
-        loop {
-            match *self.nodes.get(node as usize)? {
-                Node::Leaf(light) => return Some((light as usize, pmf, u)),
-                Node::Inner(l, r) => {
-                    let pl = self.p_left(l, r, p, n);
-                    if u < pl {
-                        pmf *= pl;
-                        u = (u / pl).min(ONE_MINUS_EPSILON);
-                        node = l;
-                    } else {
-                        pmf *= 1.0 - pl;
-                        u = ((u - pl) / (1.0 - pl)).min(ONE_MINUS_EPSILON);
-                        node = r;
-                    }
-                }
-            }
+        // two levels per step: the grandchildren's importances do not depend on the choice
+        // between the children, so both sets are computed side by side
+        while let Node::Inner(l, r, pair) = *self.nodes.get(node as usize)? {
+            let [to_l, to_r] = &self.sides[pair as usize];
+            let a = to_l.importance(&p, n.as_ref());
+            // below a leaf there is nothing to compute
+            let b = match self.nodes[r as usize] {
+                Node::Inner(..) => to_r.importance(&p, n.as_ref()),
+                Node::Leaf(_) => a,
+            };
+            let left = choose(&mut u, &mut pmf, self.p_left(l, r, a.x, a.y));
+            node = if left { l } else { r };
+            let Node::Inner(cl, cr, _) = self.nodes[node as usize] else {
+                break;
+            };
+            let g = if left { a } else { b };
+            node = if choose(&mut u, &mut pmf, self.p_left(cl, cr, g.z, g.w)) {
+                cl
+            } else {
+                cr
+            };
+        }
+        match self.nodes[node as usize] {
+            Node::Leaf(light) => Some((light as usize, pmf, u)),
+            Node::Inner(..) => None,
         }
     }
 
@@ -446,18 +497,28 @@ impl LightTree {
         } else {
             1.0
         };
+        let (p, n) = (splat3(p), n.map(splat3));
         let mut node = 0u32;
+        // two levels per set of vector operations: the trail names the child in advance
+        let mut v = Vec4::ZERO;
         for k in 0..depth {
-            let Node::Inner(l, r) = self.nodes[node as usize] else {
+            let Node::Inner(l, r, pair) = self.nodes[node as usize] else {
                 return 0.0;
             };
-            let pl = self.p_left(l, r, p, n);
-            if trail & (1 << k) == 0 {
-                pmf *= pl;
-                node = l;
+            let right = trail & (1 << k) != 0;
+            let (il, ir) = if k % 2 == 0 {
+                v = self.sides[pair as usize][right as usize].importance(&p, n.as_ref());
+                (v.x, v.y)
             } else {
+                (v.z, v.w)
+            };
+            let pl = self.p_left(l, r, il, ir);
+            if right {
                 pmf *= 1.0 - pl;
                 node = r;
+            } else {
+                pmf *= pl;
+                node = l;
             }
         }
         pmf
@@ -466,5 +527,139 @@ impl LightTree {
     /// The number of nodes (for `info` and tests).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
+    }
+}
+
+/// One choice of the descent with left probability `pl`: whether left, with `u` rescaled and
+/// the choice's probability multiplied into `pmf`.
+#[inline]
+fn choose(u: &mut f32, pmf: &mut f32, pl: f32) -> bool {
+    if *u < pl {
+        *pmf *= pl;
+        *u = (*u / pl).min(ONE_MINUS_EPSILON);
+        true
+    } else {
+        *pmf *= 1.0 - pl;
+        *u = ((*u - pl) / (1.0 - pl)).min(ONE_MINUS_EPSILON);
+        false
+    }
+}
+
+/// A point or direction with each coordinate in all four lanes.
+type Lanes = [Vec4; 3];
+
+fn splat3(v: Vec3) -> Lanes {
+    [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)]
+}
+
+/// The bounds of four nodes of the tree, field by field in vector lanes, so that the descent
+/// computes four importances with one set of four-lane operations: [`LightBounds::importance`]'s
+/// arithmetic lane for lane, its branches as selects, so the values are bit for bit the same.
+#[derive(Clone, Copy, Debug)]
+struct Bounds4 {
+    min: Lanes,
+    max: Lanes,
+    centre: Lanes,
+    axis: Lanes,
+    power: Vec4,
+    cos_o: Vec4,
+    sin_o: Vec4,
+    cos_e: Vec4,
+    r2: Vec4,
+    /// [`BOX_DISTANCE_FLOOR`] times `r2`, the same product the scalar form takes.
+    floor: Vec4,
+}
+
+impl Bounds4 {
+    fn new(b: [&LightBounds; 4]) -> Self {
+        let f = |g: fn(&LightBounds) -> f32| Vec4::from_array(b.map(g));
+        Bounds4 {
+            min: [
+                f(|b| b.bounds.min.x),
+                f(|b| b.bounds.min.y),
+                f(|b| b.bounds.min.z),
+            ],
+            max: [
+                f(|b| b.bounds.max.x),
+                f(|b| b.bounds.max.y),
+                f(|b| b.bounds.max.z),
+            ],
+            centre: [f(|b| b.centre.x), f(|b| b.centre.y), f(|b| b.centre.z)],
+            axis: [f(|b| b.axis.x), f(|b| b.axis.y), f(|b| b.axis.z)],
+            power: f(|b| b.power),
+            cos_o: f(|b| b.cos_o),
+            sin_o: f(|b| b.sin_o),
+            cos_e: f(|b| b.cos_e),
+            r2: f(|b| b.r2),
+            floor: f(|b| BOX_DISTANCE_FLOOR * b.r2),
+        }
+    }
+
+    /// The four nodes' [`LightBounds::importance`] at `p` (normal `n`), lane by lane. Each `max`/`min` with a constant takes the constant as its second
+    /// operand, which a NaN in the first gives back as `f32::max`/`f32::min` do; the cosine's
+    /// clamp keeps a NaN as `f32::clamp` does.
+    #[inline]
+    fn importance(&self, p: &Lanes, n: Option<&Lanes>) -> Vec4 {
+        let (zero, one) = (Vec4::ZERO, Vec4::ONE);
+        let to_p = sub3(p, &self.centre);
+        let d2 = dot3(&to_p, &to_p);
+        let clamped = [0, 1, 2].map(|k| p[k].max(self.min[k]).min(self.max[k]));
+        let off = sub3(p, &clamped);
+        let d2_box = dot3(&off, &off)
+            .max(self.floor)
+            .max(Vec4::splat(f32::MIN_POSITIVE));
+        let inside = d2.cmple(self.r2) | d2.cmple(zero);
+        let len = sqrt4(d2);
+        let wi = [to_p[0] / len, to_p[1] / len, to_p[2] / len];
+        let sin_u2 = (self.r2 / d2).min(one);
+        let (sin_u, cos_u) = (sqrt4(sin_u2), sqrt4(one - sin_u2));
+        let cos_w = one.min(Vec4::NEG_ONE.max(dot3(&self.axis, &wi)));
+        let (cos_o, sin_o) = (self.cos_o, self.sin_o);
+        let sin_w = sqrt4((one - cos_w * cos_w).max(zero));
+        let cos_x = cos_w * cos_o + sin_w * sin_o;
+        let sin_x = (sin_w * cos_o - cos_w * sin_o).max(zero);
+        let cos_emit = Vec4::select(
+            cos_w.cmpge(cos_o) | cos_x.cmpge(cos_u),
+            one,
+            cos_x * cos_u + sin_x * sin_u,
+        );
+        let cos_recv = match n {
+            Some(n) => {
+                let cos_i = dot3(n, &wi).abs().min(one);
+                let sin_i = sqrt4((one - cos_i * cos_i).max(zero));
+                let cone = (cos_i * cos_u + sin_i * sin_u).max(zero);
+                Vec4::select(cos_i.cmpge(cos_u), one, cone)
+            }
+            None => one,
+        };
+        // inside the bounding sphere: power / d2_box, the same value times two exact ones
+        let cos_emit = Vec4::select(inside, one, cos_emit);
+        let cos_recv = Vec4::select(inside, one, cos_recv);
+        let value = self.power * cos_emit * cos_recv / d2_box;
+        let none = self.power.cmple(zero) | (!inside & cos_emit.cmple(self.cos_e));
+        Vec4::select(none, zero, value)
+    }
+}
+
+fn sub3(a: &Lanes, b: &Lanes) -> Lanes {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `Vec3::dot`'s order: (x x' + y y') + z z'.
+fn dot3(a: &Lanes, b: &Lanes) -> Vec4 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The square root of each lane, correctly rounded as `f32::sqrt` is.
+#[inline]
+fn sqrt4(v: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE is part of every x86_64 target
+        Vec4::from(unsafe { std::arch::x86_64::_mm_sqrt_ps(v.into()) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec4::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt(), v.w.sqrt())
     }
 }

@@ -1,7 +1,8 @@
 //! The light tree's selection (`light_selection = "tree"`, `scene::light_tree`): its
 //! probabilities sum to one over the lights at any point, the probability it reports when it
 //! samples a light is the one `pmf` evaluates for that light, and it samples with those
-//! frequencies (chi-square); in nine rooms it prefers the light of the point's room; single
+//! frequencies (chi-square); the importances the descent computes in vector lanes are the
+//! scalar ones bit for bit; in nine rooms it prefers the light of the point's room; single
 //! scattering along a ray agrees between power and tree selection, with and without
 //! equiangular MIS. The integrators' agreement on a many-light scene is the `many-lights` row
 //! of `tests/oracles/agreement.rs`. Book: "The Neumann series", section "Light selection".
@@ -123,6 +124,32 @@ fn sampled_probability_is_the_evaluated_pmf() {
                 pmf.to_bits(),
                 eval.to_bits(),
                 "{name}: light {l} at {p} (normal {n:?}): sampled {pmf}, evaluated {eval}"
+            );
+        }
+    }
+}
+
+/// The descent computes the importances of two children, and of their children, in vector
+/// lanes; each is bit for bit the scalar `LightBounds::importance` (Conty Estevez and Kulla
+/// 2018, eq. 3) of its node, at points inside and outside the nodes' bounding spheres, on
+/// surfaces and in media, so that no image changes by the vector form.
+#[test]
+fn importances_in_lanes_are_the_scalar_ones_bit_for_bit() {
+    let mut all = scenes();
+    all.push((
+        "rooms-10",
+        load("rooms-10", pathspace::cli::rooms::rooms_scene(10)),
+    ));
+    for (name, scene) in all {
+        let LightSelection::Tree(t) = tree(&scene) else {
+            unreachable!()
+        };
+        let mut sampler = Sampler::new(13, 0, 0);
+        for _ in 0..5000 {
+            let (p, n) = shading_point(&scene, &mut sampler);
+            assert!(
+                t.lanes_match_scalar(p, n),
+                "{name}: at {p} (normal {n:?}) an importance in lanes differs from the scalar one"
             );
         }
     }
