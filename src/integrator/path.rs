@@ -396,7 +396,6 @@ impl<'t> PathTracer<'t> {
         }
         l
     }
-    // ANCHOR_END: walk
 
     /// Table 1 through media and null boundaries from the walk's ray (along the segments the
     /// equiangular spans were read from, when it kept them all): the event and the throughput
@@ -434,6 +433,7 @@ impl<'t> PathTracer<'t> {
         }
         (prop.event, prop.weight())
     }
+    // ANCHOR_END: walk
 
     /// A medium vertex at `p` in medium `m`: next-event estimation into `l`, then a direction
     /// from the phase function; false ends the walk. `on_ray` is the ray's spans with the

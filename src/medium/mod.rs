@@ -127,7 +127,7 @@ impl WeightedFlight {
 
     /// The flight with its transmittance and pdf divided by a common factor: only their ratio
     /// means anything. For products over a walk's segments (`Scene::propagate_weight_from`),
-    /// kept as the two products [`crate::scene::Propagation`] keeps.
+    /// kept as the two products a `Propagation` keeps.
     #[inline]
     pub(crate) fn scaled(&self) -> FreeFlight {
         self.0
