@@ -12,6 +12,7 @@ use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Ray};
 use crate::math::distribution::ONE_MINUS_EPSILON;
 use crate::math::{warp, Frame, Sampler};
+use crate::medium::Medium;
 use crate::path::distance::RayMedia;
 use crate::path::technique::{local_scatter_pdf, LocalSampling, ScatterSample};
 use crate::path::{Vertex, VertexKind};
@@ -346,6 +347,8 @@ impl<'t> PathTracer<'t> {
     // ANCHOR: walk
     fn walk(&self, scene: &Scene, mut w: WalkState, sampler: &mut Sampler) -> Rgb {
         let mut l = Rgb::ZERO;
+        // only emission found by a collision reads a propagation's transmittance and pdf
+        let weight_only = !scene.media.iter().any(Medium::emits);
         loop {
             // equiangular sampling on this ray, if a vertex on it may still scatter
             // the camera's rays see through hidden emitters until the first scattering vertex
@@ -356,23 +359,13 @@ impl<'t> PathTracer<'t> {
             if let Some(media) = &media {
                 l += w.beta * self.equiangular_estimate(scene, media, sampler);
             }
-            // propagation: Table 1 through media and null boundaries (along the segments the
-            // equiangular spans were read from, when it kept them all)
-            let prop = match media.as_ref().and_then(RayMedia::segments) {
-                Some(segs) => scene.propagate_along(w.ray, segs.iter().copied(), sampler),
-                None => scene.propagate_from(w.ray, w.lead, w.medium, from_camera, sampler),
-            };
-            if let Event::Medium { p, medium: m, .. } = prop.event {
-                if scene.media[m as usize].emits() {
-                    let nee = self.volume_next_event;
-                    l += volume_emission_found(scene, &w, &prop, (p, m), nee);
-                }
-            }
-            w.beta *= prop.weight();
+            let (event, weight) =
+                self.propagate(scene, &w, media.as_ref(), weight_only, sampler, &mut l);
+            w.beta *= weight;
             if w.beta == Rgb::ZERO {
                 break;
             }
-            let go_on = match prop.event {
+            let go_on = match event {
                 Event::Escape => {
                     if w.depth >= scene.min_depth() {
                         l += escaped(scene, &self.selection, &w);
@@ -403,6 +396,43 @@ impl<'t> PathTracer<'t> {
             }
         }
         l
+    }
+
+    /// Table 1 through media and null boundaries from the walk's ray (along the segments the
+    /// equiangular spans were read from, when it kept them all): the event and the throughput
+    /// factor, the emission of an emitting medium collided in added to `l`. With `weight_only`
+    /// (no medium emits) nothing reads the transmittance or pdf of the flights (the equiangular
+    /// MIS weights evaluate their own free-flight densities), so only the weight is asked for
+    /// ([`Scene::propagate_weight_from`]: no exact optical depth in grey tracked media).
+    fn propagate(
+        &self,
+        scene: &Scene,
+        w: &WalkState,
+        media: Option<&RayMedia>,
+        weight_only: bool,
+        sampler: &mut Sampler,
+        l: &mut Rgb,
+    ) -> (Event, Rgb) {
+        let from_camera = w.depth == 0;
+        let segs = media.and_then(RayMedia::segments);
+        if weight_only {
+            let prop = match segs {
+                Some(segs) => scene.propagate_weight_along(w.ray, segs.iter().copied(), sampler),
+                None => scene.propagate_weight_from(w.ray, w.lead, w.medium, from_camera, sampler),
+            };
+            return (prop.event(), prop.weight());
+        }
+        let prop = match segs {
+            Some(segs) => scene.propagate_along(w.ray, segs.iter().copied(), sampler),
+            None => scene.propagate_from(w.ray, w.lead, w.medium, from_camera, sampler),
+        };
+        if let Event::Medium { p, medium: m, .. } = prop.event {
+            if scene.media[m as usize].emits() {
+                let nee = self.volume_next_event;
+                *l += volume_emission_found(scene, w, &prop, (p, m), nee);
+            }
+        }
+        (prop.event, prop.weight())
     }
     // ANCHOR_END: walk
 

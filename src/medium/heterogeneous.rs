@@ -32,7 +32,7 @@ use crate::spectrum::{average, Rgb};
 
 use super::grid::{cell_segments, cell_spans, EmptyCells, Grid, GAUSS2};
 use super::procedural::Field;
-use super::{FreeFlight, MediumError, Phase};
+use super::{FreeFlight, MediumError, Phase, WeightedFlight};
 
 /// The number of colour channels a distance can be sampled for (`Rgb` has three).
 const N_CHANNELS: usize = 3;
@@ -606,6 +606,53 @@ impl Heterogeneous {
         }
     }
     // ANCHOR_END: heterogeneous_sample
+
+    /// True when sigma_t is the same in every channel (the density scales all alike).
+    pub fn grey(&self) -> bool {
+        self.sigma_t.x == self.sigma_t.y && self.sigma_t.y == self.sigma_t.z
+    }
+
+    // ANCHOR: heterogeneous_sample_weight
+    /// [`Heterogeneous::sample_free_flight`] for an estimator that needs only the weight. For a
+    /// grey tracked medium the weight does not depend on the optical depth tau: a collision's
+    /// is tr sigma_s f / average(sigma_t f tr) = sigma_s f / (sigma_t f), a passage's
+    /// tr / average(tr) = 1, so the exact depth (most of a tracked flight's cost) is skipped and
+    /// the flight carries transmittance and pdf divided by exp(-tau). Same random numbers, same
+    /// outcome; every other medium gives the full flight.
+    pub fn sample_free_flight_weight(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        sampler: &mut Sampler,
+    ) -> WeightedFlight {
+        if self.line_integral.is_marching() || !self.grey() {
+            return WeightedFlight::new(self.sample_free_flight(ray, t_max, sampler));
+        }
+        // the channel draw of `sample_free_flight`, so the random numbers stay in step
+        let c = sampler.next_index(N_CHANNELS);
+        let k = self.sigma_t[c];
+        let passage = FreeFlight {
+            t: t_max,
+            scattered: false,
+            transmittance: Rgb::ONE,
+            sigma_s: Rgb::ZERO,
+            pdf: 1.0,
+        };
+        let Some(l) = self.local(ray, t_max) else {
+            return WeightedFlight::new(passage);
+        };
+        WeightedFlight::new(match self.delta_tracking(&l, k, sampler) {
+            Walk::Collision { t, f } => FreeFlight {
+                t,
+                scattered: true,
+                transmittance: Rgb::ONE,
+                sigma_s: self.sigma_s * f,
+                pdf: k * f,
+            },
+            Walk::Passage => passage,
+        })
+    }
+    // ANCHOR_END: heterogeneous_sample_weight
 
     /// Transmittance over [0, t_max) along `ray`: the marched exp(-sigma_t D) for the marching
     /// strategies; for delta tracking an unbiased estimate, by ratio tracking or delta tracking

@@ -85,6 +85,55 @@ impl FreeFlight {
     }
 }
 
+/// A free flight sampled for an estimator that needs only its throughput factor
+/// [`FreeFlight::weight`] (the path tracer's walk), from [`Medium::sample_free_flight_weight`].
+///
+/// In a grey tracked inhomogeneous medium the weight does not depend on the optical depth
+/// (`Heterogeneous::sample_free_flight_weight`), so the depth is not computed and the flight's
+/// transmittance and pdf are known only up to a common factor: they are not exposed, only the
+/// weight and the outcome.
+#[derive(Clone, Copy, Debug)]
+pub struct WeightedFlight(FreeFlight);
+
+impl WeightedFlight {
+    /// A flight whose transmittance and pdf are exact, or share one positive factor.
+    pub(crate) fn new(scaled: FreeFlight) -> Self {
+        WeightedFlight(scaled)
+    }
+
+    /// Distance of the collision, or `t_max` on passage.
+    #[inline]
+    pub fn t(&self) -> f32 {
+        self.0.t
+    }
+
+    /// True for a collision, false for passage.
+    #[inline]
+    pub fn scattered(&self) -> bool {
+        self.0.scattered
+    }
+
+    /// sigma_s at the collision point (zero on passage).
+    #[inline]
+    pub fn sigma_s(&self) -> Rgb {
+        self.0.sigma_s
+    }
+
+    /// [`FreeFlight::weight`] of the flight (to rounding where the depth was skipped).
+    #[inline]
+    pub fn weight(&self) -> Rgb {
+        self.0.weight()
+    }
+
+    /// The flight with its transmittance and pdf divided by a common factor: only their ratio
+    /// means anything. For products over a walk's segments (`Scene::propagate_weight_from`),
+    /// kept as the two products a `Propagation` keeps.
+    #[inline]
+    pub(crate) fn scaled(&self) -> FreeFlight {
+        self.0
+    }
+}
+
 /// The closed set of media.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Medium {
@@ -340,6 +389,22 @@ impl Medium {
                 h.sample_free_flight(t_max, sampler.next_f32(), sampler.next_f32())
             }
             Medium::Heterogeneous(h) => h.sample_free_flight(ray, t_max, sampler),
+        }
+    }
+
+    /// [`Medium::sample_free_flight`] for an estimator that needs only the flight's weight: the
+    /// same outcome from the same random numbers, the weight equal to rounding; the exact
+    /// optical depth is skipped in a grey tracked inhomogeneous medium.
+    #[inline]
+    pub fn sample_free_flight_weight(
+        &self,
+        ray: &Ray,
+        t_max: f32,
+        sampler: &mut Sampler,
+    ) -> WeightedFlight {
+        match self {
+            Medium::Heterogeneous(h) => h.sample_free_flight_weight(ray, t_max, sampler),
+            _ => WeightedFlight::new(self.sample_free_flight(ray, t_max, sampler)),
         }
     }
 

@@ -315,6 +315,26 @@ impl Propagation {
     }
 }
 
+/// A [`Propagation`] for an estimator that needs only its event and throughput factor, from
+/// [`Scene::propagate_weight_from`]: its transmittance and pdf may share an unknown factor
+/// (the skipped optical depth of grey tracked media), so they are not exposed.
+#[derive(Clone, Copy, Debug)]
+pub struct WeightedPropagation(Propagation);
+
+impl WeightedPropagation {
+    /// Where the ray's propagation ended.
+    #[inline]
+    pub fn event(&self) -> Event {
+        self.0.event
+    }
+
+    /// [`Propagation::weight`] (equal to rounding where an optical depth was skipped).
+    #[inline]
+    pub fn weight(&self) -> Rgb {
+        self.0.weight()
+    }
+}
+
 /// Transmittance (with visibility) and the propagation pdfs of an edge in both directions.
 #[derive(Clone, Copy, Debug)]
 pub struct EdgeEval {
@@ -596,6 +616,55 @@ impl Scene {
         origin_in_medium: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
+        let flight = |med: &Medium, sr: &Ray, t_max: f32, sampler: &mut Sampler| {
+            med.sample_free_flight(sr, t_max, sampler)
+        };
+        self.propagate_with::<REV>(ray, segments, origin_in_medium, sampler, flight)
+    }
+
+    /// [`Scene::propagate_from`] for an estimator that needs only the throughput factor: the
+    /// same event from the same random numbers, the weight equal to rounding, each segment's
+    /// flight by [`Medium::sample_free_flight_weight`] (no exact optical depth in a grey tracked
+    /// inhomogeneous medium).
+    pub fn propagate_weight_from(
+        &self,
+        ray: Ray,
+        lead: f32,
+        medium: Option<u32>,
+        from_camera: bool,
+        sampler: &mut Sampler,
+    ) -> WeightedPropagation {
+        let segments = Segments::new(self, ray, medium, f32::INFINITY)
+            .lead(lead)
+            .from_camera(from_camera);
+        self.propagate_weight_along(ray, segments, sampler)
+    }
+
+    /// [`Scene::propagate_along`] for an estimator that needs only the throughput factor
+    /// ([`Scene::propagate_weight_from`]).
+    pub fn propagate_weight_along(
+        &self,
+        ray: Ray,
+        segments: impl Iterator<Item = Segment>,
+        sampler: &mut Sampler,
+    ) -> WeightedPropagation {
+        let flight = |med: &Medium, sr: &Ray, t_max: f32, sampler: &mut Sampler| {
+            med.sample_free_flight_weight(sr, t_max, sampler).scaled()
+        };
+        WeightedPropagation(self.propagate_with::<false>(ray, segments, false, sampler, flight))
+    }
+
+    /// The segment walk of [`Scene::propagate`], each medium segment's free flight from
+    /// `flight`.
+    #[inline]
+    fn propagate_with<const REV: bool>(
+        &self,
+        ray: Ray,
+        segments: impl Iterator<Item = Segment>,
+        origin_in_medium: bool,
+        sampler: &mut Sampler,
+        flight: impl Fn(&Medium, &Ray, f32, &mut Sampler) -> crate::medium::FreeFlight,
+    ) -> Propagation {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
         let mut pdf_rev = 1.0f32;
@@ -605,7 +674,7 @@ impl Scene {
                 // Table 1 on this segment; memorylessness makes the segments independent
                 let sr = Ray::new(ray.at(seg.t0), ray.d);
                 let med = &self.media[m as usize];
-                let ff = med.sample_free_flight(&sr, seg.t1 - seg.t0, sampler);
+                let ff = flight(med, &sr, seg.t1 - seg.t0, sampler);
                 transmittance *= ff.transmittance;
                 pdf *= ff.pdf;
                 if REV {

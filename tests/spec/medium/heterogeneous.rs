@@ -930,3 +930,87 @@ fn skipping_empty_cells_leaves_line_integrals_bit_for_bit() {
         "{zero} empty lines, {positive} not"
     );
 }
+
+/// The distance between two positive finite floats in units in the last place.
+fn ulps(a: f32, b: f32) -> u32 {
+    (a.to_bits() as i64 - b.to_bits() as i64).unsigned_abs() as u32
+}
+
+/// `Medium::sample_free_flight_weight` (the path tracer's walk, which needs only the weight):
+/// in a grey tracked grid medium it skips the exact optical depth, and its weight is the full
+/// flight's (sigma_s f / (sigma_t f) for a collision, 1 for passage) to rounding: a few ulps
+/// (the full flight's weight has about ten roundings, each within half an ulp, the skipped
+/// one three), with the same outcome and the same random numbers, on random rays through a
+/// grid with empty cells, starting inside, outside and ending inside the box. A chromatic or a
+/// marched medium computes the depth: there the weight is the full flight's bit for bit.
+#[test]
+fn weight_only_free_flights_weigh_like_full_ones() {
+    /// Rounding bound of the grey case, in ulps of each channel.
+    const MAX_ULPS: u32 = 8;
+    let g = Grid::bake(9, |u| {
+        (0.35 - (u - Vec3::splat(0.5)).length()).max(0.0) * 20.0 * u.y
+    });
+    let grey = Rgb::splat(0.6);
+    let cases = [
+        (grey, LineIntegral::DeltaTracking, false),
+        (Vec3::new(0.6, 0.3, 1.2), LineIntegral::DeltaTracking, true),
+        (grey, LineIntegral::RandomOffset, true),
+    ];
+    for (sigma_a, li, exact) in cases {
+        let h = Heterogeneous::new(
+            Density::Grid(g.clone()),
+            unit_box(),
+            sigma_a,
+            Rgb::splat(2.4),
+            Phase::Isotropic,
+            li,
+            0.01,
+        )
+        .unwrap();
+        let m = Medium::Heterogeneous(Box::new(h));
+        let mut rays = sampler(17, 0);
+        let (mut collisions, mut passages, mut worst) = (0, 0, 0);
+        for i in 0..20_000 {
+            let mut u = || rays.next_f32();
+            let o = Vec3::new(u(), u(), u()) * 2.0 - Vec3::splat(0.5);
+            // toward a point of the sphere the density fills
+            let d = (Vec3::new(u(), u(), u()) * 0.5 + Vec3::splat(0.25) - o).normalize();
+            let (ray, t_max) = (Ray::new(o, d), 3.0 * u());
+            let (mut s_full, mut s_weight) = (sampler(19, i), sampler(19, i));
+            let full = m.sample_free_flight(&ray, t_max, &mut s_full);
+            let w = m.sample_free_flight_weight(&ray, t_max, &mut s_weight);
+            let at = format!("{li:?} sigma_a {sigma_a}, ray {i} from {o} along {d}, t_max {t_max}");
+            assert_eq!(
+                (w.t().to_bits(), w.scattered()),
+                (full.t.to_bits(), full.scattered),
+                "{at}"
+            );
+            assert_eq!(
+                s_weight.next_f32(),
+                s_full.next_f32(),
+                "random numbers, {at}"
+            );
+            assert_eq!(w.sigma_s(), full.sigma_s, "{at}");
+            let (a, b) = (w.weight().to_array(), full.weight().to_array());
+            for c in 0..3 {
+                let d = ulps(a[c], b[c]);
+                assert!(
+                    if exact { d == 0 } else { d <= MAX_ULPS },
+                    "weight {a:?} vs the full flight's {b:?} ({d} ulps), {at}"
+                );
+                worst = worst.max(d);
+            }
+            if full.scattered {
+                collisions += 1;
+            } else if full.transmittance.x < 0.9 {
+                passages += 1;
+            }
+        }
+        eprintln!("{li:?} sigma_a {sigma_a}: worst {worst} ulps");
+        // both outcomes, passages through real depth among them
+        assert!(
+            collisions > 1000 && passages > 1000,
+            "{collisions} collisions, {passages} attenuated passages"
+        );
+    }
+}
