@@ -573,9 +573,7 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = Segments::new(self, ray, medium, f32::INFINITY)
-            .lead(lead)
-            .from_camera(from_camera);
+        let segments = self.segments_from(ray, lead, medium, from_camera);
         self.propagate_impl::<false>(ray, segments, false, sampler)
     }
 
@@ -602,10 +600,22 @@ impl Scene {
         (origin_in_medium, from_camera): (bool, bool),
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = Segments::new(self, ray, medium, f32::INFINITY)
-            .lead(lead)
-            .from_camera(from_camera);
+        let segments = self.segments_from(ray, lead, medium, from_camera);
         self.propagate_impl::<true>(ray, segments, origin_in_medium, sampler)
+    }
+
+    /// The segments of an unbounded ray from a vertex: `lead` past its surface, starting in
+    /// `medium`, from the camera or not (hidden emitters).
+    fn segments_from(
+        &self,
+        ray: Ray,
+        lead: f32,
+        medium: Option<u32>,
+        from_camera: bool,
+    ) -> Segments<'_> {
+        Segments::new(self, ray, medium, f32::INFINITY)
+            .lead(lead)
+            .from_camera(from_camera)
     }
 
     #[inline]
@@ -634,9 +644,7 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> WeightedPropagation {
-        let segments = Segments::new(self, ray, medium, f32::INFINITY)
-            .lead(lead)
-            .from_camera(from_camera);
+        let segments = self.segments_from(ray, lead, medium, from_camera);
         self.propagate_weight_along(ray, segments, sampler)
     }
 
