@@ -21,7 +21,7 @@ pub use envmap::EnvMap;
 pub use file::{SceneError, SceneFile, SceneSource};
 pub use light::{AreaRadiance, Environment, Light};
 pub use light_tree::{LightSelection, LightSelectionKind};
-pub use segments::{Segment, SegmentEnd, Segments};
+pub use segments::{Before, Segment, SegmentEnd, Segments};
 pub use sensor::IrradianceMeter;
 
 use glam::Vec3;
@@ -29,7 +29,7 @@ use glam::Vec3;
 use crate::bsdf::{Bsdf, ConductorFresnel};
 use crate::geometry::{Aabb, Bvh, Hit, Primitive, Ray};
 use crate::math::{Distribution1D, Sampler};
-use crate::medium::Medium;
+use crate::medium::{FreeFlight, Medium};
 use crate::spectrum::Rgb;
 
 /// The fog box, compiled into the binary: what `pathspace render` draws without a scene file.
@@ -302,6 +302,15 @@ pub struct Propagation {
 }
 
 impl Propagation {
+    /// A ray trapped by more than [`segments::MAX_NULL_CROSSINGS`] null crossings: no light
+    /// passes.
+    const TRAPPED: Propagation = Propagation {
+        event: Event::Escape,
+        transmittance: Rgb::ZERO,
+        pdf: 1.0,
+        pdf_rev: 1.0,
+    };
+
     /// transmittance (times sigma_s at a medium vertex) over pdf: the throughput factor.
     #[inline]
     pub fn weight(&self) -> Rgb {
@@ -559,8 +568,7 @@ impl Scene {
         medium: Option<u32>,
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = Segments::new(self, ray, medium, f32::INFINITY).lead(lead);
-        self.propagate_impl::<false>(ray, segments, false, sampler)
+        self.propagate_from(ray, lead, medium, false, sampler)
     }
 
     /// [`Scene::propagate`] of a ray from the camera before its first scattering vertex when
@@ -573,8 +581,9 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = self.segments_from(ray, lead, medium, from_camera);
-        self.propagate_impl::<false>(ray, segments, false, sampler)
+        let mut segments = self.segments_from(ray, lead, medium, from_camera);
+        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, full, sampler);
+        self.propagate_with::<false>(ray, next, false, sampler)
     }
 
     /// [`Scene::propagate`] along `segments`, the ones [`Segments`] gave for the same ray, lead
@@ -586,7 +595,7 @@ impl Scene {
         segments: impl Iterator<Item = Segment>,
         sampler: &mut Sampler,
     ) -> Propagation {
-        self.propagate_impl::<false>(ray, segments, false, sampler)
+        self.propagate_with::<false>(ray, self.flights_along(ray, segments, full), false, sampler)
     }
 
     /// [`Scene::propagate`] that also computes the reverse propagation pdf, for bidirectional
@@ -600,8 +609,9 @@ impl Scene {
         (origin_in_medium, from_camera): (bool, bool),
         sampler: &mut Sampler,
     ) -> Propagation {
-        let segments = self.segments_from(ray, lead, medium, from_camera);
-        self.propagate_impl::<true>(ray, segments, origin_in_medium, sampler)
+        let mut segments = self.segments_from(ray, lead, medium, from_camera);
+        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, full, sampler);
+        self.propagate_with::<true>(ray, next, origin_in_medium, sampler)
     }
 
     /// The segments of an unbounded ray from a vertex: `lead` past its surface, starting in
@@ -618,20 +628,6 @@ impl Scene {
             .from_camera(from_camera)
     }
 
-    #[inline]
-    fn propagate_impl<const REV: bool>(
-        &self,
-        ray: Ray,
-        segments: impl Iterator<Item = Segment>,
-        origin_in_medium: bool,
-        sampler: &mut Sampler,
-    ) -> Propagation {
-        let flight = |med: &Medium, sr: &Ray, t_max: f32, sampler: &mut Sampler| {
-            med.sample_free_flight(sr, t_max, sampler)
-        };
-        self.propagate_with::<REV>(ray, segments, origin_in_medium, sampler, flight)
-    }
-
     /// [`Scene::propagate_from`] for an estimator that needs only the throughput factor: the
     /// same event from the same random numbers, the weight equal to rounding, each segment's
     /// flight by [`Medium::sample_free_flight_weight`] (no exact optical depth in a grey tracked
@@ -644,8 +640,9 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> WeightedPropagation {
-        let segments = self.segments_from(ray, lead, medium, from_camera);
-        self.propagate_weight_along(ray, segments, sampler)
+        let mut segments = self.segments_from(ray, lead, medium, from_camera);
+        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, weight, sampler);
+        WeightedPropagation(self.propagate_with::<false>(ray, next, false, sampler))
     }
 
     /// [`Scene::propagate_along`] for an estimator that needs only the throughput factor
@@ -656,75 +653,135 @@ impl Scene {
         segments: impl Iterator<Item = Segment>,
         sampler: &mut Sampler,
     ) -> WeightedPropagation {
-        let flight = |med: &Medium, sr: &Ray, t_max: f32, sampler: &mut Sampler| {
-            med.sample_free_flight_weight(sr, t_max, sampler).scaled()
-        };
-        WeightedPropagation(self.propagate_with::<false>(ray, segments, false, sampler, flight))
+        let next = self.flights_along(ray, segments, weight);
+        WeightedPropagation(self.propagate_with::<false>(ray, next, false, sampler))
     }
 
-    /// The segment walk of [`Scene::propagate`], each medium segment's free flight from
-    /// `flight`.
+    /// The next segment of `segments` and its free flight by `flight`. In a homogeneous medium
+    /// the flight is drawn first, so that the intersection query can stop at the collision
+    /// ([`Segments::next_before`]: a collision needs no knowledge of the surfaces beyond it);
+    /// the outcome and the random numbers are those of drawing it after the query. (A tracked
+    /// medium's walk draws random numbers up to the segment's end, so it is drawn after.)
+    #[inline]
+    fn next_flight(
+        &self,
+        ray: Ray,
+        segments: &mut Segments,
+        flight: impl Fn(&Medium, &Ray, f32, &mut Sampler) -> FreeFlight,
+        sampler: &mut Sampler,
+    ) -> Flight {
+        let (t0, first) = (segments.start(), segments.first());
+        let Some(m) = segments.medium() else {
+            return segments
+                .next()
+                .map_or(Flight::Trapped, |seg| Flight::Segment(seg, None));
+        };
+        match &self.media[m as usize] {
+            Medium::Homogeneous(h) => {
+                // the random numbers in the order `Medium::sample_free_flight` draws them
+                let (u_channel, u) = (sampler.next_f32(), sampler.next_f32());
+                let collision = h.sample_free_flight(f32::INFINITY, u_channel, u);
+                let seg = match segments.next_before(collision.t) {
+                    Before::Beyond => {
+                        let (medium, ff) = (m, collision);
+                        return Flight::Collided {
+                            t0,
+                            medium,
+                            first,
+                            ff,
+                        };
+                    }
+                    Before::Segment(seg) => seg,
+                };
+                let Some(seg) = seg else {
+                    return Flight::Trapped;
+                };
+                let len = seg.t1 - seg.t0;
+                let ff = if collision.t < len {
+                    collision
+                } else {
+                    h.sample_free_flight(len, u_channel, u)
+                };
+                Flight::Segment(seg, Some(ff))
+            }
+            med => {
+                let Some(seg) = segments.next() else {
+                    return Flight::Trapped;
+                };
+                let sr = Ray::new(ray.at(t0), ray.d);
+                Flight::Segment(seg, Some(flight(med, &sr, seg.t1 - seg.t0, sampler)))
+            }
+        }
+    }
+
+    /// [`Scene::next_flight`] along segments walked already.
+    fn flights_along<'a>(
+        &'a self,
+        ray: Ray,
+        mut segments: impl Iterator<Item = Segment> + 'a,
+        flight: impl Fn(&Medium, &Ray, f32, &mut Sampler) -> FreeFlight + 'a,
+    ) -> impl FnMut(&mut Sampler) -> Flight + 'a {
+        move |sampler: &mut Sampler| {
+            let Some(seg) = segments.next() else {
+                return Flight::Trapped;
+            };
+            let ff = seg.medium.map(|m| {
+                let sr = Ray::new(ray.at(seg.t0), ray.d);
+                flight(&self.media[m as usize], &sr, seg.t1 - seg.t0, sampler)
+            });
+            Flight::Segment(seg, ff)
+        }
+    }
+
+    /// The segment walk of [`Scene::propagate`] (Table 1 on each medium segment;
+    /// memorylessness makes the segments independent), each segment and its flight from
+    /// `next`.
     #[inline]
     fn propagate_with<const REV: bool>(
         &self,
         ray: Ray,
-        segments: impl Iterator<Item = Segment>,
+        mut next: impl FnMut(&mut Sampler) -> Flight,
         origin_in_medium: bool,
         sampler: &mut Sampler,
-        flight: impl Fn(&Medium, &Ray, f32, &mut Sampler) -> crate::medium::FreeFlight,
     ) -> Propagation {
         let mut transmittance = Rgb::ONE;
         let mut pdf = 1.0f32;
         let mut pdf_rev = 1.0f32;
-        // the first segment starts `lead` before the lifted origin, at the vertex itself
-        for seg in segments {
-            if let Some(m) = seg.medium {
-                // Table 1 on this segment; memorylessness makes the segments independent
-                let sr = Ray::new(ray.at(seg.t0), ray.d);
-                let med = &self.media[m as usize];
-                let ff = flight(med, &sr, seg.t1 - seg.t0, sampler);
+        loop {
+            let (t0, first, medium, ff, seg) = match next(sampler) {
+                Flight::Trapped => return Propagation::TRAPPED,
+                Flight::Collided {
+                    t0,
+                    medium,
+                    first,
+                    ff,
+                } => (t0, first, Some(medium), Some(ff), None),
+                Flight::Segment(seg, ff) => (seg.t0, seg.first, seg.medium, ff, Some(seg)),
+            };
+            if let (Some(ff), Some(m)) = (ff, medium) {
                 transmittance *= ff.transmittance;
                 pdf *= ff.pdf;
                 if REV {
                     // the reverse walk passes this segment, or collides at its far end (the
                     // origin) when the origin is a medium vertex
-                    let back = Ray::new(sr.at(ff.t), -ray.d);
-                    pdf_rev *= med.free_flight_pdf(&back, ff.t, seg.first && origin_in_medium);
+                    let back = Ray::new(Ray::new(ray.at(t0), ray.d).at(ff.t), -ray.d);
+                    let med = &self.media[m as usize];
+                    pdf_rev *= med.free_flight_pdf(&back, ff.t, first && origin_in_medium);
                 }
                 if ff.scattered {
-                    return Propagation {
-                        event: Event::Medium {
-                            p: sr.at(ff.t),
-                            t: seg.t0 + ff.t,
-                            medium: m,
-                            sigma_s: ff.sigma_s,
-                        },
-                        transmittance,
-                        pdf,
-                        pdf_rev,
-                    };
+                    let mut p = collided(ray, t0, m, ff, (transmittance, pdf));
+                    p.pdf_rev = pdf_rev;
+                    return p;
                 }
             }
-            let event = match seg.end {
-                SegmentEnd::Null(_) => continue,
-                SegmentEnd::Open => Event::Escape,
-                SegmentEnd::Surface(hit) => Event::Surface {
-                    hit,
-                    medium: seg.medium,
-                },
-            };
-            return Propagation {
-                event,
-                transmittance,
-                pdf,
-                pdf_rev,
-            };
-        }
-        Propagation {
-            event: Event::Escape,
-            transmittance: Rgb::ZERO,
-            pdf: 1.0,
-            pdf_rev: 1.0,
+            if let Some(event) = seg.as_ref().and_then(segment_event) {
+                return Propagation {
+                    event,
+                    transmittance,
+                    pdf,
+                    pdf_rev,
+                };
+            }
         }
     }
     // ANCHOR_END: propagate
@@ -1054,5 +1111,72 @@ impl Scene {
     pub fn fog_box() -> Scene {
         Scene::load(&SceneSource::embedded("fog-box.toml (embedded)", FOG_BOX))
             .expect("the embedded fog box is valid (checked by a test)")
+    }
+}
+
+/// One step of [`Scene::next_flight`].
+enum Flight {
+    /// The flight collided at `ff.t` past ray parameter `t0` in `medium`, before any surface.
+    Collided {
+        t0: f32,
+        medium: u32,
+        /// Whether the segment starts at the ray's origin.
+        first: bool,
+        ff: FreeFlight,
+    },
+    /// The ray's next segment and its flight (`None` in vacuum).
+    Segment(Segment, Option<FreeFlight>),
+    /// More null crossings than [`segments::MAX_NULL_CROSSINGS`].
+    Trapped,
+}
+
+/// A segment's free flight with its exact transmittance and pdf.
+#[inline]
+fn full(med: &Medium, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
+    med.sample_free_flight(ray, t_max, sampler)
+}
+
+/// A segment's free flight whose transmittance and pdf may share a factor
+/// ([`Medium::sample_free_flight_weight`]).
+#[inline]
+fn weight(med: &Medium, ray: &Ray, t_max: f32, sampler: &mut Sampler) -> FreeFlight {
+    med.sample_free_flight_weight(ray, t_max, sampler).scaled()
+}
+
+/// The propagation that ends in a collision `ff` on the segment of `ray` starting at ray
+/// parameter `t0` in medium `m`, after the walk's products (transmittance, pdf) so far.
+#[inline]
+fn collided(
+    ray: Ray,
+    t0: f32,
+    m: u32,
+    ff: FreeFlight,
+    (transmittance, pdf): (Rgb, f32),
+) -> Propagation {
+    let sr = Ray::new(ray.at(t0), ray.d);
+    Propagation {
+        event: Event::Medium {
+            p: sr.at(ff.t),
+            t: t0 + ff.t,
+            medium: m,
+            sigma_s: ff.sigma_s,
+        },
+        transmittance,
+        pdf,
+        pdf_rev: 1.0,
+    }
+}
+
+/// The event that ends the walk at the end of a segment the ray passed (`None` at a null
+/// boundary, where the walk goes on).
+#[inline]
+fn segment_event(seg: &Segment) -> Option<Event> {
+    match seg.end {
+        SegmentEnd::Null(_) => None,
+        SegmentEnd::Open => Some(Event::Escape),
+        SegmentEnd::Surface(hit) => Some(Event::Surface {
+            hit,
+            medium: seg.medium,
+        }),
     }
 }

@@ -7,6 +7,7 @@
 //! Book: "The transport equations", section "Why the ray is continued, not re-spawned, at a null
 //! boundary".
 
+use crate::geometry::bvh::TIE_EPSILON;
 use crate::geometry::{Bvh, Hit, Ray};
 
 use super::Scene;
@@ -19,6 +20,15 @@ const NULL_CROSSING_EPSILON: f32 = 1e-6;
 #[inline]
 fn past(t: f32, ray: &Ray) -> f32 {
     t + NULL_CROSSING_EPSILON * (1.0 + t + ray.o.abs().max_element())
+}
+
+/// What [`Segments::next_before`] found.
+#[derive(Clone, Copy, Debug)]
+pub enum Before {
+    /// The segment [`Iterator::next`] gives (`None`: the walk is over or trapped).
+    Segment(Option<Segment>),
+    /// No hit before the limit: the next segment ends past it.
+    Beyond,
 }
 
 /// Crossing more null boundaries than this along one ray means the geometry traps the ray.
@@ -128,6 +138,50 @@ impl<'a> Segments<'a> {
     pub fn ray(&self) -> &Ray {
         &self.ray
     }
+
+    /// Where the next segment starts (a ray parameter).
+    #[inline]
+    pub fn start(&self) -> f32 {
+        self.t_start
+    }
+
+    /// Whether the next segment starts at the ray's origin.
+    #[inline]
+    pub fn first(&self) -> bool {
+        self.queries == 0
+    }
+
+    /// The medium of the next segment (`None`: vacuum).
+    #[inline]
+    pub fn medium(&self) -> Option<u32> {
+        self.medium
+    }
+
+    /// [`Iterator::next`] for a caller that has drawn a collision at distance `t` from the
+    /// next segment's start (a free flight) and needs the surfaces only if one comes first:
+    /// the query stops a little past the collision, so the tree is not searched beyond it.
+    /// `Beyond` when nothing lies before that point, and then the segment `next` would give
+    /// is longer than `t` in f32 (`t < t1 - t0`); otherwise the segment `next` gives. A hit
+    /// whose tie-break could involve a primitive past the query's end (within two tie windows
+    /// of it) is looked up again without the limit.
+    #[inline]
+    pub fn next_before(&mut self, t: f32) -> Before {
+        // past the collision by more than rounding: a hit at or beyond `limit` ends a segment
+        // whose f32 length exceeds t
+        let limit = self.t_start + t + 1e-5 * (1.0 + self.t_start.abs() + t);
+        if self.done || self.queries >= MAX_NULL_CROSSINGS || limit.is_nan() || limit >= self.t_max
+        {
+            return Before::Segment(self.next());
+        }
+        let reach = |t: f32| t * (1.0 + TIE_EPSILON) + TIE_EPSILON;
+        match self.query(limit) {
+            None => Before::Beyond,
+            Some(hit) if reach(reach(hit.t)) < limit => {
+                Before::Segment(Some(self.segment_to(Some(hit))))
+            }
+            Some(_) => Before::Segment(self.next()),
+        }
+    }
 }
 
 // ANCHOR: segments
@@ -139,29 +193,43 @@ impl Iterator for Segments<'_> {
         if self.done || self.queries >= MAX_NULL_CROSSINGS {
             return None;
         }
+        let hit = self.query(self.t_max);
+        Some(self.segment_to(hit))
+    }
+}
+
+impl Segments<'_> {
+    /// The closest hit in (t_min, `t_max`).
+    #[inline]
+    fn query(&self, t_max: f32) -> Option<Hit> {
         let scene = self.scene;
-        let first = self.queries == 0;
-        self.queries += 1;
-        let hit = self.bvh.intersect_range(
+        self.bvh.intersect_range(
             &scene.prims,
             &scene.prim_opaque,
             &self.ray,
             self.t_min,
-            self.t_max,
-        );
+            t_max,
+        )
+    }
+
+    /// The next segment, ended by `hit` (the closest hit past it), crossing a null boundary.
+    #[inline]
+    fn segment_to(&mut self, hit: Option<Hit>) -> Segment {
+        let first = self.queries == 0;
+        self.queries += 1;
         let medium = self.medium;
         let t0 = self.t_start;
         let Some(hit) = hit else {
             self.done = true;
-            return Some(Segment {
+            return Segment {
                 t0,
                 t1: self.t_open,
                 medium,
                 first,
                 end: SegmentEnd::Open,
-            });
+            };
         };
-        let shape = scene.shape_of(&hit);
+        let shape = self.scene.shape_of(&hit);
         let end = if shape.is_null() {
             // the ray is continued (not re-spawned) past the boundary: segments stay contiguous
             self.medium = shape.medium_after(self.ray.d, hit.ng, medium);
@@ -172,13 +240,13 @@ impl Iterator for Segments<'_> {
             self.done = true;
             SegmentEnd::Surface(hit)
         };
-        Some(Segment {
+        Segment {
             t0,
             t1: hit.t,
             medium,
             first,
             end,
-        })
+        }
     }
 }
 // ANCHOR_END: segments

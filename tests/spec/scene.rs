@@ -238,6 +238,132 @@ fn degenerate_edges_are_zero() {
 }
 
 // The modules of `src/scene/` (the layout: tests/repository/index.rs).
+/// Propagation draws a homogeneous medium's free flight before the segment's intersection
+/// query and stops the query at the collision (`Scene::propagate_from`,
+/// `propagate_weight_from`); the result must be the walk's that queries first
+/// (`propagate_along` the segments `Segments` gives), bit for bit, with the same random
+/// numbers drawn. Rays from points in and outside the media and from surfaces (lifted, with a
+/// lead), in every shipped scene with a null boundary and in a dense fog box, where most
+/// flights end before the first wall.
+#[test]
+fn drawing_the_flight_before_the_query_gives_the_walks_bits() {
+    use pathspace::geometry::Ray;
+    use pathspace::scene::Segments;
+    let scenes = SCENES.map(|name| (name, shipped(name)));
+    for (name, scene) in scenes
+        .into_iter()
+        .chain([("dense fog box", dense_fog_box())])
+    {
+        let (mut collided, mut surfaces) = (0, 0);
+        const RAYS: u64 = 4000;
+        for i in 0..RAYS {
+            let mut s = Sampler::new(17, i, 0);
+            let (o, medium, lead) = if i % 2 == 0 {
+                let a = free_point(&scene, &mut s);
+                (a.p, a.medium, 0.0)
+            } else {
+                let a = surface_point(&scene, Vec3::ZERO, &mut s);
+                let lead = 1e-4 * s.next_f32();
+                (a.p + a.n * lead, a.medium, lead)
+            };
+            let d = pathspace::math::warp::uniform_sphere(Vec2::new(s.next_f32(), s.next_f32()));
+            let ray = Ray::new(o, d);
+            let along = || Segments::new(&scene, ray, medium, f32::INFINITY).lead(lead);
+            // each pair of walks from one stream
+            let stream = |k| Sampler::new(19, i, k);
+            let (mut s1, mut s2, mut s3, mut s4) = (stream(0), stream(0), stream(1), stream(1));
+            let first = scene.propagate_from(ray, lead, medium, false, &mut s1);
+            let walked = scene.propagate_along(ray, along(), &mut s2);
+            let at = format!("{name}: ray {i} from {o} along {d}, lead {lead}");
+            assert_eq!(format!("{first:?}"), format!("{walked:?}"), "{at}");
+            assert_eq!(s1.next_f32(), s2.next_f32(), "random numbers, {at}");
+            let w_first = scene.propagate_weight_from(ray, lead, medium, false, &mut s3);
+            let w_walked = scene.propagate_weight_along(ray, along(), &mut s4);
+            assert_eq!(
+                format!("{w_first:?}"),
+                format!("{w_walked:?}"),
+                "weight only, {at}"
+            );
+            assert_eq!(
+                s3.next_f32(),
+                s4.next_f32(),
+                "random numbers, weight only, {at}"
+            );
+            match walked.event {
+                pathspace::scene::Event::Medium { .. } => collided += 1,
+                pathspace::scene::Event::Surface { .. } => surfaces += 1,
+                pathspace::scene::Event::Escape => {}
+            }
+        }
+        assert!(
+            collided >= RAYS / 100 && surfaces >= RAYS / 100,
+            "{name}: {collided} collisions and {surfaces} surfaces do not exercise both outcomes"
+        );
+    }
+}
+
+/// `Segments::next_before(t)` against `next`, for collision distances `t` a few ulps and a few
+/// tie windows either side of the segment's length: `Beyond` only when the segment is longer
+/// than `t` in f32, and otherwise the very segment `next` gives, including the tie-break of
+/// coplanar faces (the fog box's walls and its null boundary) cut by the query's end.
+#[test]
+fn a_query_stopped_at_a_collision_gives_the_segment_or_says_beyond() {
+    use pathspace::geometry::Ray;
+    use pathspace::scene::{Before, Segments};
+    // the null boundary 2e-6 inside the walls: it comes first, and the wall behind it wins the
+    // tie-break (within `TIE_EPSILON`) only if the query sees both
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fog-box.toml");
+    let inset = std::fs::read_to_string(path)
+        .unwrap()
+        .replace(
+            "min = [-1.0, -1.0, -1.0]",
+            "min = [-0.999998, -0.999998, -0.999998]",
+        )
+        .replace("max = [1.0, 1.0, 1.0]", "max = [0.999998, 0.999998, 1.0]");
+    let inset = Scene::load(&SceneSource::embedded("inset-fog-box.toml", &inset)).unwrap();
+    for (name, scene) in [
+        ("fog-box.toml", shipped("fog-box.toml")),
+        ("dense fog box", dense_fog_box()),
+        ("fog box, boundary inside the walls", inset),
+    ] {
+        let (mut beyond, mut segments) = (0, 0);
+        for i in 0..2000u64 {
+            let mut s = Sampler::new(23, i, 0);
+            let a = free_point(&scene, &mut s);
+            let d = pathspace::math::warp::uniform_sphere(Vec2::new(s.next_f32(), s.next_f32()));
+            let ray = Ray::new(a.p, d);
+            let fresh = || Segments::new(&scene, ray, a.medium, f32::INFINITY);
+            let Some(seg) = fresh().next() else { continue };
+            let len = seg.t1 - seg.t0;
+            if !len.is_finite() {
+                continue;
+            }
+            let ulps = (-4..=4).map(|k| f32::from_bits((len.to_bits() as i32 + k) as u32));
+            let windows = (-30..=30).map(|k| len * (1.0 + k as f32 * 1e-6));
+            for t in ulps.chain(windows) {
+                let at = format!(
+                    "{name}: ray {i} from {} along {d}, t {t}, length {len}",
+                    a.p
+                );
+                match fresh().next_before(t) {
+                    Before::Beyond => {
+                        assert!(t < len, "beyond, but the segment is not longer: {at}");
+                        beyond += 1;
+                    }
+                    Before::Segment(got) => {
+                        assert_eq!(format!("{got:?}"), format!("{:?}", Some(seg)), "{at}");
+                        segments += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            beyond >= 500 && segments >= 500,
+            "{name}: {beyond} beyond, {segments} segments"
+        );
+    }
+}
+
 mod envmap;
 mod hide_emitters;
 mod light;
