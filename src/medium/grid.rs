@@ -305,24 +305,50 @@ fn trilinear(c: &[Vec4; 2], f: Vec3) -> f32 {
 
 // ANCHOR: dda
 /// The pieces of t in [ta, tb] during which the line g(t) = g0 + t gd (in lattice units, cells
-/// of side 1, `cells` per axis) stays in one cell: (t_start, t_end, cell index). A 3-D DDA
-/// (Amanatides and Woo 1987): the next crossing along each axis is tracked, the nearest taken.
+/// of side 1, `cells` per axis) stays in one cell: (t_start, t_end, cell index, x fastest). A 3-D
+/// DDA (Amanatides and Woo 1987): the next crossing along each axis is tracked, the nearest
+/// taken, and the cell index stepped along that axis. The first cell is the one holding the
+/// first piece's midpoint (a line starting on a face belongs to the cell it enters); a step
+/// that would leave the lattice, which only rounding at the far end allows, keeps the last
+/// cell, as the midpoint would clamped to the lattice.
 pub fn cell_segments(
     g0: Vec3,
     gd: Vec3,
     ta: f32,
     tb: f32,
     cells: [usize; 3],
-) -> impl Iterator<Item = (f32, f32, [usize; 3])> {
-    cell_spans(g0, gd, ta, tb).map(move |(t, end)| {
-        let mid = g0 + gd * (0.5 * (t + end));
-        let cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
-        (t, end, cell)
+) -> impl Iterator<Item = (f32, f32, usize)> {
+    let (mut next, step) = crossings(g0, gd, ta);
+    let stride = [1, cells[0], cells[0] * cells[1]];
+    let first_end = next[0].min(next[1]).min(next[2]).min(tb);
+    let mid = g0 + gd * (0.5 * (ta + first_end));
+    let mut cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
+    let mut index = cell[0] + stride[1] * cell[1] + stride[2] * cell[2];
+    let mut t = ta;
+    std::iter::from_fn(move || {
+        if t >= tb {
+            return None;
+        }
+        let a = nearest_axis(&next);
+        let end = next[a].min(tb);
+        let piece = (t, end, index);
+        t = end;
+        next[a] += step[a];
+        if gd[a] > 0.0 && cell[a] + 1 < cells[a] {
+            cell[a] += 1;
+            index += stride[a];
+        } else if gd[a] < 0.0 && cell[a] > 0 {
+            cell[a] -= 1;
+            index -= stride[a];
+        }
+        Some(piece)
     })
 }
 
-/// [`cell_segments`] without the cell index, for callers that need only the pieces.
-pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = (f32, f32)> {
+/// The first crossing of a cell face after `ta` along each axis of g0 + t gd, and the t
+/// between crossings (infinite along an axis the line does not move on).
+#[inline]
+fn crossings(g0: Vec3, gd: Vec3, ta: f32) -> ([f32; 3], [f32; 3]) {
     let start = g0 + gd * ta;
     let mut next = [f32::INFINITY; 3];
     let mut step = [f32::INFINITY; 3];
@@ -335,18 +361,30 @@ pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = 
             step[a] = -1.0 / gd[a];
         }
     }
+    (next, step)
+}
+
+/// The axis of the nearest crossing (the first of equals).
+#[inline]
+fn nearest_axis(next: &[f32; 3]) -> usize {
+    if next[0] <= next[1] && next[0] <= next[2] {
+        0
+    } else if next[1] <= next[2] {
+        1
+    } else {
+        2
+    }
+}
+
+/// [`cell_segments`] without the cell index, for callers that need only the pieces.
+pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = (f32, f32)> {
+    let (mut next, step) = crossings(g0, gd, ta);
     let mut t = ta;
     std::iter::from_fn(move || {
         if t >= tb {
             return None;
         }
-        let a = if next[0] <= next[1] && next[0] <= next[2] {
-            0
-        } else if next[1] <= next[2] {
-            1
-        } else {
-            2
-        };
+        let a = nearest_axis(&next);
         let end = next[a].min(tb);
         let span = (t, end);
         t = end;

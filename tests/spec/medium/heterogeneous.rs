@@ -758,6 +758,53 @@ fn dense_ratio_tracking_and_marched_free_flight_are_exp_minus_tau() {
     fam.finish();
 }
 
+/// Ratio tracking's Russian roulette (pbrt-v4's rule: below `RR_THRESHOLD` in every channel, a
+/// walk ends with probability `RR_Q` = 0.75 at each tentative collision and a survivor's
+/// estimate is divided by 1 - `RR_Q`) keeps the estimate's mean exp(-tau): in media dense
+/// enough that the running estimate falls below the threshold on most walks (exp(-tau) below
+/// 2e-2 in every channel), against the exact optical depth, for the affine field, a grid and
+/// the fBm cloud.
+/// Most walks must end in the roulette (an estimate of exactly 0, which plain ratio tracking
+/// gives only where the density meets its majorant), or the test would not test it.
+#[test]
+fn ratio_tracking_with_russian_roulette_keeps_exp_minus_tau() {
+    const N: usize = 20_000;
+    let (ray, len) = oblique();
+    let mut fam = Family::new("media: ratio tracking with Russian roulette");
+    for (k, (density, scale)) in [(linear(), 4.0), (bump_grid(), 3.0), (cloud(), 17.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let sigma_t = Vec3::new(1.0, 1.5, 2.0) * scale;
+        let m = medium(density, sigma_t, LineIntegral::DeltaTracking, 1.0);
+        let truth = m.transmittance_exact(&ray, len);
+        assert!(
+            truth.max_element() < 0.02 && truth.min_element() > 1e-5,
+            "field {k}: exact transmittance {truth} outside the roulette's range"
+        );
+        let mut s = sampler(14, k as u64);
+        let mut est = [vec![], vec![], vec![]];
+        let mut ended = 0;
+        for _ in 0..N {
+            let tr = m.transmittance(&ray, len, &mut s);
+            ended += usize::from(tr == Rgb::ZERO);
+            for c in 0..3 {
+                est[c].push(tr[c] as f64);
+            }
+        }
+        assert!(
+            ended > N / 2,
+            "field {k}: {ended} of {N} walks ended with 0, expected most (the roulette)"
+        );
+        for (c, v) in est.iter().enumerate() {
+            let (mean, se) = mean_and_stderr(v);
+            let what = format!("field {k}, channel {c}");
+            fam.mean_is(&what, mean, se, (N - 1) as f64, truth[c] as f64);
+        }
+    }
+    fam.finish();
+}
+
 /// A baked grid samples its function on the lattice u = (i, j, k) / (n - 1) of the unit box,
 /// so trilinear interpolation reproduces an affine function exactly everywhere in the box.
 #[test]
