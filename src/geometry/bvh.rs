@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 
-use super::leaf::{self, Block, TriangleRay};
+use super::leaf::{self, Block, LaneRays, QuadLanes};
 use super::wide::{collapse, Binary, Child, Node4, Node8, RayLanes, RayLanes8, Slot, Wide};
 use super::wide::{WIDTH, WIDTH8};
 use super::{shape::Hit, Aabb, Primitive, Ray};
@@ -114,8 +114,11 @@ pub struct Bvh {
     wide: Nodes,
     /// The leaves of `wide`, each a run of blocks its slot names by the first.
     blocks: Vec<Block>,
-    /// Whether a block holds triangles: queries of a tree without set up no [`TriangleRay`],
-    /// whose division and splats showed as 3% of the path tracer's time on the fog box's quads.
+    /// The lanes of the blocks of quads.
+    quads: Vec<QuadLanes>,
+    /// Whether a block holds triangles: queries of a tree without set up no
+    /// [`TriangleRay`](leaf::TriangleRay), whose division and splats showed as 3% of the path
+    /// tracer's time on the fog box's quads.
     triangles: bool,
     /// Levels of the wide tree (which stack size its queries need).
     wide_depth: usize,
@@ -207,7 +210,7 @@ impl Bvh {
         let mut leaf_of = vec![u32::MAX; prims.len()];
         tree.build_recursive(&mut items, 1, &mut leaf_of);
         drop((items, leaf_of));
-        let (wide, wide_depth, mut blocks) = match (width, Width::native()) {
+        let (wide, wide_depth, (mut blocks, mut quads)) = match (width, Width::native()) {
             (Width::Eight, Width::Eight) => {
                 let (nodes, depth, blocks) = tree.collapse(prims);
                 (Nodes::Eight(nodes), depth, blocks)
@@ -218,16 +221,24 @@ impl Bvh {
             }
         };
         blocks.shrink_to_fit();
+        quads.shrink_to_fit();
         Bvh {
             wide_depth,
-            triangles: blocks.iter().any(|b| b.triangles),
+            triangles: blocks.iter().any(|b| b.kind == leaf::Kind::Triangles),
             wide,
             blocks,
+            quads,
             bounds: tree.nodes[0].bounds,
             depth: tree.depth(0),
             node_count: tree.nodes.len(),
             reference_count: tree.indices.len(),
         }
+    }
+
+    /// The rays of the lane tests, each set up where the tree has blocks it reads.
+    #[inline]
+    fn lane_rays(&self, ray: &Ray) -> LaneRays {
+        LaneRays::new(ray, self.triangles, !self.quads.is_empty())
     }
 
     /// Calls `visit` on the blocks of the leaf whose first block is `first` until it returns
@@ -256,14 +267,16 @@ impl Bvh {
         self.reference_count
     }
 
-    /// Bytes the hierarchy holds: its four-wide nodes and leaf blocks (the render's memory
+    /// Bytes the hierarchy holds: its four-wide nodes, leaf blocks and quad lanes (the render's memory
     /// estimate, `render::memory`).
     pub fn memory_bytes(&self) -> usize {
         let nodes = match &self.wide {
             Nodes::Four(n) => n.capacity() * std::mem::size_of::<Node4>(),
             Nodes::Eight(n) => n.capacity() * std::mem::size_of::<Node8>(),
         };
-        nodes + self.blocks.capacity() * std::mem::size_of::<Block>()
+        nodes
+            + self.blocks.capacity() * std::mem::size_of::<Block>()
+            + self.quads.capacity() * std::mem::size_of::<QuadLanes>()
     }
 
     /// Children per node of the tree traversal walks.
@@ -382,12 +395,13 @@ impl Bvh {
         if nodes.is_empty() {
             return None;
         }
-        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
+        let rays = self.lane_rays(ray);
         let query = LeafQuery {
             prims,
             opaque: q.flags,
             ray,
-            tri_ray: tri_ray.as_ref(),
+            quads: &self.quads,
+            rays: &rays,
             t_min: q.t_min,
             t_max,
             reach: &reach,
@@ -494,15 +508,15 @@ impl Bvh {
         if nodes.is_empty() {
             return false;
         }
-        let tri_ray = self.triangles.then(|| TriangleRay::new(ray));
+        let rays = self.lane_rays(ray);
         let mut stack = [0u64; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
         loop {
             match child {
                 Child::Leaf(first) => {
-                    let occludes =
-                        |b: &Block| block_occludes(b, prims, blocks, ray, &tri_ray, t_max);
+                    let lanes = (&self.quads[..], &rays);
+                    let occludes = |b: &Block| block_occludes(b, prims, blocks, ray, lanes, t_max);
                     if self.leaf(first, occludes) {
                         return true;
                     }
@@ -534,8 +548,12 @@ impl Bvh {
 }
 
 impl Tree {
-    /// The wide tree of this one ([`collapse`]), its levels, and its leaves' blocks.
-    fn collapse<W: Wide>(&self, prims: &[Primitive]) -> (Vec<W>, usize, Vec<Block>) {
+    /// The wide tree of this one ([`collapse`]), its levels, and its leaves' blocks with
+    /// their quad lanes.
+    fn collapse<W: Wide>(
+        &self,
+        prims: &[Primitive],
+    ) -> (Vec<W>, usize, (Vec<Block>, Vec<QuadLanes>)) {
         let mut wide = collapse(self, 0);
         let blocks = self.lay_out_leaves(&mut wide, prims);
         wide.shrink_to_fit();
@@ -544,21 +562,28 @@ impl Tree {
     }
 
     /// Renames every leaf slot of the wide tree `wide` from its binary node to its first
-    /// block, laying the blocks out in the order the slots come in; returns the blocks.
-    fn lay_out_leaves<W: Wide>(&self, wide: &mut [W], prims: &[Primitive]) -> Vec<Block> {
+    /// block, laying the blocks out in the order the slots come in; returns the blocks and
+    /// the quad lanes.
+    fn lay_out_leaves<W: Wide>(
+        &self,
+        wide: &mut [W],
+        prims: &[Primitive],
+    ) -> (Vec<Block>, Vec<QuadLanes>) {
         let mut blocks = Vec::with_capacity(self.indices.len().div_ceil(2));
+        let mut quads = Vec::new();
         for node in wide.iter_mut() {
             for k in 0..W::WIDTH {
                 if !node.has(k) {
                     continue;
                 }
                 if let Child::Leaf(n) = node.slot(k).child() {
-                    let first = leaf::lay_out(self.leaf_indices(n), prims, &mut blocks);
+                    let ids = self.leaf_indices(n);
+                    let first = leaf::lay_out(ids, prims, &mut blocks, &mut quads);
                     node.set_slot(k, Slot::leaf(first as usize));
                 }
             }
         }
-        blocks
+        (blocks, quads)
     }
 
     /// The primitive indices of leaf `leaf`.
@@ -865,8 +890,8 @@ fn unpack(entry: u64) -> (Slot, f32) {
     (Slot(entry as u32), f32::from_bits((entry >> 32) as u32))
 }
 
-/// The best hit of a closest-hit query so far: a triangle's as its barycentrics (its point is
-/// computed once, for the hit returned), another primitive's with its point and normal.
+/// The best hit of a closest-hit query so far: a triangle's or a quad's as its coordinates (its
+/// point is computed once, for the hit returned), another primitive's with its point and normal.
 #[derive(Clone, Copy)]
 struct Best {
     t: f32,
@@ -876,7 +901,8 @@ struct Best {
 
 #[derive(Clone, Copy)]
 enum At {
-    Barycentric(f32, f32),
+    /// A triangle's barycentrics or a quad's coordinates (a, b) ([`leaf::lane_point`]).
+    Lane(f32, f32),
     Point(Vec3, Vec3),
 }
 
@@ -884,7 +910,7 @@ impl Best {
     fn hit(self, prims: &[Primitive]) -> Hit {
         let (p, ng) = match self.at {
             At::Point(p, ng) => (p, ng),
-            At::Barycentric(b1, b2) => leaf::triangle_point(&prims[self.prim as usize], b1, b2),
+            At::Lane(x, y) => leaf::lane_point(&prims[self.prim as usize], x, y),
         };
         Hit {
             t: self.t,
@@ -900,8 +926,9 @@ struct LeafQuery<'a, R: Fn(f32) -> f32> {
     prims: &'a [Primitive],
     opaque: &'a [bool],
     ray: &'a Ray,
-    /// Set up where the tree holds triangles.
-    tri_ray: Option<&'a TriangleRay>,
+    /// The tree's quad lanes.
+    quads: &'a [QuadLanes],
+    rays: &'a LaneRays,
     t_min: f32,
     t_max: f32,
     /// The farthest distance a hit may have to compete with the best one at `t`.
@@ -914,13 +941,13 @@ impl<R: Fn(f32) -> f32> LeafQuery<'_, R> {
     #[inline]
     fn block(&self, block: &Block, best: &mut Option<Best>) {
         let limit = |best: &Option<Best>| (self.reach)(best.map_or(self.t_max, |b| b.t));
-        if let (true, Some(tri_ray)) = (block.triangles, self.tri_ray) {
-            let (mut mask, t, b1, b2) = block.hits(tri_ray, self.t_min);
+        let lanes = leaf::hits(block, self.quads, self.rays, self.t_min, limit(best));
+        if let Some((mut mask, t, x, y)) = lanes {
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 if t[k] < limit(best) {
-                    let at = At::Barycentric(b1[k], b2[k]);
+                    let at = At::Lane(x[k], y[k]);
                     self.offer(best, t[k], block.ids[k], at);
                 }
             }
@@ -949,12 +976,11 @@ fn block_occludes(
     prims: &[Primitive],
     blocks: &[bool],
     ray: &Ray,
-    tri_ray: &Option<TriangleRay>,
+    (quads, rays): (&[QuadLanes], &LaneRays),
     t_max: f32,
 ) -> bool {
     let ids = &block.ids[..block.lanes as usize];
-    if let (true, Some(tri_ray)) = (block.triangles, tri_ray) {
-        let (mask, t, _, _) = block.hits(tri_ray, 0.0);
+    if let Some((mask, t, _, _)) = leaf::hits(block, quads, rays, 0.0, t_max) {
         let mask = mask & t.cmplt(glam::Vec4::splat(t_max)).bitmask();
         ids.iter()
             .enumerate()

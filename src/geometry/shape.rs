@@ -17,8 +17,9 @@ pub struct Quad {
     pub v: Vec3,
     /// Unit normal `normalize(u x v)` (negated when flipped).
     pub n: Vec3,
-    /// `(u x v) / |u x v|^2`, for the barycentric coordinates of a hit.
-    w: Vec3,
+    /// `(u x v) / |u x v|^2`, for the barycentric coordinates of a hit (read by the quad
+    /// lanes of `geometry::leaf` too).
+    pub(super) w: Vec3,
     area: f32,
 }
 

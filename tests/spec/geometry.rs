@@ -505,6 +505,294 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
     assert!(hits.iter().all(|&h| h > 5000), "hits per scene {hits:?}");
 }
 
+// ---- quad blocks ----
+
+/// A quad for the block tests: random, axis-aligned on a grid (as walls are: zero components,
+/// corners and edges exactly representable), or flipped.
+fn block_quad(r: &mut Pcg64Mcg) -> Quad {
+    let c = point(r, 3.0);
+    let q = match r.random_range(0..3) {
+        0 => Quad::new(c, 2.0 * unit(r), 2.0 * unit(r)),
+        _ => {
+            let grid = |x: f32| (4.0 * x).round() / 4.0;
+            let axis = r.random_range(0..3);
+            let e = |k: usize, len: f32| {
+                let mut e = Vec3::ZERO;
+                e[k] = len;
+                e
+            };
+            let (u, v) = (
+                e((axis + 1) % 3, grid(r.random_range(0.25..3.0))),
+                e((axis + 2) % 3, grid(r.random_range(0.25..3.0))),
+            );
+            let (u, v) = if r.random::<bool>() { (u, v) } else { (v, u) };
+            Quad::new(c.map(grid), u, v)
+        }
+    };
+    let q = q.expect("a quad with area");
+    if r.random::<bool>() {
+        q.flipped()
+    } else {
+        q
+    }
+}
+
+/// A ray at quad `q` from `o`-ish places: to a random point, a corner, a point of an edge,
+/// in the quad's plane, along an edge's line, random, and with a direction component of
+/// -0.0 or +0.0.
+fn ray_at_quad(r: &mut Pcg64Mcg, q: &Quad) -> Ray {
+    let at = |a: f32, b: f32| q.origin + a * q.u + b * q.v;
+    let corner = |r: &mut Pcg64Mcg| [0.0, 1.0][r.random_range(0..2)];
+    let o = point(r, 6.0);
+    let ray = match r.random_range(0..7) {
+        0 => Ray::new(o, (at(r.random(), r.random()) - o).normalize()),
+        1 => Ray::new(o, (at(corner(r), corner(r)) - o).normalize()),
+        2 => {
+            let (a, b) = if r.random::<bool>() {
+                (corner(r), r.random())
+            } else {
+                (r.random(), corner(r))
+            };
+            Ray::new(o, (at(a, b) - o).normalize())
+        }
+        3 => {
+            // in the plane: denominators of 0 or a rounding error
+            let p = at(r.random_range(-1.0..2.0), r.random_range(-1.0..2.0));
+            let d = (r.random_range(-1.0..1.0) * q.u + r.random_range(-1.0..1.0) * q.v)
+                .normalize_or(q.u.normalize());
+            Ray::new(p, d)
+        }
+        4 => {
+            // along the line of an edge, from before its start
+            let (p, e) =
+                [(q.origin, q.u), (q.origin, q.v), (at(1.0, 0.0), q.v)][r.random_range(0..3)];
+            Ray::new(p - r.random_range(0.0..2.0) * e, e.normalize())
+        }
+        5 => Ray::new(o, unit(r)),
+        _ => Ray::new(o, (at(r.random(), r.random()) - o).normalize()),
+    };
+    if r.random_range(0..4) == 0 {
+        // a component of exactly -0.0 or +0.0 (an axis-aligned quad's plane then needs no rounding)
+        let k = r.random_range(0..3);
+        let zero = [0.0f32, -0.0][r.random_range(0..2)];
+        let mut d = ray.d;
+        d[k] = 0.0;
+        if d.length_squared() == 0.0 {
+            d[(k + 1) % 3] = -1.0;
+        }
+        let mut d = d.normalize();
+        d[k] = zero;
+        Ray::new(ray.o, d)
+    } else {
+        ray
+    }
+}
+
+/// The bits of a hit (t, point, normal).
+fn hit_bits(h: Option<(f32, Vec3, Vec3)>) -> Option<(u32, [u32; 3], [u32; 3])> {
+    let v = |p: Vec3| p.to_array().map(f32::to_bits);
+    h.map(|(t, p, n)| (t.to_bits(), v(p), v(n)))
+}
+
+/// Quad blocks (`geometry::leaf::QuadLanes`) answer lane by lane what the scalar quad test
+/// (`Primitive::intersect_range`) answers, bit for bit: whether it hits in (t_min, t_max),
+/// its t, and the point and normal made of the lane's (a, b). Over leaves that mix quads,
+/// triangles and spheres (blocks keep the leaf's order, one kind each), random and
+/// axis-aligned grid quads (flipped too), and rays at random points, corners, edges, in the
+/// quad's plane, along its edges' lines, and with -0.0 direction components.
+#[test]
+fn quad_blocks_return_the_scalar_quad_test_bit_for_bit() {
+    use pathspace::geometry::leaf::{self, Kind, LaneRays};
+    let mut r = rng(4141);
+    let mut checked = [0usize; 2];
+    let mut mixed = 0;
+    for _ in 0..300 {
+        // one leaf: up to 9 primitives, mostly quads, with triangles and spheres between them
+        let n = r.random_range(1..10);
+        let prims: Vec<Primitive> = (0..n)
+            .map(|_| match r.random_range(0..8) {
+                0 => Primitive::Sphere(Sphere::new(point(&mut r, 3.0), 0.5)),
+                1 => {
+                    let c = point(&mut r, 3.0);
+                    let t = Triangle::new(c, c + 2.0 * unit(&mut r), c + 2.0 * unit(&mut r));
+                    Primitive::Triangle(t.expect("a triangle with area"))
+                }
+                _ => Primitive::Quad(block_quad(&mut r)),
+            })
+            .collect();
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let (mut blocks, mut quads) = (Vec::new(), Vec::new());
+        let first = leaf::lay_out(&ids, &prims, &mut blocks, &mut quads) as usize;
+        let blocks = &blocks[first..];
+        // the leaf's order, one kind per block, the last block marked
+        let order: Vec<u32> = blocks
+            .iter()
+            .flat_map(|b| b.ids[..b.lanes as usize].to_vec())
+            .collect();
+        assert_eq!(order, ids);
+        assert!(blocks
+            .iter()
+            .all(|b| b.ids[..b.lanes as usize]
+                .iter()
+                .all(|&i| match prims[i as usize] {
+                    Primitive::Quad(_) => b.kind == Kind::Quads,
+                    Primitive::Triangle(_) => b.kind == Kind::Triangles,
+                    _ => b.kind == Kind::Others,
+                })));
+        assert!(
+            blocks.last().is_some_and(|b| b.last) && blocks.iter().filter(|b| b.last).count() == 1
+        );
+        mixed += (blocks.len() > 1 && blocks.iter().any(|b| b.kind == Kind::Quads)) as usize;
+        let targets: Vec<Quad> = prims
+            .iter()
+            .filter_map(|p| match p {
+                Primitive::Quad(q) => Some(*q),
+                _ => None,
+            })
+            .collect();
+        for _ in 0..200 {
+            let ray = match targets.len() {
+                0 => Ray::new(point(&mut r, 6.0), unit(&mut r)),
+                k => {
+                    let target = targets[r.random_range(0..k)];
+                    ray_at_quad(&mut r, &target)
+                }
+            };
+            let t_min = [0.0, 1e-4, r.random_range(0.0..4.0)][r.random_range(0..3)];
+            let t_max = [f32::INFINITY, r.random_range(0.1..10.0)][r.random_range(0..2)];
+            let rays = LaneRays::new(&ray, true, true);
+            for block in blocks {
+                let Some((mask, t, x, y)) = leaf::hits(block, &quads, &rays, t_min, t_max) else {
+                    assert_eq!(block.kind, Kind::Others);
+                    continue;
+                };
+                assert_eq!(mask >> block.lanes, 0, "a hit in an unused lane");
+                for (k, &i) in block.ids[..block.lanes as usize].iter().enumerate() {
+                    let prim = &prims[i as usize];
+                    let lane = (mask & (1 << k) != 0 && t[k] < t_max).then(|| {
+                        let (p, n) = leaf::lane_point(prim, x[k], y[k]);
+                        (t[k], p, n)
+                    });
+                    let want = prim.intersect_range(&ray, t_min, t_max);
+                    assert_eq!(
+                        hit_bits(lane),
+                        hit_bits(want),
+                        "lane {k} of {:?}: {prim:?}, {ray:?} ({t_min}, {t_max})",
+                        block.kind
+                    );
+                    if want.is_some() {
+                        checked[(block.kind == Kind::Quads) as usize] += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(mixed > 100, "{mixed} leaves mix quads with other kinds");
+    assert!(
+        checked[1] > 10_000 && checked[0] > 200,
+        "hits (triangles, quads) {checked:?}"
+    );
+}
+
+/// The closest hit by testing every primitive with the tie-break rule (an opaque primitive
+/// wins within [`TIE_EPSILON`], else the nearer, else the lower index), as (t, primitive,
+/// point, normal); and any hit.
+fn brute_tie(
+    prims: &[Primitive],
+    opaque: &[bool],
+    ray: &Ray,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, u32, Vec3, Vec3)> {
+    let mut best: Option<(f32, u32, Vec3, Vec3)> = None;
+    for (i, p) in prims.iter().enumerate() {
+        let Some((t, q, n)) = p.intersect_range(ray, t_min, t_max) else {
+            continue;
+        };
+        let wins = best.is_none_or(|(tb, pb, _, _)| {
+            let (oa, ob) = (opaque[i], opaque[pb as usize]);
+            if (t - tb).abs() <= TIE_EPSILON * (1.0 + tb) && oa != ob {
+                oa
+            } else {
+                t < tb || (t == tb && (i as u32) < pb)
+            }
+        });
+        if wins {
+            best = Some((t, i as u32, q, n));
+        }
+    }
+    best
+}
+
+/// Through the BVH of either width, scenes of quads (a fog box's walls with their null copies,
+/// a cluster of grid and random quads among triangles and spheres, so that leaves mix them)
+/// return the closest hit of the scalar tests with the tie-break, bit for bit, and the same
+/// any-hit answer.
+#[test]
+fn bvh_over_quad_blocks_returns_the_scalar_hits_bit_for_bit() {
+    let mut r = rng(4142);
+    let fog = Scene::fog_box();
+    let mut cluster: Vec<Primitive> = (0..400)
+        .map(|_| match r.random_range(0..6) {
+            0 => Primitive::Sphere(Sphere::new(point(&mut r, 3.0), 0.3)),
+            1 => {
+                let c = point(&mut r, 3.0);
+                Primitive::Triangle(Triangle::new(c, c + unit(&mut r), c + unit(&mut r)).unwrap())
+            }
+            _ => Primitive::Quad(block_quad(&mut r)),
+        })
+        .collect();
+    // null copies of some quads: exact ties the opaque one must win
+    let copies: Vec<Primitive> = cluster.iter().step_by(7).copied().collect();
+    cluster.extend(copies);
+    let scenes = [fog.prims.clone(), cluster];
+    let bits = |h: Option<(f32, u32, Vec3, Vec3)>| {
+        let v = |p: Vec3| p.to_array().map(f32::to_bits);
+        h.map(|(t, i, p, n)| (t.to_bits(), i, v(p), v(n)))
+    };
+    let mut hits = [0usize; 2];
+    for (scene, prims) in scenes.iter().enumerate() {
+        let opaque: Vec<bool> = match scene {
+            0 => fog.prim_opaque.clone(),
+            _ => (0..prims.len()).map(|i| i < 400).collect(),
+        };
+        let quads: Vec<Quad> = prims
+            .iter()
+            .filter_map(|p| match p {
+                Primitive::Quad(q) => Some(*q),
+                _ => None,
+            })
+            .collect();
+        for width in [Width::Four, Width::Eight] {
+            let bvh = Bvh::build_with(prims, |_| true, width);
+            for _ in 0..20_000 {
+                let target = quads[r.random_range(0..quads.len())];
+                let ray = ray_at_quad(&mut r, &target);
+                let t_min = [0.0, 1e-4, r.random_range(0.0..2.0)][r.random_range(0..3)];
+                let t_max = [f32::INFINITY, r.random_range(0.1..10.0)][r.random_range(0..2)];
+                let got = bvh.intersect_range(prims, &opaque, &ray, t_min, t_max);
+                let want = brute_tie(prims, &opaque, &ray, t_min, t_max);
+                hits[scene] += want.is_some() as usize;
+                assert_eq!(
+                    bits(got.map(|h| (h.t, h.prim, h.p, h.ng))),
+                    bits(want),
+                    "scene {scene} {width:?}: {ray:?} ({t_min}, {t_max})"
+                );
+                let any = prims
+                    .iter()
+                    .zip(&opaque)
+                    .any(|(p, &o)| o && p.intersect(&ray, t_max).is_some());
+                assert_eq!(
+                    bvh.occluded(prims, &opaque, &ray, t_max),
+                    any,
+                    "scene {scene} {width:?}: {ray:?} {t_max}"
+                );
+            }
+        }
+    }
+    assert!(hits.iter().all(|&h| h > 10_000), "hits per scene {hits:?}");
+}
+
 /// Rays through a triangle's box face, edge or corner, where they meet the triangle's
 /// axis-aligned edges and its corners: the slab test's exit distance carries rounding
 /// error, so without its relative slack (`1.000_000_4` in `geometry::wide`) such a ray's
