@@ -318,22 +318,14 @@ pub fn cell_segments(
     tb: f32,
     cells: [usize; 3],
 ) -> impl Iterator<Item = (f32, f32, usize)> {
-    let (mut next, step) = crossings(g0, gd, ta);
+    let (next, _) = crossings(g0, gd, ta);
     let stride = [1, cells[0], cells[0] * cells[1]];
     let first_end = next[0].min(next[1]).min(next[2]).min(tb);
     let mid = g0 + gd * (0.5 * (ta + first_end));
     let mut cell = [0, 1, 2].map(|k| (mid[k].max(0.0) as usize).min(cells[k] - 1));
     let mut index = cell[0] + stride[1] * cell[1] + stride[2] * cell[2];
-    let mut t = ta;
-    std::iter::from_fn(move || {
-        if t >= tb {
-            return None;
-        }
-        let a = nearest_axis(&next);
-        let end = next[a].min(tb);
+    dda(g0, gd, ta, tb).map(move |(t, end, a)| {
         let piece = (t, end, index);
-        t = end;
-        next[a] += step[a];
         if gd[a] > 0.0 && cell[a] + 1 < cells[a] {
             cell[a] += 1;
             index += stride[a];
@@ -341,7 +333,7 @@ pub fn cell_segments(
             cell[a] -= 1;
             index -= stride[a];
         }
-        Some(piece)
+        piece
     })
 }
 
@@ -378,6 +370,13 @@ fn nearest_axis(next: &[f32; 3]) -> usize {
 
 /// [`cell_segments`] without the cell index, for callers that need only the pieces.
 pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = (f32, f32)> {
+    dda(g0, gd, ta, tb).map(|(t, end, _)| (t, end))
+}
+
+/// The walk both share: (t_start, t_end, the axis whose face ends the piece; at `tb` the axis
+/// of the next crossing).
+#[inline]
+fn dda(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = (f32, f32, usize)> {
     let (mut next, step) = crossings(g0, gd, ta);
     let mut t = ta;
     std::iter::from_fn(move || {
@@ -386,10 +385,10 @@ pub fn cell_spans(g0: Vec3, gd: Vec3, ta: f32, tb: f32) -> impl Iterator<Item = 
         }
         let a = nearest_axis(&next);
         let end = next[a].min(tb);
-        let span = (t, end);
+        let piece = (t, end, a);
         t = end;
         next[a] += step[a];
-        Some(span)
+        Some(piece)
     })
 }
 // ANCHOR_END: dda
