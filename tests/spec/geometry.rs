@@ -643,13 +643,7 @@ fn quad_blocks_return_the_scalar_quad_test_bit_for_bit() {
             blocks.last().is_some_and(|b| b.last) && blocks.iter().filter(|b| b.last).count() == 1
         );
         mixed += (blocks.len() > 1 && blocks.iter().any(|b| b.kind == Kind::Quads)) as usize;
-        let targets: Vec<Quad> = prims
-            .iter()
-            .filter_map(|p| match p {
-                Primitive::Quad(q) => Some(*q),
-                _ => None,
-            })
-            .collect();
+        let targets = quads_of(&prims);
         for _ in 0..200 {
             let ray = match targets.len() {
                 0 => Ray::new(point(&mut r, 6.0), unit(&mut r)),
@@ -756,13 +750,7 @@ fn bvh_over_quad_blocks_returns_the_scalar_hits_bit_for_bit() {
             0 => fog.prim_opaque.clone(),
             _ => (0..prims.len()).map(|i| i < 400).collect(),
         };
-        let quads: Vec<Quad> = prims
-            .iter()
-            .filter_map(|p| match p {
-                Primitive::Quad(q) => Some(*q),
-                _ => None,
-            })
-            .collect();
+        let quads = quads_of(&prims);
         for width in [Width::Four, Width::Eight] {
             let bvh = Bvh::build_with(prims, |_| true, width);
             for _ in 0..20_000 {
@@ -1547,4 +1535,15 @@ fn cylinder_samples_are_uniform_on_the_tube() {
         });
     }
     fam.finish();
+}
+
+/// The quads among `prims`, in order.
+fn quads_of(prims: &[Primitive]) -> Vec<Quad> {
+    prims
+        .iter()
+        .filter_map(|p| match p {
+            Primitive::Quad(q) => Some(*q),
+            _ => None,
+        })
+        .collect()
 }
