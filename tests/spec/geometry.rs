@@ -750,7 +750,7 @@ fn bvh_over_quad_blocks_returns_the_scalar_hits_bit_for_bit() {
             0 => fog.prim_opaque.clone(),
             _ => (0..prims.len()).map(|i| i < 400).collect(),
         };
-        let quads = quads_of(&prims);
+        let quads = quads_of(prims);
         for width in [Width::Four, Width::Eight] {
             let bvh = Bvh::build_with(prims, |_| true, width);
             for _ in 0..20_000 {
