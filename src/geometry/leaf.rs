@@ -342,7 +342,7 @@ pub fn lane_point(prim: &Primitive, x: f32, y: f32) -> (Vec3, Vec3) {
     match prim {
         Primitive::Triangle(t) => (t.point(x, y), t.n),
         // reprojection onto the plane, as the scalar test
-        Primitive::Quad(q) => (q.origin + x * q.u + y * q.v, q.n),
+        Primitive::Quad(q) => (q.point(x, y), q.n),
         _ => unreachable!("lanes hold triangles and quads only"),
     }
 }

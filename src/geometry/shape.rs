@@ -53,6 +53,13 @@ impl Quad {
         (self.w.dot(rel.cross(self.v)), self.w.dot(self.u.cross(rel)))
     }
 
+    /// The point `origin + a u + b v` at coordinates (a, b): a hit reprojected onto the plane,
+    /// or a sampled point.
+    #[inline]
+    pub fn point(&self, a: f32, b: f32) -> Vec3 {
+        self.origin + a * self.u + b * self.v
+    }
+
     /// The four corners.
     pub fn corners(&self) -> [Vec3; 4] {
         let o = self.origin;
@@ -554,7 +561,7 @@ impl Primitive {
                     return None;
                 }
                 // reprojection onto the plane removes the error t carries along the ray
-                Some((t, q.origin + a * q.u + b * q.v, q.n))
+                Some((t, q.point(a, b), q.n))
             }
             Primitive::Triangle(tri) => {
                 let (t, b1, b2) = tri.intersect_range(ray, t_min, t_max)?;
@@ -608,7 +615,7 @@ impl Primitive {
     /// A point uniformly distributed by area, with its unit geometric normal; density 1 / area.
     pub fn sample_area(&self, u: Vec2) -> (Vec3, Vec3) {
         match self {
-            Primitive::Quad(q) => (q.origin + u.x * q.u + u.y * q.v, q.n),
+            Primitive::Quad(q) => (q.point(u.x, u.y), q.n),
             Primitive::Triangle(t) => {
                 let b = warp::uniform_triangle(u);
                 (t.p0 + b.x * t.e1() + b.y * t.e2(), t.n)

@@ -581,8 +581,7 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> Propagation {
-        let mut segments = self.segments_from(ray, lead, medium, from_camera);
-        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, full, sampler);
+        let next = self.flights_from(ray, (lead, medium, from_camera), full);
         self.propagate_with::<false>(ray, next, false, sampler)
     }
 
@@ -609,23 +608,23 @@ impl Scene {
         (origin_in_medium, from_camera): (bool, bool),
         sampler: &mut Sampler,
     ) -> Propagation {
-        let mut segments = self.segments_from(ray, lead, medium, from_camera);
-        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, full, sampler);
+        let next = self.flights_from(ray, (lead, medium, from_camera), full);
         self.propagate_with::<true>(ray, next, origin_in_medium, sampler)
     }
 
-    /// The segments of an unbounded ray from a vertex: `lead` past its surface, starting in
-    /// `medium`, from the camera or not (hidden emitters).
-    fn segments_from(
-        &self,
+    /// The segments of an unbounded ray from a vertex (`lead` past its surface, starting in
+    /// `medium`, from the camera or not: hidden emitters), each with its flight by `flight`,
+    /// as the walk reaches them ([`Scene::next_flight`]).
+    fn flights_from<'a>(
+        &'a self,
         ray: Ray,
-        lead: f32,
-        medium: Option<u32>,
-        from_camera: bool,
-    ) -> Segments<'_> {
-        Segments::new(self, ray, medium, f32::INFINITY)
+        (lead, medium, from_camera): (f32, Option<u32>, bool),
+        flight: impl Fn(&Medium, &Ray, f32, &mut Sampler) -> FreeFlight + Copy + 'a,
+    ) -> impl FnMut(&mut Sampler) -> Flight + 'a {
+        let mut segments = Segments::new(self, ray, medium, f32::INFINITY)
             .lead(lead)
-            .from_camera(from_camera)
+            .from_camera(from_camera);
+        move |sampler: &mut Sampler| self.next_flight(ray, &mut segments, flight, sampler)
     }
 
     /// [`Scene::propagate_from`] for an estimator that needs only the throughput factor: the
@@ -640,8 +639,7 @@ impl Scene {
         from_camera: bool,
         sampler: &mut Sampler,
     ) -> WeightedPropagation {
-        let mut segments = self.segments_from(ray, lead, medium, from_camera);
-        let next = |sampler: &mut Sampler| self.next_flight(ray, &mut segments, weight, sampler);
+        let next = self.flights_from(ray, (lead, medium, from_camera), weight);
         WeightedPropagation(self.propagate_with::<false>(ray, next, false, sampler))
     }
 
