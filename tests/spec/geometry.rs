@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use pathspace::geometry::bvh::{Width, TIE_EPSILON};
+use pathspace::geometry::bvh::{LeafCost, Width, TIE_EPSILON};
 use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
 use pathspace::geometry::{offset_origin, Bvh, Disk, Hit, Primitive, Ray};
 use pathspace::math::warp;
@@ -422,7 +422,8 @@ fn displaced_sphere(cols: usize, rows: usize) -> Vec<Primitive> {
 /// four-wide tree's hit bit for bit: the same t, primitive, point and normal (the barycentrics
 /// the point is made of), and the same any-hit answer, over random rays (some along coordinate
 /// planes and axes) and ranges in a random soup with null primitives (the tie-break's order), its null copies coplanar with its walls,
-/// a room-like scene and a displaced sphere of 80,000 triangles.
+/// a room-like scene and a displaced sphere of 80,000 triangles. So does a tree built with the
+/// other leaf cost than its size chooses (`LeafCost`), a tree of another shape.
 #[test]
 fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
     let native = Width::native();
@@ -447,6 +448,12 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
         let opaque: Vec<bool> = (0..prims.len()).map(|i| i % 5 != 3).collect();
         let four = Bvh::build_with(prims, |_| true, Width::Four);
         let eight = Bvh::build_with(prims, |_| true, Width::Eight);
+        // the other leaf cost than the size chooses: another tree, the same hits
+        let other_cost = match LeafCost::for_references(prims.len()) {
+            LeafCost::PerBlock => LeafCost::PerReference,
+            LeafCost::PerReference => LeafCost::PerBlock,
+        };
+        let recosted = Bvh::build_costing(prims, |_| true, Width::Four, other_cost);
         assert_eq!(four.width(), Width::Four);
         assert_eq!(
             eight.width(),
@@ -489,20 +496,45 @@ fn eight_wide_nodes_return_the_four_wide_hits_bit_for_bit() {
             let t_max = [f32::INFINITY, r.random_range(0.1..30.0)][r.random_range(0..2)];
             let h4 = four.intersect_range(prims, &opaque, &ray, t_min, t_max);
             let h8 = eight.intersect_range(prims, &opaque, &ray, t_min, t_max);
+            let hc = recosted.intersect_range(prims, &opaque, &ray, t_min, t_max);
             hits[scene] += h4.is_some() as usize;
             assert_eq!(
                 bits(h8),
                 bits(h4),
                 "scene {scene}: {ray:?} ({t_min}, {t_max})"
             );
+            assert_eq!(bits(hc), bits(h4), "scene {scene}, {other_cost:?}: {ray:?}");
+            let blocked = four.occluded(prims, &opaque, &ray, t_max);
             assert_eq!(
                 eight.occluded(prims, &opaque, &ray, t_max),
-                four.occluded(prims, &opaque, &ray, t_max),
+                blocked,
                 "scene {scene}: {ray:?} {t_max}"
             );
+            assert_eq!(recosted.occluded(prims, &opaque, &ray, t_max), blocked);
         }
     }
     assert!(hits.iter().all(|&h| h > 5000), "hits per scene {hits:?}");
+}
+
+/// Costed per block, the SAH fills the leaves' blocks of four on a finely tessellated surface,
+/// where costed per reference it stops at about two or three a leaf: the choice of
+/// `Bvh::build` for large trees takes effect (the binary tree's node count is twice its leaves
+/// less one).
+#[test]
+fn costing_leaves_per_block_fills_the_blocks() {
+    let prims = displaced_sphere(200, 200);
+    let per_leaf = |cost| {
+        let bvh = Bvh::build_costing(&prims, |_| true, Width::Four, cost);
+        bvh.reference_count() as f64 / bvh.node_count().div_ceil(2) as f64
+    };
+    let (block, reference) = (
+        per_leaf(LeafCost::PerBlock),
+        per_leaf(LeafCost::PerReference),
+    );
+    assert!(
+        block > 5.0 && reference < 3.5,
+        "references per leaf: {block} per block, {reference} per reference"
+    );
 }
 
 // ---- quad blocks ----
