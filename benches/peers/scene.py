@@ -36,6 +36,15 @@ VARIANTS = {
                       "index eta 1, k = 2 sqrt(R0 / (1 - R0)), equal at normal incidence"),
     "volume-caustic-hard-cone": ("volume-caustic", [("falloff_deg = 2.0", "falloff_deg = 0.0")],
                                  "the spot light's 2-degree smoothstep falloff removed (a hard cone)"),
+    # u x v points down; radiance x area = the spot's 60 W/sr along the axis
+    "volume-caustic-quad": ("volume-caustic", [('[[lights]]\ntype = "spot"\nposition = [0.0, 3.3, 0.0]\n'
+                                                'direction = [0.0, -1.0, 0.0]\nintensity = 60.0\n'
+                                                'cone_deg = 12.0\nfalloff_deg = 2.0\n',
+                                                '[[shapes]]\ntype = "quad"\norigin = [-0.1, 3.3, -0.1]\n'
+                                                'u = [0.2, 0.0, 0.0]\nv = [0.0, 0.0, 0.2]\n'
+                                                'emission = 1500.0\n')],
+                            "the spot light replaced by a 0.2 m square light facing down at its "
+                            "place, 1500 W/m^2/sr (60 W/sr along the axis): a light both peers have"),
 }
 
 

@@ -70,9 +70,9 @@ def primitive(sc, s):
     else:
         p["bsdf"] = "null" if s["material"] == "null" else s["material"]
         for side, key in (("interior", "int_medium"), ("exterior", "ext_medium")):
-            if s.get(side) is not None:
-                # "vacuum" is an empty name: no medium on that side
-                p[key] = "" if s[side] == "vacuum" else s[side]
+            # "vacuum" is no medium: the key left out (tungsten refuses an empty name)
+            if s.get(side) not in (None, "vacuum"):
+                p[key] = s[side]
     return p
 
 

@@ -55,6 +55,9 @@ struct Walk {
     first_edge: bool,
     /// The throughput at the start, against which Russian roulette compares.
     beta_start: f32,
+    /// The product of 1 / `Bsdf::radiance_scale` over the refractions of a radiance walk:
+    /// roulette compares `beta` times this, without the eta^2 its exit from glass restores.
+    eta_scale: f32,
 }
 
 impl Walk {
@@ -79,6 +82,7 @@ impl Walk {
             pdf_dir,
             first_edge: true,
             beta_start,
+            eta_scale: 1.0,
         }
     }
 }
@@ -228,9 +232,10 @@ impl Bdpt<'_> {
         w.pdf_dir = pdf_fwd_dir;
         // the predecessor as sampled from here (the reverse walk)
         path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
-        // Russian roulette on the scattering throughput (not on L_e / p of the origin)
+        // Russian roulette on the scattering throughput (not on L_e / p of the origin, nor
+        // on the eta^2 of refractions)
         if start.roulette && cur as u32 >= RR_START_DEPTH {
-            let ratio = w.beta.max_element() / w.beta_start;
+            let ratio = w.beta.max_element() * w.eta_scale / w.beta_start;
             let q = (self.tech)
                 .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)
                 .unwrap_or(ratio.min(RR_MAX_SURVIVAL));
@@ -267,6 +272,12 @@ impl Bdpt<'_> {
             VertexKind::Surface { .. } => {
                 let bs = ss.as_bsdf_sample();
                 w.beta *= bs.weight(v.n);
+                // a radiance walk crossing a refracting interface (importance has no eta^2)
+                if reverse == TransportMode::Importance && bs.wi.dot(v.n) * wo.dot(v.n) < 0.0 {
+                    if let Some(bsdf) = v.bsdf(scene) {
+                        w.eta_scale /= bsdf.radiance_scale(wo, bs.wi, v.n);
+                    }
+                }
                 w.medium = v.medium_towards(bs.wi);
                 w.origin_in_medium = false;
                 w.ray = Ray::new(offset_origin(v.p, v.n, bs.wi), bs.wi);

@@ -283,6 +283,26 @@ impl Bsdf {
         dispatch!(self, m => m.transmits())
     }
 
+    /// The factor (eta_o / eta_t)^2 by which radiance crossing from `wi`'s side to `wo`'s is
+    /// scaled at a refracting interface (Kristensen 2010, eq. 2.15; `ior` inside, behind `n`,
+    /// over 1 outside), 1 where `wi` and `wo` lie on one side or the model does not refract
+    /// (a thin sheet, a null boundary). Part of every radiance-mode transmission's value; a
+    /// path that enters and leaves the glass gets it back, so Russian roulette leaves it out.
+    pub fn radiance_scale(&self, wo: Vec3, wi: Vec3, n: Vec3) -> f32 {
+        let ior = match self {
+            Bsdf::Dielectric(d) => d.ior,
+            Bsdf::RoughDielectric(d) => d.ior,
+            _ => return 1.0,
+        };
+        let (cos_o, cos_i) = (wo.dot(n), wi.dot(n));
+        if cos_o * cos_i >= 0.0 {
+            return 1.0;
+        }
+        // eta_o / eta_t: wo outside (cos_o > 0) looks into the glass
+        let ratio = if cos_o > 0.0 { 1.0 / ior } else { ior };
+        ratio * ratio
+    }
+
     /// True when every lobe is a Dirac (mirror, glass; the null boundary has none): every
     /// vertex on it is a Dirac vertex, whatever was sampled there.
     pub fn only_dirac_lobes(&self) -> bool {

@@ -586,6 +586,7 @@ impl<'t> PathTracer<'t> {
             return false;
         }
         w.beta *= bs.weight(n);
+        w.eta_scale /= bsdf.radiance_scale(wo, bs.wi, n);
         // crossing the surface (refraction) may change the medium
         w.medium = shape.medium_across(wo, bs.wi, n, m);
         w.prev = Previous {
@@ -603,13 +604,17 @@ impl<'t> PathTracer<'t> {
 impl PathTracer<'_> {
     /// Russian roulette's survival probability after the walk's latest scattering: the
     /// throughput rule, or the guide's (sec. 5.3.4) where it guided that direction and guided
-    /// roulette is on (`--guide-roulette`).
+    /// roulette is on (`--guide-roulette`). Both read the throughput without the eta^2 of the
+    /// refractions so far (`eta_scale`): inside glass a radiance path's throughput is 1/eta^2
+    /// of what it will be once out, and the roulette would end most paths for a factor their
+    /// exit restores (Mitsuba 3's `volpath` and pbrt-v4 do the same).
     fn survival(&self, w: &WalkState) -> f32 {
-        let plain = w.beta.max_element().min(RR_MAX_SURVIVAL);
+        let throughput = w.beta.max_element() * w.eta_scale;
+        let plain = throughput.min(RR_MAX_SURVIVAL);
         let Some(tech) = self.guide else {
             return plain;
         };
-        let ratio = w.beta.max_element() / w.beta_start;
+        let ratio = throughput / w.beta_start;
         tech.roulette_survival(w.lhat, ratio, RR_MAX_SURVIVAL)
             .unwrap_or(plain)
     }
@@ -644,6 +649,9 @@ struct WalkState {
     beta_start: f32,
     /// The guide's Lhat of the latest sampled direction, where it guided it.
     lhat: Option<f32>,
+    /// The product of 1 / [`Bsdf::radiance_scale`](crate::bsdf::Bsdf::radiance_scale) over the refractions so far: `beta` times
+    /// this is the throughput without the eta^2 factors, which Russian roulette looks at.
+    eta_scale: f32,
 }
 
 impl WalkState {
@@ -658,6 +666,7 @@ impl WalkState {
             lead: 0.0,
             beta_start: beta.max_element(),
             lhat: None,
+            eta_scale: 1.0,
         }
     }
 }

@@ -1036,6 +1036,69 @@ fn tinted() -> Vec<(&'static str, Bsdf, Bsdf)> {
     ]
 }
 
+/// `Bsdf::radiance_scale` is the part of a sample's value that radiance carries and importance
+/// does not: for every lobe of the smooth and rough dielectrics (ior 1.5 and 1.33) and the thin
+/// sheet, from both sides at many angles, the radiance-mode value over the importance-mode
+/// value of the same direction is the scale, (eta_o / eta_t)^2 for a refraction and 1 for a
+/// reflection and for the sheet. Russian roulette divides it out (path tracer and the
+/// bidirectional walks); with the indices swapped, entering glass would read as leaving it.
+#[test]
+fn radiance_scale_is_the_ratio_of_radiance_to_importance() {
+    use pathspace::bsdf::{Distribution, RoughDielectric};
+    let mut models = Vec::new();
+    for ior in [1.5f32, 1.33] {
+        models.push(Bsdf::Dielectric(Dielectric::new(ior)));
+        models.push(Bsdf::ThinDielectric(ThinDielectric::new(ior)));
+        models.push(Bsdf::RoughDielectric(RoughDielectric {
+            ior,
+            distribution: Distribution::Ggx,
+            alpha: 0.3,
+            specular: pathspace::bsdf::Specular::ONE,
+            anisotropy: None,
+        }));
+    }
+    use rand::{Rng, SeedableRng};
+    let mut r = rand_pcg::Pcg64Mcg::seed_from_u64(215);
+    let (mut refractions, mut scaled) = (0, 0);
+    for bsdf in &models {
+        for n in normals() {
+            for _ in 0..200 {
+                let wo = at_cosine(n, r.random_range(-1.0..1.0), r.random_range(0.0..TAU));
+                let (u, uc) = (Vec2::new(r.random(), r.random()), r.random::<f32>());
+                let Some(bs) = bsdf.sample(wo, n, u, uc, TransportMode::Radiance) else {
+                    continue;
+                };
+                let radiance = bsdf.eval(wo, bs.wi, n, TransportMode::Radiance);
+                let importance = bsdf.eval(wo, bs.wi, n, TransportMode::Importance);
+                let (radiance, importance) = match bs.lobe {
+                    // a Dirac lobe's value is its sample's (eval is 0)
+                    Lobe::Regular => (radiance, importance),
+                    _ => {
+                        let imp = bsdf.sample(wo, n, u, uc, TransportMode::Importance);
+                        (bs.value, imp.expect("the same lobe in either mode").value)
+                    }
+                };
+                if importance.max_element() <= 0.0 {
+                    continue;
+                }
+                let scale = bsdf.radiance_scale(wo, bs.wi, n) as f64;
+                let ratio = radiance.x as f64 / importance.x as f64;
+                assert!(
+                    (ratio - scale).abs() <= 1e-4 * scale,
+                    "{bsdf:?}: wo {wo:?} wi {:?}: radiance / importance {ratio}, scale {scale}",
+                    bs.wi
+                );
+                refractions += (bs.wi.dot(n) * wo.dot(n) < 0.0) as usize;
+                scaled += (scale != 1.0) as usize;
+            }
+        }
+    }
+    assert!(
+        refractions > 1000 && scaled > 500,
+        "{refractions} refractions, {scaled} scaled"
+    );
+}
+
 /// Mitsuba 3's `dielectric.cpp`, `roughdielectric.cpp` and `thindielectric.cpp`: the factors
 /// multiply the value of the lobe taken (reflection by `specular_reflectance`, transmission by
 /// `specular_transmittance`), in both transport modes, and leave the direction, the lobe and its
