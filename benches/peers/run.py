@@ -46,7 +46,8 @@ from scene import VARIANTS, Refused, Scene, variant_text  # noqa: E402
 import to_mitsuba  # noqa: E402
 import to_tungsten  # noqa: E402
 
-SCENES = ["fog-box", "door-slit-ior", "volume-caustic-hard-cone", "cloud-tracking", "maze-fog", "rooms"]
+SCENES = ["fog-box", "door-slit-ior", "volume-caustic-hard-cone", "volume-caustic-quad", "cloud-tracking",
+          "maze-fog", "rooms"]
 PATHSPACE = ["path", "path-equiangular", "bdpt", "mlt", "pssmlt", "mmlt", "smc"]
 MITSUBA = ["llvm_ad_rgb/volpath", "llvm_ad_rgb/volpathmis"]
 TUNGSTEN = ["path_tracer", "bidirectional_path_tracer", "bidirectional_path_tracer@16",

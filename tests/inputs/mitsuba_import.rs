@@ -2129,9 +2129,9 @@ fn a_scene_with_mitsubas_defaults_imports_whole() {
 /// another image, one room of the 100 rooms (boxes inside the medium, Henyey-Greenstein), and
 /// the harness's variants of the paper scenes (`benches/peers/scene.py`): the door slit with a
 /// complex-index floor (a GGX rough conductor; the baked smoke as a padded `.vol`), the cloud
-/// tracked, the volume caustic with a hard-cone spot light. A grid medium is compared by its
-/// density at points through its box, which a transposed or shifted lattice changes by far
-/// more than float rounding.
+/// tracked, the volume caustic with a hard-cone spot light and with a square light. A grid
+/// medium is compared by its density at points through its box, which a transposed or shifted
+/// lattice changes by far more than float rounding.
 #[test]
 fn the_peers_mitsuba_converter_writes_the_toml_scene() {
     let mut fam = Family::new("peers: to_mitsuba.py's XML vs the TOML");
@@ -2144,6 +2144,7 @@ fn the_peers_mitsuba_converter_writes_the_toml_scene() {
         ("door-slit-ior", 14),
         ("cloud-tracking", 15),
         ("volume-caustic-hard-cone", 16),
+        ("volume-caustic-quad", 17),
     ] {
         let path = peers_scene(name, &tmp);
         let out = std::process::Command::new("python3")

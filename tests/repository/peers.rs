@@ -305,6 +305,30 @@ fn tungsten_grid_puts_the_lattice_on_pathspaces_vertices() {
     assert_eq!(&t[12..], &[0.0, 0.0, 0.0, 1.0]);
 }
 
+/// A side of vacuum has no medium key in tungsten's JSON (tungsten refuses an empty name and
+/// reads a missing one as vacuum): the square-lit volume caustic's glass ball, vacuum inside and
+/// haze outside, keeps only `ext_medium`, and its light, hung in the haze, has it on both sides.
+#[test]
+fn tungsten_leaves_a_vacuum_side_without_a_medium() {
+    let path = variant_scene("volume-caustic-quad");
+    let out = convert_path("to_tungsten.py", path.to_str().unwrap(), &["path_tracer"]).unwrap();
+    let json: Value = serde_json::from_str(&out).unwrap();
+    let prims = json["primitives"].as_array().unwrap();
+    for p in prims {
+        for key in ["int_medium", "ext_medium"] {
+            assert_ne!(p.get(key).and_then(Value::as_str), Some(""), "{p}");
+        }
+    }
+    let ball = prims.iter().find(|p| p["type"] == "sphere").unwrap();
+    assert!(ball.get("int_medium").is_none(), "{ball}");
+    assert_eq!(ball["ext_medium"], "haze", "{ball}");
+    let light = prims.iter().find(|p| p.get("emission").is_some()).unwrap();
+    assert_eq!(
+        (&light["int_medium"], &light["ext_medium"]),
+        (&Value::from("haze"), &Value::from("haze"))
+    );
+}
+
 /// The variant `name` of a paper scene (`benches/peers/scene.py NAME`), written to the
 /// temporary directory.
 fn variant_scene(name: &str) -> PathBuf {
