@@ -205,6 +205,12 @@ struct BuildItem {
 /// Relative distance within which two hits count as coplanar for the tie-break rule.
 pub const TIE_EPSILON: f32 = 1e-5;
 
+/// The farthest distance a hit may have and still compete in the tie-break with a hit at `t`.
+#[inline]
+pub fn tie_reach(t: f32) -> f32 {
+    t * (1.0 + TIE_EPSILON) + TIE_EPSILON
+}
+
 impl Bvh {
     /// Builds the hierarchy (O(n log n)) over the references of [`split_references`].
     pub fn build(prims: &[Primitive]) -> Self {
@@ -442,7 +448,7 @@ impl Bvh {
     ) -> Option<Hit> {
         let (prims, ray, t_max) = (q.prims, q.ray, q.t_max);
         // hits this far past the best one still compete in the tie-break
-        let reach = |t_best: f32| (t_best * (1.0 + TIE_EPSILON) + TIE_EPSILON).min(t_max);
+        let reach = |t_best: f32| tie_reach(t_best).min(t_max);
         // no separate test of the root's box: the top node's test of its children rejects a
         // ray that misses the scene at the same cost
         if nodes.is_empty() {

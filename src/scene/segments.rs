@@ -7,7 +7,7 @@
 //! Book: "The transport equations", section "Why the ray is continued, not re-spawned, at a null
 //! boundary".
 
-use crate::geometry::bvh::TIE_EPSILON;
+use crate::geometry::bvh::tie_reach;
 use crate::geometry::{Bvh, Hit, Ray};
 
 use super::Scene;
@@ -173,10 +173,9 @@ impl<'a> Segments<'a> {
         {
             return Before::Segment(self.next());
         }
-        let reach = |t: f32| t * (1.0 + TIE_EPSILON) + TIE_EPSILON;
         match self.query(limit) {
             None => Before::Beyond,
-            Some(hit) if reach(reach(hit.t)) < limit => {
+            Some(hit) if tie_reach(tie_reach(hit.t)) < limit => {
                 Before::Segment(Some(self.segment_to(Some(hit))))
             }
             Some(_) => Before::Segment(self.next()),
