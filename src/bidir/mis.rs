@@ -9,7 +9,7 @@ use super::Bdpt;
 use crate::bsdf::TransportMode;
 use crate::path::geometry_term::cosine_factor;
 use crate::path::geometry_term::to_area;
-use crate::path::subpath::{remap, Subpath};
+use crate::path::subpath::{fwd_density, remap, rev_density, Subpath};
 use crate::path::{Vertex, VertexKind};
 use crate::scene::Scene;
 
@@ -142,20 +142,19 @@ impl Bdpt<'_> {
     /// need to hit a Dirac left out; the connection's ends are connectible, so their deltas
     /// count as false).
     fn eye_sum<E: Subpath + ?Sized>(eye: &E, join: &Join, changed: &Changed) -> f32 {
-        let (s, t) = (join.s, join.t);
+        let t = join.t;
         let ev = eye.vertices();
-        let pt_fwd = if t == 1 && s != 1 {
-            join.sampled.as_ref().unwrap_or_else(|| &ev[0]).pdf_fwd
-        } else {
-            ev[t - 1].pdf_fwd
-        };
         let mut sum = 0.0f32;
         let mut ri = 1.0f32;
+        // vertices i >= 1 only: the ends' densities are those of a predecessor ev[i - 1]
         for i in (1..t).rev() {
             ri *= if i + 1 == t {
-                remap(changed.pt) / remap(pt_fwd)
+                // the connection's end is no Dirac vertex in the joined path
+                remap(changed.pt) / remap(fwd_density(&ev[i - 1], &ev[i], false))
             } else if i + 2 == t {
-                remap(changed.pt_minus) / remap(ev[i].pdf_fwd)
+                let v = &ev[i];
+                let rev = rev_density(v, &ev[t - 1], changed.pt_minus, v.delta);
+                remap(rev) / remap(fwd_density(&ev[i - 1], v, v.delta))
             } else {
                 eye.ratio(i)
             };
@@ -183,12 +182,19 @@ impl Bdpt<'_> {
         } else {
             &lv[s - 1]
         };
+        // the density of light vertex i sampled from its predecessor (none for i = 0)
+        let fwd = |i: usize, v: &Vertex, dirac: bool| match i.checked_sub(1) {
+            Some(a) => fwd_density(&lv[a], v, dirac),
+            None => v.pdf_fwd,
+        };
         let mut ri = 1.0f32;
         for i in (0..s).rev() {
             ri *= if i + 1 == s {
-                remap(changed.qs) / remap(qs.pdf_fwd)
+                remap(changed.qs) / remap(fwd(i, qs, false))
             } else if i + 2 == s {
-                remap(changed.qs_minus) / remap(lv[i].pdf_fwd)
+                let v = &lv[i];
+                let rev = rev_density(v, qs, changed.qs_minus, v.delta);
+                remap(rev) / remap(fwd(i, v, v.delta))
             } else {
                 light.ratio(i)
             };
@@ -298,6 +304,7 @@ pub fn mis_weight_of_path(
             x.pdf_fwd = d.light[i];
             x.pdf_rev = d.eye[i];
             x.prop_rev = if i > 0 { d.prop_down[i - 1] } else { 1.0 };
+            x.prop_fwd = if i > 0 { d.prop_up[i - 1] } else { 1.0 };
             x
         })
         .collect();
@@ -307,6 +314,7 @@ pub fn mis_weight_of_path(
         x.pdf_fwd = d.eye[i];
         x.pdf_rev = d.light[i];
         x.prop_rev = if i + 1 < n { d.prop_up[i] } else { 1.0 };
+        x.prop_fwd = if i + 1 < n { d.prop_down[i] } else { 1.0 };
         eye.push(x);
     }
     let (qp, pq) = if s > 0 {

@@ -172,6 +172,7 @@ impl Bdpt<'_> {
                 if let Some(mut v) = environment_vertex(scene, &w.ray, start.mode) {
                     v.beta = w.beta;
                     v.pdf_fwd = w.pdf_dir * prop.pdf;
+                    v.prop_fwd = prop.pdf;
                     v.prop_rev = prop.pdf_rev;
                     path.push(v);
                 }
@@ -192,6 +193,7 @@ impl Bdpt<'_> {
             _ => to_area(w.pdf_dir, &path[prev], &v),
         };
         v.pdf_fwd = density * prop.pdf;
+        v.prop_fwd = prop.pdf;
         v.prop_rev = prop.pdf_rev;
         w.first_edge = false;
         path.push(v);

@@ -2,8 +2,8 @@
 //!
 //! A bidirectional sampler stores on each vertex what later stages reuse without re-tracing:
 //! the forward and reverse densities (`pdf_fwd`, `pdf_rev`, in the vertex's measure, with
-//! Table 1's propagation pdf), the propagation pdf of the edge back to the predecessor
-//! (`prop_rev`) and the throughput `beta`. MIS weights (BDPT), transition densities (MLT) and
+//! Table 1's propagation pdf), the propagation pdfs of the edges back to the predecessor
+//! (`prop_rev`) and from it (`prop_fwd`) and the throughput `beta`. MIS weights (BDPT), transition densities (MLT) and
 //! the particles' weights (Kristensen 2010, ch. 5) are only right when these caches equal the
 //! densities and contributions of eq. (6) and sec. 4 of Pauly, Kollig, Keller 2000 evaluated
 //! on the finished path. The idea is Mitsuba 0.6's `Path::verify` (libbidir): recompute, compare
@@ -39,7 +39,7 @@ pub const REL_TOLERANCE: f64 = 1e-3;
 pub struct Mismatch {
     /// Index of the vertex in the path (light end first).
     pub vertex: usize,
-    /// Which factor: `pdf_fwd`, `pdf_rev`, `prop_rev`, `beta`, `edge G`, `edge tau`,
+    /// Which factor: `pdf_fwd`, `pdf_rev`, `prop_rev`, `prop_fwd`, `beta`, `edge G`, `edge tau`,
     /// `contribution`.
     pub factor: &'static str,
     pub cached: f64,
@@ -222,6 +222,7 @@ impl Path {
                     d.prop_down[i - 1] as f64,
                     e,
                 )?;
+                check_within(i, "prop_fwd", x.prop_fwd as f64, d.prop_up[i - 1] as f64, e)?;
             }
             if i + 2 < s {
                 let rev = lift_slack(v, i..i + 2);
@@ -235,6 +236,7 @@ impl Path {
             if j + 1 < n {
                 let e = lift_slack(v, j..j + 1);
                 check_within(j, "prop_rev", x.prop_rev as f64, d.prop_up[j] as f64, e)?;
+                check_within(j, "prop_fwd", x.prop_fwd as f64, d.prop_down[j] as f64, e)?;
             }
             if j >= s + 2 {
                 let rev = lift_slack(v, j - 2..j);

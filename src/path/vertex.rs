@@ -54,6 +54,11 @@ pub struct Vertex {
     /// Propagation pdf (Table 1) of the edge from this vertex back to its subpath predecessor:
     /// the part of the predecessor's `pdf_rev` that depends only on the edge.
     pub prop_rev: f32,
+    /// Propagation pdf of the edge from the subpath predecessor to this vertex: the part of
+    /// `pdf_fwd` that depends only on the edge, and all of this vertex's density in the
+    /// measure of a Dirac predecessor (whose direction has no density: `pdf_fwd` is 0 there),
+    /// which the MIS ratios need (`path::subpath::fwd_density`).
+    pub prop_fwd: f32,
     /// True when the direction leaving this vertex was sampled from a Dirac lobe.
     pub delta: bool,
     /// The scattering mode used at this vertex (kept by perturbations).
@@ -96,6 +101,7 @@ impl Vertex {
             pdf_fwd: 0.0,
             pdf_rev: 0.0,
             prop_rev: 1.0,
+            prop_fwd: 1.0,
             delta: false,
             lobe: Lobe::Regular,
             medium_front,

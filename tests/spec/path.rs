@@ -486,6 +486,251 @@ v = [0.2, 0.0, 0.0]
     assert!((w - 1.0).abs() < 1e-6, "w(s = 0) = {w}");
 }
 
+/// A Dirac chain between two strategies: light x_0 on the floor, the mirror ceiling x_1, a
+/// Lambertian wall x_2, the meter x_3. Two strategies sample this path: the eye walk that hits
+/// the light through the mirror (s = 0) and the light walk that reaches x_2 through it and
+/// connects to the meter (s = 3). Their densities differ only at the chain's ends: through a
+/// mirror the generalized geometry term G(x_0 <-> x_2) is the same both ways, so
+/// p_3 / p_0 = p(x_0) (p_e(x_0 -> x_1) / cos_0) / (p(x_2 | x_3) (p_f(x_2 -> x_1) / cos_2)),
+/// and with a cosine emitter and a Lambertian wall (each density per projected solid angle
+/// 1 / pi) p_3 / p_0 = p(x_0) / p(x_2 | x_3): the power heuristic's weights follow from two
+/// densities no Dirac vertex touches (Veach 1997, sec. 10.3.5). Counting the mirror's Dirac
+/// density as one per unit area instead leaves d^2 and cosines of the two edges in the ratio.
+#[test]
+fn a_mirror_chain_weighs_its_two_strategies_by_their_end_densities() {
+    let scene = Scene::load(&SceneSource::embedded(
+        "mirror-wall.toml",
+        r#"
+[materials.mirror]
+type = "mirror"
+reflectance = 0.9
+[materials.wall]
+type = "lambert"
+albedo = 0.5
+[[shapes]]
+type = "quad"
+origin = [-1.0, 1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+material = "mirror"
+[[shapes]]
+type = "quad"
+origin = [0.2, -1.0, -0.4]
+u = [0.0, 0.0, 0.8]
+v = [0.8, 0.0, 0.0]
+emission = 2.0
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "wall"
+[[sensors]]
+type = "irradiance_meter"
+name = "facing the wall"
+origin = [-0.5, -0.5, -0.6]
+u = [0.0, 0.2, 0.0]
+v = [0.2, 0.0, 0.0]
+"#,
+    ))
+    .unwrap();
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
+    let x0 = v(
+        VertexKind::Light {
+            light: 0,
+            prim: Some(1),
+        },
+        Vec3::new(0.5, -1.0, 0.0),
+        Vec3::Y,
+    );
+    // the mirror point: on the line from x_0 to x_2's image (-0.3, 2.2, -1) at y = 1
+    let mut x1 = v(
+        VertexKind::Surface { prim: 0 },
+        Vec3::new(0.0, 1.0, -0.625),
+        Vec3::NEG_Y,
+    );
+    x1.delta = true;
+    let x2 = v(
+        VertexKind::Surface { prim: 2 },
+        Vec3::new(-0.3, -0.2, -1.0),
+        Vec3::Z,
+    );
+    let x3 = v(
+        VertexKind::Meter { meter: 0 },
+        Vec3::new(-0.4, -0.4, -0.6),
+        Vec3::NEG_Z,
+    );
+    let path = Path {
+        vertices: vec![x0, x1, x2, x3],
+    };
+    let mut sampler = Sampler::new(1, 0, 0);
+    let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
+    let r = d.light[0] as f64 / d.eye[2] as f64;
+    // neither strategy dominates, so a wrong ratio shows in both weights
+    assert!((0.2..5.0).contains(&r), "p(x_0) / p(x_2 | x_3) = {r}");
+    let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
+    for (s, want) in [0, 3].into_iter().zip(expected) {
+        let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
+        assert!(
+            (w - want).abs() < 1e-4 * want.max(1e-3),
+            "w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
+        );
+    }
+}
+
+/// The volume caustic (a glass ball in haze under a small square light, a floor), with every
+/// length multiplied by `k` and the coefficients divided by it: the same scene in another
+/// unit of length.
+fn ball_in_haze(k: f32) -> Scene {
+    let text = format!(
+        r#"
+[camera]
+type = "pinhole"
+eye = [0.0, {cy}, {cz}]
+look_at = [0.0, {k}, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = 38.0
+resolution = [16, 16]
+[materials.floor]
+type = "lambert"
+albedo = 0.5
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+[media.haze]
+type = "homogeneous"
+sigma_a = {sa}
+sigma_s = {ss}
+phase = {{ type = "hg", g = 0.3 }}
+[[shapes]]
+type = "quad"
+origin = [{m3}, 0.0, {m3}]
+u = [0.0, 0.0, {six}]
+v = [{six}, 0.0, 0.0]
+material = "floor"
+[[shapes]]
+type = "box"
+min = [{m3}, 0.0, {m3}]
+max = [{p3}, {top}, {p3}]
+material = "null"
+interior = "haze"
+[[shapes]]
+type = "sphere"
+center = [0.0, {by}, 0.0]
+radius = {r}
+material = "glass"
+interior = "vacuum"
+exterior = "haze"
+[[shapes]]
+type = "quad"
+origin = [{lo}, {ly}, {lo}]
+u = [{lw}, 0.0, 0.0]
+v = [0.0, 0.0, {lw}]
+emission = 1500.0
+"#,
+        cy = 1.2 * k,
+        cz = 5.5 * k,
+        sa = 0.02 / k,
+        ss = 0.18 / k,
+        m3 = -3.0 * k,
+        p3 = 3.0 * k,
+        six = 6.0 * k,
+        top = 3.5 * k,
+        by = 1.9 * k,
+        r = 0.5 * k,
+        lo = -0.1 * k,
+        ly = 3.3 * k,
+        lw = 0.2 * k,
+    );
+    Scene::load(&SceneSource::embedded("ball-in-haze.toml", &text)).unwrap()
+}
+
+/// MIS weights are ratios of densities of one path in one measure, so they cannot depend on
+/// the unit of length. Paths through the glass ball and the haze, drawn with the same random
+/// numbers in the scene and in its copy twice the size (lengths times 2, coefficients over 2:
+/// every position doubles exactly), must get the same weight for every strategy. A Dirac
+/// density counted as one where the strategies' measures differ (per unit area or volume at a
+/// vertex next to the glass) would leave a d^2, a cosine or a sigma_t in the ratios, and the
+/// weights of the paths with a Dirac vertex next to a medium vertex would change with the unit.
+#[test]
+fn mis_weights_do_not_depend_on_the_unit_of_length() {
+    let scenes = [ball_in_haze(1.0), ball_in_haze(2.0)];
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(8), Strategies::All);
+    let mut scratch = [Scratch::default(), Scratch::default()];
+    let (mut compared, mut dirac_by_medium) = (0, 0);
+    for i in 0..20_000u64 {
+        for (scene, sc) in scenes.iter().zip(scratch.iter_mut()) {
+            let mut sampler = Sampler::new(7, i, 0);
+            b.light_subpath(scene, WalkLimits::BDPT, &mut sampler, &mut sc.light);
+            let u = sampler.next_2d();
+            let raster = glam::Vec2::new(u.x * 16.0, u.y * 16.0);
+            b.camera_subpath(scene, raster, WalkLimits::BDPT, &mut sampler, &mut sc.eye);
+        }
+        let [a, c] = &scratch;
+        let same = |x: &[Vertex], y: &[Vertex]| {
+            x.len() == y.len()
+                && x.iter().zip(y).all(|(p, q)| {
+                    p.delta == q.delta && (2.0 * p.p - q.p).length() <= 1e-4 * (1.0 + q.p.length())
+                })
+        };
+        if !same(&a.light, &c.light) || !same(&a.eye, &c.eye) {
+            continue; // an offset of the lifted origins sent one walk elsewhere
+        }
+        for s in 0..=a.light.len() {
+            for t in 1..=a.eye.len() {
+                let joined = |x: &Scratch| Path {
+                    vertices: x.light[..s]
+                        .iter()
+                        .chain(x.eye[..t].iter().rev())
+                        .copied()
+                        .collect(),
+                };
+                let paths = [joined(a), joined(c)];
+                let v = &paths[0].vertices;
+                if v[0].area_light_point(&scenes[0]).is_none()
+                    || (s > 0 && (v[s - 1].delta || v[s].delta))
+                {
+                    continue; // an eye subpath off the light, a connection to a Dirac vertex
+                }
+                let d = [0, 1].map(|k| {
+                    let mut sampler = Sampler::new(0, 0, 0);
+                    densities(&scenes[k], &pathspace::path::PLAIN, &paths[k], &mut sampler)
+                });
+                // a density that is zero where no Dirac vertex explains it (a vertex outside
+                // the frame, behind the light or a wall's back): a path no image sees, whose
+                // ratio is left out as one
+                let n = v.len();
+                let dark = (1..n - 1).any(|j| !v[j - 1].delta && d[0].light[j] == 0.0)
+                    || (0..n - 1).any(|j| !v[j + 1].delta && d[0].eye[j] == 0.0);
+                if dark {
+                    continue;
+                }
+                let dirac = (1..v.len()).any(|j| {
+                    let medium = |x: &Vertex| matches!(x.kind, VertexKind::Medium { .. });
+                    (v[j].delta && medium(&v[j - 1])) || (v[j - 1].delta && medium(&v[j]))
+                });
+                let w =
+                    [0, 1].map(|k| mis_weight_of_path(&b, &scenes[k], &paths[k], s, &d[k]) as f64);
+                if !w.iter().all(|x| x.is_finite()) {
+                    continue;
+                }
+                assert!(
+                    (w[0] - w[1]).abs() <= 1e-3 * (1.0 + w[0]),
+                    "path {i}, s = {s}, t = {t}: weight {} at unit 1, {} at unit 2",
+                    w[0],
+                    w[1]
+                );
+                compared += 1;
+                dirac_by_medium += dirac as usize;
+            }
+        }
+    }
+    assert!(
+        compared > 20_000 && dirac_by_medium > 500,
+        "{compared} weights compared, {dirac_by_medium} with a Dirac vertex next to the haze"
+    );
+}
+
 /// The medium an edge from a vertex runs through: on an interface (a glass surface between
 /// media 0 outside and 1 inside) the one on the side the direction points to, the normal's
 /// side being the front; on a surface between equal media and at a medium vertex (no normal)
