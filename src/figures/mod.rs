@@ -8,9 +8,11 @@
 //!
 //! One file per family: `side` (the scene seen from the side, shared), `path` (Pauly et al.
 //! Figs. 1 and 2, transmittance), `free_flight` (Table 1's outcome space), `mutations` (Figs.
-//! 4-7), `walks` (BDPT's strategies, the Neumann series' walk), `smc` (Pegoraro et al. Fig. 1,
+//! 4-7), `walks` (BDPT's strategies, the Neumann series' walk), `chain` (a Dirac chain's
+//! weights), `smc` (Pegoraro et al. Fig. 1,
 //! the joint domain), `particles` (enlightened sampling: particles, a guide's map).
 
+mod chain;
 mod free_flight;
 mod mutations;
 mod particles;
@@ -27,6 +29,7 @@ use plotters::prelude::*;
 use crate::measure::chart::{register_font, ChartError};
 use crate::scene::{Scene, SceneSource};
 
+pub use chain::{mirror_chain, mirror_chain_weights};
 pub use mutations::{multichain_seed, mutation_proposal};
 pub use path::figure_2_path;
 pub use smc::smc_run;
@@ -86,6 +89,7 @@ pub fn all(s: &Scenes) -> Result<Vec<Figure>, ChartError> {
         figure("neumann-walk.svg", walks::neumann_figure(fog))?,
         figure("path-fig2.svg", path::path_figure(fog))?,
         figure("bdpt-strategies.svg", walks::strategies_figure(fog))?,
+        figure("mirror-chain.svg", chain::figure())?,
     ];
     for kind in crate::integrator::mlt::mutation::MutationKind::ALL {
         let (name, svg) = mutations::figure(s, kind);

@@ -172,6 +172,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "the committed diagrams are what the code draws",
     ),
     (
+        "figures::chain",
+        "spec::path",
+        "its chain's weights are checked against the power heuristic of its end densities",
+    ),
+    (
         "figures::free_flight",
         "repository::figures",
         "the committed diagrams are what the code draws",

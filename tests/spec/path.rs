@@ -498,71 +498,16 @@ v = [0.2, 0.0, 0.0]
 /// density as one per unit area instead leaves d^2 and cosines of the two edges in the ratio.
 #[test]
 fn a_mirror_chain_weighs_its_two_strategies_by_their_end_densities() {
-    let scene = Scene::load(&SceneSource::embedded(
-        "mirror-wall.toml",
-        r#"
-[materials.mirror]
-type = "mirror"
-reflectance = 0.9
-[materials.wall]
-type = "lambert"
-albedo = 0.5
-[[shapes]]
-type = "quad"
-origin = [-1.0, 1.0, -1.0]
-u = [2.0, 0.0, 0.0]
-v = [0.0, 0.0, 2.0]
-material = "mirror"
-[[shapes]]
-type = "quad"
-origin = [0.2, -1.0, -0.4]
-u = [0.0, 0.0, 0.8]
-v = [0.8, 0.0, 0.0]
-emission = 2.0
-[[shapes]]
-type = "quad"
-origin = [-1.0, -1.0, -1.0]
-u = [2.0, 0.0, 0.0]
-v = [0.0, 2.0, 0.0]
-material = "wall"
-[[sensors]]
-type = "irradiance_meter"
-name = "facing the wall"
-origin = [-0.5, -0.5, -0.6]
-u = [0.0, 0.2, 0.0]
-v = [0.2, 0.0, 0.0]
-"#,
-    ))
-    .unwrap();
+    // the scene and path the book's figure of the chain draws
+    let (scene, path) = pathspace::figures::mirror_chain();
     let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
-    let x0 = v(
-        VertexKind::Light {
-            light: 0,
-            prim: Some(1),
-        },
-        Vec3::new(0.5, -1.0, 0.0),
-        Vec3::Y,
+    // x_1 is the mirror point: equal angles with the mirror's normal on both sides
+    let v = &path.vertices;
+    let (to_0, to_2) = ((v[0].p - v[1].p).normalize(), (v[2].p - v[1].p).normalize());
+    assert!(
+        (to_0.y - to_2.y).abs() < 1e-6 && v[1].delta,
+        "x_1 reflects x_0 to x_2"
     );
-    // the mirror point: on the line from x_0 to x_2's image (-0.3, 2.2, -1) at y = 1
-    let mut x1 = v(
-        VertexKind::Surface { prim: 0 },
-        Vec3::new(0.0, 1.0, -0.625),
-        Vec3::NEG_Y,
-    );
-    x1.delta = true;
-    let x2 = v(
-        VertexKind::Surface { prim: 2 },
-        Vec3::new(-0.3, -0.2, -1.0),
-        Vec3::Z,
-    );
-    let x3 = v(
-        VertexKind::Meter { meter: 0 },
-        Vec3::new(-0.4, -0.4, -0.6),
-        Vec3::NEG_Z,
-    );
-    let path = Path {
-        vertices: vec![x0, x1, x2, x3],
-    };
     let mut sampler = Sampler::new(1, 0, 0);
     let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
     let r = d.light[0] as f64 / d.eye[2] as f64;
