@@ -9,8 +9,8 @@
 //! One file per family: `side` (the scene seen from the side, shared), `path` (Pauly et al.
 //! Figs. 1 and 2, transmittance), `free_flight` (Table 1's outcome space), `mutations` (Figs.
 //! 4-7), `walks` (BDPT's strategies, the Neumann series' walk), `chain` (a Dirac chain's
-//! weights), `smc` (Pegoraro et al. Fig. 1,
-//! the joint domain), `particles` (enlightened sampling: particles, a guide's map).
+//! weights), `smc` (Pegoraro et al. Fig. 1, the joint domain), `particles` (enlightened
+//! sampling: particles, a guide's map).
 
 mod chain;
 mod free_flight;

@@ -11,8 +11,8 @@ use glam::Vec3;
 use super::geometry_term::{geometry_term_unoccluded, AreaFactor};
 use super::Vertex;
 
-/// A density in the MIS ratios: zero (an unset or Dirac density) counts as one (Veach 1997,
-/// sec. 10.2: the Dirac factors cancel between the two strategies compared).
+/// A density in the MIS ratios: zero (an unset density) counts as one. The zeros a Dirac
+/// vertex leaves on its neighbours are replaced first ([`fwd_density`], [`rev_density`]).
 #[inline]
 pub fn remap(f: f32) -> f32 {
     if f != 0.0 {
@@ -73,10 +73,10 @@ pub fn rev_density(v: &Vertex, b: &Vertex, pdf_rev: f32, dirac: bool) -> f32 {
 
 /// A density per unit area (volume) at Dirac vertex `dirac` sampled from the non-Dirac vertex
 /// `from`, turned into the density per projected solid angle at `from`: divided by
-/// G(from <-> dirac). Through a chain of Dirac vertices the generalized geometry term is the
-/// same in both directions, so it cancels from the ratio of two strategies' densities only
-/// when both chain ends are measured this way; a Dirac density counted as 1 in the area
-/// measure leaves d^2 and the cosines in the ratio, and with them the unit of length.
+/// G(from <-> dirac). The Jacobian through a chain of Dirac vertices is the same seen from
+/// either end (book: "Bidirectional path tracing", G_chain), so it cancels from the ratio of
+/// two strategies' densities only when both chain ends are measured this way; a Dirac density
+/// counted as 1 in the area measure leaves d^2 and the cosines in the ratio.
 #[inline]
 pub fn projected(pdf_area: f32, dirac: &Vertex, from: &Vertex) -> f32 {
     let g = geometry_term_unoccluded(dirac, from);

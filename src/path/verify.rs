@@ -3,10 +3,10 @@
 //! A bidirectional sampler stores on each vertex what later stages reuse without re-tracing:
 //! the forward and reverse densities (`pdf_fwd`, `pdf_rev`, in the vertex's measure, with
 //! Table 1's propagation pdf), the propagation pdfs of the edges back to the predecessor
-//! (`prop_rev`) and from it (`prop_fwd`) and the throughput `beta`. MIS weights (BDPT), transition densities (MLT) and
-//! the particles' weights (Kristensen 2010, ch. 5) are only right when these caches equal the
-//! densities and contributions of eq. (6) and sec. 4 of Pauly, Kollig, Keller 2000 evaluated
-//! on the finished path. The idea is Mitsuba 0.6's `Path::verify` (libbidir): recompute, compare
+//! (`prop_rev`) and from it (`prop_fwd`) and the throughput `beta`. MIS weights (BDPT),
+//! transition densities (MLT) and the particles' weights (Kristensen 2010, ch. 5) are only
+//! right when these caches equal the densities and contributions of eq. (6) and sec. 4 of
+//! Pauly, Kollig, Keller 2000 evaluated on the finished path. The idea is Mitsuba 0.6's `Path::verify` (libbidir): recompute, compare
 //! factor by factor, report the first disagreement.
 //!
 //! Recomputed with public functions only: `path::pdf::densities` (both ends' densities and the
