@@ -15,15 +15,13 @@ use crate::path::pdf::densities;
 use crate::path::{Path, Vertex, VertexKind, PLAIN};
 use crate::scene::{Scene, SceneSource};
 
-/// The scene: a mirror ceiling (primitive 0), a light on the floor (primitive 1, light 0), a
-/// Lambertian back wall (primitive 2) and an irradiance meter facing it.
-const SCENE: &str = r#"
+/// A mirror ceiling y = 1 facing down (primitive 0) over a light on the floor facing up
+/// (primitive 1, light 0): the start of the chain's scene, and of other mirror paths' (the
+/// spec of the path module adds its own sensor).
+pub const MIRROR_OVER_LIGHT: &str = r#"
 [materials.mirror]
 type = "mirror"
 reflectance = 0.9
-[materials.wall]
-type = "lambert"
-albedo = 0.5
 [[shapes]]
 type = "quad"
 origin = [-1.0, 1.0, -1.0]
@@ -36,6 +34,14 @@ origin = [0.2, -1.0, -0.4]
 u = [0.0, 0.0, 0.8]
 v = [0.8, 0.0, 0.0]
 emission = 2.0
+"#;
+
+/// The rest of the chain's scene: a Lambertian back wall (primitive 2) and an irradiance
+/// meter facing it.
+const WALL_AND_METER: &str = r#"
+[materials.wall]
+type = "lambert"
+albedo = 0.5
 [[shapes]]
 type = "quad"
 origin = [-1.0, -1.0, -1.0]
@@ -56,7 +62,8 @@ const WALL_POINT: Vec3 = Vec3::new(-0.3, -0.2, -1.0);
 /// The scene and the path x_0 (light) x_1 (mirror, a Dirac vertex) x_2 (wall) x_3 (meter):
 /// x_1 lies where the segment from x_0 to x_2's mirror image crosses the mirror.
 pub fn mirror_chain() -> (Scene, Path) {
-    let scene = Scene::load(&SceneSource::embedded("mirror-chain.toml", SCENE))
+    let text = format!("{MIRROR_OVER_LIGHT}{WALL_AND_METER}");
+    let scene = Scene::load(&SceneSource::embedded("mirror-chain.toml", &text))
         .expect("the mirror chain's scene is valid");
     let v = |kind, p, n| Vertex::new(kind, p, n, None, None);
     let x0 = Vec3::new(0.5, -1.0, 0.0);

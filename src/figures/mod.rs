@@ -29,7 +29,7 @@ use plotters::prelude::*;
 use crate::measure::chart::{register_font, ChartError};
 use crate::scene::{Scene, SceneSource};
 
-pub use chain::{mirror_chain, mirror_chain_weights};
+pub use chain::{mirror_chain, mirror_chain_weights, MIRROR_OVER_LIGHT};
 pub use mutations::{multichain_seed, mutation_proposal};
 pub use path::figure_2_path;
 pub use smc::smc_run;

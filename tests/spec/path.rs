@@ -427,33 +427,20 @@ fn spot_light_intensity_has_its_closed_form_falloff() {
 /// every one whose connection touches a Dirac vertex.
 #[test]
 fn a_path_through_a_mirror_has_one_strategy_of_weight_one() {
-    let scene = Scene::load(&SceneSource::embedded(
-        "mirror.toml",
+    // the mirror and light of the book's mirror-chain figure, a meter on the floor
+    let text = format!(
+        "{}{}",
+        pathspace::figures::MIRROR_OVER_LIGHT,
         r#"
-[materials.mirror]
-type = "mirror"
-reflectance = 0.9
-[[shapes]]
-type = "quad"
-origin = [-1.0, 1.0, -1.0]
-u = [2.0, 0.0, 0.0]
-v = [0.0, 0.0, 2.0]
-material = "mirror"
-[[shapes]]
-type = "quad"
-origin = [0.2, -1.0, -0.4]
-u = [0.0, 0.0, 0.8]
-v = [0.8, 0.0, 0.0]
-emission = 2.0
 [[sensors]]
 type = "irradiance_meter"
 name = "floor"
 origin = [-0.6, -0.9, -0.1]
 u = [0.0, 0.0, 0.2]
 v = [0.2, 0.0, 0.0]
-"#,
-    ))
-    .unwrap();
+"#
+    );
+    let scene = Scene::load(&SceneSource::embedded("mirror.toml", &text)).unwrap();
     let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
     // this light is in vacuum
     assert_eq!(scene.light_media, [None]);
