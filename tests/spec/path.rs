@@ -477,7 +477,7 @@ v = [0.2, 0.0, 0.0]
 /// Lambertian wall x_2, the meter x_3. Two strategies sample this path: the eye walk that hits
 /// the light through the mirror (s = 0) and the light walk that reaches x_2 through it and
 /// connects to the meter (s = 3). Their densities differ only at the chain's ends: through a
-/// mirror the generalized geometry term G(x_0 <-> x_2) is the same both ways, so
+/// mirror the chain's geometry term G_chain(x_0 <-> x_2) is the same both ways, so
 /// p_3 / p_0 = p(x_0) (p_e(x_0 -> x_1) / cos_0) / (p(x_2 | x_3) (p_f(x_2 -> x_1) / cos_2)),
 /// and with a cosine emitter and a Lambertian wall (each density per projected solid angle
 /// 1 / pi) p_3 / p_0 = p(x_0) / p(x_2 | x_3): the power heuristic's weights follow from two
@@ -500,6 +500,80 @@ fn a_mirror_chain_weighs_its_two_strategies_by_their_end_densities() {
     let r = d.light[0] as f64 / d.eye[2] as f64;
     // neither strategy dominates, so a wrong ratio shows in both weights
     assert!((0.2..5.0).contains(&r), "p(x_0) / p(x_2 | x_3) = {r}");
+    let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
+    for (s, want) in [0, 3].into_iter().zip(expected) {
+        let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
+        assert!(
+            (w - want).abs() < 1e-4 * want.max(1e-3),
+            "w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
+        );
+    }
+}
+
+/// The mirror chain with its wall point replaced by a collision x_2 in a fog that fills the
+/// room: the ends' projected densities now differ (1/pi at the light, the isotropic phase
+/// function's 1/(4 pi) at x_2), and the chain's edges carry propagation pdfs, the one that ends
+/// at x_2 with its sigma_t. Then p_3 / p_0 = p(x_0) (1/pi) q(x_0 -> x_1) q(x_1 -> x_2) /
+/// (p(x_2 | x_3) (1/(4 pi)) q(x_2 -> x_1) q(x_1 -> x_0)), with the q's from
+/// `path::pdf::densities`: a density read as one where a Dirac vertex left none, or a
+/// projected density left per unit area, gives other weights.
+#[test]
+fn a_mirror_chain_in_fog_weighs_its_ends_with_their_propagation_pdfs() {
+    let text = format!(
+        "{}{}",
+        pathspace::figures::MIRROR_OVER_LIGHT,
+        r#"
+[media.fog]
+type = "homogeneous"
+sigma_a = 0.2
+sigma_s = 0.6
+phase = { type = "isotropic" }
+[[shapes]]
+type = "box"
+min = [-2.0, -2.0, -2.0]
+max = [2.0, 2.0, 2.0]
+material = "null"
+interior = "fog"
+[[sensors]]
+type = "irradiance_meter"
+name = "facing the fog"
+origin = [-0.5, -0.5, -0.6]
+u = [0.0, 0.2, 0.0]
+v = [0.2, 0.0, 0.0]
+"#
+    );
+    let scene = Scene::load(&SceneSource::embedded("mirror-fog.toml", &text)).unwrap();
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
+    let fog = |kind, p: Vec3, n| Vertex::new(kind, p, n, Some(0), Some(0));
+    let x0 = Vec3::new(0.5, -1.0, 0.0);
+    let x2 = Vec3::new(-0.3, -0.2, -0.9);
+    let image = Vec3::new(x2.x, 2.0 - x2.y, x2.z);
+    let x1 = x0 + (image - x0) * ((1.0 - x0.y) / (image.y - x0.y));
+    let mut mirror = fog(VertexKind::Surface { prim: 0 }, x1, Vec3::NEG_Y);
+    mirror.delta = true;
+    let light = VertexKind::Light {
+        light: 0,
+        prim: Some(1),
+    };
+    let path = Path {
+        vertices: vec![
+            fog(light, x0, Vec3::Y),
+            mirror,
+            fog(VertexKind::Medium { medium: 0 }, x2, Vec3::ZERO),
+            fog(
+                VertexKind::Meter { meter: 0 },
+                Vec3::new(-0.4, -0.4, -0.6),
+                Vec3::NEG_Z,
+            ),
+        ],
+    };
+    let mut sampler = Sampler::new(1, 0, 0);
+    let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
+    let pi = std::f64::consts::PI;
+    let light_side = d.light[0] as f64 / pi * (d.prop_up[0] * d.prop_up[1]) as f64;
+    let eye_side = d.eye[2] as f64 / (4.0 * pi) * (d.prop_down[1] * d.prop_down[0]) as f64;
+    let r = light_side / eye_side;
+    assert!((0.2..5.0).contains(&r), "p_3 / p_0 = {r}");
     let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
     for (s, want) in [0, 3].into_iter().zip(expected) {
         let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
