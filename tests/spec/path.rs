@@ -584,6 +584,23 @@ v = [0.2, 0.0, 0.0]
     }
 }
 
+/// A Dirac vertex's density per projected solid angle needs G of its edge, which is zero for
+/// coincident vertices (and at grazing angles): there the density is left as it is, finite,
+/// rather than divided by zero.
+#[test]
+fn a_projected_density_over_a_zero_geometry_term_stays_finite() {
+    use pathspace::path::subpath::projected;
+    let at = |p: Vec3| v(VertexKind::Surface { prim: 0 }, p, Vec3::Y);
+    let (a, b) = (at(Vec3::ZERO), at(Vec3::ZERO));
+    assert_eq!(projected(0.5, &a, &b), 0.5);
+    // an edge in the surfaces' plane: both cosines zero
+    let c = at(Vec3::X);
+    assert_eq!(projected(0.5, &a, &c), 0.5);
+    // and a regular edge: divided by G = cos cos / d^2 = 1 / 4
+    let d = at(Vec3::new(0.0, 2.0, 0.0));
+    assert_eq!(projected(0.5, &a, &d), 2.0);
+}
+
 /// The volume caustic (a glass ball in haze under a small square light, a floor), with every
 /// length multiplied by `k` and the coefficients divided by it: the same scene in another
 /// unit of length.
