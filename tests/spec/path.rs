@@ -11,7 +11,7 @@ use pathspace::bidir::WalkLimits;
 use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::Sampler;
-use pathspace::path::pdf::{densities, strategy_pdf};
+use pathspace::path::pdf::{densities, strategy_pdf, Densities};
 use pathspace::path::{
     characteristic, geometry_term, geometry_term::geometry_term_unoccluded,
     measurement_contribution, Path, Vertex, VertexKind,
@@ -498,11 +498,17 @@ fn a_mirror_chain_weighs_its_two_strategies_by_their_end_densities() {
     let mut sampler = Sampler::new(1, 0, 0);
     let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
     let r = d.light[0] as f64 / d.eye[2] as f64;
+    assert_chain_weights(&b, &scene, &path, &d, r);
+}
+
+/// The power heuristic's weights of a four-vertex chain's two strategies (s = 0 and s = 3)
+/// for the ratio r = p_3 / p_0 of their densities, against `mis_weight_of_path`.
+fn assert_chain_weights(b: &Bdpt, scene: &Scene, path: &Path, d: &Densities, r: f64) {
     // neither strategy dominates, so a wrong ratio shows in both weights
-    assert!((0.2..5.0).contains(&r), "p(x_0) / p(x_2 | x_3) = {r}");
+    assert!((0.2..5.0).contains(&r), "p_3 / p_0 = {r}");
     let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
     for (s, want) in [0, 3].into_iter().zip(expected) {
-        let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
+        let w = mis_weight_of_path(b, scene, path, s, d) as f64;
         assert!(
             (w - want).abs() < 1e-4 * want.max(1e-3),
             "w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
@@ -572,16 +578,7 @@ v = [0.2, 0.0, 0.0]
     let pi = std::f64::consts::PI;
     let light_side = d.light[0] as f64 / pi * (d.prop_up[0] * d.prop_up[1]) as f64;
     let eye_side = d.eye[2] as f64 / (4.0 * pi) * (d.prop_down[1] * d.prop_down[0]) as f64;
-    let r = light_side / eye_side;
-    assert!((0.2..5.0).contains(&r), "p_3 / p_0 = {r}");
-    let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
-    for (s, want) in [0, 3].into_iter().zip(expected) {
-        let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
-        assert!(
-            (w - want).abs() < 1e-4 * want.max(1e-3),
-            "w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
-        );
-    }
+    assert_chain_weights(&b, &scene, &path, &d, light_side / eye_side);
 }
 
 /// A Dirac vertex's density per projected solid angle needs G of its edge, which is zero for
