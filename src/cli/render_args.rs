@@ -232,6 +232,14 @@ impl RenderArgs {
                 kind.name()
             )));
         }
+        let pixels = OwnOption::PixelSamples;
+        if o.pixel_samples.is_some() && !kind.facts().takes(pixels) {
+            return Err(CliError::Usage(format!(
+                "--pixel-samples applies to --integrator {}, not `{}` (it draws no film position per pixel and pass)",
+                takers(pixels),
+                kind.name()
+            )));
+        }
         if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
             return Err(CliError::Usage(format!(
                 "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",

@@ -20,7 +20,7 @@ pub use settings::RenderSettings;
 use rayon::prelude::*;
 
 use crate::film::{Film, FilterBlock, PixelFilter};
-use crate::math::Sampler;
+use crate::math::{sampler, Sampler};
 use crate::path::{LocalSampling, PLAIN};
 use crate::scene::{Camera, Scene};
 use crate::spectrum::Rgb;
@@ -139,6 +139,8 @@ pub enum OwnOption {
     LightSelection,
     /// The images of its sampling techniques one by one (`--strategy-images`).
     StrategyImages,
+    /// `pixel_samples` (it draws each camera sample's film position in its pixel).
+    PixelSamples,
 }
 
 /// Refuses a scene with an emitting medium for an integrator that cannot collect its light,
@@ -556,6 +558,36 @@ impl MeterAccum {
     }
 }
 
+/// Where in its pixel each camera sample's film position lies (`[render] pixel_samples`,
+/// `--pixel-samples`; book: "Measuring a renderer", section "Stratified film positions").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum PixelSamples {
+    /// The pixel's points of a (0, 2)-sequence, digitally shifted per pixel and seed: the
+    /// first 2^m samples, and each 2^m after them, cover the pixel's 2^m elementary intervals
+    /// of area 2^-m once each.
+    #[default]
+    Stratified,
+    /// Independent uniform positions from the pixel's PCG streams: the variance the film
+    /// records per pixel then estimates the variance of the pixel's mean, where stratified
+    /// positions make it overstate that variance across edges.
+    Independent,
+}
+
+crate::option_value!(PixelSamples, "pixel samples");
+
+/// The offset in its pixel of a pixel's sample `k`: the pixel's stratified point `k` (the
+/// sequence starts again past 2^32 samples) or two numbers of its stream. The two are drawn
+/// in both modes, so that the rest of the sample's stream does not depend on the mode.
+#[inline]
+fn film_offset(stratified: bool, k: u64, shift: u64, sampler: &mut Sampler) -> glam::Vec2 {
+    let uniform = sampler.next_2d();
+    if stratified {
+        sampler::stratified_point(k as u32, shift)
+    } else {
+        uniform
+    }
+}
+
 /// Accumulates passes of an integrator over the camera film and the meters.
 pub struct Renderer<'a> {
     pub scene: &'a Scene,
@@ -571,6 +603,12 @@ pub struct Renderer<'a> {
     pub meters: Vec<MeterAccum>,
     /// Passes done so far (each pass has its own random streams).
     pub passes: u64,
+    /// Samples per pixel of the passes before the next one, counted from the render's first
+    /// pass (a shard's or a resumed render's earlier passes included): the index of the
+    /// next pass's first stratified film position ([`PixelSamples::Stratified`]).
+    pub samples: u64,
+    /// How each camera sample's film position is drawn.
+    pub pixel_samples: PixelSamples,
     /// Samples that came out NaN or infinite and were dropped (counted as zero).
     pub nan_count: u64,
     /// Camera paths plus meter paths traced.
@@ -670,6 +708,8 @@ impl<'a> Renderer<'a> {
                 .map(|c| Film::with_filter(c.width, c.height, c.filter)),
             meters: vec![MeterAccum::default(); scene.sensors.len()],
             passes: 0,
+            samples: 0,
+            pixel_samples: setup.settings.pixel_samples,
             nan_count: 0,
             paths: 0,
             meter_samples: setup.settings.meter_samples as u64,
@@ -706,6 +746,8 @@ impl<'a> Renderer<'a> {
     pub fn pass(&mut self, spp: u32, on_tile: &(dyn Fn() + Sync)) {
         let pass = self.passes;
         self.passes += 1;
+        let first_sample = self.samples;
+        self.samples += spp as u64;
         if let Some(film) = self.film.as_mut() {
             if let Some(paths) = self.integrator.film_pass(self.scene, film, spp) {
                 self.paths += paths;
@@ -713,7 +755,7 @@ impl<'a> Renderer<'a> {
                 return;
             }
         }
-        let mut records = self.film_tiles(spp, pass, on_tile);
+        let mut records = self.film_tiles(spp, (pass, first_sample), on_tile);
         for mi in 0..self.scene.sensors.len() {
             records.extend(self.meter_chunks(mi, spp, pass));
         }
@@ -724,7 +766,14 @@ impl<'a> Renderer<'a> {
 
     /// The camera's part of a pass: tiles in parallel, every pixel's stream
     /// `Sampler::new(seed, pixel, pass)`, results added in tile order; the tiles' deposits.
-    fn film_tiles(&mut self, spp: u32, pass: u64, on_tile: &(dyn Fn() + Sync)) -> Vec<Deposit> {
+    /// With stratified pixel samples, the pass's film positions in each pixel are the points
+    /// `first_sample..first_sample + spp` of the pixel's shifted (0, 2)-sequence.
+    fn film_tiles(
+        &mut self,
+        spp: u32,
+        (pass, first_sample): (u64, u64),
+        on_tile: &(dyn Fn() + Sync),
+    ) -> Vec<Deposit> {
         let scene = self.scene;
         let (Some(film), Some(cam)) = (self.film.as_mut(), scene.camera.as_ref()) else {
             return Vec::new();
@@ -735,6 +784,9 @@ impl<'a> Renderer<'a> {
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);
         let filter = film.filter;
+        // an integrator that reads no film position (light tracing) keeps its streams' own
+        let stratified = self.pixel_samples == PixelSamples::Stratified
+            && self.kind.facts().takes(OwnOption::PixelSamples);
         let results: Vec<TileResult> = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|t| {
@@ -750,10 +802,13 @@ impl<'a> Renderer<'a> {
                     for x in xs.clone() {
                         let index = (y * w + x) as usize;
                         let mut sampler = Sampler::new(seed, index as u64, pass);
+                        let shift = sampler::film_shift(seed, index as u64);
                         let mut sum = [0.0f64; 3];
                         let mut sum_sq = [0.0f64; 3];
-                        for _ in 0..spp {
-                            let raster = glam::Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                        for j in 0..spp as u64 {
+                            let k = first_sample + j;
+                            let offset = film_offset(stratified, k, shift, &mut sampler);
+                            let raster = glam::Vec2::new(x as f32, y as f32) + offset;
                             let first_splat = scratch.splats.len();
                             let l = integrator.camera_sample(
                                 scene,

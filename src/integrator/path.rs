@@ -982,7 +982,7 @@ impl super::Facts for PathFacts {
     /// Equiangular sampling and the light selection are its next-event estimation's.
     fn takes(&self, option: super::OwnOption) -> bool {
         use super::OwnOption::*;
-        matches!(option, EquiangularDistance | LightSelection)
+        matches!(option, EquiangularDistance | LightSelection | PixelSamples)
     }
 
     /// Its surface and medium vertices sample from the guide's mixtures (eq. 5.18 and its

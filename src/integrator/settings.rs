@@ -13,7 +13,7 @@ use crate::integrator::mlt::{MltOptions, MltSettings};
 use crate::integrator::path::DistanceSampling;
 use crate::integrator::pssmlt::{PssmltOptions, PssmltSettings};
 use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
-use crate::integrator::IntegratorKind;
+use crate::integrator::{IntegratorKind, PixelSamples};
 use crate::medium::TransmittanceEstimator;
 use crate::scene::file::{self, path};
 use crate::scene::LightSelectionKind;
@@ -62,6 +62,13 @@ pub struct RenderOptions {
     /// 2018) or `power` (proportional to power everywhere).
     #[arg(long)]
     pub light_selection: Option<LightSelectionKind>,
+    /// path, bdpt, smc: where each camera sample's film position lies in its pixel,
+    /// `stratified` (default: the pixel's points of a (0, 2)-sequence, digitally shifted per
+    /// pixel and seed) or `independent` (uniform and independent: the variance layers then
+    /// estimate the variance of each pixel's mean, which stratified positions make them
+    /// overstate across edges).
+    #[arg(long)]
+    pub pixel_samples: Option<PixelSamples>,
     /// path: next-event estimation toward emitting media, a point of the glowing media sampled
     /// as a light and combined by MIS with the emission the walk collects (default true;
     /// `--volume-next-event=false` collects the emission along free flights alone).
@@ -118,6 +125,7 @@ impl RenderOptions {
             meter_samples: Some(DEFAULT_METER_SAMPLES),
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
+            pixel_samples: Some(PixelSamples::Stratified),
             volume_next_event: Some(true),
             transmittance: Some(TransmittanceEstimator::RatioTracking),
             adjoint_image: Some(false),
@@ -499,6 +507,8 @@ pub struct RenderSettings {
     pub distance: DistanceSampling,
     /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
     pub light_selection: LightSelectionKind,
+    /// Where each camera sample's film position lies in its pixel (`[render] pixel_samples`).
+    pub pixel_samples: PixelSamples,
     /// The path tracer's next-event estimation toward emitting media
     /// (`[render] volume_next_event`).
     pub volume_next_event: bool,
@@ -535,6 +545,7 @@ impl RenderSettings {
             meter_samples: d.meter_samples.expect(given),
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
+            pixel_samples: d.pixel_samples.expect(given),
             volume_next_event: d.volume_next_event.expect(given),
             transmittance: d.transmittance.expect(given),
             mlt: MltSettings::default(),
@@ -589,6 +600,7 @@ impl RenderSettings {
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
+        self.pixel_samples = o.pixel_samples.unwrap_or(self.pixel_samples);
         self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);
         self.transmittance = o.transmittance.unwrap_or(self.transmittance);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);

@@ -29,6 +29,44 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Point `k` of the two-dimensional (0, 2)-sequence in base 2, digitally shifted by `shift`:
+/// the first coordinate is k's bits reversed (van der Corput's radical inverse), the second k
+/// times the Pascal matrix mod 2 (together the first two dimensions of Sobol's sequence;
+/// Kollig and Keller 2002, "Efficient multidimensional sampling", sec. 3), each then XORed
+/// with 32 bits of `shift`. Every run of 2^m points starting at a multiple of 2^m has exactly one point in
+/// each of the 2^m elementary intervals of area 2^-m (any shape 2^-i x 2^-(m-i)): the
+/// shift permutes the intervals and keeps that. Over a uniformly random `shift` each point
+/// is uniform on the grid of 2^-24, as [`Sampler::next_f32`]'s numbers are, so an estimate
+/// from these points is unbiased whatever the integrand.
+pub fn stratified_point(k: u32, shift: u64) -> Vec2 {
+    let (mut x, mut y) = (0u32, 0u32);
+    let (mut vx, mut vy) = (1u32 << 31, 1u32 << 31);
+    let mut i = k;
+    while i != 0 {
+        if i & 1 != 0 {
+            x ^= vx;
+            y ^= vy;
+        }
+        i >>= 1;
+        vx >>= 1;
+        // the next column of the Pascal matrix mod 2
+        vy ^= vy >> 1;
+    }
+    let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / 16_777_216.0);
+    Vec2::new(unit(x ^ shift as u32), unit(y ^ (shift >> 32) as u32))
+}
+
+/// Set into the pixel's index for the digital shift of its film points, so that the shift is
+/// none of the pixel's PCG streams' seeds.
+const FILM_SHIFT_STREAM: u64 = 0x6669_6c6d_7368_6966;
+
+/// The digital shift of pixel `pixel`'s film points under seed `seed` ([`stratified_point`]):
+/// its own for each pixel and seed, the same in every pass, so that the points of all the
+/// pixel's passes are one sequence.
+pub fn film_shift(seed: u64, pixel: u64) -> u64 {
+    mix64(seed ^ mix64(pixel ^ FILM_SHIFT_STREAM))
+}
+
 impl Sampler {
     /// The stream for (`seed`, `index`, `pass`): pixel `index` in pass `pass`, or chain `index`.
     pub fn new(seed: u64, index: u64, pass: u64) -> Self {

@@ -319,6 +319,16 @@ pub fn render_with(job: &Job, mut control: Control) -> Result<Ended, RenderError
     })
 }
 
+/// Sets `r` to continue with pass `pass` of `job`, and its film positions with that pass's
+/// first sample: passes of [`plan::PASS_SPP`] samples before it, or of 1 in a timed render.
+fn start_at(r: &mut Renderer, job: &Job, pass: u64) {
+    r.passes = pass;
+    r.samples = match job.time {
+        Some(_) => pass,
+        None => pass * plan::PASS_SPP as u64,
+    };
+}
+
 /// The renderer of a job, and how far it is: new, or continued from a checkpoint. MLT's run
 /// is not continued: a new independent run starts, and the saved image joins the earlier ones.
 fn start<'s>(
@@ -327,7 +337,7 @@ fn start<'s>(
 ) -> Result<(Renderer<'s>, Progress, Option<Earlier>), RenderError> {
     let Some(c) = resume else {
         let mut r = Renderer::prepared(job.kind, &job.setup)?;
-        r.passes = job.first_pass;
+        start_at(&mut r, job, job.first_pass);
         return Ok((r, Progress::default(), None));
     };
     if job.time.is_none() && c.progress.spp > job.spp as u64 {
@@ -341,7 +351,7 @@ fn start<'s>(
             .map_err(|why| CheckpointError::BadState("being resumed".into(), why))?;
         r.film = c.film;
         r.meters = c.meters;
-        r.passes = progress.passes;
+        start_at(&mut r, job, progress.passes);
         r.nan_count = progress.nan_count;
         r.paths = progress.paths;
         return Ok((r, progress, None));
@@ -350,7 +360,7 @@ fn start<'s>(
     let seed = Checkpoint::resume_seed(job.setup.seed, progress.resumes);
     let setup = Setup { seed, ..job.setup };
     let mut r = Renderer::prepared(job.kind, &setup)?;
-    r.passes = job.first_pass;
+    start_at(&mut r, job, job.first_pass);
     progress.passes = job.first_pass;
     if job.progress {
         eprintln!(

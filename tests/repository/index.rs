@@ -177,6 +177,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "its chain's weights are checked against the power heuristic of its end densities",
     ),
     (
+        "figures::film_points",
+        "repository::figures",
+        "the committed diagrams are what the code draws",
+    ),
+    (
         "figures::free_flight",
         "repository::figures",
         "the committed diagrams are what the code draws",
@@ -381,11 +386,6 @@ const COVERED: &[(&str, &str, &str)] = &[
         "math::frame",
         "spec::math::warp",
         "frames carry every warped direction",
-    ),
-    (
-        "math::sampler",
-        "invariants::determinism",
-        "streams derived from seed, pixel and pass",
     ),
     (
         "math::spherical",

@@ -29,6 +29,7 @@ mod integrator {
 mod math {
     mod mixing;
     mod primary_sample;
+    mod sampler;
     mod warp;
 }
 mod measure;

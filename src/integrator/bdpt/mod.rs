@@ -68,7 +68,8 @@ impl super::Facts for BdptFacts {
 
     /// BDPT's (s, t) strategies one by one (light tracing's are all t = 1).
     fn takes(&self, option: super::OwnOption) -> bool {
-        option == super::OwnOption::StrategyImages && self.0 == Strategies::All
+        use super::OwnOption::*;
+        matches!(option, StrategyImages | PixelSamples) && self.0 == Strategies::All
     }
 }
 

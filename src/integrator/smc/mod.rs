@@ -661,7 +661,10 @@ impl super::Facts for SmcFacts {
     }
 
     fn takes(&self, option: super::OwnOption) -> bool {
-        option == super::OwnOption::Smc
+        matches!(
+            option,
+            super::OwnOption::Smc | super::OwnOption::PixelSamples
+        )
     }
 
     /// Its control variates before they converge.
