@@ -9,10 +9,11 @@
 //! One file per family: `side` (the scene seen from the side, shared), `path` (Pauly et al.
 //! Figs. 1 and 2, transmittance), `free_flight` (Table 1's outcome space), `mutations` (Figs.
 //! 4-7), `walks` (BDPT's strategies, the Neumann series' walk), `chain` (a Dirac chain's
-//! weights), `smc` (Pegoraro et al. Fig. 1, the joint domain), `particles` (enlightened
+//! weights), `film_points` (stratified film positions), `smc` (Pegoraro et al. Fig. 1, the joint domain), `particles` (enlightened
 //! sampling: particles, a guide's map).
 
 mod chain;
+mod film_points;
 mod free_flight;
 mod mutations;
 mod particles;
@@ -30,6 +31,7 @@ use crate::measure::chart::{register_font, ChartError};
 use crate::scene::{Scene, SceneSource};
 
 pub use chain::{mirror_chain, mirror_chain_weights, MIRROR_OVER_LIGHT};
+pub use film_points::film_points;
 pub use mutations::{multichain_seed, mutation_proposal};
 pub use path::figure_2_path;
 pub use smc::smc_run;
@@ -102,6 +104,7 @@ pub fn all(s: &Scenes) -> Result<Vec<Figure>, ChartError> {
         "joint-domain.svg",
         smc::joint_domain_figure(fog, &run),
     )?);
+    out.push(figure("film-points.svg", film_points::figure())?);
     Ok(out)
 }
 
