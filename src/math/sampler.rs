@@ -33,11 +33,11 @@ pub fn mix64(mut z: u64) -> u64 {
 /// the first coordinate is k's bits reversed (van der Corput's radical inverse), the second k
 /// times the Pascal matrix mod 2 (together the first two dimensions of Sobol's sequence;
 /// Kollig and Keller 2002, "Efficient multidimensional sampling", sec. 3), each then XORed
-/// with 32 bits of `shift`. Every run of 2^m points starting at a multiple of 2^m has exactly one point in
-/// each of the 2^m elementary intervals of area 2^-m (any shape 2^-i x 2^-(m-i)): the
-/// shift permutes the intervals and keeps that. Over a uniformly random `shift` each point
-/// is uniform on the grid of 2^-24, as [`Sampler::next_f32`]'s numbers are, so an estimate
-/// from these points is unbiased whatever the integrand.
+/// with 32 bits of `shift`. Every run of 2^m points starting at a multiple of 2^m has exactly
+/// one point in each of the 2^m elementary intervals of area 2^-m (any shape 2^-i x
+/// 2^-(m-i)): the shift permutes the intervals and keeps that. Over a uniformly random
+/// `shift` each point is uniform on the grid of 2^-24, as [`Sampler::next_f32`]'s numbers
+/// are, so an estimate from these points is unbiased whatever the integrand.
 pub fn stratified_point(k: u32, shift: u64) -> Vec2 {
     let (mut x, mut y) = (0u32, 0u32);
     let (mut vx, mut vy) = (1u32 << 31, 1u32 << 31);

@@ -1,8 +1,9 @@
 //! The samplers' stratified film positions (`pathspace::math::sampler::stratified_point`,
 //! `[render] pixel_samples`; the PCG streams' derivation from seed, pixel and pass is
-//! `tests/invariants/determinism.rs`'s): the nets of the (0, 2)-sequence, the uniformity of each point over the
-//! pixels' shifts, and a render across an edge, whose mean they keep and whose variance they
-//! lower. Book: "Measuring a renderer" (stratified film positions).
+//! `tests/invariants/determinism.rs`'s): the nets of the (0, 2)-sequence, the uniformity of
+//! each point over the pixels' shifts, a render across an edge, whose mean they keep and whose
+//! variance they lower, and passes that continue one sequence. Book: "Measuring a renderer"
+//! (stratified film positions).
 
 use pathspace::integrator::{IntegratorKind, PixelSamples, Renderer};
 use pathspace::math::sampler::{film_shift, stratified_point};
