@@ -199,6 +199,17 @@ impl RenderArgs {
             ));
         }
         let takers = |o: OwnOption| IntegratorKind::names_where(|f| f.takes(o));
+        // a flag given to an integrator that does not take its option: the flag, and why not
+        let only_for = |given: bool, option: OwnOption, flag: &str, why: &str| {
+            if given && !kind.facts().takes(option) {
+                return Err(CliError::Usage(format!(
+                    "{flag} applies to --integrator {}, not `{}` ({why})",
+                    takers(option),
+                    kind.name()
+                )));
+            }
+            Ok(())
+        };
         if !kind.facts().takes(OwnOption::Smc) && !o.smc.is_empty() {
             return Err(CliError::Usage(format!(
                 "--smc-* and --cache-budget apply to --integrator {}, not `{}`",
@@ -212,34 +223,27 @@ impl RenderArgs {
                 "--adjoint-* options need --adjoint-image".into(),
             ));
         }
-        let equiangular = OwnOption::EquiangularDistance;
-        if o.distance == Some(DistanceSampling::EquiangularMis) && !kind.facts().takes(equiangular)
-        {
-            return Err(CliError::Usage(format!(
-                "--distance equiangular-mis applies to --integrator {}, not `{}` (it samples distances by free flight only)",
-                takers(equiangular),
-                kind.name()
-            )));
-        }
+        only_for(
+            o.distance == Some(DistanceSampling::EquiangularMis),
+            OwnOption::EquiangularDistance,
+            "--distance equiangular-mis",
+            "it samples distances by free flight only",
+        )?;
         if let Some(list) = &self.session.aovs {
             crate::aov::refuse_variance(&list.0, kind).map_err(CliError::Usage)?;
         }
-        let selection = OwnOption::LightSelection;
-        if o.light_selection.is_some() && !kind.facts().takes(selection) {
-            return Err(CliError::Usage(format!(
-                "--light-selection applies to --integrator {}, not `{}` (its light subpaths and connections pick lights by power)",
-                takers(selection),
-                kind.name()
-            )));
-        }
-        let pixels = OwnOption::PixelSamples;
-        if o.pixel_samples.is_some() && !kind.facts().takes(pixels) {
-            return Err(CliError::Usage(format!(
-                "--pixel-samples applies to --integrator {}, not `{}` (it draws no film position per pixel and pass)",
-                takers(pixels),
-                kind.name()
-            )));
-        }
+        only_for(
+            o.light_selection.is_some(),
+            OwnOption::LightSelection,
+            "--light-selection",
+            "its light subpaths and connections pick lights by power",
+        )?;
+        only_for(
+            o.pixel_samples.is_some(),
+            OwnOption::PixelSamples,
+            "--pixel-samples",
+            "it draws no film position per pixel and pass",
+        )?;
         if o.adjoint_image == Some(true) && !kind.samples_light_starts() {
             return Err(CliError::Usage(format!(
                 "--adjoint-image applies to bdpt, light and mlt (they sample light start points), not `{}`",

@@ -626,6 +626,52 @@ fn light_selection_is_checked_and_applied() {
     );
 }
 
+/// `pixel_samples`: an unknown value is refused at its line, `independent` is read, and the
+/// flag is refused by name for an integrator that draws no film position per pixel (MLT).
+#[test]
+fn pixel_samples_is_read_checked_and_refused_where_unused() {
+    let text = format!(
+        "[render]\npixel_samples = \"sobol\"\n\n{}",
+        fog_box_without_render()
+    );
+    let e = load(&SceneSource::embedded("s.toml", &text))
+        .err()
+        .expect("an unknown pixel sampling is refused")
+        .to_string();
+    assert!(
+        e.contains("pixel_samples") && e.contains("sobol") && e.contains("s.toml:2"),
+        "{e}"
+    );
+    let text = format!(
+        "[render]\npixel_samples = \"independent\"\n\n{}",
+        fog_box_without_render()
+    );
+    let (_, settings) = load(&SceneSource::embedded("i.toml", &text)).unwrap();
+    assert_eq!(
+        settings.pixel_samples,
+        pathspace::integrator::PixelSamples::Independent
+    );
+    let dir = common::cli::scratch("options", "pixel-samples");
+    let out = dir.join("x.exr");
+    let run = common::cli::pathspace(&[
+        "render",
+        "--integrator",
+        "mlt",
+        "--pixel-samples",
+        "independent",
+        "--resolution",
+        "4x4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("--pixel-samples applies to --integrator path, bdpt or smc, not `mlt`"),
+        "{err}"
+    );
+}
+
 /// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
 /// start from): the book's key table lists every key of the schema with that default, and the
 /// key's flag states it in `--help`.
