@@ -578,51 +578,53 @@ fn distance_sampling_is_checked_and_refused_where_it_does_not_apply() {
     );
 }
 
+/// The settings of a fog box whose `[render]` table sets `key` to the string `value`, or the
+/// message refusing it, which must name the key and the value at the file's line 2.
+fn with_key(key: &str, value: &str) -> Result<RenderSettings, String> {
+    let text = format!(
+        "[render]\n{key} = \"{value}\"\n\n{}",
+        fog_box_without_render()
+    );
+    match load(&SceneSource::embedded("k.toml", &text)) {
+        Ok((_, settings)) => Ok(settings),
+        Err(e) => {
+            let e = e.to_string();
+            assert!(
+                e.contains(key) && e.contains(value) && e.contains("k.toml:2"),
+                "{e}"
+            );
+            Err(e)
+        }
+    }
+}
+
+/// Asserts that `pathspace render` with `integrator` and `flag` fails with `message`.
+fn flag_is_refused(integrator: &str, flag: [&str; 2], message: &str) {
+    let dir = common::cli::scratch("options", flag[0].trim_start_matches('-'));
+    let out = dir.join("x.exr");
+    let mut args = vec!["render", "--integrator", integrator, flag[0], flag[1]];
+    args.extend(["--spp", "1", "--resolution", "4x4"]);
+    args.extend(["-o", out.to_str().unwrap()]);
+    let run = common::cli::pathspace(&args);
+    assert!(!run.status.success());
+    let err = common::cli::stderr(&run);
+    assert!(err.contains(message), "{err}");
+}
+
 /// `light_selection`: a bad value is refused at its line, the flag is the path tracer's (other
 /// integrators refuse it by name), and a file's key takes effect.
 #[test]
 fn light_selection_is_checked_and_applied() {
-    let text = format!(
-        "[render]\nlight_selection = \"nearest\"\n\n{}",
-        fog_box_without_render()
-    );
-    let e = load(&SceneSource::embedded("l.toml", &text))
-        .err()
-        .expect("an unknown light selection is refused")
-        .to_string();
-    assert!(
-        e.contains("light_selection") && e.contains("nearest") && e.contains("l.toml:2"),
-        "{e}"
-    );
-    let text = format!(
-        "[render]\nlight_selection = \"power\"\n\n{}",
-        fog_box_without_render()
-    );
-    let (_, settings) = load(&SceneSource::embedded("p.toml", &text)).unwrap();
+    assert!(with_key("light_selection", "nearest").is_err());
+    let settings = with_key("light_selection", "power").unwrap();
     assert_eq!(
         settings.light_selection,
         pathspace::scene::LightSelectionKind::Power
     );
-    let dir = common::cli::scratch("options", "light-selection");
-    let out = dir.join("x.exr");
-    let run = common::cli::pathspace(&[
-        "render",
-        "--integrator",
+    flag_is_refused(
         "bdpt",
-        "--light-selection",
-        "tree",
-        "--spp",
-        "1",
-        "--resolution",
-        "4x4",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(!run.status.success());
-    let err = common::cli::stderr(&run);
-    assert!(
-        err.contains("--light-selection applies to --integrator path"),
-        "{err}"
+        ["--light-selection", "tree"],
+        "--light-selection applies to --integrator path",
     );
 }
 
@@ -630,45 +632,16 @@ fn light_selection_is_checked_and_applied() {
 /// flag is refused by name for an integrator that draws no film position per pixel (MLT).
 #[test]
 fn pixel_samples_is_read_checked_and_refused_where_unused() {
-    let text = format!(
-        "[render]\npixel_samples = \"sobol\"\n\n{}",
-        fog_box_without_render()
-    );
-    let e = load(&SceneSource::embedded("s.toml", &text))
-        .err()
-        .expect("an unknown pixel sampling is refused")
-        .to_string();
-    assert!(
-        e.contains("pixel_samples") && e.contains("sobol") && e.contains("s.toml:2"),
-        "{e}"
-    );
-    let text = format!(
-        "[render]\npixel_samples = \"independent\"\n\n{}",
-        fog_box_without_render()
-    );
-    let (_, settings) = load(&SceneSource::embedded("i.toml", &text)).unwrap();
+    assert!(with_key("pixel_samples", "sobol").is_err());
+    let settings = with_key("pixel_samples", "independent").unwrap();
     assert_eq!(
         settings.pixel_samples,
         pathspace::integrator::PixelSamples::Independent
     );
-    let dir = common::cli::scratch("options", "pixel-samples");
-    let out = dir.join("x.exr");
-    let run = common::cli::pathspace(&[
-        "render",
-        "--integrator",
+    flag_is_refused(
         "mlt",
-        "--pixel-samples",
-        "independent",
-        "--resolution",
-        "4x4",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(!run.status.success());
-    let err = common::cli::stderr(&run);
-    assert!(
-        err.contains("--pixel-samples applies to --integrator path, bdpt or smc, not `mlt`"),
-        "{err}"
+        ["--pixel-samples", "independent"],
+        "--pixel-samples applies to --integrator path, bdpt or smc, not `mlt`",
     );
 }
 
