@@ -22,6 +22,8 @@ figure estimates the error against the truth: without it a noisy reference adds 
 amount to every method and narrows all ratios towards 1. The table gives per method
 the mean CPU-s, relMSE mean +- standard error and median over the seeds, and relMSE x CPU-s
 (lower is better); per scene the ratio of pathspace's best product to each peer's best.
+`--spp N` renders every seed at N samples per pixel instead (per-sample comparisons, e.g. of two
+builds given as `--bin`), and `--first-seed` moves the seeds (FIRST..FIRST+N-1).
 Methods that converge to a different, consistent-but-biased answer (tungsten's photon beams
 and planes) are marked and left out of the ratios. A scene a peer cannot render (the converters
 `to_mitsuba.py`, `to_tungsten.py` refuse it) is listed with the reason; a render that fails is
@@ -207,9 +209,9 @@ def scene_file(a, scene):
 def measure(job, ref, noise):
     """The method's row: spp, CPU-s per render, relMSE per seed (the reference's own noise
     subtracted), and each render's image mean over the reference's."""
-    spp = job.spp_for_budget()
+    spp = job.a.spp or job.spp_for_budget()
     cpus, errs, means = [], [], []
-    for seed in range(1, job.a.seeds + 1):
+    for seed in range(job.a.first_seed, job.a.first_seed + job.a.seeds):
         cpu, out = job.render(spp, seed, f"seed{seed}")
         img = image(out)
         cpus.append(cpu)
@@ -231,8 +233,9 @@ def fmt(x):
 
 
 def table(a, rows, notes, ratios):
-    print(f"Equal CPU time: {a.cpu:g} CPU-s per render, one thread, {a.res}x{a.res}, seeds "
-          f"1..{a.seeds}; reference: two halves of {a.ref_time:g} s on {a.ref_threads} threads "
+    budget = f"Equal samples: {a.spp} per pixel" if a.spp else f"Equal CPU time: {a.cpu:g} CPU-s per render"
+    print(f"{budget}, one thread, {a.res}x{a.res}, seeds "
+          f"{a.first_seed}..{a.first_seed + a.seeds - 1}; reference: two halves of {a.ref_time:g} s on {a.ref_threads} threads "
           f"(seeds {REF_SEEDS[0]}, {REF_SEEDS[1]}), their noise subtracted (notes). Methods marked biased (consistent, not unbiased) or another image (mean off "
           "the reference's by over 1% and 4 s.e.) are left out of the ratios.\n")
     print("| scene | renderer | method | spp | CPU-s | mean / ref | relMSE (mean ± s.e.) | median | relMSE × CPU-s |")
@@ -262,6 +265,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--cpu", type=float, default=8.0, help="CPU seconds per render")
     ap.add_argument("--seeds", type=int, default=3, help="renders per method (seeds 1..N)")
+    ap.add_argument("--first-seed", type=int, default=1, help="the seeds are FIRST..FIRST+N-1")
+    ap.add_argument("--spp", type=int, default=0,
+                    help="samples per pixel for every render instead of --cpu's budget (per-sample comparisons)")
     ap.add_argument("--res", type=int, default=64, help="square resolution")
     ap.add_argument("--scenes", nargs="+", default=SCENES)
     ap.add_argument("--renderers", nargs="+", default=["pathspace", "mitsuba", "tungsten"])

@@ -58,6 +58,9 @@ struct Walk {
     /// The product of 1 / `Bsdf::radiance_scale` over the refractions of a radiance walk:
     /// roulette compares `beta` times this, without the eta^2 its exit from glass restores.
     eta_scale: f32,
+    /// Vertices of the path after its origin that scattered from a lobe with a density:
+    /// roulette starts once there are `RR_START_DEPTH` (Dirac lobes do not count).
+    rough: u32,
 }
 
 impl Walk {
@@ -83,6 +86,7 @@ impl Walk {
             first_edge: true,
             beta_start,
             eta_scale: 1.0,
+            rough: path.iter().skip(1).filter(|v| !v.delta).count() as u32,
         }
     }
 }
@@ -230,13 +234,16 @@ impl Bdpt<'_> {
         path[cur].lobe = lobe;
         if delta {
             path[cur].delta = true;
+        } else {
+            w.rough += 1;
         }
         w.pdf_dir = pdf_fwd_dir;
         // the predecessor as sampled from here (the reverse walk)
         path[prev].pdf_rev = to_area(pdf_rev_dir, &path[cur], &path[prev]) * path[cur].prop_rev;
         // Russian roulette on the scattering throughput (not on L_e / p of the origin, nor
-        // on the eta^2 of refractions)
-        if start.roulette && cur as u32 >= RR_START_DEPTH {
+        // on the eta^2 of refractions), from the third vertex with a density: a chain of
+        // specular vertices spreads no light, so it does not bring the roulette closer
+        if start.roulette && w.rough >= RR_START_DEPTH {
             let ratio = w.beta.max_element() * w.eta_scale / w.beta_start;
             let q = (self.tech)
                 .roulette_survival(ss.lhat, ratio, RR_MAX_SURVIVAL)

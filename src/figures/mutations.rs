@@ -56,15 +56,18 @@ pub fn mutation_proposal(scene: &Scene, kind: MutationKind, x: &[Vertex]) -> Opt
     best.map(|b| b.1)
 }
 
-/// The first pre-pass path of `scene` (MLT's bootstrap, fixed seed) from which the multi-chain
-/// perturbation proposes a path.
+/// The shortest pre-pass path of `scene` (MLT's bootstrap, fixed seed; the first of equal
+/// length) with at least three specular vertices, from which the multi-chain perturbation
+/// proposes a path: a chain through both spheres, and nothing else to draw.
 pub fn multichain_seed(scene: &Scene) -> Option<Vec<Vertex>> {
     let bdpt = Bdpt::new(&PLAIN, None, Strategies::All);
     let boot = Bootstrap::run(scene, &bdpt, PREPASS, SEED);
     boot.candidates
         .iter()
         .filter_map(|c| Bootstrap::path_of(scene, &bdpt, SEED, c))
-        .find(|x| mutation_proposal(scene, MutationKind::MultiChain, x).is_some())
+        .filter(|x| x.iter().filter(|v| v.delta).count() >= 3)
+        .filter(|x| mutation_proposal(scene, MutationKind::MultiChain, x).is_some())
+        .min_by_key(Vec::len)
 }
 
 /// The file name and the title of a mutation's figure.

@@ -37,10 +37,12 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 pub use crate::path::technique::{RR_MAX_SURVIVAL, RR_START_DEPTH};
 
 /// The number of scattering vertices after which the path tracer starts Russian roulette: 5,
-/// as Mitsuba 3's `rr_depth`. On the fog box a later start trades time for variance almost
-/// exactly (the book's "Measuring a renderer": from 3, 5 and 8 the efficiencies agree within
-/// 5%), and from 5 one sample has no more error than Mitsuba's `volpath`. The bidirectional
-/// walks and SMC keep [`RR_START_DEPTH`].
+/// counted as the bidirectional walks count theirs (only vertices with a density,
+/// [`RR_START_DEPTH`]); Mitsuba 3's `rr_depth` is 5 too, counted over every vertex. On the fog
+/// box a later start trades time for variance almost exactly (the book's "Measuring a
+/// renderer": from 3, 5 and 8 the efficiencies agree within 5%), and from 5 one sample has no
+/// more error than Mitsuba's `volpath`. The bidirectional walks and SMC keep
+/// [`RR_START_DEPTH`].
 pub const PATH_RR_START_DEPTH: u32 = 5;
 
 /// The weight of the distance strategy with density `a` against the other's `b`: the balance
@@ -386,8 +388,11 @@ impl<'t> PathTracer<'t> {
             if !go_on {
                 break;
             }
+            if !w.prev.singular {
+                w.rough += 1;
+            }
             // Russian roulette: survive with q, divide by q (unbiased: q * X / q = X)
-            if w.depth >= PATH_RR_START_DEPTH {
+            if w.rough >= PATH_RR_START_DEPTH {
                 let q = self.survival(&w);
                 if sampler.next_f32() >= q || q.is_nan() {
                     break;
@@ -642,6 +647,9 @@ struct WalkState {
     beta: Rgb,
     /// Scattering vertices so far.
     depth: u32,
+    /// Of those, the vertices whose direction was drawn from a lobe with a density (a Dirac
+    /// lobe's is not): Russian roulette starts once there are [`PATH_RR_START_DEPTH`].
+    rough: u32,
     prev: Previous,
     /// Distance between the scattering vertex and the lifted ray origin.
     lead: f32,
@@ -662,6 +670,7 @@ impl WalkState {
             medium,
             beta,
             depth: 0,
+            rough: 0,
             prev,
             lead: 0.0,
             beta_start: beta.max_element(),

@@ -207,7 +207,11 @@ pub trait LocalSampling: Sync + std::fmt::Debug {
     }
 }
 
-/// The number of scattering vertices after which Russian roulette starts.
+/// The number of scattering vertices after which Russian roulette starts. The bidirectional
+/// walks count only vertices whose direction was drawn from a lobe with a density: a chain of
+/// specular vertices carries its light along one ray, and glass crossed before the first
+/// diffuse bounce would otherwise start the roulette there (book: "Surface scattering", the
+/// roulette's common mistakes). SMC's walks, through media, count every vertex.
 pub const RR_START_DEPTH: u32 = 3;
 /// Survival probabilities are capped below one so every path ends with probability one.
 pub const RR_MAX_SURVIVAL: f32 = 0.95;

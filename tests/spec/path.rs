@@ -1124,3 +1124,73 @@ fn power_heuristic_by_hand() {
     check(f32::INFINITY, 1.0, 1.0);
     check(1.0, f32::INFINITY, 0.0);
 }
+
+/// A corridor of two perfect mirrors at x = -1 and x = 1, open at the camera's end and closed
+/// 12 units down by an emitter of radiance 1 facing back up it. The camera at the origin looks
+/// down the corridor at 45 degrees through a 1-degree field, so every ray of every pixel
+/// reflects exactly six times (at z = -1, -3, ..., -11) and then meets the emitter.
+const MIRROR_CORRIDOR: &str = r#"
+[render]
+spp = 16
+seed = 3
+[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 0.0]
+look_at = [1.0, 0.0, -1.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = 1.0
+resolution = [4, 4]
+[materials.mirror]
+type = "mirror"
+reflectance = 1.0
+[[shapes]]
+type = "quad"
+origin = [1.0, -1.0, -13.0]
+u = [0.0, 0.0, 14.0]
+v = [0.0, 2.0, 0.0]
+material = "mirror"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -13.0]
+u = [0.0, 2.0, 0.0]
+v = [0.0, 0.0, 14.0]
+material = "mirror"
+[[shapes]]
+type = "quad"
+origin = [-1.0, -1.0, -12.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+emission = 1.0
+"#;
+
+/// Russian roulette starts after the third vertex whose direction has a density (the path
+/// tracer's after the fifth), not after the third vertex: a chain of specular vertices carries
+/// all its light on one ray, so ending it at random only adds variance, and paths that cross
+/// glass before they scatter would otherwise be rouletted at their first diffuse bounce. In the
+/// mirror corridor no vertex has a density: every eye walk of BDPT reaches the emitter after
+/// its six reflections (eight vertices with the camera and the emitter), and the path tracer's
+/// every sample is exactly 1, so each pixel is 1 however many samples it takes. Counting the
+/// mirrors as the roulette's vertices ends a fifth of the walks before the emitter, and leaves
+/// samples of 0 and 1 / 0.95^2 in the path tracer's pixels.
+#[test]
+fn a_chain_of_mirrors_does_not_start_the_roulette() {
+    let scene = Scene::load(&SceneSource::embedded("corridor.toml", MIRROR_CORRIDOR)).unwrap();
+    let b = Bdpt::new(&pathspace::path::PLAIN, None, Strategies::All);
+    let raster = glam::Vec2::new(2.0, 2.0);
+    let mut path = Vec::new();
+    for i in 0..64 {
+        let mut sampler = Sampler::new(1, i, 0);
+        b.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut sampler, &mut path);
+        assert_eq!(path.len(), 8, "eye walk {i}");
+        assert!(path[1..7].iter().all(|v| v.delta), "eye walk {i}");
+    }
+    let mut rd = Renderer::new(&scene, IntegratorKind::Path, 1, None);
+    rd.pass(16, &|| {});
+    let image = rd.film.as_ref().unwrap().image();
+    for (k, px) in image.pixels.iter().enumerate() {
+        for c in px.to_array() {
+            // the filter's weighted mean of sixteen samples of exactly 1
+            assert!((c - 1.0).abs() < 1e-6, "pixel {k}: {px:?}");
+        }
+    }
+}
