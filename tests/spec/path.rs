@@ -1194,3 +1194,43 @@ fn a_chain_of_mirrors_does_not_start_the_roulette() {
         }
     }
 }
+
+/// The other half of the roulette's rule: it waits for three vertices with a density. In a
+/// closed white box lit by a point light no light walk can end but by the roulette (no
+/// emitter to hit, nothing absorbs all, nothing escapes), so every walk holds the light and at
+/// least three scattering vertices, and since the first roulette (after the third, with
+/// survival 0.8^3) ends about half of them, some hold exactly that.
+#[test]
+fn the_roulette_waits_for_three_vertices_with_a_density() {
+    let text = r#"
+[materials.white]
+type = "lambert"
+albedo = 0.8
+[[shapes]]
+type = "box"
+min = [-1.0, -1.0, -1.0]
+max = [1.0, 1.0, 1.0]
+material = "white"
+[[lights]]
+type = "point"
+position = [0.1, 0.2, 0.3]
+intensity = 1.0
+[[sensors]]
+type = "irradiance_meter"
+name = "floor"
+origin = [-0.2, -0.9, -0.2]
+u = [0.0, 0.0, 0.4]
+v = [0.4, 0.0, 0.0]
+"#;
+    let scene = Scene::load(&SceneSource::embedded("white-box.toml", text)).unwrap();
+    let b = Bdpt::new(&pathspace::path::PLAIN, None, Strategies::All);
+    let mut path = Vec::new();
+    let mut shortest = 0;
+    for i in 0..256 {
+        let mut sampler = Sampler::new(2, i, 0);
+        b.light_subpath(&scene, WalkLimits::BDPT, &mut sampler, &mut path);
+        assert!(path.len() >= 4, "light walk {i}: {} vertices", path.len());
+        shortest += usize::from(path.len() == 4);
+    }
+    assert!(shortest > 0, "no walk ended at the first roulette");
+}
