@@ -1195,34 +1195,18 @@ fn a_chain_of_mirrors_does_not_start_the_roulette() {
     }
 }
 
-/// The other half of the roulette's rule: it waits for three vertices with a density. In a
-/// closed white box lit by a point light no light walk can end but by the roulette (no
-/// emitter to hit, nothing absorbs all, nothing escapes), so every walk holds the light and at
-/// least three scattering vertices, and since the first roulette (after the third, with
-/// survival 0.8^3) ends about half of them, some hold exactly that.
+/// The other half of the roulette's rule: it waits for three vertices with a density. In the
+/// closed fog-filled room lit by a point light instead of its ceiling lamp no light walk can end
+/// but by the roulette (no emitter to hit, nothing absorbs all, nothing escapes), so every walk
+/// holds the light and at least three scattering vertices, and since the first roulette (after
+/// the third) ends about half of them, some hold exactly that.
 #[test]
 fn the_roulette_waits_for_three_vertices_with_a_density() {
-    let text = r#"
-[materials.white]
-type = "lambert"
-albedo = 0.8
-[[shapes]]
-type = "box"
-min = [-1.0, -1.0, -1.0]
-max = [1.0, 1.0, 1.0]
-material = "white"
-[[lights]]
-type = "point"
-position = [0.1, 0.2, 0.3]
-intensity = 1.0
-[[sensors]]
-type = "irradiance_meter"
-name = "floor"
-origin = [-0.2, -0.9, -0.2]
-u = [0.0, 0.0, 0.4]
-v = [0.4, 0.0, 0.0]
-"#;
-    let scene = Scene::load(&SceneSource::embedded("white-box.toml", text)).unwrap();
+    let lamp = "[[shapes]]\ntype = \"quad\"\norigin = [-0.3, 0.99, -0.3]\nu = [0.6, 0.0, 0.0]\nv = [0.0, 0.0, 0.6]\nemission = 5.0\n";
+    let point = "[[lights]]\ntype = \"point\"\nposition = [0.1, 0.2, 0.3]\nintensity = 1.0\n";
+    assert!(ROOM.contains(lamp), "the room's lamp changed");
+    let text = ROOM.replace(lamp, point);
+    let scene = Scene::load(&SceneSource::embedded("point-lit-room.toml", &text)).unwrap();
     let b = Bdpt::new(&pathspace::path::PLAIN, None, Strategies::All);
     let mut path = Vec::new();
     let mut shortest = 0;
