@@ -10,6 +10,7 @@
 use glam::Vec3;
 
 use super::leaf::{self, Block, LaneRays, QuadLanes};
+use super::pages::Pages;
 use super::wide::{collapse, Binary, Child, Node4, Node8, RayLanes, RayLanes8, Slot, Wide};
 use super::wide::{WIDTH, WIDTH8};
 use super::{shape::Hit, Aabb, Primitive, Ray};
@@ -121,15 +122,15 @@ impl Width {
 /// The wide tree traversal walks.
 #[derive(Clone, Debug)]
 enum Nodes {
-    Four(Vec<Node4>),
+    Four(Pages<Node4>),
     /// Built only where [`Width::native`] is [`Width::Eight`]: its traversal is compiled for
     /// AVX2.
-    Eight(Vec<Node8>),
+    Eight(Pages<Node8>),
 }
 
 impl Default for Nodes {
     fn default() -> Self {
-        Nodes::Four(Vec::new())
+        Nodes::Four(Pages::default())
     }
 }
 
@@ -151,9 +152,9 @@ struct Query<'a> {
 pub struct Bvh {
     wide: Nodes,
     /// The leaves of `wide`, each a run of blocks its slot names by the first.
-    blocks: Vec<Block>,
+    blocks: Pages<Block>,
     /// The lanes of the blocks of quads.
-    quads: Vec<QuadLanes>,
+    quads: Pages<QuadLanes>,
     /// Whether a block holds triangles: queries of a tree without set up no
     /// [`TriangleRay`](leaf::TriangleRay), whose division and splats showed as 3% of the path
     /// tracer's time on the fog box's quads.
@@ -269,18 +270,17 @@ impl Bvh {
         let mut leaf_of = vec![u32::MAX; prims.len()];
         tree.build_recursive(&mut items, 1, &mut leaf_of);
         drop((items, leaf_of));
-        let (wide, wide_depth, (mut blocks, mut quads)) = match (width, Width::native()) {
+        let (wide, wide_depth, (blocks, quads)) = match (width, Width::native()) {
             (Width::Eight, Width::Eight) => {
                 let (nodes, depth, blocks) = tree.collapse(prims);
-                (Nodes::Eight(nodes), depth, blocks)
+                (Nodes::Eight(Pages::new(&nodes)), depth, blocks)
             }
             _ => {
                 let (nodes, depth, blocks) = tree.collapse(prims);
-                (Nodes::Four(nodes), depth, blocks)
+                (Nodes::Four(Pages::new(&nodes)), depth, blocks)
             }
         };
-        blocks.shrink_to_fit();
-        quads.shrink_to_fit();
+        let (blocks, quads) = (Pages::new(&blocks), Pages::new(&quads));
         Bvh {
             wide_depth,
             triangles: blocks.iter().any(|b| b.kind == leaf::Kind::Triangles),
@@ -330,12 +330,12 @@ impl Bvh {
     /// estimate, `render::memory`).
     pub fn memory_bytes(&self) -> usize {
         let nodes = match &self.wide {
-            Nodes::Four(n) => n.capacity() * std::mem::size_of::<Node4>(),
-            Nodes::Eight(n) => n.capacity() * std::mem::size_of::<Node8>(),
+            Nodes::Four(n) => std::mem::size_of_val::<[Node4]>(n),
+            Nodes::Eight(n) => std::mem::size_of_val::<[Node8]>(n),
         };
         nodes
-            + self.blocks.capacity() * std::mem::size_of::<Block>()
-            + self.quads.capacity() * std::mem::size_of::<QuadLanes>()
+            + std::mem::size_of_val::<[Block]>(&self.blocks)
+            + std::mem::size_of_val::<[QuadLanes]>(&self.quads)
     }
 
     /// Children per node of the tree traversal walks.
@@ -615,7 +615,6 @@ impl Tree {
     ) -> (Vec<W>, usize, (Vec<Block>, Vec<QuadLanes>)) {
         let mut wide = collapse(self, 0);
         let blocks = self.lay_out_leaves(&mut wide, prims);
-        wide.shrink_to_fit();
         let depth = wide_depth(&wide, 0);
         (wide, depth, blocks)
     }

@@ -4,6 +4,7 @@
 pub mod aabb;
 pub mod bvh;
 pub mod leaf;
+pub mod pages;
 pub mod shape;
 pub mod wide;
 
