@@ -24,6 +24,8 @@ the mean CPU-s, relMSE mean +- standard error and median over the seeds, and rel
 (lower is better); per scene the ratio of pathspace's best product to each peer's best.
 `--spp N` renders every seed at N samples per pixel instead (per-sample comparisons, e.g. of two
 builds given as `--bin`), and `--first-seed` moves the seeds (FIRST..FIRST+N-1).
+`--pathspace-flags` adds flags to every pathspace render (not to the reference), e.g. a
+method's settings: `--pathspace mlt --pathspace-flags '--mlt-bidirectional 3'`.
 Methods that converge to a different, consistent-but-biased answer (tungsten's photon beams
 and planes) are marked and left out of the ratios. A scene a peer cannot render (the converters
 `to_mitsuba.py`, `to_tungsten.py` refuse it) is listed with the reason; a render that fails is
@@ -33,6 +35,7 @@ listed with its last message. tungsten is skipped, with a message, when `$TUNGST
 import argparse
 import math
 import os
+import shlex
 import shutil
 import statistics
 import subprocess
@@ -138,6 +141,7 @@ class Job:
                    "-o", out + ".exr"]
             if variant == "equiangular":
                 cmd += ["--distance", "equiangular-mis"]
+            cmd += shlex.split(a.pathspace_flags)
             return run(cmd, out + ".log"), out + ".exr"
         if self.renderer == "mitsuba":
             env = dict(os.environ, PEERS_MITSUBA_VARIANT=self.method.split("/")[0])
@@ -272,6 +276,8 @@ def main():
     ap.add_argument("--scenes", nargs="+", default=SCENES)
     ap.add_argument("--renderers", nargs="+", default=["pathspace", "mitsuba", "tungsten"])
     ap.add_argument("--pathspace", nargs="+", default=PATHSPACE, help="pathspace methods")
+    ap.add_argument("--pathspace-flags", default="",
+                    help="flags added to every pathspace render, e.g. '--mlt-bidirectional 3'")
     ap.add_argument("--mitsuba", nargs="+", default=MITSUBA, help="VARIANT/INTEGRATOR")
     ap.add_argument("--tungsten-methods", nargs="+", default=TUNGSTEN)
     ap.add_argument("--ref-time", type=float, default=60.0, help="reference seconds")
