@@ -139,7 +139,8 @@ mod tests {
     use super::*;
 
     /// Small and large arrays read back what they were made from, clones included; a large
-    /// one is placed in memory marked for huge pages on Linux.
+    /// one is placed in memory marked for huge pages on Linux, and a kernel with transparent
+    /// huge pages has the mark (`hg` among the mapping's flags in `/proc/self/smaps`).
     #[test]
     fn pages_hold_what_they_were_given() {
         for n in [0usize, 1, 1000, HUGE_PAGE / 4 + 3] {
@@ -151,7 +152,39 @@ mod tests {
             assert_eq!(&pages.clone()[..], &values[..]);
             let large = n * 4 >= HUGE_PAGE;
             assert_eq!(pages.huge(), large && cfg!(target_os = "linux"), "{n}");
+            // (a kernel built without transparent huge pages refuses the advice)
+            #[cfg(target_os = "linux")]
+            if large && std::path::Path::new("/sys/kernel/mm/transparent_hugepage").exists() {
+                let flags = mapping_flags(pages.as_ptr() as usize).expect("a mapping");
+                assert!(flags.split_whitespace().any(|f| f == "hg"), "{flags}");
+            }
         }
         assert!(Pages::<[f32; 64]>::default().is_empty());
+        assert_eq!(format!("{:?}", Pages::new(&[1u8, 2])), "[1, 2]");
+    }
+
+    /// The `VmFlags` of the mapping of this process that holds `address`.
+    #[cfg(target_os = "linux")]
+    fn mapping_flags(address: usize) -> Option<String> {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
+        let mut inside = false;
+        for line in smaps.lines() {
+            let range = line
+                .split_whitespace()
+                .next()
+                .and_then(|r| r.split_once('-'));
+            let bounds = range.and_then(|(a, b)| {
+                Some((
+                    usize::from_str_radix(a, 16).ok()?,
+                    usize::from_str_radix(b, 16).ok()?,
+                ))
+            });
+            if let Some((lo, hi)) = bounds {
+                inside = (lo..hi).contains(&address);
+            } else if let (true, Some(flags)) = (inside, line.strip_prefix("VmFlags:")) {
+                return Some(flags.to_string());
+            }
+        }
+        None
     }
 }
