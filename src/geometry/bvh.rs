@@ -7,6 +7,8 @@
 //! coplanar tests in `tests/spec/geometry.rs` guard against.
 //! Book: "Scenes and geometry".
 
+use std::mem::MaybeUninit;
+
 use glam::Vec3;
 
 use super::leaf::{self, Block, LaneRays, QuadLanes};
@@ -38,14 +40,20 @@ struct Node {
     count: u32,
 }
 
+/// A traversal stack of `N` entries ([`unpack`]), left unwritten when a query sets it up:
+/// a query reads only the entries below its stack pointer, which its pushes wrote, and zeroing
+/// the whole stack for every ray would cost the small scenes' queries a few percent.
+type Stack<const N: usize> = [MaybeUninit<u64>; N];
+
 /// Entries of the traversal stack: a visit pops one entry and pushes at most `WIDTH - 1` more,
 /// once per level of the wide tree, which is no deeper than the binary one.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 const STACK8: usize = (WIDTH8 - 1) * MAX_DEPTH + 1;
 
 /// Levels of a wide tree that a query walks with the small stack [`SMALL_STACK`]
-/// ([`SMALL_STACK8`]): a stack is set up (zeroed) for every ray, and 1.5 kB of it showed in the
-/// profile of small scenes.
+/// ([`SMALL_STACK8`]): a stack is set up for every ray, and when it was zeroed 1.5 kB of it
+/// showed in the profile of small scenes (it is now left unwritten, [`Stack`], and a small
+/// stack keeps the ray's working set small).
 const SHALLOW: usize = 8;
 const SMALL_STACK: usize = (WIDTH - 1) * SHALLOW + 1;
 const SMALL_STACK8: usize = (WIDTH8 - 1) * SHALLOW + 1;
@@ -466,7 +474,7 @@ impl Bvh {
             reach: &reach,
         };
         let mut best: Option<Best> = None;
-        let mut stack = [0u64; N];
+        let mut stack: Stack<N> = [const { MaybeUninit::uninit() }; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
         loop {
@@ -495,7 +503,8 @@ impl Bvh {
                     return best.map(|b| b.hit(prims));
                 }
                 sp -= 1;
-                let (next, t_near) = unpack(stack[sp]);
+                // SAFETY: entries below `sp` were written by the pushes (`Stack`)
+                let (next, t_near) = unpack(unsafe { stack[sp].assume_init() });
                 if t_near <= reach(best.map_or(t_max, |b| b.t)) * 1.000_000_4 {
                     child = next.child();
                     break;
@@ -568,7 +577,7 @@ impl Bvh {
             return false;
         }
         let rays = self.lane_rays(ray);
-        let mut stack = [0u64; N];
+        let mut stack: Stack<N> = [const { MaybeUninit::uninit() }; N];
         let mut sp = 0usize;
         let mut child = Child::Node(0);
         loop {
@@ -601,7 +610,8 @@ impl Bvh {
                 return false;
             }
             sp -= 1;
-            child = unpack(stack[sp]).0.child();
+            // SAFETY: as in `Bvh::closest`
+            child = unpack(unsafe { stack[sp].assume_init() }).0.child();
         }
     }
 }
@@ -877,7 +887,7 @@ fn halves(b: Aabb) -> Option<(Aabb, Aabb)> {
 /// compiled with AVX2 (out of line it was two four-lane halves, slower than four-wide nodes).
 #[inline(always)]
 fn push_farther<W: Wide, const N: usize>(
-    stack: &mut [u64; N],
+    stack: &mut Stack<N>,
     mut sp: usize,
     node: &W,
     (enters, near): (u32, W::Near),
@@ -901,7 +911,7 @@ fn push_farther<W: Wide, const N: usize>(
         return (sp, None);
     };
     for &(t, slot) in farther {
-        stack[sp] = u64::from(slot.0) | (u64::from(t.to_bits()) << 32);
+        stack[sp] = MaybeUninit::new(u64::from(slot.0) | (u64::from(t.to_bits()) << 32));
         sp += 1;
     }
     (sp, Some(nearest))
@@ -911,7 +921,7 @@ fn push_farther<W: Wide, const N: usize>(
 /// the order: the lowest entered child is visited next, the others are stacked.
 #[inline(always)]
 fn push_unsorted<W: Wide, const N: usize>(
-    stack: &mut [u64; N],
+    stack: &mut Stack<N>,
     mut sp: usize,
     node: &W,
     enters: u32,
@@ -923,7 +933,7 @@ fn push_unsorted<W: Wide, const N: usize>(
     let mut rest = enters & (enters - 1);
     while rest != 0 {
         let k = rest.trailing_zeros() as usize;
-        stack[sp] = u64::from(node.slot(k).0);
+        stack[sp] = MaybeUninit::new(u64::from(node.slot(k).0));
         sp += 1;
         rest &= rest - 1;
     }
