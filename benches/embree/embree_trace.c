@@ -9,7 +9,11 @@
  *
  * with the checksum of format.rs: hits and the sum of hit distances (t_max of blocked rays).
  *
- *     embree_trace DIR [--passes P] [--robust] SCENE...
+ *     embree_trace DIR [--passes P] [--robust] [--verbose] SCENE...
+ *
+ * --verbose creates the device with verbose=2: Embree then prints, for each build, its tree's
+ * surface area heuristic cost, nodes and leaf blocks (what pathspace's `SAH` lines of
+ * `ray_sets trace` give in the same units).
  *
  * Embree 3.13 picks its widest compiled ISA at run time (AVX-512 or AVX2 on a recent x86-64).
  * Scene flags: none by default (Embree's fast path); --robust sets RTC_SCENE_FLAG_ROBUST. */
@@ -140,7 +144,7 @@ static void trace8(RTCScene scene, const Record *r, uint64_t n, int any, uint64_
 
 int main(int argc, char **argv) {
   if (argc < 3) {
-    fprintf(stderr, "usage: embree_trace DIR [--passes P] [--robust] SCENE...\n");
+    fprintf(stderr, "usage: embree_trace DIR [--passes P] [--robust] [--verbose] SCENE...\n");
     return 2;
   }
   const char *dir = argv[1];
@@ -150,13 +154,16 @@ int main(int argc, char **argv) {
   _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
   _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
 #endif
+  int verbose = 0;
+  for (int a = 2; a < argc; a++) verbose |= !strcmp(argv[a], "--verbose");
   /* one build and traversal thread, like pathspace's side */
-  RTCDevice dev = rtcNewDevice("threads=1");
+  RTCDevice dev = rtcNewDevice(verbose ? "threads=1,verbose=2" : "threads=1");
   if (!dev) { fprintf(stderr, "embree_trace: no Embree device\n"); return 1; }
   printf("EMBREE %s\n", RTC_VERSION_STRING);
   for (int a = 2; a < argc; a++) {
     if (!strcmp(argv[a], "--passes") && a + 1 < argc) { passes = atoi(argv[++a]); continue; }
     if (!strcmp(argv[a], "--robust")) { robust = 1; continue; }
+    if (!strcmp(argv[a], "--verbose")) continue;
     const char *name = argv[a];
     RTCScene scene = build(dev, dir, name, robust);
     for (int s = 0; s < 3; s++) {

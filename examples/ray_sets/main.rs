@@ -11,7 +11,8 @@
 //! camera hit, cosine-distributed about the normal on the side the camera sees, closest hit)
 //! and shadow rays (from each camera hit to a point on a light, any hit). `trace` builds
 //! pathspace's BVH over the triangles and traces every set on one thread, printing per set
-//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S`; where the
+//! `RESULT pathspace SCENE SET KIND 1 RAYS CPU_SECONDS HITS SUM_T MRAYS_PER_S` (after each tree's
+//! build time, memory and SAH cost in Embree's units, `Bvh::sah_cost`); where the
 //! processor has AVX2 the four- and eight-wide trees follow as `pathspace4` and `pathspace8`.
 
 mod format;
@@ -276,6 +277,16 @@ fn trace_scene(dir: &Path, name: &str, passes: usize) -> Result<()> {
             bvh.memory_bytes(),
             bvh.node_count(),
             bvh.reference_count()
+        );
+        // in Embree's units, to set beside `embree_trace DIR --verbose SCENE`
+        let sah = bvh.sah_cost();
+        println!(
+            "SAH {side} {name} {:.3}: nodes {:.3}, leaves {:.3} ({} leaves, {} blocks)",
+            sah.nodes + sah.leaves,
+            sah.nodes,
+            sah.leaves,
+            sah.leaf_count,
+            sah.block_count
         );
         trees.push((side, bvh));
     }

@@ -107,6 +107,16 @@ impl LeafCost {
     }
 }
 
+/// [`Bvh::sah_cost`]: the node and leaf terms (Embree's "getAABBNodes" and "leaves" rows,
+/// whose sum is its "total"), and the leaves and blocks counted.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SahCost {
+    pub nodes: f64,
+    pub leaves: f64,
+    pub leaf_count: usize,
+    pub block_count: usize,
+}
+
 /// Children per node of the tree traversal walks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Width {
@@ -344,6 +354,45 @@ impl Bvh {
         nodes
             + std::mem::size_of_val::<[Block]>(&self.blocks)
             + std::mem::size_of_val::<[QuadLanes]>(&self.quads)
+    }
+
+    /// The surface area heuristic's cost of the wide tree in the units Embree reports for its
+    /// own (`verbose=2`): each node and each leaf block counted once, weighted by the surface
+    /// area of its box over the root's; for rays that cross the root's box uniformly (in the
+    /// sense of the SAH), the expected numbers of node and block tests if none stopped early.
+    pub fn sah_cost(&self) -> SahCost {
+        let mut cost = SahCost::default();
+        let root = f64::from(self.bounds.surface_area());
+        if root > 0.0 {
+            match &self.wide {
+                Nodes::Four(n) => self.add_sah(n, 0, root, &mut cost),
+                Nodes::Eight(n) => self.add_sah(n, 0, root, &mut cost),
+            }
+            cost.nodes /= root;
+            cost.leaves /= root;
+        }
+        cost
+    }
+
+    /// Adds node `i` (whose box has surface area `area`) and everything under it to `cost`.
+    fn add_sah<W: Wide>(&self, nodes: &[W], i: usize, area: f64, cost: &mut SahCost) {
+        cost.nodes += area;
+        for k in (0..W::WIDTH).filter(|&k| nodes[i].has(k)) {
+            let child = f64::from(nodes[i].child_bounds(k).surface_area());
+            match nodes[i].slot(k).child() {
+                Child::Node(n) => self.add_sah(nodes, n, child, cost),
+                Child::Leaf(first) => {
+                    let mut blocks = 0;
+                    self.leaf(first, |_| {
+                        blocks += 1;
+                        false
+                    });
+                    cost.leaves += child * f64::from(blocks);
+                    cost.leaf_count += 1;
+                    cost.block_count += blocks as usize;
+                }
+            }
+        }
     }
 
     /// Children per node of the tree traversal walks.

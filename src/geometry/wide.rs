@@ -36,6 +36,8 @@ pub trait Wide: Copy {
     fn has(&self, k: usize) -> bool;
     fn slot(&self, k: usize) -> Slot;
     fn set_slot(&mut self, k: usize, slot: Slot);
+    /// The box of child `k` (statistics only).
+    fn child_bounds(&self, k: usize) -> Aabb;
 }
 
 /// A child: an interior node of the four-wide tree or a leaf, which [`collapse`] names by its
@@ -177,6 +179,14 @@ impl Wide for Node4 {
     fn set_slot(&mut self, k: usize, slot: Slot) {
         self.slots[k] = slot;
     }
+
+    fn child_bounds(&self, k: usize) -> Aabb {
+        let lane = |v: [f32; 3]| Vec3::from_array(v);
+        Aabb {
+            min: lane([0, 1, 2].map(|a| self.min[a][k])),
+            max: lane([0, 1, 2].map(|a| self.max[a][k])),
+        }
+    }
 }
 
 impl Node4 {
@@ -302,6 +312,14 @@ impl Wide for Node8 {
 
     fn set_slot(&mut self, k: usize, slot: Slot) {
         self.slots[k] = slot;
+    }
+
+    fn child_bounds(&self, k: usize) -> Aabb {
+        let lane = |v: [f32; 3]| Vec3::from_array(v);
+        Aabb {
+            min: lane([0, 1, 2].map(|a| self.min[a][k])),
+            max: lane([0, 1, 2].map(|a| self.max[a][k])),
+        }
     }
 }
 

@@ -12,7 +12,7 @@ use rand_pcg::Pcg64Mcg;
 
 use pathspace::geometry::bvh::{LeafCost, Width, TIE_EPSILON};
 use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
-use pathspace::geometry::{offset_origin, Bvh, Disk, Hit, Primitive, Ray};
+use pathspace::geometry::{offset_origin, Aabb, Bvh, Disk, Hit, Primitive, Ray};
 use pathspace::math::warp;
 use pathspace::scene::{Scene, SceneSource};
 
@@ -535,6 +535,45 @@ fn costing_leaves_per_block_fills_the_blocks() {
         block > 5.0 && reference < 3.5,
         "references per leaf: {block} per block, {reference} per reference"
     );
+}
+
+/// `Bvh::sah_cost` is the statistic Embree prints with `verbose=2`: each node and each leaf
+/// block counted once, weighted by the surface area of its box over the root's. Checked on
+/// trees whose leaves are known: a lone triangle, two far pairs (leaves of two) and two far
+/// clusters of eight costed per block (a leaf of two blocks each, so that blocks, not leaves,
+/// are what the leaf term counts).
+#[test]
+fn sah_cost_weights_nodes_and_blocks_by_their_boxes() {
+    let cluster = |c: Vec3, n: usize| -> Vec<Primitive> {
+        (0..n)
+            .map(|i| {
+                let o = c + Vec3::new(0.01 * i as f32, 0.0, 0.0);
+                let t = Triangle::new(o, o + 0.1 * Vec3::X, o + 0.1 * Vec3::Y).expect("a triangle");
+                Primitive::Triangle(t)
+            })
+            .collect()
+    };
+    let area = |prims: &[Primitive]| {
+        let b = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
+        f64::from(b.surface_area())
+    };
+    let one = Bvh::build(&cluster(Vec3::ZERO, 1)).sah_cost();
+    assert_eq!(
+        (one.nodes, one.leaves, one.leaf_count, one.block_count),
+        (1.0, 1.0, 1, 1)
+    );
+    let cases = [Width::Four, Width::Eight].map(|w| [(w, 2, 1), (w, 8, 2)]);
+    for (width, n, blocks) in cases.into_iter().flatten() {
+        let (a, b) = (cluster(Vec3::ZERO, n), cluster(Vec3::splat(10.0), n));
+        let all = [a.clone(), b.clone()].concat();
+        let cost = Bvh::build_costing(&all, |_| true, width, LeafCost::PerBlock).sah_cost();
+        let case = format!("{width:?}, {n} a cluster");
+        let counts = (cost.leaf_count, cost.block_count);
+        assert_eq!(counts, (2, 2 * blocks), "{case}");
+        assert_close(&format!("{case}: the root node"), cost.nodes, 1.0, 1e-12);
+        let leaves = (area(&a) + area(&b)) * blocks as f64 / area(&all);
+        assert_close(&format!("{case}: the leaves"), cost.leaves, leaves, 1e-12);
+    }
 }
 
 // ---- quad blocks ----
