@@ -484,7 +484,8 @@ impl Bvh {
     #[target_feature(enable = "avx2")]
     fn closest8(&self, nodes: &[Node8], q: &Query) -> Option<Hit> {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
-        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
+        // SAFETY: this function runs only where the processor has AVX2
+        let test = |node: &Node8, limit| unsafe { node.intersect_avx2(&lanes, limit) };
         if self.wide_depth <= SHALLOW {
             self.closest::<_, SMALL_STACK8>(nodes, q, test)
         } else if self.wide_depth <= MID8 {
@@ -602,7 +603,8 @@ impl Bvh {
     #[target_feature(enable = "avx2")]
     fn any8(&self, nodes: &[Node8], q: &Query) -> bool {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
-        let test = |node: &Node8, limit| node.intersect_avx2(&lanes, limit);
+        // SAFETY: this function runs only where the processor has AVX2
+        let test = |node: &Node8, limit| unsafe { node.intersect_avx2(&lanes, limit) };
         if self.wide_depth <= SHALLOW {
             self.any::<_, SMALL_STACK8>(nodes, q, test)
         } else if self.wide_depth <= MID8 {
