@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use pathspace::geometry::bvh::{LeafCost, Width, TIE_EPSILON};
+use pathspace::geometry::bvh::{LeafCost, SahCost, Width, TIE_EPSILON};
 use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
 use pathspace::geometry::{offset_origin, Aabb, Bvh, Disk, Hit, Primitive, Ray};
 use pathspace::math::warp;
@@ -539,7 +539,7 @@ fn costing_leaves_per_block_fills_the_blocks() {
 
 /// `Bvh::sah_cost` is the statistic Embree prints with `verbose=2`: each node and each leaf
 /// block counted once, weighted by the surface area of its box over the root's. Checked on
-/// trees whose leaves are known: a lone triangle, two far pairs (leaves of two) and two far
+/// trees whose leaves are known: none, a lone triangle, two far pairs (leaves of two) and two far
 /// clusters of eight costed per block (a leaf of two blocks each, so that blocks, not leaves,
 /// are what the leaf term counts).
 #[test]
@@ -557,6 +557,8 @@ fn sah_cost_weights_nodes_and_blocks_by_their_boxes() {
         let b = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
         f64::from(b.surface_area())
     };
+    // no primitives: no tree and no cost
+    assert_eq!(Bvh::build(&[]).sah_cost(), SahCost::default());
     let one = Bvh::build(&cluster(Vec3::ZERO, 1)).sah_cost();
     assert_eq!(
         (one.nodes, one.leaves, one.leaf_count, one.block_count),
