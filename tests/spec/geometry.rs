@@ -1,4 +1,5 @@
-//! Geometry, executable: the BVH agrees with brute force, the coplanar tie-break rule holds in
+//! Geometry, executable: the BVH agrees with brute force, a query's interval (0, t_max) is open
+//! at t_max, the coplanar tie-break rule holds in
 //! either insertion order, spawned rays do not re-hit their own surface, spheres work from both
 //! sides, disks are hit inside their ellipse only, and a box's faces point outwards. Book: "Scenes and geometry".
 
@@ -1034,6 +1035,45 @@ fn empty_bvh_hits_nothing() {
     let ray = Ray::new(Vec3::ZERO, Vec3::X);
     assert!(bvh.intersect(&[], &[], &ray, f32::INFINITY).is_none());
     assert!(!bvh.occluded(&[], &[], &ray, f32::INFINITY));
+}
+
+/// A query's interval is open: a hit at exactly t_max is not in it, one a float step farther
+/// out is, for the scalar test, the BVH's leaf lanes of triangles and of quads, and any-hit
+/// queries, in either width.
+#[test]
+fn a_hit_at_exactly_t_max_lies_outside_the_query() {
+    let triangle = Triangle::new(
+        Vec3::new(0.0, 0.0, -2.0),
+        Vec3::new(1.0, 0.0, -2.0),
+        Vec3::new(0.0, 1.0, -2.0),
+    );
+    let quad = Quad::new(Vec3::new(-1.0, -1.0, -2.0), 2.0 * Vec3::X, 2.0 * Vec3::Y);
+    let ray = Ray::new(Vec3::new(0.25, 0.25, 0.0), -Vec3::Z);
+    let beyond = f32::from_bits(2.0f32.to_bits() + 1);
+    for prim in [
+        Primitive::Triangle(triangle.unwrap()),
+        Primitive::Quad(quad.unwrap()),
+    ] {
+        // the hit's distance is exactly 2, so t_max = 2 is the edge case itself
+        let t = prim.intersect(&ray, 3.0).map(|h| h.0);
+        assert_eq!(t, Some(2.0), "{prim:?}");
+        assert!(prim.intersect(&ray, 2.0).is_none(), "{prim:?}");
+        let prims = [prim];
+        for width in [Width::Four, Width::Eight] {
+            let bvh = Bvh::build_with(&prims, |_| true, width);
+            let at = |t_max| bvh.intersect(&prims, &[true], &ray, t_max).map(|h| h.t);
+            assert_eq!(at(2.0), None, "{prim:?} {width:?}");
+            assert_eq!(at(beyond), Some(2.0), "{prim:?} {width:?}");
+            assert!(
+                !bvh.occluded(&prims, &[true], &ray, 2.0),
+                "{prim:?} {width:?}"
+            );
+            assert!(
+                bvh.occluded(&prims, &[true], &ray, beyond),
+                "{prim:?} {width:?}"
+            );
+        }
+    }
 }
 
 // ---- the coplanar tie-break rule ----
