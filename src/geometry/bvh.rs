@@ -1113,9 +1113,14 @@ fn block_occludes(
     let ids = &block.ids[..block.lanes as usize];
     if let Some((mask, t, _, _)) = leaf::hits(block, quads, rays, 0.0, t_max) {
         let mask = mask & t.cmplt(glam::Vec4::splat(t_max)).bitmask();
-        ids.iter()
-            .enumerate()
-            .any(|(k, &pi)| mask & (1 << k) != 0 && blocks[pi as usize])
+        // the lanes' flags read only for a block with a hit, and then without a branch per
+        // lane (an unused lane repeats lane 0, whose flag it reads)
+        mask != 0 && {
+            let flags = (0..leaf::LANES).fold(0u32, |f, k| {
+                f | (u32::from(blocks[block.ids[k] as usize]) << k)
+            });
+            mask & flags != 0
+        }
     } else {
         ids.iter()
             .any(|&pi| blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some())
