@@ -52,7 +52,8 @@ pub struct Block {
     /// `corners[c][axis]`: corner `c` (p0, p1, p2) of the lanes' triangles along `axis`;
     /// unused lanes repeat lane 0, blocks of other primitives leave it zero.
     corners: [[Vec4; 3]; 3],
-    /// The primitives' indices in the scene, in the leaf's order.
+    /// The primitives' indices in the scene, in the leaf's order; unused lanes repeat lane 0,
+    /// so that a query may read every lane's flags without asking which are used.
     pub ids: [u32; LANES],
     /// A block of quads: the index of its [`QuadLanes`]; others 0.
     pub quads: u32,
