@@ -152,6 +152,17 @@ impl Default for Nodes {
     }
 }
 
+/// What an any-hit query found along a ray ([`Bvh::passage`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Passage {
+    /// A primitive that blocks lies in (0, t_max).
+    Blocked,
+    /// None blocks, but at least one that does not (a null boundary) lies there.
+    Crossing,
+    /// No primitive of the tree lies there.
+    Clear,
+}
+
 /// What a query asks, shared by the traversals of both widths.
 struct Query<'a> {
     prims: &'a [Primitive],
@@ -568,6 +579,37 @@ impl Bvh {
     /// ones in slot order ([`push_unsorted`]).
     #[inline]
     pub fn occluded(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> bool {
+        self.any_hit::<false>(prims, blocks, ray, t_max, &mut false)
+    }
+
+    /// [`Bvh::occluded`] that also tells, when nothing blocks the ray, whether it passes any
+    /// primitive for which `blocks` is false (a null boundary) in (0, t_max): the same
+    /// traversal, which then cannot stop early for such a primitive but visits no more nodes.
+    /// A shadow ray with [`Passage::Clear`] needs no query of the boundaries to cut it into
+    /// medium segments: it has one.
+    #[inline]
+    pub fn passage(&self, prims: &[Primitive], blocks: &[bool], ray: &Ray, t_max: f32) -> Passage {
+        let mut crossed = false;
+        if self.any_hit::<true>(prims, blocks, ray, t_max, &mut crossed) {
+            Passage::Blocked
+        } else if crossed {
+            Passage::Crossing
+        } else {
+            Passage::Clear
+        }
+    }
+
+    /// The any-hit query on this tree's nodes; with `CROSS`, `crossed` is set when a hit
+    /// primitive does not block.
+    #[inline]
+    fn any_hit<const CROSS: bool>(
+        &self,
+        prims: &[Primitive],
+        blocks: &[bool],
+        ray: &Ray,
+        t_max: f32,
+        crossed: &mut bool,
+    ) -> bool {
         let q = Query {
             prims,
             flags: blocks,
@@ -577,51 +619,57 @@ impl Bvh {
         };
         let shallow = self.wide_depth <= SHALLOW;
         match &self.wide {
-            Nodes::Four(n) if shallow => self.any4::<SMALL_STACK>(n, &q),
-            Nodes::Four(n) => self.any4::<STACK>(n, &q),
+            Nodes::Four(n) if shallow => self.any4::<SMALL_STACK, CROSS>(n, &q, crossed),
+            Nodes::Four(n) => self.any4::<STACK, CROSS>(n, &q, crossed),
             #[cfg(not(target_arch = "x86_64"))]
             Nodes::Eight(_) => unreachable!("eight-wide nodes are built on x86-64 only"),
             #[cfg(target_arch = "x86_64")]
             Nodes::Eight(n) => {
                 // SAFETY: an eight-wide tree is built only where `Width::native` detected AVX2 on
                 // this processor (`Bvh::build_with`), so its AVX2 code runs where AVX2 is.
-                unsafe { self.any8(n, &q) }
+                unsafe { self.any8::<CROSS>(n, &q, crossed) }
             }
         }
     }
 
     /// [`Bvh::any`] on the four-wide tree with a stack of `N` entries.
-    fn any4<const N: usize>(&self, nodes: &[Node4], q: &Query) -> bool {
+    fn any4<const N: usize, const CROSS: bool>(
+        &self,
+        nodes: &[Node4],
+        q: &Query,
+        crossed: &mut bool,
+    ) -> bool {
         let lanes = RayLanes::new(q.ray.o, q.ray.d.recip());
-        self.any::<_, N>(nodes, q, |node: &Node4, limit| {
-            node.intersect(&lanes, limit)
-        })
+        let test = |node: &Node4, limit| node.intersect(&lanes, limit);
+        self.any::<_, N, CROSS>(nodes, q, test, crossed)
     }
 
     /// [`Bvh::any`] on the eight-wide tree, compiled for AVX2 ([`Bvh::closest8`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn any8(&self, nodes: &[Node8], q: &Query) -> bool {
+    fn any8<const CROSS: bool>(&self, nodes: &[Node8], q: &Query, crossed: &mut bool) -> bool {
         let lanes = RayLanes8::new(q.ray.o, q.ray.d.recip());
         // SAFETY: this function runs only where the processor has AVX2
         let test = |node: &Node8, limit| unsafe { node.intersect_avx2(&lanes, limit) };
         if self.wide_depth <= SHALLOW {
-            self.any::<_, SMALL_STACK8>(nodes, q, test)
+            self.any::<_, SMALL_STACK8, CROSS>(nodes, q, test, crossed)
         } else if self.wide_depth <= MID8 {
-            self.any::<_, MID_STACK8>(nodes, q, test)
+            self.any::<_, MID_STACK8, CROSS>(nodes, q, test, crossed)
         } else {
-            self.any::<_, STACK8>(nodes, q, test)
+            self.any::<_, STACK8, CROSS>(nodes, q, test, crossed)
         }
     }
 
     /// The any-hit traversal of `nodes` with a stack of `N` entries (enough for the tree's
-    /// depth), `test` as in [`Bvh::closest`].
+    /// depth), `test` as in [`Bvh::closest`]; with `CROSS` it notes in `crossed` a hit
+    /// primitive that does not block ([`Bvh::passage`]).
     #[inline(always)]
-    fn any<W: Wide, const N: usize>(
+    fn any<W: Wide, const N: usize, const CROSS: bool>(
         &self,
         nodes: &[W],
         q: &Query,
         test: impl Fn(&W, f32) -> (u32, W::Near),
+        crossed: &mut bool,
     ) -> bool {
         let (prims, blocks, ray, t_max) = (q.prims, q.flags, q.ray, q.t_max);
         if nodes.is_empty() {
@@ -635,7 +683,9 @@ impl Bvh {
             match child {
                 Child::Leaf(first) => {
                     let lanes = (&self.quads[..], &rays);
-                    let occludes = |b: &Block| block_occludes(b, prims, blocks, ray, lanes, t_max);
+                    let occludes = |b: &Block| {
+                        block_occludes::<CROSS>(b, (prims, blocks), ray, lanes, t_max, crossed)
+                    };
                     if self.leaf(first, occludes) {
                         return true;
                     }
@@ -1097,18 +1147,19 @@ impl<R: Fn(f32) -> f32> LeafQuery<'_, R> {
     }
 }
 
-/// Whether a primitive of `block` for which `blocks` is true lies at t in (0, t_max).
+/// Whether a primitive of `block` for which `blocks` is true lies at t in (0, t_max); with
+/// `CROSS`, `crossed` is set when one for which it is false does and none blocks.
 /// Always inlined, as [`Block::hits`]: out of line it was a call per block of an any-hit
 /// query, and the fog box's shadow rays were 2 to 6% slower (book: "Against Embree, ray for
 /// ray").
 #[inline(always)]
-fn block_occludes(
+fn block_occludes<const CROSS: bool>(
     block: &Block,
-    prims: &[Primitive],
-    blocks: &[bool],
+    (prims, blocks): (&[Primitive], &[bool]),
     ray: &Ray,
     (quads, rays): (&[QuadLanes], &LaneRays),
     t_max: f32,
+    crossed: &mut bool,
 ) -> bool {
     let ids = &block.ids[..block.lanes as usize];
     if let Some((mask, t, _, _)) = leaf::hits(block, quads, rays, 0.0, t_max) {
@@ -1119,11 +1170,24 @@ fn block_occludes(
             let flags = (0..leaf::LANES).fold(0u32, |f, k| {
                 f | (u32::from(blocks[block.ids[k] as usize]) << k)
             });
-            mask & flags != 0
+            let blocked = mask & flags != 0;
+            if CROSS && !blocked {
+                // the hit lanes are all boundaries
+                *crossed = true;
+            }
+            blocked
         }
     } else {
-        ids.iter()
-            .any(|&pi| blocks[pi as usize] && prims[pi as usize].intersect(ray, t_max).is_some())
+        ids.iter().any(|&pi| {
+            let (block, prim) = (blocks[pi as usize], &prims[pi as usize]);
+            // a boundary is tested only while none has been crossed
+            let asked = block || (CROSS && !*crossed);
+            let hit = asked && prim.intersect(ray, t_max).is_some();
+            if CROSS && hit && !block {
+                *crossed = true;
+            }
+            hit && block
+        })
     }
 }
 

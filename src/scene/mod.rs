@@ -27,6 +27,7 @@ pub use sensor::IrradianceMeter;
 use glam::Vec3;
 
 use crate::bsdf::{Bsdf, ConductorFresnel};
+use crate::geometry::bvh::Passage;
 use crate::geometry::{Aabb, Bvh, Hit, Primitive, Ray};
 use crate::math::{Distribution1D, Sampler};
 use crate::medium::{FreeFlight, Medium};
@@ -793,6 +794,13 @@ impl Scene {
             .occluded(&self.prims, &self.prim_opaque, ray, t_max)
     }
 
+    /// [`Scene::occluded`] that also tells whether the ray crosses a null boundary when nothing
+    /// blocks it ([`Bvh::passage`]): a shadow ray that crosses none is one medium segment.
+    #[inline]
+    pub fn passage(&self, ray: &Ray, t_max: f32) -> Passage {
+        self.bvh.passage(&self.prims, &self.prim_opaque, ray, t_max)
+    }
+
     /// [`Scene::occluded`] as the camera sees before its first scattering vertex when
     /// `from_camera` (hidden emitters left out, [`Scene::camera_bvh`]).
     #[inline]
@@ -829,10 +837,11 @@ impl Scene {
         }
         let mut segments = Segments::new(self, ray, medium, dist);
         if self.closed_form_tau {
-            if self.occluded(&ray, dist) {
-                return Rgb::ZERO;
-            }
-            segments = segments.boundaries_only();
+            segments = match self.passage(&ray, dist) {
+                Passage::Blocked => return Rgb::ZERO,
+                Passage::Crossing => segments.boundaries_only(),
+                Passage::Clear => segments.clear_ahead(),
+            };
         }
         // otherwise the walk below meets any opaque occluder itself, after drawing the random
         // numbers of the segments before it, as it always has (same images)
@@ -987,11 +996,17 @@ impl Scene {
             .lead(lead_a)
             .open_end(dist + lead_b)
             .from_camera(camera);
-        if shortcut {
+        if shortcut && camera {
             if self.occluded_from(&ray, dist, camera) {
                 return zero;
             }
             segments = segments.boundaries_only();
+        } else if shortcut {
+            segments = match self.passage(&ray, dist) {
+                Passage::Blocked => return zero,
+                Passage::Crossing => segments.boundaries_only(),
+                Passage::Clear => segments.clear_ahead(),
+            };
         }
         for seg in segments {
             let last = matches!(seg.end, SegmentEnd::Open);

@@ -75,6 +75,8 @@ pub struct Segments<'a> {
     t_open: f32,
     queries: usize,
     done: bool,
+    /// Known to meet nothing up to `t_max` ([`Segments::clear_ahead`]): no query is asked.
+    clear: bool,
 }
 
 impl<'a> Segments<'a> {
@@ -92,6 +94,7 @@ impl<'a> Segments<'a> {
             t_open: t_max,
             queries: 0,
             done: false,
+            clear: false,
         }
     }
 
@@ -118,6 +121,15 @@ impl<'a> Segments<'a> {
     #[inline]
     pub fn boundaries_only(mut self) -> Self {
         self.bvh = &self.scene.boundary_bvh;
+        self
+    }
+
+    /// For a ray an any-hit query has shown to meet nothing within `t_max`, opaque or null
+    /// ([`crate::geometry::bvh::Passage::Clear`]): one open segment, found without a query
+    /// (the one [`Segments::boundaries_only`] would find after a query that hits nothing).
+    #[inline]
+    pub fn clear_ahead(mut self) -> Self {
+        self.clear = true;
         self
     }
 
@@ -201,6 +213,9 @@ impl Segments<'_> {
     /// The closest hit in (t_min, `t_max`).
     #[inline]
     fn query(&self, t_max: f32) -> Option<Hit> {
+        if self.clear {
+            return None;
+        }
         let scene = self.scene;
         self.bvh.intersect_range(
             &scene.prims,

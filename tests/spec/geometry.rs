@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use pathspace::geometry::bvh::{LeafCost, SahCost, Width, TIE_EPSILON};
+use pathspace::geometry::bvh::{LeafCost, Passage, SahCost, Width, TIE_EPSILON};
 use pathspace::geometry::shape::{Cylinder, Quad, Sphere, Triangle};
 use pathspace::geometry::{offset_origin, Aabb, Bvh, Disk, Hit, Primitive, Ray};
 use pathspace::math::warp;
@@ -309,6 +309,47 @@ fn occluded_equals_brute_force() {
         blocked += want as usize;
     }
     assert!(blocked > 500 && blocked < 3500, "{blocked} of 4000 blocked");
+}
+
+/// `Bvh::passage` is the any-hit query that also reports a crossed primitive that does not
+/// block (a null boundary): blocked exactly when `occluded` is, else crossing exactly when such
+/// a primitive lies in (0, t_max), in trees of both widths. A shadow ray reported clear is
+/// taken as one medium segment, so a crossing missed here would be a boundary skipped.
+#[test]
+fn passage_equals_brute_force() {
+    let mut r = rng(4);
+    let prims = soup(&mut r, 800);
+    let trees = [Width::Four, Width::Eight].map(|w| Bvh::build_with(&prims, |_| true, w));
+    let mut seen = [0usize; 3];
+    for _ in 0..4000 {
+        let blocks: Vec<bool> = (0..prims.len()).map(|_| r.random::<f32>() < 0.2).collect();
+        let ray = random_ray(&mut r);
+        let t_max = r.random_range(0.0..40.0);
+        let hit = |p: &Primitive| p.intersect(&ray, t_max).is_some();
+        let (mut blocked, mut crossing) = (false, false);
+        for (p, &b) in prims.iter().zip(&blocks) {
+            if hit(p) {
+                blocked |= b;
+                crossing |= !b;
+            }
+        }
+        let want = match (blocked, crossing) {
+            (true, _) => Passage::Blocked,
+            (false, true) => Passage::Crossing,
+            (false, false) => Passage::Clear,
+        };
+        for bvh in &trees {
+            let got = bvh.passage(&prims, &blocks, &ray, t_max);
+            assert_eq!(got, want, "{:?} tree, {ray:?} t_max {t_max}", bvh.width());
+            assert_eq!(bvh.occluded(&prims, &blocks, &ray, t_max), blocked);
+        }
+        seen[want as usize] += 1;
+    }
+    // each outcome is exercised
+    assert!(
+        seen.iter().all(|&k| k > 400),
+        "blocked, crossing, clear: {seen:?}"
+    );
 }
 
 #[test]

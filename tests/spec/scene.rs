@@ -82,7 +82,7 @@ fn the_any_hit_shortcut_gives_the_walks_bits() {
     for name in SCENES {
         let scene = shipped(name);
         assert!(scene.has_null, "{name} has a null boundary");
-        let (mut occluded, mut crossing) = (0, 0);
+        let (mut occluded, mut crossing, mut neither) = (0, 0, 0);
         let edges = random_edges(&scene, 3000);
         for &(a, b) in &edges {
             for (from, to) in [(a, b), (b, a)] {
@@ -99,12 +99,20 @@ fn the_any_hit_shortcut_gives_the_walks_bits() {
                     from.p,
                     to.p
                 );
-                occluded += usize::from(walked.transmittance == pathspace::spectrum::Rgb::ZERO);
+                let blocked = walked.transmittance == pathspace::spectrum::Rgb::ZERO;
+                occluded += usize::from(blocked);
                 crossing += usize::from(from.medium != to.medium);
+                // open and in one medium: mostly edges the any-hit query finds clear
+                neither += usize::from(!blocked && from.medium == to.medium);
             }
         }
         let n = 2 * edges.len();
-        for (what, k) in [("occluded", occluded), ("crossing a boundary", crossing)] {
+        let counts = [
+            ("occluded", occluded),
+            ("crossing a boundary", crossing),
+            ("open in one medium", neither),
+        ];
+        for (what, k) in counts {
             assert!(
                 k >= n / 50 && k <= n - n / 50,
                 "{name}: {k} of {n} edges {what}: the sample does not exercise both branches"
