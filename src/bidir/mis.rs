@@ -1,4 +1,5 @@
-//! The power-heuristic weights of BDPT's strategies (Veach 1997, sec. 10.2): the ratio of
+//! The weights of BDPT's strategies (Veach 1997, sec. 10.2), by the balance or the power
+//! heuristic ([`MisHeuristic`]): the ratio of
 //! neighbouring splits' densities at every vertex, with the four reverse densities next to the
 //! connection recomputed for the joined path (`Changed`), all in the vertices' own measures
 //! with the propagation pdfs of Table 1.
@@ -47,6 +48,35 @@ pub(super) struct End<'a> {
     pub(super) p_minus: Option<(f32, crate::path::geometry_term::AreaFactor)>,
 }
 
+/// How BDPT's strategies share a path (Veach 1997, sec. 9.2): strategy s gets
+/// p_s^beta / sum_i p_i^beta of it, with beta = 1 (balance) or 2 (power). Written with the
+/// ratios r_i = p_i / p_s that the weights are built from, 1 / sum_i r_i^beta.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum MisHeuristic {
+    /// beta = 1 (the default): in the media this project renders, many strategies of a path
+    /// have densities of one order, and squaring the ratios gives the best of them more of
+    /// the path than its variance warrants (book: "Bidirectional path tracing", "Which
+    /// heuristic").
+    #[default]
+    Balance,
+    /// beta = 2, Veach's recommendation for scenes where one strategy is far better than the
+    /// others.
+    Power,
+}
+
+crate::option_value!(MisHeuristic, "MIS heuristic");
+
+impl MisHeuristic {
+    /// r^beta: a ratio of densities as the heuristic counts it.
+    #[inline]
+    pub fn term(self, r: f32) -> f32 {
+        match self {
+            MisHeuristic::Balance => r,
+            MisHeuristic::Power => r * r,
+        }
+    }
+}
+
 impl Bdpt<'_> {
     /// Whether light `l` is a Dirac in position or direction (it cannot be hit by chance).
     fn is_delta_light(scene: &Scene, v: &Vertex) -> bool {
@@ -58,7 +88,7 @@ impl Bdpt<'_> {
         }
     }
 
-    /// The power-heuristic weight of strategy (s, t) for the path joined from `light[..s]` and
+    /// The weight of strategy (s, t) for the path joined from `light[..s]` and
     /// `eye[..t]`, with `sampled` replacing the endpoint that was sampled for the connection
     /// (s = 1 or t = 1). `conn` holds the connection edge's propagation pdfs.
     // ANCHOR: mis_weight
@@ -120,7 +150,7 @@ impl Bdpt<'_> {
         c
     }
 
-    /// The weight 1 / (1 + sum of r_i^2) of strategy `join` with the reverse densities
+    /// The weight 1 / (1 + sum of r_i^beta) of strategy `join` with the reverse densities
     /// `changed` of the four vertices next to the connection; every other vertex brings its
     /// subpath's own ratio (`Subpath::ratio`).
     pub(super) fn weight<L: Subpath + ?Sized, E: Subpath + ?Sized>(
@@ -131,17 +161,23 @@ impl Bdpt<'_> {
         join: &Join,
         changed: Changed,
     ) -> f32 {
-        let sum = Self::eye_sum(eye, join, &changed);
+        let h = self.heuristic;
+        let sum = Self::eye_sum(eye, join, &changed, h);
         if join.s == 0 {
             return 1.0 / (1.0 + sum);
         }
-        1.0 / (1.0 + Self::light_sum(scene, light, join, &changed, sum))
+        1.0 / (1.0 + Self::light_sum(scene, light, join, &changed, (sum, h)))
     }
 
-    /// The sum of r_i^2 over the eye subpath's side of strategy `join` (vertices that would
+    /// The sum of r_i^beta over the eye subpath's side of strategy `join` (vertices that would
     /// need to hit a Dirac left out; the connection's ends are connectible, so their deltas
     /// count as false).
-    fn eye_sum<E: Subpath + ?Sized>(eye: &E, join: &Join, changed: &Changed) -> f32 {
+    fn eye_sum<E: Subpath + ?Sized>(
+        eye: &E,
+        join: &Join,
+        changed: &Changed,
+        h: MisHeuristic,
+    ) -> f32 {
         let t = join.t;
         let ev = eye.vertices();
         let mut sum = 0.0f32;
@@ -160,20 +196,20 @@ impl Bdpt<'_> {
             };
             let delta = i + 1 != t && ev[i].delta;
             if !delta && !ev[i - 1].delta {
-                sum += ri * ri;
+                sum += h.term(ri);
             }
         }
         sum
     }
 
-    /// `sum` plus the r_i^2 over the light subpath's side of strategy `join` (s >= 1), in
+    /// `sum` plus the r_i^beta over the light subpath's side of strategy `join` (s >= 1), in
     /// that order of additions.
     fn light_sum<L: Subpath + ?Sized>(
         scene: &Scene,
         light: &L,
         join: &Join,
         changed: &Changed,
-        mut sum: f32,
+        (mut sum, h): (f32, MisHeuristic),
     ) -> f32 {
         let s = join.s;
         let lv = light.vertices();
@@ -206,7 +242,7 @@ impl Bdpt<'_> {
                 Self::is_delta_light(scene, if s == 1 { qs } else { &lv[0] })
             };
             if !delta && !delta_before {
-                sum += ri * ri;
+                sum += h.term(ri);
             }
         }
         sum
@@ -280,7 +316,7 @@ impl Bdpt<'_> {
     }
 }
 
-/// The power-heuristic weight of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
+/// The weight (by `bdpt`'s heuristic) of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
 /// with every density recomputed from the geometry ([`crate::path::pdf::densities`]): the
 /// subpaths are rebuilt as the samplers would have left them, then weighted as in `connect`.
 pub fn mis_weight_of_path(

@@ -5,15 +5,15 @@
 //!
 //! A light subpath y_0 ... y_{s-1} and an eye subpath z_{t-1} ... z_0 (z_0 on the sensor) are
 //! joined by one edge into a path of s + t vertices. Every (s, t) gives an unbiased estimate
-//! f_j / (p(y) p(z)); the power heuristic weights them with the densities every other split of
-//! the same path would have had. All densities are in the vertices' own measures (area on
+//! f_j / (p(y) p(z)); the balance heuristic (or, on request, the power heuristic) weights them
+//! with the densities every other split of the same path would have had. All densities are in the vertices' own measures (area on
 //! surfaces, volume in the medium) and include the propagation pdfs of Table 1, so the weights
 //! see medium vertices exactly as the path integral does.
 //!
 //! - [`walk`]: the two subpaths' random walks, limited by the caller's [`WalkLimits`];
 //! - [`connect`]: one strategy (s, t) of a pair of subpaths, with [`next_event`] (s = 1) and
 //!   [`sensor`] (t = 1) for the connections that sample their own endpoint;
-//! - [`mis`]: the power-heuristic weights from the densities the connection changes.
+//! - [`mis`]: the strategies' weights from the densities the connection changes.
 //!
 //! The integrators combine the strategies of a sample into the film (`integrator::bdpt`).
 //! Book: "Bidirectional path tracing".
@@ -24,7 +24,7 @@ pub mod next_event;
 pub mod sensor;
 pub mod walk;
 
-pub use mis::{mis_weight_of_path, Join};
+pub use mis::{mis_weight_of_path, Join, MisHeuristic};
 
 use glam::Vec2;
 
@@ -38,7 +38,7 @@ pub const MAX_SUBPATH_VERTICES: usize = 256;
 /// Which strategies are used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Strategies {
-    /// All (s, t), weighted by the power heuristic.
+    /// All (s, t), weighted by the engine's [`MisHeuristic`].
     All,
     /// Light tracing: only t = 1 (light subpaths connected to the sensor), unweighted.
     LightTracing,
@@ -106,6 +106,8 @@ pub struct Bdpt<'t> {
     pub tech: &'t dyn LocalSampling,
     pub max_depth: u32,
     pub strategies: Strategies,
+    /// How the strategies of `Strategies::All` share a path.
+    pub heuristic: MisHeuristic,
 }
 
 impl<'t> Bdpt<'t> {
@@ -120,7 +122,14 @@ impl<'t> Bdpt<'t> {
             tech,
             max_depth: max_depth.unwrap_or(u32::MAX),
             strategies,
+            heuristic: MisHeuristic::default(),
         }
+    }
+
+    /// This engine weighting its strategies by `heuristic`.
+    pub fn with_heuristic(mut self, heuristic: MisHeuristic) -> Self {
+        self.heuristic = heuristic;
+        self
     }
 
     /// The largest s to try with a light subpath `light`: its length, but at least 1 when the

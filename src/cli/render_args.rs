@@ -239,6 +239,12 @@ impl RenderArgs {
             "its light subpaths and connections pick lights by power",
         )?;
         only_for(
+            o.mis_heuristic.is_some(),
+            OwnOption::MisHeuristic,
+            "--mis-heuristic",
+            "it weights no strategies of one path against each other",
+        )?;
+        only_for(
             o.pixel_samples.is_some(),
             OwnOption::PixelSamples,
             "--pixel-samples",

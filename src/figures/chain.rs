@@ -131,6 +131,7 @@ pub(super) fn figure() -> Result<String, ChartError> {
         side::draw_path(&mut c, v, (EYE_PATH, RIGHT), Some("x"), |_| true)?;
         let lines = [
             format!("p(x\u{2080}) / p(x\u{2082} | x\u{2083}) = {r:.2}"),
+            "weighed by the balance heuristic:".to_string(),
             format!("w(s = 0) = {w0:.3}   w(s = 3) = {w3:.3}"),
         ];
         for (k, text) in lines.iter().enumerate() {

@@ -141,6 +141,8 @@ pub enum OwnOption {
     StrategyImages,
     /// `pixel_samples` (it draws each camera sample's film position in its pixel).
     PixelSamples,
+    /// `mis_heuristic` (it weights several strategies of one path).
+    MisHeuristic,
 }
 
 /// Refuses a scene with an emitting medium for an integrator that cannot collect its light,

@@ -6,6 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::bidir::MisHeuristic;
 use crate::enlightened::adjoint::AdjointEstimator;
 use crate::enlightened::guide::ParticleSampler;
 use crate::enlightened::{AdjointError, AdjointSettings, GuideError, GuideKind, GuideSettings};
@@ -69,6 +70,10 @@ pub struct RenderOptions {
     /// overstate across edges).
     #[arg(long)]
     pub pixel_samples: Option<PixelSamples>,
+    /// bdpt: how its strategies share each path, `balance` (default: the balance heuristic)
+    /// or `power` (the power heuristic, Veach 1997, sec. 9.2).
+    #[arg(long)]
+    pub mis_heuristic: Option<MisHeuristic>,
     /// path: next-event estimation toward emitting media, a point of the glowing media sampled
     /// as a light and combined by MIS with the emission the walk collects (default true;
     /// `--volume-next-event=false` collects the emission along free flights alone).
@@ -126,6 +131,7 @@ impl RenderOptions {
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
             pixel_samples: Some(PixelSamples::Stratified),
+            mis_heuristic: Some(MisHeuristic::Balance),
             volume_next_event: Some(true),
             transmittance: Some(TransmittanceEstimator::RatioTracking),
             adjoint_image: Some(false),
@@ -509,6 +515,8 @@ pub struct RenderSettings {
     pub light_selection: LightSelectionKind,
     /// Where each camera sample's film position lies in its pixel (`[render] pixel_samples`).
     pub pixel_samples: PixelSamples,
+    /// How BDPT's strategies share a path (`[render] mis_heuristic`).
+    pub mis_heuristic: MisHeuristic,
     /// The path tracer's next-event estimation toward emitting media
     /// (`[render] volume_next_event`).
     pub volume_next_event: bool,
@@ -546,6 +554,7 @@ impl RenderSettings {
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
             pixel_samples: d.pixel_samples.expect(given),
+            mis_heuristic: d.mis_heuristic.expect(given),
             volume_next_event: d.volume_next_event.expect(given),
             transmittance: d.transmittance.expect(given),
             mlt: MltSettings::default(),
@@ -601,6 +610,7 @@ impl RenderSettings {
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
         self.pixel_samples = o.pixel_samples.unwrap_or(self.pixel_samples);
+        self.mis_heuristic = o.mis_heuristic.unwrap_or(self.mis_heuristic);
         self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);
         self.transmittance = o.transmittance.unwrap_or(self.transmittance);
         self.adjoint_image = o.adjoint_image.unwrap_or(self.adjoint_image);

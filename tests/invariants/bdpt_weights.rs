@@ -243,8 +243,8 @@ fn connection_weights_with_a_volume_x0_are_the_direct_ones() {
 }
 
 /// Random paths whose x0 is a volume vertex (a light subpath's first vertices joined to an eye
-/// subpath from the meter): the power-heuristic weights of all strategies sum to one and each
-/// is p_s^2 / sum p_i^2 of the densities recomputed from the geometry (x0 per unit volume
+/// subpath from the meter): the weights of all strategies (the default balance heuristic) sum
+/// to one and each is p_s / sum p_i of the densities recomputed from the geometry (x0 per unit volume
 /// from the light side: the media's share of the selection times the point's density; from
 /// the eye side: the collision density sigma_t tau over r^2 times the direction's), and the
 /// walks' own densities of x0 and its neighbours are those recomputed ones.
@@ -295,17 +295,17 @@ fn weights_of_paths_from_a_volume_x0_sum_to_one() {
         }
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect();
-        let total: f64 = p.iter().map(|x| x * x).sum();
+        let total: f64 = p.iter().sum();
         if !(total > 0.0 && total.is_finite()) {
             continue;
         }
         let mut sum = 0.0f64;
         for (s, ps) in p.iter().enumerate() {
             let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
-            let direct = ps * ps / total;
+            let direct = ps / total;
             assert!(
                 (w - direct).abs() < 1e-3,
-                "s = {s}: weight {w}, power heuristic {direct}"
+                "s = {s}: weight {w}, balance heuristic {direct}"
             );
             sum += w;
         }

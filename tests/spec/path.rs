@@ -8,7 +8,7 @@ use crate::common;
 use common::stats::{assert_significant, p_welch, runs_mean, Family};
 use glam::Vec3;
 use pathspace::bidir::WalkLimits;
-use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
+use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, MisHeuristic, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::Sampler;
 use pathspace::path::pdf::{densities, strategy_pdf, Densities};
@@ -501,18 +501,23 @@ fn a_mirror_chain_weighs_its_two_strategies_by_their_end_densities() {
     assert_chain_weights(&b, &scene, &path, &d, r);
 }
 
-/// The power heuristic's weights of a four-vertex chain's two strategies (s = 0 and s = 3)
-/// for the ratio r = p_3 / p_0 of their densities, against `mis_weight_of_path`.
+/// The weights of a four-vertex chain's two strategies (s = 0 and s = 3) for the ratio
+/// r = p_3 / p_0 of their densities, against `mis_weight_of_path`, by both heuristics:
+/// 1 / (1 + r^beta) and r^beta / (1 + r^beta).
 fn assert_chain_weights(b: &Bdpt, scene: &Scene, path: &Path, d: &Densities, r: f64) {
     // neither strategy dominates, so a wrong ratio shows in both weights
     assert!((0.2..5.0).contains(&r), "p_3 / p_0 = {r}");
-    let expected = [1.0 / (1.0 + r * r), r * r / (1.0 + r * r)];
-    for (s, want) in [0, 3].into_iter().zip(expected) {
-        let w = mis_weight_of_path(b, scene, path, s, d) as f64;
-        assert!(
-            (w - want).abs() < 1e-4 * want.max(1e-3),
-            "w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
-        );
+    for (h, beta) in [(MisHeuristic::Balance, 1), (MisHeuristic::Power, 2)] {
+        let b = b.clone().with_heuristic(h);
+        let rb = r.powi(beta);
+        let expected = [1.0 / (1.0 + rb), rb / (1.0 + rb)];
+        for (s, want) in [0, 3].into_iter().zip(expected) {
+            let w = mis_weight_of_path(&b, scene, path, s, d) as f64;
+            assert!(
+                (w - want).abs() < 1e-4 * want.max(1e-3),
+                "{h:?}: w(s = {s}) = {w}, expected {want} (p_3 / p_0 = {r})"
+            );
+        }
     }
 }
 
@@ -789,12 +794,19 @@ fn vertex_media_follow_the_side_of_the_direction() {
     assert_eq!(fog.medium_towards(w), Some(1));
 }
 
-/// For random paths, the power-heuristic weights of all strategies sum to one and each equals
-/// p_s^2 / sum p_i^2 computed directly from the strategy densities.
+/// For random paths, the weights of all strategies sum to one and each equals
+/// p_s^beta / sum p_i^beta computed directly from the strategy densities: beta = 1 for the
+/// balance heuristic, 2 for the power heuristic.
 #[test]
-fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
+fn mis_weights_sum_to_one_and_match_each_heuristic() {
+    for (h, beta) in [(MisHeuristic::Balance, 1), (MisHeuristic::Power, 2)] {
+        mis_weights_match(h, beta);
+    }
+}
+
+fn mis_weights_match(h: MisHeuristic, beta: i32) {
     let scene = room();
-    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All);
+    let b = Bdpt::new(&pathspace::path::PLAIN, Some(4), Strategies::All).with_heuristic(h);
     let mut sampler = Sampler::new(3, 1, 0);
     let mut scratch = Scratch::default();
     let mut checked = 0;
@@ -814,17 +826,17 @@ fn mis_weights_sum_to_one_and_match_the_power_heuristic() {
         let d = densities(&scene, &pathspace::path::PLAIN, &path, &mut sampler);
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|s| strategy_pdf(&d, s)).collect(); // s = n (t = 0) excluded
-        let total: f64 = p.iter().map(|x| x * x).sum();
+        let total: f64 = p.iter().map(|x| x.powi(beta)).sum();
         if total.is_nan() || total <= 0.0 || !total.is_finite() {
             continue;
         }
         let mut sum = 0.0f64;
         for (s, ps) in p.iter().enumerate() {
             let w = mis_weight_of_path(&b, &scene, &path, s, &d) as f64;
-            let direct = ps * ps / total;
+            let direct = ps.powi(beta) / total;
             assert!(
                 (w - direct).abs() < 1e-3,
-                "strategy s={s}: weight {w}, power heuristic {direct}"
+                "strategy s={s}: weight {w}, {h:?} heuristic {direct}"
             );
             sum += w;
         }

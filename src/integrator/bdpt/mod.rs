@@ -8,7 +8,9 @@
 mod combine;
 mod strategy_images;
 
-pub use crate::bidir::{mis_weight_of_path, Bdpt, Scratch, Strategies, MAX_SUBPATH_VERTICES};
+pub use crate::bidir::{
+    mis_weight_of_path, Bdpt, MisHeuristic, Scratch, Strategies, MAX_SUBPATH_VERTICES,
+};
 pub use combine::Splat;
 pub use strategy_images::strategy_images;
 
@@ -69,7 +71,7 @@ impl super::Facts for BdptFacts {
     /// BDPT's (s, t) strategies one by one (light tracing's are all t = 1).
     fn takes(&self, option: super::OwnOption) -> bool {
         use super::OwnOption::*;
-        matches!(option, StrategyImages | PixelSamples) && self.0 == Strategies::All
+        matches!(option, StrategyImages | PixelSamples | MisHeuristic) && self.0 == Strategies::All
     }
 }
 
@@ -78,11 +80,8 @@ pub fn prepare<'t>(
     setup: &Setup<'_, 't>,
     strategies: Strategies,
 ) -> Result<Box<dyn Integrator + 't>, IntegratorError> {
-    Ok(Box::new(Bdpt::new(
-        setup.technique,
-        setup.max_depth,
-        strategies,
-    )))
+    let bdpt = Bdpt::new(setup.technique, setup.max_depth, strategies);
+    Ok(Box::new(bdpt.with_heuristic(setup.settings.mis_heuristic)))
 }
 
 impl Integrator for Bdpt<'_> {

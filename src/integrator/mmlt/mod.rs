@@ -2,7 +2,7 @@
 //! chains of primary-sample-space MLT (`integrator::pssmlt`) over *one* BDPT strategy per state.
 //! A state's first numbers choose the path's depth d (scattering vertices) and its strategy
 //! (s, t) with s + t = d + 2; the walks are drawn with exactly s and t vertices and joined by that
-//! strategy alone, weighted by its power-heuristic MIS weight w_{s,t} among the d + 2
+//! strategy alone, weighted by its MIS weight w_{s,t} (`bidir::MisHeuristic`) among the d + 2
 //! strategies of the path and divided by the probability of the choice:
 //!
 //! C(u) = (d + 2) / p(d) w_{s,t}(x) f(x) / p_{s,t}(x).
@@ -150,14 +150,21 @@ impl super::Facts for MmltFacts {
         &self,
         setup: &super::Setup<'_, 't>,
     ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
-        Ok(Box::new(Pssmlt::with_target(
+        let mut p = Pssmlt::with_target(
             setup.scene,
             setup.technique,
             setup.settings.pssmlt.clone(),
             setup.seed,
             setup.max_depth,
             ("mmlt", multiplexed_target),
-        )?))
+        )?;
+        p.bdpt.heuristic = setup.settings.mis_heuristic;
+        Ok(Box::new(p))
+    }
+
+    /// Each strategy's sample carries its weight among the path's strategies.
+    fn takes(&self, option: super::OwnOption) -> bool {
+        option == super::OwnOption::MisHeuristic
     }
 
     fn samples_light_starts(&self) -> bool {

@@ -433,13 +433,20 @@ impl super::Facts for PssmltFacts {
         &self,
         setup: &super::Setup<'_, 't>,
     ) -> Result<Box<dyn super::Integrator + 't>, super::IntegratorError> {
-        Ok(Box::new(Pssmlt::new(
+        let mut p = Pssmlt::new(
             setup.scene,
             setup.technique,
             setup.settings.pssmlt.clone(),
             setup.seed,
             setup.max_depth,
-        )?))
+        )?;
+        p.bdpt.heuristic = setup.settings.mis_heuristic;
+        Ok(Box::new(p))
+    }
+
+    /// Its target is BDPT's sample, the strategies weighted against each other.
+    fn takes(&self, option: super::OwnOption) -> bool {
+        option == super::OwnOption::MisHeuristic
     }
 
     fn samples_light_starts(&self) -> bool {

@@ -17,7 +17,7 @@ use pathspace::enlightened::regions::{surface_distance, KdTree};
 use pathspace::enlightened::{
     DirectionMap, Enlightened, GuideKind, GuideSettings, RegionParams, RegionPoint, Regions,
 };
-use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, Scratch, Strategies};
+use pathspace::integrator::bdpt::{mis_weight_of_path, Bdpt, MisHeuristic, Scratch, Strategies};
 use pathspace::integrator::{IntegratorKind, Renderer};
 use pathspace::math::{Frame, Sampler};
 use pathspace::path::pdf::{densities, strategy_pdf};
@@ -510,44 +510,48 @@ fn check_walk_densities(scene: &Scene, tech: &Enlightened) {
     );
 }
 
-/// With guiding on, the power-heuristic weights of all strategies of a path sum to one and
-/// equal p_s^2 / sum p_i^2 from the guided densities.
+/// With guiding on, the weights of all strategies of a path sum to one and equal
+/// p_s^beta / sum p_i^beta from the guided densities, by the balance (beta = 1) and the power
+/// heuristic (beta = 2).
 #[test]
 fn guided_mis_weights_sum_to_one() {
     let (scene, tech) = guided_fog_box(8, GuideKind::Both);
-    let b = Bdpt::new(&tech, Some(5), Strategies::All);
+    for (h, beta) in [(MisHeuristic::Balance, 1), (MisHeuristic::Power, 2)] {
+        let b = Bdpt::new(&tech, Some(5), Strategies::All).with_heuristic(h);
+        guided_weights_match(&scene, &b, beta);
+    }
+}
+
+fn guided_weights_match(scene: &Scene, b: &Bdpt, beta: i32) {
     let mut s = Sampler::new(43, 0, 0);
     let mut scratch = Scratch::default();
     let cam = scene.camera.as_ref().unwrap();
     let mut checked = 0;
     for _ in 0..3000 {
         let raster = s.next_2d() * Vec2::new(cam.width as f32, cam.height as f32);
-        b.camera_subpath(&scene, raster, WalkLimits::BDPT, &mut s, &mut scratch.eye);
-        b.light_subpath(&scene, WalkLimits::BDPT, &mut s, &mut scratch.light);
+        b.camera_subpath(scene, raster, WalkLimits::BDPT, &mut s, &mut scratch.eye);
+        b.light_subpath(scene, WalkLimits::BDPT, &mut s, &mut scratch.light);
         if scratch.light.len() < 2 || scratch.eye.len() < 2 {
             continue;
         }
         let mut verts: Vec<Vertex> = scratch.light[..2].to_vec();
         verts.extend(scratch.eye.iter().rev().copied());
         let path = Path { vertices: verts };
-        if measurement_contribution(&scene, &path, &mut s) == Vec3::ZERO {
+        if measurement_contribution(scene, &path, &mut s) == Vec3::ZERO {
             continue;
         }
-        let d = densities(&scene, &tech, &path, &mut s);
+        let d = densities(scene, b.tech, &path, &mut s);
         let n = path.vertices.len();
         let p: Vec<f64> = (0..n).map(|k| strategy_pdf(&d, k)).collect();
-        let total: f64 = p.iter().map(|x| x * x).sum();
+        let total: f64 = p.iter().map(|x| x.powi(beta)).sum();
         if !(total > 0.0 && total.is_finite()) {
             continue;
         }
         let mut sum = 0.0;
         for (k, pk) in p.iter().enumerate() {
-            let w = mis_weight_of_path(&b, &scene, &path, k, &d) as f64;
-            assert!(
-                (w - pk * pk / total).abs() < 1e-3,
-                "s={k}: {w} vs {}",
-                pk * pk / total
-            );
+            let w = mis_weight_of_path(b, scene, &path, k, &d) as f64;
+            let want = pk.powi(beta) / total;
+            assert!((w - want).abs() < 1e-3, "s={k}: {w} vs {want}");
             sum += w;
         }
         assert!((sum - 1.0).abs() < 1e-3, "weights sum to {sum}");

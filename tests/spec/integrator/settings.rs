@@ -450,6 +450,7 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     use pathspace::conventions::OptionValue;
     use pathspace::enlightened::adjoint::AdjointEstimator;
     use pathspace::enlightened::guide::{GuideKind, ParticleSampler};
+    use pathspace::integrator::bdpt::MisHeuristic;
     use pathspace::integrator::path::DistanceSampling;
     use pathspace::integrator::smc::{estimator::Variant, EstimatorKind};
     use pathspace::scene::LightSelectionKind;
@@ -458,7 +459,7 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
     fn typed<T: OptionValue>(flag: &'static str) -> Listed {
         (flag, T::names(), |s| T::parse(s).is_ok())
     }
-    let lists: [Listed; 7] = [
+    let lists: [Listed; 8] = [
         typed::<Variant>("--smc-variant"),
         typed::<EstimatorKind>("--smc-estimator"),
         typed::<GuideKind>("--guide"),
@@ -466,6 +467,7 @@ fn enumerated_options_list_exactly_the_values_their_parsers_take() {
         typed::<AdjointEstimator>("--adjoint-estimator"),
         typed::<DistanceSampling>("--distance"),
         typed::<LightSelectionKind>("--light-selection"),
+        typed::<MisHeuristic>("--mis-heuristic"),
     ];
     let mut cmd = Cli::command();
     let help = cmd
@@ -643,6 +645,41 @@ fn pixel_samples_is_read_checked_and_refused_where_unused() {
         ["--pixel-samples", "independent"],
         "--pixel-samples applies to --integrator path, bdpt or smc, not `mlt`",
     );
+}
+
+/// `mis_heuristic`: an unknown value is refused at its line, `power` is read, the flag is
+/// refused by name where no strategies of a path are weighted against each other, and it
+/// reaches BDPT's weights: the default is the balance heuristic, pixel for pixel, and the power
+/// heuristic gives another image of the same scene.
+#[test]
+fn mis_heuristic_is_read_checked_applied_and_refused_where_unused() {
+    assert!(with_key("mis_heuristic", "cutoff").is_err());
+    let settings = with_key("mis_heuristic", "power").unwrap();
+    assert_eq!(
+        settings.mis_heuristic,
+        pathspace::integrator::bdpt::MisHeuristic::Power
+    );
+    flag_is_refused(
+        "path",
+        ["--mis-heuristic", "power"],
+        "--mis-heuristic applies to --integrator bdpt, pssmlt or mmlt, not `path`",
+    );
+    let dir = common::cli::scratch("options", "mis-heuristic");
+    for integrator in ["bdpt", "pssmlt", "mmlt"] {
+        let render = |name: &str, extra: &[&str]| {
+            let out = dir.join(format!("{integrator}-{name}.exr"));
+            let mut args = vec!["render", "--integrator", integrator, "--spp", "4"];
+            args.extend(["--resolution", "8x8", "-o", out.to_str().unwrap()]);
+            args.extend_from_slice(extra);
+            assert!(common::cli::pathspace(&args).status.success());
+            pathspace::image_io::read_exr(&out).unwrap().0.pixels
+        };
+        let default = render("default", &[]);
+        let balance = render("balance", &["--mis-heuristic", "balance"]);
+        assert_eq!(default, balance, "{integrator}");
+        let power = render("power", &["--mis-heuristic", "power"]);
+        assert_ne!(default, power, "{integrator}");
+    }
 }
 
 /// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
