@@ -316,8 +316,8 @@ impl Bdpt<'_> {
     }
 }
 
-/// The weight (by `bdpt`'s heuristic) of strategy (s, t = k + 1 - s) for an explicit path x_0 ... x_k,
-/// with every density recomputed from the geometry ([`crate::path::pdf::densities`]): the
+/// The weight (by `bdpt`'s heuristic) of strategy (s, t = k + 1 - s) for an explicit path
+/// x_0 ... x_k, with every density recomputed from the geometry ([`crate::path::pdf::densities`]): the
 /// subpaths are rebuilt as the samplers would have left them, then weighted as in `connect`.
 pub fn mis_weight_of_path(
     bdpt: &Bdpt,

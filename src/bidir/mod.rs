@@ -6,9 +6,10 @@
 //! A light subpath y_0 ... y_{s-1} and an eye subpath z_{t-1} ... z_0 (z_0 on the sensor) are
 //! joined by one edge into a path of s + t vertices. Every (s, t) gives an unbiased estimate
 //! f_j / (p(y) p(z)); the balance heuristic (or, on request, the power heuristic) weights them
-//! with the densities every other split of the same path would have had. All densities are in the vertices' own measures (area on
-//! surfaces, volume in the medium) and include the propagation pdfs of Table 1, so the weights
-//! see medium vertices exactly as the path integral does.
+//! with the densities every other split of the same path would have had. All densities are in
+//! the vertices' own measures (area on surfaces, volume in the medium) and include the
+//! propagation pdfs of Table 1, so the weights see medium vertices exactly as the path integral
+//! does.
 //!
 //! - [`walk`]: the two subpaths' random walks, limited by the caller's [`WalkLimits`];
 //! - [`connect`]: one strategy (s, t) of a pair of subpaths, with [`next_event`] (s = 1) and

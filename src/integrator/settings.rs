@@ -70,8 +70,8 @@ pub struct RenderOptions {
     /// overstate across edges).
     #[arg(long)]
     pub pixel_samples: Option<PixelSamples>,
-    /// bdpt: how its strategies share each path, `balance` (default: the balance heuristic)
-    /// or `power` (the power heuristic, Veach 1997, sec. 9.2).
+    /// bdpt, pssmlt, mmlt: how BDPT's strategies share each path, `balance` (default: the
+    /// balance heuristic) or `power` (the power heuristic, Veach 1997, sec. 9.2).
     #[arg(long)]
     pub mis_heuristic: Option<MisHeuristic>,
     /// path: next-event estimation toward emitting media, a point of the glowing media sampled
