@@ -11,7 +11,7 @@ use crate::path::geometry_term::cosine_factor;
 use crate::path::subpath::Subpath;
 use crate::path::technique::StartDraw;
 use crate::path::{Vertex, VertexKind};
-use crate::scene::light::LightSample;
+use crate::scene::light::{LightPointDraw, LightSample};
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -146,8 +146,9 @@ impl Bdpt<'_> {
                 (ls, ls.pdf, Some(st.point.prim))
             }
             StartDraw::ByPower => {
+                // by area, as light subpaths start: the weights take that density
                 let light = &scene.lights[li];
-                let ls = light.sample_li(&scene.prims, p, u, u_prim)?;
+                let ls = light.sample_li(&scene.prims, p, (u, u_prim), LightPointDraw::Area)?;
                 let prim = match light {
                     Light::Area { prims, distr, .. } => Some(prims[distr.sample(u_prim).0]),
                     _ => None,

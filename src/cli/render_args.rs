@@ -239,6 +239,12 @@ impl RenderArgs {
             "its light subpaths and connections pick lights by power",
         )?;
         only_for(
+            o.light_point.is_some(),
+            OwnOption::LightPoint,
+            "--light-point",
+            "it draws its light points by area",
+        )?;
+        only_for(
             o.mis_heuristic.is_some(),
             OwnOption::MisHeuristic,
             "--mis-heuristic",

@@ -137,6 +137,8 @@ pub enum OwnOption {
     EquiangularDistance,
     /// `light_selection` (how next-event estimation picks a light).
     LightSelection,
+    /// `light_point` (how next-event estimation draws a point on an area light).
+    LightPoint,
     /// The images of its sampling techniques one by one (`--strategy-images`).
     StrategyImages,
     /// `pixel_samples` (it draws each camera sample's film position in its pixel).

@@ -16,6 +16,7 @@ use crate::medium::Medium;
 use crate::path::distance::RayMedia;
 use crate::path::technique::{local_scatter_pdf, LocalSampling, ScatterSample};
 use crate::path::{Vertex, VertexKind};
+use crate::scene::light::LightPointDraw;
 use crate::scene::{Event, IrradianceMeter, LightSelection, Scene};
 use crate::spectrum::Rgb;
 
@@ -67,6 +68,10 @@ pub struct PathTracer<'t> {
     pub distance: DistanceSampling,
     /// How next-event estimation picks a light (`[render] light_selection`).
     pub selection: LightSelection,
+    /// How next-event estimation draws a point on an area light (`[render] light_point`);
+    /// by area whatever this says when distances are sampled by `equiangular-mis`
+    /// ([`PathTracer::light_draw`]).
+    pub light_point: LightPointDraw,
     /// Next-event estimation toward emitting media (`[render] volume_next_event`); without
     /// it their emission is collected along free flights alone, with MIS weight 1.
     pub volume_next_event: bool,
@@ -113,6 +118,7 @@ impl<'t> PathTracer<'t> {
             max_depth: max_depth.unwrap_or(u32::MAX),
             distance: DistanceSampling::FreeFlight,
             selection: LightSelection::Power,
+            light_point: LightPointDraw::default(),
             volume_next_event: true,
             guide: None,
         }
@@ -170,6 +176,22 @@ impl<'t> PathTracer<'t> {
     pub fn with_volume_next_event(mut self, on: bool) -> Self {
         self.volume_next_event = on;
         self
+    }
+
+    /// This path tracer drawing area lights' points for next-event estimation by `draw`.
+    pub fn with_light_point(mut self, draw: LightPointDraw) -> Self {
+        self.light_point = draw;
+        self
+    }
+
+    /// How next-event estimation draws light points: as `light_point` says, but by area with
+    /// `equiangular-mis`, whose distance weights compare densities of a light point drawn
+    /// before the distance, that is without the reference point.
+    pub fn light_draw(&self) -> LightPointDraw {
+        match self.distance {
+            DistanceSampling::FreeFlight => self.light_point,
+            DistanceSampling::EquiangularMis => LightPointDraw::Area,
+        }
     }
 
     /// This path tracer picking lights for next-event estimation by `selection`.
@@ -296,7 +318,7 @@ impl<'t> PathTracer<'t> {
         let (p, _) = crate::geometry::Primitive::Quad(meter.quad).sample_area(sampler.next_2d());
         let mut l = next_event_weighted(
             scene,
-            &self.selection,
+            (&self.selection, self.light_draw()),
             p,
             None,
             |_| meter.medium,
@@ -478,7 +500,7 @@ impl<'t> PathTracer<'t> {
         *l += w.beta
             * next_event_weighted(
                 scene,
-                &self.selection,
+                (&self.selection, self.light_draw()),
                 p,
                 None,
                 |_| Some(m),
@@ -528,7 +550,8 @@ impl<'t> PathTracer<'t> {
         let n = hit.ng;
         if let Some(li) = shape.light {
             if w.ray.d.dot(n) < 0.0 && w.depth >= scene.min_depth() {
-                let Some(e) = emission_found(scene, &self.selection, w, hit, li) else {
+                let lights = (&self.selection, self.light_draw());
+                let Some(e) = emission_found(scene, lights, w, hit, li) else {
                     return false;
                 };
                 *l += e;
@@ -558,7 +581,8 @@ impl<'t> PathTracer<'t> {
                 };
                 (f * wi.dot(n).abs(), pdf)
             };
-            let (sel, no_weight) = (&self.selection, |_: usize, _: &_| 1.0);
+            let sel = (&self.selection, self.light_draw());
+            let no_weight = |_: usize, _: &_| 1.0;
             *l += w.beta
                 * next_event_weighted(
                     scene,
@@ -701,7 +725,7 @@ fn escaped(scene: &Scene, selection: &LightSelection, w: &WalkState) -> Rgb {
 /// sampling; `None` when `li` is not an area light (the walk ends).
 fn emission_found(
     scene: &Scene,
-    selection: &LightSelection,
+    (selection, draw): (&LightSelection, LightPointDraw),
     w: &WalkState,
     hit: &crate::geometry::Hit,
     li: u32,
@@ -714,8 +738,9 @@ fn emission_found(
     let mis = if w.prev.singular {
         1.0
     } else {
+        let at = (hit.p, hit.ng, hit.prim);
         let pdf_light = selection.pmf(scene, w.prev.p, w.prev.n, li)
-            * scene.lights[li as usize].pdf_li(&scene.prims, w.prev.p, hit.p, hit.ng, hit.prim);
+            * scene.lights[li as usize].pdf_li(&scene.prims, w.prev.p, at, draw);
         power_heuristic(w.prev.pdf_dir, pdf_light)
     };
     Some(w.beta * radiance * mis)
@@ -828,7 +853,8 @@ pub fn delta_light_view(scene: &Scene, sampler: &mut Sampler) -> Vec<(glam::Vec2
     for light in scene.lights.iter().filter(|l| l.is_delta()) {
         // the lens point (drawn before the light's numbers; none for the pinhole)
         let lens = cam.sample_lens(sampler);
-        let Some(ls) = light.sample_li(&scene.prims, lens, sampler.next_2d(), 0.0) else {
+        let u = (sampler.next_2d(), 0.0);
+        let Some(ls) = light.sample_li(&scene.prims, lens, u, LightPointDraw::Area) else {
             continue;
         };
         let Some(imp) = cam.importance(lens, ls.wi) else {
@@ -870,7 +896,7 @@ pub fn next_event(
 ) -> Rgb {
     next_event_weighted(
         scene,
-        &LightSelection::Power,
+        (&LightSelection::Power, LightPointDraw::Area),
         p,
         n,
         medium,
@@ -886,7 +912,7 @@ pub fn next_event(
 #[allow(clippy::too_many_arguments)]
 pub fn next_event_weighted(
     scene: &Scene,
-    selection: &LightSelection,
+    (selection, draw): (&LightSelection, LightPointDraw),
     p: Vec3,
     n: Option<Vec3>,
     medium: impl Fn(Vec3) -> Option<u32>,
@@ -900,7 +926,7 @@ pub fn next_event_weighted(
     };
     let light = &scene.lights[l];
     let u = sampler.next_2d();
-    let Some(ls) = light.sample_li(&scene.prims, p, u, u_prim) else {
+    let Some(ls) = light.sample_li(&scene.prims, p, (u, u_prim), draw) else {
         return Rgb::ZERO;
     };
     let w = weight(l, &ls);
@@ -991,7 +1017,10 @@ impl super::Facts for PathFacts {
     /// Equiangular sampling and the light selection are its next-event estimation's.
     fn takes(&self, option: super::OwnOption) -> bool {
         use super::OwnOption::*;
-        matches!(option, EquiangularDistance | LightSelection | PixelSamples)
+        matches!(
+            option,
+            EquiangularDistance | LightSelection | LightPoint | PixelSamples
+        )
     }
 
     /// Its surface and medium vertices sample from the guide's mixtures (eq. 5.18 and its
@@ -1010,11 +1039,17 @@ pub fn prepare<'t>(
     let selection = LightSelection::build(setup.settings.light_selection, setup.scene);
     if distance == DistanceSampling::EquiangularMis {
         check_equiangular(setup.scene)?;
+        if setup.settings.given.light_point == Some(LightPointDraw::SolidAngleNear) {
+            return Err(super::IntegratorError::Refused(
+                "light_point = \"solid-angle-near\" (--light-point) cannot go with distance = \"equiangular-mis\": equiangular sampling draws its light point before the distance, by area, and the distance weights compare the two draws of that point".into(),
+            ));
+        }
     }
     Ok(Box::new(
         PathTracer::new(setup.max_depth)
             .with_distance(distance)
             .with_light_selection(selection)
+            .with_light_point(setup.settings.light_point)
             .with_volume_next_event(setup.settings.volume_next_event)
             .with_guide(setup.technique),
     ))

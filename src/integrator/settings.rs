@@ -17,6 +17,7 @@ use crate::integrator::smc::{OptionError, SmcOptions, SmcSettings};
 use crate::integrator::{IntegratorKind, PixelSamples};
 use crate::medium::TransmittanceEstimator;
 use crate::scene::file::{self, path};
+use crate::scene::light::LightPointDraw;
 use crate::scene::LightSelectionKind;
 use crate::scene::{Scene, SceneError, SceneSource};
 
@@ -63,6 +64,12 @@ pub struct RenderOptions {
     /// 2018) or `power` (proportional to power everywhere).
     #[arg(long)]
     pub light_selection: Option<LightSelectionKind>,
+    /// path: how next-event estimation draws a point on an area light, `solid-angle-near`
+    /// (default: uniform by solid angle over a quad whose centre is within one side of the
+    /// shading point, by area elsewhere) or `area` (uniform by area, as light subpaths start;
+    /// always so with `--distance equiangular-mis`).
+    #[arg(long)]
+    pub light_point: Option<LightPointDraw>,
     /// path, bdpt, smc: where each camera sample's film position lies in its pixel,
     /// `stratified` (default: the pixel's points of a (0, 2)-sequence, digitally shifted per
     /// pixel and seed) or `independent` (uniform and independent: the variance layers then
@@ -130,6 +137,7 @@ impl RenderOptions {
             meter_samples: Some(DEFAULT_METER_SAMPLES),
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
+            light_point: Some(LightPointDraw::SolidAngleNear),
             pixel_samples: Some(PixelSamples::Stratified),
             mis_heuristic: Some(MisHeuristic::Balance),
             volume_next_event: Some(true),
@@ -513,6 +521,9 @@ pub struct RenderSettings {
     pub distance: DistanceSampling,
     /// The path tracer's light selection for next-event estimation (`[render] light_selection`).
     pub light_selection: LightSelectionKind,
+    /// How the path tracer's next-event estimation draws area lights' points
+    /// (`[render] light_point`).
+    pub light_point: LightPointDraw,
     /// Where each camera sample's film position lies in its pixel (`[render] pixel_samples`).
     pub pixel_samples: PixelSamples,
     /// How BDPT's strategies share a path (`[render] mis_heuristic`).
@@ -553,6 +564,7 @@ impl RenderSettings {
             meter_samples: d.meter_samples.expect(given),
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
+            light_point: d.light_point.expect(given),
             pixel_samples: d.pixel_samples.expect(given),
             mis_heuristic: d.mis_heuristic.expect(given),
             volume_next_event: d.volume_next_event.expect(given),
@@ -609,6 +621,7 @@ impl RenderSettings {
         self.meter_samples = o.meter_samples.unwrap_or(self.meter_samples);
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
+        self.light_point = o.light_point.unwrap_or(self.light_point);
         self.pixel_samples = o.pixel_samples.unwrap_or(self.pixel_samples);
         self.mis_heuristic = o.mis_heuristic.unwrap_or(self.mis_heuristic);
         self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);

@@ -10,6 +10,7 @@ use std::f32::consts::PI;
 
 use super::{EnvMap, UvMap};
 use crate::geometry::Primitive;
+use crate::math::spherical::SphericalParallelogram;
 use crate::math::{warp, Distribution1D, Frame};
 use crate::spectrum::Rgb;
 use crate::texture::Texture;
@@ -174,6 +175,44 @@ pub struct LightSample {
     pub is_delta: bool,
 }
 
+/// How next-event estimation draws the point of an area light it aims at.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightPointDraw {
+    /// Uniform by area on a primitive chosen by area: the density light subpaths start
+    /// with, which bidirectional weights compare against, and the one that equiangular
+    /// sampling's distance weights assume.
+    Area,
+    /// Uniform by solid angle over a quad whose centre lies within [`NEAR_QUAD`] of the
+    /// reference point, by area elsewhere. Seen from near, area sampling's estimate grows as
+    /// 1 / r^2, and the variance of a medium point's estimate diverges as the point nears the
+    /// light's plane; drawn by solid angle it stays below the quad's solid angle times L_e.
+    #[default]
+    SolidAngleNear,
+}
+
+crate::option_value!(LightPointDraw, "light point");
+
+/// A quad is drawn by solid angle from points whose squared distance to its centre is at
+/// most this many times its area (within one side of a square's centre): nearly all of the
+/// variance that area sampling adds is there (the fog box's path tracer: 0.58 of its error per
+/// sample at 1.05 of its cost), and farther out the spherical construction costs more than it
+/// saves.
+pub const NEAR_QUAD: f32 = 1.0;
+
+/// The quad `prim` as seen from `x`, and its normal, when [`LightPointDraw::SolidAngleNear`]
+/// draws it by solid angle there: `x` near it, in front of its emitting side.
+fn near_view(prim: &Primitive, x: Vec3) -> Option<(SphericalParallelogram, Vec3)> {
+    let Primitive::Quad(q) = prim else {
+        return None;
+    };
+    let centre = q.origin + 0.5 * (q.u + q.v);
+    let area = q.u.cross(q.v).length();
+    if (centre - x).length_squared() > NEAR_QUAD * area || (x - q.origin).dot(q.n) <= 0.0 {
+        return None;
+    }
+    Some((SphericalParallelogram::new(x, q.origin, q.u, q.v)?, q.n))
+}
+
 /// A point drawn on a finite light ([`Light::sample_point`]).
 #[derive(Clone, Copy, Debug)]
 pub struct LightPoint {
@@ -289,7 +328,7 @@ impl Light {
         match self {
             Light::Area { .. } => self.li_from(prims, at.prim, p_ref, at.p, at.n, at.pdf_area),
             // a delta light's sample does not depend on the random numbers
-            _ => self.sample_li(prims, p_ref, Vec2::ZERO, 0.0),
+            _ => self.sample_li(prims, p_ref, (Vec2::ZERO, 0.0), LightPointDraw::Area),
         }
     }
 
@@ -303,16 +342,29 @@ impl Light {
         }
     }
 
-    /// Samples a direction towards the light from `p_ref` (next-event estimation).
+    /// Samples a direction towards the light from `p_ref` (next-event estimation), an area
+    /// light's point drawn as `draw` says.
     pub fn sample_li(
         &self,
         prims: &[Primitive],
         p_ref: Vec3,
-        u: Vec2,
-        u_prim: f32,
+        (u, u_prim): (Vec2, f32),
+        draw: LightPointDraw,
     ) -> Option<LightSample> {
         match self {
-            Light::Area { .. } => {
+            Light::Area {
+                prims: ids, distr, ..
+            } => {
+                if draw == LightPointDraw::SolidAngleNear {
+                    let (k, pk, _) = distr.sample(u_prim);
+                    let prim = &prims[ids[k] as usize];
+                    if let Some((view, n)) = near_view(prim, p_ref) {
+                        let s = view.sample(u)?;
+                        let ls = self.li_from(prims, ids[k], p_ref, s.p, n, 1.0)?;
+                        let pdf = pk * s.pdf_solid_angle;
+                        return Some(LightSample { pdf, ..ls });
+                    }
+                }
                 let at = self.sample_point(prims, u, u_prim)?;
                 // the back of an emitter is black
                 self.li_from(prims, at.prim, p_ref, at.p, at.n, at.pdf_area)
@@ -393,10 +445,16 @@ impl Light {
         }
     }
 
-    /// Solid-angle density of [`Light::sample_li`] producing the point `p` (normal `n`) on
-    /// this area light from `p_ref`, or direction `wi = -n` for the environment (its
-    /// [`LightSample::n`]).
-    pub fn pdf_li(&self, prims: &[Primitive], p_ref: Vec3, p: Vec3, n: Vec3, prim: u32) -> f32 {
+    /// Solid-angle density of [`Light::sample_li`] (drawing as `draw` says) producing the
+    /// point `p` (normal `n`) of primitive `prim` of this area light from `p_ref`, or
+    /// direction `wi = -n` for the environment (its [`LightSample::n`]).
+    pub fn pdf_li(
+        &self,
+        prims: &[Primitive],
+        p_ref: Vec3,
+        (p, n, prim): (Vec3, Vec3, u32),
+        draw: LightPointDraw,
+    ) -> f32 {
         match self {
             Light::Area {
                 prims: ids, distr, ..
@@ -410,7 +468,13 @@ impl Light {
                 if cos_l <= 0.0 {
                     return 0.0;
                 }
-                distr.pmf(k) / prims[prim as usize].area() * d2 / cos_l
+                let shape = &prims[prim as usize];
+                if draw == LightPointDraw::SolidAngleNear {
+                    if let Some((view, _)) = near_view(shape, p_ref) {
+                        return distr.pmf(k) / view.solid_angle() as f32;
+                    }
+                }
+                distr.pmf(k) / shape.area() * d2 / cos_l
             }
             Light::Environment(env) => env.pdf(-n),
             _ => 0.0,

@@ -30,6 +30,7 @@ use pathspace::integrator::pssmlt::{bdpt_target, Pssmlt, PssmltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
+use pathspace::scene::light::LightPointDraw;
 use pathspace::scene::{LightSelectionKind, Scene, SceneSource};
 
 /// Where the scenes live.
@@ -64,6 +65,9 @@ enum Config {
     /// The path tracer with `light_selection = "power"` (the plain column and the reference
     /// select by the light tree, the default).
     PathPower,
+    /// The path tracer with `light_point = "area"` (the plain column and the reference draw
+    /// a near quad light's points by solid angle, the default).
+    PathArea,
 }
 
 impl Config {
@@ -75,6 +79,7 @@ impl Config {
             Config::Adjoint(k) => format!("{}+adjoint", k.name()),
             Config::Equiangular => "path+equiangular".into(),
             Config::PathPower => "path+power".into(),
+            Config::PathArea => "path+area".into(),
         }
     }
 
@@ -98,7 +103,7 @@ impl Config {
         match self {
             Config::Plain(k) | Config::Guided(k) | Config::Adjoint(k) => k,
             Config::Smc(..) => IntegratorKind::Smc,
-            Config::Equiangular | Config::PathPower => IntegratorKind::Path,
+            Config::Equiangular | Config::PathPower | Config::PathArea => IntegratorKind::Path,
         }
     }
 
@@ -108,6 +113,7 @@ impl Config {
         let mut v = vec![
             Config::Plain(Path),
             Config::PathPower,
+            Config::PathArea,
             Config::Equiangular,
             Config::Guided(Path),
             Config::Plain(Light),
@@ -364,6 +370,9 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         if let Config::PathPower = config {
             settings.light_selection = LightSelectionKind::Power;
+        }
+        if let Config::PathArea = config {
+            settings.light_point = LightPointDraw::Area;
         }
         let outcome = prepare(&scene, &settings, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);

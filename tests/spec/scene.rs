@@ -375,5 +375,6 @@ fn a_query_stopped_at_a_collision_gives_the_segment_or_says_beyond() {
 mod envmap;
 mod hide_emitters;
 mod light;
+mod light_point;
 mod light_tree;
 mod normals;

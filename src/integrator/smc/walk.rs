@@ -22,6 +22,7 @@ use crate::bsdf::{Normals, TransportMode};
 use crate::geometry::{offset_origin, shadow_distance, Hit, Ray};
 use crate::integrator::path::power_heuristic;
 use crate::math::Sampler;
+use crate::scene::light::LightPointDraw;
 use crate::scene::{Light, Scene};
 use crate::spectrum::Rgb;
 
@@ -165,7 +166,7 @@ pub fn delta_lights(
     let mut l = Rgb::ZERO;
     for light in scene.lights.iter().filter(|l| l.is_delta()) {
         let u = sampler.next_2d();
-        let Some(ls) = light.sample_li(&scene.prims, p, u, 0.0) else {
+        let Some(ls) = light.sample_li(&scene.prims, p, (u, 0.0), LightPointDraw::Area) else {
             continue;
         };
         let f = scatter(ls.wi);
@@ -245,9 +246,8 @@ pub fn surface(
                         * scene.lights[li as usize].pdf_li(
                             &scene.prims,
                             prev.p,
-                            hit.p,
-                            n,
-                            hit.prim,
+                            (hit.p, n, hit.prim),
+                            LightPointDraw::Area,
                         );
                     power_heuristic(prev.pdf_dir, pdf_light)
                 };

@@ -682,6 +682,58 @@ fn mis_heuristic_is_read_checked_applied_and_refused_where_unused() {
     }
 }
 
+/// `light_point`: a bad value is refused at its line; BDPT refuses the flag by name; the path
+/// tracer's default is the solid-angle draw pixel for pixel and `area` gives another image;
+/// with `distance = "equiangular-mis"` the draw is by area, and asking for the solid-angle
+/// draw with it is refused with the reason.
+#[test]
+fn light_point_is_read_checked_applied_and_refused_where_unused() {
+    use pathspace::scene::light::LightPointDraw;
+    assert!(with_key("light_point", "nearest").is_err());
+    let settings = with_key("light_point", "area").unwrap();
+    assert_eq!(settings.light_point, LightPointDraw::Area);
+    flag_is_refused(
+        "bdpt",
+        ["--light-point", "area"],
+        "--light-point applies to --integrator path, not `bdpt`",
+    );
+    let dir = common::cli::scratch("options", "light-point");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(format!("{name}.exr"));
+        let mut args = vec!["render", "--spp", "4", "--resolution", "8x8"];
+        args.extend(["-o", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let run = common::cli::pathspace(&args);
+        let ok = run.status.success();
+        (
+            ok.then(|| pathspace::image_io::read_exr(&out).unwrap().0.pixels),
+            run,
+        )
+    };
+    let default = render("default", &[]).0.unwrap();
+    let near = render("near", &["--light-point", "solid-angle-near"])
+        .0
+        .unwrap();
+    assert_eq!(default, near);
+    let area = render("area", &["--light-point", "area"]).0.unwrap();
+    assert_ne!(default, area);
+    let equiangular = ["--distance", "equiangular-mis"];
+    let eq_default = render("eq-default", &equiangular).0.unwrap();
+    let eq_area = render(
+        "eq-area",
+        &[&equiangular[..], &["--light-point", "area"]].concat(),
+    );
+    assert_eq!(Some(eq_default), eq_area.0);
+    let near = ["--light-point", "solid-angle-near"];
+    let (image, run) = render("eq-near", &[&equiangular[..], &near].concat());
+    assert!(image.is_none());
+    let err = common::cli::stderr(&run);
+    assert!(
+        err.contains("cannot go with distance") && err.contains("by area"),
+        "{err}"
+    );
+}
+
 /// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
 /// start from): the book's key table lists every key of the schema with that default, and the
 /// key's flag states it in `--help`.

@@ -16,7 +16,7 @@ use pathspace::image_io::{write_exr, Image, ImageMeta};
 use pathspace::math::{Bilinear2D, Distribution2D};
 use pathspace::path::{Vertex, VertexKind, PLAIN};
 use pathspace::scene::envmap::EnvMap;
-use pathspace::scene::light::emission_pdf_dir;
+use pathspace::scene::light::{emission_pdf_dir, LightPointDraw};
 use pathspace::scene::{Environment, Light, Scene, SceneSource};
 use pathspace::spectrum::{luminance, Rgb};
 use std::f64::consts::PI;
@@ -430,11 +430,11 @@ fn the_lights_records_agree_with_its_densities() {
     let mut s = sampler(0xe4d, 0);
     for _ in 0..10_000 {
         let ls = light
-            .sample_li(&[], Vec3::ZERO, s.next_2d(), 0.5)
+            .sample_li(&[], Vec3::ZERO, (s.next_2d(), 0.5), LightPointDraw::Area)
             .expect("off the poles");
         // (pdf() takes sin theta from the turned direction, the sampler from theta: f32
         // rounding apart)
-        let pdf = light.pdf_li(&[], Vec3::ZERO, ls.p, ls.n, 0);
+        let pdf = light.pdf_li(&[], Vec3::ZERO, (ls.p, ls.n, 0), LightPointDraw::Area);
         assert!((ls.pdf - pdf).abs() <= 1e-4 * pdf, "{} vs {pdf}", ls.pdf);
         let es = light
             .sample_le(&[], s.next_2d(), s.next_2d(), 0.5, Vec3::ZERO, 2.0)

@@ -9,6 +9,7 @@ use pathspace::geometry::Ray;
 use pathspace::integrator::IntegratorKind;
 use pathspace::math::Sampler;
 use pathspace::scene::light::emitted_by;
+use pathspace::scene::light::LightPointDraw::{Area, SolidAngleNear};
 use pathspace::scene::{AreaRadiance, Light, Scene, SceneSource};
 use pathspace::spectrum::Rgb;
 
@@ -95,13 +96,19 @@ fn every_entry_point_reads_the_texture_at_its_own_point() {
     let scene = load(&lamps(CHECKER, BITMAP));
     let mut s = Sampler::new(3, 0, 0);
     let p_ref = Vec3::new(0.1, 0.9, 1.5);
+    // 0.3 in front of the quad lamp's centre (its normal is u x v, normalized)
+    let near_quad = Vec3::new(-0.5, 0.15, -0.25) + 0.3 * Vec3::new(-0.27, -0.48, 1.08).normalize();
     let mut distinct = std::collections::HashSet::new();
     for l in 0..2 {
         let (light, prim) = (&scene.lights[l], prim_of(&scene, l));
         for _ in 0..500 {
-            if let Some(ls) = light.sample_li(&scene.prims, p_ref, s.next_2d(), s.next_f32()) {
-                assert_eq!(ls.value, expected(&scene, l, prim, ls.p), "sample_li");
-                distinct.insert(ls.value.to_array().map(f32::to_bits));
+            // by area from afar, and by solid angle from near the quad lamp's centre
+            for (from, draw) in [(p_ref, Area), (near_quad, SolidAngleNear)] {
+                let u = (s.next_2d(), s.next_f32());
+                if let Some(ls) = light.sample_li(&scene.prims, from, u, draw) {
+                    assert_eq!(ls.value, expected(&scene, l, prim, ls.p), "sample_li");
+                    distinct.insert(ls.value.to_array().map(f32::to_bits));
+                }
             }
             let es = light
                 .sample_le(
