@@ -115,7 +115,7 @@ pub(super) fn figure(scene: &Scene) -> Result<String, ChartError> {
         },
     ];
     let edge = the_light(scene).map_or(0.0, |(_, _, p)| {
-        (crate::scene::light::NEAR_QUAD * p.area()).sqrt() as f64
+        (crate::scene::light::NEAR_AREA_FACTOR * p.area()).sqrt() as f64
     });
     svg("light-point", (1000, 560), |root| draw(root, &curves, edge))
 }

@@ -65,8 +65,8 @@ pub struct RenderOptions {
     #[arg(long)]
     pub light_selection: Option<LightSelectionKind>,
     /// path: how next-event estimation draws a point on an area light, `solid-angle-near`
-    /// (default: uniform by solid angle over a quad whose centre is within one side of the
-    /// shading point, by area elsewhere) or `area` (uniform by area, as light subpaths start;
+    /// (default: uniform by solid angle over a quad or triangle whose centre is within one side
+    /// of the shading point, by area elsewhere) or `area` (uniform by area, as light subpaths start;
     /// always so with `--distance equiangular-mis`).
     #[arg(long)]
     pub light_point: Option<LightPointDraw>,

@@ -115,6 +115,16 @@ impl SphericalParallelogram {
         })
     }
 
+    /// The triangle `p0 p1 p2` seen from `x`, as the first half (p0, p1, p2) of the
+    /// parallelogram with corners p0, p1, p2 and p0 + p2 - p1, its second half given no solid
+    /// angle: [`SphericalParallelogram::sample`] then draws from the triangle alone, and the
+    /// point it returns lies in it. `None` as for [`SphericalParallelogram::new`].
+    pub fn triangle(x: Vec3, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<Self> {
+        let mut view = Self::new(x, p0, p1 - p0, p2 - p1)?;
+        view.areas[1] = 0.0;
+        Some(view)
+    }
+
     /// The solid angle the parallelogram subtends at the reference point.
     pub fn solid_angle(&self) -> f64 {
         self.areas[0] + self.areas[1]

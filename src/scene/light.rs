@@ -182,35 +182,42 @@ pub enum LightPointDraw {
     /// with, which bidirectional weights compare against, and the one that equiangular
     /// sampling's distance weights assume.
     Area,
-    /// Uniform by solid angle over a quad whose centre lies within [`NEAR_QUAD`] of the
-    /// reference point, by area elsewhere. Seen from near, area sampling's estimate grows as
-    /// 1 / r^2, and the variance of a medium point's estimate diverges as the point nears the
-    /// light's plane; drawn by solid angle it stays below the quad's solid angle times L_e.
+    /// Uniform by solid angle over a quad or triangle whose centre is near the reference point
+    /// ([`NEAR_AREA_FACTOR`]), by area elsewhere. Seen from near, area sampling's estimate
+    /// grows as 1 / r^2, and MIS hands it to the phase or BSDF sample, a hit or miss; drawn by
+    /// solid angle it is the primitive's solid angle times L_e, whatever point is drawn.
     #[default]
     SolidAngleNear,
 }
 
 crate::option_value!(LightPointDraw, "light point");
 
-/// A quad is drawn by solid angle from points whose squared distance to its centre is at
-/// most this many times its area (within one side of a square's centre): nearly all of the
-/// variance that area sampling adds is there (the fog box's path tracer: 0.58 of its error per
-/// sample at 1.05 of its cost), and farther out the spherical construction costs more than it
-/// saves.
-pub const NEAR_QUAD: f32 = 1.0;
+/// A quad or a triangle is drawn by solid angle from points whose squared distance to its
+/// centre is at most this many times its area (within one side of a square's centre): nearly
+/// all of the variance that area sampling adds is there (the fog box's path tracer: 0.59 of its
+/// error per sample at 1.01 of its cost), and farther out the spherical construction costs
+/// more than it saves.
+pub const NEAR_AREA_FACTOR: f32 = 1.0;
 
-/// The quad `prim` as seen from `x`, and its normal, when [`LightPointDraw::SolidAngleNear`]
-/// draws it by solid angle there: `x` near it, in front of its emitting side.
+/// The quad or triangle `prim` as seen from `x`, and its normal, when
+/// [`LightPointDraw::SolidAngleNear`] draws it by solid angle there: `x` near it, in front of
+/// its emitting side.
 fn near_view(prim: &Primitive, x: Vec3) -> Option<(SphericalParallelogram, Vec3)> {
-    let Primitive::Quad(q) = prim else {
-        return None;
+    let (corner, centre, n) = match prim {
+        Primitive::Quad(q) => (q.origin, q.origin + 0.5 * (q.u + q.v), q.n),
+        Primitive::Triangle(t) => (t.p0, (t.p0 + t.p1 + t.p2) / 3.0, t.n),
+        _ => return None,
     };
-    let centre = q.origin + 0.5 * (q.u + q.v);
-    let area = q.u.cross(q.v).length();
-    if (centre - x).length_squared() > NEAR_QUAD * area || (x - q.origin).dot(q.n) <= 0.0 {
+    if (centre - x).length_squared() > NEAR_AREA_FACTOR * prim.area() || (x - corner).dot(n) <= 0.0
+    {
         return None;
     }
-    Some((SphericalParallelogram::new(x, q.origin, q.u, q.v)?, q.n))
+    let view = match prim {
+        Primitive::Quad(q) => SphericalParallelogram::new(x, q.origin, q.u, q.v),
+        Primitive::Triangle(t) => SphericalParallelogram::triangle(x, t.p0, t.p1, t.p2),
+        _ => None,
+    };
+    Some((view?, n))
 }
 
 /// A point drawn on a finite light ([`Light::sample_point`]).

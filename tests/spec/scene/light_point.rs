@@ -1,10 +1,10 @@
-//! How next-event estimation draws the point of a quad light (`LightPointDraw` in
+//! How next-event estimation draws the point of a quad or triangle light (`LightPointDraw` in
 //! `src/scene/light.rs`): by solid angle from reference points near the quad, by area elsewhere
 //! and whenever asked for area. The solid angle is checked against the closed form of a
 //! rectangle seen from a point (the four corner rectangles' solid angles added and
 //! subtracted), the directions' uniformity by the solid angles of the quad's cells, and the
 //! density `sample_li` returns against `pdf_li`'s, which the path tracer's MIS weights take.
-//! Book: "Sampling toward lights", section "The light point: by solid angle near a quad".
+//! Book: "Sampling toward lights", section "The light point: by solid angle near a quad or triangle".
 
 use crate::common;
 
@@ -12,7 +12,7 @@ use common::stats::Family;
 use glam::{DVec3, Vec2, Vec3};
 use pathspace::math::Sampler;
 use pathspace::scene::light::LightPointDraw::{self, Area, SolidAngleNear};
-use pathspace::scene::light::NEAR_QUAD;
+use pathspace::scene::light::NEAR_AREA_FACTOR;
 use pathspace::scene::{Light, Scene, SceneSource};
 
 /// The quad light: x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing down (u x v = -y).
@@ -81,7 +81,7 @@ fn near_points_draw_by_solid_angle_with_the_closed_form_density() {
     };
     let mut s = Sampler::new(7, 0, 0);
     for &(r2, sx, sz) in &NEAR_POINTS {
-        assert!(r2 < NEAR_QUAD as f64);
+        assert!(r2 < NEAR_AREA_FACTOR as f64);
         let p = point_at(r2, sx, sz);
         let omega = solid_angle(p, X, Z);
         for _ in 0..400 {
@@ -294,6 +294,90 @@ emission = [1.0, 1.0, 1.0]
     }
     let mut fam = Family::new("box lamp: the top face's share");
     fam.binomial("top face drawn", drawn, 600, 1.0 / 6.0);
+    fam.finish();
+}
+
+/// A mesh lamp of two triangles covering the quad's rectangle: each triangle near the point is
+/// drawn by its own spherical triangle after a choice by area. From the axis through the
+/// rectangle's centre the two halves subtend half its solid angle each (a half turn about the
+/// axis swaps them), so every sample's 1 / pdf is the rectangle's closed form; off the axis the
+/// mean of 1 / pdf is, by either draw, and `pdf_li` gives back the density of every point drawn.
+#[test]
+fn a_lamp_of_two_triangles_draws_each_by_solid_angle_near() {
+    let dir = common::cli::scratch("light-point", "triangles");
+    let obj = "v -0.5 1 -0.3\nv 0.5 1 -0.3\nv 0.5 1 0.3\nv -0.5 1 0.3\nf 1 2 3\nf 1 3 4\n";
+    std::fs::write(dir.join("lamp.obj"), obj).unwrap();
+    let text = r#"[camera]
+type = "pinhole"
+eye = [0.0, 0.0, 3.0]
+look_at = [0.0, 0.0, 0.0]
+fov_deg = 40.0
+resolution = [4, 4]
+
+[[shapes]]
+type = "mesh"
+obj = "lamp.obj"
+emission = [1.0, 1.0, 1.0]
+"#;
+    let mut src = SceneSource::embedded("tri.toml", text);
+    src.base_dir = dir;
+    let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
+    let light = &scene.lights[0];
+    let Light::Area { prims, .. } = light else {
+        panic!("the mesh is an area light")
+    };
+    assert_eq!(prims.len(), 2);
+    // the first triangle is the half below the diagonal z = 0.6 x
+    let prim_of = |p: Vec3| prims[usize::from(p.z > 0.6 * p.x)];
+    let mut s = Sampler::new(17, 0, 0);
+    let on_axis = DVec3::new(0.0, HEIGHT - 0.3, 0.0);
+    let omega = solid_angle(on_axis, X, Z);
+    for _ in 0..400 {
+        let u = (s.next_2d(), s.next_f32());
+        let ls = light
+            .sample_li(&scene.prims, on_axis.as_vec3(), u, SolidAngleNear)
+            .unwrap();
+        assert!(
+            relative(1.0 / ls.pdf as f64, omega) < 2e-4,
+            "1/pdf {} against {omega}",
+            1.0 / ls.pdf
+        );
+    }
+    let mut fam = Family::new("two triangles: the mean of 1 / pdf is the solid angle");
+    for (r2, sx, sz) in [(0.2, 0.5, 0.3), (0.1, -0.4, 0.2), (0.05, 0.2, -0.6)] {
+        let p = point_at(r2, sx, sz);
+        for draw in [Area, SolidAngleNear] {
+            let (mut sum, mut sum2, n) = (0.0, 0.0, 20_000u64);
+            for _ in 0..n {
+                let u = (s.next_2d(), s.next_f32());
+                let ls = light.sample_li(&scene.prims, p.as_vec3(), u, draw).unwrap();
+                let q = ls.p.as_dvec3();
+                assert!(
+                    (q.y - HEIGHT).abs() < 1e-5
+                        && q.x.abs() <= 0.5 + 1e-5
+                        && q.z.abs() <= 0.3 + 1e-5
+                );
+                let back =
+                    light.pdf_li(&scene.prims, p.as_vec3(), (ls.p, ls.n, prim_of(ls.p)), draw);
+                assert!(
+                    relative(back as f64, ls.pdf as f64) < 1e-4,
+                    "{draw:?} at {p}: {back} against {}",
+                    ls.pdf
+                );
+                let inv = 1.0 / ls.pdf as f64;
+                (sum, sum2) = (sum + inv, sum2 + inv * inv);
+            }
+            let mean = sum / n as f64;
+            let var = (sum2 / n as f64 - mean * mean) * n as f64 / (n - 1) as f64;
+            fam.samples_are(
+                &format!("{draw:?} from {p}"),
+                mean,
+                var,
+                n,
+                solid_angle(p, X, Z),
+            );
+        }
+    }
     fam.finish();
 }
 
