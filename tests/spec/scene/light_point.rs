@@ -12,7 +12,7 @@ use common::stats::Family;
 use glam::{DVec3, Vec2, Vec3};
 use pathspace::math::Sampler;
 use pathspace::scene::light::LightPointDraw::{self, Area, SolidAngleNear};
-use pathspace::scene::light::NEAR_AREA_FACTOR;
+use pathspace::scene::light::{LightSample, NEAR_AREA_FACTOR};
 use pathspace::scene::{Light, Scene, SceneSource};
 
 /// The quad light: x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing down (u x v = -y).
@@ -21,22 +21,28 @@ const Z: (f64, f64) = (-0.3, 0.3);
 const HEIGHT: f64 = 1.0;
 const AREA: f64 = 0.6;
 
-fn lamp() -> Scene {
-    let text = r#"[camera]
+/// The camera of every scene here (the tests sample lights, not images).
+const CAMERA: &str = r#"[camera]
 type = "pinhole"
 eye = [0.0, 0.0, 3.0]
 look_at = [0.0, 0.0, 0.0]
 fov_deg = 40.0
 resolution = [4, 4]
+"#;
 
+fn lamp() -> Scene {
+    let text = format!(
+        "{CAMERA}{}",
+        r#"
 [[shapes]]
 type = "quad"
 origin = [-0.5, 1.0, -0.3]
 u = [1.0, 0.0, 0.0]
 v = [0.0, 0.0, 0.6]
 emission = [10.0, 10.0, 10.0]
-"#;
-    Scene::load(&SceneSource::embedded("lamp.toml", text)).unwrap_or_else(|e| panic!("{e}"))
+"#
+    );
+    Scene::load(&SceneSource::embedded("lamp.toml", &text)).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The solid angle of the part [x0, x1] x [z0, z1] of the light's plane seen from `p` below it:
@@ -59,6 +65,32 @@ fn point_at(r2_over_area: f64, sx: f64, sz: f64) -> DVec3 {
 
 fn relative(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
+}
+
+/// Draws 20 000 samples of the scene's first light from `p` by `draw`, hands each to `check`,
+/// and adds to `fam` the comparison of the mean of 1 / pdf, an estimate of the light's solid
+/// angle by either draw, with the closed form of the rectangle.
+fn mean_inverse_pdf_is_the_solid_angle(
+    fam: &mut Family,
+    scene: &Scene,
+    (p, draw): (DVec3, LightPointDraw),
+    s: &mut Sampler,
+    check: impl Fn(&LightSample),
+) {
+    let (mut sum, mut sum2, n) = (0.0, 0.0, 20_000u64);
+    for _ in 0..n {
+        let u = (s.next_2d(), s.next_f32());
+        let ls = scene.lights[0]
+            .sample_li(&scene.prims, p.as_vec3(), u, draw)
+            .unwrap();
+        check(&ls);
+        let inv = 1.0 / ls.pdf as f64;
+        (sum, sum2) = (sum + inv, sum2 + inv * inv);
+    }
+    let mean = sum / n as f64;
+    let var = (sum2 / n as f64 - mean * mean) * n as f64 / (n - 1) as f64;
+    let what = format!("{draw:?} from {p}");
+    fam.samples_are(&what, mean, var, n, solid_angle(p, X, Z));
 }
 
 const NEAR_POINTS: [(f64, f64, f64); 5] = [
@@ -179,10 +211,7 @@ fn far_points_and_the_area_draw_keep_the_area_density() {
         .chain(NEAR_POINTS.iter().map(|&f| (f, Area)));
     for ((r2, sx, sz), draw) in cases {
         let p = point_at(r2, sx, sz);
-        let (mut sum, mut sum2, n) = (0.0, 0.0, 20_000u64);
-        for _ in 0..n {
-            let u = (s.next_2d(), s.next_f32());
-            let ls = light.sample_li(&scene.prims, p.as_vec3(), u, draw).unwrap();
+        let check = |ls: &LightSample| {
             let d = (ls.p.as_dvec3() - p).length();
             let cos = (HEIGHT - p.y) / d;
             let area_density = d * d / (AREA * cos);
@@ -192,18 +221,8 @@ fn far_points_and_the_area_draw_keep_the_area_density() {
             );
             let back = light.pdf_li(&scene.prims, p.as_vec3(), (ls.p, ls.n, prims[0]), draw);
             assert!(relative(back as f64, ls.pdf as f64) < 1e-5);
-            let inv = 1.0 / ls.pdf as f64;
-            (sum, sum2) = (sum + inv, sum2 + inv * inv);
-        }
-        let mean = sum / n as f64;
-        let var = (sum2 / n as f64 - mean * mean) * n as f64 / (n - 1) as f64;
-        fam.samples_are(
-            &format!("{draw:?} from {p}"),
-            mean,
-            var,
-            n,
-            solid_angle(p, X, Z),
-        );
+        };
+        mean_inverse_pdf_is_the_solid_angle(&mut fam, &scene, (p, draw), &mut s, check);
     }
     fam.finish();
 }
@@ -244,21 +263,18 @@ fn behind_the_lamp_nothing_is_drawn() {
 /// seen from behind, give nothing.
 #[test]
 fn a_lamp_of_several_quads_draws_each_by_its_share() {
-    let text = r#"[camera]
-type = "pinhole"
-eye = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-fov_deg = 40.0
-resolution = [4, 4]
-
+    let text = format!(
+        "{CAMERA}{}",
+        r#"
 [[shapes]]
 type = "box"
 min = [-0.5, -0.5, -0.5]
 max = [0.5, 0.5, 0.5]
 emission = [1.0, 1.0, 1.0]
-"#;
+"#
+    );
     let scene =
-        Scene::load(&SceneSource::embedded("box.toml", text)).unwrap_or_else(|e| panic!("{e}"));
+        Scene::load(&SceneSource::embedded("box.toml", &text)).unwrap_or_else(|e| panic!("{e}"));
     let light = &scene.lights[0];
     let Light::Area { prims, .. } = light else {
         panic!("the box is an area light")
@@ -307,19 +323,16 @@ fn a_lamp_of_two_triangles_draws_each_by_solid_angle_near() {
     let dir = common::cli::scratch("light-point", "triangles");
     let obj = "v -0.5 1 -0.3\nv 0.5 1 -0.3\nv 0.5 1 0.3\nv -0.5 1 0.3\nf 1 2 3\nf 1 3 4\n";
     std::fs::write(dir.join("lamp.obj"), obj).unwrap();
-    let text = r#"[camera]
-type = "pinhole"
-eye = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-fov_deg = 40.0
-resolution = [4, 4]
-
+    let text = format!(
+        "{CAMERA}{}",
+        r#"
 [[shapes]]
 type = "mesh"
 obj = "lamp.obj"
 emission = [1.0, 1.0, 1.0]
-"#;
-    let mut src = SceneSource::embedded("tri.toml", text);
+"#
+    );
+    let mut src = SceneSource::embedded("tri.toml", &text);
     src.base_dir = dir;
     let scene = Scene::load(&src).unwrap_or_else(|e| panic!("{e}"));
     let light = &scene.lights[0];
@@ -347,35 +360,22 @@ emission = [1.0, 1.0, 1.0]
     for (r2, sx, sz) in [(0.2, 0.5, 0.3), (0.1, -0.4, 0.2), (0.05, 0.2, -0.6)] {
         let p = point_at(r2, sx, sz);
         for draw in [Area, SolidAngleNear] {
-            let (mut sum, mut sum2, n) = (0.0, 0.0, 20_000u64);
-            for _ in 0..n {
-                let u = (s.next_2d(), s.next_f32());
-                let ls = light.sample_li(&scene.prims, p.as_vec3(), u, draw).unwrap();
+            let check = |ls: &LightSample| {
                 let q = ls.p.as_dvec3();
                 assert!(
                     (q.y - HEIGHT).abs() < 1e-5
                         && q.x.abs() <= 0.5 + 1e-5
                         && q.z.abs() <= 0.3 + 1e-5
                 );
-                let back =
-                    light.pdf_li(&scene.prims, p.as_vec3(), (ls.p, ls.n, prim_of(ls.p)), draw);
+                let at = (ls.p, ls.n, prim_of(ls.p));
+                let back = light.pdf_li(&scene.prims, p.as_vec3(), at, draw);
                 assert!(
                     relative(back as f64, ls.pdf as f64) < 1e-4,
                     "{draw:?} at {p}: {back} against {}",
                     ls.pdf
                 );
-                let inv = 1.0 / ls.pdf as f64;
-                (sum, sum2) = (sum + inv, sum2 + inv * inv);
-            }
-            let mean = sum / n as f64;
-            let var = (sum2 / n as f64 - mean * mean) * n as f64 / (n - 1) as f64;
-            fam.samples_are(
-                &format!("{draw:?} from {p}"),
-                mean,
-                var,
-                n,
-                solid_angle(p, X, Z),
-            );
+            };
+            mean_inverse_pdf_is_the_solid_angle(&mut fam, &scene, (p, draw), &mut s, check);
         }
     }
     fam.finish();
