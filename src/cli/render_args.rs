@@ -245,6 +245,12 @@ impl RenderArgs {
             "it draws its light points by area",
         )?;
         only_for(
+            o.halo_cone.is_some(),
+            OwnOption::HaloCone,
+            "--halo-cone",
+            "its medium vertices draw their directions from the phase function",
+        )?;
+        only_for(
             o.mis_heuristic.is_some(),
             OwnOption::MisHeuristic,
             "--mis-heuristic",

@@ -139,6 +139,8 @@ pub enum OwnOption {
     LightSelection,
     /// `light_point` (how next-event estimation draws a point on an area light).
     LightPoint,
+    /// `halo_cone` (medium vertices' directions toward lights' halos).
+    HaloCone,
     /// The images of its sampling techniques one by one (`--strategy-images`).
     StrategyImages,
     /// `pixel_samples` (it draws each camera sample's film position in its pixel).

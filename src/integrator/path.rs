@@ -16,6 +16,7 @@ use crate::medium::Medium;
 use crate::path::distance::RayMedia;
 use crate::path::technique::{local_scatter_pdf, LocalSampling, ScatterSample};
 use crate::path::{Vertex, VertexKind};
+use crate::scene::halo::HaloMixture;
 use crate::scene::light::LightPointDraw;
 use crate::scene::{Event, IrradianceMeter, LightSelection, Scene};
 use crate::spectrum::Rgb;
@@ -79,6 +80,10 @@ pub struct PathTracer<'t> {
     /// mixtures of eq. 5.18 and its medium form, the guided choice at glass, guided roulette),
     /// when one does; `None`: the BSDF's and phase function's own sampling, as always.
     pub guide: Option<&'t dyn LocalSampling>,
+    /// The cones toward lights' halos mixed into the phase function at medium vertices and
+    /// into the BSDF's sampling at surfaces without a Dirac lobe (`[render] halo_cone`),
+    /// when no guide samples the directions; `None`: their own sampling alone.
+    pub halo: Option<HaloMixture>,
 }
 
 /// How the path tracer samples the distance to a medium vertex on each ray of its walk, for
@@ -121,6 +126,7 @@ impl<'t> PathTracer<'t> {
             light_point: LightPointDraw::default(),
             volume_next_event: true,
             guide: None,
+            halo: None,
         }
     }
 
@@ -159,6 +165,71 @@ impl<'t> PathTracer<'t> {
         let tech = self.guide.unwrap_or(&crate::path::technique::PLAIN);
         tech.sample_scatter(scene, v, wo, TransportMode::Radiance, sampler)
             .filter(|ss| ss.pdf > 0.0)
+    }
+
+    /// This path tracer drawing, with probability `alpha`, the directions of medium vertices
+    /// and of surfaces without a Dirac lobe in the cone toward a light's halo (0: never); the
+    /// guide, where one is installed, samples them instead.
+    pub fn with_halo_cone(mut self, scene: &Scene, alpha: f32) -> Self {
+        self.halo = HaloMixture::new(scene, alpha);
+        self
+    }
+
+    /// The walk's direction sampling at medium point `p` of medium `m` reached from `wo`, as
+    /// MIS weights against it need it: each direction's phase function value and density
+    /// (the guide's mixture, the halo mixture or the phase function's own).
+    fn medium_scatter<'a>(
+        &'a self,
+        scene: &'a Scene,
+        (p, m): (Vec3, u32),
+        wo: Vec3,
+    ) -> impl Fn(Vec3) -> (Rgb, f32) + 'a {
+        let phase = scene.media[m as usize].phase();
+        let v = self.guide.map(|_| Self::medium_vertex_at(p, m));
+        move |wi: Vec3| {
+            let f = phase.eval(wo, wi);
+            let pdf = match (&v, &self.halo) {
+                (Some(v), _) => self.scatter_pdf(scene, v, wo, wi),
+                (None, Some(halo)) => halo.pdf(scene, &self.selection, (p, None), f, wi),
+                (None, None) => f,
+            };
+            (Rgb::splat(f), pdf)
+        }
+    }
+
+    /// The walk's direction at medium point `p` of medium `m` reached from `wo`, drawn as
+    /// [`PathTracer::medium_scatter`] gives its density; `None` ends the walk.
+    fn sample_medium_scatter(
+        &self,
+        scene: &Scene,
+        (p, m): (Vec3, u32),
+        wo: Vec3,
+        sampler: &mut Sampler,
+    ) -> Option<ScatterSample> {
+        let phase = scene.media[m as usize].phase();
+        if self.guide.is_some() {
+            let v = Self::medium_vertex_at(p, m);
+            return self.sample_scatter(scene, &v, wo, sampler);
+        }
+        let Some(halo) = &self.halo else {
+            return Some(ScatterSample::from_phase(
+                phase.sample(wo, sampler.next_2d()),
+            ));
+        };
+        let (wi, f) = match halo.draw(scene, &self.selection, (p, None), sampler) {
+            Ok(wi) => (wi, phase.eval(wo, wi)),
+            Err(u) => {
+                let ps = phase.sample(wo, u);
+                (ps.wi, ps.value)
+            }
+        };
+        Some(ScatterSample {
+            wi,
+            value: Rgb::splat(f),
+            pdf: halo.pdf(scene, &self.selection, (p, None), f, wi),
+            lobe: crate::bsdf::Lobe::Regular,
+            lhat: None,
+        })
     }
 
     /// The medium vertex at `p` in medium `m`, for the guide's map lookup.
@@ -257,14 +328,8 @@ impl<'t> PathTracer<'t> {
         // transmittance to the vertex times sigma_s there, over the equiangular density
         let tr = media.transmittance(scene, i, t, sampler);
         let beta = tr * medium.sigma_s(p) * (mis / pdf_eq);
-        let (phase, wo) = (medium.phase(), -media.ray.d);
-        // the MIS partner is the walk's direction sampling at p: the guide's mixture there
-        let v = self.guide.map(|_| Self::medium_vertex_at(p, m));
-        let scatter = |wi: Vec3| {
-            let f = phase.eval(wo, wi);
-            let pdf = v.as_ref().map_or(f, |v| self.scatter_pdf(scene, v, wo, wi));
-            (Rgb::splat(f), pdf)
-        };
+        // the MIS partner is the walk's direction sampling at p (the guide's or halo mixture)
+        let scatter = self.medium_scatter(scene, (p, m), -media.ray.d);
         // the MIS weight against phase sampling at p takes the selection's probability at p,
         // as the walk's emission found from p does; the estimate divides by the one drawn
         let pmf_here = self.selection.pmf(scene, p, None, l as u32);
@@ -479,7 +544,6 @@ impl<'t> PathTracer<'t> {
             return false;
         }
         w.depth += 1;
-        let phase = scene.media[m as usize].phase();
         let wo = -w.ray.d;
         let pdf_ff = on_ray.map_or(0.0, |(c, i, t)| c.free_flight_pdf(scene, i, t));
         // the balance heuristic against equiangular sampling toward the light point drawn
@@ -491,12 +555,7 @@ impl<'t> PathTracer<'t> {
             _ => 1.0,
         };
         // f-hat = sigma_s f_p; sigma_s/pdf is already in beta (FreeFlight::weight)
-        let v = self.guide.map(|_| Self::medium_vertex_at(p, m));
-        let scatter = |wi: Vec3| {
-            let f = phase.eval(wo, wi);
-            let pdf = v.as_ref().map_or(f, |v| self.scatter_pdf(scene, v, wo, wi));
-            (Rgb::splat(f), pdf)
-        };
+        let scatter = self.medium_scatter(scene, (p, m), wo);
         *l += w.beta
             * next_event_weighted(
                 scene,
@@ -505,18 +564,14 @@ impl<'t> PathTracer<'t> {
                 None,
                 |_| Some(m),
                 sampler,
-                scatter,
+                &scatter,
                 mis,
             );
-        *l += w.beta * self.volume_nee(scene, (p, None), |_| Some(m), sampler, scatter);
+        *l += w.beta * self.volume_nee(scene, (p, None), |_| Some(m), sampler, &scatter);
         // no early stop here: a direction sampled at the last allowed vertex can still
         // reach an emitter, the MIS partner of the light sample above
-        let ps = match &v {
-            Some(v) => match self.sample_scatter(scene, v, wo, sampler) {
-                Some(ss) => ss,
-                None => return false,
-            },
-            None => ScatterSample::from_phase(phase.sample(wo, sampler.next_2d())),
+        let Some(ps) = self.sample_medium_scatter(scene, (p, m), wo, sampler) else {
+            return false;
         };
         if ps.pdf <= 0.0 {
             return false;
@@ -570,14 +625,17 @@ impl<'t> PathTracer<'t> {
             ns: scene.shading_normal(hit),
         };
         let v = self.guide.map(|_| Vertex::on_surface(scene, hit, m));
+        let surface_halo = self.halo.as_ref().filter(|_| !bsdf.has_dirac_lobe());
         // the regular lobe's light by next-event estimation; a Dirac lobe's only by sampling
         if bsdf.has_regular_lobe() {
             let towards = |wi: Vec3| shape.medium_across(wo, wi, n, m);
             let scatter = |wi: Vec3| {
                 let f = bsdf.eval_shaded(wo, wi, nn, TransportMode::Radiance);
-                let pdf = match &v {
-                    Some(v) => self.scatter_pdf(scene, v, wo, wi),
-                    None => bsdf.pdf_shaded(wo, wi, nn),
+                let own = || bsdf.pdf_shaded(wo, wi, nn);
+                let pdf = match (&v, surface_halo) {
+                    (Some(v), _) => self.scatter_pdf(scene, v, wo, wi),
+                    (None, Some(h)) => h.pdf(scene, &self.selection, (hit.p, Some(n)), own(), wi),
+                    (None, None) => own(),
                 };
                 (f * wi.dot(n).abs(), pdf)
             };
@@ -602,11 +660,32 @@ impl<'t> PathTracer<'t> {
                 w.lhat = ss.lhat;
                 ss.as_bsdf_sample()
             }),
-            None => {
-                let u = sampler.next_2d();
-                let uc = sampler.next_f32();
-                bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance)
-            }
+            None => match surface_halo {
+                Some(h) => {
+                    let at = (hit.p, Some(n));
+                    let drawn = h.draw(scene, &self.selection, at, sampler);
+                    let uc = sampler.next_f32();
+                    // a BSDF without a Dirac lobe samples by its whole density
+                    let own = match drawn {
+                        Ok(wi) => Some(crate::bsdf::BsdfSample {
+                            wi,
+                            value: bsdf.eval_shaded(wo, wi, nn, TransportMode::Radiance),
+                            pdf: bsdf.pdf_shaded(wo, wi, nn),
+                            lobe: crate::bsdf::Lobe::Regular,
+                        }),
+                        Err(u) => bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance),
+                    };
+                    own.map(|bs| crate::bsdf::BsdfSample {
+                        pdf: h.pdf(scene, &self.selection, at, bs.pdf, bs.wi),
+                        ..bs
+                    })
+                }
+                None => {
+                    let u = sampler.next_2d();
+                    let uc = sampler.next_f32();
+                    bsdf.sample_shaded(wo, nn, u, uc, TransportMode::Radiance)
+                }
+            },
         };
         let Some(bs) = bs else {
             return false;
@@ -1019,7 +1098,7 @@ impl super::Facts for PathFacts {
         use super::OwnOption::*;
         matches!(
             option,
-            EquiangularDistance | LightSelection | LightPoint | PixelSamples
+            EquiangularDistance | LightSelection | LightPoint | HaloCone | PixelSamples
         )
     }
 
@@ -1045,13 +1124,25 @@ pub fn prepare<'t>(
             ));
         }
     }
+    let guided = setup.technique.guides_scattering();
+    let halo_cone = if guided {
+        0.0
+    } else {
+        setup.settings.halo_cone
+    };
+    if guided && setup.settings.given.halo_cone.is_some_and(|a| a > 0.0) {
+        return Err(super::IntegratorError::Refused(
+            "halo_cone (--halo-cone) cannot go with the guide: the guide draws the scattering directions from its own mixtures".into(),
+        ));
+    }
     Ok(Box::new(
         PathTracer::new(setup.max_depth)
             .with_distance(distance)
             .with_light_selection(selection)
             .with_light_point(setup.settings.light_point)
             .with_volume_next_event(setup.settings.volume_next_event)
-            .with_guide(setup.technique),
+            .with_guide(setup.technique)
+            .with_halo_cone(setup.scene, halo_cone),
     ))
 }
 

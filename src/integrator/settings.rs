@@ -70,6 +70,12 @@ pub struct RenderOptions {
     /// always so with `--distance equiangular-mis`).
     #[arg(long)]
     pub light_point: Option<LightPointDraw>,
+    /// path: the probability, in [0, 1), with which a medium vertex draws its direction
+    /// uniformly in the cone toward the halo of a light chosen as next-event estimation
+    /// chooses it, instead of from the phase function (default 0.15; 0: the phase function
+    /// alone). The guide, where it guides medium vertices, draws them instead.
+    #[arg(long)]
+    pub halo_cone: Option<f32>,
     /// path, bdpt, smc: where each camera sample's film position lies in its pixel,
     /// `stratified` (default: the pixel's points of a (0, 2)-sequence, digitally shifted per
     /// pixel and seed) or `independent` (uniform and independent: the variance layers then
@@ -138,6 +144,7 @@ impl RenderOptions {
             distance: Some(DistanceSampling::FreeFlight),
             light_selection: Some(LightSelectionKind::Tree),
             light_point: Some(LightPointDraw::SolidAngleNear),
+            halo_cone: Some(DEFAULT_HALO_CONE),
             pixel_samples: Some(PixelSamples::Stratified),
             mis_heuristic: Some(MisHeuristic::Balance),
             volume_next_event: Some(true),
@@ -508,6 +515,10 @@ impl GuideOptions {
 /// Default number of irradiance-meter samples per pass.
 pub const DEFAULT_METER_SAMPLES: u32 = 4096;
 
+/// The path tracer's default probability of the cone toward a light's halo at a medium vertex
+/// (book: "Sampling toward lights", the halo section's sweep).
+pub const DEFAULT_HALO_CONE: f32 = 0.0;
+
 /// The settings a render runs with: the defaults, the scene's `[render]` table over them and
 /// the command line's flags over those ([`RenderSettings::apply`]).
 #[derive(Clone, Debug)]
@@ -524,6 +535,9 @@ pub struct RenderSettings {
     /// How the path tracer's next-event estimation draws area lights' points
     /// (`[render] light_point`).
     pub light_point: LightPointDraw,
+    /// The path tracer's probability of a cone toward a light's halo at medium vertices
+    /// (`[render] halo_cone`).
+    pub halo_cone: f32,
     /// Where each camera sample's film position lies in its pixel (`[render] pixel_samples`).
     pub pixel_samples: PixelSamples,
     /// How BDPT's strategies share a path (`[render] mis_heuristic`).
@@ -565,6 +579,7 @@ impl RenderSettings {
             distance: d.distance.expect(given),
             light_selection: d.light_selection.expect(given),
             light_point: d.light_point.expect(given),
+            halo_cone: d.halo_cone.expect(given),
             pixel_samples: d.pixel_samples.expect(given),
             mis_heuristic: d.mis_heuristic.expect(given),
             volume_next_event: d.volume_next_event.expect(given),
@@ -622,6 +637,16 @@ impl RenderSettings {
         self.distance = o.distance.unwrap_or(self.distance);
         self.light_selection = o.light_selection.unwrap_or(self.light_selection);
         self.light_point = o.light_point.unwrap_or(self.light_point);
+        if let Some(a) = o.halo_cone {
+            if !(0.0..1.0).contains(&a) {
+                let m = format!(
+                    "{} must be in [0, 1) (the phase function keeps the rest: with 1 no direction outside the cones could be drawn), not {a}",
+                    spelling.name("", "halo_cone")
+                );
+                return Err(SettingError::at("", Some("halo_cone"), m));
+            }
+            self.halo_cone = a;
+        }
         self.pixel_samples = o.pixel_samples.unwrap_or(self.pixel_samples);
         self.mis_heuristic = o.mis_heuristic.unwrap_or(self.mis_heuristic);
         self.volume_next_event = o.volume_next_event.unwrap_or(self.volume_next_event);

@@ -9,6 +9,7 @@ pub mod camera;
 pub mod emitters;
 pub mod envmap;
 pub mod file;
+pub mod halo;
 pub mod light;
 pub mod light_tree;
 pub mod mitsuba;

@@ -310,7 +310,7 @@ fn messages_escape_the_control_characters_they_quote() {
         "\n[render]\n\"sp\\u001b[2Jp\\u0007\\u0000\" = 4\n",
         3,
         "render.sp\\u{1b}[2Jp\\u{7}\\u{0}",
-        "unknown field `sp\\u{1b}[2Jp\\u{7}\\u{0}`, expected one of `integrator`, `spp`, `seed`, `max_depth`, `meter_samples`, `distance`, `light_selection`, `light_point`, `pixel_samples`, `mis_heuristic`, `volume_next_event`, `transmittance`, `adjoint_image`, `mlt`, `pssmlt`, `smc`, `guide`, `adjoint`",
+        "unknown field `sp\\u{1b}[2Jp\\u{7}\\u{0}`, expected one of `integrator`, `spp`, `seed`, `max_depth`, `meter_samples`, `distance`, `light_selection`, `light_point`, `halo_cone`, `pixel_samples`, `mis_heuristic`, `volume_next_event`, `transmittance`, `adjoint_image`, `mlt`, `pssmlt`, `smc`, `guide`, `adjoint`",
     );
     expect(
         "\n[render]\nintegrator = \"pa\\u001b]0;owned\\u0007th\\r\"\n",

@@ -68,6 +68,9 @@ enum Config {
     /// The path tracer with `light_point = "area"` (the plain column and the reference draw
     /// a near quad light's points by solid angle, the default).
     PathArea,
+    /// The path tracer with `halo_cone = 0.3` (the plain column and the reference draw
+    /// directions from the phase function and the BSDFs alone, the default).
+    PathHalo,
 }
 
 impl Config {
@@ -80,6 +83,7 @@ impl Config {
             Config::Equiangular => "path+equiangular".into(),
             Config::PathPower => "path+power".into(),
             Config::PathArea => "path+area".into(),
+            Config::PathHalo => "path+halo".into(),
         }
     }
 
@@ -103,7 +107,9 @@ impl Config {
         match self {
             Config::Plain(k) | Config::Guided(k) | Config::Adjoint(k) => k,
             Config::Smc(..) => IntegratorKind::Smc,
-            Config::Equiangular | Config::PathPower | Config::PathArea => IntegratorKind::Path,
+            Config::Equiangular | Config::PathPower | Config::PathArea | Config::PathHalo => {
+                IntegratorKind::Path
+            }
         }
     }
 
@@ -114,6 +120,7 @@ impl Config {
             Config::Plain(Path),
             Config::PathPower,
             Config::PathArea,
+            Config::PathHalo,
             Config::Equiangular,
             Config::Guided(Path),
             Config::Plain(Light),
@@ -373,6 +380,9 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         if let Config::PathArea = config {
             settings.light_point = LightPointDraw::Area;
+        }
+        if let Config::PathHalo = config {
+            settings.halo_cone = 0.3;
         }
         let outcome = prepare(&scene, &settings, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);

@@ -373,6 +373,7 @@ fn a_query_stopped_at_a_collision_gives_the_segment_or_says_beyond() {
 }
 
 mod envmap;
+mod halo;
 mod hide_emitters;
 mod light;
 mod light_point;

@@ -734,6 +734,64 @@ fn light_point_is_read_checked_applied_and_refused_where_unused() {
     );
 }
 
+/// `halo_cone`: a probability outside [0, 1) is refused at its line with the reason; BDPT
+/// refuses the flag by name; the default is 0 and renders as `--halo-cone 0` does, pixel for
+/// pixel, and 0.1 gives another image; with the guide guiding medium vertices a cone is
+/// refused with the reason.
+#[test]
+fn halo_cone_is_read_checked_applied_and_refused_where_unused() {
+    let read = |v: &str| {
+        let text = format!("[render]\nhalo_cone = {v}\n\n{}", fog_box_without_render());
+        load(&SceneSource::embedded("k.toml", &text)).map(|(_, settings)| settings)
+    };
+    assert_eq!(read("0.1").unwrap().halo_cone, 0.1);
+    assert_eq!(read("0.0").unwrap().halo_cone, 0.0);
+    for bad in ["1.0", "-0.1", "nan", "inf"] {
+        let e = read(bad).unwrap_err().to_string();
+        let ok = e.contains("halo_cone") && e.contains("k.toml:2") && e.contains("[0, 1)");
+        assert!(ok, "{bad}: {e}");
+    }
+    flag_is_refused(
+        "bdpt",
+        ["--halo-cone", "0.1"],
+        "--halo-cone applies to --integrator path, not `bdpt`",
+    );
+    let dir = common::cli::scratch("options", "halo-cone");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(format!("{name}.exr"));
+        let mut args = vec!["render", "--spp", "4", "--resolution", "8x8"];
+        args.extend(["-o", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let run = common::cli::pathspace(&args);
+        let image = run
+            .status
+            .success()
+            .then(|| pathspace::image_io::read_exr(&out).unwrap().0.pixels);
+        (image, run)
+    };
+    let default = render("default", &[]).0.unwrap();
+    assert_eq!(
+        Some(&default),
+        render("zero", &["--halo-cone", "0"]).0.as_ref()
+    );
+    assert_ne!(
+        Some(&default),
+        render("cone", &["--halo-cone", "0.1"]).0.as_ref()
+    );
+    let guided = [
+        "--guide",
+        "volume",
+        "--guide-particles",
+        "2000",
+        "--guide-regions",
+        "8",
+    ];
+    let (image, run) = render("guided", &[&guided[..], &["--halo-cone", "0.1"]].concat());
+    assert!(image.is_none());
+    let err = common::cli::stderr(&run);
+    assert!(err.contains("halo_cone") && err.contains("guide"), "{err}");
+}
+
 /// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
 /// start from): the book's key table lists every key of the schema with that default, and the
 /// key's flag states it in `--help`.
