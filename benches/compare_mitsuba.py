@@ -19,6 +19,9 @@ pathspace renders one row per integrator of `--integrators` (default: `path`, th
 family as Mitsuba's `volpath`, and `bdpt`, which Mitsuba has no volumetric counterpart of), and
 the last lines give each row's relMSE x CPU-s over each Mitsuba variant's.
 
+`--pathspace-flags "..."` adds flags to pathspace's rows (`"--halo-cone 0.1"`), not to its
+half of the reference.
+
 `--max-depth D` counts scattering vertices as pathspace does; Mitsuba's `max_depth` is D + 1
 (its depth 1 is emission seen directly). `--per-depth` prints the variance per sample of each
 renderer at depths 1, 2, 3 and unlimited (independent runs, no reference needed): the
@@ -26,6 +29,7 @@ term-by-term comparison of the book's "Measuring a renderer".
 """
 import argparse
 import os
+import shlex
 import subprocess
 import sys
 
@@ -49,9 +53,10 @@ def worker(variant, spp, seed, out, res, max_depth):
 
 
 
-def render(renderer, spp, seed, out, a):
+def render(renderer, spp, seed, out, a, flags=True):
     """Renders and returns the CPU seconds of the process. `renderer` is a Mitsuba variant or
-    `pathspace-INTEGRATOR`."""
+    `pathspace-INTEGRATOR`; a pathspace render takes `--pathspace-flags` unless `flags` is
+    false (the reference)."""
     if renderer.startswith("pathspace-"):
         integrator = renderer.split("-", 1)[1]
         cmd = [a.bin, "render", SCENE, "--integrator", integrator, "--spp", str(spp),
@@ -59,6 +64,8 @@ def render(renderer, spp, seed, out, a):
                "-o", out]
         if a.max_depth >= 0:
             cmd += ["--max-depth", str(a.max_depth)]
+        if flags:
+            cmd += shlex.split(a.pathspace_flags)
     else:
         cmd = [sys.executable, __file__, "--worker", renderer, str(spp), str(seed), out,
                str(a.res), str(a.max_depth)]
@@ -116,6 +123,8 @@ def main():
     ap.add_argument("--integrators", nargs="+", default=["path", "bdpt"],
                     help="pathspace integrators to compare (each a row)")
     ap.add_argument("--per-depth", action="store_true")
+    ap.add_argument("--pathspace-flags", default="",
+                    help="more flags for pathspace's rows (not its reference render), one string")
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release", "pathspace"))
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "compare-mitsuba"))
     a = ap.parse_args()
@@ -127,7 +136,7 @@ def main():
     import numpy as np
     ref_a = os.path.join(a.out, "reference-pathspace.exr")
     ref_b = os.path.join(a.out, "reference-mitsuba.exr")
-    render("pathspace-path", a.reference_spp, 99, ref_a, a)
+    render("pathspace-path", a.reference_spp, 99, ref_a, a, flags=False)
     render("scalar_rgb", a.reference_spp, 99, ref_b, a)
     ra, rb = read(ref_a), read(ref_b)
     ref = 0.5 * (ra + rb)

@@ -9,12 +9,13 @@
 //! One file per family: `side` (the scene seen from the side, shared), `path` (Pauly et al.
 //! Figs. 1 and 2, transmittance), `free_flight` (Table 1's outcome space), `mutations` (Figs.
 //! 4-7), `walks` (BDPT's strategies, the Neumann series' walk), `chain` (a Dirac chain's
-//! weights), `light_point` (a quad light's point drawn by area or by solid angle), `film_points` (stratified film positions), `smc` (Pegoraro et al. Fig. 1, the joint domain), `particles` (enlightened
+//! weights), `light_point` (a quad light's point drawn by area or by solid angle), `halo` (a lamp's halo and a vertex's cone), `film_points` (stratified film positions), `smc` (Pegoraro et al. Fig. 1, the joint domain), `particles` (enlightened
 //! sampling: particles, a guide's map).
 
 mod chain;
 mod film_points;
 mod free_flight;
+mod halo;
 mod light_point;
 mod mutations;
 mod particles;
@@ -94,6 +95,7 @@ pub fn all(s: &Scenes) -> Result<Vec<Figure>, ChartError> {
         figure("bdpt-strategies.svg", walks::strategies_figure(fog))?,
         figure("mirror-chain.svg", chain::figure())?,
         figure("light-point.svg", light_point::figure(fog))?,
+        figure("halo.svg", halo::figure(fog))?,
     ];
     for kind in crate::integrator::mlt::mutation::MutationKind::ALL {
         let (name, svg) = mutations::figure(s, kind);

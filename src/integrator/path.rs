@@ -167,11 +167,11 @@ impl<'t> PathTracer<'t> {
             .filter(|ss| ss.pdf > 0.0)
     }
 
-    /// This path tracer drawing, with probability `alpha`, the directions of medium vertices
+    /// This path tracer drawing, with probability `share`, the directions of medium vertices
     /// and of surfaces without a Dirac lobe in the cone toward a light's halo (0: never); the
     /// guide, where one is installed, samples them instead.
-    pub fn with_halo_cone(mut self, scene: &Scene, alpha: f32) -> Self {
-        self.halo = HaloMixture::new(scene, alpha);
+    pub fn with_halo_cone(mut self, scene: &Scene, share: f32) -> Self {
+        self.halo = HaloMixture::new(scene, share);
         self
     }
 

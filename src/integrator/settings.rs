@@ -70,10 +70,10 @@ pub struct RenderOptions {
     /// always so with `--distance equiangular-mis`).
     #[arg(long)]
     pub light_point: Option<LightPointDraw>,
-    /// path: the probability, in [0, 1), with which a medium vertex draws its direction
-    /// uniformly in the cone toward the halo of a light chosen as next-event estimation
-    /// chooses it, instead of from the phase function (default 0.15; 0: the phase function
-    /// alone). The guide, where it guides medium vertices, draws them instead.
+    /// path: the probability, in [0, 1), with which a medium vertex or a surface without a
+    /// Dirac lobe draws its direction uniformly in the cone toward the halo (the bounding
+    /// sphere) of a light chosen as next-event estimation chooses it, instead of by its own
+    /// sampling (default 0.0: never; 0.1 suits a few lamps in open fog). Refused with the guide.
     #[arg(long)]
     pub halo_cone: Option<f32>,
     /// path, bdpt, smc: where each camera sample's film position lies in its pixel,

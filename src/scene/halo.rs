@@ -6,10 +6,10 @@
 //! halo"): in fog around a lamp, a path of two or more scattering vertices gathers most of
 //! its light at a vertex near the lamp, where the lamp's direct light is orders of magnitude
 //! above its mean. The phase function sends a direction toward that region with the
-//! probability of its solid angle over 4 pi. Mixing in, with probability `alpha`, a
+//! probability of its solid angle over 4 pi. Mixing in, with probability `share` (the book's epsilon), a
 //! direction uniform in the cone the halo subtends puts more vertices there and bounds the
 //! weight of the paths that reach it; the vertex's own sampling keeps the rest, so the
-//! density never falls below (1 - alpha) times its own (a defensive mixture). The cone's
+//! density never falls below (1 - share) times its own (a defensive mixture). The cone's
 //! light is the one next-event estimation would choose at the vertex, so the density is a
 //! sum over the lights whose cone holds the direction, each with its selection probability.
 //! The cost of every density grows with the number of lights: the option is for scenes with a
@@ -100,26 +100,26 @@ impl Halo {
 }
 
 /// The path tracer's direction sampling at medium vertices and at surfaces without a Dirac
-/// lobe: with probability `alpha` the cone toward the halo of a light chosen as next-event
+/// lobe: with probability `share` the cone toward the halo of a light chosen as next-event
 /// estimation chooses it, else (and when the vertex is inside that halo) the vertex's own
 /// sampling (the phase function, the BSDF).
 #[derive(Clone, Debug)]
 pub struct HaloMixture {
     /// The halo of each light of the scene, by index.
     halos: Vec<Option<Halo>>,
-    alpha: f32,
+    share: f32,
 }
 
 impl HaloMixture {
-    /// The mixture for `scene` with cone probability `alpha` (in [0, 1)); `None` when it would
-    /// be the vertices' own sampling alone (alpha 0, or no light has a halo).
-    pub fn new(scene: &Scene, alpha: f32) -> Option<HaloMixture> {
+    /// The mixture for `scene` with cone probability `share` (in [0, 1)); `None` when it would
+    /// be the vertices' own sampling alone (share 0, or no light has a halo).
+    pub fn new(scene: &Scene, share: f32) -> Option<HaloMixture> {
         let halos: Vec<Option<Halo>> = scene
             .lights
             .iter()
             .map(|l| LightBounds::of(l, &scene.prims, 1.0).and_then(|b| Halo::of(&b)))
             .collect();
-        (alpha > 0.0 && halos.iter().any(Option::is_some)).then_some(HaloMixture { halos, alpha })
+        (share > 0.0 && halos.iter().any(Option::is_some)).then_some(HaloMixture { halos, share })
     }
 
     /// The halo of light `l`.
@@ -128,7 +128,7 @@ impl HaloMixture {
     }
 
     /// The first choice of a direction at point `p` (surface normal `n`, `None` in a medium):
-    /// with probability `alpha` a direction uniform in the cone toward the halo of a light
+    /// with probability `share` a direction uniform in the cone toward the halo of a light
     /// chosen by `selection` (`Ok`), else (and when `p` is inside that halo) the two numbers
     /// with which the vertex's own sampling draws it (`Err`). Its density is
     /// [`HaloMixture::pdf`].
@@ -140,8 +140,8 @@ impl HaloMixture {
         sampler: &mut Sampler,
     ) -> Result<Vec3, Vec2> {
         let (u_mix, u) = (sampler.next_f32(), sampler.next_2d());
-        let cone = (u_mix < self.alpha)
-            .then(|| selection.sample(scene, p, n, u_mix / self.alpha))
+        let cone = (u_mix < self.share)
+            .then(|| selection.sample(scene, p, n, u_mix / self.share))
             .flatten()
             .and_then(|(l, _, _)| self.halo(l)?.cone(p));
         match cone {
@@ -151,7 +151,7 @@ impl HaloMixture {
     }
 
     /// The density of `wi` at `p` (surface normal `n`) where the vertex's own sampling has
-    /// density `own`: (1 - alpha) own + alpha (P_in own + sum of P(l) c_l(wi) over the lights
+    /// density `own`: (1 - share) own + share (P_in own + sum of P(l) c_l(wi) over the lights
     /// whose halo does not hold p), where P(l) is the selection's probability of light l at
     /// p, P_in that of the lights whose halo holds p or which have none, and c_l the cone's
     /// density. The selection's probability is asked for only where it counts: lights
@@ -190,6 +190,6 @@ impl HaloMixture {
                 cones += pmf(l) * c;
             }
         }
-        (1.0 - self.alpha + self.alpha * p_in) * own + self.alpha * cones
+        (1.0 - self.share + self.share * p_in) * own + self.share * cones
     }
 }

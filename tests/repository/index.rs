@@ -187,6 +187,11 @@ const COVERED: &[(&str, &str, &str)] = &[
         "the committed diagrams are what the code draws",
     ),
     (
+        "figures::halo",
+        "repository::figures",
+        "the committed diagrams are what the code draws",
+    ),
+    (
         "figures::light_point",
         "repository::figures",
         "the committed diagrams are what the code draws",

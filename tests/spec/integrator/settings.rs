@@ -792,9 +792,6 @@ fn halo_cone_is_read_checked_applied_and_refused_where_unused() {
     assert!(err.contains("halo_cone") && err.contains("guide"), "{err}");
 }
 
-/// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
-/// start from): the book's key table lists every key of the schema with that default, and the
-/// key's flag states it in `--help`.
 /// A guide option without guiding would change nothing: it is refused by name, on the command
 /// line and in a file, and an explicit `off` keeps a file's guide table quiet.
 #[test]
@@ -833,6 +830,9 @@ fn guide_options_without_guiding_are_refused() {
         .success());
 }
 
+/// Each `[render]` key's default is written once (`RenderOptions::defaults`, what the settings
+/// start from): the book's key table lists every key of the schema with that default, and the
+/// key's flag states it in `--help`.
 #[test]
 fn the_book_and_the_help_state_each_render_default_of_the_schema() {
     use serde_json::Value;
