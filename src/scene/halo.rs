@@ -6,10 +6,10 @@
 //! halo"): in fog around a lamp, a path of two or more scattering vertices gathers most of
 //! its light at a vertex near the lamp, where the lamp's direct light is orders of magnitude
 //! above its mean. The phase function sends a direction toward that region with the
-//! probability of its solid angle over 4 pi. Mixing in, with probability `share` (the book's epsilon), a
-//! direction uniform in the cone the halo subtends puts more vertices there and bounds the
-//! weight of the paths that reach it; the vertex's own sampling keeps the rest, so the
-//! density never falls below (1 - share) times its own (a defensive mixture). The cone's
+//! probability of its solid angle over 4 pi. Mixing in, with probability `share` (the book's
+//! epsilon), a direction uniform in the cone the halo subtends puts more vertices there and
+//! bounds the weight of the paths that reach it; the vertex's own sampling keeps the rest, so
+//! the density never falls below (1 - share) times its own (a defensive mixture). The cone's
 //! light is the one next-event estimation would choose at the vertex, so the density is a
 //! sum over the lights whose cone holds the direction, each with its selection probability.
 //! The cost of every density grows with the number of lights: the option is for scenes with a
