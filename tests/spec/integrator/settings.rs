@@ -682,6 +682,25 @@ fn mis_heuristic_is_read_checked_applied_and_refused_where_unused() {
     }
 }
 
+/// The default scene rendered at 8x8 and 4 spp with the flags `extra` into `dir/name.exr`:
+/// its pixels when the render succeeded, and the run.
+fn small_render(
+    dir: &std::path::Path,
+    name: &str,
+    extra: &[&str],
+) -> (Option<Vec<pathspace::spectrum::Rgb>>, std::process::Output) {
+    let out = dir.join(format!("{name}.exr"));
+    let mut args = vec!["render", "--spp", "4", "--resolution", "8x8"];
+    args.extend(["-o", out.to_str().unwrap()]);
+    args.extend_from_slice(extra);
+    let run = common::cli::pathspace(&args);
+    let image = run
+        .status
+        .success()
+        .then(|| pathspace::image_io::read_exr(&out).unwrap().0.pixels);
+    (image, run)
+}
+
 /// `light_point`: a bad value is refused at its line; BDPT refuses the flag by name; the path
 /// tracer's default is the solid-angle draw pixel for pixel and `area` gives another image;
 /// with `distance = "equiangular-mis"` the draw is by area, and asking for the solid-angle
@@ -698,18 +717,7 @@ fn light_point_is_read_checked_applied_and_refused_where_unused() {
         "--light-point applies to --integrator path, not `bdpt`",
     );
     let dir = common::cli::scratch("options", "light-point");
-    let render = |name: &str, extra: &[&str]| {
-        let out = dir.join(format!("{name}.exr"));
-        let mut args = vec!["render", "--spp", "4", "--resolution", "8x8"];
-        args.extend(["-o", out.to_str().unwrap()]);
-        args.extend_from_slice(extra);
-        let run = common::cli::pathspace(&args);
-        let ok = run.status.success();
-        (
-            ok.then(|| pathspace::image_io::read_exr(&out).unwrap().0.pixels),
-            run,
-        )
-    };
+    let render = |name: &str, extra: &[&str]| small_render(&dir, name, extra);
     let default = render("default", &[]).0.unwrap();
     let near = render("near", &["--light-point", "solid-angle-near"])
         .0
@@ -757,18 +765,7 @@ fn halo_cone_is_read_checked_applied_and_refused_where_unused() {
         "--halo-cone applies to --integrator path, not `bdpt`",
     );
     let dir = common::cli::scratch("options", "halo-cone");
-    let render = |name: &str, extra: &[&str]| {
-        let out = dir.join(format!("{name}.exr"));
-        let mut args = vec!["render", "--spp", "4", "--resolution", "8x8"];
-        args.extend(["-o", out.to_str().unwrap()]);
-        args.extend_from_slice(extra);
-        let run = common::cli::pathspace(&args);
-        let image = run
-            .status
-            .success()
-            .then(|| pathspace::image_io::read_exr(&out).unwrap().0.pixels);
-        (image, run)
-    };
+    let render = |name: &str, extra: &[&str]| small_render(&dir, name, extra);
     let default = render("default", &[]).0.unwrap();
     assert_eq!(
         Some(&default),

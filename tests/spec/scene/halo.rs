@@ -8,6 +8,7 @@
 
 use crate::common;
 
+use super::light_point::{lamp, CAMERA};
 use common::stats::Family;
 use glam::Vec3;
 use pathspace::math::{warp, Frame, Sampler};
@@ -17,18 +18,13 @@ use pathspace::scene::light_tree::{LightBounds, LightSelection};
 use pathspace::scene::{LightSelectionKind, Scene, SceneSource};
 use std::f64::consts::PI;
 
-const CAMERA: &str = r#"[camera]
-type = "pinhole"
-eye = [0.0, 0.0, 3.0]
-look_at = [0.0, 0.0, 0.0]
-fov_deg = 40.0
-resolution = [4, 4]
-"#;
-
-/// A quad lamp (x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing down), and with `two`
-/// a second, smaller one on the wall x = -2 facing +x.
+/// The quad lamp of `light_point` (x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing
+/// down), and with `two` a second, smaller one on the wall x = -2 facing +x.
 fn lamps(two: bool) -> Scene {
-    let mut text = format!(
+    if !two {
+        return lamp();
+    }
+    let text = format!(
         "{CAMERA}{}",
         r#"
 [[shapes]]
@@ -37,18 +33,15 @@ origin = [-0.5, 1.0, -0.3]
 u = [1.0, 0.0, 0.0]
 v = [0.0, 0.0, 0.6]
 emission = [10.0, 10.0, 10.0]
-"#
-    );
-    if two {
-        text += r#"
+
 [[shapes]]
 type = "quad"
 origin = [-2.0, -0.2, -0.2]
 u = [0.0, 0.4, 0.0]
 v = [0.0, 0.0, 0.4]
 emission = [30.0, 30.0, 30.0]
-"#;
-    }
+"#
+    );
     Scene::load(&SceneSource::embedded("lamps.toml", &text)).unwrap_or_else(|e| panic!("{e}"))
 }
 

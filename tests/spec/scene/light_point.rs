@@ -22,7 +22,7 @@ const HEIGHT: f64 = 1.0;
 const AREA: f64 = 0.6;
 
 /// The camera of every scene here (the tests sample lights, not images).
-const CAMERA: &str = r#"[camera]
+pub(super) const CAMERA: &str = r#"[camera]
 type = "pinhole"
 eye = [0.0, 0.0, 3.0]
 look_at = [0.0, 0.0, 0.0]
@@ -30,7 +30,8 @@ fov_deg = 40.0
 resolution = [4, 4]
 "#;
 
-fn lamp() -> Scene {
+/// The quad light alone.
+pub(super) fn lamp() -> Scene {
     let text = format!(
         "{CAMERA}{}",
         r#"
