@@ -8,7 +8,7 @@
 
 use crate::common;
 
-use super::light_point::{lamp, CAMERA};
+use super::light_point::{lamp_with, CAMERA};
 use common::stats::Family;
 use glam::Vec3;
 use pathspace::math::{warp, Frame, Sampler};
@@ -21,28 +21,15 @@ use std::f64::consts::PI;
 /// The quad lamp of `light_point` (x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing
 /// down), and with `two` a second, smaller one on the wall x = -2 facing +x.
 fn lamps(two: bool) -> Scene {
-    if !two {
-        return lamp();
-    }
-    let text = format!(
-        "{CAMERA}{}",
-        r#"
-[[shapes]]
-type = "quad"
-origin = [-0.5, 1.0, -0.3]
-u = [1.0, 0.0, 0.0]
-v = [0.0, 0.0, 0.6]
-emission = [10.0, 10.0, 10.0]
-
+    let second = r#"
 [[shapes]]
 type = "quad"
 origin = [-2.0, -0.2, -0.2]
 u = [0.0, 0.4, 0.0]
 v = [0.0, 0.0, 0.4]
 emission = [30.0, 30.0, 30.0]
-"#
-    );
-    Scene::load(&SceneSource::embedded("lamps.toml", &text)).unwrap_or_else(|e| panic!("{e}"))
+"#;
+    lamp_with(if two { second } else { "" })
 }
 
 fn halo_of(scene: &Scene, l: usize) -> Option<Halo> {

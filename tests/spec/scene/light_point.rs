@@ -30,20 +30,25 @@ fov_deg = 40.0
 resolution = [4, 4]
 "#;
 
-/// The quad light alone.
-pub(super) fn lamp() -> Scene {
-    let text = format!(
-        "{CAMERA}{}",
-        r#"
+/// The quad light's shape.
+pub(super) const LAMP: &str = r#"
 [[shapes]]
 type = "quad"
 origin = [-0.5, 1.0, -0.3]
 u = [1.0, 0.0, 0.0]
 v = [0.0, 0.0, 0.6]
 emission = [10.0, 10.0, 10.0]
-"#
-    );
+"#;
+
+/// The quad light alone, with `more` shapes.
+pub(super) fn lamp_with(more: &str) -> Scene {
+    let text = format!("{CAMERA}{LAMP}{more}");
     Scene::load(&SceneSource::embedded("lamp.toml", &text)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The quad light alone.
+fn lamp() -> Scene {
+    lamp_with("")
 }
 
 /// The solid angle of the part [x0, x1] x [z0, z1] of the light's plane seen from `p` below it:
