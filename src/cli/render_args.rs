@@ -248,7 +248,7 @@ impl RenderArgs {
             o.halo_cone.is_some(),
             OwnOption::HaloCone,
             "--halo-cone",
-            "its medium vertices draw their directions from the phase function",
+            "it draws its scattering directions from the phase functions and BSDFs alone",
         )?;
         only_for(
             o.mis_heuristic.is_some(),

@@ -139,7 +139,7 @@ pub enum OwnOption {
     LightSelection,
     /// `light_point` (how next-event estimation draws a point on an area light).
     LightPoint,
-    /// `halo_cone` (medium vertices' directions toward lights' halos).
+    /// `halo_cone` (scattering directions drawn in part toward lights' halos).
     HaloCone,
     /// The images of its sampling techniques one by one (`--strategy-images`).
     StrategyImages,

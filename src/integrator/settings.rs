@@ -515,8 +515,9 @@ impl GuideOptions {
 /// Default number of irradiance-meter samples per pass.
 pub const DEFAULT_METER_SAMPLES: u32 = 4096;
 
-/// The path tracer's default probability of the cone toward a light's halo at a medium vertex
-/// (book: "Sampling toward lights", the halo section's sweep).
+/// The path tracer's default probability of the cone toward a light's halo at a scattering
+/// vertex: off, since the cone loses on most of the papers' scenes (book: "Sampling toward
+/// lights", section "The scattering direction").
 pub const DEFAULT_HALO_CONE: f32 = 0.0;
 
 /// The settings a render runs with: the defaults, the scene's `[render]` table over them and
@@ -535,8 +536,8 @@ pub struct RenderSettings {
     /// How the path tracer's next-event estimation draws area lights' points
     /// (`[render] light_point`).
     pub light_point: LightPointDraw,
-    /// The path tracer's probability of a cone toward a light's halo at medium vertices
-    /// (`[render] halo_cone`).
+    /// The path tracer's probability of a cone toward a light's halo at medium vertices and
+    /// surfaces without a Dirac lobe (`[render] halo_cone`).
     pub halo_cone: f32,
     /// Where each camera sample's film position lies in its pixel (`[render] pixel_samples`).
     pub pixel_samples: PixelSamples,
@@ -640,7 +641,7 @@ impl RenderSettings {
         if let Some(a) = o.halo_cone {
             if !(0.0..1.0).contains(&a) {
                 let m = format!(
-                    "{} must be in [0, 1) (the phase function keeps the rest: with 1 no direction outside the cones could be drawn), not {a}",
+                    "{} must be in [0, 1) (the vertex's own sampling keeps the rest: with 1 no direction outside the cones could be drawn), not {a}",
                     spelling.name("", "halo_cone")
                 );
                 return Err(SettingError::at("", Some("halo_cone"), m));
