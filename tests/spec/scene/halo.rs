@@ -18,10 +18,8 @@ use pathspace::scene::light_tree::{LightBounds, LightSelection};
 use pathspace::scene::{LightSelectionKind, Scene, SceneSource};
 use std::f64::consts::PI;
 
-/// The quad lamp of `light_point` (x in [-0.5, 0.5], z in [-0.3, 0.3] at height 1, facing
-/// down), and with `two` a second, smaller one on the wall x = -2 facing +x.
-fn lamps(two: bool) -> Scene {
-    let second = r#"
+/// A second, smaller quad lamp on the wall x = -2, facing +x.
+const SECOND: &str = r#"
 [[shapes]]
 type = "quad"
 origin = [-2.0, -0.2, -0.2]
@@ -29,8 +27,15 @@ u = [0.0, 0.4, 0.0]
 v = [0.0, 0.0, 0.4]
 emission = [30.0, 30.0, 30.0]
 "#;
-    lamp_with(if two { second } else { "" })
-}
+
+/// A point light, which has no halo: its share of the selection falls back to the vertex's own
+/// sampling.
+const POINT: &str = r#"
+[[lights]]
+type = "point"
+position = [0.5, 0.0, 0.5]
+intensity = [5.0, 5.0, 5.0]
+"#;
 
 fn halo_of(scene: &Scene, l: usize) -> Option<Halo> {
     LightBounds::of(&scene.lights[l], &scene.prims, 1.0).and_then(|b| Halo::of(&b))
@@ -46,7 +51,7 @@ fn cone_solid_angle(d: f64, r: f64) -> f64 {
 /// light has none, and a scene of point lights gets no mixture (the phase function alone).
 #[test]
 fn a_halo_is_the_bounding_sphere_of_an_area_light() {
-    let scene = lamps(false);
+    let scene = lamp_with("");
     let h = halo_of(&scene, 0).expect("a quad light has a halo");
     assert!(
         (h.centre - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6,
@@ -70,7 +75,7 @@ fn a_halo_is_the_bounding_sphere_of_an_area_light() {
 /// the density is one over the closed-form solid angle; inside the ball there is no cone.
 #[test]
 fn cone_directions_are_uniform_over_the_halo() {
-    let scene = lamps(false);
+    let scene = lamp_with("");
     let h = halo_of(&scene, 0).unwrap();
     let mut fam = Family::new("halo cone");
     let mut s = Sampler::new(3, 0, 0);
@@ -137,8 +142,9 @@ fn mixture_sample(
     (wi, pdf as f64)
 }
 
-/// The mixture draws by the density it reports, for one light and for two chosen by the light
-/// tree, in a medium (Henyey-Greenstein, g = 0.6) and at a surface (the cosine lobe), from
+/// The mixture draws by the density it reports, for the quad lamp of `light_point` alone, with
+/// a second quad (the two chosen by the light tree) and with a point light (which has no
+/// halo), in a medium (Henyey-Greenstein, g = 0.6) and at a surface (the cosine lobe), from
 /// points near a halo, far from it and inside it: over the mixture's own samples the mean of
 /// 1 / p is the measure of the support (4 pi in a medium, 2 pi at a surface) and the mean of
 /// 1[w in the first light's cone] / p is that cone's solid angle. A density without the
@@ -151,14 +157,16 @@ fn the_mixture_draws_by_the_density_it_reports() {
     let mut s = Sampler::new(17, 0, 0);
     let n_up = Some(Vec3::Y);
     let cases = [
-        (false, Vec3::new(0.2, 0.2, 0.1), None),
-        (false, Vec3::new(0.1, 0.8, 0.0), None),
-        (true, Vec3::new(-1.0, -0.5, 0.4), None),
-        (true, Vec3::new(-0.5, -1.0, 0.0), n_up),
-        (true, Vec3::new(3.0, -2.0, 1.0), None),
+        ("", Vec3::new(0.2, 0.2, 0.1), None),
+        ("", Vec3::new(0.1, 0.8, 0.0), None),
+        (SECOND, Vec3::new(-1.0, -0.5, 0.4), None),
+        (SECOND, Vec3::new(-0.5, -1.0, 0.0), n_up),
+        (SECOND, Vec3::new(3.0, -2.0, 1.0), None),
+        (POINT, Vec3::new(0.3, -0.4, 0.2), None),
+        (POINT, Vec3::new(-0.5, -1.0, 0.0), n_up),
     ];
-    for (k, (two, p, n)) in cases.into_iter().enumerate() {
-        let scene = lamps(two);
+    for (k, (more, p, n)) in cases.into_iter().enumerate() {
+        let scene = lamp_with(more);
         let sel = LightSelection::build(LightSelectionKind::Tree, &scene);
         let m = HaloMixture::new(&scene, 0.3).unwrap();
         let h = halo_of(&scene, 0).unwrap();
@@ -204,7 +212,7 @@ fn the_mixture_draws_by_the_density_it_reports() {
 /// falls back to it.
 #[test]
 fn inside_the_halo_the_density_is_the_phase_functions() {
-    let scene = lamps(false);
+    let scene = lamp_with("");
     let sel = LightSelection::build(LightSelectionKind::Tree, &scene);
     let m = HaloMixture::new(&scene, 0.4).unwrap();
     let phase = Phase::henyey_greenstein(0.3).unwrap();
