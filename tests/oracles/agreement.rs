@@ -23,6 +23,7 @@ use crate::common;
 
 use common::stats::{runs_mean, Family};
 use pathspace::enlightened::{AdjointSettings, Enlightened, GuideKind};
+use pathspace::geometry::Primitive;
 use pathspace::integrator::mlt::{Mlt, MltSettings};
 use pathspace::integrator::mmlt::multiplexed_target;
 use pathspace::integrator::path::DistanceSampling;
@@ -30,7 +31,7 @@ use pathspace::integrator::pssmlt::{bdpt_target, Pssmlt, PssmltSettings};
 use pathspace::integrator::smc::{EstimatorForm, SmcSettings, Variant};
 use pathspace::integrator::{IntegratorKind, RenderSettings, Renderer, Setup};
 use pathspace::path::{LocalSampling, PLAIN};
-use pathspace::scene::light::LightPointDraw;
+use pathspace::scene::light::{Light, LightPointDraw};
 use pathspace::scene::{LightSelectionKind, Scene, SceneSource};
 
 /// Where the scenes live.
@@ -111,6 +112,27 @@ impl Config {
                 IntegratorKind::Path
             }
         }
+    }
+
+    /// The path tracer's option columns, which change the estimator only on scenes with what
+    /// the option acts on (several lights, a quad light, a light with a halo).
+    fn is_path_option(self) -> bool {
+        matches!(
+            self,
+            Config::PathPower | Config::PathArea | Config::PathHalo
+        )
+    }
+
+    /// The columns of a row: every column, or with [`SmcColumns::Proposed`] SMC's proposed
+    /// method alone (marched and in the distance form).
+    fn of(row: &Row) -> Vec<Config> {
+        Config::all()
+            .into_iter()
+            .filter(|c| match (c, row.smc) {
+                (Config::Smc(v, _), SmcColumns::Proposed) => *v == Variant::SMC,
+                _ => true,
+            })
+            .collect()
     }
 
     /// Every column.
@@ -294,6 +316,19 @@ enum Reference {
     Exact(f64),
 }
 
+/// Which of SMC's columns a row runs.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum SmcColumns {
+    /// The six variants marched and two in the distance form: rows that change the medium, its
+    /// emission or the lights, what the variants' cache sampling and control variates read.
+    Every,
+    /// The proposed method (is1_cv2) marched and in the distance form: rows that change only
+    /// surfaces or the camera. The variants differ only in the direction and the control
+    /// variate drawn at a medium vertex; whatever the drawn ray then meets, each variant's
+    /// estimate is unbiased for any cache, so a surface cannot tell them apart.
+    Proposed,
+}
+
 /// A row of the matrix.
 struct Row {
     name: &'static str,
@@ -306,6 +341,7 @@ struct Row {
     /// MLT's pre-pass per run (each run pays for its own).
     mlt_bootstrap: u64,
     reference: Reference,
+    smc: SmcColumns,
     /// Columns that must refuse the scene, with a word their error must contain (patterns:
     /// `mlt*` a prefix, `*+adjoint` a suffix, otherwise the exact name; the first match wins).
     refuse: &'static [(&'static str, &'static str)],
@@ -349,8 +385,8 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         Reference::Exact(_) => None,
     };
-    let (scene, settings) = load(row.name, &row.text);
-    for config in Config::all() {
+    let (scene, plain) = load(row.name, &row.text);
+    for config in Config::of(row) {
         let name = config.name();
         let t0 = std::time::Instant::now();
         let warning = pathspace::integrator::reach::unreachable_paths(&scene, config.kind());
@@ -371,7 +407,7 @@ fn check_row(fam: &mut Family, row: &Row) {
             (None, None) => {}
         }
         let spp = ((row.spp as f64 * config.spp_factor()).round() as u32).max(1);
-        let mut settings = settings.clone();
+        let mut settings = plain.clone();
         if let Config::Equiangular = config {
             settings.distance = DistanceSampling::EquiangularMis;
         }
@@ -383,6 +419,15 @@ fn check_row(fam: &mut Family, row: &Row) {
         }
         if let Config::PathHalo = config {
             settings.halo_cone = 0.3;
+        }
+        if config.is_path_option() && !option_acts(&scene, config) {
+            assert!(
+                same_as_path(&scene, (&settings, &plain), row),
+                "{}: {name} changes the image of a scene its option does not act on",
+                row.name
+            );
+            eprintln!("{}: {name}: the same image as path, bit for bit", row.name);
+            continue;
         }
         let outcome = prepare(&scene, &settings, config, row.max_depth).and_then(|technique| {
             let (k, depth, ch) = (row.runs, row.max_depth, row.channels);
@@ -467,6 +512,47 @@ fn check_row(fam: &mut Family, row: &Row) {
     }
 }
 
+/// Whether an option column's option acts on the scene: light selection needs two lights or
+/// emitters, the solid-angle draw a quad or triangle lamp (`Light::sample_li`), the halo cone an
+/// area light (point, spot and infinite lights have no halo).
+fn option_acts(scene: &Scene, config: Config) -> bool {
+    let area = |l: &Light| matches!(l, Light::Area { .. });
+    let flat = |l: &Light| match l {
+        Light::Area { prims, .. } => prims.iter().any(|&i| {
+            matches!(
+                scene.prims[i as usize],
+                Primitive::Quad(_) | Primitive::Triangle(_)
+            )
+        }),
+        _ => false,
+    };
+    match config {
+        Config::PathPower => scene.lights.len() + scene.emitters.emitters.len() >= 2,
+        Config::PathArea => scene.lights.iter().any(flat),
+        Config::PathHalo => scene.lights.iter().any(area),
+        _ => true,
+    }
+}
+
+/// Whether one short run of the path tracer with an option column's settings gives the
+/// functionals of the plain column bit for bit (a row skips an option column whose option
+/// does not act on its scene, and checks this instead: the option must then change nothing).
+fn same_as_path(
+    scene: &Scene,
+    (option, plain): (&RenderSettings, &RenderSettings),
+    row: &Row,
+) -> bool {
+    let once = |settings: &RenderSettings| {
+        let setup = (scene, &PLAIN as &dyn LocalSampling, settings);
+        let config = Config::Plain(IntegratorKind::Path);
+        runs(setup, config, 1, 4, row.max_depth, row.channels, 0).unwrap()
+    };
+    let (a, b) = (once(option), once(plain));
+    a[0].iter()
+        .zip(&b[0])
+        .all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// The scene with every medium switched to delta tracking (the unbiased reference).
 fn delta_tracking(text: &str) -> String {
     text.lines()
@@ -511,8 +597,18 @@ fn row(name: &'static str, text: String, channels: usize) -> Row {
         spp: SPP,
         mlt_bootstrap: 1024,
         reference: Reference::Integrator(IntegratorKind::Path),
+        smc: SmcColumns::Every,
         refuse: &[],
         warn: &[],
+    }
+}
+
+/// A row that changes only surfaces or the camera: SMC's proposed method alone
+/// ([`SmcColumns::Proposed`]).
+fn surface_row(name: &'static str, text: String, channels: usize) -> Row {
+    Row {
+        smc: SmcColumns::Proposed,
+        ..row(name, text, channels)
     }
 }
 
@@ -697,7 +793,10 @@ fn agreement_nested() {
 #[test]
 fn agreement_textured() {
     let mut fam = Family::new("agreement: textured");
-    check_row(&mut fam, &row("textured", fixture("textured.toml"), 3));
+    check_row(
+        &mut fam,
+        &surface_row("textured", fixture("textured.toml"), 3),
+    );
     fam.finish();
 }
 
@@ -736,7 +835,7 @@ fn agreement_textured_roughness() {
     let mut fam = Family::new("agreement: textured roughness");
     check_row(
         &mut fam,
-        &row("textured-roughness", fixture("textured-roughness.toml"), 3),
+        &surface_row("textured-roughness", fixture("textured-roughness.toml"), 3),
     );
     fam.finish();
 }
@@ -764,7 +863,7 @@ fn agreement_textured_eta() {
         &mut fam,
         &Row {
             warn: &[("light*", "non-specular vertex")],
-            ..row("textured-eta", fixture("textured-eta.toml"), 3)
+            ..surface_row("textured-eta", fixture("textured-eta.toml"), 3)
         },
     );
     fam.finish();
@@ -777,7 +876,7 @@ fn agreement_textured_specular() {
     let mut fam = Family::new("agreement: textured specular");
     check_row(
         &mut fam,
-        &row("textured-specular", fixture("textured-specular.toml"), 3),
+        &surface_row("textured-specular", fixture("textured-specular.toml"), 3),
     );
     fam.finish();
 }
@@ -792,7 +891,7 @@ fn agreement_tinted_glass() {
         &mut fam,
         &Row {
             warn: &[("light*", "non-specular vertex")],
-            ..row("tinted-glass", fixture("tinted-glass.toml"), 3)
+            ..surface_row("tinted-glass", fixture("tinted-glass.toml"), 3)
         },
     );
     fam.finish();
@@ -856,7 +955,7 @@ fn agreement_specular() {
         &mut fam,
         &Row {
             warn: &[("light*", "non-specular vertex")],
-            ..row("specular", fixture("specular.toml"), 3)
+            ..surface_row("specular", fixture("specular.toml"), 3)
         },
     );
     fam.finish();
@@ -872,7 +971,7 @@ fn agreement_gold() {
         &mut fam,
         &Row {
             warn: &[("light*", "non-specular vertex")],
-            ..row("gold", fixture("gold.toml"), 3)
+            ..surface_row("gold", fixture("gold.toml"), 3)
         },
     );
     fam.finish();
@@ -894,7 +993,7 @@ fn agreement_thin() {
         &mut fam,
         &Row {
             warn: &[("light*", "non-specular vertex")],
-            ..row("thin", fixture("thin.toml"), 3)
+            ..surface_row("thin", fixture("thin.toml"), 3)
         },
     );
     fam.finish();
@@ -911,7 +1010,7 @@ fn agreement_glossy() {
         &mut fam,
         &Row {
             spp: 2 * SPP,
-            ..row("glossy", fixture("glossy.toml"), 3)
+            ..surface_row("glossy", fixture("glossy.toml"), 3)
         },
     );
     fam.finish();
@@ -930,7 +1029,7 @@ fn agreement_plastic() {
             spp: 2 * SPP,
             refuse: &[("mlt*", "plastic")],
             warn: &[("light*", "non-specular vertex")],
-            ..row("plastic", fixture("plastic.toml"), 3)
+            ..surface_row("plastic", fixture("plastic.toml"), 3)
         },
     );
     fam.finish();
@@ -950,7 +1049,7 @@ fn agreement_plastic_hidden() {
         &mut fam,
         &Row {
             refuse: &[("mlt*", "plastic")],
-            ..row("plastic-hidden", text, 3)
+            ..surface_row("plastic-hidden", text, 3)
         },
     );
     fam.finish();
@@ -963,7 +1062,7 @@ fn agreement_rough_plastic() {
     let mut fam = Family::new("agreement: rough plastic");
     check_row(
         &mut fam,
-        &row("rough-plastic", fixture("rough-plastic.toml"), 3),
+        &surface_row("rough-plastic", fixture("rough-plastic.toml"), 3),
     );
     fam.finish();
 }
@@ -974,7 +1073,7 @@ fn agreement_rough_plastic() {
 #[test]
 fn agreement_smooth() {
     let mut fam = Family::new("agreement: smooth normals");
-    check_row(&mut fam, &row("smooth", fixture("smooth.toml"), 3));
+    check_row(&mut fam, &surface_row("smooth", fixture("smooth.toml"), 3));
     fam.finish();
 }
 
@@ -984,7 +1083,10 @@ fn agreement_smooth() {
 #[test]
 fn agreement_flipped_meshes() {
     let mut fam = Family::new("agreement: flipped meshes");
-    check_row(&mut fam, &row("flipped", fixture("flipped.toml"), 3));
+    check_row(
+        &mut fam,
+        &surface_row("flipped", fixture("flipped.toml"), 3),
+    );
     fam.finish();
 }
 
@@ -1236,7 +1338,7 @@ fn agreement_lens() {
         &mut fam,
         &Row {
             spp: 2 * SPP,
-            ..row("lens", fixture("lens.toml"), 3)
+            ..surface_row("lens", fixture("lens.toml"), 3)
         },
     );
     fam.finish();
