@@ -115,7 +115,7 @@ impl Config {
     }
 
     /// The path tracer's option columns, which change the estimator only on scenes with what
-    /// the option acts on (several lights, a quad light, a light with a halo).
+    /// the option acts on ([`option_acts`]).
     fn is_path_option(self) -> bool {
         matches!(
             self,
